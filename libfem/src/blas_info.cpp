@@ -34,8 +34,16 @@ std::string blas_library() { return object_defining("dgemm_"); }
 std::string lapack_library() { return object_defining("dpotrf_"); }
 
 bool blas_is_openblas() {
-  if (dlsym(RTLD_DEFAULT, "openblas_get_config") != nullptr) return true;
-  return contains_ci(blas_library(), "openblas");
+  const std::string blas = blas_library();
+  if (blas.empty()) return false;
+  if (contains_ci(blas, "openblas")) return true;
+  // Ask the object that provides dgemm_ (and its dependencies) for OpenBLAS's own entry point; a
+  // process-wide lookup could find an OpenBLAS pulled in by LAPACK next to a reference BLAS.
+  void* handle = dlopen(blas.c_str(), RTLD_LAZY | RTLD_NOLOAD);
+  if (handle == nullptr) return false;
+  const bool has_config = dlsym(handle, "openblas_get_config") != nullptr;
+  dlclose(handle);
+  return has_config;
 }
 
 }  // namespace fem
