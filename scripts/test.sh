@@ -1,0 +1,110 @@
+#!/usr/bin/env bash
+# scripts/test.sh — THE test command (CI runs it through .ci/run).
+#
+#   1. scripts/setup.sh                         packages, BLAS check, default meshes
+#   2. Release build in build/release           cmake + build (-j2) + ctest
+#   3. ASan+UBSan build in build/asan           Debug, ICE_SANITIZE=ON, no benchmarks; cmake + build + ctest
+#
+# Every phase runs even if an earlier test phase failed (a failed build skips its own ctest); the
+# script exits non-zero if anything failed. ctest is strict: --no-tests=error, --output-on-failure.
+#
+# Environment:
+#   ICE_JOBS=N            parallel build/test jobs (default 2: the reference machine has 2 cores)
+#   ICE_TEST_ONLY=release|asan   run only one of the two configurations
+#   ICE_CTEST_ARGS="..."  extra ctest arguments (e.g. "-R mesh")
+set -uo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+JOBS="${ICE_JOBS:-2}"
+ONLY="${ICE_TEST_ONLY:-}"
+read -r -a EXTRA_CTEST <<<"${ICE_CTEST_ARGS:-}"
+
+# Tests run two at a time on two cores: keep OpenBLAS from starting its own threads on top.
+export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
+# Sanitizers: stop at the first error, with a stack trace; leak checking on.
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=0:halt_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1}"
+export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
+
+PHASES=()        # "name seconds status"
+FAILED=0
+TOTAL_PASSED=0
+TOTAL_FAILED=0
+T_START=$SECONDS
+
+# phase NAME CMD...: run, time and record one step.
+phase() {
+  local name="$1"; shift
+  local t0=$SECONDS rc=0
+  printf '\n===== test.sh: %s =====\n' "$name"
+  "$@" || rc=$?
+  local dt=$((SECONDS - t0))
+  if [[ $rc -eq 0 ]]; then
+    PHASES+=("$name:${dt}s:ok")
+  else
+    PHASES+=("$name:${dt}s:FAILED($rc)")
+    FAILED=1
+  fi
+  return $rc
+}
+
+# run_ctest DIR: ctest with a copy of the output kept to count results.
+run_ctest() {
+  local dir="$1" log="$1/ctest-output.log" rc=0
+  ctest --test-dir "$dir" --output-on-failure --no-tests=error -j "$JOBS" "${EXTRA_CTEST[@]}" 2>&1 |
+    tee "$log" || rc=$?
+  # "100% tests passed, 0 tests failed out of 57"
+  local line total failed
+  line="$(grep -E '[0-9]+% tests passed, [0-9]+ tests? failed out of [0-9]+' "$log" | tail -n1 || true)"
+  if [[ -n "$line" ]]; then
+    failed="$(sed -E 's/.* ([0-9]+) tests? failed out of.*/\1/' <<<"$line")"
+    total="$(sed -E 's/.*out of ([0-9]+).*/\1/' <<<"$line")"
+    TOTAL_PASSED=$((TOTAL_PASSED + total - failed))
+    TOTAL_FAILED=$((TOTAL_FAILED + failed))
+  elif [[ $rc -ne 0 ]]; then
+    TOTAL_FAILED=$((TOTAL_FAILED + 1))   # ctest itself failed (no tests found, crash...)
+  fi
+  return $rc
+}
+
+# config NAME DIR CMAKE-ARGS...: configure, build, test one configuration.
+config() {
+  local name="$1" dir="$2"; shift 2
+  phase "$name configure" cmake -S . -B "$dir" -DICE_BUILD_TESTS=ON "$@" || return 0
+  phase "$name build" cmake --build "$dir" --parallel "$JOBS" || return 0
+  phase "$name ctest" run_ctest "$dir" || true
+}
+
+phase "setup" bash scripts/setup.sh || {
+  echo "test.sh: setup failed; not building" >&2
+  printf '\ntest.sh summary: %s\n' "${PHASES[*]}"
+  echo "test.sh: 0 passed, 1 failed"
+  exit 1
+}
+
+if [[ -z "$ONLY" || "$ONLY" == release ]]; then
+  config "release" build/release -DCMAKE_BUILD_TYPE=Release -DICE_SANITIZE=OFF -DICE_BUILD_APPS=ON -DICE_BUILD_BENCH=ON
+fi
+if [[ -z "$ONLY" || "$ONLY" == asan ]]; then
+  # Debug keeps assertions (no NDEBUG) and Eigen's bounds checks; -O1 instead of -O0 because
+  # Eigen-heavy code under ASan at -O0 is several times slower and the CI budget is 90 minutes.
+  config "asan" build/asan -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-g -O1" \
+    -DICE_SANITIZE=ON -DICE_BUILD_APPS=ON -DICE_BUILD_BENCH=OFF
+fi
+
+TOTAL=$((SECONDS - T_START))
+printf '\n===== test.sh summary =====\n'
+for p in "${PHASES[@]}"; do
+  IFS=: read -r n t s <<<"$p"
+  printf '  %-20s %6s  %s\n' "$n" "$t" "$s"
+done
+printf '  %-20s %6s\n' "total" "${TOTAL}s"
+if [[ $FAILED -eq 0 ]]; then
+  echo "test.sh: ALL PASSED (${ONLY:-release + asan}) in ${TOTAL}s"
+else
+  echo "test.sh: FAILED (see the phases above) after ${TOTAL}s"
+  [[ $TOTAL_FAILED -gt 0 ]] || TOTAL_FAILED=1
+fi
+echo "test.sh: ${TOTAL_PASSED} passed, ${TOTAL_FAILED} failed"
+exit $FAILED
