@@ -1,0 +1,240 @@
+#pragma once
+/// \file intrinsic_triangulation.h
+/// An intrinsic triangulation: a Δ-complex (connectivity) plus one positive length per edge, with
+/// every vertex of the input mesh tracked as a point on it.
+///
+/// Connectivity
+///  - Half-edges come in twin pairs: `twin(h) == h ^ 1`. An edge is a pair; edge e owns half-edges
+///    2e and 2e+1. On the boundary the twin of an interior half-edge is an *exterior* half-edge
+///    (`face(h) == kInvalid`). Adjacency comes only from this pairing and from `next`, never from
+///    vertex pairs, so self-edges (tail == head), multi-edges and faces glued to themselves are all
+///    representable.
+///  - Interior half-edges of a face form a 3-cycle under `next`, counter-clockwise. Exterior
+///    half-edges have no `next`.
+///  - `vertex_halfedge(v)` is an outgoing interior half-edge; at a boundary vertex it is the first one
+///    counter-clockwise, i.e. the one whose twin is exterior.
+///  - Elements are never renumbered by local operations: a flip keeps every half-edge, edge and face
+///    index (the flipped edge is re-used), removals mark elements dead. `compact()` exports a clean
+///    mesh with index maps.
+///  - Vertex indices are the input mesh's vertex indices; removed vertices become tracked points.
+///
+/// Angular coordinates (tangent frames): each outgoing half-edge at v carries an angle in [0, 2π),
+/// corner angles accumulated counter-clockwise and scaled by 2π/Θ_v (interior) or 2π/(Θ_v + π)
+/// (boundary, where the first outgoing half-edge has coordinate 0 and the exterior gets the
+/// remaining share). Flips assign the new half-edges their coordinates without moving the others;
+/// operations that change Θ_v re-accumulate v's coordinates from its reference half-edge.
+///
+/// Tracked points: every input vertex p is either still a vertex or lies in a live face f with
+/// barycentric coordinates (b0, b1, b2) w.r.t. the corners (tail of halfedge(f), of next, of
+/// next·next). Flips, flattening and removals update them so that, on a flat mesh, every point keeps
+/// its planar position exactly (up to round-off).
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ice/mesh.h"
+#include "ice/triangle_geometry.h"
+
+namespace ice {
+
+using Index = std::int32_t;
+constexpr Index kInvalid = -1;
+
+/// Where an input vertex is now: a vertex of the triangulation, or a point in a face.
+struct SurfacePoint {
+  Index vertex = kInvalid;              ///< the vertex, when the input vertex survives
+  Index face = kInvalid;                ///< otherwise the face containing it
+  std::array<double, 3> bary{0, 0, 0};  ///< barycentric coordinates w.r.t. the face's corners
+  bool is_vertex() const { return vertex != kInvalid; }
+};
+
+/// Outcome of flattening one vertex.
+struct FlattenResult {
+  bool success = false;
+  double log_scale = 0;  ///< u: the vertex's edges were scaled by e^{u/2} (self-edges by e^u)
+  int iterations = 0;
+};
+
+/// Why a vertex removal did or did not happen.
+enum class RemovalStatus {
+  Removed,
+  NotAVertex,            ///< already removed
+  FlattenFailed,         ///< Newton found no valid scale
+  FaceOnlyAtVertex,      ///< a face of its star has all three corners at the vertex
+  NoConvexFlip,          ///< could not flip down to degree 3 (or 2 on the boundary)
+  BoundaryLoopTooSmall,  ///< removing it would shrink a boundary loop below two edges
+  TopologyChange,        ///< removal would change the topology (e.g. the last face of a component)
+};
+const char* to_string(RemovalStatus status);
+
+/// A clean mesh exported from a (possibly heavily modified) triangulation.
+struct CompactMesh {
+  Faces F;                          ///< faces in compact vertex indices
+  FaceLengths L;                    ///< per-face edge lengths (ice/mesh.h convention)
+  std::vector<Index> to_input;      ///< compact vertex -> input vertex
+  std::vector<Index> from_input;    ///< input vertex -> compact vertex, or kInvalid if removed
+};
+
+class IntrinsicTriangulation {
+ public:
+  /// Builds the triangulation of an extrinsic mesh. Preconditions (checked, std::invalid_argument
+  /// on violation): every vertex is referenced, indices are in range, the surface is an oriented
+  /// edge-manifold (each undirected edge has at most two faces, traversed in opposite directions),
+  /// every face is non-degenerate. Several components and boundary loops are fine.
+  static IntrinsicTriangulation from_mesh(const Positions& V, const Faces& F);
+
+  /// Builds from faces and per-face lengths (ice/mesh.h convention); the two faces of an edge must
+  /// agree on its length to 1e-12 relative. Same preconditions as from_mesh.
+  static IntrinsicTriangulation from_lengths(const Faces& F, const FaceLengths& L);
+
+  // ---- sizes ------------------------------------------------------------------------------
+  Index num_input_vertices() const { return static_cast<Index>(vertex_halfedge_.size()); }
+  Index num_vertices() const { return num_vertices_; }
+  Index num_edges() const { return num_edges_; }
+  Index num_faces() const { return num_faces_; }
+  Index num_halfedge_slots() const { return static_cast<Index>(he_tail_.size()); }
+  Index num_face_slots() const { return static_cast<Index>(face_halfedge_.size()); }
+  int euler_characteristic() const { return num_vertices_ - num_edges_ + num_faces_; }
+
+  // ---- connectivity -----------------------------------------------------------------------
+  static Index twin(Index h) { return h ^ 1; }
+  static Index edge(Index h) { return h >> 1; }
+  Index next(Index h) const { return he_next_[h]; }
+  Index prev(Index h) const { return he_next_[he_next_[h]]; }  ///< interior half-edges only
+  Index tail(Index h) const { return he_tail_[h]; }
+  Index head(Index h) const { return he_tail_[h ^ 1]; }
+  Index face(Index h) const { return he_face_[h]; }
+  Index halfedge(Index f) const { return face_halfedge_[f]; }
+  Index vertex_halfedge(Index v) const { return vertex_halfedge_[v]; }
+  bool halfedge_alive(Index h) const { return he_tail_[h] != kInvalid; }
+  bool face_alive(Index f) const { return face_halfedge_[f] != kInvalid; }
+  bool vertex_alive(Index v) const { return vertex_halfedge_[v] != kInvalid; }
+  bool is_exterior(Index h) const { return he_face_[h] == kInvalid; }
+  bool is_boundary_edge(Index h) const { return is_exterior(h) || is_exterior(h ^ 1); }
+  bool is_boundary_vertex(Index v) const { return is_exterior(vertex_halfedge_[v] ^ 1); }
+  /// Next outgoing interior half-edge counter-clockwise around tail(h), or kInvalid past the last
+  /// one at a boundary vertex.
+  Index rotate_ccw(Index h) const {
+    const Index t = prev(h) ^ 1;
+    return is_exterior(t) ? kInvalid : t;
+  }
+  /// Number of corners at v (faces counted with multiplicity).
+  int degree(Index v) const;
+  /// Calls f(h) for every outgoing interior half-edge of v, counter-clockwise from vertex_halfedge.
+  template <class F>
+  void for_each_outgoing(Index v, F&& f) const {
+    const Index start = vertex_halfedge_[v];
+    Index h = start;
+    do {
+      f(h);
+      h = rotate_ccw(h);
+    } while (h != kInvalid && h != start);
+  }
+
+  // ---- geometry ---------------------------------------------------------------------------
+  double length(Index h) const { return edge_length_[h >> 1]; }
+  /// Corner angle at tail(h) in face(h) (between h and prev(h)).
+  double corner_angle(Index h) const {
+    return angle_opposite(length(h), length(prev(h)), length(next(h)));
+  }
+  /// Cotangent of the angle opposite h in face(h) (0 for an exterior half-edge).
+  double cotan_opposite(Index h) const;
+  /// Cotan weight ½(cot α + cot β) of the edge of h (one term on the boundary).
+  double cotan_weight(Index h) const { return 0.5 * (cotan_opposite(h) + cotan_opposite(h ^ 1)); }
+  double face_area(Index f) const;
+  double total_area() const;
+  /// Angle sum Θ_v (stored; kept current by every operation).
+  double angle_sum(Index v) const { return angle_sum_[v]; }
+  /// Θ_v recomputed from the lengths.
+  double compute_angle_sum(Index v) const;
+  /// Gaussian curvature 2π − Θ at interior vertices, geodesic curvature π − Θ at boundary ones.
+  double curvature(Index v) const;
+  /// Σ curvature over live vertices; equals 2πχ (Gauss–Bonnet).
+  double total_curvature() const;
+  /// Angular coordinate of the outgoing half-edge h at tail(h), in [0, 2π).
+  double angular_coordinate(Index h) const { return he_angle_[h]; }
+  /// The factor that maps corner angles at v to angular coordinates.
+  double angle_scale(Index v) const;
+  /// True when the edge of h is locally Delaunay: the opposite angles sum to ≤ π, i.e. the cotan
+  /// weight is ≥ −tolerance. Boundary edges are always Delaunay.
+  bool is_delaunay(Index h, double tolerance = kDelaunayTolerance) const {
+    return is_boundary_edge(h) || cotan_weight(h) >= -tolerance;
+  }
+  static constexpr double kDelaunayTolerance = 1e-10;
+
+  // ---- operations -------------------------------------------------------------------------
+  /// Intrinsic flip of the (interior) edge of h. Returns false and changes nothing when the edge is
+  /// on the boundary, when both sides belong to one face, or when the diamond is not strictly
+  /// convex. Otherwise h now runs between the two formerly opposite corners.
+  bool flip(Index h);
+  /// Flips non-Delaunay edges until every edge is Delaunay. Returns the number of flips.
+  int flip_to_delaunay();
+  /// As flip_to_delaunay, but starts from the edges of the given faces (and spreads as needed).
+  /// If `touched` is given, the endpoints of every flipped diamond are appended to it.
+  int flip_to_delaunay_around(const std::vector<Index>& faces, std::vector<Index>* touched = nullptr);
+  /// Flattens v (one-vertex CETM): scales its edges so Θ_v = 2π (interior) or π (boundary).
+  /// On failure nothing changes.
+  FlattenResult flatten_vertex(Index v);
+  /// Computes the scale that would flatten v without changing anything.
+  FlattenResult compute_flattening(Index v) const;
+  /// Removes v: flattens it, flips it down to degree 3 (interior) or 2 (boundary), merges its
+  /// faces into one triangle, and re-locates the tracked points. Does not restore Delaunay; the
+  /// face that replaced the star is written to *new_face. When the removal fails after the
+  /// flattening, the triangulation stays valid (v remains, flattened and possibly flipped).
+  RemovalStatus remove_vertex(Index v, Index* new_face = nullptr, std::vector<Index>* touched = nullptr);
+
+  // ---- tracked points ---------------------------------------------------------------------
+  /// Current location of input vertex p.
+  SurfacePoint location(Index p) const;
+  /// Input vertices tracked inside face f (for iteration; order unspecified).
+  template <class F>
+  void for_each_point_in_face(Index f, F&& fn) const {
+    for (Index p = face_first_point_[f]; p != kInvalid; p = point_next_[p]) fn(p);
+  }
+
+  // ---- export and checks ------------------------------------------------------------------
+  CompactMesh compact() const;
+  /// Checks every invariant; returns an empty string when all hold, else the first few problems.
+  std::string validate(double tolerance = 1e-9) const;
+  /// Bytes held by the arrays of this object (capacity, not size).
+  std::size_t memory_bytes() const;
+
+ private:
+  IntrinsicTriangulation() = default;
+  void build(const Faces& F, const std::vector<double>& halfedge_length_by_corner);
+  void recompute_vertex_frame(Index v);
+  void set_angle_of_new_halfedge(Index h);
+  void remove_point_from_face(Index p);
+  void add_point_to_face(Index p, Index f, const std::array<double, 3>& bary);
+  void kill_face(Index f);
+  void kill_edge(Index e);
+  RemovalStatus remove_interior_vertex(Index v, Index* new_face, std::vector<Index>* touched);
+  RemovalStatus remove_boundary_vertex(Index v, Index* new_face, std::vector<Index>* touched);
+  void merge_star_into_face(Index v, const std::vector<Index>& star, Index* new_face);
+
+  // Half-edge arrays (size 2·edges).
+  std::vector<Index> he_next_, he_tail_, he_face_;
+  std::vector<double> he_angle_;
+  // Edge, face, vertex arrays.
+  std::vector<double> edge_length_;
+  std::vector<Index> face_halfedge_;
+  std::vector<Index> vertex_halfedge_;
+  std::vector<double> angle_sum_;
+  // Tracked points: one per input vertex, with intrusive per-face lists.
+  std::vector<Index> point_face_, point_next_, point_prev_, face_first_point_;
+  std::vector<std::array<double, 3>> point_bary_;
+  // Scratch space re-used by local operations (no allocation per flip or removal).
+  struct PlacedPoint {
+    Index point;
+    Vec2 position;
+  };
+  std::vector<PlacedPoint> scratch_points_;
+  std::vector<Index> scratch_stack_;
+  std::vector<std::uint8_t> edge_queued_;
+  template <class Layout>
+  void collect_points(Index f, const Layout& layout);
+  Index num_vertices_ = 0, num_edges_ = 0, num_faces_ = 0;
+};
+
+}  // namespace ice

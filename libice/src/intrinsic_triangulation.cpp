@@ -1,0 +1,884 @@
+#include "ice/intrinsic_triangulation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+namespace ice {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kTwoPi = 2 * kPi;
+
+double wrap_angle(double a) {
+  a = std::fmod(a, kTwoPi);
+  return a < 0 ? a + kTwoPi : a;
+}
+
+// Positions of the tails of a handful of half-edges in a local planar layout (a diamond or a star);
+// linear lookup is fastest for the <= 9 entries a local operation needs.
+class LocalLayout {
+ public:
+  void clear() { size_ = 0; }
+  void set(Index h, Vec2 p) {
+    halfedge_[size_] = h;
+    position_[size_++] = p;
+  }
+  Vec2 at(Index h) const {
+    for (int i = 0; i < size_; ++i)
+      if (halfedge_[i] == h) return position_[i];
+    throw std::logic_error("LocalLayout: half-edge not laid out");
+  }
+
+ private:
+  std::array<Index, 12> halfedge_{};
+  std::array<Vec2, 12> position_{};
+  int size_ = 0;
+};
+
+}  // namespace
+
+const char* to_string(RemovalStatus status) {
+  switch (status) {
+    case RemovalStatus::Removed: return "removed";
+    case RemovalStatus::NotAVertex: return "not a vertex";
+    case RemovalStatus::FlattenFailed: return "flattening failed";
+    case RemovalStatus::FaceOnlyAtVertex: return "a face has all corners at the vertex";
+    case RemovalStatus::NoConvexFlip: return "no convex flip to reduce the degree";
+    case RemovalStatus::BoundaryLoopTooSmall: return "boundary loop too small";
+    case RemovalStatus::TopologyChange: return "removal would change the topology";
+  }
+  return "unknown";
+}
+
+// ------------------------------------------------------------------------------------------------
+// Construction
+
+IntrinsicTriangulation IntrinsicTriangulation::from_mesh(const Positions& V, const Faces& F) {
+  if (V.cols() != 3) throw std::invalid_argument("IntrinsicTriangulation: V must be n x 3");
+  if (F.cols() != 3) throw std::invalid_argument("IntrinsicTriangulation: F must be m x 3");
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (F(f, k) < 0 || F(f, k) >= V.rows())
+        throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
+                                    " has an out-of-range vertex index");
+  std::vector<double> lengths(3 * F.rows());
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      lengths[3 * f + k] = (V.row(F(f, (k + 1) % 3)) - V.row(F(f, k))).norm();
+  IntrinsicTriangulation T;
+  if (F.size() > 0 && F.maxCoeff() + 1 != V.rows())
+    throw std::invalid_argument("IntrinsicTriangulation: unreferenced vertices (the last vertex is unused)");
+  T.build(F, lengths);
+  return T;
+}
+
+IntrinsicTriangulation IntrinsicTriangulation::from_lengths(const Faces& F, const FaceLengths& L) {
+  if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
+    throw std::invalid_argument("IntrinsicTriangulation: F and L must both be m x 3");
+  std::vector<double> lengths(3 * F.rows());
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) lengths[3 * f + k] = L(f, k);
+  IntrinsicTriangulation T;
+  T.build(F, lengths);
+  return T;
+}
+
+void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& corner_length) {
+  const Index num_faces = static_cast<Index>(F.rows());
+  if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
+  const Index num_vertices = F.minCoeff() < 0 ? -1 : F.maxCoeff() + 1;
+  if (num_vertices <= 0) throw std::invalid_argument("IntrinsicTriangulation: negative vertex index");
+  const Index num_corners = 3 * num_faces;
+
+  // Pair corners (directed edges) into undirected edges by sorting on the vertex pair.
+  std::vector<std::uint64_t> key(num_corners);
+  for (Index c = 0; c < num_corners; ++c) {
+    const std::uint64_t a = F(c / 3, c % 3), b = F(c / 3, (c % 3 + 1) % 3);
+    if (a == b)
+      throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(c / 3) +
+                                  " repeats a vertex");
+    key[c] = (std::min(a, b) << 32) | std::max(a, b);
+  }
+  std::vector<Index> order(num_corners);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](Index x, Index y) { return key[x] < key[y] || (key[x] == key[y] && x < y); });
+
+  std::vector<Index> corner_halfedge(num_corners);
+  Index num_edges = 0;
+  for (Index i = 0; i < num_corners;) {
+    Index j = i + 1;
+    while (j < num_corners && key[order[j]] == key[order[i]]) ++j;
+    const Index c0 = order[i];
+    const auto edge_name = [&] {
+      return "edge (" + std::to_string(F(c0 / 3, c0 % 3)) + ", " + std::to_string(F(c0 / 3, (c0 % 3 + 1) % 3)) + ")";
+    };
+    if (j - i > 2)
+      throw std::invalid_argument("IntrinsicTriangulation: non-manifold " + edge_name() + " has " +
+                                  std::to_string(j - i) + " faces");
+    corner_halfedge[c0] = 2 * num_edges;
+    if (j - i == 2) {
+      const Index c1 = order[i + 1];
+      if (F(c0 / 3, c0 % 3) == F(c1 / 3, c1 % 3))
+        throw std::invalid_argument("IntrinsicTriangulation: inconsistent orientation at " + edge_name());
+      const double l0 = corner_length[c0], l1 = corner_length[c1];
+      if (std::abs(l0 - l1) > 1e-12 * std::max(l0, l1))
+        throw std::invalid_argument("IntrinsicTriangulation: the two faces of " + edge_name() +
+                                    " disagree on its length");
+      corner_halfedge[c1] = 2 * num_edges + 1;
+    }
+    ++num_edges;
+    i = j;
+  }
+
+  const Index num_halfedges = 2 * num_edges;
+  he_next_.assign(num_halfedges, kInvalid);
+  he_tail_.assign(num_halfedges, kInvalid);
+  he_face_.assign(num_halfedges, kInvalid);
+  he_angle_.assign(num_halfedges, 0.0);
+  edge_length_.assign(num_edges, 0.0);
+  face_halfedge_.assign(num_faces, kInvalid);
+  vertex_halfedge_.assign(num_vertices, kInvalid);
+  angle_sum_.assign(num_vertices, 0.0);
+
+  std::vector<Index> corners_at_vertex(num_vertices, 0);
+  for (Index c = 0; c < num_corners; ++c) {
+    const Index h = corner_halfedge[c];
+    const Index f = c / 3;
+    he_next_[h] = corner_halfedge[3 * f + (c % 3 + 1) % 3];
+    he_tail_[h] = F(f, c % 3);
+    he_face_[h] = f;
+    edge_length_[h >> 1] = corner_length[c];
+    face_halfedge_[f] = corner_halfedge[3 * f];
+    ++corners_at_vertex[he_tail_[h]];
+  }
+  // Exterior half-edges: tail is the head of their interior twin.
+  for (Index h = 0; h < num_halfedges; ++h)
+    if (he_tail_[h] == kInvalid) he_tail_[h] = he_tail_[he_next_[h ^ 1]];
+
+  for (Index v = 0; v < num_vertices; ++v)
+    if (corners_at_vertex[v] == 0)
+      throw std::invalid_argument("IntrinsicTriangulation: vertex " + std::to_string(v) + " is not referenced by any face");
+
+  // Vertex half-edges: any outgoing interior one, then the boundary one where it exists.
+  for (Index h = 0; h < num_halfedges; ++h) {
+    if (he_face_[h] == kInvalid) continue;
+    const Index v = he_tail_[h];
+    if (vertex_halfedge_[v] == kInvalid || he_face_[h ^ 1] == kInvalid) {
+      if (vertex_halfedge_[v] != kInvalid && he_face_[vertex_halfedge_[v] ^ 1] == kInvalid)
+        throw std::invalid_argument("IntrinsicTriangulation: non-manifold vertex " + std::to_string(v) +
+                                    " (several boundary fans)");
+      vertex_halfedge_[v] = h;
+    }
+  }
+  num_vertices_ = num_vertices;
+  num_edges_ = num_edges;
+  num_faces_ = num_faces;
+
+  // One fan per vertex: the rotation from vertex_halfedge must visit every corner.
+  for (Index v = 0; v < num_vertices; ++v) {
+    if (degree(v) != corners_at_vertex[v])
+      throw std::invalid_argument("IntrinsicTriangulation: non-manifold vertex " + std::to_string(v) +
+                                  " (its faces form several fans)");
+  }
+  for (Index f = 0; f < num_faces; ++f) {
+    const Index h = face_halfedge_[f];
+    if (!triangle_inequality_holds(length(h), length(next(h)), length(prev(h))))
+      throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
+                                  " is degenerate or violates the triangle inequality");
+  }
+  for (Index v = 0; v < num_vertices; ++v) recompute_vertex_frame(v);
+
+  point_face_.assign(num_vertices, kInvalid);
+  point_next_.assign(num_vertices, kInvalid);
+  point_prev_.assign(num_vertices, kInvalid);
+  point_bary_.assign(num_vertices, {0, 0, 0});
+  face_first_point_.assign(num_faces, kInvalid);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Geometry
+
+int IntrinsicTriangulation::degree(Index v) const {
+  int count = 0;
+  for_each_outgoing(v, [&](Index) { ++count; });
+  return count;
+}
+
+double IntrinsicTriangulation::cotan_opposite(Index h) const {
+  if (is_exterior(h)) return 0.0;
+  return cot_opposite(length(next(h)), length(prev(h)), length(h));
+}
+
+double IntrinsicTriangulation::face_area(Index f) const {
+  const Index h = face_halfedge_[f];
+  return triangle_area(length(h), length(next(h)), length(prev(h)));
+}
+
+double IntrinsicTriangulation::total_area() const {
+  double sum = 0;
+  for (Index f = 0; f < num_face_slots(); ++f)
+    if (face_alive(f)) sum += face_area(f);
+  return sum;
+}
+
+double IntrinsicTriangulation::compute_angle_sum(Index v) const {
+  double sum = 0;
+  for_each_outgoing(v, [&](Index h) { sum += corner_angle(h); });
+  return sum;
+}
+
+double IntrinsicTriangulation::curvature(Index v) const {
+  return (is_boundary_vertex(v) ? kPi : kTwoPi) - angle_sum_[v];
+}
+
+double IntrinsicTriangulation::total_curvature() const {
+  double sum = 0;
+  for (Index v = 0; v < num_input_vertices(); ++v)
+    if (vertex_alive(v)) sum += curvature(v);
+  return sum;
+}
+
+double IntrinsicTriangulation::angle_scale(Index v) const {
+  return is_boundary_vertex(v) ? kTwoPi / (angle_sum_[v] + kPi) : kTwoPi / angle_sum_[v];
+}
+
+void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
+  angle_sum_[v] = compute_angle_sum(v);
+  const double scale = angle_scale(v);
+  const bool boundary = is_boundary_vertex(v);
+  const Index start = vertex_halfedge_[v];
+  double angle = boundary ? 0.0 : he_angle_[start];
+  Index h = start;
+  while (true) {
+    he_angle_[h] = wrap_angle(angle);
+    angle += scale * corner_angle(h);
+    const Index t = prev(h) ^ 1;
+    if (is_exterior(t)) {  // boundary: the exterior outgoing half-edge closes the fan
+      he_angle_[t] = wrap_angle(angle);
+      break;
+    }
+    if (t == start) break;
+    h = t;
+  }
+}
+
+void IntrinsicTriangulation::set_angle_of_new_halfedge(Index h) {
+  // The outgoing half-edge just clockwise of h is next(twin(h)); its corner ends at h.
+  const Index before = next(h ^ 1);
+  he_angle_[h] = wrap_angle(he_angle_[before] + angle_scale(tail(h)) * corner_angle(before));
+}
+
+// ------------------------------------------------------------------------------------------------
+// Tracked points
+
+void IntrinsicTriangulation::remove_point_from_face(Index p) {
+  const Index f = point_face_[p];
+  if (point_prev_[p] != kInvalid) point_next_[point_prev_[p]] = point_next_[p];
+  else face_first_point_[f] = point_next_[p];
+  if (point_next_[p] != kInvalid) point_prev_[point_next_[p]] = point_prev_[p];
+  point_face_[p] = point_next_[p] = point_prev_[p] = kInvalid;
+}
+
+void IntrinsicTriangulation::add_point_to_face(Index p, Index f, const std::array<double, 3>& bary) {
+  point_face_[p] = f;
+  point_bary_[p] = clamp_barycentric(bary);
+  point_prev_[p] = kInvalid;
+  point_next_[p] = face_first_point_[f];
+  if (point_next_[p] != kInvalid) point_prev_[point_next_[p]] = p;
+  face_first_point_[f] = p;
+}
+
+SurfacePoint IntrinsicTriangulation::location(Index p) const {
+  SurfacePoint s;
+  if (vertex_alive(p)) {
+    s.vertex = p;
+  } else {
+    s.face = point_face_[p];
+    s.bary = point_bary_[p];
+  }
+  return s;
+}
+
+// Appends every point of face f to scratch_points_, with its position in `layout`, and unlinks it.
+template <class Layout>
+void IntrinsicTriangulation::collect_points(Index f, const Layout& layout) {
+  const Index h0 = face_halfedge_[f], h1 = next(h0), h2 = next(h1);
+  const Vec2 p0 = layout.at(h0), p1 = layout.at(h1), p2 = layout.at(h2);
+  Index p = face_first_point_[f];
+  while (p != kInvalid) {
+    const Index following = point_next_[p];
+    const auto& b = point_bary_[p];
+    scratch_points_.push_back({p, p0 * b[0] + p1 * b[1] + p2 * b[2]});
+    point_face_[p] = point_next_[p] = point_prev_[p] = kInvalid;
+    p = following;
+  }
+  face_first_point_[f] = kInvalid;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Flips
+
+bool IntrinsicTriangulation::flip(Index h) {
+  if (is_boundary_edge(h)) return false;
+  const Index t = h ^ 1;
+  const Index f0 = face(h), f1 = face(t);
+  if (f0 == f1) return false;
+  const Index a = next(h), b = next(a), c = next(t), d = next(c);
+  const Index k = tail(b), l = tail(d);
+
+  // Lay the diamond out: i at the origin, j on the x axis, k above, l below.
+  const double l_ij = length(h);
+  const Vec2 pi{0, 0}, pj{l_ij, 0};
+  const Vec2 pk = layout_third_point(pi, pj, l_ij, length(b), length(a));
+  const Vec2 pl = layout_third_point(pj, pi, l_ij, length(d), length(c));
+  // Strictly convex: both new triangles positively oriented and valid by their lengths.
+  if (!(orient2d(pl, pk, pi) > 0 && orient2d(pk, pl, pj) > 0)) return false;
+  const double l_kl = (pk - pl).norm();
+  if (!triangle_inequality_holds(l_kl, length(b), length(c)) ||
+      !triangle_inequality_holds(l_kl, length(d), length(a)))
+    return false;
+
+  // Tracked points of both faces, with their positions in the layout.
+  const bool has_points = face_first_point_[f0] != kInvalid || face_first_point_[f1] != kInvalid;
+  scratch_points_.clear();
+  if (has_points) {
+    LocalLayout layout;
+    layout.set(h, pi);
+    layout.set(a, pj);
+    layout.set(b, pk);
+    layout.set(t, pj);
+    layout.set(c, pi);
+    layout.set(d, pl);
+    collect_points(f0, layout);
+    collect_points(f1, layout);
+  }
+
+  // Rewire: f0 = (h: l->k, b: k->i, c: i->l), f1 = (t: k->l, d: l->j, a: j->k).
+  const Index i = tail(h), j = tail(t);
+  he_next_[h] = b, he_next_[b] = c, he_next_[c] = h;
+  he_next_[t] = d, he_next_[d] = a, he_next_[a] = t;
+  he_face_[c] = f0, he_face_[a] = f1;
+  he_tail_[h] = l, he_tail_[t] = k;
+  face_halfedge_[f0] = h, face_halfedge_[f1] = t;
+  if (vertex_halfedge_[i] == h) vertex_halfedge_[i] = c;
+  if (vertex_halfedge_[j] == t) vertex_halfedge_[j] = a;
+  edge_length_[h >> 1] = l_kl;
+  set_angle_of_new_halfedge(h);
+  set_angle_of_new_halfedge(t);
+
+  for (const auto& q : scratch_points_) {
+    if (orient2d(pk, pl, q.position) > 0)
+      add_point_to_face(q.point, f1, barycentric(q.position, pk, pl, pj));
+    else
+      add_point_to_face(q.point, f0, barycentric(q.position, pl, pk, pi));
+  }
+  return true;
+}
+
+int IntrinsicTriangulation::flip_to_delaunay() {
+  std::vector<Index> faces;
+  faces.reserve(num_faces_);
+  for (Index f = 0; f < num_face_slots(); ++f)
+    if (face_alive(f)) faces.push_back(f);
+  return flip_to_delaunay_around(faces);
+}
+
+int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& faces, std::vector<Index>* touched) {
+  // A stack of edges with an in-stack flag per edge slot; both are members, so local calls cost
+  // only what they touch (the flags are all back to 0 when the stack empties).
+  std::vector<Index>& stack = scratch_stack_;
+  std::vector<std::uint8_t>& queued = edge_queued_;
+  stack.clear();
+  if (queued.size() < edge_length_.size()) queued.resize(edge_length_.size(), 0);
+  const auto push = [&](Index h) {
+    const Index e = h >> 1;
+    if (!queued[e] && !is_boundary_edge(h)) {
+      queued[e] = 1;
+      stack.push_back(e);
+    }
+  };
+  for (Index f : faces) {
+    if (!face_alive(f)) continue;
+    const Index h = face_halfedge_[f];
+    push(h), push(next(h)), push(prev(h));
+  }
+  int flips = 0;
+  while (!stack.empty()) {
+    const Index e = stack.back();
+    stack.pop_back();
+    queued[e] = 0;
+    const Index h = 2 * e;
+    if (!halfedge_alive(h) || is_delaunay(h)) continue;
+    const Index i = tail(h), j = head(h);
+    if (!flip(h)) continue;
+    ++flips;
+    if (touched) touched->insert(touched->end(), {i, j, tail(h), head(h)});
+    push(next(h)), push(prev(h)), push(next(h ^ 1)), push(prev(h ^ 1));
+  }
+  return flips;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Flattening
+
+namespace {
+struct StarCorner {
+  double l_out, l_in, l_opposite;  // lengths of h, prev(h), next(h)
+  int m_out, m_in, m_opposite;     // how many endpoints of each edge are the centre vertex
+};
+}  // namespace
+
+FlattenResult IntrinsicTriangulation::compute_flattening(Index v) const {
+  FlattenResult result;
+  const double target = is_boundary_vertex(v) ? kPi : kTwoPi;
+  StarCorner corners_small[16];
+  std::vector<StarCorner> corners_large;
+  StarCorner* corners = corners_small;
+  int count = 0;
+  const int deg = degree(v);
+  if (deg > 16) {
+    corners_large.resize(deg);
+    corners = corners_large.data();
+  }
+  for_each_outgoing(v, [&](Index h) {
+    const Index in = prev(h), opp = next(h);
+    corners[count++] = {length(h),
+                        length(in),
+                        length(opp),
+                        1 + (head(h) == v),
+                        1 + (tail(in) == v),
+                        (tail(opp) == v) + (head(opp) == v)};
+  });
+
+  const auto evaluate = [&](double u, double& theta, double& derivative) -> bool {
+    theta = 0, derivative = 0;
+    for (int c = 0; c < count; ++c) {
+      const StarCorner& s = corners[c];
+      const double a = s.l_out * std::exp(0.5 * u * s.m_out);
+      const double b = s.l_in * std::exp(0.5 * u * s.m_in);
+      const double o = s.l_opposite * std::exp(0.5 * u * s.m_opposite);
+      if (!triangle_inequality_holds(a, b, o)) return false;
+      theta += angle_opposite(a, b, o);
+      // Corners of this face: at v (between a and b), x = head(h) (between a and o), y = tail(prev h).
+      const double cot_x = cot_opposite(a, o, b), cot_y = cot_opposite(b, o, a);
+      derivative += -0.5 * (cot_x + cot_y) + (s.m_out == 2 ? 0.5 * cot_y : 0.0) + (s.m_in == 2 ? 0.5 * cot_x : 0.0);
+    }
+    return true;
+  };
+
+  double u = 0, theta = 0, derivative = 0;
+  if (!evaluate(u, theta, derivative)) return result;
+  constexpr double kTolerance = 1e-13;
+  for (int iteration = 0; iteration < 60; ++iteration) {
+    const double residual = theta - target;
+    if (std::abs(residual) <= kTolerance * target) {
+      result.success = true;
+      result.log_scale = u;
+      result.iterations = iteration;
+      return result;
+    }
+    if (!(derivative < 0)) return result;
+    // Damped Newton: halve the step until the triangles stay valid and the residual shrinks.
+    double step = -residual / derivative;
+    bool accepted = false;
+    for (int halving = 0; halving < 40 && !accepted; ++halving, step *= 0.5) {
+      double next_theta, next_derivative;
+      if (evaluate(u + step, next_theta, next_derivative) &&
+          std::abs(next_theta - target) < std::abs(residual)) {
+        u += step, theta = next_theta, derivative = next_derivative;
+        accepted = true;
+      }
+    }
+    if (!accepted) {
+      // No progress possible in floating point: accept when already at round-off level.
+      if (std::abs(residual) <= 1e-11 * target) {
+        result.success = true;
+        result.log_scale = u;
+        result.iterations = iteration;
+      }
+      return result;
+    }
+  }
+  return result;
+}
+
+FlattenResult IntrinsicTriangulation::flatten_vertex(Index v) {
+  const FlattenResult result = compute_flattening(v);
+  if (!result.success || result.log_scale == 0.0) return result;
+  const double u = result.log_scale;
+  const double half_scale = std::exp(0.5 * u);
+  // Every outgoing half-edge (interior and, at the boundary, the exterior one) scales its edge by
+  // e^{u/2}; a self-edge is outgoing twice and so scales by e^u.
+  std::vector<Index> neighbours;
+  for_each_outgoing(v, [&](Index h) {
+    edge_length_[h >> 1] *= half_scale;
+    neighbours.push_back(head(h));
+  });
+  if (is_boundary_vertex(v)) {
+    Index last = vertex_halfedge_[v];
+    while (rotate_ccw(last) != kInvalid) last = rotate_ccw(last);
+    const Index exterior_out = prev(last) ^ 1;
+    edge_length_[exterior_out >> 1] *= half_scale;
+    neighbours.push_back(head(exterior_out));
+  }
+  // Tracked points in the star: the coordinate of each corner at v is multiplied by e^u (the
+  // reference implementation's choice) and the coordinates renormalised. Visit each face once.
+  const double weight = std::exp(u);
+  std::vector<Index> star_faces;
+  for_each_outgoing(v, [&](Index h) { star_faces.push_back(face(h)); });
+  std::sort(star_faces.begin(), star_faces.end());
+  star_faces.erase(std::unique(star_faces.begin(), star_faces.end()), star_faces.end());
+  for (Index f : star_faces) {
+    const Index h0 = face_halfedge_[f];
+    const bool at_v[3] = {tail(h0) == v, tail(next(h0)) == v, tail(prev(h0)) == v};
+    for_each_point_in_face(f, [&](Index p) {
+      std::array<double, 3>& b = point_bary_[p];
+      for (int k = 0; k < 3; ++k)
+        if (at_v[k]) b[k] *= weight;
+      b = clamp_barycentric(b);
+    });
+  }
+  std::sort(neighbours.begin(), neighbours.end());
+  neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
+  recompute_vertex_frame(v);
+  for (Index w : neighbours)
+    if (w != v) recompute_vertex_frame(w);
+  return result;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Vertex removal
+
+void IntrinsicTriangulation::kill_face(Index f) {
+  face_halfedge_[f] = kInvalid;
+  face_first_point_[f] = kInvalid;
+  --num_faces_;
+}
+
+void IntrinsicTriangulation::kill_edge(Index e) {
+  for (Index h : {2 * e, 2 * e + 1}) he_next_[h] = he_tail_[h] = he_face_[h] = kInvalid;
+  edge_length_[e] = 0;
+  --num_edges_;
+}
+
+RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, Index* new_face, std::vector<Index>* touched) {
+  if (v < 0 || v >= num_input_vertices() || !vertex_alive(v)) return RemovalStatus::NotAVertex;
+  bool face_only_at_v = false;
+  for_each_outgoing(v, [&](Index h) {
+    if (head(h) == v && tail(prev(h)) == v) face_only_at_v = true;
+  });
+  if (face_only_at_v) return RemovalStatus::FaceOnlyAtVertex;
+  return is_boundary_vertex(v) ? remove_boundary_vertex(v, new_face, touched)
+                               : remove_interior_vertex(v, new_face, touched);
+}
+
+namespace {
+// Flips one outgoing edge of v chosen by priority (self-edges first, then the largest sum of the
+// two angles opposite the edge); returns false when no candidate diamond is convex.
+template <class Tri>
+bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* touched) {
+  struct Candidate {
+    Index h;
+    double priority;
+  };
+  Candidate small[32];
+  std::vector<Candidate> large;
+  Candidate* candidates = small;
+  int count = 0;
+  const int deg = T.degree(v);
+  if (deg > 32) {
+    large.resize(deg);
+    candidates = large.data();
+  }
+  T.for_each_outgoing(v, [&](Index h) {
+    if (T.is_boundary_edge(h)) return;
+    const double opposite_sum =
+        std::atan2(1.0, T.cotan_opposite(h)) + std::atan2(1.0, T.cotan_opposite(h ^ 1));
+    candidates[count++] = {h, (T.head(h) == v ? 10.0 : 0.0) + opposite_sum};
+  });
+  std::sort(candidates, candidates + count, [](const Candidate& x, const Candidate& y) { return x.priority > y.priority; });
+  for (int c = 0; c < count; ++c) {
+    const Index h = candidates[c].h;
+    const Index i = T.tail(h), j = T.head(h);
+    if (T.flip(h)) {
+      if (touched) touched->insert(touched->end(), {i, j, T.tail(h), T.head(h)});
+      return true;
+    }
+  }
+  return false;
+}
+}  // namespace
+
+RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, Index* new_face, std::vector<Index>* touched) {
+  if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
+  while (degree(v) > 3)
+    if (!flip_one_edge_at(*this, v, touched)) return RemovalStatus::NoConvexFlip;
+  if (degree(v) < 3) return RemovalStatus::TopologyChange;
+  std::vector<Index> star;
+  for_each_outgoing(v, [&](Index h) { star.push_back(h); });
+  // The merge needs three distinct faces with one corner at v each.
+  for (Index h : star)
+    if (head(h) == v) return RemovalStatus::NoConvexFlip;
+  if (face(star[0]) == face(star[1]) || face(star[1]) == face(star[2]) || face(star[0]) == face(star[2]))
+    return RemovalStatus::TopologyChange;
+  merge_star_into_face(v, star, new_face);
+  return RemovalStatus::Removed;
+}
+
+void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Index>& star, Index* new_face) {
+  const Index h0 = star[0], h1 = star[1], h2 = star[2];
+  const Index o0 = next(h0), o1 = next(h1), o2 = next(h2);
+  // Flat star layout: v at the origin, its neighbours around it.
+  const Vec2 pv{0, 0}, p0{length(h0), 0};
+  const Vec2 p1 = layout_third_point(pv, p0, length(h0), length(h1), length(o0));
+  const Vec2 p2 = layout_third_point(pv, p1, length(h1), length(h2), length(o1));
+  LocalLayout layout;
+  layout.set(h0, pv), layout.set(o0, p0), layout.set(prev(h0), p1);
+  layout.set(h1, pv), layout.set(o1, p1), layout.set(prev(h1), p2);
+  layout.set(h2, pv), layout.set(o2, p2), layout.set(prev(h2), p0);
+  scratch_points_.clear();
+  for (Index h : star) collect_points(face(h), layout);
+  scratch_points_.push_back({v, pv});
+
+  const Index f = face(h0);
+  const Index f1 = face(h1), f2 = face(h2);
+  he_next_[o0] = o1, he_next_[o1] = o2, he_next_[o2] = o0;
+  he_face_[o0] = he_face_[o1] = he_face_[o2] = f;
+  face_halfedge_[f] = o0;
+  kill_face(f1);
+  kill_face(f2);
+  const Index x[3] = {tail(o0), tail(o1), tail(o2)};
+  for (Index h : star) kill_edge(h >> 1);
+  for (int k = 0; k < 3; ++k)
+    if (!halfedge_alive(vertex_halfedge_[x[k]]) || tail(vertex_halfedge_[x[k]]) != x[k])
+      vertex_halfedge_[x[k]] = k == 0 ? o0 : (k == 1 ? o1 : o2);
+  vertex_halfedge_[v] = kInvalid;
+  angle_sum_[v] = 0;
+  --num_vertices_;
+  for (int k = 0; k < 3; ++k)
+    if (k == 0 || (x[k] != x[0] && (k == 1 || x[k] != x[1]))) recompute_vertex_frame(x[k]);
+  for (const auto& q : scratch_points_) add_point_to_face(q.point, f, barycentric(q.position, p0, p1, p2));
+  if (new_face) *new_face = f;
+}
+
+RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, Index* new_face, std::vector<Index>* touched) {
+  Index hb = vertex_halfedge_[v];  // v -> k, twin exterior
+  Index last = hb;
+  while (rotate_ccw(last) != kInvalid) last = rotate_ccw(last);
+  const Index k = head(hb), j = tail(prev(last));
+  if (j == v || k == v || j == k) return RemovalStatus::BoundaryLoopTooSmall;
+  if (degree(v) == 1) {
+    // An ear: flip the opposite edge first, so that flattening does not degenerate the face.
+    const Index opposite = next(hb);
+    if (is_boundary_edge(opposite)) return RemovalStatus::TopologyChange;
+    const Index a = tail(opposite), b = head(opposite);
+    if (!flip(opposite)) return RemovalStatus::NoConvexFlip;
+    if (touched) touched->insert(touched->end(), {a, b, tail(opposite), head(opposite)});
+  }
+  if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
+  while (degree(v) > 2)
+    if (!flip_one_edge_at(*this, v, touched)) return RemovalStatus::NoConvexFlip;
+  hb = vertex_halfedge_[v];
+  const Index h2 = rotate_ccw(hb);  // v -> m
+  if (h2 == kInvalid) return RemovalStatus::TopologyChange;
+  const Index o1 = next(hb), o2 = next(h2), in = prev(h2);  // k -> m, m -> j, j -> v
+  const Index m = head(h2);
+  if (m == v || face(hb) == face(h2)) return RemovalStatus::TopologyChange;
+
+  // Layout of the flat half-star: v at the origin, k on the x axis, j on the negative x axis.
+  const Vec2 pv{0, 0}, pk{length(hb), 0};
+  const Vec2 pm = layout_third_point(pv, pk, length(hb), length(h2), length(o1));
+  const Vec2 pj = layout_third_point(pv, pm, length(h2), length(in), length(o2));
+  LocalLayout layout;
+  layout.set(hb, pv), layout.set(o1, pk), layout.set(prev(hb), pm);
+  layout.set(h2, pv), layout.set(o2, pm), layout.set(in, pj);
+  scratch_points_.clear();
+  collect_points(face(hb), layout);
+  collect_points(face(h2), layout);
+  scratch_points_.push_back({v, pv});
+
+  const double new_length = length(hb) + length(in);
+  const Index f = face(hb), f2 = face(h2);
+  // Re-use hb's edge as the new boundary edge j -> k (twin k -> j stays exterior).
+  he_tail_[hb] = j, he_tail_[hb ^ 1] = k;
+  he_next_[o1] = o2, he_next_[o2] = hb, he_next_[hb] = o1;
+  he_face_[o2] = f;
+  face_halfedge_[f] = o1;
+  edge_length_[hb >> 1] = new_length;
+  kill_face(f2);
+  kill_edge(h2 >> 1);
+  kill_edge(in >> 1);
+  vertex_halfedge_[j] = hb;
+  if (!halfedge_alive(vertex_halfedge_[m]) || tail(vertex_halfedge_[m]) != m) vertex_halfedge_[m] = o2;
+  vertex_halfedge_[v] = kInvalid;
+  angle_sum_[v] = 0;
+  --num_vertices_;
+  recompute_vertex_frame(j);
+  recompute_vertex_frame(k);
+  if (m != j && m != k) recompute_vertex_frame(m);
+  for (const auto& q : scratch_points_) add_point_to_face(q.point, f, barycentric(q.position, pk, pm, pj));
+  if (new_face) *new_face = f;
+  return RemovalStatus::Removed;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Export and checks
+
+CompactMesh IntrinsicTriangulation::compact() const {
+  CompactMesh out;
+  out.from_input.assign(num_input_vertices(), kInvalid);
+  for (Index v = 0; v < num_input_vertices(); ++v)
+    if (vertex_alive(v)) {
+      out.from_input[v] = static_cast<Index>(out.to_input.size());
+      out.to_input.push_back(v);
+    }
+  out.F.resize(num_faces_, 3);
+  out.L.resize(num_faces_, 3);
+  Index row = 0;
+  for (Index f = 0; f < num_face_slots(); ++f) {
+    if (!face_alive(f)) continue;
+    Index h = face_halfedge_[f];
+    for (int k = 0; k < 3; ++k, h = next(h)) {
+      out.F(row, k) = out.from_input[tail(h)];
+      out.L(row, k) = length(h);
+    }
+    ++row;
+  }
+  return out;
+}
+
+std::string IntrinsicTriangulation::validate(double tolerance) const {
+  std::ostringstream problems;
+  int count = 0;
+  const auto fail = [&](const std::string& what) {
+    if (count++ < 10) problems << what << "\n";
+  };
+  const Index H = num_halfedge_slots();
+  Index live_edges = 0, live_faces = 0, live_vertices = 0;
+  for (Index h = 0; h < H; h += 2) {
+    const bool alive0 = halfedge_alive(h), alive1 = halfedge_alive(h + 1);
+    if (alive0 != alive1) fail("half-edge " + std::to_string(h) + " alive without its twin");
+    if (!alive0) continue;
+    ++live_edges;
+    if (is_exterior(h) && is_exterior(h + 1)) fail("edge " + std::to_string(h / 2) + " has no face");
+    const double l = edge_length_[h / 2];
+    if (!(l > 0) || !std::isfinite(l)) fail("edge " + std::to_string(h / 2) + " has a non-positive length");
+  }
+  for (Index h = 0; h < H; ++h) {
+    if (!halfedge_alive(h)) continue;
+    const Index v = tail(h);
+    if (v < 0 || v >= num_input_vertices() || !vertex_alive(v))
+      fail("half-edge " + std::to_string(h) + " starts at a dead vertex");
+    if (is_exterior(h)) continue;
+    const Index n = next(h);
+    if (n == kInvalid || !halfedge_alive(n) || face(n) != face(h) || next(next(n)) != h)
+      fail("half-edge " + std::to_string(h) + " is not in a 3-cycle of its face");
+    else if (head(h) != tail(n))
+      fail("half-edge " + std::to_string(h) + ": head differs from the tail of next");
+  }
+  for (Index f = 0; f < num_face_slots(); ++f) {
+    if (!face_alive(f)) {
+      if (face_first_point_[f] != kInvalid) fail("dead face " + std::to_string(f) + " holds points");
+      continue;
+    }
+    ++live_faces;
+    const Index h = face_halfedge_[f];
+    if (!halfedge_alive(h) || face(h) != f) {
+      fail("face " + std::to_string(f) + " has a bad half-edge");
+      continue;
+    }
+    if (!triangle_inequality_holds(length(h), length(next(h)), length(prev(h))))
+      fail("face " + std::to_string(f) + " violates the triangle inequality");
+  }
+  if (live_edges != num_edges_ || live_faces != num_faces_)
+    fail("element counts out of date");
+  if (count > 0) return problems.str();  // connectivity is broken: stop before walking it
+
+  double curvature_sum = 0;
+  for (Index v = 0; v < num_input_vertices(); ++v) {
+    if (!vertex_alive(v)) continue;
+    ++live_vertices;
+    const Index start = vertex_halfedge_[v];
+    if (!halfedge_alive(start) || tail(start) != v || is_exterior(start)) {
+      fail("vertex " + std::to_string(v) + " has a bad half-edge");
+      continue;
+    }
+    // Walk the fan with a step bound (a broken rotation must not hang validate()).
+    double theta = 0;
+    Index h = start;
+    Index steps = 0;
+    const double scale = angle_scale(v);
+    bool broken = false;
+    while (true) {
+      if (++steps > H) {
+        fail("vertex " + std::to_string(v) + ": rotation does not close");
+        broken = true;
+        break;
+      }
+      const double corner = corner_angle(h);
+      theta += corner;
+      const Index t = prev(h) ^ 1;
+      const double expected = he_angle_[h] + scale * corner;
+      const double got = he_angle_[t];
+      double gap = std::fmod(std::abs(expected - got), kTwoPi);
+      gap = std::min(gap, kTwoPi - gap);
+      if (gap > 1e-7) fail("vertex " + std::to_string(v) + ": angular coordinates inconsistent");
+      if (is_exterior(t) || t == start) break;
+      h = t;
+    }
+    if (broken) continue;
+    if (std::abs(theta - angle_sum_[v]) > tolerance) fail("vertex " + std::to_string(v) + ": stale angle sum");
+    curvature_sum += curvature(v);
+  }
+  if (live_vertices != num_vertices_) fail("vertex count out of date");
+  const double gauss_bonnet = kTwoPi * euler_characteristic();
+  if (std::abs(curvature_sum - gauss_bonnet) > tolerance * std::max<double>(1.0, num_vertices_))
+    fail("Gauss-Bonnet violated: total curvature " + std::to_string(curvature_sum) + " vs 2*pi*chi " +
+         std::to_string(gauss_bonnet));
+
+  // Tracked points.
+  Index listed = 0;
+  for (Index f = 0; f < num_face_slots(); ++f) {
+    if (!face_alive(f)) continue;
+    for (Index p = face_first_point_[f]; p != kInvalid; p = point_next_[p]) {
+      if (++listed > num_input_vertices()) {
+        fail("point list of face " + std::to_string(f) + " does not end");
+        return problems.str();
+      }
+      if (point_face_[p] != f) fail("point " + std::to_string(p) + " listed in the wrong face");
+    }
+  }
+  Index located = 0;
+  for (Index p = 0; p < num_input_vertices(); ++p) {
+    if (vertex_alive(p)) {
+      if (point_face_[p] != kInvalid) fail("point " + std::to_string(p) + " is a vertex and in a face");
+      continue;
+    }
+    ++located;
+    const Index f = point_face_[p];
+    if (f == kInvalid || !face_alive(f)) {
+      fail("removed vertex " + std::to_string(p) + " is in no live face");
+      continue;
+    }
+    const auto& b = point_bary_[p];
+    if (b[0] < -tolerance || b[1] < -tolerance || b[2] < -tolerance ||
+        std::abs(b[0] + b[1] + b[2] - 1) > tolerance)
+      fail("point " + std::to_string(p) + " has barycentric coordinates outside its face");
+  }
+  if (located != listed) fail("point lists and point faces disagree");
+  return problems.str();
+}
+
+std::size_t IntrinsicTriangulation::memory_bytes() const {
+  const auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return bytes(he_next_) + bytes(he_tail_) + bytes(he_face_) + bytes(he_angle_) + bytes(edge_length_) +
+         bytes(face_halfedge_) + bytes(vertex_halfedge_) + bytes(angle_sum_) + bytes(point_face_) +
+         bytes(point_next_) + bytes(point_prev_) + bytes(face_first_point_) + bytes(point_bary_);
+}
+
+}  // namespace ice
