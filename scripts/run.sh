@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# scripts/run.sh — THE main command.
+#
+#   bash scripts/run.sh [MESH] [EXTRA ARGS...]
+#
+# 1. scripts/setup.sh (packages, BLAS check, default meshes),
+# 2. Release configure of build/release (the same build tree as scripts/test.sh),
+# 3. the main job on MESH (default: the first mesh of data/default-meshes.txt), which builds the
+#    tool it needs and runs it; EXTRA ARGS go to the tool.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+BUILD_DIR="$ROOT/build/release"
+JOBS="${ICE_JOBS:-2}"
+
+# ---- THE MAIN JOB: one line to change what run.sh does. `app NAME ARGS...` builds the CMake target
+# NAME in build/release and runs it. $MESH is the input mesh, "$@" the extra arguments.
+main_job() { app ice-info "$MESH" "$@"; }
+# -----------------------------------------------------------------------------------------------
+
+say() { printf 'run.sh: %s\n' "$*"; }
+die() { printf 'run.sh: ERROR: %s\n' "$*" >&2; exit 1; }
+
+BUILD_SECONDS=0
+app() {
+  local name="$1"; shift
+  local t0=$SECONDS
+  say "building $name (Release)"
+  cmake --build "$BUILD_DIR" --target "$name" --parallel "$JOBS" >"$BUILD_DIR/run-build.log" 2>&1 || {
+    tail -n 40 "$BUILD_DIR/run-build.log" >&2
+    die "build of target '$name' failed (full log: $BUILD_DIR/run-build.log)"
+  }
+  BUILD_SECONDS=$((SECONDS - t0))
+  local exe="$BUILD_DIR/apps/$name"
+  [[ -x "$exe" ]] || exe="$(find "$BUILD_DIR" -path "$BUILD_DIR/CMakeFiles" -prune -o -type f -name "$name" -perm -u+x -print | head -n1)"
+  [[ -n "$exe" ]] || die "target '$name' built but no executable named '$name' found under $BUILD_DIR"
+  say "running: ${exe#"$ROOT"/} $*"
+  echo "------------------------------------------------------------------------"
+  "$exe" "$@"
+}
+
+# The mesh: argument (relative to the caller's directory) or the first default mesh.
+if [[ $# -gt 0 && "$1" != -* ]]; then
+  [[ -e "$1" ]] || die "no such mesh file: $1"
+  MESH="$(cd "$(dirname "$1")" && pwd)/$(basename "$1")"
+  shift
+else
+  MESH=""
+fi
+
+cd "$ROOT"
+T0=$SECONDS
+bash scripts/setup.sh
+if [[ -z "$MESH" ]]; then
+  first="$(sed -e 's/#.*//' data/default-meshes.txt | awk 'NF { print $1; exit }')"
+  [[ -n "$first" ]] || die "data/default-meshes.txt lists no mesh"
+  MESH="$ROOT/data/default/$(basename "$first")"
+fi
+[[ -s "$MESH" ]] || die "mesh file missing or empty: $MESH"
+
+say "configuring build/release"
+mkdir -p "$BUILD_DIR"
+cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >"$BUILD_DIR/run-configure.log" 2>&1 || {
+  cat "$BUILD_DIR/run-configure.log" >&2
+  die "cmake configure failed"
+}
+
+say "mesh: ${MESH#"$ROOT"/} ($(du -h "$MESH" | cut -f1))"
+t_job=$SECONDS
+rc=0
+main_job "$@" || rc=$?
+echo "------------------------------------------------------------------------"
+job_seconds=$((SECONDS - t_job - BUILD_SECONDS))
+if [[ $rc -eq 0 ]]; then
+  say "done: main job OK on ${MESH#"$ROOT"/} (build ${BUILD_SECONDS}s, job ${job_seconds}s, total $((SECONDS - T0))s)"
+else
+  say "FAILED: main job exited with status $rc on ${MESH#"$ROOT"/} (total $((SECONDS - T0))s)"
+fi
+exit $rc
