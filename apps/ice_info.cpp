@@ -1,0 +1,210 @@
+// ice-info: read a mesh, print its validation report (for humans or as JSON), optionally repair it and
+// write the repaired mesh.
+//
+// Exit codes: 0 clean (or repaired to clean), 1 unreadable input, 2 defective input (after repair, if
+// asked), 3 output not written, 4 bad command line.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include "ice/mesh_io.h"
+#include "ice/mesh_repair.h"
+#include "ice/mesh_validation.h"
+
+namespace {
+
+enum ExitCode { kClean = 0, kUnreadable = 1, kDefective = 2, kNotWritten = 3, kUsage = 4 };
+
+constexpr std::size_t kComponentsShown = 10;
+
+template <class T>
+nlohmann::json offenders_json(const ice::Offenders<T>& o) {
+  return {{"count", o.count}, {"first", o.first}};
+}
+
+nlohmann::json report_json(const ice::ValidationReport& r) {
+  nlohmann::json j;
+  j["vertices"] = r.n_vertices;
+  j["faces"] = r.n_faces;
+  j["edges"] = r.n_edges;
+  j["clean"] = r.clean();
+  j["manifold"] = r.manifold();
+  j["orientable"] = r.orientable();
+  j["components"] = r.components.size();
+  j["boundary_loops"] = r.n_boundary_loops;
+  j["euler_characteristic"] = r.euler_characteristic;
+  j["genus"] = r.genus >= 0 ? nlohmann::json(r.genus) : nlohmann::json(nullptr);
+  j["bbox"] = {{"min", {r.bbox_min.x(), r.bbox_min.y(), r.bbox_min.z()}},
+               {"max", {r.bbox_max.x(), r.bbox_max.y(), r.bbox_max.z()}}};
+  j["edge_length"] = {{"min", r.edge_length_min}, {"mean", r.edge_length_mean}, {"max", r.edge_length_max}};
+  j["defects"] = {
+      {"non_triangle_faces", offenders_json(r.non_triangle_faces)},
+      {"out_of_range_faces", offenders_json(r.out_of_range_faces)},
+      {"repeated_index_faces", offenders_json(r.repeated_index_faces)},
+      {"non_finite_vertices", offenders_json(r.non_finite_vertices)},
+      {"unreferenced_vertices", offenders_json(r.unreferenced_vertices)},
+      {"duplicate_faces", offenders_json(r.duplicate_faces)},
+      {"zero_area_faces", offenders_json(r.zero_area_faces)},
+      {"non_manifold_edges", offenders_json(r.non_manifold_edges)},
+      {"non_manifold_vertices", offenders_json(r.non_manifold_vertices)},
+      {"inconsistent_edges", offenders_json(r.inconsistent_edges)},
+      {"non_orientable_components", r.non_orientable_components},
+  };
+  j["duplicate_positions"] = offenders_json(r.duplicate_positions);
+  nlohmann::json comps = nlohmann::json::array();
+  for (const auto& c : r.components)
+    comps.push_back({{"vertices", c.n_vertices}, {"edges", c.n_edges}, {"faces", c.n_faces},
+                     {"boundary_loops", c.n_boundary_loops}, {"euler_characteristic", c.euler_characteristic},
+                     {"manifold", c.manifold}, {"orientable", c.orientable},
+                     {"genus", c.genus >= 0 ? nlohmann::json(c.genus) : nlohmann::json(nullptr)}});
+  j["component_list"] = comps;
+  return j;
+}
+
+std::string yes_no(bool b) { return b ? "yes" : "no"; }
+
+std::string vec3(const Eigen::Vector3d& v) {
+  std::ostringstream s;
+  s << std::setprecision(9) << '(' << v.x() << ", " << v.y() << ", " << v.z() << ')';
+  return s.str();
+}
+
+void print_report(std::ostream& out, const ice::ValidationReport& r) {
+  out << "  vertices " << r.n_vertices << ", faces " << r.n_faces << ", edges " << r.n_edges << '\n'
+      << "  components " << r.components.size() << ", boundary loops " << r.n_boundary_loops
+      << ", Euler characteristic " << r.euler_characteristic << ", genus "
+      << (r.genus >= 0 ? std::to_string(r.genus) : std::string("n/a")) << '\n'
+      << "  manifold " << yes_no(r.manifold()) << " (" << r.non_manifold_edges.count << " edges, "
+      << r.non_manifold_vertices.count << " vertices non-manifold), orientable " << yes_no(r.orientable())
+      << ", consistently oriented " << yes_no(r.inconsistent_edges.empty()) << '\n'
+      << "  bounding box " << vec3(r.bbox_min) << " - " << vec3(r.bbox_max) << ", diagonal "
+      << (r.bbox_max - r.bbox_min).norm() << '\n'
+      << "  edge length min " << r.edge_length_min << ", mean " << r.edge_length_mean << ", max "
+      << r.edge_length_max << '\n';
+  if (!r.duplicate_positions.empty()) {
+    out << "  info: " << r.duplicate_positions.count << " vertices repeat an earlier position (first:";
+    for (int v : r.duplicate_positions.first) out << ' ' << v;
+    out << ")\n";
+  }
+  if (r.components.size() > 1) {
+    out << "  per component (V, F, boundary loops, chi, genus):\n";
+    for (std::size_t i = 0; i < std::min(r.components.size(), kComponentsShown); ++i) {
+      const auto& c = r.components[i];
+      out << "    #" << i << ": " << c.n_vertices << ", " << c.n_faces << ", " << c.n_boundary_loops << ", "
+          << c.euler_characteristic << ", " << (c.genus >= 0 ? std::to_string(c.genus) : std::string("n/a")) << '\n';
+    }
+    if (r.components.size() > kComponentsShown)
+      out << "    ... " << r.components.size() - kComponentsShown << " more\n";
+  }
+  const auto defects = r.defects();
+  if (defects.empty()) out << "  defects: none\n";
+  for (const auto& d : defects) out << "  DEFECT: " << d << '\n';
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Read a triangle mesh, validate it for ICE and print the report."};
+  std::string input, output;
+  bool json = false, repair = false, weld = false, force = false;
+  app.add_option("mesh", input, "Mesh file (.obj, .off, .ply, .stl)")->required();
+  app.add_flag("--json", json, "Print the report as JSON");
+  app.add_flag("--repair", repair, "Apply the safe repairs (see ice/mesh_repair.h) and report them");
+  app.add_flag("--weld", weld, "With --repair: also weld vertices with exactly equal positions");
+  app.add_option("--output,-o", output, "Write the (repaired) mesh here if it is clean (.obj/.off/.ply/.stl)");
+  app.add_flag("--force", force, "Overwrite the output file if it exists");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return kUsage;
+  }
+  if (weld && !repair) {
+    std::cerr << "ice-info: --weld needs --repair\n";
+    return kUsage;
+  }
+
+  const auto start = std::chrono::steady_clock::now();
+  ice::MeshFile file;
+  try {
+    file = ice::read_mesh_file(input);
+  } catch (const ice::MeshError& e) {
+    if (json)
+      std::cout << nlohmann::json{{"file", input}, {"readable", false}, {"error", e.what()}}.dump(2) << '\n';
+    std::cerr << "ice-info: " << e.what() << '\n';
+    return kUnreadable;
+  }
+  const ice::ValidationReport input_report = ice::validate_mesh(file.soup);
+  const double read_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  ice::RepairResult repaired;
+  if (repair) {
+    ice::RepairOptions options;
+    options.weld_duplicate_positions = weld;
+    repaired = ice::repair_mesh(file.soup, options);
+  }
+  const ice::ValidationReport& final_report = repair ? repaired.report : input_report;
+  const bool clean = final_report.clean() && !(repair ? repaired.soup : file.soup).polygons.empty();
+
+  if (json) {
+    nlohmann::json j;
+    j["file"] = input;
+    j["readable"] = true;
+    j["format"] = file.format;
+    j["exact_coordinates"] = file.exact_coordinates;
+    j["reader_notes"] = file.notes;
+    j["read_and_validate_seconds"] = read_seconds;
+    j["report"] = report_json(input_report);
+    if (repair) {
+      j["repairs"] = repaired.log.summary();
+      j["repaired_report"] = report_json(repaired.report);
+    }
+    j["clean"] = clean;
+    std::cout << j.dump(2) << '\n';
+  } else {
+    std::cout << input << " (" << file.format << ", "
+              << (file.exact_coordinates ? "exact coordinates" : "float32 coordinates") << ", read and validated in "
+              << std::fixed << std::setprecision(2) << read_seconds << " s)\n"
+              << std::defaultfloat << std::setprecision(6);
+    for (const auto& note : file.notes) std::cout << "  note: " << note << '\n';
+    print_report(std::cout, input_report);
+    if (repair) {
+      const auto lines = repaired.log.summary();
+      std::cout << "repair: " << (lines.empty() ? "nothing to do" : "") << '\n';
+      for (const auto& line : lines) std::cout << "  " << line << '\n';
+      std::cout << "after repair:\n";
+      print_report(std::cout, repaired.report);
+    }
+    std::cout << "status: " << (clean ? "clean" : "DEFECTIVE") << '\n';
+  }
+
+  if (!clean) {
+    std::cerr << "ice-info: " << input << ": defective"
+              << (repair ? " even after repair" : " (try --repair)") << ", ICE would refuse it\n";
+    if (!output.empty()) std::cerr << "ice-info: not writing " << output << '\n';
+    return kDefective;
+  }
+  if (!output.empty()) {
+    try {
+      ice::TriangleMesh mesh;
+      const ice::PolygonSoup& soup = repair ? repaired.soup : file.soup;
+      mesh.V = soup.V;
+      mesh.F.resize(static_cast<Eigen::Index>(soup.polygons.size()), 3);
+      for (std::size_t f = 0; f < soup.polygons.size(); ++f)
+        for (int k = 0; k < 3; ++k) mesh.F(f, k) = soup.polygons[f][k];
+      ice::write_mesh(output, mesh, {force, false});
+      if (!json) std::cout << "wrote " << output << '\n';
+    } catch (const ice::MeshError& e) {
+      std::cerr << "ice-info: " << e.what() << '\n';
+      return kNotWritten;
+    }
+  }
+  return kClean;
+}

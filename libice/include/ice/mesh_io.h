@@ -1,0 +1,104 @@
+#pragma once
+/// \file mesh_io.h
+/// Reading meshes from OBJ, OFF, PLY (ASCII/binary) and STL (ASCII/binary) files, and the loading
+/// policy of ICE.
+///
+/// Reading. Files are parsed by OpenMesh's IO layer into a raw polygon soup (no half-edge structure, so
+/// non-manifold and non-triangle faces, repeated and out-of-range indices all stay visible). OpenMesh 9
+/// parses coordinates as 32-bit floats, which destroys meshes far from the origin (at 1e6 the float
+/// spacing is 0.06), and its OBJ reader silently drops repeated face corners and vertex lines it cannot
+/// parse. For OBJ, ASCII OFF and PLY with a plain vertex element, ICE therefore re-reads the vertex
+/// records exactly (double precision; OBJ/OFF faces as written) and uses OpenMesh's result as a
+/// cross-check. STL is single precision by definition; its per-triangle vertices are welded by
+/// OpenMesh's STL reader when they coincide exactly.
+///
+/// Loading policy (`load_mesh`):
+///  - Refused (MeshError, kind Defective) unless repaired: non-triangle faces, out-of-range or repeated
+///    indices in a face, non-finite coordinates, unreferenced vertices, duplicate faces, zero-area faces,
+///    non-manifold edges or vertices, inconsistent orientation, non-orientable components.
+///  - With `LoadOptions::repair`, the cheap safe repairs of mesh_repair.h are applied (triangulate
+///    polygons, collapse repeated corners, drop zero-area and duplicate faces, drop unreferenced vertices,
+///    re-orient orientable components, weld exactly coincident vertices if asked) and the result is
+///    validated again. Still refused after repair: non-finite coordinates, out-of-range indices,
+///    non-manifold or non-orientable surfaces (including non-manifoldness created by dropping faces).
+///  - Accepted as they are: several connected components (ICE coarsens all components together, each
+///    keeping its own topology), boundaries, any genus, coincident vertex positions (information only).
+///  - Unreadable input (missing, unreadable, empty, unknown format, truncated or unparsable records):
+///    MeshError, kind Unreadable. Every message starts with the file path.
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "ice/mesh.h"
+#include "ice/mesh_repair.h"
+#include "ice/mesh_validation.h"
+
+namespace ice {
+
+/// Error raised for meshes that cannot be read or are refused by the loading policy.
+class MeshError : public std::runtime_error {
+ public:
+  enum class Kind {
+    Unreadable,  ///< Missing, unreadable, empty, unknown format or corrupt file.
+    Defective,   ///< Read fine, but refused by the loading policy.
+    Unwritable,  ///< An output file could not be written (or exists and overwriting was not allowed).
+  };
+  MeshError(Kind kind, const std::string& path, const std::string& message)
+      : std::runtime_error(path + ": " + message), kind_(kind), path_(path) {}
+  Kind kind() const { return kind_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  Kind kind_;
+  std::string path_;
+};
+
+/// A file's raw content.
+struct MeshFile {
+  PolygonSoup soup;
+  std::string format;             ///< "obj", "off", "ply" or "stl".
+  bool exact_coordinates = false; ///< Coordinates re-read exactly (else OpenMesh's float32 values).
+  std::vector<std::string> notes; ///< Remarks of the reader (e.g. where OpenMesh and the exact re-read differ).
+};
+
+/// Read a mesh file into a raw polygon soup; no validation. The format is chosen by the extension
+/// (case-insensitive). Throws MeshError (Unreadable) naming the file if it is missing, not a regular
+/// file, of unknown format, empty (no faces), truncated or not parsable.
+MeshFile read_mesh_file(const std::string& path);
+
+/// Options of `load_mesh`.
+struct LoadOptions {
+  bool repair = false;                    ///< Apply the safe repairs of mesh_repair.h.
+  bool weld_duplicate_positions = false;  ///< With repair: also weld exactly coincident vertices.
+};
+
+/// Everything `load_mesh_with_report` learned about a file.
+struct LoadResult {
+  TriangleMesh mesh;               ///< The validated mesh.
+  std::vector<int> source_vertex;  ///< mesh vertex i is vertex source_vertex[i] of the file (0-based).
+  std::vector<int> source_face;    ///< mesh face f comes from face source_face[f] of the file.
+  MeshFile file;                   ///< Raw input (soup, format, reader notes).
+  ValidationReport input_report;   ///< Validation of the raw input.
+  RepairLog repairs;               ///< Empty unless options.repair.
+  ValidationReport report;         ///< Validation of `mesh` (clean).
+};
+
+/// Read, validate and (optionally) repair a mesh according to the policy above.
+/// Throws MeshError whose what() names the file and each defect with its count and first offenders.
+LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& options = {});
+
+/// `load_mesh_with_report(path, options).mesh`.
+TriangleMesh load_mesh(const std::string& path, const LoadOptions& options = {});
+
+/// Options of `write_mesh`.
+struct WriteOptions {
+  bool overwrite = false;  ///< Replace an existing file (otherwise MeshError, kind Unwritable).
+  bool binary = false;     ///< Binary PLY/STL (little endian); ignored for OBJ and OFF.
+};
+
+/// Write a triangle mesh as OBJ, OFF, PLY or STL, chosen by the extension. OBJ, OFF and PLY keep full
+/// double precision (PLY stores `double` coordinates); STL stores float32 and one record per triangle.
+/// Throws MeshError (Unwritable) naming the file on failure or if it exists and !options.overwrite.
+void write_mesh(const std::string& path, const TriangleMesh& mesh, const WriteOptions& options = {});
+
+}  // namespace ice

@@ -1,0 +1,132 @@
+#pragma once
+/// \file mesh_validation.h
+/// Validation of raw polygon input: everything that makes the ICE method undefined or its numbers
+/// meaningless is detected, counted and located here, before any half-edge structure is built.
+///
+/// The input is a `PolygonSoup` (positions + arbitrary index lists), exactly as it came out of the file,
+/// so that non-manifold, non-triangle and out-of-range faces are visible. `validate_mesh` never throws
+/// on bad input and runs in O((V + C) log C) for C face corners.
+///
+/// Definitions used by the report (they match the figures of /work/shared/data/README.md):
+///  - A face is *well formed* if it has >= 3 corners, all indices in [0, V) and no repeated index.
+///    Only well-formed faces enter the topological analysis (edges, manifoldness, components, ...).
+///  - Edge: an unordered vertex pair {a, b} that is consecutive in some well-formed face.
+///    Boundary edge: one incident face. Non-manifold edge: more than two incident faces.
+///  - Non-manifold vertex: its incident faces form more than one *fan*, where two faces around v are in
+///    the same fan if they are linked through edges at v that have exactly two incident faces
+///    (so pinch vertices and the endpoints of non-manifold edges are both reported).
+///  - Inconsistently oriented edge: an edge with two incident faces that traverse it in the same
+///    direction. A component is non-orientable if no choice of per-face flips makes all its two-face
+///    edges consistent (Möbius strip).
+///  - Connected components: faces connected through shared vertices; unreferenced vertices are not
+///    components. Boundary loops: connected components of the graph of boundary edges.
+///  - Euler characteristic χ = V − E + F per component (referenced vertices only); genus
+///    g = (2 − χ − b)/2 for b boundary loops, defined only for manifold orientable components.
+///  - Zero-area face: twice its area is <= `kDegenerateRelativeTolerance` × (longest edge)² (a
+///    translation- and scale-invariant shape test, so coordinates around 1e6 are fine), or its
+///    longest edge is <= 1e-14 × the bounding-box diagonal (all corners coincide).
+///  - Duplicate faces: faces with the same vertex set as an earlier face (the later copies are counted).
+///  - Duplicate positions (information only): vertices whose position equals an earlier vertex exactly.
+#include <array>
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "ice/mesh.h"
+
+namespace ice {
+
+/// Raw polygonal input: positions and one index list per face, 0-based, unchecked.
+struct PolygonSoup {
+  Positions V;                               ///< n×3 positions (may contain NaN/inf).
+  std::vector<std::vector<int>> polygons;    ///< Face corner lists (any length, any values).
+};
+
+/// Convert a triangle mesh to a soup (for validating meshes built in code).
+PolygonSoup to_polygon_soup(const TriangleMesh& mesh);
+
+/// How many offending elements of each kind a report keeps (the count is always exact).
+constexpr std::size_t kMaxOffenders = 5;
+
+/// Relative tolerance of the zero-area test: 2·area <= tol · (longest edge)². A triangle whose
+/// smallest height is below 1e-10 of its longest edge has angles that cotangent formulas cannot use.
+constexpr double kDegenerateRelativeTolerance = 1e-10;
+
+/// An exact count plus the first `kMaxOffenders` offending elements.
+template <class T>
+struct Offenders {
+  std::size_t count = 0;
+  std::vector<T> first;
+  void add(const T& element) {
+    if (first.size() < kMaxOffenders) first.push_back(element);
+    ++count;
+  }
+  bool empty() const { return count == 0; }
+};
+
+/// An undirected edge as a vertex pair (smaller index first).
+using VertexPair = std::array<int, 2>;
+
+/// Topology of one connected component.
+struct ComponentInfo {
+  std::size_t n_vertices = 0;        ///< Referenced vertices.
+  std::size_t n_edges = 0;
+  std::size_t n_faces = 0;           ///< Well-formed faces.
+  std::size_t n_boundary_loops = 0;
+  long euler_characteristic = 0;     ///< V − E + F.
+  bool manifold = true;              ///< No non-manifold edge or vertex.
+  bool orientable = true;            ///< Meaningful only if manifold.
+  bool consistently_oriented = true; ///< No inconsistently oriented edge.
+  int genus = -1;                    ///< (2 − χ − b)/2 if manifold and orientable, else −1.
+};
+
+/// Everything `validate_mesh` found. Defects and information are kept apart: `defects()` lists what
+/// the ICE loading policy refuses (see mesh_io.h), the rest is description.
+struct ValidationReport {
+  std::size_t n_vertices = 0;        ///< Vertices in the input, including unreferenced ones.
+  std::size_t n_faces = 0;           ///< Faces in the input, including broken ones.
+  std::size_t n_edges = 0;           ///< Unique edges of well-formed faces.
+
+  // -- defects: each makes the method undefined --
+  Offenders<int> non_triangle_faces;       ///< Face ids with a corner count other than 3 (incl. < 3).
+  Offenders<int> out_of_range_faces;       ///< Face ids with an index outside [0, V).
+  Offenders<int> repeated_index_faces;     ///< Face ids that list a vertex twice.
+  Offenders<int> non_finite_vertices;      ///< Vertex ids with a NaN or infinite coordinate.
+  Offenders<int> unreferenced_vertices;    ///< Vertex ids used by no well-formed face.
+  Offenders<int> duplicate_faces;          ///< Face ids repeating the vertex set of an earlier face.
+  Offenders<int> zero_area_faces;          ///< Well-formed face ids failing the zero-area test.
+  Offenders<VertexPair> non_manifold_edges;
+  Offenders<int> non_manifold_vertices;
+  Offenders<VertexPair> inconsistent_edges;///< Two-face edges traversed twice in the same direction.
+  std::size_t non_orientable_components = 0;
+
+  // -- information --
+  Offenders<int> duplicate_positions;      ///< Vertex ids whose position repeats an earlier one.
+  std::vector<ComponentInfo> components;
+  std::size_t n_boundary_loops = 0;
+  long euler_characteristic = 0;           ///< Sum over components.
+  int genus = -1;                          ///< Sum over components; −1 unless every one is manifold and orientable.
+  Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero();  ///< Bounding box of the finite vertices.
+  Eigen::Vector3d bbox_max = Eigen::Vector3d::Zero();
+  double edge_length_min = 0, edge_length_mean = 0, edge_length_max = 0;  ///< Over unique edges.
+
+  bool manifold() const { return non_manifold_edges.empty() && non_manifold_vertices.empty(); }
+  bool orientable() const { return non_orientable_components == 0; }
+  /// True if the mesh satisfies every precondition of ICE (no entry in `defects()`).
+  bool clean() const { return defects().empty(); }
+  /// One line per defect kind: "<count> <what> (first: ...)". Empty for a clean mesh.
+  std::vector<std::string> defects() const;
+};
+
+/// Validate a raw polygon soup. Never throws on bad data; never reads out of range.
+ValidationReport validate_mesh(const PolygonSoup& soup);
+
+/// Validate a triangle mesh built in code.
+ValidationReport validate_mesh(const TriangleMesh& mesh);
+
+/// The zero-area test of the report (see file comment) for the triangle (a, b, c) of a mesh whose
+/// bounding-box diagonal is `diagonal`. Non-finite input counts as degenerate.
+bool is_zero_area_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                           double diagonal);
+
+}  // namespace ice

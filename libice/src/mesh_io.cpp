@@ -1,0 +1,747 @@
+#include "ice/mesh_io.h"
+
+#include <OpenMesh/Core/IO/IOManager.hh>
+#include <OpenMesh/Core/IO/importer/BaseImporter.hh>
+#include <OpenMesh/Core/System/omstream.hh>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <numeric>
+#include <optional>
+#include <sstream>
+
+namespace ice {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// ============================================================================
+// OpenMesh side: an importer that records the raw polygon soup.
+// ============================================================================
+
+/// Thrown by the importer when the reader produces more records than the file could hold
+/// (a corrupt header count must not make us allocate or loop without bound).
+struct RecordOverflow {};
+
+/// Collects exactly what an OpenMesh reader hands over: positions and face index lists, no topology.
+/// Every other callback (normals, colours, texture coordinates, status) is ignored.
+class SoupImporter final : public OpenMesh::IO::BaseImporter {
+ public:
+  explicit SoupImporter(std::size_t max_records) : max_records_(max_records) {}
+
+  std::vector<Eigen::Vector3d> points;
+  std::vector<std::vector<int>> polygons;
+  std::size_t announced_vertices = 0, announced_faces = 0;  ///< From reserve(), if the reader calls it.
+  bool reserve_called = false;
+
+  OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3f& p) override {
+    return add_vertex(OpenMesh::Vec3d(p[0], p[1], p[2]));
+  }
+  OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3d& p) override {
+    if (points.size() >= max_records_) throw RecordOverflow{};
+    points.emplace_back(p[0], p[1], p[2]);
+    return OpenMesh::VertexHandle(static_cast<int>(points.size() - 1));
+  }
+  OpenMesh::VertexHandle add_vertex() override { return add_vertex(OpenMesh::Vec3d(0, 0, 0)); }
+  void set_point(OpenMesh::VertexHandle vh, const OpenMesh::Vec3f& p) override {
+    if (vh.is_valid() && static_cast<std::size_t>(vh.idx()) < points.size())
+      points[vh.idx()] = Eigen::Vector3d(p[0], p[1], p[2]);
+  }
+  OpenMesh::FaceHandle add_face(const VHandles& corners) override {
+    if (polygons.size() >= max_records_) throw RecordOverflow{};
+    std::vector<int> poly;
+    poly.reserve(corners.size());
+    for (const auto& vh : corners) poly.push_back(vh.idx());  // unchecked on purpose: validation sees it
+    polygons.push_back(std::move(poly));
+    return OpenMesh::FaceHandle(static_cast<int>(polygons.size() - 1));
+  }
+  void reserve(unsigned int nv, unsigned int /*ne*/, unsigned int nf) override {
+    reserve_called = true;
+    announced_vertices = nv;
+    announced_faces = nf;
+    // Header counts are untrusted: never reserve more than the file could hold.
+    points.reserve(std::min<std::size_t>(nv, max_records_));
+    polygons.reserve(std::min<std::size_t>(nf, max_records_));
+  }
+  std::size_t n_vertices() const override { return points.size(); }
+  std::size_t n_faces() const override { return polygons.size(); }
+  std::size_t n_edges() const override { return 0; }
+
+  // Half-edge level construction is only used by the OM format, which needs a kernel(): unsupported.
+  OpenMesh::HalfedgeHandle add_edge(OpenMesh::VertexHandle, OpenMesh::VertexHandle) override { return OpenMesh::HalfedgeHandle(); }
+  OpenMesh::FaceHandle add_face(OpenMesh::HalfedgeHandle) override { return OpenMesh::FaceHandle(); }
+  void set_halfedge(OpenMesh::VertexHandle, OpenMesh::HalfedgeHandle) override {}
+  void set_next(OpenMesh::HalfedgeHandle, OpenMesh::HalfedgeHandle) override {}
+  void set_face(OpenMesh::HalfedgeHandle, OpenMesh::FaceHandle) override {}
+
+  // Attributes ICE does not use.
+  void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle, const std::vector<OpenMesh::Vec2f>&) override {}
+  void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle, const std::vector<OpenMesh::Vec3f>&) override {}
+  void set_face_texindex(OpenMesh::FaceHandle, int) override {}
+  void set_normal(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+  void set_normal(OpenMesh::VertexHandle, const OpenMesh::Vec3d&) override {}
+  void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec3uc&) override {}
+  void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec4uc&) override {}
+  void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+  void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec4f&) override {}
+  void set_texcoord(OpenMesh::VertexHandle, const OpenMesh::Vec2f&) override {}
+  void set_status(OpenMesh::VertexHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+  void request_face_texcoords2D() override {}
+  void set_texcoord(OpenMesh::HalfedgeHandle, const OpenMesh::Vec2f&) override {}
+  void set_texcoord(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+  void set_texcoord(OpenMesh::HalfedgeHandle, const OpenMesh::Vec3f&) override {}
+  void set_status(OpenMesh::HalfedgeHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+  void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec3uc&) override {}
+  void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec4uc&) override {}
+  void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec3f&) override {}
+  void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec4f&) override {}
+  void set_status(OpenMesh::EdgeHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+  void set_normal(OpenMesh::FaceHandle, const OpenMesh::Vec3f&) override {}
+  void set_normal(OpenMesh::FaceHandle, const OpenMesh::Vec3d&) override {}
+  void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec3uc&) override {}
+  void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec4uc&) override {}
+  void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec3f&) override {}
+  void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec4f&) override {}
+  void set_status(OpenMesh::FaceHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+  void add_texture_information(int, std::string) override {}
+
+ private:
+  std::size_t max_records_;
+};
+
+/// Silences OpenMesh's console streams for the lifetime of the guard (errors become MeshError instead).
+class QuietOpenMesh {
+ public:
+  QuietOpenMesh() : err_(::omerr().is_enabled()), log_(::omlog().is_enabled()),
+                    out_(::omout().is_enabled()) {
+    ::omerr().disable();
+    ::omlog().disable();
+    ::omout().disable();
+  }
+  ~QuietOpenMesh() {
+    if (err_) ::omerr().enable();
+    if (log_) ::omlog().enable();
+    if (out_) ::omout().enable();
+  }
+  QuietOpenMesh(const QuietOpenMesh&) = delete;
+  QuietOpenMesh& operator=(const QuietOpenMesh&) = delete;
+
+ private:
+  bool err_, log_, out_;
+};
+
+struct OpenMeshResult {
+  PolygonSoup soup;
+  bool reserve_called = false;
+  std::size_t announced_vertices = 0, announced_faces = 0;
+};
+
+OpenMeshResult read_with_openmesh(const std::string& path, std::size_t max_records) {
+  SoupImporter importer(max_records);
+  OpenMesh::IO::Options options;  // positions and faces only
+  bool ok = false;
+  {
+    QuietOpenMesh quiet;
+    try {
+      ok = OpenMesh::IO::IOManager().read(path, importer, options);
+    } catch (const RecordOverflow&) {
+      throw MeshError(MeshError::Kind::Unreadable, path,
+                      "corrupt file: the reader produced more records than the file size allows");
+    } catch (const std::exception& e) {
+      throw MeshError(MeshError::Kind::Unreadable, path, std::string("cannot be parsed: ") + e.what());
+    }
+  }
+  if (!ok) throw MeshError(MeshError::Kind::Unreadable, path, "cannot be parsed by OpenMesh's reader");
+  OpenMeshResult result;
+  result.soup.V.resize(static_cast<Eigen::Index>(importer.points.size()), 3);
+  for (std::size_t i = 0; i < importer.points.size(); ++i) result.soup.V.row(i) = importer.points[i];
+  result.soup.polygons = std::move(importer.polygons);
+  result.reserve_called = importer.reserve_called;
+  result.announced_vertices = importer.announced_vertices;
+  result.announced_faces = importer.announced_faces;
+  return result;
+}
+
+// ============================================================================
+// Exact re-reading of text records.
+// ============================================================================
+
+[[noreturn]] void fail(const std::string& path, const std::string& message) {
+  throw MeshError(MeshError::Kind::Unreadable, path, message);
+}
+
+/// Parse a whole token as a double (accepts nan/inf so that validation can report them).
+bool parse_double(const std::string& token, double& value) {
+  if (token.empty()) return false;
+  errno = 0;
+  char* end = nullptr;
+  value = std::strtod(token.c_str(), &end);
+  return end == token.c_str() + token.size();  // overflow to ±inf is kept and reported as non-finite
+}
+
+/// Parse a whole token as an integer; out-of-int-range values become `out_of_range`.
+bool parse_int(const std::string& token, long long& value) {
+  if (token.empty()) return false;
+  errno = 0;
+  char* end = nullptr;
+  value = std::strtoll(token.c_str(), &end, 10);
+  if (end != token.c_str() + token.size()) return false;
+  if (errno == ERANGE) value = std::numeric_limits<long long>::max();
+  return true;
+}
+
+int clamp_index(long long value) {
+  // Anything outside int is out of range anyway; -1 keeps it recognisably invalid.
+  if (value < 0 || value > std::numeric_limits<int>::max()) return -1;
+  return static_cast<int>(value);
+}
+
+std::vector<std::string> split_whitespace(const std::string& line) {
+  std::vector<std::string> tokens;
+  std::istringstream in(line);
+  std::string token;
+  while (in >> token) tokens.push_back(token);
+  return tokens;
+}
+
+/// OBJ: every `v` line (x y z [w|r g b]) and every `f` line (vertex index before any '/'), 1-based,
+/// negative indices relative to the vertices read so far, as the OBJ specification says.
+PolygonSoup read_obj_exact(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, "cannot be opened");
+  std::vector<Eigen::Vector3d> points;
+  PolygonSoup soup;
+  std::string line;
+  std::size_t line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.erase(hash);
+    const auto tokens = split_whitespace(line);
+    if (tokens.empty()) continue;
+    if (tokens[0] == "v") {
+      Eigen::Vector3d p;
+      if (tokens.size() < 4 || !parse_double(tokens[1], p[0]) || !parse_double(tokens[2], p[1]) ||
+          !parse_double(tokens[3], p[2]))
+        fail(path, "line " + std::to_string(line_number) + ": vertex needs three numbers: '" + line + "'");
+      points.push_back(p);
+    } else if (tokens[0] == "f") {
+      std::vector<int> poly;
+      for (std::size_t t = 1; t < tokens.size(); ++t) {
+        long long value;
+        if (!parse_int(tokens[t].substr(0, tokens[t].find('/')), value))
+          fail(path, "line " + std::to_string(line_number) + ": bad face corner '" + tokens[t] + "'");
+        if (value < 0)
+          value += static_cast<long long>(points.size());  // -1 is the last vertex so far
+        else
+          value -= 1;  // 1-based; 0 becomes -1, which is invalid
+        poly.push_back(clamp_index(value));
+      }
+      soup.polygons.push_back(std::move(poly));
+    }
+  }
+  if (in.bad()) fail(path, "read error");
+  soup.V.resize(static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t i = 0; i < points.size(); ++i) soup.V.row(i) = points[i];
+  return soup;
+}
+
+/// Non-empty lines of a text file with '#' comments removed, tokenised.
+std::vector<std::pair<std::size_t, std::vector<std::string>>> token_lines(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, "cannot be opened");
+  std::vector<std::pair<std::size_t, std::vector<std::string>>> lines;
+  std::string line;
+  std::size_t number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.erase(hash);
+    auto tokens = split_whitespace(line);
+    if (!tokens.empty()) lines.emplace_back(number, std::move(tokens));
+  }
+  return lines;
+}
+
+/// ASCII OFF ([ST][C][N]OFF): one vertex per line (x y z first), one face per line (k i1 .. ik first).
+/// Returns nothing for variants it does not handle (binary, 4D, nOFF): OpenMesh's result is used then.
+std::optional<PolygonSoup> read_off_exact(const std::string& path, std::uintmax_t file_size) {
+  const auto lines = token_lines(path);  // comments (also before the keyword) are skipped
+  if (lines.empty()) fail(path, "no OFF data");
+  const std::string& keyword = lines[0].second[0];
+  if (keyword.size() < 3 || keyword.compare(keyword.size() - 3, 3, "OFF") != 0) return std::nullopt;
+  for (std::size_t i = 0; i + 3 < keyword.size();) {
+    if (keyword.compare(i, 2, "ST") == 0) i += 2;
+    else if (keyword[i] == 'C' || keyword[i] == 'N') i += 1;
+    else return std::nullopt;  // 4OFF, nOFF, ...
+  }
+  std::vector<std::string> header(lines[0].second.begin() + 1, lines[0].second.end());
+  std::size_t next = 1;
+  if (!header.empty() && header[0] == "BINARY") return std::nullopt;
+  if (header.size() < 2) {
+    if (lines.size() < 2) fail(path, "OFF header has no vertex and face counts");
+    header = lines[1].second;
+    next = 2;
+  }
+  long long nv, nf;
+  if (header.size() < 2 || !parse_int(header[0], nv) || !parse_int(header[1], nf) || nv < 0 || nf < 0)
+    fail(path, "OFF header needs non-negative vertex and face counts");
+  if (static_cast<std::uintmax_t>(nv) > file_size || static_cast<std::uintmax_t>(nf) > file_size)
+    fail(path, "OFF header announces more elements than the file can hold");
+  if (lines.size() < next + static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
+    fail(path, "file ends early: the header announces " + std::to_string(nv) + " vertices and " +
+                   std::to_string(nf) + " faces");
+  PolygonSoup soup;
+  soup.V.resize(nv, 3);
+  for (long long i = 0; i < nv; ++i) {
+    const auto& [number, tokens] = lines[next++];
+    if (tokens.size() < 3 || !parse_double(tokens[0], soup.V(i, 0)) || !parse_double(tokens[1], soup.V(i, 1)) ||
+        !parse_double(tokens[2], soup.V(i, 2)))
+      fail(path, "line " + std::to_string(number) + ": vertex needs three numbers");
+  }
+  soup.polygons.resize(static_cast<std::size_t>(nf));
+  for (long long f = 0; f < nf; ++f) {
+    const auto& [number, tokens] = lines[next++];
+    long long k;
+    if (!parse_int(tokens[0], k) || k < 0 || static_cast<std::size_t>(k) + 1 > tokens.size())
+      fail(path, "line " + std::to_string(number) + ": face needs a corner count and that many indices");
+    for (long long c = 1; c <= k; ++c) {
+      long long value;
+      if (!parse_int(tokens[c], value)) fail(path, "line " + std::to_string(number) + ": bad face index");
+      soup.polygons[f].push_back(clamp_index(value));
+    }
+  }
+  return soup;
+}
+
+/// PLY header: elements with their properties.
+struct PlyProperty {
+  std::string name, type, count_type;  // count_type non-empty for lists
+};
+struct PlyElement {
+  std::string name;
+  std::size_t count = 0;
+  std::vector<PlyProperty> properties;
+};
+struct PlyHeader {
+  std::string format;  // ascii, binary_little_endian, binary_big_endian
+  std::vector<PlyElement> elements;
+  std::streamoff data_offset = 0;
+};
+
+std::size_t ply_type_size(const std::string& type) {
+  if (type == "char" || type == "uchar" || type == "int8" || type == "uint8") return 1;
+  if (type == "short" || type == "ushort" || type == "int16" || type == "uint16") return 2;
+  if (type == "int" || type == "uint" || type == "int32" || type == "uint32" || type == "float" || type == "float32")
+    return 4;
+  if (type == "double" || type == "float64") return 8;
+  return 0;
+}
+
+std::optional<PlyHeader> read_ply_header(const std::string& path, std::uintmax_t file_size) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return std::nullopt;
+  PlyHeader header;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const auto tokens = split_whitespace(line);
+    if (tokens.empty()) continue;
+    if (tokens[0] == "end_header") {
+      header.data_offset = in.tellg();
+      return header.format.empty() ? std::nullopt : std::optional<PlyHeader>(header);
+    }
+    if (tokens[0] == "format" && tokens.size() >= 2) {
+      header.format = tokens[1];
+    } else if (tokens[0] == "element" && tokens.size() >= 3) {
+      long long count;
+      if (!parse_int(tokens[2], count) || count < 0 || static_cast<std::uintmax_t>(count) > file_size)
+        fail(path, "PLY element '" + tokens[1] + "' has an impossible count " + tokens[2]);
+      header.elements.push_back({tokens[1], static_cast<std::size_t>(count), {}});
+    } else if (tokens[0] == "property" && !header.elements.empty()) {
+      if (tokens.size() >= 5 && tokens[1] == "list")
+        header.elements.back().properties.push_back({tokens[4], tokens[3], tokens[2]});
+      else if (tokens.size() >= 3)
+        header.elements.back().properties.push_back({tokens[2], tokens[1], ""});
+    }
+  }
+  return std::nullopt;
+}
+
+/// Byte-order aware read of one binary PLY scalar as double.
+double decode_ply_scalar(const unsigned char* p, const std::string& type, bool big_endian) {
+  unsigned char b[8];
+  const std::size_t n = ply_type_size(type);
+  for (std::size_t i = 0; i < n; ++i) b[i] = big_endian ? p[n - 1 - i] : p[i];  // host is little endian
+  auto as = [&](auto tag) {
+    decltype(tag) v;
+    std::memcpy(&v, b, sizeof v);
+    return static_cast<double>(v);
+  };
+  if (type == "char" || type == "int8") return as(std::int8_t{});
+  if (type == "uchar" || type == "uint8") return as(std::uint8_t{});
+  if (type == "short" || type == "int16") return as(std::int16_t{});
+  if (type == "ushort" || type == "uint16") return as(std::uint16_t{});
+  if (type == "int" || type == "int32") return as(std::int32_t{});
+  if (type == "uint" || type == "uint32") return as(std::uint32_t{});
+  if (type == "float" || type == "float32") return as(float{});
+  return as(double{});
+}
+
+/// PLY: exact vertex positions when the first element is `vertex` with scalar properties only.
+/// For ASCII files the faces are re-read too (first list property of `face`), because OpenMesh's ASCII
+/// reader cannot recover from tokens it does not parse (nan, inf).
+std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_t file_size, bool& has_faces) {
+  has_faces = false;
+  const auto header = read_ply_header(path, file_size);
+  if (!header || header->elements.empty() || header->elements[0].name != "vertex") return std::nullopt;
+  const PlyElement& vertex = header->elements[0];
+  int ix = -1, iy = -1, iz = -1;
+  for (std::size_t k = 0; k < vertex.properties.size(); ++k) {
+    const auto& prop = vertex.properties[k];
+    if (!prop.count_type.empty() || ply_type_size(prop.type) == 0) return std::nullopt;
+    if (prop.name == "x") ix = static_cast<int>(k);
+    if (prop.name == "y") iy = static_cast<int>(k);
+    if (prop.name == "z") iz = static_cast<int>(k);
+  }
+  if (ix < 0 || iy < 0 || iz < 0) return std::nullopt;
+
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(header->data_offset);
+  PolygonSoup soup;
+  soup.V.resize(static_cast<Eigen::Index>(vertex.count), 3);
+  const std::string ends_early = "file ends early: the header announces " + std::to_string(vertex.count) + " vertices";
+  if (header->format == "ascii") {
+    std::string token;
+    for (std::size_t i = 0; i < vertex.count; ++i)
+      for (std::size_t k = 0; k < vertex.properties.size(); ++k) {
+        if (!(in >> token)) fail(path, ends_early);
+        double value;
+        if (!parse_double(token, value)) fail(path, "vertex " + std::to_string(i) + ": bad number '" + token + "'");
+        if (static_cast<int>(k) == ix) soup.V(i, 0) = value;
+        if (static_cast<int>(k) == iy) soup.V(i, 1) = value;
+        if (static_cast<int>(k) == iz) soup.V(i, 2) = value;
+      }
+    // Remaining elements: keep the faces, skip everything else.
+    for (std::size_t e = 1; e < header->elements.size(); ++e) {
+      const PlyElement& element = header->elements[e];
+      const bool is_face = element.name == "face";
+      for (std::size_t i = 0; i < element.count; ++i) {
+        std::vector<int> poly;
+        bool took_indices = false;
+        for (const auto& prop : element.properties) {
+          long long n = 1;
+          if (!prop.count_type.empty()) {
+            if (!(in >> token) || !parse_int(token, n) || n < 0 || static_cast<std::uintmax_t>(n) > file_size)
+              fail(path, "element '" + element.name + "' " + std::to_string(i) + ": bad list length");
+          }
+          const bool indices = is_face && !prop.count_type.empty() && !took_indices;
+          for (long long c = 0; c < n; ++c) {
+            if (!(in >> token)) fail(path, "file ends early in element '" + element.name + "'");
+            if (indices) {
+              long long value;
+              if (!parse_int(token, value)) fail(path, "face " + std::to_string(i) + ": bad index '" + token + "'");
+              poly.push_back(clamp_index(value));
+            }
+          }
+          took_indices = took_indices || indices;
+        }
+        if (is_face) soup.polygons.push_back(std::move(poly));
+      }
+      has_faces = has_faces || is_face;
+    }
+    return soup;
+  }
+  if (header->format != "binary_little_endian" && header->format != "binary_big_endian") return std::nullopt;
+  const bool big_endian = header->format == "binary_big_endian";
+  std::size_t stride = 0;
+  std::vector<std::size_t> offset;
+  for (const auto& prop : vertex.properties) {
+    offset.push_back(stride);
+    stride += ply_type_size(prop.type);
+  }
+  std::vector<unsigned char> record(stride);
+  for (std::size_t i = 0; i < vertex.count; ++i) {
+    if (!in.read(reinterpret_cast<char*>(record.data()), static_cast<std::streamsize>(stride))) fail(path, ends_early);
+    soup.V(i, 0) = decode_ply_scalar(record.data() + offset[ix], vertex.properties[ix].type, big_endian);
+    soup.V(i, 1) = decode_ply_scalar(record.data() + offset[iy], vertex.properties[iy].type, big_endian);
+    soup.V(i, 2) = decode_ply_scalar(record.data() + offset[iz], vertex.properties[iz].type, big_endian);
+  }
+  return soup;
+}
+
+/// True if the exact coordinates round to OpenMesh's float32 values (a parser sanity check).
+bool agrees_with_float(const Positions& exact, const Positions& om, Eigen::Index& first_mismatch) {
+  for (Eigen::Index i = 0; i < exact.rows(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const double a = exact(i, k), b = om(i, k);
+      if (!std::isfinite(a) || !std::isfinite(b)) continue;
+      if (std::abs(a - b) > 1e-6 * std::max(1.0, std::abs(a))) {
+        first_mismatch = i;
+        return false;
+      }
+    }
+  return true;
+}
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  if (!ext.empty() && ext[0] == '.') ext.erase(0, 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+/// The faces OpenMesh's OBJ reader produces from raw corner lists: repeats removed (first occurrence
+/// kept) and faces with fewer than three corners dropped.
+std::vector<std::vector<int>> as_openmesh_obj_faces(const std::vector<std::vector<int>>& raw) {
+  std::vector<std::vector<int>> faces;
+  for (const auto& poly : raw) {
+    std::vector<int> kept;
+    for (int v : poly)
+      if (std::find(kept.begin(), kept.end(), v) == kept.end()) kept.push_back(v);
+    if (kept.size() > 2) faces.push_back(std::move(kept));
+  }
+  return faces;
+}
+
+std::string describe_defects(const ValidationReport& report) {
+  std::string text;
+  for (const auto& line : report.defects()) text += (text.empty() ? "" : "; ") + line;
+  return text;
+}
+
+TriangleMesh to_triangle_mesh(const PolygonSoup& soup) {
+  TriangleMesh mesh;
+  mesh.V = soup.V;
+  mesh.F.resize(static_cast<Eigen::Index>(soup.polygons.size()), 3);
+  for (std::size_t f = 0; f < soup.polygons.size(); ++f)
+    for (int k = 0; k < 3; ++k) mesh.F(f, k) = soup.polygons[f][k];
+  return mesh;
+}
+
+}  // namespace
+
+// ============================================================================
+
+MeshFile read_mesh_file(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec || !fs::exists(status)) fail(path, "no such file");
+  if (!fs::is_regular_file(status)) fail(path, "not a regular file");
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec) fail(path, "cannot determine the file size");
+  if (size == 0) fail(path, "empty file");
+  if (!std::ifstream(path, std::ios::binary)) fail(path, "cannot be opened for reading");
+
+  MeshFile file;
+  file.format = lower_extension(path);
+  if (file.format != "obj" && file.format != "off" && file.format != "ply" && file.format != "stl")
+    fail(path, "unsupported format '." + file.format + "' (supported: .obj, .off, .ply, .stl)");
+
+  // Every vertex or face record takes at least one byte: a larger count means a corrupt file.
+  const std::size_t max_records = static_cast<std::size_t>(size) + 16;
+  std::optional<PolygonSoup> exact;
+  bool exact_has_faces = false;
+  if (file.format == "obj") {
+    exact = read_obj_exact(path);
+    exact_has_faces = true;
+  } else if (file.format == "off") {
+    exact = read_off_exact(path, size);
+    exact_has_faces = exact.has_value();
+  } else if (file.format == "ply") {
+    exact = read_ply_exact(path, size, exact_has_faces);
+  }
+
+  // OpenMesh's ASCII PLY reader cannot skip tokens like "nan": with non-finite values we rely on the
+  // exact re-read alone (it parsed every record strictly).
+  const bool skip_openmesh = exact && exact_has_faces && !exact->V.allFinite();
+  if (skip_openmesh) {
+    file.soup = std::move(*exact);
+    file.exact_coordinates = true;
+    file.notes.push_back("non-finite coordinates: OpenMesh's cross-check skipped");
+  } else {
+    OpenMeshResult om;
+    try {
+      om = read_with_openmesh(path, max_records);
+    } catch (const MeshError&) {
+      if (!exact || !exact_has_faces) throw;
+      // The strict exact parser read every record; OpenMesh's reader is only a cross-check here.
+      om.soup = *exact;
+      file.notes.push_back("OpenMesh's reader failed on this file; using the exact parser alone");
+    }
+    if (om.reserve_called && (om.soup.V.rows() != static_cast<Eigen::Index>(om.announced_vertices) ||
+                              om.soup.polygons.size() != om.announced_faces) && file.format != "stl")
+      fail(path, "file ends early or is corrupt: the header announces " + std::to_string(om.announced_vertices) +
+                     " vertices and " + std::to_string(om.announced_faces) + " faces, the reader found " +
+                     std::to_string(om.soup.V.rows()) + " and " + std::to_string(om.soup.polygons.size()));
+    if (!exact) {
+      file.soup = std::move(om.soup);
+      if (file.format != "stl")
+        file.notes.push_back("coordinates read by OpenMesh in single precision (float32)");
+    } else {
+      if (exact->V.rows() != om.soup.V.rows())
+        file.notes.push_back("OpenMesh read " + std::to_string(om.soup.V.rows()) + " vertices, the exact re-read " +
+                             std::to_string(exact->V.rows()) + " (OpenMesh skips vertex records it cannot parse)");
+      Eigen::Index mismatch = 0;
+      if (exact->V.rows() == om.soup.V.rows() && !agrees_with_float(exact->V, om.soup.V, mismatch))
+        fail(path, "exact re-read and OpenMesh disagree at vertex " + std::to_string(mismatch) +
+                       " (unsupported file layout)");
+      if (exact_has_faces) {
+        const auto expected = file.format == "obj" ? as_openmesh_obj_faces(exact->polygons) : exact->polygons;
+        if (expected != om.soup.polygons)
+          file.notes.push_back(file.format == "obj"
+                                   ? "faces as written in the file; OpenMesh's OBJ reader would drop repeated corners"
+                                   : "faces as written in the file differ from OpenMesh's reading");
+      } else {
+        if (exact->V.rows() != om.soup.V.rows()) fail(path, "vertex count differs between readers");
+        exact->polygons = std::move(om.soup.polygons);
+      }
+      file.soup = std::move(*exact);
+      file.exact_coordinates = true;
+    }
+  }
+  if (file.soup.polygons.empty()) fail(path, "contains no faces");
+  return file;
+}
+
+LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& options) {
+  LoadResult result;
+  result.file = read_mesh_file(path);
+  result.input_report = validate_mesh(result.file.soup);
+
+  if (!options.repair) {
+    if (!result.input_report.clean())
+      throw MeshError(MeshError::Kind::Defective, path,
+                      "refused: " + describe_defects(result.input_report) + " (load with repair to fix what is safe)");
+    result.mesh = to_triangle_mesh(result.file.soup);
+    result.source_vertex.resize(static_cast<std::size_t>(result.mesh.V.rows()));
+    std::iota(result.source_vertex.begin(), result.source_vertex.end(), 0);
+    result.source_face.resize(static_cast<std::size_t>(result.mesh.F.rows()));
+    std::iota(result.source_face.begin(), result.source_face.end(), 0);
+    result.report = result.input_report;
+    return result;
+  }
+
+  RepairOptions repair_options;
+  repair_options.weld_duplicate_positions = options.weld_duplicate_positions;
+  RepairResult repaired = repair_mesh(result.file.soup, repair_options);
+  result.repairs = repaired.log;
+  if (!repaired.report.clean()) {
+    std::string done;
+    for (const auto& line : repaired.log.summary()) done += (done.empty() ? "" : ", ") + line;
+    throw MeshError(MeshError::Kind::Defective, path,
+                    "refused even after repair: " + describe_defects(repaired.report) +
+                        (done.empty() ? std::string() : " (repairs done: " + done + ")"));
+  }
+  if (repaired.soup.polygons.empty()) throw MeshError(MeshError::Kind::Defective, path, "no faces left after repair");
+  result.mesh = to_triangle_mesh(repaired.soup);
+  result.source_vertex = std::move(repaired.source_vertex);
+  result.source_face = std::move(repaired.source_face);
+  result.report = std::move(repaired.report);
+  return result;
+}
+
+TriangleMesh load_mesh(const std::string& path, const LoadOptions& options) {
+  return load_mesh_with_report(path, options).mesh;
+}
+
+// ============================================================================
+// Writing.
+// ============================================================================
+
+namespace {
+
+template <class T>
+void put_binary(std::ostream& out, T value) {
+  out.write(reinterpret_cast<const char*>(&value), sizeof value);  // host is little endian (x86/ARM)
+}
+
+}  // namespace
+
+void write_mesh(const std::string& path, const TriangleMesh& mesh, const WriteOptions& options) {
+  const std::string ext = lower_extension(path);
+  if (ext != "obj" && ext != "off" && ext != "ply" && ext != "stl")
+    throw MeshError(MeshError::Kind::Unwritable, path, "unsupported output format '." + ext + "'");
+  std::error_code ec;
+  if (!options.overwrite && fs::exists(path, ec))
+    throw MeshError(MeshError::Kind::Unwritable, path, "exists already (allow overwriting to replace it)");
+  const Eigen::Index nv = mesh.V.rows(), nf = mesh.F.rows();
+  if (mesh.V.cols() != 3 || mesh.F.cols() != 3 || (nf > 0 && (mesh.F.minCoeff() < 0 || mesh.F.maxCoeff() >= nv)))
+    throw MeshError(MeshError::Kind::Unwritable, path, "invalid mesh (needs n×3 positions and in-range n×3 faces)");
+
+  const bool binary = options.binary && (ext == "ply" || ext == "stl");
+  std::ofstream out(path, binary ? std::ios::binary : std::ios::out);
+  if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "cannot be opened for writing");
+  out.precision(std::numeric_limits<double>::max_digits10);  // exact round trip of doubles
+
+  if (ext == "obj") {
+    for (Eigen::Index i = 0; i < nv; ++i) out << "v " << mesh.V(i, 0) << ' ' << mesh.V(i, 1) << ' ' << mesh.V(i, 2) << '\n';
+    for (Eigen::Index f = 0; f < nf; ++f)
+      out << "f " << mesh.F(f, 0) + 1 << ' ' << mesh.F(f, 1) + 1 << ' ' << mesh.F(f, 2) + 1 << '\n';
+  } else if (ext == "off") {
+    out << "OFF\n" << nv << ' ' << nf << " 0\n";
+    for (Eigen::Index i = 0; i < nv; ++i) out << mesh.V(i, 0) << ' ' << mesh.V(i, 1) << ' ' << mesh.V(i, 2) << '\n';
+    for (Eigen::Index f = 0; f < nf; ++f) out << "3 " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << '\n';
+  } else if (ext == "ply") {
+    out << "ply\nformat " << (binary ? "binary_little_endian" : "ascii") << " 1.0\n"
+        << "element vertex " << nv << "\nproperty double x\nproperty double y\nproperty double z\n"
+        << "element face " << nf << "\nproperty list uchar int vertex_indices\nend_header\n";
+    for (Eigen::Index i = 0; i < nv; ++i) {
+      if (binary)
+        for (int k = 0; k < 3; ++k) put_binary(out, mesh.V(i, k));
+      else
+        out << mesh.V(i, 0) << ' ' << mesh.V(i, 1) << ' ' << mesh.V(i, 2) << '\n';
+    }
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      if (binary) {
+        put_binary(out, static_cast<std::uint8_t>(3));
+        for (int k = 0; k < 3; ++k) put_binary(out, static_cast<std::int32_t>(mesh.F(f, k)));
+      } else {
+        out << "3 " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << '\n';
+      }
+    }
+  } else {  // stl
+    auto normal = [&](Eigen::Index f) {
+      const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+      return (b - a).cross(c - a).normalized().eval();
+    };
+    if (binary) {
+      char header[80] = "ICE binary STL";
+      out.write(header, sizeof header);
+      put_binary(out, static_cast<std::uint32_t>(nf));
+      for (Eigen::Index f = 0; f < nf; ++f) {
+        const Eigen::Vector3d n = normal(f);
+        for (int k = 0; k < 3; ++k) put_binary(out, static_cast<float>(n[k]));
+        for (int c = 0; c < 3; ++c)
+          for (int k = 0; k < 3; ++k) put_binary(out, static_cast<float>(mesh.V(mesh.F(f, c), k)));
+        put_binary(out, static_cast<std::uint16_t>(0));
+      }
+    } else {
+      out << "solid ice\n";
+      for (Eigen::Index f = 0; f < nf; ++f) {
+        const Eigen::Vector3d n = normal(f);
+        out << "facet normal " << n[0] << ' ' << n[1] << ' ' << n[2] << "\nouter loop\n";
+        for (int c = 0; c < 3; ++c)
+          out << "vertex " << mesh.V(mesh.F(f, c), 0) << ' ' << mesh.V(mesh.F(f, c), 1) << ' ' << mesh.V(mesh.F(f, c), 2)
+              << '\n';
+        out << "endloop\nendfacet\n";
+      }
+      out << "endsolid ice\n";
+    }
+  }
+  out.flush();
+  if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "write error");
+}
+
+}  // namespace ice

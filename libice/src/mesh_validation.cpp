@@ -1,0 +1,409 @@
+#include "ice/mesh_validation.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <type_traits>
+
+namespace ice {
+
+namespace {
+
+/// Union-find with path halving; small and iterative so huge meshes cannot overflow the stack.
+class DisjointSets {
+ public:
+  explicit DisjointSets(std::size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), 0); }
+  std::size_t find(std::size_t x) {
+    while (parent_[x] != x) {
+      parent_[x] = parent_[parent_[x]];
+      x = parent_[x];
+    }
+    return x;
+  }
+  void unite(std::size_t a, std::size_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
+  }
+
+ private:
+  std::vector<std::size_t> parent_;
+};
+
+/// One directed use of an undirected edge by a face corner.
+struct HalfEdgeUse {
+  std::uint64_t key;  ///< (min << 32) | max of the endpoint ids.
+  int face;
+  int corner;         ///< The half-edge goes from corner to corner+1 of `face`.
+  bool forward;       ///< True if it goes from the smaller to the larger vertex id.
+};
+
+std::uint64_t edge_key(int a, int b) {
+  const auto lo = static_cast<std::uint64_t>(std::min(a, b));
+  const auto hi = static_cast<std::uint64_t>(std::max(a, b));
+  return (lo << 32) | hi;
+}
+
+VertexPair edge_pair(std::uint64_t key) {
+  return {static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)};
+}
+
+bool row_is_finite(const Positions& V, Eigen::Index i) {
+  return std::isfinite(V(i, 0)) && std::isfinite(V(i, 1)) && std::isfinite(V(i, 2));
+}
+
+/// Twice the vector area of a polygon (Newell's formula), for faces with more than three corners.
+Eigen::Vector3d polygon_double_area(const Positions& V, const std::vector<int>& poly) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  const Eigen::Vector3d origin = V.row(poly[0]).transpose();  // translation-invariant: subtract a corner
+  for (std::size_t k = 0; k < poly.size(); ++k) {
+    const Eigen::Vector3d p = V.row(poly[k]).transpose() - origin;
+    const Eigen::Vector3d q = V.row(poly[(k + 1) % poly.size()]).transpose() - origin;
+    sum += p.cross(q);
+  }
+  return sum;
+}
+
+std::string join_ids(const std::vector<int>& ids) {
+  std::ostringstream out;
+  for (std::size_t i = 0; i < ids.size(); ++i) out << (i ? ", " : "") << ids[i];
+  return out.str();
+}
+
+std::string join_pairs(const std::vector<VertexPair>& pairs) {
+  std::ostringstream out;
+  for (std::size_t i = 0; i < pairs.size(); ++i) out << (i ? ", " : "") << pairs[i][0] << '-' << pairs[i][1];
+  return out.str();
+}
+
+template <class T>
+void describe(std::vector<std::string>& lines, const Offenders<T>& offenders, const char* what,
+              const char* id_kind) {
+  if (offenders.empty()) return;
+  std::ostringstream line;
+  line << offenders.count << ' ' << what << " (first " << id_kind << ": ";
+  if constexpr (std::is_same_v<T, VertexPair>)
+    line << join_pairs(offenders.first);
+  else
+    line << join_ids(offenders.first);
+  line << (offenders.count > offenders.first.size() ? ", ...)" : ")");
+  lines.push_back(line.str());
+}
+
+}  // namespace
+
+PolygonSoup to_polygon_soup(const TriangleMesh& mesh) {
+  PolygonSoup soup;
+  soup.V = mesh.V;
+  soup.polygons.resize(static_cast<std::size_t>(mesh.F.rows()));
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    soup.polygons[f] = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+  return soup;
+}
+
+bool is_zero_area_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                           double diagonal) {
+  if (!a.allFinite() || !b.allFinite() || !c.allFinite()) return true;
+  const Eigen::Vector3d ab = b - a, ac = c - a, bc = c - b;
+  const double longest2 = std::max({ab.squaredNorm(), ac.squaredNorm(), bc.squaredNorm()});
+  const double coincide = 1e-14 * diagonal;
+  if (longest2 <= coincide * coincide) return true;
+  return ab.cross(ac).norm() <= kDegenerateRelativeTolerance * longest2;
+}
+
+std::vector<std::string> ValidationReport::defects() const {
+  std::vector<std::string> lines;
+  describe(lines, non_triangle_faces, "non-triangle faces", "faces");
+  describe(lines, out_of_range_faces, "faces with out-of-range vertex indices", "faces");
+  describe(lines, repeated_index_faces, "faces with a repeated vertex index", "faces");
+  describe(lines, non_finite_vertices, "vertices with non-finite coordinates", "vertices");
+  describe(lines, unreferenced_vertices, "unreferenced vertices", "vertices");
+  describe(lines, duplicate_faces, "duplicate faces", "faces");
+  describe(lines, zero_area_faces, "zero-area faces", "faces");
+  describe(lines, non_manifold_edges, "non-manifold edges", "edges");
+  describe(lines, non_manifold_vertices, "non-manifold vertices", "vertices");
+  describe(lines, inconsistent_edges, "inconsistently oriented edges", "edges");
+  if (non_orientable_components > 0)
+    lines.push_back(std::to_string(non_orientable_components) + " non-orientable components");
+  return lines;
+}
+
+ValidationReport validate_mesh(const TriangleMesh& mesh) { return validate_mesh(to_polygon_soup(mesh)); }
+
+ValidationReport validate_mesh(const PolygonSoup& soup) {
+  ValidationReport r;
+  const Positions& V = soup.V;
+  const auto& polys = soup.polygons;
+  const int nv = static_cast<int>(V.rows());
+  const int nf = static_cast<int>(polys.size());
+  r.n_vertices = static_cast<std::size_t>(nv);
+  r.n_faces = static_cast<std::size_t>(nf);
+
+  // ---- vertices: finiteness and bounding box ----
+  bool any_finite = false;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (int i = 0; i < nv; ++i) {
+    if (!row_is_finite(V, i)) {
+      r.non_finite_vertices.add(i);
+      continue;
+    }
+    any_finite = true;
+    lo = lo.cwiseMin(V.row(i).transpose());
+    hi = hi.cwiseMax(V.row(i).transpose());
+  }
+  if (any_finite) {
+    r.bbox_min = lo;
+    r.bbox_max = hi;
+  }
+  const double diagonal = any_finite ? (hi - lo).norm() : 0.0;
+
+  // ---- duplicate positions (exact), finite vertices only so the sort order is strict ----
+  {
+    std::vector<int> order;
+    order.reserve(static_cast<std::size_t>(nv));
+    for (int i = 0; i < nv; ++i)
+      if (row_is_finite(V, i)) order.push_back(i);
+    auto less = [&](int a, int b) {
+      for (int k = 0; k < 3; ++k)
+        if (V(a, k) != V(b, k)) return V(a, k) < V(b, k);
+      return a < b;
+    };
+    std::sort(order.begin(), order.end(), less);
+    std::vector<int> dups;
+    for (std::size_t i = 1; i < order.size(); ++i)
+      if (V.row(order[i]) == V.row(order[i - 1])) dups.push_back(order[i]);
+    std::sort(dups.begin(), dups.end());
+    for (int v : dups) r.duplicate_positions.add(v);
+  }
+
+  // ---- per-face checks; collect well-formed faces ----
+  std::vector<char> well_formed(static_cast<std::size_t>(nf), 0);
+  std::vector<char> referenced(static_cast<std::size_t>(nv), 0);
+  for (int f = 0; f < nf; ++f) {
+    const auto& poly = polys[f];
+    if (poly.size() != 3) r.non_triangle_faces.add(f);
+    const bool in_range = std::all_of(poly.begin(), poly.end(), [&](int v) { return v >= 0 && v < nv; });
+    if (!in_range) {
+      r.out_of_range_faces.add(f);
+      continue;
+    }
+    std::vector<int> sorted = poly;
+    std::sort(sorted.begin(), sorted.end());
+    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
+      r.repeated_index_faces.add(f);
+      continue;
+    }
+    if (poly.size() < 3) continue;
+    well_formed[f] = 1;
+    for (int v : poly) referenced[v] = 1;
+
+    const bool finite = std::all_of(poly.begin(), poly.end(), [&](int v) { return row_is_finite(V, v); });
+    if (!finite) continue;  // already reported through its vertices
+    bool degenerate;
+    if (poly.size() == 3) {
+      degenerate = is_zero_area_triangle(V.row(poly[0]).transpose(), V.row(poly[1]).transpose(),
+                                         V.row(poly[2]).transpose(), diagonal);
+    } else {
+      double longest2 = 0;
+      for (std::size_t k = 0; k < poly.size(); ++k)
+        longest2 = std::max(longest2, (V.row(poly[(k + 1) % poly.size()]) - V.row(poly[k])).squaredNorm());
+      const double coincide = 1e-14 * diagonal;
+      degenerate = longest2 <= coincide * coincide ||
+                   polygon_double_area(V, poly).norm() <= kDegenerateRelativeTolerance * longest2;
+    }
+    if (degenerate) r.zero_area_faces.add(f);
+  }
+  for (int v = 0; v < nv; ++v)
+    if (!referenced[v]) r.unreferenced_vertices.add(v);
+
+  // ---- duplicate faces: same vertex set as an earlier well-formed face ----
+  {
+    std::vector<std::pair<std::vector<int>, int>> keyed;
+    for (int f = 0; f < nf; ++f) {
+      if (!well_formed[f]) continue;
+      std::vector<int> key = polys[f];
+      std::sort(key.begin(), key.end());
+      keyed.emplace_back(std::move(key), f);
+    }
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<int> dups;
+    for (std::size_t i = 1; i < keyed.size(); ++i)
+      if (keyed[i].first == keyed[i - 1].first) dups.push_back(keyed[i].second);
+    std::sort(dups.begin(), dups.end());
+    for (int f : dups) r.duplicate_faces.add(f);
+  }
+
+  // ---- half-edges grouped by undirected edge ----
+  std::vector<std::size_t> corner_offset(static_cast<std::size_t>(nf) + 1, 0);
+  for (int f = 0; f < nf; ++f) corner_offset[f + 1] = corner_offset[f] + (well_formed[f] ? polys[f].size() : 0);
+  const std::size_t n_corners = corner_offset[nf];
+  std::vector<HalfEdgeUse> uses;
+  uses.reserve(n_corners);
+  for (int f = 0; f < nf; ++f) {
+    if (!well_formed[f]) continue;
+    const auto& poly = polys[f];
+    for (std::size_t k = 0; k < poly.size(); ++k) {
+      const int a = poly[k], b = poly[(k + 1) % poly.size()];
+      uses.push_back({edge_key(a, b), f, static_cast<int>(k), a < b});
+    }
+  }
+  std::sort(uses.begin(), uses.end(), [](const HalfEdgeUse& x, const HalfEdgeUse& y) {
+    return x.key != y.key ? x.key < y.key : x.face < y.face;
+  });
+
+  // Corner of face f at vertex v, found by a short scan (faces are small).
+  auto corner_of = [&](int f, int v) -> std::size_t {
+    const auto& poly = polys[f];
+    for (std::size_t k = 0; k < poly.size(); ++k)
+      if (poly[k] == v) return corner_offset[f] + k;
+    return corner_offset[f];  // unreachable for an edge of f
+  };
+
+  DisjointSets fans(n_corners);           // corners at one vertex linked through two-face edges
+  DisjointSets boundary_graph(static_cast<std::size_t>(std::max(nv, 0)));
+  std::vector<char> on_boundary(static_cast<std::size_t>(nv), 0);
+  // Face graph through two-face edges: (other face, parity 1 if the faces must flip relative to each other).
+  std::vector<std::vector<std::pair<int, int>>> face_links(static_cast<std::size_t>(nf));
+  std::vector<std::uint64_t> unique_edges;
+  std::vector<std::uint64_t> non_manifold_edge_keys;
+  double len_min = std::numeric_limits<double>::infinity(), len_max = 0, len_sum = 0;
+  std::size_t len_count = 0;
+
+  for (std::size_t i = 0; i < uses.size();) {
+    std::size_t j = i;
+    while (j < uses.size() && uses[j].key == uses[i].key) ++j;
+    const std::size_t valence = j - i;
+    const VertexPair ab = edge_pair(uses[i].key);
+    unique_edges.push_back(uses[i].key);
+    if (row_is_finite(V, ab[0]) && row_is_finite(V, ab[1])) {
+      const double len = (V.row(ab[0]) - V.row(ab[1])).norm();
+      len_min = std::min(len_min, len);
+      len_max = std::max(len_max, len);
+      len_sum += len;
+      ++len_count;
+    }
+    if (valence == 1) {
+      boundary_graph.unite(ab[0], ab[1]);
+      on_boundary[ab[0]] = on_boundary[ab[1]] = 1;
+    } else if (valence == 2) {
+      const HalfEdgeUse& x = uses[i];
+      const HalfEdgeUse& y = uses[i + 1];
+      if (x.forward == y.forward) r.inconsistent_edges.add(ab);
+      for (int v : ab) fans.unite(corner_of(x.face, v), corner_of(y.face, v));
+      const int parity = x.forward == y.forward ? 1 : 0;
+      face_links[x.face].emplace_back(y.face, parity);
+      face_links[y.face].emplace_back(x.face, parity);
+    } else {
+      r.non_manifold_edges.add(ab);
+      non_manifold_edge_keys.push_back(uses[i].key);
+    }
+    i = j;
+  }
+  r.n_edges = unique_edges.size();
+  if (len_count > 0) {
+    r.edge_length_min = len_min;
+    r.edge_length_max = len_max;
+    r.edge_length_mean = len_sum / static_cast<double>(len_count);
+  }
+
+  // ---- non-manifold vertices: more than one fan ----
+  std::vector<int> fan_count(static_cast<std::size_t>(nv), 0);
+  for (int f = 0; f < nf; ++f) {
+    if (!well_formed[f]) continue;
+    for (std::size_t k = 0; k < polys[f].size(); ++k) {
+      const std::size_t c = corner_offset[f] + k;
+      if (fans.find(c) == c) ++fan_count[polys[f][k]];
+    }
+  }
+  std::vector<char> vertex_non_manifold(static_cast<std::size_t>(nv), 0);
+  for (int v = 0; v < nv; ++v)
+    if (fan_count[v] > 1) {
+      r.non_manifold_vertices.add(v);
+      vertex_non_manifold[v] = 1;
+    }
+
+  // ---- connected components through shared vertices ----
+  DisjointSets vertex_sets(static_cast<std::size_t>(std::max(nv, 0)));
+  for (int f = 0; f < nf; ++f)
+    if (well_formed[f])
+      for (int v : polys[f]) vertex_sets.unite(static_cast<std::size_t>(polys[f][0]), static_cast<std::size_t>(v));
+  std::vector<int> component_of_root(static_cast<std::size_t>(nv), -1);
+  std::vector<int> component(static_cast<std::size_t>(nv), -1);
+  for (int v = 0; v < nv; ++v) {
+    if (!referenced[v]) continue;
+    const std::size_t root = vertex_sets.find(v);
+    if (component_of_root[root] < 0) {
+      component_of_root[root] = static_cast<int>(r.components.size());
+      r.components.emplace_back();
+    }
+    component[v] = component_of_root[root];
+    ++r.components[component[v]].n_vertices;
+  }
+  auto& comps = r.components;
+  for (int f = 0; f < nf; ++f)
+    if (well_formed[f]) ++comps[component[polys[f][0]]].n_faces;
+  for (std::uint64_t key : unique_edges) ++comps[component[edge_pair(key)[0]]].n_edges;
+  for (std::uint64_t key : non_manifold_edge_keys) comps[component[edge_pair(key)[0]]].manifold = false;
+  for (int v = 0; v < nv; ++v)
+    if (vertex_non_manifold[v]) comps[component[v]].manifold = false;
+  for (int v = 0; v < nv; ++v)
+    if (on_boundary[v] && boundary_graph.find(v) == static_cast<std::size_t>(v)) ++comps[component[v]].n_boundary_loops;
+  for (std::size_t i = 0; i < uses.size();) {  // per-component consistency (offender lists are samples)
+    std::size_t j = i;
+    while (j < uses.size() && uses[j].key == uses[i].key) ++j;
+    if (j - i == 2 && uses[i].forward == uses[i + 1].forward)
+      comps[component[polys[uses[i].face][0]]].consistently_oriented = false;
+    i = j;
+  }
+
+  // ---- orientability: 2-colour the face graph of two-face edges by flip parity ----
+  std::vector<int> flip(static_cast<std::size_t>(nf), -1);
+  std::vector<int> stack;
+  for (int seed = 0; seed < nf; ++seed) {
+    if (!well_formed[seed] || flip[seed] >= 0) continue;
+    flip[seed] = 0;
+    stack.assign(1, seed);
+    bool conflict = false;
+    while (!stack.empty()) {
+      const int f = stack.back();
+      stack.pop_back();
+      for (const auto& [g, parity] : face_links[f]) {
+        const int wanted = flip[f] ^ parity;
+        if (flip[g] < 0) {
+          flip[g] = wanted;
+          stack.push_back(g);
+        } else if (flip[g] != wanted) {
+          conflict = true;
+        }
+      }
+    }
+    if (conflict) comps[component[polys[seed][0]]].orientable = false;
+  }
+
+  // ---- per-component Euler characteristic and genus, then sums ----
+  bool all_genus_defined = !comps.empty();
+  long genus_sum = 0;
+  for (ComponentInfo& c : comps) {
+    c.euler_characteristic = static_cast<long>(c.n_vertices) - static_cast<long>(c.n_edges) +
+                             static_cast<long>(c.n_faces);
+    if (!c.orientable) ++r.non_orientable_components;
+    const long twice_genus = 2 - c.euler_characteristic - static_cast<long>(c.n_boundary_loops);
+    if (c.manifold && c.orientable && twice_genus >= 0 && twice_genus % 2 == 0)
+      c.genus = static_cast<int>(twice_genus / 2);
+    else
+      all_genus_defined = false;
+    r.euler_characteristic += c.euler_characteristic;
+    r.n_boundary_loops += c.n_boundary_loops;
+    genus_sum += std::max(c.genus, 0);
+  }
+  r.genus = all_genus_defined ? static_cast<int>(genus_sum) : -1;
+  return r;
+}
+
+}  // namespace ice
