@@ -1,0 +1,115 @@
+#pragma once
+/// \file coarse_proxy.h
+/// Solving a fine-mesh PDE through a small coarse proxy: restrict the data, solve on the coarse
+/// mesh, prolong the solution with P.
+///
+/// Inputs: the fine intrinsic mesh (F, L), the coarse one (Fc, Lc), and a prolongation P
+/// (n_fine × n_coarse, every row sums to 1, typically the barycentric coordinates of each fine vertex
+/// in a coarse face). Coarse operators come in two flavours:
+///  - intrinsic: cotan Laplacian and mass assembled from the coarse lengths Lc;
+///  - Galerkin: Lc = Pᵀ L P and Mc = Pᵀ M P from the fine operators (the variational restriction;
+///    Fc and Lc are then only used for coarse boundary detection and the heat-method time step).
+///
+/// What is restricted, and how:
+///  - Poisson (zero mean): the mass-weighted fine right-hand side, b_c = Pᵀ M f. Rows of P summing to
+///    1 means 1ᵀ b_c = 1ᵀ M f, so compatibility (zero total source) carries over to the coarse mesh.
+///    The prolonged solution P u_c is re-centred to zero fine-mass mean.
+///  - Heat: the initial nodal values u₀, either by L² projection (solve M_c u_c = Pᵀ M u₀; exact
+///    L² projection onto span P with Galerkin operators) or by injection (u_c(j) = u₀ at the fine
+///    vertex that coincides with coarse vertex j, read off P as the row equal to e_j).
+///  - Geodesic distance: a fine source vertex s becomes the coarse source weights Pᵀ e_s, i.e. the
+///    corners of the coarse face containing s weighted by P's row s; the prolonged distance is shifted
+///    so that it vanishes (on average) at the fine sources.
+#include <vector>
+
+#include "fem/operators.h"
+#include "fem/problems.h"
+
+namespace fem {
+
+enum class CoarseOperatorKind { intrinsic, galerkin };
+enum class RestrictionKind { l2_projection, injection };
+
+/// Fine and coarse operators linked by P. Assembles everything once in the constructor.
+class CoarseProxy {
+ public:
+  /// Throws std::invalid_argument if P is not n_fine × n_coarse (n from F and Fc; pass the counts
+  /// explicitly if some vertices are unreferenced) or a row of P does not sum to 1 within 1e-10.
+  CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
+              CoarseOperatorKind kind, MassKind mass_kind = MassKind::lumped,
+              Eigen::Index fine_vertex_count = -1, Eigen::Index coarse_vertex_count = -1);
+
+  CoarseOperatorKind kind() const { return kind_; }
+  const SparseMatrix& prolongation() const { return P_; }
+  const SparseMatrix& fine_laplacian() const { return fine_laplacian_; }
+  const SparseMatrix& fine_mass() const { return fine_mass_; }
+  const SparseMatrix& coarse_laplacian() const { return coarse_laplacian_; }
+  const SparseMatrix& coarse_mass() const { return coarse_mass_; }
+  Eigen::Index fine_size() const { return P_.rows(); }
+  Eigen::Index coarse_size() const { return P_.cols(); }
+
+  /// Pᵀ b for a mass-weighted (integrated) fine vector b.
+  Eigen::VectorXd restrict_weighted(const Eigen::VectorXd& b) const;
+  /// Coarse nodal values from fine nodal values u (see the file comment for the two kinds).
+  /// Injection throws std::logic_error if some coarse vertex has no coinciding fine vertex in P.
+  Eigen::VectorXd restrict_values(const Eigen::VectorXd& u, RestrictionKind kind) const;
+  /// P u_c.
+  Eigen::VectorXd prolong(const Eigen::VectorXd& coarse_values) const;
+
+  /// Heat-method operators of the coarse space: intrinsic ones from (Fc, Lc), or Galerkin ones
+  /// (Pᵀ L P, Pᵀ M P, gradient G_fine·P on the fine faces). Time step t = (time_factor·h_c)², h_c the
+  /// coarse mean edge length, in both cases; boundary vertices from Fc.
+  HeatMethodOperators coarse_heat_method_operators(double time_factor = 1.0) const;
+
+ private:
+  CoarseOperatorKind kind_;
+  MassKind mass_kind_;
+  SparseMatrix P_;
+  SparseMatrix fine_laplacian_, fine_mass_, coarse_laplacian_, coarse_mass_;
+  SparseMatrix fine_gradient_;
+  Eigen::VectorXd fine_face_areas_;
+  Faces coarse_faces_;
+  FaceLengths coarse_lengths_;
+  std::vector<int> coarse_to_fine_;  ///< fine vertex coinciding with each coarse vertex, or -1
+  CholeskySolver coarse_mass_factor_;  ///< for the L² projection
+};
+
+/// Zero-mean Poisson L u = M f on the fine mesh, approximated through the proxy:
+/// u ≈ P u_c with (coarse L) u_c = Pᵀ M f (zero-mean, see PoissonSolver), re-centred in the fine mass.
+class ProxyPoissonSolver {
+ public:
+  explicit ProxyPoissonSolver(const CoarseProxy& proxy);
+  /// Fine nodal source f → fine solution (zero fine-mass mean).
+  Eigen::VectorXd solve(const Eigen::VectorXd& f) const;
+
+ private:
+  SparseMatrix P_, fine_mass_;
+  PoissonSolver coarse_;
+};
+
+/// Backward-Euler heat flow on the coarse mesh: u₀ restricted (RestrictionKind), `steps` steps of
+/// (Mc + τ Lc) u_{k+1} = Mc u_k, prolonged with P.
+/// Keeps a reference to the proxy, which must outlive the solver.
+class ProxyHeatSolver {
+ public:
+  ProxyHeatSolver(const CoarseProxy& proxy, double time_step, RestrictionKind restriction);
+  Eigen::VectorXd integrate(const Eigen::VectorXd& fine_u0, int steps) const;
+
+ private:
+  const CoarseProxy* proxy_;
+  RestrictionKind restriction_;
+  HeatSolver coarse_;
+};
+
+/// Heat-method distance on the coarse space, from fine source vertices (see the file comment).
+class ProxyGeodesicSolver {
+ public:
+  explicit ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor = 1.0);
+  Eigen::VectorXd distance(const std::vector<int>& fine_sources) const;
+
+ private:
+  SparseMatrix P_;
+  HeatGeodesicSolver coarse_;
+};
+
+}  // namespace fem

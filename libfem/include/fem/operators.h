@@ -1,0 +1,51 @@
+#pragma once
+/// \file operators.h
+/// Piecewise-linear finite element operators on an intrinsic triangulation (faces F, lengths L).
+///
+/// Conventions:
+///  - `vertex_count` is the number of unknowns n; pass -1 to use F.maxCoeff() + 1.
+///  - The cotangent Laplacian is positive semidefinite: L_ij = −w_ij for an edge ij,
+///    L_ii = Σ_j w_ij, with w_ij = ½ Σ cot of the angles opposite edge ij (one or two faces).
+///    It is the stiffness matrix ∫∇φ_i·∇φ_j, so L = Gᵀ·diag(A)·G with G the gradient below.
+///  - Per-face gradients live in each face's own 2D frame from fem::layout_triangle (corner 0 at the
+///    origin, corner 1 on +x), so they need no embedding; rows 2f and 2f+1 are the x and y components.
+/// All assembly is linear in the number of faces (triplets, duplicates summed by Eigen).
+#include <Eigen/SparseCore>
+
+#include "fem/geometry.h"
+
+namespace fem {
+
+using SparseMatrix = Eigen::SparseMatrix<double>;
+
+/// Lumped (diagonal) or consistent (Galerkin P1) mass matrix.
+enum class MassKind { lumped, consistent };
+
+/// Cotangent Laplacian (n×n, symmetric positive semidefinite, rows sum to zero).
+/// Throws InvalidTriangle on invalid or zero-area faces.
+SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
+
+/// Lumped vertex areas (n): one third of the area of every incident face.
+Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
+
+/// Mass matrix (n×n): diagonal of lumped_vertex_areas, or the consistent P1 mass with A_f/6 on the
+/// diagonal and A_f/12 off the diagonal per face. Both have total sum equal to the surface area.
+SparseMatrix mass_matrix(const Faces& F, const FaceLengths& L, MassKind kind = MassKind::lumped,
+                         Eigen::Index vertex_count = -1);
+
+/// Per-face gradient (2m×n): (G u)(2f, 2f+1) is the constant gradient of the linear interpolant of u
+/// on face f, in that face's local frame. Throws InvalidTriangle on invalid or zero-area faces.
+SparseMatrix gradient(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
+
+/// Integrated divergence (n×2m) of per-face vector fields given in the local frames of `gradient`:
+/// D = −Gᵀ·diag(A_f, A_f), the negative adjoint of G in the face-area inner product, so that
+/// D·G = −L (the integrated Laplace–Beltrami operator, negative semidefinite) and
+/// (D X)_i = −∫ ∇φ_i · X.
+SparseMatrix divergence(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
+
+/// Galerkin coarse operator Pᵀ·A·P for a prolongation P (n_fine×n_coarse) and a fine operator A
+/// (n_fine×n_fine). The result is symmetrised ((B + Bᵀ)/2) so that round-off in the sparse product
+/// cannot make a symmetric operator unsymmetric.
+SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A);
+
+}  // namespace fem

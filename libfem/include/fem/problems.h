@@ -1,0 +1,145 @@
+#pragma once
+/// \file problems.h
+/// Model PDE solvers on one discretisation: Poisson, backward-Euler heat flow, heat-method geodesic
+/// distance. Every solver factors its matrices once (CHOLMOD) in the constructor and then solves any
+/// number of right-hand sides.
+///
+/// The solvers take operators rather than a mesh, so the same code runs on the fine mesh, on an
+/// intrinsic coarse mesh, or with Galerkin coarse operators (fem/coarse_proxy.h). `laplacian` is the
+/// positive semidefinite cotangent Laplacian (or a Galerkin product of it) and `mass` a mass matrix.
+#include <memory>
+#include <vector>
+
+#include "fem/cholesky.h"
+#include "fem/operators.h"
+
+namespace fem {
+
+/// Solves A x = b where x is prescribed on a set of "constrained" indices, eliminating them:
+/// A_FF x_F = b_F − A_FC x_C over the free indices F. The rows of b at constrained indices are
+/// ignored. A_FF is factored once. Precondition: A_FF symmetric positive definite (throws
+/// NotPositiveDefinite otherwise); constrained indices in range (duplicates are merged).
+class ConstrainedSolver {
+ public:
+  ConstrainedSolver(const SparseMatrix& A, std::vector<int> constrained);
+
+  /// Full-length solution; x(constrained[i]) = constrained_values(i). An empty `constrained_values`
+  /// means all zeros.
+  Eigen::VectorXd solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values = {}) const;
+
+  const std::vector<int>& constrained() const { return constrained_; }
+  Eigen::Index size() const { return size_; }
+
+ private:
+  Eigen::Index size_ = 0;
+  std::vector<int> constrained_;
+  std::vector<int> free_;  ///< free index of each original index, -1 for constrained ones
+  SparseMatrix free_constrained_coupling_;  ///< A_FC
+  CholeskySolver factor_;                   ///< of A_FF
+};
+
+/// Poisson equation L u = M f.
+///  - Dirichlet: u prescribed at given vertices (at least one per connected component).
+///  - Zero-mean ("Neumann"), for closed surfaces or natural boundary conditions: the mass-weighted
+///    right-hand side b = M f is first made compatible by removing its mean
+///    (b ← b − M1·(1ᵀb)/(1ᵀM1), i.e. f minus its area-weighted mean), one vertex is pinned to 0,
+///    and the solution is re-centred to zero mass-weighted mean (1ᵀM u = 0). Because b is compatible,
+///    the pinned solution satisfies every equation, so pinning introduces no error. The mesh must be
+///    connected (otherwise NotPositiveDefinite).
+class PoissonSolver {
+ public:
+  static PoissonSolver dirichlet(const SparseMatrix& laplacian, const SparseMatrix& mass,
+                                 std::vector<int> dirichlet_vertices);
+  static PoissonSolver zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass);
+
+  /// u for the nodal source f (right-hand side M f). `dirichlet_values` align with the Dirichlet
+  /// vertices (empty: zeros); ignored in zero-mean mode.
+  Eigen::VectorXd solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values = {}) const;
+  /// Same with an already mass-weighted right-hand side b (= M f, or a restriction Pᵀ M f).
+  Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values = {}) const;
+
+  bool is_zero_mean() const { return zero_mean_; }
+  const SparseMatrix& mass() const { return mass_; }
+
+ private:
+  PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, std::vector<int> constrained,
+                bool zero_mean);
+  SparseMatrix mass_;
+  Eigen::VectorXd mass_of_one_;  ///< M·1
+  bool zero_mean_;
+  ConstrainedSolver solver_;
+};
+
+/// Heat flow ∂u/∂t = Δu with natural (Neumann) boundary conditions by backward Euler:
+/// (M + τL) u_{k+1} = M u_k. The matrix M + τL is factored once.
+/// Preconditions: τ > 0; M + τL positive definite (true for a valid mesh and a positive mass).
+class HeatSolver {
+ public:
+  HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step);
+
+  /// One implicit step from nodal values u.
+  Eigen::VectorXd step(const Eigen::VectorXd& u) const;
+  /// `steps` implicit steps from u0 (steps >= 0), i.e. the state at time steps·τ.
+  Eigen::VectorXd integrate(const Eigen::VectorXd& u0, int steps) const;
+  /// (M + τL)⁻¹ b for a mass-weighted right-hand side b.
+  Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b) const;
+
+  double time_step() const { return time_step_; }
+  const SparseMatrix& mass() const { return mass_; }
+
+ private:
+  SparseMatrix mass_;
+  double time_step_;
+  CholeskySolver factor_;
+};
+
+/// Everything the heat method needs on one function space with n unknowns. Gradients are evaluated
+/// on k "integration faces", which are the mesh's own faces for an intrinsic discretisation, or the
+/// fine faces for a Galerkin coarse space (gradient = G_fine·P).
+struct HeatMethodOperators {
+  SparseMatrix laplacian;              ///< n×n, = gradientᵀ·diag(areas)·gradient for P1 elements
+  SparseMatrix mass;                   ///< n×n
+  SparseMatrix gradient;               ///< 2k×n, per-face gradients in local 2D frames
+  Eigen::VectorXd face_areas;          ///< k areas weighting the per-face vectors
+  std::vector<int> boundary_vertices;  ///< of the n unknowns; empty for closed surfaces
+  double time_step = 0;                ///< t of the heat step
+};
+
+/// The heat method's operators on an intrinsic mesh: cotan Laplacian, mass of `mass_kind`, per-face
+/// gradient, face areas, boundary vertices from F, and t = (time_factor·h)², h the mean edge length
+/// (time_factor = 1 is the paper's t = h²).
+HeatMethodOperators heat_method_operators(const Faces& F, const FaceLengths& L,
+                                          MassKind mass_kind = MassKind::lumped, double time_factor = 1.0,
+                                          Eigen::Index vertex_count = -1);
+
+/// Geodesic distance by the heat method (Crane, Weischedel, Wardetzky 2013):
+///  1. heat: (M + tL) u = δ, with δ the source indicator (or weights);
+///     with a boundary, u is the average of the Neumann solution and the Dirichlet one (u = 0 on the
+///     boundary), the paper's recommended boundary treatment;
+///  2. X = −∇u/|∇u| per face (X = 0 where ∇u vanishes exactly);
+///  3. Poisson L φ = Gᵀ·diag(A)·X (= −∇·X in the integrated sense), solved with one vertex pinned;
+///     its right-hand side always sums to zero because G·1 = 0, so pinning is exact;
+///  4. φ shifted so its source-weighted mean is 0 (the value at a single source is 0).
+/// Factorisations of M + tL (both boundary variants) and of the pinned L happen in the constructor.
+/// Limitation: u decays roughly like exp(−d/√t); beyond a few hundred mean edge lengths from the
+/// sources it drops below round-off and distances there become unreliable.
+class HeatGeodesicSolver {
+ public:
+  explicit HeatGeodesicSolver(HeatMethodOperators operators);
+
+  /// Distance to the given source vertices (non-empty, in range).
+  Eigen::VectorXd distance(const std::vector<int>& sources) const;
+  /// Distance from a weighted source: δ = source_weights (non-negative, not all zero); the result is
+  /// shifted so that Σ w_i φ_i / Σ w_i = 0.
+  Eigen::VectorXd distance_from_weights(const Eigen::VectorXd& source_weights) const;
+
+  const HeatMethodOperators& operators() const { return operators_; }
+
+ private:
+  HeatMethodOperators operators_;
+  HeatSolver neumann_heat_;
+  std::unique_ptr<ConstrainedSolver> dirichlet_heat_;  ///< only with a boundary
+  ConstrainedSolver pinned_poisson_;
+};
+
+}  // namespace fem

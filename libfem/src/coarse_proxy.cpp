@@ -1,0 +1,122 @@
+#include "fem/coarse_proxy.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+#include "fem/topology.h"
+
+namespace fem {
+
+CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
+                         CoarseOperatorKind kind, MassKind mass_kind, Eigen::Index fine_vertex_count,
+                         Eigen::Index coarse_vertex_count)
+    : kind_(kind), mass_kind_(mass_kind), P_(std::move(P)), coarse_faces_(Fc), coarse_lengths_(Lc) {
+  fine_laplacian_ = cotan_laplacian(F, L, fine_vertex_count);
+  const Eigen::Index n_fine = fine_laplacian_.rows();
+  fine_mass_ = mass_matrix(F, L, mass_kind, n_fine);
+  fine_gradient_ = gradient(F, L, n_fine);
+  fine_face_areas_ = face_areas(L);
+  const Eigen::Index n_coarse =
+      coarse_vertex_count >= 0 ? coarse_vertex_count : (Fc.size() == 0 ? 0 : Eigen::Index(Fc.maxCoeff()) + 1);
+  if (P_.rows() != n_fine || P_.cols() != n_coarse)
+    throw std::invalid_argument("CoarseProxy: P must be n_fine × n_coarse");
+  const Eigen::VectorXd row_sums = P_ * Eigen::VectorXd::Ones(n_coarse);
+  if (n_fine > 0 && (row_sums.array() - 1.0).abs().maxCoeff() > 1e-10)
+    throw std::invalid_argument("CoarseProxy: every row of P must sum to 1");
+
+  if (kind == CoarseOperatorKind::intrinsic) {
+    coarse_laplacian_ = cotan_laplacian(Fc, Lc, n_coarse);
+    coarse_mass_ = mass_matrix(Fc, Lc, mass_kind, n_coarse);
+  } else {
+    coarse_laplacian_ = galerkin(P_, fine_laplacian_);
+    coarse_mass_ = galerkin(P_, fine_mass_);
+  }
+  coarse_mass_factor_.compute(coarse_mass_);
+
+  // A coarse vertex sitting on a fine vertex shows up as a row of P equal to e_j.
+  SparseMatrix P_columns = P_;
+  P_columns.makeCompressed();
+  coarse_to_fine_.assign(static_cast<std::size_t>(n_coarse), -1);
+  for (Eigen::Index j = 0; j < P_columns.outerSize(); ++j)
+    for (SparseMatrix::InnerIterator it(P_columns, j); it; ++it)
+      if (std::abs(it.value() - 1.0) < 1e-12) coarse_to_fine_[static_cast<std::size_t>(j)] = static_cast<int>(it.row());
+}
+
+Eigen::VectorXd CoarseProxy::restrict_weighted(const Eigen::VectorXd& b) const {
+  if (b.size() != fine_size()) throw std::invalid_argument("CoarseProxy::restrict_weighted: wrong size");
+  return P_.transpose() * b;
+}
+
+Eigen::VectorXd CoarseProxy::restrict_values(const Eigen::VectorXd& u, RestrictionKind kind) const {
+  if (u.size() != fine_size()) throw std::invalid_argument("CoarseProxy::restrict_values: wrong size");
+  if (kind == RestrictionKind::l2_projection)
+    return coarse_mass_factor_.solve(Eigen::VectorXd(P_.transpose() * (fine_mass_ * u)));
+  Eigen::VectorXd coarse(coarse_size());
+  for (Eigen::Index j = 0; j < coarse_size(); ++j) {
+    const int fine = coarse_to_fine_[static_cast<std::size_t>(j)];
+    if (fine < 0) throw std::logic_error("CoarseProxy: coarse vertex " + std::to_string(j) + " has no fine vertex in P");
+    coarse(j) = u(fine);
+  }
+  return coarse;
+}
+
+Eigen::VectorXd CoarseProxy::prolong(const Eigen::VectorXd& coarse_values) const {
+  if (coarse_values.size() != coarse_size()) throw std::invalid_argument("CoarseProxy::prolong: wrong size");
+  return P_ * coarse_values;
+}
+
+HeatMethodOperators CoarseProxy::coarse_heat_method_operators(double time_factor) const {
+  if (kind_ == CoarseOperatorKind::intrinsic)
+    return heat_method_operators(coarse_faces_, coarse_lengths_, mass_kind_, time_factor, coarse_size());
+  if (!(time_factor > 0)) throw std::invalid_argument("coarse_heat_method_operators: time_factor must be positive");
+  HeatMethodOperators ops;
+  ops.laplacian = coarse_laplacian_;
+  ops.mass = coarse_mass_;
+  ops.gradient = fine_gradient_ * P_;  // gradients of prolonged coarse functions, on the fine faces
+  ops.face_areas = fine_face_areas_;
+  ops.boundary_vertices = boundary_vertices(coarse_faces_);
+  const double h = mean_edge_length(coarse_lengths_);
+  ops.time_step = time_factor * time_factor * h * h;
+  return ops;
+}
+
+// ---- proxy solvers ----------------------------------------------------------------------------------
+
+ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy)
+    : P_(proxy.prolongation()),
+      fine_mass_(proxy.fine_mass()),
+      coarse_(PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass())) {}
+
+Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f) const {
+  if (f.size() != P_.rows()) throw std::invalid_argument("ProxyPoissonSolver::solve: wrong size");
+  const Eigen::VectorXd coarse_rhs = P_.transpose() * (fine_mass_ * f);
+  Eigen::VectorXd u = P_ * coarse_.solve_weighted(coarse_rhs);
+  const Eigen::VectorXd fine_mass_of_one = fine_mass_ * Eigen::VectorXd::Ones(u.size());
+  u.array() -= fine_mass_of_one.dot(u) / fine_mass_of_one.sum();
+  return u;
+}
+
+ProxyHeatSolver::ProxyHeatSolver(const CoarseProxy& proxy, double time_step, RestrictionKind restriction)
+    : proxy_(&proxy), restriction_(restriction), coarse_(proxy.coarse_laplacian(), proxy.coarse_mass(), time_step) {}
+
+Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::VectorXd& fine_u0, int steps) const {
+  return proxy_->prolong(coarse_.integrate(proxy_->restrict_values(fine_u0, restriction_), steps));
+}
+
+ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor)
+    : P_(proxy.prolongation()), coarse_(proxy.coarse_heat_method_operators(time_factor)) {}
+
+Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<int>& fine_sources) const {
+  if (fine_sources.empty()) throw std::invalid_argument("ProxyGeodesicSolver::distance: no sources");
+  Eigen::VectorXd fine_weights = Eigen::VectorXd::Zero(P_.rows());
+  for (int s : fine_sources) {
+    if (s < 0 || s >= fine_weights.size()) throw std::invalid_argument("ProxyGeodesicSolver::distance: bad source");
+    fine_weights(s) = 1.0;
+  }
+  Eigen::VectorXd phi = P_ * coarse_.distance_from_weights(P_.transpose() * fine_weights);
+  phi.array() -= fine_weights.dot(phi) / fine_weights.sum();
+  return phi;
+}
+
+}  // namespace fem

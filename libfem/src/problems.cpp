@@ -1,0 +1,204 @@
+#include "fem/problems.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+#include "fem/topology.h"
+
+namespace fem {
+namespace {
+
+using Triplets = std::vector<Eigen::Triplet<double>>;
+
+void require_square(const SparseMatrix& A, Eigen::Index n, const char* what) {
+  if (A.rows() != n || A.cols() != n) throw std::invalid_argument(std::string(what) + ": size mismatch");
+}
+
+}  // namespace
+
+// ---- ConstrainedSolver ------------------------------------------------------------------------------
+
+ConstrainedSolver::ConstrainedSolver(const SparseMatrix& A, std::vector<int> constrained)
+    : size_(A.rows()), constrained_(std::move(constrained)) {
+  if (A.rows() != A.cols()) throw std::invalid_argument("ConstrainedSolver: matrix must be square");
+  std::sort(constrained_.begin(), constrained_.end());
+  constrained_.erase(std::unique(constrained_.begin(), constrained_.end()), constrained_.end());
+  if (!constrained_.empty() && (constrained_.front() < 0 || constrained_.back() >= size_))
+    throw std::invalid_argument("ConstrainedSolver: constrained index out of range");
+
+  // Index maps: free_[i] is i's position among the free unknowns, or -(c+1) for constrained index c.
+  free_.assign(static_cast<std::size_t>(size_), 0);
+  for (std::size_t c = 0; c < constrained_.size(); ++c) free_[constrained_[c]] = -static_cast<int>(c) - 1;
+  int free_count = 0;
+  for (int& index : free_)
+    if (index == 0) index = free_count++;
+
+  Triplets free_block, coupling;
+  for (Eigen::Index j = 0; j < A.outerSize(); ++j)
+    for (SparseMatrix::InnerIterator it(A, j); it; ++it) {
+      const int row = free_[static_cast<std::size_t>(it.row())], col = free_[static_cast<std::size_t>(it.col())];
+      if (row < 0) continue;  // constrained rows are replaced by x_C = values
+      if (col >= 0) free_block.emplace_back(row, col, it.value());
+      else coupling.emplace_back(row, -col - 1, it.value());
+    }
+  SparseMatrix A_FF(free_count, free_count);
+  A_FF.setFromTriplets(free_block.begin(), free_block.end());
+  free_constrained_coupling_.resize(free_count, static_cast<Eigen::Index>(constrained_.size()));
+  free_constrained_coupling_.setFromTriplets(coupling.begin(), coupling.end());
+  factor_.compute(A_FF);
+}
+
+Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values) const {
+  if (b.size() != size_) throw std::invalid_argument("ConstrainedSolver::solve: rhs has the wrong size");
+  const auto constrained_count = static_cast<Eigen::Index>(constrained_.size());
+  const Eigen::VectorXd values =
+      constrained_values.size() == 0 ? Eigen::VectorXd::Zero(constrained_count) : constrained_values;
+  if (values.size() != constrained_count)
+    throw std::invalid_argument("ConstrainedSolver::solve: one value per constrained index expected");
+
+  Eigen::VectorXd free_rhs(factor_.rows());
+  for (Eigen::Index i = 0; i < size_; ++i)
+    if (free_[static_cast<std::size_t>(i)] >= 0) free_rhs(free_[static_cast<std::size_t>(i)]) = b(i);
+  if (constrained_count > 0) free_rhs -= free_constrained_coupling_ * values;
+  const Eigen::VectorXd free_solution = factor_.solve(free_rhs);
+
+  Eigen::VectorXd x(size_);
+  for (Eigen::Index i = 0; i < size_; ++i) {
+    const int index = free_[static_cast<std::size_t>(i)];
+    x(i) = index >= 0 ? free_solution(index) : values(-index - 1);
+  }
+  return x;
+}
+
+// ---- PoissonSolver ----------------------------------------------------------------------------------
+
+PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass,
+                             std::vector<int> constrained, bool zero_mean)
+    : mass_(mass),
+      mass_of_one_(mass * Eigen::VectorXd::Ones(mass.cols())),
+      zero_mean_(zero_mean),
+      solver_(laplacian, std::move(constrained)) {
+  require_square(mass, laplacian.rows(), "PoissonSolver: mass and Laplacian");
+}
+
+PoissonSolver PoissonSolver::dirichlet(const SparseMatrix& laplacian, const SparseMatrix& mass,
+                                       std::vector<int> dirichlet_vertices) {
+  if (dirichlet_vertices.empty())
+    throw std::invalid_argument("PoissonSolver::dirichlet: no Dirichlet vertices (use zero_mean)");
+  return PoissonSolver(laplacian, mass, std::move(dirichlet_vertices), false);
+}
+
+PoissonSolver PoissonSolver::zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass) {
+  if (laplacian.rows() == 0) throw std::invalid_argument("PoissonSolver::zero_mean: empty system");
+  return PoissonSolver(laplacian, mass, {0}, true);  // any vertex can be pinned; use the first
+}
+
+Eigen::VectorXd PoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values) const {
+  return solve_weighted(mass_ * f, dirichlet_values);
+}
+
+Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values) const {
+  if (!zero_mean_) return solver_.solve(b, dirichlet_values);
+  const double total_mass = mass_of_one_.sum();
+  const Eigen::VectorXd compatible = b - mass_of_one_ * (b.sum() / total_mass);
+  Eigen::VectorXd u = solver_.solve(compatible);
+  u.array() -= mass_of_one_.dot(u) / total_mass;
+  return u;
+}
+
+// ---- HeatSolver -------------------------------------------------------------------------------------
+
+HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step)
+    : mass_(mass), time_step_(time_step) {
+  require_square(mass, laplacian.rows(), "HeatSolver: mass and Laplacian");
+  if (!(time_step > 0)) throw std::invalid_argument("HeatSolver: time step must be positive");
+  factor_.compute(SparseMatrix(mass + time_step * laplacian));
+}
+
+Eigen::VectorXd HeatSolver::solve_weighted(const Eigen::VectorXd& b) const { return factor_.solve(b); }
+
+Eigen::VectorXd HeatSolver::step(const Eigen::VectorXd& u) const { return factor_.solve(Eigen::VectorXd(mass_ * u)); }
+
+Eigen::VectorXd HeatSolver::integrate(const Eigen::VectorXd& u0, int steps) const {
+  if (steps < 0) throw std::invalid_argument("HeatSolver::integrate: negative number of steps");
+  Eigen::VectorXd u = u0;
+  for (int k = 0; k < steps; ++k) u = step(u);
+  return u;
+}
+
+// ---- Heat method ------------------------------------------------------------------------------------
+
+HeatMethodOperators heat_method_operators(const Faces& F, const FaceLengths& L, MassKind mass_kind,
+                                          double time_factor, Eigen::Index vertex_count) {
+  if (!(time_factor > 0)) throw std::invalid_argument("heat_method_operators: time_factor must be positive");
+  HeatMethodOperators ops;
+  ops.laplacian = cotan_laplacian(F, L, vertex_count);
+  const Eigen::Index n = ops.laplacian.rows();
+  ops.mass = mass_matrix(F, L, mass_kind, n);
+  ops.gradient = gradient(F, L, n);
+  ops.face_areas = face_areas(L);
+  ops.boundary_vertices = boundary_vertices(F);
+  const double h = mean_edge_length(L);
+  ops.time_step = time_factor * time_factor * h * h;
+  return ops;
+}
+
+namespace {
+
+HeatMethodOperators checked(HeatMethodOperators ops) {
+  const Eigen::Index n = ops.laplacian.rows();
+  require_square(ops.laplacian, n, "HeatGeodesicSolver: laplacian");
+  require_square(ops.mass, n, "HeatGeodesicSolver: mass");
+  if (ops.gradient.cols() != n || ops.gradient.rows() != 2 * ops.face_areas.size())
+    throw std::invalid_argument("HeatGeodesicSolver: gradient must be 2k×n with k face areas");
+  return ops;
+}
+
+}  // namespace
+
+HeatGeodesicSolver::HeatGeodesicSolver(HeatMethodOperators operators)
+    : operators_(checked(std::move(operators))),
+      neumann_heat_(operators_.laplacian, operators_.mass, operators_.time_step),
+      pinned_poisson_(operators_.laplacian, {0}) {
+  if (!operators_.boundary_vertices.empty())
+    dirichlet_heat_ = std::make_unique<ConstrainedSolver>(
+        SparseMatrix(operators_.mass + operators_.time_step * operators_.laplacian), operators_.boundary_vertices);
+}
+
+Eigen::VectorXd HeatGeodesicSolver::distance(const std::vector<int>& sources) const {
+  if (sources.empty()) throw std::invalid_argument("HeatGeodesicSolver::distance: no sources");
+  Eigen::VectorXd weights = Eigen::VectorXd::Zero(operators_.laplacian.rows());
+  for (int s : sources) {
+    if (s < 0 || s >= weights.size()) throw std::invalid_argument("HeatGeodesicSolver::distance: bad source");
+    weights(s) = 1.0;
+  }
+  return distance_from_weights(weights);
+}
+
+Eigen::VectorXd HeatGeodesicSolver::distance_from_weights(const Eigen::VectorXd& source_weights) const {
+  if (source_weights.size() != operators_.laplacian.rows() || !(source_weights.minCoeff() >= 0) ||
+      !(source_weights.sum() > 0))
+    throw std::invalid_argument("HeatGeodesicSolver: source weights must be non-negative, not all zero");
+
+  Eigen::VectorXd u = neumann_heat_.solve_weighted(source_weights);
+  if (dirichlet_heat_) u = 0.5 * (u + dirichlet_heat_->solve(source_weights));
+
+  // Normalised negative gradient per face, weighted by the face area for the divergence.
+  const Eigen::VectorXd g = operators_.gradient * u;
+  Eigen::VectorXd weighted_field(g.size());
+  for (Eigen::Index f = 0; f < operators_.face_areas.size(); ++f) {
+    const double norm = std::hypot(g(2 * f), g(2 * f + 1));
+    const double scale = norm > 0 ? -operators_.face_areas(f) / norm : 0.0;
+    weighted_field(2 * f) = scale * g(2 * f);
+    weighted_field(2 * f + 1) = scale * g(2 * f + 1);
+  }
+  const Eigen::VectorXd rhs = operators_.gradient.transpose() * weighted_field;
+
+  Eigen::VectorXd phi = pinned_poisson_.solve(rhs);
+  phi.array() -= source_weights.dot(phi) / source_weights.sum();
+  return phi;
+}
+
+}  // namespace fem
