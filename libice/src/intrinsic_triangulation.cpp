@@ -336,11 +336,16 @@ bool IntrinsicTriangulation::flip(Index h) {
   const Vec2 pi{0, 0}, pj{l_ij, 0};
   const Vec2 pk = layout_third_point(pi, pj, l_ij, length(b), length(a));
   const Vec2 pl = layout_third_point(pj, pi, l_ij, length(d), length(c));
-  // Strictly convex: both new triangles positively oriented and valid by their lengths.
-  if (!(orient2d(pl, pk, pi) > 0 && orient2d(pk, pl, pj) > 0)) return false;
+  // Strictly convex, with a margin: the diamond's angles at i and j must stay below π − θ_min and
+  // the new triangles' angles above θ_min (sine tests). Angles of a triangle whose smallest angle is
+  // θ carry round-off of about ε/θ, so flips into near-degenerate triangles are refused.
+  constexpr double kMinSine = 1e-7;
+  if (!(cross(pl - pi, pk - pi) > kMinSine * length(c) * length(b) &&
+        cross(pk - pj, pl - pj) > kMinSine * length(a) * length(d)))
+    return false;
   const double l_kl = (pk - pl).norm();
-  if (!triangle_inequality_holds(l_kl, length(b), length(c)) ||
-      !triangle_inequality_holds(l_kl, length(d), length(a)))
+  if (!(smallest_angle_sine(l_kl, length(b), length(c)) > kMinSine &&
+        smallest_angle_sine(l_kl, length(d), length(a)) > kMinSine))
     return false;
 
   // Tracked points of both faces, with their positions in the layout.

@@ -52,6 +52,14 @@ inline double triangle_area(double a, double b, double c) {
   return q > 0 ? 0.25 * std::sqrt(q) : 0.0;
 }
 
+/// Sine of the smallest angle of the triangle (0 when degenerate): a scale-free shape measure.
+inline double smallest_angle_sine(double a, double b, double c) {
+  // The smallest angle is opposite the shortest side; sin = 2·area / (product of the other two).
+  const double longest = std::max({a, b, c}), shortest = std::min({a, b, c});
+  const double middle = a + b + c - longest - shortest;
+  return 2.0 * triangle_area(a, b, c) / (longest * middle);
+}
+
 /// The angle between sides a and b, i.e. opposite side c, in [0, π].
 inline double angle_opposite(double a, double b, double c) {
   return std::atan2(4.0 * triangle_area(a, b, c), (a - c) * (a + c) + b * b);
