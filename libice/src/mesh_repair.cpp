@@ -157,7 +157,7 @@ void orient_components(PolygonSoup& soup, RepairLog& log) {
       invert = volume < 0;
     }
     for (int f : members) {
-      if ((flip[f] == 1) != invert) continue;
+      if ((flip[f] == 1) == invert) continue;  // final orientation: flipped iff flip[f] xor invert
       std::reverse(polys[f].begin(), polys[f].end());
       ++log.flipped_faces;
     }

@@ -1,0 +1,170 @@
+// Reading and writing: formats, exactness, and clear errors for unreadable files.
+#include <catch2/catch.hpp>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <unistd.h>
+
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// A fresh directory under the system temp dir, removed when the test ends.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("ice_io_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+  std::string write(const std::string& name, const std::string& content) const {
+    std::ofstream(file(name), std::ios::binary) << content;
+    return file(name);
+  }
+
+ private:
+  fs::path path_;
+};
+
+/// Expect a MeshError of the given kind whose message names the file and contains `needle`.
+template <class F>
+void require_mesh_error(F&& call, ice::MeshError::Kind kind, const std::string& path, const std::string& needle) {
+  try {
+    call();
+    FAIL("expected ice::MeshError containing '" << needle << "'");
+  } catch (const ice::MeshError& e) {
+    INFO(e.what());
+    CHECK(e.kind() == kind);
+    CHECK(std::string(e.what()).find(path) != std::string::npos);
+    CHECK(std::string(e.what()).find(needle) != std::string::npos);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("read_mesh_file: missing, empty, odd and corrupt files give clear errors", "[io]") {
+  TempDir dir;
+  using Kind = ice::MeshError::Kind;
+  const std::string missing = dir.file("nope.obj");
+  require_mesh_error([&] { ice::read_mesh_file(missing); }, Kind::Unreadable, missing, "no such file");
+  require_mesh_error([&] { ice::load_mesh(missing); }, Kind::Unreadable, missing, "no such file");
+
+  const std::string empty = dir.write("empty.off", "");
+  require_mesh_error([&] { ice::read_mesh_file(empty); }, Kind::Unreadable, empty, "empty file");
+
+  const std::string folder = dir.file("folder.obj");
+  fs::create_directories(folder);
+  require_mesh_error([&] { ice::read_mesh_file(folder); }, Kind::Unreadable, folder, "not a regular file");
+
+  const std::string unknown = dir.write("mesh.xyz", "1 2 3\n");
+  require_mesh_error([&] { ice::read_mesh_file(unknown); }, Kind::Unreadable, unknown, "unsupported format");
+
+  const std::string no_faces = dir.write("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+  require_mesh_error([&] { ice::read_mesh_file(no_faces); }, Kind::Unreadable, no_faces, "no faces");
+
+  const std::string bad_vertex = dir.write("bad.obj", "v 0 0 0\nv 1 banana 0\nv 0 1 0\nf 1 2 3\n");
+  require_mesh_error([&] { ice::read_mesh_file(bad_vertex); }, Kind::Unreadable, bad_vertex, "line 2");
+
+  const std::string bad_corner = dir.write("badf.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n");
+  require_mesh_error([&] { ice::read_mesh_file(bad_corner); }, Kind::Unreadable, bad_corner, "line 4");
+
+  const std::string truncated_off = dir.write("short.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n3 0 1 2\n");
+  require_mesh_error([&] { ice::read_mesh_file(truncated_off); }, Kind::Unreadable, truncated_off, "ends early");
+
+  const std::string huge_count = dir.write("huge.ply",
+                                           "ply\nformat ascii 1.0\nelement vertex 999999999999\nproperty float x\n"
+                                           "property float y\nproperty float z\nelement face 1\n"
+                                           "property list uchar int vertex_indices\nend_header\n0 0 0\n");
+  require_mesh_error([&] { ice::read_mesh_file(huge_count); }, Kind::Unreadable, huge_count, "impossible count");
+}
+
+TEST_CASE("OBJ: corner syntax, negative indices, repeated corners stay visible", "[io]") {
+  TempDir dir;
+  const std::string path = dir.write("syntax.obj",
+                                     "# comment\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvn 0 0 1\n"
+                                     "f 1/1/1 2/1/1 3/1/1\nf -3//1 -1//1 -2//1\nf 1 2 2\n");
+  const ice::MeshFile file = ice::read_mesh_file(path);
+  REQUIRE(file.soup.V.rows() == 4);
+  REQUIRE(file.soup.polygons.size() == 3);
+  CHECK(file.soup.polygons[0] == std::vector<int>{0, 1, 2});
+  CHECK(file.soup.polygons[1] == std::vector<int>{1, 3, 2});
+  CHECK(file.soup.polygons[2] == std::vector<int>{0, 1, 1});  // OpenMesh alone would drop this face
+  CHECK(file.exact_coordinates);
+  const ice::ValidationReport report = ice::validate_mesh(file.soup);
+  CHECK(report.repeated_index_faces.count == 1);
+  CHECK(report.repeated_index_faces.first == std::vector<int>{2});
+}
+
+TEST_CASE("round trips keep double precision: OBJ, OFF, ASCII and binary PLY", "[io]") {
+  TempDir dir;
+  ice::TriangleMesh mesh = ice::make_icosphere(2);
+  mesh.V.array() += 1e6;  // float32 would move vertices by up to 0.03 here
+  mesh.V.col(1).array() += 1.0 / 3.0;
+  for (const auto& [name, binary] : std::vector<std::pair<std::string, bool>>{
+           {"m.obj", false}, {"m.off", false}, {"ascii.ply", false}, {"binary.ply", true}}) {
+    INFO(name);
+    const std::string path = dir.file(name);
+    ice::write_mesh(path, mesh, {false, binary});
+    const ice::LoadResult loaded = ice::load_mesh_with_report(path);
+    CHECK(loaded.file.exact_coordinates);
+    REQUIRE(loaded.mesh.V.rows() == mesh.V.rows());
+    REQUIRE(loaded.mesh.F.rows() == mesh.F.rows());
+    CHECK(loaded.mesh.V == mesh.V);  // bit-exact
+    CHECK(loaded.mesh.F == mesh.F);
+    CHECK(loaded.report.zero_area_faces.empty());
+    CHECK(loaded.report.genus == 0);
+  }
+}
+
+TEST_CASE("STL (ASCII and binary): per-triangle vertices are welded back into a closed mesh", "[io]") {
+  TempDir dir;
+  const ice::TriangleMesh mesh = ice::make_icosphere(1);
+  for (bool binary : {false, true}) {
+    INFO("binary " << binary);
+    const std::string path = dir.file(binary ? "b.stl" : "a.stl");
+    ice::write_mesh(path, mesh, {false, binary});
+    const ice::LoadResult loaded = ice::load_mesh_with_report(path);
+    CHECK(loaded.file.format == "stl");
+    CHECK(loaded.mesh.V.rows() == mesh.V.rows());  // 3·F records welded to V vertices
+    CHECK(loaded.mesh.F.rows() == mesh.F.rows());
+    CHECK(loaded.report.n_boundary_loops == 0);
+    CHECK(loaded.report.genus == 0);
+    CHECK(loaded.report.inconsistent_edges.empty());
+    // Every loaded triangle is one of the original triangles (float32 positions, same orientation).
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        CHECK((loaded.mesh.V.row(loaded.mesh.F(f, k)) - mesh.V.row(mesh.F(f, k))).norm() < 1e-6);
+  }
+}
+
+TEST_CASE("truncated binary PLY is refused, never read as garbage", "[io]") {
+  TempDir dir;
+  const ice::TriangleMesh mesh = ice::make_icosphere(1);
+  const std::string path = dir.file("cut.ply");
+  ice::write_mesh(path, mesh, {false, true});
+  fs::resize_file(path, fs::file_size(path) / 2);
+  require_mesh_error([&] { ice::read_mesh_file(path); }, ice::MeshError::Kind::Unreadable, path, "ends early");
+}
+
+TEST_CASE("write_mesh never overwrites unless asked", "[io]") {
+  TempDir dir;
+  const ice::TriangleMesh mesh = ice::make_icosphere(0);
+  const std::string path = dir.file("out.obj");
+  ice::write_mesh(path, mesh);
+  require_mesh_error([&] { ice::write_mesh(path, mesh); }, ice::MeshError::Kind::Unwritable, path, "exists");
+  CHECK_NOTHROW(ice::write_mesh(path, mesh, {true, false}));
+  const std::string bad = dir.file("out.vtk");
+  require_mesh_error([&] { ice::write_mesh(bad, mesh); }, ice::MeshError::Kind::Unwritable, bad, "unsupported");
+}
