@@ -173,7 +173,7 @@ void CholeskySolver::compute(const Eigen::SparseMatrix<double>& A) {
   factorize(A);
 }
 
-Eigen::MatrixXd CholeskySolver::solve(const Eigen::MatrixXd& B) const {
+Eigen::MatrixXd CholeskySolver::solve_multiple(const Eigen::MatrixXd& B) const {
   if (!is_factorized()) throw std::logic_error("CholeskySolver::solve: no successful factorisation");
   Impl& s = *impl_;
   if (static_cast<std::size_t>(B.rows()) != s.factor->n)
@@ -200,7 +200,7 @@ Eigen::MatrixXd CholeskySolver::solve(const Eigen::MatrixXd& B) const {
 }
 
 Eigen::VectorXd CholeskySolver::solve(const Eigen::VectorXd& b) const {
-  return solve(Eigen::MatrixXd(b)).col(0);
+  return solve_multiple(Eigen::MatrixXd(b)).col(0);
 }
 
 bool CholeskySolver::is_factorized() const { return impl_ && impl_->factorized; }

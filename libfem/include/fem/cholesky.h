@@ -58,8 +58,9 @@ class CholeskySolver {
 
   /// Solves A x = b. Precondition: a successful factorize(); b.rows() == A.rows().
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const;
-  /// Solves A X = B column by column in one CHOLMOD call.
-  Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
+  /// Solves A X = B for all columns of B in one CHOLMOD call. (Named apart from solve() so that
+  /// Eigen expressions passed as b are not ambiguous.)
+  Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B) const;
 
   /// Relative pivot threshold used by factorize() (default 1e-12; singular closed-surface
   /// Laplacians up to 655k vertices measured 1e-15..3e-14, a pivot this small means κ(A) ≳ 1e12).

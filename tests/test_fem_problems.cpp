@@ -1,0 +1,157 @@
+// Model problems on generated meshes against analytic solutions: Poisson (Dirichlet on a disk,
+// zero-mean on a sphere), backward-Euler heat flow, heat-method geodesic distance.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <vector>
+
+#include "fem/errors.h"
+#include "fem/problems.h"
+#include "fem/topology.h"
+#include "ice/mesh_generators.h"
+
+namespace {
+
+struct Discretisation {
+  ice::TriangleMesh mesh;
+  ice::FaceLengths lengths;
+  fem::SparseMatrix laplacian, mass;
+};
+
+Discretisation discretise(ice::TriangleMesh mesh) {
+  Discretisation d;
+  d.lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
+  d.laplacian = fem::cotan_laplacian(mesh.F, d.lengths, mesh.V.rows());
+  d.mass = fem::mass_matrix(mesh.F, d.lengths, fem::MassKind::lumped, mesh.V.rows());
+  d.mesh = std::move(mesh);
+  return d;
+}
+
+int highest_vertex(const ice::TriangleMesh& mesh) {
+  Eigen::Index top = 0;
+  mesh.V.col(2).maxCoeff(&top);
+  return static_cast<int>(top);
+}
+
+}  // namespace
+
+TEST_CASE("Poisson, Dirichlet on a disk: linear functions exactly, smooth ones at second order", "[fem][problems]") {
+  SECTION("linear precision") {
+    const Discretisation d = discretise(ice::make_flat_disk(6, 1.0, 0.25, 21));
+    const std::vector<int> boundary = fem::boundary_vertices(d.mesh.F);
+    REQUIRE(boundary.size() == 36);
+    const Eigen::VectorXd exact = (0.5 + 2.0 * d.mesh.V.col(0).array() - 3.0 * d.mesh.V.col(1).array()).matrix();
+    Eigen::VectorXd boundary_values(static_cast<Eigen::Index>(boundary.size()));
+    for (std::size_t i = 0; i < boundary.size(); ++i) boundary_values(static_cast<Eigen::Index>(i)) = exact(boundary[i]);
+    const fem::PoissonSolver solver = fem::PoissonSolver::dirichlet(d.laplacian, d.mass, boundary);
+    const Eigen::VectorXd u = solver.solve(Eigen::VectorXd::Zero(exact.size()), boundary_values);
+    CHECK(fem::max_abs_error(u, exact) < 1e-12);
+  }
+  SECTION("convergence for u = eˣ sin y + x²y (−Δu = −2y)") {
+    double previous = INFINITY;
+    for (int rings : {4, 8, 16}) {
+      const Discretisation d = discretise(ice::make_flat_disk(rings, 1.0, 0.2, 5));
+      const Eigen::ArrayXd x = d.mesh.V.col(0), y = d.mesh.V.col(1);
+      const Eigen::VectorXd exact = (x.exp() * y.sin() + x * x * y).matrix();
+      const Eigen::VectorXd source = (-2.0 * y).matrix();
+      const std::vector<int> boundary = fem::boundary_vertices(d.mesh.F);
+      Eigen::VectorXd boundary_values(static_cast<Eigen::Index>(boundary.size()));
+      for (std::size_t i = 0; i < boundary.size(); ++i) boundary_values(static_cast<Eigen::Index>(i)) = exact(boundary[i]);
+      const fem::PoissonSolver solver = fem::PoissonSolver::dirichlet(d.laplacian, d.mass, boundary);
+      const double error = fem::relative_l2_error(solver.solve(source, boundary_values), exact, d.mass);
+      UNSCOPED_INFO("disk rings " << rings << ": relative L2 error " << error);
+      CHECK(error < previous / 2.5);
+      previous = error;
+    }
+    CHECK(previous < 1e-3);
+  }
+}
+
+TEST_CASE("Poisson, zero mean on a sphere: −Δu = z gives u = R²z/2", "[fem][problems]") {
+  const double radius = 1.5;
+  double previous = INFINITY;
+  for (int level = 2; level <= 4; ++level) {
+    const Discretisation d = discretise(ice::make_icosphere(level, radius));
+    const fem::PoissonSolver solver = fem::PoissonSolver::zero_mean(d.laplacian, d.mass);
+    REQUIRE(solver.is_zero_mean());
+    const Eigen::VectorXd z = d.mesh.V.col(2);
+    // An added constant is projected out of the source.
+    const Eigen::VectorXd u = solver.solve((z.array() + 3.0).matrix());
+    const Eigen::VectorXd ones = Eigen::VectorXd::Ones(u.size());
+    CHECK(std::abs(ones.dot(d.mass * u)) < 1e-12);
+    const double error = fem::relative_l2_error(u, 0.5 * radius * radius * z, d.mass);
+    CHECK(error < previous / 3.0);
+    previous = error;
+    // The discrete equation holds exactly for the compatible right-hand side.
+    const Eigen::VectorXd f_mean_free = (z.array() - ones.dot(d.mass * z) / ones.dot(d.mass * ones)).matrix();
+    CHECK((d.laplacian * u - d.mass * f_mean_free).norm() < 1e-10 * (d.mass * f_mean_free).norm());
+  }
+  CHECK(previous < 0.01);
+}
+
+TEST_CASE("heat flow: backward Euler conserves heat and damps spherical harmonics", "[fem][problems]") {
+  const Discretisation d = discretise(ice::make_icosphere(4));
+  const double tau = 1e-3;
+  const int steps = 200;  // T = 0.2
+  const fem::HeatSolver heat(d.laplacian, d.mass, tau);
+  const Eigen::VectorXd z = d.mesh.V.col(2);
+  const Eigen::VectorXd u0 = (z.array() + 1.0).matrix();
+  const Eigen::VectorXd u = heat.integrate(u0, steps);
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(u.size());
+  CHECK(ones.dot(d.mass * u) == Approx(ones.dot(d.mass * u0)).epsilon(1e-12));  // Neumann: total heat kept
+  // −Δz = 2z on the unit sphere: u = 1 + z·e^{−2T}; backward Euler damps by (1 + 2τ)^{−steps}.
+  const Eigen::VectorXd exact = (1.0 + z.array() * std::exp(-2.0 * tau * steps)).matrix();
+  CHECK(fem::relative_l2_error(u, exact, d.mass) < 2e-3);
+  CHECK(heat.integrate(u0, 0) == u0);
+  CHECK_THROWS_AS(fem::HeatSolver(d.laplacian, d.mass, 0.0), std::invalid_argument);
+}
+
+TEST_CASE("heat-method geodesics on spheres converge to R·θ", "[fem][problems][geodesic]") {
+  const double radius = 2.0;
+  double previous_mean = INFINITY;
+  for (int level = 2; level <= 5; ++level) {
+    const Discretisation d = discretise(ice::make_icosphere(level, radius));
+    const fem::HeatGeodesicSolver solver(fem::heat_method_operators(d.mesh.F, d.lengths));
+    REQUIRE(solver.operators().boundary_vertices.empty());
+    const int source = highest_vertex(d.mesh);
+    const Eigen::VectorXd phi = solver.distance({source});
+    const Eigen::RowVector3d pole = d.mesh.V.row(source) / radius;
+    Eigen::VectorXd exact(phi.size());
+    for (Eigen::Index v = 0; v < phi.size(); ++v)
+      exact(v) = radius * std::acos(std::clamp(pole.dot(d.mesh.V.row(v) / radius), -1.0, 1.0));
+    CHECK(phi(source) == Approx(0.0).margin(1e-14));
+    const fem::DistanceErrors errors = fem::distance_errors(phi, exact);
+    UNSCOPED_INFO("icosphere level " << level << " (" << phi.size() << " vertices): mean " << errors.mean_relative
+                                     << ", max " << errors.max_relative << " (relative to max distance)");
+    CHECK(errors.mean_relative < previous_mean);
+    CHECK(errors.max_relative < 0.05);
+    previous_mean = errors.mean_relative;
+  }
+  CHECK(previous_mean < 0.01);
+}
+
+TEST_CASE("heat-method geodesics on a disk with boundary", "[fem][problems][geodesic]") {
+  double previous_mean = INFINITY;
+  for (int rings : {8, 16, 32}) {
+    const Discretisation d = discretise(ice::make_flat_disk(rings, 1.0, 0.2, 17));
+    const fem::HeatGeodesicSolver solver(fem::heat_method_operators(d.mesh.F, d.lengths));
+    REQUIRE(solver.operators().boundary_vertices.size() == static_cast<std::size_t>(6 * rings));
+    const Eigen::VectorXd phi = solver.distance({0});  // the centre vertex (jittered)
+    const Eigen::VectorXd exact = (d.mesh.V.rowwise() - d.mesh.V.row(0)).rowwise().norm();
+    const fem::DistanceErrors errors = fem::distance_errors(phi, exact);
+    UNSCOPED_INFO("disk rings " << rings << ": mean " << errors.mean_relative << ", max " << errors.max_relative);
+    CHECK(errors.mean_relative < previous_mean);
+    previous_mean = errors.mean_relative;
+  }
+  CHECK(previous_mean < 0.02);
+  // Two sources: the distance is the smaller of the two, both sources at 0.
+  const Discretisation d = discretise(ice::make_flat_disk(16, 1.0, 0.0, 1));
+  const fem::HeatGeodesicSolver solver(fem::heat_method_operators(d.mesh.F, d.lengths));
+  Eigen::Index left = 0, right = 0;
+  d.mesh.V.col(0).minCoeff(&left);
+  d.mesh.V.col(0).maxCoeff(&right);
+  const Eigen::VectorXd phi = solver.distance({static_cast<int>(left), static_cast<int>(right)});
+  const Eigen::VectorXd exact = (d.mesh.V.rowwise() - d.mesh.V.row(left)).rowwise().norm().cwiseMin(
+      (d.mesh.V.rowwise() - d.mesh.V.row(right)).rowwise().norm());
+  CHECK(fem::distance_errors(phi, exact).mean_relative < 0.03);
+}
