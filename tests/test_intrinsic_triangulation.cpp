@@ -316,11 +316,9 @@ TEST_CASE("tracked points land on their planar positions after flips and removal
     int removed = 0;
     for (Index v : order) {
       if (T.is_boundary_vertex(v)) continue;
-      Index face = kInvalid;
-      if (T.remove_vertex(v, &face) == RemovalStatus::Removed) {
-        ++removed;
-        T.flip_to_delaunay_around({face});
-      }
+      std::vector<Index> changed;
+      if (T.remove_vertex(v, &changed) == RemovalStatus::Removed) ++removed;
+      T.flip_to_delaunay_around(changed);
       if (removed % 25 == 0) random_flips(T, 50, rng);
     }
     CHECK(removed > T.num_input_vertices() / 2);
@@ -339,12 +337,12 @@ TEST_CASE("tracked points land on their planar positions after flips and removal
         const double x = mesh.V(v, 0), y = mesh.V(v, 1);
         if ((x == 0 || x == 1) && (y == 0 || y == 1)) continue;
         const bool boundary = T.is_boundary_vertex(v);
-        Index face = kInvalid;
-        if (T.remove_vertex(v, &face) == RemovalStatus::Removed) {
+        std::vector<Index> changed;
+        if (T.remove_vertex(v, &changed) == RemovalStatus::Removed) {
           ++removed;
           removed_boundary += boundary;
-          T.flip_to_delaunay_around({face});
         }
+        T.flip_to_delaunay_around(changed);
       }
     CHECK(removed_boundary > 30);
     CHECK(T.num_vertices() < 25);
@@ -371,11 +369,9 @@ TEST_CASE("removing vertices of closed and open surfaces keeps the topology", "[
         if (T.vertex_alive(v)) order.push_back(v);
       std::shuffle(order.begin(), order.end(), rng);
       for (Index v : order) {
-        Index face = kInvalid;
-        if (T.remove_vertex(v, &face) == RemovalStatus::Removed) {
-          progress = true;
-          T.flip_to_delaunay_around({face});
-        }
+        std::vector<Index> changed;
+        if (T.remove_vertex(v, &changed) == RemovalStatus::Removed) progress = true;
+        T.flip_to_delaunay_around(changed);
       }
       REQUIRE(T.validate() == "");
     }

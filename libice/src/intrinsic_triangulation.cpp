@@ -571,22 +571,26 @@ void IntrinsicTriangulation::kill_edge(Index e) {
   --num_edges_;
 }
 
-RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, Index* new_face, std::vector<Index>* touched) {
+RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, std::vector<Index>* changed_faces,
+                                                    std::vector<Index>* touched) {
   if (v < 0 || v >= num_input_vertices() || !vertex_alive(v)) return RemovalStatus::NotAVertex;
   bool face_only_at_v = false;
   for_each_outgoing(v, [&](Index h) {
     if (head(h) == v && tail(prev(h)) == v) face_only_at_v = true;
   });
   if (face_only_at_v) return RemovalStatus::FaceOnlyAtVertex;
-  return is_boundary_vertex(v) ? remove_boundary_vertex(v, new_face, touched)
-                               : remove_interior_vertex(v, new_face, touched);
+  const RemovalStatus status = is_boundary_vertex(v) ? remove_boundary_vertex(v, changed_faces, touched)
+                                                     : remove_interior_vertex(v, changed_faces, touched);
+  if (status != RemovalStatus::Removed && changed_faces && vertex_alive(v))
+    for_each_outgoing(v, [&](Index h) { changed_faces->push_back(face(h)); });
+  return status;
 }
 
 namespace {
 // Flips one outgoing edge of v chosen by priority (self-edges first, then the largest sum of the
 // two angles opposite the edge); returns false when no candidate diamond is convex.
 template <class Tri>
-bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* touched) {
+bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched) {
   struct Candidate {
     Index h;
     double priority;
@@ -612,6 +616,7 @@ bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* touched) {
     const Index i = T.tail(h), j = T.head(h);
     if (T.flip(h)) {
       if (touched) touched->insert(touched->end(), {i, j, T.tail(h), T.head(h)});
+      if (changed_faces) changed_faces->insert(changed_faces->end(), {T.face(h), T.face(h ^ 1)});
       return true;
     }
   }
@@ -619,10 +624,14 @@ bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* touched) {
 }
 }  // namespace
 
-RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, Index* new_face, std::vector<Index>* touched) {
+RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, std::vector<Index>* changed_faces,
+                                                             std::vector<Index>* touched) {
   if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
-  while (degree(v) > 3)
-    if (!flip_one_edge_at(*this, v, touched)) return RemovalStatus::NoConvexFlip;
+  while (degree(v) > 3) {
+    if (flip_one_edge_at(*this, v, changed_faces, touched)) continue;
+    if (degree(v) == 4 && merge_star_along_diagonal(v, changed_faces)) return RemovalStatus::Removed;
+    return RemovalStatus::NoConvexFlip;
+  }
   if (degree(v) < 3) return RemovalStatus::TopologyChange;
   std::vector<Index> star;
   for_each_outgoing(v, [&](Index h) { star.push_back(h); });
@@ -631,11 +640,12 @@ RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, Index* new
     if (head(h) == v) return RemovalStatus::NoConvexFlip;
   if (face(star[0]) == face(star[1]) || face(star[1]) == face(star[2]) || face(star[0]) == face(star[2]))
     return RemovalStatus::TopologyChange;
-  merge_star_into_face(v, star, new_face);
+  merge_star_into_face(v, star, changed_faces);
   return RemovalStatus::Removed;
 }
 
-void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Index>& star, Index* new_face) {
+void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Index>& star,
+                                                  std::vector<Index>* changed_faces) {
   const Index h0 = star[0], h1 = star[1], h2 = star[2];
   const Index o0 = next(h0), o1 = next(h1), o2 = next(h2);
   // Flat star layout: v at the origin, its neighbours around it.
@@ -668,10 +678,82 @@ void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Ind
   for (int k = 0; k < 3; ++k)
     if (k == 0 || (x[k] != x[0] && (k == 1 || x[k] != x[1]))) recompute_vertex_frame(x[k]);
   for (const auto& q : scratch_points_) add_point_to_face(q.point, f, barycentric(q.position, p0, p1, p2));
-  if (new_face) *new_face = f;
+  if (changed_faces) changed_faces->push_back(f);
 }
 
-RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, Index* new_face, std::vector<Index>* touched) {
+bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Index>* changed_faces) {
+  Index spokes[4];
+  int count = 0;
+  for_each_outgoing(v, [&](Index h) { spokes[count++] = h; });
+  for (Index h : spokes)
+    if (head(h) == v) return false;
+  for (int a = 0; a < 4; ++a)
+    for (int b = a + 1; b < 4; ++b)
+      if (face(spokes[a]) == face(spokes[b])) return false;
+  // Choose the diagonal through v: the one whose two corners at v sum closest to π.
+  constexpr double kPi = 3.14159265358979323846;
+  const double c0 = corner_angle(spokes[0]) + corner_angle(spokes[1]);
+  const double c1 = corner_angle(spokes[1]) + corner_angle(spokes[2]);
+  const int first = std::abs(c0 - kPi) <= std::abs(c1 - kPi) ? 0 : 1;
+  if (std::abs((first == 0 ? c0 : c1) - kPi) > 1e-6) return false;
+  Index s[4], o[4], x[4];
+  for (int k = 0; k < 4; ++k) {
+    s[k] = spokes[(first + k) % 4];
+    o[k] = next(s[k]);
+    x[k] = head(s[k]);
+  }
+  // Flat layout around v.
+  const Vec2 pv{0, 0};
+  Vec2 p[4];
+  p[0] = {length(s[0]), 0};
+  for (int k = 1; k < 4; ++k) p[k] = layout_third_point(pv, p[k - 1], length(s[k - 1]), length(s[k]), length(o[k - 1]));
+  const double diagonal = (p[2] - p[0]).norm();
+  constexpr double kMinSine = 1e-7;
+  if (!(smallest_angle_sine(length(o[0]), length(o[1]), diagonal) > kMinSine &&
+        smallest_angle_sine(length(o[2]), length(o[3]), diagonal) > kMinSine))
+    return false;
+  LocalLayout layout;
+  for (int k = 0; k < 4; ++k) layout.set(s[k], pv), layout.set(o[k], p[k]), layout.set(prev(s[k]), p[(k + 1) % 4]);
+  scratch_points_.clear();
+  for (int k = 0; k < 4; ++k) collect_points(face(s[k]), layout);
+  scratch_points_.push_back({v, pv});
+
+  // Faces A = (x0, x1, x2) and B = (x2, x3, x0); s0's edge becomes the diagonal x2 <-> x0.
+  const Index fa = face(s[0]), fb = face(s[2]);
+  const Index dead1 = face(s[1]), dead3 = face(s[3]);
+  const Index d = s[0], d_twin = s[0] ^ 1;
+  he_tail_[d] = x[2], he_tail_[d_twin] = x[0];
+  he_next_[o[0]] = o[1], he_next_[o[1]] = d, he_next_[d] = o[0];
+  he_next_[o[2]] = o[3], he_next_[o[3]] = d_twin, he_next_[d_twin] = o[2];
+  he_face_[o[0]] = he_face_[o[1]] = he_face_[d] = fa;
+  he_face_[o[2]] = he_face_[o[3]] = he_face_[d_twin] = fb;
+  face_halfedge_[fa] = o[0], face_halfedge_[fb] = o[2];
+  edge_length_[d >> 1] = diagonal;
+  kill_face(dead1);
+  kill_face(dead3);
+  for (int k = 1; k < 4; ++k) kill_edge(s[k] >> 1);
+  for (int k = 0; k < 4; ++k)
+    if (!halfedge_alive(vertex_halfedge_[x[k]]) || tail(vertex_halfedge_[x[k]]) != x[k]) vertex_halfedge_[x[k]] = o[k];
+  vertex_halfedge_[v] = kInvalid;
+  angle_sum_[v] = 0;
+  --num_vertices_;
+  for (int k = 0; k < 4; ++k) {
+    bool repeated = false;
+    for (int earlier = 0; earlier < k; ++earlier) repeated = repeated || x[earlier] == x[k];
+    if (!repeated) recompute_vertex_frame(x[k]);
+  }
+  for (const auto& q : scratch_points_) {
+    if (orient2d(p[0], p[2], q.position) <= 0)
+      add_point_to_face(q.point, fa, barycentric(q.position, p[0], p[1], p[2]));
+    else
+      add_point_to_face(q.point, fb, barycentric(q.position, p[2], p[3], p[0]));
+  }
+  if (changed_faces) changed_faces->insert(changed_faces->end(), {fa, fb});
+  return true;
+}
+
+RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vector<Index>* changed_faces,
+                                                             std::vector<Index>* touched) {
   Index hb = vertex_halfedge_[v];  // v -> k, twin exterior
   Index last = hb;
   while (rotate_ccw(last) != kInvalid) last = rotate_ccw(last);
@@ -684,10 +766,11 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, Index* new
     const Index a = tail(opposite), b = head(opposite);
     if (!flip(opposite)) return RemovalStatus::NoConvexFlip;
     if (touched) touched->insert(touched->end(), {a, b, tail(opposite), head(opposite)});
+    if (changed_faces) changed_faces->insert(changed_faces->end(), {face(opposite), face(opposite ^ 1)});
   }
   if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
   while (degree(v) > 2)
-    if (!flip_one_edge_at(*this, v, touched)) return RemovalStatus::NoConvexFlip;
+    if (!flip_one_edge_at(*this, v, changed_faces, touched)) return RemovalStatus::NoConvexFlip;
   hb = vertex_halfedge_[v];
   const Index h2 = rotate_ccw(hb);  // v -> m
   if (h2 == kInvalid) return RemovalStatus::TopologyChange;
@@ -727,7 +810,7 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, Index* new
   recompute_vertex_frame(k);
   if (m != j && m != k) recompute_vertex_frame(m);
   for (const auto& q : scratch_points_) add_point_to_face(q.point, f, barycentric(q.position, pk, pm, pj));
-  if (new_face) *new_face = f;
+  if (changed_faces) changed_faces->push_back(f);
   return RemovalStatus::Removed;
 }
 

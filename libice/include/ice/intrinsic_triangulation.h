@@ -179,10 +179,15 @@ class IntrinsicTriangulation {
   /// Computes the scale that would flatten v without changing anything.
   FlattenResult compute_flattening(Index v) const;
   /// Removes v: flattens it, flips it down to degree 3 (interior) or 2 (boundary), merges its
-  /// faces into one triangle, and re-locates the tracked points. Does not restore Delaunay; the
-  /// face that replaced the star is written to *new_face. When the removal fails after the
-  /// flattening, the triangulation stays valid (v remains, flattened and possibly flipped).
-  RemovalStatus remove_vertex(Index v, Index* new_face = nullptr, std::vector<Index>* touched = nullptr);
+  /// faces into one triangle, and re-locates the tracked points. A degree-4 star whose centre lies
+  /// on a diagonal (opposite corners summing to π, as on regular grids) cannot be flipped to degree
+  /// 3; it is replaced by the two triangles on either side of that diagonal instead. Does not restore Delaunay: every
+  /// face whose geometry changed (the merged face and the faces made by the degree-reducing flips)
+  /// is appended to *changed_faces, and the endpoints of flipped edges to *touched. When the removal
+  /// fails after the flattening, the triangulation stays valid (v remains, flattened and possibly
+  /// flipped; its star's faces are then reported as changed).
+  RemovalStatus remove_vertex(Index v, std::vector<Index>* changed_faces = nullptr,
+                              std::vector<Index>* touched = nullptr);
 
   // ---- tracked points ---------------------------------------------------------------------
   /// Current location of input vertex p.
@@ -209,9 +214,10 @@ class IntrinsicTriangulation {
   void add_point_to_face(Index p, Index f, const std::array<double, 3>& bary);
   void kill_face(Index f);
   void kill_edge(Index e);
-  RemovalStatus remove_interior_vertex(Index v, Index* new_face, std::vector<Index>* touched);
-  RemovalStatus remove_boundary_vertex(Index v, Index* new_face, std::vector<Index>* touched);
-  void merge_star_into_face(Index v, const std::vector<Index>& star, Index* new_face);
+  RemovalStatus remove_interior_vertex(Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched);
+  RemovalStatus remove_boundary_vertex(Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched);
+  void merge_star_into_face(Index v, const std::vector<Index>& star, std::vector<Index>* changed_faces);
+  bool merge_star_along_diagonal(Index v, std::vector<Index>* changed_faces);
 
   // Half-edge arrays (size 2·edges).
   std::vector<Index> he_next_, he_tail_, he_face_;

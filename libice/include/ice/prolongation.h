@@ -1,0 +1,18 @@
+#pragma once
+/// \file prolongation.h
+/// The fine-to-coarse map of a coarsened intrinsic triangulation as a sparse prolongation matrix.
+///
+/// P is |V_input| × |V_coarse|. A surviving input vertex's row holds a single 1 in its coarse
+/// column; a removed vertex's row holds its barycentric coordinates in the columns of the corners of
+/// the coarse face that contains it (entries of repeated corners of a Δ-complex face are summed).
+/// Rows sum to 1, at most three non-zeros per row. Restriction is Pᵀ.
+#include <Eigen/SparseCore>
+
+#include "ice/intrinsic_triangulation.h"
+
+namespace ice {
+
+/// P for the current state of T; `coarse` must be T.compact() of that same state.
+Eigen::SparseMatrix<double> prolongation(const IntrinsicTriangulation& T, const CompactMesh& coarse);
+
+}  // namespace ice

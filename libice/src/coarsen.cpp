@@ -1,0 +1,269 @@
+#include "ice/coarsen.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace ice {
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}
+
+const char* to_string(StopReason reason) {
+  switch (reason) {
+    case StopReason::TargetReached: return "target_reached";
+    case StopReason::ErrorThreshold: return "error_threshold";
+    case StopReason::NothingRemovable: return "nothing_removable";
+    case StopReason::Cancelled: return "cancelled";
+  }
+  return "unknown";
+}
+
+// ------------------------------------------------------------------------------------------------
+// Error metric
+
+IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight) {
+  const Index n = T.num_input_vertices();
+  mass_.assign(kChannels * n, 0.0);
+  centre_.assign(kChannels * n, {0.0, 0.0});
+  std::vector<double> vertex_area(n, 0.0);
+  double total_area = 0;
+  for (Index f = 0; f < T.num_face_slots(); ++f) {
+    if (!T.face_alive(f)) continue;
+    const double third = T.face_area(f) / 3;
+    Index h = T.halfedge(f);
+    for (int k = 0; k < 3; ++k, h = T.next(h)) vertex_area[T.tail(h)] += third;
+    total_area += 3 * third;
+  }
+  for (Index v = 0; v < n; ++v) {
+    if (!T.vertex_alive(v)) continue;
+    const double K = T.curvature(v);
+    mass_[kChannels * v + 0] = (1 - area_weight) * std::max(K, 0.0);
+    mass_[kChannels * v + 1] = (1 - area_weight) * std::max(-K, 0.0);
+    mass_[kChannels * v + 2] = area_weight * vertex_area[v] / total_area;
+  }
+}
+
+std::array<double, IntrinsicErrorMetric::kChannels> IntrinsicErrorMetric::total_mass(
+    const IntrinsicTriangulation& T) const {
+  std::array<double, kChannels> total{0, 0, 0};
+  for (Index v = 0; v < T.num_input_vertices(); ++v)
+    if (T.vertex_alive(v))
+      for (int c = 0; c < kChannels; ++c) total[c] += mass(v, c);
+  return total;
+}
+
+bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out) const {
+  out.clear();
+  const FlattenResult flat = T.compute_flattening(v);
+  if (!flat.success) return false;
+  const double s = std::exp(0.5 * flat.log_scale);
+  const auto add = [&](Index vertex, Index halfedge, double delta_K) {
+    if (vertex == v) return;  // a self-edge: v absorbs nothing from itself
+    for (Neighbour& n : out)
+      if (n.vertex == vertex) {
+        n.weight += delta_K;
+        return;
+      }
+    out.push_back({vertex, halfedge, delta_K});
+  };
+  T.for_each_outgoing(v, [&](Index h) {
+    const Index in = T.prev(h), opposite = T.next(h);
+    const Index x = T.head(h), y = T.tail(in);
+    // Lengths before and after scaling v's edges by s (self-edges by s²).
+    const double a = T.length(h), b = T.length(in), o = T.length(opposite);
+    const double a2 = a * (x == v ? s * s : s), b2 = b * (y == v ? s * s : s);
+    const double o2 = o * ((x == v ? s : 1.0) * (y == v ? s : 1.0));
+    // Curvature is 2π − Θ, so ΔK = −ΔΘ at x and at y.
+    add(x, h, angle_opposite(a, o, b) - angle_opposite(a2, o2, b2));
+    add(y, in ^ 1, angle_opposite(b, o, a) - angle_opposite(b2, o2, a2));
+  });
+  double total = 0;
+  for (Neighbour& n : out) total += (n.weight = std::abs(n.weight));
+  if (!(total > 0) || !std::isfinite(total)) {
+    for (Neighbour& n : out) n.weight = 1.0 / out.size();
+  } else {
+    for (Neighbour& n : out) n.weight /= total;
+  }
+  return !out.empty();
+}
+
+IntrinsicErrorMetric::PendingRecord IntrinsicErrorMetric::merged_record(const IntrinsicTriangulation& T, Index v,
+                                                                         const Neighbour& n) const {
+  const Index h = n.halfedge;  // v -> j
+  const double angle_vj = T.angular_coordinate(h), angle_jv = T.angular_coordinate(h ^ 1);
+  // Parallel transport from v's frame to j's, and the vector from j to v in j's frame.
+  const std::complex<double> rotation = std::polar(1.0, angle_jv - angle_vj + kPi);
+  const std::complex<double> edge = std::polar(T.length(h), angle_jv);
+  PendingRecord record{n.vertex, {}, {}};
+  for (int c = 0; c < kChannels; ++c) {
+    const double share = n.weight * mass(v, c);
+    const double m_j = mass(n.vertex, c);
+    const double merged = m_j + share;
+    record.mass[c] = merged;
+    record.centre[c] =
+        merged > 0 ? (share * (rotation * centre(v, c) + edge) + m_j * centre(n.vertex, c)) / merged
+                   : std::complex<double>(0, 0);
+  }
+  return record;
+}
+
+double IntrinsicErrorMetric::removal_cost(const IntrinsicTriangulation& T, Index v) const {
+  if (!split_weights(T, v, scratch_)) return std::numeric_limits<double>::infinity();
+  double cost = 0;
+  for (const Neighbour& n : scratch_) {
+    const PendingRecord r = merged_record(T, v, n);
+    for (int c = 0; c < kChannels; ++c) cost += r.mass[c] * std::abs(r.centre[c]);
+  }
+  return cost;
+}
+
+bool IntrinsicErrorMetric::prepare_removal(const IntrinsicTriangulation& T, Index v) {
+  pending_.clear();
+  pending_vertex_ = kInvalid;
+  if (!split_weights(T, v, scratch_)) return false;
+  for (const Neighbour& n : scratch_) pending_.push_back(merged_record(T, v, n));
+  pending_vertex_ = v;
+  return true;
+}
+
+void IntrinsicErrorMetric::apply_prepared_removal() {
+  for (const PendingRecord& r : pending_)
+    for (int c = 0; c < kChannels; ++c) {
+      mass_[kChannels * r.vertex + c] = r.mass[c];
+      centre_[kChannels * r.vertex + c] = r.centre[c];
+    }
+  if (pending_vertex_ != kInvalid)
+    for (int c = 0; c < kChannels; ++c) {
+      mass_[kChannels * pending_vertex_ + c] = 0;
+      centre_[kChannels * pending_vertex_ + c] = 0;
+    }
+  pending_.clear();
+  pending_vertex_ = kInvalid;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Greedy driver
+
+namespace {
+
+struct HeapEntry {
+  double cost;
+  Index vertex;
+  std::uint32_t stamp;
+};
+// std::push_heap builds a max-heap: order so the cheapest (then the lowest index) is on top.
+bool operator<(const HeapEntry& a, const HeapEntry& b) {
+  return a.cost > b.cost || (a.cost == b.cost && a.vertex > b.vertex);
+}
+
+}  // namespace
+
+CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  const Index n = T.num_input_vertices();
+  CoarsenResult result;
+  result.input_vertices = T.num_vertices();
+  Index target = options.target_vertices;
+  if (target <= 0 && options.target_ratio > 0)
+    target = static_cast<Index>(std::ceil(options.target_ratio * T.num_vertices()));
+  target = std::max<Index>(target, 1);
+
+  IntrinsicErrorMetric metric(T, options.area_weight);
+  std::vector<std::uint8_t> locked(n, 0), failures(n, 0);
+  for (Index v : options.locked_vertices)
+    if (v >= 0 && v < n) locked[v] = 1;
+  std::vector<std::uint32_t> stamp(n, 0), seen(n, 0);
+  std::uint32_t epoch = 0;
+  constexpr std::uint8_t kMaxFailures = 3;
+
+  std::vector<HeapEntry> heap;
+  heap.reserve(2 * T.num_vertices());
+  const auto eligible = [&](Index v) {
+    return T.vertex_alive(v) && !locked[v] && failures[v] < kMaxFailures &&
+           (options.remove_boundary || !T.is_boundary_vertex(v));
+  };
+  const auto schedule = [&](Index v) {
+    ++stamp[v];
+    if (!eligible(v)) return;
+    const double cost = metric.removal_cost(T, v);
+    if (!std::isfinite(cost)) return;
+    heap.push_back({cost, v, stamp[v]});
+    std::push_heap(heap.begin(), heap.end());
+  };
+  for (Index v = 0; v < n; ++v) schedule(v);
+
+  std::vector<Index> affected, changed_faces;
+  result.stop_reason = StopReason::TargetReached;
+  while (T.num_vertices() > target) {
+    if (heap.empty()) {
+      result.stop_reason = StopReason::NothingRemovable;
+      break;
+    }
+    std::pop_heap(heap.begin(), heap.end());
+    const HeapEntry top = heap.back();
+    heap.pop_back();
+    if (top.stamp != stamp[top.vertex] || !T.vertex_alive(top.vertex)) continue;
+    if (top.cost > options.max_error) {
+      result.stop_reason = StopReason::ErrorThreshold;
+      heap.push_back(top);
+      std::push_heap(heap.begin(), heap.end());
+      break;
+    }
+    const Index v = top.vertex;
+    // The one-ring (its costs change), collected while the star exists.
+    affected.clear();
+    T.for_each_outgoing(v, [&](Index h) {
+      affected.push_back(T.head(h));
+      affected.push_back(T.tail(T.prev(h)));
+    });
+    if (!metric.prepare_removal(T, v)) {
+      ++stamp[v];
+      continue;
+    }
+    changed_faces.clear();
+    const RemovalStatus status = T.remove_vertex(v, &changed_faces, &affected);
+    if (status == RemovalStatus::Removed) {
+      metric.apply_prepared_removal();
+      ++result.removed;
+      result.last_cost = top.cost;
+      result.max_cost = std::max(result.max_cost, top.cost);
+    } else {
+      ++result.failed_removals;
+      ++result.failures_by_status[static_cast<int>(status)];
+      ++failures[v];
+      affected.push_back(v);
+    }
+    T.flip_to_delaunay_around(changed_faces, &affected);
+    ++epoch;
+    for (Index u : affected) {
+      if (seen[u] == epoch) continue;
+      seen[u] = epoch;
+      schedule(u);
+    }
+    if (options.progress && result.removed % options.progress_interval == 0 && status == RemovalStatus::Removed) {
+      const CoarsenProgress progress{T.num_vertices(), target, result.removed, result.last_cost};
+      if (!options.progress(progress)) {
+        result.stop_reason = StopReason::Cancelled;
+        break;
+      }
+    }
+  }
+  // The cost of the cheapest remaining removal (for reports and threshold stops).
+  result.next_cost = std::numeric_limits<double>::infinity();
+  while (!heap.empty()) {
+    std::pop_heap(heap.begin(), heap.end());
+    const HeapEntry top = heap.back();
+    heap.pop_back();
+    if (top.stamp == stamp[top.vertex] && T.vertex_alive(top.vertex)) {
+      result.next_cost = top.cost;
+      break;
+    }
+  }
+  result.output_vertices = T.num_vertices();
+  result.output_faces = T.num_faces();
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace ice

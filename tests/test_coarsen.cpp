@@ -1,0 +1,193 @@
+// Tests of ICE coarsening, the fine-to-coarse map and the prolongation matrix.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "ice/coarsen.h"
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+#include "ice/prolongation.h"
+#include "test_support.h"
+
+using namespace ice;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// The clean meshes of the shared folder (no flags in its README), small to large.
+const char* const kCleanSharedMeshes[] = {
+    "cat_head.obj",    "eight.off",        "boxpart.obj",   "blobby_3cc.off",    "spot.obj",
+    "spot_offset1e6.obj", "fertility.off", "bob_tri.obj",   "fandisk.obj",       "blub_triangulated.obj",
+    "capsule.obj",     "camelhead.off",    "dragon_fat.obj", "bs_rest.obj",      "spot_subdiv.obj",
+    "face_scan.obj",   "bunny_closed.off", "armadillo_43k.obj"};
+
+void check_map(const IntrinsicTriangulation& T) {
+  const CompactMesh coarse = T.compact();
+  const Eigen::SparseMatrix<double> P = prolongation(T, coarse);
+  REQUIRE(P.rows() == T.num_input_vertices());
+  REQUIRE(P.cols() == T.num_vertices());
+  const Eigen::VectorXd row_sums = P * Eigen::VectorXd::Ones(P.cols());
+  CHECK((row_sums.array() - 1.0).abs().maxCoeff() < 1e-14);
+  Eigen::SparseMatrix<double, Eigen::RowMajor> rows = P;
+  int bad = 0;
+  for (Eigen::Index r = 0; r < rows.rows(); ++r) {
+    int nonzeros = 0;
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(rows, r); it; ++it) {
+      ++nonzeros;
+      bad += !(it.value() >= 0 && it.value() <= 1 + 1e-15);
+    }
+    bad += nonzeros < 1 || nonzeros > 3;
+  }
+  CHECK(bad == 0);
+  for (Index p = 0; p < T.num_input_vertices(); ++p) {
+    const SurfacePoint s = T.location(p);
+    if (s.is_vertex()) continue;
+    REQUIRE(T.face_alive(s.face));
+    CHECK((s.bary[0] >= 0 && s.bary[1] >= 0 && s.bary[2] >= 0));
+  }
+}
+
+int count_non_delaunay(const IntrinsicTriangulation& T) {
+  int bad = 0;
+  for (Index h = 0; h < T.num_halfedge_slots(); h += 2)
+    if (T.halfedge_alive(h)) bad += !T.is_delaunay(h);
+  return bad;
+}
+
+}  // namespace
+
+TEST_CASE("coarsening every clean shared mesh keeps validity, χ and Gauss-Bonnet down to the minimum", "[coarsen][shared]") {
+  for (const char* name : kCleanSharedMeshes) {
+    INFO(name);
+    const TriangleMesh mesh = load_mesh(ice_test::shared_mesh(name));
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    const int chi = T.euler_characteristic();
+    const Index n = T.num_vertices();
+    // Validate when crossing 50 %, 10 % and 1 % of the vertices, then run to the minimum.
+    std::vector<double> checkpoints = {0.5, 0.1, 0.01};
+    int validated = 0;
+    CoarsenOptions options;
+    options.progress_interval = 1;
+    options.progress = [&](const CoarsenProgress& p) {
+      if (!checkpoints.empty() && p.vertices <= checkpoints.front() * n) {
+        checkpoints.erase(checkpoints.begin());
+        INFO("at " << p.vertices << " vertices");
+        CHECK(T.validate() == "");
+        CHECK(T.euler_characteristic() == chi);
+        ++validated;
+      }
+      return true;
+    };
+    const CoarsenResult result = coarsen(T, options);
+    INFO("stopped at " << result.output_vertices << " vertices; failures by status: "
+         << result.failures_by_status[2] << " flatten, " << result.failures_by_status[3] << " face at vertex, "
+         << result.failures_by_status[4] << " no flip, " << result.failures_by_status[5] << " small loop, "
+         << result.failures_by_status[6] << " topology");
+    CHECK(validated == 3 - static_cast<int>(checkpoints.size()));
+    for (double fraction : checkpoints) CHECK(fraction * n < result.output_vertices);  // unreachable ones only
+    // Either the topology's minimum was reached (a torus can keep 1 vertex) or nothing is removable.
+    CHECK(result.stop_reason != StopReason::Cancelled);
+    CHECK(T.validate() == "");
+    CHECK(T.euler_characteristic() == chi);
+    CHECK(std::abs(T.total_curvature() - 2 * kPi * chi) < 1e-8);
+    CHECK(count_non_delaunay(T) == 0);
+    CHECK(result.output_vertices < std::max<Index>(60, n / 100));
+    check_map(T);
+  }
+}
+
+TEST_CASE("coarsening to a target: map, prolongation, Delaunay, determinism", "[coarsen][shared]") {
+  const TriangleMesh mesh = load_mesh(ice_test::shared_mesh("camelhead.off"));
+  CoarsenOptions options;
+  options.target_vertices = 500;
+  auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  const CoarsenResult result = coarsen(T, options);
+  CHECK(result.stop_reason == StopReason::TargetReached);
+  CHECK(T.num_vertices() == 500);
+  CHECK(result.removed == mesh.V.rows() - 500);
+  CHECK(T.validate() == "");
+  CHECK(count_non_delaunay(T) == 0);
+  check_map(T);
+
+  auto again = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  coarsen(again, options);
+  const CompactMesh a = T.compact(), b = again.compact();
+  CHECK(a.F == b.F);
+  CHECK(a.L == b.L);  // bit-identical
+  CHECK(a.to_input == b.to_input);
+}
+
+TEST_CASE("the error metric conserves each channel's total mass", "[coarsen]") {
+  const TriangleMesh mesh = make_torus(30, 14, 2.0, 0.8);
+  auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  IntrinsicErrorMetric metric(T, 0.3);
+  const auto before = metric.total_mass(T);
+  CHECK(before[2] == Approx(0.3).epsilon(1e-12));
+  int removed = 0;
+  for (Index v = 0; v < T.num_input_vertices() && removed < 200; v += 2) {
+    if (!metric.prepare_removal(T, v)) continue;
+    std::vector<Index> changed;
+    const bool ok = T.remove_vertex(v, &changed) == RemovalStatus::Removed;
+    T.flip_to_delaunay_around(changed);
+    if (!ok) continue;
+    metric.apply_prepared_removal();
+    ++removed;
+  }
+  CHECK(removed == 200);
+  const auto after = metric.total_mass(T);
+  for (int c = 0; c < 3; ++c) CHECK(after[c] == Approx(before[c]).epsilon(1e-12));
+}
+
+TEST_CASE("on a flat disk the coarse mesh stays flat and the map is exact", "[coarsen]") {
+  const TriangleMesh mesh = make_flat_disk(20, 1.0, 0.3, 4);
+  auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  CoarsenOptions options;
+  options.target_ratio = 0.1;
+  options.remove_boundary = false;  // flattening a boundary vertex to π would bend the disk
+  const CoarsenResult result = coarsen(T, options);
+  CHECK(result.stop_reason == StopReason::TargetReached);
+  CHECK(T.validate() == "");
+  for (Index v = 0; v < T.num_input_vertices(); ++v)
+    if (T.vertex_alive(v) && !T.is_boundary_vertex(v)) CHECK(std::abs(T.curvature(v)) < 1e-10);
+  const CompactMesh coarse = T.compact();
+  const Eigen::SparseMatrix<double> P = prolongation(T, coarse);
+  Eigen::MatrixXd coarse_xy(coarse.to_input.size(), 2);
+  for (std::size_t c = 0; c < coarse.to_input.size(); ++c) coarse_xy.row(c) = mesh.V.row(coarse.to_input[c]).head<2>();
+  const Eigen::MatrixXd prolonged = P * coarse_xy;
+  CHECK((prolonged - mesh.V.leftCols<2>()).cwiseAbs().maxCoeff() < 1e-9);
+}
+
+TEST_CASE("locked vertices survive and a threshold stop stops where it says", "[coarsen]") {
+  const TriangleMesh mesh = make_icosphere(4);
+  SECTION("locked") {
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    CoarsenOptions options;
+    options.target_vertices = 50;
+    for (Index v = 0; v < T.num_input_vertices(); v += 137) options.locked_vertices.push_back(v);
+    coarsen(T, options);
+    CHECK(T.num_vertices() == 50);
+    for (Index v : options.locked_vertices) CHECK(T.vertex_alive(v));
+  }
+  SECTION("threshold") {
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    CoarsenOptions options;
+    options.max_error = 0.05;
+    const CoarsenResult result = coarsen(T, options);
+    CHECK(result.stop_reason == StopReason::ErrorThreshold);
+    CHECK(result.removed > 0);
+    CHECK(result.max_cost <= 0.05);
+    CHECK(result.next_cost > 0.05);
+    CHECK(T.validate() == "");
+  }
+  SECTION("cancel") {
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    CoarsenOptions options;
+    options.progress_interval = 100;
+    options.progress = [](const CoarsenProgress& p) { return p.removed < 300; };
+    const CoarsenResult result = coarsen(T, options);
+    CHECK(result.stop_reason == StopReason::Cancelled);
+    CHECK(result.removed == 300);
+    CHECK(T.validate() == "");
+  }
+}
