@@ -248,15 +248,32 @@ double IntrinsicTriangulation::angle_scale(Index v) const {
 }
 
 void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
-  angle_sum_[v] = compute_angle_sum(v);
+  // One pass collects the corner angles (Θ is needed for the scale before any coordinate is set).
+  double corners_small[32];
+  std::vector<double> corners_large;
+  double* corners = corners_small;
+  int count = 0;
+  double theta = 0;
+  for_each_outgoing(v, [&](Index h) {
+    if (count == 32 && corners == corners_small) corners_large.assign(corners_small, corners_small + 32);
+    const double corner = corner_angle(h);
+    if (corners != corners_small || count >= 32) {
+      corners_large.push_back(corner);
+      corners = corners_large.data();
+    } else {
+      corners[count] = corner;
+    }
+    ++count;
+    theta += corner;
+  });
+  angle_sum_[v] = theta;
   const double scale = angle_scale(v);
-  const bool boundary = is_boundary_vertex(v);
   const Index start = vertex_halfedge_[v];
-  double angle = boundary ? 0.0 : he_angle_[start];
+  double angle = is_boundary_vertex(v) ? 0.0 : he_angle_[start];
   Index h = start;
-  while (true) {
+  for (int c = 0;; ++c) {
     he_angle_[h] = wrap_angle(angle);
-    angle += scale * corner_angle(h);
+    angle += scale * corners[c];
     const Index t = prev(h) ^ 1;
     if (is_exterior(t)) {  // boundary: the exterior outgoing half-edge closes the fan
       he_angle_[t] = wrap_angle(angle);
@@ -438,7 +455,7 @@ struct StarCorner {
 };
 }  // namespace
 
-FlattenResult IntrinsicTriangulation::compute_flattening(Index v) const {
+FlattenResult IntrinsicTriangulation::compute_flattening(Index v, double tolerance) const {
   FlattenResult result;
   const double target = is_boundary_vertex(v) ? kPi : kTwoPi;
   StarCorner corners_small[16];
@@ -460,28 +477,49 @@ FlattenResult IntrinsicTriangulation::compute_flattening(Index v) const {
                         (tail(opp) == v) + (head(opp) == v)};
   });
 
-  const auto evaluate = [&](double u, double& theta, double& derivative) -> bool {
-    theta = 0, derivative = 0;
+  // Θ(u) − target and dΘ/du. Near the target (|Θ(0) − target| < π/2, and Newton moves Θ
+  // monotonically towards it) the residual is the argument of the product of the corners' unit
+  // complex numbers times e^{−i·target}: one atan2 per evaluation instead of one per corner.
+  const bool use_product = std::abs(angle_sum_[v] - target) < 0.5 * kPi;
+  const auto evaluate = [&](double u, bool with_theta, double& residual, double& derivative) -> bool {
+    const double scale[3] = {1.0, std::exp(0.5 * u), std::exp(u)};
+    double theta = 0;
+    double re = 1, im = 0;  // running product of e^{iθ_c}
+    derivative = 0;
     for (int c = 0; c < count; ++c) {
       const StarCorner& s = corners[c];
-      const double a = s.l_out * std::exp(0.5 * u * s.m_out);
-      const double b = s.l_in * std::exp(0.5 * u * s.m_in);
-      const double o = s.l_opposite * std::exp(0.5 * u * s.m_opposite);
-      if (!triangle_inequality_holds(a, b, o)) return false;
-      theta += angle_opposite(a, b, o);
+      const double a = s.l_out * scale[s.m_out], b = s.l_in * scale[s.m_in], o = s.l_opposite * scale[s.m_opposite];
+      const double four_area = 4.0 * triangle_area(a, b, o);
+      if (!(four_area > 0)) return false;
+      if (with_theta) {
+        const double cosine_part = (a - o) * (a + o) + b * b;  // = 2ab·cos θ; 4·area = 2ab·sin θ
+        if (use_product) {
+          const double inv = 1.0 / (2 * a * b);
+          const double cr = cosine_part * inv, ci = four_area * inv;
+          const double nr = re * cr - im * ci;
+          im = re * ci + im * cr;
+          re = nr;
+        } else {
+          theta += std::atan2(four_area, cosine_part);
+        }
+      }
       // Corners of this face: at v (between a and b), x = head(h) (between a and o), y = tail(prev h).
-      const double cot_x = cot_opposite(a, o, b), cot_y = cot_opposite(b, o, a);
+      const double cot_x = ((a - b) * (a + b) + o * o) / four_area, cot_y = ((b - a) * (b + a) + o * o) / four_area;
       derivative += -0.5 * (cot_x + cot_y) + (s.m_out == 2 ? 0.5 * cot_y : 0.0) + (s.m_in == 2 ? 0.5 * cot_x : 0.0);
+    }
+    if (with_theta) {
+      // e^{iΘ}·e^{−i·target}: target is π (boundary) or 2π, so the factor is −1 or 1.
+      residual = use_product ? std::atan2(target == kPi ? -im : im, target == kPi ? -re : re) : theta - target;
     }
     return true;
   };
 
-  double u = 0, theta = 0, derivative = 0;
-  if (!evaluate(u, theta, derivative)) return result;
-  constexpr double kTolerance = 1e-13;
+  // The stored angle sum is Θ(0): the first Newton step needs no trigonometry.
+  double u = 0, residual = angle_sum_[v] - target, derivative = 0;
+  if (!evaluate(u, false, residual, derivative)) return result;
+  residual = angle_sum_[v] - target;
   for (int iteration = 0; iteration < 60; ++iteration) {
-    const double residual = theta - target;
-    if (std::abs(residual) <= kTolerance * target) {
+    if (std::abs(residual) <= tolerance * target) {
       result.success = true;
       result.log_scale = u;
       result.iterations = iteration;
@@ -492,10 +530,9 @@ FlattenResult IntrinsicTriangulation::compute_flattening(Index v) const {
     double step = -residual / derivative;
     bool accepted = false;
     for (int halving = 0; halving < 40 && !accepted; ++halving, step *= 0.5) {
-      double next_theta, next_derivative;
-      if (evaluate(u + step, next_theta, next_derivative) &&
-          std::abs(next_theta - target) < std::abs(residual)) {
-        u += step, theta = next_theta, derivative = next_derivative;
+      double next_residual, next_derivative;
+      if (evaluate(u + step, true, next_residual, next_derivative) && std::abs(next_residual) < std::abs(residual)) {
+        u += step, residual = next_residual, derivative = next_derivative;
         accepted = true;
       }
     }
@@ -513,13 +550,14 @@ FlattenResult IntrinsicTriangulation::compute_flattening(Index v) const {
 }
 
 FlattenResult IntrinsicTriangulation::flatten_vertex(Index v) {
-  const FlattenResult result = compute_flattening(v);
+  const FlattenResult result = compute_flattening(v, 1e-13);
   if (!result.success || result.log_scale == 0.0) return result;
   const double u = result.log_scale;
   const double half_scale = std::exp(0.5 * u);
   // Every outgoing half-edge (interior and, at the boundary, the exterior one) scales its edge by
   // e^{u/2}; a self-edge is outgoing twice and so scales by e^u.
-  std::vector<Index> neighbours;
+  std::vector<Index>& neighbours = scratch_vertices_;
+  neighbours.clear();
   for_each_outgoing(v, [&](Index h) {
     edge_length_[h >> 1] *= half_scale;
     neighbours.push_back(head(h));
@@ -534,7 +572,8 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v) {
   // Tracked points in the star: the coordinate of each corner at v is multiplied by e^u (the
   // reference implementation's choice) and the coordinates renormalised. Visit each face once.
   const double weight = std::exp(u);
-  std::vector<Index> star_faces;
+  std::vector<Index>& star_faces = scratch_faces_;
+  star_faces.clear();
   for_each_outgoing(v, [&](Index h) { star_faces.push_back(face(h)); });
   std::sort(star_faces.begin(), star_faces.end());
   star_faces.erase(std::unique(star_faces.begin(), star_faces.end()), star_faces.end());
@@ -587,8 +626,8 @@ RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, std::vector<Index>*
 }
 
 namespace {
-// Flips one outgoing edge of v chosen by priority (self-edges first, then the largest sum of the
-// two angles opposite the edge); returns false when no candidate diamond is convex.
+// Flips one outgoing edge of v chosen by priority (self-edges first, then the smallest cotan weight,
+// i.e. the most non-Delaunay edge); returns false when no candidate diamond is convex.
 template <class Tri>
 bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched) {
   struct Candidate {
@@ -606,9 +645,9 @@ bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* changed_faces, std::v
   }
   T.for_each_outgoing(v, [&](Index h) {
     if (T.is_boundary_edge(h)) return;
-    const double opposite_sum =
-        std::atan2(1.0, T.cotan_opposite(h)) + std::atan2(1.0, T.cotan_opposite(h ^ 1));
-    candidates[count++] = {h, (T.head(h) == v ? 10.0 : 0.0) + opposite_sum};
+    // Most non-Delaunay first (smallest cotan weight: the opposite angles' sum exceeds π the most),
+    // self-edges before everything else.
+    candidates[count++] = {h, (T.head(h) == v ? 1e300 : 0.0) - T.cotan_weight(h)};
   });
   std::sort(candidates, candidates + count, [](const Candidate& x, const Candidate& y) { return x.priority > y.priority; });
   for (int c = 0; c < count; ++c) {
@@ -633,7 +672,8 @@ RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, std::vecto
     return RemovalStatus::NoConvexFlip;
   }
   if (degree(v) < 3) return RemovalStatus::TopologyChange;
-  std::vector<Index> star;
+  std::vector<Index>& star = scratch_faces_;
+  star.clear();
   for_each_outgoing(v, [&](Index h) { star.push_back(h); });
   // The merge needs three distinct faces with one corner at v each.
   for (Index h : star)

@@ -176,8 +176,9 @@ class IntrinsicTriangulation {
   /// Flattens v (one-vertex CETM): scales its edges so Θ_v = 2π (interior) or π (boundary).
   /// On failure nothing changes.
   FlattenResult flatten_vertex(Index v);
-  /// Computes the scale that would flatten v without changing anything.
-  FlattenResult compute_flattening(Index v) const;
+  /// Computes the scale that would flatten v without changing anything, to a relative angle-sum
+  /// tolerance (flatten_vertex uses 1e-13; a cost estimate can use less).
+  FlattenResult compute_flattening(Index v, double tolerance = 1e-13) const;
   /// Removes v: flattens it, flips it down to degree 3 (interior) or 2 (boundary), merges its
   /// faces into one triangle, and re-locates the tracked points. A degree-4 star whose centre lies
   /// on a diagonal (opposite corners summing to π, as on regular grids) cannot be flipped to degree
@@ -236,7 +237,7 @@ class IntrinsicTriangulation {
     Vec2 position;
   };
   std::vector<PlacedPoint> scratch_points_;
-  std::vector<Index> scratch_stack_;
+  std::vector<Index> scratch_stack_, scratch_vertices_, scratch_faces_;
   std::vector<std::uint8_t> edge_queued_;
   template <class Layout>
   void collect_points(Index f, const Layout& layout);
