@@ -1,0 +1,430 @@
+#include "app_common.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <new>
+#include <sstream>
+
+#include "fem/blas_info.h"
+#include "ice/prolongation.h"
+
+namespace app {
+
+namespace fs = std::filesystem;
+
+// ---- exit codes and errors ------------------------------------------------------------------------
+
+int parse_command_line(CLI::App& cli, int argc, char** argv) {
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return cli.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return cli.exit(e);
+  } catch (const CLI::ParseError& e) {
+    cli.exit(e);
+    return kUsage;
+  }
+  return -1;
+}
+
+int run_tool(const std::string& tool, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const AppError& e) {
+    std::cerr << tool << ": " << e.what() << '\n';
+    return e.code();
+  } catch (const ice::MeshError& e) {
+    std::cerr << tool << ": " << e.what() << '\n';
+    switch (e.kind()) {
+      case ice::MeshError::Kind::Unreadable: return kUnreadable;
+      case ice::MeshError::Kind::Defective:
+        std::cerr << tool << ": (--repair applies the safe repairs; `ice-info --repair` shows what they do)\n";
+        return kDefective;
+      case ice::MeshError::Kind::Unwritable: return kNotWritten;
+    }
+    return kFailed;
+  } catch (const std::bad_alloc&) {
+    std::cerr << tool << ": out of memory (peak resident set " << fixed(peak_rss_mb(), 0) << " MiB)\n";
+    return kFailed;
+  } catch (const std::exception& e) {
+    std::cerr << tool << ": failed: " << e.what() << '\n';
+    return kFailed;
+  }
+}
+
+void warn(const std::string& tool, const std::string& message) { std::cerr << tool << ": warning: " << message << '\n'; }
+
+// ---- time, memory, progress -------------------------------------------------------------------------
+
+double peak_rss_mb() {
+  struct rusage usage {};
+  if (getrusage(RUSAGE_SELF, &usage) != 0) return 0;
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
+}
+
+bool stderr_is_terminal() { return isatty(fileno(stderr)) != 0; }
+
+void ProgressBar::update(double fraction, const std::string& detail) {
+  if (!enabled_) return;
+  if (drawn_ && since_draw_.seconds() < 0.1) return;
+  since_draw_.lap();
+  fraction = std::min(1.0, std::max(0.0, fraction));
+  constexpr int kWidth = 30;
+  const int filled = static_cast<int>(std::lround(fraction * kWidth));
+  std::string bar(static_cast<std::size_t>(filled), '#');
+  bar.resize(kWidth, '.');
+  std::cerr << '\r' << label_ << " [" << bar << "] " << std::setw(3) << std::lround(100 * fraction) << "% " << detail
+            << "\x1b[K" << std::flush;  // erase the rest of the line
+  drawn_ = true;
+}
+
+void ProgressBar::finish() {
+  if (!drawn_) return;
+  std::cerr << "\r\x1b[K" << std::flush;
+  drawn_ = false;
+}
+
+// ---- formatting -------------------------------------------------------------------------------------
+
+std::string thousands(long long value) {
+  std::string digits = std::to_string(value < 0 ? -value : value);
+  std::string out;
+  for (std::size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return value < 0 ? "-" + out : out;
+}
+
+std::string fixed(double value, int digits) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(digits) << value;
+  return s.str();
+}
+
+std::string percent(double fraction) {
+  const double p = 100 * fraction;
+  return fixed(p, std::abs(p) < 10 ? 2 : 1) + "%";
+}
+
+// ---- input ------------------------------------------------------------------------------------------
+
+ice::LoadResult load_input_mesh(const std::string& path, bool repair) {
+  ice::LoadOptions options;
+  options.repair = repair;
+  return ice::load_mesh_with_report(path, options);
+}
+
+int mesh_vertex_of_file_vertex(const ice::LoadResult& loaded, long long file_vertex, const std::string& what) {
+  const long long n_file = static_cast<long long>(loaded.file.soup.V.rows());
+  if (file_vertex < 0 || file_vertex >= n_file)
+    throw AppError(kUsage, what + " " + std::to_string(file_vertex) + " is out of range: the mesh has " +
+                               thousands(n_file) + " vertices (valid: 0.." + std::to_string(n_file - 1) + ")");
+  // Identity unless the repairs dropped or welded vertices.
+  const auto& source = loaded.source_vertex;
+  if (static_cast<long long>(source.size()) == n_file && source[static_cast<std::size_t>(file_vertex)] == file_vertex)
+    return static_cast<int>(file_vertex);
+  for (std::size_t i = 0; i < source.size(); ++i)
+    if (source[i] == file_vertex) return static_cast<int>(i);
+  throw AppError(kUsage, what + " " + std::to_string(file_vertex) + " was removed by --repair (unreferenced or welded)");
+}
+
+std::vector<long long> parse_index_list(const std::string& text, const std::string& what) {
+  std::vector<long long> out;
+  std::string token;
+  const auto flush = [&] {
+    if (token.empty()) return;
+    std::size_t used = 0;
+    long long value = 0;
+    try {
+      value = std::stoll(token, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != token.size()) throw AppError(kUsage, what + ": '" + token + "' is not a vertex index");
+    out.push_back(value);
+    token.clear();
+  };
+  for (char c : text) {
+    if (c == ',' || c == ' ' || c == '\t')
+      flush();
+    else
+      token += c;
+  }
+  flush();
+  if (out.empty()) throw AppError(kUsage, what + ": no vertex index given");
+  return out;
+}
+
+std::vector<double> read_number_file(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw AppError(kUnreadable, path + ": no such file");
+  std::ifstream in(path);
+  if (!in) throw AppError(kUnreadable, path + ": cannot be opened");
+  std::vector<double> values;
+  std::string line;
+  long long line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    for (char& c : line)
+      if (c == ',' || c == ';' || c == '\t' || c == '\r') c = ' ';
+    std::istringstream tokens(line);
+    std::string token;
+    while (tokens >> token) {
+      std::size_t used = 0;
+      double value = 0;
+      try {
+        value = std::stod(token, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != token.size() || !std::isfinite(value))
+        throw AppError(kUnreadable, path + ":" + std::to_string(line_number) + ": '" + token + "' is not a finite number");
+      values.push_back(value);
+    }
+  }
+  if (in.bad()) throw AppError(kUnreadable, path + ": read error");
+  return values;
+}
+
+void require_connected(const ice::LoadResult& loaded, const std::string& path, const std::string& tool) {
+  const std::size_t components = loaded.report.components.size();
+  if (components > 1)
+    throw AppError(kDefective, path + ": the mesh has " + std::to_string(components) + " connected components; " + tool +
+                                   " needs a connected mesh (its solvers pin one vertex): split it first");
+}
+
+// ---- coarsening -------------------------------------------------------------------------------------
+
+void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
+  cli.add_option("--vertices,-n", vertices, "Coarsen down to N vertices (1 <= N <= input vertices)");
+  cli.add_option("--ratio,-r", ratio, "Coarsen down to ceil(R * input vertices), 0 < R <= 1 (e.g. 0.05)");
+  if (with_max_error)
+    cli.add_option("--max-error,-e", max_error,
+                   "Remove vertices while the cheapest removal costs at most E (ICE error metric); "
+                   "alone it coarsens as far as possible under E, with --vertices/--ratio it stops at whichever comes first");
+  cli.add_option("--area-weight,-w", area_weight,
+                 "Weight w in [0,1] of the area term of the ICE error metric (0: curvature only; "
+                 "more weight spreads vertices more evenly)")
+      ->capture_default_str();
+  cli.add_option("--method", method, "Coarsening method; only 'ice' (intrinsic coarsening) exists for now")
+      ->capture_default_str();
+}
+
+void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
+  if (method != "ice")
+    throw AppError(kUsage, "--method " + method +
+                               " is not available: 'ice' (intrinsic coarsening) is the only coarsening method so far");
+  const bool has_vertices = vertices != 0, has_ratio = ratio != 0, has_error = std::isfinite(max_error);
+  if (has_vertices && has_ratio) throw AppError(kUsage, "give either --vertices or --ratio, not both");
+  if (!has_vertices && !has_ratio && !has_error)
+    throw AppError(kUsage, "say how far to coarsen: --vertices N or --ratio R (e.g. --ratio 0.05)");
+  if (has_vertices && (vertices < 1 || vertices > n))
+    throw AppError(kUsage, "--vertices " + std::to_string(vertices) + " is out of range: the mesh has " + thousands(n) +
+                               " vertices (valid: 1.." + std::to_string(n) + ")");
+  if (has_ratio && !(ratio > 0 && ratio <= 1))
+    throw AppError(kUsage, "--ratio " + fixed(ratio, 6) + " is out of range: it must be in (0, 1], e.g. 0.05 for 5%");
+  if (has_error && !(max_error >= 0)) throw AppError(kUsage, "--max-error must be >= 0");
+  if (!(area_weight >= 0 && area_weight <= 1)) throw AppError(kUsage, "--area-weight must be in [0, 1]");
+  options.target_vertices = has_vertices ? static_cast<ice::Index>(vertices) : 0;
+  options.target_ratio = has_ratio ? ratio : 0;
+  options.max_error = max_error;
+  options.area_weight = area_weight;
+}
+
+ice::CoarsenResult coarsen_with_progress(ice::IntrinsicTriangulation& T, ice::CoarsenOptions options,
+                                         bool show_progress) {
+  const ice::Index start = T.num_vertices();
+  ProgressBar bar("coarsening", show_progress && stderr_is_terminal());
+  Stopwatch clock;
+  options.progress_interval = 250;
+  options.progress = [&](const ice::CoarsenProgress& p) {
+    const double total = std::max<double>(1, start - p.target);
+    const double rate = p.removed / std::max(1e-9, clock.seconds());
+    bar.update(p.removed / total, thousands(p.vertices) + " -> " + thousands(p.target) + " vertices, " +
+                                      thousands(static_cast<long long>(rate)) + " removals/s");
+    return true;
+  };
+  ice::CoarsenResult result = ice::coarsen(T, options);
+  bar.finish();
+  return result;
+}
+
+void warn_if_target_missed(const std::string& tool, const ice::CoarsenResult& result, const ice::CoarsenOptions& options) {
+  if (result.stop_reason == ice::StopReason::NothingRemovable)
+    warn(tool, "stopped at " + thousands(result.output_vertices) +
+                   " vertices: no further vertex could be removed (locked, boundary kept, or topology)");
+  else if (result.stop_reason == ice::StopReason::ErrorThreshold && (options.target_vertices > 0 || options.target_ratio > 0))
+    warn(tool, "stopped at " + thousands(result.output_vertices) + " vertices: the next removal would cost " +
+                   std::to_string(result.next_cost) + " > --max-error");
+}
+
+nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::CompactMesh& coarse) {
+  nlohmann::json failures;
+  for (int s = 0; s < static_cast<int>(result.failures_by_status.size()); ++s)
+    if (result.failures_by_status[s] > 0)
+      failures[ice::to_string(static_cast<ice::RemovalStatus>(s))] = result.failures_by_status[s];
+  const auto finite_or_null = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+  return {{"vertices", coarse.to_input.size()},
+          {"faces", coarse.F.rows()},
+          {"stop_reason", ice::to_string(result.stop_reason)},
+          {"removed", result.removed},
+          {"failed_removals", result.failed_removals},
+          {"failures_by_status", failures.is_null() ? nlohmann::json::object() : failures},
+          {"last_cost", result.last_cost},
+          {"max_cost", result.max_cost},
+          {"next_cost", finite_or_null(result.next_cost)}};
+}
+
+// ---- output -----------------------------------------------------------------------------------------
+
+void check_output(const std::string& path, bool overwrite, const std::string& option) {
+  std::error_code ec;
+  if (!overwrite && fs::exists(path, ec))
+    throw AppError(kNotWritten, option + " " + path + ": exists already (--force overwrites)");
+  const fs::path parent = fs::path(path).parent_path();
+  if (!parent.empty() && !fs::is_directory(parent, ec))
+    throw AppError(kNotWritten, option + " " + path + ": directory " + parent.string() + " does not exist");
+}
+
+void write_json_file(const std::string& path, const nlohmann::json& report, bool overwrite) {
+  check_output(path, overwrite, "--report");
+  std::ofstream out(path);
+  out << report.dump(2) << '\n';
+  out.flush();
+  if (!out) throw AppError(kNotWritten, path + ": cannot be written");
+}
+
+nlohmann::json report_header(const std::string& tool, const std::string& mesh_path) {
+  return {{"tool", tool}, {"mesh", mesh_path}};
+}
+
+// ---- fine and coarse discretisations ----------------------------------------------------------------
+
+FineMesh make_fine_mesh(const ice::TriangleMesh& mesh, bool intrinsic_delaunay) {
+  FineMesh fine;
+  fine.intrinsic_delaunay = intrinsic_delaunay;
+  if (!intrinsic_delaunay) {
+    fine.F = mesh.F;
+    fine.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
+    return fine;
+  }
+  ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  fine.flips = T.flip_to_delaunay();
+  ice::CompactMesh compact = T.compact();  // no vertex removed: compact indices are input indices
+  fine.F = std::move(compact.F);
+  fine.L = std::move(compact.L);
+  return fine;
+}
+
+CoarseMesh extract_coarse(const ice::IntrinsicTriangulation& T) {
+  CoarseMesh coarse;
+  coarse.mesh = T.compact();
+  coarse.P = ice::prolongation(T, coarse.mesh);
+  return coarse;
+}
+
+void add_operators_option(CLI::App& cli, std::string& operators) {
+  cli.add_option("--operators", operators,
+                 "Coarse operators: 'intrinsic' (cotan Laplacian and mass from the coarse edge lengths) or "
+                 "'galerkin' (P^T L P and P^T M P from the fine operators)")
+      ->check(CLI::IsMember({"intrinsic", "galerkin"}))
+      ->capture_default_str();
+}
+
+// ---- the coarse-proxy PDE tools ----------------------------------------------------------------------
+
+void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
+  cli.add_option("mesh", mesh, "Input mesh (.obj, .off, .ply, .stl); must be connected")->required();
+  target.add_to(cli, false);
+  add_operators_option(cli, operators);
+  cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
+               "Fine reference (and fine operators of the proxy) on the intrinsic Delaunay triangulation of the "
+               "input (default), or on the input triangles as they are (--no-fine-idt)")
+      ->capture_default_str();
+  cli.add_option("--output,-o", output, "Write the input mesh with the per-vertex fields " + field_names + " as PLY");
+  cli.add_flag("--ascii", ascii, "With --output: ASCII PLY instead of binary little endian");
+  cli.add_flag("--no-reference", no_reference, "Skip the fine reference solve (no errors, no speed-up)");
+  cli.add_option("--report", report, "Write a JSON report (sizes, timings per phase, errors, memory, BLAS)");
+  cli.add_flag("--quiet,-q", quiet, "No progress bar");
+  cli.add_flag("--force", force, "Overwrite existing output files");
+  cli.add_flag("--repair", repair, "Apply the safe mesh repairs first (see ice-info --repair)");
+}
+
+void PdeOptions::check_outputs() const {
+  if (!output.empty()) check_output(output, force, "--output");
+  if (!report.empty()) check_output(report, force, "--report");
+  if (!output.empty() && !report.empty() && fs::path(output) == fs::path(report))
+    throw AppError(kUsage, "--output and --report name the same file");
+}
+
+double PdeRun::proxy_total() const {
+  return coarsen + assemble + factor + solve + prolong;
+}
+
+double PdeRun::reference_total() const { return ref_assemble + ref_factor + ref_solve; }
+
+nlohmann::json PdeRun::report() const {
+  nlohmann::json r = report_header(tool, mesh_path);
+  r["method"] = "ice";
+  r["operators"] = operators;
+  r["input"] = {{"vertices", fine_vertices}, {"faces", fine_faces}};
+  r["coarse"] = coarse_json;
+  r["fine_mesh"] = {{"kind", fine_idt ? "intrinsic Delaunay" : "input"},
+                    {"flips", idt_flips},
+                    {"used_by_proxy", proxy_uses_fine_mesh}};
+  nlohmann::json t = {{"load", load},       {"coarsen", coarsen}, {"fine_mesh", fine_mesh}, {"assemble", assemble},
+                      {"factor", factor},   {"solve", solve},     {"prolong", prolong},     {"proxy_total", proxy_total()},
+                      {"per_solve", solve + prolong}, {"write", write}};
+  if (has_reference) {
+    t["reference"] = reference_total();
+    t["reference_phases"] = {{"assemble", ref_assemble}, {"factor", ref_factor}, {"solve", ref_solve}};
+    r["speedup"] = {{"total", reference_total() / std::max(proxy_total(), 1e-12)},
+                    {"per_solve", ref_solve / std::max(solve + prolong, 1e-12)}};
+  }
+  r["timings_s"] = t;
+  r["removals_per_second"] = coarsening.removed / std::max(coarsen, 1e-9);
+  r["peak_rss_mb"] = peak_rss_mb();
+  r["blas"] = fem::blas_library();
+  return r;
+}
+
+void PdeRun::print_summary(std::ostream& out) const {
+  out << tool << ": " << mesh_path << ": " << thousands(fine_vertices) << " vertices -> " << thousands(coarse_vertices)
+      << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), ICE, "
+      << operators << " coarse operators\n";
+  const auto row = [&](const std::string& name, double seconds, const std::string& note = "") {
+    out << "  " << std::left << std::setw(16) << name << std::right << std::setw(10) << fixed(seconds, 4) << " s"
+        << (note.empty() ? "" : "   " + note) << '\n';
+  };
+  row("load", load);
+  row("coarsen", coarsen, thousands(coarsening.removed) + " removals, " +
+                              thousands(static_cast<long long>(coarsening.removed / std::max(coarsen, 1e-9))) + "/s");
+  row("fine mesh", fine_mesh,
+      (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +
+          (proxy_uses_fine_mesh ? " (used by the proxy too; counted in neither total)" : " (for the reference; counted in neither total)"));
+  row("assemble", assemble);
+  row("factor", factor);
+  row("solve", solve);
+  row("prolong", prolong);
+  row("proxy total", proxy_total(), "coarsen+assemble+factor+solve+prolong; per solve " + fixed(solve + prolong, 4) + " s");
+  if (has_reference) {
+    row("fine reference", reference_total(),
+        "assemble " + fixed(ref_assemble, 4) + " + factor " + fixed(ref_factor, 4) + " + solve " + fixed(ref_solve, 4));
+    out << "  speed-up: " << fixed(reference_total() / std::max(proxy_total(), 1e-12), 2) << "x end to end, "
+        << fixed(ref_solve / std::max(solve + prolong, 1e-12), 1) << "x per solve (fine solve "
+        << fixed(ref_solve, 4) << " s vs coarse solve+prolong " << fixed(solve + prolong, 4) << " s)\n";
+  }
+}
+
+}  // namespace app

@@ -1,0 +1,250 @@
+// ice-coarsen: ICE-coarsen a triangle mesh and write the coarse intrinsic mesh, the prolongation
+// matrix, the fine-to-coarse map and an extrinsic preview.
+//
+// Outputs (in OUTDIR, created if needed; existing files are only replaced with --force):
+//
+//  coarse.ilm — the coarse intrinsic mesh, plain text ("ICE intrinsic mesh", version 1):
+//      ICE-ILM 1                         header line (format name and version)
+//      # ...                             comment lines ('#' first) may appear anywhere after it
+//      vertices <n>                      number of coarse vertices
+//      faces <m>                         number of coarse faces
+//      input_vertices <N>                number of vertices of the input mesh
+//      f <i> <j> <k> <lij> <ljk> <lki>   m lines: corners (0-based coarse vertex ids, counter-clockwise)
+//                                        and the lengths of the edges i→j, j→k, k→i (ice/mesh.h
+//                                        FaceLengths convention: column c runs from corner c to c+1)
+//      v <input vertex id>               n lines: coarse vertex c (the c-th v line, 0-based) is this
+//                                        0-based vertex of the input mesh
+//    The mesh is a Δ-complex: a face may repeat a vertex and two faces may share more than one edge,
+//    so readers must take the connectivity from the face lines, not from vertex pairs. Lengths are
+//    printed in the shortest form that reads back to the same double.
+//  prolongation.mtx — P in Matrix Market "coordinate real general" form (1-based), rows = input
+//    vertices, columns = coarse vertices; rows sum to 1, at most 3 entries per row (scipy.io.mmread).
+//  map.csv — input_vertex,coarse_vertex,coarse_face,b0,b1,b2: where every input vertex lies on the
+//    coarse mesh. coarse_vertex is -1 for removed vertices; coarse_face is a coarse face containing
+//    the point and b0..b2 its barycentric coordinates w.r.t. that face's corners (for a surviving
+//    vertex: a face around it, with 1 at its corner).
+//  preview.obj — the coarse faces drawn with the surviving vertices' input positions. Only a preview:
+//    the coarse mesh is intrinsic (its lengths are not distances between those positions).
+//
+// Exit codes: see app_common.h (0 ok, 1 unreadable input, 2 defective mesh, 3 output not written,
+// 4 bad command line, 5 computation failed, e.g. --validate found a problem).
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include "app_common.h"
+#include "ice/coarsen.h"
+#include "ice/intrinsic_triangulation.h"
+#include "ice/mesh_io.h"
+#include "ice/prolongation.h"
+
+namespace {
+
+const std::string kTool = "ice-coarsen";
+namespace fs = std::filesystem;
+
+// Shortest text that reads back to the same double.
+struct Num {
+  double value;
+};
+std::ostream& operator<<(std::ostream& out, Num x) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, x.value);
+  return out.write(buffer, result.ptr - buffer);
+}
+
+void check_stream(std::ofstream& out, const std::string& path) {
+  out.flush();
+  if (!out) throw app::AppError(app::kNotWritten, path + ": write failed");
+}
+
+std::ofstream open_output(const std::string& path) {
+  std::ofstream out(path);
+  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be opened for writing");
+  return out;
+}
+
+void write_ilm(const std::string& path, const ice::CompactMesh& coarse, ice::Index input_vertices,
+               const std::string& source) {
+  std::ofstream out = open_output(path);
+  out << "ICE-ILM 1\n"
+      << "# intrinsic mesh written by ice-coarsen from " << source << "\n"
+      << "# f i j k l_ij l_jk l_ki (0-based coarse vertices, edge lengths); v input_vertex_of_coarse_vertex\n"
+      << "vertices " << coarse.to_input.size() << "\nfaces " << coarse.F.rows() << "\ninput_vertices " << input_vertices
+      << '\n';
+  for (Eigen::Index f = 0; f < coarse.F.rows(); ++f)
+    out << "f " << coarse.F(f, 0) << ' ' << coarse.F(f, 1) << ' ' << coarse.F(f, 2) << ' ' << Num{coarse.L(f, 0)} << ' '
+        << Num{coarse.L(f, 1)} << ' ' << Num{coarse.L(f, 2)} << '\n';
+  for (ice::Index v : coarse.to_input) out << "v " << v << '\n';
+  check_stream(out, path);
+}
+
+void write_matrix_market(const std::string& path, Eigen::SparseMatrix<double> P) {
+  P.makeCompressed();
+  std::ofstream out = open_output(path);
+  out << "%%MatrixMarket matrix coordinate real general\n"
+      << "% ICE prolongation: rows = input vertices, columns = coarse vertices (1-based); rows sum to 1\n"
+      << P.rows() << ' ' << P.cols() << ' ' << P.nonZeros() << '\n';
+  for (Eigen::Index c = 0; c < P.outerSize(); ++c)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(P, c); it; ++it)
+      out << it.row() + 1 << ' ' << c + 1 << ' ' << Num{it.value()} << '\n';
+  check_stream(out, path);
+}
+
+void write_map(const std::string& path, const ice::IntrinsicTriangulation& T, const ice::CompactMesh& coarse) {
+  // Face slot -> compact face (compact() lists live slots in order, corners from halfedge(f)).
+  std::vector<ice::Index> compact_face(static_cast<std::size_t>(T.num_face_slots()), ice::kInvalid);
+  ice::Index next_face = 0;
+  for (ice::Index f = 0; f < T.num_face_slots(); ++f)
+    if (T.face_alive(f)) compact_face[f] = next_face++;
+  std::ofstream out = open_output(path);
+  out << "input_vertex,coarse_vertex,coarse_face,b0,b1,b2\n";
+  for (ice::Index p = 0; p < T.num_input_vertices(); ++p) {
+    const ice::SurfacePoint s = T.location(p);
+    ice::Index face = s.face;
+    std::array<double, 3> bary = s.bary;
+    if (s.is_vertex()) {  // a face around the vertex, with weight 1 at the corner of its outgoing half-edge
+      const ice::Index h = T.vertex_halfedge(s.vertex);
+      face = T.face(h);
+      ice::Index g = T.halfedge(face);
+      bary = {0, 0, 0};
+      for (int k = 0; k < 3; ++k, g = T.next(g))
+        if (g == h) bary[k] = 1;
+    }
+    out << p << ',' << coarse.from_input[p] << ',' << compact_face[face] << ',' << Num{bary[0]} << ',' << Num{bary[1]}
+        << ',' << Num{bary[2]} << '\n';
+  }
+  check_stream(out, path);
+}
+
+void write_preview(const std::string& path, const ice::TriangleMesh& mesh, const ice::CompactMesh& coarse) {
+  std::ofstream out = open_output(path);
+  out << "# EXTRINSIC PREVIEW ONLY of an intrinsic coarse mesh (ice-coarsen): the surviving vertices at their input "
+         "positions, joined by the coarse faces; the true coarse geometry is the edge lengths in coarse.ilm\n";
+  out.precision(17);
+  for (ice::Index v : coarse.to_input)
+    out << "v " << Num{mesh.V(v, 0)} << ' ' << Num{mesh.V(v, 1)} << ' ' << Num{mesh.V(v, 2)} << '\n';
+  for (Eigen::Index f = 0; f < coarse.F.rows(); ++f)
+    out << "f " << coarse.F(f, 0) + 1 << ' ' << coarse.F(f, 1) + 1 << ' ' << coarse.F(f, 2) + 1 << '\n';
+  check_stream(out, path);
+}
+
+std::vector<ice::Index> read_lock_file(const std::string& path, const ice::LoadResult& loaded) {
+  std::vector<ice::Index> locked;
+  for (double x : app::read_number_file(path)) {
+    if (x != std::floor(x)) throw app::AppError(app::kUnreadable, path + ": '" + std::to_string(x) + "' is not a vertex index");
+    locked.push_back(app::mesh_vertex_of_file_vertex(loaded, static_cast<long long>(x), "--lock: vertex"));
+  }
+  return locked;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App cli{
+      "ice-coarsen: simplify a triangle mesh intrinsically (ICE). Vertices are removed from an intrinsic "
+      "triangulation of the input, cheapest first by the intrinsic curvature error, so the coarse mesh keeps "
+      "the input surface's metric and every input vertex keeps a location on it. Writes OUTDIR/coarse.ilm "
+      "(coarse faces + edge lengths), prolongation.mtx (input x coarse matrix), map.csv (where each input "
+      "vertex lies) and preview.obj (an extrinsic preview).\n\n"
+      "Examples:\n  ice-coarsen spot.obj --vertices 500 -o spot_500\n"
+      "  ice-coarsen bunny.off --ratio 0.05 --keep-boundary -o out --report out/report.json\n\n"
+      "Exit status: 0 ok, 1 unreadable input, 2 defective mesh, 3 output not written, 4 bad command line, "
+      "5 computation failed."};
+  std::string input, outdir, report_path, lock_path;
+  app::TargetOptions target;
+  bool keep_boundary = false, quiet = false, force = false, repair = false, validate = false;
+  cli.add_option("mesh", input, "Input mesh (.obj, .off, .ply, .stl)")->required();
+  target.add_to(cli, true);
+  cli.add_flag("--keep-boundary", keep_boundary, "Never remove boundary vertices");
+  cli.add_option("--lock", lock_path, "File of vertex indices (0-based, whitespace/comma separated, # comments) never removed");
+  cli.add_option("--output,-o", outdir, "Output directory (created if needed)")->required();
+  cli.add_option("--report", report_path, "Also write a JSON report (sizes, stop reason, costs, timings, memory)");
+  cli.add_flag("--quiet,-q", quiet, "No progress bar");
+  cli.add_flag("--force", force, "Overwrite existing output files");
+  cli.add_flag("--repair", repair, "Apply the safe mesh repairs before coarsening (see ice-info --repair)");
+  cli.add_flag("--validate", validate, "Check every invariant of the coarse triangulation afterwards (fails loudly)");
+  if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
+
+  return app::run_tool(kTool, [&] {
+    const std::vector<std::string> names{"coarse.ilm", "prolongation.mtx", "map.csv", "preview.obj"};
+    std::vector<std::string> outputs;
+    for (const auto& name : names) outputs.push_back((fs::path(outdir) / name).string());
+    std::error_code ec;
+    if (fs::exists(outdir, ec) && !fs::is_directory(outdir, ec))
+      throw app::AppError(app::kNotWritten, "--output " + outdir + ": exists and is not a directory");
+    for (const auto& path : outputs)
+      if (!force && fs::exists(path, ec))
+        throw app::AppError(app::kNotWritten, "--output " + path + ": exists already (--force overwrites)");
+    if (!report_path.empty()) app::check_output(report_path, force, "--report");
+
+    app::Stopwatch clock;
+    const ice::LoadResult loaded = app::load_input_mesh(input, repair);
+    const ice::TriangleMesh& mesh = loaded.mesh;
+    const long long n = mesh.V.rows();
+    ice::CoarsenOptions options;
+    target.apply(options, n);
+    options.remove_boundary = !keep_boundary;
+    if (!lock_path.empty()) options.locked_vertices = read_lock_file(lock_path, loaded);
+    const double t_load = clock.lap();
+
+    ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    const ice::CoarsenResult result = app::coarsen_with_progress(T, options, !quiet);
+    const double t_coarsen = clock.lap();
+    app::warn_if_target_missed(kTool, result, options);
+    if (validate) {
+      const std::string problems = T.validate();
+      if (!problems.empty())
+        throw app::AppError(app::kFailed, "--validate: the coarse triangulation is INVALID (nothing written):\n" + problems);
+    }
+    const double t_validate = validate ? clock.lap() : 0.0;
+
+    fs::create_directories(outdir, ec);
+    if (ec) throw app::AppError(app::kNotWritten, "--output " + outdir + ": cannot create the directory: " + ec.message());
+    const ice::CompactMesh coarse = T.compact();
+    write_ilm(outputs[0], coarse, T.num_input_vertices(), input);
+    write_matrix_market(outputs[1], ice::prolongation(T, coarse));
+    write_map(outputs[2], T, coarse);
+    write_preview(outputs[3], mesh, coarse);
+    const double t_write = clock.lap();
+
+    const double rate = result.removed / std::max(t_coarsen, 1e-9);
+    if (!report_path.empty()) {
+      nlohmann::json report = app::report_header(kTool, input);
+      report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
+      report["options"] = {{"method", target.method},
+                           {"target_vertices", options.target_vertices},
+                           {"target_ratio", options.target_ratio},
+                           {"max_error", std::isfinite(options.max_error) ? nlohmann::json(options.max_error) : nlohmann::json(nullptr)},
+                           {"area_weight", options.area_weight},
+                           {"keep_boundary", keep_boundary},
+                           {"locked_vertices", options.locked_vertices.size()}};
+      report["coarse"] = app::coarsen_json(result, coarse);
+      report["timings_s"] = {{"load", t_load}, {"coarsen", t_coarsen}, {"write", t_write}};
+      if (validate) report["timings_s"]["validate"] = t_validate;
+      report["removals_per_second"] = rate;
+      report["validated"] = validate;
+      report["outputs"] = outputs;
+      report["peak_rss_mb"] = app::peak_rss_mb();
+      app::write_json_file(report_path, report, force);
+    }
+
+    const long long nc = static_cast<long long>(coarse.to_input.size());
+    std::cout << kTool << ": " << input << ": " << app::thousands(n) << " vertices, " << app::thousands(mesh.F.rows())
+              << " faces -> " << app::thousands(nc) << " vertices, " << app::thousands(coarse.F.rows()) << " faces ("
+              << app::percent(double(nc) / double(n)) << " of the vertices)\n"
+              << "  stop: " << ice::to_string(result.stop_reason) << " after " << app::thousands(result.removed)
+              << " removals (" << result.failed_removals << " failed attempts); last cost " << result.last_cost
+              << ", next cost " << result.next_cost << '\n'
+              << "  time: load " << app::fixed(t_load, 3) << " s, coarsen " << app::fixed(t_coarsen, 3) << " s ("
+              << app::thousands(static_cast<long long>(rate)) << " removals/s), "
+              << (validate ? "validate " + app::fixed(t_validate, 3) + " s (ok), " : std::string())
+              << "write " << app::fixed(t_write, 3) << " s; peak memory " << app::fixed(app::peak_rss_mb(), 0) << " MiB\n"
+              << "  wrote " << (fs::path(outdir) / "{coarse.ilm, prolongation.mtx, map.csv, preview.obj}").string()
+              << (report_path.empty() ? "" : " and " + report_path) << '\n';
+    return app::kOk;
+  });
+}

@@ -1,0 +1,245 @@
+// poisson-coarse: the Poisson equation −Δu = f on a mesh, solved on an ICE coarse proxy and prolonged
+// to the input vertices; optionally compared with the same solve on the fine mesh.
+//
+// Discretisation (fem::PoissonSolver): L u = M f with the cotan Laplacian L and the lumped mass M.
+//  - Boundary conditions: with --fix V=value, Dirichlet values at those vertices (they are locked
+//    during coarsening, so they are coarse vertices too and the prolonged solution takes the values
+//    exactly); the rest of the boundary, if any, is natural (zero Neumann). Without --fix: zero-mean
+//    Neumann — f is made compatible by removing its area-weighted mean, and u is the solution with
+//    zero area-weighted mean. This is the natural choice on closed surfaces and, on surfaces with a
+//    boundary, means zero normal derivative on the whole boundary.
+//  - Right-hand side: --rhs FILE (one value per vertex of the input file), or the demo source: three
+//    Gaussian bumps exp(−|x − c|²/(2σ²)) with weights +1, −1, +1 centred at the vertices with the
+//    largest x, y and z coordinate, σ = 0.1 × the bounding-box diagonal, minus the area-weighted mean.
+//  - Proxy: b_c = Pᵀ M f (restriction of the integrated source), L_c u_c = b_c on the coarse mesh
+//    (intrinsic or Galerkin L_c, M_c), u = P u_c (re-centred to zero fine mean in zero-mean mode),
+//    the steps of fem::ProxyPoissonSolver, split so that each one is timed.
+//
+// Exit codes: see app_common.h.
+#include <algorithm>
+#include <iostream>
+#include <map>
+
+#include "app_common.h"
+#include "fem/coarse_proxy.h"
+#include "fem/errors.h"
+#include "fem/problems.h"
+#include "ice/scalar_field_io.h"
+
+namespace {
+
+const std::string kTool = "poisson-coarse";
+
+// The demo source (see the file comment), before removing its mean.
+Eigen::VectorXd demo_rhs(const ice::TriangleMesh& mesh) {
+  const Eigen::Index n = mesh.V.rows();
+  const double diagonal = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
+  const double sigma = 0.1 * diagonal;
+  const double weights[3] = {1.0, -1.0, 1.0};
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(n);
+  for (int axis = 0; axis < 3; ++axis) {
+    Eigen::Index centre = 0;
+    mesh.V.col(axis).maxCoeff(&centre);
+    const Eigen::RowVector3d c = mesh.V.row(centre);
+    for (Eigen::Index i = 0; i < n; ++i)
+      f(i) += weights[axis] * std::exp(-(mesh.V.row(i) - c).squaredNorm() / (2 * sigma * sigma));
+  }
+  return f;
+}
+
+// f − (1ᵀ M f)/(1ᵀ M 1) for a diagonal (lumped) or any mass matrix.
+Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const fem::SparseMatrix& mass) {
+  const Eigen::VectorXd m1 = mass * Eigen::VectorXd::Ones(f.size());
+  return f.array() - m1.dot(f) / m1.sum();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App cli{
+      "poisson-coarse: solve the Poisson equation -Laplace(u) = f on a mesh through a small ICE coarse proxy "
+      "and carry the solution back to every input vertex; by default also solve on the fine mesh to report the "
+      "error and the speed-up.\n"
+      "Without --rhs the source is a demo: three Gaussian bumps (+1, -1, +1) at the vertices with the largest "
+      "x, y and z, width 0.1 x bounding-box diagonal, minus its mean. Without --fix the problem is zero-mean "
+      "Neumann (natural boundary conditions on a boundary, solution with zero mean).\n\n"
+      "Examples:\n  poisson-coarse spot.obj --ratio 0.05\n"
+      "  poisson-coarse lion-head.off --vertices 800 --fix 0=1 --fix 4000=0 -o u.ply --report r.json\n\n"
+      "Exit status: 0 ok, 1 unreadable input (mesh or --rhs file), 2 defective or disconnected mesh, 3 output "
+      "not written, 4 bad command line, 5 computation failed."};
+  app::PdeOptions opt;
+  std::string rhs_path, solver = "proxy";
+  std::vector<std::string> fixes;
+  cli.add_option("--rhs", rhs_path,
+                 "Source f: text file with one number per vertex of the input file, in vertex order (whitespace, "
+                 "commas or newlines between them; '#' comments)");
+  cli.add_option("--fix", fixes,
+                 "Dirichlet condition V=value at vertex V (0-based index in the input file); repeat the option or "
+                 "separate with commas")
+      ->delimiter(',')
+      ->allow_extra_args(false);
+  cli.add_option("--solver", solver, "Fine-solution strategy; only 'proxy' (coarse solve + prolongation) for now")
+      ->capture_default_str();
+  opt.add_to(cli, "'solution' (prolonged), 'reference' and 'error' (= solution - reference)");
+  if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
+
+  return app::run_tool(kTool, [&] {
+    if (solver != "proxy")
+      throw app::AppError(app::kUsage, "--solver " + solver +
+                                           " is not available: only 'proxy' exists so far (multigrid and a direct "
+                                           "fine solve are planned)");
+    opt.check_outputs();
+    // "V=value" pairs, checked for syntax before loading anything.
+    std::vector<std::pair<long long, double>> file_fixes;
+    for (const std::string& fix : fixes) {
+      const auto eq = fix.find('=');
+      std::size_t used_v = 0, used_x = 0;
+      long long v = -1;
+      double x = 0;
+      try {
+        if (eq == std::string::npos) throw std::invalid_argument("no '='");
+        v = std::stoll(fix.substr(0, eq), &used_v);
+        x = std::stod(fix.substr(eq + 1), &used_x);
+      } catch (const std::exception&) {
+        used_v = used_x = std::string::npos;
+      }
+      if (eq == std::string::npos || used_v != eq || used_x != fix.size() - eq - 1 || !std::isfinite(x))
+        throw app::AppError(app::kUsage, "--fix '" + fix + "': expected VERTEX=VALUE, e.g. --fix 12=0.5");
+      file_fixes.emplace_back(v, x);
+    }
+
+    app::PdeRun run;
+    run.tool = kTool;
+    run.mesh_path = opt.mesh;
+    run.operators = opt.operators;
+    run.fine_idt = opt.fine_idt;
+    run.has_reference = !opt.no_reference;
+    run.proxy_uses_fine_mesh = true;  // for M f (and the Galerkin operators)
+
+    // ---- load
+    app::Stopwatch clock;
+    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+    const ice::TriangleMesh& mesh = loaded.mesh;
+    const long long n = mesh.V.rows();
+    std::vector<int> fixed_vertices;
+    Eigen::VectorXd fixed_values(static_cast<Eigen::Index>(file_fixes.size()));
+    std::map<int, double> seen;
+    for (const auto& [file_vertex, value] : file_fixes) {
+      const int v = app::mesh_vertex_of_file_vertex(loaded, file_vertex, "--fix: vertex");
+      if (!seen.emplace(v, value).second)
+        throw app::AppError(app::kUsage, "--fix: vertex " + std::to_string(file_vertex) + " is fixed twice");
+      fixed_values(static_cast<Eigen::Index>(fixed_vertices.size())) = value;
+      fixed_vertices.push_back(v);
+    }
+    ice::CoarsenOptions coarsen_options;
+    opt.target.apply(coarsen_options, n);
+    if (coarsen_options.target_vertices > 0 && coarsen_options.target_vertices < static_cast<ice::Index>(fixed_vertices.size()))
+      throw app::AppError(app::kUsage, "--vertices is smaller than the number of --fix vertices (they all stay)");
+    coarsen_options.locked_vertices.assign(fixed_vertices.begin(), fixed_vertices.end());
+    app::require_connected(loaded, opt.mesh, kTool);
+    Eigen::VectorXd f;
+    std::string rhs_name = "demo (three Gaussian bumps, zero mean)";
+    if (!rhs_path.empty()) {
+      const std::vector<double> values = app::read_number_file(rhs_path);
+      const std::size_t expected = static_cast<std::size_t>(loaded.file.soup.V.rows());
+      if (values.size() != expected)
+        throw app::AppError(app::kUnreadable, rhs_path + ": has " + std::to_string(values.size()) +
+                                                  " values, the mesh has " + std::to_string(expected) +
+                                                  " vertices (one value per vertex of the input file expected)");
+      f.resize(n);
+      for (Eigen::Index i = 0; i < n; ++i) f(i) = values[static_cast<std::size_t>(loaded.source_vertex[i])];
+      rhs_name = rhs_path;
+    }
+    run.fine_vertices = n;
+    run.fine_faces = mesh.F.rows();
+    run.load = clock.lap();
+
+    // ---- coarsen
+    ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    run.coarsening = app::coarsen_with_progress(T, coarsen_options, !opt.quiet);
+    app::warn_if_target_missed(kTool, run.coarsening, coarsen_options);
+    app::CoarseMesh coarse = app::extract_coarse(T);
+    run.coarse_vertices = static_cast<long long>(coarse.mesh.to_input.size());
+    run.coarse_faces = coarse.mesh.F.rows();
+    run.coarse_json = app::coarsen_json(run.coarsening, coarse.mesh);
+    run.coarsen = clock.lap();
+
+    // ---- fine discretisation
+    const app::FineMesh fine = app::make_fine_mesh(mesh, opt.fine_idt);
+    run.idt_flips = fine.flips;
+    run.fine_mesh = clock.lap();
+
+    // ---- proxy
+    const fem::CoarseOperatorKind kind =
+        opt.operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
+    const Eigen::Index nc = static_cast<Eigen::Index>(coarse.mesh.to_input.size());
+    const fem::CoarseProxy proxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped, n, nc);
+    if (f.size() == 0) f = remove_mean(demo_rhs(mesh), proxy.fine_mass());
+    run.assemble = clock.lap();
+    const bool dirichlet = !fixed_vertices.empty();
+    std::vector<int> coarse_fixed;
+    for (int v : fixed_vertices) coarse_fixed.push_back(coarse.mesh.from_input[static_cast<std::size_t>(v)]);
+    const fem::PoissonSolver coarse_solver =
+        dirichlet ? fem::PoissonSolver::dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed)
+                  : fem::PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass());
+    run.factor = clock.lap();
+    const Eigen::VectorXd coarse_solution =
+        coarse_solver.solve_weighted(proxy.restrict_weighted(proxy.fine_mass() * f), fixed_values);
+    run.solve = clock.lap();
+    Eigen::VectorXd solution = proxy.prolong(coarse_solution);
+    if (!dirichlet) solution = remove_mean(solution, proxy.fine_mass());
+    run.prolong = clock.lap();
+
+    // ---- reference
+    nlohmann::json error_json;
+    Eigen::VectorXd reference;
+    if (run.has_reference) {
+      const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
+      const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+      run.ref_assemble = clock.lap();
+      const fem::PoissonSolver fine_solver =
+          dirichlet ? fem::PoissonSolver::dirichlet(L, M, fixed_vertices) : fem::PoissonSolver::zero_mean(L, M);
+      run.ref_factor = clock.lap();
+      reference = fine_solver.solve(f, fixed_values);
+      run.ref_solve = clock.lap();
+      const double max_abs = fem::max_abs_error(solution, reference);
+      const double scale = reference.cwiseAbs().maxCoeff();
+      error_json = {{"rel_l2", fem::relative_l2_error(solution, reference, M)},
+                    {"max_abs", max_abs},
+                    {"max_rel", scale > 0 ? max_abs / scale : 0.0},
+                    {"max_abs_reference", scale}};
+      clock.lap();
+    }
+
+    // ---- outputs
+    if (!opt.output.empty()) {
+      std::vector<ice::ScalarField> fields{{"solution", solution}};
+      if (run.has_reference) {
+        fields.push_back({"reference", reference});
+        fields.push_back({"error", solution - reference});
+      }
+      fields.push_back({"rhs", f});
+      ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
+    }
+    run.write = clock.lap();
+    nlohmann::json report = run.report();
+    report["solver"] = solver;
+    report["rhs"] = rhs_name;
+    report["boundary_conditions"] = dirichlet ? "dirichlet" : "zero-mean neumann";
+    report["fixed_vertices"] = fixed_vertices.size();
+    if (run.has_reference) report["error"] = error_json;
+    if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
+
+    run.print_summary(std::cout);
+    std::cout << "  problem: -Laplace(u) = f, f = " << rhs_name << ", "
+              << (dirichlet ? std::to_string(fixed_vertices.size()) + " Dirichlet vertices" : std::string("zero-mean Neumann"))
+              << '\n';
+    if (run.has_reference)
+      std::cout << "  error vs fine: relative L2 " << app::percent(error_json["rel_l2"]) << ", max abs "
+                << static_cast<double>(error_json["max_abs"]) << " (" << app::percent(error_json["max_rel"])
+                << " of max |u| " << static_cast<double>(error_json["max_abs_reference"]) << ")\n";
+    if (!opt.output.empty()) std::cout << "  wrote " << opt.output << '\n';
+    if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
+    return app::kOk;
+  });
+}

@@ -1,0 +1,39 @@
+#pragma once
+/// \file scalar_field_io.h
+/// Writing a triangle mesh together with named per-vertex scalar fields (solutions, references,
+/// errors, ...) as a PLY file that viewers (MeshLab, ParaView, Blender, polyscope) and numpy/plyfile
+/// read directly.
+///
+/// Layout: `element vertex n` with `property double x`, `y`, `z`, then one `property double <name>`
+/// per field in the given order; `element face m` with `property list uchar int vertex_indices`.
+/// Binary little endian by default (exact doubles, compact); ASCII on request (17 significant digits,
+/// so doubles still round-trip). The writer never replaces an existing file unless asked to.
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ice/mesh.h"
+
+namespace ice {
+
+/// One named per-vertex field.
+struct ScalarField {
+  std::string name;        ///< PLY property name: [A-Za-z_][A-Za-z0-9_]*, not x, y or z, unique
+  Eigen::VectorXd values;  ///< one value per vertex of the mesh
+};
+
+struct ScalarFieldWriteOptions {
+  bool overwrite = false;  ///< replace an existing file (otherwise MeshError, kind Unwritable)
+  bool binary = true;      ///< binary_little_endian (default) or ascii
+};
+
+/// Writes `mesh` and `fields` to `path` (any extension; `.ply` recommended). Throws MeshError
+/// (kind Unwritable, message starting with the path) if the file exists and !options.overwrite, a
+/// field name is invalid or repeated, a field does not have one value per vertex, the faces are out
+/// of range, or the file cannot be written (a partially written file is removed).
+void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields,
+                           const ScalarFieldWriteOptions& options = {});
+
+}  // namespace ice

@@ -1,0 +1,380 @@
+# End-to-end tests of the command-line tools (ice-coarsen, geodesic-coarse, poisson-coarse).
+#
+# This file has two roles:
+#  - included from apps/CMakeLists.txt (normal mode), it registers one CTest test per case below;
+#  - run as `cmake -DCASE=... -DBIN_DIR=... -DMESH=... -DWORK=... -P test_apps.cmake` (script mode,
+#    which is what each registered test does), it runs the tools and checks exit codes, the JSON
+#    reports (string(JSON), CMake >= 3.19) and the output files. No Python needed.
+#
+# The shared meshes live in ../shared/data/meshes next to the repository (ICE_SHARED_MESHES in the
+# environment overrides it, as for the Catch2 suite); a missing mesh fails the test with a message
+# saying so.
+
+if(NOT CMAKE_SCRIPT_MODE_FILE)
+  # ---------------------------------------------------------------- registration (normal mode)
+  if(CMAKE_VERSION VERSION_LESS 3.19)
+    message(WARNING "CMake ${CMAKE_VERSION} < 3.19: the app tests (string(JSON) checks) are not registered")
+    return()
+  endif()
+  get_filename_component(_ice_shared_meshes "${PROJECT_SOURCE_DIR}/../shared/data/meshes" ABSOLUTE)
+  set(_ice_app_cases
+    coarsen_spot coarsen_keep_boundary_lock geodesic_spot geodesic_galerkin_spot poisson_spot poisson_fix_rhs_spot
+    ply_ascii errors)
+  foreach(_case IN LISTS _ice_app_cases)
+    add_test(NAME app_${_case}
+      COMMAND ${CMAKE_COMMAND}
+        -DCASE=${_case}
+        -DBIN_DIR=$<TARGET_FILE_DIR:ice-coarsen>
+        -DMESH_DIR=${_ice_shared_meshes}
+        -DWORK=${CMAKE_CURRENT_BINARY_DIR}/app_tests/${_case}
+        -P ${CMAKE_CURRENT_LIST_FILE})
+    set_tests_properties(app_${_case} PROPERTIES LABELS apps TIMEOUT 600)
+  endforeach()
+  return()
+endif()
+
+# -------------------------------------------------------------------- checker (script mode)
+cmake_minimum_required(VERSION 3.19)
+
+if(DEFINED ENV{ICE_SHARED_MESHES})
+  set(MESH_DIR "$ENV{ICE_SHARED_MESHES}")
+endif()
+
+function(fail)
+  string(JOIN "" _msg ${ARGN})
+  message(FATAL_ERROR "app test '${CASE}': ${_msg}")
+endfunction()
+
+# shared_mesh(<var> <file>): absolute path of a shared mesh, or a clear failure when it is missing.
+function(shared_mesh var name)
+  set(_path "${MESH_DIR}/${name}")
+  if(NOT EXISTS "${_path}")
+    fail("shared mesh missing: ${_path}. The app tests need ../shared/data/meshes next to the repository "
+         "(or ICE_SHARED_MESHES=/path/to/meshes).")
+  endif()
+  set(${var} "${_path}" PARENT_SCOPE)
+endfunction()
+
+# run(<expected exit code> <tool> args...): runs BIN_DIR/<tool>; fails unless the exit code matches.
+# Leaves the output in RUN_OUT / RUN_ERR in the caller's scope.
+function(run expected tool)
+  execute_process(COMMAND "${BIN_DIR}/${tool}" ${ARGN}
+    RESULT_VARIABLE _rc OUTPUT_VARIABLE _out ERROR_VARIABLE _err)
+  string(REPLACE ";" " " _args "${ARGN}")
+  message(STATUS "$ ${tool} ${_args}  -> exit ${_rc}\n${_out}${_err}")
+  if(NOT "${_rc}" STREQUAL "${expected}")
+    fail("${tool} ${_args}: exit status ${_rc}, expected ${expected}\nstdout:\n${_out}\nstderr:\n${_err}")
+  endif()
+  set(RUN_OUT "${_out}" PARENT_SCOPE)
+  set(RUN_ERR "${_err}" PARENT_SCOPE)
+endfunction()
+
+# expect_error(<code> <message regex> <tool> args...): the tool must fail with that status and say so.
+function(expect_error expected regex tool)
+  run(${expected} ${tool} ${ARGN})
+  if(NOT "${RUN_ERR}" MATCHES "${regex}")
+    fail("${tool}: stderr does not match '${regex}':\n${RUN_ERR}")
+  endif()
+endfunction()
+
+# json(<var> <file> key...): the value at that path of a JSON file; fails if missing.
+function(json var file)
+  file(READ "${file}" _text)
+  string(JSON _value ERROR_VARIABLE _error GET "${_text}" ${ARGN})
+  if(_error)
+    string(REPLACE ";" "." _path "${ARGN}")
+    fail("${file}: no key '${_path}' (${_error})")
+  endif()
+  set(${var} "${_value}" PARENT_SCOPE)
+endfunction()
+
+# require_keys(<file> "a.b" "c" ...): every dotted key exists (and, for numbers, is a number).
+function(require_keys file)
+  foreach(_dotted IN LISTS ARGN)
+    string(REPLACE "." ";" _path "${_dotted}")
+    json(_value "${file}" ${_path})
+  endforeach()
+endfunction()
+
+# check(<value> <LESS|GREATER|EQUAL|...> <bound> <what>): numeric comparison (floats allowed).
+function(check value op bound what)
+  if(NOT "${value}" MATCHES "^-?[0-9.]+([eE][-+]?[0-9]+)?$")
+    fail("${what} = '${value}' is not a number")
+  endif()
+  if(NOT (value ${op} bound))
+    fail("${what} = ${value}, expected ${op} ${bound}")
+  endif()
+  message(STATUS "ok: ${what} = ${value} (${op} ${bound})")
+endfunction()
+
+function(require_file path)
+  if(NOT EXISTS "${path}")
+    fail("missing output file ${path}")
+  endif()
+  file(SIZE "${path}" _size)
+  if(_size EQUAL 0)
+    fail("empty output file ${path}")
+  endif()
+endfunction()
+
+# check_ply_header(<file> <format> <property>...): PLY header with this format and these vertex properties.
+function(check_ply_header file format)
+  require_file("${file}")
+  file(STRINGS "${file}" _header LIMIT_COUNT 30)
+  string(JOIN "\n" _text ${_header})
+  if(NOT _text MATCHES "^ply\nformat ${format} 1.0\n")
+    fail("${file}: not a ${format} PLY file:\n${_text}")
+  endif()
+  foreach(_p IN LISTS ARGN)
+    if(NOT _text MATCHES "property double ${_p}\n")
+      fail("${file}: no vertex property '${_p}' in the header:\n${_text}")
+    endif()
+  endforeach()
+endfunction()
+
+file(REMOVE_RECURSE "${WORK}")
+file(MAKE_DIRECTORY "${WORK}")
+
+set(PDE_KEYS input.vertices coarse.vertices timings_s.load timings_s.coarsen timings_s.assemble timings_s.factor
+    timings_s.solve timings_s.prolong peak_rss_mb blas method operators)
+
+if(CASE STREQUAL "coarsen_spot")
+  shared_mesh(mesh spot.obj)
+  set(out "${WORK}/out")
+  run(0 ice-coarsen "${mesh}" --vertices 500 -o "${out}" --report "${WORK}/report.json" --validate -q)
+  set(r "${WORK}/report.json")
+  require_keys("${r}" input.vertices input.faces coarse.vertices coarse.faces coarse.stop_reason coarse.removed
+               coarse.failed_removals coarse.last_cost coarse.next_cost timings_s.load timings_s.coarsen
+               timings_s.write peak_rss_mb removals_per_second)
+  json(nv "${r}" input vertices)
+  json(nc "${r}" coarse vertices)
+  json(nfc "${r}" coarse faces)
+  json(stop "${r}" coarse stop_reason)
+  check(${nv} EQUAL 2930 "input.vertices")
+  check(${nc} EQUAL 500 "coarse.vertices")
+  check(${nfc} EQUAL 996 "coarse.faces (closed genus 0: 2V - 4)")
+  if(NOT stop STREQUAL "target reached" AND NOT stop MATCHES "[Tt]arget")
+    fail("coarse.stop_reason = '${stop}'")
+  endif()
+  foreach(f coarse.ilm prolongation.mtx map.csv preview.obj)
+    require_file("${out}/${f}")
+  endforeach()
+  # prolongation.mtx: header, sizes, nnz = number of entry lines, 1 <= nnz per row <= 3 overall.
+  file(STRINGS "${out}/prolongation.mtx" mtx)
+  list(GET mtx 0 banner)
+  if(NOT banner STREQUAL "%%MatrixMarket matrix coordinate real general")
+    fail("prolongation.mtx: bad banner '${banner}'")
+  endif()
+  list(FILTER mtx EXCLUDE REGEX "^%")
+  list(POP_FRONT mtx sizes)
+  separate_arguments(sizes)
+  list(GET sizes 0 rows)
+  list(GET sizes 1 cols)
+  list(GET sizes 2 nnz)
+  list(LENGTH mtx entries)
+  check(${rows} EQUAL ${nv} "prolongation.mtx rows")
+  check(${cols} EQUAL ${nc} "prolongation.mtx cols")
+  check(${nnz} EQUAL ${entries} "prolongation.mtx nnz vs entry lines")
+  check(${nnz} GREATER_EQUAL ${nv} "prolongation.mtx nnz")
+  math(EXPR max_nnz "3 * ${nv}")
+  check(${nnz} LESS_EQUAL ${max_nnz} "prolongation.mtx nnz")
+  foreach(line IN LISTS mtx)
+    if(NOT line MATCHES "^[0-9]+ [0-9]+ [-+0-9.eE]+$")
+      fail("prolongation.mtx: bad entry line '${line}'")
+    endif()
+  endforeach()
+  # map.csv: header + one line per input vertex; exactly nc surviving vertices.
+  file(STRINGS "${out}/map.csv" map)
+  list(GET map 0 header)
+  if(NOT header STREQUAL "input_vertex,coarse_vertex,coarse_face,b0,b1,b2")
+    fail("map.csv: bad header '${header}'")
+  endif()
+  list(LENGTH map map_lines)
+  math(EXPR expected "${nv} + 1")
+  check(${map_lines} EQUAL ${expected} "map.csv lines")
+  set(removed ${map})
+  list(FILTER removed INCLUDE REGEX "^[0-9]+,-1,")
+  list(LENGTH removed n_removed)
+  math(EXPR n_removed_expected "${nv} - ${nc}")
+  check(${n_removed} EQUAL ${n_removed_expected} "map.csv rows with coarse_vertex -1")
+  # coarse.ilm: header, counts, face and vertex lines.
+  file(STRINGS "${out}/coarse.ilm" ilm)
+  list(GET ilm 0 magic)
+  if(NOT magic STREQUAL "ICE-ILM 1")
+    fail("coarse.ilm: bad header '${magic}'")
+  endif()
+  if(NOT "${ilm}" MATCHES ";vertices ${nc};faces ${nfc};input_vertices ${nv};")
+    fail("coarse.ilm: counts missing or wrong")
+  endif()
+  set(flines ${ilm})
+  list(FILTER flines INCLUDE REGEX "^f [0-9]+ [0-9]+ [0-9]+ [0-9.eE+-]+ [0-9.eE+-]+ [0-9.eE+-]+$")
+  list(LENGTH flines n_f)
+  check(${n_f} EQUAL ${nfc} "coarse.ilm face lines")
+  set(vlines ${ilm})
+  list(FILTER vlines INCLUDE REGEX "^v [0-9]+$")
+  list(LENGTH vlines n_v)
+  check(${n_v} EQUAL ${nc} "coarse.ilm vertex lines")
+  # preview.obj: the first line says it is only a preview.
+  file(STRINGS "${out}/preview.obj" obj LIMIT_COUNT 1)
+  if(NOT obj MATCHES "^# .*PREVIEW")
+    fail("preview.obj: first line is not the preview comment: ${obj}")
+  endif()
+  # Refuses to overwrite without --force, overwrites with it.
+  expect_error(3 "exists already" ice-coarsen "${mesh}" --vertices 500 -o "${out}" -q)
+  run(0 ice-coarsen "${mesh}" --ratio 0.1 -o "${out}" -q --force)
+
+elseif(CASE STREQUAL "coarsen_keep_boundary_lock")
+  # A mesh with boundary: --keep-boundary keeps every boundary vertex, --lock keeps listed vertices.
+  shared_mesh(mesh camelhead.off)
+  file(WRITE "${WORK}/lock.txt" "# vertices never removed\n0, 1\n2\n")
+  run(0 ice-coarsen "${mesh}" --ratio 0.2 --keep-boundary --lock "${WORK}/lock.txt" -o "${WORK}/out"
+      --report "${WORK}/report.json" --validate -q)
+  file(STRINGS "${WORK}/out/map.csv" map)
+  foreach(v 0 1 2)
+    list(FILTER map EXCLUDE REGEX "^${v},-1,")  # no-op unless locked vertex v was removed
+  endforeach()
+  file(STRINGS "${WORK}/out/map.csv" map_all)
+  if(NOT map STREQUAL map_all)
+    fail("a --lock vertex was removed")
+  endif()
+  json(stop "${WORK}/report.json" coarse stop_reason)
+  message(STATUS "stop reason: ${stop}")
+  file(WRITE "${WORK}/bad_lock.txt" "5 999999\n")
+  expect_error(4 "--lock: vertex 999999 is out of range" ice-coarsen "${mesh}" --ratio 0.2 -o "${WORK}/out2" -q
+               --lock "${WORK}/bad_lock.txt")
+  expect_error(1 "no such file" ice-coarsen "${mesh}" --ratio 0.2 -o "${WORK}/out2" -q --lock "${WORK}/none.txt")
+
+elseif(CASE STREQUAL "geodesic_spot")
+  shared_mesh(mesh spot.obj)
+  run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --report "${WORK}/r.json" --output "${WORK}/d.ply" -q)
+  set(r "${WORK}/r.json")
+  require_keys("${r}" ${PDE_KEYS} timings_s.reference error.rel_l2 error.max_abs error.mean_rel error.max_rel
+               speedup.total speedup.per_solve)
+  json(nc "${r}" coarse vertices)
+  check(${nc} EQUAL 147 "coarse.vertices (ceil(0.05 * 2930))")
+  # Measured 2.9% mean / 9.6% max relative error at 5% on spot (the method doc quotes 0.7-6% mean at
+  # 500-1,000 coarse vertices); the bounds leave room for changes in the coarsening order.
+  json(mean_rel "${r}" error mean_rel)
+  json(max_rel "${r}" error max_rel)
+  json(rel_l2 "${r}" error rel_l2)
+  check(${mean_rel} LESS 0.06 "error.mean_rel")
+  check(${max_rel} LESS 0.25 "error.max_rel")
+  check(${rel_l2} LESS 0.08 "error.rel_l2")
+  check_ply_header("${WORK}/d.ply" binary_little_endian distance reference error)
+  file(SIZE "${WORK}/d.ply" size)
+  # 2930 vertices × 6 doubles + 5856 faces × 13 bytes after the header
+  check(${size} GREATER 210000 "d.ply size")
+
+elseif(CASE STREQUAL "geodesic_galerkin_spot")
+  shared_mesh(mesh spot.obj)
+  run(0 geodesic-coarse "${mesh}" --source 7 --vertices 300 --operators galerkin --report "${WORK}/r.json" -q)
+  json(mean_rel "${WORK}/r.json" error mean_rel)
+  check(${mean_rel} LESS 0.06 "error.mean_rel (galerkin)")
+  json(ops "${WORK}/r.json" operators)
+  if(NOT ops STREQUAL "galerkin")
+    fail("operators = ${ops}")
+  endif()
+  run(0 geodesic-coarse "${mesh}" --source 7 --vertices 300 --no-reference --no-fine-idt --report "${WORK}/r2.json" -q)
+  json(nc "${WORK}/r2.json" coarse vertices)
+  check(${nc} EQUAL 300 "coarse.vertices")
+  file(READ "${WORK}/r2.json" text)
+  string(JSON has_error ERROR_VARIABLE err GET "${text}" error)
+  if(NOT err)
+    fail("--no-reference: the report has an error object")
+  endif()
+
+elseif(CASE STREQUAL "poisson_spot")
+  shared_mesh(mesh spot.obj)
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --report "${WORK}/r.json" --output "${WORK}/u.ply" -q)
+  set(r "${WORK}/r.json")
+  require_keys("${r}" ${PDE_KEYS} timings_s.reference error.rel_l2 error.max_abs)
+  # Measured ~1.5% relative L2 at 5% on spot with the demo source (method doc: Poisson 1-3%).
+  json(rel_l2 "${r}" error rel_l2)
+  check(${rel_l2} LESS 0.05 "error.rel_l2")
+  check_ply_header("${WORK}/u.ply" binary_little_endian solution reference error)
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --operators galerkin --report "${WORK}/g.json" -q)
+  json(rel_l2 "${WORK}/g.json" error rel_l2)
+  check(${rel_l2} LESS 0.05 "error.rel_l2 (galerkin)")
+
+elseif(CASE STREQUAL "poisson_fix_rhs_spot")
+  shared_mesh(mesh spot.obj)
+  # A right-hand side file: one value per vertex (a sawtooth in the vertex index, commas and comments).
+  set(values "# test source\n")
+  foreach(i RANGE 0 2929)
+    math(EXPR v "(${i} % 7) - 3")
+    string(APPEND values "${v},\n")
+  endforeach()
+  file(WRITE "${WORK}/rhs.txt" "${values}")
+  run(0 poisson-coarse "${mesh}" --ratio 0.1 --rhs "${WORK}/rhs.txt" --fix 0=1 --fix 1500=-1,2000=0.5
+      --report "${WORK}/r.json" -q)
+  json(bc "${WORK}/r.json" boundary_conditions)
+  json(nfix "${WORK}/r.json" fixed_vertices)
+  check(${nfix} EQUAL 3 "fixed_vertices")
+  if(NOT bc STREQUAL "dirichlet")
+    fail("boundary_conditions = ${bc}")
+  endif()
+  json(rel_l2 "${WORK}/r.json" error rel_l2)
+  check(${rel_l2} LESS 0.2 "error.rel_l2 (Dirichlet, rough source)")
+  # Wrong number of values, junk.
+  file(WRITE "${WORK}/short.txt" "1 2 3\n")
+  expect_error(1 "has 3 values, the mesh has 2930" poisson-coarse "${mesh}" --ratio 0.1 --rhs "${WORK}/short.txt" -q)
+  file(WRITE "${WORK}/junk.txt" "1 2 x3\n")
+  expect_error(1 "junk.txt:1: 'x3' is not a finite number" poisson-coarse "${mesh}" --ratio 0.1 --rhs "${WORK}/junk.txt" -q)
+  expect_error(4 "expected VERTEX=VALUE" poisson-coarse "${mesh}" --ratio 0.1 --fix 12 -q)
+  expect_error(4 "fixed twice" poisson-coarse "${mesh}" --ratio 0.1 --fix 12=1 --fix 12=2 -q)
+
+elseif(CASE STREQUAL "ply_ascii")
+  shared_mesh(mesh spot.obj)
+  run(0 geodesic-coarse "${mesh}" --source 3 --ratio 0.05 --output "${WORK}/d.ply" --ascii -q)
+  check_ply_header("${WORK}/d.ply" ascii distance reference error)
+  file(STRINGS "${WORK}/d.ply" lines)
+  list(LENGTH lines n)
+  # header (13 lines: ply, format, comment, element, x, y, z, 3 fields, element, list, end) + V + F
+  check(${n} EQUAL 8799 "ASCII PLY lines")
+  expect_error(3 "exists already" geodesic-coarse "${mesh}" --source 3 --ratio 0.05 --output "${WORK}/d.ply" -q)
+  run(0 geodesic-coarse "${mesh}" --source 3 --ratio 0.05 --output "${WORK}/d.ply" --force --no-reference -q)
+  check_ply_header("${WORK}/d.ply" binary_little_endian distance)
+
+elseif(CASE STREQUAL "errors")
+  shared_mesh(mesh spot.obj)
+  set(missing "${WORK}/no_such_mesh.obj")
+  foreach(tool ice-coarsen geodesic-coarse poisson-coarse)
+    set(extra)
+    if(tool STREQUAL "ice-coarsen")
+      set(extra -o "${WORK}/o")
+    elseif(tool STREQUAL "geodesic-coarse")
+      set(extra --source 0)
+    endif()
+    expect_error(1 "no_such_mesh.obj" ${tool} "${missing}" --ratio 0.1 ${extra} -q)
+    expect_error(4 "--ratio .* out of range" ${tool} "${mesh}" --ratio 1.5 ${extra} -q)
+    expect_error(4 "--ratio .* out of range" ${tool} "${mesh}" --ratio -0.1 ${extra} -q)
+    expect_error(4 "--vertices 5000 is out of range" ${tool} "${mesh}" --vertices 5000 ${extra} -q)
+    expect_error(4 "either --vertices or --ratio" ${tool} "${mesh}" --vertices 100 --ratio 0.1 ${extra} -q)
+    expect_error(4 "--vertices N or --ratio R" ${tool} "${mesh}" ${extra} -q)
+    expect_error(4 "only coarsening method" ${tool} "${mesh}" --ratio 0.1 --method qem ${extra} -q)
+    expect_error(4 "" ${tool} "${mesh}" --ratio 0.1 --no-such-option ${extra} -q)
+    run(0 ${tool} --help)
+    if(NOT RUN_OUT MATCHES "--ratio")
+      fail("${tool} --help does not mention --ratio")
+    endif()
+  endforeach()
+  expect_error(4 "--source: vertex 2930 is out of range" geodesic-coarse "${mesh}" --source 0,2930 --ratio 0.1 -q)
+  expect_error(4 "--source: vertex -1 is out of range" geodesic-coarse "${mesh}" --source -1 --ratio 0.1 -q)
+  expect_error(4 "not a vertex index" geodesic-coarse "${mesh}" --source 1,x --ratio 0.1 -q)
+  expect_error(4 "" geodesic-coarse "${mesh}" --ratio 0.1 -q)  # --source is required
+  expect_error(4 "" geodesic-coarse "${mesh}" --source 0 --ratio 0.1 --operators bogus -q)
+  expect_error(4 "only 'proxy'" poisson-coarse "${mesh}" --ratio 0.1 --solver multigrid -q)
+  # Unreadable and defective meshes.
+  file(WRITE "${WORK}/garbage.obj" "this is not a mesh\n")
+  expect_error(1 "garbage.obj" geodesic-coarse "${WORK}/garbage.obj" --source 0 --ratio 0.1 -q)
+  shared_mesh(defective degtri_nullface.off)
+  expect_error(2 "degtri_nullface.off" ice-coarsen "${defective}" --ratio 0.5 -o "${WORK}/d" -q)
+  # Several components: coarsening is fine, the PDE tools refuse.
+  shared_mesh(three blobby_3cc.off)
+  expect_error(2 "connected components" geodesic-coarse "${three}" --source 0 --ratio 0.2 -q)
+  run(0 ice-coarsen "${three}" --ratio 0.2 -o "${WORK}/three" -q --validate)
+
+else()
+  fail("unknown CASE")
+endif()
+message(STATUS "app test '${CASE}': passed")
