@@ -284,22 +284,8 @@ void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
   }
 }
 
-void IntrinsicTriangulation::set_angle_of_new_halfedge(Index h) {
-  // The outgoing half-edge just clockwise of h is next(twin(h)); its corner ends at h.
-  const Index before = next(h ^ 1);
-  he_angle_[h] = wrap_angle(he_angle_[before] + angle_scale(tail(h)) * corner_angle(before));
-}
-
 // ------------------------------------------------------------------------------------------------
 // Tracked points
-
-void IntrinsicTriangulation::remove_point_from_face(Index p) {
-  const Index f = point_face_[p];
-  if (point_prev_[p] != kInvalid) point_next_[point_prev_[p]] = point_next_[p];
-  else face_first_point_[f] = point_next_[p];
-  if (point_next_[p] != kInvalid) point_prev_[point_next_[p]] = point_prev_[p];
-  point_face_[p] = point_next_[p] = point_prev_[p] = kInvalid;
-}
 
 void IntrinsicTriangulation::add_point_to_face(Index p, Index f, const std::array<double, 3>& bary) {
   point_face_[p] = f;
@@ -349,20 +335,25 @@ bool IntrinsicTriangulation::flip(Index h) {
   const Index k = tail(b), l = tail(d);
 
   // Lay the diamond out: i at the origin, j on the x axis, k above, l below.
-  const double l_ij = length(h);
+  const double l_ij = length(h), l_a = length(a), l_b = length(b), l_c = length(c), l_d = length(d);
+  const double inv_ij = 1.0 / l_ij;
   const Vec2 pi{0, 0}, pj{l_ij, 0};
-  const Vec2 pk = layout_third_point(pi, pj, l_ij, length(b), length(a));
-  const Vec2 pl = layout_third_point(pj, pi, l_ij, length(d), length(c));
+  const Vec2 pk{0.5 * ((l_ij - l_a) * (l_ij + l_a) + l_b * l_b) * inv_ij, 2.0 * triangle_area(l_ij, l_b, l_a) * inv_ij};
+  const Vec2 pl{0.5 * ((l_ij - l_d) * (l_ij + l_d) + l_c * l_c) * inv_ij, -2.0 * triangle_area(l_ij, l_d, l_c) * inv_ij};
   // Strictly convex, with a margin: the diamond's angles at i and j must stay below π − θ_min and
   // the new triangles' angles above θ_min (sine tests). Angles of a triangle whose smallest angle is
-  // θ carry round-off of about ε/θ, so flips into near-degenerate triangles are refused.
+  // θ carry round-off of about ε/θ, so flips into near-degenerate triangles are refused. Twice the
+  // new triangles' areas are the cross products at i and at j.
   constexpr double kMinSine = 1e-7;
-  if (!(cross(pl - pi, pk - pi) > kMinSine * length(c) * length(b) &&
-        cross(pk - pj, pl - pj) > kMinSine * length(a) * length(d)))
-    return false;
-  const double l_kl = (pk - pl).norm();
-  if (!(smallest_angle_sine(l_kl, length(b), length(c)) > kMinSine &&
-        smallest_angle_sine(l_kl, length(d), length(a)) > kMinSine))
+  const double twice_area0 = cross(pl - pi, pk - pi), twice_area1 = cross(pk - pj, pl - pj);
+  if (!(twice_area0 > kMinSine * l_c * l_b && twice_area1 > kMinSine * l_a * l_d)) return false;
+  const Vec2 kl = pk - pl;
+  const double l_kl = std::sqrt(kl.x * kl.x + kl.y * kl.y);
+  // Smallest angle sine of a triangle = 2·area / (product of its two longest sides).
+  const auto two_longest = [](double x, double y, double z) {
+    return x * y * z / std::min({x, y, z});
+  };
+  if (!(twice_area0 > kMinSine * two_longest(l_kl, l_b, l_c) && twice_area1 > kMinSine * two_longest(l_kl, l_d, l_a)))
     return false;
 
   // Tracked points of both faces, with their positions in the layout.
@@ -390,8 +381,13 @@ bool IntrinsicTriangulation::flip(Index h) {
   if (vertex_halfedge_[i] == h) vertex_halfedge_[i] = c;
   if (vertex_halfedge_[j] == t) vertex_halfedge_[j] = a;
   edge_length_[h >> 1] = l_kl;
-  set_angle_of_new_halfedge(h);
-  set_angle_of_new_halfedge(t);
+  // New angular coordinates from the layout: at l the corner from d (l->j) to h (l->k), at k the
+  // corner from b (k->i) to t (k->l).
+  const Vec2 lj = pj - pl, lk = pk - pl, ki = pi - pk, kl_dir = pl - pk;
+  const double corner_l = std::atan2(cross(lj, lk), lj.x * lk.x + lj.y * lk.y);
+  const double corner_k = std::atan2(cross(ki, kl_dir), ki.x * kl_dir.x + ki.y * kl_dir.y);
+  he_angle_[h] = wrap_angle(he_angle_[d] + angle_scale(l) * corner_l);
+  he_angle_[t] = wrap_angle(he_angle_[b] + angle_scale(k) * corner_k);
 
   for (const auto& q : scratch_points_) {
     if (orient2d(pk, pl, q.position) > 0)

@@ -1,0 +1,139 @@
+// Benchmarks of the intrinsic triangulation and ICE coarsening (single thread).
+//
+//   ice_bench --benchmark_filter='Flip|Delaunay|Flatten|Coarsen'
+//
+// Inputs come from ../shared/data/meshes (ICE_SHARED_MESHES overrides); large inputs are made by
+// Loop subdivision: fertility.off (4,494 vertices) subdivided 4 times has 1,150,214 vertices.
+#include <benchmark/benchmark.h>
+
+#include <cstdlib>
+#include <map>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <sys/resource.h>
+
+#include "ice/coarsen.h"
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+
+using namespace ice;
+
+namespace {
+
+std::string shared_mesh(const std::string& name) {
+  const char* env = std::getenv("ICE_SHARED_MESHES");
+  return std::string(env ? env : ICE_SHARED_MESHES_DIR) + "/" + name;
+}
+
+// Meshes are loaded (and subdivided) once per process.
+const TriangleMesh& mesh(const std::string& name, int subdivisions = 0) {
+  static std::map<std::pair<std::string, int>, TriangleMesh> cache;
+  auto key = std::make_pair(name, subdivisions);
+  auto it = cache.find(key);
+  if (it == cache.end()) {
+    TriangleMesh m = load_mesh(shared_mesh(name));
+    if (subdivisions > 0) m = loop_subdivide(m, subdivisions);
+    it = cache.emplace(key, std::move(m)).first;
+  }
+  return it->second;
+}
+
+double peak_rss_mb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+std::vector<Index> shuffled_interior_edges(const IntrinsicTriangulation& T, unsigned seed) {
+  std::vector<Index> edges;
+  for (Index h = 0; h < T.num_halfedge_slots(); h += 2)
+    if (T.halfedge_alive(h) && !T.is_boundary_edge(h)) edges.push_back(h);
+  std::shuffle(edges.begin(), edges.end(), std::mt19937(seed));
+  return edges;
+}
+
+// Intrinsic flips of random edges of spot_subdiv (24,755 vertices).
+void BM_Flip(benchmark::State& state) {
+  const TriangleMesh& m = mesh("spot_subdiv.obj");
+  auto T = IntrinsicTriangulation::from_mesh(m.V, m.F);
+  const std::vector<Index> edges = shuffled_interior_edges(T, 1);
+  std::size_t next = 0;
+  std::int64_t flips = 0;
+  for (auto _ : state) {
+    flips += T.flip(edges[next]);
+    if (++next == edges.size()) next = 0;
+  }
+  state.counters["flips_per_s"] = benchmark::Counter(static_cast<double>(flips), benchmark::Counter::kIsRate);
+  state.counters["success_ratio"] = static_cast<double>(flips) / state.iterations();
+}
+BENCHMARK(BM_Flip);
+
+// Global flip to intrinsic Delaunay of a Loop-subdivided mesh whose edges were first flipped at
+// random (a third of all edges), so that there is work to do.
+void BM_FlipToDelaunay(benchmark::State& state) {
+  const TriangleMesh& m = mesh("fertility.off", static_cast<int>(state.range(0)));
+  std::int64_t flips = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto T = IntrinsicTriangulation::from_mesh(m.V, m.F);
+    const std::vector<Index> edges = shuffled_interior_edges(T, 2);
+    for (std::size_t i = 0; i < edges.size() / 3; ++i) T.flip(edges[i]);
+    state.ResumeTiming();
+    flips += T.flip_to_delaunay();
+  }
+  state.counters["vertices"] = static_cast<double>(m.V.rows());
+  state.counters["flips"] = static_cast<double>(flips) / state.iterations();
+}
+BENCHMARK(BM_FlipToDelaunay)->Arg(2)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// Cost of flattening one vertex (the dry run used by the error metric, and the committed one).
+void BM_ComputeFlattening(benchmark::State& state) {
+  const TriangleMesh& m = mesh("spot_subdiv.obj");
+  const auto T = IntrinsicTriangulation::from_mesh(m.V, m.F);
+  Index v = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(T.compute_flattening(v, state.range(0) == 0 ? 1e-13 : 1e-7));
+    if (++v == T.num_vertices()) v = 0;
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_ComputeFlattening)->Arg(0)->Arg(1);
+
+// Memory of the triangulation type itself.
+void BM_BytesPerVertex(benchmark::State& state) {
+  const TriangleMesh& m = mesh("fertility.off", static_cast<int>(state.range(0)));
+  double bytes = 0;
+  for (auto _ : state) {
+    const auto T = IntrinsicTriangulation::from_mesh(m.V, m.F);
+    bytes = static_cast<double>(T.memory_bytes());
+  }
+  state.counters["vertices"] = static_cast<double>(m.V.rows());
+  state.counters["bytes_per_vertex"] = bytes / m.V.rows();
+}
+BENCHMARK(BM_BytesPerVertex)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// ICE coarsening: spot_subdiv 24,755 -> 1,000 and fertility (Loop ×4, 1,150,214) -> 10,000.
+void BM_Coarsen(benchmark::State& state) {
+  const bool large = state.range(0) == 1;
+  const TriangleMesh& m = large ? mesh("fertility.off", 4) : mesh("spot_subdiv.obj");
+  CoarsenOptions options;
+  options.target_vertices = large ? 10000 : 1000;
+  CoarsenResult result;
+  const double rss_before = peak_rss_mb();
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto T = IntrinsicTriangulation::from_mesh(m.V, m.F);
+    state.ResumeTiming();
+    result = coarsen(T, options);
+  }
+  state.counters["input_vertices"] = static_cast<double>(m.V.rows());
+  state.counters["removals_per_s"] = result.removed / result.seconds;
+  state.counters["peak_rss_mb"] = peak_rss_mb();
+  state.counters["rss_growth_bytes_per_vertex"] = (peak_rss_mb() - rss_before) * 1024 * 1024 / m.V.rows();
+}
+BENCHMARK(BM_Coarsen)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(BM_Coarsen)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+}  // namespace
