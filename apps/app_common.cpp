@@ -3,6 +3,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -209,6 +210,8 @@ void require_connected(const ice::LoadResult& loaded, const std::string& path, c
 void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
   cli.add_option("--vertices,-n", vertices, "Coarsen down to N vertices (1 <= N <= input vertices)");
   cli.add_option("--ratio,-r", ratio, "Coarsen down to ceil(R * input vertices), 0 < R <= 1 (e.g. 0.05)");
+  cli.add_option("--min-vertices", min_vertices,
+                 "With --ratio: keep at least M vertices (at most all of them), e.g. --ratio 0.05 --min-vertices 1000");
   if (with_max_error)
     cli.add_option("--max-error,-e", max_error,
                    "Remove vertices while the cheapest removal costs at most E (ICE error metric); "
@@ -235,9 +238,15 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
   if (has_ratio && !(ratio > 0 && ratio <= 1))
     throw AppError(kUsage, "--ratio " + fixed(ratio, 6) + " is out of range: it must be in (0, 1], e.g. 0.05 for 5%");
   if (has_error && !(max_error >= 0)) throw AppError(kUsage, "--max-error must be >= 0");
+  if (min_vertices != 0 && !has_ratio) throw AppError(kUsage, "--min-vertices goes with --ratio");
+  if (min_vertices < 0) throw AppError(kUsage, "--min-vertices must be positive");
   if (!(area_weight >= 0 && area_weight <= 1)) throw AppError(kUsage, "--area-weight must be in [0, 1]");
   options.target_vertices = has_vertices ? static_cast<ice::Index>(vertices) : 0;
   options.target_ratio = has_ratio ? ratio : 0;
+  if (has_ratio && min_vertices > 0) {  // the same rounding as ice::coarsen, then the floor
+    const long long by_ratio = static_cast<long long>(std::ceil(ratio * static_cast<double>(n)));
+    options.target_vertices = static_cast<ice::Index>(std::min(n, std::max(by_ratio, min_vertices)));
+  }
   options.max_error = max_error;
   options.area_weight = area_weight;
 }

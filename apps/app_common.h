@@ -137,10 +137,11 @@ void require_connected(const ice::LoadResult& loaded, const std::string& path, c
 struct TargetOptions {
   long long vertices = 0;
   double ratio = 0;
+  long long min_vertices = 0;
   double max_error = std::numeric_limits<double>::infinity();
   double area_weight = 0;
   std::string method = "ice";
-  /// Adds --vertices, --ratio (and --max-error if asked), --area-weight and --method to `cli`.
+  /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight and --method.
   void add_to(CLI::App& cli, bool with_max_error);
   /// Checks the values against an input of n vertices and fills `options` (target, error, area
   /// weight). Throws AppError(kUsage) with a clear message on a bad combination or value.

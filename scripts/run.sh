@@ -13,9 +13,20 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD_DIR="$ROOT/build/release"
 JOBS="${ICE_JOBS:-2}"
 
-# ---- THE MAIN JOB: one line to change what run.sh does. `app NAME ARGS...` builds the CMake target
-# NAME in build/release and runs it. $MESH is the input mesh, "$@" the extra arguments.
-main_job() { app ice-info "$MESH" "$@"; }
+# ---- THE MAIN JOB: what run.sh does. `app NAME ARGS...` builds the CMake target NAME in
+# build/release and runs it. $MESH is the input mesh, "$@" the extra arguments (given to the tool).
+# Today: heat-method geodesic distance from two sources (vertex 0 and the middle vertex) solved on an
+# ICE coarse proxy with 5% of the vertices (at least 1,000), compared with the fine solve.
+main_job() {
+  local n=2
+  case "${MESH,,}" in  # vertex count, for the second source: OFF header or OBJ 'v' lines
+    *.off) n="$(awk '!/^[[:space:]]*(#|$)/ { c++; if (c == 1 && NF > 1 && $1 ~ /OFF$/) { print $2; exit }
+                                               if (c == 2) { print $1; exit } }' "$MESH")" ;;
+    *.obj) n="$(grep -c '^v[[:space:]]' "$MESH" || true)" ;;
+  esac
+  [[ "$n" =~ ^[0-9]+$ && "$n" -ge 2 ]] || n=2
+  app geodesic-coarse "$MESH" --source "0,$((n / 2))" --ratio 0.05 --min-vertices 1000 "$@"
+}
 # -----------------------------------------------------------------------------------------------
 
 say() { printf 'run.sh: %s\n' "$*"; }
