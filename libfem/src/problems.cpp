@@ -47,7 +47,7 @@ ConstrainedSolver::ConstrainedSolver(const SparseMatrix& A, std::vector<int> con
   A_FF.setFromTriplets(free_block.begin(), free_block.end());
   free_constrained_coupling_.resize(free_count, static_cast<Eigen::Index>(constrained_.size()));
   free_constrained_coupling_.setFromTriplets(coupling.begin(), coupling.end());
-  factor_.compute(A_FF);
+  if (free_count > 0) factor_.compute(A_FF);
 }
 
 Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values) const {
@@ -62,7 +62,7 @@ Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::
   for (Eigen::Index i = 0; i < size_; ++i)
     if (free_[static_cast<std::size_t>(i)] >= 0) free_rhs(free_[static_cast<std::size_t>(i)]) = b(i);
   if (constrained_count > 0) free_rhs -= free_constrained_coupling_ * values;
-  const Eigen::VectorXd free_solution = factor_.solve(free_rhs);
+  const Eigen::VectorXd free_solution = free_rhs.size() > 0 ? factor_.solve(free_rhs) : free_rhs;
 
   Eigen::VectorXd x(size_);
   for (Eigen::Index i = 0; i < size_; ++i) {

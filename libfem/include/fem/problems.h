@@ -38,7 +38,7 @@ class ConstrainedSolver {
   CholeskySolver factor_;                   ///< of A_FF
 };
 
-/// Poisson equation L u = M f.
+/// Poisson equation L u = M f, the P1 discretisation of −Δu = f (L is positive semidefinite).
 ///  - Dirichlet: u prescribed at given vertices (at least one per connected component).
 ///  - Zero-mean ("Neumann"), for closed surfaces or natural boundary conditions: the mass-weighted
 ///    right-hand side b = M f is first made compatible by removing its mean
@@ -121,6 +121,8 @@ HeatMethodOperators heat_method_operators(const Faces& F, const FaceLengths& L,
 ///     its right-hand side always sums to zero because G·1 = 0, so pinning is exact;
 ///  4. φ shifted so its source-weighted mean is 0 (the value at a single source is 0).
 /// Factorisations of M + tL (both boundary variants) and of the pinned L happen in the constructor.
+/// Preconditions: a connected mesh (vertex 0 is pinned in step 3); sources on the boundary get no heat
+/// in the Dirichlet variant, so near them the result is that of the Neumann solution alone.
 /// Limitation: u decays roughly like exp(−d/√t); beyond a few hundred mean edge lengths from the
 /// sources it drops below round-off and distances there become unreliable.
 class HeatGeodesicSolver {
