@@ -281,8 +281,11 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarsenResult& re
 nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::CompactMesh& coarse) {
   nlohmann::json failures;
   for (int s = 0; s < static_cast<int>(result.failures_by_status.size()); ++s)
-    if (result.failures_by_status[s] > 0)
-      failures[ice::to_string(static_cast<ice::RemovalStatus>(s))] = result.failures_by_status[s];
+    if (result.failures_by_status[s] > 0) {
+      std::string key = ice::to_string(static_cast<ice::RemovalStatus>(s));
+      std::replace(key.begin(), key.end(), ' ', '_');
+      failures[key] = result.failures_by_status[s];
+    }
   const auto finite_or_null = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
   return {{"vertices", coarse.to_input.size()},
           {"faces", coarse.F.rows()},
