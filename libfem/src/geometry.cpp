@@ -1,5 +1,7 @@
 #include "fem/geometry.h"
 
+#include "ice/triangle_geometry.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -16,16 +18,6 @@ void check_face(Eigen::Index f, double a, double b, double c) {
     throw InvalidTriangle(f, "edge lengths violate the triangle inequality");
 }
 
-/// Kahan's formula: with a ≥ b ≥ c, area = ¼·sqrt((a+(b+c))(c−(a−b))(c+(a−b))(a+(b−c))). The
-/// parentheses matter; only the factor c−(a−b) can go negative, and then only by tolerated round-off.
-double kahan_area(double a, double b, double c) {
-  if (a < b) std::swap(a, b);
-  if (a < c) std::swap(a, c);
-  if (b < c) std::swap(b, c);
-  const double flat_factor = std::max(0.0, c - (a - b));
-  return 0.25 * std::sqrt((a + (b + c)) * flat_factor * (c + (a - b)) * (a + (b - c)));
-}
-
 }  // namespace
 
 void validate_lengths(const FaceLengths& L) {
@@ -36,7 +28,7 @@ Eigen::VectorXd face_areas(const FaceLengths& L) {
   Eigen::VectorXd areas(L.rows());
   for (Eigen::Index f = 0; f < L.rows(); ++f) {
     check_face(f, L(f, 0), L(f, 1), L(f, 2));
-    areas(f) = kahan_area(L(f, 0), L(f, 1), L(f, 2));
+    areas(f) = ice::triangle_area(L(f, 0), L(f, 1), L(f, 2));
   }
   return areas;
 }
@@ -45,14 +37,10 @@ Eigen::MatrixXd corner_angles(const FaceLengths& L) {
   Eigen::MatrixXd angles(L.rows(), 3);
   for (Eigen::Index f = 0; f < L.rows(); ++f) {
     check_face(f, L(f, 0), L(f, 1), L(f, 2));
-    // Normalising by the perimeter keeps the squares well scaled for tiny or huge meshes.
-    const Eigen::Vector3d l = L.row(f).transpose() / L.row(f).sum();
-    for (int k = 0; k < 3; ++k) {
-      const double a = l((k + 2) % 3), b = l(k), opposite = l((k + 1) % 3);
-      const double cosine = (a * a + b * b - opposite * opposite) / (2.0 * a * b);
-      // After check_face, |cosine| exceeds 1 only through round-off on (nearly) flat faces.
-      angles(f, k) = std::acos(std::clamp(cosine, -1.0, 1.0));
-    }
+    // The project's one angle formula (atan2 of 4·area and the law-of-cosines numerator): accurate
+    // for needles and caps alike.
+    for (int k = 0; k < 3; ++k)
+      angles(f, k) = ice::angle_opposite(L(f, (k + 2) % 3), L(f, k), L(f, (k + 1) % 3));
   }
   return angles;
 }
@@ -61,7 +49,7 @@ Eigen::MatrixXd corner_cotangents(const FaceLengths& L) {
   Eigen::MatrixXd cotangents(L.rows(), 3);
   for (Eigen::Index f = 0; f < L.rows(); ++f) {
     check_face(f, L(f, 0), L(f, 1), L(f, 2));
-    const double area = kahan_area(L(f, 0), L(f, 1), L(f, 2));
+    const double area = ice::triangle_area(L(f, 0), L(f, 1), L(f, 2));
     if (!(area > 0)) throw InvalidTriangle(f, "zero area: cotangents are infinite");
     for (int k = 0; k < 3; ++k) {
       const double a = L(f, (k + 2) % 3), b = L(f, k), opposite = L(f, (k + 1) % 3);
@@ -75,7 +63,7 @@ Eigen::Matrix<double, 3, 2> layout_triangle(double l0, double l1, double l2) {
   // Corner 2 is at distance l2 from corner 0 and l1 from corner 1; its height comes from the stable
   // area rather than sqrt(l2² − x²), which cancels badly for thin triangles.
   const double x = (l0 * l0 + l2 * l2 - l1 * l1) / (2.0 * l0);
-  const double y = 2.0 * kahan_area(l0, l1, l2) / l0;
+  const double y = 2.0 * ice::triangle_area(l0, l1, l2) / l0;
   Eigen::Matrix<double, 3, 2> corners;
   corners << 0.0, 0.0, l0, 0.0, x, y;
   return corners;

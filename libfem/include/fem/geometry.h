@@ -38,13 +38,13 @@ inline constexpr double kTriangleInequalityTolerance = 1e-12;
 /// triangle inequality by more than kTriangleInequalityTolerance·perimeter.
 void validate_lengths(const FaceLengths& L);
 
-/// Face areas (m) by Kahan's numerically stable Heron formula (lengths sorted a ≥ b ≥ c).
+/// Face areas (m) by Kahan's stable Heron formula (ice::triangle_area).
 /// Flat faces give 0. Throws InvalidTriangle as validate_lengths.
 Eigen::VectorXd face_areas(const FaceLengths& L);
 
 /// Corner angles (m×3): entry (f,k) is the interior angle at corner k, opposite edge (k+1)%3.
-/// Law of cosines on perimeter-normalised lengths; the cosine is clamped to [-1,1] only when the
-/// excess is round-off (the triangle inequality is checked first). Angles of each face sum to π.
+/// Computed by ice::angle_opposite (atan2 of 4·area and the law-of-cosines numerator, stable for
+/// needles and caps; the triangle inequality is checked first). Angles of each face sum to π.
 Eigen::MatrixXd corner_angles(const FaceLengths& L);
 
 /// Cotangents of the corner angles (m×3), cot = (a² + b² − c²) / (4·area) with a, b the adjacent and c
