@@ -202,7 +202,7 @@ int main(int argc, char** argv) {
       ice::write_mesh(output, mesh, {force, false});
       if (!json) std::cout << "wrote " << output << '\n';
     } catch (const ice::MeshError& e) {
-      std::cerr << "ice-info: " << e.what() << '\n';
+      std::cerr << "ice-info: " << e.what() << (force ? "" : " (--force overwrites)") << '\n';
       return kNotWritten;
     }
   }

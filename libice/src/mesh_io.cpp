@@ -379,24 +379,21 @@ std::optional<PlyHeader> read_ply_header(const std::string& path, std::uintmax_t
   return std::nullopt;
 }
 
-/// Byte-order aware read of one binary PLY scalar as double.
-double decode_ply_scalar(const unsigned char* p, const std::string& type, bool big_endian) {
+/// Byte-order aware read of one binary PLY scalar of `size` bytes as double; `is_float` for float/double.
+double decode_ply_scalar(const unsigned char* p, std::size_t size, bool is_float, bool is_signed, bool big_endian) {
   unsigned char b[8];
-  const std::size_t n = ply_type_size(type);
-  for (std::size_t i = 0; i < n; ++i) b[i] = big_endian ? p[n - 1 - i] : p[i];  // host is little endian
+  for (std::size_t i = 0; i < size; ++i) b[i] = big_endian ? p[size - 1 - i] : p[i];  // host is little endian
   auto as = [&](auto tag) {
     decltype(tag) v;
     std::memcpy(&v, b, sizeof v);
     return static_cast<double>(v);
   };
-  if (type == "char" || type == "int8") return as(std::int8_t{});
-  if (type == "uchar" || type == "uint8") return as(std::uint8_t{});
-  if (type == "short" || type == "int16") return as(std::int16_t{});
-  if (type == "ushort" || type == "uint16") return as(std::uint16_t{});
-  if (type == "int" || type == "int32") return as(std::int32_t{});
-  if (type == "uint" || type == "uint32") return as(std::uint32_t{});
-  if (type == "float" || type == "float32") return as(float{});
-  return as(double{});
+  if (is_float) return size == 4 ? as(float{}) : as(double{});
+  switch (size) {
+    case 1: return is_signed ? as(std::int8_t{}) : as(std::uint8_t{});
+    case 2: return is_signed ? as(std::int16_t{}) : as(std::uint16_t{});
+    default: return is_signed ? as(std::int32_t{}) : as(std::uint32_t{});
+  }
 }
 
 /// PLY: exact vertex positions when the first element is `vertex` with scalar properties only.
@@ -471,13 +468,25 @@ std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_
     offset.push_back(stride);
     stride += ply_type_size(prop.type);
   }
-  std::vector<unsigned char> record(stride);
-  for (std::size_t i = 0; i < vertex.count; ++i) {
-    if (!in.read(reinterpret_cast<char*>(record.data()), static_cast<std::streamsize>(stride))) fail(path, ends_early);
-    soup.V(i, 0) = decode_ply_scalar(record.data() + offset[ix], vertex.properties[ix].type, big_endian);
-    soup.V(i, 1) = decode_ply_scalar(record.data() + offset[iy], vertex.properties[iy].type, big_endian);
-    soup.V(i, 2) = decode_ply_scalar(record.data() + offset[iz], vertex.properties[iz].type, big_endian);
+  struct Field {
+    std::size_t offset, size;
+    bool is_float, is_signed;
+  };
+  Field fields[3];
+  const int which[3] = {ix, iy, iz};
+  for (int k = 0; k < 3; ++k) {
+    const std::string& type = vertex.properties[which[k]].type;
+    fields[k] = {offset[which[k]], ply_type_size(type), type.rfind("float", 0) == 0 || type == "double",
+                 type[0] != 'u'};
   }
+  if (stride * vertex.count > file_size) fail(path, ends_early);  // before allocating anything
+  std::vector<unsigned char> records(stride * vertex.count);
+  if (!in.read(reinterpret_cast<char*>(records.data()), static_cast<std::streamsize>(records.size())))
+    fail(path, ends_early);
+  for (std::size_t i = 0; i < vertex.count; ++i)
+    for (int k = 0; k < 3; ++k)
+      soup.V(i, k) = decode_ply_scalar(records.data() + i * stride + fields[k].offset, fields[k].size,
+                                       fields[k].is_float, fields[k].is_signed, big_endian);
   return soup;
 }
 

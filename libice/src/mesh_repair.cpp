@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <map>
+#include <array>
 #include <numeric>
 
 namespace ice {
@@ -202,12 +202,21 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
   std::vector<std::vector<int>> faces;
   std::vector<int> face_source;
   for (std::size_t f = 0; f < input.polygons.size(); ++f) {
-    std::vector<int> poly = input.polygons[f];
-    if (!indices_in_range(poly, nv)) {  // cannot be repaired: keep for the report
-      faces.push_back(std::move(poly));
+    const std::vector<int>& original = input.polygons[f];
+    if (!indices_in_range(original, nv)) {  // cannot be repaired: keep for the report
+      faces.push_back(original);
       face_source.push_back(static_cast<int>(f));
       continue;
     }
+    if (original.size() == 3) {  // fast path: the common well-formed triangle
+      const int a = weld[original[0]], b = weld[original[1]], c = weld[original[2]];
+      if (a != b && b != c && a != c) {
+        faces.push_back({a, b, c});
+        face_source.push_back(static_cast<int>(f));
+        continue;
+      }
+    }
+    std::vector<int> poly = original;
     for (int& v : poly) v = weld[v];
     // Remove cyclically consecutive repeats (a b b c -> a b c; a b c a -> a b c).
     std::vector<int> collapsed;
@@ -239,23 +248,39 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
   for (std::size_t f = 0; f < faces.size(); ++f) {
     const auto& t = faces[f];
     if (t.size() != 3 || !indices_in_range(t, nv)) continue;
-    if (!finite_row(V, t[0]) || !finite_row(V, t[1]) || !finite_row(V, t[2])) continue;  // reported, not fixed
-    if (is_zero_area_triangle(V.row(t[0]), V.row(t[1]), V.row(t[2]), diagonal)) {
+    const Eigen::Vector3d a = V.row(t[0]), b = V.row(t[1]), c = V.row(t[2]);
+    if (!a.allFinite() || !b.allFinite() || !c.allFinite()) continue;  // reported, not fixed
+    if (is_zero_area_triangle(a, b, c, diagonal)) {
       keep[f] = 0;
       ++log.removed_zero_area_faces;
     }
   }
   {
-    std::map<std::vector<int>, std::size_t> seen;
+    // Sort (vertex set, face id) keys; within a group of equal sets, every face after the first goes.
+    std::vector<std::array<int, 4>> triangles;
+    std::vector<std::pair<std::vector<int>, int>> polygons;  // rare
     for (std::size_t f = 0; f < faces.size(); ++f) {
       if (!keep[f] || !indices_in_range(faces[f], nv)) continue;
-      std::vector<int> key = faces[f];
-      std::sort(key.begin(), key.end());
-      if (!seen.emplace(std::move(key), f).second) {
-        keep[f] = 0;
-        ++log.removed_duplicate_faces;
+      if (faces[f].size() == 3) {
+        std::array<int, 4> key{faces[f][0], faces[f][1], faces[f][2], static_cast<int>(f)};
+        std::sort(key.begin(), key.begin() + 3);
+        triangles.push_back(key);
+      } else {
+        std::vector<int> key = faces[f];
+        std::sort(key.begin(), key.end());
+        polygons.emplace_back(std::move(key), static_cast<int>(f));
       }
     }
+    std::sort(triangles.begin(), triangles.end());
+    std::sort(polygons.begin(), polygons.end());
+    auto drop = [&](int f) {
+      keep[f] = 0;
+      ++log.removed_duplicate_faces;
+    };
+    for (std::size_t i = 1; i < triangles.size(); ++i)
+      if (std::equal(triangles[i].begin(), triangles[i].begin() + 3, triangles[i - 1].begin())) drop(triangles[i][3]);
+    for (std::size_t i = 1; i < polygons.size(); ++i)
+      if (polygons[i].first == polygons[i - 1].first) drop(polygons[i].second);
   }
   std::vector<std::vector<int>> kept;
   for (std::size_t f = 0; f < faces.size(); ++f)

@@ -53,10 +53,6 @@ VertexPair edge_pair(std::uint64_t key) {
   return {static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)};
 }
 
-bool row_is_finite(const Positions& V, Eigen::Index i) {
-  return std::isfinite(V(i, 0)) && std::isfinite(V(i, 1)) && std::isfinite(V(i, 2));
-}
-
 /// Twice the vector area of a polygon (Newell's formula), for faces with more than three corners.
 Eigen::Vector3d polygon_double_area(const Positions& V, const std::vector<int>& poly) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
@@ -67,6 +63,19 @@ Eigen::Vector3d polygon_double_area(const Positions& V, const std::vector<int>& 
     sum += p.cross(q);
   }
   return sum;
+}
+
+/// True if a corner list names a vertex twice (quadratic scan: faces are small).
+bool has_repeated_index(const std::vector<int>& poly) {
+  if (poly.size() > 32) {  // big polygons: sort a copy instead
+    std::vector<int> sorted = poly;
+    std::sort(sorted.begin(), sorted.end());
+    return std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
+  }
+  for (std::size_t i = 1; i < poly.size(); ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      if (poly[i] == poly[j]) return true;
+  return false;
 }
 
 std::string join_ids(const std::vector<int>& ids) {
@@ -108,12 +117,23 @@ PolygonSoup to_polygon_soup(const TriangleMesh& mesh) {
 
 bool is_zero_area_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
                            double diagonal) {
-  if (!a.allFinite() || !b.allFinite() || !c.allFinite()) return true;
-  const Eigen::Vector3d ab = b - a, ac = c - a, bc = c - b;
-  const double longest2 = std::max({ab.squaredNorm(), ac.squaredNorm(), bc.squaredNorm()});
+  // Plain arithmetic: this runs once per face and must stay cheap in unoptimised builds too.
+  const double* pa = a.data();
+  const double* pb = b.data();
+  const double* pc = c.data();
+  double ab[3], ac[3], bc[3];
+  for (int k = 0; k < 3; ++k) {
+    ab[k] = pb[k] - pa[k];
+    ac[k] = pc[k] - pa[k];
+    bc[k] = pc[k] - pb[k];
+  }
+  auto dot = [](const double* u, const double* v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
+  const double longest2 = std::max({dot(ab, ab), dot(ac, ac), dot(bc, bc)});
+  if (!std::isfinite(longest2)) return true;  // non-finite corners
   const double coincide = 1e-14 * diagonal;
   if (longest2 <= coincide * coincide) return true;
-  return ab.cross(ac).norm() <= kDegenerateRelativeTolerance * longest2;
+  const double n[3] = {ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]};
+  return std::sqrt(dot(n, n)) <= kDegenerateRelativeTolerance * longest2;
 }
 
 std::vector<std::string> ValidationReport::defects() const {
@@ -144,18 +164,26 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
   r.n_vertices = static_cast<std::size_t>(nv);
   r.n_faces = static_cast<std::size_t>(nf);
 
+  // Plain copies for the hot loops (Eigen element access is slow in unoptimised sanitizer builds).
+  std::vector<Eigen::Vector3d> P(static_cast<std::size_t>(nv));
+  std::vector<char> finite(static_cast<std::size_t>(nv));
+  for (int i = 0; i < nv; ++i) {
+    P[i] = V.row(i).transpose();
+    finite[i] = P[i].allFinite();
+  }
+
   // ---- vertices: finiteness and bounding box ----
   bool any_finite = false;
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
   for (int i = 0; i < nv; ++i) {
-    if (!row_is_finite(V, i)) {
+    if (!finite[i]) {
       r.non_finite_vertices.add(i);
       continue;
     }
     any_finite = true;
-    lo = lo.cwiseMin(V.row(i).transpose());
-    hi = hi.cwiseMax(V.row(i).transpose());
+    lo = lo.cwiseMin(P[i]);
+    hi = hi.cwiseMax(P[i]);
   }
   if (any_finite) {
     r.bbox_min = lo;
@@ -168,16 +196,16 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
     std::vector<int> order;
     order.reserve(static_cast<std::size_t>(nv));
     for (int i = 0; i < nv; ++i)
-      if (row_is_finite(V, i)) order.push_back(i);
+      if (finite[i]) order.push_back(i);
     auto less = [&](int a, int b) {
       for (int k = 0; k < 3; ++k)
-        if (V(a, k) != V(b, k)) return V(a, k) < V(b, k);
+        if (P[a][k] != P[b][k]) return P[a][k] < P[b][k];
       return a < b;
     };
     std::sort(order.begin(), order.end(), less);
     std::vector<int> dups;
     for (std::size_t i = 1; i < order.size(); ++i)
-      if (V.row(order[i]) == V.row(order[i - 1])) dups.push_back(order[i]);
+      if (P[order[i]] == P[order[i - 1]]) dups.push_back(order[i]);
     std::sort(dups.begin(), dups.end());
     for (int v : dups) r.duplicate_positions.add(v);
   }
@@ -193,9 +221,7 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
       r.out_of_range_faces.add(f);
       continue;
     }
-    std::vector<int> sorted = poly;
-    std::sort(sorted.begin(), sorted.end());
-    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
+    if (has_repeated_index(poly)) {
       r.repeated_index_faces.add(f);
       continue;
     }
@@ -203,12 +229,11 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
     well_formed[f] = 1;
     for (int v : poly) referenced[v] = 1;
 
-    const bool finite = std::all_of(poly.begin(), poly.end(), [&](int v) { return row_is_finite(V, v); });
-    if (!finite) continue;  // already reported through its vertices
+    if (!std::all_of(poly.begin(), poly.end(), [&](int v) { return finite[v] != 0; }))
+      continue;  // already reported through its vertices
     bool degenerate;
     if (poly.size() == 3) {
-      degenerate = is_zero_area_triangle(V.row(poly[0]).transpose(), V.row(poly[1]).transpose(),
-                                         V.row(poly[2]).transpose(), diagonal);
+      degenerate = is_zero_area_triangle(P[poly[0]], P[poly[1]], P[poly[2]], diagonal);
     } else {
       double longest2 = 0;
       for (std::size_t k = 0; k < poly.size(); ++k)
@@ -224,17 +249,28 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
 
   // ---- duplicate faces: same vertex set as an earlier well-formed face ----
   {
-    std::vector<std::pair<std::vector<int>, int>> keyed;
+    std::vector<std::array<int, 4>> triangles;                 // sorted corners + face id
+    std::vector<std::pair<std::vector<int>, int>> polygons;  // rare: faces with more corners
     for (int f = 0; f < nf; ++f) {
       if (!well_formed[f]) continue;
-      std::vector<int> key = polys[f];
-      std::sort(key.begin(), key.end());
-      keyed.emplace_back(std::move(key), f);
+      if (polys[f].size() == 3) {
+        std::array<int, 4> key{polys[f][0], polys[f][1], polys[f][2], f};
+        std::sort(key.begin(), key.begin() + 3);
+        triangles.push_back(key);
+      } else {
+        std::vector<int> key = polys[f];
+        std::sort(key.begin(), key.end());
+        polygons.emplace_back(std::move(key), f);
+      }
     }
-    std::sort(keyed.begin(), keyed.end());
+    std::sort(triangles.begin(), triangles.end());
+    std::sort(polygons.begin(), polygons.end());
     std::vector<int> dups;
-    for (std::size_t i = 1; i < keyed.size(); ++i)
-      if (keyed[i].first == keyed[i - 1].first) dups.push_back(keyed[i].second);
+    for (std::size_t i = 1; i < triangles.size(); ++i)
+      if (std::equal(triangles[i].begin(), triangles[i].begin() + 3, triangles[i - 1].begin()))
+        dups.push_back(triangles[i][3]);
+    for (std::size_t i = 1; i < polygons.size(); ++i)
+      if (polygons[i].first == polygons[i - 1].first) dups.push_back(polygons[i].second);
     std::sort(dups.begin(), dups.end());
     for (int f : dups) r.duplicate_faces.add(f);
   }
@@ -268,8 +304,8 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
   DisjointSets fans(n_corners);           // corners at one vertex linked through two-face edges
   DisjointSets boundary_graph(static_cast<std::size_t>(std::max(nv, 0)));
   std::vector<char> on_boundary(static_cast<std::size_t>(nv), 0);
-  // Face graph through two-face edges: (other face, parity 1 if the faces must flip relative to each other).
-  std::vector<std::vector<std::pair<int, int>>> face_links(static_cast<std::size_t>(nf));
+  // Face graph through two-face edges: (face, other face, parity 1 if they must flip relative to each other).
+  std::vector<std::array<int, 3>> links;
   std::vector<std::uint64_t> unique_edges;
   std::vector<std::uint64_t> non_manifold_edge_keys;
   double len_min = std::numeric_limits<double>::infinity(), len_max = 0, len_sum = 0;
@@ -281,8 +317,8 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
     const std::size_t valence = j - i;
     const VertexPair ab = edge_pair(uses[i].key);
     unique_edges.push_back(uses[i].key);
-    if (row_is_finite(V, ab[0]) && row_is_finite(V, ab[1])) {
-      const double len = (V.row(ab[0]) - V.row(ab[1])).norm();
+    if (finite[ab[0]] && finite[ab[1]]) {
+      const double len = (P[ab[0]] - P[ab[1]]).norm();
       len_min = std::min(len_min, len);
       len_max = std::max(len_max, len);
       len_sum += len;
@@ -297,8 +333,8 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
       if (x.forward == y.forward) r.inconsistent_edges.add(ab);
       for (int v : ab) fans.unite(corner_of(x.face, v), corner_of(y.face, v));
       const int parity = x.forward == y.forward ? 1 : 0;
-      face_links[x.face].emplace_back(y.face, parity);
-      face_links[y.face].emplace_back(x.face, parity);
+      links.push_back({x.face, y.face, parity});
+      links.push_back({y.face, x.face, parity});
     } else {
       r.non_manifold_edges.add(ab);
       non_manifold_edge_keys.push_back(uses[i].key);
@@ -363,6 +399,14 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
   }
 
   // ---- orientability: 2-colour the face graph of two-face edges by flip parity ----
+  std::vector<std::size_t> link_offset(static_cast<std::size_t>(nf) + 1, 0);  // CSR by first face
+  for (const auto& l : links) ++link_offset[l[0] + 1];
+  for (int f = 0; f < nf; ++f) link_offset[f + 1] += link_offset[f];
+  std::vector<std::pair<int, int>> face_links(links.size());
+  {
+    std::vector<std::size_t> fill(link_offset.begin(), link_offset.end() - 1);
+    for (const auto& l : links) face_links[fill[l[0]]++] = {l[1], l[2]};
+  }
   std::vector<int> flip(static_cast<std::size_t>(nf), -1);
   std::vector<int> stack;
   for (int seed = 0; seed < nf; ++seed) {
@@ -373,7 +417,8 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
     while (!stack.empty()) {
       const int f = stack.back();
       stack.pop_back();
-      for (const auto& [g, parity] : face_links[f]) {
+      for (std::size_t l = link_offset[f]; l < link_offset[f + 1]; ++l) {
+        const auto [g, parity] = face_links[l];
         const int wanted = flip[f] ^ parity;
         if (flip[g] < 0) {
           flip[g] = wanted;
