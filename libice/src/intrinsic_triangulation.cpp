@@ -15,6 +15,10 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kTwoPi = 2 * kPi;
 
 double wrap_angle(double a) {
+  // Arguments are almost always within one turn of [0, 2π): avoid fmod's cost then.
+  if (a >= 0 && a < kTwoPi) return a;
+  if (a >= kTwoPi && a < 2 * kTwoPi) return a - kTwoPi;
+  if (a < 0 && a >= -kTwoPi) return a + kTwoPi;
   a = std::fmod(a, kTwoPi);
   return a < 0 ? a + kTwoPi : a;
 }
@@ -136,29 +140,24 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   }
 
   const Index num_halfedges = 2 * num_edges;
-  he_next_.assign(num_halfedges, kInvalid);
-  he_tail_.assign(num_halfedges, kInvalid);
-  he_face_.assign(num_halfedges, kInvalid);
-  he_angle_.assign(num_halfedges, 0.0);
-  edge_length_.assign(num_edges, 0.0);
-  face_halfedge_.assign(num_faces, kInvalid);
-  vertex_halfedge_.assign(num_vertices, kInvalid);
-  angle_sum_.assign(num_vertices, 0.0);
+  edges_.assign(num_edges, EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0});
+  faces_.assign(num_faces, FaceRecord{kInvalid, kInvalid});
+  vertices_.assign(num_vertices, VertexRecord{kInvalid, 0, 0.0});
 
   std::vector<Index> corners_at_vertex(num_vertices, 0);
   for (Index c = 0; c < num_corners; ++c) {
     const Index h = corner_halfedge[c];
     const Index f = c / 3;
-    he_next_[h] = corner_halfedge[3 * f + (c % 3 + 1) % 3];
-    he_tail_[h] = F(f, c % 3);
-    he_face_[h] = f;
-    edge_length_[h >> 1] = corner_length[c];
-    face_halfedge_[f] = corner_halfedge[3 * f];
-    ++corners_at_vertex[he_tail_[h]];
+    hnext(h) = corner_halfedge[3 * f + (c % 3 + 1) % 3];
+    htail(h) = F(f, c % 3);
+    hface(h) = f;
+    elength(h >> 1) = corner_length[c];
+    fhalfedge(f) = corner_halfedge[3 * f];
+    ++corners_at_vertex[htail(h)];
   }
   // Exterior half-edges: tail is the head of their interior twin.
   for (Index h = 0; h < num_halfedges; ++h)
-    if (he_tail_[h] == kInvalid) he_tail_[h] = he_tail_[he_next_[h ^ 1]];
+    if (htail(h) == kInvalid) htail(h) = htail(hnext(h ^ 1));
 
   for (Index v = 0; v < num_vertices; ++v)
     if (corners_at_vertex[v] == 0)
@@ -166,18 +165,20 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
 
   // Vertex half-edges: any outgoing interior one, then the boundary one where it exists.
   for (Index h = 0; h < num_halfedges; ++h) {
-    if (he_face_[h] == kInvalid) continue;
-    const Index v = he_tail_[h];
-    if (vertex_halfedge_[v] == kInvalid || he_face_[h ^ 1] == kInvalid) {
-      if (vertex_halfedge_[v] != kInvalid && he_face_[vertex_halfedge_[v] ^ 1] == kInvalid)
+    if (hface(h) == kInvalid) continue;
+    const Index v = htail(h);
+    if (vhalfedge(v) == kInvalid || hface(h ^ 1) == kInvalid) {
+      if (vhalfedge(v) != kInvalid && hface(vhalfedge(v) ^ 1) == kInvalid)
         throw std::invalid_argument("IntrinsicTriangulation: non-manifold vertex " + std::to_string(v) +
                                     " (several boundary fans)");
-      vertex_halfedge_[v] = h;
+      vhalfedge(v) = h;
     }
   }
   num_vertices_ = num_vertices;
   num_edges_ = num_edges;
   num_faces_ = num_faces;
+  for (Index v = 0; v < num_vertices; ++v)
+    vertices_[v].boundary = vhalfedge(v) != kInvalid && is_exterior(vhalfedge(v) ^ 1);
 
   // One fan per vertex: the rotation from vertex_halfedge must visit every corner.
   for (Index v = 0; v < num_vertices; ++v) {
@@ -186,7 +187,7 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
                                   " (its faces form several fans)");
   }
   for (Index f = 0; f < num_faces; ++f) {
-    const Index h = face_halfedge_[f];
+    const Index h = fhalfedge(f);
     if (!triangle_inequality_holds(length(h), length(next(h)), length(prev(h))))
       throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
                                   " is degenerate or violates the triangle inequality");
@@ -197,7 +198,6 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   point_next_.assign(num_vertices, kInvalid);
   point_prev_.assign(num_vertices, kInvalid);
   point_bary_.assign(num_vertices, {0, 0, 0});
-  face_first_point_.assign(num_faces, kInvalid);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -215,7 +215,7 @@ double IntrinsicTriangulation::cotan_opposite(Index h) const {
 }
 
 double IntrinsicTriangulation::face_area(Index f) const {
-  const Index h = face_halfedge_[f];
+  const Index h = fhalfedge(f);
   return triangle_area(length(h), length(next(h)), length(prev(h)));
 }
 
@@ -233,7 +233,7 @@ double IntrinsicTriangulation::compute_angle_sum(Index v) const {
 }
 
 double IntrinsicTriangulation::curvature(Index v) const {
-  return (is_boundary_vertex(v) ? kPi : kTwoPi) - angle_sum_[v];
+  return (is_boundary_vertex(v) ? kPi : kTwoPi) - vsum(v);
 }
 
 double IntrinsicTriangulation::total_curvature() const {
@@ -244,7 +244,7 @@ double IntrinsicTriangulation::total_curvature() const {
 }
 
 double IntrinsicTriangulation::angle_scale(Index v) const {
-  return is_boundary_vertex(v) ? kTwoPi / (angle_sum_[v] + kPi) : kTwoPi / angle_sum_[v];
+  return is_boundary_vertex(v) ? kTwoPi / (vsum(v) + kPi) : kTwoPi / vsum(v);
 }
 
 void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
@@ -266,17 +266,17 @@ void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
     ++count;
     theta += corner;
   });
-  angle_sum_[v] = theta;
+  vsum(v) = theta;
   const double scale = angle_scale(v);
-  const Index start = vertex_halfedge_[v];
-  double angle = is_boundary_vertex(v) ? 0.0 : he_angle_[start];
+  const Index start = vhalfedge(v);
+  double angle = is_boundary_vertex(v) ? 0.0 : hangle(start);
   Index h = start;
   for (int c = 0;; ++c) {
-    he_angle_[h] = wrap_angle(angle);
+    hangle(h) = wrap_angle(angle);
     angle += scale * corners[c];
     const Index t = prev(h) ^ 1;
     if (is_exterior(t)) {  // boundary: the exterior outgoing half-edge closes the fan
-      he_angle_[t] = wrap_angle(angle);
+      hangle(t) = wrap_angle(angle);
       break;
     }
     if (t == start) break;
@@ -291,9 +291,9 @@ void IntrinsicTriangulation::add_point_to_face(Index p, Index f, const std::arra
   point_face_[p] = f;
   point_bary_[p] = clamp_barycentric(bary);
   point_prev_[p] = kInvalid;
-  point_next_[p] = face_first_point_[f];
+  point_next_[p] = ffirst(f);
   if (point_next_[p] != kInvalid) point_prev_[point_next_[p]] = p;
-  face_first_point_[f] = p;
+  ffirst(f) = p;
 }
 
 SurfacePoint IntrinsicTriangulation::location(Index p) const {
@@ -310,9 +310,9 @@ SurfacePoint IntrinsicTriangulation::location(Index p) const {
 // Appends every point of face f to scratch_points_, with its position in `layout`, and unlinks it.
 template <class Layout>
 void IntrinsicTriangulation::collect_points(Index f, const Layout& layout) {
-  const Index h0 = face_halfedge_[f], h1 = next(h0), h2 = next(h1);
+  const Index h0 = fhalfedge(f), h1 = next(h0), h2 = next(h1);
   const Vec2 p0 = layout.at(h0), p1 = layout.at(h1), p2 = layout.at(h2);
-  Index p = face_first_point_[f];
+  Index p = ffirst(f);
   while (p != kInvalid) {
     const Index following = point_next_[p];
     const auto& b = point_bary_[p];
@@ -320,7 +320,7 @@ void IntrinsicTriangulation::collect_points(Index f, const Layout& layout) {
     point_face_[p] = point_next_[p] = point_prev_[p] = kInvalid;
     p = following;
   }
-  face_first_point_[f] = kInvalid;
+  ffirst(f) = kInvalid;
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -357,7 +357,7 @@ bool IntrinsicTriangulation::flip(Index h) {
     return false;
 
   // Tracked points of both faces, with their positions in the layout.
-  const bool has_points = face_first_point_[f0] != kInvalid || face_first_point_[f1] != kInvalid;
+  const bool has_points = ffirst(f0) != kInvalid || ffirst(f1) != kInvalid;
   scratch_points_.clear();
   if (has_points) {
     LocalLayout layout;
@@ -373,21 +373,21 @@ bool IntrinsicTriangulation::flip(Index h) {
 
   // Rewire: f0 = (h: l->k, b: k->i, c: i->l), f1 = (t: k->l, d: l->j, a: j->k).
   const Index i = tail(h), j = tail(t);
-  he_next_[h] = b, he_next_[b] = c, he_next_[c] = h;
-  he_next_[t] = d, he_next_[d] = a, he_next_[a] = t;
-  he_face_[c] = f0, he_face_[a] = f1;
-  he_tail_[h] = l, he_tail_[t] = k;
-  face_halfedge_[f0] = h, face_halfedge_[f1] = t;
-  if (vertex_halfedge_[i] == h) vertex_halfedge_[i] = c;
-  if (vertex_halfedge_[j] == t) vertex_halfedge_[j] = a;
-  edge_length_[h >> 1] = l_kl;
+  hnext(h) = b, hnext(b) = c, hnext(c) = h;
+  hnext(t) = d, hnext(d) = a, hnext(a) = t;
+  hface(c) = f0, hface(a) = f1;
+  htail(h) = l, htail(t) = k;
+  fhalfedge(f0) = h, fhalfedge(f1) = t;
+  if (vhalfedge(i) == h) vhalfedge(i) = c;
+  if (vhalfedge(j) == t) vhalfedge(j) = a;
+  elength(h >> 1) = l_kl;
   // New angular coordinates from the layout: at l the corner from d (l->j) to h (l->k), at k the
   // corner from b (k->i) to t (k->l).
   const Vec2 lj = pj - pl, lk = pk - pl, ki = pi - pk, kl_dir = pl - pk;
   const double corner_l = std::atan2(cross(lj, lk), lj.x * lk.x + lj.y * lk.y);
   const double corner_k = std::atan2(cross(ki, kl_dir), ki.x * kl_dir.x + ki.y * kl_dir.y);
-  he_angle_[h] = wrap_angle(he_angle_[d] + angle_scale(l) * corner_l);
-  he_angle_[t] = wrap_angle(he_angle_[b] + angle_scale(k) * corner_k);
+  hangle(h) = wrap_angle(hangle(d) + angle_scale(l) * corner_l);
+  hangle(t) = wrap_angle(hangle(b) + angle_scale(k) * corner_k);
 
   for (const auto& q : scratch_points_) {
     if (orient2d(pk, pl, q.position) > 0)
@@ -412,7 +412,7 @@ int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& fa
   std::vector<Index>& stack = scratch_stack_;
   std::vector<std::uint8_t>& queued = edge_queued_;
   stack.clear();
-  if (queued.size() < edge_length_.size()) queued.resize(edge_length_.size(), 0);
+  if (queued.size() < edges_.size()) queued.resize(edges_.size(), 0);
   const auto push = [&](Index h) {
     const Index e = h >> 1;
     if (!queued[e] && !is_boundary_edge(h)) {
@@ -422,7 +422,7 @@ int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& fa
   };
   for (Index f : faces) {
     if (!face_alive(f)) continue;
-    const Index h = face_halfedge_[f];
+    const Index h = fhalfedge(f);
     push(h), push(next(h)), push(prev(h));
   }
   int flips = 0;
@@ -476,7 +476,7 @@ FlattenResult IntrinsicTriangulation::compute_flattening(Index v, double toleran
   // Θ(u) − target and dΘ/du. Near the target (|Θ(0) − target| < π/2, and Newton moves Θ
   // monotonically towards it) the residual is the argument of the product of the corners' unit
   // complex numbers times e^{−i·target}: one atan2 per evaluation instead of one per corner.
-  const bool use_product = std::abs(angle_sum_[v] - target) < 0.5 * kPi;
+  const bool use_product = std::abs(vsum(v) - target) < 0.5 * kPi;
   const auto evaluate = [&](double u, bool with_theta, double& residual, double& derivative) -> bool {
     const double scale[3] = {1.0, std::exp(0.5 * u), std::exp(u)};
     double theta = 0;
@@ -511,9 +511,9 @@ FlattenResult IntrinsicTriangulation::compute_flattening(Index v, double toleran
   };
 
   // The stored angle sum is Θ(0): the first Newton step needs no trigonometry.
-  double u = 0, residual = angle_sum_[v] - target, derivative = 0;
+  double u = 0, residual = vsum(v) - target, derivative = 0;
   if (!evaluate(u, false, residual, derivative)) return result;
-  residual = angle_sum_[v] - target;
+  residual = vsum(v) - target;
   for (int iteration = 0; iteration < 60; ++iteration) {
     if (std::abs(residual) <= tolerance * target) {
       result.success = true;
@@ -555,14 +555,14 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v) {
   std::vector<Index>& neighbours = scratch_vertices_;
   neighbours.clear();
   for_each_outgoing(v, [&](Index h) {
-    edge_length_[h >> 1] *= half_scale;
+    elength(h >> 1) *= half_scale;
     neighbours.push_back(head(h));
   });
   if (is_boundary_vertex(v)) {
-    Index last = vertex_halfedge_[v];
+    Index last = vhalfedge(v);
     while (rotate_ccw(last) != kInvalid) last = rotate_ccw(last);
     const Index exterior_out = prev(last) ^ 1;
-    edge_length_[exterior_out >> 1] *= half_scale;
+    elength(exterior_out >> 1) *= half_scale;
     neighbours.push_back(head(exterior_out));
   }
   // Tracked points in the star: the coordinate of each corner at v is multiplied by e^u (the
@@ -574,7 +574,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v) {
   std::sort(star_faces.begin(), star_faces.end());
   star_faces.erase(std::unique(star_faces.begin(), star_faces.end()), star_faces.end());
   for (Index f : star_faces) {
-    const Index h0 = face_halfedge_[f];
+    const Index h0 = fhalfedge(f);
     const bool at_v[3] = {tail(h0) == v, tail(next(h0)) == v, tail(prev(h0)) == v};
     for_each_point_in_face(f, [&](Index p) {
       std::array<double, 3>& b = point_bary_[p];
@@ -595,14 +595,14 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v) {
 // Vertex removal
 
 void IntrinsicTriangulation::kill_face(Index f) {
-  face_halfedge_[f] = kInvalid;
-  face_first_point_[f] = kInvalid;
+  fhalfedge(f) = kInvalid;
+  ffirst(f) = kInvalid;
   --num_faces_;
 }
 
 void IntrinsicTriangulation::kill_edge(Index e) {
-  for (Index h : {2 * e, 2 * e + 1}) he_next_[h] = he_tail_[h] = he_face_[h] = kInvalid;
-  edge_length_[e] = 0;
+  for (Index h : {2 * e, 2 * e + 1}) hnext(h) = htail(h) = hface(h) = kInvalid;
+  elength(e) = 0;
   --num_edges_;
 }
 
@@ -698,18 +698,18 @@ void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Ind
 
   const Index f = face(h0);
   const Index f1 = face(h1), f2 = face(h2);
-  he_next_[o0] = o1, he_next_[o1] = o2, he_next_[o2] = o0;
-  he_face_[o0] = he_face_[o1] = he_face_[o2] = f;
-  face_halfedge_[f] = o0;
+  hnext(o0) = o1, hnext(o1) = o2, hnext(o2) = o0;
+  hface(o0) = hface(o1) = hface(o2) = f;
+  fhalfedge(f) = o0;
   kill_face(f1);
   kill_face(f2);
   const Index x[3] = {tail(o0), tail(o1), tail(o2)};
   for (Index h : star) kill_edge(h >> 1);
   for (int k = 0; k < 3; ++k)
-    if (!halfedge_alive(vertex_halfedge_[x[k]]) || tail(vertex_halfedge_[x[k]]) != x[k])
-      vertex_halfedge_[x[k]] = k == 0 ? o0 : (k == 1 ? o1 : o2);
-  vertex_halfedge_[v] = kInvalid;
-  angle_sum_[v] = 0;
+    if (!halfedge_alive(vhalfedge(x[k])) || tail(vhalfedge(x[k])) != x[k])
+      vhalfedge(x[k]) = k == 0 ? o0 : (k == 1 ? o1 : o2);
+  vhalfedge(v) = kInvalid;
+  vsum(v) = 0;
   --num_vertices_;
   for (int k = 0; k < 3; ++k)
     if (k == 0 || (x[k] != x[0] && (k == 1 || x[k] != x[1]))) recompute_vertex_frame(x[k]);
@@ -758,20 +758,20 @@ bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Inde
   const Index fa = face(s[0]), fb = face(s[2]);
   const Index dead1 = face(s[1]), dead3 = face(s[3]);
   const Index d = s[0], d_twin = s[0] ^ 1;
-  he_tail_[d] = x[2], he_tail_[d_twin] = x[0];
-  he_next_[o[0]] = o[1], he_next_[o[1]] = d, he_next_[d] = o[0];
-  he_next_[o[2]] = o[3], he_next_[o[3]] = d_twin, he_next_[d_twin] = o[2];
-  he_face_[o[0]] = he_face_[o[1]] = he_face_[d] = fa;
-  he_face_[o[2]] = he_face_[o[3]] = he_face_[d_twin] = fb;
-  face_halfedge_[fa] = o[0], face_halfedge_[fb] = o[2];
-  edge_length_[d >> 1] = diagonal;
+  htail(d) = x[2], htail(d_twin) = x[0];
+  hnext(o[0]) = o[1], hnext(o[1]) = d, hnext(d) = o[0];
+  hnext(o[2]) = o[3], hnext(o[3]) = d_twin, hnext(d_twin) = o[2];
+  hface(o[0]) = hface(o[1]) = hface(d) = fa;
+  hface(o[2]) = hface(o[3]) = hface(d_twin) = fb;
+  fhalfedge(fa) = o[0], fhalfedge(fb) = o[2];
+  elength(d >> 1) = diagonal;
   kill_face(dead1);
   kill_face(dead3);
   for (int k = 1; k < 4; ++k) kill_edge(s[k] >> 1);
   for (int k = 0; k < 4; ++k)
-    if (!halfedge_alive(vertex_halfedge_[x[k]]) || tail(vertex_halfedge_[x[k]]) != x[k]) vertex_halfedge_[x[k]] = o[k];
-  vertex_halfedge_[v] = kInvalid;
-  angle_sum_[v] = 0;
+    if (!halfedge_alive(vhalfedge(x[k])) || tail(vhalfedge(x[k])) != x[k]) vhalfedge(x[k]) = o[k];
+  vhalfedge(v) = kInvalid;
+  vsum(v) = 0;
   --num_vertices_;
   for (int k = 0; k < 4; ++k) {
     bool repeated = false;
@@ -790,7 +790,7 @@ bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Inde
 
 RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vector<Index>* changed_faces,
                                                              std::vector<Index>* touched) {
-  Index hb = vertex_halfedge_[v];  // v -> k, twin exterior
+  Index hb = vhalfedge(v);  // v -> k, twin exterior
   Index last = hb;
   while (rotate_ccw(last) != kInvalid) last = rotate_ccw(last);
   const Index k = head(hb), j = tail(prev(last));
@@ -807,7 +807,7 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
   if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
   while (degree(v) > 2)
     if (!flip_one_edge_at(*this, v, changed_faces, touched)) return RemovalStatus::NoConvexFlip;
-  hb = vertex_halfedge_[v];
+  hb = vhalfedge(v);
   const Index h2 = rotate_ccw(hb);  // v -> m
   if (h2 == kInvalid) return RemovalStatus::TopologyChange;
   const Index o1 = next(hb), o2 = next(h2), in = prev(h2);  // k -> m, m -> j, j -> v
@@ -829,18 +829,18 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
   const double new_length = length(hb) + length(in);
   const Index f = face(hb), f2 = face(h2);
   // Re-use hb's edge as the new boundary edge j -> k (twin k -> j stays exterior).
-  he_tail_[hb] = j, he_tail_[hb ^ 1] = k;
-  he_next_[o1] = o2, he_next_[o2] = hb, he_next_[hb] = o1;
-  he_face_[o2] = f;
-  face_halfedge_[f] = o1;
-  edge_length_[hb >> 1] = new_length;
+  htail(hb) = j, htail(hb ^ 1) = k;
+  hnext(o1) = o2, hnext(o2) = hb, hnext(hb) = o1;
+  hface(o2) = f;
+  fhalfedge(f) = o1;
+  elength(hb >> 1) = new_length;
   kill_face(f2);
   kill_edge(h2 >> 1);
   kill_edge(in >> 1);
-  vertex_halfedge_[j] = hb;
-  if (!halfedge_alive(vertex_halfedge_[m]) || tail(vertex_halfedge_[m]) != m) vertex_halfedge_[m] = o2;
-  vertex_halfedge_[v] = kInvalid;
-  angle_sum_[v] = 0;
+  vhalfedge(j) = hb;
+  if (!halfedge_alive(vhalfedge(m)) || tail(vhalfedge(m)) != m) vhalfedge(m) = o2;
+  vhalfedge(v) = kInvalid;
+  vsum(v) = 0;
   --num_vertices_;
   recompute_vertex_frame(j);
   recompute_vertex_frame(k);
@@ -866,7 +866,7 @@ CompactMesh IntrinsicTriangulation::compact() const {
   Index row = 0;
   for (Index f = 0; f < num_face_slots(); ++f) {
     if (!face_alive(f)) continue;
-    Index h = face_halfedge_[f];
+    Index h = fhalfedge(f);
     for (int k = 0; k < 3; ++k, h = next(h)) {
       out.F(row, k) = out.from_input[tail(h)];
       out.L(row, k) = length(h);
@@ -890,7 +890,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
     if (!alive0) continue;
     ++live_edges;
     if (is_exterior(h) && is_exterior(h + 1)) fail("edge " + std::to_string(h / 2) + " has no face");
-    const double l = edge_length_[h / 2];
+    const double l = elength(h / 2);
     if (!(l > 0) || !std::isfinite(l)) fail("edge " + std::to_string(h / 2) + " has a non-positive length");
   }
   for (Index h = 0; h < H; ++h) {
@@ -907,11 +907,11 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
   }
   for (Index f = 0; f < num_face_slots(); ++f) {
     if (!face_alive(f)) {
-      if (face_first_point_[f] != kInvalid) fail("dead face " + std::to_string(f) + " holds points");
+      if (ffirst(f) != kInvalid) fail("dead face " + std::to_string(f) + " holds points");
       continue;
     }
     ++live_faces;
-    const Index h = face_halfedge_[f];
+    const Index h = fhalfedge(f);
     if (!halfedge_alive(h) || face(h) != f) {
       fail("face " + std::to_string(f) + " has a bad half-edge");
       continue;
@@ -927,7 +927,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
   for (Index v = 0; v < num_input_vertices(); ++v) {
     if (!vertex_alive(v)) continue;
     ++live_vertices;
-    const Index start = vertex_halfedge_[v];
+    const Index start = vhalfedge(v);
     if (!halfedge_alive(start) || tail(start) != v || is_exterior(start)) {
       fail("vertex " + std::to_string(v) + " has a bad half-edge");
       continue;
@@ -947,8 +947,8 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
       const double corner = corner_angle(h);
       theta += corner;
       const Index t = prev(h) ^ 1;
-      const double expected = he_angle_[h] + scale * corner;
-      const double got = he_angle_[t];
+      const double expected = hangle(h) + scale * corner;
+      const double got = hangle(t);
       double gap = std::fmod(std::abs(expected - got), kTwoPi);
       gap = std::min(gap, kTwoPi - gap);
       if (gap > 1e-7) fail("vertex " + std::to_string(v) + ": angular coordinates inconsistent");
@@ -956,7 +956,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
       h = t;
     }
     if (broken) continue;
-    if (std::abs(theta - angle_sum_[v]) > tolerance) fail("vertex " + std::to_string(v) + ": stale angle sum");
+    if (std::abs(theta - vsum(v)) > tolerance) fail("vertex " + std::to_string(v) + ": stale angle sum");
     curvature_sum += curvature(v);
   }
   if (live_vertices != num_vertices_) fail("vertex count out of date");
@@ -969,7 +969,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
   Index listed = 0;
   for (Index f = 0; f < num_face_slots(); ++f) {
     if (!face_alive(f)) continue;
-    for (Index p = face_first_point_[f]; p != kInvalid; p = point_next_[p]) {
+    for (Index p = ffirst(f); p != kInvalid; p = point_next_[p]) {
       if (++listed > num_input_vertices()) {
         fail("point list of face " + std::to_string(f) + " does not end");
         return problems.str();
@@ -1000,9 +1000,8 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
 
 std::size_t IntrinsicTriangulation::memory_bytes() const {
   const auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return bytes(he_next_) + bytes(he_tail_) + bytes(he_face_) + bytes(he_angle_) + bytes(edge_length_) +
-         bytes(face_halfedge_) + bytes(vertex_halfedge_) + bytes(angle_sum_) + bytes(point_face_) +
-         bytes(point_next_) + bytes(point_prev_) + bytes(face_first_point_) + bytes(point_bary_);
+  return bytes(edges_) + bytes(vertices_) + bytes(faces_) + bytes(point_face_) + bytes(point_next_) +
+         bytes(point_prev_) + bytes(point_bary_);
 }
 
 }  // namespace ice

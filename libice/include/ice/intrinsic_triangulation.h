@@ -89,30 +89,30 @@ class IntrinsicTriangulation {
   static IntrinsicTriangulation from_lengths(const Faces& F, const FaceLengths& L);
 
   // ---- sizes ------------------------------------------------------------------------------
-  Index num_input_vertices() const { return static_cast<Index>(vertex_halfedge_.size()); }
+  Index num_input_vertices() const { return static_cast<Index>(vertices_.size()); }
   Index num_vertices() const { return num_vertices_; }
   Index num_edges() const { return num_edges_; }
   Index num_faces() const { return num_faces_; }
-  Index num_halfedge_slots() const { return static_cast<Index>(he_tail_.size()); }
-  Index num_face_slots() const { return static_cast<Index>(face_halfedge_.size()); }
+  Index num_halfedge_slots() const { return static_cast<Index>(2 * edges_.size()); }
+  Index num_face_slots() const { return static_cast<Index>(faces_.size()); }
   int euler_characteristic() const { return num_vertices_ - num_edges_ + num_faces_; }
 
   // ---- connectivity -----------------------------------------------------------------------
   static Index twin(Index h) { return h ^ 1; }
   static Index edge(Index h) { return h >> 1; }
-  Index next(Index h) const { return he_next_[h]; }
-  Index prev(Index h) const { return he_next_[he_next_[h]]; }  ///< interior half-edges only
-  Index tail(Index h) const { return he_tail_[h]; }
-  Index head(Index h) const { return he_tail_[h ^ 1]; }
-  Index face(Index h) const { return he_face_[h]; }
-  Index halfedge(Index f) const { return face_halfedge_[f]; }
-  Index vertex_halfedge(Index v) const { return vertex_halfedge_[v]; }
-  bool halfedge_alive(Index h) const { return he_tail_[h] != kInvalid; }
-  bool face_alive(Index f) const { return face_halfedge_[f] != kInvalid; }
-  bool vertex_alive(Index v) const { return vertex_halfedge_[v] != kInvalid; }
-  bool is_exterior(Index h) const { return he_face_[h] == kInvalid; }
+  Index next(Index h) const { return hnext(h); }
+  Index prev(Index h) const { return hnext(hnext(h)); }  ///< interior half-edges only
+  Index tail(Index h) const { return htail(h); }
+  Index head(Index h) const { return htail(h ^ 1); }
+  Index face(Index h) const { return hface(h); }
+  Index halfedge(Index f) const { return fhalfedge(f); }
+  Index vertex_halfedge(Index v) const { return vhalfedge(v); }
+  bool halfedge_alive(Index h) const { return htail(h) != kInvalid; }
+  bool face_alive(Index f) const { return fhalfedge(f) != kInvalid; }
+  bool vertex_alive(Index v) const { return vhalfedge(v) != kInvalid; }
+  bool is_exterior(Index h) const { return hface(h) == kInvalid; }
   bool is_boundary_edge(Index h) const { return is_exterior(h) || is_exterior(h ^ 1); }
-  bool is_boundary_vertex(Index v) const { return is_exterior(vertex_halfedge_[v] ^ 1); }
+  bool is_boundary_vertex(Index v) const { return vertices_[v].boundary != 0; }
   /// Next outgoing interior half-edge counter-clockwise around tail(h), or kInvalid past the last
   /// one at a boundary vertex.
   Index rotate_ccw(Index h) const {
@@ -124,7 +124,7 @@ class IntrinsicTriangulation {
   /// Calls f(h) for every outgoing interior half-edge of v, counter-clockwise from vertex_halfedge.
   template <class F>
   void for_each_outgoing(Index v, F&& f) const {
-    const Index start = vertex_halfedge_[v];
+    const Index start = vhalfedge(v);
     Index h = start;
     do {
       f(h);
@@ -133,7 +133,7 @@ class IntrinsicTriangulation {
   }
 
   // ---- geometry ---------------------------------------------------------------------------
-  double length(Index h) const { return edge_length_[h >> 1]; }
+  double length(Index h) const { return elength(h >> 1); }
   /// Corner angle at tail(h) in face(h) (between h and prev(h)).
   double corner_angle(Index h) const {
     return angle_opposite(length(h), length(prev(h)), length(next(h)));
@@ -145,7 +145,7 @@ class IntrinsicTriangulation {
   double face_area(Index f) const;
   double total_area() const;
   /// Angle sum Θ_v (stored; kept current by every operation).
-  double angle_sum(Index v) const { return angle_sum_[v]; }
+  double angle_sum(Index v) const { return vsum(v); }
   /// Θ_v recomputed from the lengths.
   double compute_angle_sum(Index v) const;
   /// Gaussian curvature 2π − Θ at interior vertices, geodesic curvature π − Θ at boundary ones.
@@ -153,7 +153,7 @@ class IntrinsicTriangulation {
   /// Σ curvature over live vertices; equals 2πχ (Gauss–Bonnet).
   double total_curvature() const;
   /// Angular coordinate of the outgoing half-edge h at tail(h), in [0, 2π).
-  double angular_coordinate(Index h) const { return he_angle_[h]; }
+  double angular_coordinate(Index h) const { return hangle(h); }
   /// The factor that maps corner angles at v to angular coordinates.
   double angle_scale(Index v) const;
   /// True when the edge of h is locally Delaunay: the opposite angles sum to ≤ π, i.e. the cotan
@@ -196,7 +196,7 @@ class IntrinsicTriangulation {
   /// Input vertices tracked inside face f (for iteration; order unspecified).
   template <class F>
   void for_each_point_in_face(Index f, F&& fn) const {
-    for (Index p = face_first_point_[f]; p != kInvalid; p = point_next_[p]) fn(p);
+    for (Index p = ffirst(f); p != kInvalid; p = point_next_[p]) fn(p);
   }
 
   // ---- export and checks ------------------------------------------------------------------
@@ -218,16 +218,48 @@ class IntrinsicTriangulation {
   void merge_star_into_face(Index v, const std::vector<Index>& star, std::vector<Index>* changed_faces);
   bool merge_star_along_diagonal(Index v, std::vector<Index>* changed_faces);
 
-  // Half-edge arrays (size 2·edges).
-  std::vector<Index> he_next_, he_tail_, he_face_;
-  std::vector<double> he_angle_;
-  // Edge, face, vertex arrays.
-  std::vector<double> edge_length_;
-  std::vector<Index> face_halfedge_;
-  std::vector<Index> vertex_halfedge_;
-  std::vector<double> angle_sum_;
+  // Storage: records rather than one array per attribute, so that a local operation touches few
+  // cache lines. An edge record holds both of its half-edges (2e and 2e+1) and its length.
+  struct EdgeRecord {
+    Index next[2];
+    Index tail[2];
+    Index face[2];
+    double angle[2];
+    double length;
+  };
+  struct VertexRecord {
+    Index halfedge;
+    Index boundary;  // 1 on the boundary; boundary status never changes (kept in the padding)
+    double angle_sum;
+  };
+  struct FaceRecord {
+    Index halfedge;
+    Index first_point;
+  };
+  std::vector<EdgeRecord> edges_;
+  std::vector<VertexRecord> vertices_;
+  std::vector<FaceRecord> faces_;
+  // Reference accessors used by the implementation.
+  Index& hnext(Index h) { return edges_[h >> 1].next[h & 1]; }
+  Index& htail(Index h) { return edges_[h >> 1].tail[h & 1]; }
+  Index& hface(Index h) { return edges_[h >> 1].face[h & 1]; }
+  double& hangle(Index h) { return edges_[h >> 1].angle[h & 1]; }
+  double& elength(Index e) { return edges_[e].length; }
+  Index& fhalfedge(Index f) { return faces_[f].halfedge; }
+  Index& ffirst(Index f) { return faces_[f].first_point; }
+  Index& vhalfedge(Index v) { return vertices_[v].halfedge; }
+  double& vsum(Index v) { return vertices_[v].angle_sum; }
+  Index hnext(Index h) const { return edges_[h >> 1].next[h & 1]; }
+  Index htail(Index h) const { return edges_[h >> 1].tail[h & 1]; }
+  Index hface(Index h) const { return edges_[h >> 1].face[h & 1]; }
+  double hangle(Index h) const { return edges_[h >> 1].angle[h & 1]; }
+  double elength(Index e) const { return edges_[e].length; }
+  Index fhalfedge(Index f) const { return faces_[f].halfedge; }
+  Index ffirst(Index f) const { return faces_[f].first_point; }
+  Index vhalfedge(Index v) const { return vertices_[v].halfedge; }
+  double vsum(Index v) const { return vertices_[v].angle_sum; }
   // Tracked points: one per input vertex, with intrusive per-face lists.
-  std::vector<Index> point_face_, point_next_, point_prev_, face_first_point_;
+  std::vector<Index> point_face_, point_next_, point_prev_;
   std::vector<std::array<double, 3>> point_bary_;
   // Scratch space re-used by local operations (no allocation per flip or removal).
   struct PlacedPoint {
