@@ -9,34 +9,13 @@
 #include <unistd.h>
 
 #include "ice/mesh_generators.h"
+#include "test_support.h"
 #include "ice/mesh_io.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-/// A fresh directory under the system temp dir, removed when the test ends.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = fs::temp_directory_path() /
-            ("ice_io_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  std::string write(const std::string& name, const std::string& content) const {
-    std::ofstream(file(name), std::ios::binary) << content;
-    return file(name);
-  }
-
- private:
-  fs::path path_;
-};
 
 /// Expect a MeshError of the given kind whose message names the file and contains `needle`.
 template <class F>
@@ -55,7 +34,7 @@ void require_mesh_error(F&& call, ice::MeshError::Kind kind, const std::string& 
 }  // namespace
 
 TEST_CASE("read_mesh_file: missing, empty, odd and corrupt files give clear errors", "[io]") {
-  TempDir dir;
+  ice_test::TempDir dir;
   using Kind = ice::MeshError::Kind;
   const std::string missing = dir.file("nope.obj");
   require_mesh_error([&] { ice::read_mesh_file(missing); }, Kind::Unreadable, missing, "no such file");
@@ -91,7 +70,7 @@ TEST_CASE("read_mesh_file: missing, empty, odd and corrupt files give clear erro
 }
 
 TEST_CASE("OBJ: corner syntax, negative indices, repeated corners stay visible", "[io]") {
-  TempDir dir;
+  ice_test::TempDir dir;
   const std::string path = dir.write("syntax.obj",
                                      "# comment\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvn 0 0 1\n"
                                      "f 1/1/1 2/1/1 3/1/1\nf -3//1 -1//1 -2//1\nf 1 2 2\n");
@@ -108,7 +87,7 @@ TEST_CASE("OBJ: corner syntax, negative indices, repeated corners stay visible",
 }
 
 TEST_CASE("round trips keep double precision: OBJ, OFF, ASCII and binary PLY", "[io]") {
-  TempDir dir;
+  ice_test::TempDir dir;
   ice::TriangleMesh mesh = ice::make_icosphere(2);
   mesh.V.array() += 1e6;  // float32 would move vertices by up to 0.03 here
   mesh.V.col(1).array() += 1.0 / 3.0;
@@ -129,7 +108,7 @@ TEST_CASE("round trips keep double precision: OBJ, OFF, ASCII and binary PLY", "
 }
 
 TEST_CASE("STL (ASCII and binary): per-triangle vertices are welded back into a closed mesh", "[io]") {
-  TempDir dir;
+  ice_test::TempDir dir;
   const ice::TriangleMesh mesh = ice::make_icosphere(1);
   for (bool binary : {false, true}) {
     INFO("binary " << binary);
@@ -150,7 +129,7 @@ TEST_CASE("STL (ASCII and binary): per-triangle vertices are welded back into a 
 }
 
 TEST_CASE("truncated binary PLY is refused, never read as garbage", "[io]") {
-  TempDir dir;
+  ice_test::TempDir dir;
   const ice::TriangleMesh mesh = ice::make_icosphere(1);
   const std::string path = dir.file("cut.ply");
   ice::write_mesh(path, mesh, {false, true});
@@ -159,7 +138,7 @@ TEST_CASE("truncated binary PLY is refused, never read as garbage", "[io]") {
 }
 
 TEST_CASE("write_mesh never overwrites unless asked", "[io]") {
-  TempDir dir;
+  ice_test::TempDir dir;
   const ice::TriangleMesh mesh = ice::make_icosphere(0);
   const std::string path = dir.file("out.obj");
   ice::write_mesh(path, mesh);

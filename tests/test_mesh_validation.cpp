@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "ice/mesh_generators.h"
+#include "test_support.h"
 #include "ice/mesh_io.h"
 #include "ice/mesh_repair.h"
 #include "ice/mesh_validation.h"
@@ -20,27 +21,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = fs::temp_directory_path() /
-            ("ice_validation_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string write(const std::string& name, const std::string& content) const {
-    const std::string file = (path_ / name).string();
-    std::ofstream(file, std::ios::binary) << content;
-    return file;
-  }
-
- private:
-  fs::path path_;
-};
 
 /// Message of the MeshError thrown by load_mesh (fails the test if nothing is thrown).
 std::string refusal(const std::string& path, const ice::LoadOptions& options = {}) {
@@ -267,7 +247,7 @@ TEST_CASE("validation: each defect is counted and located", "[validation]") {
 }
 
 TEST_CASE("load policy on hand-written files", "[validation][io]") {
-  TempDir dir;
+  ice_test::TempDir dir;
   const std::string quad_obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
 
   SECTION("quads: refused, triangulated with repair") {

@@ -2,9 +2,13 @@
 /// Helpers shared by the test files.
 #include <catch2/catch.hpp>
 
+#include <atomic>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <string>
+
+#include <unistd.h>
 
 namespace ice_test {
 
@@ -25,5 +29,31 @@ inline std::string shared_mesh(const std::string& name) {
   if (!std::filesystem::exists(path)) FAIL("shared mesh missing: " << path);
   return path;
 }
+
+/// A fresh directory under the system temp dir, removed (with its contents) when the test ends.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = std::filesystem::temp_directory_path() /
+            ("ice_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+  /// Writes `content` (binary) to a file in the directory and returns its path.
+  std::string write(const std::string& name, const std::string& content) const {
+    std::ofstream(file(name), std::ios::binary) << content;
+    return file(name);
+  }
+
+ private:
+  std::filesystem::path path_;
+};
 
 }  // namespace ice_test
