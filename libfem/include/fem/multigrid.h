@@ -1,0 +1,152 @@
+#pragma once
+/// \file multigrid.h
+/// Galerkin multigrid for sparse symmetric positive definite systems on a fine mesh, given the
+/// prolongations of a mesh hierarchy (ice/hierarchy.h builds them by repeated ICE coarsening; any
+/// P_k with n_k rows and n_{k+1} columns works).
+///
+/// Levels. Level 0 is the system A x = b over the free unknowns. Level k+1's operator is the
+/// Galerkin product A_{k+1} = P_kᵀ A_k P_k (exactly symmetrised). The coarsest level is solved by
+/// CHOLMOD (fem::CholeskySolver).
+///
+/// Constrained (Dirichlet) unknowns. x is prescribed at the constrained indices C, which are
+/// eliminated as in fem::ConstrainedSolver: the solver works on A_FF x_F = b_F − A_FC x_C over the
+/// free indices F. Through the levels, P_0 is restricted to its free rows; a coarse column that is
+/// then empty (a coarse unknown supported only on constrained vertices) is dropped, and the rows of
+/// P_1 of dropped unknowns are dropped in turn, and so on. Every coarse space is thus spanned by
+/// prolonged functions that vanish on C, which is what Galerkin coarsening of the eliminated system
+/// requires; no level sees the constrained rows.
+///
+/// Cycles. A V-cycle smooths (ν pre-smoothing steps), restricts the residual with P_kᵀ, recurses,
+/// prolongs the correction with P_k and smooths again (ν post-smoothing steps). The smoothers are
+/// chosen so that the V-cycle is a symmetric positive definite operator and thus a valid
+/// preconditioner for conjugate gradients:
+///  - gauss_seidel: pre = ν forward sweeps, post = ν backward sweeps;
+///  - symmetric_gauss_seidel: pre and post = ν (forward + backward) sweeps;
+///  - chebyshev: a degree-d Chebyshev polynomial in D⁻¹A (Jacobi) on [λ/`chebyshev_ratio`, 1.1·λ],
+///    λ the largest eigenvalue of D⁻¹A_k estimated by power iteration; pre = post.
+/// Mode `vcycle` iterates V-cycles (stationary); mode `pcg` runs conjugate gradients preconditioned
+/// by one V-cycle per iteration (the default and the faster one).
+///
+/// Convergence is measured by the relative residual ‖b_F − A_FF x_F‖₂ / ‖b_F − A_FC x_C‖₂ (so a
+/// zero initial guess starts at 1). In PCG mode the recorded residuals are those of the CG
+/// recurrence; the final relative_residual is recomputed from the returned x.
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fem/cholesky.h"
+#include "fem/operators.h"
+
+namespace fem {
+
+enum class MultigridMode { vcycle, pcg };
+enum class MultigridSmoother { gauss_seidel, symmetric_gauss_seidel, chebyshev };
+
+const char* to_string(MultigridMode mode);
+const char* to_string(MultigridSmoother smoother);
+
+struct MultigridOptions {
+  MultigridMode mode = MultigridMode::pcg;
+  MultigridSmoother smoother = MultigridSmoother::gauss_seidel;
+  /// ν: pre- and post-smoothing steps per level (>= 1).
+  int smoothing_steps = 1;
+  /// Chebyshev: polynomial degree (>= 1) and the ratio of the interval's ends.
+  int chebyshev_degree = 3;
+  double chebyshev_ratio = 30;
+  /// Stop when the relative residual is at most this (> 0).
+  double tolerance = 1e-8;
+  /// Upper bound on cycles (vcycle) or CG iterations (pcg) (>= 1).
+  int max_iterations = 200;
+};
+
+/// Outcome of one solve.
+struct MultigridReport {
+  bool converged = false;
+  int iterations = 0;
+  /// Relative residual before the first and after every iteration (size iterations + 1).
+  std::vector<double> residuals;
+  /// Relative residual of the returned x (recomputed).
+  double relative_residual = 0;
+  /// Geometric mean of the residual ratios: (residuals.back() / residuals.front())^(1/iterations).
+  double convergence_factor = 0;
+  double seconds = 0;
+};
+
+/// Sizes and setup cost of the levels.
+struct MultigridLevelInfo {
+  Eigen::Index unknowns = 0;
+  Eigen::Index nonzeros = 0;
+};
+
+class MultigridSolver {
+ public:
+  /// prolongations[k] is P_k (n_k × n_{k+1}); consecutive sizes must match (std::invalid_argument).
+  /// An empty list gives a one-level "multigrid", i.e. a CHOLMOD solve.
+  explicit MultigridSolver(std::vector<SparseMatrix> prolongations, MultigridOptions options = {});
+  ~MultigridSolver();
+  MultigridSolver(MultigridSolver&&) noexcept;
+  MultigridSolver& operator=(MultigridSolver&&) noexcept;
+
+  /// Builds the levels for A (n_0 × n_0, symmetric; A_FF positive definite) with x prescribed at
+  /// `constrained` (indices in range, duplicates merged): restricted prolongations, Galerkin
+  /// operators, smoother data, coarsest factorisation (analysis + numeric). Throws
+  /// std::invalid_argument on bad sizes or indices, NotPositiveDefinite if the coarsest operator is
+  /// not positive definite.
+  void setup(const SparseMatrix& A, std::vector<int> constrained = {});
+
+  /// Replaces the matrix by one with the same sparsity pattern and the same constrained set (e.g.
+  /// M + tL for another t): redoes only the Galerkin products, the smoother data and the coarsest
+  /// numeric factorisation (its symbolic analysis is reused). Precondition: setup() was called.
+  void update_matrix(const SparseMatrix& A);
+
+  /// Solves A x = b with x(constrained[i]) = constrained_values(i) (empty: zeros), starting from 0
+  /// on the free unknowns. Rows of b at constrained indices are ignored. Returns the full-length x;
+  /// the convergence history is in report(). Does not throw when max_iterations is reached:
+  /// check report().converged.
+  Eigen::VectorXd solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values = {});
+  /// Same, starting from `initial_guess` (full length; its constrained entries are ignored).
+  Eigen::VectorXd solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values,
+                        const Eigen::VectorXd& initial_guess);
+
+  /// One V-cycle on the free system, z ≈ A_FF⁻¹ r from z = 0 (the preconditioner). Sizes: free count.
+  Eigen::VectorXd apply_vcycle(const Eigen::VectorXd& r);
+
+  const MultigridReport& report() const { return report_; }
+  const MultigridOptions& options() const { return options_; }
+  void set_options(const MultigridOptions& options);
+
+  int num_levels() const;
+  std::vector<MultigridLevelInfo> level_info() const;
+  /// Σ nnz(A_k) / nnz(A_0).
+  double operator_complexity() const;
+  /// The operator of level k (level 0: A_FF).
+  const SparseMatrix& level_operator(int k) const;
+  Eigen::Index size() const { return size_; }
+  const std::vector<int>& constrained() const { return constrained_; }
+  /// Seconds of the last setup() or update_matrix() (Galerkin products + coarse factorisation).
+  double setup_seconds() const { return setup_seconds_; }
+
+ private:
+  struct Level;
+  void check_options(const MultigridOptions& options) const;
+  void build_operators(const SparseMatrix& A, bool reuse_analysis);
+  void vcycle(std::size_t k);
+  void smooth(std::size_t k, bool pre);
+  void chebyshev(std::size_t k);
+
+  MultigridOptions options_;
+  std::vector<SparseMatrix> prolongations_;  ///< as given
+  std::vector<std::unique_ptr<Level>> levels_;
+  CholeskySolver coarsest_;
+  Eigen::Index size_ = 0;
+  std::vector<int> constrained_;
+  std::vector<int> free_index_;   ///< free index of each unknown, −1 if constrained
+  std::vector<int> free_;         ///< free -> original index
+  SparseMatrix free_constrained_; ///< A_FC
+  MultigridReport report_;
+  double setup_seconds_ = 0;
+  bool is_setup_ = false;
+};
+
+}  // namespace fem

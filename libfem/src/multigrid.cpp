@@ -1,0 +1,455 @@
+#include "fem/multigrid.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace fem {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// y = A x for a symmetric compressed column-major A (column i is row i: a gather per row).
+void multiply(const SparseMatrix& A, const double* x, double* y) {
+  const auto* start = A.outerIndexPtr();
+  const auto* row = A.innerIndexPtr();
+  const double* value = A.valuePtr();
+  const Eigen::Index n = A.outerSize();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double s = 0;
+    for (auto p = start[i]; p < start[i + 1]; ++p) s += value[p] * x[row[p]];
+    y[i] = s;
+  }
+}
+
+// r = b − A x.
+void residual(const SparseMatrix& A, const double* b, const double* x, double* r) {
+  const auto* start = A.outerIndexPtr();
+  const auto* row = A.innerIndexPtr();
+  const double* value = A.valuePtr();
+  const Eigen::Index n = A.outerSize();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double s = b[i];
+    for (auto p = start[i]; p < start[i + 1]; ++p) s -= value[p] * x[row[p]];
+    r[i] = s;
+  }
+}
+
+// One Gauss–Seidel sweep, forward or backward: x_i += (b_i − (A x)_i) / a_ii.
+void gauss_seidel(const SparseMatrix& A, const Eigen::VectorXd& inv_diag, const double* b, double* x, bool forward) {
+  const auto* start = A.outerIndexPtr();
+  const auto* row = A.innerIndexPtr();
+  const double* value = A.valuePtr();
+  const Eigen::Index n = A.outerSize();
+  const double* d = inv_diag.data();
+  if (forward) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      double s = b[i];
+      for (auto p = start[i]; p < start[i + 1]; ++p) s -= value[p] * x[row[p]];
+      x[i] += s * d[i];
+    }
+  } else {
+    for (Eigen::Index i = n - 1; i >= 0; --i) {
+      double s = b[i];
+      for (auto p = start[i]; p < start[i + 1]; ++p) s -= value[p] * x[row[p]];
+      x[i] += s * d[i];
+    }
+  }
+}
+
+// Rows of P kept through `row_map` (old row -> new row or −1, monotone on kept rows), columns that
+// keep no entry dropped. `column_map` receives old column -> new column or −1.
+SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<int>& row_map, Eigen::Index new_rows,
+                                   std::vector<int>& column_map) {
+  column_map.assign(static_cast<std::size_t>(P.cols()), -1);
+  std::vector<int> starts{0}, rows;
+  std::vector<double> values;
+  rows.reserve(static_cast<std::size_t>(P.nonZeros()));
+  values.reserve(static_cast<std::size_t>(P.nonZeros()));
+  int columns = 0;
+  for (Eigen::Index j = 0; j < P.outerSize(); ++j) {
+    const std::size_t before = rows.size();
+    for (SparseMatrix::InnerIterator it(P, j); it; ++it) {
+      const int r = row_map[static_cast<std::size_t>(it.row())];
+      if (r >= 0 && it.value() != 0.0) {
+        rows.push_back(r);
+        values.push_back(it.value());
+      }
+    }
+    if (rows.size() > before) {
+      column_map[static_cast<std::size_t>(j)] = columns++;
+      starts.push_back(static_cast<int>(rows.size()));
+    }
+  }
+  SparseMatrix R(new_rows, columns);
+  R.resizeNonZeros(static_cast<Eigen::Index>(rows.size()));
+  std::copy(starts.begin(), starts.end(), R.outerIndexPtr());
+  std::copy(rows.begin(), rows.end(), R.innerIndexPtr());
+  std::copy(values.begin(), values.end(), R.valuePtr());
+  return R;
+}
+
+// The free–free block of A and the free–constrained block (free rows, constrained columns).
+void split_matrix(const SparseMatrix& A, const std::vector<int>& free_index, Eigen::Index free_count,
+                  const std::vector<int>& constrained, SparseMatrix& A_ff, SparseMatrix& A_fc) {
+  std::vector<Eigen::Triplet<double>> fc;
+  std::vector<int> starts{0}, rows;
+  std::vector<double> values;
+  rows.reserve(static_cast<std::size_t>(A.nonZeros()));
+  values.reserve(static_cast<std::size_t>(A.nonZeros()));
+  std::vector<int> constrained_column(static_cast<std::size_t>(A.cols()), -1);
+  for (std::size_t c = 0; c < constrained.size(); ++c) constrained_column[static_cast<std::size_t>(constrained[c])] = static_cast<int>(c);
+  for (Eigen::Index j = 0; j < A.outerSize(); ++j) {
+    const int fj = free_index[static_cast<std::size_t>(j)];
+    for (SparseMatrix::InnerIterator it(A, j); it; ++it) {
+      const int fi = free_index[static_cast<std::size_t>(it.row())];
+      if (fi < 0) continue;
+      if (fj >= 0) {
+        rows.push_back(fi);
+        values.push_back(it.value());
+      } else {
+        fc.emplace_back(fi, constrained_column[static_cast<std::size_t>(j)], it.value());
+      }
+    }
+    if (fj >= 0) starts.push_back(static_cast<int>(rows.size()));
+  }
+  A_ff = SparseMatrix(free_count, free_count);
+  A_ff.resizeNonZeros(static_cast<Eigen::Index>(rows.size()));
+  std::copy(starts.begin(), starts.end(), A_ff.outerIndexPtr());
+  std::copy(rows.begin(), rows.end(), A_ff.innerIndexPtr());
+  std::copy(values.begin(), values.end(), A_ff.valuePtr());
+  A_fc = SparseMatrix(free_count, static_cast<Eigen::Index>(constrained.size()));
+  A_fc.setFromTriplets(fc.begin(), fc.end());
+}
+
+}  // namespace
+
+const char* to_string(MultigridMode mode) { return mode == MultigridMode::pcg ? "pcg" : "vcycle"; }
+const char* to_string(MultigridSmoother smoother) {
+  switch (smoother) {
+    case MultigridSmoother::gauss_seidel: return "gauss_seidel";
+    case MultigridSmoother::symmetric_gauss_seidel: return "symmetric_gauss_seidel";
+    case MultigridSmoother::chebyshev: return "chebyshev";
+  }
+  return "?";
+}
+
+struct MultigridSolver::Level {
+  SparseMatrix A;  ///< operator (compressed, both triangles)
+  SparseMatrix P;  ///< restricted prolongation to the next level (not on the coarsest)
+  Eigen::VectorXd inv_diag;
+  double lambda_max = 0;  ///< Chebyshev: largest eigenvalue estimate of D⁻¹A
+  Eigen::VectorXd x, b, r, d;  ///< work vectors
+};
+
+MultigridSolver::MultigridSolver(std::vector<SparseMatrix> prolongations, MultigridOptions options)
+    : options_(options), prolongations_(std::move(prolongations)) {
+  check_options(options_);
+  for (std::size_t k = 0; k + 1 < prolongations_.size(); ++k)
+    if (prolongations_[k].cols() != prolongations_[k + 1].rows())
+      throw std::invalid_argument("MultigridSolver: P_" + std::to_string(k) + " has " +
+                                  std::to_string(prolongations_[k].cols()) + " columns but P_" + std::to_string(k + 1) +
+                                  " has " + std::to_string(prolongations_[k + 1].rows()) + " rows");
+  for (SparseMatrix& P : prolongations_) P.makeCompressed();
+}
+
+MultigridSolver::~MultigridSolver() = default;
+MultigridSolver::MultigridSolver(MultigridSolver&&) noexcept = default;
+MultigridSolver& MultigridSolver::operator=(MultigridSolver&&) noexcept = default;
+
+void MultigridSolver::check_options(const MultigridOptions& o) const {
+  if (o.smoothing_steps < 1) throw std::invalid_argument("MultigridSolver: smoothing_steps must be >= 1");
+  if (o.chebyshev_degree < 1) throw std::invalid_argument("MultigridSolver: chebyshev_degree must be >= 1");
+  if (!(o.chebyshev_ratio > 1)) throw std::invalid_argument("MultigridSolver: chebyshev_ratio must be > 1");
+  if (!(o.tolerance > 0)) throw std::invalid_argument("MultigridSolver: tolerance must be > 0");
+  if (o.max_iterations < 1) throw std::invalid_argument("MultigridSolver: max_iterations must be >= 1");
+}
+
+void MultigridSolver::set_options(const MultigridOptions& options) {
+  check_options(options);
+  const bool smoother_changed = options.smoother != options_.smoother;
+  options_ = options;
+  if (smoother_changed && is_setup_) {
+    // λ estimates are only computed for Chebyshev; recompute the smoother data.
+    for (std::size_t k = 0; k + 1 < levels_.size(); ++k) levels_[k]->lambda_max = 0;
+  }
+}
+
+int MultigridSolver::num_levels() const { return static_cast<int>(levels_.size()); }
+
+std::vector<MultigridLevelInfo> MultigridSolver::level_info() const {
+  std::vector<MultigridLevelInfo> info;
+  for (const auto& level : levels_) info.push_back({level->A.rows(), level->A.nonZeros()});
+  return info;
+}
+
+double MultigridSolver::operator_complexity() const {
+  if (levels_.empty() || levels_[0]->A.nonZeros() == 0) return 0;
+  double total = 0;
+  for (const auto& level : levels_) total += static_cast<double>(level->A.nonZeros());
+  return total / static_cast<double>(levels_[0]->A.nonZeros());
+}
+
+const SparseMatrix& MultigridSolver::level_operator(int k) const {
+  if (k < 0 || k >= num_levels()) throw std::out_of_range("MultigridSolver::level_operator: no such level");
+  return levels_[static_cast<std::size_t>(k)]->A;
+}
+
+void MultigridSolver::setup(const SparseMatrix& A, std::vector<int> constrained) {
+  const auto start = Clock::now();
+  if (A.rows() != A.cols()) throw std::invalid_argument("MultigridSolver::setup: A must be square");
+  const Eigen::Index n = A.rows();
+  if (!prolongations_.empty() && prolongations_[0].rows() != n)
+    throw std::invalid_argument("MultigridSolver::setup: A has " + std::to_string(n) + " rows but P_0 has " +
+                                std::to_string(prolongations_[0].rows()));
+  std::sort(constrained.begin(), constrained.end());
+  constrained.erase(std::unique(constrained.begin(), constrained.end()), constrained.end());
+  for (int c : constrained)
+    if (c < 0 || c >= n) throw std::invalid_argument("MultigridSolver::setup: constrained index out of range");
+  size_ = n;
+  constrained_ = std::move(constrained);
+  free_index_.assign(static_cast<std::size_t>(n), 0);
+  for (int c : constrained_) free_index_[static_cast<std::size_t>(c)] = -1;
+  free_.clear();
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (free_index_[static_cast<std::size_t>(i)] >= 0) {
+      free_index_[static_cast<std::size_t>(i)] = static_cast<int>(free_.size());
+      free_.push_back(static_cast<int>(i));
+    }
+
+  // Restricted prolongations: free rows on level 0, then the surviving columns level by level.
+  levels_.clear();
+  std::vector<int> row_map = free_index_;
+  Eigen::Index rows = static_cast<Eigen::Index>(free_.size());
+  for (const SparseMatrix& P : prolongations_) {
+    auto level = std::make_unique<Level>();
+    if (rows == 0) break;
+    std::vector<int> column_map;
+    level->P = restrict_prolongation(P, row_map, rows, column_map);
+    if (level->P.cols() == 0) break;
+    rows = level->P.cols();
+    row_map = std::move(column_map);
+    levels_.push_back(std::move(level));
+  }
+  levels_.push_back(std::make_unique<Level>());  // the coarsest (no P)
+  is_setup_ = false;
+  build_operators(A, /*reuse_analysis=*/false);
+  is_setup_ = true;
+  setup_seconds_ = since(start);
+}
+
+void MultigridSolver::update_matrix(const SparseMatrix& A) {
+  if (!is_setup_) throw std::logic_error("MultigridSolver::update_matrix: call setup() first");
+  if (A.rows() != size_ || A.cols() != size_)
+    throw std::invalid_argument("MultigridSolver::update_matrix: A has the wrong size");
+  const auto start = Clock::now();
+  build_operators(A, /*reuse_analysis=*/true);
+  setup_seconds_ = since(start);
+}
+
+void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis) {
+  Level& fine = *levels_[0];
+  split_matrix(A, free_index_, static_cast<Eigen::Index>(free_.size()), constrained_, fine.A, free_constrained_);
+  for (std::size_t k = 0; k < levels_.size(); ++k) {
+    Level& level = *levels_[k];
+    if (k > 0) {
+      const SparseMatrix& P = levels_[k - 1]->P;
+      const SparseMatrix AP = levels_[k - 1]->A * P;
+      const SparseMatrix Pt = P.transpose();
+      const SparseMatrix B = Pt * AP;
+      level.A = 0.5 * (B + SparseMatrix(B.transpose()));
+    }
+    level.A.makeCompressed();
+    const Eigen::Index n = level.A.rows();
+    level.inv_diag = level.A.diagonal();
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (!(level.inv_diag(i) > 0))
+        throw NotPositiveDefinite(i, "MultigridSolver: level " + std::to_string(k) + " has a non-positive diagonal entry at " +
+                                         std::to_string(i));
+      level.inv_diag(i) = 1.0 / level.inv_diag(i);
+    }
+    level.x.resize(n);
+    level.b.resize(n);
+    level.r.resize(n);
+    level.d.resize(n);
+    level.lambda_max = 0;
+  }
+  const SparseMatrix& coarsest = levels_.back()->A;
+  if (coarsest.rows() == 0) return;  // everything constrained
+  if (reuse_analysis) {
+    try {
+      coarsest_.factorize(coarsest);
+    } catch (const std::invalid_argument&) {  // the Galerkin pattern changed (should not happen)
+      coarsest_.compute(coarsest);
+    }
+  } else {
+    coarsest_.compute(coarsest);
+  }
+}
+
+void MultigridSolver::chebyshev(std::size_t k) {
+  Level& L = *levels_[k];
+  const Eigen::Index n = L.A.rows();
+  if (L.lambda_max == 0) {
+    // Power iteration on D⁻¹A from a deterministic non-smooth start.
+    Eigen::VectorXd v(n), w(n);
+    for (Eigen::Index i = 0; i < n; ++i) v(i) = 1.0 + 0.5 * std::sin(1.7 * static_cast<double>(i));
+    double lambda = 1;
+    for (int it = 0; it < 15; ++it) {
+      v /= v.norm();
+      multiply(L.A, v.data(), w.data());
+      w = w.cwiseProduct(L.inv_diag);
+      lambda = w.norm();
+      v = w;
+    }
+    L.lambda_max = 1.1 * lambda;
+  }
+  const double upper = L.lambda_max, lower = L.lambda_max / options_.chebyshev_ratio;
+  const double theta = 0.5 * (upper + lower), delta = 0.5 * (upper - lower);
+  const double sigma = theta / delta;
+  double rho = 1.0 / sigma;
+  residual(L.A, L.b.data(), L.x.data(), L.r.data());
+  L.d = L.r.cwiseProduct(L.inv_diag) / theta;
+  for (int step = 1;; ++step) {
+    L.x += L.d;
+    if (step == options_.chebyshev_degree) break;
+    residual(L.A, L.b.data(), L.x.data(), L.r.data());
+    const double rho_next = 1.0 / (2 * sigma - rho);
+    L.d = (rho_next * rho) * L.d + (2 * rho_next / delta) * L.r.cwiseProduct(L.inv_diag);
+    rho = rho_next;
+  }
+}
+
+void MultigridSolver::smooth(std::size_t k, bool pre) {
+  Level& L = *levels_[k];
+  for (int s = 0; s < options_.smoothing_steps; ++s) {
+    switch (options_.smoother) {
+      case MultigridSmoother::gauss_seidel:
+        gauss_seidel(L.A, L.inv_diag, L.b.data(), L.x.data(), pre);
+        break;
+      case MultigridSmoother::symmetric_gauss_seidel:
+        gauss_seidel(L.A, L.inv_diag, L.b.data(), L.x.data(), true);
+        gauss_seidel(L.A, L.inv_diag, L.b.data(), L.x.data(), false);
+        break;
+      case MultigridSmoother::chebyshev:
+        chebyshev(k);
+        break;
+    }
+  }
+}
+
+// Improves levels_[k]->x for the right-hand side levels_[k]->b.
+void MultigridSolver::vcycle(std::size_t k) {
+  Level& L = *levels_[k];
+  if (k + 1 == levels_.size()) {
+    L.x = coarsest_.solve(L.b);
+    return;
+  }
+  smooth(k, true);
+  residual(L.A, L.b.data(), L.x.data(), L.r.data());
+  Level& C = *levels_[k + 1];
+  C.b.noalias() = L.P.transpose() * L.r;
+  C.x.setZero();
+  vcycle(k + 1);
+  L.x.noalias() += L.P * C.x;
+  smooth(k, false);
+}
+
+Eigen::VectorXd MultigridSolver::apply_vcycle(const Eigen::VectorXd& r) {
+  if (!is_setup_) throw std::logic_error("MultigridSolver: call setup() first");
+  Level& L = *levels_[0];
+  if (r.size() != L.A.rows()) throw std::invalid_argument("MultigridSolver::apply_vcycle: wrong size");
+  L.b = r;
+  L.x.setZero();
+  vcycle(0);
+  return L.x;
+}
+
+Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values) {
+  return solve(b, constrained_values, Eigen::VectorXd());
+}
+
+Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values,
+                                       const Eigen::VectorXd& initial_guess) {
+  if (!is_setup_) throw std::logic_error("MultigridSolver::solve: call setup() first");
+  const auto start = Clock::now();
+  if (b.size() != size_) throw std::invalid_argument("MultigridSolver::solve: b has the wrong size");
+  if (constrained_values.size() != 0 && constrained_values.size() != static_cast<Eigen::Index>(constrained_.size()))
+    throw std::invalid_argument("MultigridSolver::solve: need one value per constrained index");
+  if (initial_guess.size() != 0 && initial_guess.size() != size_)
+    throw std::invalid_argument("MultigridSolver::solve: initial guess has the wrong size");
+  const Eigen::Index nf = static_cast<Eigen::Index>(free_.size());
+  Eigen::VectorXd rhs(nf), x(nf);
+  for (Eigen::Index i = 0; i < nf; ++i) rhs(i) = b(free_[static_cast<std::size_t>(i)]);
+  if (constrained_values.size() != 0 && nf > 0) rhs.noalias() -= free_constrained_ * constrained_values;
+  if (initial_guess.size() != 0)
+    for (Eigen::Index i = 0; i < nf; ++i) x(i) = initial_guess(free_[static_cast<std::size_t>(i)]);
+  else
+    x.setZero();
+
+  report_ = MultigridReport();
+  Level& L = *levels_[0];
+  const SparseMatrix& A = L.A;
+  const double norm_b = rhs.norm();
+  Eigen::VectorXd r(nf);
+  residual(A, rhs.data(), x.data(), r.data());
+  const double scale = norm_b > 0 ? norm_b : 1.0;
+  double res = r.norm() / scale;
+  report_.residuals.push_back(res);
+  if (nf > 0 && res > options_.tolerance) {
+    if (options_.mode == MultigridMode::vcycle) {
+      L.b = rhs;
+      L.x = x;
+      while (report_.iterations < options_.max_iterations) {
+        vcycle(0);
+        residual(A, rhs.data(), L.x.data(), r.data());
+        res = r.norm() / scale;
+        ++report_.iterations;
+        report_.residuals.push_back(res);
+        if (res <= options_.tolerance) break;
+      }
+      x = L.x;
+    } else {
+      Eigen::VectorXd z = apply_vcycle(r), p = z, Ap(nf);
+      double rz = r.dot(z);
+      while (report_.iterations < options_.max_iterations) {
+        multiply(A, p.data(), Ap.data());
+        const double pAp = p.dot(Ap);
+        if (!(pAp > 0) || !(rz > 0)) break;  // breakdown (converged to round-off or not SPD)
+        const double alpha = rz / pAp;
+        x.noalias() += alpha * p;
+        r.noalias() -= alpha * Ap;
+        res = r.norm() / scale;
+        ++report_.iterations;
+        report_.residuals.push_back(res);
+        if (res <= options_.tolerance) break;
+        z = apply_vcycle(r);
+        const double rz_next = r.dot(z);
+        p = z + (rz_next / rz) * p;
+        rz = rz_next;
+      }
+    }
+  }
+  residual(A, rhs.data(), x.data(), r.data());
+  report_.relative_residual = nf > 0 ? r.norm() / scale : 0.0;
+  report_.converged = report_.relative_residual <= options_.tolerance ||
+                      (nf > 0 && report_.residuals.back() <= options_.tolerance &&
+                       report_.relative_residual <= 10 * options_.tolerance);
+  if (report_.iterations > 0 && report_.residuals.front() > 0 && report_.residuals.back() > 0)
+    report_.convergence_factor =
+        std::pow(report_.residuals.back() / report_.residuals.front(), 1.0 / report_.iterations);
+
+  Eigen::VectorXd out(size_);
+  for (Eigen::Index i = 0; i < nf; ++i) out(free_[static_cast<std::size_t>(i)]) = x(i);
+  for (std::size_t c = 0; c < constrained_.size(); ++c)
+    out(constrained_[c]) = constrained_values.size() ? constrained_values(static_cast<Eigen::Index>(c)) : 0.0;
+  report_.seconds = since(start);
+  return out;
+}
+
+}  // namespace fem

@@ -1,0 +1,81 @@
+#pragma once
+/// \file hierarchy.h
+/// A multilevel hierarchy of intrinsic meshes by repeated ICE coarsening, with the prolongation
+/// between consecutive levels (the geometric part of a Galerkin multigrid solver, fem/multigrid.h).
+///
+/// Level 0 is the input mesh. Level k+1 is made from level k alone: the compact mesh of level k
+/// (faces + lengths) becomes a fresh IntrinsicTriangulation (from_lengths), which is coarsened to
+/// ⌈ratio·n_k⌉ vertices (at least `coarsest_vertices`). The coarsened triangulation tracks every
+/// level-k vertex, so ice::prolongation of it is exactly P_k (n_k × n_{k+1}, rows sum to 1, at most
+/// three non-zeros per row). Building stops when a level has at most `coarsest_vertices` vertices,
+/// when `max_levels` is reached, or when a level cannot be coarsened usefully (the coarsening
+/// removed fewer than 10 % of the vertices, or the compact mesh of a level is a Δ-complex that
+/// from_lengths refuses, e.g. with a multi-edge). The hierarchy depends only on the mesh, not on the
+/// PDE: one hierarchy serves every operator on the fine vertices (Laplacian, mass, M + tL, Dirichlet
+/// systems) and every right-hand side.
+#include <string>
+#include <vector>
+
+#include <Eigen/SparseCore>
+
+#include "ice/coarsen.h"
+#include "ice/intrinsic_triangulation.h"
+#include "ice/mesh.h"
+
+namespace ice {
+
+struct HierarchyOptions {
+  /// Vertex fraction kept per level (0 < ratio < 1).
+  double ratio = 0.25;
+  /// The coarsest level has about this many vertices (the last level stops here; 0 < value).
+  Index coarsest_vertices = 500;
+  /// Upper bound on the number of levels, the fine one included (>= 1).
+  int max_levels = 20;
+  /// Area weight of the ICE error metric (coarsen.h).
+  double area_weight = 0;
+  /// Remove vertices in passes of independent sets chosen in ICE-cost order (uniform levels, the
+  /// default), or by plain greedy ICE coarsening (adaptive levels: flat regions get very coarse).
+  bool independent_sets = true;
+  /// Whether boundary vertices may be removed.
+  bool remove_boundary = true;
+  /// Fine (level-0) vertices that stay on every level (e.g. to keep sources as coarse vertices).
+  /// Not needed for Dirichlet conditions: fem::MultigridSolver handles those algebraically.
+  std::vector<Index> locked_vertices;
+};
+
+/// One level: a compact intrinsic mesh and where its vertices come from.
+struct HierarchyLevel {
+  Faces F;                    ///< faces in this level's vertex indices
+  FaceLengths L;              ///< per-face lengths (ice/mesh.h convention)
+  std::vector<Index> to_fine; ///< level vertex -> level-0 vertex (the same surface point)
+  Index num_vertices() const { return static_cast<Index>(to_fine.size()); }
+};
+
+struct Hierarchy {
+  /// levels[0] is the input; levels.back() the coarsest.
+  std::vector<HierarchyLevel> levels;
+  /// prolongations[k] is P_k, n_k × n_{k+1}: level k+1 values -> level k values.
+  std::vector<Eigen::SparseMatrix<double>> prolongations;
+  /// The coarsening of level k into level k+1.
+  std::vector<CoarsenResult> coarsening;
+  /// Why the building stopped (human readable).
+  std::string stop_reason;
+  /// Wall time of build_hierarchy, and the part spent inside ice::coarsen.
+  double seconds = 0, coarsen_seconds = 0;
+
+  int num_levels() const { return static_cast<int>(levels.size()); }
+  /// Σ n_k / n_0.
+  double grid_complexity() const;
+  /// P_0·P_1·…·P_{k-1} (n_0 × n_k), for tests and tools; identity for k = 0.
+  Eigen::SparseMatrix<double> prolongation_to_fine(int k) const;
+};
+
+/// Builds the hierarchy of an intrinsic mesh (F, L) with n vertices (pass -1 for F.maxCoeff()+1).
+/// Preconditions as for IntrinsicTriangulation::from_lengths (std::invalid_argument otherwise);
+/// options checked (std::invalid_argument).
+Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyOptions& options = {});
+
+/// Same for an extrinsic mesh (lengths from positions).
+Hierarchy build_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options = {});
+
+}  // namespace ice

@@ -1,0 +1,186 @@
+#include "ice/hierarchy.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+#include "ice/prolongation.h"
+
+namespace ice {
+
+double Hierarchy::grid_complexity() const {
+  if (levels.empty() || levels[0].num_vertices() == 0) return 0;
+  double total = 0;
+  for (const HierarchyLevel& level : levels) total += level.num_vertices();
+  return total / levels[0].num_vertices();
+}
+
+Eigen::SparseMatrix<double> Hierarchy::prolongation_to_fine(int k) const {
+  if (k < 0 || k >= num_levels()) throw std::out_of_range("Hierarchy::prolongation_to_fine: no such level");
+  const Index n0 = levels[0].num_vertices();
+  Eigen::SparseMatrix<double> P(n0, n0);
+  P.setIdentity();
+  for (int j = 0; j < k; ++j) P = Eigen::SparseMatrix<double>(P * prolongations[static_cast<std::size_t>(j)]);
+  return P;
+}
+
+namespace {
+
+// Coarsens T to co.target_vertices in passes. Each pass removes (at most) an independent set of
+// the current triangulation, picked greedily in order of ICE removal cost: the cheapest vertex is
+// taken, its neighbours are excluded, and so on; everything else is locked for that pass. This
+// keeps each level's vertex density uniform (every removed vertex keeps all its neighbours within a
+// pass), which is what multigrid needs, while the ICE metric still decides which vertices go.
+CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const CoarsenOptions& base, double area_weight) {
+  const auto start = std::chrono::steady_clock::now();
+  CoarsenResult total;
+  total.input_vertices = T.num_vertices();
+  const Index slots = T.num_input_vertices();
+  std::vector<std::uint8_t> user_locked(static_cast<std::size_t>(slots), 0), blocked(static_cast<std::size_t>(slots));
+  for (Index v : base.locked_vertices) user_locked[static_cast<std::size_t>(v)] = 1;
+  std::vector<std::pair<double, Index>> order;
+  for (int pass = 0; pass < 64 && T.num_vertices() > base.target_vertices; ++pass) {
+    const IntrinsicErrorMetric metric(T, area_weight);
+    order.clear();
+    for (Index v = 0; v < slots; ++v)
+      if (T.vertex_alive(v) && !user_locked[static_cast<std::size_t>(v)]) {
+        const double cost = metric.removal_cost(T, v);
+        if (std::isfinite(cost)) order.emplace_back(cost, v);
+      }
+    std::sort(order.begin(), order.end());
+    std::fill(blocked.begin(), blocked.end(), 0);
+    Index selected = 0;
+    CoarsenOptions co = base;
+    co.locked_vertices.clear();
+    for (const auto& [cost, v] : order) {
+      if (blocked[static_cast<std::size_t>(v)]) continue;
+      ++selected;
+      blocked[static_cast<std::size_t>(v)] = 2;  // selected
+      T.for_each_outgoing(v, [&](Index h) {
+        blocked[static_cast<std::size_t>(T.head(h))] |= 1;
+        blocked[static_cast<std::size_t>(T.tail(T.prev(h)))] |= 1;
+      });
+    }
+    for (Index v = 0; v < slots; ++v)
+      if (T.vertex_alive(v) && blocked[static_cast<std::size_t>(v)] != 2) co.locked_vertices.push_back(v);
+    if (selected == 0) break;
+    co.target_vertices = std::max(base.target_vertices, T.num_vertices() - selected);
+    co.target_ratio = 0;
+    const CoarsenResult r = coarsen(T, co);
+    total.removed += r.removed;
+    total.failed_removals += r.failed_removals;
+    for (std::size_t i = 0; i < total.failures_by_status.size(); ++i) total.failures_by_status[i] += r.failures_by_status[i];
+    total.max_cost = std::max(total.max_cost, r.max_cost);
+    total.last_cost = r.last_cost;
+    total.next_cost = r.next_cost;
+    total.stop_reason = r.stop_reason;
+    if (r.removed == 0) break;
+  }
+  if (T.num_vertices() <= base.target_vertices) total.stop_reason = StopReason::TargetReached;
+  total.output_vertices = T.num_vertices();
+  total.output_faces = T.num_faces();
+  total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return total;
+}
+
+}  // namespace
+
+Hierarchy build_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options) {
+  return build_hierarchy(mesh.F, face_lengths_from_positions(mesh.V, mesh.F), options);
+}
+
+Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (!(options.ratio > 0 && options.ratio < 1))
+    throw std::invalid_argument("build_hierarchy: ratio must be in (0, 1)");
+  if (options.coarsest_vertices < 1) throw std::invalid_argument("build_hierarchy: coarsest_vertices must be >= 1");
+  if (options.max_levels < 1) throw std::invalid_argument("build_hierarchy: max_levels must be >= 1");
+
+  // T is the triangulation being coarsened. Normally it is rebuilt from each new level's compact
+  // mesh, so its input vertices are that level's vertices; when from_lengths refuses a compact mesh
+  // (a Δ-complex with a self- or multi-edge), T is kept and coarsened further, and its input
+  // vertices are those of an earlier level. level_in_t maps the current level's vertices to T's
+  // input vertices; t_to_fine maps T's input vertices to level-0 vertices.
+  IntrinsicTriangulation T = IntrinsicTriangulation::from_lengths(F, L);
+  const Index n0 = T.num_input_vertices();
+  for (Index v : options.locked_vertices)
+    if (v < 0 || v >= n0) throw std::invalid_argument("build_hierarchy: locked vertex out of range");
+
+  Hierarchy H;
+  H.levels.push_back({F, L, std::vector<Index>(static_cast<std::size_t>(n0))});
+  std::iota(H.levels[0].to_fine.begin(), H.levels[0].to_fine.end(), 0);
+  std::vector<Index> level_in_t = H.levels[0].to_fine;
+  std::vector<Index> t_to_fine = H.levels[0].to_fine;
+
+  H.stop_reason = "max_levels reached";
+  while (H.num_levels() < options.max_levels) {
+    const Index n = H.levels.back().num_vertices();
+    if (n <= options.coarsest_vertices) {
+      H.stop_reason = "coarsest size reached";
+      break;
+    }
+    CoarsenOptions co;
+    co.target_vertices = std::max<Index>(static_cast<Index>(std::ceil(options.ratio * n)), options.coarsest_vertices);
+    co.area_weight = options.area_weight;
+    co.remove_boundary = options.remove_boundary;
+    if (!options.locked_vertices.empty()) {
+      std::vector<Index> fine_to_t(static_cast<std::size_t>(n0), kInvalid);
+      for (std::size_t i = 0; i < t_to_fine.size(); ++i) fine_to_t[static_cast<std::size_t>(t_to_fine[i])] = static_cast<Index>(i);
+      for (Index v : options.locked_vertices)
+        if (fine_to_t[static_cast<std::size_t>(v)] != kInvalid) co.locked_vertices.push_back(fine_to_t[static_cast<std::size_t>(v)]);
+    }
+    CoarsenResult result;
+    if (!options.independent_sets) {
+      result = coarsen(T, co);
+    } else {
+      result = coarsen_by_independent_sets(T, co, options.area_weight);
+    }
+    H.coarsen_seconds += result.seconds;
+    if (T.num_vertices() > n - std::max<Index>(1, n / 10)) {
+      H.stop_reason = "coarsening stalled (" + std::string(to_string(result.stop_reason)) + ")";
+      break;
+    }
+    CompactMesh C = T.compact();
+    const Eigen::SparseMatrix<double> all_rows = prolongation(T, C);  // T inputs × n_{k+1}
+    Eigen::SparseMatrix<double> P;
+    if (static_cast<Index>(level_in_t.size()) == all_rows.rows()) {
+      P = all_rows;  // level_in_t is the identity
+    } else {
+      // Select the rows of the current level's vertices (a row gather through a selection matrix).
+      Eigen::SparseMatrix<double> select(static_cast<Index>(level_in_t.size()), all_rows.rows());
+      std::vector<Eigen::Triplet<double>> ones;
+      ones.reserve(level_in_t.size());
+      for (std::size_t i = 0; i < level_in_t.size(); ++i) ones.emplace_back(static_cast<Index>(i), level_in_t[i], 1.0);
+      select.setFromTriplets(ones.begin(), ones.end());
+      P = select * all_rows;
+    }
+    P.makeCompressed();
+    HierarchyLevel next;
+    next.to_fine.resize(C.to_input.size());
+    for (std::size_t i = 0; i < C.to_input.size(); ++i)
+      next.to_fine[i] = t_to_fine[static_cast<std::size_t>(C.to_input[i])];
+    next.F = std::move(C.F);
+    next.L = std::move(C.L);
+    H.prolongations.push_back(std::move(P));
+    H.coarsening.push_back(result);
+    H.levels.push_back(std::move(next));
+    const HierarchyLevel& level = H.levels.back();
+    if (level.num_vertices() <= options.coarsest_vertices || H.num_levels() >= options.max_levels) continue;
+    try {
+      T = IntrinsicTriangulation::from_lengths(level.F, level.L);
+      level_in_t.resize(static_cast<std::size_t>(level.num_vertices()));
+      std::iota(level_in_t.begin(), level_in_t.end(), 0);
+      t_to_fine = level.to_fine;
+    } catch (const std::invalid_argument&) {
+      // Keep coarsening T; the new level's vertices are T's surviving input vertices.
+      level_in_t = C.to_input;
+    }
+  }
+  H.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return H;
+}
+
+}  // namespace ice
