@@ -711,8 +711,8 @@ void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Ind
   vhalfedge(v) = kInvalid;
   vsum(v) = 0;
   --num_vertices_;
-  for (int k = 0; k < 3; ++k)
-    if (k == 0 || (x[k] != x[0] && (k == 1 || x[k] != x[1]))) recompute_vertex_frame(x[k]);
+  // The neighbours' frames stay as they are: the star was flat, so each merged corner is exactly
+  // the sum of the corners it replaces and no angle sum or angular coordinate changes.
   for (const auto& q : scratch_points_) add_point_to_face(q.point, f, barycentric(q.position, p0, p1, p2));
   if (changed_faces) changed_faces->push_back(f);
 }
