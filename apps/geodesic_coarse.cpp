@@ -7,8 +7,8 @@
 // and the coarse heat-method operators) → factor (the coarse heat and Poisson matrices) → solve (heat
 // method on the coarse mesh from the restricted sources Pᵀ e_s) → prolong (P φ_c, shifted to vanish on
 // average at the sources). These are the steps of fem::ProxyGeodesicSolver, split so that each one
-// is timed, with one difference: the heat step uses the lumped (row-sum) coarse mass, which matters
-// for Galerkin operators (see lumped() below). Then the reference: fem::HeatGeodesicSolver on the fine mesh (assemble, factor, solve)
+// is timed (the heat step uses the lumped (row-sum) coarse mass, which matters for Galerkin operators:
+// see fem::CoarseProxy::coarse_heat_method_operators). Then the reference: fem::HeatGeodesicSolver on the fine mesh (assemble, factor, solve)
 // and the errors of the prolonged distance against it.
 //
 // Exit codes: see app_common.h (0 ok, 1 unreadable, 2 defective/unsuitable mesh, 3 output not written,
@@ -24,20 +24,6 @@
 namespace {
 
 const std::string kTool = "geodesic-coarse";
-
-// The row-sum (lumped) diagonal of a mass matrix. The heat step of the heat method needs a diagonal
-// mass: with the Galerkin mass Pᵀ M P (not diagonal) the heat solution oscillates where it is small,
-// and the normalised gradients there point the wrong way. Measured on spot (source 7 / 1500, 150 to
-// 1,000 coarse vertices): mean error 1.4-9.5% without lumping, erratic in the coarse size (9.5% at 300
-// vertices, 4.7% at 1,000), against 0.6-5.4% with it, decreasing with the size.
-fem::SparseMatrix lumped(const fem::SparseMatrix& mass) {
-  const Eigen::VectorXd row_sums = mass * Eigen::VectorXd::Ones(mass.cols());
-  fem::SparseMatrix diagonal(mass.rows(), mass.cols());
-  diagonal.reserve(Eigen::VectorXi::Constant(mass.cols(), 1));
-  for (Eigen::Index i = 0; i < row_sums.size(); ++i) diagonal.insert(i, i) = row_sums(i);
-  diagonal.makeCompressed();
-  return diagonal;
-}
 
 }  // namespace
 
@@ -104,8 +90,7 @@ int main(int argc, char** argv) {
         opt.operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
     const Eigen::Index nc = static_cast<Eigen::Index>(coarse.mesh.to_input.size());
     const fem::CoarseProxy proxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped, n, nc);
-    fem::HeatMethodOperators coarse_ops = proxy.coarse_heat_method_operators();
-    coarse_ops.mass = lumped(coarse_ops.mass);  // no-op for intrinsic operators (already lumped)
+    fem::HeatMethodOperators coarse_ops = proxy.coarse_heat_method_operators();  // lumped mass for Galerkin
     run.assemble = clock.lap();
     const fem::HeatGeodesicSolver coarse_solver(std::move(coarse_ops));
     run.factor = clock.lap();

@@ -8,15 +8,31 @@
 
 namespace fem {
 
+namespace {
+
+// diag(row sums of mass): the lumped version of a (Galerkin) mass matrix.
+SparseMatrix lumped(const SparseMatrix& mass) {
+  const Eigen::VectorXd row_sums = mass * Eigen::VectorXd::Ones(mass.cols());
+  SparseMatrix diagonal(mass.rows(), mass.cols());
+  diagonal.reserve(Eigen::VectorXi::Constant(mass.cols(), 1));
+  for (Eigen::Index i = 0; i < row_sums.size(); ++i) diagonal.insert(i, i) = row_sums(i);
+  diagonal.makeCompressed();
+  return diagonal;
+}
+
+}  // namespace
+
 CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
                          CoarseOperatorKind kind, MassKind mass_kind, Eigen::Index fine_vertex_count,
                          Eigen::Index coarse_vertex_count)
     : kind_(kind), mass_kind_(mass_kind), P_(std::move(P)), coarse_faces_(Fc), coarse_lengths_(Lc) {
-  fine_laplacian_ = cotan_laplacian(F, L, fine_vertex_count);
-  const Eigen::Index n_fine = fine_laplacian_.rows();
+  const Eigen::Index n_fine =
+      fine_vertex_count >= 0 ? fine_vertex_count : (F.size() == 0 ? 0 : Eigen::Index(F.maxCoeff()) + 1);
   fine_mass_ = mass_matrix(F, L, mass_kind, n_fine);
-  fine_gradient_ = gradient(F, L, n_fine);
-  fine_face_areas_ = face_areas(L);
+  lazy_ = std::make_unique<LazyFineOperators>();
+  lazy_->F = F;
+  lazy_->L = L;
+  lazy_->n = n_fine;
   const Eigen::Index n_coarse =
       coarse_vertex_count >= 0 ? coarse_vertex_count : (Fc.size() == 0 ? 0 : Eigen::Index(Fc.maxCoeff()) + 1);
   if (P_.rows() != n_fine || P_.cols() != n_coarse)
@@ -29,7 +45,7 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
     coarse_laplacian_ = cotan_laplacian(Fc, Lc, n_coarse);
     coarse_mass_ = mass_matrix(Fc, Lc, mass_kind, n_coarse);
   } else {
-    coarse_laplacian_ = galerkin(P_, fine_laplacian_);
+    coarse_laplacian_ = galerkin(P_, fine_laplacian());
     coarse_mass_ = galerkin(P_, fine_mass_);
   }
   coarse_mass_factor_.compute(coarse_mass_);
@@ -42,6 +58,18 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
     for (SparseMatrix::InnerIterator it(P_columns, j); it; ++it)
       if (std::abs(it.value() - 1.0) < 1e-12) coarse_to_fine_[static_cast<std::size_t>(j)] = static_cast<int>(it.row());
 }
+
+const CoarseProxy::LazyFineOperators& CoarseProxy::fine_operators() const {
+  LazyFineOperators& lazy = *lazy_;
+  std::call_once(lazy.once, [&lazy] {
+    lazy.laplacian = cotan_laplacian(lazy.F, lazy.L, lazy.n);
+    lazy.gradient = gradient(lazy.F, lazy.L, lazy.n);
+    lazy.face_areas = face_areas(lazy.L);
+  });
+  return lazy;
+}
+
+const SparseMatrix& CoarseProxy::fine_laplacian() const { return fine_operators().laplacian; }
 
 Eigen::VectorXd CoarseProxy::restrict_weighted(const Eigen::VectorXd& b) const {
   if (b.size() != fine_size()) throw std::invalid_argument("CoarseProxy::restrict_weighted: wrong size");
@@ -71,10 +99,11 @@ HeatMethodOperators CoarseProxy::coarse_heat_method_operators(double time_factor
     return heat_method_operators(coarse_faces_, coarse_lengths_, mass_kind_, time_factor, coarse_size());
   if (!(time_factor > 0)) throw std::invalid_argument("coarse_heat_method_operators: time_factor must be positive");
   HeatMethodOperators ops;
+  const LazyFineOperators& fine = fine_operators();
   ops.laplacian = coarse_laplacian_;
-  ops.mass = coarse_mass_;
-  ops.gradient = fine_gradient_ * P_;  // gradients of prolonged coarse functions, on the fine faces
-  ops.face_areas = fine_face_areas_;
+  ops.mass = lumped(coarse_mass_);  // see the header: the heat step needs a diagonal mass
+  ops.gradient = fine.gradient * P_;  // gradients of prolonged coarse functions, on the fine faces
+  ops.face_areas = fine.face_areas;
   ops.boundary_vertices = boundary_vertices(coarse_faces_);
   const double h = mean_edge_length(coarse_lengths_);
   ops.time_step = time_factor * time_factor * h * h;
