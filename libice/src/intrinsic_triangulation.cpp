@@ -247,23 +247,30 @@ double IntrinsicTriangulation::angle_scale(Index v) const {
   return is_boundary_vertex(v) ? kTwoPi / (vsum(v) + kPi) : kTwoPi / vsum(v);
 }
 
-void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
-  // One pass collects the corner angles (Θ is needed for the scale before any coordinate is set).
+void IntrinsicTriangulation::recompute_vertex_frame(Index v) { refresh_vertex_frame(v, kInvalid); }
+
+void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near) {
+  // Corner angles of v's fan, counter-clockwise from vhalfedge(v). When only the faces touching
+  // `changed_near` changed (after flattening that vertex), the other corners are read back from the
+  // stored coordinates, A(next) − A(h) = scale·corner, instead of being recomputed from lengths.
+  // Small fans recompute everything (a corner may then span the whole turn).
   double corners_small[32];
   std::vector<double> corners_large;
   double* corners = corners_small;
+  const int deg = degree(v);
+  if (deg > 32) {
+    corners_large.resize(deg);
+    corners = corners_large.data();
+  }
+  const bool reuse = changed_near != kInvalid && deg > 2;
+  const double old_scale = angle_scale(v);
   int count = 0;
   double theta = 0;
   for_each_outgoing(v, [&](Index h) {
-    if (count == 32 && corners == corners_small) corners_large.assign(corners_small, corners_small + 32);
-    const double corner = corner_angle(h);
-    if (corners != corners_small || count >= 32) {
-      corners_large.push_back(corner);
-      corners = corners_large.data();
-    } else {
-      corners[count] = corner;
-    }
-    ++count;
+    const Index following = prev(h) ^ 1;
+    const bool changed = !reuse || head(h) == changed_near || tail(prev(h)) == changed_near;
+    const double corner = changed ? corner_angle(h) : wrap_angle(hangle(following) - hangle(h)) / old_scale;
+    corners[count++] = corner;
     theta += corner;
   });
   vsum(v) = theta;
@@ -587,7 +594,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v) {
   neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
   recompute_vertex_frame(v);
   for (Index w : neighbours)
-    if (w != v) recompute_vertex_frame(w);
+    if (w != v) refresh_vertex_frame(w, v);
   return result;
 }
 

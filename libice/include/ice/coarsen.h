@@ -83,11 +83,14 @@ class IntrinsicErrorMetric {
   static constexpr int kChannels = 3;  // K+, K-, area
   /// Initial state of every vertex of T (see the file comment).
   IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight);
-  /// Cost of removing v (a dry run that changes nothing); +inf when v cannot be flattened.
-  double removal_cost(const IntrinsicTriangulation& T, Index v) const;
+  /// Cost of removing v (a dry run that changes nothing); +inf when v cannot be flattened. The
+  /// flattening scale it found is written to *log_scale (NaN when none).
+  double removal_cost(const IntrinsicTriangulation& T, Index v, double* log_scale = nullptr) const;
   /// Computes the neighbours' records after v's removal and keeps them pending; returns false when v
-  /// cannot be flattened. Call before T.remove_vertex(v), while v's star still exists.
-  bool prepare_removal(const IntrinsicTriangulation& T, Index v);
+  /// cannot be flattened. Call before T.remove_vertex(v), while v's star still exists. `log_scale`
+  /// may pass the flattening scale of an earlier removal_cost on the same star (NaN: compute it).
+  bool prepare_removal(const IntrinsicTriangulation& T, Index v,
+                       double log_scale = std::numeric_limits<double>::quiet_NaN());
   /// Writes the pending records (call once T.remove_vertex(v) succeeded).
   void apply_prepared_removal();
   double mass(Index v, int channel) const { return mass_[kChannels * v + channel]; }
@@ -107,7 +110,7 @@ class IntrinsicErrorMetric {
     std::array<std::complex<double>, kChannels> centre;
   };
   // Neighbours of v with their split weights; false when v cannot be flattened.
-  bool split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out) const;
+  bool split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out, double* log_scale) const;
   // The record of neighbour n after absorbing its share of v.
   PendingRecord merged_record(const IntrinsicTriangulation& T, Index v, const Neighbour& n) const;
   std::vector<double> mass_;
