@@ -220,14 +220,16 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
                  "Weight w in [0,1] of the area term of the ICE error metric (0: curvature only; "
                  "more weight spreads vertices more evenly)")
       ->capture_default_str();
-  cli.add_option("--method", method, "Coarsening method; only 'ice' (intrinsic coarsening) exists for now")
+  cli.add_option("--method", method,
+                 "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
+                 "Decimater with quadrics, input vertices mapped by closest-point projection)")
+      ->check(CLI::IsMember({"ice", "qem"}))
       ->capture_default_str();
 }
 
 void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
-  if (method != "ice")
-    throw AppError(kUsage, "--method " + method +
-                               " is not available: 'ice' (intrinsic coarsening) is the only coarsening method so far");
+  if (method != "ice" && method != "qem")
+    throw AppError(kUsage, "--method " + method + " is not available: use 'ice' or 'qem'");
   const bool has_vertices = vertices != 0, has_ratio = ratio != 0, has_error = std::isfinite(max_error);
   if (has_vertices && has_ratio) throw AppError(kUsage, "give either --vertices or --ratio, not both");
   if (!has_vertices && !has_ratio && !has_error)
@@ -238,6 +240,8 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
   if (has_ratio && !(ratio > 0 && ratio <= 1))
     throw AppError(kUsage, "--ratio " + fixed(ratio, 6) + " is out of range: it must be in (0, 1], e.g. 0.05 for 5%");
   if (has_error && !(max_error >= 0)) throw AppError(kUsage, "--max-error must be >= 0");
+  if (has_error && method == "qem")
+    throw AppError(kUsage, "--max-error is a bound on the ICE error metric; with --method qem give --vertices or --ratio");
   if (min_vertices != 0 && !has_ratio) throw AppError(kUsage, "--min-vertices goes with --ratio");
   if (min_vertices < 0) throw AppError(kUsage, "--min-vertices must be positive");
   if (!(area_weight >= 0 && area_weight <= 1)) throw AppError(kUsage, "--area-weight must be in [0, 1]");
@@ -354,12 +358,97 @@ void add_operators_option(CLI::App& cli, std::string& operators) {
       ->capture_default_str();
 }
 
+// ---- QEM --------------------------------------------------------------------------------------------
+
+ice::QemOptions qem_options(const ice::CoarsenOptions& options) {
+  ice::QemOptions q;
+  q.target_vertices = options.target_vertices;
+  q.target_ratio = options.target_ratio;
+  q.locked_vertices = options.locked_vertices;
+  q.remove_boundary = options.remove_boundary;
+  return q;
+}
+
+ice::CoarsenResult qem_summary(const ice::QemResult& qem) {
+  ice::CoarsenResult r;
+  r.stop_reason = qem.target_reached ? ice::StopReason::TargetReached : ice::StopReason::NothingRemovable;
+  r.input_vertices = qem.input_vertices;
+  r.output_vertices = static_cast<ice::Index>(qem.coarse.V.rows());
+  r.output_faces = static_cast<ice::Index>(qem.coarse.F.rows());
+  r.removed = qem.collapses;
+  r.next_cost = std::numeric_limits<double>::quiet_NaN();
+  r.seconds = qem.decimate_seconds + qem.map_seconds;
+  return r;
+}
+
+CoarseMesh qem_coarse_mesh(const ice::QemResult& qem, const std::string& qem_operators, long long* flips) {
+  CoarseMesh coarse;
+  if (qem_operators == "idt") {
+    int count = 0;
+    try {
+      coarse.mesh = ice::qem_intrinsic_delaunay_mesh(qem, &count);
+    } catch (const std::invalid_argument& e) {
+      throw AppError(kFailed, std::string("--qem-operators idt: the QEM mesh cannot be triangulated intrinsically: ") +
+                                  e.what());
+    }
+    if (flips) *flips = count;
+  } else {
+    coarse.mesh = ice::qem_extrinsic_mesh(qem);
+    if (flips) *flips = 0;
+  }
+  coarse.P = qem.P;
+  return coarse;
+}
+
+nlohmann::json qem_json(const ice::QemResult& qem) {
+  return {{"mapping", "closest point on the coarse mesh (AABB tree), survivors exact"},
+          {"collapses", qem.collapses},
+          {"target_reached", qem.target_reached},
+          {"normal_guard_relaxed", qem.guard_relaxed},
+          {"max_distance", qem.max_distance},
+          {"mean_distance", qem.mean_distance},
+          {"decimate_s", qem.decimate_seconds},
+          {"map_s", qem.map_seconds}};
+}
+
 // ---- the coarse-proxy PDE tools ----------------------------------------------------------------------
+
+CoarseMesh coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                           PdeRun& run) {
+  run.method = opt.target.method;
+  CoarseMesh coarse;
+  if (opt.target.method == "qem") {
+    run.qem_operators = opt.qem_operators;
+    const ice::QemResult qem = ice::qem_coarsen(mesh, qem_options(options));
+    run.coarsening = qem_summary(qem);
+    if (!qem.target_reached)
+      warn(run.tool, "QEM stopped at " + thousands(qem.coarse.V.rows()) + " vertices: no further collapse is legal");
+    long long flips = 0;
+    coarse = qem_coarse_mesh(qem, opt.qem_operators, &flips);
+    run.qem = qem_json(qem);
+    run.qem["operators"] = opt.qem_operators;
+    run.qem["idt_flips"] = flips;
+  } else {
+    ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    run.coarsening = coarsen_with_progress(T, options, !opt.quiet);
+    warn_if_target_missed(run.tool, run.coarsening, options);
+    coarse = extract_coarse(T);
+  }
+  run.coarse_vertices = static_cast<long long>(coarse.mesh.to_input.size());
+  run.coarse_faces = coarse.mesh.F.rows();
+  run.coarse_json = coarsen_json(run.coarsening, coarse.mesh);
+  return coarse;
+}
 
 void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   cli.add_option("mesh", mesh, "Input mesh (.obj, .off, .ply, .stl); must be connected")->required();
   target.add_to(cli, false);
   add_operators_option(cli, operators);
+  cli.add_option("--qem-operators", qem_operators,
+                 "With --method qem: coarse geometry from the QEM mesh's positions ('extrinsic') or from its "
+                 "intrinsic Delaunay triangulation ('idt', same vertices, so the same P)")
+      ->check(CLI::IsMember({"extrinsic", "idt"}))
+      ->capture_default_str();
   cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
                "Fine reference (and fine operators of the proxy) on the intrinsic Delaunay triangulation of the "
                "input (default), or on the input triangles as they are (--no-fine-idt)")
@@ -388,8 +477,9 @@ double PdeRun::reference_total() const { return ref_assemble + ref_factor + ref_
 
 nlohmann::json PdeRun::report() const {
   nlohmann::json r = report_header(tool, mesh_path);
-  r["method"] = "ice";
+  r["method"] = method;
   r["operators"] = operators;
+  if (method == "qem") r["qem"] = qem;
   r["input"] = {{"vertices", fine_vertices}, {"faces", fine_faces}};
   r["coarse"] = coarse_json;
   r["fine_mesh"] = {{"kind", fine_idt ? "intrinsic Delaunay" : "input"},
@@ -413,14 +503,15 @@ nlohmann::json PdeRun::report() const {
 
 void PdeRun::print_summary(std::ostream& out) const {
   out << tool << ": " << mesh_path << ": " << thousands(fine_vertices) << " vertices -> " << thousands(coarse_vertices)
-      << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), ICE, "
-      << operators << " coarse operators\n";
+      << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), "
+      << (method == "qem" ? "QEM (" + qem_operators + " mesh)" : std::string("ICE")) << ", " << operators
+      << " coarse operators\n";
   const auto row = [&](const std::string& name, double seconds, const std::string& note = "") {
     out << "  " << std::left << std::setw(16) << name << std::right << std::setw(10) << fixed(seconds, 4) << " s"
         << (note.empty() ? "" : "   " + note) << '\n';
   };
   row("load", load);
-  row("coarsen", coarsen, thousands(coarsening.removed) + " removals, " +
+  row("coarsen", coarsen, thousands(coarsening.removed) + (method == "qem" ? " collapses, " : " removals, ") +
                               thousands(static_cast<long long>(coarsening.removed / std::max(coarsen, 1e-9))) + "/s");
   row("fine mesh", fine_mesh,
       (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +

@@ -19,6 +19,7 @@
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
+#include "ice/qem.h"
 
 namespace app {
 
@@ -140,7 +141,7 @@ struct TargetOptions {
   long long min_vertices = 0;
   double max_error = std::numeric_limits<double>::infinity();
   double area_weight = 0;
-  std::string method = "ice";
+  std::string method = "ice";  ///< "ice" or "qem"
   /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight and --method.
   void add_to(CLI::App& cli, bool with_max_error);
   /// Checks the values against an input of n vertices and fills `options` (target, error, area
@@ -195,6 +196,22 @@ CoarseMesh extract_coarse(const ice::IntrinsicTriangulation& T);
 /// Adds --operators intrinsic|galerkin.
 void add_operators_option(CLI::App& cli, std::string& operators);
 
+// ---- the QEM baseline (--method qem) ------------------------------------------------------------------
+
+/// ice::QemOptions with the target, locked vertices and boundary rule of `options` (an ICE set-up).
+ice::QemOptions qem_options(const ice::CoarsenOptions& options);
+
+/// QEM coarsening (ice::qem_coarsen) with the outcome summarised as an ice::CoarsenResult (removed =
+/// collapses, stop reason target_reached or nothing_removable), for the reports.
+ice::CoarsenResult qem_summary(const ice::QemResult& qem);
+
+/// The QEM mesh as the proxy's coarse mesh: `qem_operators` "extrinsic" (lengths from its positions)
+/// or "idt" (its intrinsic Delaunay triangulation; `flips` receives the flip count). P = qem.P either way.
+CoarseMesh qem_coarse_mesh(const ice::QemResult& qem, const std::string& qem_operators, long long* flips = nullptr);
+
+/// The "qem" object of the JSON reports (mapping, guard, distances, times).
+nlohmann::json qem_json(const ice::QemResult& qem);
+
 // ---- the coarse-proxy PDE tools (geodesic-coarse, poisson-coarse) ------------------------------------
 
 /// The command-line options both PDE tools share.
@@ -202,6 +219,7 @@ struct PdeOptions {
   std::string mesh;
   TargetOptions target;
   std::string operators = "intrinsic";
+  std::string qem_operators = "extrinsic";  ///< with --method qem: "extrinsic" or "idt"
   bool fine_idt = true;
   std::string output;  ///< PLY
   bool no_reference = false;
@@ -218,6 +236,8 @@ struct PdeOptions {
 /// summary that both PDE tools share.
 struct PdeRun {
   std::string tool, mesh_path, operators;
+  std::string method = "ice", qem_operators;  ///< qem_operators only with method "qem"
+  nlohmann::json qem;                          ///< qem_json() with method "qem"
   long long fine_vertices = 0, fine_faces = 0, coarse_vertices = 0, coarse_faces = 0;
   ice::CoarsenResult coarsening;
   nlohmann::json coarse_json;
@@ -239,5 +259,11 @@ struct PdeRun {
   /// Sizes, the phase table and the speed-ups.
   void print_summary(std::ostream& out) const;
 };
+
+/// Coarsens `mesh` with the method of `opt` (ICE with a progress bar unless quiet, or QEM with the
+/// coarse mesh of --qem-operators), warns if the target was missed, and records the outcome in `run`
+/// (method, coarsening, coarse sizes and JSON, qem details, idt flips of the QEM mesh).
+CoarseMesh coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                           PdeRun& run);
 
 }  // namespace app

@@ -70,14 +70,8 @@ int main(int argc, char** argv) {
     run.fine_faces = mesh.F.rows();
     run.load = clock.lap();
 
-    // ---- coarsen
-    ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-    run.coarsening = app::coarsen_with_progress(T, coarsen_options, !opt.quiet);
-    app::warn_if_target_missed(kTool, run.coarsening, coarsen_options);
-    app::CoarseMesh coarse = app::extract_coarse(T);
-    run.coarse_vertices = static_cast<long long>(coarse.mesh.to_input.size());
-    run.coarse_faces = coarse.mesh.F.rows();
-    run.coarse_json = app::coarsen_json(run.coarsening, coarse.mesh);
+    // ---- coarsen (ICE; or QEM with --method qem: its mesh and closest-point P, see ice/qem.h)
+    app::CoarseMesh coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run);  // ICE or QEM (--method)
     run.coarsen = clock.lap();
 
     // ---- fine discretisation (reference, Galerkin operators)

@@ -34,12 +34,14 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include "app_common.h"
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
 #include "ice/prolongation.h"
+#include "ice/qem.h"
 
 namespace {
 
@@ -132,6 +134,51 @@ void write_preview(const std::string& path, const ice::TriangleMesh& mesh, const
   check_stream(out, path);
 }
 
+// map.csv of a QEM coarsening: the same columns, faces in coarse.ilm order (= the QEM mesh's).
+void write_qem_map(const std::string& path, const ice::QemResult& qem) {
+  std::ofstream out = open_output(path);
+  out << "input_vertex,coarse_vertex,coarse_face,b0,b1,b2\n";
+  for (std::size_t p = 0; p < qem.map.size(); ++p) {
+    const ice::QemPoint& q = qem.map[p];
+    out << p << ',' << q.coarse_vertex << ',' << q.face << ',' << Num{q.bary[0]} << ',' << Num{q.bary[1]} << ','
+        << Num{q.bary[2]} << '\n';
+  }
+  check_stream(out, path);
+}
+
+// preview.obj of a QEM coarsening: the QEM mesh itself (its positions are its geometry).
+void write_qem_preview(const std::string& path, const ice::QemResult& qem) {
+  std::ofstream out = open_output(path);
+  out << "# QEM mesh (ice-coarsen --method qem): extrinsic, these positions are its geometry\n";
+  for (Eigen::Index v = 0; v < qem.coarse.V.rows(); ++v)
+    out << "v " << Num{qem.coarse.V(v, 0)} << ' ' << Num{qem.coarse.V(v, 1)} << ' ' << Num{qem.coarse.V(v, 2)} << '\n';
+  for (Eigen::Index f = 0; f < qem.coarse.F.rows(); ++f)
+    out << "f " << qem.coarse.F(f, 0) + 1 << ' ' << qem.coarse.F(f, 1) + 1 << ' ' << qem.coarse.F(f, 2) + 1 << '\n';
+  check_stream(out, path);
+}
+
+// --validate for QEM: the prolongation's invariants and the map's faces.
+std::string validate_qem(const ice::QemResult& qem) {
+  std::string problems;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> R = qem.P;
+  for (Eigen::Index i = 0; i < R.rows() && problems.size() < 2000; ++i) {
+    double sum = 0;
+    int nnz = 0;
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(R, i); it; ++it, ++nnz) {
+      sum += it.value();
+      if (!(it.value() >= 0 && it.value() <= 1)) problems += "P(" + std::to_string(i) + ",.) outside [0, 1]\n";
+    }
+    if (std::abs(sum - 1) > 1e-12 || nnz > 3 || nnz == 0)
+      problems += "row " + std::to_string(i) + " of P: sum " + std::to_string(sum) + ", " + std::to_string(nnz) + " entries\n";
+  }
+  for (const ice::QemPoint& q : qem.map)
+    if (q.face < 0 || q.face >= qem.coarse.F.rows()) {
+      problems += "a map entry has no face\n";
+      break;
+    }
+  return problems;
+}
+
 std::vector<ice::Index> read_lock_file(const std::string& path, const ice::LoadResult& loaded) {
   std::vector<ice::Index> locked;
   for (double x : app::read_number_file(path)) {
@@ -191,12 +238,26 @@ int main(int argc, char** argv) {
     if (!lock_path.empty()) options.locked_vertices = read_lock_file(lock_path, loaded);
     const double t_load = clock.lap();
 
-    ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-    const ice::CoarsenResult result = app::coarsen_with_progress(T, options, !quiet);
+    // ICE, or the QEM baseline (--method qem): same outputs, from the QEM mesh (extrinsic lengths in
+    // coarse.ilm, the closest-point map in map.csv, the QEM mesh itself as preview.obj).
+    const bool qem = target.method == "qem";
+    std::optional<ice::IntrinsicTriangulation> T;
+    ice::QemResult qem_result;
+    ice::CoarsenResult result;
+    if (qem) {
+      qem_result = ice::qem_coarsen(mesh, app::qem_options(options));
+      result = app::qem_summary(qem_result);
+      if (!qem_result.target_reached)
+        app::warn(kTool, "QEM stopped at " + app::thousands(qem_result.coarse.V.rows()) +
+                             " vertices: no further collapse is legal");
+    } else {
+      T.emplace(ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F));
+      result = app::coarsen_with_progress(*T, options, !quiet);
+    }
     const double t_coarsen = clock.lap();
-    app::warn_if_target_missed(kTool, result, options);
+    if (!qem) app::warn_if_target_missed(kTool, result, options);
     if (validate) {
-      const std::string problems = T.validate();
+      const std::string problems = qem ? validate_qem(qem_result) : T->validate();
       if (!problems.empty())
         throw app::AppError(app::kFailed, "--validate: the coarse triangulation is INVALID (nothing written):\n" + problems);
     }
@@ -204,11 +265,16 @@ int main(int argc, char** argv) {
 
     fs::create_directories(outdir, ec);
     if (ec) throw app::AppError(app::kNotWritten, "--output " + outdir + ": cannot create the directory: " + ec.message());
-    const ice::CompactMesh coarse = T.compact();
-    write_ilm(outputs[0], coarse, T.num_input_vertices(), input);
-    write_matrix_market(outputs[1], ice::prolongation(T, coarse));
-    write_map(outputs[2], T, coarse);
-    write_preview(outputs[3], mesh, coarse);
+    const ice::CompactMesh coarse = qem ? ice::qem_extrinsic_mesh(qem_result) : T->compact();
+    write_ilm(outputs[0], coarse, static_cast<ice::Index>(n), input);
+    write_matrix_market(outputs[1], qem ? qem_result.P : ice::prolongation(*T, coarse));
+    if (qem) {
+      write_qem_map(outputs[2], qem_result);
+      write_qem_preview(outputs[3], qem_result);
+    } else {
+      write_map(outputs[2], *T, coarse);
+      write_preview(outputs[3], mesh, coarse);
+    }
     const double t_write = clock.lap();
 
     const double rate = result.removed / std::max(t_coarsen, 1e-9);
@@ -223,6 +289,7 @@ int main(int argc, char** argv) {
                            {"keep_boundary", keep_boundary},
                            {"locked_vertices", options.locked_vertices.size()}};
       report["coarse"] = app::coarsen_json(result, coarse);
+      if (qem) report["qem"] = app::qem_json(qem_result);
       report["timings_s"] = {{"load", t_load}, {"coarsen", t_coarsen}, {"write", t_write}};
       if (validate) report["timings_s"]["validate"] = t_validate;
       report["removals_per_second"] = rate;
@@ -237,7 +304,7 @@ int main(int argc, char** argv) {
               << " faces -> " << app::thousands(nc) << " vertices, " << app::thousands(coarse.F.rows()) << " faces ("
               << app::percent(double(nc) / double(n)) << " of the vertices)\n"
               << "  stop: " << ice::to_string(result.stop_reason) << " after " << app::thousands(result.removed)
-              << " removals (" << result.failed_removals << " failed attempts); last cost " << result.last_cost
+              << (qem ? " QEM collapses (" : " removals (") << result.failed_removals << " failed attempts); last cost " << result.last_cost
               << ", next cost " << result.next_cost << '\n'
               << "  time: load " << app::fixed(t_load, 3) << " s, coarsen " << app::fixed(t_coarsen, 3) << " s ("
               << app::thousands(static_cast<long long>(rate)) << " removals/s), "
