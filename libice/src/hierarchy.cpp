@@ -30,11 +30,13 @@ Eigen::SparseMatrix<double> Hierarchy::prolongation_to_fine(int k) const {
 namespace {
 
 // Coarsens T to co.target_vertices in passes. Each pass removes (at most) an independent set of
-// the current triangulation, picked greedily in order of ICE removal cost: the cheapest vertex is
-// taken, its neighbours are excluded, and so on; everything else is locked for that pass. This
+// the current triangulation, picked greedily in order of |curvature| (or of exact ICE removal cost
+// when exact_costs): the flattest vertex is taken, its neighbours are excluded, and so on;
+// everything else is locked for that pass and ice::coarsen removes the set in ICE-cost order. This
 // keeps each level's vertex density uniform (every removed vertex keeps all its neighbours within a
 // pass), which is what multigrid needs, while the ICE metric still decides which vertices go.
-CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const CoarsenOptions& base, double area_weight) {
+CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const CoarsenOptions& base, double area_weight,
+                                          bool exact_costs) {
   const auto start = std::chrono::steady_clock::now();
   CoarsenResult total;
   total.input_vertices = T.num_vertices();
@@ -43,13 +45,18 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
   for (Index v : base.locked_vertices) user_locked[static_cast<std::size_t>(v)] = 1;
   std::vector<std::pair<double, Index>> order;
   for (int pass = 0; pass < 64 && T.num_vertices() > base.target_vertices; ++pass) {
-    const IntrinsicErrorMetric metric(T, area_weight);
     order.clear();
-    for (Index v = 0; v < slots; ++v)
-      if (T.vertex_alive(v) && !user_locked[static_cast<std::size_t>(v)]) {
-        const double cost = metric.removal_cost(T, v);
-        if (std::isfinite(cost)) order.emplace_back(cost, v);
-      }
+    if (exact_costs) {
+      const IntrinsicErrorMetric metric(T, area_weight);
+      for (Index v = 0; v < slots; ++v)
+        if (T.vertex_alive(v) && !user_locked[static_cast<std::size_t>(v)]) {
+          const double cost = metric.removal_cost(T, v);
+          if (std::isfinite(cost)) order.emplace_back(cost, v);
+        }
+    } else {
+      for (Index v = 0; v < slots; ++v)
+        if (T.vertex_alive(v) && !user_locked[static_cast<std::size_t>(v)]) order.emplace_back(std::abs(T.curvature(v)), v);
+    }
     std::sort(order.begin(), order.end());
     std::fill(blocked.begin(), blocked.end(), 0);
     Index selected = 0;
@@ -136,7 +143,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     if (!options.independent_sets) {
       result = coarsen(T, co);
     } else {
-      result = coarsen_by_independent_sets(T, co, options.area_weight);
+      result = coarsen_by_independent_sets(T, co, options.area_weight, options.exact_cost_order);
     }
     H.coarsen_seconds += result.seconds;
     if (T.num_vertices() > n - std::max<Index>(1, n / 10)) {

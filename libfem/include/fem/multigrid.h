@@ -48,7 +48,7 @@ const char* to_string(MultigridSmoother smoother);
 
 struct MultigridOptions {
   MultigridMode mode = MultigridMode::pcg;
-  MultigridSmoother smoother = MultigridSmoother::gauss_seidel;
+  MultigridSmoother smoother = MultigridSmoother::symmetric_gauss_seidel;
   /// ν: pre- and post-smoothing steps per level (>= 1).
   int smoothing_steps = 1;
   /// Chebyshev: polynomial degree (>= 1) and the ratio of the interval's ends.
