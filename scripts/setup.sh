@@ -37,7 +37,7 @@ PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev
   libopenblas-dev libopenblas0-pthread libopenblas-pthread-dev
-  libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev
+  libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox
   libcgal-demo
 )
 

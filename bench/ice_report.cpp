@@ -1,0 +1,725 @@
+// ice-report: ICE against the QEM baseline, side by side, on the same meshes, budgets and problems.
+//
+// For every mesh (default: the clean shared meshes present), coarse budget (default 1, 2, 5, 10 % of
+// the vertices, at least --min-vertices) and method:
+//   ice        ICE, curvature only (area weight 0)
+//   ice_area   ICE with area weight --area-weight (default 0.5: more evenly spread vertices)
+//   qem_ext    QEM (OpenMesh Decimater + quadrics, closest-point map), operators from its positions
+//   qem_idt    the same QEM mesh and P, operators from its intrinsic Delaunay triangulation
+// it solves three problems through the coarse proxy (fem::CoarseProxy, --operators intrinsic by default)
+// and on the fine mesh (its intrinsic Delaunay triangulation, as the tools do by default):
+//   poisson    zero-mean Poisson L u = M f, f = the demo source of poisson-coarse (three Gaussian bumps,
+//              zero mean); error: relative L2 in the fine mass norm
+//   heat       one backward-Euler step of length t = 0.1 × surface area (long time, smooth answer) from
+//              u0 = the same zero-mean field: (M + tL) u = M u0, restricted as Pᵀ M u0; error: relative L2
+//   geodesic   heat-method distance from each of 3 sources (vertex 0, then twice the vertex farthest in
+//              R³ from those chosen); error: mean |d − d_ref| / max d_ref, averaged over the sources
+// and writes results.csv, results.json, summary.md and (with gnuplot) SVG plots into the output dir.
+// Progress goes to stderr. --quick: 2 small meshes, 2 budgets (the CTest test report_quick).
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+#include "app_common.h"
+#include "fem/blas_info.h"
+#include "fem/coarse_proxy.h"
+#include "fem/errors.h"
+#include "fem/problems.h"
+#include "ice/qem.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kTool = "ice-report";
+const std::vector<std::string> kProblems = {"poisson", "heat", "geodesic"};
+const std::vector<std::string> kDefaultMeshes = {
+    "spot.obj",     "fertility.off",     "bob_tri.obj",  "fandisk.obj",     "blub_triangulated.obj",
+    "capsule.obj",  "camelhead.off",     "dragon_fat.obj", "bs_rest.obj",    "spot_subdiv.obj",
+    "face_scan.obj", "bunny_closed.off", "armadillo_43k.obj"};
+const std::vector<std::string> kQuickMeshes = {"spot.obj", "fertility.off"};
+
+struct Row {
+  std::string mesh, method, problem;
+  long long n = 0, target = 0, coarse_n = 0, coarse_faces = 0;
+  double budget = 0;
+  double coarsen = 0, assemble = 0, factor = 0, solve = 0, prolong = 0;
+  double fine_assemble = 0, fine_factor = 0, fine_solve = 0;
+  double error = 0, error_max = 0, error_l2 = 0;
+  double qem_max_distance = -1;  // QEM only: largest projection distance / bounding-box diagonal
+  bool target_reached = true;
+  std::string note;
+  double proxy_total() const { return coarsen + assemble + factor + solve + prolong; }
+  double fine_total() const { return fine_assemble + fine_factor + fine_solve; }
+  double speedup_total() const { return fine_total() / std::max(proxy_total(), 1e-12); }
+  double speedup_solve() const { return fine_solve / std::max(solve + prolong, 1e-12); }
+};
+
+// The demo source of poisson-coarse: three Gaussian bumps (+1, −1, +1) at the vertices with the
+// largest x, y, z, σ = 0.1 × bounding-box diagonal, minus its mass-weighted mean.
+Eigen::VectorXd demo_source(const ice::TriangleMesh& mesh, const fem::SparseMatrix& mass) {
+  const Eigen::Index n = mesh.V.rows();
+  const double sigma = 0.1 * (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
+  const double weights[3] = {1.0, -1.0, 1.0};
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(n);
+  for (int axis = 0; axis < 3; ++axis) {
+    Eigen::Index centre = 0;
+    mesh.V.col(axis).maxCoeff(&centre);
+    const Eigen::RowVector3d c = mesh.V.row(centre);
+    for (Eigen::Index i = 0; i < n; ++i)
+      f(i) += weights[axis] * std::exp(-(mesh.V.row(i) - c).squaredNorm() / (2 * sigma * sigma));
+  }
+  const Eigen::VectorXd m1 = mass * Eigen::VectorXd::Ones(n);
+  return f.array() - m1.dot(f) / m1.sum();
+}
+
+std::vector<int> spread_sources(const ice::Positions& V, int count) {
+  std::vector<int> s{0};
+  Eigen::VectorXd d = (V.rowwise() - V.row(0)).rowwise().norm();
+  while (static_cast<int>(s.size()) < count) {
+    Eigen::Index far = 0;
+    d.maxCoeff(&far);
+    s.push_back(static_cast<int>(far));
+    d = d.cwiseMin((V.rowwise() - V.row(far)).rowwise().norm());
+  }
+  return s;
+}
+
+double median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const std::size_t k = v.size() / 2;
+  return v.size() % 2 ? v[k] : 0.5 * (v[k - 1] + v[k]);
+}
+
+std::string num(double x, int digits = 4) {
+  if (!std::isfinite(x)) return "n/a";
+  std::ostringstream s;
+  s << std::setprecision(digits) << x;
+  return s.str();
+}
+std::string pct(double x) { return std::isfinite(x) ? app::percent(x) : "n/a"; }
+
+// ---- fine reference of one mesh ---------------------------------------------------------------------
+
+struct Fine {
+  ice::TriangleMesh mesh;
+  app::FineMesh disc;
+  fem::SparseMatrix M;
+  Eigen::VectorXd f;  // zero-mean demo field (Poisson source, heat initial values)
+  double heat_time = 0;
+  std::vector<int> sources;
+  Eigen::VectorXd poisson, heat;
+  std::vector<Eigen::VectorXd> distances;
+  double t_assemble[3] = {0, 0, 0}, t_factor[3] = {0, 0, 0}, t_solve[3] = {0, 0, 0};
+};
+
+Fine fine_reference(const ice::TriangleMesh& mesh) {
+  Fine r;
+  r.mesh = mesh;
+  const Eigen::Index n = mesh.V.rows();
+  r.disc = app::make_fine_mesh(mesh, true);
+  app::Stopwatch clock;
+  const fem::SparseMatrix L = fem::cotan_laplacian(r.disc.F, r.disc.L, n);
+  r.M = fem::mass_matrix(r.disc.F, r.disc.L, fem::MassKind::lumped, n);
+  r.t_assemble[0] = r.t_assemble[1] = clock.lap();  // the same L and M for Poisson and heat
+  r.f = demo_source(mesh, r.M);
+  r.heat_time = 0.1 * r.M.sum();
+  r.sources = spread_sources(mesh.V, 3);
+  clock.lap();
+  const fem::PoissonSolver poisson = fem::PoissonSolver::zero_mean(L, r.M);
+  r.t_factor[0] = clock.lap();
+  r.poisson = poisson.solve(r.f);
+  r.t_solve[0] = clock.lap();
+  const fem::HeatSolver heat(L, r.M, r.heat_time);
+  r.t_factor[1] = clock.lap();
+  r.heat = heat.step(r.f);
+  r.t_solve[1] = clock.lap();
+  fem::HeatMethodOperators ops = fem::heat_method_operators(r.disc.F, r.disc.L, fem::MassKind::lumped, 1.0, n);
+  r.t_assemble[2] = clock.lap();
+  const fem::HeatGeodesicSolver geodesic(std::move(ops));
+  r.t_factor[2] = clock.lap();
+  for (int s : r.sources) r.distances.push_back(geodesic.distance({s}));
+  r.t_solve[2] = clock.lap();
+  return r;
+}
+
+// ---- one coarse proxy, three problems ---------------------------------------------------------------
+
+void solve_on_proxy(const Fine& fine, const app::CoarseMesh& coarse, fem::CoarseOperatorKind kind, Row base,
+                    std::vector<Row>& rows) {
+  const Eigen::Index n = fine.mesh.V.rows(), nc = static_cast<Eigen::Index>(coarse.mesh.to_input.size());
+  const fem::SparseMatrix& P = coarse.P;
+  app::Stopwatch clock;
+  const fem::CoarseProxy proxy(fine.disc.F, fine.disc.L, coarse.mesh.F, coarse.mesh.L, P, kind, fem::MassKind::lumped, n, nc);
+  const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
+  const Eigen::VectorXd m1 = fine.M * Eigen::VectorXd::Ones(n);
+
+  {  // Poisson
+    Row r = base;
+    r.problem = "poisson";
+    r.assemble = t_proxy;
+    clock.lap();
+    const fem::PoissonSolver solver = fem::PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass());
+    r.factor = clock.lap();
+    const Eigen::VectorXd uc = solver.solve_weighted(proxy.restrict_weighted(fine.M * fine.f));
+    r.solve = clock.lap();
+    Eigen::VectorXd u = proxy.prolong(uc);
+    u.array() -= m1.dot(u) / m1.sum();
+    r.prolong = clock.lap();
+    r.fine_assemble = fine.t_assemble[0], r.fine_factor = fine.t_factor[0], r.fine_solve = fine.t_solve[0];
+    r.error = r.error_l2 = fem::relative_l2_error(u, fine.poisson, fine.M);
+    r.error_max = fem::max_abs_error(u, fine.poisson) / fine.poisson.cwiseAbs().maxCoeff();
+    rows.push_back(r);
+  }
+  {  // heat
+    Row r = base;
+    r.problem = "heat";
+    r.assemble = t_proxy;
+    clock.lap();
+    const fem::HeatSolver solver(proxy.coarse_laplacian(), proxy.coarse_mass(), fine.heat_time);
+    r.factor = clock.lap();
+    const Eigen::VectorXd uc = solver.solve_weighted(proxy.restrict_weighted(fine.M * fine.f));
+    r.solve = clock.lap();
+    const Eigen::VectorXd u = proxy.prolong(uc);
+    r.prolong = clock.lap();
+    r.fine_assemble = fine.t_assemble[1], r.fine_factor = fine.t_factor[1], r.fine_solve = fine.t_solve[1];
+    r.error = r.error_l2 = fem::relative_l2_error(u, fine.heat, fine.M);
+    r.error_max = fem::max_abs_error(u, fine.heat) / fine.heat.cwiseAbs().maxCoeff();
+    rows.push_back(r);
+  }
+  {  // geodesics
+    Row r = base;
+    r.problem = "geodesic";
+    clock.lap();
+    fem::HeatMethodOperators ops = proxy.coarse_heat_method_operators();
+    r.assemble = t_proxy + clock.lap();
+    const fem::HeatGeodesicSolver solver(std::move(ops));
+    r.factor = clock.lap();
+    std::vector<Eigen::VectorXd> coarse_d;
+    for (int s : fine.sources) {
+      Eigen::VectorXd w = Eigen::VectorXd::Zero(n);
+      w(s) = 1;
+      coarse_d.push_back(solver.distance_from_weights(proxy.restrict_weighted(w)));
+    }
+    r.solve = clock.lap();
+    std::vector<Eigen::VectorXd> d;
+    for (std::size_t k = 0; k < coarse_d.size(); ++k) {
+      d.push_back(proxy.prolong(coarse_d[k]));
+      d.back().array() -= d.back()(fine.sources[k]);
+    }
+    r.prolong = clock.lap();
+    r.fine_assemble = fine.t_assemble[2], r.fine_factor = fine.t_factor[2], r.fine_solve = fine.t_solve[2];
+    double mean = 0, max = 0, l2 = 0;
+    for (std::size_t k = 0; k < d.size(); ++k) {
+      const fem::DistanceErrors e = fem::distance_errors(d[k], fine.distances[k]);
+      mean += e.mean_relative / d.size();
+      max += e.max_relative / d.size();
+      l2 += fem::relative_l2_error(d[k], fine.distances[k], fine.M) / d.size();
+    }
+    r.error = mean, r.error_max = max, r.error_l2 = l2;
+    rows.push_back(r);
+  }
+}
+
+// ---- outputs ----------------------------------------------------------------------------------------
+
+nlohmann::json row_json(const Row& r) {
+  return {{"mesh", r.mesh},
+          {"n", r.n},
+          {"budget", r.budget},
+          {"target", r.target},
+          {"method", r.method},
+          {"problem", r.problem},
+          {"coarse_n", r.coarse_n},
+          {"coarse_faces", r.coarse_faces},
+          {"target_reached", r.target_reached},
+          {"time_s",
+           {{"coarsen", r.coarsen},
+            {"assemble", r.assemble},
+            {"factor", r.factor},
+            {"solve", r.solve},
+            {"prolong", r.prolong},
+            {"proxy_total", r.proxy_total()},
+            {"fine_assemble", r.fine_assemble},
+            {"fine_factor", r.fine_factor},
+            {"fine_solve", r.fine_solve},
+            {"fine_total", r.fine_total()}}},
+          {"speedup", {{"total", r.speedup_total()}, {"per_solve", r.speedup_solve()}}},
+          {"error", {{"primary", r.error}, {"max_rel", r.error_max}, {"rel_l2", r.error_l2}}},
+          {"qem_max_distance_rel", r.qem_max_distance >= 0 ? nlohmann::json(r.qem_max_distance) : nlohmann::json(nullptr)},
+          {"note", r.note}};
+}
+
+void write_csv(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream out(path);
+  out << "mesh,n,budget,target,method,problem,coarse_n,coarse_faces,target_reached,coarsen_s,assemble_s,factor_s,"
+         "solve_s,prolong_s,proxy_total_s,fine_assemble_s,fine_factor_s,fine_solve_s,fine_total_s,speedup_total,"
+         "speedup_per_solve,error,error_max_rel,error_rel_l2,qem_max_distance_rel,note\n";
+  out << std::setprecision(9);
+  for (const Row& r : rows)
+    out << r.mesh << ',' << r.n << ',' << r.budget << ',' << r.target << ',' << r.method << ',' << r.problem << ','
+        << r.coarse_n << ',' << r.coarse_faces << ',' << (r.target_reached ? 1 : 0) << ',' << r.coarsen << ','
+        << r.assemble << ',' << r.factor << ',' << r.solve << ',' << r.prolong << ',' << r.proxy_total() << ','
+        << r.fine_assemble << ',' << r.fine_factor << ',' << r.fine_solve << ',' << r.fine_total() << ','
+        << r.speedup_total() << ',' << r.speedup_solve() << ',' << r.error << ',' << r.error_max << ',' << r.error_l2
+        << ',' << (r.qem_max_distance >= 0 ? num(r.qem_max_distance, 6) : "") << ',' << r.note << '\n';
+  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
+}
+
+struct Key {
+  std::string mesh, problem;
+  double budget;
+  bool operator<(const Key& o) const { return std::tie(mesh, problem, budget) < std::tie(o.mesh, o.problem, o.budget); }
+};
+
+void write_summary(const std::string& path, const std::vector<Row>& rows, const std::vector<std::string>& methods,
+                   const std::vector<double>& budgets, const std::vector<std::string>& meshes, const std::string& command,
+                   double total_seconds, const std::string& operators, double area_weight) {
+  std::map<Key, std::map<std::string, const Row*>> by_key;
+  for (const Row& r : rows) by_key[{r.mesh, r.problem, r.budget}][r.method] = &r;
+  const auto has = [&](const std::string& m) { return std::find(methods.begin(), methods.end(), m) != methods.end(); };
+  std::vector<std::pair<std::string, std::string>> ratios;  // (numerator, denominator)
+  for (const std::string ice : {"ice", "ice_area"})
+    for (const std::string qem : {"qem_ext", "qem_idt"})
+      if (has(ice) && has(qem)) ratios.emplace_back(ice, qem);
+
+  std::ofstream out(path);
+  out << "# ICE vs QEM report\n\n"
+      << "Command: `" << command << "`  \n"
+      << "Meshes (" << meshes.size() << "): " << [&] {
+           std::string s;
+           for (const auto& m : meshes) s += (s.empty() ? "" : ", ") + m;
+           return s;
+         }() << "  \n"
+      << "Coarse operators: " << operators << "; ICE area weight for `ice_area`: " << area_weight
+      << "; fine reference on the intrinsic Delaunay triangulation of the input; BLAS: " << fem::blas_library()
+      << "  \nTotal run time " << num(total_seconds, 3) << " s.\n\n"
+      << "Methods: `ice` ICE curvature only; `ice_area` ICE with area weight; `qem_ext` QEM (OpenMesh quadric "
+         "decimation, closest-point map) with operators from its positions; `qem_idt` the same QEM mesh and P with "
+         "operators from its intrinsic Delaunay triangulation.  \n"
+         "Errors: Poisson and heat relative L2 (fine mass norm); geodesic mean |d - d_ref| / max d_ref over 3 "
+         "sources. Ratios < 1 mean ICE is more accurate.\n\n";
+
+  for (const std::string& problem : kProblems) {
+    out << "## " << problem << ": median error per method, median ICE/QEM error ratio\n\n| budget | median coarse n |";
+    for (const auto& m : methods) out << ' ' << m << " |";
+    for (const auto& [a, b] : ratios) out << ' ' << a << "/" << b << " |";
+    out << " ice beats qem_idt |\n|---|---:|";
+    for (std::size_t i = 0; i < methods.size() + ratios.size(); ++i) out << "---:|";
+    out << "---:|\n";
+    for (double budget : budgets) {
+      std::map<std::string, std::vector<double>> errors, ratio_values;
+      std::vector<double> sizes;
+      int wins = 0, count = 0;
+      for (const auto& [key, row_of] : by_key) {
+        if (key.problem != problem || key.budget != budget) continue;
+        for (const auto& [m, r] : row_of) {
+          errors[m].push_back(r->error);
+          if (m == methods.front()) sizes.push_back(static_cast<double>(r->coarse_n));
+        }
+        for (const auto& [a, b] : ratios)
+          if (row_of.count(a) && row_of.count(b))
+            ratio_values[a + "/" + b].push_back(row_of.at(a)->error / row_of.at(b)->error);
+        if (row_of.count("ice") && row_of.count("qem_idt")) {
+          ++count;
+          wins += row_of.at("ice")->error < row_of.at("qem_idt")->error;
+        }
+      }
+      out << "| " << num(100 * budget, 3) << "% | " << num(median(sizes), 5) << " |";
+      for (const auto& m : methods) out << ' ' << pct(median(errors[m])) << " |";
+      for (const auto& [a, b] : ratios) out << ' ' << num(median(ratio_values[a + "/" + b]), 3) << " |";
+      out << ' ' << wins << "/" << count << " |\n";
+    }
+    out << '\n';
+  }
+
+  // Coarsening time on the same inputs (the same for every problem: take the Poisson rows).
+  out << "## Coarsening time, ICE vs QEM (seconds, same inputs; QEM = decimation + closest-point map; qem_idt "
+         "adds the intrinsic Delaunay flips)\n\n| mesh | n | budget | coarse n |";
+  for (const auto& m : methods) out << ' ' << m << " |";
+  out << " ice/qem_ext |\n|---|---:|---:|---:|";
+  for (std::size_t i = 0; i <= methods.size(); ++i) out << "---:|";
+  out << '\n';
+  std::vector<double> time_ratios;
+  std::map<std::string, double> total_time;
+  for (const auto& [key, row_of] : by_key) {
+    if (key.problem != "poisson") continue;
+    const Row* first = row_of.begin()->second;
+    out << "| " << key.mesh << " | " << first->n << " | " << num(100 * key.budget, 3) << "% | " << first->coarse_n << " |";
+    for (const auto& m : methods) {
+      const auto it = row_of.find(m);
+      out << ' ' << (it == row_of.end() ? "n/a" : num(it->second->coarsen, 3)) << " |";
+      if (it != row_of.end()) total_time[m] += it->second->coarsen;
+    }
+    double ratio = std::numeric_limits<double>::quiet_NaN();
+    if (row_of.count("ice") && row_of.count("qem_ext")) ratio = row_of.at("ice")->coarsen / row_of.at("qem_ext")->coarsen;
+    time_ratios.push_back(ratio);
+    out << ' ' << num(ratio, 3) << " |\n";
+  }
+  out << "\nTotal coarsening time per method:";
+  for (const auto& m : methods) out << ' ' << m << ' ' << num(total_time[m], 4) << " s;";
+  out << " median ICE/QEM time ratio " << num(median(time_ratios), 3) << ".\n\n";
+
+  // Speed-up vs the fine solve.
+  out << "## Speed-up vs the fine solve (median over meshes; end to end = fine assemble+factor+solve / proxy "
+         "coarsen+assemble+factor+solve+prolong; per solve = fine solve / (coarse solve + prolong))\n\n"
+         "| problem | budget |";
+  for (const auto& m : methods) out << ' ' << m << " end to end | " << m << " per solve |";
+  out << "\n|---|---:|";
+  for (std::size_t i = 0; i < 2 * methods.size(); ++i) out << "---:|";
+  out << '\n';
+  for (const std::string& problem : kProblems)
+    for (double budget : budgets) {
+      out << "| " << problem << " | " << num(100 * budget, 3) << "% |";
+      for (const auto& m : methods) {
+        std::vector<double> total, solve;
+        for (const Row& r : rows)
+          if (r.problem == problem && r.budget == budget && r.method == m) {
+            total.push_back(r.speedup_total());
+            solve.push_back(r.speedup_solve());
+          }
+        out << ' ' << num(median(total), 3) << "x | " << num(median(solve), 3) << "x |";
+      }
+      out << '\n';
+    }
+
+  // Where ICE does not win.
+  out << "\n## Where ICE (curvature only) is less accurate than QEM\n\n";
+  int losses = 0, cases = 0;
+  std::ostringstream list;
+  for (const auto& [key, row_of] : by_key) {
+    if (!row_of.count("ice")) continue;
+    const Row* ice = row_of.at("ice");
+    for (const std::string q : {"qem_ext", "qem_idt"}) {
+      if (!row_of.count(q)) continue;
+      ++cases;
+      if (ice->error > row_of.at(q)->error) {
+        ++losses;
+        list << "- " << key.mesh << ", " << num(100 * key.budget, 3) << "%, " << key.problem << ": ice " << pct(ice->error)
+             << " vs " << q << ' ' << pct(row_of.at(q)->error) << '\n';
+      }
+    }
+  }
+  out << losses << " of " << cases << " comparisons (mesh × budget × problem × QEM variant):\n\n" << list.str();
+  std::vector<std::string> notes;
+  for (const Row& r : rows)
+    if (!r.note.empty() && r.problem == "poisson") notes.push_back(r.mesh + " " + num(100 * r.budget, 3) + "% " + r.method + ": " + r.note);
+  if (!notes.empty()) {
+    out << "\n## Notes\n\n";
+    for (const auto& n : notes) out << "- " << n << '\n';
+  }
+  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
+}
+
+// Data files for plot_report.gp (blocks separated by two blank lines, one per method or problem).
+void write_plot_data(const std::string& dir, const std::vector<Row>& rows, const std::vector<std::string>& methods,
+                     const std::vector<double>& budgets) {
+  for (const std::string& problem : kProblems) {
+    std::ofstream out(dir + "/plot_error_" + problem + ".dat");
+    for (const auto& m : methods) {
+      out << "# " << m << ": coarse_n error\n";
+      for (const Row& r : rows)
+        if (r.problem == problem && r.method == m && std::isfinite(r.error)) out << r.coarse_n << ' ' << r.error << '\n';
+      out << "\n\n";
+    }
+    std::ofstream med(dir + "/plot_median_" + problem + ".dat");
+    for (const auto& m : methods) {
+      med << "# " << m << ": budget_percent median_error\n";
+      for (double b : budgets) {
+        std::vector<double> e;
+        for (const Row& r : rows)
+          if (r.problem == problem && r.method == m && r.budget == b) e.push_back(r.error);
+        med << 100 * b << ' ' << median(e) << '\n';
+      }
+      med << "\n\n";
+    }
+  }
+  // Mean time per phase (over meshes and budgets), per method, summed over the three problems; and fine.
+  std::ofstream ph(dir + "/plot_phases.dat");
+  ph << "# method coarsen assemble factor solve prolong\n";
+  std::set<std::tuple<std::string, double>> instances;
+  for (const Row& r : rows) instances.insert({r.mesh, r.budget});
+  const double count = std::max<double>(1, static_cast<double>(instances.size()));
+  for (const auto& m : methods) {
+    double c = 0, a = 0, f = 0, s = 0, p = 0;
+    for (const Row& r : rows)
+      if (r.method == m) {
+        if (r.problem == "poisson") c += r.coarsen;
+        a += r.assemble, f += r.factor, s += r.solve, p += r.prolong;
+      }
+    ph << m << ' ' << c / count << ' ' << a / count << ' ' << f / count << ' ' << s / count << ' ' << p / count << '\n';
+  }
+  double a = 0, f = 0, s = 0;
+  for (const Row& r : rows)
+    if (r.method == methods.front()) a += r.fine_assemble, f += r.fine_factor, s += r.fine_solve;
+  ph << "fine 0 " << a / count << ' ' << f / count << ' ' << s / count << " 0\n";
+  // Median speed-ups of the first method vs budget, per problem.
+  std::ofstream sp(dir + "/plot_speedup.dat");
+  for (const std::string& problem : kProblems) {
+    sp << "# " << problem << ": budget_percent end_to_end per_solve (" << methods.front() << ")\n";
+    for (double b : budgets) {
+      std::vector<double> t, s2;
+      for (const Row& r : rows)
+        if (r.problem == problem && r.method == methods.front() && r.budget == b) {
+          t.push_back(r.speedup_total());
+          s2.push_back(r.speedup_solve());
+        }
+      sp << 100 * b << ' ' << median(t) << ' ' << median(s2) << '\n';
+    }
+    sp << "\n\n";
+  }
+}
+
+std::vector<double> parse_doubles(const std::string& text, const std::string& what) {
+  std::vector<double> values;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      std::size_t used = 0;
+      values.push_back(std::stod(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      throw app::AppError(app::kUsage, what + ": '" + item + "' is not a number");
+    }
+  }
+  return values;
+}
+
+std::vector<std::string> split(const std::string& text) {
+  std::vector<std::string> items;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) items.push_back(item);
+  return items;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App cli{
+      "ice-report: ICE against the QEM baseline on the same meshes, coarse budgets and PDE problems (Poisson, "
+      "long-time heat, heat-method geodesics), all in one process; writes results.csv, results.json, summary.md and "
+      "SVG plots (gnuplot) into the output directory. Progress on stderr.\n\n"
+      "Examples:\n  ice-report -o report\n  ice-report --quick -o /tmp/r\n"
+      "  ice-report --meshes spot.obj,/data/my.off --budgets 0.02,0.05 --methods ice,qem_idt -o r"};
+  std::string outdir = "ice-report", meshes_text, budgets_text = "0.01,0.02,0.05,0.1", methods_text = "ice,ice_area,qem_ext,qem_idt";
+  // The sources' script when run from the build tree, the installed one otherwise.
+  std::string meshes_dir, operators = "intrinsic",
+                          plot_script = fs::exists(ICE_REPORT_PLOT_SCRIPT_SOURCE) ? ICE_REPORT_PLOT_SCRIPT_SOURCE
+                                                                                  : ICE_REPORT_PLOT_SCRIPT;
+  long long min_vertices = 100;
+  double area_weight = 0.5;
+  bool quick = false, no_plots = false;
+  cli.add_option("--output,-o", outdir, "Output directory (created; existing report files in it are replaced)")
+      ->capture_default_str();
+  cli.add_option("--meshes", meshes_text,
+                 "Comma-separated meshes: names in --meshes-dir or paths (default: the clean shared meshes present)");
+  cli.add_option("--meshes-dir", meshes_dir, "Where mesh names are looked up (default: $ICE_SHARED_MESHES or ../shared/data/meshes)");
+  cli.add_option("--budgets", budgets_text, "Comma-separated coarse budgets, fractions of the input vertices")->capture_default_str();
+  cli.add_option("--min-vertices", min_vertices, "Floor of every coarse size (at most the input size)")->capture_default_str();
+  cli.add_option("--methods", methods_text, "Comma-separated subset of ice, ice_area, qem_ext, qem_idt")->capture_default_str();
+  cli.add_option("--area-weight", area_weight, "ICE area weight of the ice_area method")->capture_default_str();
+  cli.add_option("--operators", operators, "Coarse operators: intrinsic (from the coarse mesh) or galerkin (PᵀLP, PᵀMP)")
+      ->check(CLI::IsMember({"intrinsic", "galerkin"}))
+      ->capture_default_str();
+  cli.add_flag("--quick", quick, "Small subset for CI: spot and fertility, budgets 5% and 10%");
+  cli.add_flag("--no-plots", no_plots, "Do not run gnuplot");
+  cli.add_option("--plot-script", plot_script, "The gnuplot script that draws the plots")->capture_default_str();
+  if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
+
+  return app::run_tool(kTool, [&] {
+    app::Stopwatch total_clock;
+    std::string command;
+    for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
+    if (meshes_dir.empty()) {
+      const char* env = std::getenv("ICE_SHARED_MESHES");
+      meshes_dir = env ? env : ICE_SHARED_MESHES_DIR;
+    }
+    std::vector<std::string> mesh_names = meshes_text.empty() ? (quick ? kQuickMeshes : kDefaultMeshes) : split(meshes_text);
+    std::vector<double> budgets = parse_doubles(budgets_text, "--budgets");
+    if (quick && cli.count("--budgets") == 0) budgets = {0.05, 0.1};
+    for (double b : budgets)
+      if (!(b > 0 && b <= 1)) throw app::AppError(app::kUsage, "--budgets: every budget must be in (0, 1]");
+    const std::vector<std::string> methods = split(methods_text);
+    for (const auto& m : methods)
+      if (m != "ice" && m != "ice_area" && m != "qem_ext" && m != "qem_idt")
+        throw app::AppError(app::kUsage, "--methods: unknown method '" + m + "'");
+    if (methods.empty()) throw app::AppError(app::kUsage, "--methods: none given");
+    if (!(area_weight >= 0 && area_weight <= 1)) throw app::AppError(app::kUsage, "--area-weight must be in [0, 1]");
+    const fem::CoarseOperatorKind kind =
+        operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
+    std::error_code ec;
+    fs::create_directories(outdir, ec);
+    if (ec) throw app::AppError(app::kNotWritten, "--output " + outdir + ": " + ec.message());
+
+    // Resolve the meshes; the default list skips missing files (with a note), an explicit one fails.
+    std::vector<std::pair<std::string, std::string>> inputs;  // (name, path)
+    for (const auto& name : mesh_names) {
+      const std::string path = fs::exists(name) ? name : meshes_dir + "/" + name;
+      if (!fs::exists(path)) {
+        if (!meshes_text.empty()) throw app::AppError(app::kUnreadable, path + ": no such mesh");
+        app::warn(kTool, "skipping " + name + ": not in " + meshes_dir);
+        continue;
+      }
+      inputs.emplace_back(fs::path(name).stem().string(), path);
+    }
+    if (inputs.empty()) throw app::AppError(app::kUnreadable, "no meshes found (looked in " + meshes_dir + ")");
+
+    std::vector<Row> rows;
+    std::vector<std::string> used_meshes;
+    const std::size_t steps = inputs.size() * budgets.size();
+    std::size_t step = 0;
+    for (const auto& [name, path] : inputs) {
+      app::Stopwatch mesh_clock;
+      const ice::LoadResult loaded = app::load_input_mesh(path, false);
+      if (loaded.report.components.size() != 1) {
+        app::warn(kTool, "skipping " + name + ": not connected");
+        continue;
+      }
+      used_meshes.push_back(name);
+      const ice::TriangleMesh& mesh = loaded.mesh;
+      const long long n = mesh.V.rows();
+      const double diagonal = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
+      const Fine fine = fine_reference(mesh);
+      std::cerr << kTool << ": " << name << " (" << app::thousands(n) << " vertices): fine reference "
+                << app::fixed(mesh_clock.seconds(), 2) << " s\n";
+      for (double budget : budgets) {
+        ++step;
+        const long long target =
+            std::min(n, std::max(static_cast<long long>(std::ceil(budget * static_cast<double>(n))), min_vertices));
+        Row base;
+        base.mesh = name, base.n = n, base.budget = budget, base.target = target;
+        std::ostringstream progress;
+        progress << kTool << ": [" << step << "/" << steps << "] " << name << ' ' << num(100 * budget, 3) << "% -> "
+                 << target << ':';
+        // ICE variants.
+        for (const std::string m : {"ice", "ice_area"}) {
+          if (std::find(methods.begin(), methods.end(), m) == methods.end()) continue;
+          app::Stopwatch clock;
+          ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+          ice::CoarsenOptions options;
+          options.target_vertices = static_cast<ice::Index>(target);
+          options.area_weight = m == "ice" ? 0.0 : area_weight;
+          const ice::CoarsenResult result = ice::coarsen(T, options);
+          const app::CoarseMesh coarse = app::extract_coarse(T);
+          Row r = base;
+          r.method = m;
+          r.coarsen = clock.seconds();
+          r.coarse_n = static_cast<long long>(coarse.mesh.to_input.size());
+          r.coarse_faces = coarse.mesh.F.rows();
+          r.target_reached = result.stop_reason == ice::StopReason::TargetReached;
+          if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(result.stop_reason);
+          solve_on_proxy(fine, coarse, kind, r, rows);
+          progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
+                   << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
+        }
+        // QEM: one decimation, two operator variants.
+        const bool want_ext = std::find(methods.begin(), methods.end(), "qem_ext") != methods.end();
+        const bool want_idt = std::find(methods.begin(), methods.end(), "qem_idt") != methods.end();
+        if (want_ext || want_idt) {
+          ice::QemOptions options;
+          options.target_vertices = static_cast<ice::Index>(target);
+          const ice::QemResult qem = ice::qem_coarsen(mesh, options);
+          const double t_qem = qem.decimate_seconds + qem.map_seconds;
+          for (const std::string m : {"qem_ext", "qem_idt"}) {
+            if ((m == "qem_ext" && !want_ext) || (m == "qem_idt" && !want_idt)) continue;
+            Row r = base;
+            r.method = m;
+            r.target_reached = qem.target_reached;
+            r.qem_max_distance = qem.max_distance / diagonal;
+            if (!qem.target_reached) r.note = "QEM stopped early";
+            if (qem.guard_relaxed) r.note += std::string(r.note.empty() ? "" : "; ") + "normal guard relaxed";
+            app::Stopwatch clock;
+            app::CoarseMesh coarse;
+            try {
+              coarse = app::qem_coarse_mesh(qem, m == "qem_idt" ? "idt" : "extrinsic");
+            } catch (const std::exception& e) {
+              r.note += std::string(r.note.empty() ? "" : "; ") + "failed: " + e.what();
+              for (const auto& p : kProblems) {
+                r.problem = p;
+                r.error = r.error_max = r.error_l2 = std::numeric_limits<double>::quiet_NaN();
+                rows.push_back(r);
+              }
+              continue;
+            }
+            r.coarsen = t_qem + clock.seconds();
+            r.coarse_n = static_cast<long long>(coarse.mesh.to_input.size());
+            r.coarse_faces = coarse.mesh.F.rows();
+            try {
+              solve_on_proxy(fine, coarse, kind, r, rows);
+            } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
+              r.note += std::string(r.note.empty() ? "" : "; ") + "failed: " + e.what();
+              for (const auto& p : kProblems) {
+                r.problem = p;
+                r.error = r.error_max = r.error_l2 = std::numeric_limits<double>::quiet_NaN();
+                rows.push_back(r);
+              }
+              continue;
+            }
+            progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
+                     << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
+          }
+        }
+        std::cerr << progress.str() << "  [" << app::fixed(total_clock.seconds(), 0) << " s]\n";
+      }
+    }
+
+    // ---- outputs
+    const double total_seconds = total_clock.seconds();
+    write_csv(outdir + "/results.csv", rows);
+    nlohmann::json results = {{"tool", kTool},
+                              {"command", command},
+                              {"meshes", used_meshes},
+                              {"budgets", budgets},
+                              {"min_vertices", min_vertices},
+                              {"methods", methods},
+                              {"area_weight", area_weight},
+                              {"operators", operators},
+                              {"heat_time", "0.1 x surface area, one backward Euler step"},
+                              {"geodesic_sources", "vertex 0 and two farthest-point picks (R^3)"},
+                              {"fine_reference", "intrinsic Delaunay triangulation of the input"},
+                              {"blas", fem::blas_library()},
+                              {"total_seconds", total_seconds},
+                              {"rows", nlohmann::json::array()}};
+    for (const Row& r : rows) results["rows"].push_back(row_json(r));
+    {
+      std::ofstream out(outdir + "/results.json");
+      out << results.dump(1) << '\n';
+      if (!out) throw app::AppError(app::kNotWritten, outdir + "/results.json: cannot be written");
+    }
+    write_summary(outdir + "/summary.md", rows, methods, budgets, used_meshes, command, total_seconds, operators,
+                  area_weight);
+    write_plot_data(outdir, rows, methods, budgets);
+    std::string plots = "no plots (--no-plots)";
+    if (!no_plots) {
+      if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
+        app::warn(kTool, "gnuplot not found: no plots (scripts/setup.sh installs gnuplot-nox)");
+        plots = "no plots (gnuplot missing)";
+      } else if (!fs::exists(plot_script)) {
+        app::warn(kTool, "plot script " + plot_script + " not found: no plots");
+        plots = "no plots (script missing)";
+      } else {
+        std::string methods_words;
+        for (const auto& m : methods) methods_words += (methods_words.empty() ? "" : " ") + m;
+        const std::string cmd = "gnuplot -e \"dir='" + outdir + "'; methods='" + methods_words + "'\" '" + plot_script + "'";
+        if (std::system(cmd.c_str()) != 0) throw app::AppError(app::kFailed, "gnuplot failed: " + cmd);
+        plots = "errors.svg, errors_median.svg, phases.svg, speedup.svg";
+      }
+    }
+    std::cerr << kTool << ": " << rows.size() << " figures in " << app::fixed(total_seconds, 1) << " s\n";
+    std::cout << kTool << ": wrote " << outdir << "/{results.csv, results.json, summary.md}, " << plots << '\n';
+    return app::kOk;
+  });
+}
