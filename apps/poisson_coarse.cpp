@@ -23,7 +23,9 @@
 #include "app_common.h"
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
+#include "fem/multigrid.h"
 #include "fem/problems.h"
+#include "ice/hierarchy.h"
 #include "ice/scalar_field_io.h"
 
 namespace {
@@ -53,6 +55,147 @@ Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const fem::SparseMatrix& m
   return f.array() - m1.dot(f) / m1.sum();
 }
 
+// Options of --solver multigrid.
+struct MultigridCli {
+  double tolerance = 1e-8, ratio = 0.25;
+  long long coarsest = 500;
+  std::string smoother = "sgs", cycle = "pcg";
+};
+
+// --solver multigrid|direct: the fine problem solved exactly (to --mg-tolerance for multigrid) on
+// the fine mesh; writes the outputs and the report itself. Zero-mean Neumann: b = M f made
+// compatible, vertex 0 pinned, u re-centred (as fem::PoissonSolver does).
+app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& mg, const app::PdeOptions& opt,
+                       const ice::TriangleMesh& mesh, Eigen::VectorXd f, std::string rhs_name,
+                       const std::vector<int>& fixed_vertices, const Eigen::VectorXd& fixed_values, double load_seconds) {
+  const long long n = mesh.V.rows();
+  const bool dirichlet = !fixed_vertices.empty();
+  app::Stopwatch clock;
+  const app::FineMesh fine = app::make_fine_mesh(mesh, opt.fine_idt);
+  const double fine_mesh_seconds = clock.lap();
+  const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
+  const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+  if (f.size() == 0) f = remove_mean(demo_rhs(mesh), M);
+  const double assemble_seconds = clock.lap();
+  nlohmann::json solver_json = {{"kind", solver}};
+  nlohmann::json timings;
+  Eigen::VectorXd u;
+  double setup_seconds = 0, solve_seconds = 0;
+  if (solver == "direct") {
+    const fem::PoissonSolver direct =
+        dirichlet ? fem::PoissonSolver::dirichlet(L, M, fixed_vertices) : fem::PoissonSolver::zero_mean(L, M);
+    setup_seconds = clock.lap();
+    u = direct.solve(f, fixed_values);
+    solve_seconds = clock.lap();
+    solver_json["method"] = "CHOLMOD supernodal Cholesky (analyse + factor in setup)";
+    timings = {{"setup", setup_seconds}, {"solve", solve_seconds}};
+  } else {
+    ice::HierarchyOptions ho;
+    ho.ratio = mg.ratio;
+    ho.coarsest_vertices = static_cast<ice::Index>(mg.coarsest);
+    const ice::Hierarchy hierarchy = ice::build_hierarchy(mesh, ho);
+    const double hierarchy_seconds = clock.lap();
+    fem::MultigridOptions mo;
+    mo.tolerance = mg.tolerance;
+    mo.mode = mg.cycle == "vcycle" ? fem::MultigridMode::vcycle : fem::MultigridMode::pcg;
+    mo.smoother = mg.smoother == "gs"          ? fem::MultigridSmoother::gauss_seidel
+                  : mg.smoother == "chebyshev" ? fem::MultigridSmoother::chebyshev
+                                               : fem::MultigridSmoother::symmetric_gauss_seidel;
+    fem::MultigridSolver multigrid(hierarchy.prolongations, mo);
+    Eigen::VectorXd b = M * f;
+    std::vector<int> constrained = fixed_vertices;
+    const Eigen::VectorXd m1 = M * Eigen::VectorXd::Ones(n);
+    if (!dirichlet) {
+      b -= m1 * (b.sum() / m1.sum());
+      constrained = {0};
+    }
+    multigrid.setup(L, constrained);
+    const double numeric_setup = clock.lap();
+    setup_seconds = hierarchy_seconds + numeric_setup;
+    u = multigrid.solve(b, dirichlet ? fixed_values : Eigen::VectorXd());
+    if (!dirichlet) u.array() -= m1.dot(u) / m1.sum();
+    solve_seconds = clock.lap();
+    const fem::MultigridReport& r = multigrid.report();
+    if (!r.converged)
+      app::warn(kTool, "multigrid stopped after " + std::to_string(r.iterations) + " iterations at relative residual " +
+                           std::to_string(r.relative_residual) + " (tolerance " + std::to_string(mg.tolerance) + ")");
+    nlohmann::json levels = nlohmann::json::array();
+    for (const auto& info : multigrid.level_info()) levels.push_back({{"unknowns", info.unknowns}, {"nonzeros", info.nonzeros}});
+    solver_json.update({{"iterations", r.iterations},
+                        {"converged", r.converged},
+                        {"convergence_factor", r.convergence_factor},
+                        {"relative_residual", r.relative_residual},
+                        {"tolerance", mg.tolerance},
+                        {"residuals", r.residuals},
+                        {"cycle", fem::to_string(mo.mode)},
+                        {"smoother", fem::to_string(mo.smoother)},
+                        {"levels", levels},
+                        {"operator_complexity", multigrid.operator_complexity()},
+                        {"hierarchy", {{"ratio", mg.ratio}, {"coarsest_vertices", mg.coarsest}, {"levels", hierarchy.num_levels()},
+                                       {"grid_complexity", hierarchy.grid_complexity()}, {"stop_reason", hierarchy.stop_reason},
+                                       {"coarsen_seconds", hierarchy.coarsen_seconds}}}});
+    timings = {{"setup", setup_seconds}, {"hierarchy", hierarchy_seconds}, {"galerkin_and_coarse_factor", numeric_setup},
+               {"solve", solve_seconds}};
+  }
+  timings["load"] = load_seconds;
+  timings["fine_mesh"] = fine_mesh_seconds;
+  timings["assemble"] = assemble_seconds;
+  timings["total"] = assemble_seconds + setup_seconds + solve_seconds;
+
+  nlohmann::json error_json;
+  Eigen::VectorXd reference;
+  const bool has_reference = !opt.no_reference && solver != "direct";
+  if (has_reference) {
+    const fem::PoissonSolver direct =
+        dirichlet ? fem::PoissonSolver::dirichlet(L, M, fixed_vertices) : fem::PoissonSolver::zero_mean(L, M);
+    timings["reference_setup"] = clock.lap();
+    reference = direct.solve(f, fixed_values);
+    timings["reference_solve"] = clock.lap();
+    const double max_abs = fem::max_abs_error(u, reference);
+    const double scale = reference.cwiseAbs().maxCoeff();
+    error_json = {{"rel_l2", fem::relative_l2_error(u, reference, M)},
+                  {"max_abs", max_abs},
+                  {"max_rel", scale > 0 ? max_abs / scale : 0.0},
+                  {"max_abs_reference", scale}};
+  }
+  if (!opt.output.empty()) {
+    std::vector<ice::ScalarField> fields{{"solution", u}};
+    if (has_reference) {
+      fields.push_back({"reference", reference});
+      fields.push_back({"error", u - reference});
+    }
+    fields.push_back({"rhs", f});
+    ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
+  }
+  nlohmann::json report = app::report_header(kTool, opt.mesh);
+  report["solver"] = solver_json;
+  report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
+  report["fine_mesh"] = {{"kind", fine.intrinsic_delaunay ? "intrinsic Delaunay" : "input"}, {"flips", fine.flips}};
+  report["timings_s"] = timings;
+  report["rhs"] = rhs_name;
+  report["boundary_conditions"] = dirichlet ? "dirichlet" : "zero-mean neumann";
+  report["fixed_vertices"] = fixed_vertices.size();
+  if (has_reference) report["error"] = error_json;
+  report["peak_rss_mb"] = app::peak_rss_mb();
+  if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
+
+  std::cout << kTool << ": " << opt.mesh << ": " << app::thousands(n) << " vertices, --solver " << solver << '\n';
+  std::cout << "  setup " << app::fixed(setup_seconds, 4) << " s, solve " << app::fixed(solve_seconds, 4) << " s";
+  if (solver == "multigrid")
+    std::cout << ", " << solver_json["iterations"] << " iterations, convergence factor "
+              << app::fixed(solver_json["convergence_factor"], 3) << ", relative residual "
+              << static_cast<double>(solver_json["relative_residual"]);
+  std::cout << '\n';
+  if (has_reference)
+    std::cout << "  vs CHOLMOD: relative L2 " << app::percent(error_json["rel_l2"]) << ", max abs "
+              << static_cast<double>(error_json["max_abs"]) << " (CHOLMOD setup "
+              << app::fixed(timings["reference_setup"], 4) << " s, solve " << app::fixed(timings["reference_solve"], 4)
+              << " s)\n";
+  if (!opt.output.empty()) std::cout << "  wrote " << opt.output << '\n';
+  if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
+  return app::kOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -78,16 +221,23 @@ int main(int argc, char** argv) {
                  "separate with commas")
       ->delimiter(',')
       ->allow_extra_args(false);
-  cli.add_option("--solver", solver, "Fine-solution strategy; only 'proxy' (coarse solve + prolongation) for now")
+  MultigridCli mg;
+  cli.add_option("--solver", solver,
+                 "proxy: coarse solve + prolongation (approximate); multigrid: exact fine solve by Galerkin multigrid "
+                 "on an ICE hierarchy (to --mg-tolerance); direct: exact fine solve by CHOLMOD")
+      ->check(CLI::IsMember({"proxy", "multigrid", "direct"}))
       ->capture_default_str();
+  cli.add_option("--mg-tolerance", mg.tolerance, "multigrid: relative residual to reach")->check(CLI::PositiveNumber)->capture_default_str();
+  cli.add_option("--mg-ratio", mg.ratio, "multigrid: vertex fraction kept per level")->check(CLI::Range(0.01, 0.9))->capture_default_str();
+  cli.add_option("--mg-coarsest", mg.coarsest, "multigrid: vertices of the coarsest level (CHOLMOD)")->check(CLI::PositiveNumber)->capture_default_str();
+  cli.add_option("--mg-smoother", mg.smoother, "multigrid: sgs (symmetric Gauss-Seidel), gs or chebyshev")
+      ->check(CLI::IsMember({"sgs", "gs", "chebyshev"}))->capture_default_str();
+  cli.add_option("--mg-cycle", mg.cycle, "multigrid: pcg (V-cycle preconditioned CG) or vcycle")
+      ->check(CLI::IsMember({"pcg", "vcycle"}))->capture_default_str();
   opt.add_to(cli, "'solution' (prolonged), 'reference' and 'error' (= solution - reference)");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&] {
-    if (solver != "proxy")
-      throw app::AppError(app::kUsage, "--solver " + solver +
-                                           " is not available: only 'proxy' exists so far (multigrid and a direct "
-                                           "fine solve are planned)");
     opt.check_outputs();
     // "V=value" pairs, checked for syntax before loading anything.
     std::vector<std::pair<long long, double>> file_fixes;
@@ -132,7 +282,7 @@ int main(int argc, char** argv) {
       fixed_vertices.push_back(v);
     }
     ice::CoarsenOptions coarsen_options;
-    opt.target.apply(coarsen_options, n);
+    if (solver == "proxy") opt.target.apply(coarsen_options, n);  // multigrid/direct need no coarse target
     if (coarsen_options.target_vertices > 0 && coarsen_options.target_vertices < static_cast<ice::Index>(fixed_vertices.size()))
       throw app::AppError(app::kUsage, "--vertices is smaller than the number of --fix vertices (they all stay)");
     coarsen_options.locked_vertices.assign(fixed_vertices.begin(), fixed_vertices.end());
@@ -153,6 +303,8 @@ int main(int argc, char** argv) {
     run.fine_vertices = n;
     run.fine_faces = mesh.F.rows();
     run.load = clock.lap();
+    if (solver != "proxy")
+      return solve_on_fine_mesh(solver, mg, opt, mesh, f, rhs_name, fixed_vertices, fixed_values, run.load);
 
     // ---- coarsen (ICE; or QEM with --method qem: its mesh and closest-point P, see ice/qem.h)
     app::CoarseMesh coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run);  // ICE or QEM (--method)
@@ -217,7 +369,9 @@ int main(int argc, char** argv) {
     }
     run.write = clock.lap();
     nlohmann::json report = run.report();
-    report["solver"] = solver;
+    report["solver"] = {{"kind", solver}};
+    report["timings_s"]["setup"] = run.coarsen + run.assemble + run.factor;
+    report["timings_s"]["solve"] = run.solve + run.prolong;
     report["rhs"] = rhs_name;
     report["boundary_conditions"] = dirichlet ? "dirichlet" : "zero-mean neumann";
     report["fixed_vertices"] = fixed_vertices.size();
