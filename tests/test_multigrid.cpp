@@ -310,3 +310,33 @@ TEST_CASE("multigrid refuses bad input", "[multigrid]") {
   CHECK_THROWS_AS(ice::build_hierarchy(s.mesh, [] { ice::HierarchyOptions o; o.ratio = 1.5; return o; }()),
                   std::invalid_argument);
 }
+
+TEST_CASE("hierarchy variants (metric-ordered sets, plain greedy ICE) give valid multigrid levels", "[multigrid][hierarchy][shared]") {
+  const Setup& s = shared_setup("spot.obj");
+  const fem::SparseMatrix A = s.L + shift(s) * s.M;
+  const Eigen::VectorXd b = test_rhs(s);
+  const Eigen::VectorXd reference = fem::CholeskySolver(A).solve(b);
+  for (int variant = 0; variant < 2; ++variant) {
+    INFO("variant " << variant);
+    ice::HierarchyOptions options;
+    options.coarsest_vertices = 150;
+    options.locked_vertices = {0, 1000};
+    if (variant == 0) options.coarsen_sets_with_metric = true;
+    if (variant == 1) options.independent_sets = false;
+    const ice::Hierarchy H = ice::build_hierarchy(s.mesh, options);
+    REQUIRE(H.num_levels() >= 3);
+    for (const auto& level : H.levels) {  // locked vertices survive on every level
+      CHECK(std::count(level.to_fine.begin(), level.to_fine.end(), 0) == 1);
+      CHECK(std::count(level.to_fine.begin(), level.to_fine.end(), 1000) == 1);
+    }
+    for (const auto& P : H.prolongations) {
+      const Eigen::VectorXd row_sums = P * Eigen::VectorXd::Ones(P.cols());
+      CHECK((row_sums.array() - 1).abs().maxCoeff() < 1e-12);
+    }
+    fem::MultigridSolver solver(H.prolongations);
+    solver.setup(A);
+    const Eigen::VectorXd x = solver.solve(b);
+    CHECK(solver.report().converged);
+    CHECK(relative_difference(x, reference) < 1e-5);
+  }
+}

@@ -5,7 +5,10 @@
 ///
 /// Level 0 is the input mesh. Level k+1 is made from level k alone: the compact mesh of level k
 /// (faces + lengths) becomes a fresh IntrinsicTriangulation (from_lengths), which is coarsened to
-/// ⌈ratio·n_k⌉ vertices (at least `coarsest_vertices`). The coarsened triangulation tracks every
+/// ⌈ratio·n_k⌉ vertices (at least `coarsest_vertices`) by intrinsic vertex removals (flatten, flip
+/// to degree 3, merge, re-locate tracked points, restore Delaunay), in independent-set passes by
+/// default (see HierarchyOptions::independent_sets: plain greedy ICE coarsening makes levels whose
+/// density follows curvature, which multigrid converges badly on). The coarsened triangulation tracks every
 /// level-k vertex, so ice::prolongation of it is exactly P_k (n_k × n_{k+1}, rows sum to 1, at most
 /// three non-zeros per row). Building stops when a level has at most `coarsest_vertices` vertices,
 /// when `max_levels` is reached, or when a level cannot be coarsened usefully (the coarsening
@@ -41,6 +44,10 @@ struct HierarchyOptions {
   /// coarse; measured V-cycle factors 0.6-0.9 on real meshes instead of 0.2-0.4).
   bool independent_sets = true;
   bool exact_cost_order = false;
+  /// With independent_sets: remove each pass's set through ice::coarsen (ICE metric order, every
+  /// other vertex locked) instead of directly with IntrinsicTriangulation::remove_vertex + Delaunay
+  /// repair (the default; the same removals, measured 1.4x faster: 6.3 s vs 8.9 s at 414k vertices).
+  bool coarsen_sets_with_metric = false;
   /// Whether boundary vertices may be removed.
   bool remove_boundary = true;
   /// Fine (level-0) vertices that stay on every level (e.g. to keep sources as coarse vertices).

@@ -1,0 +1,275 @@
+// Galerkin multigrid on ICE hierarchies against CHOLMOD (and hypre's BoomerAMG-preconditioned CG
+// when ICE_HAVE_HYPRE) on Loop-subdivided fandisk meshes: 2, 3, 4 levels = 103,570 / 414,274 /
+// 1,657,090 vertices.
+//
+// System: the screened Poisson matrix A = L + εM (cotan Laplacian + lumped mass of the subdivided
+// mesh, ε = 1 / total area: as ill-conditioned as a Poisson problem on the surface), right-hand side
+// b = M f with a smooth-plus-rough f; every solver is asked for ‖b − Ax‖₂ ≤ 1e-8 ‖b‖₂.
+//
+// Every benchmark runs once per size (Iterations(1)) and reports seconds as counters:
+//   multigrid:  hierarchy_s (ICE coarsening), numeric_setup_s (Galerkin products + coarsest CHOLMOD),
+//               setup_s = both, solve_s, iterations, factor (convergence factor per PCG iteration),
+//               cold_s = setup_s + solve_s, solve10_s (10 more right-hand sides), total10_s = setup_s + solve10_s,
+//               peak_mb (peak RSS growth during setup + solves)
+//   cholmod:    analyze_s, factor_s, solve_s, cold_s, solve10_s, total10_s = analyze + factor + 10 solves, peak_mb
+//   boomeramg:  setup_s, solve_s, iterations, factor, cold_s, solve10_s, total10_s, peak_mb
+// Run: ice_bench --benchmark_filter=Multigrid (a few minutes; the 1.6M hierarchy dominates).
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <string>
+
+#include "fem/cholesky.h"
+#include "fem/multigrid.h"
+#include "fem/operators.h"
+#include "ice/hierarchy.h"
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+
+#ifdef ICE_HAVE_HYPRE
+#include <HYPRE.h>
+#include <HYPRE_krylov.h>
+#include <HYPRE_parcsr_ls.h>
+#include <mpi.h>
+#endif
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Resident set size and its high-water mark (MiB); reset_peak() restarts the mark (Linux clear_refs).
+double status_mb(const char* key) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(key, 0) == 0) return std::stod(line.substr(std::string(key).size())) / 1024.0;
+  return 0;
+}
+void reset_peak() { std::ofstream("/proc/self/clear_refs") << "5"; }
+
+struct Problem {
+  ice::TriangleMesh mesh;
+  fem::SparseMatrix A, M;
+  Eigen::MatrixXd B;  // 11 right-hand sides
+};
+
+const Problem& problem(int levels) {
+  static std::map<int, Problem> cache;
+  auto it = cache.find(levels);
+  if (it != cache.end()) return it->second;
+  Problem p;
+  p.mesh = ice::loop_subdivide(ice::load_mesh(std::string(ICE_SHARED_MESHES_DIR) + "/fandisk.obj"), levels);
+  const ice::FaceLengths lengths = ice::face_lengths_from_positions(p.mesh.V, p.mesh.F);
+  p.M = fem::mass_matrix(p.mesh.F, lengths);
+  p.A = fem::cotan_laplacian(p.mesh.F, lengths) + (1.0 / p.M.sum()) * p.M;
+  const Eigen::Index n = p.mesh.V.rows();
+  p.B.resize(n, 11);
+  for (int j = 0; j < 11; ++j) {
+    Eigen::VectorXd f(n);
+    for (Eigen::Index i = 0; i < n; ++i)
+      f(i) = std::sin((j + 1) * 0.1 * p.mesh.V(i, 0)) + std::cos(0.07 * p.mesh.V(i, 1) + j) +
+             0.3 * std::sin(17.0 * static_cast<double>(i) + j);
+    p.B.col(j) = p.M * f;
+  }
+  return cache.emplace(levels, std::move(p)).first->second;
+}
+
+void BM_MultigridICE(benchmark::State& state) {
+  const Problem& p = problem(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    const double rss0 = status_mb("VmRSS:");
+    reset_peak();
+    auto t = Clock::now();
+    const ice::Hierarchy H = ice::build_hierarchy(p.mesh);
+    const double hierarchy = since(t);
+    t = Clock::now();
+    fem::MultigridOptions options;
+    options.tolerance = 1e-8;
+    fem::MultigridSolver solver(H.prolongations, options);
+    solver.setup(p.A);
+    const double numeric = since(t);
+    t = Clock::now();
+    Eigen::VectorXd x = solver.solve(p.B.col(0));
+    const double solve = since(t);
+    const fem::MultigridReport first = solver.report();
+    t = Clock::now();
+    int iterations10 = 0;
+    for (int j = 1; j <= 10; ++j) {
+      x = solver.solve(p.B.col(j));
+      iterations10 += solver.report().iterations;
+      if (!solver.report().converged) state.SkipWithError("multigrid did not converge");
+    }
+    const double solve10 = since(t);
+    benchmark::DoNotOptimize(x.data());
+    state.counters["vertices"] = static_cast<double>(p.A.rows());
+    state.counters["levels"] = H.num_levels();
+    state.counters["hierarchy_s"] = hierarchy;
+    state.counters["numeric_setup_s"] = numeric;
+    state.counters["setup_s"] = hierarchy + numeric;
+    state.counters["solve_s"] = solve;
+    state.counters["iterations"] = first.iterations;
+    state.counters["factor"] = first.convergence_factor;
+    state.counters["rel_residual"] = first.relative_residual;
+    state.counters["cold_s"] = hierarchy + numeric + solve;
+    state.counters["solve10_s"] = solve10;
+    state.counters["iterations10_mean"] = iterations10 / 10.0;
+    state.counters["total10_s"] = hierarchy + numeric + solve10;
+    state.counters["op_complexity"] = solver.operator_complexity();
+    state.counters["peak_mb"] = status_mb("VmHWM:") - rss0;
+    if (!first.converged) state.SkipWithError("multigrid did not converge");
+  }
+}
+
+void BM_MultigridCholmod(benchmark::State& state) {
+  const Problem& p = problem(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    const double rss0 = status_mb("VmRSS:");
+    reset_peak();
+    fem::CholeskySolver chol;
+    auto t = Clock::now();
+    chol.analyze(p.A);
+    const double analyze = since(t);
+    t = Clock::now();
+    chol.factorize(p.A);
+    const double factor = since(t);
+    t = Clock::now();
+    Eigen::VectorXd x = chol.solve(p.B.col(0));
+    const double solve = since(t);
+    const double residual = (p.B.col(0) - p.A * x).norm() / p.B.col(0).norm();
+    t = Clock::now();
+    for (int j = 1; j <= 10; ++j) x = chol.solve(p.B.col(j));
+    const double solve10 = since(t);
+    benchmark::DoNotOptimize(x.data());
+    state.counters["vertices"] = static_cast<double>(p.A.rows());
+    state.counters["analyze_s"] = analyze;
+    state.counters["factor_s"] = factor;
+    state.counters["solve_s"] = solve;
+    state.counters["rel_residual"] = residual;
+    state.counters["cold_s"] = analyze + factor + solve;
+    state.counters["solve10_s"] = solve10;
+    state.counters["total10_s"] = analyze + factor + solve10;
+    state.counters["peak_mb"] = status_mb("VmHWM:") - rss0;
+  }
+}
+
+#ifdef ICE_HAVE_HYPRE
+// BoomerAMG-preconditioned CG with the settings commonly recommended for 2D/surface Poisson
+// problems: HMIS coarsening, extended+i interpolation (≤ 4 entries per row), strength threshold
+// 0.25, hybrid symmetric Gauss–Seidel, one V(1,1)-cycle per CG iteration.
+void BM_MultigridBoomerAMG(benchmark::State& state) {
+  const Problem& p = problem(static_cast<int>(state.range(0)));
+  static bool initialized = false;
+  if (!initialized) {
+    int flag = 0;
+    MPI_Initialized(&flag);
+    if (!flag) MPI_Init(nullptr, nullptr);
+    HYPRE_Init();
+    initialized = true;
+  }
+  const HYPRE_Int n = static_cast<HYPRE_Int>(p.A.rows());
+  for (auto _ : state) {
+    const double rss0 = status_mb("VmRSS:");
+    reset_peak();
+    auto t = Clock::now();
+    HYPRE_IJMatrix ij;
+    HYPRE_IJMatrixCreate(MPI_COMM_WORLD, 0, n - 1, 0, n - 1, &ij);
+    HYPRE_IJMatrixSetObjectType(ij, HYPRE_PARCSR);
+    std::vector<HYPRE_Int> sizes(static_cast<std::size_t>(n));
+    for (HYPRE_Int i = 0; i < n; ++i) sizes[static_cast<std::size_t>(i)] = static_cast<HYPRE_Int>(p.A.outerIndexPtr()[i + 1] - p.A.outerIndexPtr()[i]);
+    HYPRE_IJMatrixSetRowSizes(ij, sizes.data());
+    HYPRE_IJMatrixInitialize(ij);
+    std::vector<HYPRE_Int> cols;
+    std::vector<double> vals;
+    for (HYPRE_Int i = 0; i < n; ++i) {  // A is symmetric: column i is row i
+      cols.clear();
+      vals.clear();
+      for (fem::SparseMatrix::InnerIterator it(p.A, i); it; ++it) {
+        cols.push_back(static_cast<HYPRE_Int>(it.row()));
+        vals.push_back(it.value());
+      }
+      HYPRE_Int count = static_cast<HYPRE_Int>(cols.size());
+      HYPRE_IJMatrixSetValues(ij, 1, &count, &i, cols.data(), vals.data());
+    }
+    HYPRE_IJMatrixAssemble(ij);
+    HYPRE_ParCSRMatrix A;
+    HYPRE_IJMatrixGetObject(ij, reinterpret_cast<void**>(&A));
+    std::vector<HYPRE_Int> rows(static_cast<std::size_t>(n));
+    for (HYPRE_Int i = 0; i < n; ++i) rows[static_cast<std::size_t>(i)] = i;
+    const auto make_vector = [&](const double* values, HYPRE_IJVector& v, HYPRE_ParVector& par) {
+      HYPRE_IJVectorCreate(MPI_COMM_WORLD, 0, n - 1, &v);
+      HYPRE_IJVectorSetObjectType(v, HYPRE_PARCSR);
+      HYPRE_IJVectorInitialize(v);
+      HYPRE_IJVectorSetValues(v, n, rows.data(), values);
+      HYPRE_IJVectorAssemble(v);
+      HYPRE_IJVectorGetObject(v, reinterpret_cast<void**>(&par));
+    };
+    Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
+    HYPRE_IJVector ijb, ijx;
+    HYPRE_ParVector b, x;
+    make_vector(p.B.col(0).data(), ijb, b);
+    make_vector(zero.data(), ijx, x);
+    const double convert = since(t);
+
+    t = Clock::now();
+    HYPRE_Solver pcg, amg;
+    HYPRE_ParCSRPCGCreate(MPI_COMM_WORLD, &pcg);
+    HYPRE_PCGSetTol(pcg, 1e-8);
+    HYPRE_PCGSetMaxIter(pcg, 500);
+    HYPRE_PCGSetTwoNorm(pcg, 1);
+    HYPRE_BoomerAMGCreate(&amg);
+    HYPRE_BoomerAMGSetTol(amg, 0.0);
+    HYPRE_BoomerAMGSetMaxIter(amg, 1);
+    HYPRE_BoomerAMGSetCoarsenType(amg, 10);  // HMIS
+    HYPRE_BoomerAMGSetInterpType(amg, 6);    // extended+i
+    HYPRE_BoomerAMGSetPMaxElmts(amg, 4);
+    HYPRE_BoomerAMGSetStrongThreshold(amg, 0.25);
+    HYPRE_BoomerAMGSetRelaxType(amg, 6);  // hybrid symmetric Gauss-Seidel
+    HYPRE_BoomerAMGSetNumSweeps(amg, 1);
+    HYPRE_BoomerAMGSetPrintLevel(amg, 0);
+    HYPRE_PCGSetPrecond(pcg, reinterpret_cast<HYPRE_PtrToSolverFcn>(HYPRE_BoomerAMGSolve),
+                        reinterpret_cast<HYPRE_PtrToSolverFcn>(HYPRE_BoomerAMGSetup), amg);
+    HYPRE_ParCSRPCGSetup(pcg, A, b, x);
+    const double setup = since(t);
+    t = Clock::now();
+    HYPRE_ParCSRPCGSolve(pcg, A, b, x);
+    const double solve = since(t);
+    HYPRE_Int iterations = 0;
+    double residual = 0;
+    HYPRE_PCGGetNumIterations(pcg, &iterations);
+    HYPRE_PCGGetFinalRelativeResidualNorm(pcg, &residual);
+    t = Clock::now();
+    for (int j = 1; j <= 10; ++j) {
+      HYPRE_IJVectorSetValues(ijb, n, rows.data(), p.B.col(j).data());
+      HYPRE_IJVectorSetValues(ijx, n, rows.data(), zero.data());
+      HYPRE_ParCSRPCGSolve(pcg, A, b, x);
+    }
+    const double solve10 = since(t);
+    state.counters["vertices"] = n;
+    state.counters["convert_s"] = convert;
+    state.counters["setup_s"] = setup;
+    state.counters["solve_s"] = solve;
+    state.counters["iterations"] = iterations;
+    state.counters["factor"] = iterations > 0 ? std::pow(residual, 1.0 / iterations) : 0.0;
+    state.counters["rel_residual"] = residual;
+    state.counters["cold_s"] = setup + solve;
+    state.counters["solve10_s"] = solve10;
+    state.counters["total10_s"] = setup + solve10;
+    state.counters["peak_mb"] = status_mb("VmHWM:") - rss0;
+    HYPRE_BoomerAMGDestroy(amg);
+    HYPRE_ParCSRPCGDestroy(pcg);
+    HYPRE_IJVectorDestroy(ijb);
+    HYPRE_IJVectorDestroy(ijx);
+    HYPRE_IJMatrixDestroy(ij);
+  }
+}
+BENCHMARK(BM_MultigridBoomerAMG)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+#endif
+
+BENCHMARK(BM_MultigridICE)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_MultigridCholmod)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
+}  // namespace
