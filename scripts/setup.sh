@@ -32,13 +32,14 @@ as_root() {
 # libopenblas0-pthread / libopenblas-pthread-dev pin the pthread flavour of OpenBLAS (libopenblas-dev
 # alone would accept the openmp or serial one). libcgal-demo is only needed for its data archive;
 # with --no-install-recommends it does not pull libcgal-qt5-dev (Qt): its Depends are libcgal-dev
-# and, through it, Boost/GMP/MPFR headers.
+# and, through it, Boost/GMP/MPFR headers. libhypre-dev (which pulls OpenMPI) is only for the
+# BoomerAMG comparison in bench/bench_multigrid.cpp; the build works without it.
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev
   libopenblas-dev libopenblas0-pthread libopenblas-pthread-dev
   libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox
-  libcgal-demo
+  libcgal-demo libhypre-dev
 )
 
 is_installed() {
