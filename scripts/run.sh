@@ -32,16 +32,20 @@ main_job() {
 say() { printf 'run.sh: %s\n' "$*"; }
 die() { printf 'run.sh: ERROR: %s\n' "$*" >&2; exit 1; }
 
-BUILD_SECONDS=0
+# Wall-clock time in milliseconds, and "1.234s" from a millisecond count.
+now_ms() { local t="${EPOCHREALTIME/[.,]/}"; echo $((10#$t / 1000)); }
+fmt_s() { printf '%d.%03ds' $(($1 / 1000)) $(($1 % 1000)); }
+BUILD_MS=0
 app() {
   local name="$1"; shift
-  local t0=$SECONDS
+  local t0
+  t0=$(now_ms)
   say "building $name (Release)"
   cmake --build "$BUILD_DIR" --target "$name" --parallel "$JOBS" >"$BUILD_DIR/run-build.log" 2>&1 || {
     tail -n 40 "$BUILD_DIR/run-build.log" >&2
     die "build of target '$name' failed (full log: $BUILD_DIR/run-build.log)"
   }
-  BUILD_SECONDS=$((SECONDS - t0))
+  BUILD_MS=$(($(now_ms) - t0))
   local exe="$BUILD_DIR/apps/$name"
   [[ -x "$exe" ]] || exe="$(find "$BUILD_DIR" -path "$BUILD_DIR/CMakeFiles" -prune -o -type f -name "$name" -perm -u+x -print | head -n1)"
   [[ -n "$exe" ]] || die "target '$name' built but no executable named '$name' found under $BUILD_DIR"
@@ -60,7 +64,7 @@ else
 fi
 
 cd "$ROOT"
-T0=$SECONDS
+T0=$(now_ms)
 bash scripts/setup.sh
 if [[ -z "$MESH" ]]; then
   first="$(sed -e 's/#.*//' data/default-meshes.txt | awk 'NF { print $1; exit }')"
@@ -77,14 +81,15 @@ cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >"$BUILD_DIR/run-configure
 }
 
 say "mesh: ${MESH#"$ROOT"/} ($(du -h "$MESH" | cut -f1))"
-t_job=$SECONDS
+t_job=$(now_ms)
 rc=0
 main_job "$@" || rc=$?
 echo "------------------------------------------------------------------------"
-job_seconds=$((SECONDS - t_job - BUILD_SECONDS))
+t_end=$(now_ms)
+job_ms=$((t_end - t_job - BUILD_MS))
 if [[ $rc -eq 0 ]]; then
-  say "done: main job OK on ${MESH#"$ROOT"/} (build ${BUILD_SECONDS}s, job ${job_seconds}s, total $((SECONDS - T0))s)"
+  say "done: main job OK on ${MESH#"$ROOT"/} (build $(fmt_s "$BUILD_MS"), job $(fmt_s "$job_ms"), total $(fmt_s $((t_end - T0))))"
 else
-  say "FAILED: main job exited with status $rc on ${MESH#"$ROOT"/} (total $((SECONDS - T0))s)"
+  say "FAILED: main job exited with status $rc on ${MESH#"$ROOT"/} (total $(fmt_s $((t_end - T0))))"
 fi
 exit $rc
