@@ -191,3 +191,31 @@ TEST_CASE("locked vertices survive and a threshold stop stops where it says", "[
     CHECK(T.validate() == "");
   }
 }
+
+TEST_CASE("a compacted coarse triangulation is a valid input for further coarsening", "[coarsen]") {
+  const TriangleMesh mesh = make_torus(40, 16, 2.0, 0.6);
+  auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  CoarsenOptions options;
+  options.target_vertices = 80;
+  coarsen(T, options);
+  CompactMesh maps;
+  IntrinsicTriangulation level = T.compacted(&maps);
+  CHECK(level.validate() == "");
+  CHECK(level.num_vertices() == 80);
+  CHECK(level.num_input_vertices() == 80);
+  CHECK(level.euler_characteristic() == 0);
+  CHECK(level.total_area() == Approx(T.total_area()).epsilon(1e-13));
+  // Same faces and lengths as the arrays export.
+  const CompactMesh again = level.compact();
+  CHECK(again.F == maps.F);
+  CHECK(again.L == maps.L);
+  // Angular coordinates and angle sums carried over: curvature per vertex unchanged.
+  for (Index c = 0; c < level.num_vertices(); ++c) CHECK(level.curvature(c) == T.curvature(maps.to_input[c]));
+  // Coarsen the level down to the minimum (a torus can reach 1 vertex: a Δ-complex with self-edges).
+  options.target_vertices = 1;
+  const CoarsenResult result = coarsen(level, options);
+  CHECK(level.validate() == "");
+  CHECK(level.euler_characteristic() == 0);
+  CHECK(result.output_vertices <= 3);
+  CHECK(level.compacted().validate() == "");
+}

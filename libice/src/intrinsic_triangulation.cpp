@@ -860,6 +860,49 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
 // ------------------------------------------------------------------------------------------------
 // Export and checks
 
+IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) const {
+  CompactMesh arrays = compact();
+  const std::vector<Index>& vertex_id = arrays.from_input;
+  std::vector<Index> face_id(faces_.size(), kInvalid), edge_id(edges_.size(), kInvalid);
+  Index faces = 0, edges = 0;
+  for (Index f = 0; f < num_face_slots(); ++f)
+    if (face_alive(f)) face_id[f] = faces++;  // same order as compact()'s rows
+  for (Index e = 0; e < static_cast<Index>(edges_.size()); ++e)
+    if (halfedge_alive(2 * e)) edge_id[e] = edges++;
+  const auto halfedge_id = [&](Index h) { return h == kInvalid ? kInvalid : 2 * edge_id[h >> 1] + (h & 1); };
+
+  IntrinsicTriangulation T;
+  T.edges_.resize(edges);
+  for (Index e = 0; e < static_cast<Index>(edges_.size()); ++e) {
+    if (edge_id[e] == kInvalid) continue;
+    const EdgeRecord& old_record = edges_[e];
+    EdgeRecord& record = T.edges_[edge_id[e]];
+    for (int side = 0; side < 2; ++side) {
+      record.next[side] = halfedge_id(old_record.next[side]);
+      record.tail[side] = vertex_id[old_record.tail[side]];
+      record.face[side] = old_record.face[side] == kInvalid ? kInvalid : face_id[old_record.face[side]];
+      record.angle[side] = old_record.angle[side];
+    }
+    record.length = old_record.length;
+  }
+  T.faces_.resize(faces);
+  for (Index f = 0; f < num_face_slots(); ++f)
+    if (face_id[f] != kInvalid) T.faces_[face_id[f]] = FaceRecord{halfedge_id(fhalfedge(f)), kInvalid};
+  const Index vertices = static_cast<Index>(arrays.to_input.size());
+  T.vertices_.resize(vertices);
+  for (Index c = 0; c < vertices; ++c) {
+    const VertexRecord& old_record = vertices_[arrays.to_input[c]];
+    T.vertices_[c] = VertexRecord{halfedge_id(old_record.halfedge), old_record.boundary, old_record.angle_sum};
+  }
+  T.point_face_.assign(vertices, kInvalid);
+  T.point_next_.assign(vertices, kInvalid);
+  T.point_prev_.assign(vertices, kInvalid);
+  T.point_bary_.assign(vertices, {0, 0, 0});
+  T.num_vertices_ = vertices, T.num_edges_ = edges, T.num_faces_ = faces;
+  if (maps) *maps = std::move(arrays);
+  return T;
+}
+
 CompactMesh IntrinsicTriangulation::compact() const {
   CompactMesh out;
   out.from_input.assign(num_input_vertices(), kInvalid);

@@ -200,7 +200,14 @@ class IntrinsicTriangulation {
   }
 
   // ---- export and checks ------------------------------------------------------------------
+  /// The live faces as arrays (faces + per-face lengths) with vertex maps back to the input.
   CompactMesh compact() const;
+  /// A new triangulation of the live elements only, renumbered compactly (vertex i is compact
+  /// vertex i of compact(), and `to_input` of *maps gives its input vertex). Connectivity is copied
+  /// through the twin/next relations, so any Δ-complex (self-edges, multi-edges) carries over, and
+  /// angular coordinates are kept. Tracking restarts: every vertex is its own input vertex. This is
+  /// how one coarsened level becomes the input of the next.
+  IntrinsicTriangulation compacted(CompactMesh* maps = nullptr) const;
   /// Checks every invariant; returns an empty string when all hold, else the first few problems.
   std::string validate(double tolerance = 1e-9) const;
   /// Bytes held by the arrays of this object (capacity, not size).
