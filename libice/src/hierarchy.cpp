@@ -30,15 +30,15 @@ Eigen::SparseMatrix<double> Hierarchy::prolongation_to_fine(int k) const {
 namespace {
 
 // Coarsens T to co.target_vertices in passes. Each pass removes (at most) an independent set of
-// the current triangulation, picked greedily in order of |curvature| (or of exact ICE removal cost
-// when exact_costs): the flattest vertex is taken, its neighbours are excluded, and so on;
+// the current triangulation, picked greedily in vertex order (flattest_first: by |curvature|;
+// exact_costs: by exact ICE removal cost): a vertex is taken, its neighbours are excluded, and so on;
 // everything else is locked for that pass. The set is then removed either directly (remove_vertex
 // + Delaunay repair around it, flattest first) or by ice::coarsen with the rest locked (use_metric:
 // ICE-metric order, same result up to order, ~1.4x slower). This
 // keeps each level's vertex density uniform (every removed vertex keeps all its neighbours within a
 // pass), which is what multigrid needs, while the ICE metric still decides which vertices go.
 CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const CoarsenOptions& base, double area_weight,
-                                          bool exact_costs, bool use_metric) {
+                                          bool exact_costs, bool flattest_first, bool use_metric) {
   const auto start = std::chrono::steady_clock::now();
   CoarsenResult total;
   total.input_vertices = T.num_vertices();
@@ -166,7 +166,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     if (!options.independent_sets) {
       result = coarsen(T, co);
     } else {
-      result = coarsen_by_independent_sets(T, co, options.area_weight, options.exact_cost_order,
+      result = coarsen_by_independent_sets(T, co, options.area_weight, options.exact_cost_order, options.flattest_first,
                                            options.coarsen_sets_with_metric);
     }
     H.coarsen_seconds += result.seconds;
