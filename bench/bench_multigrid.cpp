@@ -9,15 +9,22 @@
 // Every benchmark runs once per size (Iterations(1)) and reports seconds as counters:
 //   multigrid:  hierarchy_s (ICE coarsening), numeric_setup_s (Galerkin products + coarsest CHOLMOD),
 //               setup_s = both, solve_s, iterations, factor (convergence factor per PCG iteration),
-//               cold_s = setup_s + solve_s, solve10_s (10 more right-hand sides), total10_s = setup_s + solve10_s,
-//               peak_mb (peak RSS growth during setup + solves)
+//               cold_s = setup_s + solve_s, solve10_s (10 more right-hand sides one by one), total10_s =
+//               setup_s + solve10_s, block10_s (the same 10 together, MultigridSolver::solve_multiple),
+//               block_total10_s = setup_s + block10_s,
+//               peak_mb (peak RSS growth during setup + solves, sampled every 2 ms; the fine matrix,
+//               mesh and right-hand sides exist before and are not counted)
 //   cholmod:    analyze_s, factor_s, solve_s, cold_s, solve10_s, total10_s = analyze + factor + 10 solves, peak_mb
 //   boomeramg:  setup_s, solve_s, iterations, factor, cold_s, solve10_s, total10_s, peak_mb
 // Run: ice_bench --benchmark_filter=Multigrid (a few minutes; the 1.6M hierarchy dominates).
 #include <benchmark/benchmark.h>
 
+#include <unistd.h>
+
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <thread>
 #include <fstream>
 #include <map>
 #include <string>
@@ -41,15 +48,40 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-// Resident set size and its high-water mark (MiB); reset_peak() restarts the mark (Linux clear_refs).
-double status_mb(const char* key) {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind(key, 0) == 0) return std::stod(line.substr(std::string(key).size())) / 1024.0;
-  return 0;
+// Resident set size in MiB (/proc/self/statm).
+double rss_mb() {
+  std::ifstream in("/proc/self/statm");
+  double pages_total = 0, pages_resident = 0;
+  in >> pages_total >> pages_resident;
+  return pages_resident * static_cast<double>(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
 }
-void reset_peak() { std::ofstream("/proc/self/clear_refs") << "5"; }
+
+// Peak RSS growth over the lifetime of the object: a thread samples the RSS every 2 ms (the
+// kernel's high-water mark cannot be reset here, and the process keeps earlier meshes cached).
+class PeakMemory {
+ public:
+  PeakMemory() : base_(rss_mb()), peak_(base_), thread_([this] {
+    while (!stop_) {
+      const double r = rss_mb();
+      double p = peak_.load();
+      while (r > p && !peak_.compare_exchange_weak(p, r)) {
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+  }) {}
+  ~PeakMemory() { stop(); }
+  /// Peak growth in MiB so far (stops sampling).
+  double stop() {
+    if (!stop_.exchange(true)) thread_.join();
+    return std::max(0.0, std::max(peak_.load(), rss_mb()) - base_);
+  }
+
+ private:
+  double base_;
+  std::atomic<double> peak_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
 
 struct Problem {
   ice::TriangleMesh mesh;
@@ -81,8 +113,7 @@ const Problem& problem(int levels) {
 void BM_MultigridICE(benchmark::State& state) {
   const Problem& p = problem(static_cast<int>(state.range(0)));
   for (auto _ : state) {
-    const double rss0 = status_mb("VmRSS:");
-    reset_peak();
+    PeakMemory memory;
     auto t = Clock::now();
     const ice::Hierarchy H = ice::build_hierarchy(p.mesh);
     const double hierarchy = since(t);
@@ -104,9 +135,21 @@ void BM_MultigridICE(benchmark::State& state) {
       if (!solver.report().converged) state.SkipWithError("multigrid did not converge");
     }
     const double solve10 = since(t);
+    t = Clock::now();
+    const Eigen::MatrixXd X = solver.solve_multiple(p.B.rightCols(10));
+    const double block10 = since(t);
+    int block_iterations = 0;
+    for (const auto& r : solver.reports()) {
+      block_iterations = std::max(block_iterations, r.iterations);
+      if (!r.converged) state.SkipWithError("multigrid (block) did not converge");
+    }
     benchmark::DoNotOptimize(x.data());
+    benchmark::DoNotOptimize(X.data());
     state.counters["vertices"] = static_cast<double>(p.A.rows());
     state.counters["levels"] = H.num_levels();
+    state.counters["block10_s"] = block10;
+    state.counters["block10_iterations"] = block_iterations;
+    state.counters["block_total10_s"] = hierarchy + numeric + block10;
     state.counters["hierarchy_s"] = hierarchy;
     state.counters["numeric_setup_s"] = numeric;
     state.counters["setup_s"] = hierarchy + numeric;
@@ -119,7 +162,7 @@ void BM_MultigridICE(benchmark::State& state) {
     state.counters["iterations10_mean"] = iterations10 / 10.0;
     state.counters["total10_s"] = hierarchy + numeric + solve10;
     state.counters["op_complexity"] = solver.operator_complexity();
-    state.counters["peak_mb"] = status_mb("VmHWM:") - rss0;
+    state.counters["peak_mb"] = memory.stop();
     if (!first.converged) state.SkipWithError("multigrid did not converge");
   }
 }
@@ -127,8 +170,7 @@ void BM_MultigridICE(benchmark::State& state) {
 void BM_MultigridCholmod(benchmark::State& state) {
   const Problem& p = problem(static_cast<int>(state.range(0)));
   for (auto _ : state) {
-    const double rss0 = status_mb("VmRSS:");
-    reset_peak();
+    PeakMemory memory;
     fem::CholeskySolver chol;
     auto t = Clock::now();
     chol.analyze(p.A);
@@ -152,7 +194,7 @@ void BM_MultigridCholmod(benchmark::State& state) {
     state.counters["cold_s"] = analyze + factor + solve;
     state.counters["solve10_s"] = solve10;
     state.counters["total10_s"] = analyze + factor + solve10;
-    state.counters["peak_mb"] = status_mb("VmHWM:") - rss0;
+    state.counters["peak_mb"] = memory.stop();
   }
 }
 
@@ -172,8 +214,7 @@ void BM_MultigridBoomerAMG(benchmark::State& state) {
   }
   const HYPRE_Int n = static_cast<HYPRE_Int>(p.A.rows());
   for (auto _ : state) {
-    const double rss0 = status_mb("VmRSS:");
-    reset_peak();
+    PeakMemory memory;
     auto t = Clock::now();
     HYPRE_IJMatrix ij;
     HYPRE_IJMatrixCreate(MPI_COMM_WORLD, 0, n - 1, 0, n - 1, &ij);
@@ -258,7 +299,7 @@ void BM_MultigridBoomerAMG(benchmark::State& state) {
     state.counters["cold_s"] = setup + solve;
     state.counters["solve10_s"] = solve10;
     state.counters["total10_s"] = setup + solve10;
-    state.counters["peak_mb"] = status_mb("VmHWM:") - rss0;
+    state.counters["peak_mb"] = memory.stop();
     HYPRE_BoomerAMGDestroy(amg);
     HYPRE_ParCSRPCGDestroy(pcg);
     HYPRE_IJVectorDestroy(ijb);

@@ -62,6 +62,132 @@ void gauss_seidel(const SparseMatrix& A, const Eigen::VectorXd& inv_diag, const 
   }
 }
 
+using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Block kernels: X, B, R are n × k row-major (row i holds unknown i of the k systems). The column
+// count is a template parameter for 1..16 (so the k-wide inner loops live in registers and
+// vectorise), runtime otherwise.
+template <int K>
+struct Width {
+  static constexpr Eigen::Index get(Eigen::Index) { return K; }
+};
+template <>
+struct Width<0> {
+  static Eigen::Index get(Eigen::Index k) { return k; }
+};
+
+// Mode 0: R = B − A X; mode 1: Y = A X; mode 2 / 3: forward / backward Gauss–Seidel on X.
+template <int K, int Mode>
+void block_kernel(const SparseMatrix& A, const double* inv_diag, const Block* B, Block& X, Block* out) {
+  const auto* start = A.outerIndexPtr();
+  const auto* row = A.innerIndexPtr();
+  const double* value = A.valuePtr();
+  const Eigen::Index n = A.outerSize(), k = Width<K>::get(X.cols());
+  constexpr int kMax = K > 0 ? K : 64;
+  double local[kMax];
+  std::vector<double> heap;
+  double* s = local;
+  if (K == 0 && k > kMax) {
+    heap.resize(static_cast<std::size_t>(k));
+    s = heap.data();
+  }
+  const double* x = X.data();
+  for (Eigen::Index step = 0; step < n; ++step) {
+    const Eigen::Index i = Mode == 3 ? n - 1 - step : step;
+    if (Mode == 1) {
+      for (Eigen::Index c = 0; c < k; ++c) s[c] = 0;
+    } else {
+      const double* b = B->data() + i * k;
+      for (Eigen::Index c = 0; c < k; ++c) s[c] = b[c];
+    }
+    for (auto p = start[i]; p < start[i + 1]; ++p) {
+      const double a = Mode == 1 ? -value[p] : value[p];
+      const double* xr = x + static_cast<Eigen::Index>(row[p]) * k;
+      for (Eigen::Index c = 0; c < k; ++c) s[c] -= a * xr[c];
+    }
+    if (Mode <= 1) {
+      double* o = out->data() + i * k;
+      for (Eigen::Index c = 0; c < k; ++c) o[c] = s[c];
+    } else {
+      double* xi = X.data() + i * k;
+      const double d = inv_diag[i];
+      for (Eigen::Index c = 0; c < k; ++c) xi[c] += s[c] * d;
+    }
+  }
+}
+
+template <int Mode>
+void dispatch_block(const SparseMatrix& A, const double* inv_diag, const Block* B, Block& X, Block* out) {
+  switch (X.cols()) {
+#define ICE_MG_CASE(K) \
+  case K:              \
+    return block_kernel<K, Mode>(A, inv_diag, B, X, out);
+    ICE_MG_CASE(1) ICE_MG_CASE(2) ICE_MG_CASE(3) ICE_MG_CASE(4) ICE_MG_CASE(5) ICE_MG_CASE(6) ICE_MG_CASE(7)
+    ICE_MG_CASE(8) ICE_MG_CASE(9) ICE_MG_CASE(10) ICE_MG_CASE(11) ICE_MG_CASE(12) ICE_MG_CASE(13)
+    ICE_MG_CASE(14) ICE_MG_CASE(15) ICE_MG_CASE(16)
+#undef ICE_MG_CASE
+    default:
+      return block_kernel<0, Mode>(A, inv_diag, B, X, out);
+  }
+}
+
+void residual_block(const SparseMatrix& A, const Block& B, const Block& X, Block& R) {
+  dispatch_block<0>(A, nullptr, &B, const_cast<Block&>(X), &R);
+}
+void multiply_block(const SparseMatrix& A, const Block& X, Block& Y) {
+  dispatch_block<1>(A, nullptr, nullptr, const_cast<Block&>(X), &Y);
+}
+void gauss_seidel_block(const SparseMatrix& A, const Eigen::VectorXd& inv_diag, const Block& B, Block& X, bool forward,
+                        std::vector<double>&) {
+  if (forward)
+    dispatch_block<2>(A, inv_diag.data(), &B, X, nullptr);
+  else
+    dispatch_block<3>(A, inv_diag.data(), &B, X, nullptr);
+}
+
+// C = Pᵀ R (restriction) and X += P C (prolongation) for column-major P and row-major blocks.
+void restrict_block(const SparseMatrix& P, const Block& R, Block& C) {
+  const Eigen::Index k = R.cols();
+  C.setZero(P.cols(), k);
+  for (Eigen::Index j = 0; j < P.outerSize(); ++j) {
+    double* c = C.data() + j * k;
+    for (auto p = P.outerIndexPtr()[j]; p < P.outerIndexPtr()[j + 1]; ++p) {
+      const double w = P.valuePtr()[p];
+      const double* r = R.data() + static_cast<Eigen::Index>(P.innerIndexPtr()[p]) * k;
+      for (Eigen::Index q = 0; q < k; ++q) c[q] += w * r[q];
+    }
+  }
+}
+void prolong_add_block(const SparseMatrix& P, const Block& C, Block& X) {
+  const Eigen::Index k = X.cols();
+  for (Eigen::Index j = 0; j < P.outerSize(); ++j) {
+    const double* c = C.data() + j * k;
+    for (auto p = P.outerIndexPtr()[j]; p < P.outerIndexPtr()[j + 1]; ++p) {
+      const double w = P.valuePtr()[p];
+      double* x = X.data() + static_cast<Eigen::Index>(P.innerIndexPtr()[p]) * k;
+      for (Eigen::Index q = 0; q < k; ++q) x[q] += w * c[q];
+    }
+  }
+}
+// Column-wise dot products of two row-major blocks.
+Eigen::VectorXd column_dots(const Block& X, const Block& Y) {
+  const Eigen::Index k = X.cols();
+  Eigen::VectorXd d = Eigen::VectorXd::Zero(k);
+  const double* x = X.data();
+  const double* y = Y.data();
+  for (Eigen::Index i = 0, end = X.size(); i < end; i += k)
+    for (Eigen::Index q = 0; q < k; ++q) d[q] += x[i + q] * y[i + q];
+  return d;
+}
+// Y += diag(a) applied per column: Y.col(q) += a(q) X.col(q), row by row.
+void axpy_columns(const Eigen::VectorXd& a, const Block& X, Block& Y) {
+  const Eigen::Index k = X.cols();
+  const double* x = X.data();
+  double* y = Y.data();
+  for (Eigen::Index i = 0, end = X.size(); i < end; i += k)
+    for (Eigen::Index q = 0; q < k; ++q) y[i + q] += a[q] * x[i + q];
+}
+
 // Rows of P kept through `row_map` (old row -> new row or −1, monotone on kept rows), columns that
 // keep no entry dropped. `column_map` receives old column -> new column or −1.
 SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<int>& row_map, Eigen::Index new_rows,
@@ -145,6 +271,8 @@ struct MultigridSolver::Level {
   Eigen::VectorXd inv_diag;
   double lambda_max = 0;  ///< Chebyshev: largest eigenvalue estimate of D⁻¹A
   Eigen::VectorXd x, b, r, d;  ///< work vectors
+  Block X, B, R, D;            ///< work blocks of solve_multiple
+  std::vector<double> scratch;
 };
 
 MultigridSolver::MultigridSolver(std::vector<SparseMatrix> prolongations, MultigridOptions options)
@@ -449,6 +577,189 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   for (std::size_t c = 0; c < constrained_.size(); ++c)
     out(constrained_[c]) = constrained_values.size() ? constrained_values(static_cast<Eigen::Index>(c)) : 0.0;
   report_.seconds = since(start);
+  return out;
+}
+
+void MultigridSolver::smooth_block(std::size_t k, bool pre) {
+  Level& L = *levels_[k];
+  for (int s = 0; s < options_.smoothing_steps; ++s) {
+    switch (options_.smoother) {
+      case MultigridSmoother::gauss_seidel:
+        gauss_seidel_block(L.A, L.inv_diag, L.B, L.X, pre, L.scratch);
+        break;
+      case MultigridSmoother::symmetric_gauss_seidel:
+        gauss_seidel_block(L.A, L.inv_diag, L.B, L.X, true, L.scratch);
+        gauss_seidel_block(L.A, L.inv_diag, L.B, L.X, false, L.scratch);
+        break;
+      case MultigridSmoother::chebyshev: {
+        if (L.lambda_max == 0) {  // estimated once by the single-vector code
+          L.b = L.B.col(0);
+          L.x = L.X.col(0);
+          chebyshev(k);
+          L.lambda_max = L.lambda_max == 0 ? 1 : L.lambda_max;
+        }
+        const double upper = L.lambda_max, lower = L.lambda_max / options_.chebyshev_ratio;
+        const double theta = 0.5 * (upper + lower), delta = 0.5 * (upper - lower);
+        const double sigma = theta / delta;
+        double rho = 1.0 / sigma;
+        L.R.resize(L.X.rows(), L.X.cols());
+        residual_block(L.A, L.B, L.X, L.R);
+        L.D = (L.R.array().colwise() * L.inv_diag.array()) / theta;
+        for (int step = 1;; ++step) {
+          L.X += L.D;
+          if (step == options_.chebyshev_degree) break;
+          residual_block(L.A, L.B, L.X, L.R);
+          const double rho_next = 1.0 / (2 * sigma - rho);
+          L.D = (rho_next * rho) * L.D.array() + (2 * rho_next / delta) * (L.R.array().colwise() * L.inv_diag.array());
+          rho = rho_next;
+        }
+        break;
+      }
+    }
+  }
+}
+
+void MultigridSolver::vcycle_block(std::size_t k) {
+  Level& L = *levels_[k];
+  if (k + 1 == levels_.size()) {
+    const Eigen::MatrixXd rhs = L.B;  // column-major for CHOLMOD
+    L.X = coarsest_.solve_multiple(rhs);
+    return;
+  }
+  smooth_block(k, true);
+  L.R.resize(L.X.rows(), L.X.cols());
+  residual_block(L.A, L.B, L.X, L.R);
+  Level& C = *levels_[k + 1];
+  restrict_block(L.P, L.R, C.B);
+  C.X.setZero(C.A.rows(), L.X.cols());
+  vcycle_block(k + 1);
+  prolong_add_block(L.P, C.X, L.X);
+  smooth_block(k, false);
+}
+
+void MultigridSolver::apply_vcycle_block(const Eigen::Ref<const Block>& R, Block& Z) {
+  Level& L = *levels_[0];
+  L.B = R;
+  L.X.setZero(R.rows(), R.cols());
+  vcycle_block(0);
+  Z.swap(L.X);
+}
+
+Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, const Eigen::MatrixXd& constrained_values) {
+  if (!is_setup_) throw std::logic_error("MultigridSolver::solve_multiple: call setup() first");
+  const auto start = Clock::now();
+  const Eigen::Index k = Bfull.cols();
+  if (Bfull.rows() != size_) throw std::invalid_argument("MultigridSolver::solve_multiple: B has the wrong number of rows");
+  if (constrained_values.size() != 0 &&
+      (constrained_values.rows() != static_cast<Eigen::Index>(constrained_.size()) || constrained_values.cols() != k))
+    throw std::invalid_argument("MultigridSolver::solve_multiple: constrained values must be |C| x k");
+  const Eigen::Index nf = static_cast<Eigen::Index>(free_.size());
+  Block rhs(nf, k), X = Block::Zero(nf, k);
+  for (Eigen::Index i = 0; i < nf; ++i) rhs.row(i) = Bfull.row(free_[static_cast<std::size_t>(i)]);
+  if (constrained_values.size() != 0 && nf > 0) rhs.noalias() -= free_constrained_ * constrained_values;
+  reports_.assign(static_cast<std::size_t>(k), MultigridReport());
+  const SparseMatrix& A = levels_[0]->A;
+  Block R(nf, k);
+  residual_block(A, rhs, X, R);
+  Eigen::VectorXd scale = rhs.colwise().norm().transpose();
+  for (Eigen::Index c = 0; c < k; ++c)
+    if (!(scale(c) > 0)) scale(c) = 1;
+  std::vector<char> active(static_cast<std::size_t>(k), 0);
+  Eigen::Index remaining = 0;
+  for (Eigen::Index c = 0; c < k; ++c) {
+    const double res = R.col(c).norm() / scale(c);
+    reports_[static_cast<std::size_t>(c)].residuals.push_back(res);
+    active[static_cast<std::size_t>(c)] = nf > 0 && res > options_.tolerance;
+    remaining += active[static_cast<std::size_t>(c)];
+  }
+  if (remaining > 0) {
+    if (options_.mode == MultigridMode::vcycle) {
+      Level& L = *levels_[0];
+      for (int it = 0; it < options_.max_iterations && remaining > 0; ++it) {
+        L.B = rhs;
+        L.X = X;
+        vcycle_block(0);
+        residual_block(A, rhs, L.X, R);
+        for (Eigen::Index c = 0; c < k; ++c) {
+          if (!active[static_cast<std::size_t>(c)]) continue;
+          X.col(c) = L.X.col(c);
+          MultigridReport& rep = reports_[static_cast<std::size_t>(c)];
+          const double res = R.col(c).norm() / scale(c);
+          ++rep.iterations;
+          rep.residuals.push_back(res);
+          if (res <= options_.tolerance) {
+            active[static_cast<std::size_t>(c)] = 0;
+            --remaining;
+          }
+        }
+      }
+    } else {
+      // Inactive (converged) columns get zero step lengths and keep their iterates.
+      Block Z, P, AP(nf, k);
+      apply_vcycle_block(R, Z);
+      P = Z;
+      Eigen::VectorXd rz = column_dots(R, Z), alpha(k), beta(k);
+      for (int it = 0; it < options_.max_iterations && remaining > 0; ++it) {
+        multiply_block(A, P, AP);
+        const Eigen::VectorXd pAp = column_dots(P, AP);
+        for (Eigen::Index c = 0; c < k; ++c) {
+          alpha(c) = 0;
+          if (!active[static_cast<std::size_t>(c)]) continue;
+          if (!(pAp(c) > 0) || !(rz(c) > 0)) {  // breakdown
+            active[static_cast<std::size_t>(c)] = 0;
+            --remaining;
+            continue;
+          }
+          alpha(c) = rz(c) / pAp(c);
+        }
+        axpy_columns(alpha, P, X);
+        axpy_columns(-alpha, AP, R);
+        const Eigen::VectorXd rr = column_dots(R, R);
+        for (Eigen::Index c = 0; c < k; ++c) {
+          if (alpha(c) == 0) continue;
+          MultigridReport& rep = reports_[static_cast<std::size_t>(c)];
+          const double res = std::sqrt(rr(c)) / scale(c);
+          ++rep.iterations;
+          rep.residuals.push_back(res);
+          if (res <= options_.tolerance) {
+            active[static_cast<std::size_t>(c)] = 0;
+            --remaining;
+          }
+        }
+        if (remaining == 0) break;
+        apply_vcycle_block(R, Z);
+        const Eigen::VectorXd rz_next = column_dots(R, Z);
+        for (Eigen::Index c = 0; c < k; ++c) beta(c) = active[static_cast<std::size_t>(c)] ? rz_next(c) / rz(c) : 0.0;
+        // P = Z + beta P for active columns; inactive columns are left as they are.
+        const double* z = Z.data();
+        double* pp = P.data();
+        for (Eigen::Index i = 0, end = P.size(); i < end; i += k)
+          for (Eigen::Index q = 0; q < k; ++q)
+            if (active[static_cast<std::size_t>(q)]) pp[i + q] = z[i + q] + beta(q) * pp[i + q];
+        for (Eigen::Index c = 0; c < k; ++c)
+          if (active[static_cast<std::size_t>(c)]) rz(c) = rz_next(c);
+      }
+    }
+  }
+  residual_block(A, rhs, X, R);
+  Eigen::MatrixXd out(size_, k);
+  for (Eigen::Index i = 0; i < nf; ++i) out.row(free_[static_cast<std::size_t>(i)]) = X.row(i);
+  for (std::size_t c = 0; c < constrained_.size(); ++c)
+    out.row(constrained_[c]) = constrained_values.size() ? Eigen::RowVectorXd(constrained_values.row(static_cast<Eigen::Index>(c)))
+                                                          : Eigen::RowVectorXd::Zero(k);
+  const double seconds = since(start);
+  std::size_t slowest = 0;
+  for (Eigen::Index c = 0; c < k; ++c) {
+    MultigridReport& rep = reports_[static_cast<std::size_t>(c)];
+    rep.relative_residual = nf > 0 ? R.col(c).norm() / scale(c) : 0.0;
+    rep.converged = rep.relative_residual <= options_.tolerance ||
+                    (rep.residuals.back() <= options_.tolerance && rep.relative_residual <= 10 * options_.tolerance);
+    if (rep.iterations > 0 && rep.residuals.front() > 0 && rep.residuals.back() > 0)
+      rep.convergence_factor = std::pow(rep.residuals.back() / rep.residuals.front(), 1.0 / rep.iterations);
+    rep.seconds = seconds;
+    if (rep.iterations > reports_[slowest].iterations) slowest = static_cast<std::size_t>(c);
+  }
+  if (k > 0) report_ = reports_[slowest];
   return out;
 }
 

@@ -109,6 +109,15 @@ class MultigridSolver {
   Eigen::VectorXd solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values,
                         const Eigen::VectorXd& initial_guess);
 
+  /// Solves for every column of B at once (k right-hand sides, constrained_values: one column per
+  /// right-hand side, or empty for zeros): k conjugate-gradient (or V-cycle) iterations run in
+  /// lockstep and every V-cycle smooths, restricts and prolongs the k vectors together, so the
+  /// operators are streamed from memory once per sweep for all of them. Column j stops when it
+  /// reaches the tolerance. Results equal k calls of solve() up to round-off; reports() holds one
+  /// report per column (report() then holds the slowest column's).
+  Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values = {});
+  const std::vector<MultigridReport>& reports() const { return reports_; }
+
   /// One V-cycle on the free system, z ≈ A_FF⁻¹ r from z = 0 (the preconditioner). Sizes: free count.
   Eigen::VectorXd apply_vcycle(const Eigen::VectorXd& r);
 
@@ -134,6 +143,10 @@ class MultigridSolver {
   void vcycle(std::size_t k);
   void smooth(std::size_t k, bool pre);
   void chebyshev(std::size_t k);
+  void vcycle_block(std::size_t k);
+  void smooth_block(std::size_t k, bool pre);
+  void apply_vcycle_block(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& R,
+                          Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& Z);
 
   MultigridOptions options_;
   std::vector<SparseMatrix> prolongations_;  ///< as given
@@ -145,6 +158,7 @@ class MultigridSolver {
   std::vector<int> free_;         ///< free -> original index
   SparseMatrix free_constrained_; ///< A_FC
   MultigridReport report_;
+  std::vector<MultigridReport> reports_;
   double setup_seconds_ = 0;
   bool is_setup_ = false;
 };
