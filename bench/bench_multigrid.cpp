@@ -12,14 +12,14 @@
 //               cold_s = setup_s + solve_s, solve10_s (10 more right-hand sides one by one), total10_s =
 //               setup_s + solve10_s, block10_s (the same 10 together, MultigridSolver::solve_multiple),
 //               block_total10_s = setup_s + block10_s,
-//               peak_mb (peak RSS growth during setup + solves, sampled every 2 ms; the fine matrix,
-//               mesh and right-hand sides exist before and are not counted)
+//               peak_mb (peak growth of the malloc heap in use during setup + solves, sampled every 2 ms;
+//               the fine matrix, mesh and right-hand sides exist before and are not counted)
 //   cholmod:    analyze_s, factor_s, solve_s, cold_s, solve10_s, total10_s = analyze + factor + 10 solves, peak_mb
 //   boomeramg:  setup_s, solve_s, iterations, factor, cold_s, solve10_s, total10_s, peak_mb
 // Run: ice_bench --benchmark_filter=Multigrid (a few minutes; the 1.6M hierarchy dominates).
 #include <benchmark/benchmark.h>
 
-#include <unistd.h>
+#include <malloc.h>
 
 #include <atomic>
 #include <chrono>
@@ -48,16 +48,15 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-// Resident set size in MiB (/proc/self/statm).
+// Heap bytes in use (glibc mallinfo2: arena + mmapped blocks), in MiB. Unlike the RSS this does not
+// hide allocations that re-use pages freed by earlier benchmarks.
 double rss_mb() {
-  std::ifstream in("/proc/self/statm");
-  double pages_total = 0, pages_resident = 0;
-  in >> pages_total >> pages_resident;
-  return pages_resident * static_cast<double>(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
+  const struct mallinfo2 m = mallinfo2();
+  return static_cast<double>(m.uordblks + m.hblkhd) / (1024.0 * 1024.0);
 }
 
-// Peak RSS growth over the lifetime of the object: a thread samples the RSS every 2 ms (the
-// kernel's high-water mark cannot be reset here, and the process keeps earlier meshes cached).
+// Peak growth of the heap in use over the lifetime of the object, sampled every 2 ms by a thread
+// (memory allocated with mmap outside malloc, e.g. by MPI, is not seen).
 class PeakMemory {
  public:
   PeakMemory() : base_(rss_mb()), peak_(base_), thread_([this] {

@@ -59,7 +59,7 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
       for (Index v = 0; v < slots; ++v)
         if (T.vertex_alive(v) && !user_locked[static_cast<std::size_t>(v)]) order.emplace_back(std::abs(T.curvature(v)), v);
     }
-    std::sort(order.begin(), order.end());
+    if (exact_costs || flattest_first) std::sort(order.begin(), order.end());  // else: vertex order already
     std::fill(blocked.begin(), blocked.end(), 0);
     Index selected = 0;
     CoarsenOptions co = base;
