@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <stdexcept>
 
 #include "ice/prolongation.h"
@@ -129,11 +130,8 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
   if (options.coarsest_vertices < 1) throw std::invalid_argument("build_hierarchy: coarsest_vertices must be >= 1");
   if (options.max_levels < 1) throw std::invalid_argument("build_hierarchy: max_levels must be >= 1");
 
-  // T is the triangulation being coarsened. Normally it is rebuilt from each new level's compact
-  // mesh, so its input vertices are that level's vertices; when from_lengths refuses a compact mesh
-  // (a Δ-complex with a self- or multi-edge), T is kept and coarsened further, and its input
-  // vertices are those of an earlier level. level_in_t maps the current level's vertices to T's
-  // input vertices; t_to_fine maps T's input vertices to level-0 vertices.
+  // T is the triangulation being coarsened; its input vertices are the current level's vertices
+  // (IntrinsicTriangulation::compacted restarts tracking), t_to_fine maps them to level-0 vertices.
   IntrinsicTriangulation T = IntrinsicTriangulation::from_lengths(F, L);
   const Index n0 = T.num_input_vertices();
   for (Index v : options.locked_vertices)
@@ -142,7 +140,6 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
   Hierarchy H;
   H.levels.push_back({F, L, std::vector<Index>(static_cast<std::size_t>(n0))});
   std::iota(H.levels[0].to_fine.begin(), H.levels[0].to_fine.end(), 0);
-  std::vector<Index> level_in_t = H.levels[0].to_fine;
   std::vector<Index> t_to_fine = H.levels[0].to_fine;
 
   H.stop_reason = "max_levels reached";
@@ -174,41 +171,29 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
       H.stop_reason = "coarsening stalled (" + std::string(to_string(result.stop_reason)) + ")";
       break;
     }
-    CompactMesh C = T.compact();
-    const Eigen::SparseMatrix<double> all_rows = prolongation(T, C);  // T inputs × n_{k+1}
-    Eigen::SparseMatrix<double> P;
-    if (static_cast<Index>(level_in_t.size()) == all_rows.rows()) {
-      P = all_rows;  // level_in_t is the identity
-    } else {
-      // Select the rows of the current level's vertices (a row gather through a selection matrix).
-      Eigen::SparseMatrix<double> select(static_cast<Index>(level_in_t.size()), all_rows.rows());
-      std::vector<Eigen::Triplet<double>> ones;
-      ones.reserve(level_in_t.size());
-      for (std::size_t i = 0; i < level_in_t.size(); ++i) ones.emplace_back(static_cast<Index>(i), level_in_t[i], 1.0);
-      select.setFromTriplets(ones.begin(), ones.end());
-      P = select * all_rows;
-    }
+    // The next level: a compact copy of T whose vertices are the surviving ones (tracking restarts,
+    // so its own coarsening tracks exactly this level's vertices). Not needed after the last level.
+    const bool last = T.num_vertices() <= options.coarsest_vertices || H.num_levels() + 1 >= options.max_levels;
+    CompactMesh C;
+    std::optional<IntrinsicTriangulation> next;
+    if (last)
+      C = T.compact();
+    else
+      next.emplace(T.compacted(&C));
+    Eigen::SparseMatrix<double> P = prolongation(T, C);  // this level's vertices × next level's
     P.makeCompressed();
-    HierarchyLevel next;
-    next.to_fine.resize(C.to_input.size());
+    HierarchyLevel level;
+    level.to_fine.resize(C.to_input.size());
     for (std::size_t i = 0; i < C.to_input.size(); ++i)
-      next.to_fine[i] = t_to_fine[static_cast<std::size_t>(C.to_input[i])];
-    next.F = std::move(C.F);
-    next.L = std::move(C.L);
+      level.to_fine[i] = t_to_fine[static_cast<std::size_t>(C.to_input[i])];
+    level.F = std::move(C.F);
+    level.L = std::move(C.L);
     H.prolongations.push_back(std::move(P));
     H.coarsening.push_back(result);
-    H.levels.push_back(std::move(next));
-    const HierarchyLevel& level = H.levels.back();
-    if (level.num_vertices() <= options.coarsest_vertices || H.num_levels() >= options.max_levels) continue;
-    try {
-      T = IntrinsicTriangulation::from_lengths(level.F, level.L);
-      level_in_t.resize(static_cast<std::size_t>(level.num_vertices()));
-      std::iota(level_in_t.begin(), level_in_t.end(), 0);
-      t_to_fine = level.to_fine;
-    } catch (const std::invalid_argument&) {
-      // Keep coarsening T; the new level's vertices are T's surviving input vertices.
-      level_in_t = C.to_input;
-    }
+    H.levels.push_back(std::move(level));
+    if (last) continue;
+    T = std::move(*next);
+    t_to_fine = H.levels.back().to_fine;
   }
   H.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return H;

@@ -3,17 +3,17 @@
 /// A multilevel hierarchy of intrinsic meshes by repeated ICE coarsening, with the prolongation
 /// between consecutive levels (the geometric part of a Galerkin multigrid solver, fem/multigrid.h).
 ///
-/// Level 0 is the input mesh. Level k+1 is made from level k alone: the compact mesh of level k
-/// (faces + lengths) becomes a fresh IntrinsicTriangulation (from_lengths), which is coarsened to
+/// Level 0 is the input mesh. Level k+1 is made from level k alone: the triangulation of level k
+/// (IntrinsicTriangulation::compacted of the previous coarsening, which restarts tracking, so its
+/// input vertices are exactly level k's vertices; any Δ-complex carries over) is coarsened to
 /// ⌈ratio·n_k⌉ vertices (at least `coarsest_vertices`) by intrinsic vertex removals (flatten, flip
 /// to degree 3, merge, re-locate tracked points, restore Delaunay), in independent-set passes by
 /// default (see HierarchyOptions::independent_sets: plain greedy ICE coarsening makes levels whose
-/// density follows curvature, which multigrid converges badly on). The coarsened triangulation tracks every
-/// level-k vertex, so ice::prolongation of it is exactly P_k (n_k × n_{k+1}, rows sum to 1, at most
-/// three non-zeros per row). Building stops when a level has at most `coarsest_vertices` vertices,
+/// density follows curvature, which multigrid converges badly on). ice::prolongation of the
+/// coarsened triangulation is then exactly P_k (n_k × n_{k+1}, rows sum to 1, at most three
+/// non-zeros per row). Building stops when a level has at most `coarsest_vertices` vertices,
 /// when `max_levels` is reached, or when a level cannot be coarsened usefully (the coarsening
-/// removed fewer than 10 % of the vertices, or the compact mesh of a level is a Δ-complex that
-/// from_lengths refuses, e.g. with a multi-edge). The hierarchy depends only on the mesh, not on the
+/// removed fewer than 10 % of the vertices). The hierarchy depends only on the mesh, not on the
 /// PDE: one hierarchy serves every operator on the fine vertices (Laplacian, mass, M + tL, Dirichlet
 /// systems) and every right-hand side.
 #include <string>
