@@ -69,10 +69,11 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
       if (blocked[static_cast<std::size_t>(v)]) continue;
       ++selected;
       blocked[static_cast<std::size_t>(v)] = 2;  // selected
-      T.for_each_outgoing(v, [&](Index h) {
-        blocked[static_cast<std::size_t>(T.head(h))] |= 1;
-        blocked[static_cast<std::size_t>(T.tail(T.prev(h)))] |= 1;
-      });
+      // The heads of the outgoing half-edges are all the neighbours of an interior vertex; at a
+      // boundary vertex the one across the incoming boundary edge is the tail of a prev().
+      T.for_each_outgoing(v, [&](Index h) { blocked[static_cast<std::size_t>(T.head(h))] |= 1; });
+      if (T.is_boundary_vertex(v))
+        T.for_each_outgoing(v, [&](Index h) { blocked[static_cast<std::size_t>(T.tail(T.prev(h)))] |= 1; });
     }
     for (Index v = 0; v < slots; ++v)
       if (T.vertex_alive(v) && blocked[static_cast<std::size_t>(v)] != 2) co.locked_vertices.push_back(v);
