@@ -253,26 +253,35 @@ void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near) {
   // Corner angles of v's fan, counter-clockwise from vhalfedge(v). When only the faces touching
   // `changed_near` changed (after flattening that vertex), the other corners are read back from the
   // stored coordinates, A(next) − A(h) = scale·corner, instead of being recomputed from lengths.
-  // Small fans recompute everything (a corner may then span the whole turn).
-  double corners_small[32];
+  // Fans of one or two corners are recomputed in full (a corner may then span the whole turn).
+  constexpr int kSmall = 64;
+  double corners_small[kSmall];
   std::vector<double> corners_large;
   double* corners = corners_small;
-  const int deg = degree(v);
-  if (deg > 32) {
-    corners_large.resize(deg);
-    corners = corners_large.data();
-  }
-  const bool reuse = changed_near != kInvalid && deg > 2;
   const double old_scale = angle_scale(v);
   int count = 0;
   double theta = 0;
-  for_each_outgoing(v, [&](Index h) {
-    const Index following = prev(h) ^ 1;
-    const bool changed = !reuse || head(h) == changed_near || tail(prev(h)) == changed_near;
-    const double corner = changed ? corner_angle(h) : wrap_angle(hangle(following) - hangle(h)) / old_scale;
-    corners[count++] = corner;
-    theta += corner;
-  });
+  const auto collect = [&](bool reuse) {
+    count = 0, theta = 0;
+    corners_large.clear();
+    corners = corners_small;
+    for_each_outgoing(v, [&](Index h) {
+      const Index following = prev(h) ^ 1;
+      const bool changed = !reuse || head(h) == changed_near || tail(prev(h)) == changed_near;
+      const double corner = changed ? corner_angle(h) : wrap_angle(hangle(following) - hangle(h)) / old_scale;
+      if (count == kSmall && corners == corners_small) corners_large.assign(corners_small, corners_small + kSmall);
+      if (count >= kSmall) {
+        corners_large.push_back(corner);
+        corners = corners_large.data();
+      } else {
+        corners_small[count] = corner;
+      }
+      ++count;
+      theta += corner;
+    });
+  };
+  collect(changed_near != kInvalid);
+  if (changed_near != kInvalid && count <= 2) collect(false);
   vsum(v) = theta;
   const double scale = angle_scale(v);
   const Index start = vhalfedge(v);
@@ -461,24 +470,27 @@ struct StarCorner {
 FlattenResult IntrinsicTriangulation::compute_flattening(Index v, double tolerance) const {
   FlattenResult result;
   const double target = is_boundary_vertex(v) ? kPi : kTwoPi;
-  StarCorner corners_small[16];
+  // One walk into a small array; a second one only for a star with more than 32 corners.
+  constexpr int kSmall = 32;
+  StarCorner corners_small[kSmall];
   std::vector<StarCorner> corners_large;
   StarCorner* corners = corners_small;
   int count = 0;
-  const int deg = degree(v);
-  if (deg > 16) {
-    corners_large.resize(deg);
-    corners = corners_large.data();
-  }
-  for_each_outgoing(v, [&](Index h) {
+  bool overflow = false;
+  const auto star_corner = [&](Index h) {
     const Index in = prev(h), opp = next(h);
-    corners[count++] = {length(h),
-                        length(in),
-                        length(opp),
-                        1 + (head(h) == v),
-                        1 + (tail(in) == v),
-                        (tail(opp) == v) + (head(opp) == v)};
+    return StarCorner{length(h),         length(in),           length(opp), 1 + (head(h) == v),
+                      1 + (tail(in) == v), (tail(opp) == v) + (head(opp) == v)};
+  };
+  for_each_outgoing(v, [&](Index h) {
+    if (count == kSmall) overflow = true;
+    else corners[count++] = star_corner(h);
   });
+  if (overflow) {
+    for_each_outgoing(v, [&](Index h) { corners_large.push_back(star_corner(h)); });
+    corners = corners_large.data();
+    count = static_cast<int>(corners_large.size());
+  }
 
   // Θ(u) − target and dΘ/du. Near the target (|Θ(0) − target| < π/2, and Newton moves Θ
   // monotonically towards it) the residual is the argument of the product of the corners' unit
@@ -629,29 +641,40 @@ RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, std::vector<Index>*
 }
 
 namespace {
-// Flips one outgoing edge of v chosen by priority (self-edges first, then the smallest cotan weight,
-// i.e. the most non-Delaunay edge); returns false when no candidate diamond is convex.
+// One step of flipping v down to `target` corners, with a single walk around v: returns Done when v
+// already has at most `target` corners (its corner count in *degree), Flipped after flipping one
+// outgoing edge chosen by priority (self-edges first, then the smallest cotan weight, i.e. the most
+// non-Delaunay edge), and Stuck when no candidate diamond is convex.
+enum class FlipStep { Done, Flipped, Stuck };
 template <class Tri>
-bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched) {
+FlipStep flip_toward_degree(Tri& T, Index v, int target, int* degree, std::vector<Index>* changed_faces,
+                            std::vector<Index>* touched) {
   struct Candidate {
     Index h;
     double priority;
   };
-  Candidate small[32];
+  Candidate small[64];
   std::vector<Candidate> large;
   Candidate* candidates = small;
-  int count = 0;
-  const int deg = T.degree(v);
-  if (deg > 32) {
-    large.resize(deg);
-    candidates = large.data();
-  }
+  int corners = 0, count = 0;
   T.for_each_outgoing(v, [&](Index h) {
+    if (corners == 64 && candidates == small) {
+      large.assign(small, small + count);
+      candidates = large.data();
+    }
+    ++corners;
     if (T.is_boundary_edge(h)) return;
-    // Most non-Delaunay first (smallest cotan weight: the opposite angles' sum exceeds π the most),
-    // self-edges before everything else.
-    candidates[count++] = {h, (T.head(h) == v ? 1e300 : 0.0) - T.cotan_weight(h)};
+    const Candidate c{h, (T.head(h) == v ? 1e300 : 0.0) - T.cotan_weight(h)};
+    if (candidates == small) {
+      candidates[count++] = c;
+    } else {
+      large.push_back(c);
+      candidates = large.data();
+      ++count;
+    }
   });
+  *degree = corners;
+  if (corners <= target) return FlipStep::Done;
   std::sort(candidates, candidates + count, [](const Candidate& x, const Candidate& y) { return x.priority > y.priority; });
   for (int c = 0; c < count; ++c) {
     const Index h = candidates[c].h;
@@ -659,22 +682,23 @@ bool flip_one_edge_at(Tri& T, Index v, std::vector<Index>* changed_faces, std::v
     if (T.flip(h)) {
       if (touched) touched->insert(touched->end(), {i, j, T.tail(h), T.head(h)});
       if (changed_faces) changed_faces->insert(changed_faces->end(), {T.face(h), T.face(h ^ 1)});
-      return true;
+      return FlipStep::Flipped;
     }
   }
-  return false;
+  return FlipStep::Stuck;
 }
 }  // namespace
 
 RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, std::vector<Index>* changed_faces,
                                                              std::vector<Index>* touched) {
   if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
-  while (degree(v) > 3) {
-    if (flip_one_edge_at(*this, v, changed_faces, touched)) continue;
-    if (degree(v) == 4 && merge_star_along_diagonal(v, changed_faces)) return RemovalStatus::Removed;
+  int deg = 0;
+  for (FlipStep step; (step = flip_toward_degree(*this, v, 3, &deg, changed_faces, touched)) != FlipStep::Done;) {
+    if (step == FlipStep::Flipped) continue;
+    if (deg == 4 && merge_star_along_diagonal(v, changed_faces)) return RemovalStatus::Removed;
     return RemovalStatus::NoConvexFlip;
   }
-  if (degree(v) < 3) return RemovalStatus::TopologyChange;
+  if (deg < 3) return RemovalStatus::TopologyChange;
   std::vector<Index>& star = scratch_faces_;
   star.clear();
   for_each_outgoing(v, [&](Index h) { star.push_back(h); });
@@ -812,8 +836,9 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
     if (changed_faces) changed_faces->insert(changed_faces->end(), {face(opposite), face(opposite ^ 1)});
   }
   if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
-  while (degree(v) > 2)
-    if (!flip_one_edge_at(*this, v, changed_faces, touched)) return RemovalStatus::NoConvexFlip;
+  int deg = 0;
+  for (FlipStep step; (step = flip_toward_degree(*this, v, 2, &deg, changed_faces, touched)) != FlipStep::Done;)
+    if (step == FlipStep::Stuck) return RemovalStatus::NoConvexFlip;
   hb = vhalfedge(v);
   const Index h2 = rotate_ccw(hb);  // v -> m
   if (h2 == kInvalid) return RemovalStatus::TopologyChange;
