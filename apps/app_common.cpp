@@ -530,4 +530,24 @@ void PdeRun::print_summary(std::ostream& out) const {
   }
 }
 
+Eigen::VectorXd demo_poisson_rhs(const ice::TriangleMesh& mesh) {
+  const Eigen::Index n = mesh.V.rows();
+  const double sigma = 0.1 * (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
+  const double weights[3] = {1.0, -1.0, 1.0};
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(n);
+  for (int axis = 0; axis < 3; ++axis) {
+    Eigen::Index centre = 0;
+    mesh.V.col(axis).maxCoeff(&centre);
+    const Eigen::RowVector3d c = mesh.V.row(centre);
+    for (Eigen::Index i = 0; i < n; ++i)
+      f(i) += weights[axis] * std::exp(-(mesh.V.row(i) - c).squaredNorm() / (2 * sigma * sigma));
+  }
+  return f;
+}
+
+Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const Eigen::SparseMatrix<double>& mass) {
+  const Eigen::VectorXd m1 = mass * Eigen::VectorXd::Ones(f.size());
+  return f.array() - m1.dot(f) / m1.sum();
+}
+
 }  // namespace app

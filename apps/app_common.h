@@ -266,4 +266,11 @@ struct PdeRun {
 CoarseMesh coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                            PdeRun& run);
 
+/// The demo right-hand side of poisson-coarse and ice-report: three Gaussian bumps
+/// exp(−|x − c|²/(2σ²)) with weights +1, −1, +1 centred at the vertices of largest x, y and z,
+/// σ = 0.1 × the bounding-box diagonal (its mean is not removed: see remove_mean).
+Eigen::VectorXd demo_poisson_rhs(const ice::TriangleMesh& mesh);
+/// f minus its mass-weighted mean (the compatible right-hand side of a zero-mean Neumann problem).
+Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const Eigen::SparseMatrix<double>& mass);
+
 }  // namespace app

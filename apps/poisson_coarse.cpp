@@ -32,29 +32,6 @@ namespace {
 
 const std::string kTool = "poisson-coarse";
 
-// The demo source (see the file comment), before removing its mean.
-Eigen::VectorXd demo_rhs(const ice::TriangleMesh& mesh) {
-  const Eigen::Index n = mesh.V.rows();
-  const double diagonal = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
-  const double sigma = 0.1 * diagonal;
-  const double weights[3] = {1.0, -1.0, 1.0};
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(n);
-  for (int axis = 0; axis < 3; ++axis) {
-    Eigen::Index centre = 0;
-    mesh.V.col(axis).maxCoeff(&centre);
-    const Eigen::RowVector3d c = mesh.V.row(centre);
-    for (Eigen::Index i = 0; i < n; ++i)
-      f(i) += weights[axis] * std::exp(-(mesh.V.row(i) - c).squaredNorm() / (2 * sigma * sigma));
-  }
-  return f;
-}
-
-// f − (1ᵀ M f)/(1ᵀ M 1) for a diagonal (lumped) or any mass matrix.
-Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const fem::SparseMatrix& mass) {
-  const Eigen::VectorXd m1 = mass * Eigen::VectorXd::Ones(f.size());
-  return f.array() - m1.dot(f) / m1.sum();
-}
-
 // Options of --solver multigrid.
 struct MultigridCli {
   double tolerance = 1e-8, ratio = 0.25;
@@ -75,7 +52,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   const double fine_mesh_seconds = clock.lap();
   const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
   const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
-  if (f.size() == 0) f = remove_mean(demo_rhs(mesh), M);
+  if (f.size() == 0) f = app::remove_mean(app::demo_poisson_rhs(mesh), M);
   const double assemble_seconds = clock.lap();
   nlohmann::json solver_json = {{"kind", solver}};
   nlohmann::json timings;
@@ -320,7 +297,7 @@ int main(int argc, char** argv) {
         opt.operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
     const Eigen::Index nc = static_cast<Eigen::Index>(coarse.mesh.to_input.size());
     const fem::CoarseProxy proxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped, n, nc);
-    if (f.size() == 0) f = remove_mean(demo_rhs(mesh), proxy.fine_mass());
+    if (f.size() == 0) f = app::remove_mean(app::demo_poisson_rhs(mesh), proxy.fine_mass());
     run.assemble = clock.lap();
     const bool dirichlet = !fixed_vertices.empty();
     std::vector<int> coarse_fixed;
@@ -333,7 +310,7 @@ int main(int argc, char** argv) {
         coarse_solver.solve_weighted(proxy.restrict_weighted(proxy.fine_mass() * f), fixed_values);
     run.solve = clock.lap();
     Eigen::VectorXd solution = proxy.prolong(coarse_solution);
-    if (!dirichlet) solution = remove_mean(solution, proxy.fine_mass());
+    if (!dirichlet) solution = app::remove_mean(solution, proxy.fine_mass());
     run.prolong = clock.lap();
 
     // ---- reference

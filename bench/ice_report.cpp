@@ -65,22 +65,6 @@ struct Row {
 
 // The demo source of poisson-coarse: three Gaussian bumps (+1, −1, +1) at the vertices with the
 // largest x, y, z, σ = 0.1 × bounding-box diagonal, minus its mass-weighted mean.
-Eigen::VectorXd demo_source(const ice::TriangleMesh& mesh, const fem::SparseMatrix& mass) {
-  const Eigen::Index n = mesh.V.rows();
-  const double sigma = 0.1 * (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
-  const double weights[3] = {1.0, -1.0, 1.0};
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(n);
-  for (int axis = 0; axis < 3; ++axis) {
-    Eigen::Index centre = 0;
-    mesh.V.col(axis).maxCoeff(&centre);
-    const Eigen::RowVector3d c = mesh.V.row(centre);
-    for (Eigen::Index i = 0; i < n; ++i)
-      f(i) += weights[axis] * std::exp(-(mesh.V.row(i) - c).squaredNorm() / (2 * sigma * sigma));
-  }
-  const Eigen::VectorXd m1 = mass * Eigen::VectorXd::Ones(n);
-  return f.array() - m1.dot(f) / m1.sum();
-}
-
 std::vector<int> spread_sources(const ice::Positions& V, int count) {
   std::vector<int> s{0};
   Eigen::VectorXd d = (V.rowwise() - V.row(0)).rowwise().norm();
@@ -132,7 +116,7 @@ Fine fine_reference(const ice::TriangleMesh& mesh) {
   const fem::SparseMatrix L = fem::cotan_laplacian(r.disc.F, r.disc.L, n);
   r.M = fem::mass_matrix(r.disc.F, r.disc.L, fem::MassKind::lumped, n);
   r.t_assemble[0] = r.t_assemble[1] = clock.lap();  // the same L and M for Poisson and heat
-  r.f = demo_source(mesh, r.M);
+  r.f = app::remove_mean(app::demo_poisson_rhs(mesh), r.M);
   r.heat_time = 0.1 * r.M.sum();
   r.sources = spread_sources(mesh.V, 3);
   clock.lap();
