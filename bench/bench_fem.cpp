@@ -20,23 +20,14 @@
 #include "ice/mesh_io.h"
 #include "ice/prolongation.h"
 #include "ice/qem.h"
+#include "bench_support.h"
 
 using namespace ice;
 
 namespace {
 
 // Loop-subdivided spot, loaded once per process per level.
-const TriangleMesh& spot(int subdivisions) {
-  static std::map<int, TriangleMesh> cache;
-  auto it = cache.find(subdivisions);
-  if (it == cache.end()) {
-    const char* env = std::getenv("ICE_SHARED_MESHES");
-    TriangleMesh m = load_mesh(std::string(env ? env : ICE_SHARED_MESHES_DIR) + "/spot.obj");
-    if (subdivisions > 0) m = loop_subdivide(m, subdivisions);
-    it = cache.emplace(subdivisions, std::move(m)).first;
-  }
-  return it->second;
-}
+const TriangleMesh& spot(int subdivisions) { return ice_bench::subdivided_shared_mesh("spot.obj", subdivisions); }
 
 void set_size(benchmark::State& state, const TriangleMesh& m) {
   state.counters["vertices"] = static_cast<double>(m.V.rows());

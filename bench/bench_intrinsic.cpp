@@ -17,27 +17,14 @@
 #include "ice/coarsen.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
+#include "bench_support.h"
 
 using namespace ice;
 
 namespace {
 
-std::string shared_mesh(const std::string& name) {
-  const char* env = std::getenv("ICE_SHARED_MESHES");
-  return std::string(env ? env : ICE_SHARED_MESHES_DIR) + "/" + name;
-}
-
-// Meshes are loaded (and subdivided) once per process.
-const TriangleMesh& mesh(const std::string& name, int subdivisions = 0) {
-  static std::map<std::pair<std::string, int>, TriangleMesh> cache;
-  auto key = std::make_pair(name, subdivisions);
-  auto it = cache.find(key);
-  if (it == cache.end()) {
-    TriangleMesh m = load_mesh(shared_mesh(name));
-    if (subdivisions > 0) m = loop_subdivide(m, subdivisions);
-    it = cache.emplace(key, std::move(m)).first;
-  }
-  return it->second;
+const ice::TriangleMesh& mesh(const std::string& name, int subdivisions = 0) {
+  return ice_bench::subdivided_shared_mesh(name, subdivisions);
 }
 
 double peak_rss_mb() {

@@ -22,22 +22,13 @@
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "ice/prolongation.h"
+#include "bench_support.h"
 
 using namespace ice;
 
 namespace {
 
-const TriangleMesh& spot_subdiv(int levels) {
-  static std::map<int, TriangleMesh> cache;
-  auto it = cache.find(levels);
-  if (it == cache.end()) {
-    const char* env = std::getenv("ICE_SHARED_MESHES");
-    TriangleMesh m = load_mesh(std::string(env ? env : ICE_SHARED_MESHES_DIR) + "/spot_subdiv.obj");
-    if (levels > 0) m = loop_subdivide(m, levels);
-    it = cache.emplace(levels, std::move(m)).first;
-  }
-  return it->second;
-}
+const TriangleMesh& spot_subdiv(int levels) { return ice_bench::subdivided_shared_mesh("spot_subdiv.obj", levels); }
 
 double seconds_since(std::chrono::steady_clock::time_point& t) {
   const auto now = std::chrono::steady_clock::now();
