@@ -136,19 +136,25 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
 IntrinsicErrorMetric::PendingRecord IntrinsicErrorMetric::merged_record(const IntrinsicTriangulation& T, Index v,
                                                                          const Neighbour& n) const {
   const Index h = n.halfedge;  // v -> j
-  const double angle_vj = T.angular_coordinate(h), angle_jv = T.angular_coordinate(h ^ 1);
-  // Parallel transport from v's frame to j's, and the vector from j to v in j's frame.
-  const std::complex<double> rotation = unit_complex(angle_jv - angle_vj + kPi);
-  const std::complex<double> edge = T.length(h) * unit_complex(angle_jv);
+  std::complex<double> rotation, edge;
+  bool transported = false;
   PendingRecord record{n.vertex, {}, {}};
   for (int c = 0; c < kChannels; ++c) {
     const double share = n.weight * mass(v, c);
     const double m_j = mass(n.vertex, c);
-    const double merged = m_j + share;
-    record.mass[c] = merged;
-    record.centre[c] =
-        merged > 0 ? (share * (rotation * centre(v, c) + edge) + m_j * centre(n.vertex, c)) / merged
-                   : std::complex<double>(0, 0);
+    record.mass[c] = m_j + share;
+    if (share == 0) {  // nothing moves in this channel: j keeps its own moment
+      record.moment[c] = m_j * centre(n.vertex, c);
+      continue;
+    }
+    if (!transported) {
+      // Parallel transport from v's frame to j's, and the vector from j to v in j's frame.
+      const double angle_vj = T.angular_coordinate(h), angle_jv = T.angular_coordinate(h ^ 1);
+      rotation = unit_complex(angle_jv - angle_vj + kPi);
+      edge = T.length(h) * unit_complex(angle_jv);
+      transported = true;
+    }
+    record.moment[c] = share * (rotation * centre(v, c) + edge) + m_j * centre(n.vertex, c);
   }
   return record;
 }
@@ -158,25 +164,8 @@ double IntrinsicErrorMetric::removal_cost(const IntrinsicTriangulation& T, Index
   if (!split_weights(T, v, scratch_, log_scale)) return std::numeric_limits<double>::infinity();
   double cost = 0;
   for (const Neighbour& n : scratch_) {
-    const Index h = n.halfedge;
-    std::complex<double> rotation, edge;
-    bool transported = false;
-    for (int c = 0; c < kChannels; ++c) {
-      const double share = n.weight * mass(v, c);
-      const double m_j = mass(n.vertex, c);
-      if (share == 0) {  // nothing moves in this channel: j keeps its own moment
-        cost += m_j * magnitude(centre(n.vertex, c));
-        continue;
-      }
-      if (!transported) {
-        const double angle_vj = T.angular_coordinate(h), angle_jv = T.angular_coordinate(h ^ 1);
-        rotation = unit_complex(angle_jv - angle_vj + kPi);
-        edge = T.length(h) * unit_complex(angle_jv);
-        transported = true;
-      }
-      // m'·|x'| = |share·(transported x_v + edge) + m_j·x_j|
-      cost += magnitude(share * (rotation * centre(v, c) + edge) + m_j * centre(n.vertex, c));
-    }
+    const PendingRecord r = merged_record(T, v, n);
+    for (int c = 0; c < kChannels; ++c) cost += magnitude(r.moment[c]);  // m'·|x'| = |m'·x'|
   }
   return cost;
 }
@@ -194,7 +183,7 @@ void IntrinsicErrorMetric::apply_prepared_removal() {
   for (const PendingRecord& r : pending_)
     for (int c = 0; c < kChannels; ++c) {
       mass_[kChannels * r.vertex + c] = r.mass[c];
-      centre_[kChannels * r.vertex + c] = r.centre[c];
+      centre_[kChannels * r.vertex + c] = r.mass[c] > 0 ? r.moment[c] / r.mass[c] : std::complex<double>(0, 0);
     }
   if (pending_vertex_ != kInvalid)
     for (int c = 0; c < kChannels; ++c) {

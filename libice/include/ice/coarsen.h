@@ -107,11 +107,11 @@ class IntrinsicErrorMetric {
   struct PendingRecord {
     Index vertex;
     std::array<double, kChannels> mass;
-    std::array<std::complex<double>, kChannels> centre;
+    std::array<std::complex<double>, kChannels> moment;  // merged mass × merged centre
   };
   // Neighbours of v with their split weights; false when v cannot be flattened.
   bool split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out, double* log_scale) const;
-  // The record of neighbour n after absorbing its share of v.
+  // The record of neighbour n after absorbing its share of v (mass and moment per channel).
   PendingRecord merged_record(const IntrinsicTriangulation& T, Index v, const Neighbour& n) const;
   std::vector<double> mass_;
   std::vector<std::complex<double>> centre_;
