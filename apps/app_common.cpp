@@ -550,4 +550,12 @@ Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const Eigen::SparseMatrix<
   return f.array() - m1.dot(f) / m1.sum();
 }
 
+fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseMesh& coarse, const std::string& operators,
+                            Eigen::Index fine_vertices) {
+  const fem::CoarseOperatorKind kind =
+      operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
+  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped,
+                          fine_vertices, static_cast<Eigen::Index>(coarse.mesh.to_input.size()));
+}
+
 }  // namespace app

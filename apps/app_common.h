@@ -16,6 +16,7 @@
 #include <Eigen/SparseCore>
 #include <nlohmann/json.hpp>
 
+#include "fem/coarse_proxy.h"
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
@@ -195,6 +196,11 @@ CoarseMesh extract_coarse(const ice::IntrinsicTriangulation& T);
 
 /// Adds --operators intrinsic|galerkin.
 void add_operators_option(CLI::App& cli, std::string& operators);
+
+/// The coarse proxy of the PDE tools: fine discretisation, coarse mesh and P, with the coarse operators
+/// named by --operators ("galerkin": PᵀLP, PᵀMP; otherwise intrinsic from the coarse lengths), lumped mass.
+fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseMesh& coarse, const std::string& operators,
+                            Eigen::Index fine_vertices);
 
 // ---- the QEM baseline (--method qem) ------------------------------------------------------------------
 

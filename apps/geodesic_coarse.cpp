@@ -80,10 +80,7 @@ int main(int argc, char** argv) {
     run.fine_mesh = clock.lap();
 
     // ---- proxy: assemble, factor, solve, prolong
-    const fem::CoarseOperatorKind kind =
-        opt.operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
-    const Eigen::Index nc = static_cast<Eigen::Index>(coarse.mesh.to_input.size());
-    const fem::CoarseProxy proxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped, n, nc);
+    const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators, n);
     fem::HeatMethodOperators coarse_ops = proxy.coarse_heat_method_operators();  // lumped mass for Galerkin
     run.assemble = clock.lap();
     const fem::HeatGeodesicSolver coarse_solver(std::move(coarse_ops));

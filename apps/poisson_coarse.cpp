@@ -293,10 +293,7 @@ int main(int argc, char** argv) {
     run.fine_mesh = clock.lap();
 
     // ---- proxy
-    const fem::CoarseOperatorKind kind =
-        opt.operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
-    const Eigen::Index nc = static_cast<Eigen::Index>(coarse.mesh.to_input.size());
-    const fem::CoarseProxy proxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped, n, nc);
+    const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators, n);
     if (f.size() == 0) f = app::remove_mean(app::demo_poisson_rhs(mesh), proxy.fine_mass());
     run.assemble = clock.lap();
     const bool dirichlet = !fixed_vertices.empty();

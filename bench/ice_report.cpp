@@ -146,7 +146,6 @@ void solve_on_proxy(const Fine& fine, const app::CoarseMesh& coarse, fem::Coarse
   app::Stopwatch clock;
   const fem::CoarseProxy proxy(fine.disc.F, fine.disc.L, coarse.mesh.F, coarse.mesh.L, P, kind, fem::MassKind::lumped, n, nc);
   const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
-  const Eigen::VectorXd m1 = fine.M * Eigen::VectorXd::Ones(n);
 
   {  // Poisson
     Row r = base;
@@ -157,8 +156,7 @@ void solve_on_proxy(const Fine& fine, const app::CoarseMesh& coarse, fem::Coarse
     r.factor = clock.lap();
     const Eigen::VectorXd uc = solver.solve_weighted(proxy.restrict_weighted(fine.M * fine.f));
     r.solve = clock.lap();
-    Eigen::VectorXd u = proxy.prolong(uc);
-    u.array() -= m1.dot(u) / m1.sum();
+    const Eigen::VectorXd u = app::remove_mean(proxy.prolong(uc), fine.M);
     r.prolong = clock.lap();
     r.fine_assemble = fine.t_assemble[0], r.fine_factor = fine.t_factor[0], r.fine_solve = fine.t_solve[0];
     r.error = r.error_l2 = fem::relative_l2_error(u, fine.poisson, fine.M);
