@@ -1,5 +1,7 @@
 #include "ice/coarsen.h"
 
+#include "ice/vertex_star.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -88,12 +90,17 @@ std::array<double, IntrinsicErrorMetric::kChannels> IntrinsicErrorMetric::total_
 bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out,
                                          double* log_scale) const {
   out.clear();
-  // The split weights only rank and share masses: a 1e-7 relative angle-sum tolerance is plenty
-  // (the weights move by about as much; the committed flattening itself is exact to 1e-13). A scale
+  // One walk reads the star; Newton and the curvature changes below work on that snapshot. The
+  // split weights only rank and share masses: a 1e-7 relative angle-sum tolerance is plenty (the
+  // weights move by about as much; the committed flattening itself is exact to 1e-13). A scale
   // already computed for the same star (*log_scale finite on entry) is reused.
+  VertexStar& star = star_;
+  read_star(T, v, star);
   double u = log_scale ? *log_scale : std::numeric_limits<double>::quiet_NaN();
-  if (!std::isfinite(u)) {
-    const FlattenResult flat = T.compute_flattening(v, 1e-7);
+  if (std::isfinite(u)) {
+    star_areas(star, u);
+  } else {
+    const FlattenResult flat = flatten_star(star, 1e-7);
     if (!flat.success) return false;
     u = flat.log_scale;
     if (log_scale) *log_scale = u;
@@ -108,21 +115,20 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
       }
     out.push_back({vertex, halfedge, delta_K});
   };
-  T.for_each_outgoing(v, [&](Index h) {
-    const Index in = T.prev(h), opposite = T.next(h);
-    const Index x = T.head(h), y = T.tail(in);
+  for (const StarCorner& corner : star.corners) {
+    const Index x = corner.out_vertex, y = corner.in_vertex;
     // Lengths before and after scaling v's edges by s (self-edges by s²).
-    const double a = T.length(h), b = T.length(in), o = T.length(opposite);
+    const double a = corner.l_out, b = corner.l_in, o = corner.l_opposite;
     const double a2 = a * (x == v ? s * s : s), b2 = b * (y == v ? s * s : s);
     const double o2 = o * ((x == v ? s : 1.0) * (y == v ? s : 1.0));
     // Curvature is 2π − Θ, so ΔK = θ(before) − θ(after) at x and at y. Each difference is the
     // argument of z_before·conj(z_after), z = (a² + o² − b²) + i·4·area: one atan2 per corner.
-    const double area4 = 4 * triangle_area(a, b, o), area4_after = 4 * triangle_area(a2, b2, o2);
+    const double area4 = corner.four_area, area4_after = corner.four_area_flat;
     const double cos_x = (a - b) * (a + b) + o * o, cos_x_after = (a2 - b2) * (a2 + b2) + o2 * o2;
     const double cos_y = (b - a) * (b + a) + o * o, cos_y_after = (b2 - a2) * (b2 + a2) + o2 * o2;
-    add(x, h, small_angle(area4 * cos_x_after - cos_x * area4_after, cos_x * cos_x_after + area4 * area4_after));
-    add(y, in ^ 1, small_angle(area4 * cos_y_after - cos_y * area4_after, cos_y * cos_y_after + area4 * area4_after));
-  });
+    add(x, corner.halfedge, small_angle(area4 * cos_x_after - cos_x * area4_after, cos_x * cos_x_after + area4 * area4_after));
+    add(y, corner.in_halfedge ^ 1, small_angle(area4 * cos_y_after - cos_y * area4_after, cos_y * cos_y_after + area4 * area4_after));
+  }
   double total = 0;
   for (Neighbour& n : out) total += (n.weight = std::abs(n.weight));
   if (!(total > 0) || !std::isfinite(total)) {
@@ -277,7 +283,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
       continue;
     }
     changed_faces.clear();
-    const RemovalStatus status = T.remove_vertex(v, &changed_faces, &affected);
+    const RemovalStatus status = T.remove_vertex(v, &changed_faces, &affected, log_scale[v]);
     if (status == RemovalStatus::Removed) {
       metric.apply_prepared_removal();
       ++result.removed;

@@ -1,5 +1,7 @@
 #include "ice/intrinsic_triangulation.h"
 
+#include "ice/vertex_star.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -252,52 +254,52 @@ void IntrinsicTriangulation::recompute_vertex_frame(Index v) { refresh_vertex_fr
 void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near) {
   // Corner angles of v's fan, counter-clockwise from vhalfedge(v). When only the faces touching
   // `changed_near` changed (after flattening that vertex), the other corners are read back from the
-  // stored coordinates, A(next) − A(h) = scale·corner, instead of being recomputed from lengths.
+  // stored coordinates, A(following) − A(h) = scale·corner, instead of being recomputed from lengths.
   // Fans of one or two corners are recomputed in full (a corner may then span the whole turn).
+  // One walk records each outgoing half-edge and the one after it, so the coordinates are written
+  // without walking the fan (and chasing next pointers) a second time.
+  struct FanCorner {
+    Index halfedge, following;  // following = prev(halfedge)^1, the next outgoing one (or exterior)
+    double corner;
+  };
   constexpr int kSmall = 64;
-  double corners_small[kSmall];
-  std::vector<double> corners_large;
-  double* corners = corners_small;
+  FanCorner fan_small[kSmall];
+  std::vector<FanCorner> fan_large;
+  FanCorner* fan = fan_small;
   const double old_scale = angle_scale(v);
   int count = 0;
-  double theta = 0;
   const auto collect = [&](bool reuse) {
-    count = 0, theta = 0;
-    corners_large.clear();
-    corners = corners_small;
+    count = 0;
+    fan_large.clear();
+    fan = fan_small;
     for_each_outgoing(v, [&](Index h) {
-      const Index following = prev(h) ^ 1;
-      const bool changed = !reuse || head(h) == changed_near || tail(prev(h)) == changed_near;
+      const Index in = prev(h);
+      const Index following = in ^ 1;
+      const bool changed = !reuse || head(h) == changed_near || tail(in) == changed_near;
       const double corner = changed ? corner_angle(h) : wrap_angle(hangle(following) - hangle(h)) / old_scale;
-      if (count == kSmall && corners == corners_small) corners_large.assign(corners_small, corners_small + kSmall);
+      if (count == kSmall && fan == fan_small) fan_large.assign(fan_small, fan_small + kSmall);
       if (count >= kSmall) {
-        corners_large.push_back(corner);
-        corners = corners_large.data();
+        fan_large.push_back({h, following, corner});
+        fan = fan_large.data();
       } else {
-        corners_small[count] = corner;
+        fan_small[count] = {h, following, corner};
       }
       ++count;
-      theta += corner;
     });
   };
   collect(changed_near != kInvalid);
   if (changed_near != kInvalid && count <= 2) collect(false);
+  double theta = 0;
+  for (int c = 0; c < count; ++c) theta += fan[c].corner;
   vsum(v) = theta;
   const double scale = angle_scale(v);
-  const Index start = vhalfedge(v);
-  double angle = is_boundary_vertex(v) ? 0.0 : hangle(start);
-  Index h = start;
-  for (int c = 0;; ++c) {
-    hangle(h) = wrap_angle(angle);
-    angle += scale * corners[c];
-    const Index t = prev(h) ^ 1;
-    if (is_exterior(t)) {  // boundary: the exterior outgoing half-edge closes the fan
-      hangle(t) = wrap_angle(angle);
-      break;
-    }
-    if (t == start) break;
-    h = t;
+  double angle = is_boundary_vertex(v) ? 0.0 : hangle(fan[0].halfedge);
+  for (int c = 0; c < count; ++c) {
+    hangle(fan[c].halfedge) = wrap_angle(angle);
+    angle += scale * fan[c].corner;
   }
+  // Boundary: the exterior outgoing half-edge closes the fan.
+  if (is_exterior(fan[count - 1].following)) hangle(fan[count - 1].following) = wrap_angle(angle);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -460,112 +462,14 @@ int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& fa
 // ------------------------------------------------------------------------------------------------
 // Flattening
 
-namespace {
-struct StarCorner {
-  double l_out, l_in, l_opposite;  // lengths of h, prev(h), next(h)
-  int m_out, m_in, m_opposite;     // how many endpoints of each edge are the centre vertex
-};
-}  // namespace
-
-FlattenResult IntrinsicTriangulation::compute_flattening(Index v, double tolerance) const {
-  FlattenResult result;
-  const double target = is_boundary_vertex(v) ? kPi : kTwoPi;
-  // One walk into a small array; a second one only for a star with more than 32 corners.
-  constexpr int kSmall = 32;
-  StarCorner corners_small[kSmall];
-  std::vector<StarCorner> corners_large;
-  StarCorner* corners = corners_small;
-  int count = 0;
-  bool overflow = false;
-  const auto star_corner = [&](Index h) {
-    const Index in = prev(h), opp = next(h);
-    return StarCorner{length(h),         length(in),           length(opp), 1 + (head(h) == v),
-                      1 + (tail(in) == v), (tail(opp) == v) + (head(opp) == v)};
-  };
-  for_each_outgoing(v, [&](Index h) {
-    if (count == kSmall) overflow = true;
-    else corners[count++] = star_corner(h);
-  });
-  if (overflow) {
-    for_each_outgoing(v, [&](Index h) { corners_large.push_back(star_corner(h)); });
-    corners = corners_large.data();
-    count = static_cast<int>(corners_large.size());
-  }
-
-  // Θ(u) − target and dΘ/du. Near the target (|Θ(0) − target| < π/2, and Newton moves Θ
-  // monotonically towards it) the residual is the argument of the product of the corners' unit
-  // complex numbers times e^{−i·target}: one atan2 per evaluation instead of one per corner.
-  const bool use_product = std::abs(vsum(v) - target) < 0.5 * kPi;
-  const auto evaluate = [&](double u, bool with_theta, double& residual, double& derivative) -> bool {
-    const double scale[3] = {1.0, std::exp(0.5 * u), std::exp(u)};
-    double theta = 0;
-    double re = 1, im = 0;  // running product of e^{iθ_c}
-    derivative = 0;
-    for (int c = 0; c < count; ++c) {
-      const StarCorner& s = corners[c];
-      const double a = s.l_out * scale[s.m_out], b = s.l_in * scale[s.m_in], o = s.l_opposite * scale[s.m_opposite];
-      const double four_area = 4.0 * triangle_area(a, b, o);
-      if (!(four_area > 0)) return false;
-      if (with_theta) {
-        const double cosine_part = (a - o) * (a + o) + b * b;  // = 2ab·cos θ; 4·area = 2ab·sin θ
-        if (use_product) {
-          const double inv = 1.0 / (2 * a * b);
-          const double cr = cosine_part * inv, ci = four_area * inv;
-          const double nr = re * cr - im * ci;
-          im = re * ci + im * cr;
-          re = nr;
-        } else {
-          theta += std::atan2(four_area, cosine_part);
-        }
-      }
-      // Corners of this face: at v (between a and b), x = head(h) (between a and o), y = tail(prev h).
-      const double cot_x = ((a - b) * (a + b) + o * o) / four_area, cot_y = ((b - a) * (b + a) + o * o) / four_area;
-      derivative += -0.5 * (cot_x + cot_y) + (s.m_out == 2 ? 0.5 * cot_y : 0.0) + (s.m_in == 2 ? 0.5 * cot_x : 0.0);
-    }
-    if (with_theta) {
-      // e^{iΘ}·e^{−i·target}: target is π (boundary) or 2π, so the factor is −1 or 1.
-      residual = use_product ? std::atan2(target == kPi ? -im : im, target == kPi ? -re : re) : theta - target;
-    }
-    return true;
-  };
-
-  // The stored angle sum is Θ(0): the first Newton step needs no trigonometry.
-  double u = 0, residual = vsum(v) - target, derivative = 0;
-  if (!evaluate(u, false, residual, derivative)) return result;
-  residual = vsum(v) - target;
-  for (int iteration = 0; iteration < 60; ++iteration) {
-    if (std::abs(residual) <= tolerance * target) {
-      result.success = true;
-      result.log_scale = u;
-      result.iterations = iteration;
-      return result;
-    }
-    if (!(derivative < 0)) return result;
-    // Damped Newton: halve the step until the triangles stay valid and the residual shrinks.
-    double step = -residual / derivative;
-    bool accepted = false;
-    for (int halving = 0; halving < 40 && !accepted; ++halving, step *= 0.5) {
-      double next_residual, next_derivative;
-      if (evaluate(u + step, true, next_residual, next_derivative) && std::abs(next_residual) < std::abs(residual)) {
-        u += step, residual = next_residual, derivative = next_derivative;
-        accepted = true;
-      }
-    }
-    if (!accepted) {
-      // No progress possible in floating point: accept when already at round-off level.
-      if (std::abs(residual) <= 1e-11 * target) {
-        result.success = true;
-        result.log_scale = u;
-        result.iterations = iteration;
-      }
-      return result;
-    }
-  }
-  return result;
+FlattenResult IntrinsicTriangulation::compute_flattening(Index v, double tolerance, double initial_log_scale) const {
+  thread_local VertexStar star;  // re-used storage: no allocation per call
+  read_star(*this, v, star);
+  return flatten_star(star, tolerance, initial_log_scale);
 }
 
-FlattenResult IntrinsicTriangulation::flatten_vertex(Index v) {
-  const FlattenResult result = compute_flattening(v, 1e-13);
+FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log_scale) {
+  const FlattenResult result = compute_flattening(v, 1e-13, initial_log_scale);
   if (!result.success || result.log_scale == 0.0) return result;
   const double u = result.log_scale;
   const double half_scale = std::exp(0.5 * u);
@@ -626,15 +530,15 @@ void IntrinsicTriangulation::kill_edge(Index e) {
 }
 
 RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, std::vector<Index>* changed_faces,
-                                                    std::vector<Index>* touched) {
+                                                    std::vector<Index>* touched, double flattening_hint) {
   if (v < 0 || v >= num_input_vertices() || !vertex_alive(v)) return RemovalStatus::NotAVertex;
   bool face_only_at_v = false;
   for_each_outgoing(v, [&](Index h) {
     if (head(h) == v && tail(prev(h)) == v) face_only_at_v = true;
   });
   if (face_only_at_v) return RemovalStatus::FaceOnlyAtVertex;
-  const RemovalStatus status = is_boundary_vertex(v) ? remove_boundary_vertex(v, changed_faces, touched)
-                                                     : remove_interior_vertex(v, changed_faces, touched);
+  const RemovalStatus status = is_boundary_vertex(v) ? remove_boundary_vertex(v, changed_faces, touched, flattening_hint)
+                                                     : remove_interior_vertex(v, changed_faces, touched, flattening_hint);
   if (status != RemovalStatus::Removed && changed_faces && vertex_alive(v))
     for_each_outgoing(v, [&](Index h) { changed_faces->push_back(face(h)); });
   return status;
@@ -690,8 +594,8 @@ FlipStep flip_toward_degree(Tri& T, Index v, int target, int* degree, std::vecto
 }  // namespace
 
 RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, std::vector<Index>* changed_faces,
-                                                             std::vector<Index>* touched) {
-  if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
+                                                             std::vector<Index>* touched, double flattening_hint) {
+  if (!flatten_vertex(v, flattening_hint).success) return RemovalStatus::FlattenFailed;
   int deg = 0;
   for (FlipStep step; (step = flip_toward_degree(*this, v, 3, &deg, changed_faces, touched)) != FlipStep::Done;) {
     if (step == FlipStep::Flipped) continue;
@@ -820,7 +724,7 @@ bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Inde
 }
 
 RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vector<Index>* changed_faces,
-                                                             std::vector<Index>* touched) {
+                                                             std::vector<Index>* touched, double flattening_hint) {
   Index hb = vhalfedge(v);  // v -> k, twin exterior
   Index last = hb;
   while (rotate_ccw(last) != kInvalid) last = rotate_ccw(last);
@@ -834,8 +738,9 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
     if (!flip(opposite)) return RemovalStatus::NoConvexFlip;
     if (touched) touched->insert(touched->end(), {a, b, tail(opposite), head(opposite)});
     if (changed_faces) changed_faces->insert(changed_faces->end(), {face(opposite), face(opposite ^ 1)});
+    flattening_hint = 0;  // the hint was for the star before this flip
   }
-  if (!flatten_vertex(v).success) return RemovalStatus::FlattenFailed;
+  if (!flatten_vertex(v, flattening_hint).success) return RemovalStatus::FlattenFailed;
   int deg = 0;
   for (FlipStep step; (step = flip_toward_degree(*this, v, 2, &deg, changed_faces, touched)) != FlipStep::Done;)
     if (step == FlipStep::Stuck) return RemovalStatus::NoConvexFlip;

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "ice/intrinsic_triangulation.h"
+#include "ice/vertex_star.h"
 
 namespace ice {
 
@@ -116,6 +117,7 @@ class IntrinsicErrorMetric {
   std::vector<double> mass_;
   std::vector<std::complex<double>> centre_;
   mutable std::vector<Neighbour> scratch_;
+  mutable VertexStar star_;
   std::vector<PendingRecord> pending_;
   Index pending_vertex_ = kInvalid;
 };

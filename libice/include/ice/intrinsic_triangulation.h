@@ -173,12 +173,13 @@ class IntrinsicTriangulation {
   /// As flip_to_delaunay, but starts from the edges of the given faces (and spreads as needed).
   /// If `touched` is given, the endpoints of every flipped diamond are appended to it.
   int flip_to_delaunay_around(const std::vector<Index>& faces, std::vector<Index>* touched = nullptr);
-  /// Flattens v (one-vertex CETM): scales its edges so Θ_v = 2π (interior) or π (boundary).
-  /// On failure nothing changes.
-  FlattenResult flatten_vertex(Index v);
+  /// Flattens v (one-vertex CETM): scales its edges so Θ_v = 2π (interior) or π (boundary), to
+  /// 1e-13 relative. Newton starts from `initial_log_scale` (e.g. a scale an earlier, looser
+  /// compute_flattening found; 0 = unscaled). On failure nothing changes.
+  FlattenResult flatten_vertex(Index v, double initial_log_scale = 0);
   /// Computes the scale that would flatten v without changing anything, to a relative angle-sum
-  /// tolerance (flatten_vertex uses 1e-13; a cost estimate can use less).
-  FlattenResult compute_flattening(Index v, double tolerance = 1e-13) const;
+  /// tolerance (flatten_vertex uses 1e-13; a cost estimate can use less). See ice/vertex_star.h.
+  FlattenResult compute_flattening(Index v, double tolerance = 1e-13, double initial_log_scale = 0) const;
   /// Removes v: flattens it, flips it down to degree 3 (interior) or 2 (boundary), merges its
   /// faces into one triangle, and re-locates the tracked points. A degree-4 star whose centre lies
   /// on a diagonal (opposite corners summing to π, as on regular grids) cannot be flipped to degree
@@ -186,9 +187,10 @@ class IntrinsicTriangulation {
   /// face whose geometry changed (the merged face and the faces made by the degree-reducing flips)
   /// is appended to *changed_faces, and the endpoints of flipped edges to *touched. When the removal
   /// fails after the flattening, the triangulation stays valid (v remains, flattened and possibly
-  /// flipped; its star's faces are then reported as changed).
+  /// flipped; its star's faces are then reported as changed). `flattening_hint` is a starting
+  /// scale for the flattening's Newton iteration (see flatten_vertex); it changes only round-off.
   RemovalStatus remove_vertex(Index v, std::vector<Index>* changed_faces = nullptr,
-                              std::vector<Index>* touched = nullptr);
+                              std::vector<Index>* touched = nullptr, double flattening_hint = 0);
 
   // ---- tracked points ---------------------------------------------------------------------
   /// Current location of input vertex p.
@@ -221,8 +223,10 @@ class IntrinsicTriangulation {
   void add_point_to_face(Index p, Index f, const std::array<double, 3>& bary);
   void kill_face(Index f);
   void kill_edge(Index e);
-  RemovalStatus remove_interior_vertex(Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched);
-  RemovalStatus remove_boundary_vertex(Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched);
+  RemovalStatus remove_interior_vertex(Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched,
+                                       double flattening_hint);
+  RemovalStatus remove_boundary_vertex(Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched,
+                                       double flattening_hint);
   void merge_star_into_face(Index v, const std::vector<Index>& star, std::vector<Index>* changed_faces);
   bool merge_star_along_diagonal(Index v, std::vector<Index>* changed_faces);
 

@@ -1,0 +1,55 @@
+#pragma once
+/// \file vertex_star.h
+/// A snapshot of one vertex's star (its corners' edge lengths and neighbours), read in a single walk,
+/// and the one-vertex flattening (CETM) solved on it.
+///
+/// Why a snapshot: a cost evaluation in the coarsener needs the star three times (Newton for the
+/// flattening scale, the curvature change at every neighbour, the transport to every neighbour).
+/// Walking the half-edge structure once into a contiguous array, and keeping the per-corner areas
+/// Newton computed, avoids both the repeated pointer chasing and the repeated square roots.
+///
+/// Scaling model: flattening v multiplies every edge incident to v by e^{u/2} (a self-edge, incident
+/// twice, by e^u). The star is flat when its angle sum is 2π (interior) or π (boundary).
+#include <cstdint>
+#include <vector>
+
+#include "ice/intrinsic_triangulation.h"
+
+namespace ice {
+
+/// One corner of the star of a centre vertex v: the face of the outgoing half-edge h.
+struct StarCorner {
+  Index halfedge = kInvalid;       ///< h, outgoing from v
+  Index in_halfedge = kInvalid;    ///< prev(h), ending at v (its twin is the next outgoing half-edge)
+  Index out_vertex = kInvalid;     ///< head(h)
+  Index in_vertex = kInvalid;      ///< tail(prev(h))
+  double l_out = 0, l_in = 0, l_opposite = 0;  ///< lengths of h, prev(h), next(h)
+  /// How many endpoints of each of those edges are v (1 or 2 for h and prev(h); 0–2 for next(h)).
+  std::uint8_t m_out = 1, m_in = 1, m_opposite = 0;
+  double four_area = 0;       ///< 4 × the face's area as read (filled by flatten_star)
+  double four_area_flat = 0;  ///< 4 × the face's area once flattened (filled by flatten_star)
+};
+
+struct VertexStar {
+  Index centre = kInvalid;
+  bool boundary = false;
+  double angle_sum = 0;  ///< Θ_v as stored by the triangulation
+  std::vector<StarCorner> corners;
+  /// 2π for an interior vertex, π on the boundary.
+  double flat_angle_sum() const;
+};
+
+/// Reads the star of v (a live vertex), counter-clockwise from vertex_halfedge(v). Re-uses the
+/// storage of `star`.
+void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star);
+
+/// Solves for the log-scale u that makes the star flat, by damped Newton from `initial_log_scale`,
+/// to |Θ(u) − flat| ≤ tolerance × flat. On success also fills every corner's `four_area` (at u = 0)
+/// and `four_area_flat` (at the returned u). On failure (no valid scale: a face would degenerate)
+/// success is false. Deterministic.
+FlattenResult flatten_star(VertexStar& star, double tolerance, double initial_log_scale = 0);
+
+/// Fills `four_area` and `four_area_flat` for a known scale u (for callers that cached u).
+void star_areas(VertexStar& star, double log_scale);
+
+}  // namespace ice

@@ -1,0 +1,129 @@
+#include "ice/vertex_star.h"
+
+#include <cmath>
+
+namespace ice {
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}
+
+double VertexStar::flat_angle_sum() const { return boundary ? kPi : 2 * kPi; }
+
+void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star) {
+  star.centre = v;
+  star.boundary = T.is_boundary_vertex(v);
+  star.angle_sum = T.angle_sum(v);
+  star.corners.clear();
+  T.for_each_outgoing(v, [&](Index h) {
+    const Index opposite = T.next(h), in = T.next(opposite);
+    StarCorner c;
+    c.halfedge = h;
+    c.in_halfedge = in;
+    c.out_vertex = T.head(h);
+    c.in_vertex = T.tail(in);
+    c.l_out = T.length(h);
+    c.l_in = T.length(in);
+    c.l_opposite = T.length(opposite);
+    c.m_out = static_cast<std::uint8_t>(1 + (c.out_vertex == v));
+    c.m_in = static_cast<std::uint8_t>(1 + (c.in_vertex == v));
+    c.m_opposite = static_cast<std::uint8_t>((c.in_vertex == v) + (c.out_vertex == v));
+    star.corners.push_back(c);
+  });
+}
+
+void star_areas(VertexStar& star, double log_scale) {
+  const double scale[3] = {1.0, std::exp(0.5 * log_scale), std::exp(log_scale)};
+  for (StarCorner& c : star.corners) {
+    c.four_area = 4.0 * triangle_area(c.l_out, c.l_in, c.l_opposite);
+    c.four_area_flat = 4.0 * triangle_area(c.l_out * scale[c.m_out], c.l_in * scale[c.m_in], c.l_opposite * scale[c.m_opposite]);
+  }
+}
+
+FlattenResult flatten_star(VertexStar& star, double tolerance, double initial_log_scale) {
+  FlattenResult result;
+  const double target = star.flat_angle_sum();
+  const int count = static_cast<int>(star.corners.size());
+  StarCorner* corners = star.corners.data();
+
+  // Θ(u) − target and dΘ/du. Near the target (|Θ(0) − target| < π/2, and Newton moves Θ
+  // monotonically towards it) the residual is the argument of the product of the corners' unit
+  // complex numbers times e^{−i·target}: one atan2 per evaluation instead of one per corner. Each
+  // evaluation leaves its faces' areas in four_area_flat (the accepted one is the last to run).
+  const bool use_product = std::abs(star.angle_sum - target) < 0.5 * kPi;
+  const auto evaluate = [&](double u, bool with_theta, double& residual, double& derivative) -> bool {
+    const double scale[3] = {1.0, std::exp(0.5 * u), std::exp(u)};
+    double theta = 0;
+    double re = 1, im = 0;  // running product of e^{iθ_c}
+    derivative = 0;
+    for (int k = 0; k < count; ++k) {
+      StarCorner& s = corners[k];
+      const double a = s.l_out * scale[s.m_out], b = s.l_in * scale[s.m_in], o = s.l_opposite * scale[s.m_opposite];
+      const double four_area = 4.0 * triangle_area(a, b, o);
+      if (!(four_area > 0)) return false;
+      s.four_area_flat = four_area;
+      if (with_theta) {
+        const double cosine_part = (a - o) * (a + o) + b * b;  // = 2ab·cos θ; 4·area = 2ab·sin θ
+        if (use_product) {
+          const double inv = 1.0 / (2 * a * b);
+          const double cr = cosine_part * inv, ci = four_area * inv;
+          const double nr = re * cr - im * ci;
+          im = re * ci + im * cr;
+          re = nr;
+        } else {
+          theta += std::atan2(four_area, cosine_part);
+        }
+      }
+      // Corners of this face: at v (between a and b), x = head(h) (between a and o), y = tail(prev h).
+      const double cot_x = ((a - b) * (a + b) + o * o) / four_area, cot_y = ((b - a) * (b + a) + o * o) / four_area;
+      derivative += -0.5 * (cot_x + cot_y) + (s.m_out == 2 ? 0.5 * cot_y : 0.0) + (s.m_in == 2 ? 0.5 * cot_x : 0.0);
+    }
+    if (with_theta) {
+      // e^{iΘ}·e^{−i·target}: target is π (boundary) or 2π, so the factor is −1 or 1.
+      residual = use_product ? std::atan2(target == kPi ? -im : im, target == kPi ? -re : re) : theta - target;
+    }
+    return true;
+  };
+
+  // From u = 0 the stored angle sum is Θ(0): the first Newton step needs no trigonometry, and the
+  // areas it computes are the star's areas as read.
+  // A warm start that degenerates a face falls back to u = 0.
+  double u = initial_log_scale, residual = star.angle_sum - target, derivative = 0;
+  if (u != 0 && !evaluate(u, true, residual, derivative)) u = 0;
+  if (u == 0) {
+    if (!evaluate(0, false, residual, derivative)) return result;
+    residual = star.angle_sum - target;
+    for (StarCorner& s : star.corners) s.four_area = s.four_area_flat;
+  }
+  for (int iteration = 0; iteration < 60; ++iteration) {
+    if (std::abs(residual) <= tolerance * target) {
+      result.success = true;
+      result.log_scale = u;
+      result.iterations = iteration;
+      return result;
+    }
+    if (!(derivative < 0)) return result;
+    // Damped Newton: halve the step until the triangles stay valid and the residual shrinks.
+    double step = -residual / derivative;
+    bool accepted = false;
+    for (int halving = 0; halving < 40 && !accepted; ++halving, step *= 0.5) {
+      double next_residual, next_derivative;
+      if (evaluate(u + step, true, next_residual, next_derivative) && std::abs(next_residual) < std::abs(residual)) {
+        u += step, residual = next_residual, derivative = next_derivative;
+        accepted = true;
+      }
+    }
+    if (!accepted) {
+      // No progress possible in floating point: accept when already at round-off level (the
+      // rejected trials overwrote the flat areas, so evaluate the accepted scale once more).
+      if (std::abs(residual) <= 1e-11 * target && evaluate(u, false, residual, derivative)) {
+        result.success = true;
+        result.log_scale = u;
+        result.iterations = iteration;
+      }
+      return result;
+    }
+  }
+  return result;
+}
+
+}  // namespace ice
