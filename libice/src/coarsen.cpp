@@ -27,7 +27,9 @@ inline double magnitude(std::complex<double> z) { return std::sqrt(std::norm(z))
 // [−π/4, π/4] (truncation below 1e-15): several times cheaper than sincos, deterministic, and far
 // more accurate than cost ranking needs.
 inline std::complex<double> unit_complex(double theta) {
-  const double quarter_turns = std::nearbyint(theta * (2 / kPi));
+  // Round to the nearest quarter turn by truncation (nearbyint is a library call without SSE4.1).
+  const double turns = theta * (2 / kPi);
+  const double quarter_turns = static_cast<double>(static_cast<long long>(turns + (turns >= 0 ? 0.5 : -0.5)));
   const double r = theta - quarter_turns * (kPi / 2);
   const double r2 = r * r;
   const double sine =
@@ -58,8 +60,7 @@ const char* to_string(StopReason reason) {
 
 IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight) {
   const Index n = T.num_input_vertices();
-  mass_.assign(kChannels * n, 0.0);
-  centre_.assign(kChannels * n, {0.0, 0.0});
+  records_.assign(n, Record{});
   std::vector<double> vertex_area(n, 0.0);
   double total_area = 0;
   for (Index f = 0; f < T.num_face_slots(); ++f) {
@@ -72,9 +73,8 @@ IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, doub
   for (Index v = 0; v < n; ++v) {
     if (!T.vertex_alive(v)) continue;
     const double K = T.curvature(v);
-    mass_[kChannels * v + 0] = (1 - area_weight) * std::max(K, 0.0);
-    mass_[kChannels * v + 1] = (1 - area_weight) * std::max(-K, 0.0);
-    mass_[kChannels * v + 2] = area_weight * vertex_area[v] / total_area;
+    records_[v].mass = {(1 - area_weight) * std::max(K, 0.0), (1 - area_weight) * std::max(-K, 0.0),
+                        area_weight * vertex_area[v] / total_area};
   }
 }
 
@@ -141,26 +141,34 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
 
 IntrinsicErrorMetric::PendingRecord IntrinsicErrorMetric::merged_record(const IntrinsicTriangulation& T, Index v,
                                                                          const Neighbour& n) const {
+  // Complex arithmetic is written out: std::complex's operator* guards against NaN/inf operands,
+  // which cannot occur here, at several times the cost.
+  const Record& from = records_[v];
+  const Record& to = records_[n.vertex];
   const Index h = n.halfedge;  // v -> j
-  std::complex<double> rotation, edge;
+  double rotation_re = 0, rotation_im = 0, edge_re = 0, edge_im = 0;
   bool transported = false;
   PendingRecord record{n.vertex, {}, {}};
   for (int c = 0; c < kChannels; ++c) {
-    const double share = n.weight * mass(v, c);
-    const double m_j = mass(n.vertex, c);
+    const double share = n.weight * from.mass[c];
+    const double m_j = to.mass[c];
     record.mass[c] = m_j + share;
-    if (share == 0) {  // nothing moves in this channel: j keeps its own moment
-      record.moment[c] = m_j * centre(n.vertex, c);
-      continue;
+    double re = m_j * to.centre[c].real(), im = m_j * to.centre[c].imag();
+    if (share != 0) {  // else nothing moves in this channel: j keeps its own moment
+      if (!transported) {
+        // Parallel transport from v's frame to j's, and the vector from j to v in j's frame.
+        const double angle_vj = T.angular_coordinate(h), angle_jv = T.angular_coordinate(h ^ 1);
+        const std::complex<double> rotation = unit_complex(angle_jv - angle_vj + kPi);
+        const std::complex<double> direction = unit_complex(angle_jv);
+        rotation_re = rotation.real(), rotation_im = rotation.imag();
+        edge_re = T.length(h) * direction.real(), edge_im = T.length(h) * direction.imag();
+        transported = true;
+      }
+      const double x = from.centre[c].real(), y = from.centre[c].imag();
+      re += share * (rotation_re * x - rotation_im * y + edge_re);
+      im += share * (rotation_re * y + rotation_im * x + edge_im);
     }
-    if (!transported) {
-      // Parallel transport from v's frame to j's, and the vector from j to v in j's frame.
-      const double angle_vj = T.angular_coordinate(h), angle_jv = T.angular_coordinate(h ^ 1);
-      rotation = unit_complex(angle_jv - angle_vj + kPi);
-      edge = T.length(h) * unit_complex(angle_jv);
-      transported = true;
-    }
-    record.moment[c] = share * (rotation * centre(v, c) + edge) + m_j * centre(n.vertex, c);
+    record.moment[c] = {re, im};
   }
   return record;
 }
@@ -171,7 +179,8 @@ double IntrinsicErrorMetric::removal_cost(const IntrinsicTriangulation& T, Index
   double cost = 0;
   for (const Neighbour& n : scratch_) {
     const PendingRecord r = merged_record(T, v, n);
-    for (int c = 0; c < kChannels; ++c) cost += magnitude(r.moment[c]);  // m'·|x'| = |m'·x'|
+    for (int c = 0; c < kChannels; ++c)  // m'·|x'| = |m'·x'|; empty channels add nothing
+      if (r.moment[c].real() != 0 || r.moment[c].imag() != 0) cost += magnitude(r.moment[c]);
   }
   return cost;
 }
@@ -186,16 +195,13 @@ bool IntrinsicErrorMetric::prepare_removal(const IntrinsicTriangulation& T, Inde
 }
 
 void IntrinsicErrorMetric::apply_prepared_removal() {
-  for (const PendingRecord& r : pending_)
-    for (int c = 0; c < kChannels; ++c) {
-      mass_[kChannels * r.vertex + c] = r.mass[c];
-      centre_[kChannels * r.vertex + c] = r.mass[c] > 0 ? r.moment[c] / r.mass[c] : std::complex<double>(0, 0);
-    }
-  if (pending_vertex_ != kInvalid)
-    for (int c = 0; c < kChannels; ++c) {
-      mass_[kChannels * pending_vertex_ + c] = 0;
-      centre_[kChannels * pending_vertex_ + c] = 0;
-    }
+  for (const PendingRecord& r : pending_) {
+    Record& record = records_[r.vertex];
+    record.mass = r.mass;
+    for (int c = 0; c < kChannels; ++c)
+      record.centre[c] = r.mass[c] > 0 ? r.moment[c] / r.mass[c] : std::complex<double>(0, 0);
+  }
+  if (pending_vertex_ != kInvalid) records_[pending_vertex_] = Record{};
   pending_.clear();
   pending_vertex_ = kInvalid;
 }
@@ -205,15 +211,84 @@ void IntrinsicErrorMetric::apply_prepared_removal() {
 
 namespace {
 
-struct HeapEntry {
-  double cost;
-  Index vertex;
-  std::uint32_t stamp;
+// The removal candidates: an indexed 4-ary min-heap on (cost, vertex), one entry per vertex,
+// updated in place when a cost changes. Compared with a lazy heap of stale entries it stays at
+// most n entries, pops once per removal, and a 4-ary node's children share a cache line or two
+// (half the depth of a binary heap), which matters once the heap outgrows the caches.
+class RemovalQueue {
+ public:
+  struct Entry {
+    double cost;
+    Index vertex;
+  };
+  explicit RemovalQueue(Index vertices) : position_(static_cast<std::size_t>(vertices), kInvalid) {}
+  bool empty() const { return heap_.empty(); }
+  /// The cheapest entry (ties: the lowest vertex index). Precondition: !empty().
+  const Entry& top() const { return heap_.front(); }
+  /// Inserts v or changes its cost.
+  void set(Index v, double cost) {
+    const Index i = position_[v];
+    if (i == kInvalid) {
+      heap_.push_back({cost, v});
+      position_[v] = static_cast<Index>(heap_.size() - 1);
+      sift_up(heap_.size() - 1);
+    } else {
+      const double old = heap_[i].cost;
+      heap_[i].cost = cost;
+      if (cost < old) sift_up(i);
+      else sift_down(i);
+    }
+  }
+  /// Removes v if present.
+  void erase(Index v) {
+    const Index i = position_[v];
+    if (i == kInvalid) return;
+    position_[v] = kInvalid;
+    const Entry last = heap_.back();
+    heap_.pop_back();
+    if (static_cast<std::size_t>(i) == heap_.size()) return;
+    place(i, last);
+    sift_up(i);
+    sift_down(position_[last.vertex]);
+  }
+
+ private:
+  static bool before(const Entry& a, const Entry& b) {
+    return a.cost < b.cost || (a.cost == b.cost && a.vertex < b.vertex);
+  }
+  void place(std::size_t i, const Entry& e) {
+    heap_[i] = e;
+    position_[e.vertex] = static_cast<Index>(i);
+  }
+  void sift_up(std::size_t i) {
+    const Entry e = heap_[i];
+    while (i > 0) {
+      const std::size_t parent = (i - 1) / 4;
+      if (!before(e, heap_[parent])) break;
+      place(i, heap_[parent]);
+      i = parent;
+    }
+    place(i, e);
+  }
+  void sift_down(std::size_t i) {
+    const Entry e = heap_[i];
+    const std::size_t size = heap_.size();
+    while (true) {
+      const std::size_t first = 4 * i + 1;
+      if (first >= size) break;
+      std::size_t best = first;
+      const std::size_t end = std::min(first + 4, size);
+      for (std::size_t c = first + 1; c < end; ++c)
+        if (before(heap_[c], heap_[best])) best = c;
+      if (!before(heap_[best], e)) break;
+      place(i, heap_[best]);
+      i = best;
+    }
+    place(i, e);
+  }
+  std::vector<Entry> heap_;
+  std::vector<Index> position_;
 };
-// std::push_heap builds a max-heap: order so the cheapest (then the lowest index) is on top.
-bool operator<(const HeapEntry& a, const HeapEntry& b) {
-  return a.cost > b.cost || (a.cost == b.cost && a.vertex > b.vertex);
-}
 
 }  // namespace
 
@@ -231,57 +306,46 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   std::vector<std::uint8_t> locked(n, 0), failures(n, 0);
   for (Index v : options.locked_vertices)
     if (v >= 0 && v < n) locked[v] = 1;
-  std::vector<std::uint32_t> stamp(n, 0), seen(n, 0);
-  // The flattening scale found by a vertex's latest cost evaluation: valid while its stamp is (its
-  // star has not changed since), so the removal re-uses it instead of running Newton again.
+  std::vector<std::uint32_t> seen(n, 0);
+  // The flattening scale found by a vertex's latest cost evaluation (its star has not changed
+  // since: every change re-evaluates it), so the removal re-uses it instead of running Newton again.
   std::vector<double> log_scale(n, std::numeric_limits<double>::quiet_NaN());
   std::uint32_t epoch = 0;
   constexpr std::uint8_t kMaxFailures = 3;
 
-  std::vector<HeapEntry> heap;
-  heap.reserve(2 * T.num_vertices());
+  RemovalQueue queue(n);
   const auto eligible = [&](Index v) {
     return T.vertex_alive(v) && !locked[v] && failures[v] < kMaxFailures &&
            (options.remove_boundary || !T.is_boundary_vertex(v));
   };
   const auto schedule = [&](Index v) {
-    ++stamp[v];
-    if (!eligible(v)) return;
-    const double cost = metric.removal_cost(T, v, &log_scale[v]);
-    if (!std::isfinite(cost)) return;
-    heap.push_back({cost, v, stamp[v]});
-    std::push_heap(heap.begin(), heap.end());
+    const double cost = eligible(v) ? metric.removal_cost(T, v, &log_scale[v]) : std::numeric_limits<double>::infinity();
+    if (std::isfinite(cost)) queue.set(v, cost);
+    else queue.erase(v);
   };
   for (Index v = 0; v < n; ++v) schedule(v);
 
   std::vector<Index> affected, changed_faces;
   result.stop_reason = StopReason::TargetReached;
   while (T.num_vertices() > target) {
-    if (heap.empty()) {
+    if (queue.empty()) {
       result.stop_reason = StopReason::NothingRemovable;
       break;
     }
-    std::pop_heap(heap.begin(), heap.end());
-    const HeapEntry top = heap.back();
-    heap.pop_back();
-    if (top.stamp != stamp[top.vertex] || !T.vertex_alive(top.vertex)) continue;
+    const RemovalQueue::Entry top = queue.top();
     if (top.cost > options.max_error) {
       result.stop_reason = StopReason::ErrorThreshold;
-      heap.push_back(top);
-      std::push_heap(heap.begin(), heap.end());
       break;
     }
     const Index v = top.vertex;
+    queue.erase(v);
     // The one-ring (its costs change), collected while the star exists.
     affected.clear();
     T.for_each_outgoing(v, [&](Index h) {
       affected.push_back(T.head(h));
       affected.push_back(T.tail(T.prev(h)));
     });
-    if (!metric.prepare_removal(T, v, log_scale[v])) {
-      ++stamp[v];
-      continue;
-    }
+    if (!metric.prepare_removal(T, v, log_scale[v])) continue;
     changed_faces.clear();
     const RemovalStatus status = T.remove_vertex(v, &changed_faces, &affected, log_scale[v]);
     if (status == RemovalStatus::Removed) {
@@ -311,16 +375,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
     }
   }
   // The cost of the cheapest remaining removal (for reports and threshold stops).
-  result.next_cost = std::numeric_limits<double>::infinity();
-  while (!heap.empty()) {
-    std::pop_heap(heap.begin(), heap.end());
-    const HeapEntry top = heap.back();
-    heap.pop_back();
-    if (top.stamp == stamp[top.vertex] && T.vertex_alive(top.vertex)) {
-      result.next_cost = top.cost;
-      break;
-    }
-  }
+  result.next_cost = queue.empty() ? std::numeric_limits<double>::infinity() : queue.top().cost;
   result.output_vertices = T.num_vertices();
   result.output_faces = T.num_faces();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -94,8 +94,8 @@ class IntrinsicErrorMetric {
                        double log_scale = std::numeric_limits<double>::quiet_NaN());
   /// Writes the pending records (call once T.remove_vertex(v) succeeded).
   void apply_prepared_removal();
-  double mass(Index v, int channel) const { return mass_[kChannels * v + channel]; }
-  std::complex<double> centre(Index v, int channel) const { return centre_[kChannels * v + channel]; }
+  double mass(Index v, int channel) const { return records_[v].mass[channel]; }
+  std::complex<double> centre(Index v, int channel) const { return records_[v].centre[channel]; }
   /// Σ of each channel's masses over live vertices (conserved by removals).
   std::array<double, kChannels> total_mass(const IntrinsicTriangulation& T) const;
 
@@ -114,8 +114,12 @@ class IntrinsicErrorMetric {
   bool split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out, double* log_scale) const;
   // The record of neighbour n after absorbing its share of v (mass and moment per channel).
   PendingRecord merged_record(const IntrinsicTriangulation& T, Index v, const Neighbour& n) const;
-  std::vector<double> mass_;
-  std::vector<std::complex<double>> centre_;
+  // One record per vertex (all channels together: a cost evaluation reads them all).
+  struct Record {
+    std::array<double, kChannels> mass{};
+    std::array<std::complex<double>, kChannels> centre{};
+  };
+  std::vector<Record> records_;
   mutable std::vector<Neighbour> scratch_;
   mutable VertexStar star_;
   std::vector<PendingRecord> pending_;
