@@ -469,6 +469,10 @@ FlattenResult IntrinsicTriangulation::compute_flattening(Index v, double toleran
 }
 
 FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log_scale) {
+  return flatten_vertex(v, initial_log_scale, true);
+}
+
+FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log_scale, bool update_own_frame) {
   const FlattenResult result = compute_flattening(v, 1e-13, initial_log_scale);
   if (!result.success || result.log_scale == 0.0) return result;
   const double u = result.log_scale;
@@ -508,7 +512,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   }
   std::sort(neighbours.begin(), neighbours.end());
   neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
-  recompute_vertex_frame(v);
+  if (update_own_frame) recompute_vertex_frame(v);
   for (Index w : neighbours)
     if (w != v) refresh_vertex_frame(w, v);
   return result;
@@ -595,22 +599,31 @@ FlipStep flip_toward_degree(Tri& T, Index v, int target, int* degree, std::vecto
 
 RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, std::vector<Index>* changed_faces,
                                                              std::vector<Index>* touched, double flattening_hint) {
-  if (!flatten_vertex(v, flattening_hint).success) return RemovalStatus::FlattenFailed;
+  // v's own frame (angle sum, coordinates) is read again only if v survives or through a
+  // self-edge at v (flips of its spokes assign coordinates at the opposite corners, never at v), so
+  // without self-edges it is brought up to date only on the failure paths.
+  bool self_edge = false;
+  for_each_outgoing(v, [&](Index h) { self_edge = self_edge || head(h) == v; });
+  if (!flatten_vertex(v, flattening_hint, self_edge).success) return RemovalStatus::FlattenFailed;
+  const auto fail = [&](RemovalStatus status) {
+    if (!self_edge) recompute_vertex_frame(v);
+    return status;
+  };
   int deg = 0;
   for (FlipStep step; (step = flip_toward_degree(*this, v, 3, &deg, changed_faces, touched)) != FlipStep::Done;) {
     if (step == FlipStep::Flipped) continue;
     if (deg == 4 && merge_star_along_diagonal(v, changed_faces)) return RemovalStatus::Removed;
-    return RemovalStatus::NoConvexFlip;
+    return fail(RemovalStatus::NoConvexFlip);
   }
-  if (deg < 3) return RemovalStatus::TopologyChange;
+  if (deg < 3) return fail(RemovalStatus::TopologyChange);
   std::vector<Index>& star = scratch_faces_;
   star.clear();
   for_each_outgoing(v, [&](Index h) { star.push_back(h); });
   // The merge needs three distinct faces with one corner at v each.
   for (Index h : star)
-    if (head(h) == v) return RemovalStatus::NoConvexFlip;
+    if (head(h) == v) return fail(RemovalStatus::NoConvexFlip);
   if (face(star[0]) == face(star[1]) || face(star[1]) == face(star[2]) || face(star[0]) == face(star[2]))
-    return RemovalStatus::TopologyChange;
+    return fail(RemovalStatus::TopologyChange);
   merge_star_into_face(v, star, changed_faces);
   return RemovalStatus::Removed;
 }

@@ -219,6 +219,7 @@ class IntrinsicTriangulation {
   IntrinsicTriangulation() = default;
   void build(const Faces& F, const std::vector<double>& halfedge_length_by_corner);
   void recompute_vertex_frame(Index v);
+  FlattenResult flatten_vertex(Index v, double initial_log_scale, bool update_own_frame);
   void refresh_vertex_frame(Index v, Index changed_near);
   void add_point_to_face(Index p, Index f, const std::array<double, 3>& bary);
   void kill_face(Index f);
