@@ -24,8 +24,8 @@ inline double small_angle(double y, double x) {
 inline double magnitude(std::complex<double> z) { return std::sqrt(std::norm(z)); }
 
 // e^{iθ} for the transport of the error metric, by quadrant reduction and Taylor polynomials on
-// [−π/4, π/4] (truncation below 1e-15): several times cheaper than sincos, deterministic, and far
-// more accurate than cost ranking needs.
+// [−π/4, π/4] (truncation below 1e-11, far below what the metric's flattening tolerance of 1e-7
+// resolves): several times cheaper than sincos, and deterministic.
 inline std::complex<double> unit_complex(double theta) {
   // Round to the nearest quarter turn by truncation (nearbyint is a library call without SSE4.1).
   const double turns = theta * (2 / kPi);
@@ -33,9 +33,9 @@ inline std::complex<double> unit_complex(double theta) {
   const double r = theta - quarter_turns * (kPi / 2);
   const double r2 = r * r;
   const double sine =
-      r * (1 + r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880 + r2 * (-1.0 / 39916800 + r2 * (1.0 / 6227020800.0 + r2 * (-1.0 / 1307674368000.0))))))));
+      r * (1 + r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880 + r2 * (-1.0 / 39916800))))));
   const double cosine =
-      1 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320 + r2 * (-1.0 / 3628800 + r2 * (1.0 / 479001600.0 + r2 * (-1.0 / 87178291200.0 + r2 * (1.0 / 20922789888000.0))))))));
+      1 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320 + r2 * (-1.0 / 3628800 + r2 * (1.0 / 479001600.0))))));
   switch (static_cast<long long>(quarter_turns) & 3) {
     case 0: return {cosine, sine};
     case 1: return {-sine, cosine};
@@ -146,8 +146,11 @@ IntrinsicErrorMetric::PendingRecord IntrinsicErrorMetric::merged_record(const In
   const Record& from = records_[v];
   const Record& to = records_[n.vertex];
   const Index h = n.halfedge;  // v -> j
+  // Transport from v's frame to j's: the vector from j to v in j's frame (needed whenever mass
+  // moves) and the rotation of v's centre (needed only when that centre is not v itself, i.e. v
+  // has absorbed mass; most vertices have not, early on).
   double rotation_re = 0, rotation_im = 0, edge_re = 0, edge_im = 0;
-  bool transported = false;
+  bool have_edge = false, have_rotation = false;
   PendingRecord record{n.vertex, {}, {}};
   for (int c = 0; c < kChannels; ++c) {
     const double share = n.weight * from.mass[c];
@@ -155,18 +158,24 @@ IntrinsicErrorMetric::PendingRecord IntrinsicErrorMetric::merged_record(const In
     record.mass[c] = m_j + share;
     double re = m_j * to.centre[c].real(), im = m_j * to.centre[c].imag();
     if (share != 0) {  // else nothing moves in this channel: j keeps its own moment
-      if (!transported) {
-        // Parallel transport from v's frame to j's, and the vector from j to v in j's frame.
-        const double angle_vj = T.angular_coordinate(h), angle_jv = T.angular_coordinate(h ^ 1);
-        const std::complex<double> rotation = unit_complex(angle_jv - angle_vj + kPi);
-        const std::complex<double> direction = unit_complex(angle_jv);
-        rotation_re = rotation.real(), rotation_im = rotation.imag();
+      if (!have_edge) {
+        const std::complex<double> direction = unit_complex(T.angular_coordinate(h ^ 1));
         edge_re = T.length(h) * direction.real(), edge_im = T.length(h) * direction.imag();
-        transported = true;
+        have_edge = true;
       }
-      const double x = from.centre[c].real(), y = from.centre[c].imag();
-      re += share * (rotation_re * x - rotation_im * y + edge_re);
-      im += share * (rotation_re * y + rotation_im * x + edge_im);
+      double x = 0, y = 0;
+      if (from.centre[c].real() != 0 || from.centre[c].imag() != 0) {
+        if (!have_rotation) {
+          const std::complex<double> rotation =
+              unit_complex(T.angular_coordinate(h ^ 1) - T.angular_coordinate(h) + kPi);
+          rotation_re = rotation.real(), rotation_im = rotation.imag();
+          have_rotation = true;
+        }
+        x = rotation_re * from.centre[c].real() - rotation_im * from.centre[c].imag();
+        y = rotation_re * from.centre[c].imag() + rotation_im * from.centre[c].real();
+      }
+      re += share * (x + edge_re);
+      im += share * (y + edge_im);
     }
     record.moment[c] = {re, im};
   }

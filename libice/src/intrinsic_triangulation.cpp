@@ -549,51 +549,72 @@ RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, std::vector<Index>*
 }
 
 namespace {
-// One step of flipping v down to `target` corners, with a single walk around v: returns Done when v
-// already has at most `target` corners (its corner count in *degree), Flipped after flipping one
-// outgoing edge chosen by priority (self-edges first, then the smallest cotan weight, i.e. the most
-// non-Delaunay edge), and Stuck when no candidate diamond is convex.
-enum class FlipStep { Done, Flipped, Stuck };
+// Flips outgoing edges ("spokes") of v until v has at most `target` corners, and reports its final
+// corner count in *degree. Order: self-edges first, then the smallest cotan weight (the most
+// non-Delaunay spoke); when a diamond is not convex the next spoke is tried. Returns false when no
+// spoke can be flipped. A flip changes a face on one side of each of the two spokes beside the
+// flipped one and nothing else at v, so only their priorities are recomputed (all of them when v
+// has a self-edge, which appears as two spokes).
 template <class Tri>
-FlipStep flip_toward_degree(Tri& T, Index v, int target, int* degree, std::vector<Index>* changed_faces,
-                            std::vector<Index>* touched) {
-  struct Candidate {
+bool reduce_degree(Tri& T, Index v, int target, int* degree, std::vector<Index>* changed_faces,
+                   std::vector<Index>* touched) {
+  struct Spoke {
     Index h;
     double priority;
+    bool candidate;  // boundary edges cannot be flipped
   };
-  Candidate small[64];
-  std::vector<Candidate> large;
-  Candidate* candidates = small;
-  int corners = 0, count = 0;
-  T.for_each_outgoing(v, [&](Index h) {
-    if (corners == 64 && candidates == small) {
-      large.assign(small, small + count);
-      candidates = large.data();
+  thread_local std::vector<Spoke> spokes;
+  thread_local std::vector<int> order;
+  const auto priority = [&](Index h) { return (T.head(h) == v ? 1e300 : 0.0) - T.cotan_weight(h); };
+  bool self_edge = false;
+  const auto collect = [&] {
+    spokes.clear();
+    self_edge = false;
+    T.for_each_outgoing(v, [&](Index h) {
+      const bool candidate = !T.is_boundary_edge(h);
+      spokes.push_back({h, candidate ? priority(h) : 0.0, candidate});
+      self_edge = self_edge || T.head(h) == v;
+    });
+  };
+  const auto refresh = [&](int i) {
+    if (spokes[i].candidate) spokes[i].priority = priority(spokes[i].h);
+  };
+  const bool cyclic = !T.is_boundary_vertex(v);  // on the boundary the fan is a sequence
+  collect();
+  while (static_cast<int>(spokes.size()) > target) {
+    order.clear();
+    for (int i = 0; i < static_cast<int>(spokes.size()); ++i)
+      if (spokes[i].candidate) order.push_back(i);
+    std::sort(order.begin(), order.end(), [&](int x, int y) {
+      return spokes[x].priority > spokes[y].priority || (spokes[x].priority == spokes[y].priority && x < y);
+    });
+    int flipped = -1;
+    for (int i : order) {
+      const Index h = spokes[i].h;
+      const Index a = T.tail(h), b = T.head(h);
+      if (T.flip(h)) {
+        if (touched) touched->insert(touched->end(), {a, b, T.tail(h), T.head(h)});
+        if (changed_faces) changed_faces->insert(changed_faces->end(), {T.face(h), T.face(h ^ 1)});
+        flipped = i;
+        break;
+      }
     }
-    ++corners;
-    if (T.is_boundary_edge(h)) return;
-    const Candidate c{h, (T.head(h) == v ? 1e300 : 0.0) - T.cotan_weight(h)};
-    if (candidates == small) {
-      candidates[count++] = c;
-    } else {
-      large.push_back(c);
-      candidates = large.data();
-      ++count;
+    if (flipped < 0) {
+      *degree = static_cast<int>(spokes.size());
+      return false;
     }
-  });
-  *degree = corners;
-  if (corners <= target) return FlipStep::Done;
-  std::sort(candidates, candidates + count, [](const Candidate& x, const Candidate& y) { return x.priority > y.priority; });
-  for (int c = 0; c < count; ++c) {
-    const Index h = candidates[c].h;
-    const Index i = T.tail(h), j = T.head(h);
-    if (T.flip(h)) {
-      if (touched) touched->insert(touched->end(), {i, j, T.tail(h), T.head(h)});
-      if (changed_faces) changed_faces->insert(changed_faces->end(), {T.face(h), T.face(h ^ 1)});
-      return FlipStep::Flipped;
+    if (self_edge) {
+      collect();
+      continue;
     }
+    spokes.erase(spokes.begin() + flipped);
+    const int n = static_cast<int>(spokes.size());
+    if (n == 0) break;
+    if (flipped > 0 || cyclic) refresh((flipped - 1 + n) % n);
+    if (flipped < n || cyclic) refresh(flipped % n);
   }
-  return FlipStep::Stuck;
+  *degree = static_cast<int>(spokes.size());
+  return true;
 }
 }  // namespace
 
@@ -610,8 +631,7 @@ RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, std::vecto
     return status;
   };
   int deg = 0;
-  for (FlipStep step; (step = flip_toward_degree(*this, v, 3, &deg, changed_faces, touched)) != FlipStep::Done;) {
-    if (step == FlipStep::Flipped) continue;
+  if (!reduce_degree(*this, v, 3, &deg, changed_faces, touched)) {
     if (deg == 4 && merge_star_along_diagonal(v, changed_faces)) return RemovalStatus::Removed;
     return fail(RemovalStatus::NoConvexFlip);
   }
@@ -755,8 +775,7 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
   }
   if (!flatten_vertex(v, flattening_hint).success) return RemovalStatus::FlattenFailed;
   int deg = 0;
-  for (FlipStep step; (step = flip_toward_degree(*this, v, 2, &deg, changed_faces, touched)) != FlipStep::Done;)
-    if (step == FlipStep::Stuck) return RemovalStatus::NoConvexFlip;
+  if (!reduce_degree(*this, v, 2, &deg, changed_faces, touched)) return RemovalStatus::NoConvexFlip;
   hb = vhalfedge(v);
   const Index h2 = rotate_ccw(hb);  // v -> m
   if (h2 == kInvalid) return RemovalStatus::TopologyChange;

@@ -32,7 +32,8 @@ void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star) {
 }
 
 void star_areas(VertexStar& star, double log_scale) {
-  const double scale[3] = {1.0, std::exp(0.5 * log_scale), std::exp(log_scale)};
+  const double half = std::exp(0.5 * log_scale);
+  const double scale[3] = {1.0, half, half * half};
   for (StarCorner& c : star.corners) {
     c.four_area = 4.0 * triangle_area(c.l_out, c.l_in, c.l_opposite);
     c.four_area_flat = 4.0 * triangle_area(c.l_out * scale[c.m_out], c.l_in * scale[c.m_in], c.l_opposite * scale[c.m_opposite]);
@@ -45,16 +46,16 @@ FlattenResult flatten_star(VertexStar& star, double tolerance, double initial_lo
   const int count = static_cast<int>(star.corners.size());
   StarCorner* corners = star.corners.data();
 
-  // Θ(u) − target and dΘ/du. Near the target (|Θ(0) − target| < π/2, and Newton moves Θ
-  // monotonically towards it) the residual is the argument of the product of the corners' unit
-  // complex numbers times e^{−i·target}: one atan2 per evaluation instead of one per corner. Each
-  // evaluation leaves its faces' areas in four_area_flat (the accepted one is the last to run).
+  // Θ(u) − target, with the faces' areas at u left in four_area_flat. Near the target
+  // (|Θ(0) − target| < π/2, and Newton moves Θ monotonically towards it) the residual is the
+  // argument of the product of the corners' unit complex numbers times e^{−i·target}: one atan2 per
+  // evaluation instead of one per corner. False when a face degenerates.
   const bool use_product = std::abs(star.angle_sum - target) < 0.5 * kPi;
-  const auto evaluate = [&](double u, bool with_theta, double& residual, double& derivative) -> bool {
-    const double scale[3] = {1.0, std::exp(0.5 * u), std::exp(u)};
+  const auto evaluate = [&](double u, bool with_theta, double& residual) -> bool {
+    const double half = std::exp(0.5 * u);
+    const double scale[3] = {1.0, half, half * half};
     double theta = 0;
     double re = 1, im = 0;  // running product of e^{iθ_c}
-    derivative = 0;
     for (int k = 0; k < count; ++k) {
       StarCorner& s = corners[k];
       const double a = s.l_out * scale[s.m_out], b = s.l_in * scale[s.m_in], o = s.l_opposite * scale[s.m_opposite];
@@ -73,9 +74,6 @@ FlattenResult flatten_star(VertexStar& star, double tolerance, double initial_lo
           theta += std::atan2(four_area, cosine_part);
         }
       }
-      // Corners of this face: at v (between a and b), x = head(h) (between a and o), y = tail(prev h).
-      const double cot_x = ((a - b) * (a + b) + o * o) / four_area, cot_y = ((b - a) * (b + a) + o * o) / four_area;
-      derivative += -0.5 * (cot_x + cot_y) + (s.m_out == 2 ? 0.5 * cot_y : 0.0) + (s.m_in == 2 ? 0.5 * cot_x : 0.0);
     }
     if (with_theta) {
       // e^{iΘ}·e^{−i·target}: target is π (boundary) or 2π, so the factor is −1 or 1.
@@ -83,14 +81,29 @@ FlattenResult flatten_star(VertexStar& star, double tolerance, double initial_lo
     }
     return true;
   };
+  // dΘ/du at the u of the latest successful evaluate (whose areas are in four_area_flat); only
+  // needed when another Newton step follows.
+  const auto derivative_at = [&](double u) {
+    const double half = std::exp(0.5 * u);
+    const double scale[3] = {1.0, half, half * half};
+    double derivative = 0;
+    for (int k = 0; k < count; ++k) {
+      const StarCorner& s = corners[k];
+      const double a = s.l_out * scale[s.m_out], b = s.l_in * scale[s.m_in], o = s.l_opposite * scale[s.m_opposite];
+      // Corners of this face: at v (between a and b), x = head(h) (between a and o), y = tail(prev h).
+      const double inverse_area = 1.0 / s.four_area_flat;
+      const double cot_x = ((a - b) * (a + b) + o * o) * inverse_area, cot_y = ((b - a) * (b + a) + o * o) * inverse_area;
+      derivative += -0.5 * (cot_x + cot_y) + (s.m_out == 2 ? 0.5 * cot_y : 0.0) + (s.m_in == 2 ? 0.5 * cot_x : 0.0);
+    }
+    return derivative;
+  };
 
-  // From u = 0 the stored angle sum is Θ(0): the first Newton step needs no trigonometry, and the
-  // areas it computes are the star's areas as read.
-  // A warm start that degenerates a face falls back to u = 0.
-  double u = initial_log_scale, residual = star.angle_sum - target, derivative = 0;
-  if (u != 0 && !evaluate(u, true, residual, derivative)) u = 0;
+  // From u = 0 the stored angle sum is Θ(0): no trigonometry, and the areas computed are the
+  // star's areas as read. A warm start that degenerates a face falls back to u = 0.
+  double u = initial_log_scale, residual = star.angle_sum - target;
+  if (u != 0 && !evaluate(u, true, residual)) u = 0;
   if (u == 0) {
-    if (!evaluate(0, false, residual, derivative)) return result;
+    if (!evaluate(0, false, residual)) return result;
     residual = star.angle_sum - target;
     for (StarCorner& s : star.corners) s.four_area = s.four_area_flat;
   }
@@ -101,21 +114,22 @@ FlattenResult flatten_star(VertexStar& star, double tolerance, double initial_lo
       result.iterations = iteration;
       return result;
     }
+    const double derivative = derivative_at(u);
     if (!(derivative < 0)) return result;
     // Damped Newton: halve the step until the triangles stay valid and the residual shrinks.
     double step = -residual / derivative;
     bool accepted = false;
     for (int halving = 0; halving < 40 && !accepted; ++halving, step *= 0.5) {
-      double next_residual, next_derivative;
-      if (evaluate(u + step, true, next_residual, next_derivative) && std::abs(next_residual) < std::abs(residual)) {
-        u += step, residual = next_residual, derivative = next_derivative;
+      double next_residual;
+      if (evaluate(u + step, true, next_residual) && std::abs(next_residual) < std::abs(residual)) {
+        u += step, residual = next_residual;
         accepted = true;
       }
     }
     if (!accepted) {
       // No progress possible in floating point: accept when already at round-off level (the
       // rejected trials overwrote the flat areas, so evaluate the accepted scale once more).
-      if (std::abs(residual) <= 1e-11 * target && evaluate(u, false, residual, derivative)) {
+      if (std::abs(residual) <= 1e-11 * target && evaluate(u, false, residual)) {
         result.success = true;
         result.log_scale = u;
         result.iterations = iteration;
