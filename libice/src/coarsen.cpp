@@ -10,16 +10,6 @@ namespace ice {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 
-// atan2(y, x) for the usually tiny angle changes of the split weights: a short odd series when
-// |y/x| < 0.02 (truncation below 1e-13 relative), atan2 otherwise.
-inline double small_angle(double y, double x) {
-  if (x > 0 && std::abs(y) < 0.02 * x) {
-    const double t = y / x, t2 = t * t;
-    return t * (1 - t2 * (1.0 / 3 - t2 * (1.0 / 5 - t2 * (1.0 / 7))));
-  }
-  return std::atan2(y, x);
-}
-
 // |z| without hypot's overflow guards (values here are far from the double range's ends).
 inline double magnitude(std::complex<double> z) { return std::sqrt(std::norm(z)); }
 
@@ -105,7 +95,7 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
     u = flat.log_scale;
     if (log_scale) *log_scale = u;
   }
-  const double s = std::exp(0.5 * u);
+  const double half_scale = std::exp(0.5 * u);
   const auto add = [&](Index vertex, Index halfedge, double delta_K) {
     if (vertex == v) return;  // a self-edge: v absorbs nothing from itself
     for (Neighbour& n : out)
@@ -116,18 +106,10 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
     out.push_back({vertex, halfedge, delta_K});
   };
   for (const StarCorner& corner : star.corners) {
-    const Index x = corner.out_vertex, y = corner.in_vertex;
-    // Lengths before and after scaling v's edges by s (self-edges by s²).
-    const double a = corner.l_out, b = corner.l_in, o = corner.l_opposite;
-    const double a2 = a * (x == v ? s * s : s), b2 = b * (y == v ? s * s : s);
-    const double o2 = o * ((x == v ? s : 1.0) * (y == v ? s : 1.0));
-    // Curvature is 2π − Θ, so ΔK = θ(before) − θ(after) at x and at y. Each difference is the
-    // argument of z_before·conj(z_after), z = (a² + o² − b²) + i·4·area: one atan2 per corner.
-    const double area4 = corner.four_area, area4_after = corner.four_area_flat;
-    const double cos_x = (a - b) * (a + b) + o * o, cos_x_after = (a2 - b2) * (a2 + b2) + o2 * o2;
-    const double cos_y = (b - a) * (b + a) + o * o, cos_y_after = (b2 - a2) * (b2 + a2) + o2 * o2;
-    add(x, corner.halfedge, small_angle(area4 * cos_x_after - cos_x * area4_after, cos_x * cos_x_after + area4 * area4_after));
-    add(y, corner.in_halfedge ^ 1, small_angle(area4 * cos_y_after - cos_y * area4_after, cos_y * cos_y_after + area4 * area4_after));
+    // Curvature is 2π − Θ, so a corner shrinking by δ raises its vertex's curvature by δ.
+    const CornerAngleChange change = corner_angle_change(corner, half_scale);
+    add(corner.out_vertex, corner.halfedge, change.at_out);
+    add(corner.in_vertex, corner.in_halfedge ^ 1, change.at_in);
   }
   double total = 0;
   for (Neighbour& n : out) total += (n.weight = std::abs(n.weight));

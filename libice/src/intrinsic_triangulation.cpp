@@ -101,18 +101,33 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   if (num_vertices <= 0) throw std::invalid_argument("IntrinsicTriangulation: negative vertex index");
   const Index num_corners = 3 * num_faces;
 
-  // Pair corners (directed edges) into undirected edges by sorting on the vertex pair.
+  // Pair corners (directed edges) into undirected edges by sorting on the vertex pair (lower
+  // vertex, higher vertex, corner): a counting sort on the lower vertex, then insertion sort
+  // within each bucket (a vertex's handful of edges). Linear time and cache-friendly, where a
+  // comparison sort of millions of indices spends most of its time in random key lookups.
   std::vector<std::uint64_t> key(num_corners);
+  std::vector<Index> bucket(static_cast<std::size_t>(num_vertices) + 1, 0);
   for (Index c = 0; c < num_corners; ++c) {
     const std::uint64_t a = F(c / 3, c % 3), b = F(c / 3, (c % 3 + 1) % 3);
     if (a == b)
       throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(c / 3) +
                                   " repeats a vertex");
     key[c] = (std::min(a, b) << 32) | std::max(a, b);
+    ++bucket[std::min(a, b) + 1];
   }
+  for (Index v = 0; v < num_vertices; ++v) bucket[v + 1] += bucket[v];
   std::vector<Index> order(num_corners);
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](Index x, Index y) { return key[x] < key[y] || (key[x] == key[y] && x < y); });
+  {
+    std::vector<Index> fill(bucket.begin(), bucket.end() - 1);
+    for (Index c = 0; c < num_corners; ++c) order[fill[key[c] >> 32]++] = c;  // stable: c ascending
+  }
+  for (Index v = 0; v < num_vertices; ++v)
+    for (Index i = bucket[v] + 1; i < bucket[v + 1]; ++i) {
+      const Index c = order[i];
+      Index j = i;
+      for (; j > bucket[v] && key[order[j - 1]] > key[c]; --j) order[j] = order[j - 1];
+      order[j] = c;
+    }
 
   std::vector<Index> corner_halfedge(num_corners);
   Index num_edges = 0;
@@ -249,15 +264,15 @@ double IntrinsicTriangulation::angle_scale(Index v) const {
   return is_boundary_vertex(v) ? kTwoPi / (vsum(v) + kPi) : kTwoPi / vsum(v);
 }
 
-void IntrinsicTriangulation::recompute_vertex_frame(Index v) { refresh_vertex_frame(v, kInvalid); }
+void IntrinsicTriangulation::recompute_vertex_frame(Index v) { refresh_vertex_frame(v, kInvalid, nullptr); }
 
-void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near) {
-  // Corner angles of v's fan, counter-clockwise from vhalfedge(v). When only the faces touching
-  // `changed_near` changed (after flattening that vertex), the other corners are read back from the
-  // stored coordinates, A(following) − A(h) = scale·corner, instead of being recomputed from lengths.
-  // Fans of one or two corners are recomputed in full (a corner may then span the whole turn).
-  // One walk records each outgoing half-edge and the one after it, so the coordinates are written
-  // without walking the fan (and chasing next pointers) a second time.
+void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near, const std::vector<CornerChange>* changes) {
+  // Corner angles of v's fan, counter-clockwise from vhalfedge(v). With `changes` (after the
+  // neighbour `changed_near` was flattened), the corners of faces touching it take their listed new
+  // values and every other corner is read back from the stored coordinates,
+  // A(following) − A(h) = scale·corner. Without, or for fans of one or two corners (a corner may
+  // then span the whole turn), every corner is recomputed from the lengths. One walk records each outgoing half-edge
+  // and the one after it, so the coordinates are written without walking the fan again.
   struct FanCorner {
     Index halfedge, following;  // following = prev(halfedge)^1, the next outgoing one (or exterior)
     double corner;
@@ -275,8 +290,22 @@ void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near) {
     for_each_outgoing(v, [&](Index h) {
       const Index in = prev(h);
       const Index following = in ^ 1;
-      const bool changed = !reuse || head(h) == changed_near || tail(in) == changed_near;
-      const double corner = changed ? corner_angle(h) : wrap_angle(hangle(following) - hangle(h)) / old_scale;
+      double corner;
+      if (!reuse) {
+        corner = corner_angle(h);
+      } else {
+        if (head(h) == changed_near || tail(in) == changed_near) {
+          corner = -1;
+          for (const CornerChange& change : *changes)
+            if (change.halfedge == h) {
+              corner = change.corner;
+              break;
+            }
+          if (corner < 0) corner = corner_angle(h);  // not listed: recompute (never expected)
+        } else {
+          corner = wrap_angle(hangle(following) - hangle(h)) / old_scale;
+        }
+      }
       if (count == kSmall && fan == fan_small) fan_large.assign(fan_small, fan_small + kSmall);
       if (count >= kSmall) {
         fan_large.push_back({h, following, corner});
@@ -287,8 +316,8 @@ void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near) {
       ++count;
     });
   };
-  collect(changed_near != kInvalid);
-  if (changed_near != kInvalid && count <= 2) collect(false);
+  collect(changes != nullptr);
+  if (changes != nullptr && count <= 2) collect(false);
   double theta = 0;
   for (int c = 0; c < count; ++c) theta += fan[c].corner;
   vsum(v) = theta;
@@ -473,10 +502,26 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
 }
 
 FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log_scale, bool update_own_frame) {
-  const FlattenResult result = compute_flattening(v, 1e-13, initial_log_scale);
+  thread_local VertexStar star;  // re-used storage: no allocation per call
+  read_star(*this, v, star);
+  const FlattenResult result = flatten_star(star, 1e-13, initial_log_scale);
   if (!result.success || result.log_scale == 0.0) return result;
   const double u = result.log_scale;
   const double half_scale = std::exp(0.5 * u);
+  // The new corners of the star's faces away from v, from the flattened areas Newton left in the
+  // star (no second Heron). They are computed afresh rather than as increments of the old corners:
+  // an increment carries the relative error of two areas, which on thin faces reaches 1e-11 rad
+  // and would accumulate over the many flattenings a vertex's neighbours go through.
+  std::vector<CornerChange>& changes = scratch_corner_changes_;
+  changes.clear();
+  const double scale[3] = {1.0, half_scale, half_scale * half_scale};
+  for (const StarCorner& c : star.corners) {
+    const double a = c.l_out * scale[c.m_out], b = c.l_in * scale[c.m_in], o = c.l_opposite * scale[c.m_opposite];
+    // Exactly corner_angle's expression for these half-edges (next(h): sides o, a, opposite b;
+    // prev(h): sides b, o, opposite a), so stored and recomputed angle sums agree to round-off.
+    if (c.out_vertex != v) changes.push_back({next(c.halfedge), std::atan2(c.four_area_flat, (o - b) * (o + b) + a * a)});
+    if (c.in_vertex != v) changes.push_back({c.in_halfedge, std::atan2(c.four_area_flat, (b - a) * (b + a) + o * o)});
+  }
   // Every outgoing half-edge (interior and, at the boundary, the exterior one) scales its edge by
   // e^{u/2}; a self-edge is outgoing twice and so scales by e^u.
   std::vector<Index>& neighbours = scratch_vertices_;
@@ -514,7 +559,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
   if (update_own_frame) recompute_vertex_frame(v);
   for (Index w : neighbours)
-    if (w != v) refresh_vertex_frame(w, v);
+    if (w != v) refresh_vertex_frame(w, v, &changes);
   return result;
 }
 

@@ -106,6 +106,8 @@ FlattenResult flatten_star(VertexStar& star, double tolerance, double initial_lo
     if (!evaluate(0, false, residual)) return result;
     residual = star.angle_sum - target;
     for (StarCorner& s : star.corners) s.four_area = s.four_area_flat;
+  } else {
+    for (StarCorner& s : star.corners) s.four_area = 4.0 * triangle_area(s.l_out, s.l_in, s.l_opposite);
   }
   for (int iteration = 0; iteration < 60; ++iteration) {
     if (std::abs(residual) <= tolerance * target) {

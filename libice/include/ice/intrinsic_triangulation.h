@@ -220,7 +220,12 @@ class IntrinsicTriangulation {
   void build(const Faces& F, const std::vector<double>& halfedge_length_by_corner);
   void recompute_vertex_frame(Index v);
   FlattenResult flatten_vertex(Index v, double initial_log_scale, bool update_own_frame);
-  void refresh_vertex_frame(Index v, Index changed_near);
+  // The new angle of the corner at tail(halfedge), between halfedge and prev(halfedge).
+  struct CornerChange {
+    Index halfedge;
+    double corner;
+  };
+  void refresh_vertex_frame(Index v, Index changed_near, const std::vector<CornerChange>* changes);
   void add_point_to_face(Index p, Index f, const std::array<double, 3>& bary);
   void kill_face(Index f);
   void kill_edge(Index e);
@@ -281,6 +286,7 @@ class IntrinsicTriangulation {
   };
   std::vector<PlacedPoint> scratch_points_;
   std::vector<Index> scratch_stack_, scratch_vertices_, scratch_faces_;
+  std::vector<CornerChange> scratch_corner_changes_;
   std::vector<std::uint8_t> edge_queued_;
   template <class Layout>
   void collect_points(Index f, const Layout& layout);

@@ -65,6 +65,16 @@ inline double angle_opposite(double a, double b, double c) {
   return std::atan2(4.0 * triangle_area(a, b, c), (a - c) * (a + c) + b * b);
 }
 
+/// atan2(y, x) for the usually tiny angle differences of local updates: a short odd series when
+/// x > 0 and |y/x| < 0.02 (truncation below 1e-13 relative), atan2 otherwise.
+inline double atan2_small(double y, double x) {
+  if (x > 0 && std::abs(y) < 0.02 * x) {
+    const double t = y / x, t2 = t * t;
+    return t * (1 - t2 * (1.0 / 3 - t2 * (1.0 / 5 - t2 * (1.0 / 7))));
+  }
+  return std::atan2(y, x);
+}
+
 /// Cotangent of the angle between sides a and b (opposite side c). Infinite for a degenerate
 /// triangle, as the formula says; callers on valid triangulations never see that.
 inline double cot_opposite(double a, double b, double c) {

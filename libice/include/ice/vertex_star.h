@@ -52,4 +52,23 @@ FlattenResult flatten_star(VertexStar& star, double tolerance, double initial_lo
 /// Fills `four_area` and `four_area_flat` for a known scale u (for callers that cached u).
 void star_areas(VertexStar& star, double log_scale);
 
+/// How much the two corners of a star face away from the centre shrink when the star is scaled by
+/// e^{u/2} (self-edges by e^u): θ(before) − θ(after) at out_vertex and at in_vertex, i.e. the
+/// curvature those vertices gain. Needs the corner's four_area and four_area_flat; `half_scale` is
+/// e^{u/2}. Each difference is the argument of z_before·conj(z_after), z = (cosine part) + i·4·area,
+/// so it costs no atan2 for the usual small changes and loses no digits to cancellation.
+struct CornerAngleChange {
+  double at_out = 0, at_in = 0;
+};
+inline CornerAngleChange corner_angle_change(const StarCorner& corner, double half_scale) {
+  const double scale[3] = {1.0, half_scale, half_scale * half_scale};
+  const double a = corner.l_out, b = corner.l_in, o = corner.l_opposite;
+  const double a2 = a * scale[corner.m_out], b2 = b * scale[corner.m_in], o2 = o * scale[corner.m_opposite];
+  const double area4 = corner.four_area, area4_after = corner.four_area_flat;
+  const double cos_out = (a - b) * (a + b) + o * o, cos_out_after = (a2 - b2) * (a2 + b2) + o2 * o2;
+  const double cos_in = (b - a) * (b + a) + o * o, cos_in_after = (b2 - a2) * (b2 + a2) + o2 * o2;
+  return {atan2_small(area4 * cos_out_after - cos_out * area4_after, cos_out * cos_out_after + area4 * area4_after),
+          atan2_small(area4 * cos_in_after - cos_in * area4_after, cos_in * cos_in_after + area4 * area4_after)};
+}
+
 }  // namespace ice
