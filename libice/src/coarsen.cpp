@@ -10,9 +10,6 @@ namespace ice {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 
-// |z| without hypot's overflow guards (values here are far from the double range's ends).
-inline double magnitude(std::complex<double> z) { return std::sqrt(std::norm(z)); }
-
 // e^{iθ} for the transport of the error metric, by quadrant reduction and Taylor polynomials on
 // [−π/4, π/4] (truncation below 1e-11, far below what the metric's flattening tolerance of 1e-7
 // resolves): several times cheaper than sincos, and deterministic.
@@ -121,8 +118,8 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
   return !out.empty();
 }
 
-IntrinsicErrorMetric::PendingRecord IntrinsicErrorMetric::merged_record(const IntrinsicTriangulation& T, Index v,
-                                                                         const Neighbour& n) const {
+template <class Sink>
+void IntrinsicErrorMetric::merge_channels(const IntrinsicTriangulation& T, Index v, const Neighbour& n, Sink&& sink) const {
   // Complex arithmetic is written out: std::complex's operator* guards against NaN/inf operands,
   // which cannot occur here, at several times the cost.
   const Record& from = records_[v];
@@ -133,11 +130,10 @@ IntrinsicErrorMetric::PendingRecord IntrinsicErrorMetric::merged_record(const In
   // has absorbed mass; most vertices have not, early on).
   double rotation_re = 0, rotation_im = 0, edge_re = 0, edge_im = 0;
   bool have_edge = false, have_rotation = false;
-  PendingRecord record{n.vertex, {}, {}};
   for (int c = 0; c < kChannels; ++c) {
     const double share = n.weight * from.mass[c];
     const double m_j = to.mass[c];
-    record.mass[c] = m_j + share;
+    if (share == 0 && m_j == 0) continue;  // an empty channel (e.g. area with area_weight 0)
     double re = m_j * to.centre[c].real(), im = m_j * to.centre[c].imag();
     if (share != 0) {  // else nothing moves in this channel: j keeps its own moment
       if (!have_edge) {
@@ -159,20 +155,16 @@ IntrinsicErrorMetric::PendingRecord IntrinsicErrorMetric::merged_record(const In
       re += share * (x + edge_re);
       im += share * (y + edge_im);
     }
-    record.moment[c] = {re, im};
+    sink(c, m_j + share, re, im);
   }
-  return record;
 }
 
 double IntrinsicErrorMetric::removal_cost(const IntrinsicTriangulation& T, Index v, double* log_scale) const {
   if (log_scale) *log_scale = std::numeric_limits<double>::quiet_NaN();
   if (!split_weights(T, v, scratch_, log_scale)) return std::numeric_limits<double>::infinity();
   double cost = 0;
-  for (const Neighbour& n : scratch_) {
-    const PendingRecord r = merged_record(T, v, n);
-    for (int c = 0; c < kChannels; ++c)  // m'·|x'| = |m'·x'|; empty channels add nothing
-      if (r.moment[c].real() != 0 || r.moment[c].imag() != 0) cost += magnitude(r.moment[c]);
-  }
+  for (const Neighbour& n : scratch_)  // m'·|x'| = |m'·x'|
+    merge_channels(T, v, n, [&](int, double, double re, double im) { cost += std::sqrt(re * re + im * im); });
   return cost;
 }
 
@@ -180,7 +172,14 @@ bool IntrinsicErrorMetric::prepare_removal(const IntrinsicTriangulation& T, Inde
   pending_.clear();
   pending_vertex_ = kInvalid;
   if (!split_weights(T, v, scratch_, &log_scale)) return false;
-  for (const Neighbour& n : scratch_) pending_.push_back(merged_record(T, v, n));
+  for (const Neighbour& n : scratch_) {
+    PendingRecord record{n.vertex, {}, {}};
+    merge_channels(T, v, n, [&](int c, double mass, double re, double im) {
+      record.mass[c] = mass;
+      record.moment[c] = {re, im};
+    });
+    pending_.push_back(record);
+  }
   pending_vertex_ = v;
   return true;
 }
