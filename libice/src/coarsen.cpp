@@ -162,6 +162,8 @@ void IntrinsicErrorMetric::merge_channels(const IntrinsicTriangulation& T, Index
 double IntrinsicErrorMetric::removal_cost(const IntrinsicTriangulation& T, Index v, double* log_scale) const {
   if (log_scale) *log_scale = std::numeric_limits<double>::quiet_NaN();
   if (!split_weights(T, v, scratch_, log_scale)) return std::numeric_limits<double>::infinity();
+  // The neighbours' records are usually not cached on large meshes: request them all at once.
+  for (const Neighbour& n : scratch_) __builtin_prefetch(&records_[n.vertex]);
   double cost = 0;
   for (const Neighbour& n : scratch_)  // m'·|x'| = |m'·x'|
     merge_channels(T, v, n, [&](int, double, double re, double im) { cost += std::sqrt(re * re + im * im); });
@@ -293,23 +295,29 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   target = std::max<Index>(target, 1);
 
   IntrinsicErrorMetric metric(T, options.area_weight);
-  std::vector<std::uint8_t> locked(n, 0), failures(n, 0);
+  // Per-vertex driver state in one record (one cache line fetch per vertex touched, which is what
+  // bounds the speed once the mesh outgrows the caches). log_scale is the flattening scale found by
+  // the vertex's latest cost evaluation (its star has not changed since: every change re-evaluates
+  // it), so the removal re-uses it instead of running Newton again; seen dedupes the vertices to
+  // re-evaluate after one removal.
+  struct VertexState {
+    double log_scale = std::numeric_limits<double>::quiet_NaN();
+    std::uint32_t seen = 0;
+    std::uint8_t locked = 0, failures = 0;
+  };
+  std::vector<VertexState> state(static_cast<std::size_t>(n));
   for (Index v : options.locked_vertices)
-    if (v >= 0 && v < n) locked[v] = 1;
-  std::vector<std::uint32_t> seen(n, 0);
-  // The flattening scale found by a vertex's latest cost evaluation (its star has not changed
-  // since: every change re-evaluates it), so the removal re-uses it instead of running Newton again.
-  std::vector<double> log_scale(n, std::numeric_limits<double>::quiet_NaN());
+    if (v >= 0 && v < n) state[v].locked = 1;
   std::uint32_t epoch = 0;
   constexpr std::uint8_t kMaxFailures = 3;
 
   RemovalQueue queue(n);
   const auto eligible = [&](Index v) {
-    return T.vertex_alive(v) && !locked[v] && failures[v] < kMaxFailures &&
+    return T.vertex_alive(v) && !state[v].locked && state[v].failures < kMaxFailures &&
            (options.remove_boundary || !T.is_boundary_vertex(v));
   };
   const auto schedule = [&](Index v) {
-    const double cost = eligible(v) ? metric.removal_cost(T, v, &log_scale[v]) : std::numeric_limits<double>::infinity();
+    const double cost = eligible(v) ? metric.removal_cost(T, v, &state[v].log_scale) : std::numeric_limits<double>::infinity();
     if (std::isfinite(cost)) queue.set(v, cost);
     else queue.erase(v);
   };
@@ -335,9 +343,9 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
       affected.push_back(T.head(h));
       affected.push_back(T.tail(T.prev(h)));
     });
-    if (!metric.prepare_removal(T, v, log_scale[v])) continue;
+    if (!metric.prepare_removal(T, v, state[v].log_scale)) continue;
     changed_faces.clear();
-    const RemovalStatus status = T.remove_vertex(v, &changed_faces, &affected, log_scale[v]);
+    const RemovalStatus status = T.remove_vertex(v, &changed_faces, &affected, state[v].log_scale);
     if (status == RemovalStatus::Removed) {
       metric.apply_prepared_removal();
       ++result.removed;
@@ -346,14 +354,14 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
     } else {
       ++result.failed_removals;
       ++result.failures_by_status[static_cast<int>(status)];
-      ++failures[v];
+      ++state[v].failures;
       affected.push_back(v);
     }
     T.flip_to_delaunay_around(changed_faces, &affected);
     ++epoch;
     for (Index u : affected) {
-      if (seen[u] == epoch) continue;
-      seen[u] = epoch;
+      if (state[u].seen == epoch) continue;
+      state[u].seen = epoch;
       schedule(u);
     }
     if (options.progress && result.removed % options.progress_interval == 0 && status == RemovalStatus::Removed) {

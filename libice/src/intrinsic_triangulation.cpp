@@ -157,7 +157,7 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   }
 
   const Index num_halfedges = 2 * num_edges;
-  edges_.assign(num_edges, EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0});
+  edges_.assign(num_edges, EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0});
   faces_.assign(num_faces, FaceRecord{kInvalid, kInvalid});
   vertices_.assign(num_vertices, VertexRecord{kInvalid, 0, 0.0});
 
@@ -172,6 +172,7 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
     fhalfedge(f) = corner_halfedge[3 * f];
     ++corners_at_vertex[htail(h)];
   }
+  for (Index c = 0; c < num_corners; ++c) hprev(hnext(corner_halfedge[c])) = corner_halfedge[c];
   // Exterior half-edges: tail is the head of their interior twin.
   for (Index h = 0; h < num_halfedges; ++h)
     if (htail(h) == kInvalid) htail(h) = htail(hnext(h ^ 1));
@@ -420,8 +421,8 @@ bool IntrinsicTriangulation::flip(Index h) {
 
   // Rewire: f0 = (h: l->k, b: k->i, c: i->l), f1 = (t: k->l, d: l->j, a: j->k).
   const Index i = tail(h), j = tail(t);
-  hnext(h) = b, hnext(b) = c, hnext(c) = h;
-  hnext(t) = d, hnext(d) = a, hnext(a) = t;
+  link_face(h, b, c);
+  link_face(t, d, a);
   hface(c) = f0, hface(a) = f1;
   htail(h) = l, htail(t) = k;
   fhalfedge(f0) = h, fhalfedge(f1) = t;
@@ -573,7 +574,7 @@ void IntrinsicTriangulation::kill_face(Index f) {
 }
 
 void IntrinsicTriangulation::kill_edge(Index e) {
-  for (Index h : {2 * e, 2 * e + 1}) hnext(h) = htail(h) = hface(h) = kInvalid;
+  for (Index h : {2 * e, 2 * e + 1}) hnext(h) = hprev(h) = htail(h) = hface(h) = kInvalid;
   elength(e) = 0;
   --num_edges_;
 }
@@ -711,7 +712,7 @@ void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Ind
 
   const Index f = face(h0);
   const Index f1 = face(h1), f2 = face(h2);
-  hnext(o0) = o1, hnext(o1) = o2, hnext(o2) = o0;
+  link_face(o0, o1, o2);
   hface(o0) = hface(o1) = hface(o2) = f;
   fhalfedge(f) = o0;
   kill_face(f1);
@@ -772,8 +773,8 @@ bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Inde
   const Index dead1 = face(s[1]), dead3 = face(s[3]);
   const Index d = s[0], d_twin = s[0] ^ 1;
   htail(d) = x[2], htail(d_twin) = x[0];
-  hnext(o[0]) = o[1], hnext(o[1]) = d, hnext(d) = o[0];
-  hnext(o[2]) = o[3], hnext(o[3]) = d_twin, hnext(d_twin) = o[2];
+  link_face(o[0], o[1], d);
+  link_face(o[2], o[3], d_twin);
   hface(o[0]) = hface(o[1]) = hface(d) = fa;
   hface(o[2]) = hface(o[3]) = hface(d_twin) = fb;
   fhalfedge(fa) = o[0], fhalfedge(fb) = o[2];
@@ -844,7 +845,7 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
   const Index f = face(hb), f2 = face(h2);
   // Re-use hb's edge as the new boundary edge j -> k (twin k -> j stays exterior).
   htail(hb) = j, htail(hb ^ 1) = k;
-  hnext(o1) = o2, hnext(o2) = hb, hnext(hb) = o1;
+  link_face(o1, o2, hb);
   hface(o2) = f;
   fhalfedge(f) = o1;
   elength(hb >> 1) = new_length;
@@ -886,6 +887,7 @@ IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) cons
     EdgeRecord& record = T.edges_[edge_id[e]];
     for (int side = 0; side < 2; ++side) {
       record.next[side] = halfedge_id(old_record.next[side]);
+      record.prev[side] = halfedge_id(old_record.prev[side]);
       record.tail[side] = vertex_id[old_record.tail[side]];
       record.face[side] = old_record.face[side] == kInvalid ? kInvalid : face_id[old_record.face[side]];
       record.angle[side] = old_record.angle[side];
@@ -959,6 +961,8 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
     const Index n = next(h);
     if (n == kInvalid || !halfedge_alive(n) || face(n) != face(h) || next(next(n)) != h)
       fail("half-edge " + std::to_string(h) + " is not in a 3-cycle of its face");
+    else if (hprev(n) != h || hprev(h) != next(n))
+      fail("half-edge " + std::to_string(h) + ": stored prev disagrees with next");
     else if (head(h) != tail(n))
       fail("half-edge " + std::to_string(h) + ": head differs from the tail of next");
   }

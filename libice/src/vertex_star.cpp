@@ -15,7 +15,7 @@ void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star) {
   star.angle_sum = T.angle_sum(v);
   star.corners.clear();
   T.for_each_outgoing(v, [&](Index h) {
-    const Index opposite = T.next(h), in = T.next(opposite);
+    const Index opposite = T.next(h), in = T.prev(h);
     StarCorner c;
     c.halfedge = h;
     c.in_halfedge = in;

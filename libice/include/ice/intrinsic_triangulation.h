@@ -101,7 +101,7 @@ class IntrinsicTriangulation {
   static Index twin(Index h) { return h ^ 1; }
   static Index edge(Index h) { return h >> 1; }
   Index next(Index h) const { return hnext(h); }
-  Index prev(Index h) const { return hnext(hnext(h)); }  ///< interior half-edges only
+  Index prev(Index h) const { return hprev(h); }  ///< interior half-edges only
   Index tail(Index h) const { return htail(h); }
   Index head(Index h) const { return htail(h ^ 1); }
   Index face(Index h) const { return hface(h); }
@@ -238,8 +238,12 @@ class IntrinsicTriangulation {
 
   // Storage: records rather than one array per attribute, so that a local operation touches few
   // cache lines. An edge record holds both of its half-edges (2e and 2e+1) and its length.
+  // prev is stored although it is next∘next: walking around a vertex (prev(h)^1) then costs one
+  // dependent memory access per step instead of two, which is what bounds local operations on
+  // meshes larger than the caches.
   struct EdgeRecord {
     Index next[2];
+    Index prev[2];
     Index tail[2];
     Index face[2];
     double angle[2];
@@ -259,6 +263,12 @@ class IntrinsicTriangulation {
   std::vector<FaceRecord> faces_;
   // Reference accessors used by the implementation.
   Index& hnext(Index h) { return edges_[h >> 1].next[h & 1]; }
+  Index& hprev(Index h) { return edges_[h >> 1].prev[h & 1]; }
+  // Makes a, b, c (interior half-edges) the 3-cycle of one face: next and prev.
+  void link_face(Index a, Index b, Index c) {
+    hnext(a) = b, hnext(b) = c, hnext(c) = a;
+    hprev(b) = a, hprev(c) = b, hprev(a) = c;
+  }
   Index& htail(Index h) { return edges_[h >> 1].tail[h & 1]; }
   Index& hface(Index h) { return edges_[h >> 1].face[h & 1]; }
   double& hangle(Index h) { return edges_[h >> 1].angle[h & 1]; }
@@ -268,6 +278,7 @@ class IntrinsicTriangulation {
   Index& vhalfedge(Index v) { return vertices_[v].halfedge; }
   double& vsum(Index v) { return vertices_[v].angle_sum; }
   Index hnext(Index h) const { return edges_[h >> 1].next[h & 1]; }
+  Index hprev(Index h) const { return edges_[h >> 1].prev[h & 1]; }
   Index htail(Index h) const { return edges_[h >> 1].tail[h & 1]; }
   Index hface(Index h) const { return edges_[h >> 1].face[h & 1]; }
   double hangle(Index h) const { return edges_[h >> 1].angle[h & 1]; }
