@@ -227,11 +227,6 @@ int IntrinsicTriangulation::degree(Index v) const {
   return count;
 }
 
-double IntrinsicTriangulation::cotan_opposite(Index h) const {
-  if (is_exterior(h)) return 0.0;
-  return cot_opposite(length(next(h)), length(prev(h)), length(h));
-}
-
 double IntrinsicTriangulation::face_area(Index f) const {
   const Index h = fhalfedge(f);
   return triangle_area(length(h), length(next(h)), length(prev(h)));
@@ -259,10 +254,6 @@ double IntrinsicTriangulation::total_curvature() const {
   for (Index v = 0; v < num_input_vertices(); ++v)
     if (vertex_alive(v)) sum += curvature(v);
   return sum;
-}
-
-double IntrinsicTriangulation::angle_scale(Index v) const {
-  return is_boundary_vertex(v) ? kTwoPi / (vsum(v) + kPi) : kTwoPi / vsum(v);
 }
 
 void IntrinsicTriangulation::recompute_vertex_frame(Index v) { refresh_vertex_frame(v, kInvalid, nullptr); }

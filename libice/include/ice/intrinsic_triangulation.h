@@ -139,7 +139,9 @@ class IntrinsicTriangulation {
     return angle_opposite(length(h), length(prev(h)), length(next(h)));
   }
   /// Cotangent of the angle opposite h in face(h) (0 for an exterior half-edge).
-  double cotan_opposite(Index h) const;
+  double cotan_opposite(Index h) const {
+    return is_exterior(h) ? 0.0 : cot_opposite(length(next(h)), length(prev(h)), length(h));
+  }
   /// Cotan weight ½(cot α + cot β) of the edge of h (one term on the boundary).
   double cotan_weight(Index h) const { return 0.5 * (cotan_opposite(h) + cotan_opposite(h ^ 1)); }
   double face_area(Index f) const;
@@ -155,7 +157,10 @@ class IntrinsicTriangulation {
   /// Angular coordinate of the outgoing half-edge h at tail(h), in [0, 2π).
   double angular_coordinate(Index h) const { return hangle(h); }
   /// The factor that maps corner angles at v to angular coordinates.
-  double angle_scale(Index v) const;
+  double angle_scale(Index v) const {
+    constexpr double kTurn = 6.283185307179586476925286766559;
+    return is_boundary_vertex(v) ? kTurn / (vsum(v) + 0.5 * kTurn) : kTurn / vsum(v);
+  }
   /// True when the edge of h is locally Delaunay: the opposite angles sum to ≤ π, i.e. the cotan
   /// weight is ≥ −tolerance. Boundary edges are always Delaunay.
   bool is_delaunay(Index h, double tolerance = kDelaunayTolerance) const {
