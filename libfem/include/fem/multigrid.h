@@ -58,6 +58,11 @@ struct MultigridOptions {
   double tolerance = 1e-8;
   /// Upper bound on cycles (vcycle) or CG iterations (pcg) (>= 1).
   int max_iterations = 200;
+  /// Threads of solve()'s matrix products, residuals, restrictions, prolongations, Chebyshev steps
+  /// and CG vector operations on levels of at least 50,000 unknowns (0: OpenMP's default, i.e.
+  /// OMP_NUM_THREADS or all cores; 1: serial). Gauss–Seidel sweeps and solve_multiple() are serial.
+  /// Only the order of the CG dot products' sums depends on it (round-off).
+  int threads = 0;
 };
 
 /// Outcome of one solve.
@@ -139,6 +144,7 @@ class MultigridSolver {
  private:
   struct Level;
   void check_options(const MultigridOptions& options) const;
+  int threads() const;
   void build_operators(const SparseMatrix& A, bool reuse_analysis);
   void vcycle(std::size_t k);
   void smooth(std::size_t k, bool pre);
