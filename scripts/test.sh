@@ -21,8 +21,10 @@ JOBS="${ICE_JOBS:-2}"
 ONLY="${ICE_TEST_ONLY:-}"
 read -r -a EXTRA_CTEST <<<"${ICE_CTEST_ARGS:-}"
 
-# Tests run two at a time on two cores: keep OpenBLAS from starting its own threads on top.
+# Tests run two at a time on two cores: keep OpenBLAS and OpenMP (multigrid) from starting their
+# own threads on top (tests that exercise threads ask for them explicitly).
 export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
+export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # Sanitizers: stop at the first error, with a stack trace; leak checking on.
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=0:halt_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
