@@ -27,18 +27,28 @@ using RowMajorSparse = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 
 int active_threads(Eigen::Index n, int threads) { return n >= kParallelRows ? std::max(threads, 1) : 1; }
 
-// y = A x for a symmetric compressed column-major A (column i is row i: a gather per row).
-void multiply(const SparseMatrix& A, const double* x, double* y, int threads) {
-  const auto* start = A.outerIndexPtr();
-  const auto* row = A.innerIndexPtr();
-  const double* value = A.valuePtr();
-  const Eigen::Index n = A.outerSize();
-#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
-  for (Eigen::Index i = 0; i < n; ++i) {
+// out[o] = Σ value·in[inner] over the stored entries of outer index o (column o of a column-major
+// matrix, row o of a row-major one), or out[o] += that sum with `accumulate`: y = A x for a symmetric
+// column-major A (column i is row i), c = Pᵀ r for a column-major P, x += P c for a row-major copy
+// of P. Every output is one gather, so the outer indices split among threads without conflicts.
+template <class Matrix>
+void gather_product(const Matrix& M, const double* in, double* out, bool accumulate, int threads,
+                    Eigen::Index work_size) {
+  const auto* start = M.outerIndexPtr();
+  const auto* inner = M.innerIndexPtr();
+  const double* value = M.valuePtr();
+  const Eigen::Index n = M.outerSize();
+#pragma omp parallel for schedule(static) num_threads(active_threads(work_size, threads))
+  for (Eigen::Index o = 0; o < n; ++o) {
     double s = 0;
-    for (auto p = start[i]; p < start[i + 1]; ++p) s += value[p] * x[row[p]];
-    y[i] = s;
+    for (auto p = start[o]; p < start[o + 1]; ++p) s += value[p] * in[inner[p]];
+    out[o] = accumulate ? out[o] + s : s;
   }
+}
+
+// y = A x for a symmetric compressed column-major A.
+void multiply(const SparseMatrix& A, const double* x, double* y, int threads) {
+  gather_product(A, x, y, false, threads, A.outerSize());
 }
 
 // r = b − A x.
@@ -76,32 +86,6 @@ void gauss_seidel(const SparseMatrix& A, const Eigen::VectorXd& inv_diag, const 
       for (auto p = start[i]; p < start[i + 1]; ++p) s -= value[p] * x[row[p]];
       x[i] += s * d[i];
     }
-  }
-}
-
-// c = Pᵀ r (P column-major: a gather per column) and x += P c (P row-major copy: a gather per row).
-void restrict_vector(const SparseMatrix& P, const double* r, double* c, int threads) {
-  const auto* start = P.outerIndexPtr();
-  const auto* row = P.innerIndexPtr();
-  const double* value = P.valuePtr();
-  const Eigen::Index m = P.outerSize();
-#pragma omp parallel for schedule(static) num_threads(active_threads(P.rows(), threads))
-  for (Eigen::Index j = 0; j < m; ++j) {
-    double s = 0;
-    for (auto p = start[j]; p < start[j + 1]; ++p) s += value[p] * r[row[p]];
-    c[j] = s;
-  }
-}
-void prolong_add(const RowMajorSparse& P, const double* c, double* x, int threads) {
-  const auto* start = P.outerIndexPtr();
-  const auto* column = P.innerIndexPtr();
-  const double* value = P.valuePtr();
-  const Eigen::Index n = P.outerSize();
-#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
-  for (Eigen::Index i = 0; i < n; ++i) {
-    double s = 0;
-    for (auto p = start[i]; p < start[i + 1]; ++p) s += value[p] * c[column[p]];
-    x[i] += s;
   }
 }
 
@@ -573,10 +557,10 @@ void MultigridSolver::vcycle(std::size_t k) {
   smooth(k, true);
   residual(L.A, L.b.data(), L.x.data(), L.r.data(), threads());
   Level& C = *levels_[k + 1];
-  restrict_vector(L.P, L.r.data(), C.b.data(), threads());
+  gather_product(L.P, L.r.data(), C.b.data(), false, threads(), L.P.rows());  // C.b = Pᵀ r
   C.x.setZero();
   vcycle(k + 1);
-  prolong_add(L.P_rows, C.x.data(), L.x.data(), threads());
+  gather_product(L.P_rows, C.x.data(), L.x.data(), true, threads(), L.P_rows.rows());  // L.x += P C.x
   smooth(k, false);
 }
 
