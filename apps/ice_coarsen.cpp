@@ -3,7 +3,8 @@
 //
 // Outputs (in OUTDIR, created if needed; existing files are only replaced with --force):
 //
-//  coarse.ilm — the coarse intrinsic mesh, plain text ("ICE intrinsic mesh", version 1):
+//  coarse.ilm — the coarse intrinsic mesh, plain text ("ICE intrinsic mesh", version 1; written and
+//    read by ice/intrinsic_mesh_io.h):
 //      ICE-ILM 1                         header line (format name and version)
 //      # ...                             comment lines ('#' first) may appear anywhere after it
 //      vertices <n>                      number of coarse vertices
@@ -38,6 +39,7 @@
 
 #include "app_common.h"
 #include "ice/coarsen.h"
+#include "ice/intrinsic_mesh_io.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
 #include "ice/prolongation.h"
@@ -67,21 +69,6 @@ std::ofstream open_output(const std::string& path) {
   std::ofstream out(path);
   if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be opened for writing");
   return out;
-}
-
-void write_ilm(const std::string& path, const ice::CompactMesh& coarse, ice::Index input_vertices,
-               const std::string& source) {
-  std::ofstream out = open_output(path);
-  out << "ICE-ILM 1\n"
-      << "# intrinsic mesh written by ice-coarsen from " << source << "\n"
-      << "# f i j k l_ij l_jk l_ki (0-based coarse vertices, edge lengths); v input_vertex_of_coarse_vertex\n"
-      << "vertices " << coarse.to_input.size() << "\nfaces " << coarse.F.rows() << "\ninput_vertices " << input_vertices
-      << '\n';
-  for (Eigen::Index f = 0; f < coarse.F.rows(); ++f)
-    out << "f " << coarse.F(f, 0) << ' ' << coarse.F(f, 1) << ' ' << coarse.F(f, 2) << ' ' << Num{coarse.L(f, 0)} << ' '
-        << Num{coarse.L(f, 1)} << ' ' << Num{coarse.L(f, 2)} << '\n';
-  for (ice::Index v : coarse.to_input) out << "v " << v << '\n';
-  check_stream(out, path);
 }
 
 void write_matrix_market(const std::string& path, Eigen::SparseMatrix<double> P) {
@@ -266,7 +253,8 @@ int main(int argc, char** argv) {
     fs::create_directories(outdir, ec);
     if (ec) throw app::AppError(app::kNotWritten, "--output " + outdir + ": cannot create the directory: " + ec.message());
     const ice::CompactMesh coarse = qem ? ice::qem_extrinsic_mesh(qem_result) : T->compact();
-    write_ilm(outputs[0], coarse, static_cast<ice::Index>(n), input);
+    ice::write_intrinsic_mesh(outputs[0], coarse, static_cast<ice::Index>(n),
+                              std::string(qem ? "QEM" : "intrinsic") + " mesh written by ice-coarsen from " + input);
     write_matrix_market(outputs[1], qem ? qem_result.P : ice::prolongation(*T, coarse));
     if (qem) {
       write_qem_map(outputs[2], qem_result);

@@ -1,0 +1,145 @@
+#include "ice/intrinsic_mesh_io.h"
+
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "ice/mesh_io.h"
+#include "ice/triangle_geometry.h"
+
+namespace ice {
+namespace {
+
+// Reads the next line that is not a comment or blank, splitting it into words; false at the end.
+class LineReader {
+ public:
+  LineReader(std::istream& in, const std::string& path) : in_(in), path_(path) {}
+  bool next(std::vector<std::string>& words) {
+    std::string line;
+    while (std::getline(in_, line)) {
+      ++number_;
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      const auto first = line.find_first_not_of(" \t");
+      if (first == std::string::npos || line[first] == '#') continue;
+      words.clear();
+      std::istringstream split(line);
+      for (std::string word; split >> word;) words.push_back(word);
+      return true;
+    }
+    return false;
+  }
+  [[noreturn]] void fail(MeshError::Kind kind, const std::string& what) const {
+    throw MeshError(kind, path_, "line " + std::to_string(number_) + ": " + what);
+  }
+  int line() const { return number_; }
+
+ private:
+  std::istream& in_;
+  const std::string& path_;
+  int number_ = 1;  // the header line was read before
+};
+
+template <class T>
+bool parse(const std::string& word, T& value) {
+  const char* end = word.data() + word.size();
+  const auto result = std::from_chars(word.data(), end, value);
+  return result.ec == std::errc() && result.ptr == end;
+}
+
+// Shortest text that reads back to the same double.
+std::string shortest(double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
+  return std::string(buffer, result.ptr);
+}
+
+}  // namespace
+
+IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw MeshError(MeshError::Kind::Unreadable, path, "cannot be opened");
+  std::string header;
+  if (!std::getline(in, header)) throw MeshError(MeshError::Kind::Unreadable, path, "empty file");
+  if (!header.empty() && header.back() == '\r') header.pop_back();
+  if (header != "ICE-ILM 1")
+    throw MeshError(MeshError::Kind::Unreadable, path,
+                    "not an ICE intrinsic mesh (.ilm version 1): the first line must be \"ICE-ILM 1\"");
+  LineReader reader(in, path);
+  std::vector<std::string> words;
+  // The three counts, in order.
+  long long counts[3] = {0, 0, 0};
+  const char* names[3] = {"vertices", "faces", "input_vertices"};
+  for (int k = 0; k < 3; ++k) {
+    if (!reader.next(words)) reader.fail(MeshError::Kind::Unreadable, std::string("missing \"") + names[k] + " <count>\"");
+    if (words.size() != 2 || words[0] != names[k] || !parse(words[1], counts[k]) || counts[k] < 0 ||
+        counts[k] > std::numeric_limits<Index>::max())
+      reader.fail(MeshError::Kind::Unreadable, std::string("expected \"") + names[k] + " <count>\"");
+  }
+  const Index n = static_cast<Index>(counts[0]), m = static_cast<Index>(counts[1]);
+  IntrinsicMeshFile file;
+  file.input_vertices = static_cast<Index>(counts[2]);
+  if (m == 0) reader.fail(MeshError::Kind::Defective, "the mesh has no faces");
+  file.F.resize(m, 3);
+  file.L.resize(m, 3);
+  std::vector<char> used(static_cast<std::size_t>(n), 0);
+  for (Index f = 0; f < m; ++f) {
+    if (!reader.next(words)) reader.fail(MeshError::Kind::Unreadable, "file ends after " + std::to_string(f) + " of " + std::to_string(m) + " faces");
+    if (words.size() != 7 || words[0] != "f")
+      reader.fail(MeshError::Kind::Unreadable, "expected \"f i j k l_ij l_jk l_ki\" (face " + std::to_string(f) + ")");
+    for (int c = 0; c < 3; ++c) {
+      long long id = 0;
+      if (!parse(words[1 + c], id)) reader.fail(MeshError::Kind::Unreadable, "face " + std::to_string(f) + ": bad vertex id \"" + words[1 + c] + "\"");
+      if (id < 0 || id >= n)
+        reader.fail(MeshError::Kind::Defective, "face " + std::to_string(f) + ": vertex " + std::to_string(id) +
+                                                    " out of range (" + std::to_string(n) + " vertices)");
+      file.F(f, c) = static_cast<int>(id);
+      used[static_cast<std::size_t>(id)] = 1;
+      double length = 0;
+      if (!parse(words[4 + c], length)) reader.fail(MeshError::Kind::Unreadable, "face " + std::to_string(f) + ": bad length \"" + words[4 + c] + "\"");
+      if (!(length > 0) || !std::isfinite(length))
+        reader.fail(MeshError::Kind::Defective, "face " + std::to_string(f) + ": edge length " + words[4 + c] + " is not positive and finite");
+      file.L(f, c) = length;
+    }
+    if (!triangle_inequality_holds(file.L(f, 0), file.L(f, 1), file.L(f, 2)))
+      reader.fail(MeshError::Kind::Defective, "face " + std::to_string(f) + ": lengths violate the triangle inequality");
+  }
+  file.to_input.resize(static_cast<std::size_t>(n));
+  std::vector<char> seen(static_cast<std::size_t>(file.input_vertices), 0);
+  for (Index v = 0; v < n; ++v) {
+    if (!reader.next(words)) reader.fail(MeshError::Kind::Unreadable, "file ends after " + std::to_string(v) + " of " + std::to_string(n) + " vertex lines");
+    long long id = 0;
+    if (words.size() != 2 || words[0] != "v" || !parse(words[1], id))
+      reader.fail(MeshError::Kind::Unreadable, "expected \"v <input vertex id>\" (vertex " + std::to_string(v) + ")");
+    if (id < 0 || id >= file.input_vertices)
+      reader.fail(MeshError::Kind::Defective, "vertex " + std::to_string(v) + ": input vertex " + std::to_string(id) +
+                                                  " out of range (" + std::to_string(file.input_vertices) + ")");
+    if (seen[static_cast<std::size_t>(id)]++)
+      reader.fail(MeshError::Kind::Defective, "vertex " + std::to_string(v) + ": input vertex " + std::to_string(id) + " listed twice");
+    if (!used[static_cast<std::size_t>(v)])
+      reader.fail(MeshError::Kind::Defective, "vertex " + std::to_string(v) + " is used by no face");
+    file.to_input[static_cast<std::size_t>(v)] = static_cast<Index>(id);
+  }
+  if (reader.next(words)) reader.fail(MeshError::Kind::Unreadable, "unexpected content after the last vertex line");
+  return file;
+}
+
+void write_intrinsic_mesh(const std::string& path, const CompactMesh& mesh, Index input_vertices,
+                          const std::string& comment) {
+  std::ofstream out(path);
+  if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "cannot be opened for writing");
+  out << "ICE-ILM 1\n";
+  if (!comment.empty()) out << "# " << comment << "\n";
+  out << "# f i j k l_ij l_jk l_ki (0-based vertices, edge lengths); v input_vertex_of_vertex\n"
+      << "vertices " << mesh.to_input.size() << "\nfaces " << mesh.F.rows() << "\ninput_vertices " << input_vertices
+      << '\n';
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    out << "f " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << ' ' << shortest(mesh.L(f, 0)) << ' '
+        << shortest(mesh.L(f, 1)) << ' ' << shortest(mesh.L(f, 2)) << '\n';
+  for (Index v : mesh.to_input) out << "v " << v << '\n';
+  out.flush();
+  if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "write failed");
+}
+
+}  // namespace ice
