@@ -1,5 +1,6 @@
 // ice-info: read a mesh, print its validation report (for humans or as JSON), optionally repair it and
-// write the repaired mesh.
+// write the repaired mesh. An .ilm file (a coarse intrinsic mesh from ice-coarsen) gets the intrinsic
+// summary instead: sizes, Euler characteristic, area, Gauss–Bonnet, angles, Delaunay edges.
 //
 // Exit codes: 0 clean (or repaired to clean), 1 unreadable input, 2 defective input (after repair, if
 // asked), 3 output not written, 4 bad command line.
@@ -10,8 +11,10 @@
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
+#include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_io.h"
 #include "ice/mesh_repair.h"
 #include "ice/mesh_validation.h"
@@ -106,13 +109,81 @@ void print_report(std::ostream& out, const ice::ValidationReport& r) {
   for (const auto& d : defects) out << "  DEFECT: " << d << '\n';
 }
 
+// The summary of an .ilm file: what the format holds and what its intrinsic triangulation says.
+int describe_intrinsic_mesh(const std::string& input, bool json) {
+  ice::IntrinsicMeshFile file;
+  try {
+    file = ice::read_intrinsic_mesh(input);
+  } catch (const ice::MeshError& e) {
+    if (json) std::cout << nlohmann::json{{"file", input}, {"readable", false}, {"error", e.what()}}.dump(2) << '\n';
+    std::cerr << "ice-info: " << e.what() << '\n';
+    return e.kind() == ice::MeshError::Kind::Defective ? kDefective : kUnreadable;
+  }
+  std::optional<ice::IntrinsicTriangulation> T;
+  std::string problem;
+  try {
+    T.emplace(ice::IntrinsicTriangulation::from_lengths(file.F, file.L));
+    problem = T->validate();
+  } catch (const std::invalid_argument& e) {
+    problem = e.what();
+  }
+  nlohmann::json j;
+  j["file"] = input;
+  j["readable"] = true;
+  j["format"] = "ilm";
+  j["vertices"] = file.to_input.size();
+  j["faces"] = file.F.rows();
+  j["input_vertices"] = file.input_vertices;
+  j["valid"] = problem.empty();
+  if (!problem.empty()) j["problem"] = problem;
+  if (T) {
+    constexpr double kPi = 3.14159265358979323846;
+    double smallest = kPi, largest = 0;
+    ice::Index non_delaunay = 0, boundary_edges = 0;
+    for (ice::Index h = 0; h < T->num_halfedge_slots(); ++h) {
+      if (!T->halfedge_alive(h)) continue;
+      if (!T->is_exterior(h)) {
+        const double angle = T->corner_angle(h);
+        smallest = std::min(smallest, angle), largest = std::max(largest, angle);
+      }
+      if (h % 2 == 0 && T->is_boundary_edge(h)) ++boundary_edges;
+      if (h % 2 == 0 && !T->is_delaunay(h)) ++non_delaunay;
+    }
+    j["edges"] = T->num_edges();
+    j["boundary_edges"] = boundary_edges;
+    j["euler_characteristic"] = T->euler_characteristic();
+    j["total_area"] = T->total_area();
+    j["total_curvature"] = T->total_curvature();
+    j["gauss_bonnet_2_pi_chi"] = 2 * kPi * T->euler_characteristic();
+    j["min_angle_degrees"] = smallest * 180 / kPi;
+    j["max_angle_degrees"] = largest * 180 / kPi;
+    j["non_delaunay_edges"] = non_delaunay;
+  }
+  if (json) {
+    std::cout << j.dump(2) << '\n';
+  } else {
+    std::cout << input << " (ICE intrinsic mesh: faces and edge lengths; no positions)\n"
+              << "  vertices " << j["vertices"] << ", faces " << j["faces"] << ", made from a mesh of "
+              << file.input_vertices << " vertices\n";
+    if (T)
+      std::cout << std::setprecision(6) << "  edges " << T->num_edges() << " (" << j["boundary_edges"]
+                << " on the boundary), Euler characteristic " << T->euler_characteristic() << "\n  area "
+                << T->total_area() << ", total curvature " << T->total_curvature() << " (2πχ = "
+                << j["gauss_bonnet_2_pi_chi"].get<double>() << ")\n  angles " << j["min_angle_degrees"].get<double>()
+                << "° to " << j["max_angle_degrees"].get<double>() << "°, " << j["non_delaunay_edges"]
+                << " non-Delaunay edges\n";
+    std::cout << "status: " << (problem.empty() ? "valid" : "INVALID: " + problem) << '\n';
+  }
+  return problem.empty() ? kClean : kDefective;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"Read a triangle mesh, validate it for ICE and print the report."};
   std::string input, output;
   bool json = false, repair = false, weld = false, force = false;
-  app.add_option("mesh", input, "Mesh file (.obj, .off, .ply, .stl)")->required();
+  app.add_option("mesh", input, "Mesh file (.obj, .off, .ply, .stl), or an intrinsic mesh (.ilm)")->required();
   app.add_flag("--json", json, "Print the report as JSON");
   app.add_flag("--repair", repair, "Apply the safe repairs (see ice/mesh_repair.h) and report them");
   app.add_flag("--weld", weld, "With --repair: also weld vertices with exactly equal positions");
@@ -131,6 +202,13 @@ int main(int argc, char** argv) {
     return kUsage;
   }
 
+  if (input.size() > 4 && input.compare(input.size() - 4, 4, ".ilm") == 0) {
+    if (repair || !output.empty()) {
+      std::cerr << "ice-info: --repair and --output apply to extrinsic meshes, not to .ilm files\n";
+      return kUsage;
+    }
+    return describe_intrinsic_mesh(input, json);
+  }
   const auto start = std::chrono::steady_clock::now();
   ice::MeshFile file;
   try {
