@@ -36,6 +36,7 @@ const std::string kTool = "poisson-coarse";
 struct MultigridCli {
   double tolerance = 1e-8, ratio = 0.25;
   long long coarsest = 500;
+  int threads = 0;
   std::string smoother = "sgs", cycle = "pcg";
 };
 
@@ -74,6 +75,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     const double hierarchy_seconds = clock.lap();
     fem::MultigridOptions mo;
     mo.tolerance = mg.tolerance;
+    mo.threads = mg.threads;
     mo.mode = mg.cycle == "vcycle" ? fem::MultigridMode::vcycle : fem::MultigridMode::pcg;
     mo.smoother = mg.smoother == "gs"          ? fem::MultigridSmoother::gauss_seidel
                   : mg.smoother == "chebyshev" ? fem::MultigridSmoother::chebyshev
@@ -106,6 +108,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
                         {"residuals", r.residuals},
                         {"cycle", fem::to_string(mo.mode)},
                         {"smoother", fem::to_string(mo.smoother)},
+                        {"threads", mg.threads},
                         {"levels", levels},
                         {"operator_complexity", multigrid.operator_complexity()},
                         {"hierarchy", {{"ratio", mg.ratio}, {"coarsest_vertices", mg.coarsest}, {"levels", hierarchy.num_levels()},
@@ -211,6 +214,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"sgs", "gs", "chebyshev"}))->capture_default_str();
   cli.add_option("--mg-cycle", mg.cycle, "multigrid: pcg (V-cycle preconditioned CG) or vcycle")
       ->check(CLI::IsMember({"pcg", "vcycle"}))->capture_default_str();
+  cli.add_option("--mg-threads", mg.threads,
+                 "multigrid: threads for products, transfers and CG vector operations on levels of 50,000+ "
+                 "unknowns (0: OMP_NUM_THREADS or all cores; Gauss-Seidel sweeps are serial)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
   opt.add_to(cli, "'solution' (prolonged), 'reference' and 'error' (= solution - reference)");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
