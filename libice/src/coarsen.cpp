@@ -203,54 +203,69 @@ void IntrinsicErrorMetric::apply_prepared_removal() {
 
 namespace {
 
-// The removal candidates: an indexed 4-ary min-heap on (cost, vertex), one entry per vertex,
-// updated in place when a cost changes. Compared with a lazy heap of stale entries it stays at
-// most n entries, pops once per removal, and a 4-ary node's children share a cache line or two
-// (half the depth of a binary heap), which matters once the heap outgrows the caches.
+// The removal candidates: an indexed 4-ary min-heap on (cost, vertex), at most one entry per vertex.
+// A cost that rises is only recorded (in the vertex's slot, not in the heap): costs mostly rise as
+// neighbours absorb mass, most such vertices are far from the top, and moving them would touch the
+// heap at random places (cache misses once it outgrows the caches). The heap keys are therefore
+// lower bounds; top() raises a stale top to its cost and sifts it down until the top's key is its
+// cost, which is then the exact minimum, ties included. A cost that falls is moved up at once.
+// Compared with a lazy heap of stale entries it stays at most n entries and pops once per removal;
+// a 4-ary node's children share a cache line or two (half the depth of a binary heap).
 class RemovalQueue {
  public:
   struct Entry {
     double cost;
     Index vertex;
   };
-  explicit RemovalQueue(Index vertices) : position_(static_cast<std::size_t>(vertices), kInvalid) {}
+  explicit RemovalQueue(Index vertices) : slot_(static_cast<std::size_t>(vertices)) {}
   bool empty() const { return heap_.empty(); }
   /// The cheapest entry (ties: the lowest vertex index). Precondition: !empty().
-  const Entry& top() const { return heap_.front(); }
+  const Entry& top() {
+    while (true) {
+      Entry& front = heap_.front();
+      const double cost = slot_[front.vertex].cost;
+      if (cost == front.cost) return front;
+      front.cost = cost;  // a risen cost: the key was a lower bound
+      sift_down(0);
+    }
+  }
   /// Inserts v or changes its cost.
   void set(Index v, double cost) {
-    const Index i = position_[v];
-    if (i == kInvalid) {
+    Slot& slot = slot_[v];
+    slot.cost = cost;
+    if (slot.position == kInvalid) {
       heap_.push_back({cost, v});
-      position_[v] = static_cast<Index>(heap_.size() - 1);
+      slot.position = static_cast<Index>(heap_.size() - 1);
       sift_up(heap_.size() - 1);
-    } else {
-      const double old = heap_[i].cost;
-      heap_[i].cost = cost;
-      if (cost < old) sift_up(i);
-      else sift_down(i);
+    } else if (cost < heap_[slot.position].cost) {
+      heap_[slot.position].cost = cost;
+      sift_up(slot.position);
     }
   }
   /// Removes v if present.
   void erase(Index v) {
-    const Index i = position_[v];
+    const Index i = slot_[v].position;
     if (i == kInvalid) return;
-    position_[v] = kInvalid;
+    slot_[v].position = kInvalid;
     const Entry last = heap_.back();
     heap_.pop_back();
     if (static_cast<std::size_t>(i) == heap_.size()) return;
     place(i, last);
     sift_up(i);
-    sift_down(position_[last.vertex]);
+    sift_down(slot_[last.vertex].position);
   }
 
  private:
+  struct Slot {
+    double cost = 0;          // the vertex's current cost (≥ its heap key)
+    Index position = kInvalid;  // its heap index, or kInvalid
+  };
   static bool before(const Entry& a, const Entry& b) {
     return a.cost < b.cost || (a.cost == b.cost && a.vertex < b.vertex);
   }
   void place(std::size_t i, const Entry& e) {
     heap_[i] = e;
-    position_[e.vertex] = static_cast<Index>(i);
+    slot_[e.vertex].position = static_cast<Index>(i);
   }
   void sift_up(std::size_t i) {
     const Entry e = heap_[i];
@@ -279,7 +294,7 @@ class RemovalQueue {
     place(i, e);
   }
   std::vector<Entry> heap_;
-  std::vector<Index> position_;
+  std::vector<Slot> slot_;
 };
 
 }  // namespace
@@ -330,7 +345,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
       result.stop_reason = StopReason::NothingRemovable;
       break;
     }
-    const RemovalQueue::Entry top = queue.top();
+    const RemovalQueue::Entry top = queue.top();  // a copy: erase() moves the heap's entries
     if (top.cost > options.max_error) {
       result.stop_reason = StopReason::ErrorThreshold;
       break;
