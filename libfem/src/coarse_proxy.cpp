@@ -1,5 +1,7 @@
 #include "fem/coarse_proxy.h"
 
+#include "parallel_kernels.h"
+
 #include <cmath>
 #include <stdexcept>
 #include <utility>
@@ -115,14 +117,27 @@ HeatMethodOperators CoarseProxy::coarse_heat_method_operators(double time_factor
 ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy)
     : P_(proxy.prolongation()),
       fine_mass_(proxy.fine_mass()),
-      coarse_(PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass())) {}
+      P_rows_(P_),
+      fine_mass_of_one_(fine_mass_ * Eigen::VectorXd::Ones(P_.rows())),
+      total_mass_(fine_mass_of_one_.sum()),
+      coarse_(PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass())) {
+  P_.makeCompressed();
+  fine_mass_.makeCompressed();
+  P_rows_.makeCompressed();
+}
 
 Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f) const {
+  using namespace detail;
   if (f.size() != P_.rows()) throw std::invalid_argument("ProxyPoissonSolver::solve: wrong size");
-  const Eigen::VectorXd coarse_rhs = P_.transpose() * (fine_mass_ * f);
-  Eigen::VectorXd u = P_ * coarse_.solve_weighted(coarse_rhs);
-  const Eigen::VectorXd fine_mass_of_one = fine_mass_ * Eigen::VectorXd::Ones(u.size());
-  u.array() -= fine_mass_of_one.dot(u) / fine_mass_of_one.sum();
+  const Eigen::Index n = P_.rows();
+  const int threads = default_threads();
+  // Fine-size passes as gathers (M is symmetric, so its columns are its rows): M f, Pᵀ (M f), P u_c.
+  Eigen::VectorXd weighted(n), coarse_rhs(P_.cols()), u(n);
+  gather_product(fine_mass_, f.data(), weighted.data(), false, threads, n);
+  gather_product(P_, weighted.data(), coarse_rhs.data(), false, threads, n);
+  const Eigen::VectorXd coarse_u = coarse_.solve_weighted(coarse_rhs);
+  gather_product(P_rows_, coarse_u.data(), u.data(), false, threads, n);
+  add_constant(-dot(fine_mass_of_one_, u, threads) / total_mass_, u, threads);
   return u;
 }
 

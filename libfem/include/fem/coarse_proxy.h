@@ -98,6 +98,9 @@ class CoarseProxy {
 
 /// Zero-mean Poisson L u = M f on the fine mesh, approximated through the proxy:
 /// u ≈ P u_c with (coarse L) u_c = Pᵀ M f (zero-mean, see PoissonSolver), re-centred in the fine mass.
+/// The fine-size passes (M f, Pᵀ, P, re-centring) use OpenMP threads on meshes of 50,000+ vertices
+/// (OMP_NUM_THREADS, default all cores); the result does not depend on the thread count except for
+/// the order of one sum (round-off).
 class ProxyPoissonSolver {
  public:
   explicit ProxyPoissonSolver(const CoarseProxy& proxy);
@@ -106,6 +109,9 @@ class ProxyPoissonSolver {
 
  private:
   SparseMatrix P_, fine_mass_;
+  Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major: prolongation as a gather per row
+  Eigen::VectorXd fine_mass_of_one_;                           ///< M·1 (the re-centring weights)
+  double total_mass_ = 0;
   PoissonSolver coarse_;
 };
 

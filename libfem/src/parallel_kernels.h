@@ -1,0 +1,79 @@
+#pragma once
+// Internal to libfem (not installed): bandwidth-bound kernels over compressed sparse matrices and
+// vectors, threaded with OpenMP when available. They split outer indices (rows) into `threads`
+// contiguous ranges when there are at least kParallelRows of them; smaller problems run serially
+// (thread start-up would cost more than the pass). Two cores stream a matrix ~1.7x faster than one
+// on the 2-core test machine.
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <algorithm>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace fem {
+namespace detail {
+
+constexpr Eigen::Index kParallelRows = 50000;
+using RowMajorSparse = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
+
+/// OpenMP's default thread count (OMP_NUM_THREADS or the cores), 1 without OpenMP.
+inline int default_threads() {
+#ifdef _OPENMP
+  return omp_get_max_threads();
+#else
+  return 1;
+#endif
+}
+
+inline int active_threads(Eigen::Index n, int threads) { return n >= kParallelRows ? std::max(threads, 1) : 1; }
+
+// out[o] = Σ value·in[inner] over the stored entries of outer index o (column o of a column-major
+// matrix, row o of a row-major one), or out[o] += that sum with `accumulate`: y = A x for a symmetric
+// column-major A (column i is row i), c = Pᵀ r for a column-major P, x += P c for a row-major copy
+// of P. Every output is one gather, so the outer indices split among threads without conflicts.
+template <class Matrix>
+void gather_product(const Matrix& M, const double* in, double* out, bool accumulate, int threads,
+                    Eigen::Index work_size) {
+  const auto* start = M.outerIndexPtr();
+  const auto* inner = M.innerIndexPtr();
+  const double* value = M.valuePtr();
+  const Eigen::Index n = M.outerSize();
+#pragma omp parallel for schedule(static) num_threads(active_threads(work_size, threads))
+  for (Eigen::Index o = 0; o < n; ++o) {
+    double s = 0;
+    for (auto p = start[o]; p < start[o + 1]; ++p) s += value[p] * in[inner[p]];
+    out[o] = accumulate ? out[o] + s : s;
+  }
+}
+
+// Vector kernels.
+inline double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int threads) {
+  const Eigen::Index n = a.size();
+  double sum = 0;
+#pragma omp parallel for schedule(static) reduction(+ : sum) num_threads(active_threads(n, threads))
+  for (Eigen::Index i = 0; i < n; ++i) sum += a[i] * b[i];
+  return sum;
+}
+// y += alpha x
+inline void axpy(double alpha, const Eigen::VectorXd& x, Eigen::VectorXd& y, int threads) {
+  const Eigen::Index n = x.size();
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+  for (Eigen::Index i = 0; i < n; ++i) y[i] += alpha * x[i];
+}
+// y += c (every entry)
+inline void add_constant(double c, Eigen::VectorXd& y, int threads) {
+  const Eigen::Index n = y.size();
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+  for (Eigen::Index i = 0; i < n; ++i) y[i] += c;
+}
+// p = z + beta p
+inline void xpby(const Eigen::VectorXd& z, double beta, Eigen::VectorXd& p, int threads) {
+  const Eigen::Index n = z.size();
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+  for (Eigen::Index i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+}
+
+}  // namespace detail
+}  // namespace fem
