@@ -2,6 +2,7 @@
 
 #include "parallel_kernels.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
@@ -149,17 +150,29 @@ Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::VectorXd& fine_u0, int s
 }
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor)
-    : P_(proxy.prolongation()), coarse_(proxy.coarse_heat_method_operators(time_factor)) {}
+    : P_rows_(proxy.prolongation()), coarse_(proxy.coarse_heat_method_operators(time_factor)) {
+  P_rows_.makeCompressed();
+}
 
 Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<int>& fine_sources) const {
   if (fine_sources.empty()) throw std::invalid_argument("ProxyGeodesicSolver::distance: no sources");
-  Eigen::VectorXd fine_weights = Eigen::VectorXd::Zero(P_.rows());
-  for (int s : fine_sources) {
-    if (s < 0 || s >= fine_weights.size()) throw std::invalid_argument("ProxyGeodesicSolver::distance: bad source");
-    fine_weights(s) = 1.0;
-  }
-  Eigen::VectorXd phi = P_ * coarse_.distance_from_weights(P_.transpose() * fine_weights);
-  phi.array() -= fine_weights.dot(phi) / fine_weights.sum();
+  // The sources' weights restricted directly from P's rows (Pᵀ of a sparse indicator), without a
+  // fine-size pass; a repeated source counts once.
+  const Eigen::Index n = P_rows_.rows();
+  std::vector<int> sources = fine_sources;
+  std::sort(sources.begin(), sources.end());
+  sources.erase(std::unique(sources.begin(), sources.end()), sources.end());
+  if (sources.front() < 0 || sources.back() >= n) throw std::invalid_argument("ProxyGeodesicSolver::distance: bad source");
+  Eigen::VectorXd coarse_weights = Eigen::VectorXd::Zero(P_rows_.cols());
+  for (int s : sources)
+    for (decltype(P_rows_)::InnerIterator it(P_rows_, s); it; ++it) coarse_weights(it.col()) += it.value();
+  const Eigen::VectorXd coarse_phi = coarse_.distance_from_weights(coarse_weights);
+  Eigen::VectorXd phi(n);
+  detail::gather_product(P_rows_, coarse_phi.data(), phi.data(), false, detail::default_threads(), n);
+  // Shift so that the sources' mean distance is zero.
+  double sum = 0;
+  for (int s : sources) sum += phi(s);
+  detail::add_constant(-sum / static_cast<double>(sources.size()), phi, detail::default_threads());
   return phi;
 }
 

@@ -130,13 +130,15 @@ class ProxyHeatSolver {
 };
 
 /// Heat-method distance on the coarse space, from fine source vertices (see the file comment).
+/// The prolongation to the fine vertices is a threaded gather on meshes of 50,000+ vertices, as in
+/// ProxyPoissonSolver.
 class ProxyGeodesicSolver {
  public:
   explicit ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor = 1.0);
   Eigen::VectorXd distance(const std::vector<int>& fine_sources) const;
 
  private:
-  SparseMatrix P_;
+  Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major (gathers per fine vertex)
   HeatGeodesicSolver coarse_;
 };
 
