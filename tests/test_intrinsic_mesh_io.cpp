@@ -60,6 +60,9 @@ TEST_CASE("bad .ilm files are refused with the file, the line and the defect", "
   expect_refused("ICE-ILM 1\nvertices 3\n", Kind::Unreadable, "faces <count>");
   expect_refused("ICE-ILM 1\nvertices -3\nfaces 1\ninput_vertices 5\n", Kind::Unreadable, "line 2");
   expect_refused(kHeader, Kind::Unreadable, "file ends after 0 of 1 faces");
+  // Corrupt counts are refused before anything is allocated for them.
+  expect_refused("ICE-ILM 1\nvertices 2000000000\nfaces 2000000000\ninput_vertices 5\nf 0 1 2 1 1 1\n", Kind::Unreadable,
+                 "exceed what a file of");
   expect_refused(kHeader + "f 0 1 2 1 1\n", Kind::Unreadable, "line 5");
   expect_refused(kHeader + "f 0 1 3 1 1 1\n", Kind::Defective, "vertex 3 out of range");
   expect_refused(kHeader + "f 0 1 2 1 nan 1\n", Kind::Defective, "not positive and finite");

@@ -1,7 +1,9 @@
 #include "ice/intrinsic_mesh_io.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -77,6 +79,14 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
         counts[k] > std::numeric_limits<Index>::max())
       reader.fail(MeshError::Kind::Unreadable, std::string("expected \"") + names[k] + " <count>\"");
   }
+  // A corrupt count must not make the reader allocate gigabytes: every face line takes at least 14
+  // bytes ("f 0 0 0 1 1 1\n") and every vertex line 4 ("v 0\n").
+  std::error_code size_error;
+  const auto file_size = std::filesystem::file_size(path, size_error);
+  if (!size_error && 14.0 * static_cast<double>(counts[1]) + 4.0 * static_cast<double>(counts[0]) > static_cast<double>(file_size))
+    reader.fail(MeshError::Kind::Unreadable, "the counts (" + std::to_string(counts[0]) + " vertices, " +
+                                                 std::to_string(counts[1]) + " faces) exceed what a file of " +
+                                                 std::to_string(file_size) + " bytes can hold");
   const Index n = static_cast<Index>(counts[0]), m = static_cast<Index>(counts[1]);
   IntrinsicMeshFile file;
   file.input_vertices = static_cast<Index>(counts[2]);
@@ -106,7 +116,6 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
       reader.fail(MeshError::Kind::Defective, "face " + std::to_string(f) + ": lengths violate the triangle inequality");
   }
   file.to_input.resize(static_cast<std::size_t>(n));
-  std::vector<char> seen(static_cast<std::size_t>(file.input_vertices), 0);
   for (Index v = 0; v < n; ++v) {
     if (!reader.next(words)) reader.fail(MeshError::Kind::Unreadable, "file ends after " + std::to_string(v) + " of " + std::to_string(n) + " vertex lines");
     long long id = 0;
@@ -115,13 +124,23 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
     if (id < 0 || id >= file.input_vertices)
       reader.fail(MeshError::Kind::Defective, "vertex " + std::to_string(v) + ": input vertex " + std::to_string(id) +
                                                   " out of range (" + std::to_string(file.input_vertices) + ")");
-    if (seen[static_cast<std::size_t>(id)]++)
-      reader.fail(MeshError::Kind::Defective, "vertex " + std::to_string(v) + ": input vertex " + std::to_string(id) + " listed twice");
     if (!used[static_cast<std::size_t>(v)])
       reader.fail(MeshError::Kind::Defective, "vertex " + std::to_string(v) + " is used by no face");
     file.to_input[static_cast<std::size_t>(v)] = static_cast<Index>(id);
   }
   if (reader.next(words)) reader.fail(MeshError::Kind::Unreadable, "unexpected content after the last vertex line");
+  // Each input vertex at most once (sorted, not a table of input_vertices entries: that count is
+  // not bounded by the file's size).
+  std::vector<Index> order(file.to_input.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<Index>(i);
+  std::sort(order.begin(), order.end(), [&](Index a, Index b) {
+    return file.to_input[a] < file.to_input[b] || (file.to_input[a] == file.to_input[b] && a < b);
+  });
+  for (std::size_t i = 1; i < order.size(); ++i)
+    if (file.to_input[order[i]] == file.to_input[order[i - 1]])
+      throw MeshError(MeshError::Kind::Defective, path,
+                      "input vertex " + std::to_string(file.to_input[order[i]]) + " listed twice (vertices " +
+                          std::to_string(order[i - 1]) + " and " + std::to_string(order[i]) + ")");
   return file;
 }
 
