@@ -139,6 +139,16 @@ Fine fine_reference(const ice::TriangleMesh& mesh) {
 
 // ---- one coarse proxy, three problems ---------------------------------------------------------------
 
+// A method that failed on this input: one row per problem with NaN errors and the reason in the note.
+void record_failure(Row r, const std::string& what, std::vector<Row>& rows) {
+  r.note += std::string(r.note.empty() ? "" : "; ") + "failed: " + what;
+  for (const auto& p : kProblems) {
+    r.problem = p;
+    r.error = r.error_max = r.error_l2 = std::numeric_limits<double>::quiet_NaN();
+    rows.push_back(r);
+  }
+}
+
 void solve_on_proxy(const Fine& fine, const app::CoarseMesh& coarse, fem::CoarseOperatorKind kind, Row base,
                     std::vector<Row>& rows) {
   const Eigen::Index n = fine.mesh.V.rows(), nc = static_cast<Eigen::Index>(coarse.mesh.to_input.size());
@@ -619,12 +629,7 @@ int main(int argc, char** argv) {
             try {
               coarse = app::qem_coarse_mesh(qem, m == "qem_idt" ? "idt" : "extrinsic");
             } catch (const std::exception& e) {
-              r.note += std::string(r.note.empty() ? "" : "; ") + "failed: " + e.what();
-              for (const auto& p : kProblems) {
-                r.problem = p;
-                r.error = r.error_max = r.error_l2 = std::numeric_limits<double>::quiet_NaN();
-                rows.push_back(r);
-              }
+              record_failure(r, e.what(), rows);
               continue;
             }
             r.coarsen = t_qem + clock.seconds();
@@ -633,12 +638,7 @@ int main(int argc, char** argv) {
             try {
               solve_on_proxy(fine, coarse, kind, r, rows);
             } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
-              r.note += std::string(r.note.empty() ? "" : "; ") + "failed: " + e.what();
-              for (const auto& p : kProblems) {
-                r.problem = p;
-                r.error = r.error_max = r.error_l2 = std::numeric_limits<double>::quiet_NaN();
-                rows.push_back(r);
-              }
+              record_failure(r, e.what(), rows);
               continue;
             }
             progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
