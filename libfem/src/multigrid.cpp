@@ -1,5 +1,6 @@
 #include "fem/multigrid.h"
 
+#include "fem/ordering.h"
 #include "parallel_kernels.h"
 
 #include <algorithm>
@@ -36,35 +37,54 @@ void residual(const SparseMatrix& A, const double* b, const double* x, double* r
   }
 }
 
-// One Gauss–Seidel sweep, forward or backward: x_i += (b_i − (A x)_i) / a_ii. Serial: a split of
-// the rows among threads (hybrid Gauss–Seidel) measured no faster at 1.6M unknowns, and weakened
-// the smoother (8 → 10 PCG iterations) when split by index on Loop-subdivided meshes.
-void gauss_seidel(const SparseMatrix& A, const Eigen::VectorXd& inv_diag, const double* b, double* x, bool forward) {
-  const auto* start = A.outerIndexPtr();
-  const auto* row = A.innerIndexPtr();
-  const double* value = A.valuePtr();
-  const Eigen::Index n = A.outerSize();
-  const double* d = inv_diag.data();
-  if (forward) {
-    for (Eigen::Index i = 0; i < n; ++i) {
-      double s = b[i];
-      for (auto p = start[i]; p < start[i + 1]; ++p) s -= value[p] * x[row[p]];
-      x[i] += s * d[i];
-    }
-  } else {
-    for (Eigen::Index i = n - 1; i >= 0; --i) {
-      double s = b[i];
-      for (auto p = start[i]; p < start[i + 1]; ++p) s -= value[p] * x[row[p]];
-      x[i] += s * d[i];
-    }
-  }
-}
-
 using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// Block kernels: X, B, R are n × k row-major (row i holds unknown i of the k systems). The column
-// count is a template parameter for 1..16 (so the k-wide inner loops live in registers and
-// vectorise), runtime otherwise.
+// Threaded Gauss–Seidel ("hybrid" Gauss–Seidel): the rows are split into `parts` contiguous ranges,
+// each swept by one thread; a coupling to a row of another range reads that row's value from the
+// start of the sweep (a snapshot in the halo), a coupling within the range the current value. Each
+// range is thus an exact Gauss–Seidel sweep and the ranges are coupled like block Jacobi; the
+// result depends on `parts` but not on thread timing. The backward sweep over the same ranges is
+// the transpose of the forward one, so the symmetric smoother stays symmetric (valid inside CG).
+// It only pays in the solver's locality order (options.reorder), where a range is a compact region
+// and the split cuts few couplings (in a Loop-subdivided mesh's own order it cost 8 → 10 PCG
+// iterations). `column` is A's inner index array with every cross-range reference j replaced by
+// n + (j's halo slot).
+struct SweepSplit {
+  int parts = 1;
+  std::vector<Eigen::Index> bounds;  // range t is rows [bounds[t], bounds[t+1])
+  std::vector<int> column;
+  std::vector<int> halo;             // slot -> row
+};
+
+SweepSplit make_split(const SparseMatrix& A, int parts) {
+  SweepSplit split;
+  const Eigen::Index n = A.outerSize();
+  split.parts = parts;
+  for (int t = 0; t <= parts; ++t) split.bounds.push_back(n * t / parts);
+  const auto* start = A.outerIndexPtr();
+  const auto* inner = A.innerIndexPtr();
+  split.column.assign(inner, inner + A.nonZeros());
+  std::vector<int> slot(static_cast<std::size_t>(n), -1);
+  for (int t = 0; t < parts; ++t)
+    for (Eigen::Index i = split.bounds[static_cast<std::size_t>(t)]; i < split.bounds[static_cast<std::size_t>(t) + 1]; ++i)
+      for (auto p = start[i]; p < start[i + 1]; ++p) {
+        const int j = inner[p];
+        if (j >= split.bounds[static_cast<std::size_t>(t)] && j < split.bounds[static_cast<std::size_t>(t) + 1]) continue;
+        int& s = slot[static_cast<std::size_t>(j)];
+        if (s < 0) {
+          s = static_cast<int>(split.halo.size());
+          split.halo.push_back(j);
+        }
+        split.column[static_cast<std::size_t>(p)] = static_cast<int>(n) + s;
+      }
+  return split;
+}
+
+// The one kernel over rows [lo, hi) of a compressed symmetric A (column i read as row i), for k
+// vectors stored row-major (row i holds unknown i of the k systems; k = 1 is a plain vector). The
+// column count is a template parameter for 1..16 (the k-wide loops live in registers and
+// vectorise), runtime otherwise (K = 0). Mode 0: out = b − A x; mode 1: out = A x; mode 2 / 3: a
+// forward / backward Gauss–Seidel sweep on x. A column index c ≥ n reads row c − n of `halo`.
 template <int K>
 struct Width {
   static constexpr Eigen::Index get(Eigen::Index) { return K; }
@@ -74,13 +94,12 @@ struct Width<0> {
   static Eigen::Index get(Eigen::Index k) { return k; }
 };
 
-// Mode 0: R = B − A X; mode 1: Y = A X; mode 2 / 3: forward / backward Gauss–Seidel on X.
 template <int K, int Mode>
-void block_kernel(const SparseMatrix& A, const double* inv_diag, const Block* B, Block& X, Block* out) {
+void row_kernel(const SparseMatrix& A, const int* column, const double* halo, const double* inv_diag, const double* b,
+                double* x, double* out, Eigen::Index k_runtime, Eigen::Index lo, Eigen::Index hi) {
   const auto* start = A.outerIndexPtr();
-  const auto* row = A.innerIndexPtr();
   const double* value = A.valuePtr();
-  const Eigen::Index n = A.outerSize(), k = Width<K>::get(X.cols());
+  const Eigen::Index n = A.outerSize(), k = Width<K>::get(k_runtime);
   constexpr int kMax = K > 0 ? K : 64;
   double local[kMax];
   std::vector<double> heap;
@@ -89,66 +108,111 @@ void block_kernel(const SparseMatrix& A, const double* inv_diag, const Block* B,
     heap.resize(static_cast<std::size_t>(k));
     s = heap.data();
   }
-  const double* x = X.data();
-  for (Eigen::Index step = 0; step < n; ++step) {
-    const Eigen::Index i = Mode == 3 ? n - 1 - step : step;
+  for (Eigen::Index step = lo; step < hi; ++step) {
+    const Eigen::Index i = Mode == 3 ? hi - 1 - (step - lo) : step;
     if (Mode == 1) {
       for (Eigen::Index c = 0; c < k; ++c) s[c] = 0;
     } else {
-      const double* b = B->data() + i * k;
-      for (Eigen::Index c = 0; c < k; ++c) s[c] = b[c];
+      for (Eigen::Index c = 0; c < k; ++c) s[c] = b[i * k + c];
     }
     for (auto p = start[i]; p < start[i + 1]; ++p) {
       const double a = Mode == 1 ? -value[p] : value[p];
-      const double* xr = x + static_cast<Eigen::Index>(row[p]) * k;
+      const Eigen::Index j = column[p];
+      const double* xr = j < n ? x + j * k : halo + (j - n) * k;
       for (Eigen::Index c = 0; c < k; ++c) s[c] -= a * xr[c];
     }
     if (Mode <= 1) {
-      double* o = out->data() + i * k;
-      for (Eigen::Index c = 0; c < k; ++c) o[c] = s[c];
+      for (Eigen::Index c = 0; c < k; ++c) out[i * k + c] = s[c];
     } else {
-      double* xi = X.data() + i * k;
       const double d = inv_diag[i];
-      for (Eigen::Index c = 0; c < k; ++c) xi[c] += s[c] * d;
+      for (Eigen::Index c = 0; c < k; ++c) x[i * k + c] += s[c] * d;
     }
   }
 }
 
+// Runs row_kernel over all rows: products and residuals split among `threads` (no dependencies),
+// sweeps by `split` when it has several parts, else serially.
+template <int K, int Mode>
+void run_rows(const SparseMatrix& A, const SweepSplit* split, const double* inv_diag, const double* b, double* x,
+              double* out, Eigen::Index k, int threads, std::vector<double>& halo) {
+  const Eigen::Index n = A.outerSize();
+  const int* column = A.innerIndexPtr();
+  if (Mode <= 1) {
+    const int parts = active_threads(n, threads);
+#pragma omp parallel for schedule(static, 1) num_threads(parts)
+    for (int t = 0; t < parts; ++t)
+      row_kernel<K, Mode>(A, column, nullptr, inv_diag, b, x, out, k, n * t / parts, n * (t + 1) / parts);
+    return;
+  }
+  if (split == nullptr || split->parts <= 1) {
+    row_kernel<K, Mode>(A, column, nullptr, inv_diag, b, x, out, k, 0, n);
+    return;
+  }
+  halo.resize(split->halo.size() * static_cast<std::size_t>(k));
+  for (std::size_t slot = 0; slot < split->halo.size(); ++slot)
+    for (Eigen::Index c = 0; c < k; ++c)
+      halo[slot * static_cast<std::size_t>(k) + static_cast<std::size_t>(c)] = x[split->halo[slot] * k + c];
+#pragma omp parallel for schedule(static, 1) num_threads(split->parts)
+  for (int t = 0; t < split->parts; ++t)
+    row_kernel<K, Mode>(A, split->column.data(), halo.data(), inv_diag, b, x, out, k,
+                        split->bounds[static_cast<std::size_t>(t)], split->bounds[static_cast<std::size_t>(t) + 1]);
+}
+
 template <int Mode>
-void dispatch_block(const SparseMatrix& A, const double* inv_diag, const Block* B, Block& X, Block* out) {
-  switch (X.cols()) {
+void rows_dispatch(const SparseMatrix& A, const SweepSplit* split, const double* inv_diag, const double* b, double* x,
+                   double* out, Eigen::Index k, int threads, std::vector<double>& halo) {
+  switch (k) {
 #define ICE_MG_CASE(K) \
   case K:              \
-    return block_kernel<K, Mode>(A, inv_diag, B, X, out);
+    return run_rows<K, Mode>(A, split, inv_diag, b, x, out, k, threads, halo);
     ICE_MG_CASE(1) ICE_MG_CASE(2) ICE_MG_CASE(3) ICE_MG_CASE(4) ICE_MG_CASE(5) ICE_MG_CASE(6) ICE_MG_CASE(7)
     ICE_MG_CASE(8) ICE_MG_CASE(9) ICE_MG_CASE(10) ICE_MG_CASE(11) ICE_MG_CASE(12) ICE_MG_CASE(13)
     ICE_MG_CASE(14) ICE_MG_CASE(15) ICE_MG_CASE(16)
 #undef ICE_MG_CASE
     default:
-      return block_kernel<0, Mode>(A, inv_diag, B, X, out);
+      return run_rows<0, Mode>(A, split, inv_diag, b, x, out, k, threads, halo);
   }
 }
 
-void residual_block(const SparseMatrix& A, const Block& B, const Block& X, Block& R) {
-  dispatch_block<0>(A, nullptr, &B, const_cast<Block&>(X), &R);
-}
-void multiply_block(const SparseMatrix& A, const Block& X, Block& Y) {
-  dispatch_block<1>(A, nullptr, nullptr, const_cast<Block&>(X), &Y);
-}
-void gauss_seidel_block(const SparseMatrix& A, const Eigen::VectorXd& inv_diag, const Block& B, Block& X, bool forward,
-                        std::vector<double>&) {
+// One Gauss–Seidel sweep on k vectors (x_i += (b_i − (A x)_i) / a_ii), forward or backward.
+void gauss_seidel(const SparseMatrix& A, const SweepSplit* split, const Eigen::VectorXd& inv_diag, const double* b,
+                  double* x, Eigen::Index k, bool forward, int threads, std::vector<double>& halo) {
   if (forward)
-    dispatch_block<2>(A, inv_diag.data(), &B, X, nullptr);
+    rows_dispatch<2>(A, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
   else
-    dispatch_block<3>(A, inv_diag.data(), &B, X, nullptr);
+    rows_dispatch<3>(A, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
 }
 
-// C = Pᵀ R (restriction) and X += P C (prolongation) for column-major P and row-major blocks.
-void restrict_block(const SparseMatrix& P, const Block& R, Block& C) {
-  const Eigen::Index k = R.cols();
-  C.setZero(P.cols(), k);
-  for (Eigen::Index j = 0; j < P.outerSize(); ++j) {
+// The level's split for `threads` (made on first use or when the thread count changed), or null
+// for a serial sweep. A template so that it can take the solver's private Level.
+template <class LevelData>
+const SweepSplit* level_split(LevelData& L, int threads) {
+  const int parts = active_threads(L.A.rows(), threads);
+  if (parts <= 1) return nullptr;
+  if (L.split.parts != parts || L.split.column.size() != static_cast<std::size_t>(L.A.nonZeros()))
+    L.split = make_split(L.A, parts);
+  return &L.split;
+}
+
+// Block kernels: X, B, R are n × k row-major.
+void residual_block(const SparseMatrix& A, const Block& B, const Block& X, Block& R, int threads) {
+  std::vector<double> unused;
+  rows_dispatch<0>(A, nullptr, nullptr, B.data(), const_cast<double*>(X.data()), R.data(), X.cols(), threads, unused);
+}
+void multiply_block(const SparseMatrix& A, const Block& X, Block& Y, int threads) {
+  std::vector<double> unused;
+  rows_dispatch<1>(A, nullptr, nullptr, nullptr, const_cast<double*>(X.data()), Y.data(), X.cols(), threads, unused);
+}
+
+// C = Pᵀ R (restriction, a gather per column of the column-major P) and X += P C (prolongation, a
+// gather per row of the row-major copy), both split among threads.
+void restrict_block(const SparseMatrix& P, const Block& R, Block& C, int threads) {
+  const Eigen::Index k = R.cols(), m = P.outerSize();
+  C.resize(P.cols(), k);
+#pragma omp parallel for schedule(static) num_threads(active_threads(P.rows(), threads))
+  for (Eigen::Index j = 0; j < m; ++j) {
     double* c = C.data() + j * k;
+    for (Eigen::Index q = 0; q < k; ++q) c[q] = 0;
     for (auto p = P.outerIndexPtr()[j]; p < P.outerIndexPtr()[j + 1]; ++p) {
       const double w = P.valuePtr()[p];
       const double* r = R.data() + static_cast<Eigen::Index>(P.innerIndexPtr()[p]) * k;
@@ -156,61 +220,82 @@ void restrict_block(const SparseMatrix& P, const Block& R, Block& C) {
     }
   }
 }
-void prolong_add_block(const SparseMatrix& P, const Block& C, Block& X) {
-  const Eigen::Index k = X.cols();
-  for (Eigen::Index j = 0; j < P.outerSize(); ++j) {
-    const double* c = C.data() + j * k;
-    for (auto p = P.outerIndexPtr()[j]; p < P.outerIndexPtr()[j + 1]; ++p) {
-      const double w = P.valuePtr()[p];
-      double* x = X.data() + static_cast<Eigen::Index>(P.innerIndexPtr()[p]) * k;
+void prolong_add_block(const RowMajorSparse& P_rows, const Block& C, Block& X, int threads) {
+  const Eigen::Index k = X.cols(), n = P_rows.outerSize();
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double* x = X.data() + i * k;
+    for (auto p = P_rows.outerIndexPtr()[i]; p < P_rows.outerIndexPtr()[i + 1]; ++p) {
+      const double w = P_rows.valuePtr()[p];
+      const double* c = C.data() + static_cast<Eigen::Index>(P_rows.innerIndexPtr()[p]) * k;
       for (Eigen::Index q = 0; q < k; ++q) x[q] += w * c[q];
     }
   }
 }
-// Column-wise dot products of two row-major blocks.
-Eigen::VectorXd column_dots(const Block& X, const Block& Y) {
-  const Eigen::Index k = X.cols();
-  Eigen::VectorXd d = Eigen::VectorXd::Zero(k);
+// Column-wise dot products of two row-major blocks (per-thread partial sums added in thread order:
+// deterministic for a given thread count).
+Eigen::VectorXd column_dots(const Block& X, const Block& Y, int threads) {
+  const Eigen::Index k = X.cols(), n = X.rows();
+  const int parts = active_threads(n, threads);
+  Eigen::MatrixXd partial = Eigen::MatrixXd::Zero(k, parts);
   const double* x = X.data();
   const double* y = Y.data();
-  for (Eigen::Index i = 0, end = X.size(); i < end; i += k)
-    for (Eigen::Index q = 0; q < k; ++q) d[q] += x[i + q] * y[i + q];
-  return d;
+#pragma omp parallel for schedule(static, 1) num_threads(parts)
+  for (int t = 0; t < parts; ++t) {
+    double* d = partial.data() + t * k;
+    for (Eigen::Index i = n * t / parts * k, end = n * (t + 1) / parts * k; i < end; i += k)
+      for (Eigen::Index q = 0; q < k; ++q) d[q] += x[i + q] * y[i + q];
+  }
+  return partial.rowwise().sum();
 }
-// Y += diag(a) applied per column: Y.col(q) += a(q) X.col(q), row by row.
-void axpy_columns(const Eigen::VectorXd& a, const Block& X, Block& Y) {
-  const Eigen::Index k = X.cols();
+// Y.col(q) += a(q) X.col(q), row by row.
+void axpy_columns(const Eigen::VectorXd& a, const Block& X, Block& Y, int threads) {
+  const Eigen::Index k = X.cols(), n = X.rows();
   const double* x = X.data();
   double* y = Y.data();
-  for (Eigen::Index i = 0, end = X.size(); i < end; i += k)
-    for (Eigen::Index q = 0; q < k; ++q) y[i + q] += a[q] * x[i + q];
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index q = 0; q < k; ++q) y[i * k + q] += a[q] * x[i * k + q];
 }
 
-// Rows of P kept through `row_map` (old row -> new row or −1, monotone on kept rows), columns that
-// keep no entry dropped. `column_map` receives old column -> new column or −1.
+// Rows of P kept and renumbered through `row_map` (old row -> new row or −1), columns that keep no
+// entry dropped. The surviving columns are numbered in order of their first new row when
+// `order_by_rows` (so a locality ordering of the rows carries over to the columns: a coarse unknown
+// lands next to the fine unknowns it prolongs to), else in their old order. `column_map` receives
+// old column -> new column or −1. Inner indices sorted.
 SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<int>& row_map, Eigen::Index new_rows,
-                                   std::vector<int>& column_map) {
+                                   bool order_by_rows, std::vector<int>& column_map) {
   column_map.assign(static_cast<std::size_t>(P.cols()), -1);
-  std::vector<int> starts{0}, rows;
-  std::vector<double> values;
-  rows.reserve(static_cast<std::size_t>(P.nonZeros()));
-  values.reserve(static_cast<std::size_t>(P.nonZeros()));
-  int columns = 0;
+  std::vector<std::pair<int, int>> survivors;  // (first new row, old column)
   for (Eigen::Index j = 0; j < P.outerSize(); ++j) {
-    const std::size_t before = rows.size();
+    int first = -1;
     for (SparseMatrix::InnerIterator it(P, j); it; ++it) {
       const int r = row_map[static_cast<std::size_t>(it.row())];
-      if (r >= 0 && it.value() != 0.0) {
-        rows.push_back(r);
-        values.push_back(it.value());
-      }
+      if (r >= 0 && it.value() != 0.0 && (first < 0 || r < first)) first = r;
     }
-    if (rows.size() > before) {
-      column_map[static_cast<std::size_t>(j)] = columns++;
-      starts.push_back(static_cast<int>(rows.size()));
-    }
+    if (first >= 0) survivors.emplace_back(order_by_rows ? first : 0, static_cast<int>(j));
   }
-  SparseMatrix R(new_rows, columns);
+  if (order_by_rows) std::sort(survivors.begin(), survivors.end());
+  for (std::size_t c = 0; c < survivors.size(); ++c) column_map[static_cast<std::size_t>(survivors[c].second)] = static_cast<int>(c);
+  std::vector<int> starts{0}, rows;
+  std::vector<double> values;
+  std::vector<std::pair<int, double>> column;
+  rows.reserve(static_cast<std::size_t>(P.nonZeros()));
+  values.reserve(static_cast<std::size_t>(P.nonZeros()));
+  for (const auto& survivor : survivors) {
+    column.clear();
+    for (SparseMatrix::InnerIterator it(P, survivor.second); it; ++it) {
+      const int r = row_map[static_cast<std::size_t>(it.row())];
+      if (r >= 0 && it.value() != 0.0) column.emplace_back(r, it.value());
+    }
+    std::sort(column.begin(), column.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [r, value] : column) {
+      rows.push_back(r);
+      values.push_back(value);
+    }
+    starts.push_back(static_cast<int>(rows.size()));
+  }
+  SparseMatrix R(new_rows, static_cast<Eigen::Index>(survivors.size()));
   R.resizeNonZeros(static_cast<Eigen::Index>(rows.size()));
   std::copy(starts.begin(), starts.end(), R.outerIndexPtr());
   std::copy(rows.begin(), rows.end(), R.innerIndexPtr());
@@ -218,35 +303,41 @@ SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<int>
   return R;
 }
 
-// The free–free block of A and the free–constrained block (free rows, constrained columns).
-void split_matrix(const SparseMatrix& A, const std::vector<int>& free_index, Eigen::Index free_count,
+// The free–free block of A in the order `free` (free[i] = original index of free unknown i;
+// free_index its inverse, −1 at constrained indices) and the free–constrained block (free rows,
+// constrained columns). Inner indices sorted.
+void split_matrix(const SparseMatrix& A, const std::vector<int>& free, const std::vector<int>& free_index,
                   const std::vector<int>& constrained, SparseMatrix& A_ff, SparseMatrix& A_fc) {
-  std::vector<Eigen::Triplet<double>> fc;
+  const Eigen::Index free_count = static_cast<Eigen::Index>(free.size());
   std::vector<int> starts{0}, rows;
   std::vector<double> values;
   rows.reserve(static_cast<std::size_t>(A.nonZeros()));
   values.reserve(static_cast<std::size_t>(A.nonZeros()));
-  std::vector<int> constrained_column(static_cast<std::size_t>(A.cols()), -1);
-  for (std::size_t c = 0; c < constrained.size(); ++c) constrained_column[static_cast<std::size_t>(constrained[c])] = static_cast<int>(c);
-  for (Eigen::Index j = 0; j < A.outerSize(); ++j) {
-    const int fj = free_index[static_cast<std::size_t>(j)];
+  std::vector<std::pair<int, double>> column;
+  for (int j : free) {
+    column.clear();
     for (SparseMatrix::InnerIterator it(A, j); it; ++it) {
       const int fi = free_index[static_cast<std::size_t>(it.row())];
-      if (fi < 0) continue;
-      if (fj >= 0) {
-        rows.push_back(fi);
-        values.push_back(it.value());
-      } else {
-        fc.emplace_back(fi, constrained_column[static_cast<std::size_t>(j)], it.value());
-      }
+      if (fi >= 0) column.emplace_back(fi, it.value());
     }
-    if (fj >= 0) starts.push_back(static_cast<int>(rows.size()));
+    std::sort(column.begin(), column.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [r, value] : column) {
+      rows.push_back(r);
+      values.push_back(value);
+    }
+    starts.push_back(static_cast<int>(rows.size()));
   }
   A_ff = SparseMatrix(free_count, free_count);
   A_ff.resizeNonZeros(static_cast<Eigen::Index>(rows.size()));
   std::copy(starts.begin(), starts.end(), A_ff.outerIndexPtr());
   std::copy(rows.begin(), rows.end(), A_ff.innerIndexPtr());
   std::copy(values.begin(), values.end(), A_ff.valuePtr());
+  std::vector<Eigen::Triplet<double>> fc;
+  for (std::size_t c = 0; c < constrained.size(); ++c)
+    for (SparseMatrix::InnerIterator it(A, constrained[c]); it; ++it) {
+      const int fi = free_index[static_cast<std::size_t>(it.row())];
+      if (fi >= 0) fc.emplace_back(fi, static_cast<int>(c), it.value());
+    }
   A_fc = SparseMatrix(free_count, static_cast<Eigen::Index>(constrained.size()));
   A_fc.setFromTriplets(fc.begin(), fc.end());
 }
@@ -271,7 +362,8 @@ struct MultigridSolver::Level {
   double lambda_max = 0;  ///< Chebyshev: largest eigenvalue estimate of D⁻¹A
   Eigen::VectorXd x, b, r, d;  ///< work vectors
   Block X, B, R, D;            ///< work blocks of solve_multiple
-  std::vector<double> scratch;
+  SweepSplit split;            ///< threaded Gauss–Seidel ranges (parts = 1: serial)
+  std::vector<double> halo;    ///< the split's snapshot of cross-range values
 };
 
 MultigridSolver::MultigridSolver(std::vector<SparseMatrix> prolongations, MultigridOptions options)
@@ -352,6 +444,19 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<int> constrained)
       free_.push_back(static_cast<int>(i));
     }
 
+  reordered_ = options_.reorder;
+  if (options_.reorder && free_.size() > 2) {
+    // Number the free unknowns for locality (reverse Cuthill–McKee on A_FF's graph); the coarse
+    // levels inherit it through restrict_prolongation's column order.
+    SparseMatrix A_ff, A_fc;
+    split_matrix(A, free_, free_index_, constrained_, A_ff, A_fc);
+    const std::vector<int> order = reverse_cuthill_mckee(A_ff);
+    std::vector<int> reordered(free_.size());
+    for (std::size_t i = 0; i < order.size(); ++i) reordered[i] = free_[static_cast<std::size_t>(order[i])];
+    free_ = std::move(reordered);
+    for (std::size_t i = 0; i < free_.size(); ++i) free_index_[static_cast<std::size_t>(free_[i])] = static_cast<int>(i);
+  }
+
   // Restricted prolongations: free rows on level 0, then the surviving columns level by level.
   levels_.clear();
   std::vector<int> row_map = free_index_;
@@ -360,7 +465,7 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<int> constrained)
     auto level = std::make_unique<Level>();
     if (rows == 0) break;
     std::vector<int> column_map;
-    level->P = restrict_prolongation(P, row_map, rows, column_map);
+    level->P = restrict_prolongation(P, row_map, rows, options_.reorder, column_map);
     level->P_rows = level->P;
     if (level->P.cols() == 0) break;
     rows = level->P.cols();
@@ -385,7 +490,7 @@ void MultigridSolver::update_matrix(const SparseMatrix& A) {
 
 void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis) {
   Level& fine = *levels_[0];
-  split_matrix(A, free_index_, static_cast<Eigen::Index>(free_.size()), constrained_, fine.A, free_constrained_);
+  split_matrix(A, free_, free_index_, constrained_, fine.A, free_constrained_);
   for (std::size_t k = 0; k < levels_.size(); ++k) {
     Level& level = *levels_[k];
     if (k > 0) {
@@ -409,6 +514,7 @@ void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis
     level.r.resize(n);
     level.d.resize(n);
     level.lambda_max = 0;
+    level.split = SweepSplit();  // remade for the new operator on first use
   }
   const SparseMatrix& coarsest = levels_.back()->A;
   if (coarsest.rows() == 0) return;  // everything constrained
@@ -475,14 +581,18 @@ void MultigridSolver::chebyshev(std::size_t k) {
 
 void MultigridSolver::smooth(std::size_t k, bool pre) {
   Level& L = *levels_[k];
+  const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
+  const auto sweep = [&](bool forward) {
+    gauss_seidel(L.A, split, L.inv_diag, L.b.data(), L.x.data(), 1, forward, threads(), L.halo);
+  };
   for (int s = 0; s < options_.smoothing_steps; ++s) {
     switch (options_.smoother) {
       case MultigridSmoother::gauss_seidel:
-        gauss_seidel(L.A, L.inv_diag, L.b.data(), L.x.data(), pre);
+        sweep(pre);
         break;
       case MultigridSmoother::symmetric_gauss_seidel:
-        gauss_seidel(L.A, L.inv_diag, L.b.data(), L.x.data(), true);
-        gauss_seidel(L.A, L.inv_diag, L.b.data(), L.x.data(), false);
+        sweep(true);
+        sweep(false);
         break;
       case MultigridSmoother::chebyshev:
         chebyshev(k);
@@ -604,14 +714,18 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
 
 void MultigridSolver::smooth_block(std::size_t k, bool pre) {
   Level& L = *levels_[k];
+  const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
+  const auto sweep = [&](bool forward) {
+    gauss_seidel(L.A, split, L.inv_diag, L.B.data(), L.X.data(), L.X.cols(), forward, threads(), L.halo);
+  };
   for (int s = 0; s < options_.smoothing_steps; ++s) {
     switch (options_.smoother) {
       case MultigridSmoother::gauss_seidel:
-        gauss_seidel_block(L.A, L.inv_diag, L.B, L.X, pre, L.scratch);
+        sweep(pre);
         break;
       case MultigridSmoother::symmetric_gauss_seidel:
-        gauss_seidel_block(L.A, L.inv_diag, L.B, L.X, true, L.scratch);
-        gauss_seidel_block(L.A, L.inv_diag, L.B, L.X, false, L.scratch);
+        sweep(true);
+        sweep(false);
         break;
       case MultigridSmoother::chebyshev: {
         if (L.lambda_max == 0) {  // estimated once by the single-vector code
@@ -625,12 +739,12 @@ void MultigridSolver::smooth_block(std::size_t k, bool pre) {
         const double sigma = theta / delta;
         double rho = 1.0 / sigma;
         L.R.resize(L.X.rows(), L.X.cols());
-        residual_block(L.A, L.B, L.X, L.R);
+        residual_block(L.A, L.B, L.X, L.R, threads());
         L.D = (L.R.array().colwise() * L.inv_diag.array()) / theta;
         for (int step = 1;; ++step) {
           L.X += L.D;
           if (step == options_.chebyshev_degree) break;
-          residual_block(L.A, L.B, L.X, L.R);
+          residual_block(L.A, L.B, L.X, L.R, threads());
           const double rho_next = 1.0 / (2 * sigma - rho);
           L.D = (rho_next * rho) * L.D.array() + (2 * rho_next / delta) * (L.R.array().colwise() * L.inv_diag.array());
           rho = rho_next;
@@ -650,12 +764,12 @@ void MultigridSolver::vcycle_block(std::size_t k) {
   }
   smooth_block(k, true);
   L.R.resize(L.X.rows(), L.X.cols());
-  residual_block(L.A, L.B, L.X, L.R);
+  residual_block(L.A, L.B, L.X, L.R, threads());
   Level& C = *levels_[k + 1];
-  restrict_block(L.P, L.R, C.B);
+  restrict_block(L.P, L.R, C.B, threads());
   C.X.setZero(C.A.rows(), L.X.cols());
   vcycle_block(k + 1);
-  prolong_add_block(L.P, C.X, L.X);
+  prolong_add_block(L.P_rows, C.X, L.X, threads());
   smooth_block(k, false);
 }
 
@@ -681,8 +795,9 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
   if (constrained_values.size() != 0 && nf > 0) rhs.noalias() -= free_constrained_ * constrained_values;
   reports_.assign(static_cast<std::size_t>(k), MultigridReport());
   const SparseMatrix& A = levels_[0]->A;
+  const int t = threads();
   Block R(nf, k);
-  residual_block(A, rhs, X, R);
+  residual_block(A, rhs, X, R, t);
   Eigen::VectorXd scale = rhs.colwise().norm().transpose();
   for (Eigen::Index c = 0; c < k; ++c)
     if (!(scale(c) > 0)) scale(c) = 1;
@@ -701,7 +816,7 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
         L.B = rhs;
         L.X = X;
         vcycle_block(0);
-        residual_block(A, rhs, L.X, R);
+        residual_block(A, rhs, L.X, R, t);
         for (Eigen::Index c = 0; c < k; ++c) {
           if (!active[static_cast<std::size_t>(c)]) continue;
           X.col(c) = L.X.col(c);
@@ -720,10 +835,10 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
       Block Z, P, AP(nf, k);
       apply_vcycle_block(R, Z);
       P = Z;
-      Eigen::VectorXd rz = column_dots(R, Z), alpha(k), beta(k);
+      Eigen::VectorXd rz = column_dots(R, Z, t), alpha(k), beta(k);
       for (int it = 0; it < options_.max_iterations && remaining > 0; ++it) {
-        multiply_block(A, P, AP);
-        const Eigen::VectorXd pAp = column_dots(P, AP);
+        multiply_block(A, P, AP, t);
+        const Eigen::VectorXd pAp = column_dots(P, AP, t);
         for (Eigen::Index c = 0; c < k; ++c) {
           alpha(c) = 0;
           if (!active[static_cast<std::size_t>(c)]) continue;
@@ -734,9 +849,9 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
           }
           alpha(c) = rz(c) / pAp(c);
         }
-        axpy_columns(alpha, P, X);
-        axpy_columns(-alpha, AP, R);
-        const Eigen::VectorXd rr = column_dots(R, R);
+        axpy_columns(alpha, P, X, t);
+        axpy_columns(-alpha, AP, R, t);
+        const Eigen::VectorXd rr = column_dots(R, R, t);
         for (Eigen::Index c = 0; c < k; ++c) {
           if (alpha(c) == 0) continue;
           MultigridReport& rep = reports_[static_cast<std::size_t>(c)];
@@ -750,20 +865,22 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
         }
         if (remaining == 0) break;
         apply_vcycle_block(R, Z);
-        const Eigen::VectorXd rz_next = column_dots(R, Z);
+        const Eigen::VectorXd rz_next = column_dots(R, Z, t);
         for (Eigen::Index c = 0; c < k; ++c) beta(c) = active[static_cast<std::size_t>(c)] ? rz_next(c) / rz(c) : 0.0;
         // P = Z + beta P for active columns; inactive columns are left as they are.
         const double* z = Z.data();
         double* pp = P.data();
-        for (Eigen::Index i = 0, end = P.size(); i < end; i += k)
+        const char* on = active.data();
+#pragma omp parallel for schedule(static) num_threads(active_threads(nf, t))
+        for (Eigen::Index i = 0; i < nf; ++i)
           for (Eigen::Index q = 0; q < k; ++q)
-            if (active[static_cast<std::size_t>(q)]) pp[i + q] = z[i + q] + beta(q) * pp[i + q];
+            if (on[q]) pp[i * k + q] = z[i * k + q] + beta(q) * pp[i * k + q];
         for (Eigen::Index c = 0; c < k; ++c)
           if (active[static_cast<std::size_t>(c)]) rz(c) = rz_next(c);
       }
     }
   }
-  residual_block(A, rhs, X, R);
+  residual_block(A, rhs, X, R, t);
   Eigen::MatrixXd out(size_, k);
   for (Eigen::Index i = 0; i < nf; ++i) out.row(free_[static_cast<std::size_t>(i)]) = X.row(i);
   for (std::size_t c = 0; c < constrained_.size(); ++c)
