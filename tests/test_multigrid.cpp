@@ -312,18 +312,19 @@ TEST_CASE("multigrid refuses bad input", "[multigrid]") {
                   std::invalid_argument);
 }
 
-TEST_CASE("hierarchy variants (metric-ordered sets, plain greedy ICE) give valid multigrid levels", "[multigrid][hierarchy][shared]") {
+TEST_CASE("hierarchy variants (metric-ordered sets, plain greedy ICE, input numbering) give valid multigrid levels", "[multigrid][hierarchy][shared]") {
   const Setup& s = shared_setup("spot.obj");
   const fem::SparseMatrix A = s.L + shift(s) * s.M;
   const Eigen::VectorXd b = test_rhs(s);
   const Eigen::VectorXd reference = fem::CholeskySolver(A).solve(b);
-  for (int variant = 0; variant < 2; ++variant) {
+  for (int variant = 0; variant < 3; ++variant) {
     INFO("variant " << variant);
     ice::HierarchyOptions options;
     options.coarsest_vertices = 150;
     options.locked_vertices = {0, 1000};
     if (variant == 0) options.coarsen_sets_with_metric = true;
     if (variant == 1) options.independent_sets = false;
+    if (variant == 2) options.reorder = false;  // coarsened in the input's numbering
     const ice::Hierarchy H = ice::build_hierarchy(s.mesh, options);
     REQUIRE(H.num_levels() >= 3);
     for (const auto& level : H.levels) {  // locked vertices survive on every level
@@ -334,6 +335,11 @@ TEST_CASE("hierarchy variants (metric-ordered sets, plain greedy ICE) give valid
       const Eigen::VectorXd row_sums = P * Eigen::VectorXd::Ones(P.cols());
       CHECK((row_sums.array() - 1).abs().maxCoeff() < 1e-12);
     }
+    // P_0's rows are in the input's numbering: a level-1 vertex prolongs to its own fine vertex.
+    int identity_rows = 0;
+    for (ice::Index i = 0; i < H.levels[1].num_vertices(); ++i)
+      identity_rows += H.prolongations[0].coeff(H.levels[1].to_fine[static_cast<std::size_t>(i)], i) == 1.0;
+    CHECK(identity_rows == H.levels[1].num_vertices());
     fem::MultigridSolver solver(H.prolongations);
     solver.setup(A);
     const Eigen::VectorXd x = solver.solve(b);

@@ -8,6 +8,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "ice/graph_ordering.h"
 #include "ice/prolongation.h"
 
 namespace ice {
@@ -118,6 +119,31 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
   return total;
 }
 
+// F renumbered breadth first (ice::reverse_cuthill_mckee on the vertex graph of F); order[new] =
+// old. Vertices that no face uses keep a place (isolated vertices of the graph).
+Faces breadth_first_numbering(const Faces& F, std::vector<Index>& order) {
+  const Index n = F.rows() == 0 || F.minCoeff() < 0 ? 0 : F.maxCoeff() + 1;
+  std::vector<Index> offsets(static_cast<std::size_t>(n) + 1, 0), adjacency(static_cast<std::size_t>(6 * F.rows()));
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) offsets[static_cast<std::size_t>(F(f, k)) + 1] += 2;
+  for (Index v = 0; v < n; ++v) offsets[static_cast<std::size_t>(v) + 1] += offsets[static_cast<std::size_t>(v)];
+  std::vector<Index> fill(offsets.begin(), offsets.end() - 1);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Index v = F(f, k);
+      adjacency[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = F(f, (k + 1) % 3);
+      adjacency[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = F(f, (k + 2) % 3);
+    }
+  const std::vector<int> rcm = reverse_cuthill_mckee(static_cast<int>(n), offsets.data(), adjacency.data());
+  order.assign(rcm.begin(), rcm.end());
+  std::vector<Index> new_index(static_cast<std::size_t>(n));
+  for (Index i = 0; i < n; ++i) new_index[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])] = i;
+  Faces out(F.rows(), 3);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) out(f, k) = new_index[static_cast<std::size_t>(F(f, k))];
+  return out;
+}
+
 }  // namespace
 
 Hierarchy build_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options) {
@@ -133,7 +159,10 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
 
   // T is the triangulation being coarsened; its input vertices are the current level's vertices
   // (IntrinsicTriangulation::compacted restarts tracking), t_to_fine maps them to level-0 vertices.
-  IntrinsicTriangulation T = IntrinsicTriangulation::from_lengths(F, L);
+  // With options.reorder, T's level-0 vertex i is input vertex fine_order[i].
+  std::vector<Index> fine_order;
+  IntrinsicTriangulation T = options.reorder ? IntrinsicTriangulation::from_lengths(breadth_first_numbering(F, fine_order), L)
+                                             : IntrinsicTriangulation::from_lengths(F, L);
   const Index n0 = T.num_input_vertices();
   for (Index v : options.locked_vertices)
     if (v < 0 || v >= n0) throw std::invalid_argument("build_hierarchy: locked vertex out of range");
@@ -141,7 +170,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
   Hierarchy H;
   H.levels.push_back({F, L, std::vector<Index>(static_cast<std::size_t>(n0))});
   std::iota(H.levels[0].to_fine.begin(), H.levels[0].to_fine.end(), 0);
-  std::vector<Index> t_to_fine = H.levels[0].to_fine;
+  std::vector<Index> t_to_fine = options.reorder ? fine_order : H.levels[0].to_fine;
 
   H.stop_reason = "max_levels reached";
   while (H.num_levels() < options.max_levels) {
@@ -182,6 +211,12 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     else
       next.emplace(T.compacted(&C));
     Eigen::SparseMatrix<double> P = prolongation(T, C);  // this level's vertices × next level's
+    if (options.reorder && H.num_levels() == 1) {
+      // Level 0's rows back in the input's numbering: T's row i is input vertex fine_order[i].
+      Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, Index> to_input(n0);
+      for (Index i = 0; i < n0; ++i) to_input.indices()[i] = fine_order[static_cast<std::size_t>(i)];
+      P = to_input * P;
+    }
     P.makeCompressed();
     HierarchyLevel level;
     level.to_fine.resize(C.to_input.size());

@@ -16,10 +16,9 @@
 namespace fem {
 
 /// Reverse Cuthill–McKee ordering of the graph of A's off-diagonal pattern (A square with a
-/// symmetric pattern; values are ignored). Returns `order` with order[new] = old, a permutation of
-/// 0..n−1. Each connected component is numbered contiguously, breadth first from a pseudo-peripheral
-/// vertex (George–Liu search), neighbours in increasing degree; ties go to the lower index, so the
-/// result is deterministic. O(nnz + n log n). Throws std::invalid_argument if A is not square.
+/// symmetric pattern; values are ignored): ice::reverse_cuthill_mckee (ice/graph_ordering.h) on
+/// A's columns. Returns `order` with order[new] = old, a permutation of 0..n−1, each connected
+/// component contiguous; deterministic. Throws std::invalid_argument if A is not square.
 std::vector<int> reverse_cuthill_mckee(const SparseMatrix& A);
 
 /// Largest |i − j| over the stored entries of A (its bandwidth; 0 for a diagonal or empty matrix).

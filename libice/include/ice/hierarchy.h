@@ -53,6 +53,12 @@ struct HierarchyOptions {
   bool coarsen_sets_with_metric = false;
   /// Whether boundary vertices may be removed.
   bool remove_boundary = true;
+  /// Coarsen in a breadth-first (reverse Cuthill–McKee, ice/graph_ordering.h) numbering of the
+  /// fine vertices instead of the input's: each removal's two-ring then sits close in memory (a
+  /// Loop-subdivided mesh's own numbering scatters it), and the coarse levels inherit the order.
+  /// Internal only: level 0, prolongations[0]'s rows and every to_fine are in the input's numbering.
+  /// Which vertices each level keeps depends on the numbering (vertex-order independent sets).
+  bool reorder = true;
   /// Fine (level-0) vertices that stay on every level (e.g. to keep sources as coarse vertices).
   /// Not needed for Dirichlet conditions: fem::MultigridSolver handles those algebraically.
   std::vector<Index> locked_vertices;
