@@ -494,11 +494,7 @@ void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis
   for (std::size_t k = 0; k < levels_.size(); ++k) {
     Level& level = *levels_[k];
     if (k > 0) {
-      const SparseMatrix& P = levels_[k - 1]->P;
-      const SparseMatrix AP = levels_[k - 1]->A * P;
-      const SparseMatrix Pt = P.transpose();
-      const SparseMatrix B = Pt * AP;
-      level.A = 0.5 * (B + SparseMatrix(B.transpose()));
+      level.A = galerkin(levels_[k - 1]->P, levels_[k - 1]->A, threads());
     }
     level.A.makeCompressed();
     const Eigen::Index n = level.A.rows();

@@ -1,5 +1,8 @@
 #include "fem/operators.h"
 
+#include "parallel_kernels.h"
+
+#include <algorithm>
 #include <stdexcept>
 #include <vector>
 
@@ -99,11 +102,113 @@ SparseMatrix divergence(const Faces& F, const FaceLengths& L, Eigen::Index verte
   return SparseMatrix(-(G.transpose() * weights.asDiagonal()));
 }
 
-SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A) {
+SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads) {
   if (A.rows() != A.cols() || A.cols() != P.rows())
     throw std::invalid_argument("galerkin: need square A with as many rows as P");
-  const SparseMatrix product = SparseMatrix(P.transpose()) * (A * P);
-  return SparseMatrix(0.5 * (product + SparseMatrix(product.transpose())));
+  // Column J of Pᵀ A P is Σ_j P_jJ Σ_i A_ij (row i of P): one pass per coarse column with a dense
+  // accumulator (Gustavson), for the rows I ≥ J only; the upper triangle is the mirror image, so the
+  // result is exactly symmetric. One fused pass instead of Eigen's A·P, Pᵀ·(AP) and a
+  // symmetrisation, and the columns split among threads: at 1.66M fine unknowns (ICE hierarchy's
+  // P_0, 414k columns) 0.83–0.95 s on one thread and 0.59–0.64 s on two, against 1.26–1.41 s.
+  SparseMatrix P_copy, A_copy;  // compressed copies, only if needed
+  const auto compressed = [](const SparseMatrix& M, SparseMatrix& copy) -> const SparseMatrix& {
+    if (M.isCompressed()) return M;
+    copy = M;
+    copy.makeCompressed();
+    return copy;
+  };
+  const SparseMatrix& Pc = compressed(P, P_copy);
+  const SparseMatrix& Ac = compressed(A, A_copy);
+  const detail::RowMajorSparse P_rows = Pc;
+  const Eigen::Index nc = Pc.cols();
+  const int parts = detail::active_threads(Pc.rows(), threads > 0 ? threads : detail::default_threads());
+  struct Part {
+    std::vector<int> count;  // lower-triangle entries per column of the part's range
+    std::vector<int> rows;
+    std::vector<double> values;
+  };
+  std::vector<Part> part(static_cast<std::size_t>(parts));
+#pragma omp parallel for schedule(static, 1) num_threads(parts)
+  for (int t = 0; t < parts; ++t) {
+    Part& out = part[static_cast<std::size_t>(t)];
+    const Eigen::Index first = nc * t / parts, last = nc * (t + 1) / parts;
+    out.count.assign(static_cast<std::size_t>(last - first), 0);
+    std::vector<double> accumulator(static_cast<std::size_t>(nc), 0.0);
+    std::vector<int> touched;
+    std::vector<char> is_touched(static_cast<std::size_t>(nc), 0);
+    for (Eigen::Index J = first; J < last; ++J) {
+      touched.clear();
+      for (auto p = Pc.outerIndexPtr()[J]; p < Pc.outerIndexPtr()[J + 1]; ++p) {
+        const int j = Pc.innerIndexPtr()[p];
+        const double w = Pc.valuePtr()[p];
+        for (auto q = Ac.outerIndexPtr()[j]; q < Ac.outerIndexPtr()[j + 1]; ++q) {
+          const int i = Ac.innerIndexPtr()[q];
+          const double wa = w * Ac.valuePtr()[q];
+          for (auto r = P_rows.outerIndexPtr()[i]; r < P_rows.outerIndexPtr()[i + 1]; ++r) {
+            const int I = P_rows.innerIndexPtr()[r];
+            if (I < J) continue;
+            if (!is_touched[static_cast<std::size_t>(I)]) {
+              is_touched[static_cast<std::size_t>(I)] = 1;
+              touched.push_back(I);
+            }
+            accumulator[static_cast<std::size_t>(I)] += wa * P_rows.valuePtr()[r];
+          }
+        }
+      }
+      std::sort(touched.begin(), touched.end());
+      for (int I : touched) {
+        out.rows.push_back(I);
+        out.values.push_back(accumulator[static_cast<std::size_t>(I)]);
+        accumulator[static_cast<std::size_t>(I)] = 0;
+        is_touched[static_cast<std::size_t>(I)] = 0;
+      }
+      out.count[static_cast<std::size_t>(J - first)] = static_cast<int>(touched.size());
+    }
+  }
+  // Assemble both triangles: column c holds the mirrored entries (rows < c, in increasing order as
+  // the columns are visited in order) followed by its own lower-triangle entries (rows ≥ c).
+  std::vector<int> mirrored(static_cast<std::size_t>(nc), 0), own(static_cast<std::size_t>(nc), 0);
+  {
+    Eigen::Index J = 0;
+    for (const Part& pt : part) {
+      std::size_t k = 0;
+      for (int c : pt.count) {
+        own[static_cast<std::size_t>(J)] = c;
+        for (int e = 0; e < c; ++e, ++k)
+          if (pt.rows[k] != J) ++mirrored[static_cast<std::size_t>(pt.rows[k])];
+        ++J;
+      }
+    }
+  }
+  SparseMatrix result(nc, nc);
+  Eigen::Index total = 0;
+  for (Eigen::Index c = 0; c < nc; ++c) total += mirrored[static_cast<std::size_t>(c)] + own[static_cast<std::size_t>(c)];
+  result.resizeNonZeros(total);
+  auto* start = result.outerIndexPtr();
+  start[0] = 0;
+  for (Eigen::Index c = 0; c < nc; ++c)
+    start[c + 1] = start[c] + mirrored[static_cast<std::size_t>(c)] + own[static_cast<std::size_t>(c)];
+  std::vector<int> mirror_fill(start, start + nc);
+  Eigen::Index J = 0;
+  for (const Part& pt : part) {
+    std::size_t k = 0;
+    for (int c : pt.count) {
+      int own_fill = start[J] + mirrored[static_cast<std::size_t>(J)];
+      for (int e = 0; e < c; ++e, ++k) {
+        const int I = pt.rows[k];
+        const double value = pt.values[k];
+        result.innerIndexPtr()[own_fill] = I;
+        result.valuePtr()[own_fill++] = value;
+        if (I != J) {
+          const int at = mirror_fill[static_cast<std::size_t>(I)]++;
+          result.innerIndexPtr()[at] = static_cast<int>(J);
+          result.valuePtr()[at] = value;
+        }
+      }
+      ++J;
+    }
+  }
+  return result;
 }
 
 }  // namespace fem

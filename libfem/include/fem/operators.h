@@ -43,9 +43,11 @@ SparseMatrix gradient(const Faces& F, const FaceLengths& L, Eigen::Index vertex_
 /// (D X)_i = −∫ ∇φ_i · X.
 SparseMatrix divergence(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
 
-/// Galerkin coarse operator Pᵀ·A·P for a prolongation P (n_fine×n_coarse) and a fine operator A
-/// (n_fine×n_fine). The result is symmetrised ((B + Bᵀ)/2) so that round-off in the sparse product
-/// cannot make a symmetric operator unsymmetric.
-SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A);
+/// Galerkin coarse operator Pᵀ·A·P for a prolongation P (n_fine×n_coarse) and a symmetric fine
+/// operator A (n_fine×n_fine; precondition, not checked). The lower triangle is computed and
+/// mirrored, so the result is exactly symmetric; inner indices sorted. One fused pass over the
+/// coarse columns, split among `threads` (0: OpenMP's default; 1: serial) when P has at least
+/// 50,000 rows; the result does not depend on the thread count.
+SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads = 0);
 
 }  // namespace fem
