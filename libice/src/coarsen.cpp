@@ -293,8 +293,8 @@ class RemovalQueue {
     }
     place(i, e);
   }
-  std::vector<Entry> heap_;
-  std::vector<Slot> slot_;
+  LargeArray<Entry> heap_;
+  LargeArray<Slot> slot_;
 };
 
 }  // namespace
@@ -320,7 +320,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
     std::uint32_t seen = 0;
     std::uint8_t locked = 0, failures = 0;
   };
-  std::vector<VertexState> state(static_cast<std::size_t>(n));
+  LargeArray<VertexState> state(static_cast<std::size_t>(n));
   for (Index v : options.locked_vertices)
     if (v >= 0 && v < n) state[v].locked = 1;
   std::uint32_t epoch = 0;

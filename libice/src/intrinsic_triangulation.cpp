@@ -449,7 +449,7 @@ int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& fa
   // A stack of edges with an in-stack flag per edge slot; both are members, so local calls cost
   // only what they touch (the flags are all back to 0 when the stack empties).
   std::vector<Index>& stack = scratch_stack_;
-  std::vector<std::uint8_t>& queued = edge_queued_;
+  auto& queued = edge_queued_;
   stack.clear();
   if (queued.size() < edges_.size()) queued.resize(edges_.size(), 0);
   const auto push = [&](Index h) {

@@ -121,7 +121,7 @@ class IntrinsicErrorMetric {
     std::array<double, kChannels> mass{};
     std::array<std::complex<double>, kChannels> centre{};
   };
-  std::vector<Record> records_;
+  LargeArray<Record> records_;  // huge pages: read in removal order (ice/large_array.h)
   mutable std::vector<Neighbour> scratch_;
   mutable VertexStar star_;
   std::vector<PendingRecord> pending_;

@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "ice/mesh.h"
+#include "ice/large_array.h"
 #include "ice/triangle_geometry.h"
 
 namespace ice {
@@ -263,9 +264,10 @@ class IntrinsicTriangulation {
     Index halfedge;
     Index first_point;
   };
-  std::vector<EdgeRecord> edges_;
-  std::vector<VertexRecord> vertices_;
-  std::vector<FaceRecord> faces_;
+  // Large arrays (huge pages: the removal order jumps across them, see ice/large_array.h).
+  LargeArray<EdgeRecord> edges_;
+  LargeArray<VertexRecord> vertices_;
+  LargeArray<FaceRecord> faces_;
   // Reference accessors used by the implementation.
   Index& hnext(Index h) { return edges_[h >> 1].next[h & 1]; }
   Index& hprev(Index h) { return edges_[h >> 1].prev[h & 1]; }
@@ -293,8 +295,8 @@ class IntrinsicTriangulation {
   Index vhalfedge(Index v) const { return vertices_[v].halfedge; }
   double vsum(Index v) const { return vertices_[v].angle_sum; }
   // Tracked points: one per input vertex, with intrusive per-face lists.
-  std::vector<Index> point_face_, point_next_, point_prev_;
-  std::vector<std::array<double, 3>> point_bary_;
+  LargeArray<Index> point_face_, point_next_, point_prev_;
+  LargeArray<std::array<double, 3>> point_bary_;
   // Scratch space re-used by local operations (no allocation per flip or removal).
   struct PlacedPoint {
     Index point;
@@ -303,7 +305,7 @@ class IntrinsicTriangulation {
   std::vector<PlacedPoint> scratch_points_;
   std::vector<Index> scratch_stack_, scratch_vertices_, scratch_faces_;
   std::vector<CornerChange> scratch_corner_changes_;
-  std::vector<std::uint8_t> edge_queued_;
+  LargeArray<std::uint8_t> edge_queued_;
   template <class Layout>
   void collect_points(Index f, const Layout& layout);
   Index num_vertices_ = 0, num_edges_ = 0, num_faces_ = 0;

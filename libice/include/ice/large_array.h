@@ -1,0 +1,55 @@
+#pragma once
+/// \file large_array.h
+/// ice::LargeArray<T>: a std::vector whose large buffers (2 MiB and more) are aligned to 2 MiB and
+/// offered to the kernel for transparent huge pages (Linux madvise(MADV_HUGEPAGE); elsewhere, or
+/// when refused, plain pages). Smaller buffers come from std::allocator.
+///
+/// Why: mesh coarsening follows its cost order, not memory order, so on a million-vertex mesh
+/// almost every removal reads half-edge and vertex records that are neither in the caches nor in
+/// the TLB. With 4 KiB pages each such read also walks the page table; 2 MiB pages cover the
+/// ~270 MB of a 1.15M-vertex triangulation with ~135 TLB entries. Measured (fertility Loop ×4,
+/// 1.15M → 10k vertices, three interleaved runs each): 19.8–20.8 s against 21.2–26.0 s with plain
+/// pages (median 1.07x), as fast as glibc's own huge-page mode for every allocation; peak RSS
+/// 518 MB vs 507 MB. Most Linux systems default to huge pages only where asked
+/// (/sys/kernel/mm/transparent_hugepage/enabled = madvise), hence the request.
+#include <cstddef>
+#include <memory>
+#include <new>
+#include <vector>
+
+namespace ice {
+namespace detail {
+
+constexpr std::size_t kLargeArrayBytes = std::size_t{1} << 21;
+/// 2 MiB-aligned storage for at least `bytes` bytes, offered for huge pages. Throws std::bad_alloc.
+void* allocate_large(std::size_t bytes);
+void deallocate_large(void* pointer) noexcept;
+
+}  // namespace detail
+
+template <class T>
+struct LargeArrayAllocator {
+  using value_type = T;
+  LargeArrayAllocator() noexcept = default;
+  template <class U>
+  LargeArrayAllocator(const LargeArrayAllocator<U>&) noexcept {}
+  T* allocate(std::size_t n) {
+    if (n * sizeof(T) < detail::kLargeArrayBytes) return std::allocator<T>().allocate(n);
+    return static_cast<T*>(detail::allocate_large(n * sizeof(T)));
+  }
+  void deallocate(T* pointer, std::size_t n) noexcept {
+    if (n * sizeof(T) < detail::kLargeArrayBytes)
+      std::allocator<T>().deallocate(pointer, n);
+    else
+      detail::deallocate_large(pointer);
+  }
+  template <class U>
+  bool operator==(const LargeArrayAllocator<U>&) const noexcept { return true; }
+  template <class U>
+  bool operator!=(const LargeArrayAllocator<U>&) const noexcept { return false; }
+};
+
+template <class T>
+using LargeArray = std::vector<T, LargeArrayAllocator<T>>;
+
+}  // namespace ice

@@ -1,0 +1,26 @@
+#include "ice/large_array.h"
+
+#include <cstdlib>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
+namespace ice::detail {
+
+void* allocate_large(std::size_t bytes) {
+  constexpr std::size_t kHugePage = std::size_t{1} << 21;
+  const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;  // aligned_alloc needs a multiple
+  void* pointer = std::aligned_alloc(kHugePage, rounded);
+  if (pointer == nullptr) throw std::bad_alloc();
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  // Before the first touch, so that the page faults allocate huge pages directly. Advice only: a
+  // refusal (no THP support, or disabled) leaves ordinary pages.
+  (void)madvise(pointer, rounded, MADV_HUGEPAGE);
+#endif
+  return pointer;
+}
+
+void deallocate_large(void* pointer) noexcept { std::free(pointer); }
+
+}  // namespace ice::detail
