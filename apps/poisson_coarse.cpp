@@ -109,6 +109,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
                         {"cycle", fem::to_string(mo.mode)},
                         {"smoother", fem::to_string(mo.smoother)},
                         {"threads", mg.threads},
+                        {"reorder", mo.reorder},
                         {"levels", levels},
                         {"operator_complexity", multigrid.operator_complexity()},
                         {"hierarchy", {{"ratio", mg.ratio}, {"coarsest_vertices", mg.coarsest}, {"levels", hierarchy.num_levels()},
