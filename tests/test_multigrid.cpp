@@ -440,3 +440,29 @@ TEST_CASE("threaded multigrid solves equal serial ones on a 99k-vertex mesh", "[
       }
   }
 }
+
+TEST_CASE("a single-precision smoother changes neither the answer nor the iteration count", "[multigrid][shared]") {
+  // The V-cycle's sweeps and residuals read float values; CG (and the finest level of a stationary
+  // V-cycle iteration) stay double, so both modes still reach 1e-10 and the CHOLMOD solution.
+  const Setup& s = shared_setup("spot.obj");
+  const fem::SparseMatrix A = s.L + shift(s) * s.M;
+  const Eigen::VectorXd b = test_rhs(s);
+  const Eigen::VectorXd reference = fem::CholeskySolver(A).solve(b);
+  for (auto mode : {fem::MultigridMode::pcg, fem::MultigridMode::vcycle}) {
+    int iterations[2] = {0, 0};
+    for (bool single : {false, true}) {
+      INFO(fem::to_string(mode) << ", single precision " << single);
+      fem::MultigridOptions options;
+      options.mode = mode;
+      options.single_precision_smoother = single;
+      options.tolerance = 1e-10;
+      fem::MultigridSolver solver(s.hierarchy.prolongations, options);
+      solver.setup(A);
+      const Eigen::VectorXd x = solver.solve(b);
+      CHECK(solver.report().converged);
+      CHECK(relative_difference(x, reference) < 1e-8);
+      iterations[single] = solver.report().iterations;
+    }
+    CHECK(std::abs(iterations[1] - iterations[0]) <= 1);
+  }
+}

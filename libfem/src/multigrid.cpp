@@ -94,11 +94,10 @@ struct Width<0> {
   static Eigen::Index get(Eigen::Index k) { return k; }
 };
 
-template <int K, int Mode>
-void row_kernel(const SparseMatrix& A, const int* column, const double* halo, const double* inv_diag, const double* b,
-                double* x, double* out, Eigen::Index k_runtime, Eigen::Index lo, Eigen::Index hi) {
+template <int K, int Mode, class Value>
+void row_kernel(const SparseMatrix& A, const Value* value, const int* column, const double* halo, const double* inv_diag,
+                const double* b, double* x, double* out, Eigen::Index k_runtime, Eigen::Index lo, Eigen::Index hi) {
   const auto* start = A.outerIndexPtr();
-  const double* value = A.valuePtr();
   const Eigen::Index n = A.outerSize(), k = Width<K>::get(k_runtime);
   constexpr int kMax = K > 0 ? K : 64;
   double local[kMax];
@@ -116,7 +115,7 @@ void row_kernel(const SparseMatrix& A, const int* column, const double* halo, co
       for (Eigen::Index c = 0; c < k; ++c) s[c] = b[i * k + c];
     }
     for (auto p = start[i]; p < start[i + 1]; ++p) {
-      const double a = Mode == 1 ? -value[p] : value[p];
+      const double a = Mode == 1 ? -static_cast<double>(value[p]) : static_cast<double>(value[p]);
       const Eigen::Index j = column[p];
       const double* xr = j < n ? x + j * k : halo + (j - n) * k;
       for (Eigen::Index c = 0; c < k; ++c) s[c] -= a * xr[c];
@@ -130,22 +129,23 @@ void row_kernel(const SparseMatrix& A, const int* column, const double* halo, co
   }
 }
 
-// Runs row_kernel over all rows: products and residuals split among `threads` (no dependencies),
-// sweeps by `split` when it has several parts, else serially.
-template <int K, int Mode>
-void run_rows(const SparseMatrix& A, const SweepSplit* split, const double* inv_diag, const double* b, double* x,
-              double* out, Eigen::Index k, int threads, std::vector<double>& halo) {
+// Runs row_kernel over all rows with A's pattern and `value` (A's values, or a float copy of them):
+// products and residuals split among `threads` (no dependencies), sweeps by `split` when it has
+// several parts, else serially.
+template <int K, int Mode, class Value>
+void run_rows(const SparseMatrix& A, const Value* value, const SweepSplit* split, const double* inv_diag, const double* b,
+              double* x, double* out, Eigen::Index k, int threads, std::vector<double>& halo) {
   const Eigen::Index n = A.outerSize();
   const int* column = A.innerIndexPtr();
   if (Mode <= 1) {
     const int parts = active_threads(n, threads);
 #pragma omp parallel for schedule(static, 1) num_threads(parts)
     for (int t = 0; t < parts; ++t)
-      row_kernel<K, Mode>(A, column, nullptr, inv_diag, b, x, out, k, n * t / parts, n * (t + 1) / parts);
+      row_kernel<K, Mode>(A, value, column, nullptr, inv_diag, b, x, out, k, n * t / parts, n * (t + 1) / parts);
     return;
   }
   if (split == nullptr || split->parts <= 1) {
-    row_kernel<K, Mode>(A, column, nullptr, inv_diag, b, x, out, k, 0, n);
+    row_kernel<K, Mode>(A, value, column, nullptr, inv_diag, b, x, out, k, 0, n);
     return;
   }
   halo.resize(split->halo.size() * static_cast<std::size_t>(k));
@@ -154,33 +154,70 @@ void run_rows(const SparseMatrix& A, const SweepSplit* split, const double* inv_
       halo[slot * static_cast<std::size_t>(k) + static_cast<std::size_t>(c)] = x[split->halo[slot] * k + c];
 #pragma omp parallel for schedule(static, 1) num_threads(split->parts)
   for (int t = 0; t < split->parts; ++t)
-    row_kernel<K, Mode>(A, split->column.data(), halo.data(), inv_diag, b, x, out, k,
+    row_kernel<K, Mode>(A, value, split->column.data(), halo.data(), inv_diag, b, x, out, k,
                         split->bounds[static_cast<std::size_t>(t)], split->bounds[static_cast<std::size_t>(t) + 1]);
 }
 
-template <int Mode>
-void rows_dispatch(const SparseMatrix& A, const SweepSplit* split, const double* inv_diag, const double* b, double* x,
-                   double* out, Eigen::Index k, int threads, std::vector<double>& halo) {
+template <int Mode, class Value>
+void rows_dispatch(const SparseMatrix& A, const Value* value, const SweepSplit* split, const double* inv_diag,
+                   const double* b, double* x, double* out, Eigen::Index k, int threads, std::vector<double>& halo) {
   switch (k) {
 #define ICE_MG_CASE(K) \
   case K:              \
-    return run_rows<K, Mode>(A, split, inv_diag, b, x, out, k, threads, halo);
+    return run_rows<K, Mode>(A, value, split, inv_diag, b, x, out, k, threads, halo);
     ICE_MG_CASE(1) ICE_MG_CASE(2) ICE_MG_CASE(3) ICE_MG_CASE(4) ICE_MG_CASE(5) ICE_MG_CASE(6) ICE_MG_CASE(7)
     ICE_MG_CASE(8) ICE_MG_CASE(9) ICE_MG_CASE(10) ICE_MG_CASE(11) ICE_MG_CASE(12) ICE_MG_CASE(13)
     ICE_MG_CASE(14) ICE_MG_CASE(15) ICE_MG_CASE(16)
 #undef ICE_MG_CASE
     default:
-      return run_rows<0, Mode>(A, split, inv_diag, b, x, out, k, threads, halo);
+      return run_rows<0, Mode>(A, value, split, inv_diag, b, x, out, k, threads, halo);
   }
 }
 
+// The values a level's smoother and V-cycle residual read: A's, or their float copy (made on
+// first use) with options.single_precision_smoother. Either way one symmetric matrix is used for
+// smoothing and residuals, so the V-cycle stays a symmetric positive definite operator. Chebyshev
+// always uses A's own, and so does the finest level of a stationary V-cycle iteration (`exact`):
+// its fixed point must solve A x = b, not the rounded system.
+struct SmootherValues {
+  const double* wide = nullptr;
+  const float* narrow = nullptr;
+};
+template <class LevelData>
+SmootherValues cycle_values(LevelData& L, const MultigridOptions& options, std::size_t k) {
+  const bool exact = options.mode == MultigridMode::vcycle && k == 0;
+  if (exact || options.smoother == MultigridSmoother::chebyshev || !options.single_precision_smoother)
+    return {L.A.valuePtr(), nullptr};
+  if (L.values32.size() != static_cast<std::size_t>(L.A.nonZeros()))
+    L.values32.assign(L.A.valuePtr(), L.A.valuePtr() + L.A.nonZeros());
+  return {nullptr, L.values32.data()};
+}
+
 // One Gauss–Seidel sweep on k vectors (x_i += (b_i − (A x)_i) / a_ii), forward or backward.
-void gauss_seidel(const SparseMatrix& A, const SweepSplit* split, const Eigen::VectorXd& inv_diag, const double* b,
-                  double* x, Eigen::Index k, bool forward, int threads, std::vector<double>& halo) {
-  if (forward)
-    rows_dispatch<2>(A, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
+void gauss_seidel(const SparseMatrix& A, SmootherValues values, const SweepSplit* split, const Eigen::VectorXd& inv_diag,
+                  const double* b, double* x, Eigen::Index k, bool forward, int threads, std::vector<double>& halo) {
+  const double* d = inv_diag.data();
+  if (values.narrow != nullptr) {
+    if (forward)
+      rows_dispatch<2>(A, values.narrow, split, d, b, x, nullptr, k, threads, halo);
+    else
+      rows_dispatch<3>(A, values.narrow, split, d, b, x, nullptr, k, threads, halo);
+  } else {
+    if (forward)
+      rows_dispatch<2>(A, values.wide, split, d, b, x, nullptr, k, threads, halo);
+    else
+      rows_dispatch<3>(A, values.wide, split, d, b, x, nullptr, k, threads, halo);
+  }
+}
+
+// r = b − A x for k vectors with the given values (threaded).
+void residual_rows(const SparseMatrix& A, SmootherValues values, const double* b, const double* x, double* r,
+                   Eigen::Index k, int threads) {
+  std::vector<double> unused;
+  if (values.narrow != nullptr)
+    rows_dispatch<0>(A, values.narrow, nullptr, nullptr, b, const_cast<double*>(x), r, k, threads, unused);
   else
-    rows_dispatch<3>(A, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
+    rows_dispatch<0>(A, values.wide, nullptr, nullptr, b, const_cast<double*>(x), r, k, threads, unused);
 }
 
 // The level's split for `threads` (made on first use or when the thread count changed), or null
@@ -196,12 +233,12 @@ const SweepSplit* level_split(LevelData& L, int threads) {
 
 // Block kernels: X, B, R are n × k row-major.
 void residual_block(const SparseMatrix& A, const Block& B, const Block& X, Block& R, int threads) {
-  std::vector<double> unused;
-  rows_dispatch<0>(A, nullptr, nullptr, B.data(), const_cast<double*>(X.data()), R.data(), X.cols(), threads, unused);
+  residual_rows(A, {A.valuePtr(), nullptr}, B.data(), X.data(), R.data(), X.cols(), threads);
 }
 void multiply_block(const SparseMatrix& A, const Block& X, Block& Y, int threads) {
   std::vector<double> unused;
-  rows_dispatch<1>(A, nullptr, nullptr, nullptr, const_cast<double*>(X.data()), Y.data(), X.cols(), threads, unused);
+  rows_dispatch<1>(A, A.valuePtr(), nullptr, nullptr, nullptr, const_cast<double*>(X.data()), Y.data(), X.cols(), threads,
+                   unused);
 }
 
 // C = Pᵀ R (restriction, a gather per column of the column-major P) and X += P C (prolongation, a
@@ -363,6 +400,7 @@ struct MultigridSolver::Level {
   Eigen::VectorXd x, b, r, d;  ///< work vectors
   Block X, B, R, D;            ///< work blocks of solve_multiple
   SweepSplit split;            ///< threaded Gauss–Seidel ranges (parts = 1: serial)
+  std::vector<float> values32; ///< A's values rounded to float (single_precision_smoother)
   std::vector<double> halo;    ///< the split's snapshot of cross-range values
 };
 
@@ -511,6 +549,7 @@ void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis
     level.d.resize(n);
     level.lambda_max = 0;
     level.split = SweepSplit();  // remade for the new operator on first use
+    level.values32.clear();
   }
   const SparseMatrix& coarsest = levels_.back()->A;
   if (coarsest.rows() == 0) return;  // everything constrained
@@ -578,8 +617,9 @@ void MultigridSolver::chebyshev(std::size_t k) {
 void MultigridSolver::smooth(std::size_t k, bool pre) {
   Level& L = *levels_[k];
   const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
+  const SmootherValues values = cycle_values(L, options_, k);
   const auto sweep = [&](bool forward) {
-    gauss_seidel(L.A, split, L.inv_diag, L.b.data(), L.x.data(), 1, forward, threads(), L.halo);
+    gauss_seidel(L.A, values, split, L.inv_diag, L.b.data(), L.x.data(), 1, forward, threads(), L.halo);
   };
   for (int s = 0; s < options_.smoothing_steps; ++s) {
     switch (options_.smoother) {
@@ -605,7 +645,7 @@ void MultigridSolver::vcycle(std::size_t k) {
     return;
   }
   smooth(k, true);
-  residual(L.A, L.b.data(), L.x.data(), L.r.data(), threads());
+  residual_rows(L.A, cycle_values(L, options_, k), L.b.data(), L.x.data(), L.r.data(), 1, threads());
   Level& C = *levels_[k + 1];
   gather_product(L.P, L.r.data(), C.b.data(), false, threads(), L.P.rows());  // C.b = Pᵀ r
   C.x.setZero();
@@ -711,8 +751,9 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
 void MultigridSolver::smooth_block(std::size_t k, bool pre) {
   Level& L = *levels_[k];
   const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
+  const SmootherValues values = cycle_values(L, options_, k);
   const auto sweep = [&](bool forward) {
-    gauss_seidel(L.A, split, L.inv_diag, L.B.data(), L.X.data(), L.X.cols(), forward, threads(), L.halo);
+    gauss_seidel(L.A, values, split, L.inv_diag, L.B.data(), L.X.data(), L.X.cols(), forward, threads(), L.halo);
   };
   for (int s = 0; s < options_.smoothing_steps; ++s) {
     switch (options_.smoother) {
@@ -760,7 +801,7 @@ void MultigridSolver::vcycle_block(std::size_t k) {
   }
   smooth_block(k, true);
   L.R.resize(L.X.rows(), L.X.cols());
-  residual_block(L.A, L.B, L.X, L.R, threads());
+  residual_rows(L.A, cycle_values(L, options_, k), L.B.data(), L.X.data(), L.R.data(), L.X.cols(), threads());
   Level& C = *levels_[k + 1];
   restrict_block(L.P, L.R, C.B, threads());
   C.X.setZero(C.A.rows(), L.X.cols());
