@@ -23,20 +23,6 @@ void multiply(const SparseMatrix& A, const double* x, double* y, int threads) {
   gather_product(A, x, y, false, threads, A.outerSize());
 }
 
-// r = b − A x.
-void residual(const SparseMatrix& A, const double* b, const double* x, double* r, int threads) {
-  const auto* start = A.outerIndexPtr();
-  const auto* row = A.innerIndexPtr();
-  const double* value = A.valuePtr();
-  const Eigen::Index n = A.outerSize();
-#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
-  for (Eigen::Index i = 0; i < n; ++i) {
-    double s = b[i];
-    for (auto p = start[i]; p < start[i + 1]; ++p) s -= value[p] * x[row[p]];
-    r[i] = s;
-  }
-}
-
 using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 // Threaded Gauss–Seidel ("hybrid" Gauss–Seidel): the rows are split into `parts` contiguous ranges,
@@ -484,14 +470,12 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<int> constrained)
 
   reordered_ = options_.reorder;
   if (options_.reorder && free_.size() > 2) {
-    // Number the free unknowns for locality (reverse Cuthill–McKee on A_FF's graph); the coarse
-    // levels inherit it through restrict_prolongation's column order.
-    SparseMatrix A_ff, A_fc;
-    split_matrix(A, free_, free_index_, constrained_, A_ff, A_fc);
-    const std::vector<int> order = reverse_cuthill_mckee(A_ff);
-    std::vector<int> reordered(free_.size());
-    for (std::size_t i = 0; i < order.size(); ++i) reordered[i] = free_[static_cast<std::size_t>(order[i])];
-    free_ = std::move(reordered);
+    // Number the free unknowns for locality: reverse Cuthill–McKee on A's graph, constrained
+    // unknowns left out (they only cut the graph; the order stays local). The coarse levels inherit
+    // it through restrict_prolongation's column order.
+    free_.clear();
+    for (int v : reverse_cuthill_mckee(A))
+      if (free_index_[static_cast<std::size_t>(v)] >= 0) free_.push_back(v);
     for (std::size_t i = 0; i < free_.size(); ++i) free_index_[static_cast<std::size_t>(free_[i])] = static_cast<int>(i);
   }
 
@@ -693,7 +677,7 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   const auto norm = [&](const Eigen::VectorXd& v) { return std::sqrt(dot(v, v, t)); };
   const double norm_b = norm(rhs);
   Eigen::VectorXd r(nf);
-  residual(A, rhs.data(), x.data(), r.data(), t);
+  residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), x.data(), r.data(), 1, t);
   const double scale = norm_b > 0 ? norm_b : 1.0;
   double res = norm(r) / scale;
   report_.residuals.push_back(res);
@@ -703,7 +687,7 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
       L.x = x;
       while (report_.iterations < options_.max_iterations) {
         vcycle(0);
-        residual(A, rhs.data(), L.x.data(), r.data(), t);
+        residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), L.x.data(), r.data(), 1, t);
         res = norm(r) / scale;
         ++report_.iterations;
         report_.residuals.push_back(res);
@@ -731,7 +715,7 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
       }
     }
   }
-  residual(A, rhs.data(), x.data(), r.data(), t);
+  residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), x.data(), r.data(), 1, t);
   report_.relative_residual = nf > 0 ? norm(r) / scale : 0.0;
   report_.converged = report_.relative_residual <= options_.tolerance ||
                       (nf > 0 && report_.residuals.back() <= options_.tolerance &&
