@@ -216,8 +216,8 @@ int main(int argc, char** argv) {
   cli.add_option("--mg-cycle", mg.cycle, "multigrid: pcg (V-cycle preconditioned CG) or vcycle")
       ->check(CLI::IsMember({"pcg", "vcycle"}))->capture_default_str();
   cli.add_option("--mg-threads", mg.threads,
-                 "multigrid: threads for products, transfers and CG vector operations on levels of 50,000+ "
-                 "unknowns (0: OMP_NUM_THREADS or all cores; Gauss-Seidel sweeps are serial)")
+                 "multigrid: threads for Gauss-Seidel sweeps, products, transfers and CG vector operations on "
+                 "levels of 50,000+ unknowns (0: OMP_NUM_THREADS or all cores)")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   opt.add_to(cli, "'solution' (prolonged), 'reference' and 'error' (= solution - reference)");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
