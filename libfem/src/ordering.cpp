@@ -1,6 +1,7 @@
 #include "fem/ordering.h"
 
 #include "ice/graph_ordering.h"
+#include "sparse_columns.h"
 
 #include <algorithm>
 #include <stdexcept>
@@ -9,11 +10,9 @@ namespace fem {
 
 std::vector<int> reverse_cuthill_mckee(const SparseMatrix& A) {
   if (A.rows() != A.cols()) throw std::invalid_argument("reverse_cuthill_mckee: the matrix must be square");
-  if (A.isCompressed())
-    return ice::reverse_cuthill_mckee(static_cast<int>(A.rows()), A.outerIndexPtr(), A.innerIndexPtr());
-  SparseMatrix compressed = A;  // the search walks outer ranges
-  compressed.makeCompressed();
-  return ice::reverse_cuthill_mckee(static_cast<int>(A.rows()), compressed.outerIndexPtr(), compressed.innerIndexPtr());
+  SparseMatrix copy;
+  const SparseMatrix& C = detail::compressed(A, copy);
+  return ice::reverse_cuthill_mckee(static_cast<int>(C.rows()), C.outerIndexPtr(), C.innerIndexPtr());
 }
 
 Eigen::Index bandwidth(const SparseMatrix& A) {
@@ -34,25 +33,10 @@ SparseMatrix permute_symmetric(const SparseMatrix& A, const std::vector<int>& or
       throw std::invalid_argument("permute_symmetric: order is not a permutation");
     new_index[static_cast<std::size_t>(old)] = static_cast<int>(i);
   }
-  SparseMatrix B(n, n);
-  B.resizeNonZeros(A.nonZeros());
-  auto* outer = B.outerIndexPtr();
-  outer[0] = 0;
-  std::vector<std::pair<int, double>> column;
-  Eigen::Index nnz = 0;
-  for (Eigen::Index j = 0; j < n; ++j) {
-    column.clear();
+  return detail::assemble_columns(n, n, A.nonZeros(), [&](Eigen::Index j, std::vector<std::pair<int, double>>& column) {
     for (SparseMatrix::InnerIterator it(A, order[static_cast<std::size_t>(j)]); it; ++it)
       column.emplace_back(new_index[static_cast<std::size_t>(it.row())], it.value());
-    std::sort(column.begin(), column.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (const auto& [row, value] : column) {
-      B.innerIndexPtr()[nnz] = row;
-      B.valuePtr()[nnz] = value;
-      ++nnz;
-    }
-    outer[j + 1] = static_cast<int>(nnz);
-  }
-  return B;
+  });
 }
 
 }  // namespace fem
