@@ -212,10 +212,7 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   }
   for (Index v = 0; v < num_vertices; ++v) recompute_vertex_frame(v);
 
-  point_face_.assign(num_vertices, kInvalid);
-  point_next_.assign(num_vertices, kInvalid);
-  point_prev_.assign(num_vertices, kInvalid);
-  point_bary_.assign(num_vertices, {0, 0, 0});
+  points_.assign(num_vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -327,11 +324,8 @@ void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near, c
 // Tracked points
 
 void IntrinsicTriangulation::add_point_to_face(Index p, Index f, const std::array<double, 3>& bary) {
-  point_face_[p] = f;
-  point_bary_[p] = clamp_barycentric(bary);
-  point_prev_[p] = kInvalid;
-  point_next_[p] = ffirst(f);
-  if (point_next_[p] != kInvalid) point_prev_[point_next_[p]] = p;
+  static_assert(sizeof(TrackedPoint) == 32, "a point record never straddles a cache line");
+  points_[p] = TrackedPoint{f, ffirst(f), clamp_barycentric(bary)};
   ffirst(f) = p;
 }
 
@@ -340,8 +334,8 @@ SurfacePoint IntrinsicTriangulation::location(Index p) const {
   if (vertex_alive(p)) {
     s.vertex = p;
   } else {
-    s.face = point_face_[p];
-    s.bary = point_bary_[p];
+    s.face = points_[p].face;
+    s.bary = points_[p].bary;
   }
   return s;
 }
@@ -353,11 +347,11 @@ void IntrinsicTriangulation::collect_points(Index f, const Layout& layout) {
   const Vec2 p0 = layout.at(h0), p1 = layout.at(h1), p2 = layout.at(h2);
   Index p = ffirst(f);
   while (p != kInvalid) {
-    const Index following = point_next_[p];
-    const auto& b = point_bary_[p];
+    TrackedPoint& point = points_[p];
+    const auto& b = point.bary;
     scratch_points_.push_back({p, p0 * b[0] + p1 * b[1] + p2 * b[2]});
-    point_face_[p] = point_next_[p] = point_prev_[p] = kInvalid;
-    p = following;
+    p = point.next;
+    point.face = point.next = kInvalid;
   }
   ffirst(f) = kInvalid;
 }
@@ -541,7 +535,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
     const Index h0 = fhalfedge(f);
     const bool at_v[3] = {tail(h0) == v, tail(next(h0)) == v, tail(prev(h0)) == v};
     for_each_point_in_face(f, [&](Index p) {
-      std::array<double, 3>& b = point_bary_[p];
+      std::array<double, 3>& b = points_[p].bary;
       for (int k = 0; k < 3; ++k)
         if (at_v[k]) b[k] *= weight;
       b = clamp_barycentric(b);
@@ -894,10 +888,7 @@ IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) cons
     const VertexRecord& old_record = vertices_[arrays.to_input[c]];
     T.vertices_[c] = VertexRecord{halfedge_id(old_record.halfedge), old_record.boundary, old_record.angle_sum};
   }
-  T.point_face_.assign(vertices, kInvalid);
-  T.point_next_.assign(vertices, kInvalid);
-  T.point_prev_.assign(vertices, kInvalid);
-  T.point_bary_.assign(vertices, {0, 0, 0});
+  T.points_.assign(vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
   T.num_vertices_ = vertices, T.num_edges_ = edges, T.num_faces_ = faces;
   if (maps) *maps = std::move(arrays);
   return T;
@@ -1021,27 +1012,27 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
   Index listed = 0;
   for (Index f = 0; f < num_face_slots(); ++f) {
     if (!face_alive(f)) continue;
-    for (Index p = ffirst(f); p != kInvalid; p = point_next_[p]) {
+    for (Index p = ffirst(f); p != kInvalid; p = points_[p].next) {
       if (++listed > num_input_vertices()) {
         fail("point list of face " + std::to_string(f) + " does not end");
         return problems.str();
       }
-      if (point_face_[p] != f) fail("point " + std::to_string(p) + " listed in the wrong face");
+      if (points_[p].face != f) fail("point " + std::to_string(p) + " listed in the wrong face");
     }
   }
   Index located = 0;
   for (Index p = 0; p < num_input_vertices(); ++p) {
     if (vertex_alive(p)) {
-      if (point_face_[p] != kInvalid) fail("point " + std::to_string(p) + " is a vertex and in a face");
+      if (points_[p].face != kInvalid) fail("point " + std::to_string(p) + " is a vertex and in a face");
       continue;
     }
     ++located;
-    const Index f = point_face_[p];
+    const Index f = points_[p].face;
     if (f == kInvalid || !face_alive(f)) {
       fail("removed vertex " + std::to_string(p) + " is in no live face");
       continue;
     }
-    const auto& b = point_bary_[p];
+    const auto& b = points_[p].bary;
     if (b[0] < -tolerance || b[1] < -tolerance || b[2] < -tolerance ||
         std::abs(b[0] + b[1] + b[2] - 1) > tolerance)
       fail("point " + std::to_string(p) + " has barycentric coordinates outside its face");
@@ -1052,8 +1043,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
 
 std::size_t IntrinsicTriangulation::memory_bytes() const {
   const auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return bytes(edges_) + bytes(vertices_) + bytes(faces_) + bytes(point_face_) + bytes(point_next_) +
-         bytes(point_prev_) + bytes(point_bary_);
+  return bytes(edges_) + bytes(vertices_) + bytes(faces_) + bytes(points_);
 }
 
 }  // namespace ice

@@ -204,7 +204,7 @@ class IntrinsicTriangulation {
   /// Input vertices tracked inside face f (for iteration; order unspecified).
   template <class F>
   void for_each_point_in_face(Index f, F&& fn) const {
-    for (Index p = ffirst(f); p != kInvalid; p = point_next_[p]) fn(p);
+    for (Index p = ffirst(f); p != kInvalid; p = points_[p].next) fn(p);
   }
 
   // ---- export and checks ------------------------------------------------------------------
@@ -294,9 +294,14 @@ class IntrinsicTriangulation {
   Index ffirst(Index f) const { return faces_[f].first_point; }
   Index vhalfedge(Index v) const { return vertices_[v].halfedge; }
   double vsum(Index v) const { return vertices_[v].angle_sum; }
-  // Tracked points: one per input vertex, with intrusive per-face lists.
-  LargeArray<Index> point_face_, point_next_, point_prev_;
-  LargeArray<std::array<double, 3>> point_bary_;
+  // Tracked points: one record per input vertex (32 bytes: relocating a point touches one cache
+  // line), in intrusive singly linked per-face lists (points only ever leave a face all together).
+  struct TrackedPoint {
+    Index face;  // kInvalid while the input vertex is a vertex
+    Index next;  // next point in the same face
+    std::array<double, 3> bary;
+  };
+  LargeArray<TrackedPoint> points_;
   // Scratch space re-used by local operations (no allocation per flip or removal).
   struct PlacedPoint {
     Index point;
