@@ -225,6 +225,12 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
                  "Decimater with quadrics, input vertices mapped by closest-point projection)")
       ->check(CLI::IsMember({"ice", "qem"}))
       ->capture_default_str();
+  cli.add_option("--coarsen-threads", threads,
+                 "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = k regions coarsened in parallel, "
+                 "then a serial pass over the whole mesh (meshes of 50,000+ vertices; deterministic for a given k, "
+                 "not identical to the serial result); 0 = one per hardware thread")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
 }
 
 void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
@@ -253,6 +259,7 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
   }
   options.max_error = max_error;
   options.area_weight = area_weight;
+  options.threads = threads;
 }
 
 ice::CoarsenResult coarsen_with_progress(ice::IntrinsicTriangulation& T, ice::CoarsenOptions options,

@@ -143,10 +143,12 @@ struct TargetOptions {
   double max_error = std::numeric_limits<double>::infinity();
   double area_weight = 0;
   std::string method = "ice";  ///< "ice" or "qem"
-  /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight and --method.
+  int threads = 1;             ///< ICE coarsening threads (ice::CoarsenOptions::threads)
+  /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight, --method
+  /// and --coarsen-threads.
   void add_to(CLI::App& cli, bool with_max_error);
   /// Checks the values against an input of n vertices and fills `options` (target, error, area
-  /// weight). Throws AppError(kUsage) with a clear message on a bad combination or value.
+  /// weight, threads). Throws AppError(kUsage) with a clear message on a bad combination or value.
   void apply(ice::CoarsenOptions& options, long long n) const;
 };
 

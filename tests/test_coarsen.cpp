@@ -219,3 +219,80 @@ TEST_CASE("a compacted coarse triangulation is a valid input for further coarsen
   CHECK(result.output_vertices <= 3);
   CHECK(level.compacted().validate() == "");
 }
+
+TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays close to the serial order", "[coarsen][shared]") {
+  // Boundary loops (camelhead), genus 4 (fertility, once Loop-subdivided: 18k vertices), three
+  // components (blobby_3cc), a large closed surface (spot_subdiv); two and three threads (eight and
+  // twelve regions).
+  struct Case {
+    const char* name;
+    int subdivisions;
+    int threads;
+  };
+  for (const Case& c : {Case{"camelhead.off", 0, 2}, Case{"fertility.off", 1, 2}, Case{"blobby_3cc.off", 0, 2},
+                        Case{"spot_subdiv.obj", 0, 3}}) {
+    INFO(c.name << " (" << c.subdivisions << " subdivisions), " << c.threads << " threads");
+    const TriangleMesh mesh = loop_subdivide(load_mesh(ice_test::shared_mesh(c.name)), c.subdivisions);
+    CoarsenOptions options;
+    options.target_ratio = 0.02;
+    options.threads = c.threads;
+    options.parallel_min_vertices = 1000;
+    for (Index v = 0; v < mesh.V.rows(); v += 997) options.locked_vertices.push_back(v);
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    const int chi = T.euler_characteristic();
+    const CoarsenResult result = coarsen(T, options);
+    CHECK(result.stop_reason == StopReason::TargetReached);
+    CHECK(result.parallel_removed > result.removed / 2);  // most removals ran in the regions
+    CHECK(result.removed == mesh.V.rows() - T.num_vertices());
+    CHECK(T.validate() == "");
+    CHECK(T.euler_characteristic() == chi);
+    CHECK(std::abs(T.total_curvature() - 2 * kPi * chi) < 1e-8);
+    CHECK(count_non_delaunay(T) == 0);  // the seams were restored too
+    for (Index v : options.locked_vertices) CHECK(T.vertex_alive(v));
+    check_map(T);
+
+    auto again = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    coarsen(again, options);
+    const CompactMesh a = T.compact(), b = again.compact();
+    CHECK(a.F == b.F);
+    CHECK(a.L == b.L);  // bit-identical for a given thread count
+    CHECK(a.to_input == b.to_input);
+
+    // The same problem serially: the largest removal cost is of the same size (the regions only
+    // reorder the early, cheap removals; the serial pass orders the last ones globally).
+    auto serial = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    options.threads = 1;
+    const CoarsenResult serial_result = coarsen(serial, options);
+    CHECK(serial_result.parallel_removed == 0);
+    CHECK(result.max_cost < 1.5 * serial_result.max_cost);
+    CHECK(result.max_cost > serial_result.max_cost / 1.5);
+  }
+}
+
+TEST_CASE("the parallel mode honours thresholds and cancellation", "[coarsen]") {
+  const TriangleMesh mesh = make_icosphere(5);  // 10,242 vertices
+  CoarsenOptions options;
+  options.threads = 2;
+  options.parallel_min_vertices = 1000;
+  SECTION("threshold") {
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    options.max_error = 0.02;
+    const CoarsenResult result = coarsen(T, options);
+    CHECK(result.stop_reason == StopReason::ErrorThreshold);
+    CHECK(result.parallel_removed > 0);
+    CHECK(result.max_cost <= 0.02);
+    CHECK(result.next_cost > 0.02);
+    CHECK(T.validate() == "");
+  }
+  SECTION("cancel") {
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    options.target_vertices = 100;
+    options.progress_interval = 100;
+    options.progress = [](const CoarsenProgress& p) { return p.removed < 1000; };
+    const CoarsenResult result = coarsen(T, options);
+    CHECK(result.stop_reason == StopReason::Cancelled);
+    CHECK(result.removed >= 1000);
+    CHECK(result.removed < 9000);
+    CHECK(T.validate() == "");
+  }
+}

@@ -3,6 +3,11 @@
 #include "ice/vertex_star.h"
 
 #include <algorithm>
+#include <atomic>
+#include <exception>
+#include <memory>
+#include <optional>
+#include <thread>
 #include <chrono>
 #include <cmath>
 
@@ -74,6 +79,11 @@ std::array<double, IntrinsicErrorMetric::kChannels> IntrinsicErrorMetric::total_
   return total;
 }
 
+IntrinsicErrorMetric::Workspace& IntrinsicErrorMetric::workspace() {
+  thread_local Workspace work;
+  return work;
+}
+
 bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out,
                                          double* log_scale) const {
   out.clear();
@@ -81,7 +91,7 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
   // split weights only rank and share masses: a 1e-7 relative angle-sum tolerance is plenty (the
   // weights move by about as much; the committed flattening itself is exact to 1e-13). A scale
   // already computed for the same star (*log_scale finite on entry) is reused.
-  VertexStar& star = star_;
+  VertexStar& star = workspace().star;
   read_star(T, v, star);
   double u = log_scale ? *log_scale : std::numeric_limits<double>::quiet_NaN();
   if (std::isfinite(u)) {
@@ -161,41 +171,44 @@ void IntrinsicErrorMetric::merge_channels(const IntrinsicTriangulation& T, Index
 
 double IntrinsicErrorMetric::removal_cost(const IntrinsicTriangulation& T, Index v, double* log_scale) const {
   if (log_scale) *log_scale = std::numeric_limits<double>::quiet_NaN();
-  if (!split_weights(T, v, scratch_, log_scale)) return std::numeric_limits<double>::infinity();
+  std::vector<Neighbour>& neighbours = workspace().neighbours;
+  if (!split_weights(T, v, neighbours, log_scale)) return std::numeric_limits<double>::infinity();
   // The neighbours' records are usually not cached on large meshes: request them all at once.
-  for (const Neighbour& n : scratch_) __builtin_prefetch(&records_[n.vertex]);
+  for (const Neighbour& n : neighbours) __builtin_prefetch(&records_[n.vertex]);
   double cost = 0;
-  for (const Neighbour& n : scratch_)  // m'·|x'| = |m'·x'|
+  for (const Neighbour& n : neighbours)  // m'·|x'| = |m'·x'|
     merge_channels(T, v, n, [&](int, double, double re, double im) { cost += std::sqrt(re * re + im * im); });
   return cost;
 }
 
 bool IntrinsicErrorMetric::prepare_removal(const IntrinsicTriangulation& T, Index v, double log_scale) {
-  pending_.clear();
-  pending_vertex_ = kInvalid;
-  if (!split_weights(T, v, scratch_, &log_scale)) return false;
-  for (const Neighbour& n : scratch_) {
+  Workspace& work = workspace();
+  work.pending.clear();
+  work.pending_vertex = kInvalid;
+  if (!split_weights(T, v, work.neighbours, &log_scale)) return false;
+  for (const Neighbour& n : work.neighbours) {
     PendingRecord record{n.vertex, {}, {}};
     merge_channels(T, v, n, [&](int c, double mass, double re, double im) {
       record.mass[c] = mass;
       record.moment[c] = {re, im};
     });
-    pending_.push_back(record);
+    work.pending.push_back(record);
   }
-  pending_vertex_ = v;
+  work.pending_vertex = v;
   return true;
 }
 
 void IntrinsicErrorMetric::apply_prepared_removal() {
-  for (const PendingRecord& r : pending_) {
+  Workspace& work = workspace();
+  for (const PendingRecord& r : work.pending) {
     Record& record = records_[r.vertex];
     record.mass = r.mass;
     for (int c = 0; c < kChannels; ++c)
       record.centre[c] = r.mass[c] > 0 ? r.moment[c] / r.mass[c] : std::complex<double>(0, 0);
   }
-  if (pending_vertex_ != kInvalid) records_[pending_vertex_] = Record{};
-  pending_.clear();
-  pending_vertex_ = kInvalid;
+  if (work.pending_vertex != kInvalid) records_[work.pending_vertex] = Record{};
+  work.pending.clear();
+  work.pending_vertex = kInvalid;
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -299,6 +312,222 @@ class RemovalQueue {
 
 }  // namespace
 
+namespace {
+
+// Per-vertex driver state in one record (one cache line fetch per vertex touched, which is what
+// bounds the speed once the mesh outgrows the caches). log_scale is the flattening scale found by
+// the vertex's latest cost evaluation (its star has not changed since: every change re-evaluates
+// it), so the removal re-uses it instead of running Newton again; seen dedupes the vertices to
+// re-evaluate after one removal.
+struct VertexState {
+  double log_scale = std::numeric_limits<double>::quiet_NaN();
+  std::uint32_t seen = 0;
+  std::uint8_t locked = 0, failures = 0;
+};
+constexpr std::uint8_t kMaxFailures = 3;
+
+// What the greedy loops of one coarsen() call share.
+struct GreedyContext {
+  IntrinsicTriangulation& T;
+  IntrinsicErrorMetric& metric;
+  LargeArray<VertexState>& state;
+  const CoarsenOptions& options;
+  Index final_target;                 // for progress reports
+  Index vertices_at_start;            // for progress reports
+  std::atomic<Index> removed{0};      // by all loops so far
+  std::atomic<bool> cancelled{false};
+};
+
+// Where one greedy loop works: the whole mesh, or (parallel phase) one region. A region's loop
+// only removes interior, non-frontier vertices of its region (their stars and their neighbours'
+// stars lie in it) and only flips edges inside it, so loops of different regions read and write
+// disjoint data.
+struct GreedyScope {
+  const IntrinsicTriangulation::WriteRegion* region = nullptr;
+  std::uint8_t* frontier = nullptr;  // with a region: 1 where a neighbour lies outside it (set by the loop)
+  Index vertices = 0;                // live vertices in scope (decremented per removal)
+  Index target = 0;                  // never go below
+  bool reports_progress = false;     // the calling thread's loop calls options.progress
+};
+
+// Why GreedyLoop::run returned.
+enum class RunStop { Target, Threshold, Quota, Empty, Cancelled };
+
+// The greedy removal loop of one scope, resumable: run() removes the cheapest vertex while its
+// cost is at most a threshold, up to a quota of removals, and can be called again with another.
+class GreedyLoop {
+ public:
+  GreedyLoop(GreedyContext& context, const GreedyScope& scope)
+      : context_(context), scope_(scope), T_(context.T), state_(context.state), queue_(T_.num_input_vertices()) {
+    const Index n = T_.num_input_vertices();
+    const IntrinsicTriangulation::WriteRegion* region = scope_.region;
+    if (region)  // each loop marks its own vertices: faces at them are never changed by other loops
+      for (Index v = 0; v < n; ++v)
+        if (region->contains(v)) {
+          scope_.frontier[v] = 0;
+          T_.for_each_outgoing(v, [&](Index h) {
+            if (!region->contains(T_.head(h))) scope_.frontier[v] = 1;
+          });
+        }
+    for (Index v = 0; v < n; ++v)
+      if (in_scope(v)) {
+        state_[v].seen = 0;
+        schedule(v);
+        blocked_ += T_.vertex_alive(v) && !eligible(v);
+      }
+  }
+
+  RunStop run(double threshold, Index quota) {
+    const CoarsenOptions& options = context_.options;
+    for (Index removed_here = 0;; ) {
+      if (scope_.vertices <= scope_.target) return RunStop::Target;
+      if (removed_here >= quota) return RunStop::Quota;
+      if (context_.cancelled.load(std::memory_order_relaxed)) return RunStop::Cancelled;
+      if (queue_.empty()) return RunStop::Empty;
+      const RemovalQueue::Entry top = queue_.top();  // a copy: erase() moves the heap's entries
+      if (top.cost > threshold) return RunStop::Threshold;
+      const Index v = top.vertex;
+      queue_.erase(v);
+      // The one-ring (its costs change), collected while the star exists.
+      affected_.clear();
+      T_.for_each_outgoing(v, [&](Index h) {
+        affected_.push_back(T_.head(h));
+        affected_.push_back(T_.tail(T_.prev(h)));
+      });
+      if (!context_.metric.prepare_removal(T_, v, state_[v].log_scale)) continue;
+      changed_faces_.clear();
+      const RemovalStatus status = T_.remove_vertex(v, &changed_faces_, &affected_, state_[v].log_scale);
+      if (status == RemovalStatus::Removed) {
+        context_.metric.apply_prepared_removal();
+        ++result_.removed, ++removed_here;
+        --scope_.vertices;
+        result_.last_cost = top.cost;
+        result_.max_cost = std::max(result_.max_cost, top.cost);
+        context_.removed.fetch_add(1, std::memory_order_relaxed);
+      } else {
+        ++result_.failed_removals;
+        ++result_.failures_by_status[static_cast<int>(status)];
+        ++state_[v].failures;
+        affected_.push_back(v);
+      }
+      T_.flip_to_delaunay_around(changed_faces_, &affected_, scope_.region);
+      ++epoch_;
+      for (Index u : affected_) {
+        if (!in_scope(u) || state_[u].seen == epoch_) continue;
+        state_[u].seen = epoch_;
+        schedule(u);
+      }
+      if (scope_.reports_progress && options.progress && status == RemovalStatus::Removed &&
+          result_.removed % options.progress_interval == 0) {
+        const Index removed = context_.removed.load(std::memory_order_relaxed);
+        const CoarsenProgress progress{context_.vertices_at_start - removed, context_.final_target, removed,
+                                       result_.last_cost};
+        if (!options.progress(progress)) {
+          context_.cancelled.store(true, std::memory_order_relaxed);
+          return RunStop::Cancelled;
+        }
+      }
+    }
+  }
+
+  /// The cost of the cheapest candidate (+inf if none).
+  double next_cost() { return queue_.empty() ? std::numeric_limits<double>::infinity() : queue_.top().cost; }
+  const CoarsenResult& result() const { return result_; }
+  Index vertices() const { return scope_.vertices; }
+  /// Live vertices in scope that were never candidates (frontier, boundary, locked, failed).
+  Index blocked() const { return blocked_; }
+
+ private:
+  // Nothing outside the region is read or written: its state belongs to another thread.
+  bool in_scope(Index v) const { return !scope_.region || scope_.region->contains(v); }
+  bool eligible(Index v) const {
+    if (scope_.region && (!scope_.region->contains(v) || scope_.frontier[v] || T_.is_boundary_vertex(v))) return false;
+    return T_.vertex_alive(v) && !state_[v].locked && state_[v].failures < kMaxFailures &&
+           (context_.options.remove_boundary || !T_.is_boundary_vertex(v));
+  }
+  void schedule(Index v) {
+    const double cost = eligible(v) ? context_.metric.removal_cost(T_, v, &state_[v].log_scale)
+                                    : std::numeric_limits<double>::infinity();
+    if (std::isfinite(cost)) queue_.set(v, cost);
+    else queue_.erase(v);
+  }
+
+  GreedyContext& context_;
+  GreedyScope scope_;
+  IntrinsicTriangulation& T_;
+  LargeArray<VertexState>& state_;
+  RemovalQueue queue_;
+  std::uint32_t epoch_ = 0;
+  Index blocked_ = 0;
+  std::vector<Index> affected_, changed_faces_;
+  CoarsenResult result_;
+};
+
+void add_counts(CoarsenResult& total, const CoarsenResult& part) {
+  total.removed += part.removed;
+  total.failed_removals += part.failed_removals;
+  for (std::size_t k = 0; k < part.failures_by_status.size(); ++k) total.failures_by_status[k] += part.failures_by_status[k];
+  total.max_cost = std::max(total.max_cost, part.max_cost);
+}
+
+// Runs f(task) for task = 0..tasks−1 on `threads` threads (the calling one included), each thread
+// taking the next task when it finishes one (a task's result must not depend on which thread runs
+// it); rethrows the first exception.
+template <class F>
+void run_tasks(int threads, int tasks, F&& f) {
+  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(tasks));
+  std::atomic<int> next{0};
+  const auto work = [&] {
+    for (int task; (task = next.fetch_add(1)) < tasks;) {
+      try {
+        f(task);
+      } catch (...) {
+        errors[task] = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> workers;
+  for (int t = 1; t < std::min(threads, tasks); ++t) workers.emplace_back(work);
+  work();
+  for (std::thread& worker : workers) worker.join();
+  for (const std::exception_ptr& error : errors)
+    if (error) std::rethrow_exception(error);
+}
+
+// Labels the live vertices with `parts` regions: contiguous ranges of a breadth-first order of
+// each component (first vertex first), i.e. a ball and the shells around it, each compact on the
+// surface with a short frontier. Dead vertices get kNoRegion. Returns each region's live vertex
+// count.
+constexpr std::uint8_t kNoRegion = 255;
+std::vector<Index> partition_vertices(const IntrinsicTriangulation& T, int parts, std::vector<std::uint8_t>& label) {
+  const Index n = T.num_input_vertices();
+  const Index live = T.num_vertices();
+  label.assign(static_cast<std::size_t>(n), kNoRegion);
+  std::vector<Index> sizes(static_cast<std::size_t>(parts), 0);
+  std::vector<Index> queue;
+  queue.reserve(static_cast<std::size_t>(live));
+  Index rank = 0;
+  for (Index root = 0; root < n; ++root) {
+    if (label[root] != kNoRegion || !T.vertex_alive(root)) continue;
+    queue.clear();
+    queue.push_back(root);
+    label[root] = 0;  // visited (the final label is set when dequeued)
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+      const Index v = queue[head];
+      const int part = static_cast<int>(static_cast<std::int64_t>(rank++) * parts / live);
+      label[v] = static_cast<std::uint8_t>(part);
+      ++sizes[part];
+      T.for_each_outgoing(v, [&](Index h) {
+        const Index w = T.head(h);
+        if (label[w] == kNoRegion) label[w] = 0, queue.push_back(w);
+      });
+    }
+  }
+  return sizes;
+}
+
+}  // namespace
+
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   const Index n = T.num_input_vertices();
@@ -309,86 +538,128 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
     target = static_cast<Index>(std::ceil(options.target_ratio * T.num_vertices()));
   target = std::max<Index>(target, 1);
 
-  IntrinsicErrorMetric metric(T, options.area_weight);
-  // Per-vertex driver state in one record (one cache line fetch per vertex touched, which is what
-  // bounds the speed once the mesh outgrows the caches). log_scale is the flattening scale found by
-  // the vertex's latest cost evaluation (its star has not changed since: every change re-evaluates
-  // it), so the removal re-uses it instead of running Newton again; seen dedupes the vertices to
-  // re-evaluate after one removal.
-  struct VertexState {
-    double log_scale = std::numeric_limits<double>::quiet_NaN();
-    std::uint32_t seen = 0;
-    std::uint8_t locked = 0, failures = 0;
-  };
+  // Parallel phase: the threads coarsen regions of the mesh (see GreedyScope) down to an
+  // intermediate size that leaves max(target, 1/32 of the removals) to the serial phase, which
+  // restores the Delaunay property along the seams and then continues the global greedy order from
+  // exact costs over all vertices (so the last, most visible removals are ordered as in the serial
+  // algorithm, and the vertices along the seams are removed too).
+  const int threads = std::min(options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
+  const Index live = T.num_vertices();
+  const Index intermediate = target + std::max<Index>(target, (live - target) / 32);
+  const bool parallel = threads > 1 && live >= options.parallel_min_vertices && intermediate < live / 2;
+  // More regions than threads: a thread that finishes its region early in a round takes another.
+  const int parts = std::min(4 * threads, 254);
+  // The partition (a breadth-first pass) runs while this thread sets up the metric.
+  std::vector<std::uint8_t> label, frontier;
+  std::vector<Index> sizes;
+  std::exception_ptr partition_error;
+  std::thread partitioner;
+  if (parallel)
+    partitioner = std::thread([&] {
+      try {
+        sizes = partition_vertices(T, parts, label);
+        frontier.resize(label.size());
+      } catch (...) {
+        partition_error = std::current_exception();
+      }
+    });
+  std::optional<IntrinsicErrorMetric> metric_storage;
+  try {
+    metric_storage.emplace(T, options.area_weight);
+  } catch (...) {
+    if (partitioner.joinable()) partitioner.join();
+    throw;
+  }
+  IntrinsicErrorMetric& metric = *metric_storage;
   LargeArray<VertexState> state(static_cast<std::size_t>(n));
   for (Index v : options.locked_vertices)
     if (v >= 0 && v < n) state[v].locked = 1;
-  std::uint32_t epoch = 0;
-  constexpr std::uint8_t kMaxFailures = 3;
+  GreedyContext context{T, metric, state, options, target, T.num_vertices()};
+  if (partitioner.joinable()) partitioner.join();
+  if (partition_error) std::rethrow_exception(partition_error);
 
-  RemovalQueue queue(n);
-  const auto eligible = [&](Index v) {
-    return T.vertex_alive(v) && !state[v].locked && state[v].failures < kMaxFailures &&
-           (options.remove_boundary || !T.is_boundary_vertex(v));
-  };
-  const auto schedule = [&](Index v) {
-    const double cost = eligible(v) ? metric.removal_cost(T, v, &state[v].log_scale) : std::numeric_limits<double>::infinity();
-    if (std::isfinite(cost)) queue.set(v, cost);
-    else queue.erase(v);
-  };
-  for (Index v = 0; v < n; ++v) schedule(v);
-
-  std::vector<Index> affected, changed_faces;
-  result.stop_reason = StopReason::TargetReached;
-  while (T.num_vertices() > target) {
-    if (queue.empty()) {
-      result.stop_reason = StopReason::NothingRemovable;
-      break;
-    }
-    const RemovalQueue::Entry top = queue.top();  // a copy: erase() moves the heap's entries
-    if (top.cost > options.max_error) {
-      result.stop_reason = StopReason::ErrorThreshold;
-      break;
-    }
-    const Index v = top.vertex;
-    queue.erase(v);
-    // The one-ring (its costs change), collected while the star exists.
-    affected.clear();
-    T.for_each_outgoing(v, [&](Index h) {
-      affected.push_back(T.head(h));
-      affected.push_back(T.tail(T.prev(h)));
+  if (parallel) {
+    // The regions advance in rounds with a common cost threshold that grows by kGrowth per round,
+    // so they remove vertices in nearly the global cost order (a region whose vertices are all
+    // expensive waits instead of being forced to its share of the removals); within a round, a
+    // quota per region (its share of the removals still wanted) keeps the total from overshooting
+    // the intermediate size. Region outcomes depend only on the thresholds and quotas, which are
+    // computed between rounds from the regions' counts: deterministic.
+    constexpr double kGrowth = 1.4;
+    constexpr int kMaxRounds = 1000;
+    std::vector<IntrinsicTriangulation::WriteRegion> regions(parts);
+    std::vector<std::unique_ptr<GreedyLoop>> loops(parts);
+    run_tasks(threads, parts, [&](int r) {
+      regions[r] = {label.data(), static_cast<std::uint8_t>(r)};
+      GreedyScope scope;
+      scope.region = &regions[r];
+      scope.frontier = frontier.data();
+      scope.vertices = sizes[r];
+      scope.target = 0;
+      scope.reports_progress = false;  // progress is reported between rounds, on this thread
+      loops[r] = std::make_unique<GreedyLoop>(context, scope);
     });
-    if (!metric.prepare_removal(T, v, state[v].log_scale)) continue;
-    changed_faces.clear();
-    const RemovalStatus status = T.remove_vertex(v, &changed_faces, &affected, state[v].log_scale);
-    if (status == RemovalStatus::Removed) {
-      metric.apply_prepared_removal();
-      ++result.removed;
-      result.last_cost = top.cost;
-      result.max_cost = std::max(result.max_cost, top.cost);
-    } else {
-      ++result.failed_removals;
-      ++result.failures_by_status[static_cast<int>(status)];
-      ++state[v].failures;
-      affected.push_back(v);
-    }
-    T.flip_to_delaunay_around(changed_faces, &affected);
-    ++epoch;
-    for (Index u : affected) {
-      if (state[u].seen == epoch) continue;
-      state[u].seen = epoch;
-      schedule(u);
-    }
-    if (options.progress && result.removed % options.progress_interval == 0 && status == RemovalStatus::Removed) {
-      const CoarsenProgress progress{T.num_vertices(), target, result.removed, result.last_cost};
-      if (!options.progress(progress)) {
-        result.stop_reason = StopReason::Cancelled;
-        break;
+    double threshold = std::numeric_limits<double>::infinity();
+    for (auto& loop : loops) threshold = std::min(threshold, loop->next_cost());
+    // The vertices the regions cannot remove stay on top of the intermediate size: the regions
+    // must not make up for them with removals the serial order would not make yet.
+    Index blocked = 0;
+    for (auto& loop : loops) blocked += loop->blocked();
+    const Index parallel_target = std::min(live, intermediate + blocked);
+    Index vertices = live;
+    std::vector<RunStop> stops(parts);
+    int rounds = 0;
+    for (; rounds < kMaxRounds && vertices > parallel_target && std::isfinite(threshold) && !context.cancelled.load(); ++rounds) {
+      const double round_threshold = std::min(threshold, options.max_error);
+      const Index wanted = vertices - parallel_target;
+      run_tasks(threads, parts, [&](int r) {
+        const Index quota = std::max<Index>(1, static_cast<Index>(std::ceil(static_cast<double>(wanted) * loops[r]->vertices() / vertices)));
+        stops[r] = loops[r]->run(round_threshold, quota);
+      });
+      vertices = 0;
+      bool quota_hit = false, any_left = false;
+      for (int r = 0; r < parts; ++r) {
+        vertices += loops[r]->vertices();
+        quota_hit = quota_hit || stops[r] == RunStop::Quota;
+        any_left = any_left || stops[r] == RunStop::Threshold || stops[r] == RunStop::Quota;
+      }
+      if (!any_left) break;  // every region is out of candidates
+      if (options.progress) {
+        const Index removed = context.removed.load();
+        if (!options.progress(CoarsenProgress{live - removed, target, removed, threshold})) context.cancelled.store(true);
+      }
+      if (!quota_hit) {
+        if (threshold >= options.max_error) break;  // the error bound stops every region
+        threshold *= kGrowth;
       }
     }
+    for (auto& loop : loops) {
+      add_counts(result, loop->result());
+      result.last_cost = std::max(result.last_cost, loop->result().last_cost);
+    }
+    result.parallel_removed = result.removed;
+    loops.clear();
+    T.flip_to_delaunay();  // the seams: edges with a corner in two regions were never flipped
   }
-  // The cost of the cheapest remaining removal (for reports and threshold stops).
-  result.next_cost = queue.empty() ? std::numeric_limits<double>::infinity() : queue.top().cost;
+
+  if (!context.cancelled.load()) {
+    GreedyScope whole;
+    whole.vertices = T.num_vertices();
+    whole.target = target;
+    whole.reports_progress = true;
+    GreedyLoop loop(context, whole);
+    const RunStop stop = loop.run(options.max_error, std::numeric_limits<Index>::max());
+    add_counts(result, loop.result());
+    if (loop.result().removed > 0) result.last_cost = loop.result().last_cost;
+    result.stop_reason = stop == RunStop::Target      ? StopReason::TargetReached
+                         : stop == RunStop::Threshold ? StopReason::ErrorThreshold
+                         : stop == RunStop::Cancelled ? StopReason::Cancelled
+                                                      : StopReason::NothingRemovable;
+    result.next_cost = loop.next_cost();
+  } else {
+    result.stop_reason = StopReason::Cancelled;
+    result.next_cost = std::numeric_limits<double>::quiet_NaN();
+  }
   result.output_vertices = T.num_vertices();
   result.output_faces = T.num_faces();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -340,16 +340,26 @@ SurfacePoint IntrinsicTriangulation::location(Index p) const {
   return s;
 }
 
-// Appends every point of face f to scratch_points_, with its position in `layout`, and unlinks it.
+std::vector<IntrinsicTriangulation::PlacedPoint>& IntrinsicTriangulation::scratch_points() {
+  thread_local std::vector<PlacedPoint> points;
+  return points;
+}
+
+std::vector<Index>& IntrinsicTriangulation::scratch_faces() {
+  thread_local std::vector<Index> faces;
+  return faces;
+}
+
+// Appends every point of face f to `out`, with its position in `layout`, and unlinks it.
 template <class Layout>
-void IntrinsicTriangulation::collect_points(Index f, const Layout& layout) {
+void IntrinsicTriangulation::collect_points(Index f, const Layout& layout, std::vector<PlacedPoint>& out) {
   const Index h0 = fhalfedge(f), h1 = next(h0), h2 = next(h1);
   const Vec2 p0 = layout.at(h0), p1 = layout.at(h1), p2 = layout.at(h2);
   Index p = ffirst(f);
   while (p != kInvalid) {
     TrackedPoint& point = points_[p];
     const auto& b = point.bary;
-    scratch_points_.push_back({p, p0 * b[0] + p1 * b[1] + p2 * b[2]});
+    out.push_back({p, p0 * b[0] + p1 * b[1] + p2 * b[2]});
     p = point.next;
     point.face = point.next = kInvalid;
   }
@@ -391,7 +401,8 @@ bool IntrinsicTriangulation::flip(Index h) {
 
   // Tracked points of both faces, with their positions in the layout.
   const bool has_points = ffirst(f0) != kInvalid || ffirst(f1) != kInvalid;
-  scratch_points_.clear();
+  std::vector<PlacedPoint>& points = scratch_points();
+  points.clear();
   if (has_points) {
     LocalLayout layout;
     layout.set(h, pi);
@@ -400,8 +411,8 @@ bool IntrinsicTriangulation::flip(Index h) {
     layout.set(t, pj);
     layout.set(c, pi);
     layout.set(d, pl);
-    collect_points(f0, layout);
-    collect_points(f1, layout);
+    collect_points(f0, layout, points);
+    collect_points(f1, layout, points);
   }
 
   // Rewire: f0 = (h: l->k, b: k->i, c: i->l), f1 = (t: k->l, d: l->j, a: j->k).
@@ -422,7 +433,7 @@ bool IntrinsicTriangulation::flip(Index h) {
   hangle(h) = wrap_angle(hangle(d) + angle_scale(l) * corner_l);
   hangle(t) = wrap_angle(hangle(b) + angle_scale(k) * corner_k);
 
-  for (const auto& q : scratch_points_) {
+  for (const auto& q : points) {
     if (orient2d(pk, pl, q.position) > 0)
       add_point_to_face(q.point, f1, barycentric(q.position, pk, pl, pj));
     else
@@ -439,16 +450,20 @@ int IntrinsicTriangulation::flip_to_delaunay() {
   return flip_to_delaunay_around(faces);
 }
 
-int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& faces, std::vector<Index>* touched) {
-  // A stack of edges with an in-stack flag per edge slot; both are members, so local calls cost
-  // only what they touch (the flags are all back to 0 when the stack empties).
-  std::vector<Index>& stack = scratch_stack_;
-  auto& queued = edge_queued_;
+int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& faces, std::vector<Index>* touched,
+                                                    const WriteRegion* region) {
+  // A stack of edges with an in-stack flag per edge slot, kept between calls (per thread), so local
+  // calls cost only what they touch (the flags are all back to 0 when the stack empties). Outside
+  // the region an edge is not even flagged: another thread may own it.
+  thread_local std::vector<Index> stack;
+  thread_local std::vector<std::uint8_t> queued;
   stack.clear();
   if (queued.size() < edges_.size()) queued.resize(edges_.size(), 0);
   const auto push = [&](Index h) {
     const Index e = h >> 1;
-    if (!queued[e] && !is_boundary_edge(h)) {
+    if (!queued[e] && !is_boundary_edge(h) &&
+        (!region || (region->contains(tail(h)) && region->contains(head(h)) && region->contains(tail(prev(h))) &&
+                     region->contains(tail(prev(h ^ 1)))))) {
       queued[e] = 1;
       stack.push_back(e);
     }
@@ -498,7 +513,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   // star (no second Heron). They are computed afresh rather than as increments of the old corners:
   // an increment carries the relative error of two areas, which on thin faces reaches 1e-11 rad
   // and would accumulate over the many flattenings a vertex's neighbours go through.
-  std::vector<CornerChange>& changes = scratch_corner_changes_;
+  thread_local std::vector<CornerChange> changes;
   changes.clear();
   const double scale[3] = {1.0, half_scale, half_scale * half_scale};
   for (const StarCorner& c : star.corners) {
@@ -510,7 +525,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   }
   // Every outgoing half-edge (interior and, at the boundary, the exterior one) scales its edge by
   // e^{u/2}; a self-edge is outgoing twice and so scales by e^u.
-  std::vector<Index>& neighbours = scratch_vertices_;
+  thread_local std::vector<Index> neighbours;
   neighbours.clear();
   for_each_outgoing(v, [&](Index h) {
     elength(h >> 1) *= half_scale;
@@ -526,7 +541,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   // Tracked points in the star: the coordinate of each corner at v is multiplied by e^u (the
   // reference implementation's choice) and the coordinates renormalised. Visit each face once.
   const double weight = std::exp(u);
-  std::vector<Index>& star_faces = scratch_faces_;
+  std::vector<Index>& star_faces = scratch_faces();
   star_faces.clear();
   for_each_outgoing(v, [&](Index h) { star_faces.push_back(face(h)); });
   std::sort(star_faces.begin(), star_faces.end());
@@ -555,13 +570,13 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
 void IntrinsicTriangulation::kill_face(Index f) {
   fhalfedge(f) = kInvalid;
   ffirst(f) = kInvalid;
-  --num_faces_;
+  decrement(num_faces_);
 }
 
 void IntrinsicTriangulation::kill_edge(Index e) {
   for (Index h : {2 * e, 2 * e + 1}) hnext(h) = hprev(h) = htail(h) = hface(h) = kInvalid;
   elength(e) = 0;
-  --num_edges_;
+  decrement(num_edges_);
 }
 
 RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, std::vector<Index>* changed_faces,
@@ -667,7 +682,7 @@ RemovalStatus IntrinsicTriangulation::remove_interior_vertex(Index v, std::vecto
     return fail(RemovalStatus::NoConvexFlip);
   }
   if (deg < 3) return fail(RemovalStatus::TopologyChange);
-  std::vector<Index>& star = scratch_faces_;
+  std::vector<Index>& star = scratch_faces();
   star.clear();
   for_each_outgoing(v, [&](Index h) { star.push_back(h); });
   // The merge needs three distinct faces with one corner at v each.
@@ -691,9 +706,10 @@ void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Ind
   layout.set(h0, pv), layout.set(o0, p0), layout.set(prev(h0), p1);
   layout.set(h1, pv), layout.set(o1, p1), layout.set(prev(h1), p2);
   layout.set(h2, pv), layout.set(o2, p2), layout.set(prev(h2), p0);
-  scratch_points_.clear();
-  for (Index h : star) collect_points(face(h), layout);
-  scratch_points_.push_back({v, pv});
+  std::vector<PlacedPoint>& points = scratch_points();
+  points.clear();
+  for (Index h : star) collect_points(face(h), layout, points);
+  points.push_back({v, pv});
 
   const Index f = face(h0);
   const Index f1 = face(h1), f2 = face(h2);
@@ -709,10 +725,10 @@ void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Ind
       vhalfedge(x[k]) = k == 0 ? o0 : (k == 1 ? o1 : o2);
   vhalfedge(v) = kInvalid;
   vsum(v) = 0;
-  --num_vertices_;
+  decrement(num_vertices_);
   // The neighbours' frames stay as they are: the star was flat, so each merged corner is exactly
   // the sum of the corners it replaces and no angle sum or angular coordinate changes.
-  for (const auto& q : scratch_points_) add_point_to_face(q.point, f, barycentric(q.position, p0, p1, p2));
+  for (const auto& q : points) add_point_to_face(q.point, f, barycentric(q.position, p0, p1, p2));
   if (changed_faces) changed_faces->push_back(f);
 }
 
@@ -749,9 +765,10 @@ bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Inde
     return false;
   LocalLayout layout;
   for (int k = 0; k < 4; ++k) layout.set(s[k], pv), layout.set(o[k], p[k]), layout.set(prev(s[k]), p[(k + 1) % 4]);
-  scratch_points_.clear();
-  for (int k = 0; k < 4; ++k) collect_points(face(s[k]), layout);
-  scratch_points_.push_back({v, pv});
+  std::vector<PlacedPoint>& points = scratch_points();
+  points.clear();
+  for (int k = 0; k < 4; ++k) collect_points(face(s[k]), layout, points);
+  points.push_back({v, pv});
 
   // Faces A = (x0, x1, x2) and B = (x2, x3, x0); s0's edge becomes the diagonal x2 <-> x0.
   const Index fa = face(s[0]), fb = face(s[2]);
@@ -771,13 +788,13 @@ bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Inde
     if (!halfedge_alive(vhalfedge(x[k])) || tail(vhalfedge(x[k])) != x[k]) vhalfedge(x[k]) = o[k];
   vhalfedge(v) = kInvalid;
   vsum(v) = 0;
-  --num_vertices_;
+  decrement(num_vertices_);
   for (int k = 0; k < 4; ++k) {
     bool repeated = false;
     for (int earlier = 0; earlier < k; ++earlier) repeated = repeated || x[earlier] == x[k];
     if (!repeated) recompute_vertex_frame(x[k]);
   }
-  for (const auto& q : scratch_points_) {
+  for (const auto& q : points) {
     if (orient2d(p[0], p[2], q.position) <= 0)
       add_point_to_face(q.point, fa, barycentric(q.position, p[0], p[1], p[2]));
     else
@@ -821,10 +838,11 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
   LocalLayout layout;
   layout.set(hb, pv), layout.set(o1, pk), layout.set(prev(hb), pm);
   layout.set(h2, pv), layout.set(o2, pm), layout.set(in, pj);
-  scratch_points_.clear();
-  collect_points(face(hb), layout);
-  collect_points(face(h2), layout);
-  scratch_points_.push_back({v, pv});
+  std::vector<PlacedPoint>& points = scratch_points();
+  points.clear();
+  collect_points(face(hb), layout, points);
+  collect_points(face(h2), layout, points);
+  points.push_back({v, pv});
 
   const double new_length = length(hb) + length(in);
   const Index f = face(hb), f2 = face(h2);
@@ -841,11 +859,11 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
   if (!halfedge_alive(vhalfedge(m)) || tail(vhalfedge(m)) != m) vhalfedge(m) = o2;
   vhalfedge(v) = kInvalid;
   vsum(v) = 0;
-  --num_vertices_;
+  decrement(num_vertices_);
   recompute_vertex_frame(j);
   recompute_vertex_frame(k);
   if (m != j && m != k) recompute_vertex_frame(m);
-  for (const auto& q : scratch_points_) add_point_to_face(q.point, f, barycentric(q.position, pk, pm, pj));
+  for (const auto& q : points) add_point_to_face(q.point, f, barycentric(q.position, pk, pm, pj));
   if (changed_faces) changed_faces->push_back(f);
   return RemovalStatus::Removed;
 }

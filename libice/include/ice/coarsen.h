@@ -49,9 +49,21 @@ struct CoarsenOptions {
   std::vector<Index> locked_vertices;
   /// Whether boundary vertices may be removed (boundary loops always keep at least two edges).
   bool remove_boundary = true;
-  /// Called every `progress_interval` removals; return false to cancel.
+  /// Called every `progress_interval` removals; return false to cancel. Always called on the
+  /// calling thread.
   std::function<bool(const CoarsenProgress&)> progress;
   Index progress_interval = 1000;
+  /// Threads (1: serial, the exact greedy order; 0: one per hardware thread). With k > 1 and at
+  /// least `parallel_min_vertices` live vertices, the mesh is first cut into 4k compact regions
+  /// (ranges of a breadth-first order) and the threads run the greedy order inside the regions,
+  /// never removing a vertex with a neighbour in another region nor flipping an edge across two,
+  /// in rounds with a common cost threshold (growing 1.4x per round, so the regions advance in
+  /// nearly the global cost order), down to an intermediate size that leaves max(target, 1/32 of
+  /// the removals) to a final serial greedy pass over the whole mesh (which first restores the
+  /// Delaunay property along the region seams). In that phase `progress` is called once per round.
+  /// The result is deterministic for a given thread count, but differs from the serial one.
+  int threads = 1;
+  Index parallel_min_vertices = 50000;
 };
 
 enum class StopReason { TargetReached, ErrorThreshold, NothingRemovable, Cancelled };
@@ -68,7 +80,8 @@ struct CoarsenResult {
   std::array<Index, 7> failures_by_status{};
   double last_cost = 0;        ///< cost of the last removal
   double max_cost = 0;         ///< largest cost among the removals made
-  double next_cost = 0;        ///< cost of the cheapest remaining removal (inf if none)
+  double next_cost = 0;        ///< cost of the cheapest remaining removal (inf if none, NaN if cancelled in the parallel phase)
+  Index parallel_removed = 0;  ///< removals made by the parallel phase (0 when serial)
   double seconds = 0;          ///< wall time of coarsen()
 };
 
@@ -78,7 +91,9 @@ struct CoarsenResult {
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options);
 
 /// The intrinsic curvature error state (masses and centres per vertex and channel) and the cost of
-/// removing a vertex. coarsen() keeps one; it is exposed for tests and tools.
+/// removing a vertex. coarsen() keeps one; it is exposed for tests and tools. Threads may call it
+/// concurrently for vertices whose stars and neighbours' records are disjoint (a removal prepared
+/// on one thread is applied on the same thread).
 class IntrinsicErrorMetric {
  public:
   static constexpr int kChannels = 3;  // K+, K-, area
@@ -122,10 +137,15 @@ class IntrinsicErrorMetric {
     std::array<std::complex<double>, kChannels> centre{};
   };
   LargeArray<Record> records_;  // huge pages: read in removal order (ice/large_array.h)
-  mutable std::vector<Neighbour> scratch_;
-  mutable VertexStar star_;
-  std::vector<PendingRecord> pending_;
-  Index pending_vertex_ = kInvalid;
+  // Scratch space and the prepared removal, one per thread: coarsen's parallel mode runs threads
+  // on disjoint parts of the mesh, which read and write disjoint records.
+  struct Workspace {
+    std::vector<Neighbour> neighbours;
+    VertexStar star;
+    std::vector<PendingRecord> pending;
+    Index pending_vertex = kInvalid;
+  };
+  static Workspace& workspace();
 };
 
 }  // namespace ice

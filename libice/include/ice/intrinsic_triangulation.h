@@ -176,9 +176,20 @@ class IntrinsicTriangulation {
   bool flip(Index h);
   /// Flips non-Delaunay edges until every edge is Delaunay. Returns the number of flips.
   int flip_to_delaunay();
+  /// A part of the mesh that local operations may change: the vertices with label[v] == value.
+  /// Threads that each work in their own part never write the same element (see coarsen's
+  /// parallel mode).
+  struct WriteRegion {
+    const std::uint8_t* label = nullptr;
+    std::uint8_t value = 0;
+    bool contains(Index v) const { return label[v] == value; }
+  };
   /// As flip_to_delaunay, but starts from the edges of the given faces (and spreads as needed).
-  /// If `touched` is given, the endpoints of every flipped diamond are appended to it.
-  int flip_to_delaunay_around(const std::vector<Index>& faces, std::vector<Index>* touched = nullptr);
+  /// If `touched` is given, the endpoints of every flipped diamond are appended to it. With a
+  /// `region`, only edges whose four diamond corners lie in it are considered (others may be left
+  /// non-Delaunay).
+  int flip_to_delaunay_around(const std::vector<Index>& faces, std::vector<Index>* touched = nullptr,
+                              const WriteRegion* region = nullptr);
   /// Flattens v (one-vertex CETM): scales its edges so Θ_v = 2π (interior) or π (boundary), to
   /// 1e-13 relative. Newton starts from `initial_log_scale` (e.g. a scale an earlier, looser
   /// compute_flattening found; 0 = unscaled). On failure nothing changes.
@@ -302,17 +313,18 @@ class IntrinsicTriangulation {
     std::array<double, 3> bary;
   };
   LargeArray<TrackedPoint> points_;
-  // Scratch space re-used by local operations (no allocation per flip or removal).
+  // Scratch space of local operations: one per thread (thread_local), so that operations allocate
+  // nothing per flip or removal and threads working in disjoint regions share no scratch.
   struct PlacedPoint {
     Index point;
     Vec2 position;
   };
-  std::vector<PlacedPoint> scratch_points_;
-  std::vector<Index> scratch_stack_, scratch_vertices_, scratch_faces_;
-  std::vector<CornerChange> scratch_corner_changes_;
-  LargeArray<std::uint8_t> edge_queued_;
+  static std::vector<PlacedPoint>& scratch_points();
+  static std::vector<Index>& scratch_faces();
   template <class Layout>
-  void collect_points(Index f, const Layout& layout);
+  void collect_points(Index f, const Layout& layout, std::vector<PlacedPoint>& out);
+  // Element counts change through these (atomic: threads in disjoint regions remove concurrently).
+  static void decrement(Index& count) { __atomic_fetch_sub(&count, 1, __ATOMIC_RELAXED); }
   Index num_vertices_ = 0, num_edges_ = 0, num_faces_ = 0;
 };
 
