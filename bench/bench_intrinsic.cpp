@@ -119,11 +119,17 @@ void BM_BytesPerVertex(benchmark::State& state) {
 BENCHMARK(BM_BytesPerVertex)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // ICE coarsening: spot_subdiv 24,755 -> 1,000 and fertility (Loop ×4, 1,150,214) -> 10,000.
+// ICE coarsening: arg 0 = the case (0: spot_subdiv 24,755 -> 1,000; 1: fertility Loop x4,
+// 1.15M -> 10,000), arg 1 = threads (1: the exact serial greedy order; 2: the parallel mode). Wall
+// time (UseRealTime): the parallel mode's work runs on several threads.
 void BM_Coarsen(benchmark::State& state) {
   const bool large = state.range(0) == 1;
   const TriangleMesh& m = large ? mesh("fertility.off", 4) : mesh("spot_subdiv.obj");
   CoarsenOptions options;
   options.target_vertices = large ? 10000 : 1000;
+  options.threads = static_cast<int>(state.range(1));
+  // spot_subdiv is below the default size for the parallel mode; run it anyway to compare.
+  options.parallel_min_vertices = 20000;
   CoarsenResult result;
   const double rss_before = peak_rss_mb();
   for (auto _ : state) {
@@ -133,11 +139,14 @@ void BM_Coarsen(benchmark::State& state) {
     result = coarsen(T, options);
   }
   state.counters["input_vertices"] = static_cast<double>(m.V.rows());
+  state.counters["threads"] = options.threads;
+  state.counters["parallel_removed"] = result.parallel_removed;
   state.counters["removals_per_s"] = result.removed / result.seconds;
+  state.counters["max_cost"] = result.max_cost;
   state.counters["peak_rss_mb"] = peak_rss_mb();
   state.counters["rss_growth_bytes_per_vertex"] = (peak_rss_mb() - rss_before) * 1024 * 1024 / m.V.rows();
 }
-BENCHMARK(BM_Coarsen)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(3);
-BENCHMARK(BM_Coarsen)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_Coarsen)->Args({0, 1})->Args({0, 2})->Unit(benchmark::kMillisecond)->Iterations(3)->UseRealTime();
+BENCHMARK(BM_Coarsen)->Args({1, 1})->Args({1, 2})->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 
 }  // namespace

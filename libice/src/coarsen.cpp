@@ -230,13 +230,16 @@ class RemovalQueue {
     double cost;
     Index vertex;
   };
-  explicit RemovalQueue(Index vertices) : slot_(static_cast<std::size_t>(vertices)) {}
+  /// A queue for `capacity` vertices: vertex v has slot local_index[v] (or v itself when
+  /// local_index is null), so a queue for one region of a large mesh stays the region's size.
+  explicit RemovalQueue(Index capacity, const Index* local_index = nullptr)
+      : local_index_(local_index), slot_(static_cast<std::size_t>(capacity)) {}
   bool empty() const { return heap_.empty(); }
   /// The cheapest entry (ties: the lowest vertex index). Precondition: !empty().
   const Entry& top() {
     while (true) {
       Entry& front = heap_.front();
-      const double cost = slot_[front.vertex].cost;
+      const double cost = slot(front.vertex).cost;
       if (cost == front.cost) return front;
       front.cost = cost;  // a risen cost: the key was a lower bound
       sift_down(0);
@@ -244,7 +247,7 @@ class RemovalQueue {
   }
   /// Inserts v or changes its cost.
   void set(Index v, double cost) {
-    Slot& slot = slot_[v];
+    Slot& slot = this->slot(v);
     slot.cost = cost;
     if (slot.position == kInvalid) {
       heap_.push_back({cost, v});
@@ -257,15 +260,15 @@ class RemovalQueue {
   }
   /// Removes v if present.
   void erase(Index v) {
-    const Index i = slot_[v].position;
+    const Index i = slot(v).position;
     if (i == kInvalid) return;
-    slot_[v].position = kInvalid;
+    slot(v).position = kInvalid;
     const Entry last = heap_.back();
     heap_.pop_back();
     if (static_cast<std::size_t>(i) == heap_.size()) return;
     place(i, last);
     sift_up(i);
-    sift_down(slot_[last.vertex].position);
+    sift_down(slot(last.vertex).position);
   }
 
  private:
@@ -278,7 +281,7 @@ class RemovalQueue {
   }
   void place(std::size_t i, const Entry& e) {
     heap_[i] = e;
-    slot_[e.vertex].position = static_cast<Index>(i);
+    slot(e.vertex).position = static_cast<Index>(i);
   }
   void sift_up(std::size_t i) {
     const Entry e = heap_[i];
@@ -306,6 +309,8 @@ class RemovalQueue {
     }
     place(i, e);
   }
+  Slot& slot(Index v) { return slot_[local_index_ ? local_index_[v] : v]; }
+  const Index* local_index_;
   LargeArray<Entry> heap_;
   LargeArray<Slot> slot_;
 };
@@ -345,6 +350,7 @@ struct GreedyContext {
 struct GreedyScope {
   const IntrinsicTriangulation::WriteRegion* region = nullptr;
   std::uint8_t* frontier = nullptr;  // with a region: 1 where a neighbour lies outside it (set by the loop)
+  const Index* local_index = nullptr;  // with a region: each vertex's index within its region
   Index vertices = 0;                // live vertices in scope (decremented per removal)
   Index target = 0;                  // never go below
   bool reports_progress = false;     // the calling thread's loop calls options.progress
@@ -358,7 +364,11 @@ enum class RunStop { Target, Threshold, Quota, Empty, Cancelled };
 class GreedyLoop {
  public:
   GreedyLoop(GreedyContext& context, const GreedyScope& scope)
-      : context_(context), scope_(scope), T_(context.T), state_(context.state), queue_(T_.num_input_vertices()) {
+      : context_(context),
+        scope_(scope),
+        T_(context.T),
+        state_(context.state),
+        queue_(scope.region ? scope.vertices : T_.num_input_vertices(), scope.local_index) {
     const Index n = T_.num_input_vertices();
     const IntrinsicTriangulation::WriteRegion* region = scope_.region;
     if (region)  // each loop marks its own vertices: faces at them are never changed by other loops
@@ -496,13 +506,15 @@ void run_tasks(int threads, int tasks, F&& f) {
 
 // Labels the live vertices with `parts` regions: contiguous ranges of a breadth-first order of
 // each component (first vertex first), i.e. a ball and the shells around it, each compact on the
-// surface with a short frontier. Dead vertices get kNoRegion. Returns each region's live vertex
-// count.
+// surface with a short frontier. Dead vertices get kNoRegion. Numbers each live vertex within its
+// region (local_index). Returns each region's live vertex count.
 constexpr std::uint8_t kNoRegion = 255;
-std::vector<Index> partition_vertices(const IntrinsicTriangulation& T, int parts, std::vector<std::uint8_t>& label) {
+std::vector<Index> partition_vertices(const IntrinsicTriangulation& T, int parts, std::vector<std::uint8_t>& label,
+                                      std::vector<Index>& local_index) {
   const Index n = T.num_input_vertices();
   const Index live = T.num_vertices();
   label.assign(static_cast<std::size_t>(n), kNoRegion);
+  local_index.assign(static_cast<std::size_t>(n), kInvalid);
   std::vector<Index> sizes(static_cast<std::size_t>(parts), 0);
   std::vector<Index> queue;
   queue.reserve(static_cast<std::size_t>(live));
@@ -516,7 +528,7 @@ std::vector<Index> partition_vertices(const IntrinsicTriangulation& T, int parts
       const Index v = queue[head];
       const int part = static_cast<int>(static_cast<std::int64_t>(rank++) * parts / live);
       label[v] = static_cast<std::uint8_t>(part);
-      ++sizes[part];
+      local_index[v] = sizes[part]++;
       T.for_each_outgoing(v, [&](Index h) {
         const Index w = T.head(h);
         if (label[w] == kNoRegion) label[w] = 0, queue.push_back(w);
@@ -551,13 +563,13 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   const int parts = std::min(4 * threads, 254);
   // The partition (a breadth-first pass) runs while this thread sets up the metric.
   std::vector<std::uint8_t> label, frontier;
-  std::vector<Index> sizes;
+  std::vector<Index> sizes, local_index;
   std::exception_ptr partition_error;
   std::thread partitioner;
   if (parallel)
     partitioner = std::thread([&] {
       try {
-        sizes = partition_vertices(T, parts, label);
+        sizes = partition_vertices(T, parts, label, local_index);
         frontier.resize(label.size());
       } catch (...) {
         partition_error = std::current_exception();
@@ -594,6 +606,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
       GreedyScope scope;
       scope.region = &regions[r];
       scope.frontier = frontier.data();
+      scope.local_index = local_index.data();
       scope.vertices = sizes[r];
       scope.target = 0;
       scope.reports_progress = false;  // progress is reported between rounds, on this thread
