@@ -227,7 +227,7 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
       ->capture_default_str();
   cli.add_option("--coarsen-threads", threads,
                  "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = k regions coarsened in parallel, "
-                 "then a serial pass over the whole mesh (meshes of 50,000+ vertices; deterministic for a given k, "
+                 "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
                  "not identical to the serial result); 0 = one per hardware thread")
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
@@ -306,7 +306,8 @@ nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::Compact
           {"failures_by_status", failures.is_null() ? nlohmann::json::object() : failures},
           {"last_cost", result.last_cost},
           {"max_cost", result.max_cost},
-          {"next_cost", finite_or_null(result.next_cost)}};
+          {"next_cost", finite_or_null(result.next_cost)},
+          {"parallel_removed", result.parallel_removed}};
 }
 
 // ---- output -----------------------------------------------------------------------------------------

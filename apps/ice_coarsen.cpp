@@ -274,6 +274,7 @@ int main(int argc, char** argv) {
                            {"target_ratio", options.target_ratio},
                            {"max_error", std::isfinite(options.max_error) ? nlohmann::json(options.max_error) : nlohmann::json(nullptr)},
                            {"area_weight", options.area_weight},
+                           {"coarsen_threads", options.threads},
                            {"keep_boundary", keep_boundary},
                            {"locked_vertices", options.locked_vertices.size()}};
       report["coarse"] = app::coarsen_json(result, coarse);

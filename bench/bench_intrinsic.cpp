@@ -128,8 +128,6 @@ void BM_Coarsen(benchmark::State& state) {
   CoarsenOptions options;
   options.target_vertices = large ? 10000 : 1000;
   options.threads = static_cast<int>(state.range(1));
-  // spot_subdiv is below the default size for the parallel mode; run it anyway to compare.
-  options.parallel_min_vertices = 20000;
   CoarsenResult result;
   const double rss_before = peak_rss_mb();
   for (auto _ : state) {

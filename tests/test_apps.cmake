@@ -18,7 +18,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   endif()
   get_filename_component(_ice_shared_meshes "${PROJECT_SOURCE_DIR}/../shared/data/meshes" ABSOLUTE)
   set(_ice_app_cases
-    coarsen_spot coarsen_keep_boundary_lock geodesic_spot geodesic_galerkin_spot poisson_spot poisson_fix_rhs_spot
+    coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot poisson_spot poisson_fix_rhs_spot
     ply_ascii errors)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
@@ -258,6 +258,22 @@ elseif(CASE STREQUAL "coarsen_keep_boundary_lock")
   expect_error(4 "--lock: vertex 999999 is out of range" ice-coarsen "${mesh}" --ratio 0.2 -o "${WORK}/out2" -q
                --lock "${WORK}/bad_lock.txt")
   expect_error(1 "no such file" ice-coarsen "${mesh}" --ratio 0.2 -o "${WORK}/out2" -q --lock "${WORK}/none.txt")
+
+elseif(CASE STREQUAL "coarsen_threads")
+  # The parallel mode end to end: regions on two threads, then the serial pass; a valid result.
+  shared_mesh(mesh bunny_closed.off)
+  run(0 ice-coarsen "${mesh}" --ratio 0.05 --coarsen-threads 2 -o "${WORK}/out" --report "${WORK}/r.json" --validate -q)
+  json(nc "${WORK}/r.json" coarse vertices)
+  check(${nc} EQUAL 1742 "coarse.vertices (ceil(0.05 * 34835))")
+  json(stop "${WORK}/r.json" coarse stop_reason)
+  if(NOT stop STREQUAL "target_reached")
+    fail("stop reason ${stop}")
+  endif()
+  json(parallel "${WORK}/r.json" coarse parallel_removed)
+  check(${parallel} GREATER 20000 "coarse.parallel_removed (most of the 33,093 removals run in the regions)")
+  json(threads "${WORK}/r.json" options coarsen_threads)
+  check(${threads} EQUAL 2 "options.coarsen_threads")
+  expect_error(4 "coarsen-threads" ice-coarsen "${mesh}" --ratio 0.05 --coarsen-threads -1 -o "${WORK}/out2" -q)
 
 elseif(CASE STREQUAL "geodesic_spot")
   shared_mesh(mesh spot.obj)

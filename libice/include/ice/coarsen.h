@@ -63,7 +63,7 @@ struct CoarsenOptions {
   /// Delaunay property along the region seams). In that phase `progress` is called once per round.
   /// The result is deterministic for a given thread count, but differs from the serial one.
   int threads = 1;
-  Index parallel_min_vertices = 50000;
+  Index parallel_min_vertices = 20000;
 };
 
 enum class StopReason { TargetReached, ErrorThreshold, NothingRemovable, Cancelled };
