@@ -52,9 +52,11 @@ Eigen::VectorXd smooth_source(const Positions& V) {
   return f;
 }
 
+// Args: Loop subdivisions of spot_subdiv (0–3), coarse budget in percent, coarsening threads.
 void BM_ProxyVsFine(benchmark::State& state) {
   const TriangleMesh& m = spot_subdiv(static_cast<int>(state.range(0)));
   const double budget = state.range(1) / 100.0;
+  const int threads = static_cast<int>(state.range(2));
   const Eigen::VectorXd f = smooth_source(m.V);
   for (auto _ : state) {
     auto t = std::chrono::steady_clock::now();
@@ -71,6 +73,7 @@ void BM_ProxyVsFine(benchmark::State& state) {
     auto T = IntrinsicTriangulation::from_mesh(m.V, m.F);
     CoarsenOptions options;
     options.target_ratio = budget;
+    options.threads = threads;
     coarsen(T, options);
     const CompactMesh coarse = T.compact();
     Eigen::SparseMatrix<double> P = prolongation(T, coarse);
@@ -99,6 +102,7 @@ void BM_ProxyVsFine(benchmark::State& state) {
     const double proxy_total = coarsen_time + proxy_assemble + proxy_factor + proxy_solve;
     state.counters["vertices"] = static_cast<double>(m.V.rows());
     state.counters["coarse_vertices"] = static_cast<double>(coarse.to_input.size());
+    state.counters["coarsen_threads"] = threads;
     state.counters["fine_assemble_s"] = fine_assemble;
     state.counters["fine_factor_s"] = fine_factor;
     state.counters["fine_solve_s"] = fine_solve;
@@ -115,8 +119,11 @@ void BM_ProxyVsFine(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ProxyVsFine)
-    ->ArgsProduct({{0, 1, 2, 3}, {1, 5}})
+    ->ArgsProduct({{0, 1, 2, 3}, {1, 5}, {1}})
     ->Unit(benchmark::kSecond)
-    ->Iterations(1);
+    ->Iterations(1)
+    ->UseRealTime();
+// The largest size again with the coarsener's parallel mode (wall time: it runs on two threads).
+BENCHMARK(BM_ProxyVsFine)->Args({3, 1, 2})->Args({3, 5, 2})->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
