@@ -353,7 +353,6 @@ struct GreedyScope {
   const Index* local_index = nullptr;  // with a region: each vertex's index within its region
   Index vertices = 0;                // live vertices in scope (decremented per removal)
   Index target = 0;                  // never go below
-  bool reports_progress = false;     // the calling thread's loop calls options.progress
 };
 
 // Why GreedyLoop::run returned.
@@ -427,7 +426,8 @@ class GreedyLoop {
         state_[u].seen = epoch_;
         schedule(u);
       }
-      if (scope_.reports_progress && options.progress && status == RemovalStatus::Removed &&
+      // The serial loop reports per removal; the regions' progress is reported between rounds.
+      if (!scope_.region && options.progress && status == RemovalStatus::Removed &&
           result_.removed % options.progress_interval == 0) {
         const Index removed = context_.removed.load(std::memory_order_relaxed);
         const CoarsenProgress progress{context_.vertices_at_start - removed, context_.final_target, removed,
@@ -609,7 +609,6 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
       scope.local_index = local_index.data();
       scope.vertices = sizes[r];
       scope.target = 0;
-      scope.reports_progress = false;  // progress is reported between rounds, on this thread
       loops[r] = std::make_unique<GreedyLoop>(context, scope);
     });
     double threshold = std::numeric_limits<double>::infinity();
@@ -659,7 +658,6 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
     GreedyScope whole;
     whole.vertices = T.num_vertices();
     whole.target = target;
-    whole.reports_progress = true;
     GreedyLoop loop(context, whole);
     const RunStop stop = loop.run(options.max_error, std::numeric_limits<Index>::max());
     add_counts(result, loop.result());
