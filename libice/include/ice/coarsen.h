@@ -92,8 +92,9 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options);
 
 /// The intrinsic curvature error state (masses and centres per vertex and channel) and the cost of
 /// removing a vertex. coarsen() keeps one; it is exposed for tests and tools. Threads may call it
-/// concurrently for vertices whose stars and neighbours' records are disjoint (a removal prepared
-/// on one thread is applied on the same thread).
+/// concurrently for vertices whose stars and neighbours' records are disjoint. The prepared removal
+/// is kept per thread (not per object): apply it on the thread that prepared it, before that thread
+/// prepares another one with any metric.
 class IntrinsicErrorMetric {
  public:
   static constexpr int kChannels = 3;  // K+, K-, area
