@@ -315,10 +315,6 @@ class RemovalQueue {
   LargeArray<Slot> slot_;
 };
 
-}  // namespace
-
-namespace {
-
 // Per-vertex driver state in one record (one cache line fetch per vertex touched, which is what
 // bounds the speed once the mesh outgrows the caches). log_scale is the flattening scale found by
 // the vertex's latest cost evaluation (its star has not changed since: every change re-evaluates
@@ -370,20 +366,18 @@ class GreedyLoop {
         queue_(scope.region ? scope.vertices : T_.num_input_vertices(), scope.local_index) {
     const Index n = T_.num_input_vertices();
     const IntrinsicTriangulation::WriteRegion* region = scope_.region;
-    if (region)  // each loop marks its own vertices: faces at them are never changed by other loops
-      for (Index v = 0; v < n; ++v)
-        if (region->contains(v)) {
-          scope_.frontier[v] = 0;
-          T_.for_each_outgoing(v, [&](Index h) {
-            if (!region->contains(T_.head(h))) scope_.frontier[v] = 1;
-          });
-        }
-    for (Index v = 0; v < n; ++v)
-      if (in_scope(v)) {
-        state_[v].seen = 0;
-        schedule(v);
-        blocked_ += T_.vertex_alive(v) && !eligible(v);
+    for (Index v = 0; v < n; ++v) {
+      if (!in_scope(v)) continue;
+      if (region) {  // each loop marks its own vertices: faces at them are never changed by other loops
+        scope_.frontier[v] = 0;
+        T_.for_each_outgoing(v, [&](Index h) {
+          if (!region->contains(T_.head(h))) scope_.frontier[v] = 1;
+        });
       }
+      state_[v].seen = 0;
+      schedule(v);
+      blocked_ += T_.vertex_alive(v) && !eligible(v);
+    }
   }
 
   RunStop run(double threshold, Index quota) {
@@ -561,34 +555,23 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   const bool parallel = threads > 1 && live >= options.parallel_min_vertices && intermediate < live / 2;
   // More regions than threads: a thread that finishes its region early in a round takes another.
   const int parts = std::min(4 * threads, 254);
-  // The partition (a breadth-first pass) runs while this thread sets up the metric.
+  // The partition (a breadth-first pass) runs on a second thread while the metric is set up.
   std::vector<std::uint8_t> label, frontier;
   std::vector<Index> sizes, local_index;
-  std::exception_ptr partition_error;
-  std::thread partitioner;
-  if (parallel)
-    partitioner = std::thread([&] {
-      try {
-        sizes = partition_vertices(T, parts, label, local_index);
-        frontier.resize(label.size());
-      } catch (...) {
-        partition_error = std::current_exception();
-      }
-    });
   std::optional<IntrinsicErrorMetric> metric_storage;
-  try {
-    metric_storage.emplace(T, options.area_weight);
-  } catch (...) {
-    if (partitioner.joinable()) partitioner.join();
-    throw;
-  }
+  run_tasks(parallel ? 2 : 1, parallel ? 2 : 1, [&](int task) {
+    if (task == 0) {
+      metric_storage.emplace(T, options.area_weight);
+    } else {
+      sizes = partition_vertices(T, parts, label, local_index);
+      frontier.resize(label.size());
+    }
+  });
   IntrinsicErrorMetric& metric = *metric_storage;
   LargeArray<VertexState> state(static_cast<std::size_t>(n));
   for (Index v : options.locked_vertices)
     if (v >= 0 && v < n) state[v].locked = 1;
   GreedyContext context{T, metric, state, options, target, T.num_vertices()};
-  if (partitioner.joinable()) partitioner.join();
-  if (partition_error) std::rethrow_exception(partition_error);
 
   if (parallel) {
     // The regions advance in rounds with a common cost threshold that grows by kGrowth per round,
