@@ -28,12 +28,11 @@ inline std::complex<double> unit_complex(double theta) {
       r * (1 + r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880 + r2 * (-1.0 / 39916800))))));
   const double cosine =
       1 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320 + r2 * (-1.0 / 3628800 + r2 * (1.0 / 479001600.0))))));
-  switch (static_cast<long long>(quarter_turns) & 3) {
-    case 0: return {cosine, sine};
-    case 1: return {-sine, cosine};
-    case 2: return {-cosine, -sine};
-    default: return {sine, -cosine};
-  }
+  // Rotate by the quarter turns with a table, not a switch: the quadrant is unpredictable.
+  static constexpr double kQuarterCos[4] = {1, 0, -1, 0}, kQuarterSin[4] = {0, 1, 0, -1};
+  const int quadrant = static_cast<int>(static_cast<long long>(quarter_turns) & 3);
+  const double c = kQuarterCos[quadrant], s = kQuarterSin[quadrant];
+  return {c * cosine - s * sine, c * sine + s * cosine};
 }
 }
 
@@ -103,20 +102,48 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
     if (log_scale) *log_scale = u;
   }
   const double half_scale = std::exp(0.5 * u);
-  const auto add = [&](Index vertex, Index halfedge, double delta_K) {
-    if (vertex == v) return;  // a self-edge: v absorbs nothing from itself
-    for (Neighbour& n : out)
-      if (n.vertex == vertex) {
-        n.weight += delta_K;
-        return;
-      }
-    out.push_back({vertex, halfedge, delta_K});
-  };
-  for (const StarCorner& corner : star.corners) {
-    // Curvature is 2π − Θ, so a corner shrinking by δ raises its vertex's curvature by δ.
-    const CornerAngleChange change = corner_angle_change(corner, half_scale);
-    add(corner.out_vertex, corner.halfedge, change.at_out);
-    add(corner.in_vertex, corner.in_halfedge ^ 1, change.at_in);
+  const std::vector<StarCorner>& corners = star.corners;
+  const int count = static_cast<int>(corners.size());
+  // Corner k's in_vertex is corner k+1's out_vertex (h_{k+1} = prev(h_k)^1); at a boundary vertex
+  // the last corner's in_vertex is the one neighbour that is no out_vertex. When these neighbours are
+  // distinct and none is v (no multi- or self-edges: nearly always), neighbour k is corner k's
+  // out_vertex and the weights go straight to their slots; the check is branch-free, where a search
+  // per corner mispredicts. The result is the same as the general path's (same order and sums).
+  const int extra = star.boundary ? 1 : 0;
+  const auto neighbour_vertex = [&](int k) { return k < count ? corners[k].out_vertex : corners[count - 1].in_vertex; };
+  bool simple = count > 0;
+  for (int k = 0; k < count + extra; ++k) {
+    const Index vertex = neighbour_vertex(k);
+    simple &= vertex != v;
+    for (int j = 0; j < k; ++j) simple &= neighbour_vertex(j) != vertex;
+  }
+  for (int k = 0; k + 1 < count; ++k) simple &= corners[k].in_halfedge == (corners[k + 1].halfedge ^ 1);
+  if (simple && !star.boundary) simple = corners[count - 1].in_halfedge == (corners[0].halfedge ^ 1);
+  if (simple) {
+    out.resize(static_cast<std::size_t>(count + extra));
+    for (int k = 0; k < count; ++k) out[k] = {corners[k].out_vertex, corners[k].halfedge, 0.0};
+    if (extra) out[count] = {corners[count - 1].in_vertex, corners[count - 1].in_halfedge ^ 1, 0.0};
+    for (int k = 0; k < count; ++k) {
+      // Curvature is 2π − Θ, so a corner shrinking by δ raises its vertex's curvature by δ.
+      const CornerAngleChange change = corner_angle_change(corners[k], half_scale);
+      out[k].weight += change.at_out;
+      out[k + 1 < count ? k + 1 : (extra ? count : 0)].weight += change.at_in;
+    }
+  } else {
+    const auto add = [&](Index vertex, Index halfedge, double delta_K) {
+      if (vertex == v) return;  // a self-edge: v absorbs nothing from itself
+      for (Neighbour& n : out)
+        if (n.vertex == vertex) {
+          n.weight += delta_K;
+          return;
+        }
+      out.push_back({vertex, halfedge, delta_K});
+    };
+    for (const StarCorner& corner : corners) {
+      const CornerAngleChange change = corner_angle_change(corner, half_scale);
+      add(corner.out_vertex, corner.halfedge, change.at_out);
+      add(corner.in_vertex, corner.in_halfedge ^ 1, change.at_in);
+    }
   }
   double total = 0;
   for (Neighbour& n : out) total += (n.weight = std::abs(n.weight));
@@ -138,33 +165,28 @@ void IntrinsicErrorMetric::merge_channels(const IntrinsicTriangulation& T, Index
   // Transport from v's frame to j's: the vector from j to v in j's frame (needed whenever mass
   // moves) and the rotation of v's centre (needed only when that centre is not v itself, i.e. v
   // has absorbed mass; most vertices have not, early on).
-  double rotation_re = 0, rotation_im = 0, edge_re = 0, edge_im = 0;
-  bool have_edge = false, have_rotation = false;
+  // Branch-free per channel (which channels hold mass varies from neighbour to neighbour, and
+  // mispredicted branches cost more than the arithmetic they skip): an empty channel adds zeros.
+  // What depends only on v (whether it moves mass, whether its centres are off v) is decided once.
+  double rotation_re = 1, rotation_im = 0, edge_re = 0, edge_im = 0;
+  const bool moves = n.weight != 0 && (from.mass[0] != 0 || from.mass[1] != 0 || from.mass[2] != 0);
+  if (moves) {
+    const std::complex<double> direction = unit_complex(T.angular_coordinate(h ^ 1));
+    edge_re = T.length(h) * direction.real(), edge_im = T.length(h) * direction.imag();
+    bool off_centre = false;
+    for (int c = 0; c < kChannels; ++c) off_centre |= (from.centre[c].real() != 0) | (from.centre[c].imag() != 0);
+    if (off_centre) {
+      const std::complex<double> rotation = unit_complex(T.angular_coordinate(h ^ 1) - T.angular_coordinate(h) + kPi);
+      rotation_re = rotation.real(), rotation_im = rotation.imag();
+    }
+  }
   for (int c = 0; c < kChannels; ++c) {
     const double share = n.weight * from.mass[c];
     const double m_j = to.mass[c];
-    if (share == 0 && m_j == 0) continue;  // an empty channel (e.g. area with area_weight 0)
-    double re = m_j * to.centre[c].real(), im = m_j * to.centre[c].imag();
-    if (share != 0) {  // else nothing moves in this channel: j keeps its own moment
-      if (!have_edge) {
-        const std::complex<double> direction = unit_complex(T.angular_coordinate(h ^ 1));
-        edge_re = T.length(h) * direction.real(), edge_im = T.length(h) * direction.imag();
-        have_edge = true;
-      }
-      double x = 0, y = 0;
-      if (from.centre[c].real() != 0 || from.centre[c].imag() != 0) {
-        if (!have_rotation) {
-          const std::complex<double> rotation =
-              unit_complex(T.angular_coordinate(h ^ 1) - T.angular_coordinate(h) + kPi);
-          rotation_re = rotation.real(), rotation_im = rotation.imag();
-          have_rotation = true;
-        }
-        x = rotation_re * from.centre[c].real() - rotation_im * from.centre[c].imag();
-        y = rotation_re * from.centre[c].imag() + rotation_im * from.centre[c].real();
-      }
-      re += share * (x + edge_re);
-      im += share * (y + edge_im);
-    }
+    const double x = rotation_re * from.centre[c].real() - rotation_im * from.centre[c].imag();
+    const double y = rotation_re * from.centre[c].imag() + rotation_im * from.centre[c].real();
+    const double re = m_j * to.centre[c].real() + share * (x + edge_re);
+    const double im = m_j * to.centre[c].imag() + share * (y + edge_im);
     sink(c, m_j + share, re, im);
   }
 }
@@ -216,12 +238,29 @@ void IntrinsicErrorMetric::apply_prepared_removal() {
 
 namespace {
 
-// The removal candidates: an indexed 4-ary min-heap on (cost, vertex), at most one entry per vertex.
-// A cost that rises is only recorded (in the vertex's slot, not in the heap): costs mostly rise as
+// Per-vertex driver state in one 32-byte record (one cache line fetch per vertex touched, which is
+// what bounds the speed once the mesh outgrows the caches), the removal queue's slot included.
+// log_scale is the flattening scale found by the vertex's latest cost evaluation (its star has not
+// changed since: every change re-evaluates it), so the removal re-uses it instead of running
+// Newton again.
+struct alignas(32) VertexState {
+  double cost = 0;      // current removal cost (>= key)
+  double key = 0;       // the vertex's key in the queue's heap (a copy; valid while position != kInvalid)
+  double log_scale = std::numeric_limits<double>::quiet_NaN();
+  Index position = kInvalid;  // index in the queue's heap, or kInvalid
+  std::uint8_t locked = 0, failures = 0;
+};
+static_assert(sizeof(VertexState) == 32, "one record per half cache line");
+
+// The removal candidates: an indexed 4-ary min-heap on (cost, vertex), at most one entry per vertex,
+// with the slots in the vertices' VertexState records (a queue only ever holds the vertices of its
+// own scope, so the queues of the parallel regions share one state array).
+// A cost that rises is only recorded (in the vertex's record, not in the heap): costs mostly rise as
 // neighbours absorb mass, most such vertices are far from the top, and moving them would touch the
-// heap at random places (cache misses once it outgrows the caches). The heap keys are therefore
-// lower bounds; top() raises a stale top to its cost and sifts it down until the top's key is its
-// cost, which is then the exact minimum, ties included. A cost that falls is moved up at once.
+// heap at random places (cache misses once it outgrows the caches); the record's copy of the key
+// tells without reading the heap. The heap keys are therefore lower bounds; top() raises a stale top
+// to its cost and sifts it down until the top's key is its cost, which is then the exact minimum,
+// ties included. A cost that falls is moved up at once.
 // Compared with a lazy heap of stale entries it stays at most n entries and pops once per removal;
 // a 4-ary node's children share a cache line or two (half the depth of a binary heap).
 class RemovalQueue {
@@ -230,58 +269,55 @@ class RemovalQueue {
     double cost;
     Index vertex;
   };
-  /// A queue for `capacity` vertices: vertex v has slot local_index[v] (or v itself when
-  /// local_index is null), so a queue for one region of a large mesh stays the region's size.
-  explicit RemovalQueue(Index capacity, const Index* local_index = nullptr)
-      : local_index_(local_index), slot_(static_cast<std::size_t>(capacity)) {}
+  explicit RemovalQueue(LargeArray<VertexState>& state) : state_(state) {}
   bool empty() const { return heap_.empty(); }
   /// The cheapest entry (ties: the lowest vertex index). Precondition: !empty().
   const Entry& top() {
     while (true) {
       Entry& front = heap_.front();
-      const double cost = slot(front.vertex).cost;
-      if (cost == front.cost) return front;
-      front.cost = cost;  // a risen cost: the key was a lower bound
+      VertexState& record = state_[front.vertex];
+      if (record.cost == front.cost) return front;
+      front.cost = record.key = record.cost;  // a risen cost: the key was a lower bound
       sift_down(0);
     }
   }
+  /// The vertex most likely to come next (the heap's front; its key may be stale), or kInvalid.
+  Index front_vertex() const { return heap_.empty() ? kInvalid : heap_.front().vertex; }
   /// Inserts v or changes its cost.
   void set(Index v, double cost) {
-    Slot& slot = this->slot(v);
-    slot.cost = cost;
-    if (slot.position == kInvalid) {
+    VertexState& record = state_[v];
+    record.cost = cost;
+    if (record.position == kInvalid) {
+      record.key = cost;
       heap_.push_back({cost, v});
-      slot.position = static_cast<Index>(heap_.size() - 1);
+      record.position = static_cast<Index>(heap_.size() - 1);
       sift_up(heap_.size() - 1);
-    } else if (cost < heap_[slot.position].cost) {
-      heap_[slot.position].cost = cost;
-      sift_up(slot.position);
+    } else if (cost < record.key) {
+      record.key = heap_[record.position].cost = cost;
+      sift_up(record.position);
     }
   }
   /// Removes v if present.
   void erase(Index v) {
-    const Index i = slot(v).position;
+    const Index i = state_[v].position;
     if (i == kInvalid) return;
-    slot(v).position = kInvalid;
+    state_[v].position = kInvalid;
     const Entry last = heap_.back();
     heap_.pop_back();
     if (static_cast<std::size_t>(i) == heap_.size()) return;
     place(i, last);
     sift_up(i);
-    sift_down(slot(last.vertex).position);
+    sift_down(state_[last.vertex].position);
   }
 
  private:
-  struct Slot {
-    double cost = 0;          // the vertex's current cost (≥ its heap key)
-    Index position = kInvalid;  // its heap index, or kInvalid
-  };
+  // Branch-free (bitwise, not short-circuit): heap comparisons are unpredictable.
   static bool before(const Entry& a, const Entry& b) {
-    return a.cost < b.cost || (a.cost == b.cost && a.vertex < b.vertex);
+    return (a.cost < b.cost) | ((a.cost == b.cost) & (a.vertex < b.vertex));
   }
   void place(std::size_t i, const Entry& e) {
     heap_[i] = e;
-    slot(e.vertex).position = static_cast<Index>(i);
+    state_[e.vertex].position = static_cast<Index>(i);
   }
   void sift_up(std::size_t i) {
     const Entry e = heap_[i];
@@ -301,30 +337,17 @@ class RemovalQueue {
       if (first >= size) break;
       std::size_t best = first;
       const std::size_t end = std::min(first + 4, size);
-      for (std::size_t c = first + 1; c < end; ++c)
-        if (before(heap_[c], heap_[best])) best = c;
+      for (std::size_t c = first + 1; c < end; ++c) best = before(heap_[c], heap_[best]) ? c : best;
       if (!before(heap_[best], e)) break;
       place(i, heap_[best]);
       i = best;
     }
     place(i, e);
   }
-  Slot& slot(Index v) { return slot_[local_index_ ? local_index_[v] : v]; }
-  const Index* local_index_;
+  LargeArray<VertexState>& state_;
   LargeArray<Entry> heap_;
-  LargeArray<Slot> slot_;
 };
 
-// Per-vertex driver state in one record (one cache line fetch per vertex touched, which is what
-// bounds the speed once the mesh outgrows the caches). log_scale is the flattening scale found by
-// the vertex's latest cost evaluation (its star has not changed since: every change re-evaluates
-// it), so the removal re-uses it instead of running Newton again; seen dedupes the vertices to
-// re-evaluate after one removal.
-struct VertexState {
-  double log_scale = std::numeric_limits<double>::quiet_NaN();
-  std::uint32_t seen = 0;
-  std::uint8_t locked = 0, failures = 0;
-};
 constexpr std::uint8_t kMaxFailures = 3;
 
 // What the greedy loops of one coarsen() call share.
@@ -346,7 +369,6 @@ struct GreedyContext {
 struct GreedyScope {
   const IntrinsicTriangulation::WriteRegion* region = nullptr;
   std::uint8_t* frontier = nullptr;  // with a region: 1 where a neighbour lies outside it (set by the loop)
-  const Index* local_index = nullptr;  // with a region: each vertex's index within its region
   Index vertices = 0;                // live vertices in scope (decremented per removal)
   Index target = 0;                  // never go below
 };
@@ -363,7 +385,7 @@ class GreedyLoop {
         scope_(scope),
         T_(context.T),
         state_(context.state),
-        queue_(scope.region ? scope.vertices : T_.num_input_vertices(), scope.local_index) {
+        queue_(context.state) {
     const Index n = T_.num_input_vertices();
     const IntrinsicTriangulation::WriteRegion* region = scope_.region;
     for (Index v = 0; v < n; ++v) {
@@ -374,7 +396,7 @@ class GreedyLoop {
           if (!region->contains(T_.head(h))) scope_.frontier[v] = 1;
         });
       }
-      state_[v].seen = 0;
+      state_[v].position = kInvalid;  // a slot of an earlier loop's queue
       schedule(v);
       blocked_ += T_.vertex_alive(v) && !eligible(v);
     }
@@ -414,12 +436,11 @@ class GreedyLoop {
         affected_.push_back(v);
       }
       T_.flip_to_delaunay_around(changed_faces_, &affected_, scope_.region);
-      ++epoch_;
-      for (Index u : affected_) {
-        if (!in_scope(u) || state_[u].seen == epoch_) continue;
-        state_[u].seen = epoch_;
-        schedule(u);
-      }
+      // Each affected vertex once (the order of the updates does not change the queue's order).
+      std::sort(affected_.begin(), affected_.end());
+      affected_.erase(std::unique(affected_.begin(), affected_.end()), affected_.end());
+      for (Index u : affected_)
+        if (in_scope(u)) schedule(u);
       // The serial loop reports per removal; the regions' progress is reported between rounds.
       if (!scope_.region && options.progress && status == RemovalStatus::Removed &&
           result_.removed % options.progress_interval == 0) {
@@ -461,7 +482,6 @@ class GreedyLoop {
   IntrinsicTriangulation& T_;
   LargeArray<VertexState>& state_;
   RemovalQueue queue_;
-  std::uint32_t epoch_ = 0;
   Index blocked_ = 0;
   std::vector<Index> affected_, changed_faces_;
   CoarsenResult result_;
@@ -500,15 +520,13 @@ void run_tasks(int threads, int tasks, F&& f) {
 
 // Labels the live vertices with `parts` regions: contiguous ranges of a breadth-first order of
 // each component (first vertex first), i.e. a ball and the shells around it, each compact on the
-// surface with a short frontier. Dead vertices get kNoRegion. Numbers each live vertex within its
-// region (local_index). Returns each region's live vertex count.
+// surface with a short frontier. Dead vertices get kNoRegion. Returns each region's live vertex
+// count.
 constexpr std::uint8_t kNoRegion = 255;
-std::vector<Index> partition_vertices(const IntrinsicTriangulation& T, int parts, std::vector<std::uint8_t>& label,
-                                      std::vector<Index>& local_index) {
+std::vector<Index> partition_vertices(const IntrinsicTriangulation& T, int parts, std::vector<std::uint8_t>& label) {
   const Index n = T.num_input_vertices();
   const Index live = T.num_vertices();
   label.assign(static_cast<std::size_t>(n), kNoRegion);
-  local_index.assign(static_cast<std::size_t>(n), kInvalid);
   std::vector<Index> sizes(static_cast<std::size_t>(parts), 0);
   std::vector<Index> queue;
   queue.reserve(static_cast<std::size_t>(live));
@@ -522,7 +540,7 @@ std::vector<Index> partition_vertices(const IntrinsicTriangulation& T, int parts
       const Index v = queue[head];
       const int part = static_cast<int>(static_cast<std::int64_t>(rank++) * parts / live);
       label[v] = static_cast<std::uint8_t>(part);
-      local_index[v] = sizes[part]++;
+      ++sizes[part];
       T.for_each_outgoing(v, [&](Index h) {
         const Index w = T.head(h);
         if (label[w] == kNoRegion) label[w] = 0, queue.push_back(w);
@@ -557,13 +575,13 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   const int parts = std::min(4 * threads, 254);
   // The partition (a breadth-first pass) runs on a second thread while the metric is set up.
   std::vector<std::uint8_t> label, frontier;
-  std::vector<Index> sizes, local_index;
+  std::vector<Index> sizes;
   std::optional<IntrinsicErrorMetric> metric_storage;
   run_tasks(parallel ? 2 : 1, parallel ? 2 : 1, [&](int task) {
     if (task == 0) {
       metric_storage.emplace(T, options.area_weight);
     } else {
-      sizes = partition_vertices(T, parts, label, local_index);
+      sizes = partition_vertices(T, parts, label);
       frontier.resize(label.size());
     }
   });
@@ -589,7 +607,6 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
       GreedyScope scope;
       scope.region = &regions[r];
       scope.frontier = frontier.data();
-      scope.local_index = local_index.data();
       scope.vertices = sizes[r];
       scope.target = 0;
       loops[r] = std::make_unique<GreedyLoop>(context, scope);

@@ -129,7 +129,7 @@ class IntrinsicErrorMetric {
   // Neighbours of v with their split weights; false when v cannot be flattened.
   bool split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out, double* log_scale) const;
   // Neighbour n's record after absorbing its share of v: calls sink(channel, mass, moment re, im)
-  // for every channel that holds mass afterwards (the others stay empty).
+  // for every channel (an empty channel reports zeros).
   template <class Sink>
   void merge_channels(const IntrinsicTriangulation& T, Index v, const Neighbour& n, Sink&& sink) const;
   // One record per vertex (all channels together: a cost evaluation reads them all).

@@ -32,11 +32,12 @@ inline double orient2d(Vec2 a, Vec2 b, Vec2 c) { return cross(b - a, c - a); }
 /// Sixteen times the squared area, by Kahan's stable Heron formula; negative when the triangle
 /// inequality fails.
 inline double heron_16_area_squared(double a, double b, double c) {
-  // Sort so that a >= b >= c.
-  if (a < b) std::swap(a, b);
-  if (b < c) std::swap(b, c);
-  if (a < b) std::swap(a, b);
-  return (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
+  // Sort so that hi >= mid >= lo, by min/max (branch-free: the order of a star's sides is
+  // unpredictable, and this runs for every corner of every Newton step of every cost evaluation).
+  const double larger = std::max(a, b), smaller = std::min(a, b);
+  const double hi = std::max(larger, c), rest = std::min(larger, c);
+  const double mid = std::max(smaller, rest), lo = std::min(smaller, rest);
+  return (hi + (mid + lo)) * (lo - (hi - mid)) * (lo + (hi - mid)) * (hi + (mid - lo));
 }
 
 /// True when a, b, c are positive, finite and every side is strictly shorter than the sum of the
