@@ -110,12 +110,20 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
   // out_vertex and the weights go straight to their slots; the check is branch-free, where a search
   // per corner mispredicts. The result is the same as the general path's (same order and sums).
   const int extra = star.boundary ? 1 : 0;
-  const auto neighbour_vertex = [&](int k) { return k < count ? corners[k].out_vertex : corners[count - 1].in_vertex; };
-  bool simple = count > 0;
-  for (int k = 0; k < count + extra; ++k) {
-    const Index vertex = neighbour_vertex(k);
-    simple &= vertex != v;
-    for (int j = 0; j < k; ++j) simple &= neighbour_vertex(j) != vertex;
+  // Distinctness is checked against a fixed-width array padded with distinct non-vertices, so the
+  // inner loop has a constant trip count (unrolled, no mispredicted exits).
+  constexpr int kMaxSimple = 16;
+  bool simple = count > 0 && count + extra <= kMaxSimple;
+  if (simple) {
+    Index ids[kMaxSimple];
+    for (int k = 0; k < kMaxSimple; ++k) ids[k] = -2 - k;
+    for (int k = 0; k < count; ++k) ids[k] = corners[k].out_vertex;
+    if (extra) ids[count] = corners[count - 1].in_vertex;
+    for (int k = 0; k < count + extra; ++k) {
+      int same = 0;
+      for (int j = 0; j < kMaxSimple; ++j) same += ids[j] == ids[k];
+      simple &= (same == 1) & (ids[k] != v);
+    }
   }
   for (int k = 0; k + 1 < count; ++k) simple &= corners[k].in_halfedge == (corners[k + 1].halfedge ^ 1);
   if (simple && !star.boundary) simple = corners[count - 1].in_halfedge == (corners[0].halfedge ^ 1);
@@ -249,6 +257,7 @@ struct alignas(32) VertexState {
   double log_scale = std::numeric_limits<double>::quiet_NaN();
   Index position = kInvalid;  // index in the queue's heap, or kInvalid
   std::uint8_t locked = 0, failures = 0;
+  std::uint16_t seen = 0;  // dedupes the vertices re-evaluated after one removal (GreedyLoop's epoch)
 };
 static_assert(sizeof(VertexState) == 32, "one record per half cache line");
 
@@ -336,8 +345,13 @@ class RemovalQueue {
       const std::size_t first = 4 * i + 1;
       if (first >= size) break;
       std::size_t best = first;
-      const std::size_t end = std::min(first + 4, size);
-      for (std::size_t c = first + 1; c < end; ++c) best = before(heap_[c], heap_[best]) ? c : best;
+      if (first + 4 <= size) {  // a full node: a fixed tournament (conditional moves, no loop exit)
+        const std::size_t left = before(heap_[first + 1], heap_[first]) ? first + 1 : first;
+        const std::size_t right = before(heap_[first + 3], heap_[first + 2]) ? first + 3 : first + 2;
+        best = before(heap_[right], heap_[left]) ? right : left;
+      } else {
+        for (std::size_t c = first + 1; c < size; ++c) best = before(heap_[c], heap_[best]) ? c : best;
+      }
       if (!before(heap_[best], e)) break;
       place(i, heap_[best]);
       i = best;
@@ -397,6 +411,7 @@ class GreedyLoop {
         });
       }
       state_[v].position = kInvalid;  // a slot of an earlier loop's queue
+      state_[v].seen = 0;
       schedule(v);
       blocked_ += T_.vertex_alive(v) && !eligible(v);
     }
@@ -415,10 +430,13 @@ class GreedyLoop {
       queue_.erase(v);
       // The one-ring (its costs change), collected while the star exists.
       affected_.clear();
+      // (tail(prev(h)) is the next half-edge's head, except past the last one at a boundary vertex.)
+      Index last = kInvalid;
       T_.for_each_outgoing(v, [&](Index h) {
         affected_.push_back(T_.head(h));
-        affected_.push_back(T_.tail(T_.prev(h)));
+        last = h;
       });
+      if (T_.is_boundary_vertex(v)) affected_.push_back(T_.tail(T_.prev(last)));
       if (!context_.metric.prepare_removal(T_, v, state_[v].log_scale)) continue;
       changed_faces_.clear();
       const RemovalStatus status = T_.remove_vertex(v, &changed_faces_, &affected_, state_[v].log_scale);
@@ -436,11 +454,16 @@ class GreedyLoop {
         affected_.push_back(v);
       }
       T_.flip_to_delaunay_around(changed_faces_, &affected_, scope_.region);
-      // Each affected vertex once (the order of the updates does not change the queue's order).
-      std::sort(affected_.begin(), affected_.end());
-      affected_.erase(std::unique(affected_.begin(), affected_.end()), affected_.end());
-      for (Index u : affected_)
-        if (in_scope(u)) schedule(u);
+      if (++epoch_ == 0) {  // the 16-bit epoch wrapped: forget every mark in scope
+        for (Index u = 0; u < T_.num_input_vertices(); ++u)
+          if (in_scope(u)) state_[u].seen = 0;
+        epoch_ = 1;
+      }
+      for (Index u : affected_) {
+        if (!in_scope(u) || state_[u].seen == epoch_) continue;
+        state_[u].seen = epoch_;
+        schedule(u);
+      }
       // The serial loop reports per removal; the regions' progress is reported between rounds.
       if (!scope_.region && options.progress && status == RemovalStatus::Removed &&
           result_.removed % options.progress_interval == 0) {
@@ -483,6 +506,7 @@ class GreedyLoop {
   LargeArray<VertexState>& state_;
   RemovalQueue queue_;
   Index blocked_ = 0;
+  std::uint16_t epoch_ = 0;
   std::vector<Index> affected_, changed_faces_;
   CoarsenResult result_;
 };
