@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <thread>
+#include <type_traits>
 #include <chrono>
 #include <cmath>
 
@@ -49,7 +50,8 @@ const char* to_string(StopReason reason) {
 // ------------------------------------------------------------------------------------------------
 // Error metric
 
-IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight) {
+IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight)
+    : area_channel_(area_weight != 0) {
   const Index n = T.num_input_vertices();
   records_.assign(n, Record{});
   std::vector<double> vertex_area(n, 0.0);
@@ -110,21 +112,25 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
   // out_vertex and the weights go straight to their slots; the check is branch-free, where a search
   // per corner mispredicts. The result is the same as the general path's (same order and sums).
   const int extra = star.boundary ? 1 : 0;
-  // Distinctness is checked against a fixed-width array padded with distinct non-vertices, so the
-  // inner loop has a constant trip count (unrolled, no mispredicted exits).
-  constexpr int kMaxSimple = 16;
-  bool simple = count > 0 && count + extra <= kMaxSimple;
-  if (simple) {
-    Index ids[kMaxSimple];
-    for (int k = 0; k < kMaxSimple; ++k) ids[k] = -2 - k;
+  // Distinctness is checked against a fixed-width array (8 or 16) padded with distinct non-vertices,
+  // so the inner loop has a constant trip count (unrolled, no mispredicted exits).
+  const auto distinct = [&](auto width) {
+    constexpr int kWidth = decltype(width)::value;
+    Index ids[kWidth];
+    for (int k = 0; k < kWidth; ++k) ids[k] = -2 - k;
     for (int k = 0; k < count; ++k) ids[k] = corners[k].out_vertex;
     if (extra) ids[count] = corners[count - 1].in_vertex;
+    bool all = true;
     for (int k = 0; k < count + extra; ++k) {
       int same = 0;
-      for (int j = 0; j < kMaxSimple; ++j) same += ids[j] == ids[k];
-      simple &= (same == 1) & (ids[k] != v);
+      for (int j = 0; j < kWidth; ++j) same += ids[j] == ids[k];
+      all &= (same == 1) & (ids[k] != v);
     }
-  }
+    return all;
+  };
+  bool simple = count > 0 && (count + extra <= 8    ? distinct(std::integral_constant<int, 8>())
+                              : count + extra <= 16 ? distinct(std::integral_constant<int, 16>())
+                                                    : false);
   for (int k = 0; k + 1 < count; ++k) simple &= corners[k].in_halfedge == (corners[k + 1].halfedge ^ 1);
   if (simple && !star.boundary) simple = corners[count - 1].in_halfedge == (corners[0].halfedge ^ 1);
   if (simple) {
@@ -163,7 +169,7 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
   return !out.empty();
 }
 
-template <class Sink>
+template <int Channels, class Sink>
 void IntrinsicErrorMetric::merge_channels(const IntrinsicTriangulation& T, Index v, const Neighbour& n, Sink&& sink) const {
   // Complex arithmetic is written out: std::complex's operator* guards against NaN/inf operands,
   // which cannot occur here, at several times the cost.
@@ -188,7 +194,7 @@ void IntrinsicErrorMetric::merge_channels(const IntrinsicTriangulation& T, Index
       rotation_re = rotation.real(), rotation_im = rotation.imag();
     }
   }
-  for (int c = 0; c < kChannels; ++c) {
+  for (int c = 0; c < Channels; ++c) {
     const double share = n.weight * from.mass[c];
     const double m_j = to.mass[c];
     const double x = rotation_re * from.centre[c].real() - rotation_im * from.centre[c].imag();
@@ -206,8 +212,11 @@ double IntrinsicErrorMetric::removal_cost(const IntrinsicTriangulation& T, Index
   // The neighbours' records are usually not cached on large meshes: request them all at once.
   for (const Neighbour& n : neighbours) __builtin_prefetch(&records_[n.vertex]);
   double cost = 0;
-  for (const Neighbour& n : neighbours)  // m'·|x'| = |m'·x'|
-    merge_channels(T, v, n, [&](int, double, double re, double im) { cost += std::sqrt(re * re + im * im); });
+  const auto add_cost = [&](int, double, double re, double im) { cost += std::sqrt(re * re + im * im); };  // m'·|x'| = |m'·x'|
+  for (const Neighbour& n : neighbours) {
+    if (area_channel_) merge_channels<kChannels>(T, v, n, add_cost);
+    else merge_channels<kChannels - 1>(T, v, n, add_cost);
+  }
   return cost;
 }
 
@@ -218,10 +227,12 @@ bool IntrinsicErrorMetric::prepare_removal(const IntrinsicTriangulation& T, Inde
   if (!split_weights(T, v, work.neighbours, &log_scale)) return false;
   for (const Neighbour& n : work.neighbours) {
     PendingRecord record{n.vertex, {}, {}};
-    merge_channels(T, v, n, [&](int c, double mass, double re, double im) {
+    const auto keep = [&](int c, double mass, double re, double im) {
       record.mass[c] = mass;
       record.moment[c] = {re, im};
-    });
+    };
+    if (area_channel_) merge_channels<kChannels>(T, v, n, keep);
+    else merge_channels<kChannels - 1>(T, v, n, keep);
     work.pending.push_back(record);
   }
   work.pending_vertex = v;

@@ -129,8 +129,9 @@ class IntrinsicErrorMetric {
   // Neighbours of v with their split weights; false when v cannot be flattened.
   bool split_weights(const IntrinsicTriangulation& T, Index v, std::vector<Neighbour>& out, double* log_scale) const;
   // Neighbour n's record after absorbing its share of v: calls sink(channel, mass, moment re, im)
-  // for every channel (an empty channel reports zeros).
-  template <class Sink>
+  // for each of the first `Channels` channels (an empty channel reports zeros; the area channel,
+  // the last, is skipped when the area weight is 0: it is empty everywhere, forever).
+  template <int Channels, class Sink>
   void merge_channels(const IntrinsicTriangulation& T, Index v, const Neighbour& n, Sink&& sink) const;
   // One record per vertex (all channels together: a cost evaluation reads them all).
   struct Record {
@@ -138,6 +139,7 @@ class IntrinsicErrorMetric {
     std::array<std::complex<double>, kChannels> centre{};
   };
   LargeArray<Record> records_;  // huge pages: read in removal order (ice/large_array.h)
+  bool area_channel_ = false;   // area weight > 0
   // Scratch space and the prepared removal, one per thread: coarsen's parallel mode runs threads
   // on disjoint parts of the mesh, which read and write disjoint records.
   struct Workspace {
