@@ -8,7 +8,6 @@
 #include <memory>
 #include <optional>
 #include <thread>
-#include <type_traits>
 #include <chrono>
 #include <cmath>
 
@@ -106,33 +105,11 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
   const double half_scale = std::exp(0.5 * u);
   const std::vector<StarCorner>& corners = star.corners;
   const int count = static_cast<int>(corners.size());
-  // Corner k's in_vertex is corner k+1's out_vertex (h_{k+1} = prev(h_k)^1); at a boundary vertex
-  // the last corner's in_vertex is the one neighbour that is no out_vertex. When these neighbours are
-  // distinct and none is v (no multi- or self-edges: nearly always), neighbour k is corner k's
-  // out_vertex and the weights go straight to their slots; the check is branch-free, where a search
-  // per corner mispredicts. The result is the same as the general path's (same order and sums).
+  // With distinct neighbours (no multi- or self-edges at v: nearly always) neighbour k is corner k's
+  // out_vertex and the weights go straight to their slots, where the general path searches the list
+  // per corner (mispredicted branches). Same order and sums, so the same result.
   const int extra = star.boundary ? 1 : 0;
-  // Distinctness is checked against a fixed-width array (8 or 16) padded with distinct non-vertices,
-  // so the inner loop has a constant trip count (unrolled, no mispredicted exits).
-  const auto distinct = [&](auto width) {
-    constexpr int kWidth = decltype(width)::value;
-    Index ids[kWidth];
-    for (int k = 0; k < kWidth; ++k) ids[k] = -2 - k;
-    for (int k = 0; k < count; ++k) ids[k] = corners[k].out_vertex;
-    if (extra) ids[count] = corners[count - 1].in_vertex;
-    bool all = true;
-    for (int k = 0; k < count + extra; ++k) {
-      int same = 0;
-      for (int j = 0; j < kWidth; ++j) same += ids[j] == ids[k];
-      all &= (same == 1) & (ids[k] != v);
-    }
-    return all;
-  };
-  bool simple = count > 0 && (count + extra <= 8    ? distinct(std::integral_constant<int, 8>())
-                              : count + extra <= 16 ? distinct(std::integral_constant<int, 16>())
-                                                    : false);
-  for (int k = 0; k + 1 < count; ++k) simple &= corners[k].in_halfedge == (corners[k + 1].halfedge ^ 1);
-  if (simple && !star.boundary) simple = corners[count - 1].in_halfedge == (corners[0].halfedge ^ 1);
+  const bool simple = has_distinct_neighbours(star);
   if (simple) {
     out.resize(static_cast<std::size_t>(count + extra));
     for (int k = 0; k < count; ++k) out[k] = {corners[k].out_vertex, corners[k].halfedge, 0.0};

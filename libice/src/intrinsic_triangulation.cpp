@@ -253,9 +253,10 @@ double IntrinsicTriangulation::total_curvature() const {
   return sum;
 }
 
-void IntrinsicTriangulation::recompute_vertex_frame(Index v) { refresh_vertex_frame(v, kInvalid, nullptr); }
+void IntrinsicTriangulation::recompute_vertex_frame(Index v) { refresh_vertex_frame(v, kInvalid, nullptr, 0); }
 
-void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near, const std::vector<CornerChange>* changes) {
+void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near, const CornerChange* changes,
+                                                  int change_count) {
   // Corner angles of v's fan, counter-clockwise from vhalfedge(v). With `changes` (after the
   // neighbour `changed_near` was flattened), the corners of faces touching it take their listed new
   // values and every other corner is read back from the stored coordinates,
@@ -282,18 +283,19 @@ void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near, c
       double corner;
       if (!reuse) {
         corner = corner_angle(h);
+      } else if (changed_near == kInvalid) {
+        corner = wrap_angle(hangle(following) - hangle(h)) / old_scale;
+        for (int i = 0; i < change_count; ++i) corner = changes[i].halfedge == h ? changes[i].corner : corner;
+      } else if (head(h) == changed_near || tail(in) == changed_near) {
+        corner = -1;
+        for (int i = 0; i < change_count; ++i)
+          if (changes[i].halfedge == h) {
+            corner = changes[i].corner;
+            break;
+          }
+        if (corner < 0) corner = corner_angle(h);  // not listed: recompute (never expected)
       } else {
-        if (head(h) == changed_near || tail(in) == changed_near) {
-          corner = -1;
-          for (const CornerChange& change : *changes)
-            if (change.halfedge == h) {
-              corner = change.corner;
-              break;
-            }
-          if (corner < 0) corner = corner_angle(h);  // not listed: recompute (never expected)
-        } else {
-          corner = wrap_angle(hangle(following) - hangle(h)) / old_scale;
-        }
+        corner = wrap_angle(hangle(following) - hangle(h)) / old_scale;
       }
       if (count == kSmall && fan == fan_small) fan_large.assign(fan_small, fan_small + kSmall);
       if (count >= kSmall) {
@@ -513,6 +515,9 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   // star (no second Heron). They are computed afresh rather than as increments of the old corners:
   // an increment carries the relative error of two areas, which on thin faces reaches 1e-11 rad
   // and would accumulate over the many flattenings a vertex's neighbours go through.
+  // (With distinct neighbours, corner k's two entries are changes[2k] at its out_vertex and
+  // changes[2k+1] at its in_vertex, and every listed corner is a different one.)
+  const bool simple = has_distinct_neighbours(star);
   thread_local std::vector<CornerChange> changes;
   changes.clear();
   const double scale[3] = {1.0, half_scale, half_scale * half_scale};
@@ -544,8 +549,10 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   std::vector<Index>& star_faces = scratch_faces();
   star_faces.clear();
   for_each_outgoing(v, [&](Index h) { star_faces.push_back(face(h)); });
-  std::sort(star_faces.begin(), star_faces.end());
-  star_faces.erase(std::unique(star_faces.begin(), star_faces.end()), star_faces.end());
+  if (!simple) {
+    std::sort(star_faces.begin(), star_faces.end());
+    star_faces.erase(std::unique(star_faces.begin(), star_faces.end()), star_faces.end());
+  }
   for (Index f : star_faces) {
     const Index h0 = fhalfedge(f);
     const bool at_v[3] = {tail(h0) == v, tail(next(h0)) == v, tail(prev(h0)) == v};
@@ -556,11 +563,23 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
       b = clamp_barycentric(b);
     });
   }
+  if (update_own_frame) recompute_vertex_frame(v);
+  if (simple) {
+    // Neighbour k changes at two corners: in face k (changes[2k]) and in face k−1 (changes[2k−1]);
+    // at a boundary vertex the first neighbour only in face 0 and the extra last one only in the
+    // last face. The frames of distinct vertices are independent: any order gives the same result.
+    const int count = static_cast<int>(star.corners.size());
+    for (int k = 0; k < count; ++k) {
+      const CornerChange pair[2] = {changes[2 * k], changes[k > 0 ? 2 * k - 1 : 2 * count - 1]};
+      refresh_vertex_frame(star.corners[k].out_vertex, kInvalid, pair, star.boundary && k == 0 ? 1 : 2);
+    }
+    if (star.boundary) refresh_vertex_frame(star.corners[count - 1].in_vertex, kInvalid, &changes[2 * count - 1], 1);
+    return result;
+  }
   std::sort(neighbours.begin(), neighbours.end());
   neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
-  if (update_own_frame) recompute_vertex_frame(v);
   for (Index w : neighbours)
-    if (w != v) refresh_vertex_frame(w, v, &changes);
+    if (w != v) refresh_vertex_frame(w, v, changes.data(), static_cast<int>(changes.size()));
   return result;
 }
 

@@ -1,6 +1,7 @@
 #include "ice/vertex_star.h"
 
 #include <cmath>
+#include <type_traits>
 
 namespace ice {
 namespace {
@@ -29,6 +30,32 @@ void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star) {
     c.m_opposite = static_cast<std::uint8_t>((c.in_vertex == v) + (c.out_vertex == v));
     star.corners.push_back(c);
   });
+}
+
+bool has_distinct_neighbours(const VertexStar& star) {
+  // Compared against a fixed-width array (8 or 16) padded with distinct non-vertices, so the inner
+  // loop has a constant trip count (unrolled, no mispredicted exits): a search per neighbour
+  // mispredicts.
+  const int count = static_cast<int>(star.corners.size());
+  const int neighbours = count + (star.boundary ? 1 : 0);
+  const auto distinct = [&](auto width) {
+    constexpr int kWidth = decltype(width)::value;
+    Index ids[kWidth];
+    for (int k = 0; k < kWidth; ++k) ids[k] = -2 - k;
+    for (int k = 0; k < count; ++k) ids[k] = star.corners[k].out_vertex;
+    if (star.boundary) ids[count] = star.corners[count - 1].in_vertex;
+    bool all = true;
+    for (int k = 0; k < neighbours; ++k) {
+      int same = 0;
+      for (int j = 0; j < kWidth; ++j) same += ids[j] == ids[k];
+      all &= (same == 1) & (ids[k] != star.centre);
+    }
+    return all;
+  };
+  if (count == 0) return false;
+  if (neighbours <= 8) return distinct(std::integral_constant<int, 8>());
+  if (neighbours <= 16) return distinct(std::integral_constant<int, 16>());
+  return false;
 }
 
 void star_areas(VertexStar& star, double log_scale) {

@@ -242,7 +242,13 @@ class IntrinsicTriangulation {
     Index halfedge;
     double corner;
   };
-  void refresh_vertex_frame(Index v, Index changed_near, const std::vector<CornerChange>* changes);
+  // Recomputes Θ_v and v's angular coordinates (from its reference half-edge). changes == nullptr:
+  // every corner from the lengths. Otherwise the listed corners take the listed values and every
+  // other corner is read back from the stored coordinates; with `changed_near`, the list may hold
+  // other vertices' corners too and only corners of faces touching changed_near are looked up;
+  // without (kInvalid), the list holds v's changed corners only (a few: each corner is compared
+  // with all of them).
+  void refresh_vertex_frame(Index v, Index changed_near, const CornerChange* changes, int change_count);
   void add_point_to_face(Index p, Index f, const std::array<double, 3>& bary);
   void kill_face(Index f);
   void kill_edge(Index e);

@@ -40,8 +40,17 @@ struct VertexStar {
 };
 
 /// Reads the star of v (a live vertex), counter-clockwise from vertex_halfedge(v). Re-uses the
-/// storage of `star`.
+/// storage of `star`. Consecutive corners share a spoke: corner k's in_halfedge is the twin of
+/// corner k+1's halfedge (and, at an interior vertex, the last corner's of the first's), so corner
+/// k's in_vertex is corner k+1's out_vertex.
 void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star);
+
+/// True when the star's neighbours — every corner's out_vertex and, at a boundary vertex, the last
+/// corner's in_vertex — are pairwise distinct and none is the centre (no self- or multi-edges at
+/// the centre: the usual case). Then neighbour k (k = 0..corners−1, plus the extra boundary one) is
+/// corner k's out_vertex, and every face of the star is a different face. Branch-free for up to 16
+/// neighbours (false beyond).
+bool has_distinct_neighbours(const VertexStar& star);
 
 /// Solves for the log-scale u that makes the star flat, by damped Newton from `initial_log_scale`,
 /// to |Θ(u) − flat| ≤ tolerance × flat. On success also fills every corner's `four_area` (at u = 0)
