@@ -12,6 +12,7 @@
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
+#include "ice/vertex_star.h"
 #include "test_support.h"
 
 using namespace ice;
@@ -271,6 +272,70 @@ TEST_CASE("Δ-complexes: tiny closed meshes driven into self- and multi-edges st
     T.flip_to_delaunay();
     CHECK(T.validate() == "");
   }
+}
+
+// The star's neighbours as has_distinct_neighbours defines them, checked by brute force.
+bool neighbours_distinct_by_set(const VertexStar& star) {
+  std::vector<Index> neighbours;
+  for (const StarCorner& corner : star.corners) neighbours.push_back(corner.out_vertex);
+  if (star.boundary) neighbours.push_back(star.corners.back().in_vertex);
+  const std::set<Index> unique(neighbours.begin(), neighbours.end());
+  return neighbours.size() <= 16 && unique.size() == neighbours.size() && unique.count(star.centre) == 0;
+}
+
+TEST_CASE("star snapshots: consecutive corners share a spoke; distinct neighbours are recognised", "[intrinsic]") {
+  // The coarsener's fast paths (split weights, frame refreshes) rely on both properties; Δ-complex
+  // stars (self- and multi-edges, from random flips of tiny meshes) must take the general paths.
+  const TriangleMesh torus7 = make_seven_vertex_torus();
+  TriangleMesh cap = make_flat_disk(4, 1.0, 0.2);
+  for (Eigen::Index v = 0; v < cap.V.rows(); ++v) cap.V(v, 2) = 0.3 * cap.V(v, 0) * cap.V(v, 0);
+  const std::vector<std::pair<std::string, TriangleMesh>> meshes = {
+      {"7-vertex torus", torus7}, {"curved cap with boundary", cap}, {"icosphere", make_icosphere(1)}};
+  for (const auto& [name, mesh] : meshes) {
+    INFO(name);
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    std::mt19937 rng(11);
+    int simple = 0, not_simple = 0;
+    VertexStar star;
+    for (int round = 0; round < 300; ++round) {
+      for (Index v = 0; v < T.num_input_vertices(); ++v) {
+        if (!T.vertex_alive(v)) continue;
+        read_star(T, v, star);
+        const int count = static_cast<int>(star.corners.size());
+        for (int k = 0; k + 1 < count; ++k) REQUIRE(star.corners[k].in_halfedge == (star.corners[k + 1].halfedge ^ 1));
+        if (!star.boundary) REQUIRE(star.corners[count - 1].in_halfedge == (star.corners[0].halfedge ^ 1));
+        const bool expected = neighbours_distinct_by_set(star);
+        REQUIRE(has_distinct_neighbours(star) == expected);
+        (expected ? simple : not_simple) += 1;
+      }
+      random_flips(T, 3, rng);
+      // A flattening then exercises the frame refresh on whatever star the flips made.
+      const Index v = std::uniform_int_distribution<Index>(0, T.num_input_vertices() - 1)(rng);
+      T.flatten_vertex(v);
+      if (round % 20 == 19) T.flip_to_delaunay();  // keeps the metric away from needle faces
+      REQUIRE(T.validate() == "");
+    }
+    CHECK(simple > 0);
+    if (name != "curved cap with boundary") CHECK(not_simple > 0);  // flips made self- or multi-edges
+  }
+}
+
+TEST_CASE("a star of more than 16 neighbours is reported as not having distinct neighbours", "[intrinsic]") {
+  // A flat fan of 18 triangles around vertex 0 (the contract: false beyond 16, the general paths).
+  Positions V(19, 3);
+  Faces F(18, 3);
+  V.row(0) << 0, 0, 0;
+  for (int k = 0; k < 18; ++k) {
+    V.row(k + 1) << std::cos(2 * kPi * k / 18), std::sin(2 * kPi * k / 18), 0;
+    F.row(k) << 0, k + 1, (k + 1) % 18 + 1;
+  }
+  auto T = IntrinsicTriangulation::from_mesh(V, F);
+  VertexStar star;
+  read_star(T, 0, star);
+  CHECK(star.corners.size() == 18);
+  CHECK_FALSE(has_distinct_neighbours(star));
+  read_star(T, 1, star);  // a boundary vertex of the fan: one corner, three distinct neighbours
+  CHECK(has_distinct_neighbours(star) == neighbours_distinct_by_set(star));
 }
 
 TEST_CASE("flattening makes the angle sum exactly the target and keeps the rest valid", "[intrinsic]") {
