@@ -278,8 +278,6 @@ class RemovalQueue {
       sift_down(0);
     }
   }
-  /// The vertex most likely to come next (the heap's front; its key may be stale), or kInvalid.
-  Index front_vertex() const { return heap_.empty() ? kInvalid : heap_.front().vertex; }
   /// Inserts v or changes its cost.
   void set(Index v, double cost) {
     VertexState& record = state_[v];
