@@ -111,6 +111,11 @@ class IntrinsicErrorMetric {
   /// Writes the pending records (call once T.remove_vertex(v) succeeded).
   void apply_prepared_removal();
   double mass(Index v, int channel) const { return records_[v].mass[channel]; }
+  /// Requests v's record from memory (see IntrinsicTriangulation::prefetch_two_ring).
+  void prefetch(Index v) const {
+    __builtin_prefetch(&records_[v]);
+    __builtin_prefetch(reinterpret_cast<const char*>(&records_[v]) + sizeof(Record) - 1);
+  }
   std::complex<double> centre(Index v, int channel) const { return records_[v].centre[channel]; }
   /// Σ of each channel's masses over live vertices (conserved by removals).
   std::array<double, kChannels> total_mass(const IntrinsicTriangulation& T) const;
