@@ -413,10 +413,14 @@ class GreedyLoop {
       const RemovalQueue::Entry top = queue_.top();  // a copy: erase() moves the heap's entries
       if (top.cost > threshold) return RunStop::Threshold;
       const Index v = top.vertex;
-      T_.prefetch_two_ring(v, [&](Index w) {
-        __builtin_prefetch(&state_[w]);
-        context_.metric.prefetch(w);
-      });
+      // Re-evaluating a neighbour reads its state and the metric records of its own neighbours.
+      T_.prefetch_two_ring(
+          v,
+          [&](Index w) {
+            __builtin_prefetch(&state_[w]);
+            context_.metric.prefetch(w);
+          },
+          [&](Index w) { context_.metric.prefetch(w); });
       queue_.erase(v);
       // The one-ring (its costs change), collected while the star exists.
       affected_.clear();

@@ -28,6 +28,7 @@
 /// barycentric coordinates (b0, b1, b2) w.r.t. the corners (tail of halfedge(f), of next, of
 /// next·next). Flips, flattening and removals update them so that, on a flat mesh, every point keeps
 /// its planar position exactly (up to round-off).
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <string>
@@ -135,36 +136,58 @@ class IntrinsicTriangulation {
 
   /// Requests the records of v's star and of its neighbours' stars from memory ahead of a local
   /// operation there (a removal reads and writes all of them). A plain walk misses the cache once
-  /// per step, one fan after another; here the neighbours' fans are walked in lockstep, so their
-  /// misses overlap. Calls visit(w) for every vertex met (with repeats), for the caller's own
-  /// per-vertex data. Reads only: nothing any result depends on.
-  template <class F>
-  void prefetch_two_ring(Index v, F&& visit) const {
-    constexpr int kMaxFans = 32;
-    Index cursor[kMaxFans], stop[kMaxFans];
-    int fans = 0;
-    for_each_outgoing(v, [&](Index h) {
-      __builtin_prefetch(&edges_[hnext(h) >> 1]);  // the edge opposite v
+  /// per step, one fan after another; here every fan is walked both ways at once and the
+  /// neighbours' fans in lockstep, so that the misses overlap (about six memory latencies in a row
+  /// instead of one per half-edge). Calls neighbour(w) for every neighbour of v and second(w) for
+  /// every vertex met around them (with repeats), for the caller's own per-vertex data. Reads only:
+  /// nothing any result depends on.
+  template <class Neighbour, class Second>
+  void prefetch_two_ring(Index v, Neighbour&& neighbour, Second&& second) const {
+    constexpr int kMaxSpokes = 16;
+    Index ccw[kMaxSpokes], cw[kMaxSpokes];
+    int spokes = 0;
+    // The outgoing half-edge after h counter-clockwise is prev(h)^1, clockwise next(h^1); an
+    // exterior half-edge (a fan's end at the boundary) has neither, and the walk stays put.
+    const auto next_ccw = [&](Index h) { return hface(h) != kInvalid ? hprev(h) ^ 1 : h; };
+    const auto next_cw = [&](Index h) { return hface(h ^ 1) != kInvalid ? hnext(h ^ 1) : h; };
+    const auto request_edge = [&](Index h) {  // a record may straddle two cache lines
+      const char* record = reinterpret_cast<const char*>(&edges_[h >> 1]);
+      __builtin_prefetch(record);
+      __builtin_prefetch(record + sizeof(EdgeRecord) - 1);
+    };
+    const auto touch = [&](Index h) {  // h's record is in: request the edge across, return the head
+      request_edge(hface(h) != kInvalid ? hnext(h) : h);
       const Index w = head(h);
+#if defined(__GNUC__)
+      // The walk's loads feed nothing but prefetches, which the optimiser may drop as dead code.
+      __asm__ volatile("" : : "r"(w));
+#endif
+      return w;
+    };
+    const auto add_spoke = [&](Index h) {  // h: v -> a neighbour, which starts two walks at h^1
+      const Index w = touch(h);
       __builtin_prefetch(&vertices_[w]);
-      visit(w);
-      if (fans < kMaxFans && hface(h ^ 1) != kInvalid) cursor[fans] = stop[fans] = h ^ 1, ++fans;
-    });
-    for (bool moving = fans > 0; moving;) {
-      moving = false;
-      for (int k = 0; k < fans; ++k) {
-        if (cursor[k] == kInvalid) continue;
-        const Index t = hprev(cursor[k]) ^ 1;  // the next outgoing half-edge of that neighbour
-        if (t == stop[k] || hface(t) == kInvalid) {
-          cursor[k] = kInvalid;
-          continue;
-        }
-        __builtin_prefetch(&edges_[hnext(t) >> 1]);
-        const Index w = head(t);
-        __builtin_prefetch(&vertices_[w]);
-        visit(w);
-        cursor[k] = t;
-        moving = true;
+      neighbour(w);
+      ccw[spokes] = cw[spokes] = h ^ 1;
+      spokes += spokes < kMaxSpokes - 1;
+    };
+    // v's fan, from vertex_halfedge both ways until the two walks meet (or reach the boundary).
+    Index forward = vhalfedge(v), backward = forward;
+    add_spoke(forward);
+    for (int guard = 0; guard < 64; ++guard) {
+      const Index a = next_ccw(forward), b = next_cw(backward);
+      const bool a_new = a != forward && a != backward && hface(a) != kInvalid;
+      if (a_new) add_spoke(forward = a);
+      const bool b_new = b != backward && b != forward && hface(b) != kInvalid;
+      if (b_new) add_spoke(backward = b);
+      if (!a_new && !b_new) break;
+    }
+    // The neighbours' fans: three steps each way cover a neighbour of degree up to 7 (the first
+    // step each way is an edge of v's star, requested above).
+    for (int step = 0; step < 3; ++step) {
+      for (int k = 0; k < spokes; ++k) {
+        second(touch(ccw[k] = next_ccw(ccw[k])));
+        second(touch(cw[k] = next_cw(cw[k])));
       }
     }
   }
