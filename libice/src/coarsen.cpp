@@ -1,6 +1,7 @@
 #include "ice/coarsen.h"
 
 #include "ice/vertex_star.h"
+#include "removal_queue.h"
 
 #include <algorithm>
 #include <atomic>
@@ -234,119 +235,8 @@ void IntrinsicErrorMetric::apply_prepared_removal() {
 
 namespace {
 
-// Per-vertex driver state in one 32-byte record (one cache line fetch per vertex touched, which is
-// what bounds the speed once the mesh outgrows the caches), the removal queue's slot included.
-// log_scale is the flattening scale found by the vertex's latest cost evaluation (its star has not
-// changed since: every change re-evaluates it), so the removal re-uses it instead of running
-// Newton again.
-struct alignas(32) VertexState {
-  double cost = 0;      // current removal cost (>= key)
-  double key = 0;       // the vertex's key in the queue's heap (a copy; valid while position != kInvalid)
-  double log_scale = std::numeric_limits<double>::quiet_NaN();
-  Index position = kInvalid;  // index in the queue's heap, or kInvalid
-  std::uint8_t locked = 0, failures = 0;
-  std::uint16_t seen = 0;  // dedupes the vertices re-evaluated after one removal (GreedyLoop's epoch)
-};
-static_assert(sizeof(VertexState) == 32, "one record per half cache line");
-
-// The removal candidates: an indexed 4-ary min-heap on (cost, vertex), at most one entry per vertex,
-// with the slots in the vertices' VertexState records (a queue only ever holds the vertices of its
-// own scope, so the queues of the parallel regions share one state array).
-// A cost that rises is only recorded (in the vertex's record, not in the heap): costs mostly rise as
-// neighbours absorb mass, most such vertices are far from the top, and moving them would touch the
-// heap at random places (cache misses once it outgrows the caches); the record's copy of the key
-// tells without reading the heap. The heap keys are therefore lower bounds; top() raises a stale top
-// to its cost and sifts it down until the top's key is its cost, which is then the exact minimum,
-// ties included. A cost that falls is moved up at once.
-// Compared with a lazy heap of stale entries it stays at most n entries and pops once per removal;
-// a 4-ary node's children share a cache line or two (half the depth of a binary heap).
-class RemovalQueue {
- public:
-  struct Entry {
-    double cost;
-    Index vertex;
-  };
-  explicit RemovalQueue(LargeArray<VertexState>& state) : state_(state) {}
-  bool empty() const { return heap_.empty(); }
-  /// The cheapest entry (ties: the lowest vertex index). Precondition: !empty().
-  const Entry& top() {
-    while (true) {
-      Entry& front = heap_.front();
-      VertexState& record = state_[front.vertex];
-      if (record.cost == front.cost) return front;
-      front.cost = record.key = record.cost;  // a risen cost: the key was a lower bound
-      sift_down(0);
-    }
-  }
-  /// Inserts v or changes its cost.
-  void set(Index v, double cost) {
-    VertexState& record = state_[v];
-    record.cost = cost;
-    if (record.position == kInvalid) {
-      record.key = cost;
-      heap_.push_back({cost, v});
-      record.position = static_cast<Index>(heap_.size() - 1);
-      sift_up(heap_.size() - 1);
-    } else if (cost < record.key) {
-      record.key = heap_[record.position].cost = cost;
-      sift_up(record.position);
-    }
-  }
-  /// Removes v if present.
-  void erase(Index v) {
-    const Index i = state_[v].position;
-    if (i == kInvalid) return;
-    state_[v].position = kInvalid;
-    const Entry last = heap_.back();
-    heap_.pop_back();
-    if (static_cast<std::size_t>(i) == heap_.size()) return;
-    place(i, last);
-    sift_up(i);
-    sift_down(state_[last.vertex].position);
-  }
-
- private:
-  // Branch-free (bitwise, not short-circuit): heap comparisons are unpredictable.
-  static bool before(const Entry& a, const Entry& b) {
-    return (a.cost < b.cost) | ((a.cost == b.cost) & (a.vertex < b.vertex));
-  }
-  void place(std::size_t i, const Entry& e) {
-    heap_[i] = e;
-    state_[e.vertex].position = static_cast<Index>(i);
-  }
-  void sift_up(std::size_t i) {
-    const Entry e = heap_[i];
-    while (i > 0) {
-      const std::size_t parent = (i - 1) / 4;
-      if (!before(e, heap_[parent])) break;
-      place(i, heap_[parent]);
-      i = parent;
-    }
-    place(i, e);
-  }
-  void sift_down(std::size_t i) {
-    const Entry e = heap_[i];
-    const std::size_t size = heap_.size();
-    while (true) {
-      const std::size_t first = 4 * i + 1;
-      if (first >= size) break;
-      std::size_t best = first;
-      if (first + 4 <= size) {  // a full node: a fixed tournament (conditional moves, no loop exit)
-        const std::size_t left = before(heap_[first + 1], heap_[first]) ? first + 1 : first;
-        const std::size_t right = before(heap_[first + 3], heap_[first + 2]) ? first + 3 : first + 2;
-        best = before(heap_[right], heap_[left]) ? right : left;
-      } else {
-        for (std::size_t c = first + 1; c < size; ++c) best = before(heap_[c], heap_[best]) ? c : best;
-      }
-      if (!before(heap_[best], e)) break;
-      place(i, heap_[best]);
-      i = best;
-    }
-    place(i, e);
-  }
-  LargeArray<VertexState>& state_;
-  LargeArray<Entry> heap_;
-};
+using detail::RemovalQueue;
+using detail::VertexState;
 
 constexpr std::uint8_t kMaxFailures = 3;
 
