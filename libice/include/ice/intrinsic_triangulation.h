@@ -166,6 +166,7 @@ class IntrinsicTriangulation {
     };
     const auto add_spoke = [&](Index h) {  // h: v -> a neighbour, which starts two walks at h^1
       const Index w = touch(h);
+      __builtin_prefetch(&faces_[hface(h)]);  // the faces of v's star (interior h)
       __builtin_prefetch(&vertices_[w]);
       neighbour(w);
       ccw[spokes] = cw[spokes] = h ^ 1;
