@@ -303,15 +303,17 @@ class GreedyLoop {
       const RemovalQueue::Entry top = queue_.top();  // a copy: erase() moves the heap's entries
       if (top.cost > threshold) return RunStop::Threshold;
       const Index v = top.vertex;
-      // Re-evaluating a neighbour reads its state and the metric records of its own neighbours.
-      T_.prefetch_two_ring(
-          v,
-          [&](Index w) {
-            __builtin_prefetch(&state_[w]);
-            context_.metric.prefetch(w);
-          },
-          [&](Index w) { context_.metric.prefetch(w); });
+      // v's two-ring, from memory: walked during the previous removal when that guessed v (the
+      // usual case), else now.
+      if (ahead_.vertex() != v) ahead_.start(T_, v);
+      while (advance_ahead()) {
+      }
       queue_.erase(v);
+      // The next removal's vertex is most likely the cheapest one now (its exact cost is known:
+      // the removal below changes only the costs around v, which mostly rise): its two-ring walk
+      // runs in rounds between the steps of this removal, so that its memory latencies overlap
+      // this removal's work.
+      if (!queue_.empty()) ahead_.start(T_, queue_.top().vertex);
       // The one-ring (its costs change), collected while the star exists.
       affected_.clear();
       // (tail(prev(h)) is the next half-edge's head, except past the last one at a boundary vertex.)
@@ -322,6 +324,7 @@ class GreedyLoop {
       });
       if (T_.is_boundary_vertex(v)) affected_.push_back(T_.tail(T_.prev(last)));
       if (!context_.metric.prepare_removal(T_, v, state_[v].log_scale)) continue;
+      advance_ahead();
       changed_faces_.clear();
       const RemovalStatus status = T_.remove_vertex(v, &changed_faces_, &affected_, state_[v].log_scale);
       if (status == RemovalStatus::Removed) {
@@ -337,7 +340,9 @@ class GreedyLoop {
         ++state_[v].failures;
         affected_.push_back(v);
       }
+      advance_ahead();
       T_.flip_to_delaunay_around(changed_faces_, &affected_, scope_.region);
+      advance_ahead();
       if (++epoch_ == 0) {  // the 16-bit epoch wrapped: forget every mark in scope
         for (Index u = 0; u < T_.num_input_vertices(); ++u)
           if (in_scope(u)) state_[u].seen = 0;
@@ -347,6 +352,7 @@ class GreedyLoop {
         if (!in_scope(u) || state_[u].seen == epoch_) continue;
         state_[u].seen = epoch_;
         schedule(u);
+        advance_ahead();
       }
       // The serial loop reports per removal; the regions' progress is reported between rounds.
       if (!scope_.region && options.progress && status == RemovalStatus::Removed &&
@@ -384,6 +390,17 @@ class GreedyLoop {
     else queue_.erase(v);
   }
 
+  // One round of the walk over the next removal's two-ring (see run()). Re-evaluating a
+  // neighbour reads its state and the metric records of its own neighbours.
+  bool advance_ahead() {
+    return ahead_.advance(
+        [&](Index w) {
+          __builtin_prefetch(&state_[w]);
+          context_.metric.prefetch(w);
+        },
+        [&](Index w) { context_.metric.prefetch(w); });
+  }
+
   GreedyContext& context_;
   GreedyScope scope_;
   IntrinsicTriangulation& T_;
@@ -391,6 +408,7 @@ class GreedyLoop {
   RemovalQueue queue_;
   Index blocked_ = 0;
   std::uint16_t epoch_ = 0;
+  TwoRingPrefetch ahead_;
   std::vector<Index> affected_, changed_faces_;
   CoarsenResult result_;
 };
