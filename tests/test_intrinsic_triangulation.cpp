@@ -452,3 +452,72 @@ TEST_CASE("removing vertices of closed and open surfaces keeps the topology", "[
     }
   }
 }
+
+TEST_CASE("the two-ring prefetch walk meets every neighbour and second-ring vertex, and survives edits", "[intrinsic]") {
+  // A closed surface, and an open one (fans that end at the boundary).
+  const std::vector<std::pair<std::string, TriangleMesh>> meshes = {
+      {"torus", make_torus(24, 12, 2.0, 0.7)}, {"disk", make_flat_disk(8, 1.0, 0.2)}};
+  for (const auto& [name, mesh] : meshes) {
+    INFO(name);
+    auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    const auto neighbours_of = [&](Index v) {
+      std::set<Index> ring;
+      T.for_each_outgoing(v, [&](Index h) { ring.insert(T.head(h)); });
+      if (T.is_boundary_vertex(v)) {  // the last neighbour is only reached through the exterior edge
+        Index last = T.vertex_halfedge(v);
+        while (T.rotate_ccw(last) != kInvalid) last = T.rotate_ccw(last);
+        ring.insert(T.tail(T.prev(last)));
+      }
+      return ring;
+    };
+    SECTION("coverage") {
+      int checked = 0;
+      for (Index v = 0; v < T.num_input_vertices(); ++v) {
+        if (!T.vertex_alive(v)) continue;
+        std::set<Index> first, second;
+        T.prefetch_two_ring(v, [&](Index w) { first.insert(w); }, [&](Index w) { second.insert(w); });
+        const std::set<Index> ring = neighbours_of(v);
+        // Every interior spoke's head; at a boundary vertex the fan's last neighbour may come
+        // second-hand (it is reached around the previous neighbour).
+        for (Index w : ring) CHECK((first.count(w) + second.count(w)) > 0);
+        std::set<Index> expected_second;
+        bool small_degrees = true;
+        for (Index u : ring) {
+          small_degrees = small_degrees && T.degree(u) <= 7;
+          for (Index w : neighbours_of(u)) expected_second.insert(w);
+        }
+        if (small_degrees)
+          for (Index w : expected_second) CHECK((first.count(w) + second.count(w) + (w == v)) > 0);
+        ++checked;
+      }
+      CHECK(checked == T.num_vertices());
+    }
+    SECTION("walks left half-way while vertices are removed and edges flipped stay inside the arrays") {
+      std::mt19937 rng(3);
+      std::vector<TwoRingPrefetch> walks(8);
+      std::uniform_int_distribution<Index> pick(0, T.num_input_vertices() - 1);
+      int visits = 0;
+      const auto count = [&](Index w) {
+        REQUIRE(w >= 0);
+        REQUIRE(w < T.num_input_vertices());
+        ++visits;
+      };
+      for (int round = 0; round < 4000; ++round) {
+        TwoRingPrefetch& walk = walks[round % walks.size()];
+        if (round % 3 == 0) {
+          const Index v = pick(rng);
+          if (T.vertex_alive(v)) walk.start(T, v);
+        }
+        if (walk.vertex() != kInvalid) walk.advance(count, count);
+        const Index v = pick(rng);
+        if (T.vertex_alive(v) && round % 2 == 0) {
+          std::vector<Index> changed;
+          T.remove_vertex(v, &changed);
+          T.flip_to_delaunay_around(changed);
+        }
+      }
+      CHECK(visits > 1000);
+      CHECK(T.validate() == "");
+    }
+  }
+}
