@@ -43,6 +43,15 @@ void check_against_reference(Index n, int steps, std::uint32_t seed, Draw&& draw
   std::uniform_int_distribution<Index> vertex(0, n - 1);
   std::uniform_real_distribution<double> unit(0, 1);
   int pops = 0;
+  const auto pop_and_check = [&] {
+    const RemovalQueue::Entry top = queue.top();
+    const auto expected = *reference.entries.begin();
+    REQUIRE(top.cost == expected.first);
+    REQUIRE(top.vertex == expected.second);
+    queue.erase(top.vertex);
+    reference.erase(top.vertex);
+    ++pops;
+  };
   for (Index v = 0; v < n; ++v) {  // as the coarsener starts: every vertex a candidate
     const double c = draw(-1.0, rng);
     queue.set(v, c);
@@ -50,16 +59,9 @@ void check_against_reference(Index n, int steps, std::uint32_t seed, Draw&& draw
   }
   for (int step = 0; step < steps; ++step) {
     const double op = unit(rng);
-    if (op < 0.3) {  // a removal: pop the top, then re-cost a few "neighbours"
+    if (op < 0.3) {  // a removal
       REQUIRE(queue.empty() == reference.entries.empty());
-      if (reference.entries.empty()) continue;
-      const RemovalQueue::Entry top = queue.top();
-      const auto expected = *reference.entries.begin();
-      REQUIRE(top.cost == expected.first);
-      REQUIRE(top.vertex == expected.second);
-      queue.erase(top.vertex);
-      reference.erase(top.vertex);
-      ++pops;
+      if (!reference.entries.empty()) pop_and_check();
     } else if (op < 0.9) {  // a (re-)evaluation
       const Index v = vertex(rng);
       const double c = draw(reference.cost[v], rng);
@@ -74,13 +76,7 @@ void check_against_reference(Index n, int steps, std::uint32_t seed, Draw&& draw
   // Drain: every remaining candidate comes out in order, and nothing else does.
   while (!reference.entries.empty()) {
     REQUIRE_FALSE(queue.empty());
-    const RemovalQueue::Entry top = queue.top();
-    const auto expected = *reference.entries.begin();
-    REQUIRE(top.cost == expected.first);
-    REQUIRE(top.vertex == expected.second);
-    queue.erase(top.vertex);
-    reference.erase(top.vertex);
-    ++pops;
+    pop_and_check();
   }
   CHECK(queue.empty());
   CHECK(pops > n / 2);
