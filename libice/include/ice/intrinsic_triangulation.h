@@ -28,7 +28,6 @@
 /// barycentric coordinates (b0, b1, b2) w.r.t. the corners (tail of halfedge(f), of next, of
 /// next·next). Flips, flattening and removals update them so that, on a flat mesh, every point keeps
 /// its planar position exactly (up to round-off).
-#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <string>
