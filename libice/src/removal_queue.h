@@ -108,7 +108,7 @@ class RemovalQueue {
     }
   }
 
- static constexpr Index kCold = -2;  ///< VertexState::position of a cold candidate
+  static constexpr Index kCold = -2;  ///< VertexState::position of a cold candidate
 
  private:
   // Buckets of cost: the top 16 bits of a non-negative double (exponent and 4 mantissa bits), so
