@@ -235,6 +235,8 @@ class IntrinsicTriangulation {
   /// how one coarsened level becomes the input of the next.
   IntrinsicTriangulation compacted(CompactMesh* maps = nullptr) const;
   /// Checks every invariant; returns an empty string when all hold, else the first few problems.
+  /// `tolerance` bounds the numerical checks; stored angle sums are compared with recomputed ones to
+  /// max(tolerance, 3.6e-8), the round-off that the thinnest triangles a flip may create leave behind.
   std::string validate(double tolerance = 1e-9) const;
   /// Bytes held by the arrays of this object (capacity, not size).
   std::size_t memory_bytes() const;
