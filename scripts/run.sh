@@ -5,7 +5,7 @@
 #
 # 1. scripts/setup.sh (packages, BLAS check, default meshes),
 # 2. Release configure of build/release (the same build tree as scripts/test.sh),
-# 3. the main job on MESH (default: the first mesh of data/default-meshes.txt), which builds the
+# 3. the main job on MESH (default: the first mesh of data/cgal-meshes.txt), which builds the
 #    tool it needs and runs it; EXTRA ARGS go to the tool.
 set -euo pipefail
 
@@ -67,8 +67,8 @@ cd "$ROOT"
 T0=$(now_ms)
 bash scripts/setup.sh
 if [[ -z "$MESH" ]]; then
-  first="$(sed -e 's/#.*//' data/default-meshes.txt | awk 'NF { print $1; exit }')"
-  [[ -n "$first" ]] || die "data/default-meshes.txt lists no mesh"
+  first="$(sed -e 's/#.*//' data/cgal-meshes.txt | awk 'NF { print $1; exit }')"
+  [[ -n "$first" ]] || die "data/cgal-meshes.txt lists no mesh"
   MESH="$ROOT/data/default/$(basename "$first")"
 fi
 [[ -s "$MESH" ]] || die "mesh file missing or empty: $MESH"

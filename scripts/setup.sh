@@ -3,7 +3,10 @@
 # everything is already there. Three steps:
 #   1. install the missing Debian packages (apt only, --no-install-recommends);
 #   2. report which BLAS/LAPACK CHOLMOD will load, and switch the reference BLAS to OpenBLAS;
-#   3. extract the default meshes listed in data/default-meshes.txt into data/default/.
+#   3. make the project's own mesh set in data/default/: the members of CGAL's data archive listed in
+#      data/cgal-meshes.txt (vertex counts checked) and the meshes committed compressed in data/meshes/
+#      (decompressed, checksums of data/meshes/SHA256SUMS checked). Tests, the report's --quick run and
+#      run.sh use only this set.
 #
 # Environment:
 #   ICE_SETUP_SKIP_APT=1     skip step 1 (packages provided some other way)
@@ -39,7 +42,7 @@ PACKAGES=(
   libeigen3-dev libsuitesparse-dev
   libopenblas-dev libopenblas0-pthread libopenblas-pthread-dev
   libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox
-  libcgal-demo libhypre-dev
+  libcgal-demo libhypre-dev xz-utils
 )
 
 is_installed() {
@@ -151,9 +154,10 @@ check_blas() {
 }
 
 # ---------------------------------------------------------------------------------------------
-# 3. Default meshes
+# 3. The project's mesh set
 # ---------------------------------------------------------------------------------------------
-MANIFEST="$ROOT/data/default-meshes.txt"
+MANIFEST="$ROOT/data/cgal-meshes.txt"
+COMMITTED="$ROOT/data/meshes"
 DEST="$ROOT/data/default"
 
 find_archive() {
@@ -231,10 +235,36 @@ extract_meshes() {
       fi
     fi
   done
-  [[ $bad -eq 0 ]] || die "default meshes are incomplete (delete data/default/ and rerun)"
-  say "meshes: ${#members[@]} in data/default/ ($(for m in "${members[@]}"; do basename "$m"; done | paste -sd' ' -))"
+  [[ $bad -eq 0 ]] || die "the meshes from CGAL's archive are incomplete (delete data/default/ and rerun)"
+  say "meshes: ${#members[@]} from CGAL's archive in data/default/"
+}
+
+# The committed meshes: data/meshes/NAME.xz -> data/default/NAME, checked against data/meshes/SHA256SUMS
+# (checksums of the decompressed files). A file that fails its checksum is decompressed again once.
+decompress_committed() {
+  local sums="$COMMITTED/SHA256SUMS" sum name made=0
+  [[ -f "$sums" ]] || die "missing $sums"
+  command -v xz >/dev/null 2>&1 || die "xz is not installed (Debian package xz-utils)"
+  mkdir -p "$DEST"
+  while read -r sum name; do
+    [[ -n "${name:-}" ]] || continue
+    [[ -f "$COMMITTED/$name.xz" ]] || die "$sums lists $name but $COMMITTED/$name.xz is missing"
+    if [[ -s "$DEST/$name" ]] && sha256sum --quiet --check - <<<"$sum  $DEST/$name" >/dev/null 2>&1; then
+      continue
+    fi
+    # Decompress beside the target and rename, so an interrupted run never leaves a truncated mesh.
+    xz --decompress --stdout "$COMMITTED/$name.xz" >"$DEST/.$name.tmp" ||
+      die "could not decompress $COMMITTED/$name.xz"
+    sha256sum --quiet --check - <<<"$sum  $DEST/.$name.tmp" >/dev/null 2>&1 ||
+      die "$COMMITTED/$name.xz does not decompress to the file of $sums (checksum mismatch)"
+    mv -f "$DEST/.$name.tmp" "$DEST/$name"
+    made=$((made + 1))
+  done <"$sums"
+  [[ $made -eq 0 ]] || say "meshes: decompressed $made from data/meshes/"
+  say "meshes: $(wc -l <"$sums") committed meshes in data/default/"
 }
 
 install_packages
 check_blas
 extract_meshes
+decompress_committed
