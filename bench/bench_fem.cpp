@@ -27,7 +27,7 @@ using namespace ice;
 namespace {
 
 // Loop-subdivided spot, loaded once per process per level.
-const TriangleMesh& spot(int subdivisions) { return ice_bench::subdivided_shared_mesh("spot.obj", subdivisions); }
+const TriangleMesh& spot(int subdivisions) { return ice_bench::subdivided_mesh("spot.obj", subdivisions); }
 
 void set_size(benchmark::State& state, const TriangleMesh& m) {
   state.counters["vertices"] = static_cast<double>(m.V.rows());

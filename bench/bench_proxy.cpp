@@ -30,7 +30,7 @@ using namespace ice;
 
 namespace {
 
-const TriangleMesh& spot_subdiv(int levels) { return ice_bench::subdivided_shared_mesh("spot_subdiv.obj", levels); }
+const TriangleMesh& spot_subdiv(int levels) { return ice_bench::subdivided_mesh("spot_subdiv.obj", levels); }
 
 double seconds_since(std::chrono::steady_clock::time_point& t) {
   const auto now = std::chrono::steady_clock::now();

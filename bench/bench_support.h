@@ -1,28 +1,42 @@
 #pragma once
 /// Helpers shared by the benchmark files.
-#include <cstdlib>
 #include <map>
+
+#include <benchmark/benchmark.h>
 #include <string>
 #include <utility>
 
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
+#include "mesh_sets.h"
 
 namespace ice_bench {
 
-/// Path of a shared mesh: $ICE_SHARED_MESHES, else ../shared/data/meshes beside the sources.
-inline std::string shared_mesh_path(const std::string& name) {
-  const char* env = std::getenv("ICE_SHARED_MESHES");
-  return std::string(env ? env : ICE_SHARED_MESHES_DIR) + "/" + name;
+/// Path of a mesh of the project set (or the extended set); the project set's path when in neither, so
+/// that the load error names where the mesh was expected.
+inline std::string mesh_path(const std::string& name) {
+  const std::string path = ice_mesh_sets::find(name);
+  return path.empty() ? ice_mesh_sets::project_dir() + "/" + name : path;
 }
 
-/// A shared mesh Loop-subdivided `levels` times, loaded and subdivided once per process.
-inline const ice::TriangleMesh& subdivided_shared_mesh(const std::string& name, int levels = 0) {
+/// True when `name` is in the project or the extended set. Otherwise the benchmark is skipped with a
+/// message naming the mesh and both folders (benchmarks on extended-set meshes keep their published
+/// inputs; they do not fall back to another mesh).
+inline bool has_mesh(benchmark::State& state, const std::string& name) {
+  if (!ice_mesh_sets::find(name).empty()) return true;
+  state.SkipWithError((name + " is in neither the project set (" + ice_mesh_sets::project_dir() +
+                       ") nor the extended set (" + ice_mesh_sets::extended_dir() + ", $ICE_EXTENDED_MESHES)")
+                          .c_str());
+  return false;
+}
+
+/// A mesh Loop-subdivided `levels` times, loaded and subdivided once per process.
+inline const ice::TriangleMesh& subdivided_mesh(const std::string& name, int levels = 0) {
   static std::map<std::pair<std::string, int>, ice::TriangleMesh> cache;
   const auto key = std::make_pair(name, levels);
   auto it = cache.find(key);
   if (it == cache.end()) {
-    ice::TriangleMesh m = ice::load_mesh(shared_mesh_path(name));
+    ice::TriangleMesh m = ice::load_mesh(mesh_path(name));
     if (levels > 0) m = ice::loop_subdivide(m, levels);
     it = cache.emplace(key, std::move(m)).first;
   }

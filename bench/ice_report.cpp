@@ -1,6 +1,6 @@
 // ice-report: ICE against the QEM baseline, side by side, on the same meshes, budgets and problems.
 //
-// For every mesh (default: the clean shared meshes present), coarse budget (default 1, 2, 5, 10 % of
+// For every mesh (default: the clean meshes of the project and extended sets present), coarse budget (default 1, 2, 5, 10 % of
 // the vertices, at least --min-vertices) and method:
 //   ice        ICE, curvature only (area weight 0)
 //   ice_area   ICE with area weight --area-weight (default 0.5: more evenly spread vertices)
@@ -34,6 +34,7 @@
 #include "fem/errors.h"
 #include "fem/problems.h"
 #include "ice/qem.h"
+#include "mesh_sets.h"
 
 namespace fs = std::filesystem;
 
@@ -41,11 +42,15 @@ namespace {
 
 const std::string kTool = "ice-report";
 const std::vector<std::string> kProblems = {"poisson", "heat", "geodesic"};
+// Names are looked up in the project set, then the extended set (tests/mesh_sets.h), unless --meshes-dir
+// is given; the default list takes the ones present (the extended set's are absent from a bare clone).
 const std::vector<std::string> kDefaultMeshes = {
-    "spot.obj",     "fertility.off",     "bob_tri.obj",  "fandisk.obj",     "blub_triangulated.obj",
-    "capsule.obj",  "camelhead.off",     "dragon_fat.obj", "bs_rest.obj",    "spot_subdiv.obj",
-    "face_scan.obj", "bunny_closed.off", "armadillo_43k.obj"};
-const std::vector<std::string> kQuickMeshes = {"spot.obj", "fertility.off"};
+    "spot.obj",      "fertility.off",    "bob_tri.obj",       "fandisk.obj",  "blub_triangulated.obj",
+    "capsule.obj",   "camelhead.off",    "dragon_fat.obj",    "bs_rest.obj",  "spot_subdiv.obj",
+    "face_scan.obj", "bunny_closed.off", "armadillo_43k.obj", "elephant.off", "lion-head.off",
+    "bear.off"};
+// The project set only: a bare clone runs it.
+const std::vector<std::string> kQuickMeshes = {"spot.obj", "elephant.off"};
 
 struct Row {
   std::string mesh, method, problem;
@@ -508,8 +513,8 @@ int main(int argc, char** argv) {
   cli.add_option("--output,-o", outdir, "Output directory (created; existing report files in it are replaced)")
       ->capture_default_str();
   cli.add_option("--meshes", meshes_text,
-                 "Comma-separated meshes: names in --meshes-dir or paths (default: the clean shared meshes present)");
-  cli.add_option("--meshes-dir", meshes_dir, "Where mesh names are looked up (default: $ICE_SHARED_MESHES or ../shared/data/meshes)");
+                 "Comma-separated meshes: names in --meshes-dir or paths (default: the clean meshes of both sets present)");
+  cli.add_option("--meshes-dir", meshes_dir, "Where mesh names are looked up (default: the project set data/default/, then the extended set $ICE_EXTENDED_MESHES or ../shared/data/meshes)");
   cli.add_option("--budgets", budgets_text, "Comma-separated coarse budgets, fractions of the input vertices")->capture_default_str();
   cli.add_option("--min-vertices", min_vertices, "Floor of every coarse size (at most the input size)")->capture_default_str();
   cli.add_option("--methods", methods_text, "Comma-separated subset of ice, ice_area, qem_ext, qem_idt")->capture_default_str();
@@ -517,7 +522,7 @@ int main(int argc, char** argv) {
   cli.add_option("--operators", operators, "Coarse operators: intrinsic (from the coarse mesh) or galerkin (PᵀLP, PᵀMP)")
       ->check(CLI::IsMember({"intrinsic", "galerkin"}))
       ->capture_default_str();
-  cli.add_flag("--quick", quick, "Small subset for CI: spot and fertility, budgets 5% and 10%");
+  cli.add_flag("--quick", quick, "Small subset for CI: spot and elephant (project set), budgets 5% and 10%");
   cli.add_flag("--no-plots", no_plots, "Do not run gnuplot");
   cli.add_option("--plot-script", plot_script, "The gnuplot script that draws the plots")->capture_default_str();
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
@@ -526,10 +531,6 @@ int main(int argc, char** argv) {
     app::Stopwatch total_clock;
     std::string command;
     for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
-    if (meshes_dir.empty()) {
-      const char* env = std::getenv("ICE_SHARED_MESHES");
-      meshes_dir = env ? env : ICE_SHARED_MESHES_DIR;
-    }
     std::vector<std::string> mesh_names = meshes_text.empty() ? (quick ? kQuickMeshes : kDefaultMeshes) : split(meshes_text);
     std::vector<double> budgets = parse_doubles(budgets_text, "--budgets");
     if (quick && cli.count("--budgets") == 0) budgets = {0.05, 0.1};
@@ -548,17 +549,21 @@ int main(int argc, char** argv) {
     if (ec) throw app::AppError(app::kNotWritten, "--output " + outdir + ": " + ec.message());
 
     // Resolve the meshes; the default list skips missing files (with a note), an explicit one fails.
+    const std::string where = !meshes_dir.empty() ? meshes_dir
+                                                  : ice_mesh_sets::project_dir() + " or " + ice_mesh_sets::extended_dir();
     std::vector<std::pair<std::string, std::string>> inputs;  // (name, path)
     for (const auto& name : mesh_names) {
-      const std::string path = fs::exists(name) ? name : meshes_dir + "/" + name;
-      if (!fs::exists(path)) {
-        if (!meshes_text.empty()) throw app::AppError(app::kUnreadable, path + ": no such mesh");
-        app::warn(kTool, "skipping " + name + ": not in " + meshes_dir);
+      const std::string path = fs::exists(name)         ? name
+                               : !meshes_dir.empty()     ? meshes_dir + "/" + name
+                                                         : ice_mesh_sets::find(name);
+      if (path.empty() || !fs::exists(path)) {
+        if (!meshes_text.empty()) throw app::AppError(app::kUnreadable, name + ": no such mesh in " + where);
+        app::warn(kTool, "skipping " + name + ": not in " + where);
         continue;
       }
       inputs.emplace_back(fs::path(name).stem().string(), path);
     }
-    if (inputs.empty()) throw app::AppError(app::kUnreadable, "no meshes found (looked in " + meshes_dir + ")");
+    if (inputs.empty()) throw app::AppError(app::kUnreadable, "no meshes found (looked in " + where + ")");
 
     std::vector<Row> rows;
     std::vector<std::string> used_meshes;

@@ -15,12 +15,16 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// The clean meshes of the shared folder (no flags in its README), small to large.
-const char* const kCleanSharedMeshes[] = {
-    "cat_head.obj",    "eight.off",        "boxpart.obj",   "blobby_3cc.off",    "spot.obj",
-    "spot_offset1e6.obj", "fertility.off", "bob_tri.obj",   "fandisk.obj",       "blub_triangulated.obj",
-    "capsule.obj",     "camelhead.off",    "dragon_fat.obj", "bs_rest.obj",      "spot_subdiv.obj",
-    "face_scan.obj",   "bunny_closed.off", "armadillo_43k.obj"};
+// The clean real meshes, small to large: the project set (boundaries, three components, genus 1-9, CAD
+// parts, a surface with four holes), then the extended set's when present.
+std::vector<std::string> clean_meshes() {
+  return ice_test::mesh_sweep({"cat_head.obj", "eight.off", "boxpart.obj", "blobby_3cc.off", "couplingdown.off",
+                               "elephant.off", "spot.obj", "bob_tri.obj", "mech-holes-shark.off", "fandisk.off",
+                               "blub_triangulated.obj", "lion-head.off", "capsule.obj", "bs_rest.obj",
+                               "spot_subdiv.obj", "armadillo.off"},
+                              {"spot_offset1e6.obj", "fertility.off", "fandisk.obj", "camelhead.off", "dragon_fat.obj",
+                               "face_scan.obj", "bunny_closed.off", "armadillo_43k.obj"});
+}
 
 void check_map(const IntrinsicTriangulation& T) {
   const CompactMesh coarse = T.compact();
@@ -66,10 +70,17 @@ int count_non_delaunay(const IntrinsicTriangulation& T) {
 
 }  // namespace
 
-TEST_CASE("coarsening every clean shared mesh keeps validity, χ and Gauss-Bonnet down to the minimum", "[coarsen][shared]") {
-  for (const char* name : kCleanSharedMeshes) {
-    INFO(name);
-    const TriangleMesh mesh = load_mesh(ice_test::shared_mesh(name));
+TEST_CASE("coarsening every clean real mesh keeps validity, χ and Gauss-Bonnet down to the minimum", "[coarsen][meshes]") {
+  std::vector<std::string> paths = clean_meshes();
+  // Huge coordinates: spot translated by 1e6 in each coordinate, written and read back as OBJ.
+  const ice_test::TempDir dir;
+  TriangleMesh offset = load_mesh(ice_test::project_mesh("spot.obj"));
+  offset.V.array() += 1e6;
+  write_mesh(dir.file("spot_offset1e6.obj"), offset);
+  paths.push_back(dir.file("spot_offset1e6.obj"));
+  for (const std::string& path : paths) {
+    INFO(path);
+    const TriangleMesh mesh = load_mesh(path);
     auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
     const int chi = T.euler_characteristic();
     const Index n = T.num_vertices();
@@ -106,8 +117,8 @@ TEST_CASE("coarsening every clean shared mesh keeps validity, χ and Gauss-Bonne
   }
 }
 
-TEST_CASE("coarsening to a target: map, prolongation, Delaunay, determinism", "[coarsen][shared]") {
-  const TriangleMesh mesh = load_mesh(ice_test::shared_mesh("camelhead.off"));
+TEST_CASE("coarsening to a target: map, prolongation, Delaunay, determinism", "[coarsen][meshes]") {
+  const TriangleMesh mesh = load_mesh(ice_test::project_mesh("lion-head.off"));
   CoarsenOptions options;
   options.target_vertices = 500;
   auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
@@ -224,8 +235,8 @@ TEST_CASE("a compacted coarse triangulation is a valid input for further coarsen
   CHECK(level.compacted().validate() == "");
 }
 
-TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays close to the serial order", "[coarsen][shared]") {
-  // Boundary loops (camelhead), genus 4 (fertility, once Loop-subdivided: 18k vertices), three
+TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays close to the serial order", "[coarsen][meshes]") {
+  // A boundary loop (lion-head), genus 3 (elephant, once Loop-subdivided: 11k vertices), three
   // components (blobby_3cc), a large closed surface (spot_subdiv); two and three threads (eight and
   // twelve regions).
   struct Case {
@@ -233,10 +244,10 @@ TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays c
     int subdivisions;
     int threads;
   };
-  for (const Case& c : {Case{"camelhead.off", 0, 2}, Case{"fertility.off", 1, 2}, Case{"blobby_3cc.off", 0, 2},
+  for (const Case& c : {Case{"lion-head.off", 0, 2}, Case{"elephant.off", 1, 2}, Case{"blobby_3cc.off", 0, 2},
                         Case{"spot_subdiv.obj", 0, 3}}) {
     INFO(c.name << " (" << c.subdivisions << " subdivisions), " << c.threads << " threads");
-    const TriangleMesh mesh = loop_subdivide(load_mesh(ice_test::shared_mesh(c.name)), c.subdivisions);
+    const TriangleMesh mesh = loop_subdivide(load_mesh(ice_test::project_mesh(c.name)), c.subdivisions);
     CoarsenOptions options;
     options.target_ratio = 0.02;
     options.threads = c.threads;

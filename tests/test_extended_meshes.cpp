@@ -1,8 +1,9 @@
-// The shared real meshes (../shared/data/meshes): their figures, and the loading policy on each of them.
-// The expected table is the specification in /work/shared/data/README.md, hard-coded here on purpose.
+// The extended mesh set (meshes the project may not redistribute: $ICE_EXTENDED_MESHES, else
+// ../shared/data/meshes beside the repository): their figures, and the loading policy on each of them.
+// The expected table is the specification in that folder's README.md, hard-coded here on purpose.
+// Every case is skipped (ctest's skip status) when the set is absent; test_project_meshes.cpp checks the
+// same properties on the project's own meshes, which every clone has.
 #include <catch2/catch.hpp>
-
-#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cstdlib>
@@ -11,35 +12,16 @@
 #include <vector>
 
 #include "ice/mesh_io.h"
+#include "mesh_figures.h"
+#include "test_support.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-/// The shared mesh folder: $ICE_SHARED_MESHES if set, else the path configured at build time.
-/// Fails the calling test (it does not skip) when the folder is missing.
-std::string shared_meshes_dir() {
-  const char* env = std::getenv("ICE_SHARED_MESHES");
-  const std::string dir = env && *env ? env : ICE_SHARED_MESHES_DIR;
-  if (!fs::is_directory(dir))
-    FAIL("shared mesh folder '" << dir << "' is missing: set ICE_SHARED_MESHES to the folder holding the "
-                                    "meshes of data/README.md");
-  return dir;
-}
-
-struct Expected {
-  const char* file;
-  std::size_t vertices, faces, boundary_loops, components;
-  std::size_t non_manifold_edges, non_manifold_vertices;  // both 0: manifold
-  int genus;                                              // -1: n/a
-  // Flags of the README (0 if not listed).
-  std::size_t zero_area_faces, duplicate_positions, inconsistent_edges, unreferenced_vertices, duplicate_faces;
-  bool orientable;
-};
-
 // file, nV, nF, loops, components, NM edges, NM vertices, genus, zero-area, dup positions, inconsistent,
 // unreferenced, duplicate faces, orientable
-const std::vector<Expected> kTable = {
+const std::vector<ice_test::Expected> kTable = {
     {"degtri_nullface.off", 6, 7, 1, 1, 0, 0, 0, 4, 2, 0, 0, 0, true},
     {"merge_points.off", 6, 2, 2, 2, 0, 0, 0, 0, 1, 0, 0, 0, true},
     {"three_triangles_sharing_a_vertex.off", 7, 3, 1, 1, 0, 1, -1, 0, 0, 0, 0, 0, true},
@@ -73,68 +55,39 @@ const std::vector<Expected> kTable = {
     {"dragon_vrip_bin.ply", 437645, 871414, 407, 151, 0, 0, 46, 108, 2100, 0, 0, 0, true},
 };
 
-const Expected& expected(const std::string& file) {
-  for (const auto& e : kTable)
-    if (file == e.file) return e;
-  throw std::logic_error("not in the table: " + file);
-}
-
-void check_figures(const Expected& e, const ice::ValidationReport& r) {
-  INFO(e.file);
-  CHECK(r.n_vertices == e.vertices);
-  CHECK(r.n_faces == e.faces);
-  CHECK(r.n_boundary_loops == e.boundary_loops);
-  CHECK(r.components.size() == e.components);
-  CHECK(r.non_manifold_edges.count == e.non_manifold_edges);
-  CHECK(r.non_manifold_vertices.count == e.non_manifold_vertices);
-  CHECK(r.manifold() == (e.non_manifold_edges == 0 && e.non_manifold_vertices == 0));
-  CHECK(r.genus == e.genus);
-  CHECK(r.zero_area_faces.count == e.zero_area_faces);
-  CHECK(r.duplicate_positions.count == e.duplicate_positions);
-  CHECK(r.inconsistent_edges.count == e.inconsistent_edges);
-  CHECK(r.unreferenced_vertices.count == e.unreferenced_vertices);
-  CHECK(r.duplicate_faces.count == e.duplicate_faces);
-  CHECK(r.orientable() == e.orientable);
-  // Nothing else is wrong with these files.
-  CHECK(r.non_triangle_faces.empty());
-  CHECK(r.out_of_range_faces.empty());
-  CHECK(r.repeated_index_faces.empty());
-  CHECK(r.non_finite_vertices.empty());
-}
-
-bool flagged(const Expected& e) {
-  return e.non_manifold_edges || e.non_manifold_vertices || e.zero_area_faces || e.inconsistent_edges ||
-         e.unreferenced_vertices || e.duplicate_faces || !e.orientable;
-}
+const ice_test::Expected& expected(const std::string& file) { return ice_test::table_row(kTable, file); }
 
 }  // namespace
 
-TEST_CASE("shared meshes: every mesh of the table is present", "[shared]") {
-  const std::string dir = shared_meshes_dir();
-  for (const Expected& e : kTable) {
+TEST_CASE("extended set: every mesh of the table is present", "[extended]") {
+  ICE_SKIP_WITHOUT_EXTENDED_SET();
+  const std::string dir = ice_mesh_sets::extended_dir();
+  for (const ice_test::Expected& e : kTable) {
     INFO(e.file);
     CHECK(fs::is_regular_file(fs::path(dir) / e.file));
   }
   for (const auto& entry : fs::directory_iterator(dir)) {
     const std::string name = entry.path().filename().string();
-    const bool known = std::any_of(kTable.begin(), kTable.end(), [&](const Expected& e) { return name == e.file; });
+    const bool known = std::any_of(kTable.begin(), kTable.end(), [&](const ice_test::Expected& e) { return name == e.file; });
     if (!known) WARN("mesh not in the expected table (update the table from data/README.md): " << name);
   }
 }
 
-TEST_CASE("shared meshes: figures match the README table", "[shared]") {
-  const std::string dir = shared_meshes_dir();
-  for (const Expected& e : kTable) {
+TEST_CASE("extended set: figures match the README table", "[extended]") {
+  ICE_SKIP_WITHOUT_EXTENDED_SET();
+  const std::string dir = ice_mesh_sets::extended_dir();
+  for (const ice_test::Expected& e : kTable) {
     if (std::string(e.file) == "dragon_vrip_bin.ply") continue;  // large: its own test below loads it once
     const ice::MeshFile file = ice::read_mesh_file(dir + "/" + e.file);
     INFO(e.file);
     CHECK(file.exact_coordinates);
-    check_figures(e, ice::validate_mesh(file.soup));
+    ice_test::check_figures(e, ice::validate_mesh(file.soup));
   }
 }
 
-TEST_CASE("shared meshes: defective files are refused naming the defect, clean ones load", "[shared]") {
-  const std::string dir = shared_meshes_dir();
+TEST_CASE("extended set: defective files are refused naming the defect, clean ones load", "[extended]") {
+  ICE_SKIP_WITHOUT_EXTENDED_SET();
+  const std::string dir = ice_mesh_sets::extended_dir();
   struct Refusal {
     const char* file;
     const char* defect;
@@ -154,7 +107,7 @@ TEST_CASE("shared meshes: defective files are refused naming the defect, clean o
   };
   for (const Refusal& r : refusals) {
     INFO(r.file);
-    CHECK(flagged(expected(r.file)));
+    CHECK(ice_test::flagged(expected(r.file)));
     const std::string path = dir + "/" + r.file;
     try {
       ice::load_mesh(path);
@@ -169,15 +122,16 @@ TEST_CASE("shared meshes: defective files are refused naming the defect, clean o
                            "spot_offset1e6.obj"}) {
     INFO(file);
     const ice::LoadResult loaded = ice::load_mesh_with_report(dir + "/" + file);
-    const Expected& e = expected(file);
+    const ice_test::Expected& e = expected(file);
     CHECK(static_cast<std::size_t>(loaded.mesh.V.rows()) == e.vertices);
     CHECK(static_cast<std::size_t>(loaded.mesh.F.rows()) == e.faces);
     CHECK(loaded.report.components.size() == e.components);
   }
 }
 
-TEST_CASE("shared meshes: repair fixes what is safe and refuses the rest", "[shared]") {
-  const std::string dir = shared_meshes_dir();
+TEST_CASE("extended set: repair fixes what is safe and refuses the rest", "[extended]") {
+  ICE_SKIP_WITHOUT_EXTENDED_SET();
+  const std::string dir = ice_mesh_sets::extended_dir();
   const ice::LoadOptions repair{true, false};
 
   SECTION("re-orientation: blobby_shuffled becomes consistent, outward, same topology") {
@@ -187,11 +141,7 @@ TEST_CASE("shared meshes: repair fixes what is safe and refuses the rest", "[sha
     CHECK(r.report.inconsistent_edges.empty());
     CHECK(r.report.genus == 0);
     CHECK(r.mesh.F.rows() == 4050);
-    double volume = 0;
-    for (Eigen::Index f = 0; f < r.mesh.F.rows(); ++f)
-      volume += Eigen::Vector3d(r.mesh.V.row(r.mesh.F(f, 0)))
-                    .dot(Eigen::Vector3d(r.mesh.V.row(r.mesh.F(f, 1))).cross(Eigen::Vector3d(r.mesh.V.row(r.mesh.F(f, 2)))));
-    CHECK(volume > 0);
+    CHECK(ice_test::signed_volume(r.mesh) > 0);
   }
   SECTION("unreferenced vertices: bunny_zipper_holes keeps a map back to file vertex ids") {
     const ice::LoadResult r = ice::load_mesh_with_report(dir + "/bunny_zipper_holes.obj", repair);
@@ -229,12 +179,13 @@ TEST_CASE("shared meshes: repair fixes what is safe and refuses the rest", "[sha
   }
 }
 
-TEST_CASE("shared meshes: dragon_vrip_bin.ply (437k vertices, binary PLY) figures and repair", "[shared][large]") {
-  const std::string dir = shared_meshes_dir();
-  const Expected& e = expected("dragon_vrip_bin.ply");
+TEST_CASE("extended set: dragon_vrip_bin.ply (437k vertices, binary PLY) figures and repair", "[extended][large]") {
+  ICE_SKIP_WITHOUT_EXTENDED_SET();
+  const std::string dir = ice_mesh_sets::extended_dir();
+  const ice_test::Expected& e = expected("dragon_vrip_bin.ply");
   // One load: the input report carries the README figures, the repaired mesh the policy's outcome.
   const ice::LoadResult r = ice::load_mesh_with_report(dir + "/dragon_vrip_bin.ply", {true, false});
-  check_figures(e, r.input_report);
+  ice_test::check_figures(e, r.input_report);
   CHECK_THAT(r.input_report.defects().at(0), Catch::Contains("108 zero-area faces"));
   CHECK(r.repairs.removed_zero_area_faces == 108);
   CHECK(static_cast<std::size_t>(r.mesh.F.rows()) == e.faces - 108);

@@ -3,8 +3,6 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
-#include <cstdlib>
-#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <limits>
@@ -18,6 +16,7 @@
 #include "fem/geometry.h"
 #include "fem/operators.h"
 #include "ice/mesh_generators.h"
+#include "test_support.h"
 
 namespace {
 
@@ -71,16 +70,6 @@ void require_intrinsic_matches_extrinsic(const ice::TriangleMesh& mesh, double t
   const Eigen::VectorXd mass_reference = extrinsic_vertex_areas(mesh);
   CHECK((mass - mass_reference).cwiseAbs().maxCoeff() < tolerance * mass_reference.maxCoeff());
   CHECK(((mass - mass_reference).cwiseAbs().array() <= tolerance * mass_reference.array()).all());
-}
-
-/// Directory of the shared test meshes: $ICE_SHARED_MESHES, else the build-time default. A missing
-/// directory fails the calling test instead of letting it pass silently.
-std::string shared_meshes_dir() {
-  const char* override_dir = std::getenv("ICE_SHARED_MESHES");
-  const std::string dir = override_dir && *override_dir ? override_dir : ICE_SHARED_MESHES_DIR;
-  if (!std::filesystem::is_directory(dir))
-    FAIL("shared mesh folder '" << dir << "' is missing; set ICE_SHARED_MESHES to the folder with the test meshes");
-  return dir;
 }
 
 ice::TriangleMesh sphere_like_test_mesh() { return ice::make_icosphere(2); }
@@ -155,13 +144,13 @@ namespace {
 /// Minimal reader for the plain triangle OBJ/OFF files used here (ice::load_mesh validates and repairs,
 /// which is far slower under AddressSanitizer and not what these tests are about). OBJ: "v x y z" and
 /// "f a b c" with 1-based, optionally slashed indices; OFF: header, counts, vertices, "3 a b c" faces.
-ice::TriangleMesh load_shared(const std::string& name) {
-  const std::string path = shared_meshes_dir() + "/" + name;
+ice::TriangleMesh load_plain(const std::string& path) {
+  INFO(path);
   std::ifstream in(path);
   REQUIRE(in.good());
   std::vector<double> coordinates;
   std::vector<int> indices;
-  if (name.size() > 4 && name.substr(name.size() - 4) == ".off") {
+  if (path.size() > 4 && path.substr(path.size() - 4) == ".off") {
     std::string header;
     long vertex_count = 0, face_count = 0, edge_count = 0;
     in >> header >> vertex_count >> face_count >> edge_count;
@@ -209,21 +198,23 @@ ice::TriangleMesh load_shared(const std::string& name) {
 
 }  // namespace
 
-TEST_CASE("operators: intrinsic L and M equal the extrinsic ones on shared meshes", "[fem][operators][shared]") {
+TEST_CASE("operators: intrinsic L and M equal the extrinsic ones on real meshes", "[fem][operators][meshes]") {
   // Meshes without near-degenerate faces (Σl²/A below ~500): agreement to 1e-12.
-  for (const char* name : {"spot.obj", "camelhead.off", "fertility.off", "fandisk.obj"}) {
-    INFO("mesh " << name);
-    require_intrinsic_matches_extrinsic(load_shared(name), 1e-12);
+  for (const std::string& path : ice_test::mesh_sweep({"spot.obj", "lion-head.off", "elephant.off", "fandisk.off"},
+                                                      {"camelhead.off", "fertility.off", "fandisk.obj"})) {
+    INFO("mesh " << path);
+    require_intrinsic_matches_extrinsic(load_plain(path), 1e-12);
   }
 }
 
-TEST_CASE("operators: cotangents from lengths are as accurate as the lengths allow", "[fem][operators][shared]") {
+TEST_CASE("operators: cotangents from lengths are as accurate as the lengths allow", "[fem][operators][meshes]") {
   // Rounding the lengths perturbs a face's area by about ε·κ² relative, κ = Σl²/A, so on near-needles
-  // no length-based formula can match positions to 1e-12. bunny_closed has faces with κ ≈ 4e4; the
-  // measured error stays below 0.05·ε·κ²·(1 + |cot|) on every shared mesh tried.
-  for (const char* name : {"bunny_closed.off"}) {
-    INFO("mesh " << name);
-    const ice::TriangleMesh mesh = load_shared(name);
+  // no length-based formula can match positions to 1e-12. boxpart (a CAD part) has faces with
+  // κ ≈ 1.6e5, bunny_closed κ ≈ 4e4; the measured error stays below 0.05·ε·κ²·(1 + |cot|) on every
+  // real mesh tried.
+  for (const std::string& path : ice_test::mesh_sweep({"boxpart.obj"}, {"bunny_closed.off"})) {
+    INFO("mesh " << path);
+    const ice::TriangleMesh mesh = load_plain(path);
     const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
     const Eigen::MatrixXd cotangents = fem::corner_cotangents(lengths);
     const Eigen::VectorXd areas = fem::face_areas(lengths);

@@ -1,5 +1,5 @@
 // Tests of the .ilm format (ice/intrinsic_mesh_io.h): an exact write/read round trip of a coarsened
-// shared mesh, and a clear MeshError (file, line, defect) for every kind of bad file.
+// real mesh, and a clear MeshError (file, line, defect) for every kind of bad file.
 #include <catch2/catch.hpp>
 
 #include "ice/coarsen.h"
@@ -29,8 +29,8 @@ const std::string kHeader = "ICE-ILM 1\nvertices 3\nfaces 1\ninput_vertices 5\n"
 
 }  // namespace
 
-TEST_CASE("an .ilm round trip reproduces the coarse mesh exactly", "[ilm][shared]") {
-  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::shared_mesh("spot.obj"));
+TEST_CASE("an .ilm round trip reproduces the coarse mesh exactly", "[ilm][meshes]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("spot.obj"));
   ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
   ice::CoarsenOptions options;
   options.target_vertices = 300;

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "ice/mesh_generators.h"
+#include "mesh_figures.h"
 #include "test_support.h"
 #include "ice/mesh_io.h"
 #include "ice/mesh_repair.h"
@@ -21,18 +22,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-
-/// Message of the MeshError thrown by load_mesh (fails the test if nothing is thrown).
-std::string refusal(const std::string& path, const ice::LoadOptions& options = {}) {
-  try {
-    ice::load_mesh(path, options);
-  } catch (const ice::MeshError& e) {
-    CHECK(e.kind() == ice::MeshError::Kind::Defective);
-    return e.what();
-  }
-  FAIL("load_mesh accepted " << path);
-  return {};
-}
+using ice_test::refusal;
+using ice_test::signed_volume;
 
 ice::TriangleMesh two_disjoint_spheres() {
   const ice::TriangleMesh a = ice::make_icosphere(1);
@@ -42,13 +33,6 @@ ice::TriangleMesh two_disjoint_spheres() {
   m.F.resize(2 * a.F.rows(), 3);
   m.F << a.F, (a.F.array() + static_cast<int>(a.V.rows())).matrix();
   return m;
-}
-
-double signed_volume(const ice::TriangleMesh& m) {
-  double v = 0;
-  for (Eigen::Index f = 0; f < m.F.rows(); ++f)
-    v += Eigen::Vector3d(m.V.row(m.F(f, 0))).dot(Eigen::Vector3d(m.V.row(m.F(f, 1))).cross(Eigen::Vector3d(m.V.row(m.F(f, 2)))));
-  return v / 6;
 }
 
 }  // namespace

@@ -101,8 +101,8 @@ TEST_CASE("qem: the AABB tree finds the same closest point as brute force", "[qe
   }
 }
 
-TEST_CASE("qem: spot to an exact vertex count, with a valid map and prolongation", "[qem][shared]") {
-  const TriangleMesh mesh = load_mesh(ice_test::shared_mesh("spot.obj"));
+TEST_CASE("qem: spot to an exact vertex count, with a valid map and prolongation", "[qem][meshes]") {
+  const TriangleMesh mesh = load_mesh(ice_test::project_mesh("spot.obj"));
   const Index n = static_cast<Index>(mesh.V.rows());
   QemOptions options;
   options.target_vertices = 300;
@@ -193,8 +193,8 @@ TEST_CASE("qem: ratio targets, boundary locking and several components", "[qem]"
   CHECK_THROWS_AS(qem_coarsen(disk, QemOptions{}), std::invalid_argument);  // no target
 }
 
-TEST_CASE("qem: extrinsic and intrinsic Delaunay coarse meshes share P; proxy solves are accurate", "[qem][shared]") {
-  const TriangleMesh mesh = load_mesh(ice_test::shared_mesh("spot.obj"));
+TEST_CASE("qem: extrinsic and intrinsic Delaunay coarse meshes share P; proxy solves are accurate", "[qem][meshes]") {
+  const TriangleMesh mesh = load_mesh(ice_test::project_mesh("spot.obj"));
   const Index n = static_cast<Index>(mesh.V.rows());
   QemOptions options;
   options.target_ratio = 0.1;

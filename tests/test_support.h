@@ -6,28 +6,61 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
+#include "mesh_sets.h"
+
 namespace ice_test {
 
-/// The folder of shared real meshes: $ICE_SHARED_MESHES, else ../shared/data/meshes beside the
-/// source tree. Tests that need it FAIL (not skip) when it is missing, saying so.
-inline std::string shared_meshes_dir() {
-  const char* env = std::getenv("ICE_SHARED_MESHES");
-  const std::string dir = env ? env : ICE_SHARED_MESHES_DIR;
-  if (!std::filesystem::is_directory(dir))
-    FAIL("this test needs the shared meshes folder, which is missing: " << dir
-         << " (set ICE_SHARED_MESHES to its location)");
-  return dir;
+/// Exit status of a test binary whose only outcome was a skip (ctest's SKIP_RETURN_CODE; main.cpp).
+constexpr int kSkipExitCode = 77;
+
+/// Set when a test case skipped itself; main.cpp turns a clean run with a skip into kSkipExitCode.
+inline std::atomic<bool>& skipped() {
+  static std::atomic<bool> flag{false};
+  return flag;
 }
 
-/// Path of one shared mesh; fails the test when the file is missing.
-inline std::string shared_mesh(const std::string& name) {
-  const std::string path = shared_meshes_dir() + "/" + name;
-  if (!std::filesystem::exists(path)) FAIL("shared mesh missing: " << path);
+/// Path of a mesh of the project set (data/default/, made by scripts/setup.sh). Every clone has it,
+/// so a missing file fails the test (it does not skip), saying how to make it.
+inline std::string project_mesh(const std::string& name) {
+  const std::string path = ice_mesh_sets::project_dir() + "/" + name;
+  if (!std::filesystem::is_regular_file(path))
+    FAIL("project mesh missing: " << path << " (scripts/setup.sh makes data/default/; see data/README.md)");
   return path;
+}
+
+/// True, after saying so, when the extended mesh set is absent: the calling test then returns early and
+/// ctest counts it as skipped (see ICE_SKIP_WITHOUT_EXTENDED_SET).
+inline bool skip_without_extended_set() {
+  if (ice_mesh_sets::extended_present()) return false;
+  WARN("SKIPPED: this test needs the extended mesh set, which is absent: " << ice_mesh_sets::extended_dir()
+       << " (set ICE_EXTENDED_MESHES to the folder of the meshes listed in data/README.md)");
+  skipped() = true;
+  return true;
+}
+
+/// Path of a mesh of the extended set, once the caller has checked the set is present; a file missing
+/// from a present set fails the test.
+inline std::string extended_mesh(const std::string& name) {
+  const std::string path = ice_mesh_sets::extended_dir() + "/" + name;
+  if (!std::filesystem::is_regular_file(path)) FAIL("extended-set mesh missing: " << path);
+  return path;
+}
+
+/// Paths for a sweep over real meshes: every project-set name (a missing file fails), then the
+/// extended-set names when that set is present (breadth; a bare clone runs the project part only).
+inline std::vector<std::string> mesh_sweep(std::initializer_list<const char*> project_names,
+                                           std::initializer_list<const char*> extended_names = {}) {
+  std::vector<std::string> paths;
+  for (const char* name : project_names) paths.push_back(project_mesh(name));
+  if (ice_mesh_sets::extended_present())
+    for (const char* name : extended_names) paths.push_back(extended_mesh(name));
+  return paths;
 }
 
 /// A fresh directory under the system temp dir, removed (with its contents) when the test ends.
@@ -57,3 +90,10 @@ class TempDir {
 };
 
 }  // namespace ice_test
+
+/// First statement of a test case that needs the extended mesh set: without it the case ends here and
+/// ctest reports it as skipped (never as passed).
+#define ICE_SKIP_WITHOUT_EXTENDED_SET()                   \
+  do {                                                    \
+    if (::ice_test::skip_without_extended_set()) return;  \
+  } while (false)

@@ -7,7 +7,7 @@
 /// so that non-manifold, non-triangle and out-of-range faces are visible. `validate_mesh` never throws
 /// on bad input and runs in O((V + C) log C) for C face corners.
 ///
-/// Definitions used by the report (they match the figures of /work/shared/data/README.md):
+/// Definitions used by the report (they match the figures of the mesh sets' tables, data/README.md):
 ///  - A face is *well formed* if it has >= 3 corners, all indices in [0, V) and no repeated index.
 ///    Only well-formed faces enter the topological analysis (edges, manifoldness, components, ...).
 ///  - Edge: an unordered vertex pair {a, b} that is consecutive in some well-formed face.
