@@ -276,6 +276,10 @@ QemResult qem_coarsen(const TriangleMesh& mesh, const QemOptions& options) {
   std::size_t collapses = decimate(om, static_cast<std::size_t>(target), options.max_normal_deviation_degrees);
   Index remaining = n - static_cast<Index>(collapses);
   if (remaining > target && options.max_normal_deviation_degrees > 0) {
+    // A new decimater initialises its modules over every element, and the first pass left deleted
+    // ones behind whose handles dangle (invalid reads, then crashes: an octahedron to 3 vertices).
+    // The vertex properties (input index, lock status) move with their vertices.
+    om.garbage_collection();
     collapses += decimate(om, static_cast<std::size_t>(target), 0.0);
     r.guard_relaxed = true;
     remaining = n - static_cast<Index>(collapses);
