@@ -1,9 +1,13 @@
 // Reading and writing: formats, exactness, and clear errors for unreadable files.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <atomic>
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include <unistd.h>
@@ -146,4 +150,106 @@ TEST_CASE("write_mesh never overwrites unless asked", "[io]") {
   CHECK_NOTHROW(ice::write_mesh(path, mesh, {true, false}));
   const std::string bad = dir.file("out.vtk");
   require_mesh_error([&] { ice::write_mesh(bad, mesh); }, ice::MeshError::Kind::Unwritable, bad, "unsupported");
+}
+
+namespace {
+
+/// Appends `value` to `bytes` as `sizeof(T)` bytes in the given byte order.
+template <class T>
+void put(std::string& bytes, T value, bool big_endian) {
+  char raw[sizeof(T)];
+  std::memcpy(raw, &value, sizeof(T));
+  if (big_endian) std::reverse(raw, raw + sizeof(T));
+  bytes.append(raw, sizeof(T));
+}
+
+/// A valid PLY whose face element comes before its vertex element, with properties the reader must
+/// read past (a per-face float, a per-vertex colour byte, a second list on the faces).
+std::string faces_first_ply(const ice::TriangleMesh& m, const std::string& format) {
+  const bool ascii = format == "ascii", big = format == "binary_big_endian";
+  std::string text = "ply\nformat " + format + " 1.0\ncomment faces before vertices\n" +
+                     "element face " + std::to_string(m.F.rows()) + "\nproperty float quality\n" +
+                     "property list uchar int vertex_indices\nproperty list uchar float texcoord\n" +
+                     "element vertex " + std::to_string(m.V.rows()) + "\nproperty double x\nproperty uchar red\n" +
+                     "property double y\nproperty double z\nend_header\n";
+  std::ostringstream out;
+  out.precision(17);
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+    if (ascii) {
+      out << 0.5 << " 3 " << m.F(f, 0) << ' ' << m.F(f, 1) << ' ' << m.F(f, 2) << " 2 0.25 0.75\n";
+    } else {
+      put(text, 0.5f, big);
+      put(text, static_cast<unsigned char>(3), big);
+      for (int k = 0; k < 3; ++k) put(text, static_cast<std::int32_t>(m.F(f, k)), big);
+      put(text, static_cast<unsigned char>(2), big);
+      put(text, 0.25f, big);
+      put(text, 0.75f, big);
+    }
+  }
+  for (Eigen::Index v = 0; v < m.V.rows(); ++v) {
+    if (ascii) {
+      out << m.V(v, 0) << " 200 " << m.V(v, 1) << ' ' << m.V(v, 2) << '\n';
+    } else {
+      put(text, m.V(v, 0), big);
+      put(text, static_cast<unsigned char>(200), big);
+      put(text, m.V(v, 1), big);
+      put(text, m.V(v, 2), big);
+    }
+  }
+  return text + out.str();
+}
+
+}  // namespace
+
+TEST_CASE("PLY: elements in any order, ASCII and both byte orders, extra properties read past", "[io]") {
+  ice_test::TempDir dir;
+  ice::TriangleMesh mesh = ice::make_icosphere(2);
+  mesh.V.array() += 1e6;  // coordinates that float32 would round
+  for (const std::string format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+    INFO(format);
+    const std::string path = dir.write(format + ".ply", faces_first_ply(mesh, format));
+    const ice::LoadResult loaded = ice::load_mesh_with_report(path);
+    CHECK(loaded.file.exact_coordinates);
+    CHECK(loaded.mesh.V == mesh.V);
+    CHECK(loaded.mesh.F == mesh.F);
+    CHECK(loaded.report.clean());
+    // Repair has nothing to do on it (it once turned a misread file into a wrong "clean" mesh).
+    const ice::LoadResult repaired = ice::load_mesh_with_report(path, {true, false});
+    CHECK(repaired.repairs.empty());
+    CHECK(repaired.mesh.F == mesh.F);
+  }
+  // Cut inside the vertex element (after the faces): refused, saying where.
+  const std::string whole = faces_first_ply(mesh, "binary_little_endian");
+  const std::string cut = dir.write("cut.ply", whole.substr(0, whole.size() - 100));
+  require_mesh_error([&] { ice::read_mesh_file(cut); }, ice::MeshError::Kind::Unreadable, cut,
+                     "ends early in element 'vertex'");
+}
+
+TEST_CASE("OFF: comments anywhere, also between the counts and the records", "[io]") {
+  // Each of these was refused ("exact re-read and OpenMesh disagree"): OpenMesh's OFF reader takes a
+  // comment line after the counts for a vertex.
+  const std::string records = "0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n";
+  const std::pair<const char*, std::string> variants[] = {
+      {"after_counts.off", "OFF\n4 2 0\n# vertices follow\n" + records},
+      {"indented.off", "OFF\n4 2 0\n   # indented comment\n" + records},
+      {"numeric.off", "OFF\n4 2 0\n#1 2 3\n" + records},
+      {"on_counts_line.off", "OFF\n4 2 0 # counts\n" + records},
+      {"crlf.off", "OFF\r\n4 2 0\r\n# c\r\n0 0 0\r\n1 0 0\r\n0 1 0\r\n1 1 0\r\n3 0 1 2\r\n3 1 3 2\r\n"},
+      {"everywhere.off", "# made by hand\nOFF\n# counts next\n4 2 0\n\n0 0 0 # trailing\n1 0 0\n0 1 0\n1 1 0\n"
+                         "# faces follow\n3 0 1 2\n3 1 3 2\n"},
+  };
+  ice_test::TempDir dir;
+  for (const auto& [name, text] : variants) {
+    INFO(name);
+    const std::string path = dir.write(name, text);
+    const ice::MeshFile file = ice::read_mesh_file(path);
+    CHECK(file.exact_coordinates);
+    REQUIRE(file.soup.V.rows() == 4);
+    CHECK(file.soup.V.row(1) == Eigen::RowVector3d(1, 0, 0));
+    CHECK(file.soup.V.row(3) == Eigen::RowVector3d(1, 1, 0));
+    CHECK(file.soup.polygons == std::vector<std::vector<int>>{{0, 1, 2}, {1, 3, 2}});
+    const ice::LoadResult loaded = ice::load_mesh_with_report(path);
+    CHECK(loaded.report.clean());
+    CHECK(loaded.report.n_boundary_loops == 1);
+  }
 }

@@ -396,112 +396,108 @@ double decode_ply_scalar(const unsigned char* p, std::size_t size, bool is_float
   }
 }
 
-/// PLY: exact vertex positions when the first element is `vertex` with scalar properties only.
-/// For ASCII files the faces are re-read too (first list property of `face`), because OpenMesh's ASCII
-/// reader cannot recover from tokens it does not parse (nan, inf).
-std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_t file_size, bool& has_faces) {
-  has_faces = false;
+/// PLY, ASCII or binary, with its elements in any order: the `vertex` element's x, y, z (scalar
+/// properties only) and the first list property of the `face` element (the vertex indices); every
+/// other element and property is read past. Returns nothing for layouts it does not handle (no or
+/// several vertex elements, a list property in the vertex element, unknown types): OpenMesh's reader
+/// is used then.
+std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_t file_size) {
   const auto header = read_ply_header(path, file_size);
-  if (!header || header->elements.empty() || header->elements[0].name != "vertex") return std::nullopt;
-  const PlyElement& vertex = header->elements[0];
-  int ix = -1, iy = -1, iz = -1;
-  for (std::size_t k = 0; k < vertex.properties.size(); ++k) {
-    const auto& prop = vertex.properties[k];
-    if (!prop.count_type.empty() || ply_type_size(prop.type) == 0) return std::nullopt;
-    if (prop.name == "x") ix = static_cast<int>(k);
-    if (prop.name == "y") iy = static_cast<int>(k);
-    if (prop.name == "z") iz = static_cast<int>(k);
+  if (!header) return std::nullopt;
+  const bool ascii = header->format == "ascii", big_endian = header->format == "binary_big_endian";
+  if (!ascii && !big_endian && header->format != "binary_little_endian") return std::nullopt;
+  const PlyElement* vertex = nullptr;
+  bool has_faces = false;
+  for (const PlyElement& element : header->elements) {
+    for (const PlyProperty& prop : element.properties)
+      if (ply_type_size(prop.type) == 0 || (!prop.count_type.empty() && ply_type_size(prop.count_type) == 0))
+        return std::nullopt;
+    if (element.name == "vertex") {
+      if (vertex) return std::nullopt;
+      vertex = &element;
+    }
+    if (element.name == "face") {
+      if (has_faces) return std::nullopt;
+      has_faces = true;
+    }
   }
-  if (ix < 0 || iy < 0 || iz < 0) return std::nullopt;
+  if (!vertex) return std::nullopt;
+  int axis_of_property[64];  // x, y, z -> 0, 1, 2; other properties -1
+  if (vertex->properties.size() > 64) return std::nullopt;
+  int axes_found = 0;
+  for (std::size_t k = 0; k < vertex->properties.size(); ++k) {
+    const PlyProperty& prop = vertex->properties[k];
+    if (!prop.count_type.empty()) return std::nullopt;
+    axis_of_property[k] = prop.name == "x" ? 0 : prop.name == "y" ? 1 : prop.name == "z" ? 2 : -1;
+    axes_found |= axis_of_property[k] >= 0 ? 1 << axis_of_property[k] : 0;
+  }
+  if (axes_found != 7) return std::nullopt;
 
   std::ifstream in(path, std::ios::binary);
   in.seekg(header->data_offset);
-  PolygonSoup soup;
-  soup.V.resize(static_cast<Eigen::Index>(vertex.count), 3);
-  const std::string ends_early = "file ends early: the header announces " + std::to_string(vertex.count) + " vertices";
-  if (header->format == "ascii") {
-    std::string token;
-    for (std::size_t i = 0; i < vertex.count; ++i)
-      for (std::size_t k = 0; k < vertex.properties.size(); ++k) {
-        if (!(in >> token)) fail(path, ends_early);
-        double value;
-        if (!parse_double(token, value)) fail(path, "vertex " + std::to_string(i) + ": bad number '" + token + "'");
-        if (static_cast<int>(k) == ix) soup.V(i, 0) = value;
-        if (static_cast<int>(k) == iy) soup.V(i, 1) = value;
-        if (static_cast<int>(k) == iz) soup.V(i, 2) = value;
-      }
-    // Remaining elements: keep the faces, skip everything else.
-    for (std::size_t e = 1; e < header->elements.size(); ++e) {
-      const PlyElement& element = header->elements[e];
-      const bool is_face = element.name == "face";
-      for (std::size_t i = 0; i < element.count; ++i) {
-        std::vector<int> poly;
-        bool took_indices = false;
-        for (const auto& prop : element.properties) {
-          long long n = 1;
-          if (!prop.count_type.empty()) {
-            if (!(in >> token) || !parse_int(token, n) || n < 0 || static_cast<std::uintmax_t>(n) > file_size)
-              fail(path, "element '" + element.name + "' " + std::to_string(i) + ": bad list length");
-          }
-          const bool indices = is_face && !prop.count_type.empty() && !took_indices;
-          for (long long c = 0; c < n; ++c) {
-            if (!(in >> token)) fail(path, "file ends early in element '" + element.name + "'");
-            if (indices) {
-              long long value;
-              if (!parse_int(token, value)) fail(path, "face " + std::to_string(i) + ": bad index '" + token + "'");
-              poly.push_back(clamp_index(value));
-            }
-          }
-          took_indices = took_indices || indices;
-        }
-        if (is_face) soup.polygons.push_back(std::move(poly));
-      }
-      has_faces = has_faces || is_face;
+  std::vector<unsigned char> data;  // binary: everything after the header
+  std::size_t position = 0;
+  if (!ascii) {
+    data.resize(static_cast<std::size_t>(file_size - static_cast<std::uintmax_t>(header->data_offset)));
+    in.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
+    data.resize(static_cast<std::size_t>(in.gcount()));
+  }
+  // The next value of a property of `type`, in element `name` record `record` (ASCII token or binary).
+  std::string token;
+  const auto next_value = [&](const std::string& type, const PlyElement& element, std::size_t record) -> double {
+    const auto where = [&] { return "element '" + element.name + "' " + std::to_string(record) + " of " +
+                                    std::to_string(element.count); };
+    if (ascii) {
+      if (!(in >> token)) fail(path, "file ends early in " + where());
+      double value;
+      if (!parse_double(token, value)) fail(path, where() + ": bad number '" + token + "'");
+      return value;
     }
-    return soup;
-  }
-  if (header->format != "binary_little_endian" && header->format != "binary_big_endian") return std::nullopt;
-  const bool big_endian = header->format == "binary_big_endian";
-  std::size_t stride = 0;
-  std::vector<std::size_t> offset;
-  for (const auto& prop : vertex.properties) {
-    offset.push_back(stride);
-    stride += ply_type_size(prop.type);
-  }
-  struct Field {
-    std::size_t offset, size;
-    bool is_float, is_signed;
+    const std::size_t size = ply_type_size(type);
+    if (position + size > data.size()) fail(path, "file ends early in " + where());
+    const double value = decode_ply_scalar(data.data() + position, size, type.rfind("float", 0) == 0 || type == "double",
+                                           type[0] != 'u', big_endian);
+    position += size;
+    return value;
   };
-  Field fields[3];
-  const int which[3] = {ix, iy, iz};
-  for (int k = 0; k < 3; ++k) {
-    const std::string& type = vertex.properties[which[k]].type;
-    fields[k] = {offset[which[k]], ply_type_size(type), type.rfind("float", 0) == 0 || type == "double",
-                 type[0] != 'u'};
-  }
-  if (stride * vertex.count > file_size) fail(path, ends_early);  // before allocating anything
-  std::vector<unsigned char> records(stride * vertex.count);
-  if (!in.read(reinterpret_cast<char*>(records.data()), static_cast<std::streamsize>(records.size())))
-    fail(path, ends_early);
-  for (std::size_t i = 0; i < vertex.count; ++i)
-    for (int k = 0; k < 3; ++k)
-      soup.V(i, k) = decode_ply_scalar(records.data() + i * stride + fields[k].offset, fields[k].size,
-                                       fields[k].is_float, fields[k].is_signed, big_endian);
-  return soup;
-}
+  // An integer value (list length, vertex index) of a property of `type`.
+  const auto next_integer = [&](const std::string& type, const PlyElement& element, std::size_t record) -> long long {
+    const double value = next_value(type, element, record);
+    if (!(std::abs(value) < 9.2e18) || value != std::floor(value))
+      fail(path, "element '" + element.name + "' " + std::to_string(record) + ": '" + (ascii ? token : std::to_string(value)) +
+                     "' is not an integer");
+    return static_cast<long long>(value);
+  };
 
-/// True if the exact coordinates round to OpenMesh's float32 values (a parser sanity check).
-bool agrees_with_float(const Positions& exact, const Positions& om, Eigen::Index& first_mismatch) {
-  for (Eigen::Index i = 0; i < exact.rows(); ++i)
-    for (int k = 0; k < 3; ++k) {
-      const double a = exact(i, k), b = om(i, k);
-      if (!std::isfinite(a) || !std::isfinite(b)) continue;
-      if (std::abs(a - b) > 1e-6 * std::max(1.0, std::abs(a))) {
-        first_mismatch = i;
-        return false;
+  PolygonSoup soup;
+  soup.V.resize(static_cast<Eigen::Index>(vertex->count), 3);
+  for (const PlyElement& element : header->elements) {
+    const bool is_vertex = &element == vertex, is_face = element.name == "face";
+    if (is_face) soup.polygons.reserve(element.count);
+    for (std::size_t i = 0; i < element.count; ++i) {
+      std::vector<int> polygon;
+      bool took_indices = false;
+      for (std::size_t k = 0; k < element.properties.size(); ++k) {
+        const PlyProperty& prop = element.properties[k];
+        if (prop.count_type.empty()) {
+          const double value = next_value(prop.type, element, i);
+          if (is_vertex && axis_of_property[k] >= 0) soup.V(static_cast<Eigen::Index>(i), axis_of_property[k]) = value;
+          continue;
+        }
+        const long long length = next_integer(prop.count_type, element, i);
+        if (length < 0 || static_cast<std::uintmax_t>(length) > file_size)
+          fail(path, "element '" + element.name + "' " + std::to_string(i) + ": bad list length " + std::to_string(length));
+        const bool indices = is_face && !took_indices;
+        for (long long c = 0; c < length; ++c) {
+          if (indices) polygon.push_back(clamp_index(next_integer(prop.type, element, i)));
+          else next_value(prop.type, element, i);
+        }
+        took_indices = took_indices || indices;
       }
+      if (is_face) soup.polygons.push_back(std::move(polygon));
     }
-  return true;
+  }
+  return soup;
 }
 
 std::string lower_extension(const std::string& path) {
@@ -509,19 +505,6 @@ std::string lower_extension(const std::string& path) {
   if (!ext.empty() && ext[0] == '.') ext.erase(0, 1);
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   return ext;
-}
-
-/// The faces OpenMesh's OBJ reader produces from raw corner lists: repeats removed (first occurrence
-/// kept) and faces with fewer than three corners dropped.
-std::vector<std::vector<int>> as_openmesh_obj_faces(const std::vector<std::vector<int>>& raw) {
-  std::vector<std::vector<int>> faces;
-  for (const auto& poly : raw) {
-    std::vector<int> kept;
-    for (int v : poly)
-      if (std::find(kept.begin(), kept.end(), v) == kept.end()) kept.push_back(v);
-    if (kept.size() > 2) faces.push_back(std::move(kept));
-  }
-  return faces;
 }
 
 std::string describe_defects(const ValidationReport& report) {
@@ -561,64 +544,24 @@ MeshFile read_mesh_file(const std::string& path) {
   // Every vertex or face record takes at least one byte: a larger count means a corrupt file.
   const std::size_t max_records = static_cast<std::size_t>(size) + 16;
   std::optional<PolygonSoup> exact;
-  bool exact_has_faces = false;
-  if (file.format == "obj") {
-    exact = read_obj_exact(path);
-    exact_has_faces = true;
-  } else if (file.format == "off") {
-    exact = read_off_exact(path, size);
-    exact_has_faces = exact.has_value();
-  } else if (file.format == "ply") {
-    exact = read_ply_exact(path, size, exact_has_faces);
-  }
+  if (file.format == "obj") exact = read_obj_exact(path);
+  else if (file.format == "off") exact = read_off_exact(path, size);
+  else if (file.format == "ply") exact = read_ply_exact(path, size);
 
-  // OpenMesh's ASCII PLY reader cannot skip tokens like "nan": with non-finite values we rely on the
-  // exact re-read alone (it parsed every record strictly).
-  const bool skip_openmesh = exact && exact_has_faces && !exact->V.allFinite();
-  if (skip_openmesh) {
+  // The exact parsers read OBJ, ASCII OFF and PLY completely and strictly, in double precision.
+  // OpenMesh reads only what they decline: STL, binary or 4D OFF, unusual PLY layouts.
+  if (exact) {
     file.soup = std::move(*exact);
     file.exact_coordinates = true;
-    file.notes.push_back("non-finite coordinates: OpenMesh's cross-check skipped");
   } else {
-    OpenMeshResult om;
-    try {
-      om = read_with_openmesh(path, max_records);
-    } catch (const MeshError&) {
-      if (!exact || !exact_has_faces) throw;
-      // The strict exact parser read every record; OpenMesh's reader is only a cross-check here.
-      om.soup = *exact;
-      file.notes.push_back("OpenMesh's reader failed on this file; using the exact parser alone");
-    }
+    const OpenMeshResult om = read_with_openmesh(path, max_records);
     if (om.reserve_called && (om.soup.V.rows() != static_cast<Eigen::Index>(om.announced_vertices) ||
                               om.soup.polygons.size() != om.announced_faces) && file.format != "stl")
       fail(path, "file ends early or is corrupt: the header announces " + std::to_string(om.announced_vertices) +
                      " vertices and " + std::to_string(om.announced_faces) + " faces, the reader found " +
                      std::to_string(om.soup.V.rows()) + " and " + std::to_string(om.soup.polygons.size()));
-    if (!exact) {
-      file.soup = std::move(om.soup);
-      if (file.format != "stl")
-        file.notes.push_back("coordinates read by OpenMesh in single precision (float32)");
-    } else {
-      if (exact->V.rows() != om.soup.V.rows())
-        file.notes.push_back("OpenMesh read " + std::to_string(om.soup.V.rows()) + " vertices, the exact re-read " +
-                             std::to_string(exact->V.rows()) + " (OpenMesh skips vertex records it cannot parse)");
-      Eigen::Index mismatch = 0;
-      if (exact->V.rows() == om.soup.V.rows() && !agrees_with_float(exact->V, om.soup.V, mismatch))
-        fail(path, "exact re-read and OpenMesh disagree at vertex " + std::to_string(mismatch) +
-                       " (unsupported file layout)");
-      if (exact_has_faces) {
-        const auto expected = file.format == "obj" ? as_openmesh_obj_faces(exact->polygons) : exact->polygons;
-        if (expected != om.soup.polygons)
-          file.notes.push_back(file.format == "obj"
-                                   ? "faces as written in the file; OpenMesh's OBJ reader would drop repeated corners"
-                                   : "faces as written in the file differ from OpenMesh's reading");
-      } else {
-        if (exact->V.rows() != om.soup.V.rows()) fail(path, "vertex count differs between readers");
-        exact->polygons = std::move(om.soup.polygons);
-      }
-      file.soup = std::move(*exact);
-      file.exact_coordinates = true;
-    }
+    file.soup = om.soup;
+    if (file.format != "stl") file.notes.push_back("coordinates read by OpenMesh in single precision (float32)");
   }
   if (file.soup.polygons.empty()) fail(path, "contains no faces");
   return file;

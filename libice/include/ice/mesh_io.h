@@ -3,14 +3,16 @@
 /// Reading meshes from OBJ, OFF, PLY (ASCII/binary) and STL (ASCII/binary) files, and the loading
 /// policy of ICE.
 ///
-/// Reading. Files are parsed by OpenMesh's IO layer into a raw polygon soup (no half-edge structure, so
-/// non-manifold and non-triangle faces, repeated and out-of-range indices all stay visible). OpenMesh 9
-/// parses coordinates as 32-bit floats, which destroys meshes far from the origin (at 1e6 the float
-/// spacing is 0.06), and its OBJ reader silently drops repeated face corners and vertex lines it cannot
-/// parse. For OBJ, ASCII OFF and PLY with a plain vertex element, ICE therefore re-reads the vertex
-/// records exactly (double precision; OBJ/OFF faces as written) and uses OpenMesh's result as a
-/// cross-check. STL is single precision by definition; its per-triangle vertices are welded by
-/// OpenMesh's STL reader when they coincide exactly.
+/// Reading. Files are read into a raw polygon soup (no half-edge structure, so non-manifold and
+/// non-triangle faces, repeated and out-of-range indices all stay visible). OBJ, ASCII OFF and PLY
+/// (ASCII and binary, either byte order, elements in any order, extra properties and elements read
+/// past) are parsed by ICE's own strict readers, in double precision, with faces as written; a record
+/// that cannot be parsed or a file that ends early is an error naming the line or element. OpenMesh's IO
+/// layer reads only what they decline: STL (single precision by definition; its per-triangle vertices
+/// are welded when they coincide exactly), binary or 4D OFF and PLY layouts such as list-valued vertex
+/// properties, in single precision (a reader note says so). OpenMesh 9 parses coordinates as 32-bit
+/// floats, drops repeated face corners and unparsable vertex lines, misreads OFF comment lines after the
+/// counts and PLY files whose face element comes first: hence the own readers.
 ///
 /// Loading policy (`load_mesh`):
 ///  - Refused (MeshError, kind Defective) unless repaired: non-triangle faces, out-of-range or repeated
@@ -58,7 +60,7 @@ struct MeshFile {
   PolygonSoup soup;
   std::string format;             ///< "obj", "off", "ply" or "stl".
   bool exact_coordinates = false; ///< Coordinates re-read exactly (else OpenMesh's float32 values).
-  std::vector<std::string> notes; ///< Remarks of the reader (e.g. where OpenMesh and the exact re-read differ).
+  std::vector<std::string> notes; ///< Remarks of the reader (e.g. that OpenMesh read it in single precision).
 };
 
 /// Read a mesh file into a raw polygon soup; no validation. The format is chosen by the extension
