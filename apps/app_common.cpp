@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -116,6 +117,75 @@ std::string percent(double fraction) {
   return fixed(p, std::abs(p) < 10 ? 2 : 1) + "%";
 }
 
+namespace {
+/// Whole-token parses for the option checks (no trailing junk, finite).
+bool parse_number(const std::string& text, double& value) {
+  char* end = nullptr;
+  value = std::strtod(text.c_str(), &end);
+  return !text.empty() && end == text.c_str() + text.size() && std::isfinite(value);
+}
+/// A number as a person writes it: 0.01, 0.9, 1e-08.
+std::string shortest(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+bool parse_integer(const std::string& text, long long& value) {
+  double number = 0;
+  if (!parse_number(text, number) || number != std::floor(number) || std::abs(number) > 9e15) return false;
+  value = static_cast<long long>(number);
+  return true;
+}
+}  // namespace
+
+CLI::Validator positive_number() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        double value = 0;
+        if (!parse_number(text, value)) return "'" + text + "' is not a number";
+        return value > 0 ? "" : text + " is not allowed: give a number > 0";
+      },
+      "> 0");
+}
+
+CLI::Validator non_negative_integer() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        long long value = 0;
+        if (!parse_integer(text, value)) return "'" + text + "' is not a whole number";
+        return value >= 0 ? "" : text + " is not allowed: give a whole number >= 0";
+      },
+      ">= 0");
+}
+
+CLI::Validator number_between(double low, double high) {
+  return CLI::Validator(
+      [low, high](std::string& text) -> std::string {
+        double value = 0;
+        if (!parse_number(text, value)) return "'" + text + "' is not a number";
+        return value >= low && value <= high ? ""
+                                             : text + " is out of range: give a number from " + shortest(low) + " to " +
+                                                   shortest(high);
+      },
+      "in [" + shortest(low) + ", " + shortest(high) + "]");
+}
+
+CLI::Validator integer_between(long long low, long long high) {
+  return CLI::Validator(
+      [low, high](std::string& text) -> std::string {
+        long long value = 0;
+        if (!parse_integer(text, value)) return "'" + text + "' is not a whole number";
+        return value >= low && value <= high ? ""
+                                             : text + " is out of range: give a whole number from " + std::to_string(low) +
+                                                   " to " + std::to_string(high);
+      },
+      "in [" + std::to_string(low) + ", " + std::to_string(high) + "]");
+}
+
+std::string percent(const nlohmann::json& fraction) {
+  return fraction.is_number() ? percent(static_cast<double>(fraction)) : "undefined";
+}
+
 // ---- input ------------------------------------------------------------------------------------------
 
 ice::LoadResult load_input_mesh(const std::string& path, bool repair) {
@@ -208,8 +278,16 @@ void require_connected(const ice::LoadResult& loaded, const std::string& path, c
 // ---- coarsening -------------------------------------------------------------------------------------
 
 void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
-  cli.add_option("--vertices,-n", vertices, "Coarsen down to N vertices (1 <= N <= input vertices)");
-  cli.add_option("--ratio,-r", ratio, "Coarsen down to ceil(R * input vertices), 0 < R <= 1 (e.g. 0.05)");
+  vertices_option = cli.add_option("--vertices,-n", vertices, "Coarsen down to N vertices (1 <= N <= input vertices)")
+                       ->check(integer_between(1, std::numeric_limits<int>::max()));
+  ratio_option = cli.add_option("--ratio,-r", ratio, "Coarsen down to ceil(R * input vertices), 0 < R <= 1 (e.g. 0.05)")
+                     ->check(CLI::Validator(
+                         [](std::string& text) -> std::string {
+                           double value = 0;
+                           if (!parse_number(text, value)) return "'" + text + "' is not a number";
+                           return value > 0 && value <= 1 ? "" : text + " is out of range: it must be in (0, 1], e.g. 0.05 for 5%";
+                         },
+                         "in (0, 1]"));
   cli.add_option("--min-vertices", min_vertices,
                  "With --ratio: keep at least M vertices (at most all of them), e.g. --ratio 0.05 --min-vertices 1000");
   if (with_max_error)
@@ -219,6 +297,7 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
   cli.add_option("--area-weight,-w", area_weight,
                  "Weight w in [0,1] of the area term of the ICE error metric (0: curvature only; "
                  "more weight spreads vertices more evenly)")
+      ->check(number_between(0, 1))
       ->capture_default_str();
   cli.add_option("--method", method,
                  "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
@@ -229,14 +308,16 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
                  "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = k regions coarsened in parallel, "
                  "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
                  "not identical to the serial result); 0 = one per hardware thread")
-      ->check(CLI::Range(0, 64))
+      ->check(integer_between(0, 64))
       ->capture_default_str();
 }
 
 void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
   if (method != "ice" && method != "qem")
     throw AppError(kUsage, "--method " + method + " is not available: use 'ice' or 'qem'");
-  const bool has_vertices = vertices != 0, has_ratio = ratio != 0, has_error = std::isfinite(max_error);
+  const bool has_vertices = vertices_option ? vertices_option->count() > 0 : vertices != 0;
+  const bool has_ratio = ratio_option ? ratio_option->count() > 0 : ratio != 0;
+  const bool has_error = std::isfinite(max_error);
   if (has_vertices && has_ratio) throw AppError(kUsage, "give either --vertices or --ratio, not both");
   if (!has_vertices && !has_ratio && !has_error)
     throw AppError(kUsage, "say how far to coarsen: --vertices N or --ratio R (e.g. --ratio 0.05)");
@@ -554,8 +635,10 @@ Eigen::VectorXd demo_poisson_rhs(const ice::TriangleMesh& mesh) {
 }
 
 Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const Eigen::SparseMatrix<double>& mass) {
-  const Eigen::VectorXd m1 = mass * Eigen::VectorXd::Ones(f.size());
-  return f.array() - m1.dot(f) / m1.sum();
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(f.size());
+  const Eigen::VectorXd m1 = mass * ones;
+  // The same reduction on both sides: a constant f has a mean of exactly that constant, and becomes 0.
+  return f.array() - m1.dot(f) / m1.dot(ones);
 }
 
 fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseMesh& coarse, const std::string& operators,

@@ -111,6 +111,14 @@ std::string thousands(long long value);
 std::string fixed(double value, int digits);
 /// A percentage with 2 significant decimals for small values: 0.01234 → "1.23%".
 std::string percent(double fraction);
+/// CLI11 checks that say in the tools' own words what an option allows (CLI11 prefixes the option
+/// name): a number > 0, an integer >= 0, a number in [low, high], an integer in [low, high].
+CLI::Validator positive_number();
+CLI::Validator non_negative_integer();
+CLI::Validator number_between(double low, double high);
+CLI::Validator integer_between(long long low, long long high);
+/// The same for a report value; null (an undefined relative error) prints as "undefined".
+std::string percent(const nlohmann::json& fraction);
 
 // ---- input ------------------------------------------------------------------------------------------
 
@@ -144,6 +152,10 @@ struct TargetOptions {
   double area_weight = 0;
   std::string method = "ice";  ///< "ice" or "qem"
   int threads = 1;             ///< ICE coarsening threads (ice::CoarsenOptions::threads)
+  /// The options as added by add_to: whether a target was given at all (a given 0 is out of range,
+  /// not "no target").
+  const CLI::Option* vertices_option = nullptr;
+  const CLI::Option* ratio_option = nullptr;
   /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight, --method
   /// and --coarsen-threads.
   void add_to(CLI::App& cli, bool with_max_error);

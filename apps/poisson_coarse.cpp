@@ -30,6 +30,20 @@
 
 namespace {
 
+/// The report's "error" object: relative L2 error in the mass norm, max abs error, and max abs error
+/// relative to max |reference|. A zero reference leaves the relative errors undefined (null): that is
+/// a constant --rhs in zero-mean mode, which is zero once its mean is removed, and so is u.
+nlohmann::json solution_error_json(const Eigen::VectorXd& solution, const Eigen::VectorXd& reference,
+                                   const fem::SparseMatrix& M) {
+  const double max_abs = fem::max_abs_error(solution, reference);
+  const double scale = reference.cwiseAbs().maxCoeff();
+  const bool zero_reference = !(reference.dot(M * reference) > 0);
+  return {{"rel_l2", zero_reference ? nlohmann::json() : nlohmann::json(fem::relative_l2_error(solution, reference, M))},
+          {"max_abs", max_abs},
+          {"max_rel", scale > 0 ? nlohmann::json(max_abs / scale) : nlohmann::json()},
+          {"max_abs_reference", scale}};
+}
+
 const std::string kTool = "poisson-coarse";
 
 // Options of --solver multigrid.
@@ -132,12 +146,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     timings["reference_setup"] = clock.lap();
     reference = direct.solve(f, fixed_values);
     timings["reference_solve"] = clock.lap();
-    const double max_abs = fem::max_abs_error(u, reference);
-    const double scale = reference.cwiseAbs().maxCoeff();
-    error_json = {{"rel_l2", fem::relative_l2_error(u, reference, M)},
-                  {"max_abs", max_abs},
-                  {"max_rel", scale > 0 ? max_abs / scale : 0.0},
-                  {"max_abs_reference", scale}};
+    error_json = solution_error_json(u, reference, M);
   }
   if (!opt.output.empty()) {
     std::vector<ice::ScalarField> fields{{"solution", u}};
@@ -208,9 +217,11 @@ int main(int argc, char** argv) {
                  "on an ICE hierarchy (to --mg-tolerance); direct: exact fine solve by CHOLMOD")
       ->check(CLI::IsMember({"proxy", "multigrid", "direct"}))
       ->capture_default_str();
-  cli.add_option("--mg-tolerance", mg.tolerance, "multigrid: relative residual to reach")->check(CLI::PositiveNumber)->capture_default_str();
-  cli.add_option("--mg-ratio", mg.ratio, "multigrid: vertex fraction kept per level")->check(CLI::Range(0.01, 0.9))->capture_default_str();
-  cli.add_option("--mg-coarsest", mg.coarsest, "multigrid: vertices of the coarsest level (CHOLMOD)")->check(CLI::PositiveNumber)->capture_default_str();
+  cli.add_option("--mg-tolerance", mg.tolerance, "multigrid: relative residual to reach")->check(app::positive_number())->capture_default_str();
+  cli.add_option("--mg-ratio", mg.ratio, "multigrid: vertex fraction kept per level")->check(app::number_between(0.01, 0.9))->capture_default_str();
+  cli.add_option("--mg-coarsest", mg.coarsest, "multigrid: vertices of the coarsest level (CHOLMOD)")
+      ->check(app::integer_between(1, std::numeric_limits<int>::max()))
+      ->capture_default_str();
   cli.add_option("--mg-smoother", mg.smoother, "multigrid: sgs (symmetric Gauss-Seidel), gs or chebyshev")
       ->check(CLI::IsMember({"sgs", "gs", "chebyshev"}))->capture_default_str();
   cli.add_option("--mg-cycle", mg.cycle, "multigrid: pcg (V-cycle preconditioned CG) or vcycle")
@@ -218,7 +229,7 @@ int main(int argc, char** argv) {
   cli.add_option("--mg-threads", mg.threads,
                  "multigrid: threads for Gauss-Seidel sweeps, products, transfers and CG vector operations on "
                  "levels of 50,000+ unknowns (0: OMP_NUM_THREADS or all cores)")
-      ->check(CLI::NonNegativeNumber)->capture_default_str();
+      ->check(app::non_negative_integer())->capture_default_str();
   opt.add_to(cli, "'solution' (prolonged), 'reference' and 'error' (= solution - reference)");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
@@ -302,9 +313,12 @@ int main(int argc, char** argv) {
 
     // ---- proxy
     const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators, n);
-    if (f.size() == 0) f = app::remove_mean(app::demo_poisson_rhs(mesh), proxy.fine_mass());
-    run.assemble = clock.lap();
     const bool dirichlet = !fixed_vertices.empty();
+    // Zero-mean Neumann solves -Laplace(u) = f - mean(f): restrict that compatible f, as the fine
+    // solver uses it (a constant f then gives u = 0 exactly, not a residue of the coarse mean removal).
+    if (f.size() == 0) f = app::remove_mean(app::demo_poisson_rhs(mesh), proxy.fine_mass());
+    else if (!dirichlet) f = app::remove_mean(f, proxy.fine_mass());
+    run.assemble = clock.lap();
     std::vector<int> coarse_fixed;
     for (int v : fixed_vertices) coarse_fixed.push_back(coarse.mesh.from_input[static_cast<std::size_t>(v)]);
     const fem::PoissonSolver coarse_solver =
@@ -330,12 +344,7 @@ int main(int argc, char** argv) {
       run.ref_factor = clock.lap();
       reference = fine_solver.solve(f, fixed_values);
       run.ref_solve = clock.lap();
-      const double max_abs = fem::max_abs_error(solution, reference);
-      const double scale = reference.cwiseAbs().maxCoeff();
-      error_json = {{"rel_l2", fem::relative_l2_error(solution, reference, M)},
-                    {"max_abs", max_abs},
-                    {"max_rel", scale > 0 ? max_abs / scale : 0.0},
-                    {"max_abs_reference", scale}};
+      error_json = solution_error_json(solution, reference, M);
       clock.lap();
     }
 
@@ -368,6 +377,9 @@ int main(int argc, char** argv) {
       std::cout << "  error vs fine: relative L2 " << app::percent(error_json["rel_l2"]) << ", max abs "
                 << static_cast<double>(error_json["max_abs"]) << " (" << app::percent(error_json["max_rel"])
                 << " of max |u| " << static_cast<double>(error_json["max_abs_reference"]) << ")\n";
+    if (run.has_reference && error_json["rel_l2"].is_null())
+      std::cout << "  note: the fine solution is zero (a constant f is zero once its mean is removed), so relative "
+                   "errors are undefined\n";
     if (!opt.output.empty()) std::cout << "  wrote " << opt.output << '\n';
     if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
     return app::kOk;

@@ -398,8 +398,15 @@ elseif(CASE STREQUAL "errors")
       set(extra --source 0)
     endif()
     expect_error(1 "no_such_mesh.obj" ${tool} "${missing}" --ratio 0.1 ${extra} -q)
-    expect_error(4 "--ratio .* out of range" ${tool} "${mesh}" --ratio 1.5 ${extra} -q)
-    expect_error(4 "--ratio .* out of range" ${tool} "${mesh}" --ratio -0.1 ${extra} -q)
+    expect_error(4 "--ratio: 1.5 is out of range: it must be in \\(0, 1\\]" ${tool} "${mesh}" --ratio 1.5 ${extra} -q)
+    expect_error(4 "--ratio: -0.1 is out of range" ${tool} "${mesh}" --ratio -0.1 ${extra} -q)
+    # A given 0 is out of range, not "no target".
+    expect_error(4 "--ratio: 0 is out of range" ${tool} "${mesh}" --ratio 0 ${extra} -q)
+    expect_error(4 "--vertices: 0 is out of range" ${tool} "${mesh}" --vertices 0 ${extra} -q)
+    expect_error(4 "--area-weight: 2 is out of range: give a number from 0 to 1" ${tool} "${mesh}" --ratio 0.1
+                 --area-weight 2 ${extra} -q)
+    expect_error(4 "--coarsen-threads: 99 is out of range: give a whole number from 0 to 64" ${tool} "${mesh}"
+                 --ratio 0.1 --coarsen-threads 99 ${extra} -q)
     expect_error(4 "--vertices 5000 is out of range" ${tool} "${mesh}" --vertices 5000 ${extra} -q)
     expect_error(4 "either --vertices or --ratio" ${tool} "${mesh}" --vertices 100 --ratio 0.1 ${extra} -q)
     expect_error(4 "--vertices N or --ratio R" ${tool} "${mesh}" ${extra} -q)
@@ -416,6 +423,30 @@ elseif(CASE STREQUAL "errors")
   expect_error(4 "" geodesic-coarse "${mesh}" --ratio 0.1 -q)  # --source is required
   expect_error(4 "" geodesic-coarse "${mesh}" --source 0 --ratio 0.1 --operators bogus -q)
   expect_error(4 "--solver" poisson-coarse "${mesh}" --ratio 0.1 --solver bogus -q)
+  # Numeric options say what they allow in the tools' words (never CLI11's raw range text).
+  foreach(bad "--mg-tolerance;0;give a number > 0" "--mg-tolerance;abc;'abc' is not a number"
+              "--mg-ratio;0.95;give a number from 0.01 to 0.9" "--mg-threads;-1;give a whole number >= 0"
+              "--mg-coarsest;0;give a whole number from 1")
+    list(GET bad 0 option)
+    list(GET bad 1 value)
+    list(GET bad 2 message)
+    expect_error(4 "${option}: ${value} .*${message}|${option}: ${message}" poisson-coarse "${mesh}" --solver multigrid
+                 ${option} ${value} -q)
+    if(RUN_ERR MATCHES "1797693")
+      fail("${option} ${value}: the option library's raw range text:\n${RUN_ERR}")
+    endif()
+  endforeach()
+  # A constant right-hand side is zero once its mean is removed: u = 0, relative errors undefined.
+  string(REPEAT "2.5\n" 2930 constant)
+  file(WRITE "${WORK}/constant.txt" "${constant}")
+  run(0 poisson-coarse "${mesh}" --ratio 0.1 --rhs "${WORK}/constant.txt" --report "${WORK}/constant.json" -q)
+  file(READ "${WORK}/constant.json" _text)
+  string(JSON _type TYPE "${_text}" error rel_l2)
+  if(NOT _type STREQUAL "NULL")
+    fail("constant --rhs: error.rel_l2 is ${_type}, expected null")
+  endif()
+  json(_max "${WORK}/constant.json" error max_abs)
+  check(${_max} EQUAL 0 "constant --rhs: max |u - u_ref| (both exactly 0)")
   # Exact fine solves: multigrid (to 1e-10) agrees with CHOLMOD; no coarse target needed.
   run(0 poisson-coarse "${mesh}" --solver multigrid --mg-tolerance 1e-10 --report "${WORK}/mg.json" -q --force)
   require_keys("${WORK}/mg.json" solver.kind solver.iterations solver.convergence_factor solver.relative_residual
