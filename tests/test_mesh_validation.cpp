@@ -8,10 +8,13 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <random>
 
 #include <unistd.h>
 
+#include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_generators.h"
+#include "ice/triangle_geometry.h"
 #include "mesh_figures.h"
 #include "test_support.h"
 #include "ice/mesh_io.h"
@@ -276,5 +279,52 @@ TEST_CASE("load policy on hand-written files", "[validation][io]") {
     const ice::LoadResult loaded = ice::load_mesh_with_report(path, {true, false});
     CHECK(loaded.report.components.size() == 2);
     CHECK(loaded.source_vertex == std::vector<int>{0, 1, 2, 4, 5, 6});
+  }
+}
+
+TEST_CASE("validation and triangulation share one degenerate-face criterion", "[validation]") {
+  // A tetrahedron whose face 0 is a sliver: apex 1e-9 of the base's length off the base. Its relative
+  // area (2·area/longest² = 1e-9) passes the zero-area test, but its edge lengths add up exactly in
+  // double precision, so no triangulation can be built from them. The report used to call the file
+  // clean and every tool then failed inside the triangulation, naming neither file nor face.
+  ice::TriangleMesh tetrahedron;
+  tetrahedron.V.resize(4, 3);
+  tetrahedron.V << 0, 0, 0, 1, 0, 0, 0.5, 1e-9, 0, 0.5, 0.3, 0.8;
+  tetrahedron.F.resize(4, 3);
+  tetrahedron.F << 0, 2, 1, 0, 1, 3, 1, 2, 3, 2, 0, 3;
+  const ice::FaceLengths lengths = ice::face_lengths_from_positions(tetrahedron.V, tetrahedron.F);
+  REQUIRE_FALSE(ice::triangle_inequality_holds(lengths(0, 0), lengths(0, 1), lengths(0, 2)));
+  CHECK_THROWS(ice::IntrinsicTriangulation::from_mesh(tetrahedron.V, tetrahedron.F));
+
+  const ice::ValidationReport report = ice::validate_mesh(tetrahedron);
+  CHECK(report.zero_area_faces.count == 1);
+  CHECK(report.zero_area_faces.first == std::vector<int>{0});
+  CHECK_FALSE(report.clean());
+
+  ice_test::TempDir dir;
+  const std::string path = dir.file("sliver.off");
+  ice::write_mesh(path, tetrahedron);
+  CHECK_THAT(refusal(path), Catch::Contains(path) && Catch::Contains("1 zero-area faces (first faces: 0)"));
+  // The repair drops it: an open surface of three faces that triangulates.
+  const ice::LoadResult repaired = ice::load_mesh_with_report(path, {true, false});
+  CHECK(repaired.repairs.removed_zero_area_faces == 1);
+  CHECK(repaired.report.clean());
+  CHECK(repaired.mesh.F.rows() == 3);
+  CHECK_NOTHROW(ice::IntrinsicTriangulation::from_mesh(repaired.mesh.V, repaired.mesh.F));
+
+  // Any face the report calls clean triangulates: random thin triangles around the threshold.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> exponent(-12, -6), unit(0, 1);
+  for (int trial = 0; trial < 2000; ++trial) {
+    ice::TriangleMesh t;
+    t.V.resize(3, 3);
+    const double height = std::pow(10.0, exponent(rng));
+    t.V << 0, 0, 0, 1 + unit(rng), 0, 0, unit(rng) * 2, height, 0;
+    t.F.resize(1, 3);
+    t.F << 0, 1, 2;
+    const bool clean = ice::validate_mesh(t).zero_area_faces.count == 0;
+    const ice::FaceLengths l = ice::face_lengths_from_positions(t.V, t.F);
+    const bool triangulates = ice::triangle_inequality_holds(l(0, 0), l(0, 1), l(0, 2));
+    if (clean) CHECK(triangulates);
   }
 }

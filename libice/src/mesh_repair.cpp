@@ -250,7 +250,7 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
     if (t.size() != 3 || !indices_in_range(t, nv)) continue;
     const Eigen::Vector3d a = V.row(t[0]), b = V.row(t[1]), c = V.row(t[2]);
     if (!a.allFinite() || !b.allFinite() || !c.allFinite()) continue;  // reported, not fixed
-    if (is_zero_area_triangle(a, b, c, diagonal)) {
+    if (is_degenerate_triangle(V, t[0], t[1], t[2], diagonal)) {
       keep[f] = 0;
       ++log.removed_zero_area_faces;
     }

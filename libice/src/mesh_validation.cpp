@@ -1,4 +1,5 @@
 #include "ice/mesh_validation.h"
+#include "ice/triangle_geometry.h"
 
 #include <Eigen/Geometry>
 
@@ -136,6 +137,11 @@ bool is_zero_area_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, c
   return std::sqrt(dot(n, n)) <= kDegenerateRelativeTolerance * longest2;
 }
 
+bool is_degenerate_triangle(const Positions& V, int a, int b, int c, double diagonal) {
+  if (is_zero_area_triangle(V.row(a).transpose(), V.row(b).transpose(), V.row(c).transpose(), diagonal)) return true;
+  return !triangle_inequality_holds(edge_length(V, a, b), edge_length(V, b, c), edge_length(V, c, a));
+}
+
 std::vector<std::string> ValidationReport::defects() const {
   std::vector<std::string> lines;
   describe(lines, non_triangle_faces, "non-triangle faces", "faces");
@@ -233,7 +239,7 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
       continue;  // already reported through its vertices
     bool degenerate;
     if (poly.size() == 3) {
-      degenerate = is_zero_area_triangle(P[poly[0]], P[poly[1]], P[poly[2]], diagonal);
+      degenerate = is_degenerate_triangle(V, poly[0], poly[1], poly[2], diagonal);
     } else {
       double longest2 = 0;
       for (std::size_t k = 0; k < poly.size(); ++k)

@@ -25,6 +25,10 @@ struct TriangleMesh {
   Faces F;
 };
 
+/// Length of the edge from vertex a to vertex b of V: the one formula behind
+/// face_lengths_from_positions and the validator's degenerate-face test, so they agree to the bit.
+inline double edge_length(const Positions& V, int a, int b) { return (V.row(b) - V.row(a)).norm(); }
+
 /// Per-face edge lengths of an extrinsic mesh, in the `FaceLengths` convention.
 FaceLengths face_lengths_from_positions(const Positions& V, const Faces& F);
 

@@ -129,4 +129,12 @@ ValidationReport validate_mesh(const TriangleMesh& mesh);
 bool is_zero_area_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
                            double diagonal);
 
+/// The degenerate-face test of the report (counted as a zero-area face) and of the repair: the
+/// triangle (a, b, c) of V is a zero-area triangle, or its edge lengths as face_lengths_from_positions
+/// computes them fail the strict triangle inequality (triangle_inequality_holds), which is what
+/// IntrinsicTriangulation::from_mesh requires. The second catches slivers the relative area test
+/// lets through (an apex 1e-9 of the base's length off the base: its lengths add up exactly), so a
+/// mesh the report calls clean always makes a triangulation.
+bool is_degenerate_triangle(const Positions& V, int a, int b, int c, double diagonal);
+
 }  // namespace ice
