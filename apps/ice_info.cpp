@@ -122,15 +122,16 @@ int describe_intrinsic_mesh(const std::string& input, bool json) {
   std::optional<ice::IntrinsicTriangulation> T;
   std::string problem;
   try {
-    T.emplace(ice::IntrinsicTriangulation::from_lengths(file.F, file.L));
+    T.emplace(ice::triangulation_of(file, input));
     problem = T->validate();
-  } catch (const std::invalid_argument& e) {
+  } catch (const ice::MeshError& e) {
     problem = e.what();
   }
   nlohmann::json j;
   j["file"] = input;
   j["readable"] = true;
   j["format"] = "ilm";
+  j["format_version"] = file.version;
   j["vertices"] = file.to_input.size();
   j["faces"] = file.F.rows();
   j["input_vertices"] = file.input_vertices;

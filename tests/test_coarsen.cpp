@@ -114,6 +114,7 @@ TEST_CASE("coarsening every clean real mesh keeps validity, χ and Gauss-Bonnet 
     CHECK(count_non_delaunay(T) == 0);
     CHECK(result.output_vertices < std::max<Index>(60, n / 100));
     check_map(T);
+    ice_test::check_ilm_round_trip(T, dir.file("coarse.ilm"));  // the file says exactly this triangulation
   }
 }
 
@@ -272,6 +273,9 @@ TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays c
     CHECK(a.F == b.F);
     CHECK(a.L == b.L);  // bit-identical for a given thread count
     CHECK(a.to_input == b.to_input);
+    CHECK(a.twin == b.twin);
+    const ice_test::TempDir dir;
+    ice_test::check_ilm_round_trip(T, dir.file("parallel.ilm"));
 
     // The same problem serially: the largest removal cost is of the same size (the regions only
     // reorder the early, cheap removals; the serial pass orders the last ones globally).

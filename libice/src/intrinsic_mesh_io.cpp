@@ -65,9 +65,11 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
   std::string header;
   if (!std::getline(in, header)) throw MeshError(MeshError::Kind::Unreadable, path, "empty file");
   if (!header.empty() && header.back() == '\r') header.pop_back();
-  if (header != "ICE-ILM 1")
+  if (header != "ICE-ILM 1" && header != "ICE-ILM 2")
     throw MeshError(MeshError::Kind::Unreadable, path,
-                    "not an ICE intrinsic mesh (.ilm version 1): the first line must be \"ICE-ILM 1\"");
+                    "not an ICE intrinsic mesh (.ilm): the first line must be \"ICE-ILM 2\" (or \"ICE-ILM 1\")");
+  const int version = header.back() - '0';
+  const std::size_t face_words = version == 2 ? 10 : 7;
   LineReader reader(in, path);
   std::vector<std::string> words;
   // The three counts, in order.
@@ -89,15 +91,21 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
                                                  std::to_string(file_size) + " bytes can hold");
   const Index n = static_cast<Index>(counts[0]), m = static_cast<Index>(counts[1]);
   IntrinsicMeshFile file;
+  file.version = version;
   file.input_vertices = static_cast<Index>(counts[2]);
+  if (version == 2) file.twin.resize(static_cast<std::size_t>(3 * m));
+  std::vector<int> face_line(static_cast<std::size_t>(m));
   if (m == 0) reader.fail(MeshError::Kind::Defective, "the mesh has no faces");
   file.F.resize(m, 3);
   file.L.resize(m, 3);
   std::vector<char> used(static_cast<std::size_t>(n), 0);
   for (Index f = 0; f < m; ++f) {
     if (!reader.next(words)) reader.fail(MeshError::Kind::Unreadable, "file ends after " + std::to_string(f) + " of " + std::to_string(m) + " faces");
-    if (words.size() != 7 || words[0] != "f")
-      reader.fail(MeshError::Kind::Unreadable, "expected \"f i j k l_ij l_jk l_ki\" (face " + std::to_string(f) + ")");
+    face_line[static_cast<std::size_t>(f)] = reader.line();
+    if (words.size() != face_words || words[0] != "f")
+      reader.fail(MeshError::Kind::Unreadable, std::string("expected \"f i j k l_ij l_jk l_ki") +
+                                                   (version == 2 ? " t_ij t_jk t_ki" : "") + "\" (face " +
+                                                   std::to_string(f) + ")");
     for (int c = 0; c < 3; ++c) {
       long long id = 0;
       if (!parse(words[1 + c], id)) reader.fail(MeshError::Kind::Unreadable, "face " + std::to_string(f) + ": bad vertex id \"" + words[1 + c] + "\"");
@@ -114,6 +122,33 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
     }
     if (!triangle_inequality_holds(file.L(f, 0), file.L(f, 1), file.L(f, 2)))
       reader.fail(MeshError::Kind::Defective, "face " + std::to_string(f) + ": lengths violate the triangle inequality");
+    for (int c = 0; version == 2 && c < 3; ++c) {
+      long long side = 0;
+      if (!parse(words[7 + c], side)) reader.fail(MeshError::Kind::Unreadable, "face " + std::to_string(f) + ": bad twin \"" + words[7 + c] + "\"");
+      if (side < -1 || side >= 3 * static_cast<long long>(m) || side == 3 * static_cast<long long>(f) + c)
+        reader.fail(MeshError::Kind::Defective, "face " + std::to_string(f) + ": twin " + words[7 + c] + " of side " +
+                                                    std::to_string(c) + " is out of range or the side itself");
+      file.twin[static_cast<std::size_t>(3 * f + c)] = side < 0 ? kInvalid : static_cast<Index>(side);
+    }
+  }
+  // The gluing: symmetric, joining sides with the same ends run opposite ways, of one length (the
+  // writer writes one double per edge).
+  for (Index side = 0; side < static_cast<Index>(file.twin.size()); ++side) {
+    const Index other = file.twin[static_cast<std::size_t>(side)];
+    if (other == kInvalid) continue;
+    const Index f = side / 3, g = other / 3;
+    const int c = static_cast<int>(side % 3), d = static_cast<int>(other % 3);
+    std::string defect;
+    if (file.twin[static_cast<std::size_t>(other)] != side)
+      defect = "is glued to side " + std::to_string(other) + ", which is not glued back";
+    else if (file.F(f, c) != file.F(g, (d + 1) % 3) || file.F(f, (c + 1) % 3) != file.F(g, d))
+      defect = "is glued to side " + std::to_string(other) + ", whose end vertices differ";
+    else if (file.L(f, c) != file.L(g, d))
+      defect = "is glued to side " + std::to_string(other) + " of another length";
+    if (!defect.empty())
+      throw MeshError(MeshError::Kind::Defective, path,
+                      "line " + std::to_string(face_line[static_cast<std::size_t>(f)]) + ": face " + std::to_string(f) +
+                          ", side " + std::to_string(c) + " " + defect);
   }
   file.to_input.resize(static_cast<std::size_t>(n));
   for (Index v = 0; v < n; ++v) {
@@ -144,18 +179,41 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
   return file;
 }
 
+IntrinsicTriangulation triangulation_of(const IntrinsicMeshFile& file, const std::string& path) {
+  try {
+    return file.twin.empty() ? IntrinsicTriangulation::from_lengths(file.F, file.L)
+                             : IntrinsicTriangulation::from_glued_faces(file.F, file.L, file.twin);
+  } catch (const std::invalid_argument& e) {
+    std::string what = e.what();
+    if (what.rfind("IntrinsicTriangulation: ", 0) == 0) what.erase(0, 24);
+    throw MeshError(MeshError::Kind::Defective, path,
+                    what + (file.twin.empty() ? " (a version-1 file glues faces by vertex pairs, which cannot describe "
+                                                "self- or multi-edges: write it again with this version)"
+                                              : ""));
+  }
+}
+
 void write_intrinsic_mesh(const std::string& path, const CompactMesh& mesh, Index input_vertices,
                           const std::string& comment) {
+  const std::vector<Index> twin = mesh.twin.empty() ? glue_by_vertex_pairs(mesh.F) : mesh.twin;
+  if (twin.size() != static_cast<std::size_t>(3 * mesh.F.rows()))
+    throw std::invalid_argument("write_intrinsic_mesh: the gluing must have 3 entries per face");
   std::ofstream out(path);
   if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "cannot be opened for writing");
-  out << "ICE-ILM 1\n";
+  out << "ICE-ILM 2\n";
   if (!comment.empty()) out << "# " << comment << "\n";
-  out << "# f i j k l_ij l_jk l_ki (0-based vertices, edge lengths); v input_vertex_of_vertex\n"
+  out << "# f i j k l_ij l_jk l_ki t_ij t_jk t_ki (0-based vertices, edge lengths, twin sides 3*face+side or -1);"
+         " v input_vertex_of_vertex\n"
       << "vertices " << mesh.to_input.size() << "\nfaces " << mesh.F.rows() << "\ninput_vertices " << input_vertices
       << '\n';
+  const auto twin_text = [&](Eigen::Index side) {
+    const Index t = twin[static_cast<std::size_t>(side)];
+    return t == kInvalid ? std::string("-1") : std::to_string(t);
+  };
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
     out << "f " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << ' ' << shortest(mesh.L(f, 0)) << ' '
-        << shortest(mesh.L(f, 1)) << ' ' << shortest(mesh.L(f, 2)) << '\n';
+        << shortest(mesh.L(f, 1)) << ' ' << shortest(mesh.L(f, 2)) << ' ' << twin_text(3 * f) << ' '
+        << twin_text(3 * f + 1) << ' ' << twin_text(3 * f + 2) << '\n';
   for (Index v : mesh.to_input) out << "v " << v << '\n';
   out.flush();
   if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "write failed");

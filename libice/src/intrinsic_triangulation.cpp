@@ -16,6 +16,13 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTwoPi = 2 * kPi;
 
+// The gluing of a mesh named by vertex pairs, and the corners in vertex-pair order (the edge order of
+// from_mesh and from_lengths, kept so that their triangulations are laid out as before).
+struct VertexPairGluing {
+  std::vector<Index> twin, order;
+};
+VertexPairGluing pair_sides_by_vertices(const Faces& F);
+
 // flip() and the removal of a degree-4 vertex refuse to make a triangle whose smallest angle has a
 // sine below this (see flip()).
 constexpr double kFlipMinSine = 1e-7;
@@ -90,7 +97,8 @@ IntrinsicTriangulation IntrinsicTriangulation::from_mesh(const Positions& V, con
   IntrinsicTriangulation T;
   if (F.size() > 0 && F.maxCoeff() + 1 != V.rows())
     throw std::invalid_argument("IntrinsicTriangulation: unreferenced vertices (the last vertex is unused)");
-  T.build(F, lengths);
+  const VertexPairGluing gluing = pair_sides_by_vertices(F);
+  T.build(F, lengths, gluing.twin, gluing.order);
   return T;
 }
 
@@ -101,11 +109,31 @@ IntrinsicTriangulation IntrinsicTriangulation::from_lengths(const Faces& F, cons
   for (Eigen::Index f = 0; f < F.rows(); ++f)
     for (int k = 0; k < 3; ++k) lengths[3 * f + k] = L(f, k);
   IntrinsicTriangulation T;
-  T.build(F, lengths);
+  const VertexPairGluing gluing = pair_sides_by_vertices(F);
+  T.build(F, lengths, gluing.twin, gluing.order);
   return T;
 }
 
-void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& corner_length) {
+IntrinsicTriangulation IntrinsicTriangulation::from_glued_faces(const Faces& F, const FaceLengths& L,
+                                                                const std::vector<Index>& twin) {
+  if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
+    throw std::invalid_argument("IntrinsicTriangulation: F and L must both be m x 3");
+  if (twin.size() != static_cast<std::size_t>(3 * F.rows()))
+    throw std::invalid_argument("IntrinsicTriangulation: the gluing must have 3 entries per face");
+  std::vector<double> lengths(3 * F.rows());
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) lengths[3 * f + k] = L(f, k);
+  std::vector<Index> order(twin.size());
+  for (std::size_t c = 0; c < order.size(); ++c) order[c] = static_cast<Index>(c);
+  IntrinsicTriangulation T;
+  T.build(F, lengths, twin, order);
+  return T;
+}
+
+std::vector<Index> glue_by_vertex_pairs(const Faces& F) { return pair_sides_by_vertices(F).twin; }
+
+namespace {
+VertexPairGluing pair_sides_by_vertices(const Faces& F) {
   const Index num_faces = static_cast<Index>(F.rows());
   if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
   const Index num_vertices = F.minCoeff() < 0 ? -1 : F.maxCoeff() + 1;
@@ -140,8 +168,8 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
       order[j] = c;
     }
 
-  std::vector<Index> corner_halfedge(num_corners);
-  Index num_edges = 0;
+  VertexPairGluing gluing;
+  gluing.twin.assign(num_corners, kInvalid);
   for (Index i = 0; i < num_corners;) {
     Index j = i + 1;
     while (j < num_corners && key[order[j]] == key[order[i]]) ++j;
@@ -152,20 +180,55 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
     if (j - i > 2)
       throw std::invalid_argument("IntrinsicTriangulation: non-manifold " + edge_name() + " has " +
                                   std::to_string(j - i) + " faces");
-    corner_halfedge[c0] = 2 * num_edges;
     if (j - i == 2) {
       const Index c1 = order[i + 1];
       if (F(c0 / 3, c0 % 3) == F(c1 / 3, c1 % 3))
         throw std::invalid_argument("IntrinsicTriangulation: inconsistent orientation at " + edge_name());
-      const double l0 = corner_length[c0], l1 = corner_length[c1];
-      if (std::abs(l0 - l1) > 1e-12 * std::max(l0, l1))
-        throw std::invalid_argument("IntrinsicTriangulation: the two faces of " + edge_name() +
-                                    " disagree on its length");
-      corner_halfedge[c1] = 2 * num_edges + 1;
+      gluing.twin[c0] = c1;
+      gluing.twin[c1] = c0;
     }
-    ++num_edges;
     i = j;
   }
+  gluing.order = std::move(order);
+  return gluing;
+}
+}  // namespace
+
+void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& corner_length,
+                                   const std::vector<Index>& twin, const std::vector<Index>& order) {
+  const Index num_faces = static_cast<Index>(F.rows());
+  if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
+  const Index num_vertices = F.minCoeff() < 0 ? -1 : F.maxCoeff() + 1;
+  if (num_vertices <= 0) throw std::invalid_argument("IntrinsicTriangulation: negative vertex index");
+  const Index num_corners = 3 * num_faces;
+  const auto tail_of = [&](Index c) { return F(c / 3, c % 3); };
+  const auto head_of = [&](Index c) { return F(c / 3, (c % 3 + 1) % 3); };
+  // The gluing: an involution without fixed points joining sides with the same ends, run opposite
+  // ways, of the same length. Edges are numbered in `order` (the vertex-pair order for from_mesh).
+  std::vector<Index> corner_halfedge(num_corners, kInvalid);
+  Index num_edges = 0;
+  for (Index c : order) {
+    if (corner_halfedge[c] != kInvalid) continue;
+    const Index t = twin[c];
+    corner_halfedge[c] = 2 * num_edges;
+    if (t != kInvalid) {
+      const auto edge_name = [&] {
+        return "edge (" + std::to_string(tail_of(c)) + ", " + std::to_string(head_of(c)) + ") of face " +
+               std::to_string(c / 3);
+      };
+      if (t < 0 || t >= num_corners || t == c || twin[t] != c)
+        throw std::invalid_argument("IntrinsicTriangulation: the gluing of " + edge_name() + " is not symmetric");
+      if (tail_of(t) != head_of(c) || head_of(t) != tail_of(c))
+        throw std::invalid_argument("IntrinsicTriangulation: " + edge_name() + " is glued to a side with other ends");
+      const double l0 = corner_length[c], l1 = corner_length[t];
+      if (std::abs(l0 - l1) > 1e-12 * std::max(l0, l1))
+        throw std::invalid_argument("IntrinsicTriangulation: the two faces of " + edge_name() + " disagree on its length");
+      corner_halfedge[t] = 2 * num_edges + 1;
+    }
+    ++num_edges;
+  }
+  for (Index c = 0; c < num_corners; ++c)
+    if (corner_halfedge[c] == kInvalid) throw std::invalid_argument("IntrinsicTriangulation: the edge order misses a side");
 
   const Index num_halfedges = 2 * num_edges;
   edges_.assign(num_edges, EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0});
@@ -951,6 +1014,8 @@ CompactMesh IntrinsicTriangulation::compact() const {
     }
   out.F.resize(num_faces_, 3);
   out.L.resize(num_faces_, 3);
+  // Each live half-edge's side (3·row + k), then the gluing through the twin half-edges.
+  std::vector<Index> side_of(static_cast<std::size_t>(num_halfedge_slots()), kInvalid);
   Index row = 0;
   for (Index f = 0; f < num_face_slots(); ++f) {
     if (!face_alive(f)) continue;
@@ -958,9 +1023,13 @@ CompactMesh IntrinsicTriangulation::compact() const {
     for (int k = 0; k < 3; ++k, h = next(h)) {
       out.F(row, k) = out.from_input[tail(h)];
       out.L(row, k) = length(h);
+      side_of[h] = 3 * row + k;
     }
     ++row;
   }
+  out.twin.assign(static_cast<std::size_t>(3 * row), kInvalid);
+  for (Index h = 0; h < num_halfedge_slots(); ++h)
+    if (side_of[h] != kInvalid) out.twin[side_of[h]] = side_of[h ^ 1];  // kInvalid: exterior twin
   return out;
 }
 

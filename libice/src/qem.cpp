@@ -354,6 +354,7 @@ CompactMesh qem_extrinsic_mesh(const QemResult& result) {
   CompactMesh m;
   m.F = result.coarse.F;
   m.L = face_lengths_from_positions(result.coarse.V, result.coarse.F);
+  m.twin = glue_by_vertex_pairs(m.F);  // a manifold mesh: its vertex pairs name its edges
   m.to_input = result.to_input;
   m.from_input = result.from_input;
   return m;
@@ -367,6 +368,7 @@ CompactMesh qem_intrinsic_delaunay_mesh(const QemResult& result, int* flips) {
   CompactMesh m;
   m.F = std::move(c.F);
   m.L = std::move(c.L);
+  m.twin = std::move(c.twin);  // flips can make multi-edges: keep the gluing
   m.to_input = result.to_input;
   m.from_input = result.from_input;
   return m;

@@ -73,6 +73,10 @@ const char* to_string(RemovalStatus status);
 struct CompactMesh {
   Faces F;                          ///< faces in compact vertex indices
   FaceLengths L;                    ///< per-face edge lengths (ice/mesh.h convention)
+  /// How the faces are glued: twin[3f + k] is the side 3g + d that runs along face f's side k (from
+  /// corner k to k+1) the other way, or kInvalid on the boundary. Vertex pairs cannot say this in a
+  /// Δ-complex (self-edges, two edges between one pair of vertices). Empty: glue by vertex pairs.
+  std::vector<Index> twin;
   std::vector<Index> to_input;      ///< compact vertex -> input vertex
   std::vector<Index> from_input;    ///< input vertex -> compact vertex, or kInvalid if removed
 };
@@ -88,6 +92,14 @@ class IntrinsicTriangulation {
   /// Builds from faces and per-face lengths (ice/mesh.h convention); the two faces of an edge must
   /// agree on its length to 1e-12 relative. Same preconditions as from_mesh.
   static IntrinsicTriangulation from_lengths(const Faces& F, const FaceLengths& L);
+
+  /// Builds any Δ-complex from faces, per-face lengths and the gluing of their sides (CompactMesh::twin
+  /// convention): self-edges and several edges between two vertices are fine. Preconditions (checked,
+  /// std::invalid_argument): the gluing is an involution without fixed points that joins sides with
+  /// the same end vertices in opposite directions, glued sides agree on their length to 1e-12
+  /// relative, every vertex 0..max is used and its corners form one fan, faces are non-degenerate.
+  /// compact() and this are inverse: from_glued_faces(c.F, c.L, c.twin).compact() == c.
+  static IntrinsicTriangulation from_glued_faces(const Faces& F, const FaceLengths& L, const std::vector<Index>& twin);
 
   // ---- sizes ------------------------------------------------------------------------------
   Index num_input_vertices() const { return static_cast<Index>(vertices_.size()); }
@@ -244,7 +256,10 @@ class IntrinsicTriangulation {
  private:
   friend class TwoRingPrefetch;
   IntrinsicTriangulation() = default;
-  void build(const Faces& F, const std::vector<double>& halfedge_length_by_corner);
+  /// `twin`: the gluing of the corners' sides (CompactMesh::twin); edges are numbered in the order the
+  /// corners are listed in `order` (a permutation of the corners).
+  void build(const Faces& F, const std::vector<double>& halfedge_length_by_corner, const std::vector<Index>& twin,
+             const std::vector<Index>& order);
   void recompute_vertex_frame(Index v);
   FlattenResult flatten_vertex(Index v, double initial_log_scale, bool update_own_frame);
   // The new angle of the corner at tail(halfedge), between halfedge and prev(halfedge).
@@ -476,5 +491,10 @@ void IntrinsicTriangulation::prefetch_two_ring(Index v, Neighbour&& neighbour, S
   while (walk.advance(neighbour, second)) {
   }
 }
+
+/// The gluing of a mesh whose edges are named by their vertex pairs (no self- or multi-edges), in the
+/// CompactMesh::twin convention. Throws std::invalid_argument for a face that repeats a vertex, an edge
+/// with more than two faces, or two faces that run along an edge in the same direction.
+std::vector<Index> glue_by_vertex_pairs(const Faces& F);
 
 }  // namespace ice
