@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "ice/triangle_geometry.h"
+
 // OpenMesh's PropertyT<VectorT>::push_back value-initialises a VectorT whose constructor leaves it
 // uninitialised, which GCC reports (at the instantiation in this file) as -Wmaybe-uninitialized.
 #if defined(__GNUC__) && !defined(__clang__)
@@ -16,6 +18,7 @@
 #endif
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
+#include <OpenMesh/Tools/Decimater/ModAspectRatioT.hh>
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
 
@@ -31,6 +34,14 @@ using OmMesh = OpenMesh::TriMesh_ArrayKernelT<DoubleTraits>;
 using Decimater = OpenMesh::Decimater::DecimaterT<OmMesh>;
 using ModQuadric = OpenMesh::Decimater::ModQuadricT<OmMesh>;
 using ModNormalFlipping = OpenMesh::Decimater::ModNormalFlippingT<OmMesh>;
+using ModAspectRatio = OpenMesh::Decimater::ModAspectRatioT<OmMesh>;
+
+// Collapses that would make a face with longest edge² / (2·area) above this are illegal. Halfedge
+// collapses keep input positions, so two coincident input vertices (65 in CGAL's
+// elephant-with-holes) could meet in one face with a zero-length edge: a coarse mesh no triangulation
+// can be built from. At 1e6 a face's lengths still carry its shape (height/longest ≥ 1e-6, far above
+// what the strict triangle inequality in double precision needs).
+constexpr float kMaxCollapseAspectRatio = 1e6f;
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -59,6 +70,10 @@ std::size_t decimate(OmMesh& om, std::size_t target, double max_normal_deviation
   ModQuadric::Handle quadric;
   decimater.add(quadric);
   decimater.module(quadric).unset_max_err();  // priority module, no error bound
+  ModAspectRatio::Handle aspect;
+  decimater.add(aspect);
+  decimater.module(aspect).set_binary(true);
+  decimater.module(aspect).set_aspect_ratio(kMaxCollapseAspectRatio);
   ModNormalFlipping::Handle normals;
   if (max_normal_deviation > 0) {
     decimater.add(normals);
@@ -304,6 +319,13 @@ QemResult qem_coarsen(const TriangleMesh& mesh, const QemOptions& options) {
     for (const auto vh : om.fv_range(fh)) r.coarse.F(fh.idx(), k++) = vh.idx();
   }
   om.remove_property(input_index);
+  // The aspect-ratio guard makes degenerate faces impossible; a mesh that has one anyway must not be
+  // handed on (its lengths would not form a triangulation, and a written file could not be read back).
+  const FaceLengths coarse_lengths = face_lengths_from_positions(r.coarse.V, r.coarse.F);
+  for (Eigen::Index f = 0; f < r.coarse.F.rows(); ++f)
+    if (!triangle_inequality_holds(coarse_lengths(f, 0), coarse_lengths(f, 1), coarse_lengths(f, 2)))
+      throw std::runtime_error("qem_coarsen: the QEM mesh has a degenerate face (" + std::to_string(f) +
+                               "); please report this input");
   r.decimate_seconds = seconds_since(start);
 
   // ---- map: survivors exactly, the others by closest point on their own component
