@@ -32,7 +32,7 @@ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_COMPILER=clang++-14 
   { cat "$BUILD.configure.log" >&2; exit 2; }
 targets=()
 for kind in "${KINDS[@]}"; do targets+=("fuzz_$kind"); done
-cmake --build "$BUILD" --parallel "$JOBS" --target ice-info "${targets[@]}"
+cmake --build "$BUILD" --parallel "$JOBS" --target ice-info ice-coarsen "${targets[@]}"
 
 # Seeds: the regression inputs and small real meshes in every mesh format.
 small=(hourglass_ico.obj triple_vierbein.obj cat_head.obj eight.off boxpart.obj degtri_sliding.off)
