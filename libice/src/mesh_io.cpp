@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <numeric>
 #include <optional>
@@ -274,21 +275,125 @@ std::vector<std::pair<std::size_t, std::vector<std::string>>> token_lines(const 
   return lines;
 }
 
-/// ASCII OFF ([ST][C][N]OFF): one vertex per line (x y z first), one face per line (k i1 .. ik first).
-/// Returns nothing for variants it does not handle (binary, 4D, nOFF): OpenMesh's result is used then.
-std::optional<PolygonSoup> read_off_exact(const std::string& path, std::uintmax_t file_size) {
+/// A token as it may be shown in a message: at most 40 characters, bytes outside printable ASCII as \xNN.
+std::string printable(const std::string& token) {
+  std::string text;
+  for (std::size_t i = 0; i < token.size() && i < 40; ++i) {
+    const auto byte = static_cast<unsigned char>(token[i]);
+    if (byte >= 0x20 && byte < 0x7f) {
+      text += static_cast<char>(byte);
+    } else {
+      static const char* hex = "0123456789abcdef";
+      text += "\\x";
+      text += hex[byte >> 4];
+      text += hex[byte & 15];
+    }
+  }
+  return token.size() > 40 ? text + "..." : text;
+}
+
+/// What an OFF keyword ([ST][C][N][4][n]OFF, Geomview's grammar) says each vertex record carries.
+struct OffLayout {
+  bool texture = false, color = false, normal = false;
+};
+
+/// Reads the keyword, or fails naming it: every OFF file is read here, never by OpenMesh, whose ASCII
+/// reader loops for minutes and allocates gigabytes on some corrupt files (found by fuzzing).
+OffLayout parse_off_keyword(const std::string& path, const std::string& keyword) {
+  OffLayout layout;
+  std::size_t i = 0;
+  if (keyword.compare(i, 2, "ST") == 0) layout.texture = true, i += 2;
+  if (i < keyword.size() && keyword[i] == 'C') layout.color = true, ++i;
+  if (i < keyword.size() && keyword[i] == 'N') layout.normal = true, ++i;
+  const std::string rest = keyword.substr(i);
+  if (rest == "OFF") return layout;
+  if (rest == "4OFF" || rest == "nOFF" || rest == "4nOFF")
+    fail(path, "'" + keyword + "' (homogeneous or n-dimensional vertices) is not supported: write plain 3D OFF");
+  fail(path, "not an OFF file: the first keyword must be OFF, COFF, NOFF, STOFF or the like, found '" +
+                 printable(keyword) + "'");
+}
+
+/// Geomview's binary OFF (keyword line "OFF BINARY"): 32-bit vertex, face and edge counts, then per vertex
+/// 32-bit floats (x y z, then normal, colour RGBA and texture coordinates as the keyword says), per face
+/// a corner count, the indices and a colour count (0–4) with that many 32-bit values. Geomview writes big
+/// endian; OpenMesh writes the host's (little endian) order. The byte order whose counts fit the file
+/// is used, big endian first.
+PolygonSoup read_off_binary(const std::string& path, std::streamoff data_offset, const OffLayout& layout) {
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(data_offset);
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::size_t at = 0;
+  bool big_endian = true;
+  auto word = [&](std::size_t offset, bool big) {
+    std::uint32_t value = 0;
+    for (int k = 0; k < 4; ++k) {
+      const unsigned char byte = bytes[offset + (big ? k : 3 - k)];
+      value = (value << 8) | byte;
+    }
+    return value;
+  };
+  auto next_word = [&]() -> std::uint32_t {
+    if (at + 4 > bytes.size()) fail(path, "binary OFF data ends early (at byte " + std::to_string(at) + " of the data)");
+    at += 4;
+    return word(at - 4, big_endian);
+  };
+  auto next_count = [&](const char* what, std::size_t min_bytes_each) -> std::size_t {
+    const auto value = static_cast<std::int32_t>(next_word());
+    const std::string where = std::string(what) + " " + std::to_string(value) + " at byte " + std::to_string(at - 4);
+    if (value < 0) fail(path, "binary OFF: negative " + where + " of the data");
+    if (static_cast<std::size_t>(value) > (bytes.size() - at) / min_bytes_each)
+      fail(path, "binary OFF data ends early or is corrupt: " + where + " of the data asks for more bytes than are left");
+    return static_cast<std::size_t>(value);
+  };
+  const std::size_t floats_per_vertex = 3 + (layout.normal ? 3 : 0) + (layout.color ? 4 : 0) + (layout.texture ? 2 : 0);
+  if (bytes.size() < 12) fail(path, "binary OFF data ends before the vertex, face and edge counts");
+  auto counts_fit = [&](bool big) {
+    const auto nv = static_cast<std::int32_t>(word(0, big)), nf = static_cast<std::int32_t>(word(4, big));
+    return nv >= 0 && nf >= 0 &&
+           static_cast<std::uint64_t>(nv) * 4 * floats_per_vertex + static_cast<std::uint64_t>(nf) * 8 <= bytes.size();
+  };
+  big_endian = counts_fit(true) || !counts_fit(false);
+  const std::size_t nv = next_count("vertex count", 4 * floats_per_vertex);
+  const std::size_t nf = next_count("face count", 8);
+  next_word();  // edge count: unused
+  PolygonSoup soup;
+  soup.V.resize(static_cast<Eigen::Index>(nv), 3);
+  for (std::size_t v = 0; v < nv; ++v)
+    for (std::size_t k = 0; k < floats_per_vertex; ++k) {
+      const std::uint32_t bits = next_word();
+      float value;
+      std::memcpy(&value, &bits, sizeof value);
+      if (k < 3) soup.V(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(k)) = value;
+    }
+  soup.polygons.resize(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const std::size_t corners = next_count("face corner count", 4);
+    soup.polygons[f].reserve(corners);
+    for (std::size_t c = 0; c < corners; ++c)
+      soup.polygons[f].push_back(clamp_index(static_cast<std::int32_t>(next_word())));
+    const std::size_t colors = next_count("face colour count", 4);
+    if (colors > 4) fail(path, "binary OFF: face " + std::to_string(f) + " has " + std::to_string(colors) + " colour values (at most 4)");
+    at += 4 * colors;
+  }
+  return soup;
+}
+
+/// OFF, ASCII ([ST][C][N]OFF: one vertex per line, x y z first; one face per line, k i1 .. ik first) or
+/// binary ("OFF BINARY"). Any other keyword is refused with its text.
+PolygonSoup read_off_exact(const std::string& path, std::uintmax_t file_size) {
   const auto lines = token_lines(path);  // comments (also before the keyword) are skipped
   if (lines.empty()) fail(path, "no OFF data");
   const std::string& keyword = lines[0].second[0];
-  if (keyword.size() < 3 || keyword.compare(keyword.size() - 3, 3, "OFF") != 0) return std::nullopt;
-  for (std::size_t i = 0; i + 3 < keyword.size();) {
-    if (keyword.compare(i, 2, "ST") == 0) i += 2;
-    else if (keyword[i] == 'C' || keyword[i] == 'N') i += 1;
-    else return std::nullopt;  // 4OFF, nOFF, ...
-  }
+  const OffLayout layout = parse_off_keyword(path, keyword);
   std::vector<std::string> header(lines[0].second.begin() + 1, lines[0].second.end());
   std::size_t next = 1;
-  if (!header.empty() && header[0] == "BINARY") return std::nullopt;
+  if (!header.empty() && header[0] == "BINARY") {
+    // The binary data starts right after the keyword line.
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    for (std::size_t number = 0; number < lines[0].first; ++number) std::getline(in, line);
+    return read_off_binary(path, in.tellg(), layout);
+  }
   if (header.size() < 2) {
     if (lines.size() < 2) fail(path, "OFF header has no vertex and face counts");
     header = lines[1].second;
@@ -538,6 +643,8 @@ MeshFile read_mesh_file(const std::string& path) {
 
   MeshFile file;
   file.format = lower_extension(path);
+  if (file.format.empty())
+    fail(path, "has no file extension: the format is taken from it (.obj, .off, .ply, .stl)");
   if (file.format != "obj" && file.format != "off" && file.format != "ply" && file.format != "stl")
     fail(path, "unsupported format '." + file.format + "' (supported: .obj, .off, .ply, .stl)");
 
@@ -548,8 +655,8 @@ MeshFile read_mesh_file(const std::string& path) {
   else if (file.format == "off") exact = read_off_exact(path, size);
   else if (file.format == "ply") exact = read_ply_exact(path, size);
 
-  // The exact parsers read OBJ, ASCII OFF and PLY completely and strictly, in double precision.
-  // OpenMesh reads only what they decline: STL, binary or 4D OFF, unusual PLY layouts.
+  // The exact parsers read OBJ, OFF and PLY completely and strictly (text in double precision).
+  // OpenMesh reads only what they decline: STL and unusual PLY layouts.
   if (exact) {
     file.soup = std::move(*exact);
     file.exact_coordinates = true;
