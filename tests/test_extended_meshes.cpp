@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "ice/mesh_io.h"
@@ -158,10 +159,25 @@ TEST_CASE("extended set: repair fixes what is safe and refuses the rest", "[exte
     CHECK(r.mesh.F.rows() == 4);
     CHECK(r.report.components.size() == 2);
   }
+  SECTION("non-manifold vertices are split: each fan gets its own copy of the vertex") {
+    // file, copies made, components after
+    const std::tuple<const char*, std::size_t, std::size_t> cases[] = {
+        {"degtri_nullface.off", 3, 3},  // dropping the null faces leaves pinches
+        {"three_triangles_sharing_a_vertex.off", 2, 3},
+        {"hourglass_ico.obj", 1, 2},
+        {"cow.obj", 1, 1},
+        {"scan_test1_vcg.ply", 1, 1},
+    };
+    for (const auto& [file, copies, components] : cases) {
+      INFO(file);
+      const ice::LoadResult r = ice::load_mesh_with_report(dir + "/" + file, repair);
+      CHECK(r.repairs.split_non_manifold_vertices == copies);
+      CHECK(r.report.clean());
+      CHECK(r.report.components.size() == components);
+    }
+  }
   SECTION("refused even after repair, with the remaining defect named") {
     const std::pair<const char*, const char*> cases[] = {
-        {"degtri_nullface.off", "non-manifold vertices"},  // dropping the null faces leaves a pinch
-        {"hourglass_ico.obj", "non-manifold vertices"},
         {"triple_vierbein.obj", "non-manifold edges"},
         {"moebius_vcg.ply", "non-orientable"},
         {"dragon_vrip_res4.ply", "non-manifold edges"},

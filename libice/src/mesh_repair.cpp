@@ -8,6 +8,9 @@
 #include <limits>
 #include <array>
 #include <numeric>
+#include <unordered_map>
+
+#include "disjoint_sets.h"
 
 namespace ice {
 
@@ -165,6 +168,58 @@ void orient_components(PolygonSoup& soup, RepairLog& log) {
   }
 }
 
+/// Gives every fan of faces around a vertex its own copy of the vertex (same position, same source
+/// id), on a triangle soup whose edges are manifold: afterwards every vertex is manifold. Two corners
+/// at a vertex are in one fan when their faces share an edge at that vertex. Returns the copies made.
+std::size_t split_non_manifold_vertices(PolygonSoup& soup, std::vector<int>& source_vertex) {
+  auto& faces = soup.polygons;
+  const std::size_t nf = faces.size();
+  // Undirected edge uses, sorted so that the (at most two) faces of an edge are adjacent.
+  std::vector<std::array<std::uint64_t, 2>> uses;  // {edge key, corner 3f + k where the edge starts}
+  uses.reserve(3 * nf);
+  for (std::size_t f = 0; f < nf; ++f)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const auto a = static_cast<std::uint64_t>(faces[f][k]), b = static_cast<std::uint64_t>(faces[f][(k + 1) % 3]);
+      uses.push_back({(std::min(a, b) << 32) | std::max(a, b), 3 * f + k});
+    }
+  std::sort(uses.begin(), uses.end());
+  detail::DisjointSets fans(3 * nf);
+  auto corner_at = [&](std::uint64_t corner_in_face, int vertex) -> std::size_t {
+    const std::size_t f = static_cast<std::size_t>(corner_in_face / 3);
+    for (std::size_t k = 0; k < 3; ++k)
+      if (faces[f][k] == vertex) return 3 * f + k;
+    return static_cast<std::size_t>(corner_in_face);  // unreachable: the edge's face has both endpoints
+  };
+  for (std::size_t i = 0; i + 1 < uses.size(); ++i) {
+    if (uses[i][0] != uses[i + 1][0]) continue;
+    const auto a = static_cast<int>(uses[i][0] >> 32), b = static_cast<int>(uses[i][0] & 0xffffffffu);
+    for (int v : {a, b}) fans.unite(corner_at(uses[i][1], v), corner_at(uses[i + 1][1], v));
+  }
+  // The first fan met keeps the vertex; every other fan gets a copy.
+  std::vector<std::size_t> first_fan(static_cast<std::size_t>(soup.V.rows()), SIZE_MAX);
+  std::unordered_map<std::size_t, int> copy_of_fan;  // fan root -> its new vertex
+  std::vector<Eigen::RowVector3d> new_points;
+  for (std::size_t c = 0; c < 3 * nf; ++c) {
+    const std::size_t root = fans.find(c);
+    int& v = faces[c / 3][c % 3];
+    std::size_t& first = first_fan[static_cast<std::size_t>(v)];
+    if (first == SIZE_MAX) first = root;
+    if (first == root) continue;
+    const auto [it, made] =
+        copy_of_fan.emplace(root, static_cast<int>(soup.V.rows() + static_cast<Eigen::Index>(new_points.size())));
+    if (made) {
+      new_points.push_back(soup.V.row(v));
+      source_vertex.push_back(source_vertex[static_cast<std::size_t>(v)]);
+    }
+    v = it->second;
+  }
+  if (new_points.empty()) return 0;
+  const Eigen::Index old_rows = soup.V.rows();
+  soup.V.conservativeResize(old_rows + static_cast<Eigen::Index>(new_points.size()), 3);
+  for (std::size_t i = 0; i < new_points.size(); ++i) soup.V.row(old_rows + static_cast<Eigen::Index>(i)) = new_points[i];
+  return new_points.size();
+}
+
 }  // namespace
 
 bool RepairLog::empty() const { return summary().empty(); }
@@ -181,6 +236,7 @@ std::vector<std::string> RepairLog::summary() const {
   add(removed_zero_area_faces, "zero-area faces removed");
   add(removed_duplicate_faces, "duplicate faces removed");
   add(removed_unreferenced_vertices, "unreferenced vertices removed");
+  add(split_non_manifold_vertices, "vertex copies made to split non-manifold vertices (one per extra fan)");
   add(flipped_faces, "faces flipped for consistent orientation");
   add(reoriented_components, "components re-oriented");
   return lines;
@@ -314,8 +370,19 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
   }
   out.soup.polygons = std::move(kept);
 
-  // 6. orientation, only on a well-formed manifold triangle mesh
+  // 6. non-manifold vertices (a fan of faces touching the rest at one vertex, common in scans): one
+  // copy of the vertex per fan, only when every face is a triangle in range and every edge manifold
   out.report = validate_mesh(out.soup);
+  {
+    const ValidationReport& r = out.report;
+    if (!r.non_manifold_vertices.empty() && r.non_manifold_edges.empty() && r.non_triangle_faces.empty() &&
+        r.out_of_range_faces.empty() && r.repeated_index_faces.empty()) {
+      log.split_non_manifold_vertices = split_non_manifold_vertices(out.soup, out.source_vertex);
+      out.report = validate_mesh(out.soup);
+    }
+  }
+
+  // 7. orientation, only on a well-formed manifold triangle mesh
   const ValidationReport& r = out.report;
   if (!r.inconsistent_edges.empty() && r.manifold() && r.non_triangle_faces.empty() &&
       r.out_of_range_faces.empty() && r.repeated_index_faces.empty()) {

@@ -1,6 +1,8 @@
 #include "ice/mesh_validation.h"
 #include "ice/triangle_geometry.h"
 
+#include "disjoint_sets.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -15,26 +17,7 @@ namespace ice {
 
 namespace {
 
-/// Union-find with path halving; small and iterative so huge meshes cannot overflow the stack.
-class DisjointSets {
- public:
-  explicit DisjointSets(std::size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), 0); }
-  std::size_t find(std::size_t x) {
-    while (parent_[x] != x) {
-      parent_[x] = parent_[parent_[x]];
-      x = parent_[x];
-    }
-    return x;
-  }
-  void unite(std::size_t a, std::size_t b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
-  }
-
- private:
-  std::vector<std::size_t> parent_;
-};
+using detail::DisjointSets;
 
 /// One directed use of an undirected edge by a face corner.
 struct HalfEdgeUse {

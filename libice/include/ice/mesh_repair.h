@@ -1,10 +1,11 @@
 #pragma once
 /// \file mesh_repair.h
 /// Cheap, safe repairs of raw polygon input. "Safe" means: a repair never moves a vertex, never
-/// invents geometry beyond splitting a polygon along its own diagonals, and every change is counted in
-/// the `RepairLog`. Anything that would need a judgement call (non-manifold configurations,
-/// non-orientable surfaces, non-finite coordinates, out-of-range indices) is left in place and shows up
-/// in the final report, so the caller can refuse the mesh with a precise message.
+/// invents geometry beyond splitting a polygon along its own diagonals or giving each fan of faces at
+/// a non-manifold vertex its own copy of that vertex (the surfaces only touched there), and every
+/// change is counted in the `RepairLog`. Anything that would need a judgement call (non-manifold
+/// edges, non-orientable surfaces, non-finite coordinates, out-of-range indices) is left in place and
+/// shows up in the final report, so the caller can refuse the mesh with a precise message.
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -31,6 +32,9 @@ struct RepairLog {
   std::size_t removed_zero_area_faces = 0;
   std::size_t removed_duplicate_faces = 0;
   std::size_t removed_unreferenced_vertices = 0;
+  /// Copies made of non-manifold vertices: each extra fan of faces around a vertex gets its own copy
+  /// (same position and file id), when every face is a triangle and every edge manifold.
+  std::size_t split_non_manifold_vertices = 0;
   std::size_t flipped_faces = 0;             ///< Faces reversed to make orientation consistent.
   std::size_t reoriented_components = 0;
 
