@@ -49,7 +49,7 @@ namespace {
 // edges of the boundary (99 % of its energy, 3 % of the vertices) and PCG converged at 0.29–0.32
 // per iteration on scans with holes against 0.07 on closed meshes.
 CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const CoarsenOptions& base, double area_weight,
-                                          bool exact_costs, bool flattest_first, bool use_metric) {
+                                          bool exact_costs, bool flattest_first, bool use_metric, double anchor_share) {
   const auto start = std::chrono::steady_clock::now();
   CoarsenResult total;
   total.input_vertices = T.num_vertices();
@@ -136,6 +136,19 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
         if (T.num_vertices() <= base.target_vertices) break;
         if (blocked[static_cast<std::size_t>(v)] != 2) continue;
         if (!base.remove_boundary && T.is_boundary_vertex(v)) continue;
+        if (anchor_share > 0) {
+          // The neighbour carrying most of v's cotan weight stays for the rest of this level, so that
+          // v is interpolated from the vertex it is tied to (HierarchyOptions::strong_neighbour_share).
+          double total = 0, strongest = 0;
+          Index strongest_neighbour = kInvalid;
+          T.for_each_outgoing(v, [&](Index h) {
+            const double w = std::max(0.0, T.cotan_weight(h));
+            total += w;
+            if (w > strongest && T.head(h) != v) strongest = w, strongest_neighbour = T.head(h);
+          });
+          if (strongest_neighbour != kInvalid && strongest >= anchor_share * total)
+            user_locked[static_cast<std::size_t>(strongest_neighbour)] = 1;
+        }
         changed.clear();
         const RemovalStatus status = T.remove_vertex(v, &changed);
         if (status == RemovalStatus::Removed) {
@@ -205,6 +218,8 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     throw std::invalid_argument("build_hierarchy: ratio must be in (0, 1)");
   if (options.coarsest_vertices < 1) throw std::invalid_argument("build_hierarchy: coarsest_vertices must be >= 1");
   if (options.max_levels < 1) throw std::invalid_argument("build_hierarchy: max_levels must be >= 1");
+  if (!(options.strong_neighbour_share >= 0 && options.strong_neighbour_share <= 1))
+    throw std::invalid_argument("build_hierarchy: strong_neighbour_share must be in [0, 1]");
 
   // T is the triangulation being coarsened; its input vertices are the current level's vertices
   // (IntrinsicTriangulation::compacted restarts tracking), t_to_fine maps them to level-0 vertices.
@@ -243,7 +258,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
       result = coarsen(T, co);
     } else {
       result = coarsen_by_independent_sets(T, co, options.area_weight, options.exact_cost_order, options.flattest_first,
-                                           options.coarsen_sets_with_metric);
+                                           options.coarsen_sets_with_metric, options.strong_neighbour_share);
     }
     H.coarsen_seconds += result.seconds;
     if (T.num_vertices() > n - std::max<Index>(1, n / 10)) {
