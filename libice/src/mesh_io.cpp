@@ -457,7 +457,7 @@ std::size_t ply_type_size(const std::string& type) {
 std::optional<PlyHeader> read_ply_header(const std::string& path, std::uintmax_t file_size) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
-  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return std::nullopt;
+  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) fail(path, "not a PLY file: it must begin with the line 'ply'");
   PlyHeader header;
   while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -465,7 +465,8 @@ std::optional<PlyHeader> read_ply_header(const std::string& path, std::uintmax_t
     if (tokens.empty()) continue;
     if (tokens[0] == "end_header") {
       header.data_offset = in.tellg();
-      return header.format.empty() ? std::nullopt : std::optional<PlyHeader>(header);
+      if (header.format.empty()) fail(path, "PLY header has no format line");
+      return header;
     }
     if (tokens[0] == "format" && tokens.size() >= 2) {
       header.format = tokens[1];
@@ -481,7 +482,7 @@ std::optional<PlyHeader> read_ply_header(const std::string& path, std::uintmax_t
         header.elements.back().properties.push_back({tokens[2], tokens[1], ""});
     }
   }
-  return std::nullopt;
+  fail(path, "PLY header has no end_header line");
 }
 
 /// Byte-order aware read of one binary PLY scalar of `size` bytes as double; `is_float` for float/double.
@@ -508,35 +509,37 @@ double decode_ply_scalar(const unsigned char* p, std::size_t size, bool is_float
 /// is used then.
 std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_t file_size) {
   const auto header = read_ply_header(path, file_size);
-  if (!header) return std::nullopt;
+
   const bool ascii = header->format == "ascii", big_endian = header->format == "binary_big_endian";
-  if (!ascii && !big_endian && header->format != "binary_little_endian") return std::nullopt;
+  if (!ascii && !big_endian && header->format != "binary_little_endian")
+    fail(path, "unknown PLY format '" + printable(header->format) + "'");
   const PlyElement* vertex = nullptr;
   bool has_faces = false;
   for (const PlyElement& element : header->elements) {
     for (const PlyProperty& prop : element.properties)
       if (ply_type_size(prop.type) == 0 || (!prop.count_type.empty() && ply_type_size(prop.count_type) == 0))
-        return std::nullopt;
+        fail(path, "PLY property '" + printable(prop.name) + "' of element '" + printable(element.name) +
+                       "' has an unknown type '" + printable(prop.count_type.empty() ? prop.type : prop.count_type) + "'");
     if (element.name == "vertex") {
-      if (vertex) return std::nullopt;
+      if (vertex) fail(path, "PLY header has two vertex elements");
       vertex = &element;
     }
     if (element.name == "face") {
-      if (has_faces) return std::nullopt;
+      if (has_faces) fail(path, "PLY header has two face elements");
       has_faces = true;
     }
   }
-  if (!vertex) return std::nullopt;
+  if (!vertex) fail(path, "PLY header has no vertex element");
   int axis_of_property[64];  // x, y, z -> 0, 1, 2; other properties -1
-  if (vertex->properties.size() > 64) return std::nullopt;
+  if (vertex->properties.size() > 64) fail(path, "PLY vertex element has more than 64 properties");
   int axes_found = 0;
   for (std::size_t k = 0; k < vertex->properties.size(); ++k) {
     const PlyProperty& prop = vertex->properties[k];
-    if (!prop.count_type.empty()) return std::nullopt;
+    if (!prop.count_type.empty()) fail(path, "PLY vertex element has a list property ('" + printable(prop.name) + "'): not supported");
     axis_of_property[k] = prop.name == "x" ? 0 : prop.name == "y" ? 1 : prop.name == "z" ? 2 : -1;
     axes_found |= axis_of_property[k] >= 0 ? 1 << axis_of_property[k] : 0;
   }
-  if (axes_found != 7) return std::nullopt;
+  if (axes_found != 7) fail(path, "PLY vertex element lacks one of the properties x, y, z");
 
   std::ifstream in(path, std::ios::binary);
   in.seekg(header->data_offset);
@@ -655,8 +658,9 @@ MeshFile read_mesh_file(const std::string& path) {
   else if (file.format == "off") exact = read_off_exact(path, size);
   else if (file.format == "ply") exact = read_ply_exact(path, size);
 
-  // The exact parsers read OBJ, OFF and PLY completely and strictly (text in double precision).
-  // OpenMesh reads only what they decline: STL and unusual PLY layouts.
+  // The exact parsers read OBJ, OFF and PLY completely and strictly (text in double precision) and
+  // refuse what they cannot read, naming it: OpenMesh reads only STL. (OpenMesh's OFF and PLY readers
+  // looped, exhausted memory or crashed on corrupt headers found by fuzzing.)
   if (exact) {
     file.soup = std::move(*exact);
     file.exact_coordinates = true;
