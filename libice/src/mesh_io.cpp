@@ -18,7 +18,6 @@
 #include <iterator>
 #include <limits>
 #include <numeric>
-#include <optional>
 #include <sstream>
 
 namespace ice {
@@ -43,8 +42,6 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
 
   std::vector<Eigen::Vector3d> points;
   std::vector<std::vector<int>> polygons;
-  std::size_t announced_vertices = 0, announced_faces = 0;  ///< From reserve(), if the reader calls it.
-  bool reserve_called = false;
 
   OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3f& p) override {
     return add_vertex(OpenMesh::Vec3d(p[0], p[1], p[2]));
@@ -68,9 +65,6 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     return OpenMesh::FaceHandle(static_cast<int>(polygons.size() - 1));
   }
   void reserve(unsigned int nv, unsigned int /*ne*/, unsigned int nf) override {
-    reserve_called = true;
-    announced_vertices = nv;
-    announced_faces = nf;
     // Header counts are untrusted: never reserve more than the file could hold.
     points.reserve(std::min<std::size_t>(nv, max_records_));
     polygons.reserve(std::min<std::size_t>(nf, max_records_));
@@ -142,13 +136,7 @@ class QuietOpenMesh {
   bool err_, log_, out_;
 };
 
-struct OpenMeshResult {
-  PolygonSoup soup;
-  bool reserve_called = false;
-  std::size_t announced_vertices = 0, announced_faces = 0;
-};
-
-OpenMeshResult read_with_openmesh(const std::string& path, std::size_t max_records) {
+PolygonSoup read_with_openmesh(const std::string& path, std::size_t max_records) {
   SoupImporter importer(max_records);
   OpenMesh::IO::Options options;  // positions and faces only
   bool ok = false;
@@ -164,14 +152,11 @@ OpenMeshResult read_with_openmesh(const std::string& path, std::size_t max_recor
     }
   }
   if (!ok) throw MeshError(MeshError::Kind::Unreadable, path, "cannot be parsed by OpenMesh's reader");
-  OpenMeshResult result;
-  result.soup.V.resize(static_cast<Eigen::Index>(importer.points.size()), 3);
-  for (std::size_t i = 0; i < importer.points.size(); ++i) result.soup.V.row(i) = importer.points[i];
-  result.soup.polygons = std::move(importer.polygons);
-  result.reserve_called = importer.reserve_called;
-  result.announced_vertices = importer.announced_vertices;
-  result.announced_faces = importer.announced_faces;
-  return result;
+  PolygonSoup soup;
+  soup.V.resize(static_cast<Eigen::Index>(importer.points.size()), 3);
+  for (std::size_t i = 0; i < importer.points.size(); ++i) soup.V.row(i) = importer.points[i];
+  soup.polygons = std::move(importer.polygons);
+  return soup;
 }
 
 // ============================================================================
@@ -258,6 +243,13 @@ PolygonSoup read_obj_exact(const std::string& path) {
   return soup;
 }
 
+/// The tokens of one text line, '#' comment removed.
+std::vector<std::string> line_tokens(std::string line) {
+  const auto hash = line.find('#');
+  if (hash != std::string::npos) line.erase(hash);
+  return split_whitespace(line);
+}
+
 /// Non-empty lines of a text file with '#' comments removed, tokenised.
 std::vector<std::pair<std::size_t, std::vector<std::string>>> token_lines(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -267,9 +259,7 @@ std::vector<std::pair<std::size_t, std::vector<std::string>>> token_lines(const 
   std::size_t number = 0;
   while (std::getline(in, line)) {
     ++number;
-    const auto hash = line.find('#');
-    if (hash != std::string::npos) line.erase(hash);
-    auto tokens = split_whitespace(line);
+    auto tokens = line_tokens(line);
     if (!tokens.empty()) lines.emplace_back(number, std::move(tokens));
   }
   return lines;
@@ -290,6 +280,24 @@ std::string printable(const std::string& token) {
     }
   }
   return token.size() > 40 ? text + "..." : text;
+}
+
+/// Byte-order aware read of one binary scalar (PLY, binary OFF) of `size` bytes as double; `is_float`
+/// for float/double.
+double decode_binary_scalar(const unsigned char* p, std::size_t size, bool is_float, bool is_signed, bool big_endian) {
+  unsigned char b[8];
+  for (std::size_t i = 0; i < size; ++i) b[i] = big_endian ? p[size - 1 - i] : p[i];  // host is little endian
+  auto as = [&](auto tag) {
+    decltype(tag) v;
+    std::memcpy(&v, b, sizeof v);
+    return static_cast<double>(v);
+  };
+  if (is_float) return size == 4 ? as(float{}) : as(double{});
+  switch (size) {
+    case 1: return is_signed ? as(std::int8_t{}) : as(std::uint8_t{});
+    case 2: return is_signed ? as(std::int16_t{}) : as(std::uint16_t{});
+    default: return is_signed ? as(std::int32_t{}) : as(std::uint32_t{});
+  }
 }
 
 /// What an OFF keyword ([ST][C][N][4][n]OFF, Geomview's grammar) says each vertex record carries.
@@ -322,23 +330,18 @@ PolygonSoup read_off_binary(const std::string& path, std::streamoff data_offset,
   std::ifstream in(path, std::ios::binary);
   in.seekg(data_offset);
   const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  std::size_t at = 0;
   bool big_endian = true;
-  auto word = [&](std::size_t offset, bool big) {
-    std::uint32_t value = 0;
-    for (int k = 0; k < 4; ++k) {
-      const unsigned char byte = bytes[offset + (big ? k : 3 - k)];
-      value = (value << 8) | byte;
-    }
-    return value;
+  auto int_at = [&](std::size_t offset, bool big) {
+    return static_cast<long long>(decode_binary_scalar(&bytes[offset], 4, false, true, big));
   };
-  auto next_word = [&]() -> std::uint32_t {
+  std::size_t at = 0;
+  auto next = [&](bool is_float) {
     if (at + 4 > bytes.size()) fail(path, "binary OFF data ends early (at byte " + std::to_string(at) + " of the data)");
     at += 4;
-    return word(at - 4, big_endian);
+    return decode_binary_scalar(&bytes[at - 4], 4, is_float, true, big_endian);
   };
   auto next_count = [&](const char* what, std::size_t min_bytes_each) -> std::size_t {
-    const auto value = static_cast<std::int32_t>(next_word());
+    const auto value = static_cast<long long>(next(false));
     const std::string where = std::string(what) + " " + std::to_string(value) + " at byte " + std::to_string(at - 4);
     if (value < 0) fail(path, "binary OFF: negative " + where + " of the data");
     if (static_cast<std::size_t>(value) > (bytes.size() - at) / min_bytes_each)
@@ -348,29 +351,26 @@ PolygonSoup read_off_binary(const std::string& path, std::streamoff data_offset,
   const std::size_t floats_per_vertex = 3 + (layout.normal ? 3 : 0) + (layout.color ? 4 : 0) + (layout.texture ? 2 : 0);
   if (bytes.size() < 12) fail(path, "binary OFF data ends before the vertex, face and edge counts");
   auto counts_fit = [&](bool big) {
-    const auto nv = static_cast<std::int32_t>(word(0, big)), nf = static_cast<std::int32_t>(word(4, big));
+    const long long nv = int_at(0, big), nf = int_at(4, big);
     return nv >= 0 && nf >= 0 &&
            static_cast<std::uint64_t>(nv) * 4 * floats_per_vertex + static_cast<std::uint64_t>(nf) * 8 <= bytes.size();
   };
   big_endian = counts_fit(true) || !counts_fit(false);
   const std::size_t nv = next_count("vertex count", 4 * floats_per_vertex);
   const std::size_t nf = next_count("face count", 8);
-  next_word();  // edge count: unused
+  next(false);  // edge count: unused
   PolygonSoup soup;
   soup.V.resize(static_cast<Eigen::Index>(nv), 3);
   for (std::size_t v = 0; v < nv; ++v)
     for (std::size_t k = 0; k < floats_per_vertex; ++k) {
-      const std::uint32_t bits = next_word();
-      float value;
-      std::memcpy(&value, &bits, sizeof value);
+      const double value = next(true);
       if (k < 3) soup.V(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(k)) = value;
     }
   soup.polygons.resize(nf);
   for (std::size_t f = 0; f < nf; ++f) {
     const std::size_t corners = next_count("face corner count", 4);
     soup.polygons[f].reserve(corners);
-    for (std::size_t c = 0; c < corners; ++c)
-      soup.polygons[f].push_back(clamp_index(static_cast<std::int32_t>(next_word())));
+    for (std::size_t c = 0; c < corners; ++c) soup.polygons[f].push_back(clamp_index(static_cast<long long>(next(false))));
     const std::size_t colors = next_count("face colour count", 4);
     if (colors > 4) fail(path, "binary OFF: face " + std::to_string(f) + " has " + std::to_string(colors) + " colour values (at most 4)");
     at += 4 * colors;
@@ -381,19 +381,20 @@ PolygonSoup read_off_binary(const std::string& path, std::streamoff data_offset,
 /// OFF, ASCII ([ST][C][N]OFF: one vertex per line, x y z first; one face per line, k i1 .. ik first) or
 /// binary ("OFF BINARY"). Any other keyword is refused with its text.
 PolygonSoup read_off_exact(const std::string& path, std::uintmax_t file_size) {
-  const auto lines = token_lines(path);  // comments (also before the keyword) are skipped
-  if (lines.empty()) fail(path, "no OFF data");
-  const std::string& keyword = lines[0].second[0];
-  const OffLayout layout = parse_off_keyword(path, keyword);
+  {
+    // The keyword line (comments before it are skipped) says whether binary data follows it.
+    std::ifstream in(path, std::ios::binary);
+    if (!in) fail(path, "cannot be opened");
+    std::string line;
+    std::vector<std::string> keyword_line;
+    while (keyword_line.empty() && std::getline(in, line)) keyword_line = line_tokens(line);
+    if (keyword_line.empty()) fail(path, "no OFF data");
+    const OffLayout layout = parse_off_keyword(path, keyword_line[0]);
+    if (keyword_line.size() > 1 && keyword_line[1] == "BINARY") return read_off_binary(path, in.tellg(), layout);
+  }
+  const auto lines = token_lines(path);
   std::vector<std::string> header(lines[0].second.begin() + 1, lines[0].second.end());
   std::size_t next = 1;
-  if (!header.empty() && header[0] == "BINARY") {
-    // The binary data starts right after the keyword line.
-    std::ifstream in(path, std::ios::binary);
-    std::string line;
-    for (std::size_t number = 0; number < lines[0].first; ++number) std::getline(in, line);
-    return read_off_binary(path, in.tellg(), layout);
-  }
   if (header.size() < 2) {
     if (lines.size() < 2) fail(path, "OFF header has no vertex and face counts");
     header = lines[1].second;
@@ -454,7 +455,7 @@ std::size_t ply_type_size(const std::string& type) {
   return 0;
 }
 
-std::optional<PlyHeader> read_ply_header(const std::string& path, std::uintmax_t file_size) {
+PlyHeader read_ply_header(const std::string& path, std::uintmax_t file_size) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
   if (!std::getline(in, line) || line.rfind("ply", 0) != 0) fail(path, "not a PLY file: it must begin with the line 'ply'");
@@ -485,37 +486,18 @@ std::optional<PlyHeader> read_ply_header(const std::string& path, std::uintmax_t
   fail(path, "PLY header has no end_header line");
 }
 
-/// Byte-order aware read of one binary PLY scalar of `size` bytes as double; `is_float` for float/double.
-double decode_ply_scalar(const unsigned char* p, std::size_t size, bool is_float, bool is_signed, bool big_endian) {
-  unsigned char b[8];
-  for (std::size_t i = 0; i < size; ++i) b[i] = big_endian ? p[size - 1 - i] : p[i];  // host is little endian
-  auto as = [&](auto tag) {
-    decltype(tag) v;
-    std::memcpy(&v, b, sizeof v);
-    return static_cast<double>(v);
-  };
-  if (is_float) return size == 4 ? as(float{}) : as(double{});
-  switch (size) {
-    case 1: return is_signed ? as(std::int8_t{}) : as(std::uint8_t{});
-    case 2: return is_signed ? as(std::int16_t{}) : as(std::uint16_t{});
-    default: return is_signed ? as(std::int32_t{}) : as(std::uint32_t{});
-  }
-}
-
 /// PLY, ASCII or binary, with its elements in any order: the `vertex` element's x, y, z (scalar
 /// properties only) and the first list property of the `face` element (the vertex indices); every
-/// other element and property is read past. Returns nothing for layouts it does not handle (no or
-/// several vertex elements, a list property in the vertex element, unknown types): OpenMesh's reader
-/// is used then.
-std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_t file_size) {
-  const auto header = read_ply_header(path, file_size);
-
-  const bool ascii = header->format == "ascii", big_endian = header->format == "binary_big_endian";
-  if (!ascii && !big_endian && header->format != "binary_little_endian")
-    fail(path, "unknown PLY format '" + printable(header->format) + "'");
+/// other element and property is read past. Layouts it does not handle (no or several vertex
+/// elements, a list property in the vertex element, unknown types) are refused, naming the defect.
+PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
+  const PlyHeader header = read_ply_header(path, file_size);
+  const bool ascii = header.format == "ascii", big_endian = header.format == "binary_big_endian";
+  if (!ascii && !big_endian && header.format != "binary_little_endian")
+    fail(path, "unknown PLY format '" + printable(header.format) + "'");
   const PlyElement* vertex = nullptr;
   bool has_faces = false;
-  for (const PlyElement& element : header->elements) {
+  for (const PlyElement& element : header.elements) {
     for (const PlyProperty& prop : element.properties)
       if (ply_type_size(prop.type) == 0 || (!prop.count_type.empty() && ply_type_size(prop.count_type) == 0))
         fail(path, "PLY property '" + printable(prop.name) + "' of element '" + printable(element.name) +
@@ -542,11 +524,11 @@ std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_
   if (axes_found != 7) fail(path, "PLY vertex element lacks one of the properties x, y, z");
 
   std::ifstream in(path, std::ios::binary);
-  in.seekg(header->data_offset);
+  in.seekg(header.data_offset);
   std::vector<unsigned char> data;  // binary: everything after the header
   std::size_t position = 0;
   if (!ascii) {
-    data.resize(static_cast<std::size_t>(file_size - static_cast<std::uintmax_t>(header->data_offset)));
+    data.resize(static_cast<std::size_t>(file_size - static_cast<std::uintmax_t>(header.data_offset)));
     in.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
     data.resize(static_cast<std::size_t>(in.gcount()));
   }
@@ -563,7 +545,7 @@ std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_
     }
     const std::size_t size = ply_type_size(type);
     if (position + size > data.size()) fail(path, "file ends early in " + where());
-    const double value = decode_ply_scalar(data.data() + position, size, type.rfind("float", 0) == 0 || type == "double",
+    const double value = decode_binary_scalar(data.data() + position, size, type.rfind("float", 0) == 0 || type == "double",
                                            type[0] != 'u', big_endian);
     position += size;
     return value;
@@ -579,7 +561,7 @@ std::optional<PolygonSoup> read_ply_exact(const std::string& path, std::uintmax_
 
   PolygonSoup soup;
   soup.V.resize(static_cast<Eigen::Index>(vertex->count), 3);
-  for (const PlyElement& element : header->elements) {
+  for (const PlyElement& element : header.elements) {
     const bool is_vertex = &element == vertex, is_face = element.name == "face";
     if (is_face) soup.polygons.reserve(element.count);
     for (std::size_t i = 0; i < element.count; ++i) {
@@ -653,26 +635,16 @@ MeshFile read_mesh_file(const std::string& path) {
 
   // Every vertex or face record takes at least one byte: a larger count means a corrupt file.
   const std::size_t max_records = static_cast<std::size_t>(size) + 16;
-  std::optional<PolygonSoup> exact;
-  if (file.format == "obj") exact = read_obj_exact(path);
-  else if (file.format == "off") exact = read_off_exact(path, size);
-  else if (file.format == "ply") exact = read_ply_exact(path, size);
-
-  // The exact parsers read OBJ, OFF and PLY completely and strictly (text in double precision) and
-  // refuse what they cannot read, naming it: OpenMesh reads only STL. (OpenMesh's OFF and PLY readers
-  // looped, exhausted memory or crashed on corrupt headers found by fuzzing.)
-  if (exact) {
-    file.soup = std::move(*exact);
-    file.exact_coordinates = true;
+  // OBJ, OFF and PLY are read completely and strictly by ICE's readers (text in double precision),
+  // which refuse what they cannot read, naming it. OpenMesh reads only STL: its OFF and PLY readers
+  // looped, exhausted memory or crashed on corrupt headers found by fuzzing.
+  if (file.format == "stl") {
+    file.soup = read_with_openmesh(path, max_records);
   } else {
-    const OpenMeshResult om = read_with_openmesh(path, max_records);
-    if (om.reserve_called && (om.soup.V.rows() != static_cast<Eigen::Index>(om.announced_vertices) ||
-                              om.soup.polygons.size() != om.announced_faces) && file.format != "stl")
-      fail(path, "file ends early or is corrupt: the header announces " + std::to_string(om.announced_vertices) +
-                     " vertices and " + std::to_string(om.announced_faces) + " faces, the reader found " +
-                     std::to_string(om.soup.V.rows()) + " and " + std::to_string(om.soup.polygons.size()));
-    file.soup = om.soup;
-    if (file.format != "stl") file.notes.push_back("coordinates read by OpenMesh in single precision (float32)");
+    file.soup = file.format == "obj"   ? read_obj_exact(path)
+                : file.format == "off" ? read_off_exact(path, size)
+                                       : read_ply_exact(path, size);
+    file.exact_coordinates = true;
   }
   if (file.soup.polygons.empty()) fail(path, "contains no faces");
   return file;

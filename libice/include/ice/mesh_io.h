@@ -59,8 +59,8 @@ class MeshError : public std::runtime_error {
 struct MeshFile {
   PolygonSoup soup;
   std::string format;             ///< "obj", "off", "ply" or "stl".
-  bool exact_coordinates = false; ///< Coordinates re-read exactly (else OpenMesh's float32 values).
-  std::vector<std::string> notes; ///< Remarks of the reader (e.g. that OpenMesh read it in single precision).
+  bool exact_coordinates = false; ///< Read by ICE's own reader (OBJ, OFF, PLY); false for STL (OpenMesh's reader).
+  std::vector<std::string> notes; ///< Remarks of the reader (none at present; kept for ice-info's report).
 };
 
 /// Read a mesh file into a raw polygon soup; no validation. The format is chosen by the extension
