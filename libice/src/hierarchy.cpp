@@ -117,11 +117,9 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
         if (!blocked[static_cast<std::size_t>(v)] && !T.is_boundary_vertex(v)) select(v);
     };
     const Index boundary_now = count_boundary();
-    double remove = boundary_now > boundary_goal
-                        ? std::min(0.5, static_cast<double>(boundary_now - boundary_goal) / static_cast<double>(boundary_now))
-                        : 0.0;
-    if (!base.remove_boundary) remove = 0;
-    choose(remove);
+    choose(base.remove_boundary && boundary_now > boundary_goal
+               ? std::min(0.5, static_cast<double>(boundary_now - boundary_goal) / static_cast<double>(boundary_now))
+               : 0.0);
     if (selected == 0 && base.remove_boundary && boundary_now > 0) choose(0.5);
     CoarsenOptions co = base;
     co.locked_vertices.clear();
@@ -134,8 +132,7 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
       std::vector<Index> changed;
       for (const auto& [cost, v] : order) {
         if (T.num_vertices() <= base.target_vertices) break;
-        if (blocked[static_cast<std::size_t>(v)] != 2) continue;
-        if (!base.remove_boundary && T.is_boundary_vertex(v)) continue;
+        if (blocked[static_cast<std::size_t>(v)] != 2) continue;  // boundary vertices only if remove_boundary
         if (anchor_share > 0) {
           // The neighbour carrying most of v's cotan weight stays for the rest of this level, so that
           // v is interpolated from the vertex it is tied to (HierarchyOptions::strong_neighbour_share).

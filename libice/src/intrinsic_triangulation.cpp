@@ -23,6 +23,14 @@ struct VertexPairGluing {
 };
 VertexPairGluing pair_sides_by_vertices(const Faces& F);
 
+// Per-face lengths (FaceLengths convention) as one length per corner's side, 3f + k: build()'s input.
+std::vector<double> lengths_by_corner(const FaceLengths& L) {
+  std::vector<double> lengths(static_cast<std::size_t>(3 * L.rows()));
+  for (Eigen::Index f = 0; f < L.rows(); ++f)
+    for (int k = 0; k < 3; ++k) lengths[static_cast<std::size_t>(3 * f + k)] = L(f, k);
+  return lengths;
+}
+
 // flip() and the removal of a degree-4 vertex refuse to make a triangle whose smallest angle has a
 // sine below this (see flip()).
 constexpr double kFlipMinSine = 1e-7;
@@ -95,10 +103,7 @@ IntrinsicTriangulation IntrinsicTriangulation::from_mesh(const Positions& V, con
       if (F(f, k) < 0 || F(f, k) >= V.rows())
         throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
                                     " has an out-of-range vertex index");
-  std::vector<double> lengths(3 * F.rows());
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int k = 0; k < 3; ++k)
-      lengths[3 * f + k] = (V.row(F(f, (k + 1) % 3)) - V.row(F(f, k))).norm();
+  const std::vector<double> lengths = lengths_by_corner(face_lengths_from_positions(V, F));
   IntrinsicTriangulation T;
   if (F.size() > 0 && F.maxCoeff() + 1 != V.rows())
     throw std::invalid_argument("IntrinsicTriangulation: unreferenced vertices (the last vertex is unused)");
@@ -110,9 +115,7 @@ IntrinsicTriangulation IntrinsicTriangulation::from_mesh(const Positions& V, con
 IntrinsicTriangulation IntrinsicTriangulation::from_lengths(const Faces& F, const FaceLengths& L) {
   if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
     throw std::invalid_argument("IntrinsicTriangulation: F and L must both be m x 3");
-  std::vector<double> lengths(3 * F.rows());
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int k = 0; k < 3; ++k) lengths[3 * f + k] = L(f, k);
+  const std::vector<double> lengths = lengths_by_corner(L);
   IntrinsicTriangulation T;
   const VertexPairGluing gluing = pair_sides_by_vertices(F);
   T.build(F, lengths, gluing.twin, gluing.order);
@@ -125,9 +128,7 @@ IntrinsicTriangulation IntrinsicTriangulation::from_glued_faces(const Faces& F, 
     throw std::invalid_argument("IntrinsicTriangulation: F and L must both be m x 3");
   if (twin.size() != static_cast<std::size_t>(3 * F.rows()))
     throw std::invalid_argument("IntrinsicTriangulation: the gluing must have 3 entries per face");
-  std::vector<double> lengths(3 * F.rows());
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int k = 0; k < 3; ++k) lengths[3 * f + k] = L(f, k);
+  const std::vector<double> lengths = lengths_by_corner(L);
   std::vector<Index> order(twin.size());
   for (std::size_t c = 0; c < order.size(); ++c) order[c] = static_cast<Index>(c);
   IntrinsicTriangulation T;
