@@ -130,7 +130,8 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
     if (!use_metric) {
       // Remove the set directly, flattest first, restoring Delaunay around each removal.
       std::vector<Index> changed;
-      for (const auto& [cost, v] : order) {
+      for (const auto& entry : order) {
+        const Index v = entry.second;  // a plain variable: lambdas below capture it (clang 14 cannot capture bindings)
         if (T.num_vertices() <= base.target_vertices) break;
         if (blocked[static_cast<std::size_t>(v)] != 2) continue;  // boundary vertices only if remove_boundary
         if (anchor_share > 0) {
