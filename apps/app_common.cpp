@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -18,6 +19,25 @@
 #include "ice/prolongation.h"
 
 namespace app {
+
+namespace {
+
+// The command-line names of the method choices; CLI11 parses them straight into the enums.
+const std::map<std::string, ice::CoarseningMethod> kMethodNames{{"ice", ice::CoarseningMethod::ice},
+                                                                {"qem", ice::CoarseningMethod::qem}};
+const std::map<std::string, ice::QemGeometry> kQemGeometryNames{{"extrinsic", ice::QemGeometry::extrinsic},
+                                                                {"idt", ice::QemGeometry::intrinsic_delaunay}};
+const std::map<std::string, fem::CoarseOperatorKind> kOperatorNames{{"intrinsic", fem::CoarseOperatorKind::intrinsic},
+                                                                    {"galerkin", fem::CoarseOperatorKind::galerkin}};
+
+template <class Enum>
+std::string name_of(const std::map<std::string, Enum>& names, Enum value) {
+  for (const auto& [name, entry] : names)
+    if (entry == value) return name;
+  return "?";
+}
+
+}  // namespace
 
 namespace fs = std::filesystem;
 
@@ -302,8 +322,8 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
   cli.add_option("--method", method,
                  "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
                  "Decimater with quadrics, input vertices mapped by closest-point projection)")
-      ->check(CLI::IsMember({"ice", "qem"}))
-      ->capture_default_str();
+      ->transform(CLI::CheckedTransformer(kMethodNames))
+      ->default_str("ice");
   cli.add_option("--coarsen-threads", threads,
                  "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = k regions coarsened in parallel, "
                  "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
@@ -313,8 +333,6 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
 }
 
 void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
-  if (method != "ice" && method != "qem")
-    throw AppError(kUsage, "--method " + method + " is not available: use 'ice' or 'qem'");
   const bool has_vertices = vertices_option ? vertices_option->count() > 0 : vertices != 0;
   const bool has_ratio = ratio_option ? ratio_option->count() > 0 : ratio != 0;
   const bool has_error = std::isfinite(max_error);
@@ -327,7 +345,7 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
   if (has_ratio && !(ratio > 0 && ratio <= 1))
     throw AppError(kUsage, "--ratio " + fixed(ratio, 6) + " is out of range: it must be in (0, 1], e.g. 0.05 for 5%");
   if (has_error && !(max_error >= 0)) throw AppError(kUsage, "--max-error must be >= 0");
-  if (has_error && method == "qem")
+  if (has_error && method == ice::CoarseningMethod::qem)
     throw AppError(kUsage, "--max-error is a bound on the ICE error metric; with --method qem give --vertices or --ratio");
   if (min_vertices != 0 && !has_ratio) throw AppError(kUsage, "--min-vertices goes with --ratio");
   if (min_vertices < 0) throw AppError(kUsage, "--min-vertices must be positive");
@@ -343,25 +361,36 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
   options.threads = threads;
 }
 
-ice::CoarsenResult coarsen_with_progress(ice::IntrinsicTriangulation& T, ice::CoarsenOptions options,
-                                         bool show_progress) {
-  const ice::Index start = T.num_vertices();
-  ProgressBar bar("coarsening", show_progress && stderr_is_terminal());
-  Stopwatch clock;
+std::unique_ptr<ProgressBar> attach_progress_bar(ice::CoarsenOptions& options, ice::Index start_vertices,
+                                                 bool show_progress) {
+  auto bar = std::make_unique<ProgressBar>("coarsening", show_progress && stderr_is_terminal());
   options.progress_interval = 250;
-  options.progress = [&](const ice::CoarsenProgress& p) {
-    const double total = std::max<double>(1, start - p.target);
+  options.progress = [bar = bar.get(), clock = Stopwatch(), start_vertices](const ice::CoarsenProgress& p) {
+    const double total = std::max<double>(1, start_vertices - p.target);
     const double rate = p.removed / std::max(1e-9, clock.seconds());
-    bar.update(p.removed / total, thousands(p.vertices) + " -> " + thousands(p.target) + " vertices, " +
-                                      thousands(static_cast<long long>(rate)) + " removals/s");
+    bar->update(p.removed / total, thousands(p.vertices) + " -> " + thousands(p.target) + " vertices, " +
+                                       thousands(static_cast<long long>(rate)) + " removals/s");
     return true;
   };
+  return bar;
+}
+
+ice::CoarsenResult coarsen_with_progress(ice::IntrinsicTriangulation& T, ice::CoarsenOptions options,
+                                         bool show_progress) {
+  const std::unique_ptr<ProgressBar> bar = attach_progress_bar(options, T.num_vertices(), show_progress);
   ice::CoarsenResult result = ice::coarsen(T, options);
-  bar.finish();
+  bar->finish();
   return result;
 }
 
-void warn_if_target_missed(const std::string& tool, const ice::CoarsenResult& result, const ice::CoarsenOptions& options) {
+void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,
+                           const ice::CoarsenOptions& options) {
+  if (summary.qem) {
+    if (!summary.target_reached)
+      warn(tool, "QEM stopped at " + thousands(summary.coarse_vertices) + " vertices: no further collapse is legal");
+    return;
+  }
+  const ice::CoarsenResult& result = *summary.ice;
   if (result.stop_reason == ice::StopReason::NothingRemovable)
     warn(tool, "stopped at " + thousands(result.output_vertices) +
                    " vertices: no further vertex could be removed (locked, boundary kept, or topology)");
@@ -391,6 +420,37 @@ nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::Compact
           {"parallel_removed", result.parallel_removed}};
 }
 
+nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
+  if (summary.ice) {
+    nlohmann::json j = coarsen_json(*summary.ice, ice::CompactMesh{});
+    j["vertices"] = summary.coarse_vertices;
+    j["faces"] = summary.coarse_faces;
+    return j;
+  }
+  return {{"vertices", summary.coarse_vertices},
+          {"faces", summary.coarse_faces},
+          {"stop_reason", ice::to_string(summary.target_reached ? ice::StopReason::TargetReached
+                                                                : ice::StopReason::NothingRemovable)},
+          {"removed", summary.removed()}};
+}
+
+nlohmann::json qem_json(const ice::QemOutcome& qem, bool target_reached) {
+  return {{"mapping", "closest point on the coarse mesh (AABB tree), survivors exact"},
+          {"collapses", qem.collapses},
+          {"target_reached", target_reached},
+          {"normal_guard_relaxed", qem.guard_relaxed},
+          {"max_distance", qem.max_distance},
+          {"mean_distance", qem.mean_distance},
+          {"decimate_s", qem.decimate_seconds},
+          {"map_s", qem.map_seconds},
+          {"operators", cli_name(qem.geometry)},
+          {"idt_flips", qem.intrinsic_delaunay_flips}};
+}
+
+std::string cli_name(ice::CoarseningMethod method) { return name_of(kMethodNames, method); }
+std::string cli_name(ice::QemGeometry geometry) { return name_of(kQemGeometryNames, geometry); }
+std::string cli_name(fem::CoarseOperatorKind kind) { return name_of(kOperatorNames, kind); }
+
 // ---- output -----------------------------------------------------------------------------------------
 
 void check_output(const std::string& path, bool overwrite, const std::string& option) {
@@ -414,130 +474,55 @@ nlohmann::json report_header(const std::string& tool, const std::string& mesh_pa
   return {{"tool", tool}, {"mesh", mesh_path}};
 }
 
-// ---- fine and coarse discretisations ----------------------------------------------------------------
+// ---- the coarse proxy ----------------------------------------------------------------------------------
 
-FineMesh make_fine_mesh(const ice::TriangleMesh& mesh, bool intrinsic_delaunay) {
-  FineMesh fine;
-  fine.intrinsic_delaunay = intrinsic_delaunay;
-  if (!intrinsic_delaunay) {
-    fine.F = mesh.F;
-    fine.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
-    return fine;
-  }
-  ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-  fine.flips = T.flip_to_delaunay();
-  ice::CompactMesh compact = T.compact();  // no vertex removed: compact indices are input indices
-  fine.F = std::move(compact.F);
-  fine.L = std::move(compact.L);
-  return fine;
-}
-
-CoarseMesh extract_coarse(const ice::IntrinsicTriangulation& T) {
-  CoarseMesh coarse;
-  coarse.mesh = T.compact();
-  coarse.P = ice::prolongation(T, coarse.mesh);
-  return coarse;
-}
-
-void add_operators_option(CLI::App& cli, std::string& operators) {
+void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
   cli.add_option("--operators", operators,
                  "Coarse operators: 'intrinsic' (cotan Laplacian and mass from the coarse edge lengths) or "
                  "'galerkin' (P^T L P and P^T M P from the fine operators)")
-      ->check(CLI::IsMember({"intrinsic", "galerkin"}))
-      ->capture_default_str();
+      ->transform(CLI::CheckedTransformer(kOperatorNames))
+      ->default_str("intrinsic");
 }
 
-// ---- QEM --------------------------------------------------------------------------------------------
-
-ice::QemOptions qem_options(const ice::CoarsenOptions& options) {
-  ice::QemOptions q;
-  q.target_vertices = options.target_vertices;
-  q.target_ratio = options.target_ratio;
-  q.locked_vertices = options.locked_vertices;
-  q.remove_boundary = options.remove_boundary;
-  return q;
-}
-
-ice::CoarsenResult qem_summary(const ice::QemResult& qem) {
-  ice::CoarsenResult r;
-  r.stop_reason = qem.target_reached ? ice::StopReason::TargetReached : ice::StopReason::NothingRemovable;
-  r.input_vertices = qem.input_vertices;
-  r.output_vertices = static_cast<ice::Index>(qem.coarse.V.rows());
-  r.output_faces = static_cast<ice::Index>(qem.coarse.F.rows());
-  r.removed = qem.collapses;
-  r.next_cost = std::numeric_limits<double>::quiet_NaN();
-  r.seconds = qem.decimate_seconds + qem.map_seconds;
-  return r;
-}
-
-CoarseMesh qem_coarse_mesh(const ice::QemResult& qem, const std::string& qem_operators, long long* flips) {
-  CoarseMesh coarse;
-  if (qem_operators == "idt") {
-    int count = 0;
-    try {
-      coarse.mesh = ice::qem_intrinsic_delaunay_mesh(qem, &count);
-    } catch (const std::invalid_argument& e) {
-      throw AppError(kFailed, std::string("--qem-operators idt: the QEM mesh cannot be triangulated intrinsically: ") +
-                                  e.what());
-    }
-    if (flips) *flips = count;
-  } else {
-    coarse.mesh = ice::qem_extrinsic_mesh(qem);
-    if (flips) *flips = 0;
-  }
-  coarse.P = qem.P;
-  return coarse;
-}
-
-nlohmann::json qem_json(const ice::QemResult& qem) {
-  return {{"mapping", "closest point on the coarse mesh (AABB tree), survivors exact"},
-          {"collapses", qem.collapses},
-          {"target_reached", qem.target_reached},
-          {"normal_guard_relaxed", qem.guard_relaxed},
-          {"max_distance", qem.max_distance},
-          {"mean_distance", qem.mean_distance},
-          {"decimate_s", qem.decimate_seconds},
-          {"map_s", qem.map_seconds}};
+fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind) {
+  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped,
+                          coarse.P.rows(), coarse.P.cols());
 }
 
 // ---- the coarse-proxy PDE tools ----------------------------------------------------------------------
 
-CoarseMesh coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                           PdeRun& run) {
-  run.method = opt.target.method;
-  CoarseMesh coarse;
-  if (opt.target.method == "qem") {
-    run.qem_operators = opt.qem_operators;
-    const ice::QemResult qem = ice::qem_coarsen(mesh, qem_options(options));
-    run.coarsening = qem_summary(qem);
-    if (!qem.target_reached)
-      warn(run.tool, "QEM stopped at " + thousands(qem.coarse.V.rows()) + " vertices: no further collapse is legal");
-    long long flips = 0;
-    coarse = qem_coarse_mesh(qem, opt.qem_operators, &flips);
-    run.qem = qem_json(qem);
-    run.qem["operators"] = opt.qem_operators;
-    run.qem["idt_flips"] = flips;
-  } else {
-    ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-    run.coarsening = coarsen_with_progress(T, options, !opt.quiet);
-    warn_if_target_missed(run.tool, run.coarsening, options);
-    coarse = extract_coarse(T);
+ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                                 PdeRun& run) {
+  ice::CoarseSpaceOptions space_options;
+  space_options.method = opt.target.method;
+  space_options.qem_geometry = opt.qem_geometry;
+  space_options.coarsen = options;
+  std::unique_ptr<ProgressBar> bar;
+  if (opt.target.method == ice::CoarseningMethod::ice)
+    bar = attach_progress_bar(space_options.coarsen, static_cast<ice::Index>(mesh.V.rows()), !opt.quiet);
+  ice::CoarseSpace space;
+  try {
+    space = ice::build_coarse_space(mesh, space_options);
+  } catch (const std::runtime_error& e) {
+    if (opt.qem_geometry == ice::QemGeometry::intrinsic_delaunay && opt.target.method == ice::CoarseningMethod::qem)
+      throw AppError(kFailed, std::string("--qem-operators idt: ") + e.what());
+    throw;
   }
-  run.coarse_vertices = static_cast<long long>(coarse.mesh.to_input.size());
-  run.coarse_faces = coarse.mesh.F.rows();
-  run.coarse_json = coarsen_json(run.coarsening, coarse.mesh);
-  return coarse;
+  if (bar) bar->finish();
+  warn_if_target_missed(run.tool, space.summary, options);
+  run.coarsening = space.summary;
+  return space;
 }
 
 void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   cli.add_option("mesh", mesh, "Input mesh (.obj, .off, .ply, .stl); must be connected")->required();
   target.add_to(cli, false);
   add_operators_option(cli, operators);
-  cli.add_option("--qem-operators", qem_operators,
+  cli.add_option("--qem-operators", qem_geometry,
                  "With --method qem: coarse geometry from the QEM mesh's positions ('extrinsic') or from its "
                  "intrinsic Delaunay triangulation ('idt', same vertices, so the same P)")
-      ->check(CLI::IsMember({"extrinsic", "idt"}))
-      ->capture_default_str();
+      ->transform(CLI::CheckedTransformer(kQemGeometryNames))
+      ->default_str("extrinsic");
   cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
                "Fine reference (and fine operators of the proxy) on the intrinsic Delaunay triangulation of the "
                "input (default), or on the input triangles as they are (--no-fine-idt)")
@@ -558,6 +543,10 @@ void PdeOptions::check_outputs() const {
     throw AppError(kUsage, "--output and --report name the same file");
 }
 
+ice::FineGeometry PdeOptions::fine_geometry() const {
+  return fine_idt ? ice::FineGeometry::intrinsic_delaunay : ice::FineGeometry::input;
+}
+
 double PdeRun::proxy_total() const {
   return coarsen + assemble + factor + solve + prolong;
 }
@@ -566,11 +555,11 @@ double PdeRun::reference_total() const { return ref_assemble + ref_factor + ref_
 
 nlohmann::json PdeRun::report() const {
   nlohmann::json r = report_header(tool, mesh_path);
-  r["method"] = method;
-  r["operators"] = operators;
-  if (method == "qem") r["qem"] = qem;
+  r["method"] = cli_name(coarsening.method);
+  r["operators"] = cli_name(operators);
+  if (coarsening.qem) r["qem"] = qem_json(*coarsening.qem, coarsening.target_reached);
   r["input"] = {{"vertices", fine_vertices}, {"faces", fine_faces}};
-  r["coarse"] = coarse_json;
+  r["coarse"] = coarsen_json(coarsening);
   r["fine_mesh"] = {{"kind", fine_idt ? "intrinsic Delaunay" : "input"},
                     {"flips", idt_flips},
                     {"used_by_proxy", proxy_uses_fine_mesh}};
@@ -584,24 +573,26 @@ nlohmann::json PdeRun::report() const {
                     {"per_solve", ref_solve / std::max(solve + prolong, 1e-12)}};
   }
   r["timings_s"] = t;
-  r["removals_per_second"] = coarsening.removed / std::max(coarsen, 1e-9);
+  r["removals_per_second"] = coarsening.removed() / std::max(coarsen, 1e-9);
   r["peak_rss_mb"] = peak_rss_mb();
   r["blas"] = fem::blas_library();
   return r;
 }
 
 void PdeRun::print_summary(std::ostream& out) const {
+  const long long coarse_vertices = coarsening.coarse_vertices;
+  const bool qem = coarsening.qem.has_value();
   out << tool << ": " << mesh_path << ": " << thousands(fine_vertices) << " vertices -> " << thousands(coarse_vertices)
       << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), "
-      << (method == "qem" ? "QEM (" + qem_operators + " mesh)" : std::string("ICE")) << ", " << operators
+      << (qem ? "QEM (" + cli_name(coarsening.qem->geometry) + " mesh)" : std::string("ICE")) << ", " << cli_name(operators)
       << " coarse operators\n";
   const auto row = [&](const std::string& name, double seconds, const std::string& note = "") {
     out << "  " << std::left << std::setw(16) << name << std::right << std::setw(10) << fixed(seconds, 4) << " s"
         << (note.empty() ? "" : "   " + note) << '\n';
   };
   row("load", load);
-  row("coarsen", coarsen, thousands(coarsening.removed) + (method == "qem" ? " collapses, " : " removals, ") +
-                              thousands(static_cast<long long>(coarsening.removed / std::max(coarsen, 1e-9))) + "/s");
+  row("coarsen", coarsen, thousands(coarsening.removed()) + (qem ? " collapses, " : " removals, ") +
+                              thousands(static_cast<long long>(coarsening.removed() / std::max(coarsen, 1e-9))) + "/s");
   row("fine mesh", fine_mesh,
       (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +
           (proxy_uses_fine_mesh ? " (used by the proxy too; counted in neither total)" : " (for the reference; counted in neither total)"));
@@ -641,12 +632,5 @@ Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const Eigen::SparseMatrix<
   return f.array() - m1.dot(f) / m1.dot(ones);
 }
 
-fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseMesh& coarse, const std::string& operators,
-                            Eigen::Index fine_vertices) {
-  const fem::CoarseOperatorKind kind =
-      operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
-  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped,
-                          fine_vertices, static_cast<Eigen::Index>(coarse.mesh.to_input.size()));
-}
 
 }  // namespace app

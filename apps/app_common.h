@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -17,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fem/coarse_proxy.h"
+#include "ice/coarse_space.h"
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
@@ -150,7 +152,7 @@ struct TargetOptions {
   long long min_vertices = 0;
   double max_error = std::numeric_limits<double>::infinity();
   double area_weight = 0;
-  std::string method = "ice";  ///< "ice" or "qem"
+  ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< --method ice|qem
   int threads = 1;             ///< ICE coarsening threads (ice::CoarsenOptions::threads)
   /// The options as added by add_to: whether a target was given at all (a given 0 is out of range,
   /// not "no target").
@@ -164,16 +166,33 @@ struct TargetOptions {
   void apply(ice::CoarsenOptions& options, long long n) const;
 };
 
+/// The command-line spelling of each method choice (--method, --qem-operators, --operators); the
+/// options parse these names straight into the enums.
+std::string cli_name(ice::CoarseningMethod method);
+std::string cli_name(ice::QemGeometry geometry);
+std::string cli_name(fem::CoarseOperatorKind kind);
+
+/// Sets options.progress to draw a progress bar on stderr (when `show_progress` and stderr is a
+/// terminal); the bar lives in the returned object, which must outlive the coarsening.
+std::unique_ptr<ProgressBar> attach_progress_bar(ice::CoarsenOptions& options, ice::Index start_vertices,
+                                                 bool show_progress);
+
 /// Runs ice::coarsen on T, with a progress bar on stderr when `show_progress` (and stderr is a
 /// terminal). Any progress callback already in `options` is replaced.
 ice::CoarsenResult coarsen_with_progress(ice::IntrinsicTriangulation& T, ice::CoarsenOptions options,
                                          bool show_progress);
 
-/// Prints a warning when the coarsening stopped before its vertex target.
-void warn_if_target_missed(const std::string& tool, const ice::CoarsenResult& result, const ice::CoarsenOptions& options);
+/// Prints a warning when the coarsening stopped before its vertex target (either method).
+void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,
+                           const ice::CoarsenOptions& options);
 
-/// The "coarse" object of the JSON reports.
+/// The "coarse" object of the JSON reports: vertices, faces, stop_reason, removed (ICE removals or
+/// QEM collapses), and for ICE its removal details (failed removals by status, costs).
 nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::CompactMesh& coarse);
+nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary);
+
+/// The "qem" object of the JSON reports (mapping, guard, distances, times, geometry of the coarse mesh).
+nlohmann::json qem_json(const ice::QemOutcome& qem, bool target_reached);
 
 // ---- output -----------------------------------------------------------------------------------------
 
@@ -188,49 +207,14 @@ void write_json_file(const std::string& path, const nlohmann::json& report, bool
 /// The fields every report shares: tool, mesh, peak_rss_mb (at call time).
 nlohmann::json report_header(const std::string& tool, const std::string& mesh_path);
 
-// ---- fine and coarse discretisations of the PDE tools ------------------------------------------------
-
-/// Faces and per-face lengths of the fine mesh on which the reference (and the Galerkin operators)
-/// live: the input mesh itself, or its intrinsic Delaunay triangulation (same vertices, edges flipped
-/// intrinsically until every edge is Delaunay, so every cotan weight is ≥ 0).
-struct FineMesh {
-  ice::Faces F;
-  ice::FaceLengths L;
-  bool intrinsic_delaunay = false;
-  long long flips = 0;
-};
-FineMesh make_fine_mesh(const ice::TriangleMesh& mesh, bool intrinsic_delaunay);
-
-/// The coarse mesh and prolongation after coarsening T.
-struct CoarseMesh {
-  ice::CompactMesh mesh;
-  Eigen::SparseMatrix<double> P;  ///< input vertices × coarse vertices
-};
-CoarseMesh extract_coarse(const ice::IntrinsicTriangulation& T);
+// ---- the coarse proxy of the PDE tools ----------------------------------------------------------------
 
 /// Adds --operators intrinsic|galerkin.
-void add_operators_option(CLI::App& cli, std::string& operators);
+void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators);
 
-/// The coarse proxy of the PDE tools: fine discretisation, coarse mesh and P, with the coarse operators
-/// named by --operators ("galerkin": PᵀLP, PᵀMP; otherwise intrinsic from the coarse lengths), lumped mass.
-fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseMesh& coarse, const std::string& operators,
-                            Eigen::Index fine_vertices);
-
-// ---- the QEM baseline (--method qem) ------------------------------------------------------------------
-
-/// ice::QemOptions with the target, locked vertices and boundary rule of `options` (an ICE set-up).
-ice::QemOptions qem_options(const ice::CoarsenOptions& options);
-
-/// QEM coarsening (ice::qem_coarsen) with the outcome summarised as an ice::CoarsenResult (removed =
-/// collapses, stop reason target_reached or nothing_removable), for the reports.
-ice::CoarsenResult qem_summary(const ice::QemResult& qem);
-
-/// The QEM mesh as the proxy's coarse mesh: `qem_operators` "extrinsic" (lengths from its positions)
-/// or "idt" (its intrinsic Delaunay triangulation; `flips` receives the flip count). P = qem.P either way.
-CoarseMesh qem_coarse_mesh(const ice::QemResult& qem, const std::string& qem_operators, long long* flips = nullptr);
-
-/// The "qem" object of the JSON reports (mapping, guard, distances, times).
-nlohmann::json qem_json(const ice::QemResult& qem);
+/// The coarse proxy of the PDE tools: the fine discretisation, the coarse space and its P, with coarse
+/// operators of `kind`, lumped mass.
+fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind);
 
 // ---- the coarse-proxy PDE tools (geodesic-coarse, poisson-coarse) ------------------------------------
 
@@ -238,8 +222,8 @@ nlohmann::json qem_json(const ice::QemResult& qem);
 struct PdeOptions {
   std::string mesh;
   TargetOptions target;
-  std::string operators = "intrinsic";
-  std::string qem_operators = "extrinsic";  ///< with --method qem: "extrinsic" or "idt"
+  fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::intrinsic;
+  ice::QemGeometry qem_geometry = ice::QemGeometry::extrinsic;  ///< --qem-operators extrinsic|idt
   bool fine_idt = true;
   std::string output;  ///< PLY
   bool no_reference = false;
@@ -250,17 +234,17 @@ struct PdeOptions {
   void add_to(CLI::App& cli, const std::string& field_names);
   /// Refuses existing outputs (without --force) and bad extensions before any work.
   void check_outputs() const;
+  /// The fine discretisation chosen by --fine-idt / --no-fine-idt.
+  ice::FineGeometry fine_geometry() const;
 };
 
 /// Timings, sizes and outcome of one coarse-proxy run, with the parts of the report and of the human
 /// summary that both PDE tools share.
 struct PdeRun {
-  std::string tool, mesh_path, operators;
-  std::string method = "ice", qem_operators;  ///< qem_operators only with method "qem"
-  nlohmann::json qem;                          ///< qem_json() with method "qem"
-  long long fine_vertices = 0, fine_faces = 0, coarse_vertices = 0, coarse_faces = 0;
-  ice::CoarsenResult coarsening;
-  nlohmann::json coarse_json;
+  std::string tool, mesh_path;
+  fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::intrinsic;
+  long long fine_vertices = 0, fine_faces = 0;
+  ice::CoarseSpaceSummary coarsening;  ///< method, sizes, outcome (ICE or QEM details)
   bool fine_idt = true;
   long long idt_flips = 0;
   bool proxy_uses_fine_mesh = false;  ///< the proxy needed the fine discretisation (Galerkin, M f)
@@ -280,11 +264,10 @@ struct PdeRun {
   void print_summary(std::ostream& out) const;
 };
 
-/// Coarsens `mesh` with the method of `opt` (ICE with a progress bar unless quiet, or QEM with the
-/// coarse mesh of --qem-operators), warns if the target was missed, and records the outcome in `run`
-/// (method, coarsening, coarse sizes and JSON, qem details, idt flips of the QEM mesh).
-CoarseMesh coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                           PdeRun& run);
+/// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
+/// target was missed and records the summary in `run`.
+ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                                 PdeRun& run);
 
 /// The demo right-hand side of poisson-coarse and ice-report: three Gaussian bumps
 /// exp(−|x − c|²/(2σ²)) with weights +1, −1, +1 centred at the vertices of largest x, y and z,

@@ -1,15 +1,15 @@
 // geodesic-coarse: geodesic distance on a mesh by the heat method, solved on an ICE coarse proxy and
 // prolonged to the input vertices; optionally compared with the same solve on the fine mesh.
 //
-// Pipeline (every phase timed apart): load → coarsen (ICE, from the input's intrinsic triangulation;
-// includes exporting the coarse mesh and the prolongation P) → fine mesh (the reference's
-// discretisation: intrinsic Delaunay triangulation of the input by default) → assemble (fem::CoarseProxy
-// and the coarse heat-method operators) → factor (the coarse heat and Poisson matrices) → solve (heat
-// method on the coarse mesh from the restricted sources Pᵀ e_s) → prolong (P φ_c, shifted to vanish on
-// average at the sources). These are the steps of fem::ProxyGeodesicSolver, split so that each one
-// is timed (the heat step uses the lumped (row-sum) coarse mass, which matters for Galerkin operators:
-// see fem::CoarseProxy::coarse_heat_method_operators). Then the reference: fem::HeatGeodesicSolver on the fine mesh (assemble, factor, solve)
-// and the errors of the prolonged distance against it.
+// Pipeline (every phase timed apart): load → coarsen (ice::build_coarse_space: ICE from the input's
+// intrinsic triangulation, or QEM; includes the coarse mesh and the prolongation P) → fine mesh
+// (ice::fine_mesh: the reference's discretisation, intrinsic Delaunay by default) → assemble
+// (fem::CoarseProxy and the coarse heat-method operators) → factor (fem::ProxyGeodesicSolver) → solve
+// (heat method on the coarse mesh from the restricted sources Pᵀ e_s) → prolong (P φ_c, shifted to
+// vanish on average at the sources), the last two timed by the solver. The heat step uses the lumped
+// (row-sum) coarse mass, which matters for Galerkin operators: see
+// fem::CoarseProxy::coarse_heat_method_operators. Then the reference: fem::HeatGeodesicSolver on the
+// fine mesh (assemble, factor, solve) and the errors of the prolonged distance against it.
 //
 // Exit codes: see app_common.h (0 ok, 1 unreadable, 2 defective/unsuitable mesh, 3 output not written,
 // 4 bad command line, 5 computation failed).
@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
     run.operators = opt.operators;
     run.fine_idt = opt.fine_idt;
     run.has_reference = !opt.no_reference;
-    run.proxy_uses_fine_mesh = opt.operators == "galerkin";
+    run.proxy_uses_fine_mesh = opt.operators == fem::CoarseOperatorKind::galerkin;
 
     // ---- load
     app::Stopwatch clock;
@@ -71,27 +71,25 @@ int main(int argc, char** argv) {
     run.load = clock.lap();
 
     // ---- coarsen (ICE; or QEM with --method qem: its mesh and closest-point P, see ice/qem.h)
-    app::CoarseMesh coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run);  // ICE or QEM (--method)
+    const ice::CoarseSpace coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run);
     run.coarsen = clock.lap();
 
     // ---- fine discretisation (reference, Galerkin operators)
-    const app::FineMesh fine = app::make_fine_mesh(mesh, opt.fine_idt);
+    const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
     run.idt_flips = fine.flips;
     run.fine_mesh = clock.lap();
 
-    // ---- proxy: assemble, factor, solve, prolong
-    const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators, n);
+    // ---- proxy (fem::ProxyGeodesicSolver): assemble, factor, then restrict + solve and prolong, timed by it
+    const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators);
     fem::HeatMethodOperators coarse_ops = proxy.coarse_heat_method_operators();  // lumped mass for Galerkin
     run.assemble = clock.lap();
-    const fem::HeatGeodesicSolver coarse_solver(std::move(coarse_ops));
+    const fem::ProxyGeodesicSolver proxy_solver(proxy, std::move(coarse_ops));
     run.factor = clock.lap();
-    Eigen::VectorXd fine_weights = Eigen::VectorXd::Zero(n);
-    for (int s : sources) fine_weights(s) = 1.0;
-    const Eigen::VectorXd coarse_distance = coarse_solver.distance_from_weights(proxy.restrict_weighted(fine_weights));
-    run.solve = clock.lap();
-    Eigen::VectorXd distance = proxy.prolong(coarse_distance);
-    distance.array() -= fine_weights.dot(distance) / fine_weights.sum();
-    run.prolong = clock.lap();
+    fem::ProxyPhaseTimes phases;
+    const Eigen::VectorXd distance = proxy_solver.distance(sources, &phases);
+    run.solve = phases.restriction + phases.coarse_solve;
+    run.prolong = phases.prolongation;
+    clock.lap();
 
     // ---- reference
     nlohmann::json error_json;

@@ -34,6 +34,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <sstream>
 #include <iostream>
 #include <optional>
 
@@ -145,9 +147,9 @@ void write_qem_preview(const std::string& path, const ice::QemResult& qem) {
 }
 
 // --validate for QEM: the prolongation's invariants and the map's faces.
-std::string validate_qem(const ice::QemResult& qem) {
+std::string validate_qem(const ice::QemResult& qem, const Eigen::SparseMatrix<double>& P) {
   std::string problems;
-  Eigen::SparseMatrix<double, Eigen::RowMajor> R = qem.P;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> R = P;
   for (Eigen::Index i = 0; i < R.rows() && problems.size() < 2000; ++i) {
     double sum = 0;
     int nnz = 0;
@@ -164,6 +166,21 @@ std::string validate_qem(const ice::QemResult& qem) {
       break;
     }
   return problems;
+}
+
+// "target_reached after 1,234 removals (5 failed attempts); last cost …, next cost …", or for QEM
+// "target_reached after 1,234 QEM collapses".
+std::string stop_line(const ice::CoarseSpaceSummary& summary) {
+  std::ostringstream line;
+  if (summary.qem) {
+    line << ice::to_string(summary.target_reached ? ice::StopReason::TargetReached : ice::StopReason::NothingRemovable) << " after "
+         << app::thousands(summary.qem->collapses) << " QEM collapses";
+    return line.str();
+  }
+  const ice::CoarsenResult& r = *summary.ice;
+  line << ice::to_string(r.stop_reason) << " after " << app::thousands(r.removed) << " removals (" << r.failed_removals
+       << " failed attempts); last cost " << r.last_cost << ", next cost " << r.next_cost;
+  return line.str();
 }
 
 std::vector<ice::Index> read_lock_file(const std::string& path, const ice::LoadResult& loaded) {
@@ -227,24 +244,21 @@ int main(int argc, char** argv) {
 
     // ICE, or the QEM baseline (--method qem): same outputs, from the QEM mesh (extrinsic lengths in
     // coarse.ilm, the closest-point map in map.csv, the QEM mesh itself as preview.obj).
-    const bool qem = target.method == "qem";
-    std::optional<ice::IntrinsicTriangulation> T;
-    ice::QemResult qem_result;
-    ice::CoarsenResult result;
-    if (qem) {
-      qem_result = ice::qem_coarsen(mesh, app::qem_options(options));
-      result = app::qem_summary(qem_result);
-      if (!qem_result.target_reached)
-        app::warn(kTool, "QEM stopped at " + app::thousands(qem_result.coarse.V.rows()) +
-                             " vertices: no further collapse is legal");
-    } else {
-      T.emplace(ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F));
-      result = app::coarsen_with_progress(*T, options, !quiet);
-    }
+    const bool qem = target.method == ice::CoarseningMethod::qem;
+    ice::CoarseSpaceOptions space_options;
+    space_options.method = target.method;
+    space_options.coarsen = options;
+    space_options.keep_method_state = true;  // the map, the preview and --validate need it
+    std::unique_ptr<app::ProgressBar> bar;
+    if (!qem) bar = app::attach_progress_bar(space_options.coarsen, static_cast<ice::Index>(n), !quiet);
+    const ice::CoarseSpace space = ice::build_coarse_space(mesh, space_options);
+    if (bar) bar->finish();
+    const ice::CoarseSpaceSummary& summary = space.summary;
+    const ice::CompactMesh& coarse = space.mesh;
     const double t_coarsen = clock.lap();
-    if (!qem) app::warn_if_target_missed(kTool, result, options);
+    app::warn_if_target_missed(kTool, summary, options);
     if (validate) {
-      const std::string problems = qem ? validate_qem(qem_result) : T->validate();
+      const std::string problems = qem ? validate_qem(*space.qem_result, space.P) : space.triangulation->validate();
       if (!problems.empty())
         throw app::AppError(app::kFailed, "--validate: the coarse triangulation is INVALID (nothing written):\n" + problems);
     }
@@ -252,24 +266,23 @@ int main(int argc, char** argv) {
 
     fs::create_directories(outdir, ec);
     if (ec) throw app::AppError(app::kNotWritten, "--output " + outdir + ": cannot create the directory: " + ec.message());
-    const ice::CompactMesh coarse = qem ? ice::qem_extrinsic_mesh(qem_result) : T->compact();
     ice::write_intrinsic_mesh(outputs[0], coarse, static_cast<ice::Index>(n),
                               std::string(qem ? "QEM" : "intrinsic") + " mesh written by ice-coarsen from " + input);
-    write_matrix_market(outputs[1], qem ? qem_result.P : ice::prolongation(*T, coarse));
+    write_matrix_market(outputs[1], space.P);
     if (qem) {
-      write_qem_map(outputs[2], qem_result);
-      write_qem_preview(outputs[3], qem_result);
+      write_qem_map(outputs[2], *space.qem_result);
+      write_qem_preview(outputs[3], *space.qem_result);
     } else {
-      write_map(outputs[2], *T, coarse);
+      write_map(outputs[2], *space.triangulation, coarse);
       write_preview(outputs[3], mesh, coarse);
     }
     const double t_write = clock.lap();
 
-    const double rate = result.removed / std::max(t_coarsen, 1e-9);
+    const double rate = summary.removed() / std::max(t_coarsen, 1e-9);
     if (!report_path.empty()) {
       nlohmann::json report = app::report_header(kTool, input);
       report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
-      report["options"] = {{"method", target.method},
+      report["options"] = {{"method", app::cli_name(target.method)},
                            {"target_vertices", options.target_vertices},
                            {"target_ratio", options.target_ratio},
                            {"max_error", std::isfinite(options.max_error) ? nlohmann::json(options.max_error) : nlohmann::json(nullptr)},
@@ -277,8 +290,8 @@ int main(int argc, char** argv) {
                            {"coarsen_threads", options.threads},
                            {"keep_boundary", keep_boundary},
                            {"locked_vertices", options.locked_vertices.size()}};
-      report["coarse"] = app::coarsen_json(result, coarse);
-      if (qem) report["qem"] = app::qem_json(qem_result);
+      report["coarse"] = app::coarsen_json(summary);
+      if (qem) report["qem"] = app::qem_json(*summary.qem, summary.target_reached);
       report["timings_s"] = {{"load", t_load}, {"coarsen", t_coarsen}, {"write", t_write}};
       if (validate) report["timings_s"]["validate"] = t_validate;
       report["removals_per_second"] = rate;
@@ -292,9 +305,7 @@ int main(int argc, char** argv) {
     std::cout << kTool << ": " << input << ": " << app::thousands(n) << " vertices, " << app::thousands(mesh.F.rows())
               << " faces -> " << app::thousands(nc) << " vertices, " << app::thousands(coarse.F.rows()) << " faces ("
               << app::percent(double(nc) / double(n)) << " of the vertices)\n"
-              << "  stop: " << ice::to_string(result.stop_reason) << " after " << app::thousands(result.removed)
-              << (qem ? " QEM collapses (" : " removals (") << result.failed_removals << " failed attempts); last cost " << result.last_cost
-              << ", next cost " << result.next_cost << '\n'
+              << "  stop: " << stop_line(summary) << '\n'
               << "  time: load " << app::fixed(t_load, 3) << " s, coarsen " << app::fixed(t_coarsen, 3) << " s ("
               << app::thousands(static_cast<long long>(rate)) << " removals/s), "
               << (validate ? "validate " + app::fixed(t_validate, 3) + " s (ok), " : std::string())

@@ -11,9 +11,9 @@
 //  - Right-hand side: --rhs FILE (one value per vertex of the input file), or the demo source: three
 //    Gaussian bumps exp(−|x − c|²/(2σ²)) with weights +1, −1, +1 centred at the vertices with the
 //    largest x, y and z coordinate, σ = 0.1 × the bounding-box diagonal, minus the area-weighted mean.
-//  - Proxy: b_c = Pᵀ M f (restriction of the integrated source), L_c u_c = b_c on the coarse mesh
-//    (intrinsic or Galerkin L_c, M_c), u = P u_c (re-centred to zero fine mean in zero-mean mode),
-//    the steps of fem::ProxyPoissonSolver, split so that each one is timed.
+//  - Proxy: ice::build_coarse_space, then fem::ProxyPoissonSolver: b_c = Pᵀ M f (restriction of the
+//    integrated source), L_c u_c = b_c on the coarse mesh (intrinsic or Galerkin L_c, M_c), u = P u_c
+//    (re-centred to zero fine mean in zero-mean mode); the solver times each stage.
 //
 // Exit codes: see app_common.h.
 #include <algorithm>
@@ -63,7 +63,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   const long long n = mesh.V.rows();
   const bool dirichlet = !fixed_vertices.empty();
   app::Stopwatch clock;
-  const app::FineMesh fine = app::make_fine_mesh(mesh, opt.fine_idt);
+  const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
   const double fine_mesh_seconds = clock.lap();
   const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
   const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
@@ -160,7 +160,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   nlohmann::json report = app::report_header(kTool, opt.mesh);
   report["solver"] = solver_json;
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
-  report["fine_mesh"] = {{"kind", fine.intrinsic_delaunay ? "intrinsic Delaunay" : "input"}, {"flips", fine.flips}};
+  report["fine_mesh"] = {{"kind", opt.fine_idt ? "intrinsic Delaunay" : "input"}, {"flips", fine.flips}};
   report["timings_s"] = timings;
   report["rhs"] = rhs_name;
   report["boundary_conditions"] = dirichlet ? "dirichlet" : "zero-mean neumann";
@@ -303,34 +303,32 @@ int main(int argc, char** argv) {
       return solve_on_fine_mesh(solver, mg, opt, mesh, f, rhs_name, fixed_vertices, fixed_values, run.load);
 
     // ---- coarsen (ICE; or QEM with --method qem: its mesh and closest-point P, see ice/qem.h)
-    app::CoarseMesh coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run);  // ICE or QEM (--method)
+    const ice::CoarseSpace coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run);
     run.coarsen = clock.lap();
 
     // ---- fine discretisation
-    const app::FineMesh fine = app::make_fine_mesh(mesh, opt.fine_idt);
+    const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
     run.idt_flips = fine.flips;
     run.fine_mesh = clock.lap();
 
-    // ---- proxy
-    const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators, n);
+    // ---- proxy (fem::ProxyPoissonSolver: restrict, coarse solve, prolong, each timed)
+    const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators);
     const bool dirichlet = !fixed_vertices.empty();
-    // Zero-mean Neumann solves -Laplace(u) = f - mean(f): restrict that compatible f, as the fine
-    // solver uses it (a constant f then gives u = 0 exactly, not a residue of the coarse mean removal).
-    if (f.size() == 0) f = app::remove_mean(app::demo_poisson_rhs(mesh), proxy.fine_mass());
-    else if (!dirichlet) f = app::remove_mean(f, proxy.fine_mass());
+    if (f.size() == 0) {  // the demo source has zero mean in both modes (zero-mean: the solver removes it)
+      f = app::demo_poisson_rhs(mesh);
+      if (dirichlet) f = app::remove_mean(f, proxy.fine_mass());
+    }
     run.assemble = clock.lap();
-    std::vector<int> coarse_fixed;
-    for (int v : fixed_vertices) coarse_fixed.push_back(coarse.mesh.from_input[static_cast<std::size_t>(v)]);
-    const fem::PoissonSolver coarse_solver =
-        dirichlet ? fem::PoissonSolver::dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed)
-                  : fem::PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass());
+    const fem::ProxyPoissonSolver proxy_solver(proxy, fixed_vertices);
     run.factor = clock.lap();
-    const Eigen::VectorXd coarse_solution =
-        coarse_solver.solve_weighted(proxy.restrict_weighted(proxy.fine_mass() * f), fixed_values);
-    run.solve = clock.lap();
-    Eigen::VectorXd solution = proxy.prolong(coarse_solution);
-    if (!dirichlet) solution = app::remove_mean(solution, proxy.fine_mass());
-    run.prolong = clock.lap();
+    fem::ProxyPhaseTimes phases;
+    const Eigen::VectorXd solution = proxy_solver.solve(f, fixed_values, &phases);
+    run.solve = phases.restriction + phases.coarse_solve;
+    run.prolong = phases.prolongation;
+    // Zero-mean Neumann solves -Laplace(u) = f - mean(f) (the solver made f compatible the same
+    // way): the reference, the error and the written rhs use that f.
+    if (!dirichlet) f = app::remove_mean(f, proxy.fine_mass());
+    clock.lap();
 
     // ---- reference
     nlohmann::json error_json;

@@ -102,9 +102,10 @@ std::string pct(double x) { return std::isfinite(x) ? app::percent(x) : "n/a"; }
 
 struct Fine {
   ice::TriangleMesh mesh;
-  app::FineMesh disc;
+  ice::FineMesh disc;
   fem::SparseMatrix M;
-  Eigen::VectorXd f;  // zero-mean demo field (Poisson source, heat initial values)
+  Eigen::VectorXd demo;  // the demo source as made (the proxy solver removes its mean itself)
+  Eigen::VectorXd f;     // zero-mean demo field (Poisson source, heat initial values)
   double heat_time = 0;
   std::vector<int> sources;
   Eigen::VectorXd poisson, heat;
@@ -116,12 +117,13 @@ Fine fine_reference(const ice::TriangleMesh& mesh) {
   Fine r;
   r.mesh = mesh;
   const Eigen::Index n = mesh.V.rows();
-  r.disc = app::make_fine_mesh(mesh, true);
+  r.disc = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
   app::Stopwatch clock;
   const fem::SparseMatrix L = fem::cotan_laplacian(r.disc.F, r.disc.L, n);
   r.M = fem::mass_matrix(r.disc.F, r.disc.L, fem::MassKind::lumped, n);
   r.t_assemble[0] = r.t_assemble[1] = clock.lap();  // the same L and M for Poisson and heat
-  r.f = app::remove_mean(app::demo_poisson_rhs(mesh), r.M);
+  r.demo = app::demo_poisson_rhs(mesh);
+  r.f = app::remove_mean(r.demo, r.M);
   r.heat_time = 0.1 * r.M.sum();
   r.sources = spread_sources(mesh.V, 3);
   clock.lap();
@@ -154,66 +156,66 @@ void record_failure(Row r, const std::string& what, std::vector<Row>& rows) {
   }
 }
 
-void solve_on_proxy(const Fine& fine, const app::CoarseMesh& coarse, fem::CoarseOperatorKind kind, Row base,
+// The three problems through the library's proxy solvers (fem/coarse_proxy.h), each phase timed.
+void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind, Row base,
                     std::vector<Row>& rows) {
-  const Eigen::Index n = fine.mesh.V.rows(), nc = static_cast<Eigen::Index>(coarse.mesh.to_input.size());
-  const fem::SparseMatrix& P = coarse.P;
   app::Stopwatch clock;
-  const fem::CoarseProxy proxy(fine.disc.F, fine.disc.L, coarse.mesh.F, coarse.mesh.L, P, kind, fem::MassKind::lumped, n, nc);
+  const fem::CoarseProxy proxy = app::make_proxy(fine.disc, coarse, kind);
   const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
-
-  // Poisson and heat: one coarse solve of a mass-weighted right-hand side (restricted with Pᵀ),
-  // prolonged and compared with the fine solution (Poisson's re-centred to zero mean first).
-  const auto weighted_problem = [&](const char* name, int index, auto make_solver, const Eigen::VectorXd& reference,
-                                    bool zero_mean) {
+  const auto record = [&](Row& r, int index, const fem::ProxyPhaseTimes& phases) {
+    r.solve = phases.restriction + phases.coarse_solve;
+    r.prolong = phases.prolongation;
+    r.fine_assemble = fine.t_assemble[index], r.fine_factor = fine.t_factor[index], r.fine_solve = fine.t_solve[index];
+  };
+  {  // Poisson, zero mean: the solver makes the demo source compatible and re-centres the answer
     Row r = base;
-    r.problem = name;
+    r.problem = "poisson";
     r.assemble = t_proxy;
     clock.lap();
-    const auto solver = make_solver();
+    const fem::ProxyPoissonSolver solver(proxy);
     r.factor = clock.lap();
-    const Eigen::VectorXd uc = solver.solve_weighted(proxy.restrict_weighted(fine.M * fine.f));
-    r.solve = clock.lap();
-    const Eigen::VectorXd u = zero_mean ? app::remove_mean(proxy.prolong(uc), fine.M) : proxy.prolong(uc);
-    r.prolong = clock.lap();
-    r.fine_assemble = fine.t_assemble[index], r.fine_factor = fine.t_factor[index], r.fine_solve = fine.t_solve[index];
-    r.error = r.error_l2 = fem::relative_l2_error(u, reference, fine.M);
-    r.error_max = fem::max_abs_error(u, reference) / reference.cwiseAbs().maxCoeff();
+    fem::ProxyPhaseTimes phases;
+    const Eigen::VectorXd u = solver.solve(fine.demo, {}, &phases);
+    record(r, 0, phases);
+    r.error = r.error_l2 = fem::relative_l2_error(u, fine.poisson, fine.M);
+    r.error_max = fem::max_abs_error(u, fine.poisson) / fine.poisson.cwiseAbs().maxCoeff();
     rows.push_back(r);
-  };
-  weighted_problem("poisson", 0, [&] { return fem::PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass()); },
-                   fine.poisson, true);
-  weighted_problem("heat", 1, [&] { return fem::HeatSolver(proxy.coarse_laplacian(), proxy.coarse_mass(), fine.heat_time); },
-                   fine.heat, false);
-  {  // geodesics
+  }
+  {  // heat: one backward-Euler step from the L2 projection of the field (right-hand side Pᵀ M u0)
+    Row r = base;
+    r.problem = "heat";
+    r.assemble = t_proxy;
+    clock.lap();
+    const fem::ProxyHeatSolver solver(proxy, fine.heat_time, fem::RestrictionKind::l2_projection);
+    r.factor = clock.lap();
+    fem::ProxyPhaseTimes phases;
+    const Eigen::VectorXd u = solver.integrate(fine.f, 1, &phases);
+    record(r, 1, phases);
+    r.error = r.error_l2 = fem::relative_l2_error(u, fine.heat, fine.M);
+    r.error_max = fem::max_abs_error(u, fine.heat) / fine.heat.cwiseAbs().maxCoeff();
+    rows.push_back(r);
+  }
+  {  // geodesics from each source
     Row r = base;
     r.problem = "geodesic";
     clock.lap();
     fem::HeatMethodOperators ops = proxy.coarse_heat_method_operators();
     r.assemble = t_proxy + clock.lap();
-    const fem::HeatGeodesicSolver solver(std::move(ops));
+    const fem::ProxyGeodesicSolver solver(proxy, std::move(ops));
     r.factor = clock.lap();
-    std::vector<Eigen::VectorXd> coarse_d;
-    for (int s : fine.sources) {
-      Eigen::VectorXd w = Eigen::VectorXd::Zero(n);
-      w(s) = 1;
-      coarse_d.push_back(solver.distance_from_weights(proxy.restrict_weighted(w)));
-    }
-    r.solve = clock.lap();
-    std::vector<Eigen::VectorXd> d;
-    for (std::size_t k = 0; k < coarse_d.size(); ++k) {
-      d.push_back(proxy.prolong(coarse_d[k]));
-      d.back().array() -= d.back()(fine.sources[k]);
-    }
-    r.prolong = clock.lap();
-    r.fine_assemble = fine.t_assemble[2], r.fine_factor = fine.t_factor[2], r.fine_solve = fine.t_solve[2];
+    fem::ProxyPhaseTimes total;
     double mean = 0, max = 0, l2 = 0;
-    for (std::size_t k = 0; k < d.size(); ++k) {
-      const fem::DistanceErrors e = fem::distance_errors(d[k], fine.distances[k]);
-      mean += e.mean_relative / d.size();
-      max += e.max_relative / d.size();
-      l2 += fem::relative_l2_error(d[k], fine.distances[k], fine.M) / d.size();
+    const double count = static_cast<double>(fine.sources.size());
+    for (std::size_t k = 0; k < fine.sources.size(); ++k) {
+      fem::ProxyPhaseTimes phases;
+      const Eigen::VectorXd d = solver.distance({fine.sources[k]}, &phases);
+      total.restriction += phases.restriction, total.coarse_solve += phases.coarse_solve, total.prolongation += phases.prolongation;
+      const fem::DistanceErrors e = fem::distance_errors(d, fine.distances[k]);
+      mean += e.mean_relative / count;
+      max += e.max_relative / count;
+      l2 += fem::relative_l2_error(d, fine.distances[k], fine.M) / count;
     }
+    record(r, 2, total);
     r.error = mean, r.error_max = max, r.error_l2 = l2;
     rows.push_back(r);
   }
@@ -595,60 +597,55 @@ int main(int argc, char** argv) {
         // ICE variants.
         for (const std::string m : {"ice", "ice_area"}) {
           if (std::find(methods.begin(), methods.end(), m) == methods.end()) continue;
-          app::Stopwatch clock;
-          ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-          ice::CoarsenOptions options;
-          options.target_vertices = static_cast<ice::Index>(target);
-          options.area_weight = m == "ice" ? 0.0 : area_weight;
-          const ice::CoarsenResult result = ice::coarsen(T, options);
-          const app::CoarseMesh coarse = app::extract_coarse(T);
+          ice::CoarseSpaceOptions options;
+          options.coarsen.target_vertices = static_cast<ice::Index>(target);
+          options.coarsen.area_weight = m == "ice" ? 0.0 : area_weight;
+          const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
           Row r = base;
           r.method = m;
-          r.coarsen = clock.seconds();
-          r.coarse_n = static_cast<long long>(coarse.mesh.to_input.size());
-          r.coarse_faces = coarse.mesh.F.rows();
-          r.target_reached = result.stop_reason == ice::StopReason::TargetReached;
-          if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(result.stop_reason);
+          r.coarsen = coarse.summary.seconds;
+          r.coarse_n = coarse.summary.coarse_vertices;
+          r.coarse_faces = coarse.summary.coarse_faces;
+          r.target_reached = coarse.summary.target_reached;
+          if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.ice->stop_reason);
           solve_on_proxy(fine, coarse, kind, r, rows);
           progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
                    << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
         }
-        // QEM: one decimation, two operator variants.
+        // QEM with its two coarse geometries (the decimation is deterministic: the same mesh and P).
         const bool want_ext = std::find(methods.begin(), methods.end(), "qem_ext") != methods.end();
         const bool want_idt = std::find(methods.begin(), methods.end(), "qem_idt") != methods.end();
-        if (want_ext || want_idt) {
-          ice::QemOptions options;
-          options.target_vertices = static_cast<ice::Index>(target);
-          const ice::QemResult qem = ice::qem_coarsen(mesh, options);
-          const double t_qem = qem.decimate_seconds + qem.map_seconds;
-          for (const std::string m : {"qem_ext", "qem_idt"}) {
-            if ((m == "qem_ext" && !want_ext) || (m == "qem_idt" && !want_idt)) continue;
-            Row r = base;
-            r.method = m;
-            r.target_reached = qem.target_reached;
-            r.qem_max_distance = qem.max_distance / diagonal;
-            if (!qem.target_reached) r.note = "QEM stopped early";
-            if (qem.guard_relaxed) r.note += std::string(r.note.empty() ? "" : "; ") + "normal guard relaxed";
-            app::Stopwatch clock;
-            app::CoarseMesh coarse;
-            try {
-              coarse = app::qem_coarse_mesh(qem, m == "qem_idt" ? "idt" : "extrinsic");
-            } catch (const std::exception& e) {
-              record_failure(r, e.what(), rows);
-              continue;
-            }
-            r.coarsen = t_qem + clock.seconds();
-            r.coarse_n = static_cast<long long>(coarse.mesh.to_input.size());
-            r.coarse_faces = coarse.mesh.F.rows();
-            try {
-              solve_on_proxy(fine, coarse, kind, r, rows);
-            } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
-              record_failure(r, e.what(), rows);
-              continue;
-            }
-            progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
-                     << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
+        for (const std::string m : {"qem_ext", "qem_idt"}) {
+          if ((m == "qem_ext" && !want_ext) || (m == "qem_idt" && !want_idt)) continue;
+          ice::CoarseSpaceOptions options;
+          options.method = ice::CoarseningMethod::qem;
+          options.qem_geometry = m == "qem_idt" ? ice::QemGeometry::intrinsic_delaunay : ice::QemGeometry::extrinsic;
+          options.coarsen.target_vertices = static_cast<ice::Index>(target);
+          Row r = base;
+          r.method = m;
+          ice::CoarseSpace coarse;
+          try {
+            coarse = ice::build_coarse_space(mesh, options);
+          } catch (const std::runtime_error& e) {  // the QEM mesh has a face no intrinsic triangulation takes
+            record_failure(r, e.what(), rows);
+            continue;
           }
+          const ice::QemOutcome& qem = *coarse.summary.qem;
+          r.target_reached = coarse.summary.target_reached;
+          r.qem_max_distance = qem.max_distance / diagonal;
+          if (!r.target_reached) r.note = "QEM stopped early";
+          if (qem.guard_relaxed) r.note += std::string(r.note.empty() ? "" : "; ") + "normal guard relaxed";
+          r.coarsen = coarse.summary.seconds;
+          r.coarse_n = coarse.summary.coarse_vertices;
+          r.coarse_faces = coarse.summary.coarse_faces;
+          try {
+            solve_on_proxy(fine, coarse, kind, r, rows);
+          } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
+            record_failure(r, e.what(), rows);
+            continue;
+          }
+          progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
+                   << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
         }
         std::cerr << progress.str() << "  [" << app::fixed(total_clock.seconds(), 0) << " s]\n";
       }

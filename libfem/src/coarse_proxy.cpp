@@ -3,6 +3,8 @@
 #include "parallel_kernels.h"
 
 #include <algorithm>
+#include <chrono>
+#include <string>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
@@ -57,9 +59,19 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
   SparseMatrix P_columns = P_;
   P_columns.makeCompressed();
   coarse_to_fine_.assign(static_cast<std::size_t>(n_coarse), -1);
+  fine_to_coarse_.assign(static_cast<std::size_t>(n_fine), -1);
   for (Eigen::Index j = 0; j < P_columns.outerSize(); ++j)
     for (SparseMatrix::InnerIterator it(P_columns, j); it; ++it)
-      if (std::abs(it.value() - 1.0) < 1e-12) coarse_to_fine_[static_cast<std::size_t>(j)] = static_cast<int>(it.row());
+      if (std::abs(it.value() - 1.0) < 1e-12) {
+        coarse_to_fine_[static_cast<std::size_t>(j)] = static_cast<int>(it.row());
+        fine_to_coarse_[static_cast<std::size_t>(it.row())] = static_cast<int>(j);
+      }
+}
+
+int CoarseProxy::coarse_vertex_of(int fine_vertex) const {
+  if (fine_vertex < 0 || fine_vertex >= static_cast<int>(fine_to_coarse_.size()))
+    throw std::invalid_argument("CoarseProxy::coarse_vertex_of: fine vertex " + std::to_string(fine_vertex) + " out of range");
+  return fine_to_coarse_[static_cast<std::size_t>(fine_vertex)];
 }
 
 const CoarseProxy::LazyFineOperators& CoarseProxy::fine_operators() const {
@@ -115,47 +127,111 @@ HeatMethodOperators CoarseProxy::coarse_heat_method_operators(double time_factor
 
 // ---- proxy solvers ----------------------------------------------------------------------------------
 
-ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy)
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point& mark) {
+  const Clock::time_point now = Clock::now();
+  const double s = std::chrono::duration<double>(now - mark).count();
+  mark = now;
+  return s;
+}
+
+// The coarse vertices of fine Dirichlet vertices (each must be one).
+std::vector<int> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::vector<int>& fine_vertices) {
+  std::vector<int> coarse;
+  for (int v : fine_vertices) {
+    const int j = proxy.coarse_vertex_of(v);
+    if (j < 0)
+      throw std::invalid_argument("ProxyPoissonSolver: Dirichlet vertex " + std::to_string(v) +
+                                  " is not a coarse vertex (lock it when coarsening)");
+    coarse.push_back(j);
+  }
+  return coarse;
+}
+
+}  // namespace
+
+ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<int> dirichlet_vertices)
     : P_(proxy.prolongation()),
       fine_mass_(proxy.fine_mass()),
       P_rows_(P_),
       fine_mass_of_one_(fine_mass_ * Eigen::VectorXd::Ones(P_.rows())),
-      total_mass_(fine_mass_of_one_.sum()),
-      coarse_(PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass())) {
+      total_mass_(fine_mass_of_one_.dot(Eigen::VectorXd::Ones(P_.rows()))),
+      dirichlet_vertices_(std::move(dirichlet_vertices)),
+      coarse_(dirichlet_vertices_.empty()
+                  ? PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass())
+                  : PoissonSolver::dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(),
+                                             coarse_dirichlet_vertices(proxy, dirichlet_vertices_))) {
   P_.makeCompressed();
   fine_mass_.makeCompressed();
   P_rows_.makeCompressed();
 }
 
-Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f) const {
+Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values,
+                                          ProxyPhaseTimes* times) const {
   using namespace detail;
   if (f.size() != P_.rows()) throw std::invalid_argument("ProxyPoissonSolver::solve: wrong size");
+  if (dirichlet_values.size() != 0 && dirichlet_values.size() != static_cast<Eigen::Index>(dirichlet_vertices_.size()))
+    throw std::invalid_argument("ProxyPoissonSolver::solve: one Dirichlet value per Dirichlet vertex expected");
+  Clock::time_point mark = Clock::now();
   const Eigen::Index n = P_.rows();
   const int threads = default_threads();
   // Fine-size passes as gathers (M is symmetric, so its columns are its rows): M f, Pᵀ (M f), P u_c.
+  // The mean reductions are Eigen's serial dot products: the same result on any thread count.
+  Eigen::VectorXd compatible;
+  if (is_zero_mean()) compatible = f.array() - fine_mass_of_one_.dot(f) / total_mass_;
+  const Eigen::VectorXd& source = is_zero_mean() ? compatible : f;
   Eigen::VectorXd weighted(n), coarse_rhs(P_.cols()), u(n);
-  gather_product(fine_mass_, f.data(), weighted.data(), false, threads, n);
+  gather_product(fine_mass_, source.data(), weighted.data(), false, threads, n);
   gather_product(P_, weighted.data(), coarse_rhs.data(), false, threads, n);
-  const Eigen::VectorXd coarse_u = coarse_.solve_weighted(coarse_rhs);
+  if (times) times->restriction = seconds_since(mark);
+  const Eigen::VectorXd coarse_u = coarse_.solve_weighted(coarse_rhs, dirichlet_values);
+  if (times) times->coarse_solve = seconds_since(mark);
   gather_product(P_rows_, coarse_u.data(), u.data(), false, threads, n);
-  add_constant(-dot(fine_mass_of_one_, u, threads) / total_mass_, u, threads);
+  if (is_zero_mean()) add_constant(-fine_mass_of_one_.dot(u) / total_mass_, u, threads);
+  if (times) times->prolongation = seconds_since(mark);
   return u;
 }
 
 ProxyHeatSolver::ProxyHeatSolver(const CoarseProxy& proxy, double time_step, RestrictionKind restriction)
     : proxy_(&proxy), restriction_(restriction), coarse_(proxy.coarse_laplacian(), proxy.coarse_mass(), time_step) {}
 
-Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::VectorXd& fine_u0, int steps) const {
-  return proxy_->prolong(coarse_.integrate(proxy_->restrict_values(fine_u0, restriction_), steps));
+Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::VectorXd& fine_u0, int steps, ProxyPhaseTimes* times) const {
+  if (steps < 0 || (steps == 0 && restriction_ == RestrictionKind::l2_projection))
+    throw std::invalid_argument("ProxyHeatSolver::integrate: steps must be >= 1 with L2 projection, >= 0 with injection");
+  if (fine_u0.size() != proxy_->fine_size()) throw std::invalid_argument("ProxyHeatSolver::integrate: wrong size");
+  Clock::time_point mark = Clock::now();
+  Eigen::VectorXd u;
+  if (restriction_ == RestrictionKind::l2_projection) {
+    // Mc u_c0 = Pᵀ M u₀ defines the projection, and it is the first step's right-hand side.
+    const Eigen::VectorXd rhs = proxy_->restrict_weighted(proxy_->fine_mass() * fine_u0);
+    if (times) times->restriction = seconds_since(mark);
+    u = coarse_.integrate(coarse_.solve_weighted(rhs), steps - 1);
+  } else {
+    const Eigen::VectorXd u0 = proxy_->restrict_values(fine_u0, RestrictionKind::injection);
+    if (times) times->restriction = seconds_since(mark);
+    u = coarse_.integrate(u0, steps);
+  }
+  if (times) times->coarse_solve = seconds_since(mark);
+  Eigen::VectorXd fine_u = proxy_->prolong(u);
+  if (times) times->prolongation = seconds_since(mark);
+  return fine_u;
 }
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor)
-    : P_rows_(proxy.prolongation()), coarse_(proxy.coarse_heat_method_operators(time_factor)) {
+    : ProxyGeodesicSolver(proxy, proxy.coarse_heat_method_operators(time_factor)) {}
+
+ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOperators coarse_operators)
+    : P_rows_(proxy.prolongation()), coarse_(std::move(coarse_operators)) {
+  if (coarse_.operators().laplacian.rows() != proxy.coarse_size())
+    throw std::invalid_argument("ProxyGeodesicSolver: coarse operators of the wrong size");
   P_rows_.makeCompressed();
 }
 
-Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<int>& fine_sources) const {
+Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<int>& fine_sources, ProxyPhaseTimes* times) const {
   if (fine_sources.empty()) throw std::invalid_argument("ProxyGeodesicSolver::distance: no sources");
+  Clock::time_point mark = Clock::now();
   // The sources' weights restricted directly from P's rows (Pᵀ of a sparse indicator), without a
   // fine-size pass; a repeated source counts once.
   const Eigen::Index n = P_rows_.rows();
@@ -166,13 +242,16 @@ Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<int>& fine_sourc
   Eigen::VectorXd coarse_weights = Eigen::VectorXd::Zero(P_rows_.cols());
   for (int s : sources)
     for (decltype(P_rows_)::InnerIterator it(P_rows_, s); it; ++it) coarse_weights(it.col()) += it.value();
+  if (times) times->restriction = seconds_since(mark);
   const Eigen::VectorXd coarse_phi = coarse_.distance_from_weights(coarse_weights);
+  if (times) times->coarse_solve = seconds_since(mark);
   Eigen::VectorXd phi(n);
   detail::gather_product(P_rows_, coarse_phi.data(), phi.data(), false, detail::default_threads(), n);
   // Shift so that the sources' mean distance is zero.
   double sum = 0;
   for (int s : sources) sum += phi(s);
   detail::add_constant(-sum / static_cast<double>(sources.size()), phi, detail::default_threads());
+  if (times) times->prolongation = seconds_since(mark);
   return phi;
 }
 

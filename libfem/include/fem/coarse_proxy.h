@@ -61,6 +61,8 @@ class CoarseProxy {
   Eigen::VectorXd restrict_values(const Eigen::VectorXd& u, RestrictionKind kind) const;
   /// P u_c.
   Eigen::VectorXd prolong(const Eigen::VectorXd& coarse_values) const;
+  /// The coarse vertex that fine vertex v is (P's row v equal to e_j), or -1.
+  int coarse_vertex_of(int fine_vertex) const;
 
   /// Heat-method operators of the coarse space: intrinsic ones from (Fc, Lc), or Galerkin ones
   /// (Pᵀ L P, the *lumped* Galerkin mass diag(row sums of Pᵀ M P), gradient G_fine·P on the fine
@@ -93,35 +95,58 @@ class CoarseProxy {
   Faces coarse_faces_;
   FaceLengths coarse_lengths_;
   std::vector<int> coarse_to_fine_;  ///< fine vertex coinciding with each coarse vertex, or -1
+  std::vector<int> fine_to_coarse_;  ///< coarse vertex each fine vertex coincides with, or -1
   CholeskySolver coarse_mass_factor_;  ///< for the L² projection
 };
 
-/// Zero-mean Poisson L u = M f on the fine mesh, approximated through the proxy:
-/// u ≈ P u_c with (coarse L) u_c = Pᵀ M f (zero-mean, see PoissonSolver), re-centred in the fine mass.
-/// The fine-size passes (M f, Pᵀ, P, re-centring) use OpenMP threads on meshes of 50,000+ vertices
-/// (OMP_NUM_THREADS, default all cores); the result does not depend on the thread count except for
-/// the order of one sum (round-off).
+/// Seconds spent in each stage of one proxy solve, for callers that report phases (the tools, the
+/// report, benchmarks). Factorisations happen in the solvers' constructors; time those around them.
+struct ProxyPhaseTimes {
+  double restriction = 0;  ///< fine data → coarse right-hand side (fine-size passes)
+  double coarse_solve = 0;  ///< the coarse solves (CHOLMOD)
+  double prolongation = 0;  ///< P u_c and the fine-size post-processing (re-centring, shift)
+};
+
+/// Poisson L u = M f on the fine mesh, approximated through the proxy: u ≈ P u_c with
+/// (coarse L) u_c = Pᵀ M f.
+///  - Zero-mean Neumann (no Dirichlet vertices): f is first made compatible on the fine mesh
+///    (f − its mass-weighted mean, so a constant f gives u = 0 exactly), and P u_c is re-centred to
+///    zero fine-mass mean.
+///  - Dirichlet: `dirichlet_vertices` are fine vertices that must be coarse vertices too (lock them
+///    when coarsening: their rows of P are e_j); the coarse solve prescribes the values there, so P u_c
+///    takes them exactly. Elsewhere the boundary is natural.
+/// The fine-size passes (M f, Pᵀ, P) are gathers, threaded with OpenMP on meshes of 50,000+ vertices
+/// (OMP_NUM_THREADS, default all cores); every output entry is one ordered sum and the two mean
+/// reductions are serial, so the result does not depend on the thread count.
 class ProxyPoissonSolver {
  public:
-  explicit ProxyPoissonSolver(const CoarseProxy& proxy);
-  /// Fine nodal source f → fine solution (zero fine-mass mean).
-  Eigen::VectorXd solve(const Eigen::VectorXd& f) const;
+  /// Factors the coarse system. Throws std::invalid_argument if a Dirichlet vertex is out of range or
+  /// not a coarse vertex, and NotPositiveDefinite on a disconnected coarse mesh in zero-mean mode.
+  explicit ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<int> dirichlet_vertices = {});
+  /// Fine nodal source f → fine solution. `dirichlet_values` align with the Dirichlet vertices (empty:
+  /// zeros). `times`, when given, receives the seconds of each stage.
+  Eigen::VectorXd solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values = {},
+                        ProxyPhaseTimes* times = nullptr) const;
+  bool is_zero_mean() const { return dirichlet_vertices_.empty(); }
 
  private:
   SparseMatrix P_, fine_mass_;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major: prolongation as a gather per row
   Eigen::VectorXd fine_mass_of_one_;                           ///< M·1 (the re-centring weights)
   double total_mass_ = 0;
+  std::vector<int> dirichlet_vertices_;
   PoissonSolver coarse_;
 };
 
 /// Backward-Euler heat flow on the coarse mesh: u₀ restricted (RestrictionKind), `steps` steps of
-/// (Mc + τ Lc) u_{k+1} = Mc u_k, prolonged with P.
+/// (Mc + τ Lc) u_{k+1} = Mc u_k, prolonged with P. With L² projection the first step's right-hand side
+/// Mc u_c0 is Pᵀ M u₀ itself (the projection's defining equation), so no coarse mass solve is made.
 /// Keeps a reference to the proxy, which must outlive the solver.
 class ProxyHeatSolver {
  public:
   ProxyHeatSolver(const CoarseProxy& proxy, double time_step, RestrictionKind restriction);
-  Eigen::VectorXd integrate(const Eigen::VectorXd& fine_u0, int steps) const;
+  /// `steps` >= 1 with L² projection, >= 0 with injection.
+  Eigen::VectorXd integrate(const Eigen::VectorXd& fine_u0, int steps, ProxyPhaseTimes* times = nullptr) const;
 
  private:
   const CoarseProxy* proxy_;
@@ -129,13 +154,19 @@ class ProxyHeatSolver {
   HeatSolver coarse_;
 };
 
-/// Heat-method distance on the coarse space, from fine source vertices (see the file comment).
+/// Heat-method distance on the coarse space, from fine source vertices (see the file comment): the
+/// sources' rows of P are the coarse source weights, the coarse distance is prolonged with P and
+/// shifted so that its mean over the sources is 0 (the value at a single source is 0).
 /// The prolongation to the fine vertices is a threaded gather on meshes of 50,000+ vertices, as in
 /// ProxyPoissonSolver.
 class ProxyGeodesicSolver {
  public:
+  /// Assembles proxy.coarse_heat_method_operators(time_factor) and factors them.
   explicit ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor = 1.0);
-  Eigen::VectorXd distance(const std::vector<int>& fine_sources) const;
+  /// With coarse operators assembled by the caller (to time assembly and factorisation apart).
+  ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOperators coarse_operators);
+  /// Distance to the nearest of `fine_sources` (non-empty, in range; repeats count once).
+  Eigen::VectorXd distance(const std::vector<int>& fine_sources, ProxyPhaseTimes* times = nullptr) const;
 
  private:
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major (gathers per fine vertex)

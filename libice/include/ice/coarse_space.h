@@ -1,0 +1,110 @@
+#pragma once
+/// \file coarse_space.h
+/// The coarse space a user of ICE comes for, in one call: a fine mesh in; a small intrinsic mesh,
+/// the prolongation P (fine vertices × coarse vertices) and a summary out, made by ICE or by the QEM
+/// baseline. Tools, reports and bindings call this instead of driving ice::coarsen / ice::qem_coarsen
+/// themselves. Also the fine mesh's discretisation that the PDE solvers pair with it.
+///
+///   ice::CoarseSpaceOptions options;
+///   options.coarsen.target_ratio = 0.05;                  // or target_vertices, max_error
+///   const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+///   // space.mesh (faces, lengths, to_input/from_input, gluing), space.P, space.summary
+///   const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
+///
+/// Postconditions: P has mesh.V.rows() rows and space.mesh.to_input.size() columns, every row sums
+/// to 1 (barycentric coordinates of the fine vertex in a coarse face; a surviving vertex's row is
+/// e_j); locked vertices survive (both methods).
+#include <optional>
+#include <string>
+
+#include <Eigen/SparseCore>
+
+#include "ice/coarsen.h"
+#include "ice/intrinsic_triangulation.h"
+#include "ice/mesh.h"
+#include "ice/qem.h"
+
+namespace ice {
+
+/// How the coarse mesh is made.
+enum class CoarseningMethod {
+  ice,  ///< intrinsic vertex removals ordered by the ICE error metric (ice::coarsen)
+  qem,  ///< the extrinsic QEM baseline with a closest-point map (ice::qem_coarsen)
+};
+/// Where a QEM coarse mesh's edge lengths come from. Both keep the QEM vertices, so P is the same.
+enum class QemGeometry {
+  extrinsic,           ///< the QEM mesh's own positions
+  intrinsic_delaunay,  ///< its intrinsic Delaunay triangulation (edges flipped until every cotan weight ≥ 0)
+};
+const char* to_string(CoarseningMethod method);
+const char* to_string(QemGeometry geometry);
+
+struct CoarseSpaceOptions {
+  CoarseningMethod method = CoarseningMethod::ice;
+  /// Target (target_vertices / target_ratio), max_error, area_weight, locked_vertices, remove_boundary,
+  /// threads and progress of ICE. QEM uses the target, locked_vertices and remove_boundary; it has no
+  /// error bound of ICE's kind (a finite max_error with QEM throws std::invalid_argument).
+  CoarsenOptions coarsen;
+  /// With QEM only.
+  QemGeometry qem_geometry = QemGeometry::extrinsic;
+  /// Keep the method's own result in CoarseSpace (the coarsened triangulation with every input
+  /// vertex's location, or the QEM result with its mesh and closest-point map): for the map file,
+  /// validation, refinement. Off by default: the PDE tools free it before the fine solves.
+  bool keep_method_state = false;
+};
+
+/// What QEM did (ice/qem.h, QemResult).
+struct QemOutcome {
+  Index collapses = 0;
+  bool guard_relaxed = false;                  ///< the normal-flip guard was dropped to reach the target
+  double max_distance = 0, mean_distance = 0;  ///< closest-point distances of collapsed vertices (absolute)
+  double decimate_seconds = 0, map_seconds = 0;
+  QemGeometry geometry = QemGeometry::extrinsic;
+  Index intrinsic_delaunay_flips = 0;          ///< with QemGeometry::intrinsic_delaunay
+};
+
+/// One summary for both methods; the method's own details are in exactly one of `ice` / `qem`.
+struct CoarseSpaceSummary {
+  CoarseningMethod method = CoarseningMethod::ice;
+  Index input_vertices = 0, coarse_vertices = 0, coarse_faces = 0;
+  /// The vertex target was met (for ICE: stop_reason == TargetReached; a --max-error-only run reports
+  /// ErrorThreshold here as false).
+  bool target_reached = false;
+  double seconds = 0;                ///< the whole call: coarsening, map, coarse mesh and P
+  std::optional<CoarsenResult> ice;  ///< method == ice: removals, stop reason, costs
+  std::optional<QemOutcome> qem;     ///< method == qem
+  /// Removals (ICE) or collapses (QEM).
+  Index removed() const;
+};
+
+struct CoarseSpace {
+  CompactMesh mesh;                ///< the coarse intrinsic mesh (faces, lengths, gluing, vertex maps)
+  Eigen::SparseMatrix<double> P;   ///< fine (input) vertices × coarse vertices
+  CoarseSpaceSummary summary;
+  /// With keep_method_state and ICE: the coarsened triangulation (mesh == triangulation->compact()).
+  std::optional<IntrinsicTriangulation> triangulation;
+  /// With keep_method_state and QEM: its result (the QEM mesh, the map; its P is moved into P above).
+  std::optional<QemResult> qem_result;
+};
+
+/// Coarsens `mesh` (clean, oriented, manifold: e.g. from ice::load_mesh) by options.method.
+/// Throws std::invalid_argument on bad options (those of ice::coarsen / ice::qem_coarsen) and
+/// std::runtime_error when a QEM mesh with QemGeometry::intrinsic_delaunay has a degenerate face.
+CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options);
+
+/// The fine mesh's discretisation for the PDE solvers (and the Galerkin coarse operators).
+enum class FineGeometry {
+  input,               ///< the input triangles with their extrinsic edge lengths
+  intrinsic_delaunay,  ///< the input's intrinsic Delaunay triangulation: same vertices, every cotan weight ≥ 0
+};
+const char* to_string(FineGeometry geometry);
+
+struct FineMesh {
+  Faces F;        ///< in the input's vertex numbering
+  FaceLengths L;
+  FineGeometry geometry = FineGeometry::intrinsic_delaunay;
+  Index flips = 0;  ///< intrinsic Delaunay flips made
+};
+FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry);
+
+}  // namespace ice

@@ -1,0 +1,107 @@
+#include "ice/coarse_space.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "ice/prolongation.h"
+#include "ice/qem.h"
+
+namespace ice {
+
+const char* to_string(CoarseningMethod method) { return method == CoarseningMethod::qem ? "qem" : "ice"; }
+
+const char* to_string(QemGeometry geometry) {
+  return geometry == QemGeometry::intrinsic_delaunay ? "intrinsic_delaunay" : "extrinsic";
+}
+
+const char* to_string(FineGeometry geometry) {
+  return geometry == FineGeometry::intrinsic_delaunay ? "intrinsic_delaunay" : "input";
+}
+
+Index CoarseSpaceSummary::removed() const { return ice ? ice->removed : qem ? qem->collapses : 0; }
+
+namespace {
+
+CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
+  IntrinsicTriangulation T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  CoarseSpace space;
+  const CoarsenResult result = coarsen(T, options.coarsen);
+  space.mesh = T.compact();
+  space.P = prolongation(T, space.mesh);
+  space.summary.target_reached = result.stop_reason == StopReason::TargetReached;
+  space.summary.ice = result;
+  if (options.keep_method_state) space.triangulation = std::move(T);
+  return space;
+}
+
+CoarseSpace qem_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
+  if (std::isfinite(options.coarsen.max_error))
+    throw std::invalid_argument("build_coarse_space: max_error bounds the ICE error metric; QEM takes a vertex target");
+  QemOptions q;
+  q.target_vertices = options.coarsen.target_vertices;
+  q.target_ratio = options.coarsen.target_ratio;
+  q.locked_vertices = options.coarsen.locked_vertices;
+  q.remove_boundary = options.coarsen.remove_boundary;
+  QemResult qem = qem_coarsen(mesh, q);
+  CoarseSpace space;
+  QemOutcome outcome;
+  if (options.qem_geometry == QemGeometry::intrinsic_delaunay) {
+    int flips = 0;
+    try {
+      space.mesh = qem_intrinsic_delaunay_mesh(qem, &flips);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("the QEM mesh cannot be triangulated intrinsically: ") + e.what());
+    }
+    outcome.intrinsic_delaunay_flips = flips;
+  } else {
+    space.mesh = qem_extrinsic_mesh(qem);
+  }
+  space.P = std::move(qem.P);
+  outcome.collapses = qem.collapses;
+  outcome.guard_relaxed = qem.guard_relaxed;
+  outcome.max_distance = qem.max_distance;
+  outcome.mean_distance = qem.mean_distance;
+  outcome.decimate_seconds = qem.decimate_seconds;
+  outcome.map_seconds = qem.map_seconds;
+  outcome.geometry = options.qem_geometry;
+  space.summary.target_reached = qem.target_reached;
+  space.summary.qem = outcome;
+  if (options.keep_method_state) space.qem_result = std::move(qem);
+  return space;
+}
+
+}  // namespace
+
+CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  CoarseSpace space =
+      options.method == CoarseningMethod::qem ? qem_coarse_space(mesh, options) : ice_coarse_space(mesh, options);
+  CoarseSpaceSummary& summary = space.summary;
+  summary.method = options.method;
+  summary.input_vertices = static_cast<Index>(mesh.V.rows());
+  summary.coarse_vertices = static_cast<Index>(space.mesh.to_input.size());
+  summary.coarse_faces = static_cast<Index>(space.mesh.F.rows());
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return space;
+}
+
+FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
+  FineMesh fine;
+  fine.geometry = geometry;
+  if (geometry == FineGeometry::input) {
+    fine.F = mesh.F;
+    fine.L = face_lengths_from_positions(mesh.V, mesh.F);
+    return fine;
+  }
+  IntrinsicTriangulation T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  fine.flips = T.flip_to_delaunay();
+  CompactMesh compact = T.compact();  // no vertex removed: compact indices are input indices
+  fine.F = std::move(compact.F);
+  fine.L = std::move(compact.L);
+  return fine;
+}
+
+}  // namespace ice

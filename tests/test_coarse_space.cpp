@@ -1,0 +1,228 @@
+// The pipeline a user comes for, as the tools run it: ice::build_coarse_space (ICE or QEM) and
+// ice::fine_mesh, then the staged proxy solvers of fem/coarse_proxy.h. Checks the coarse space's
+// postconditions, that it equals driving ice::coarsen / ice::qem_coarsen by hand, the solvers' Dirichlet,
+// zero-mean and multi-source behaviour, and that their stages compose to the documented formulas.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "fem/coarse_proxy.h"
+#include "fem/errors.h"
+#include "fem/topology.h"
+#include "ice/coarse_space.h"
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+#include "ice/prolongation.h"
+#include "ice/qem.h"
+#include "test_support.h"
+
+namespace {
+
+// Every row of P sums to 1, has 1..3 entries in [0, 1]; locked vertices are coarse vertices with row e_j.
+void check_prolongation(const ice::CoarseSpace& space, Eigen::Index n, const std::vector<ice::Index>& locked) {
+  REQUIRE(space.P.rows() == n);
+  REQUIRE(space.P.cols() == static_cast<Eigen::Index>(space.mesh.to_input.size()));
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> rows = space.P;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double sum = 0;
+    int entries = 0;
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(rows, i); it; ++it, ++entries) {
+      sum += it.value();
+      CHECK(it.value() >= 0);
+      CHECK(it.value() <= 1 + 1e-12);
+    }
+    CHECK(std::abs(sum - 1) < 1e-12);
+    CHECK(entries >= 1);
+    CHECK(entries <= 3);
+  }
+  for (ice::Index v : locked) {
+    const ice::Index j = space.mesh.from_input[static_cast<std::size_t>(v)];
+    REQUIRE(j != ice::kInvalid);
+    CHECK(rows.coeff(v, j) == 1.0);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("build_coarse_space with ICE equals coarsening by hand, with a summary of what ICE did", "[coarse_space]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));
+  const Eigen::Index n = mesh.V.rows();
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_vertices = 400;
+  options.coarsen.area_weight = 0.25;
+  options.coarsen.locked_vertices = {0, 17, 4000};
+  const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  check_prolongation(space, n, options.coarsen.locked_vertices);
+
+  ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  const ice::CoarsenResult by_hand = ice::coarsen(T, options.coarsen);
+  const ice::CompactMesh compact = T.compact();
+  CHECK(space.mesh.F == compact.F);
+  CHECK(space.mesh.L == compact.L);
+  CHECK(space.mesh.twin == compact.twin);
+  CHECK(space.mesh.to_input == compact.to_input);
+  CHECK(fem::SparseMatrix(space.P - ice::prolongation(T, compact)).norm() == 0.0);
+
+  const ice::CoarseSpaceSummary& s = space.summary;
+  CHECK(s.method == ice::CoarseningMethod::ice);
+  REQUIRE(s.ice.has_value());
+  CHECK_FALSE(s.qem.has_value());
+  CHECK(s.ice->removed == by_hand.removed);
+  CHECK(s.removed() == by_hand.removed);
+  CHECK(s.input_vertices == n);
+  CHECK(s.coarse_vertices == 400);
+  CHECK(s.coarse_faces == compact.F.rows());
+  CHECK(s.target_reached);
+  CHECK(s.seconds > 0);
+  CHECK_FALSE(space.triangulation.has_value());  // only with keep_method_state
+
+  options.keep_method_state = true;
+  const ice::CoarseSpace kept = ice::build_coarse_space(mesh, options);
+  REQUIRE(kept.triangulation.has_value());
+  CHECK(kept.triangulation->num_vertices() == 400);
+  CHECK(kept.triangulation->validate().empty());
+}
+
+TEST_CASE("build_coarse_space with QEM: both coarse geometries share the vertices and P", "[coarse_space][qem]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+  const Eigen::Index n = mesh.V.rows();
+  ice::CoarseSpaceOptions options;
+  options.method = ice::CoarseningMethod::qem;
+  options.coarsen.target_ratio = 0.05;
+  options.coarsen.locked_vertices = {3, 1500};
+  const ice::CoarseSpace extrinsic = ice::build_coarse_space(mesh, options);
+  options.qem_geometry = ice::QemGeometry::intrinsic_delaunay;
+  options.keep_method_state = true;
+  const ice::CoarseSpace idt = ice::build_coarse_space(mesh, options);
+  check_prolongation(extrinsic, n, options.coarsen.locked_vertices);
+  check_prolongation(idt, n, options.coarsen.locked_vertices);
+  CHECK(extrinsic.summary.coarse_vertices == static_cast<ice::Index>(std::ceil(0.05 * static_cast<double>(n))));
+  CHECK(extrinsic.mesh.to_input == idt.mesh.to_input);
+  CHECK(fem::SparseMatrix(extrinsic.P - idt.P).norm() == 0.0);
+  REQUIRE(idt.summary.qem.has_value());
+  CHECK_FALSE(idt.summary.ice.has_value());
+  CHECK(idt.summary.qem->geometry == ice::QemGeometry::intrinsic_delaunay);
+  CHECK(idt.summary.qem->intrinsic_delaunay_flips > 0);
+  CHECK(extrinsic.summary.qem->intrinsic_delaunay_flips == 0);
+  CHECK(idt.summary.removed() == n - idt.summary.coarse_vertices);
+  // The extrinsic geometry is the QEM mesh's own edge lengths.
+  REQUIRE(idt.qem_result.has_value());
+  const ice::CompactMesh own = ice::qem_extrinsic_mesh(*idt.qem_result);
+  CHECK(extrinsic.mesh.F == own.F);
+  CHECK(extrinsic.mesh.L == own.L);
+  // An error bound belongs to ICE's metric.
+  options.coarsen.max_error = 1e-3;
+  CHECK_THROWS_AS(ice::build_coarse_space(mesh, options), std::invalid_argument);
+}
+
+TEST_CASE("fine_mesh: the input triangles or their intrinsic Delaunay triangulation", "[coarse_space]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));
+  const ice::FineMesh input = ice::fine_mesh(mesh, ice::FineGeometry::input);
+  CHECK(input.F == mesh.F);
+  CHECK(input.L == ice::face_lengths_from_positions(mesh.V, mesh.F));
+  CHECK(input.flips == 0);
+  const ice::FineMesh idt = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
+  CHECK(idt.flips > 0);  // lion-head has needle triangles
+  CHECK(idt.F.rows() == mesh.F.rows());
+  // Intrinsic Delaunay: every interior edge's cotan weight is ≥ 0, i.e. the Laplacian's off-diagonal
+  // entries are ≤ 0 away from the boundary (a boundary edge has one angle, which may be obtuse).
+  std::vector<char> on_boundary(static_cast<std::size_t>(mesh.V.rows()), 0);
+  for (int v : fem::boundary_vertices(mesh.F)) on_boundary[static_cast<std::size_t>(v)] = 1;
+  auto most_positive_interior_weight = [&](const ice::FineMesh& m) {
+    const fem::SparseMatrix L = fem::cotan_laplacian(m.F, m.L, mesh.V.rows());
+    double most = -1;
+    for (Eigen::Index j = 0; j < L.outerSize(); ++j)
+      for (fem::SparseMatrix::InnerIterator it(L, j); it; ++it)
+        if (it.row() != it.col() && !(on_boundary[static_cast<std::size_t>(it.row())] && on_boundary[static_cast<std::size_t>(j)]))
+          most = std::max(most, it.value());
+    return most;
+  };
+  CHECK(most_positive_interior_weight(idt) <= 1e-12);
+  CHECK(most_positive_interior_weight(input) > 0);  // the input itself is not Delaunay
+}
+
+TEST_CASE("staged proxy solvers: Dirichlet values, zero mean, several sources, phase times", "[coarse_space][fem]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));
+  const Eigen::Index n = mesh.V.rows();
+  // Dirichlet on the whole boundary (one loop of 36 vertices), values from the height.
+  const std::vector<int> fixed = fem::boundary_vertices(mesh.F);
+  REQUIRE(fixed.size() > 30);
+  Eigen::VectorXd values(static_cast<Eigen::Index>(fixed.size()));
+  for (std::size_t i = 0; i < fixed.size(); ++i) values(static_cast<Eigen::Index>(i)) = mesh.V(fixed[i], 2);
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_vertices = 800;
+  options.coarsen.locked_vertices.assign(fixed.begin(), fixed.end());
+  const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
+  Eigen::VectorXd f(n);
+  for (Eigen::Index i = 0; i < n; ++i) f(i) = std::sin(0.05 * mesh.V(i, 0)) + 0.5;  // not zero-mean
+
+  for (fem::CoarseOperatorKind kind : {fem::CoarseOperatorKind::intrinsic, fem::CoarseOperatorKind::galerkin}) {
+    INFO((kind == fem::CoarseOperatorKind::intrinsic ? "intrinsic" : "galerkin"));
+    const fem::CoarseProxy proxy(fine.F, fine.L, space.mesh.F, space.mesh.L, space.P, kind, fem::MassKind::lumped, n,
+                                 space.P.cols());
+    const fem::SparseMatrix& M = proxy.fine_mass();
+    const Eigen::VectorXd m1 = M * Eigen::VectorXd::Ones(n);
+    const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
+
+    // Dirichlet: the prolonged solution takes the prescribed values exactly and is close to the fine one.
+    const fem::ProxyPoissonSolver dirichlet(proxy, fixed);
+    CHECK_FALSE(dirichlet.is_zero_mean());
+    fem::ProxyPhaseTimes times;
+    const Eigen::VectorXd u = dirichlet.solve(f, values, &times);
+    for (std::size_t i = 0; i < fixed.size(); ++i) CHECK(u(fixed[i]) == values(static_cast<Eigen::Index>(i)));
+    CHECK(times.restriction >= 0);
+    CHECK(times.coarse_solve > 0);
+    CHECK(times.prolongation >= 0);
+    const Eigen::VectorXd reference = fem::PoissonSolver::dirichlet(L, M, fixed).solve(f, values);
+    CHECK(fem::relative_l2_error(u, reference, M) < 0.05);  // measured 0.79 % (intrinsic), 0.55 % (Galerkin)
+    // The stages compose to P · (coarse Dirichlet solve of Pᵀ M f).
+    std::vector<int> coarse_fixed;
+    for (int v : fixed) coarse_fixed.push_back(proxy.coarse_vertex_of(v));
+    const Eigen::VectorXd by_hand =
+        proxy.prolong(fem::PoissonSolver::dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed)
+                          .solve_weighted(proxy.restrict_weighted(M * f), values));
+    CHECK((u - by_hand).cwiseAbs().maxCoeff() <= 1e-12 * by_hand.cwiseAbs().maxCoeff());
+
+    // Zero mean: f is made compatible on the fine mesh first, so a constant gives 0 (up to round-off) …
+    const fem::ProxyPoissonSolver zero_mean(proxy);
+    CHECK(zero_mean.is_zero_mean());
+    CHECK(zero_mean.solve(Eigen::VectorXd::Constant(n, 3.25)).cwiseAbs().maxCoeff() < 1e-12);
+    // … and the answer has zero fine-mass mean and approximates the fine solution of f − mean(f).
+    const Eigen::VectorXd w = zero_mean.solve(f);
+    CHECK(std::abs(m1.dot(w)) <= 1e-12 * m1.sum() * w.cwiseAbs().maxCoeff());
+    const Eigen::VectorXd fine_w = fem::PoissonSolver::zero_mean(L, M).solve(f);
+    CHECK(fem::relative_l2_error(w, fine_w, M) < 0.05);  // measured 1.6 %, 1.2 %
+    // A Dirichlet vertex that is no coarse vertex is refused, naming it.
+    int removed = 0;
+    while (space.mesh.from_input[static_cast<std::size_t>(removed)] != ice::kInvalid) ++removed;
+    CHECK_THROWS_WITH(fem::ProxyPoissonSolver(proxy, {removed}), Catch::Contains(std::to_string(removed)));
+    CHECK_THROWS_AS(dirichlet.solve(f, Eigen::VectorXd::Ones(3)), std::invalid_argument);
+
+    // Heat: the L2-projection step solves (Mc + τLc) u1 = Pᵀ M u0, the projection's own equation.
+    const double tau = 0.01 * M.sum();
+    const fem::ProxyHeatSolver heat(proxy, tau, fem::RestrictionKind::l2_projection);
+    const fem::HeatSolver coarse_heat(proxy.coarse_laplacian(), proxy.coarse_mass(), tau);
+    const Eigen::VectorXd projected = proxy.restrict_values(f, fem::RestrictionKind::l2_projection);
+    const Eigen::VectorXd two_steps = proxy.prolong(coarse_heat.integrate(projected, 2));
+    CHECK((heat.integrate(f, 2) - two_steps).cwiseAbs().maxCoeff() <= 1e-10 * two_steps.cwiseAbs().maxCoeff());
+    CHECK_THROWS_AS(heat.integrate(f, 0), std::invalid_argument);
+
+    // Geodesics: several sources give the distance to the nearest (≤ each single-source distance),
+    // zero mean over the sources; operators assembled by the caller give the same answer.
+    const fem::ProxyGeodesicSolver geodesic(proxy);
+    const fem::ProxyGeodesicSolver from_operators(proxy, proxy.coarse_heat_method_operators());
+    const int a = fixed.front(), b = 4000;
+    const Eigen::VectorXd d01 = geodesic.distance({a, b, a});
+    CHECK((d01 - from_operators.distance({b, a})).cwiseAbs().maxCoeff() == 0.0);
+    CHECK(std::abs(d01(a) + d01(b)) <= 1e-12 * d01.maxCoeff());
+    const Eigen::VectorXd d0 = geodesic.distance({a}), d1 = geodesic.distance({b});
+    CHECK(d0(a) == 0.0);
+    const double scale = d0.maxCoeff();
+    Eigen::Index worse = 0;  // the heat method is not exactly a minimum of the two: a few % of the diameter
+    for (Eigen::Index i = 0; i < n; ++i) worse += d01(i) > std::min(d0(i), d1(i)) + 0.05 * scale;
+    CHECK(worse <= n / 1000);
+  }
+}
