@@ -39,9 +39,6 @@
 
 namespace ice {
 
-using Index = std::int32_t;
-constexpr Index kInvalid = -1;
-
 /// Where an input vertex is now: a vertex of the triangulation, or a point in a face.
 struct SurfacePoint {
   Index vertex = kInvalid;              ///< the vertex, when the input vertex survives
@@ -68,18 +65,6 @@ enum class RemovalStatus {
   TopologyChange,        ///< removal would change the topology (e.g. the last face of a component)
 };
 const char* to_string(RemovalStatus status);
-
-/// A clean mesh exported from a (possibly heavily modified) triangulation.
-struct CompactMesh {
-  Faces F;                          ///< faces in compact vertex indices
-  FaceLengths L;                    ///< per-face edge lengths (ice/mesh.h convention)
-  /// How the faces are glued: twin[3f + k] is the side 3g + d that runs along face f's side k (from
-  /// corner k to k+1) the other way, or kInvalid on the boundary. Vertex pairs cannot say this in a
-  /// Δ-complex (self-edges, two edges between one pair of vertices). Empty: glue by vertex pairs.
-  std::vector<Index> twin;
-  std::vector<Index> to_input;      ///< compact vertex -> input vertex
-  std::vector<Index> from_input;    ///< input vertex -> compact vertex, or kInvalid if removed
-};
 
 class IntrinsicTriangulation {
  public:

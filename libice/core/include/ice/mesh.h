@@ -1,0 +1,66 @@
+#pragma once
+/// \file mesh.h
+/// Plain array meshes shared by every part of ICE: the core target (ICE::core, header-only) that both
+/// libice and libfem use; libfem sees nothing else of libice.
+///
+/// Conventions used throughout the project:
+///  - `V` is n×3 (double), one row per vertex; `F` is m×3 (int), 0-based vertex indices, one row per
+///    triangle, counter-clockwise seen from outside.
+///  - Per-face edge lengths (`FaceLengths`, m×3): column k holds the length of the edge that goes from
+///    corner k to corner (k+1)%3 of the face, i.e. from F(f,k) to F(f,(k+1)%3). The corner angle at
+///    corner k is therefore opposite the edge stored in column (k+1)%3.
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace ice {
+
+/// Vertex, face and half-edge indices of ICE (int32: meshes up to 2^31 elements, half the memory of
+/// 64-bit indices in every connectivity array).
+using Index = std::int32_t;
+/// "No such element" (a removed input vertex, a boundary side without a twin, ...).
+constexpr Index kInvalid = -1;
+
+/// Vertex positions, n×3.
+using Positions = Eigen::MatrixXd;
+/// Triangles, m×3, 0-based indices.
+using Faces = Eigen::MatrixXi;
+/// Per-face edge lengths, m×3; column k is the edge from corner k to corner (k+1)%3.
+using FaceLengths = Eigen::MatrixXd;
+
+/// An extrinsic triangle mesh: positions and triangles.
+struct TriangleMesh {
+  Positions V;
+  Faces F;
+};
+
+/// Length of the edge from vertex a to vertex b of V: the one formula behind
+/// face_lengths_from_positions and the validator's degenerate-face test, so they agree to the bit.
+inline double edge_length(const Positions& V, int a, int b) { return (V.row(b) - V.row(a)).norm(); }
+
+/// Per-face edge lengths of an extrinsic mesh, in the `FaceLengths` convention.
+inline FaceLengths face_lengths_from_positions(const Positions& V, const Faces& F) {
+  FaceLengths lengths(F.rows(), 3);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) lengths(f, k) = edge_length(V, F(f, k), F(f, (k + 1) % 3));
+  return lengths;
+}
+
+/// An intrinsic mesh as a value: faces, per-face edge lengths, how the faces are glued, and the map
+/// to the input's vertices. What ICE exports from a (possibly heavily modified) triangulation
+/// (`IntrinsicTriangulation::compact`), writes as `.ilm`, and what libfem's operators take.
+struct CompactMesh {
+  Faces F;                          ///< faces in compact vertex indices
+  FaceLengths L;                    ///< per-face edge lengths (ice/mesh.h convention)
+  /// How the faces are glued: twin[3f + k] is the side 3g + d that runs along face f's side k (from
+  /// corner k to k+1) the other way, or kInvalid on the boundary. Vertex pairs cannot say this in a
+  /// Δ-complex (self-edges, two edges between one pair of vertices). Empty: glue by vertex pairs.
+  std::vector<Index> twin;
+  std::vector<Index> to_input;      ///< compact vertex -> input vertex
+  std::vector<Index> from_input;    ///< input vertex -> compact vertex, or kInvalid if removed
+  /// Vertices of the mesh (also those no face uses, which F alone cannot count).
+  Index num_vertices() const { return static_cast<Index>(to_input.size()); }
+};
+
+}  // namespace ice
