@@ -485,8 +485,7 @@ void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
 }
 
 fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind) {
-  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped,
-                          coarse.P.rows(), coarse.P.cols());
+  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped);
 }
 
 // ---- the coarse-proxy PDE tools ----------------------------------------------------------------------

@@ -78,8 +78,7 @@ void BM_ProxyVsFine(benchmark::State& state) {
     const CompactMesh coarse = T.compact();
     Eigen::SparseMatrix<double> P = prolongation(T, coarse);
     const double coarsen_time = seconds_since(t);
-    const fem::CoarseProxy proxy(m.F, L, coarse.F, coarse.L, std::move(P), fem::CoarseOperatorKind::intrinsic,
-                                 fem::MassKind::lumped, m.V.rows(), static_cast<Eigen::Index>(coarse.to_input.size()));
+    const fem::CoarseProxy proxy(m.F, L, coarse.F, coarse.L, std::move(P), fem::CoarseOperatorKind::intrinsic);
     const double proxy_assemble = seconds_since(t);
     const fem::ProxyPoissonSolver solver(proxy);
     const double proxy_factor = seconds_since(t);

@@ -161,8 +161,7 @@ TEST_CASE("staged proxy solvers: Dirichlet values, zero mean, several sources, p
 
   for (fem::CoarseOperatorKind kind : {fem::CoarseOperatorKind::intrinsic, fem::CoarseOperatorKind::galerkin}) {
     INFO((kind == fem::CoarseOperatorKind::intrinsic ? "intrinsic" : "galerkin"));
-    const fem::CoarseProxy proxy(fine.F, fine.L, space.mesh.F, space.mesh.L, space.P, kind, fem::MassKind::lumped, n,
-                                 space.P.cols());
+    const fem::CoarseProxy proxy(fine.F, fine.L, space.mesh.F, space.mesh.L, space.P, kind);
     const fem::SparseMatrix& M = proxy.fine_mass();
     const Eigen::VectorXd m1 = M * Eigen::VectorXd::Ones(n);
     const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);

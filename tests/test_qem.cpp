@@ -224,7 +224,7 @@ TEST_CASE("qem: extrinsic and intrinsic Delaunay coarse meshes share P; proxy so
   Eigen::VectorXd f = mesh.V.col(0).array().sin() + mesh.V.col(1).array();
   const Eigen::VectorXd reference = fem::PoissonSolver::zero_mean(Lf, Mf).solve(f);
   for (const CompactMesh* c : {&ext, &idt}) {
-    const fem::CoarseProxy proxy(mesh.F, L, c->F, c->L, r.P, fem::CoarseOperatorKind::intrinsic, fem::MassKind::lumped, n, nc);
+    const fem::CoarseProxy proxy(mesh.F, L, c->F, c->L, r.P, fem::CoarseOperatorKind::intrinsic);
     const Eigen::VectorXd u = fem::ProxyPoissonSolver(proxy).solve(f);
     const double error = fem::relative_l2_error(u, reference, Mf);
     INFO("QEM " << (c == &ext ? "extrinsic" : "iDT") << " Poisson relative L2 error " << error);
@@ -234,20 +234,19 @@ TEST_CASE("qem: extrinsic and intrinsic Delaunay coarse meshes share P; proxy so
 
 TEST_CASE("coarse proxy: Galerkin heat-method operators use the lumped Galerkin mass", "[qem][fem]") {
   const TriangleMesh mesh = make_icosphere(2);
-  const Index n = static_cast<Index>(mesh.V.rows());
   QemOptions options;
   options.target_vertices = 40;
   const QemResult r = qem_coarsen(mesh, options);
   const CompactMesh c = qem_extrinsic_mesh(r);
   const FaceLengths L = face_lengths_from_positions(mesh.V, mesh.F);
-  const fem::CoarseProxy galerkin(mesh.F, L, c.F, c.L, r.P, fem::CoarseOperatorKind::galerkin, fem::MassKind::lumped, n, 40);
+  const fem::CoarseProxy galerkin(mesh.F, L, c.F, c.L, r.P, fem::CoarseOperatorKind::galerkin);
   const fem::HeatMethodOperators ops = galerkin.coarse_heat_method_operators();
   const Eigen::VectorXd row_sums = galerkin.coarse_mass() * Eigen::VectorXd::Ones(40);
   CHECK(ops.mass.nonZeros() == 40);
   CHECK((Eigen::VectorXd(ops.mass.diagonal()) - row_sums).cwiseAbs().maxCoeff() < 1e-14);
   CHECK(ops.gradient.rows() == 2 * mesh.F.rows());
   // The intrinsic proxy assembles the fine Laplacian only on request, and it is the same matrix.
-  const fem::CoarseProxy intrinsic(mesh.F, L, c.F, c.L, r.P, fem::CoarseOperatorKind::intrinsic, fem::MassKind::lumped, n, 40);
+  const fem::CoarseProxy intrinsic(mesh.F, L, c.F, c.L, r.P, fem::CoarseOperatorKind::intrinsic);
   CHECK((fem::SparseMatrix(intrinsic.fine_laplacian() - galerkin.fine_laplacian())).norm() < 1e-12);
 }
 

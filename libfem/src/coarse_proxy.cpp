@@ -28,20 +28,16 @@ SparseMatrix lumped(const SparseMatrix& mass) {
 }  // namespace
 
 CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
-                         CoarseOperatorKind kind, MassKind mass_kind, Eigen::Index fine_vertex_count,
-                         Eigen::Index coarse_vertex_count)
+                         CoarseOperatorKind kind, MassKind mass_kind)
     : kind_(kind), mass_kind_(mass_kind), P_(std::move(P)), coarse_faces_(Fc), coarse_lengths_(Lc) {
-  const Eigen::Index n_fine =
-      fine_vertex_count >= 0 ? fine_vertex_count : (F.size() == 0 ? 0 : Eigen::Index(F.maxCoeff()) + 1);
+  const Eigen::Index n_fine = P_.rows(), n_coarse = P_.cols();
+  if ((F.size() > 0 && F.maxCoeff() >= n_fine) || (Fc.size() > 0 && Fc.maxCoeff() >= n_coarse))
+    throw std::invalid_argument("CoarseProxy: P must be n_fine × n_coarse (the faces name vertices beyond its shape)");
   fine_mass_ = mass_matrix(F, L, mass_kind, n_fine);
   lazy_ = std::make_unique<LazyFineOperators>();
   lazy_->F = F;
   lazy_->L = L;
   lazy_->n = n_fine;
-  const Eigen::Index n_coarse =
-      coarse_vertex_count >= 0 ? coarse_vertex_count : (Fc.size() == 0 ? 0 : Eigen::Index(Fc.maxCoeff()) + 1);
-  if (P_.rows() != n_fine || P_.cols() != n_coarse)
-    throw std::invalid_argument("CoarseProxy: P must be n_fine × n_coarse");
   const Eigen::VectorXd row_sums = P_ * Eigen::VectorXd::Ones(n_coarse);
   if (n_fine > 0 && (row_sums.array() - 1.0).abs().maxCoeff() > 1e-10)
     throw std::invalid_argument("CoarseProxy: every row of P must sum to 1");

@@ -12,14 +12,14 @@ namespace {
 
 using Triplets = std::vector<Eigen::Triplet<double>>;
 
-Eigen::Index resolve_vertex_count(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {
+Eigen::Index resolve_vertex_count(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
   if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
     throw std::invalid_argument("fem: F and L must both be m×3 with the same m");
   const Eigen::Index needed = F.size() == 0 ? 0 : Eigen::Index(F.maxCoeff()) + 1;
   if (F.size() > 0 && F.minCoeff() < 0) throw std::invalid_argument("fem: negative vertex index in F");
-  if (vertex_count < 0) return needed;
-  if (vertex_count < needed) throw std::invalid_argument("fem: vertex_count smaller than max index + 1");
-  return vertex_count;
+  if (!vertex_count) return needed;
+  if (*vertex_count < needed) throw std::invalid_argument("fem: vertex_count smaller than max index + 1");
+  return *vertex_count;
 }
 
 SparseMatrix from_triplets(Eigen::Index rows, Eigen::Index cols, const Triplets& triplets) {
@@ -30,7 +30,7 @@ SparseMatrix from_triplets(Eigen::Index rows, Eigen::Index cols, const Triplets&
 
 }  // namespace
 
-SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {
+SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
   const Eigen::Index n = resolve_vertex_count(F, L, vertex_count);
   const Eigen::MatrixXd cot = corner_cotangents(L);
   Triplets triplets;
@@ -48,7 +48,7 @@ SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, Eigen::Index 
   return from_triplets(n, n, triplets);
 }
 
-Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {
+Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
   const Eigen::Index n = resolve_vertex_count(F, L, vertex_count);
   const Eigen::VectorXd areas = face_areas(L);
   Eigen::VectorXd vertex_areas = Eigen::VectorXd::Zero(n);
@@ -57,7 +57,7 @@ Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, Eigen:
   return vertex_areas;
 }
 
-SparseMatrix mass_matrix(const Faces& F, const FaceLengths& L, MassKind kind, Eigen::Index vertex_count) {
+SparseMatrix mass_matrix(const Faces& F, const FaceLengths& L, MassKind kind, VertexCount vertex_count) {
   const Eigen::Index n = resolve_vertex_count(F, L, vertex_count);
   if (kind == MassKind::lumped) {
     const Eigen::VectorXd vertex_areas = lumped_vertex_areas(F, L, n);
@@ -76,7 +76,7 @@ SparseMatrix mass_matrix(const Faces& F, const FaceLengths& L, MassKind kind, Ei
   return from_triplets(n, n, triplets);
 }
 
-SparseMatrix gradient(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {
+SparseMatrix gradient(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
   const Eigen::Index n = resolve_vertex_count(F, L, vertex_count);
   validate_lengths(L);
   Triplets triplets;
@@ -95,7 +95,7 @@ SparseMatrix gradient(const Faces& F, const FaceLengths& L, Eigen::Index vertex_
   return from_triplets(2 * F.rows(), n, triplets);
 }
 
-SparseMatrix divergence(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {
+SparseMatrix divergence(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
   const SparseMatrix G = gradient(F, L, vertex_count);
   const Eigen::VectorXd areas = face_areas(L);
   Eigen::VectorXd weights(2 * areas.size());

@@ -131,7 +131,7 @@ Eigen::VectorXd HeatSolver::integrate(const Eigen::VectorXd& u0, int steps) cons
 // ---- Heat method ------------------------------------------------------------------------------------
 
 HeatMethodOperators heat_method_operators(const Faces& F, const FaceLengths& L, MassKind mass_kind,
-                                          double time_factor, Eigen::Index vertex_count) {
+                                          double time_factor, VertexCount vertex_count) {
   if (!(time_factor > 0)) throw std::invalid_argument("heat_method_operators: time_factor must be positive");
   HeatMethodOperators ops;
   ops.laplacian = cotan_laplacian(F, L, vertex_count);

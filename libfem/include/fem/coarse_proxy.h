@@ -38,11 +38,11 @@ enum class RestrictionKind { l2_projection, injection };
 /// not need them. The lazy assembly is thread-safe (std::call_once).
 class CoarseProxy {
  public:
-  /// Throws std::invalid_argument if P is not n_fine × n_coarse (n from F and Fc; pass the counts
-  /// explicitly if some vertices are unreferenced) or a row of P does not sum to 1 within 1e-10.
+  /// P's shape gives the vertex counts (n_fine × n_coarse; vertices no face uses are fine). Throws
+  /// std::invalid_argument if F or Fc names a vertex beyond them or a row of P does not sum to 1
+  /// within 1e-10.
   CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
-              CoarseOperatorKind kind, MassKind mass_kind = MassKind::lumped,
-              Eigen::Index fine_vertex_count = -1, Eigen::Index coarse_vertex_count = -1);
+              CoarseOperatorKind kind, MassKind mass_kind = MassKind::lumped);
 
   CoarseOperatorKind kind() const { return kind_; }
   const SparseMatrix& prolongation() const { return P_; }

@@ -3,13 +3,16 @@
 /// Piecewise-linear finite element operators on an intrinsic triangulation (faces F, lengths L).
 ///
 /// Conventions:
-///  - `vertex_count` is the number of unknowns n; pass -1 to use F.maxCoeff() + 1.
+///  - `vertex_count` is the number of unknowns n (vertices no face uses get empty rows); without it,
+///    n = F.maxCoeff() + 1. A count below that throws std::invalid_argument.
 ///  - The cotangent Laplacian is positive semidefinite: L_ij = −w_ij for an edge ij,
 ///    L_ii = Σ_j w_ij, with w_ij = ½ Σ cot of the angles opposite edge ij (one or two faces).
 ///    It is the stiffness matrix ∫∇φ_i·∇φ_j, so L = Gᵀ·diag(A)·G with G the gradient below.
 ///  - Per-face gradients live in each face's own 2D frame from fem::layout_triangle (corner 0 at the
 ///    origin, corner 1 on +x), so they need no embedding; rows 2f and 2f+1 are the x and y components.
 /// All assembly is linear in the number of faces (triplets, duplicates summed by Eigen).
+#include <optional>
+
 #include <Eigen/SparseCore>
 
 #include "fem/geometry.h"
@@ -17,31 +20,33 @@
 namespace fem {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
+/// An explicit number of unknowns, or none (then F.maxCoeff() + 1).
+using VertexCount = std::optional<Eigen::Index>;
 
 /// Lumped (diagonal) or consistent (Galerkin P1) mass matrix.
 enum class MassKind { lumped, consistent };
 
 /// Cotangent Laplacian (n×n, symmetric positive semidefinite, rows sum to zero).
 /// Throws InvalidTriangle on invalid or zero-area faces.
-SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
+SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, VertexCount vertex_count = std::nullopt);
 
 /// Lumped vertex areas (n): one third of the area of every incident face.
-Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
+Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, VertexCount vertex_count = std::nullopt);
 
 /// Mass matrix (n×n): diagonal of lumped_vertex_areas, or the consistent P1 mass with A_f/6 on the
 /// diagonal and A_f/12 off the diagonal per face. Both have total sum equal to the surface area.
 SparseMatrix mass_matrix(const Faces& F, const FaceLengths& L, MassKind kind = MassKind::lumped,
-                         Eigen::Index vertex_count = -1);
+                         VertexCount vertex_count = std::nullopt);
 
 /// Per-face gradient (2m×n): (G u)(2f, 2f+1) is the constant gradient of the linear interpolant of u
 /// on face f, in that face's local frame. Throws InvalidTriangle on invalid or zero-area faces.
-SparseMatrix gradient(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
+SparseMatrix gradient(const Faces& F, const FaceLengths& L, VertexCount vertex_count = std::nullopt);
 
 /// Integrated divergence (n×2m) of per-face vector fields given in the local frames of `gradient`:
 /// D = −Gᵀ·diag(A_f, A_f), the negative adjoint of G in the face-area inner product, so that
 /// D·G = −L (the integrated Laplace–Beltrami operator, negative semidefinite) and
 /// (D X)_i = −∫ ∇φ_i · X.
-SparseMatrix divergence(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count = -1);
+SparseMatrix divergence(const Faces& F, const FaceLengths& L, VertexCount vertex_count = std::nullopt);
 
 /// Galerkin coarse operator Pᵀ·A·P for a prolongation P (n_fine×n_coarse) and a symmetric fine
 /// operator A (n_fine×n_fine; precondition, not checked). The lower triangle is computed and

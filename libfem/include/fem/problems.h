@@ -110,7 +110,7 @@ struct HeatMethodOperators {
 /// (time_factor = 1 is the paper's t = h²).
 HeatMethodOperators heat_method_operators(const Faces& F, const FaceLengths& L,
                                           MassKind mass_kind = MassKind::lumped, double time_factor = 1.0,
-                                          Eigen::Index vertex_count = -1);
+                                          VertexCount vertex_count = std::nullopt);
 
 /// Geodesic distance by the heat method (Crane, Weischedel, Wardetzky 2013):
 ///  1. heat: (M + tL) u = δ, with δ the source indicator (or weights);
