@@ -37,6 +37,13 @@ inline std::complex<double> unit_complex(double theta) {
 }
 }
 
+void CoarsenResult::add_counts(const CoarsenResult& part) {
+  removed += part.removed;
+  failed_removals += part.failed_removals;
+  for (std::size_t k = 0; k < part.failures_by_status.size(); ++k) failures_by_status[k] += part.failures_by_status[k];
+  max_cost = std::max(max_cost, part.max_cost);
+}
+
 const char* to_string(StopReason reason) {
   switch (reason) {
     case StopReason::TargetReached: return "target_reached";
@@ -413,13 +420,6 @@ class GreedyLoop {
   CoarsenResult result_;
 };
 
-void add_counts(CoarsenResult& total, const CoarsenResult& part) {
-  total.removed += part.removed;
-  total.failed_removals += part.failed_removals;
-  for (std::size_t k = 0; k < part.failures_by_status.size(); ++k) total.failures_by_status[k] += part.failures_by_status[k];
-  total.max_cost = std::max(total.max_cost, part.max_cost);
-}
-
 // Runs f(task) for task = 0..tasks−1 on `threads` threads (the calling one included), each thread
 // taking the next task when it finishes one (a task's result must not depend on which thread runs
 // it); rethrows the first exception.
@@ -572,7 +572,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
       }
     }
     for (auto& loop : loops) {
-      add_counts(result, loop->result());
+      result.add_counts(loop->result());
       result.last_cost = std::max(result.last_cost, loop->result().last_cost);
     }
     result.parallel_removed = result.removed;
@@ -586,7 +586,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
     whole.target = target;
     GreedyLoop loop(context, whole);
     const RunStop stop = loop.run(options.max_error, std::numeric_limits<Index>::max());
-    add_counts(result, loop.result());
+    result.add_counts(loop.result());
     if (loop.result().removed > 0) result.last_cost = loop.result().last_cost;
     result.stop_reason = stop == RunStop::Target      ? StopReason::TargetReached
                          : stop == RunStop::Threshold ? StopReason::ErrorThreshold

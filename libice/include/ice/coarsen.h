@@ -83,6 +83,9 @@ struct CoarsenResult {
   double next_cost = 0;        ///< cost of the cheapest remaining removal (inf if none, NaN if cancelled in the parallel phase)
   Index parallel_removed = 0;  ///< removals made by the parallel phase (0 when serial)
   double seconds = 0;          ///< wall time of coarsen()
+  /// Adds the counts of a part run (removals, failures by status) and keeps the larger max_cost:
+  /// how runs in stages (parallel regions, hierarchy passes) sum up.
+  void add_counts(const CoarsenResult& part);
 };
 
 /// Coarsens T in place. Preconditions: T was built from a mesh (all input vertices alive or

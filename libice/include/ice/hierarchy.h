@@ -27,6 +27,29 @@
 
 namespace ice {
 
+/// How a hierarchy level is coarsened.
+enum class LevelCoarsening {
+  /// Default: in passes; a pass picks a maximal independent set of the current triangulation greedily
+  /// (every other vertex stays for that pass) and removes it directly (IntrinsicTriangulation::
+  /// remove_vertex + Delaunay repair). Levels stay uniform in density, which multigrid needs.
+  independent_sets,
+  /// The same sets, removed through ice::coarsen in ICE-metric order (every other vertex locked): the
+  /// same removals up to order, measured 1.4x slower (8.9 s vs 6.3 s at 414k vertices); no anchors.
+  independent_sets_by_metric,
+  /// Plain greedy ICE coarsening: adaptive levels (flat regions get very coarse; measured two-level
+  /// V-cycle factors 0.5-0.9 on real meshes instead of 0.1-0.4).
+  greedy,
+};
+
+/// Which vertex an independent-set pass takes first.
+enum class SetOrder {
+  /// Default: vertex order (memory-local; measured 1.35x faster hierarchies than flattest_first at
+  /// 414k vertices, PCG iterations within ±1).
+  vertex_index,
+  flattest_first,  ///< smallest |curvature| first
+  exact_cost,      ///< smallest exact ICE removal cost first (another ~1.6x slower, no better)
+};
+
 struct HierarchyOptions {
   /// Vertex fraction kept per level (0 < ratio < 1).
   double ratio = 0.25;
@@ -36,22 +59,11 @@ struct HierarchyOptions {
   int max_levels = 20;
   /// Area weight of the ICE error metric (coarsen.h).
   double area_weight = 0;
-  /// true (default): each level is coarsened in passes; a pass picks a maximal independent set of
-  /// the current triangulation greedily and removes it (every other vertex stays for that pass).
-  /// Levels stay uniform in density, which multigrid needs. false: plain greedy ICE coarsening,
-  /// adaptive levels (flat regions get very coarse; measured two-level V-cycle factors 0.5-0.9 on
-  /// real meshes instead of 0.1-0.4).
-  bool independent_sets = true;
-  /// Order of the greedy independent-set choice: vertex order (default; memory-local, measured 1.35x
-  /// faster hierarchies than flattest_first at 414k vertices, PCG iterations within ±1), flattest first
-  /// (|curvature|), or exact ICE removal cost (exact_cost_order, another ~1.6x slower, no better).
-  bool flattest_first = false;
-  bool exact_cost_order = false;
-  /// With independent_sets: remove each pass's set through ice::coarsen (ICE metric order, every
-  /// other vertex locked) instead of directly with IntrinsicTriangulation::remove_vertex + Delaunay
-  /// repair (the default; the same removals, measured 1.4x faster: 6.3 s vs 8.9 s at 414k vertices).
-  bool coarsen_sets_with_metric = false;
-  /// With independent_sets (direct removals): when a removed vertex's strongest link (largest non-negative cotan weight
+  /// How each level is coarsened (see LevelCoarsening).
+  LevelCoarsening coarsening = LevelCoarsening::independent_sets;
+  /// Which vertex an independent-set pass takes first (ignored by LevelCoarsening::greedy).
+  SetOrder set_order = SetOrder::vertex_index;
+  /// With LevelCoarsening::independent_sets (direct removals): when a removed vertex's strongest link (largest non-negative cotan weight
   /// of the current triangulation) carries at least this share of its summed weights, that neighbour
   /// stays for the rest of the level, so the removed vertex is interpolated from the vertex it is tied
   /// to. Slivers and anisotropic sampling (scan rows, CAD strips) otherwise lose both ends of a
@@ -63,8 +75,9 @@ struct HierarchyOptions {
   /// 0 disables it; isotropic vertices (six comparable links) never trigger it.
   /// The same share decides which boundary vertices the boundary walk may remove: one whose strongest
   /// link leaves its loop stays (its removal would interpolate it along the loop, not from the vertex
-  /// it is tied to). Over 67 meshes: median 0.106 -> 0.100, worst 0.307 -> 0.238, scan_test1_vcg
-  /// 0.307 -> 0.186.
+  /// it is tied to), and does not count toward the loop's √r goal. Over 67 meshes: median 0.106 ->
+  /// 0.094, 575 -> 555 iterations in all, scan_test1_vcg 0.307 -> 0.150; worse by more than 0.005 on
+  /// elephant-with-holes only (0.214 -> 0.247; 106 holes on 2.8k vertices).
   double strong_neighbour_share = 0.5;
   /// Whether boundary vertices may be removed.
   bool remove_boundary = true;
