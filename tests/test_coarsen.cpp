@@ -146,13 +146,16 @@ TEST_CASE("the error metric conserves each channel's total mass", "[coarsen]") {
   const auto before = metric.total_mass(T);
   CHECK(before[2] == Approx(0.3).epsilon(1e-12));
   int removed = 0;
+  IntrinsicErrorMetric::RemovalPlan plan;
   for (Index v = 0; v < T.num_input_vertices() && removed < 200; v += 2) {
-    if (!metric.prepare_removal(T, v)) continue;
+    if (!metric.prepare_removal(T, v, plan)) continue;
+    CHECK(plan.vertex() == v);
     std::vector<Index> changed;
     const bool ok = T.remove_vertex(v, &changed) == RemovalStatus::Removed;
     T.flip_to_delaunay_around(changed);
     if (!ok) continue;
-    metric.apply_prepared_removal();
+    metric.apply_removal(plan);
+    CHECK(plan.vertex() == kInvalid);
     ++removed;
   }
   CHECK(removed == 200);

@@ -14,6 +14,7 @@
 #include "ice/mesh_io.h"
 #include "ice/vertex_star.h"
 #include "test_support.h"
+#include "two_ring_prefetch.h"  // libice/src: the coarsener's prefetching walk
 
 using namespace ice;
 
@@ -477,7 +478,7 @@ TEST_CASE("the two-ring prefetch walk meets every neighbour and second-ring vert
       for (Index v = 0; v < T.num_input_vertices(); ++v) {
         if (!T.vertex_alive(v)) continue;
         std::set<Index> first, second;
-        T.prefetch_two_ring(v, [&](Index w) { first.insert(w); }, [&](Index w) { second.insert(w); });
+        prefetch_two_ring(T, v, [&](Index w) { first.insert(w); }, [&](Index w) { second.insert(w); });
         const std::set<Index> ring = neighbours_of(v);
         // Every interior spoke's head; at a boundary vertex the fan's last neighbour may come
         // second-hand (it is reached around the previous neighbour).

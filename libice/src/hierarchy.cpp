@@ -100,9 +100,10 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
     order.clear();
     if (exact_costs) {
       const IntrinsicErrorMetric metric(T, area_weight);
+      IntrinsicErrorMetric::RemovalPlan scratch;
       for (Index v = 0; v < slots; ++v)
         if (T.vertex_alive(v) && !user_locked[static_cast<std::size_t>(v)]) {
-          const double cost = metric.removal_cost(T, v);
+          const double cost = metric.removal_cost(T, v, scratch);
           if (std::isfinite(cost)) order.emplace_back(cost, v);
         }
     } else {
