@@ -454,12 +454,14 @@ std::string cli_name(fem::CoarseOperatorKind kind) { return name_of(kOperatorNam
 // ---- output -----------------------------------------------------------------------------------------
 
 void check_output(const std::string& path, bool overwrite, const std::string& option) {
-  std::error_code ec;
-  if (!overwrite && fs::exists(path, ec))
-    throw AppError(kNotWritten, option + " " + path + ": exists already (--force overwrites)");
-  const fs::path parent = fs::path(path).parent_path();
-  if (!parent.empty() && !fs::is_directory(parent, ec))
-    throw AppError(kNotWritten, option + " " + path + ": directory " + parent.string() + " does not exist");
+  switch (ice::check_writable(path, overwrite)) {
+    case ice::WriteCheck::ok: return;
+    case ice::WriteCheck::exists:
+      throw AppError(kNotWritten, option + " " + path + ": exists already (--force overwrites)");
+    case ice::WriteCheck::no_directory:
+      throw AppError(kNotWritten,
+                     option + " " + path + ": directory " + fs::path(path).parent_path().string() + " does not exist");
+  }
 }
 
 void write_json_file(const std::string& path, const nlohmann::json& report, bool overwrite) {

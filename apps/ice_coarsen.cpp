@@ -228,8 +228,7 @@ int main(int argc, char** argv) {
     if (fs::exists(outdir, ec) && !fs::is_directory(outdir, ec))
       throw app::AppError(app::kNotWritten, "--output " + outdir + ": exists and is not a directory");
     for (const auto& path : outputs)
-      if (!force && fs::exists(path, ec))
-        throw app::AppError(app::kNotWritten, "--output " + path + ": exists already (--force overwrites)");
+      if (fs::is_directory(outdir, ec)) app::check_output(path, force, "--output");  // else made below
     if (!report_path.empty()) app::check_output(report_path, force, "--report");
 
     app::Stopwatch clock;

@@ -18,10 +18,13 @@
 #include "ice/mesh_io.h"
 #include "ice/mesh_repair.h"
 #include "ice/mesh_validation.h"
+#include "app_common.h"
 
 namespace {
 
-enum ExitCode { kClean = 0, kUnreadable = 1, kDefective = 2, kNotWritten = 3, kUsage = 4 };
+using app::kDefective;
+using app::kNotWritten;
+using app::kUnreadable;
 
 constexpr std::size_t kComponentsShown = 10;
 
@@ -138,8 +141,7 @@ int describe_intrinsic_mesh(const std::string& input, bool json) {
   j["valid"] = problem.empty();
   if (!problem.empty()) j["problem"] = problem;
   if (T) {
-    constexpr double kPi = 3.14159265358979323846;
-    double smallest = kPi, largest = 0;
+    double smallest = ice::kPi, largest = 0;
     ice::Index non_delaunay = 0, boundary_edges = 0;
     for (ice::Index h = 0; h < T->num_halfedge_slots(); ++h) {
       if (!T->halfedge_alive(h)) continue;
@@ -155,9 +157,9 @@ int describe_intrinsic_mesh(const std::string& input, bool json) {
     j["euler_characteristic"] = T->euler_characteristic();
     j["total_area"] = T->total_area();
     j["total_curvature"] = T->total_curvature();
-    j["gauss_bonnet_2_pi_chi"] = 2 * kPi * T->euler_characteristic();
-    j["min_angle_degrees"] = smallest * 180 / kPi;
-    j["max_angle_degrees"] = largest * 180 / kPi;
+    j["gauss_bonnet_2_pi_chi"] = 2 * ice::kPi * T->euler_characteristic();
+    j["min_angle_degrees"] = smallest * 180 / ice::kPi;
+    j["max_angle_degrees"] = largest * 180 / ice::kPi;
     j["non_delaunay_edges"] = non_delaunay;
   }
   if (json) {
@@ -175,8 +177,10 @@ int describe_intrinsic_mesh(const std::string& input, bool json) {
                 << " non-Delaunay edges\n";
     std::cout << "status: " << (problem.empty() ? "valid" : "INVALID: " + problem) << '\n';
   }
-  return problem.empty() ? kClean : kDefective;
+  return problem.empty() ? app::kOk : kDefective;
 }
+
+int run(const std::string& input, const std::string& output, bool json, bool repair, bool weld, bool force);
 
 }  // namespace
 
@@ -190,26 +194,22 @@ int main(int argc, char** argv) {
   app.add_flag("--weld", weld, "With --repair: also weld vertices with exactly equal positions");
   app.add_option("--output,-o", output, "Write the (repaired) mesh here if it is clean (.obj/.off/.ply/.stl)");
   app.add_flag("--force", force, "Overwrite the output file if it exists");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    app.exit(e);
-    return kUsage;
-  }
-  if (weld && !repair) {
-    std::cerr << "ice-info: --weld needs --repair\n";
-    return kUsage;
-  }
+  if (const int status = app::parse_command_line(app, argc, argv); status >= 0) return status;
+  return app::run_tool("ice-info", [&] { return run(input, output, json, repair, weld, force); });
+}
 
+namespace {
+
+// The tool after the command line: read, validate, repair, report, write. Exit statuses as in
+// app_common.h (errors that reach run_tool are reported there).
+int run(const std::string& input, const std::string& output, bool json, bool repair, bool weld, bool force) {
+  if (weld && !repair) throw app::AppError(app::kUsage, "--weld needs --repair");
   if (input.size() > 4 && input.compare(input.size() - 4, 4, ".ilm") == 0) {
-    if (repair || !output.empty()) {
-      std::cerr << "ice-info: --repair and --output apply to extrinsic meshes, not to .ilm files\n";
-      return kUsage;
-    }
+    if (repair || !output.empty())
+      throw app::AppError(app::kUsage, "--repair and --output apply to extrinsic meshes, not to .ilm files");
     return describe_intrinsic_mesh(input, json);
   }
+  if (!output.empty()) app::check_output(output, force, "--output");  // before any work, as every tool does
   const auto start = std::chrono::steady_clock::now();
   ice::MeshFile file;
   try {
@@ -270,20 +270,17 @@ int main(int argc, char** argv) {
     if (!output.empty()) std::cerr << "ice-info: not writing " << output << '\n';
     return kDefective;
   }
-  if (!output.empty()) {
-    try {
-      ice::TriangleMesh mesh;
-      const ice::PolygonSoup& soup = repair ? repaired.soup : file.soup;
-      mesh.V = soup.V;
-      mesh.F.resize(static_cast<Eigen::Index>(soup.polygons.size()), 3);
-      for (std::size_t f = 0; f < soup.polygons.size(); ++f)
-        for (int k = 0; k < 3; ++k) mesh.F(f, k) = soup.polygons[f][k];
-      ice::write_mesh(output, mesh, {force, false});
-      if (!json) std::cout << "wrote " << output << '\n';
-    } catch (const ice::MeshError& e) {
-      std::cerr << "ice-info: " << e.what() << (force ? "" : " (--force overwrites)") << '\n';
-      return kNotWritten;
-    }
+  if (!output.empty()) {  // a write error reaches run_tool: exit 3 naming the file
+    ice::TriangleMesh mesh;
+    const ice::PolygonSoup& soup = repair ? repaired.soup : file.soup;
+    mesh.V = soup.V;
+    mesh.F.resize(static_cast<Eigen::Index>(soup.polygons.size()), 3);
+    for (std::size_t f = 0; f < soup.polygons.size(); ++f)
+      for (int k = 0; k < 3; ++k) mesh.F(f, k) = soup.polygons[f][k];
+    ice::write_mesh(output, mesh, {force, false});
+    if (!json) std::cout << "wrote " << output << '\n';
   }
-  return kClean;
+  return app::kOk;
 }
+
+}  // namespace

@@ -3,6 +3,7 @@
 
 #include <cmath>
 
+#include "ice/triangle_geometry.h"
 #include "ice/coarsen.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
@@ -13,7 +14,7 @@ using namespace ice;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ice::kPi;
 
 // The clean real meshes, small to large: the project set (boundaries, three components, genus 1-9, CAD
 // parts, a surface with four holes), then the extended set's when present.

@@ -15,12 +15,13 @@
 #include "fem/cholesky.h"
 #include "fem/geometry.h"
 #include "fem/operators.h"
+#include "ice/triangle_geometry.h"
 #include "ice/mesh_generators.h"
 #include "test_support.h"
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ice::kPi;
 
 Eigen::Vector3d position(const ice::TriangleMesh& mesh, int v) { return mesh.V.row(v).transpose(); }
 

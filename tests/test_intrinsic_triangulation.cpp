@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 
+#include "ice/triangle_geometry.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
@@ -20,7 +21,7 @@ using namespace ice;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ice::kPi;
 
 // Extrinsic cotangent weight of the edge (a, b) with opposite corner c: cot of the angle at c.
 double extrinsic_cot(const Positions& V, int a, int b, int c) {

@@ -9,11 +9,12 @@
 
 #include <Eigen/Geometry>
 
+#include "ice/triangle_geometry.h"
 #include "ice/mesh_generators.h"
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ice::kPi;
 
 /// Directed-edge census computed independently of the library's edge code.
 struct Census {

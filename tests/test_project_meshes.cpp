@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "ice/triangle_geometry.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "mesh_figures.h"
@@ -20,7 +21,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ice::kPi;
 
 // file, nV, nF, loops, components, NM edges, NM vertices, genus, zero-area, dup positions, inconsistent,
 // unreferenced, duplicate faces, orientable. The committed meshes' rows are those of the extended set's

@@ -1,3 +1,4 @@
+#include "ice/triangle_geometry.h"
 #include "ice/error_metric.h"
 
 #include <algorithm>
@@ -5,7 +6,6 @@
 
 namespace ice {
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 // e^{iθ} for the transport of the error metric, by quadrant reduction and Taylor polynomials on
 // [−π/4, π/4] (truncation below 1e-11, far below what the metric's flattening tolerance of 1e-7

@@ -1,3 +1,4 @@
+#include "ice/triangle_geometry.h"
 #include "ice/mesh_generators.h"
 
 #include <algorithm>
@@ -13,7 +14,6 @@
 namespace ice {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 /// Unique undirected edges of a triangle list, with the faces (and corners) that use them.
 struct EdgeTopology {

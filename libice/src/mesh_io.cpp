@@ -1,4 +1,5 @@
 #include "ice/mesh_io.h"
+#include "ice/scalar_field_io.h"
 
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/importer/BaseImporter.hh>
@@ -704,18 +705,39 @@ void put_binary(std::ostream& out, T value) {
 
 }  // namespace
 
+WriteCheck check_writable(const std::string& path, bool overwrite) {
+  std::error_code ec;
+  if (!overwrite && fs::exists(path, ec)) return WriteCheck::exists;
+  const fs::path parent = fs::path(path).parent_path();
+  if (!parent.empty() && !fs::is_directory(parent, ec)) return WriteCheck::no_directory;
+  return WriteCheck::ok;
+}
+
+void require_writable(const std::string& path, bool overwrite) {
+  switch (check_writable(path, overwrite)) {
+    case WriteCheck::ok: return;
+    case WriteCheck::exists:
+      throw MeshError(MeshError::Kind::Unwritable, path, "exists already (allow overwriting to replace it)");
+    case WriteCheck::no_directory:
+      throw MeshError(MeshError::Kind::Unwritable, path,
+                      "directory " + fs::path(path).parent_path().string() + " does not exist");
+  }
+}
+
 void write_mesh(const std::string& path, const TriangleMesh& mesh, const WriteOptions& options) {
   const std::string ext = lower_extension(path);
   if (ext != "obj" && ext != "off" && ext != "ply" && ext != "stl")
     throw MeshError(MeshError::Kind::Unwritable, path, "unsupported output format '." + ext + "'");
-  std::error_code ec;
-  if (!options.overwrite && fs::exists(path, ec))
-    throw MeshError(MeshError::Kind::Unwritable, path, "exists already (allow overwriting to replace it)");
+  require_writable(path, options.overwrite);
   const Eigen::Index nv = mesh.V.rows(), nf = mesh.F.rows();
   if (mesh.V.cols() != 3 || mesh.F.cols() != 3 || (nf > 0 && (mesh.F.minCoeff() < 0 || mesh.F.maxCoeff() >= nv)))
     throw MeshError(MeshError::Kind::Unwritable, path, "invalid mesh (needs n×3 positions and in-range n×3 faces)");
 
-  const bool binary = options.binary && (ext == "ply" || ext == "stl");
+  if (ext == "ply") {  // the one PLY writer (ice/scalar_field_io.h), here without fields
+    write_ply_with_fields(path, mesh, {}, {true, options.binary});
+    return;
+  }
+  const bool binary = options.binary && ext == "stl";
   std::ofstream out(path, binary ? std::ios::binary : std::ios::out);
   if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "cannot be opened for writing");
   out.precision(std::numeric_limits<double>::max_digits10);  // exact round trip of doubles
@@ -728,24 +750,6 @@ void write_mesh(const std::string& path, const TriangleMesh& mesh, const WriteOp
     out << "OFF\n" << nv << ' ' << nf << " 0\n";
     for (Eigen::Index i = 0; i < nv; ++i) out << mesh.V(i, 0) << ' ' << mesh.V(i, 1) << ' ' << mesh.V(i, 2) << '\n';
     for (Eigen::Index f = 0; f < nf; ++f) out << "3 " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << '\n';
-  } else if (ext == "ply") {
-    out << "ply\nformat " << (binary ? "binary_little_endian" : "ascii") << " 1.0\n"
-        << "element vertex " << nv << "\nproperty double x\nproperty double y\nproperty double z\n"
-        << "element face " << nf << "\nproperty list uchar int vertex_indices\nend_header\n";
-    for (Eigen::Index i = 0; i < nv; ++i) {
-      if (binary)
-        for (int k = 0; k < 3; ++k) put_binary(out, mesh.V(i, k));
-      else
-        out << mesh.V(i, 0) << ' ' << mesh.V(i, 1) << ' ' << mesh.V(i, 2) << '\n';
-    }
-    for (Eigen::Index f = 0; f < nf; ++f) {
-      if (binary) {
-        put_binary(out, static_cast<std::uint8_t>(3));
-        for (int k = 0; k < 3; ++k) put_binary(out, static_cast<std::int32_t>(mesh.F(f, k)));
-      } else {
-        out << "3 " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << '\n';
-      }
-    }
   } else {  // stl
     auto normal = [&](Eigen::Index f) {
       const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));

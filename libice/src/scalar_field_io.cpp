@@ -55,8 +55,8 @@ void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, co
       fail(message.str());
     }
   }
+  require_writable(path, options.overwrite);
   std::error_code ec;
-  if (!options.overwrite && fs::exists(path, ec)) fail("exists already (allow overwriting to replace it)");
 
   std::ofstream out(path, options.binary ? std::ios::binary : std::ios::out);
   if (!out) fail("cannot be opened for writing");

@@ -1,13 +1,10 @@
+#include "ice/triangle_geometry.h"
 #include "ice/vertex_star.h"
 
 #include <cmath>
 #include <type_traits>
 
 namespace ice {
-namespace {
-constexpr double kPi = 3.14159265358979323846;
-}
-
 double VertexStar::flat_angle_sum() const { return boundary ? kPi : 2 * kPi; }
 
 void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star) {

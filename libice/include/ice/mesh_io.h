@@ -55,6 +55,14 @@ class MeshError : public std::runtime_error {
   std::string path_;
 };
 
+/// Whether an output may be written at `path`: the one overwrite policy of ICE's writers and of the
+/// tools' checks before any work (an existing file is replaced only when `overwrite`; the directory
+/// must exist).
+enum class WriteCheck { ok, exists, no_directory };
+WriteCheck check_writable(const std::string& path, bool overwrite);
+/// Throws MeshError (Unwritable) naming the path unless check_writable(path, overwrite) is ok.
+void require_writable(const std::string& path, bool overwrite);
+
 /// A file's raw content.
 struct MeshFile {
   PolygonSoup soup;

@@ -15,6 +15,9 @@
 
 namespace ice {
 
+/// π, to double precision (one definition for libice, libfem and the tools).
+constexpr double kPi = 3.14159265358979323846;
+
 /// A point or vector of the plane (used for local layouts of faces and diamonds).
 struct Vec2 {
   double x = 0, y = 0;
