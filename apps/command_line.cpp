@@ -1,0 +1,300 @@
+#include "command_line.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <new>
+#include <sstream>
+
+#include "ice/mesh_io.h"
+#include "reports.h"
+
+namespace app {
+namespace {
+
+// The command-line names of the method choices; CLI11 parses them straight into the enums.
+const std::map<std::string, ice::CoarseningMethod> kMethodNames{{"ice", ice::CoarseningMethod::ice},
+                                                                {"qem", ice::CoarseningMethod::qem}};
+const std::map<std::string, ice::QemGeometry> kQemGeometryNames{{"extrinsic", ice::QemGeometry::extrinsic},
+                                                                {"idt", ice::QemGeometry::intrinsic_delaunay}};
+const std::map<std::string, fem::CoarseOperatorKind> kOperatorNames{{"intrinsic", fem::CoarseOperatorKind::intrinsic},
+                                                                    {"galerkin", fem::CoarseOperatorKind::galerkin}};
+
+template <class Enum>
+std::string name_of(const std::map<std::string, Enum>& names, Enum value) {
+  for (const auto& [name, entry] : names)
+    if (entry == value) return name;
+  return "?";
+}
+
+}  // namespace
+
+namespace fs = std::filesystem;
+
+// ---- exit codes and errors ------------------------------------------------------------------------
+
+int parse_command_line(CLI::App& cli, int argc, char** argv) {
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return cli.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return cli.exit(e);
+  } catch (const CLI::ParseError& e) {
+    cli.exit(e);
+    return kUsage;
+  }
+  return -1;
+}
+
+int run_tool(const std::string& tool, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const AppError& e) {
+    std::cerr << tool << ": " << e.what() << '\n';
+    return e.code();
+  } catch (const ice::MeshError& e) {
+    std::cerr << tool << ": " << e.what() << '\n';
+    switch (e.kind()) {
+      case ice::MeshError::Kind::Unreadable: return kUnreadable;
+      case ice::MeshError::Kind::Defective:
+        std::cerr << tool << ": (--repair applies the safe repairs; `ice-info --repair` shows what they do)\n";
+        return kDefective;
+      case ice::MeshError::Kind::Unwritable: return kNotWritten;
+    }
+    return kFailed;
+  } catch (const std::bad_alloc&) {
+    std::cerr << tool << ": out of memory (peak resident set " << fixed(peak_rss_mb(), 0) << " MiB)\n";
+    return kFailed;
+  } catch (const std::exception& e) {
+    std::cerr << tool << ": failed: " << e.what() << '\n';
+    return kFailed;
+  }
+}
+
+void warn(const std::string& tool, const std::string& message) { std::cerr << tool << ": warning: " << message << '\n'; }
+
+// ---- option checks and lists ----------------------------------------------------------------------
+
+namespace {
+/// Whole-token parses for the option checks (no trailing junk, finite).
+bool parse_number(const std::string& text, double& value) {
+  char* end = nullptr;
+  value = std::strtod(text.c_str(), &end);
+  return !text.empty() && end == text.c_str() + text.size() && std::isfinite(value);
+}
+/// A number as a person writes it: 0.01, 0.9, 1e-08.
+std::string shortest(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+bool parse_integer(const std::string& text, long long& value) {
+  double number = 0;
+  if (!parse_number(text, number) || number != std::floor(number) || std::abs(number) > 9e15) return false;
+  value = static_cast<long long>(number);
+  return true;
+}
+}  // namespace
+
+CLI::Validator positive_number() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        double value = 0;
+        if (!parse_number(text, value)) return "'" + text + "' is not a number";
+        return value > 0 ? "" : text + " is not allowed: give a number > 0";
+      },
+      "> 0");
+}
+
+CLI::Validator non_negative_integer() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        long long value = 0;
+        if (!parse_integer(text, value)) return "'" + text + "' is not a whole number";
+        return value >= 0 ? "" : text + " is not allowed: give a whole number >= 0";
+      },
+      ">= 0");
+}
+
+CLI::Validator number_between(double low, double high) {
+  return CLI::Validator(
+      [low, high](std::string& text) -> std::string {
+        double value = 0;
+        if (!parse_number(text, value)) return "'" + text + "' is not a number";
+        return value >= low && value <= high ? ""
+                                             : text + " is out of range: give a number from " + shortest(low) + " to " +
+                                                   shortest(high);
+      },
+      "in [" + shortest(low) + ", " + shortest(high) + "]");
+}
+
+CLI::Validator integer_between(long long low, long long high) {
+  return CLI::Validator(
+      [low, high](std::string& text) -> std::string {
+        long long value = 0;
+        if (!parse_integer(text, value)) return "'" + text + "' is not a whole number";
+        return value >= low && value <= high ? ""
+                                             : text + " is out of range: give a whole number from " + std::to_string(low) +
+                                                   " to " + std::to_string(high);
+      },
+      "in [" + std::to_string(low) + ", " + std::to_string(high) + "]");
+}
+
+std::vector<long long> parse_index_list(const std::string& text, const std::string& what) {
+  std::vector<long long> out;
+  std::string token;
+  const auto flush = [&] {
+    if (token.empty()) return;
+    std::size_t used = 0;
+    long long value = 0;
+    try {
+      value = std::stoll(token, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != token.size()) throw AppError(kUsage, what + ": '" + token + "' is not a vertex index");
+    out.push_back(value);
+    token.clear();
+  };
+  for (char c : text) {
+    if (c == ',' || c == ' ' || c == '\t')
+      flush();
+    else
+      token += c;
+  }
+  flush();
+  if (out.empty()) throw AppError(kUsage, what + ": no vertex index given");
+  return out;
+}
+
+// ---- options and names -----------------------------------------------------------------------------
+
+void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
+  vertices_option = cli.add_option("--vertices,-n", vertices, "Coarsen down to N vertices (1 <= N <= input vertices)")
+                       ->check(integer_between(1, std::numeric_limits<int>::max()));
+  ratio_option = cli.add_option("--ratio,-r", ratio, "Coarsen down to ceil(R * input vertices), 0 < R <= 1 (e.g. 0.05)")
+                     ->check(CLI::Validator(
+                         [](std::string& text) -> std::string {
+                           double value = 0;
+                           if (!parse_number(text, value)) return "'" + text + "' is not a number";
+                           return value > 0 && value <= 1 ? "" : text + " is out of range: it must be in (0, 1], e.g. 0.05 for 5%";
+                         },
+                         "in (0, 1]"));
+  cli.add_option("--min-vertices", min_vertices,
+                 "With --ratio: keep at least M vertices (at most all of them), e.g. --ratio 0.05 --min-vertices 1000");
+  if (with_max_error)
+    cli.add_option("--max-error,-e", max_error,
+                   "Remove vertices while the cheapest removal costs at most E (ICE error metric); "
+                   "alone it coarsens as far as possible under E, with --vertices/--ratio it stops at whichever comes first");
+  cli.add_option("--area-weight,-w", area_weight,
+                 "Weight w in [0,1] of the area term of the ICE error metric (0: curvature only; "
+                 "more weight spreads vertices more evenly)")
+      ->check(number_between(0, 1))
+      ->capture_default_str();
+  cli.add_option("--method", method,
+                 "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
+                 "Decimater with quadrics, input vertices mapped by closest-point projection)")
+      ->transform(CLI::CheckedTransformer(kMethodNames))
+      ->default_str("ice");
+  cli.add_option("--coarsen-threads", threads,
+                 "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = k regions coarsened in parallel, "
+                 "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
+                 "not identical to the serial result); 0 = one per hardware thread")
+      ->check(integer_between(0, 64))
+      ->capture_default_str();
+}
+
+void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
+  const bool has_vertices = vertices_option ? vertices_option->count() > 0 : vertices != 0;
+  const bool has_ratio = ratio_option ? ratio_option->count() > 0 : ratio != 0;
+  const bool has_error = std::isfinite(max_error);
+  if (has_vertices && has_ratio) throw AppError(kUsage, "give either --vertices or --ratio, not both");
+  if (!has_vertices && !has_ratio && !has_error)
+    throw AppError(kUsage, "say how far to coarsen: --vertices N or --ratio R (e.g. --ratio 0.05)");
+  if (has_vertices && (vertices < 1 || vertices > n))
+    throw AppError(kUsage, "--vertices " + std::to_string(vertices) + " is out of range: the mesh has " + thousands(n) +
+                               " vertices (valid: 1.." + std::to_string(n) + ")");
+  if (has_ratio && !(ratio > 0 && ratio <= 1))
+    throw AppError(kUsage, "--ratio " + fixed(ratio, 6) + " is out of range: it must be in (0, 1], e.g. 0.05 for 5%");
+  if (has_error && !(max_error >= 0)) throw AppError(kUsage, "--max-error must be >= 0");
+  if (has_error && method == ice::CoarseningMethod::qem)
+    throw AppError(kUsage, "--max-error is a bound on the ICE error metric; with --method qem give --vertices or --ratio");
+  if (min_vertices != 0 && !has_ratio) throw AppError(kUsage, "--min-vertices goes with --ratio");
+  if (min_vertices < 0) throw AppError(kUsage, "--min-vertices must be positive");
+  if (!(area_weight >= 0 && area_weight <= 1)) throw AppError(kUsage, "--area-weight must be in [0, 1]");
+  options.target_vertices = has_vertices ? static_cast<ice::Index>(vertices) : 0;
+  options.target_ratio = has_ratio ? ratio : 0;
+  if (has_ratio && min_vertices > 0) {  // the same rounding as ice::coarsen, then the floor
+    const long long by_ratio = static_cast<long long>(std::ceil(ratio * static_cast<double>(n)));
+    options.target_vertices = static_cast<ice::Index>(std::min(n, std::max(by_ratio, min_vertices)));
+  }
+  options.max_error = max_error;
+  options.area_weight = area_weight;
+  options.threads = threads;
+}
+
+std::string cli_name(ice::CoarseningMethod method) { return name_of(kMethodNames, method); }
+std::string cli_name(ice::QemGeometry geometry) { return name_of(kQemGeometryNames, geometry); }
+std::string cli_name(fem::CoarseOperatorKind kind) { return name_of(kOperatorNames, kind); }
+
+
+void check_output(const std::string& path, bool overwrite, const std::string& option) {
+  switch (ice::check_writable(path, overwrite)) {
+    case ice::WriteCheck::ok: return;
+    case ice::WriteCheck::exists:
+      throw AppError(kNotWritten, option + " " + path + ": exists already (--force overwrites)");
+    case ice::WriteCheck::no_directory:
+      throw AppError(kNotWritten,
+                     option + " " + path + ": directory " + fs::path(path).parent_path().string() + " does not exist");
+  }
+}
+
+void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
+  cli.add_option("--operators", operators,
+                 "Coarse operators: 'intrinsic' (cotan Laplacian and mass from the coarse edge lengths) or "
+                 "'galerkin' (P^T L P and P^T M P from the fine operators)")
+      ->transform(CLI::CheckedTransformer(kOperatorNames))
+      ->default_str("intrinsic");
+}
+
+void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
+  cli.add_option("mesh", mesh, "Input mesh (.obj, .off, .ply, .stl); must be connected")->required();
+  target.add_to(cli, false);
+  add_operators_option(cli, operators);
+  cli.add_option("--qem-operators", qem_geometry,
+                 "With --method qem: coarse geometry from the QEM mesh's positions ('extrinsic') or from its "
+                 "intrinsic Delaunay triangulation ('idt', same vertices, so the same P)")
+      ->transform(CLI::CheckedTransformer(kQemGeometryNames))
+      ->default_str("extrinsic");
+  cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
+               "Fine reference (and fine operators of the proxy) on the intrinsic Delaunay triangulation of the "
+               "input (default), or on the input triangles as they are (--no-fine-idt)")
+      ->capture_default_str();
+  cli.add_option("--output,-o", output, "Write the input mesh with the per-vertex fields " + field_names + " as PLY");
+  cli.add_flag("--ascii", ascii, "With --output: ASCII PLY instead of binary little endian");
+  cli.add_flag("--no-reference", no_reference, "Skip the fine reference solve (no errors, no speed-up)");
+  cli.add_option("--report", report, "Write a JSON report (sizes, timings per phase, errors, memory, BLAS)");
+  cli.add_flag("--quiet,-q", quiet, "No progress bar");
+  cli.add_flag("--force", force, "Overwrite existing output files");
+  cli.add_flag("--repair", repair, "Apply the safe mesh repairs first (see ice-info --repair)");
+}
+
+void PdeOptions::check_outputs() const {
+  if (!output.empty()) check_output(output, force, "--output");
+  if (!report.empty()) check_output(report, force, "--report");
+  if (!output.empty() && !report.empty() && fs::path(output) == fs::path(report))
+    throw AppError(kUsage, "--output and --report name the same file");
+}
+
+ice::FineGeometry PdeOptions::fine_geometry() const {
+  return fine_idt ? ice::FineGeometry::intrinsic_delaunay : ice::FineGeometry::input;
+}
+
+}  // namespace app

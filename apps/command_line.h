@@ -1,0 +1,121 @@
+#pragma once
+/// \file command_line.h
+/// The command line of the ICE tools: exit codes and the error handling that produces them, option
+/// checks in the tools' own words, the coarsening-target and PDE options, and the names of the
+/// method enums. Reports and formatting: reports.h; what the tools share beyond that: app_common.h.
+#include <functional>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "fem/coarse_proxy.h"
+#include "ice/coarse_space.h"
+#include "ice/coarsen.h"
+
+namespace app {
+
+// ---- exit codes and errors ------------------------------------------------------------------------
+
+/// Exit statuses of every tool (ice-info uses the first five with the same meaning).
+enum ExitCode {
+  kOk = 0,
+  kUnreadable = 1,  ///< an input file (mesh, right-hand side, lock list) is missing or unreadable
+  kDefective = 2,   ///< the mesh is refused by the loading policy or unsuitable for the tool
+  kNotWritten = 3,  ///< an output exists (and no --force) or could not be written
+  kUsage = 4,       ///< bad command line: unknown option, bad value, index out of range, ...
+  kFailed = 5,      ///< the computation failed (solver breakdown, --validate found a problem, ...)
+};
+
+/// An error with the exit status it should produce; what() is printed after "<tool>: ".
+class AppError : public std::runtime_error {
+ public:
+  AppError(ExitCode code, const std::string& message) : std::runtime_error(message), code_(code) {}
+  ExitCode code() const { return code_; }
+
+ private:
+  ExitCode code_;
+};
+
+/// Parses the command line. Returns -1 to go on, or the status to exit with (0 after --help,
+/// kUsage after a parse error, whose message CLI11 has printed).
+int parse_command_line(CLI::App& cli, int argc, char** argv);
+
+/// Runs `body` and turns exceptions into "<tool>: message" on stderr and the matching exit status:
+/// AppError → its code, ice::MeshError → kUnreadable / kDefective / kNotWritten by kind,
+/// std::bad_alloc and any other std::exception → kFailed.
+int run_tool(const std::string& tool, const std::function<int()>& body);
+
+/// Prints "<tool>: warning: message" on stderr.
+void warn(const std::string& tool, const std::string& message);
+
+// ---- option checks and lists ----------------------------------------------------------------------
+
+/// CLI11 checks that say in the tools' own words what an option allows (CLI11 prefixes the option
+/// name): a number > 0, an integer >= 0, a number in [low, high], an integer in [low, high].
+CLI::Validator positive_number();
+CLI::Validator non_negative_integer();
+CLI::Validator number_between(double low, double high);
+CLI::Validator integer_between(long long low, long long high);
+/// Parses "3,17,42" (commas and/or spaces). Throws AppError(kUsage) naming `what` on junk.
+std::vector<long long> parse_index_list(const std::string& text, const std::string& what);
+
+/// The stopping rule chosen on the command line: exactly one of --vertices, --ratio, --max-error.
+struct TargetOptions {
+  long long vertices = 0;
+  double ratio = 0;
+  long long min_vertices = 0;
+  double max_error = std::numeric_limits<double>::infinity();
+  double area_weight = 0;
+  ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< --method ice|qem
+  int threads = 1;             ///< ICE coarsening threads (ice::CoarsenOptions::threads)
+  /// The options as added by add_to: whether a target was given at all (a given 0 is out of range,
+  /// not "no target").
+  const CLI::Option* vertices_option = nullptr;
+  const CLI::Option* ratio_option = nullptr;
+  /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight, --method
+  /// and --coarsen-threads.
+  void add_to(CLI::App& cli, bool with_max_error);
+  /// Checks the values against an input of n vertices and fills `options` (target, error, area
+  /// weight, threads). Throws AppError(kUsage) with a clear message on a bad combination or value.
+  void apply(ice::CoarsenOptions& options, long long n) const;
+};
+
+/// The command-line spelling of each method choice (--method, --qem-operators, --operators); the
+/// options parse these names straight into the enums.
+std::string cli_name(ice::CoarseningMethod method);
+std::string cli_name(ice::QemGeometry geometry);
+std::string cli_name(fem::CoarseOperatorKind kind);
+
+/// Throws AppError(kNotWritten) if `path` exists and !overwrite (the tools call it for every output
+/// before doing any work), or if its directory does not exist (ice::check_writable's policy).
+void check_output(const std::string& path, bool overwrite, const std::string& option);
+
+/// Adds --operators intrinsic|galerkin.
+void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators);
+
+// ---- the command line both PDE tools share (geodesic-coarse, poisson-coarse) ---------------------------
+
+/// The command-line options both PDE tools share.
+struct PdeOptions {
+  std::string mesh;
+  TargetOptions target;
+  fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::intrinsic;
+  ice::QemGeometry qem_geometry = ice::QemGeometry::extrinsic;  ///< --qem-operators extrinsic|idt
+  bool fine_idt = true;
+  std::string output;  ///< PLY
+  bool no_reference = false;
+  std::string report;  ///< JSON
+  bool quiet = false, force = false, repair = false, ascii = false;
+  /// Adds every shared option (the mesh positional, the target, --operators, --method, --area-weight,
+  /// --fine-idt/--no-fine-idt, --output, --ascii, --no-reference, --report, -q, --force, --repair).
+  void add_to(CLI::App& cli, const std::string& field_names);
+  /// Refuses existing outputs (without --force) and bad extensions before any work.
+  void check_outputs() const;
+  /// The fine discretisation chosen by --fine-idt / --no-fine-idt.
+  ice::FineGeometry fine_geometry() const;
+};
+
+}  // namespace app

@@ -1,0 +1,203 @@
+#include "reports.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <new>
+#include <sstream>
+
+#include "fem/blas_info.h"
+
+namespace app {
+// ---- time, memory, progress -------------------------------------------------------------------------
+
+double peak_rss_mb() {
+  struct rusage usage {};
+  if (getrusage(RUSAGE_SELF, &usage) != 0) return 0;
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
+}
+
+bool stderr_is_terminal() { return isatty(fileno(stderr)) != 0; }
+
+void ProgressBar::update(double fraction, const std::string& detail) {
+  if (!enabled_) return;
+  if (drawn_ && since_draw_.seconds() < 0.1) return;
+  since_draw_.lap();
+  fraction = std::min(1.0, std::max(0.0, fraction));
+  constexpr int kWidth = 30;
+  const int filled = static_cast<int>(std::lround(fraction * kWidth));
+  std::string bar(static_cast<std::size_t>(filled), '#');
+  bar.resize(kWidth, '.');
+  std::cerr << '\r' << label_ << " [" << bar << "] " << std::setw(3) << std::lround(100 * fraction) << "% " << detail
+            << "\x1b[K" << std::flush;  // erase the rest of the line
+  drawn_ = true;
+}
+
+void ProgressBar::finish() {
+  if (!drawn_) return;
+  std::cerr << "\r\x1b[K" << std::flush;
+  drawn_ = false;
+}
+
+// ---- formatting -------------------------------------------------------------------------------------
+
+std::string thousands(long long value) {
+  std::string digits = std::to_string(value < 0 ? -value : value);
+  std::string out;
+  for (std::size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return value < 0 ? "-" + out : out;
+}
+
+std::string fixed(double value, int digits) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(digits) << value;
+  return s.str();
+}
+
+std::string percent(double fraction) {
+  const double p = 100 * fraction;
+  return fixed(p, std::abs(p) < 10 ? 2 : 1) + "%";
+}
+
+std::string percent(const nlohmann::json& fraction) {
+  return fraction.is_number() ? percent(static_cast<double>(fraction)) : "undefined";
+}
+
+// ---- JSON reports ---------------------------------------------------------------------------------
+
+nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::CompactMesh& coarse) {
+  nlohmann::json failures;
+  for (int s = 0; s < static_cast<int>(result.failures_by_status.size()); ++s)
+    if (result.failures_by_status[s] > 0) {
+      std::string key = ice::to_string(static_cast<ice::RemovalStatus>(s));
+      std::replace(key.begin(), key.end(), ' ', '_');
+      failures[key] = result.failures_by_status[s];
+    }
+  const auto finite_or_null = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+  return {{"vertices", coarse.to_input.size()},
+          {"faces", coarse.F.rows()},
+          {"stop_reason", ice::to_string(result.stop_reason)},
+          {"removed", result.removed},
+          {"failed_removals", result.failed_removals},
+          {"failures_by_status", failures.is_null() ? nlohmann::json::object() : failures},
+          {"last_cost", result.last_cost},
+          {"max_cost", result.max_cost},
+          {"next_cost", finite_or_null(result.next_cost)},
+          {"parallel_removed", result.parallel_removed}};
+}
+
+nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
+  if (summary.ice) {
+    nlohmann::json j = coarsen_json(*summary.ice, ice::CompactMesh{});
+    j["vertices"] = summary.coarse_vertices;
+    j["faces"] = summary.coarse_faces;
+    return j;
+  }
+  return {{"vertices", summary.coarse_vertices},
+          {"faces", summary.coarse_faces},
+          {"stop_reason", ice::to_string(summary.target_reached ? ice::StopReason::TargetReached
+                                                                : ice::StopReason::NothingRemovable)},
+          {"removed", summary.removed()}};
+}
+
+nlohmann::json qem_json(const ice::QemOutcome& qem, bool target_reached) {
+  return {{"mapping", "closest point on the coarse mesh (AABB tree), survivors exact"},
+          {"collapses", qem.collapses},
+          {"target_reached", target_reached},
+          {"normal_guard_relaxed", qem.guard_relaxed},
+          {"max_distance", qem.max_distance},
+          {"mean_distance", qem.mean_distance},
+          {"decimate_s", qem.decimate_seconds},
+          {"map_s", qem.map_seconds},
+          {"operators", cli_name(qem.geometry)},
+          {"idt_flips", qem.intrinsic_delaunay_flips}};
+}
+
+void write_json_file(const std::string& path, const nlohmann::json& report, bool overwrite) {
+  check_output(path, overwrite, "--report");
+  std::ofstream out(path);
+  out << report.dump(2) << '\n';
+  out.flush();
+  if (!out) throw AppError(kNotWritten, path + ": cannot be written");
+}
+
+nlohmann::json report_header(const std::string& tool, const std::string& mesh_path) {
+  return {{"tool", tool}, {"mesh", mesh_path}};
+}
+
+double PdeRun::proxy_total() const {
+  return coarsen + assemble + factor + solve + prolong;
+}
+
+double PdeRun::reference_total() const { return ref_assemble + ref_factor + ref_solve; }
+
+nlohmann::json PdeRun::report() const {
+  nlohmann::json r = report_header(tool, mesh_path);
+  r["method"] = cli_name(coarsening.method);
+  r["operators"] = cli_name(operators);
+  if (coarsening.qem) r["qem"] = qem_json(*coarsening.qem, coarsening.target_reached);
+  r["input"] = {{"vertices", fine_vertices}, {"faces", fine_faces}};
+  r["coarse"] = coarsen_json(coarsening);
+  r["fine_mesh"] = {{"kind", fine_idt ? "intrinsic Delaunay" : "input"},
+                    {"flips", idt_flips},
+                    {"used_by_proxy", proxy_uses_fine_mesh}};
+  nlohmann::json t = {{"load", load},       {"coarsen", coarsen}, {"fine_mesh", fine_mesh}, {"assemble", assemble},
+                      {"factor", factor},   {"solve", solve},     {"prolong", prolong},     {"proxy_total", proxy_total()},
+                      {"per_solve", solve + prolong}, {"write", write}};
+  if (has_reference) {
+    t["reference"] = reference_total();
+    t["reference_phases"] = {{"assemble", ref_assemble}, {"factor", ref_factor}, {"solve", ref_solve}};
+    r["speedup"] = {{"total", reference_total() / std::max(proxy_total(), 1e-12)},
+                    {"per_solve", ref_solve / std::max(solve + prolong, 1e-12)}};
+  }
+  r["timings_s"] = t;
+  r["removals_per_second"] = coarsening.removed() / std::max(coarsen, 1e-9);
+  r["peak_rss_mb"] = peak_rss_mb();
+  r["blas"] = fem::blas_library();
+  return r;
+}
+
+void PdeRun::print_summary(std::ostream& out) const {
+  const long long coarse_vertices = coarsening.coarse_vertices;
+  const bool qem = coarsening.qem.has_value();
+  out << tool << ": " << mesh_path << ": " << thousands(fine_vertices) << " vertices -> " << thousands(coarse_vertices)
+      << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), "
+      << (qem ? "QEM (" + cli_name(coarsening.qem->geometry) + " mesh)" : std::string("ICE")) << ", " << cli_name(operators)
+      << " coarse operators\n";
+  const auto row = [&](const std::string& name, double seconds, const std::string& note = "") {
+    out << "  " << std::left << std::setw(16) << name << std::right << std::setw(10) << fixed(seconds, 4) << " s"
+        << (note.empty() ? "" : "   " + note) << '\n';
+  };
+  row("load", load);
+  row("coarsen", coarsen, thousands(coarsening.removed()) + (qem ? " collapses, " : " removals, ") +
+                              thousands(static_cast<long long>(coarsening.removed() / std::max(coarsen, 1e-9))) + "/s");
+  row("fine mesh", fine_mesh,
+      (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +
+          (proxy_uses_fine_mesh ? " (used by the proxy too; counted in neither total)" : " (for the reference; counted in neither total)"));
+  row("assemble", assemble);
+  row("factor", factor);
+  row("solve", solve);
+  row("prolong", prolong);
+  row("proxy total", proxy_total(), "coarsen+assemble+factor+solve+prolong; per solve " + fixed(solve + prolong, 4) + " s");
+  if (has_reference) {
+    row("fine reference", reference_total(),
+        "assemble " + fixed(ref_assemble, 4) + " + factor " + fixed(ref_factor, 4) + " + solve " + fixed(ref_solve, 4));
+    out << "  speed-up: " << fixed(reference_total() / std::max(proxy_total(), 1e-12), 2) << "x end to end, "
+        << fixed(ref_solve / std::max(solve + prolong, 1e-12), 1) << "x per solve (fine solve "
+        << fixed(ref_solve, 4) << " s vs coarse solve+prolong " << fixed(solve + prolong, 4) << " s)\n";
+  }
+}
+
+}  // namespace app

@@ -1,0 +1,116 @@
+#pragma once
+/// \file reports.h
+/// What the ICE tools report and how: timers, peak memory, the progress bar, number formatting, the
+/// JSON report objects and the PDE tools' run record (phase table, speed-ups).
+#include <chrono>
+#include <ostream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "command_line.h"
+#include "fem/coarse_proxy.h"
+#include "ice/coarse_space.h"
+
+namespace app {
+
+// ---- time, memory, progress -------------------------------------------------------------------------
+
+/// Wall-clock stopwatch (steady clock).
+class Stopwatch {
+ public:
+  Stopwatch() : start_(std::chrono::steady_clock::now()) {}
+  double seconds() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count(); }
+  /// Seconds since construction or the previous lap(), and restarts.
+  double lap() {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - start_).count();
+    start_ = now;
+    return s;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+};
+
+/// Peak resident set size of this process so far, in MiB (getrusage ru_maxrss).
+double peak_rss_mb();
+
+/// True when stderr is a terminal.
+bool stderr_is_terminal();
+
+/// A one-line progress bar on stderr, redrawn at most 10 times per second. Draws nothing when
+/// disabled (construct it with `enabled = !quiet && stderr_is_terminal()`).
+class ProgressBar {
+ public:
+  ProgressBar(std::string label, bool enabled) : label_(std::move(label)), enabled_(enabled) {}
+  ~ProgressBar() { finish(); }
+  ProgressBar(const ProgressBar&) = delete;
+  ProgressBar& operator=(const ProgressBar&) = delete;
+  /// fraction in [0, 1]; detail is printed after the percentage.
+  void update(double fraction, const std::string& detail);
+  /// Clears the line (idempotent).
+  void finish();
+
+ private:
+  std::string label_;
+  bool enabled_;
+  bool drawn_ = false;
+  Stopwatch since_draw_;
+};
+
+// ---- formatting -------------------------------------------------------------------------------------
+
+/// 1234567 → "1,234,567".
+std::string thousands(long long value);
+/// Fixed-point with `digits` decimals.
+std::string fixed(double value, int digits);
+/// A percentage with 2 significant decimals for small values: 0.01234 → "1.23%".
+std::string percent(double fraction);
+/// The same for a report value; null (an undefined relative error) prints as "undefined".
+std::string percent(const nlohmann::json& fraction);
+
+// ---- JSON reports ---------------------------------------------------------------------------------
+
+/// The "coarse" object of the JSON reports: vertices, faces, stop_reason, removed (ICE removals or
+/// QEM collapses), and for ICE its removal details (failed removals by status, costs).
+nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::CompactMesh& coarse);
+nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary);
+
+/// The "qem" object of the JSON reports (mapping, guard, distances, times, geometry of the coarse mesh).
+nlohmann::json qem_json(const ice::QemOutcome& qem, bool target_reached);
+
+/// Writes `report` (pretty-printed) to `path`. Throws AppError(kNotWritten) on failure or when it
+/// exists and !overwrite.
+void write_json_file(const std::string& path, const nlohmann::json& report, bool overwrite);
+
+/// The fields every report shares: tool, mesh, peak_rss_mb (at call time).
+nlohmann::json report_header(const std::string& tool, const std::string& mesh_path);
+
+/// Timings, sizes and outcome of one coarse-proxy run, with the parts of the report and of the human
+/// summary that both PDE tools share.
+struct PdeRun {
+  std::string tool, mesh_path;
+  fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::intrinsic;
+  long long fine_vertices = 0, fine_faces = 0;
+  ice::CoarseSpaceSummary coarsening;  ///< method, sizes, outcome (ICE or QEM details)
+  bool fine_idt = true;
+  long long idt_flips = 0;
+  bool proxy_uses_fine_mesh = false;  ///< the proxy needed the fine discretisation (Galerkin, M f)
+  bool has_reference = false;
+  double load = 0, coarsen = 0, fine_mesh = 0, assemble = 0, factor = 0, solve = 0, prolong = 0, write = 0;
+  double ref_assemble = 0, ref_factor = 0, ref_solve = 0;
+
+  /// coarsen + assemble + factor + solve + prolong. The fine mesh (intrinsic Delaunay or input
+  /// lengths) is a choice of fine discretisation shared by both sides: timed apart, in neither total.
+  double proxy_total() const;
+  /// reference assemble + factor + solve.
+  double reference_total() const;
+  /// tool, mesh, method, operators, input, coarse, fine_mesh, timings_s (incl. reference and
+  /// proxy_total), speedup (when there is a reference), peak_rss_mb, blas.
+  nlohmann::json report() const;
+  /// Sizes, the phase table and the speed-ups.
+  void print_summary(std::ostream& out) const;
+};
+
+}  // namespace app
