@@ -30,10 +30,12 @@ SparseMatrix lumped(const SparseMatrix& mass) {
 CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
                          CoarseOperatorKind kind, MassKind mass_kind)
     : kind_(kind), mass_kind_(mass_kind), P_(std::move(P)), coarse_faces_(Fc), coarse_lengths_(Lc) {
+  P_.makeCompressed();  // the proxy solvers gather straight from its arrays
   const Eigen::Index n_fine = P_.rows(), n_coarse = P_.cols();
   if ((F.size() > 0 && F.maxCoeff() >= n_fine) || (Fc.size() > 0 && Fc.maxCoeff() >= n_coarse))
     throw std::invalid_argument("CoarseProxy: P must be n_fine × n_coarse (the faces name vertices beyond its shape)");
   fine_mass_ = mass_matrix(F, L, mass_kind, n_fine);
+  fine_mass_.makeCompressed();
   lazy_ = std::make_unique<LazyFineOperators>();
   lazy_->F = F;
   lazy_->L = L;
@@ -149,38 +151,37 @@ std::vector<int> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::
 }  // namespace
 
 ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<int> dirichlet_vertices)
-    : P_(proxy.prolongation()),
-      fine_mass_(proxy.fine_mass()),
-      P_rows_(P_),
-      fine_mass_of_one_(fine_mass_ * Eigen::VectorXd::Ones(P_.rows())),
-      total_mass_(fine_mass_of_one_.dot(Eigen::VectorXd::Ones(P_.rows()))),
+    : proxy_(&proxy),
+      P_rows_(proxy.prolongation()),
+      fine_mass_of_one_(proxy.fine_mass() * Eigen::VectorXd::Ones(proxy.fine_size())),
+      total_mass_(fine_mass_of_one_.dot(Eigen::VectorXd::Ones(proxy.fine_size()))),
       dirichlet_vertices_(std::move(dirichlet_vertices)),
       coarse_(dirichlet_vertices_.empty()
                   ? PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass())
                   : PoissonSolver::dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(),
                                              coarse_dirichlet_vertices(proxy, dirichlet_vertices_))) {
-  P_.makeCompressed();
-  fine_mass_.makeCompressed();
   P_rows_.makeCompressed();
 }
 
 Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values,
                                           ProxyPhaseTimes* times) const {
   using namespace detail;
-  if (f.size() != P_.rows()) throw std::invalid_argument("ProxyPoissonSolver::solve: wrong size");
+  const SparseMatrix& P = proxy_->prolongation();
+  const SparseMatrix& fine_mass = proxy_->fine_mass();
+  if (f.size() != P.rows()) throw std::invalid_argument("ProxyPoissonSolver::solve: wrong size");
   if (dirichlet_values.size() != 0 && dirichlet_values.size() != static_cast<Eigen::Index>(dirichlet_vertices_.size()))
     throw std::invalid_argument("ProxyPoissonSolver::solve: one Dirichlet value per Dirichlet vertex expected");
   Clock::time_point mark = Clock::now();
-  const Eigen::Index n = P_.rows();
+  const Eigen::Index n = P.rows();
   const int threads = default_threads();
   // Fine-size passes as gathers (M is symmetric, so its columns are its rows): M f, Pᵀ (M f), P u_c.
   // The mean reductions are Eigen's serial dot products: the same result on any thread count.
   Eigen::VectorXd compatible;
   if (is_zero_mean()) compatible = f.array() - fine_mass_of_one_.dot(f) / total_mass_;
   const Eigen::VectorXd& source = is_zero_mean() ? compatible : f;
-  Eigen::VectorXd weighted(n), coarse_rhs(P_.cols()), u(n);
-  gather_product(fine_mass_, source.data(), weighted.data(), false, threads, n);
-  gather_product(P_, weighted.data(), coarse_rhs.data(), false, threads, n);
+  Eigen::VectorXd weighted(n), coarse_rhs(P.cols()), u(n);
+  gather_product(fine_mass, source.data(), weighted.data(), false, threads, n);
+  gather_product(P, weighted.data(), coarse_rhs.data(), false, threads, n);
   if (times) times->restriction = seconds_since(mark);
   const Eigen::VectorXd coarse_u = coarse_.solve_weighted(coarse_rhs, dirichlet_values);
   if (times) times->coarse_solve = seconds_since(mark);

@@ -118,6 +118,7 @@ struct ProxyPhaseTimes {
 /// The fine-size passes (M f, Pᵀ, P) are gathers, threaded with OpenMP on meshes of 50,000+ vertices
 /// (OMP_NUM_THREADS, default all cores); every output entry is one ordered sum and the two mean
 /// reductions are serial, so the result does not depend on the thread count.
+/// Keeps a reference to the proxy (its P and fine mass, not copies), which must outlive the solver.
 class ProxyPoissonSolver {
  public:
   /// Factors the coarse system. Throws std::invalid_argument if a Dirichlet vertex is out of range or
@@ -130,7 +131,7 @@ class ProxyPoissonSolver {
   bool is_zero_mean() const { return dirichlet_vertices_.empty(); }
 
  private:
-  SparseMatrix P_, fine_mass_;
+  const CoarseProxy* proxy_;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major: prolongation as a gather per row
   Eigen::VectorXd fine_mass_of_one_;                           ///< M·1 (the re-centring weights)
   double total_mass_ = 0;
