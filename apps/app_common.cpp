@@ -147,6 +147,20 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
   return space;
 }
 
+PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                         PdeRun& run, Stopwatch& clock) {
+  PdeProxy p;
+  // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
+  p.coarse = coarsen_for_pde(mesh, options, opt, run);
+  run.coarsen = clock.lap();
+  // The fine discretisation: the reference's, and the Galerkin operators' and M f's
+  p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
+  run.idt_flips = p.fine.flips;
+  run.fine_mesh = clock.lap();
+  p.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(p.fine, p.coarse, opt.operators));
+  return p;
+}
+
 Eigen::VectorXd demo_poisson_rhs(const ice::TriangleMesh& mesh) {
   const Eigen::Index n = mesh.V.rows();
   const double sigma = 0.1 * (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();

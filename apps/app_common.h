@@ -64,6 +64,18 @@ fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& c
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                                  PdeRun& run);
 
+/// What a PDE tool solves through: the coarse space, the fine discretisation and the coarse proxy.
+struct PdeProxy {
+  ice::CoarseSpace coarse;
+  ice::FineMesh fine;
+  std::unique_ptr<fem::CoarseProxy> proxy;
+};
+/// Builds them in that order (coarsen_for_pde, ice::fine_mesh of --fine-idt, make_proxy of
+/// --operators), with run.coarsen, run.fine_mesh and run.idt_flips recorded; the proxy's assembly is
+/// left running on `clock`, for the caller's assemble phase.
+PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                         PdeRun& run, Stopwatch& clock);
+
 /// The demo right-hand side of poisson-coarse and ice-report: three Gaussian bumps
 /// exp(−|x − c|²/(2σ²)) with weights +1, −1, +1 centred at the vertices of largest x, y and z,
 /// σ = 0.1 × the bounding-box diagonal (its mean is not removed: see remove_mean).

@@ -70,17 +70,11 @@ int main(int argc, char** argv) {
     run.fine_faces = mesh.F.rows();
     run.load = clock.lap();
 
-    // ---- coarsen (ICE; or QEM with --method qem: its mesh and closest-point P, see ice/qem.h)
-    const ice::CoarseSpace coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run);
-    run.coarsen = clock.lap();
-
-    // ---- fine discretisation (reference, Galerkin operators)
-    const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
-    run.idt_flips = fine.flips;
-    run.fine_mesh = clock.lap();
-
-    // ---- proxy (fem::ProxyGeodesicSolver): assemble, factor, then restrict + solve and prolong, timed by it
-    const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators);
+    // ---- coarsen, fine discretisation, then the proxy (fem::ProxyGeodesicSolver): assemble, factor,
+    // restrict + solve and prolong, the last two timed by the solver
+    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock);
+    const ice::FineMesh& fine = pde.fine;
+    const fem::CoarseProxy& proxy = *pde.proxy;
     fem::HeatMethodOperators coarse_ops = proxy.coarse_heat_method_operators();  // lumped mass for Galerkin
     run.assemble = clock.lap();
     const fem::ProxyGeodesicSolver proxy_solver(proxy, std::move(coarse_ops));

@@ -302,17 +302,11 @@ int main(int argc, char** argv) {
     if (solver != "proxy")
       return solve_on_fine_mesh(solver, mg, opt, mesh, f, rhs_name, fixed_vertices, fixed_values, run.load);
 
-    // ---- coarsen (ICE; or QEM with --method qem: its mesh and closest-point P, see ice/qem.h)
-    const ice::CoarseSpace coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run);
-    run.coarsen = clock.lap();
-
-    // ---- fine discretisation
-    const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
-    run.idt_flips = fine.flips;
-    run.fine_mesh = clock.lap();
-
-    // ---- proxy (fem::ProxyPoissonSolver: restrict, coarse solve, prolong, each timed)
-    const fem::CoarseProxy proxy = app::make_proxy(fine, coarse, opt.operators);
+    // ---- coarsen, fine discretisation, then the proxy (fem::ProxyPoissonSolver: restrict, coarse
+    // solve, prolong, each timed)
+    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock);
+    const ice::FineMesh& fine = pde.fine;
+    const fem::CoarseProxy& proxy = *pde.proxy;
     const bool dirichlet = !fixed_vertices.empty();
     if (f.size() == 0) {  // the demo source has zero mean in both modes (zero-mean: the solver removes it)
       f = app::demo_poisson_rhs(mesh);
