@@ -564,15 +564,15 @@ void MultigridSolver::chebyshev(std::size_t k) {
   }
 }
 
-void MultigridSolver::smooth(std::size_t k, bool pre) {
-  Level& L = *levels_[k];
-  const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
-  const SmootherValues values = cycle_values(L, options_, k);
-  const auto sweep = [&](bool forward) {
-    gauss_seidel(L.A, values, split, L.inv_diag, L.b.data(), L.x.data(), 1, forward, threads(), L.halo);
-  };
-  for (int s = 0; s < options_.smoothing_steps; ++s) {
-    switch (options_.smoother) {
+namespace {
+
+// `options.smoothing_steps` applications of the chosen smoother: Gauss–Seidel forward before the
+// coarse correction and backward after (so the V-cycle stays symmetric), symmetric Gauss–Seidel both
+// ways each time, or one Chebyshev pass. Shared by the single- and the block-vector cycles.
+template <class Sweep, class Chebyshev>
+void smoothing_steps(const MultigridOptions& options, bool pre, Sweep&& sweep, Chebyshev&& chebyshev) {
+  for (int s = 0; s < options.smoothing_steps; ++s) {
+    switch (options.smoother) {
       case MultigridSmoother::gauss_seidel:
         sweep(pre);
         break;
@@ -581,10 +581,22 @@ void MultigridSolver::smooth(std::size_t k, bool pre) {
         sweep(false);
         break;
       case MultigridSmoother::chebyshev:
-        chebyshev(k);
+        chebyshev();
         break;
     }
   }
+}
+
+}  // namespace
+
+void MultigridSolver::smooth(std::size_t k, bool pre) {
+  Level& L = *levels_[k];
+  const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
+  const SmootherValues values = cycle_values(L, options_, k);
+  const auto sweep = [&](bool forward) {
+    gauss_seidel(L.A, values, split, L.inv_diag, L.b.data(), L.x.data(), 1, forward, threads(), L.halo);
+  };
+  smoothing_steps(options_, pre, sweep, [&] { chebyshev(k); });
 }
 
 // Improves levels_[k]->x for the right-hand side levels_[k]->b.
@@ -705,41 +717,31 @@ void MultigridSolver::smooth_block(std::size_t k, bool pre) {
   const auto sweep = [&](bool forward) {
     gauss_seidel(L.A, values, split, L.inv_diag, L.B.data(), L.X.data(), L.X.cols(), forward, threads(), L.halo);
   };
-  for (int s = 0; s < options_.smoothing_steps; ++s) {
-    switch (options_.smoother) {
-      case MultigridSmoother::gauss_seidel:
-        sweep(pre);
-        break;
-      case MultigridSmoother::symmetric_gauss_seidel:
-        sweep(true);
-        sweep(false);
-        break;
-      case MultigridSmoother::chebyshev: {
-        if (L.lambda_max == 0) {  // estimated once by the single-vector code
-          L.b = L.B.col(0);
-          L.x = L.X.col(0);
-          chebyshev(k);
-          L.lambda_max = L.lambda_max == 0 ? 1 : L.lambda_max;
-        }
-        const double upper = L.lambda_max, lower = L.lambda_max / options_.chebyshev_ratio;
-        const double theta = 0.5 * (upper + lower), delta = 0.5 * (upper - lower);
-        const double sigma = theta / delta;
-        double rho = 1.0 / sigma;
-        L.R.resize(L.X.rows(), L.X.cols());
-        residual_block(L.A, L.B, L.X, L.R, threads());
-        L.D = (L.R.array().colwise() * L.inv_diag.array()) / theta;
-        for (int step = 1;; ++step) {
-          L.X += L.D;
-          if (step == options_.chebyshev_degree) break;
-          residual_block(L.A, L.B, L.X, L.R, threads());
-          const double rho_next = 1.0 / (2 * sigma - rho);
-          L.D = (rho_next * rho) * L.D.array() + (2 * rho_next / delta) * (L.R.array().colwise() * L.inv_diag.array());
-          rho = rho_next;
-        }
-        break;
-      }
+  // Block Chebyshev: the single-vector recurrence on every column at once.
+  const auto chebyshev_block = [&] {
+    if (L.lambda_max == 0) {  // estimated once by the single-vector code
+      L.b = L.B.col(0);
+      L.x = L.X.col(0);
+      chebyshev(k);
+      L.lambda_max = L.lambda_max == 0 ? 1 : L.lambda_max;
     }
-  }
+    const double upper = L.lambda_max, lower = L.lambda_max / options_.chebyshev_ratio;
+    const double theta = 0.5 * (upper + lower), delta = 0.5 * (upper - lower);
+    const double sigma = theta / delta;
+    double rho = 1.0 / sigma;
+    L.R.resize(L.X.rows(), L.X.cols());
+    residual_block(L.A, L.B, L.X, L.R, threads());
+    L.D = (L.R.array().colwise() * L.inv_diag.array()) / theta;
+    for (int step = 1;; ++step) {
+      L.X += L.D;
+      if (step == options_.chebyshev_degree) break;
+      residual_block(L.A, L.B, L.X, L.R, threads());
+      const double rho_next = 1.0 / (2 * sigma - rho);
+      L.D = (rho_next * rho) * L.D.array() + (2 * rho_next / delta) * (L.R.array().colwise() * L.inv_diag.array());
+      rho = rho_next;
+    }
+  };
+  smoothing_steps(options_, pre, sweep, chebyshev_block);
 }
 
 void MultigridSolver::vcycle_block(std::size_t k) {
