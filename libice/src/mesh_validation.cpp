@@ -144,68 +144,87 @@ std::vector<std::string> ValidationReport::defects() const {
 
 ValidationReport validate_mesh(const TriangleMesh& mesh) { return validate_mesh(to_polygon_soup(mesh)); }
 
-ValidationReport validate_mesh(const PolygonSoup& soup) {
-  ValidationReport r;
-  const Positions& V = soup.V;
-  const auto& polys = soup.polygons;
-  const int nv = static_cast<int>(V.rows());
-  const int nf = static_cast<int>(polys.size());
-  r.n_vertices = static_cast<std::size_t>(nv);
-  r.n_faces = static_cast<std::size_t>(nf);
+namespace {
 
+// ---- the stages of validate_mesh ----------------------------------------------------------------
+
+// What the stages share: the soup and what earlier stages found about it.
+struct SoupScan {
+  SoupScan(const PolygonSoup& soup)
+      : V(soup.V), polys(soup.polygons), nv(static_cast<int>(soup.V.rows())), nf(static_cast<int>(soup.polygons.size())) {}
+  const Positions& V;
+  const std::vector<std::vector<int>>& polys;
+  const int nv, nf;
   // Plain copies for the hot loops (Eigen element access is slow in unoptimised sanitizer builds).
-  std::vector<Eigen::Vector3d> P(static_cast<std::size_t>(nv));
-  std::vector<char> finite(static_cast<std::size_t>(nv));
-  for (int i = 0; i < nv; ++i) {
-    P[i] = V.row(i).transpose();
-    finite[i] = P[i].allFinite();
-  }
+  std::vector<Eigen::Vector3d> P;
+  std::vector<char> finite;
+  double diagonal = 0;
+  std::vector<char> well_formed, referenced;
+  // Half-edges grouped by undirected edge, and each well-formed face's first corner.
+  std::vector<std::size_t> corner_offset;
+  std::vector<HalfEdgeUse> uses;
+  std::vector<char> on_boundary, vertex_non_manifold;
+  std::vector<std::uint64_t> unique_edges, non_manifold_edge_keys;
+  // Face graph through two-face edges: (face, other face, parity 1 if they must flip relative to each other).
+  std::vector<std::array<int, 3>> links;
+  std::vector<int> component;  // of each referenced vertex
+};
 
-  // ---- vertices: finiteness and bounding box ----
+// Finiteness and bounding box; the diagonal scales the degeneracy tests.
+void scan_vertices(SoupScan& s, ValidationReport& r) {
+  s.P.resize(static_cast<std::size_t>(s.nv));
+  s.finite.resize(static_cast<std::size_t>(s.nv));
+  for (int i = 0; i < s.nv; ++i) {
+    s.P[i] = s.V.row(i).transpose();
+    s.finite[i] = s.P[i].allFinite();
+  }
   bool any_finite = false;
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
-  for (int i = 0; i < nv; ++i) {
-    if (!finite[i]) {
+  for (int i = 0; i < s.nv; ++i) {
+    if (!s.finite[i]) {
       r.non_finite_vertices.add(i);
       continue;
     }
     any_finite = true;
-    lo = lo.cwiseMin(P[i]);
-    hi = hi.cwiseMax(P[i]);
+    lo = lo.cwiseMin(s.P[i]);
+    hi = hi.cwiseMax(s.P[i]);
   }
   if (any_finite) {
     r.bbox_min = lo;
     r.bbox_max = hi;
   }
-  const double diagonal = any_finite ? (hi - lo).norm() : 0.0;
+  s.diagonal = any_finite ? (hi - lo).norm() : 0.0;
+}
 
-  // ---- duplicate positions (exact), finite vertices only so the sort order is strict ----
-  {
-    std::vector<int> order;
-    order.reserve(static_cast<std::size_t>(nv));
-    for (int i = 0; i < nv; ++i)
-      if (finite[i]) order.push_back(i);
-    auto less = [&](int a, int b) {
-      for (int k = 0; k < 3; ++k)
-        if (P[a][k] != P[b][k]) return P[a][k] < P[b][k];
-      return a < b;
-    };
-    std::sort(order.begin(), order.end(), less);
-    std::vector<int> dups;
-    for (std::size_t i = 1; i < order.size(); ++i)
-      if (P[order[i]] == P[order[i - 1]]) dups.push_back(order[i]);
-    std::sort(dups.begin(), dups.end());
-    for (int v : dups) r.duplicate_positions.add(v);
-  }
+// Exactly coincident positions, finite vertices only so the sort order is strict.
+void find_duplicate_positions(const SoupScan& s, ValidationReport& r) {
+  const std::vector<Eigen::Vector3d>& P = s.P;
+  std::vector<int> order;
+  order.reserve(static_cast<std::size_t>(s.nv));
+  for (int i = 0; i < s.nv; ++i)
+    if (s.finite[i]) order.push_back(i);
+  auto less = [&](int a, int b) {
+    for (int k = 0; k < 3; ++k)
+      if (P[a][k] != P[b][k]) return P[a][k] < P[b][k];
+    return a < b;
+  };
+  std::sort(order.begin(), order.end(), less);
+  std::vector<int> dups;
+  for (std::size_t i = 1; i < order.size(); ++i)
+    if (P[order[i]] == P[order[i - 1]]) dups.push_back(order[i]);
+  std::sort(dups.begin(), dups.end());
+  for (int v : dups) r.duplicate_positions.add(v);
+}
 
-  // ---- per-face checks; collect well-formed faces ----
-  std::vector<char> well_formed(static_cast<std::size_t>(nf), 0);
-  std::vector<char> referenced(static_cast<std::size_t>(nv), 0);
-  for (int f = 0; f < nf; ++f) {
-    const auto& poly = polys[f];
+// Per-face checks (size, indices, repeats, zero area); marks well-formed faces and referenced vertices.
+void scan_faces(SoupScan& s, ValidationReport& r) {
+  s.well_formed.assign(static_cast<std::size_t>(s.nf), 0);
+  s.referenced.assign(static_cast<std::size_t>(s.nv), 0);
+  for (int f = 0; f < s.nf; ++f) {
+    const auto& poly = s.polys[f];
     if (poly.size() != 3) r.non_triangle_faces.add(f);
-    const bool in_range = std::all_of(poly.begin(), poly.end(), [&](int v) { return v >= 0 && v < nv; });
+    const bool in_range = std::all_of(poly.begin(), poly.end(), [&](int v) { return v >= 0 && v < s.nv; });
     if (!in_range) {
       r.out_of_range_faces.add(f);
       continue;
@@ -215,63 +234,68 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
       continue;
     }
     if (poly.size() < 3) continue;
-    well_formed[f] = 1;
-    for (int v : poly) referenced[v] = 1;
+    s.well_formed[f] = 1;
+    for (int v : poly) s.referenced[v] = 1;
 
-    if (!std::all_of(poly.begin(), poly.end(), [&](int v) { return finite[v] != 0; }))
+    if (!std::all_of(poly.begin(), poly.end(), [&](int v) { return s.finite[v] != 0; }))
       continue;  // already reported through its vertices
     bool degenerate;
     if (poly.size() == 3) {
-      degenerate = is_degenerate_triangle(V, poly[0], poly[1], poly[2], diagonal);
+      degenerate = is_degenerate_triangle(s.V, poly[0], poly[1], poly[2], s.diagonal);
     } else {
       double longest2 = 0;
       for (std::size_t k = 0; k < poly.size(); ++k)
-        longest2 = std::max(longest2, (V.row(poly[(k + 1) % poly.size()]) - V.row(poly[k])).squaredNorm());
-      const double coincide = 1e-14 * diagonal;
+        longest2 = std::max(longest2, (s.V.row(poly[(k + 1) % poly.size()]) - s.V.row(poly[k])).squaredNorm());
+      const double coincide = 1e-14 * s.diagonal;
       degenerate = longest2 <= coincide * coincide ||
-                   polygon_double_area(V, poly).norm() <= kDegenerateRelativeTolerance * longest2;
+                   polygon_double_area(s.V, poly).norm() <= kDegenerateRelativeTolerance * longest2;
     }
     if (degenerate) r.zero_area_faces.add(f);
   }
-  for (int v = 0; v < nv; ++v)
-    if (!referenced[v]) r.unreferenced_vertices.add(v);
+  for (int v = 0; v < s.nv; ++v)
+    if (!s.referenced[v]) r.unreferenced_vertices.add(v);
+}
 
-  // ---- duplicate faces: same vertex set as an earlier well-formed face ----
-  {
-    std::vector<std::array<int, 4>> triangles;                 // sorted corners + face id
-    std::vector<std::pair<std::vector<int>, int>> polygons;  // rare: faces with more corners
-    for (int f = 0; f < nf; ++f) {
-      if (!well_formed[f]) continue;
-      if (polys[f].size() == 3) {
-        std::array<int, 4> key{polys[f][0], polys[f][1], polys[f][2], f};
-        std::sort(key.begin(), key.begin() + 3);
-        triangles.push_back(key);
-      } else {
-        std::vector<int> key = polys[f];
-        std::sort(key.begin(), key.end());
-        polygons.emplace_back(std::move(key), f);
-      }
+// Faces with the same vertex set as an earlier well-formed face.
+void find_duplicate_faces(const SoupScan& s, ValidationReport& r) {
+  std::vector<std::array<int, 4>> triangles;                 // sorted corners + face id
+  std::vector<std::pair<std::vector<int>, int>> polygons;  // rare: faces with more corners
+  for (int f = 0; f < s.nf; ++f) {
+    if (!s.well_formed[f]) continue;
+    if (s.polys[f].size() == 3) {
+      std::array<int, 4> key{s.polys[f][0], s.polys[f][1], s.polys[f][2], f};
+      std::sort(key.begin(), key.begin() + 3);
+      triangles.push_back(key);
+    } else {
+      std::vector<int> key = s.polys[f];
+      std::sort(key.begin(), key.end());
+      polygons.emplace_back(std::move(key), f);
     }
-    std::sort(triangles.begin(), triangles.end());
-    std::sort(polygons.begin(), polygons.end());
-    std::vector<int> dups;
-    for (std::size_t i = 1; i < triangles.size(); ++i)
-      if (std::equal(triangles[i].begin(), triangles[i].begin() + 3, triangles[i - 1].begin()))
-        dups.push_back(triangles[i][3]);
-    for (std::size_t i = 1; i < polygons.size(); ++i)
-      if (polygons[i].first == polygons[i - 1].first) dups.push_back(polygons[i].second);
-    std::sort(dups.begin(), dups.end());
-    for (int f : dups) r.duplicate_faces.add(f);
   }
+  std::sort(triangles.begin(), triangles.end());
+  std::sort(polygons.begin(), polygons.end());
+  std::vector<int> dups;
+  for (std::size_t i = 1; i < triangles.size(); ++i)
+    if (std::equal(triangles[i].begin(), triangles[i].begin() + 3, triangles[i - 1].begin()))
+      dups.push_back(triangles[i][3]);
+  for (std::size_t i = 1; i < polygons.size(); ++i)
+    if (polygons[i].first == polygons[i - 1].first) dups.push_back(polygons[i].second);
+  std::sort(dups.begin(), dups.end());
+  for (int f : dups) r.duplicate_faces.add(f);
+}
 
-  // ---- half-edges grouped by undirected edge ----
-  std::vector<std::size_t> corner_offset(static_cast<std::size_t>(nf) + 1, 0);
-  for (int f = 0; f < nf; ++f) corner_offset[f + 1] = corner_offset[f] + (well_formed[f] ? polys[f].size() : 0);
-  const std::size_t n_corners = corner_offset[nf];
-  std::vector<HalfEdgeUse> uses;
+// Edges: their faces (boundary, two, more), orientation agreement, lengths; the fans around each
+// vertex (corners linked through two-face edges) give the non-manifold vertices.
+void scan_edges(SoupScan& s, ValidationReport& r) {
+  const auto& polys = s.polys;
+  const int nv = s.nv, nf = s.nf;
+  s.corner_offset.assign(static_cast<std::size_t>(nf) + 1, 0);
+  for (int f = 0; f < nf; ++f) s.corner_offset[f + 1] = s.corner_offset[f] + (s.well_formed[f] ? polys[f].size() : 0);
+  const std::size_t n_corners = s.corner_offset[nf];
+  std::vector<HalfEdgeUse>& uses = s.uses;
   uses.reserve(n_corners);
   for (int f = 0; f < nf; ++f) {
-    if (!well_formed[f]) continue;
+    if (!s.well_formed[f]) continue;
     const auto& poly = polys[f];
     for (std::size_t k = 0; k < poly.size(); ++k) {
       const int a = poly[k], b = poly[(k + 1) % poly.size()];
@@ -286,120 +310,129 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
   auto corner_of = [&](int f, int v) -> std::size_t {
     const auto& poly = polys[f];
     for (std::size_t k = 0; k < poly.size(); ++k)
-      if (poly[k] == v) return corner_offset[f] + k;
-    return corner_offset[f];  // unreachable for an edge of f
+      if (poly[k] == v) return s.corner_offset[f] + k;
+    return s.corner_offset[f];  // unreachable for an edge of f
   };
 
-  DisjointSets fans(n_corners);           // corners at one vertex linked through two-face edges
-  DisjointSets boundary_graph(static_cast<std::size_t>(std::max(nv, 0)));
-  std::vector<char> on_boundary(static_cast<std::size_t>(nv), 0);
-  // Face graph through two-face edges: (face, other face, parity 1 if they must flip relative to each other).
-  std::vector<std::array<int, 3>> links;
-  std::vector<std::uint64_t> unique_edges;
-  std::vector<std::uint64_t> non_manifold_edge_keys;
+  DisjointSets fans(n_corners);  // corners at one vertex linked through two-face edges
+  s.on_boundary.assign(static_cast<std::size_t>(nv), 0);
   double len_min = std::numeric_limits<double>::infinity(), len_max = 0, len_sum = 0;
   std::size_t len_count = 0;
-
   for (std::size_t i = 0; i < uses.size();) {
     std::size_t j = i;
     while (j < uses.size() && uses[j].key == uses[i].key) ++j;
     const std::size_t valence = j - i;
     const VertexPair ab = edge_pair(uses[i].key);
-    unique_edges.push_back(uses[i].key);
-    if (finite[ab[0]] && finite[ab[1]]) {
-      const double len = (P[ab[0]] - P[ab[1]]).norm();
+    s.unique_edges.push_back(uses[i].key);
+    if (s.finite[ab[0]] && s.finite[ab[1]]) {
+      const double len = (s.P[ab[0]] - s.P[ab[1]]).norm();
       len_min = std::min(len_min, len);
       len_max = std::max(len_max, len);
       len_sum += len;
       ++len_count;
     }
     if (valence == 1) {
-      boundary_graph.unite(ab[0], ab[1]);
-      on_boundary[ab[0]] = on_boundary[ab[1]] = 1;
+      s.on_boundary[ab[0]] = s.on_boundary[ab[1]] = 1;
     } else if (valence == 2) {
       const HalfEdgeUse& x = uses[i];
       const HalfEdgeUse& y = uses[i + 1];
       if (x.forward == y.forward) r.inconsistent_edges.add(ab);
       for (int v : ab) fans.unite(corner_of(x.face, v), corner_of(y.face, v));
       const int parity = x.forward == y.forward ? 1 : 0;
-      links.push_back({x.face, y.face, parity});
-      links.push_back({y.face, x.face, parity});
+      s.links.push_back({x.face, y.face, parity});
+      s.links.push_back({y.face, x.face, parity});
     } else {
       r.non_manifold_edges.add(ab);
-      non_manifold_edge_keys.push_back(uses[i].key);
+      s.non_manifold_edge_keys.push_back(uses[i].key);
     }
     i = j;
   }
-  r.n_edges = unique_edges.size();
+  r.n_edges = s.unique_edges.size();
   if (len_count > 0) {
     r.edge_length_min = len_min;
     r.edge_length_max = len_max;
     r.edge_length_mean = len_sum / static_cast<double>(len_count);
   }
 
-  // ---- non-manifold vertices: more than one fan ----
+  // Non-manifold vertices: more than one fan.
   std::vector<int> fan_count(static_cast<std::size_t>(nv), 0);
   for (int f = 0; f < nf; ++f) {
-    if (!well_formed[f]) continue;
+    if (!s.well_formed[f]) continue;
     for (std::size_t k = 0; k < polys[f].size(); ++k) {
-      const std::size_t c = corner_offset[f] + k;
+      const std::size_t c = s.corner_offset[f] + k;
       if (fans.find(c) == c) ++fan_count[polys[f][k]];
     }
   }
-  std::vector<char> vertex_non_manifold(static_cast<std::size_t>(nv), 0);
+  s.vertex_non_manifold.assign(static_cast<std::size_t>(nv), 0);
   for (int v = 0; v < nv; ++v)
     if (fan_count[v] > 1) {
       r.non_manifold_vertices.add(v);
-      vertex_non_manifold[v] = 1;
+      s.vertex_non_manifold[v] = 1;
     }
+}
 
-  // ---- connected components through shared vertices ----
+// Connected components through shared vertices, with their sizes, boundary loops, manifoldness and
+// orientation consistency.
+void find_components(SoupScan& s, ValidationReport& r) {
+  const auto& polys = s.polys;
+  const int nv = s.nv, nf = s.nf;
   DisjointSets vertex_sets(static_cast<std::size_t>(std::max(nv, 0)));
   for (int f = 0; f < nf; ++f)
-    if (well_formed[f])
+    if (s.well_formed[f])
       for (int v : polys[f]) vertex_sets.unite(static_cast<std::size_t>(polys[f][0]), static_cast<std::size_t>(v));
   std::vector<int> component_of_root(static_cast<std::size_t>(nv), -1);
-  std::vector<int> component(static_cast<std::size_t>(nv), -1);
+  s.component.assign(static_cast<std::size_t>(nv), -1);
   for (int v = 0; v < nv; ++v) {
-    if (!referenced[v]) continue;
+    if (!s.referenced[v]) continue;
     const std::size_t root = vertex_sets.find(v);
     if (component_of_root[root] < 0) {
       component_of_root[root] = static_cast<int>(r.components.size());
       r.components.emplace_back();
     }
-    component[v] = component_of_root[root];
-    ++r.components[component[v]].n_vertices;
+    s.component[v] = component_of_root[root];
+    ++r.components[s.component[v]].n_vertices;
   }
   auto& comps = r.components;
+  const std::vector<int>& component = s.component;
   for (int f = 0; f < nf; ++f)
-    if (well_formed[f]) ++comps[component[polys[f][0]]].n_faces;
-  for (std::uint64_t key : unique_edges) ++comps[component[edge_pair(key)[0]]].n_edges;
-  for (std::uint64_t key : non_manifold_edge_keys) comps[component[edge_pair(key)[0]]].manifold = false;
+    if (s.well_formed[f]) ++comps[component[polys[f][0]]].n_faces;
+  for (std::uint64_t key : s.unique_edges) ++comps[component[edge_pair(key)[0]]].n_edges;
+  for (std::uint64_t key : s.non_manifold_edge_keys) comps[component[edge_pair(key)[0]]].manifold = false;
   for (int v = 0; v < nv; ++v)
-    if (vertex_non_manifold[v]) comps[component[v]].manifold = false;
-  for (int v = 0; v < nv; ++v)
-    if (on_boundary[v] && boundary_graph.find(v) == static_cast<std::size_t>(v)) ++comps[component[v]].n_boundary_loops;
-  for (std::size_t i = 0; i < uses.size();) {  // per-component consistency (offender lists are samples)
+    if (s.vertex_non_manifold[v]) comps[component[v]].manifold = false;
+  // Boundary loops: the boundary edges' connected pieces (one root per loop).
+  DisjointSets boundary_graph(static_cast<std::size_t>(std::max(nv, 0)));
+  for (std::size_t i = 0; i < s.uses.size();) {
     std::size_t j = i;
-    while (j < uses.size() && uses[j].key == uses[i].key) ++j;
-    if (j - i == 2 && uses[i].forward == uses[i + 1].forward)
-      comps[component[polys[uses[i].face][0]]].consistently_oriented = false;
+    while (j < s.uses.size() && s.uses[j].key == s.uses[i].key) ++j;
+    if (j - i == 1) {
+      const VertexPair ab = edge_pair(s.uses[i].key);
+      boundary_graph.unite(ab[0], ab[1]);
+    }
+    if (j - i == 2 && s.uses[i].forward == s.uses[i + 1].forward)  // per-component consistency
+      comps[component[polys[s.uses[i].face][0]]].consistently_oriented = false;
     i = j;
   }
+  for (int v = 0; v < nv; ++v)
+    if (s.on_boundary[v] && boundary_graph.find(v) == static_cast<std::size_t>(v)) ++comps[component[v]].n_boundary_loops;
+}
 
-  // ---- orientability: 2-colour the face graph of two-face edges by flip parity ----
+// Orientability: 2-colour the face graph of two-face edges by flip parity; a conflict makes the
+// component non-orientable.
+void check_orientability(const SoupScan& s, ValidationReport& r) {
+  const int nf = s.nf;
   std::vector<std::size_t> link_offset(static_cast<std::size_t>(nf) + 1, 0);  // CSR by first face
-  for (const auto& l : links) ++link_offset[l[0] + 1];
+  for (const auto& l : s.links) ++link_offset[l[0] + 1];
   for (int f = 0; f < nf; ++f) link_offset[f + 1] += link_offset[f];
-  std::vector<std::pair<int, int>> face_links(links.size());
+  std::vector<std::pair<int, int>> face_links(s.links.size());
   {
     std::vector<std::size_t> fill(link_offset.begin(), link_offset.end() - 1);
-    for (const auto& l : links) face_links[fill[l[0]]++] = {l[1], l[2]};
+    for (const auto& l : s.links) face_links[fill[l[0]]++] = {l[1], l[2]};
   }
   std::vector<int> flip(static_cast<std::size_t>(nf), -1);
   std::vector<int> stack;
   for (int seed = 0; seed < nf; ++seed) {
-    if (!well_formed[seed] || flip[seed] >= 0) continue;
+    if (!s.well_formed[seed] || flip[seed] >= 0) continue;
     flip[seed] = 0;
     stack.assign(1, seed);
     bool conflict = false;
@@ -417,13 +450,15 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
         }
       }
     }
-    if (conflict) comps[component[polys[seed][0]]].orientable = false;
+    if (conflict) r.components[s.component[s.polys[seed][0]]].orientable = false;
   }
+}
 
-  // ---- per-component Euler characteristic and genus, then sums ----
-  bool all_genus_defined = !comps.empty();
+// Per-component Euler characteristic and genus, then the sums.
+void sum_topology(ValidationReport& r) {
+  bool all_genus_defined = !r.components.empty();
   long genus_sum = 0;
-  for (ComponentInfo& c : comps) {
+  for (ComponentInfo& c : r.components) {
     c.euler_characteristic = static_cast<long>(c.n_vertices) - static_cast<long>(c.n_edges) +
                              static_cast<long>(c.n_faces);
     if (!c.orientable) ++r.non_orientable_components;
@@ -437,6 +472,23 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
     genus_sum += std::max(c.genus, 0);
   }
   r.genus = all_genus_defined ? static_cast<int>(genus_sum) : -1;
+}
+
+}  // namespace
+
+ValidationReport validate_mesh(const PolygonSoup& soup) {
+  ValidationReport r;
+  SoupScan s(soup);
+  r.n_vertices = static_cast<std::size_t>(s.nv);
+  r.n_faces = static_cast<std::size_t>(s.nf);
+  scan_vertices(s, r);
+  find_duplicate_positions(s, r);
+  scan_faces(s, r);
+  find_duplicate_faces(s, r);
+  scan_edges(s, r);
+  find_components(s, r);
+  check_orientability(s, r);
+  sum_topology(r);
   return r;
 }
 
