@@ -198,21 +198,20 @@ VertexPairGluing pair_sides_by_vertices(const Faces& F) {
   gluing.order = std::move(order);
   return gluing;
 }
-}  // namespace
 
-void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& corner_length,
-                                   const std::vector<Index>& twin, const std::vector<Index>& order) {
-  const Index num_faces = static_cast<Index>(F.rows());
-  if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
-  const Index num_vertices = F.minCoeff() < 0 ? -1 : F.maxCoeff() + 1;
-  if (num_vertices <= 0) throw std::invalid_argument("IntrinsicTriangulation: negative vertex index");
-  const Index num_corners = 3 * num_faces;
+// The gluing of the corners' sides (twin: an involution without fixed points joining sides with the
+// same ends, run opposite ways, of the same length; kInvalid on the boundary), checked, with the
+// edges numbered in `order` (the vertex-pair order for from_mesh): side c becomes half-edge
+// corner_halfedge[c] (2e and 2e + 1 for the two sides of edge e). Throws std::invalid_argument naming
+// the first edge that breaks a rule.
+std::vector<Index> number_glued_sides(const Faces& F, const std::vector<double>& corner_length,
+                                      const std::vector<Index>& twin, const std::vector<Index>& order,
+                                      Index& num_edges) {
+  const Index num_corners = static_cast<Index>(3 * F.rows());
   const auto tail_of = [&](Index c) { return F(c / 3, c % 3); };
   const auto head_of = [&](Index c) { return F(c / 3, (c % 3 + 1) % 3); };
-  // The gluing: an involution without fixed points joining sides with the same ends, run opposite
-  // ways, of the same length. Edges are numbered in `order` (the vertex-pair order for from_mesh).
   std::vector<Index> corner_halfedge(num_corners, kInvalid);
-  Index num_edges = 0;
+  num_edges = 0;
   for (Index c : order) {
     if (corner_halfedge[c] != kInvalid) continue;
     const Index t = twin[c];
@@ -235,6 +234,21 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   }
   for (Index c = 0; c < num_corners; ++c)
     if (corner_halfedge[c] == kInvalid) throw std::invalid_argument("IntrinsicTriangulation: the edge order misses a side");
+  return corner_halfedge;
+}
+
+}  // namespace
+
+void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& corner_length,
+                                   const std::vector<Index>& twin, const std::vector<Index>& order) {
+  const Index num_faces = static_cast<Index>(F.rows());
+  if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
+  const Index num_vertices = F.minCoeff() < 0 ? -1 : F.maxCoeff() + 1;
+  if (num_vertices <= 0) throw std::invalid_argument("IntrinsicTriangulation: negative vertex index");
+  const Index num_corners = 3 * num_faces;
+  // The gluing, checked, numbers the edges: corner c's side is half-edge corner_halfedge[c].
+  Index num_edges = 0;
+  const std::vector<Index> corner_halfedge = number_glued_sides(F, corner_length, twin, order, num_edges);
 
   const Index num_halfedges = 2 * num_edges;
   edges_.assign(num_edges, EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0});
