@@ -119,7 +119,7 @@ struct Hierarchy {
   Eigen::SparseMatrix<double> prolongation_to_fine(int k) const;
 };
 
-/// Builds the hierarchy of an intrinsic mesh (F, L) with n vertices (pass -1 for F.maxCoeff()+1).
+/// Builds the hierarchy of an intrinsic mesh (F, L); its vertices are 0..F.maxCoeff() (every one used).
 /// Preconditions as for IntrinsicTriangulation::from_lengths (std::invalid_argument otherwise);
 /// options checked (std::invalid_argument).
 Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyOptions& options = {});
