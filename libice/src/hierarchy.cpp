@@ -31,6 +31,18 @@ Eigen::SparseMatrix<double> Hierarchy::prolongation_to_fine(int k) const {
 
 namespace {
 
+// The neighbour carrying at least `share` of v's summed non-negative cotan weights, or kInvalid.
+Index strongest_neighbour(const IntrinsicTriangulation& T, Index v, double share) {
+  double total = 0, strongest = 0;
+  Index neighbour = kInvalid;
+  T.for_each_outgoing(v, [&](Index h) {
+    const double w = std::max(0.0, T.cotan_weight(h));
+    total += w;
+    if (w > strongest && T.head(h) != v) strongest = w, neighbour = T.head(h);
+  });
+  return neighbour != kInvalid && strongest >= share * total ? neighbour : kInvalid;
+}
+
 // Coarsens T to co.target_vertices in passes. Each pass removes (at most) an independent set of
 // the current triangulation, picked greedily in the SetOrder (vertex index, |curvature| or exact ICE
 // removal cost): a vertex is taken, its neighbours are excluded, and so on;
@@ -48,18 +60,6 @@ namespace {
 // boundary rows reached 8–14 edges away (lion-head), the slowest V-cycle mode sat within four
 // edges of the boundary (99 % of its energy, 3 % of the vertices) and PCG converged at 0.29–0.32
 // per iteration on scans with holes against 0.07 on closed meshes.
-// The neighbour carrying at least `share` of v's summed non-negative cotan weights, or kInvalid.
-Index strongest_neighbour(const IntrinsicTriangulation& T, Index v, double share) {
-  double total = 0, strongest = 0;
-  Index neighbour = kInvalid;
-  T.for_each_outgoing(v, [&](Index h) {
-    const double w = std::max(0.0, T.cotan_weight(h));
-    total += w;
-    if (w > strongest && T.head(h) != v) strongest = w, neighbour = T.head(h);
-  });
-  return neighbour != kInvalid && strongest >= share * total ? neighbour : kInvalid;
-}
-
 CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const CoarsenOptions& base, double area_weight,
                                           SetOrder set_order, bool use_metric, double anchor_share) {
   const bool exact_costs = set_order == SetOrder::exact_cost;
@@ -81,13 +81,18 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
     T.for_each_outgoing(v, [&](Index h) { last = h; });
     return anchor != T.head(first) && anchor != T.tail(T.prev(last));
   };
-  // The boundary vertices the walk may remove. Tied ones stay, so they count neither toward a loop's
-  // size nor toward its goal: otherwise the goal is met by stripping the untied stretches between
-  // them (lion-head: 25 of 36 loop vertices tied, the rest gone, P's boundary rows 6 edges long).
+  // The boundary vertices the walk may remove, flagged afresh each pass (the walk reads the flags).
+  // Tied ones stay, so they count neither toward a loop's size nor toward its goal: otherwise the goal
+  // is met by stripping the untied stretches between them (lion-head: 25 of 36 loop vertices tied, the
+  // rest gone, P's boundary rows 6 edges long).
+  std::vector<std::uint8_t> removable_boundary(static_cast<std::size_t>(slots));
   auto count_boundary = [&] {
     Index count = 0;
-    for (Index v = 0; v < slots; ++v)
-      count += T.vertex_alive(v) && T.is_boundary_vertex(v) && !(anchor_share > 0 && tied_off_loop(v));
+    for (Index v = 0; v < slots; ++v) {
+      const bool removable = T.vertex_alive(v) && T.is_boundary_vertex(v) && !(anchor_share > 0 && tied_off_loop(v));
+      removable_boundary[static_cast<std::size_t>(v)] = removable;
+      count += removable;
+    }
     return count;
   };
   const Index boundary_start = count_boundary();
@@ -135,7 +140,7 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
           double carry = 0;  // Bresenham: select when the accumulated fraction passes 1
           for (Index v = start; !on_walked_loop[static_cast<std::size_t>(v)]; v = T.head(T.vertex_halfedge(v))) {
             on_walked_loop[static_cast<std::size_t>(v)] = 1;
-            if (anchor_share > 0 && tied_off_loop(v)) continue;  // stays, and is not counted (count_boundary)
+            if (!removable_boundary[static_cast<std::size_t>(v)]) continue;  // tied: stays, not counted
             carry += remove;
             if (carry < 1) continue;
             if (blocked[static_cast<std::size_t>(v)] || user_locked[static_cast<std::size_t>(v)]) continue;
