@@ -1,5 +1,5 @@
 #pragma once
-// Union-find shared by the validator and the repairs (private to libice).
+// Union-find for the validator (private to libice).
 #include <algorithm>
 #include <cstddef>
 #include <numeric>

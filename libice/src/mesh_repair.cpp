@@ -10,7 +10,7 @@
 #include <numeric>
 #include <unordered_map>
 
-#include "disjoint_sets.h"
+#include "corner_fans.h"
 
 namespace ice {
 
@@ -174,33 +174,13 @@ void orient_components(PolygonSoup& soup, RepairLog& log) {
 std::size_t split_non_manifold_vertices(PolygonSoup& soup, std::vector<int>& source_vertex) {
   auto& faces = soup.polygons;
   const std::size_t nf = faces.size();
-  // Undirected edge uses, sorted so that the (at most two) faces of an edge are adjacent.
-  std::vector<std::array<std::uint64_t, 2>> uses;  // {edge key, corner 3f + k where the edge starts}
-  uses.reserve(3 * nf);
-  for (std::size_t f = 0; f < nf; ++f)
-    for (std::size_t k = 0; k < 3; ++k) {
-      const auto a = static_cast<std::uint64_t>(faces[f][k]), b = static_cast<std::uint64_t>(faces[f][(k + 1) % 3]);
-      uses.push_back({(std::min(a, b) << 32) | std::max(a, b), 3 * f + k});
-    }
-  std::sort(uses.begin(), uses.end());
-  detail::DisjointSets fans(3 * nf);
-  auto corner_at = [&](std::uint64_t corner_in_face, int vertex) -> std::size_t {
-    const std::size_t f = static_cast<std::size_t>(corner_in_face / 3);
-    for (std::size_t k = 0; k < 3; ++k)
-      if (faces[f][k] == vertex) return 3 * f + k;
-    return static_cast<std::size_t>(corner_in_face);  // unreachable: the edge's face has both endpoints
-  };
-  for (std::size_t i = 0; i + 1 < uses.size(); ++i) {
-    if (uses[i][0] != uses[i + 1][0]) continue;
-    const auto a = static_cast<int>(uses[i][0] >> 32), b = static_cast<int>(uses[i][0] & 0xffffffffu);
-    for (int v : {a, b}) fans.unite(corner_at(uses[i][1], v), corner_at(uses[i + 1][1], v));
-  }
+  const std::vector<std::size_t> fan = detail::corner_fans(soup);  // corner 3f + k: every face is a valid triangle
   // The first fan met keeps the vertex; every other fan gets a copy.
   std::vector<std::size_t> first_fan(static_cast<std::size_t>(soup.V.rows()), SIZE_MAX);
   std::unordered_map<std::size_t, int> copy_of_fan;  // fan root -> its new vertex
   std::vector<Eigen::RowVector3d> new_points;
   for (std::size_t c = 0; c < 3 * nf; ++c) {
-    const std::size_t root = fans.find(c);
+    const std::size_t root = fan[c];
     int& v = faces[c / 3][c % 3];
     std::size_t& first = first_fan[static_cast<std::size_t>(v)];
     if (first == SIZE_MAX) first = root;

@@ -1,6 +1,7 @@
 #include "ice/mesh_validation.h"
 #include "ice/triangle_geometry.h"
 
+#include "corner_fans.h"
 #include "disjoint_sets.h"
 
 #include <Eigen/Geometry>
@@ -164,6 +165,7 @@ struct SoupScan {
   std::vector<std::size_t> corner_offset;
   std::vector<HalfEdgeUse> uses;
   std::vector<char> on_boundary, vertex_non_manifold;
+  std::vector<std::size_t> corner_fan;  // each corner's fan (its smallest corner), corner_offset numbering
   std::vector<std::uint64_t> unique_edges, non_manifold_edge_keys;
   // Face graph through two-face edges: (face, other face, parity 1 if they must flip relative to each other).
   std::vector<std::array<int, 3>> links;
@@ -355,12 +357,14 @@ void scan_edges(SoupScan& s, ValidationReport& r) {
   }
 
   // Non-manifold vertices: more than one fan.
+  s.corner_fan.resize(n_corners);
   std::vector<int> fan_count(static_cast<std::size_t>(nv), 0);
   for (int f = 0; f < nf; ++f) {
     if (!s.well_formed[f]) continue;
     for (std::size_t k = 0; k < polys[f].size(); ++k) {
       const std::size_t c = s.corner_offset[f] + k;
-      if (fans.find(c) == c) ++fan_count[polys[f][k]];
+      s.corner_fan[c] = fans.find(c);
+      if (s.corner_fan[c] == c) ++fan_count[polys[f][k]];
     }
   }
   s.vertex_non_manifold.assign(static_cast<std::size_t>(nv), 0);
@@ -475,6 +479,15 @@ void sum_topology(ValidationReport& r) {
 }
 
 }  // namespace
+
+std::vector<std::size_t> detail::corner_fans(const PolygonSoup& soup) {
+  ValidationReport unused;
+  SoupScan s(soup);
+  scan_vertices(s, unused);
+  scan_faces(s, unused);
+  scan_edges(s, unused);
+  return std::move(s.corner_fan);
+}
 
 ValidationReport validate_mesh(const PolygonSoup& soup) {
   ValidationReport r;
