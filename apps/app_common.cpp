@@ -82,26 +82,21 @@ void require_connected(const ice::LoadResult& loaded, const std::string& path, c
 
 // ---- coarsening -------------------------------------------------------------------------------------
 
-std::unique_ptr<ProgressBar> attach_progress_bar(ice::CoarsenOptions& options, ice::Index start_vertices,
+ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
                                                  bool show_progress) {
-  auto bar = std::make_unique<ProgressBar>("coarsening", show_progress && stderr_is_terminal());
-  options.progress_interval = 250;
-  options.progress = [bar = bar.get(), clock = Stopwatch(), start_vertices](const ice::CoarsenProgress& p) {
+  ProgressBar bar("coarsening", show_progress && stderr_is_terminal());  // QEM reports no progress: nothing drawn
+  const auto start_vertices = static_cast<ice::Index>(mesh.V.rows());
+  options.coarsen.progress_interval = 250;
+  options.coarsen.progress = [&bar, clock = Stopwatch(), start_vertices](const ice::CoarsenProgress& p) {
     const double total = std::max<double>(1, start_vertices - p.target);
     const double rate = p.removed / std::max(1e-9, clock.seconds());
-    bar->update(p.removed / total, thousands(p.vertices) + " -> " + thousands(p.target) + " vertices, " +
-                                       thousands(static_cast<long long>(rate)) + " removals/s");
+    bar.update(p.removed / total, thousands(p.vertices) + " -> " + thousands(p.target) + " vertices, " +
+                                      thousands(static_cast<long long>(rate)) + " removals/s");
     return true;
   };
-  return bar;
-}
-
-ice::CoarsenResult coarsen_with_progress(ice::IntrinsicTriangulation& T, ice::CoarsenOptions options,
-                                         bool show_progress) {
-  const std::unique_ptr<ProgressBar> bar = attach_progress_bar(options, T.num_vertices(), show_progress);
-  ice::CoarsenResult result = ice::coarsen(T, options);
-  bar->finish();
-  return result;
+  ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  bar.finish();
+  return space;
 }
 
 void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,
@@ -130,18 +125,14 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
   space_options.method = opt.target.method;
   space_options.qem_geometry = opt.qem_geometry;
   space_options.coarsen = options;
-  std::unique_ptr<ProgressBar> bar;
-  if (opt.target.method == ice::CoarseningMethod::ice)
-    bar = attach_progress_bar(space_options.coarsen, static_cast<ice::Index>(mesh.V.rows()), !opt.quiet);
   ice::CoarseSpace space;
   try {
-    space = ice::build_coarse_space(mesh, space_options);
+    space = build_coarse_space_with_progress(mesh, space_options, !opt.quiet);
   } catch (const std::runtime_error& e) {
     if (opt.qem_geometry == ice::QemGeometry::intrinsic_delaunay && opt.target.method == ice::CoarseningMethod::qem)
       throw AppError(kFailed, std::string("--qem-operators idt: ") + e.what());
     throw;
   }
-  if (bar) bar->finish();
   warn_if_target_missed(run.tool, space.summary, options);
   run.coarsening = space.summary;
   return space;

@@ -39,15 +39,10 @@ void require_connected(const ice::LoadResult& loaded, const std::string& path, c
 
 // ---- coarsening -------------------------------------------------------------------------------------
 
-/// Sets options.progress to draw a progress bar on stderr (when `show_progress` and stderr is a
-/// terminal); the bar lives in the returned object, which must outlive the coarsening.
-std::unique_ptr<ProgressBar> attach_progress_bar(ice::CoarsenOptions& options, ice::Index start_vertices,
+/// ice::build_coarse_space with a progress bar of the ICE removals on stderr (when `show_progress` and
+/// stderr is a terminal), cleared before it returns. Any progress callback in `options` is replaced.
+ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
                                                  bool show_progress);
-
-/// Runs ice::coarsen on T, with a progress bar on stderr when `show_progress` (and stderr is a
-/// terminal). Any progress callback already in `options` is replaced.
-ice::CoarsenResult coarsen_with_progress(ice::IntrinsicTriangulation& T, ice::CoarsenOptions options,
-                                         bool show_progress);
 
 /// Prints a warning when the coarsening stopped before its vertex target (either method).
 void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,

@@ -172,14 +172,11 @@ std::string validate_qem(const ice::QemResult& qem, const Eigen::SparseMatrix<do
 // "target_reached after 1,234 QEM collapses".
 std::string stop_line(const ice::CoarseSpaceSummary& summary) {
   std::ostringstream line;
-  if (summary.qem) {
-    line << ice::to_string(summary.target_reached ? ice::StopReason::TargetReached : ice::StopReason::NothingRemovable) << " after "
-         << app::thousands(summary.qem->collapses) << " QEM collapses";
-    return line.str();
-  }
+  line << ice::to_string(summary.stop_reason()) << " after " << app::thousands(summary.removed());
+  if (summary.qem) return line.str() + " QEM collapses";
   const ice::CoarsenResult& r = *summary.ice;
-  line << ice::to_string(r.stop_reason) << " after " << app::thousands(r.removed) << " removals (" << r.failed_removals
-       << " failed attempts); last cost " << r.last_cost << ", next cost " << r.next_cost;
+  line << " removals (" << r.failed_removals << " failed attempts); last cost " << r.last_cost << ", next cost "
+       << r.next_cost;
   return line.str();
 }
 
@@ -248,10 +245,7 @@ int main(int argc, char** argv) {
     space_options.method = target.method;
     space_options.coarsen = options;
     space_options.keep_method_state = true;  // the map, the preview and --validate need it
-    std::unique_ptr<app::ProgressBar> bar;
-    if (!qem) bar = app::attach_progress_bar(space_options.coarsen, static_cast<ice::Index>(n), !quiet);
-    const ice::CoarseSpace space = ice::build_coarse_space(mesh, space_options);
-    if (bar) bar->finish();
+    const ice::CoarseSpace space = app::build_coarse_space_with_progress(mesh, space_options, !quiet);
     const ice::CoarseSpaceSummary& summary = space.summary;
     const ice::CompactMesh& coarse = space.mesh;
     const double t_coarsen = clock.lap();

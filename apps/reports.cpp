@@ -77,39 +77,27 @@ std::string percent(const nlohmann::json& fraction) {
 
 // ---- JSON reports ---------------------------------------------------------------------------------
 
-nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::CompactMesh& coarse) {
-  nlohmann::json failures;
+nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
+  nlohmann::json j = {{"vertices", summary.coarse_vertices},
+                      {"faces", summary.coarse_faces},
+                      {"stop_reason", ice::to_string(summary.stop_reason())},
+                      {"removed", summary.removed()}};
+  if (!summary.ice) return j;
+  const ice::CoarsenResult& result = *summary.ice;
+  nlohmann::json failures = nlohmann::json::object();
   for (int s = 0; s < static_cast<int>(result.failures_by_status.size()); ++s)
     if (result.failures_by_status[s] > 0) {
       std::string key = ice::to_string(static_cast<ice::RemovalStatus>(s));
       std::replace(key.begin(), key.end(), ' ', '_');
       failures[key] = result.failures_by_status[s];
     }
-  const auto finite_or_null = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
-  return {{"vertices", coarse.to_input.size()},
-          {"faces", coarse.F.rows()},
-          {"stop_reason", ice::to_string(result.stop_reason)},
-          {"removed", result.removed},
-          {"failed_removals", result.failed_removals},
-          {"failures_by_status", failures.is_null() ? nlohmann::json::object() : failures},
-          {"last_cost", result.last_cost},
-          {"max_cost", result.max_cost},
-          {"next_cost", finite_or_null(result.next_cost)},
-          {"parallel_removed", result.parallel_removed}};
-}
-
-nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
-  if (summary.ice) {
-    nlohmann::json j = coarsen_json(*summary.ice, ice::CompactMesh{});
-    j["vertices"] = summary.coarse_vertices;
-    j["faces"] = summary.coarse_faces;
-    return j;
-  }
-  return {{"vertices", summary.coarse_vertices},
-          {"faces", summary.coarse_faces},
-          {"stop_reason", ice::to_string(summary.target_reached ? ice::StopReason::TargetReached
-                                                                : ice::StopReason::NothingRemovable)},
-          {"removed", summary.removed()}};
+  j["failed_removals"] = result.failed_removals;
+  j["failures_by_status"] = failures;
+  j["last_cost"] = result.last_cost;
+  j["max_cost"] = result.max_cost;
+  j["next_cost"] = std::isfinite(result.next_cost) ? nlohmann::json(result.next_cost) : nlohmann::json(nullptr);
+  j["parallel_removed"] = result.parallel_removed;
+  return j;
 }
 
 nlohmann::json qem_json(const ice::QemOutcome& qem, bool target_reached) {

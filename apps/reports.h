@@ -74,7 +74,6 @@ std::string percent(const nlohmann::json& fraction);
 
 /// The "coarse" object of the JSON reports: vertices, faces, stop_reason, removed (ICE removals or
 /// QEM collapses), and for ICE its removal details (failed removals by status, costs).
-nlohmann::json coarsen_json(const ice::CoarsenResult& result, const ice::CompactMesh& coarse);
 nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary);
 
 /// The "qem" object of the JSON reports (mapping, guard, distances, times, geometry of the coarse mesh).

@@ -23,6 +23,11 @@ const char* to_string(FineGeometry geometry) {
 
 Index CoarseSpaceSummary::removed() const { return ice ? ice->removed : qem ? qem->collapses : 0; }
 
+StopReason CoarseSpaceSummary::stop_reason() const {
+  if (ice) return ice->stop_reason;
+  return target_reached ? StopReason::TargetReached : StopReason::NothingRemovable;
+}
+
 namespace {
 
 CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {

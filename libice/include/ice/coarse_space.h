@@ -75,6 +75,8 @@ struct CoarseSpaceSummary {
   std::optional<QemOutcome> qem;     ///< method == qem
   /// Removals (ICE) or collapses (QEM).
   Index removed() const;
+  /// ICE's stop reason; for QEM TargetReached or NothingRemovable (no further collapse was legal).
+  StopReason stop_reason() const;
 };
 
 struct CoarseSpace {
