@@ -54,12 +54,10 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
   coarse_mass_factor_.compute(coarse_mass_);
 
   // A coarse vertex sitting on a fine vertex shows up as a row of P equal to e_j.
-  SparseMatrix P_columns = P_;
-  P_columns.makeCompressed();
   coarse_to_fine_.assign(static_cast<std::size_t>(n_coarse), -1);
   fine_to_coarse_.assign(static_cast<std::size_t>(n_fine), -1);
-  for (Eigen::Index j = 0; j < P_columns.outerSize(); ++j)
-    for (SparseMatrix::InnerIterator it(P_columns, j); it; ++it)
+  for (Eigen::Index j = 0; j < P_.outerSize(); ++j)
+    for (SparseMatrix::InnerIterator it(P_, j); it; ++it)
       if (std::abs(it.value() - 1.0) < 1e-12) {
         coarse_to_fine_[static_cast<std::size_t>(j)] = static_cast<int>(it.row());
         fine_to_coarse_[static_cast<std::size_t>(it.row())] = static_cast<int>(j);

@@ -592,7 +592,6 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
   return soup;
 }
 
-
 std::string describe_defects(const ValidationReport& report) {
   std::string text;
   for (const auto& line : report.defects()) text += (text.empty() ? "" : "; ") + line;
