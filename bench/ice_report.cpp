@@ -25,6 +25,7 @@
 #include <iostream>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -607,25 +608,26 @@ int main(int argc, char** argv) {
           r.coarse_n = coarse.summary.coarse_vertices;
           r.coarse_faces = coarse.summary.coarse_faces;
           r.target_reached = coarse.summary.target_reached;
-          if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.ice->stop_reason);
+          if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.stop_reason());
           solve_on_proxy(fine, coarse, kind, r, rows);
           progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
                    << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
         }
-        // QEM with its two coarse geometries (the decimation is deterministic: the same mesh and P).
-        const bool want_ext = std::find(methods.begin(), methods.end(), "qem_ext") != methods.end();
-        const bool want_idt = std::find(methods.begin(), methods.end(), "qem_idt") != methods.end();
+        // QEM: one decimation, its two coarse geometries.
+        std::optional<ice::QemResult> decimated;
         for (const std::string m : {"qem_ext", "qem_idt"}) {
-          if ((m == "qem_ext" && !want_ext) || (m == "qem_idt" && !want_idt)) continue;
-          ice::CoarseSpaceOptions options;
-          options.method = ice::CoarseningMethod::qem;
-          options.qem_geometry = m == "qem_idt" ? ice::QemGeometry::intrinsic_delaunay : ice::QemGeometry::extrinsic;
-          options.coarsen.target_vertices = static_cast<ice::Index>(target);
+          if (std::find(methods.begin(), methods.end(), m) == methods.end()) continue;
+          if (!decimated) {
+            ice::QemOptions options;
+            options.target_vertices = static_cast<ice::Index>(target);
+            decimated = ice::qem_coarsen(mesh, options);
+          }
           Row r = base;
           r.method = m;
           ice::CoarseSpace coarse;
           try {
-            coarse = ice::build_coarse_space(mesh, options);
+            coarse = ice::coarse_space_from_qem(
+                *decimated, m == "qem_idt" ? ice::QemGeometry::intrinsic_delaunay : ice::QemGeometry::extrinsic);
           } catch (const std::runtime_error& e) {  // the QEM mesh has a face no intrinsic triangulation takes
             record_failure(r, e.what(), rows);
             continue;
@@ -635,7 +637,7 @@ int main(int argc, char** argv) {
           r.qem_max_distance = qem.max_distance / diagonal;
           if (!r.target_reached) r.note = "QEM stopped early";
           if (qem.guard_relaxed) r.note += std::string(r.note.empty() ? "" : "; ") + "normal guard relaxed";
-          r.coarsen = coarse.summary.seconds;
+          r.coarsen = qem.decimate_seconds + qem.map_seconds + coarse.summary.seconds;
           r.coarse_n = coarse.summary.coarse_vertices;
           r.coarse_faces = coarse.summary.coarse_faces;
           try {

@@ -30,6 +30,17 @@ StopReason CoarseSpaceSummary::stop_reason() const {
 
 namespace {
 
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+// The sizes every summary carries, from the finished space.
+void record_sizes(CoarseSpace& space, CoarseningMethod method, Index input_vertices) {
+  space.summary.method = method;
+  space.summary.input_vertices = input_vertices;
+  space.summary.coarse_vertices = space.mesh.num_vertices();
+  space.summary.coarse_faces = static_cast<Index>(space.mesh.F.rows());
+}
+
 CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
   IntrinsicTriangulation T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
   CoarseSpace space;
@@ -39,21 +50,17 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   space.summary.target_reached = result.stop_reason == StopReason::TargetReached;
   space.summary.ice = result;
   if (options.keep_method_state) space.triangulation = std::move(T);
+  record_sizes(space, CoarseningMethod::ice, static_cast<Index>(mesh.V.rows()));
   return space;
 }
 
-CoarseSpace qem_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
-  if (std::isfinite(options.coarsen.max_error))
-    throw std::invalid_argument("build_coarse_space: max_error bounds the ICE error metric; QEM takes a vertex target");
-  QemOptions q;
-  q.target_vertices = options.coarsen.target_vertices;
-  q.target_ratio = options.coarsen.target_ratio;
-  q.locked_vertices = options.coarsen.locked_vertices;
-  q.remove_boundary = options.coarsen.remove_boundary;
-  QemResult qem = qem_coarsen(mesh, q);
+}  // namespace
+
+CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep_method_state) {
+  const auto start = Clock::now();
   CoarseSpace space;
   QemOutcome outcome;
-  if (options.qem_geometry == QemGeometry::intrinsic_delaunay) {
+  if (geometry == QemGeometry::intrinsic_delaunay) {
     int flips = 0;
     try {
       space.mesh = qem_intrinsic_delaunay_mesh(qem, &flips);
@@ -71,25 +78,31 @@ CoarseSpace qem_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   outcome.mean_distance = qem.mean_distance;
   outcome.decimate_seconds = qem.decimate_seconds;
   outcome.map_seconds = qem.map_seconds;
-  outcome.geometry = options.qem_geometry;
+  outcome.geometry = geometry;
   space.summary.target_reached = qem.target_reached;
   space.summary.qem = outcome;
-  if (options.keep_method_state) space.qem_result = std::move(qem);
+  record_sizes(space, CoarseningMethod::qem, qem.input_vertices);
+  if (keep_method_state) space.qem_result = std::move(qem);
+  space.summary.seconds = seconds_since(start);
   return space;
 }
 
-}  // namespace
-
 CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  CoarseSpace space =
-      options.method == CoarseningMethod::qem ? qem_coarse_space(mesh, options) : ice_coarse_space(mesh, options);
-  CoarseSpaceSummary& summary = space.summary;
-  summary.method = options.method;
-  summary.input_vertices = static_cast<Index>(mesh.V.rows());
-  summary.coarse_vertices = static_cast<Index>(space.mesh.to_input.size());
-  summary.coarse_faces = static_cast<Index>(space.mesh.F.rows());
-  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const auto start = Clock::now();
+  CoarseSpace space;
+  if (options.method == CoarseningMethod::qem) {
+    if (std::isfinite(options.coarsen.max_error))
+      throw std::invalid_argument("build_coarse_space: max_error bounds the ICE error metric; QEM takes a vertex target");
+    QemOptions q;
+    q.target_vertices = options.coarsen.target_vertices;
+    q.target_ratio = options.coarsen.target_ratio;
+    q.locked_vertices = options.coarsen.locked_vertices;
+    q.remove_boundary = options.coarsen.remove_boundary;
+    space = coarse_space_from_qem(qem_coarsen(mesh, q), options.qem_geometry, options.keep_method_state);
+  } else {
+    space = ice_coarse_space(mesh, options);
+  }
+  space.summary.seconds = seconds_since(start);
   return space;
 }
 

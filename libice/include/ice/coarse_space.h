@@ -94,6 +94,11 @@ struct CoarseSpace {
 /// std::runtime_error when a QEM mesh with QemGeometry::intrinsic_delaunay has a degenerate face.
 CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options);
 
+/// What build_coarse_space does with a QEM decimation already made (ice::qem_coarsen): the coarse
+/// space of `geometry`, for callers that compare both geometries of one decimation (ice-report).
+/// summary.seconds covers this call only (the decimation's times are in summary.qem).
+CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep_method_state = false);
+
 /// The fine mesh's discretisation for the PDE solvers (and the Galerkin coarse operators).
 enum class FineGeometry {
   input,               ///< the input triangles with their extrinsic edge lengths
