@@ -304,7 +304,7 @@ TEST_CASE("star snapshots: consecutive corners share a spoke; distinct neighbour
     for (int round = 0; round < 300; ++round) {
       for (Index v = 0; v < T.num_input_vertices(); ++v) {
         if (!T.vertex_alive(v)) continue;
-        read_star(T, v, star);
+        T.read_star(v, star);
         const int count = static_cast<int>(star.corners.size());
         for (int k = 0; k + 1 < count; ++k) REQUIRE(star.corners[k].in_halfedge == (star.corners[k + 1].halfedge ^ 1));
         if (!star.boundary) REQUIRE(star.corners[count - 1].in_halfedge == (star.corners[0].halfedge ^ 1));
@@ -335,10 +335,10 @@ TEST_CASE("a star of more than 16 neighbours is reported as not having distinct 
   }
   auto T = IntrinsicTriangulation::from_mesh(V, F);
   VertexStar star;
-  read_star(T, 0, star);
+  T.read_star(0, star);
   CHECK(star.corners.size() == 18);
   CHECK_FALSE(has_distinct_neighbours(star));
-  read_star(T, 1, star);  // a boundary vertex of the fan: one corner, three distinct neighbours
+  T.read_star(1, star);  // a boundary vertex of the fan: one corner, three distinct neighbours
   CHECK(has_distinct_neighbours(star) == neighbours_distinct_by_set(star));
 }
 

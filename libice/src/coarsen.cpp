@@ -48,7 +48,7 @@ struct GreedyContext {
   IntrinsicErrorMetric& metric;
   LargeArray<VertexState>& state;
   const CoarsenOptions& options;
-  Index final_target;                 // for progress reports
+  Index final_target;                 // the vertex target of the whole call
   Index vertices_at_start;            // for progress reports
   std::atomic<Index> removed{0};      // by all loops so far
   std::atomic<bool> cancelled{false};
@@ -274,6 +274,103 @@ std::vector<Index> partition_vertices(const IntrinsicTriangulation& T, int parts
   return sizes;
 }
 
+// The live vertices labelled with `parts` regions (partition_vertices), each region's size, and
+// the frontier flags the regions fill in as they go.
+struct RegionPartition {
+  int parts = 0;
+  std::vector<std::uint8_t> label, frontier;
+  std::vector<Index> sizes;
+};
+
+// The parallel phase of coarsen(): the regions of `partition`, coarsened by `threads` threads down
+// to about `intermediate` vertices. The regions advance in rounds with a common cost threshold that
+// grows by kGrowth per round, so they remove vertices in nearly the global cost order (a region
+// whose vertices are all expensive waits instead of being forced to its share of the removals);
+// within a round, a quota per region (its share of the removals still wanted) keeps the total from
+// overshooting the intermediate size. Region outcomes depend only on the thresholds and quotas,
+// which are computed between rounds from the regions' counts: deterministic. Leaves the seams
+// (edges with a corner in two regions, never flipped) Delaunay again.
+CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition, int threads, Index intermediate) {
+  constexpr double kGrowth = 1.4;
+  constexpr int kMaxRounds = 1000;
+  const CoarsenOptions& options = context.options;
+  const int parts = partition.parts;
+  const Index live = context.T.num_vertices();
+  std::vector<IntrinsicTriangulation::WriteRegion> regions(parts);
+  std::vector<std::unique_ptr<GreedyLoop>> loops(parts);
+  run_tasks(threads, parts, [&](int r) {
+    regions[r] = {partition.label.data(), static_cast<std::uint8_t>(r)};
+    GreedyScope scope;
+    scope.region = &regions[r];
+    scope.frontier = partition.frontier.data();
+    scope.vertices = partition.sizes[r];
+    scope.target = 0;
+    loops[r] = std::make_unique<GreedyLoop>(context, scope);
+  });
+  double threshold = std::numeric_limits<double>::infinity();
+  for (auto& loop : loops) threshold = std::min(threshold, loop->next_cost());
+  // The vertices the regions cannot remove stay on top of the intermediate size: the regions
+  // must not make up for them with removals the serial order would not make yet.
+  Index blocked = 0;
+  for (auto& loop : loops) blocked += loop->blocked();
+  const Index parallel_target = std::min(live, intermediate + blocked);
+  Index vertices = live;
+  std::vector<RunStop> stops(parts);
+  for (int round = 0; round < kMaxRounds && vertices > parallel_target && std::isfinite(threshold) &&
+                      !context.cancelled.load();
+       ++round) {
+    const double round_threshold = std::min(threshold, options.max_error);
+    const Index wanted = vertices - parallel_target;
+    run_tasks(threads, parts, [&](int r) {
+      const Index quota = std::max<Index>(1, static_cast<Index>(std::ceil(static_cast<double>(wanted) * loops[r]->vertices() / vertices)));
+      stops[r] = loops[r]->run(round_threshold, quota);
+    });
+    vertices = 0;
+    bool quota_hit = false, any_left = false;
+    for (int r = 0; r < parts; ++r) {
+      vertices += loops[r]->vertices();
+      quota_hit = quota_hit || stops[r] == RunStop::Quota;
+      any_left = any_left || stops[r] == RunStop::Threshold || stops[r] == RunStop::Quota;
+    }
+    if (!any_left) break;  // every region is out of candidates
+    if (options.progress) {
+      const Index removed = context.removed.load();
+      if (!options.progress(CoarsenProgress{live - removed, context.final_target, removed, threshold}))
+        context.cancelled.store(true);
+    }
+    if (!quota_hit) {
+      if (threshold >= options.max_error) break;  // the error bound stops every region
+      threshold *= kGrowth;
+    }
+  }
+  CoarsenResult result;
+  for (auto& loop : loops) {
+    result.add_counts(loop->result());
+    result.last_cost = std::max(result.last_cost, loop->result().last_cost);
+  }
+  result.parallel_removed = result.removed;
+  loops.clear();
+  context.T.flip_to_delaunay();
+  return result;
+}
+
+// The serial phase of coarsen(): the global greedy order over every vertex from exact costs, down
+// to context.final_target or options.max_error. Adds its counts, stop reason and costs to `result`.
+void coarsen_whole(GreedyContext& context, CoarsenResult& result) {
+  GreedyScope whole;
+  whole.vertices = context.T.num_vertices();
+  whole.target = context.final_target;
+  GreedyLoop loop(context, whole);
+  const RunStop stop = loop.run(context.options.max_error, std::numeric_limits<Index>::max());
+  result.add_counts(loop.result());
+  if (loop.result().removed > 0) result.last_cost = loop.result().last_cost;
+  result.stop_reason = stop == RunStop::Target      ? StopReason::TargetReached
+                       : stop == RunStop::Threshold ? StopReason::ErrorThreshold
+                       : stop == RunStop::Cancelled ? StopReason::Cancelled
+                                                    : StopReason::NothingRemovable;
+  result.next_cost = loop.next_cost();
+}
+
 }  // namespace
 
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) {
@@ -295,18 +392,17 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   const Index live = T.num_vertices();
   const Index intermediate = target + std::max<Index>(target, (live - target) / 32);
   const bool parallel = threads > 1 && live >= options.parallel_min_vertices && intermediate < live / 2;
+  RegionPartition partition;
   // More regions than threads: a thread that finishes its region early in a round takes another.
-  const int parts = std::min(4 * threads, 254);
+  partition.parts = std::min(4 * threads, 254);
   // The partition (a breadth-first pass) runs on a second thread while the metric is set up.
-  std::vector<std::uint8_t> label, frontier;
-  std::vector<Index> sizes;
   std::optional<IntrinsicErrorMetric> metric_storage;
   run_tasks(parallel ? 2 : 1, parallel ? 2 : 1, [&](int task) {
     if (task == 0) {
       metric_storage.emplace(T, options.area_weight);
     } else {
-      sizes = partition_vertices(T, parts, label);
-      frontier.resize(label.size());
+      partition.sizes = partition_vertices(T, partition.parts, partition.label);
+      partition.frontier.resize(partition.label.size());
     }
   });
   IntrinsicErrorMetric& metric = *metric_storage;
@@ -316,81 +412,13 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   GreedyContext context{T, metric, state, options, target, T.num_vertices()};
 
   if (parallel) {
-    // The regions advance in rounds with a common cost threshold that grows by kGrowth per round,
-    // so they remove vertices in nearly the global cost order (a region whose vertices are all
-    // expensive waits instead of being forced to its share of the removals); within a round, a
-    // quota per region (its share of the removals still wanted) keeps the total from overshooting
-    // the intermediate size. Region outcomes depend only on the thresholds and quotas, which are
-    // computed between rounds from the regions' counts: deterministic.
-    constexpr double kGrowth = 1.4;
-    constexpr int kMaxRounds = 1000;
-    std::vector<IntrinsicTriangulation::WriteRegion> regions(parts);
-    std::vector<std::unique_ptr<GreedyLoop>> loops(parts);
-    run_tasks(threads, parts, [&](int r) {
-      regions[r] = {label.data(), static_cast<std::uint8_t>(r)};
-      GreedyScope scope;
-      scope.region = &regions[r];
-      scope.frontier = frontier.data();
-      scope.vertices = sizes[r];
-      scope.target = 0;
-      loops[r] = std::make_unique<GreedyLoop>(context, scope);
-    });
-    double threshold = std::numeric_limits<double>::infinity();
-    for (auto& loop : loops) threshold = std::min(threshold, loop->next_cost());
-    // The vertices the regions cannot remove stay on top of the intermediate size: the regions
-    // must not make up for them with removals the serial order would not make yet.
-    Index blocked = 0;
-    for (auto& loop : loops) blocked += loop->blocked();
-    const Index parallel_target = std::min(live, intermediate + blocked);
-    Index vertices = live;
-    std::vector<RunStop> stops(parts);
-    int rounds = 0;
-    for (; rounds < kMaxRounds && vertices > parallel_target && std::isfinite(threshold) && !context.cancelled.load(); ++rounds) {
-      const double round_threshold = std::min(threshold, options.max_error);
-      const Index wanted = vertices - parallel_target;
-      run_tasks(threads, parts, [&](int r) {
-        const Index quota = std::max<Index>(1, static_cast<Index>(std::ceil(static_cast<double>(wanted) * loops[r]->vertices() / vertices)));
-        stops[r] = loops[r]->run(round_threshold, quota);
-      });
-      vertices = 0;
-      bool quota_hit = false, any_left = false;
-      for (int r = 0; r < parts; ++r) {
-        vertices += loops[r]->vertices();
-        quota_hit = quota_hit || stops[r] == RunStop::Quota;
-        any_left = any_left || stops[r] == RunStop::Threshold || stops[r] == RunStop::Quota;
-      }
-      if (!any_left) break;  // every region is out of candidates
-      if (options.progress) {
-        const Index removed = context.removed.load();
-        if (!options.progress(CoarsenProgress{live - removed, target, removed, threshold})) context.cancelled.store(true);
-      }
-      if (!quota_hit) {
-        if (threshold >= options.max_error) break;  // the error bound stops every region
-        threshold *= kGrowth;
-      }
-    }
-    for (auto& loop : loops) {
-      result.add_counts(loop->result());
-      result.last_cost = std::max(result.last_cost, loop->result().last_cost);
-    }
-    result.parallel_removed = result.removed;
-    loops.clear();
-    T.flip_to_delaunay();  // the seams: edges with a corner in two regions were never flipped
+    const CoarsenResult regions = coarsen_regions(context, partition, threads, intermediate);
+    result.add_counts(regions);
+    result.parallel_removed = regions.parallel_removed;
+    result.last_cost = regions.last_cost;
   }
-
   if (!context.cancelled.load()) {
-    GreedyScope whole;
-    whole.vertices = T.num_vertices();
-    whole.target = target;
-    GreedyLoop loop(context, whole);
-    const RunStop stop = loop.run(options.max_error, std::numeric_limits<Index>::max());
-    result.add_counts(loop.result());
-    if (loop.result().removed > 0) result.last_cost = loop.result().last_cost;
-    result.stop_reason = stop == RunStop::Target      ? StopReason::TargetReached
-                         : stop == RunStop::Threshold ? StopReason::ErrorThreshold
-                         : stop == RunStop::Cancelled ? StopReason::Cancelled
-                                                      : StopReason::NothingRemovable;
-    result.next_cost = loop.next_cost();
+    coarsen_whole(context, result);
   } else {
     result.stop_reason = StopReason::Cancelled;
     result.next_cost = std::numeric_limits<double>::quiet_NaN();

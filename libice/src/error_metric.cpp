@@ -67,7 +67,7 @@ bool IntrinsicErrorMetric::split_weights(const IntrinsicTriangulation& T, Index 
   // weights move by about as much; the committed flattening itself is exact to 1e-13). A scale
   // already computed for the same star (*log_scale finite on entry) is reused.
   VertexStar& star = scratch.star_;
-  read_star(T, v, star);
+  T.read_star(v, star);
   double u = log_scale ? *log_scale : std::numeric_limits<double>::quiet_NaN();
   if (std::isfinite(u)) {
     star_areas(star, u);

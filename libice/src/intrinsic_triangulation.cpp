@@ -1,7 +1,6 @@
 #include "ice/triangle_geometry.h"
 #include "ice/intrinsic_triangulation.h"
 
-#include "ice/vertex_star.h"
 
 #include <algorithm>
 #include <cmath>
@@ -245,17 +244,31 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
   const Index num_vertices = F.minCoeff() < 0 ? -1 : F.maxCoeff() + 1;
   if (num_vertices <= 0) throw std::invalid_argument("IntrinsicTriangulation: negative vertex index");
-  const Index num_corners = 3 * num_faces;
   // The gluing, checked, numbers the edges: corner c's side is half-edge corner_halfedge[c].
   Index num_edges = 0;
   const std::vector<Index> corner_halfedge = number_glued_sides(F, corner_length, twin, order, num_edges);
 
-  const Index num_halfedges = 2 * num_edges;
   edges_.assign(num_edges, EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0});
   faces_.assign(num_faces, FaceRecord{kInvalid, kInvalid});
   vertices_.assign(num_vertices, VertexRecord{kInvalid, 0, 0.0});
+  num_vertices_ = num_vertices;
+  num_edges_ = num_edges;
+  num_faces_ = num_faces;
+  link_vertices(link_halfedges(F, corner_length, corner_halfedge));
+  for (Index f = 0; f < num_faces; ++f) {
+    const Index h = fhalfedge(f);
+    if (!triangle_inequality_holds(length(h), length(next(h)), length(prev(h))))
+      throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
+                                  " is degenerate or violates the triangle inequality");
+  }
+  for (Index v = 0; v < num_vertices; ++v) recompute_vertex_frame(v);
+  points_.assign(num_vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
+}
 
-  std::vector<Index> corners_at_vertex(num_vertices, 0);
+std::vector<Index> IntrinsicTriangulation::link_halfedges(const Faces& F, const std::vector<double>& corner_length,
+                                                          const std::vector<Index>& corner_halfedge) {
+  const Index num_corners = static_cast<Index>(corner_halfedge.size());
+  std::vector<Index> corners_at_vertex(static_cast<std::size_t>(num_vertices_), 0);
   for (Index c = 0; c < num_corners; ++c) {
     const Index h = corner_halfedge[c];
     const Index f = c / 3;
@@ -268,15 +281,17 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   }
   for (Index c = 0; c < num_corners; ++c) hprev(hnext(corner_halfedge[c])) = corner_halfedge[c];
   // Exterior half-edges: tail is the head of their interior twin.
-  for (Index h = 0; h < num_halfedges; ++h)
+  for (Index h = 0; h < 2 * num_edges_; ++h)
     if (htail(h) == kInvalid) htail(h) = htail(hnext(h ^ 1));
+  return corners_at_vertex;
+}
 
-  for (Index v = 0; v < num_vertices; ++v)
+void IntrinsicTriangulation::link_vertices(const std::vector<Index>& corners_at_vertex) {
+  for (Index v = 0; v < num_vertices_; ++v)
     if (corners_at_vertex[v] == 0)
       throw std::invalid_argument("IntrinsicTriangulation: vertex " + std::to_string(v) + " is not referenced by any face");
-
   // Vertex half-edges: any outgoing interior one, then the boundary one where it exists.
-  for (Index h = 0; h < num_halfedges; ++h) {
+  for (Index h = 0; h < 2 * num_edges_; ++h) {
     if (hface(h) == kInvalid) continue;
     const Index v = htail(h);
     if (vhalfedge(v) == kInvalid || hface(h ^ 1) == kInvalid) {
@@ -286,27 +301,14 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
       vhalfedge(v) = h;
     }
   }
-  num_vertices_ = num_vertices;
-  num_edges_ = num_edges;
-  num_faces_ = num_faces;
-  for (Index v = 0; v < num_vertices; ++v)
+  for (Index v = 0; v < num_vertices_; ++v)
     vertices_[v].boundary = vhalfedge(v) != kInvalid && is_exterior(vhalfedge(v) ^ 1);
-
   // One fan per vertex: the rotation from vertex_halfedge must visit every corner.
-  for (Index v = 0; v < num_vertices; ++v) {
+  for (Index v = 0; v < num_vertices_; ++v) {
     if (degree(v) != corners_at_vertex[v])
       throw std::invalid_argument("IntrinsicTriangulation: non-manifold vertex " + std::to_string(v) +
                                   " (its faces form several fans)");
   }
-  for (Index f = 0; f < num_faces; ++f) {
-    const Index h = fhalfedge(f);
-    if (!triangle_inequality_holds(length(h), length(next(h)), length(prev(h))))
-      throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
-                                  " is degenerate or violates the triangle inequality");
-  }
-  for (Index v = 0; v < num_vertices; ++v) recompute_vertex_frame(v);
-
-  points_.assign(num_vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -587,9 +589,31 @@ int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& fa
 // ------------------------------------------------------------------------------------------------
 // Flattening
 
+void IntrinsicTriangulation::read_star(Index v, VertexStar& star) const {
+  star.centre = v;
+  star.boundary = is_boundary_vertex(v);
+  star.angle_sum = angle_sum(v);
+  star.corners.clear();
+  for_each_outgoing(v, [&](Index h) {
+    const Index opposite = next(h), in = prev(h);
+    StarCorner c;
+    c.halfedge = h;
+    c.in_halfedge = in;
+    c.out_vertex = head(h);
+    c.in_vertex = tail(in);
+    c.l_out = length(h);
+    c.l_in = length(in);
+    c.l_opposite = length(opposite);
+    c.m_out = static_cast<std::uint8_t>(1 + (c.out_vertex == v));
+    c.m_in = static_cast<std::uint8_t>(1 + (c.in_vertex == v));
+    c.m_opposite = static_cast<std::uint8_t>((c.in_vertex == v) + (c.out_vertex == v));
+    star.corners.push_back(c);
+  });
+}
+
 FlattenResult IntrinsicTriangulation::compute_flattening(Index v, double tolerance, double initial_log_scale) const {
   thread_local VertexStar star;  // re-used storage: no allocation per call
-  read_star(*this, v, star);
+  read_star(v, star);
   return flatten_star(star, tolerance, initial_log_scale);
 }
 
@@ -599,7 +623,7 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
 
 FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log_scale, bool update_own_frame) {
   thread_local VertexStar star;  // re-used storage: no allocation per call
-  read_star(*this, v, star);
+  read_star(v, star);
   const FlattenResult result = flatten_star(star, 1e-13, initial_log_scale);
   if (!result.success || result.log_scale == 0.0) return result;
   const double u = result.log_scale;

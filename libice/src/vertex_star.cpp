@@ -7,28 +7,6 @@
 namespace ice {
 double VertexStar::flat_angle_sum() const { return boundary ? kPi : 2 * kPi; }
 
-void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star) {
-  star.centre = v;
-  star.boundary = T.is_boundary_vertex(v);
-  star.angle_sum = T.angle_sum(v);
-  star.corners.clear();
-  T.for_each_outgoing(v, [&](Index h) {
-    const Index opposite = T.next(h), in = T.prev(h);
-    StarCorner c;
-    c.halfedge = h;
-    c.in_halfedge = in;
-    c.out_vertex = T.head(h);
-    c.in_vertex = T.tail(in);
-    c.l_out = T.length(h);
-    c.l_in = T.length(in);
-    c.l_opposite = T.length(opposite);
-    c.m_out = static_cast<std::uint8_t>(1 + (c.out_vertex == v));
-    c.m_in = static_cast<std::uint8_t>(1 + (c.in_vertex == v));
-    c.m_opposite = static_cast<std::uint8_t>((c.in_vertex == v) + (c.out_vertex == v));
-    star.corners.push_back(c);
-  });
-}
-
 bool has_distinct_neighbours(const VertexStar& star) {
   // Compared against a fixed-width array (8 or 16) padded with distinct non-vertices, so the inner
   // loop has a constant trip count (unrolled, no mispredicted exits): a search per neighbour

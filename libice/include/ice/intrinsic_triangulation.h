@@ -36,6 +36,7 @@
 #include "ice/mesh.h"
 #include "ice/large_array.h"
 #include "ice/triangle_geometry.h"
+#include "ice/vertex_star.h"
 
 namespace ice {
 
@@ -45,13 +46,6 @@ struct SurfacePoint {
   Index face = kInvalid;                ///< otherwise the face containing it
   std::array<double, 3> bary{0, 0, 0};  ///< barycentric coordinates w.r.t. the face's corners
   bool is_vertex() const { return vertex != kInvalid; }
-};
-
-/// Outcome of flattening one vertex.
-struct FlattenResult {
-  bool success = false;
-  double log_scale = 0;  ///< u: the vertex's edges were scaled by e^{u/2} (self-edges by e^u)
-  int iterations = 0;
 };
 
 /// Why a vertex removal did or did not happen.
@@ -194,6 +188,11 @@ class IntrinsicTriangulation {
   /// Computes the scale that would flatten v without changing anything, to a relative angle-sum
   /// tolerance (flatten_vertex uses 1e-13; a cost estimate can use less). See ice/vertex_star.h.
   FlattenResult compute_flattening(Index v, double tolerance = 1e-13, double initial_log_scale = 0) const;
+  /// Reads the star of v (a live vertex), counter-clockwise from vertex_halfedge(v), into `star`
+  /// (re-using its storage). Consecutive corners share a spoke: corner k's in_halfedge is the twin
+  /// of corner k+1's halfedge (and, at an interior vertex, the last corner's of the first's), so
+  /// corner k's in_vertex is corner k+1's out_vertex.
+  void read_star(Index v, VertexStar& star) const;
   /// Removes v: flattens it, flips it down to degree 3 (interior) or 2 (boundary), merges its
   /// faces into one triangle, and re-locates the tracked points. A degree-4 star whose centre lies
   /// on a diagonal (opposite corners summing to π, as on regular grids) cannot be flipped to degree
@@ -238,6 +237,12 @@ class IntrinsicTriangulation {
   /// corners are listed in `order` (a permutation of the corners).
   void build(const Faces& F, const std::vector<double>& halfedge_length_by_corner, const std::vector<Index>& twin,
              const std::vector<Index>& order);
+  // build()'s stages: the half-edge records of the numbered sides (returns each vertex's corner
+  // count), then each vertex's outgoing half-edge and boundary flag, checking that every vertex
+  // has one fan (the corners it was given).
+  std::vector<Index> link_halfedges(const Faces& F, const std::vector<double>& corner_length,
+                                    const std::vector<Index>& corner_halfedge);
+  void link_vertices(const std::vector<Index>& corners_at_vertex);
   void recompute_vertex_frame(Index v);
   FlattenResult flatten_vertex(Index v, double initial_log_scale, bool update_own_frame);
   // The new angle of the corner at tail(halfedge), between halfedge and prev(halfedge).

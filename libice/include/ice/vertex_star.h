@@ -1,7 +1,8 @@
 #pragma once
 /// \file vertex_star.h
-/// A snapshot of one vertex's star (its corners' edge lengths and neighbours), read in a single walk,
-/// and the one-vertex flattening (CETM) solved on it.
+/// A snapshot of one vertex's star (its corners' edge lengths and neighbours), read in a single walk
+/// by IntrinsicTriangulation::read_star, and the one-vertex flattening (CETM) solved on it. Sits
+/// below the triangulation: nothing here sees the half-edge structure.
 ///
 /// Why a snapshot: a cost evaluation in the coarsener needs the star three times (Newton for the
 /// flattening scale, the curvature change at every neighbour, the transport to every neighbour).
@@ -13,7 +14,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "ice/intrinsic_triangulation.h"
+#include "ice/mesh.h"
+#include "ice/triangle_geometry.h"
 
 namespace ice {
 
@@ -30,6 +32,13 @@ struct StarCorner {
   double four_area_flat = 0;  ///< 4 × the face's area once flattened (filled by flatten_star)
 };
 
+/// Outcome of flattening one vertex.
+struct FlattenResult {
+  bool success = false;
+  double log_scale = 0;  ///< u: the vertex's edges were scaled by e^{u/2} (self-edges by e^u)
+  int iterations = 0;
+};
+
 struct VertexStar {
   Index centre = kInvalid;
   bool boundary = false;
@@ -38,12 +47,6 @@ struct VertexStar {
   /// 2π for an interior vertex, π on the boundary.
   double flat_angle_sum() const;
 };
-
-/// Reads the star of v (a live vertex), counter-clockwise from vertex_halfedge(v). Re-uses the
-/// storage of `star`. Consecutive corners share a spoke: corner k's in_halfedge is the twin of
-/// corner k+1's halfedge (and, at an interior vertex, the last corner's of the first's), so corner
-/// k's in_vertex is corner k+1's out_vertex.
-void read_star(const IntrinsicTriangulation& T, Index v, VertexStar& star);
 
 /// True when the star's neighbours — every corner's out_vertex and, at a boundary vertex, the last
 /// corner's in_vertex — are pairwise distinct and none is the centre (no self- or multi-edges at
