@@ -235,6 +235,7 @@ void multiply_block(const SparseMatrix& A, const Block& X, Block& Y, int threads
 void restrict_block(const SparseMatrix& P, const Block& R, Block& C, int threads) {
   const Eigen::Index k = R.cols(), m = P.outerSize();
   C.resize(P.cols(), k);
+  if (k == 1) return gather_product(P, R.data(), C.data(), false, threads, P.rows());
 #pragma omp parallel for schedule(static) num_threads(active_threads(P.rows(), threads))
   for (Eigen::Index j = 0; j < m; ++j) {
     double* c = C.data() + j * k;
@@ -248,6 +249,7 @@ void restrict_block(const SparseMatrix& P, const Block& R, Block& C, int threads
 }
 void prolong_add_block(const RowMajorSparse& P_rows, const Block& C, Block& X, int threads) {
   const Eigen::Index k = X.cols(), n = P_rows.outerSize();
+  if (k == 1) return gather_product(P_rows, C.data(), X.data(), true, threads, n);
 #pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
   for (Eigen::Index i = 0; i < n; ++i) {
     double* x = X.data() + i * k;
@@ -351,8 +353,7 @@ struct MultigridSolver::Level {
   RowMajorSparse P_rows;  ///< the same, row-major (prolongation gathers per row, in parallel)
   Eigen::VectorXd inv_diag;
   double lambda_max = 0;  ///< Chebyshev: largest eigenvalue estimate of D⁻¹A
-  Eigen::VectorXd x, b, r, d;  ///< work vectors
-  Block X, B, R, D;            ///< work blocks of solve_multiple
+  Block X, B, R, D;            ///< work blocks (n × k row-major; k = 1 for solve())
   SweepSplit split;            ///< threaded Gauss–Seidel ranges (parts = 1: serial)
   std::vector<float> values32; ///< A's values rounded to float (single_precision_smoother)
   std::vector<double> halo;    ///< the split's snapshot of cross-range values
@@ -493,10 +494,6 @@ void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis
                                          std::to_string(i));
       level.inv_diag(i) = 1.0 / level.inv_diag(i);
     }
-    level.x.resize(n);
-    level.b.resize(n);
-    level.r.resize(n);
-    level.d.resize(n);
     level.lambda_max = 0;
     level.split = SweepSplit();  // remade for the new operator on first use
     level.values32.clear();
@@ -516,7 +513,7 @@ void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis
 
 void MultigridSolver::chebyshev(std::size_t k) {
   Level& L = *levels_[k];
-  const Eigen::Index n = L.A.rows();
+  const Eigen::Index n = L.A.rows(), columns = L.X.cols();
   if (L.lambda_max == 0) {
     // An upper bound of the spectrum of D⁻¹A, guaranteed (Gershgorin: max_i Σ_j |a_ij| / a_ii; at
     // most 2 for a Laplacian-like matrix). A power-iteration estimate is cheaper to use but lies
@@ -536,25 +533,30 @@ void MultigridSolver::chebyshev(std::size_t k) {
   const double theta = 0.5 * (upper + lower), delta = 0.5 * (upper - lower);
   const double sigma = theta / delta;
   double rho = 1.0 / sigma;
-  // Each step: d = keep·d + gain·D⁻¹(b − A x), then x += d; the residual and the direction are one
-  // pass over A, the update a second, vector-only pass (x must not change while A x is formed).
+  // Each step: d = keep·d + gain·D⁻¹(b − A x), then x += d, column by column; the residual and the
+  // direction are one pass over A, the update a second, vector-only pass (x must not change while
+  // A x is formed).
+  L.D.resize(n, columns);
   const auto* start = L.A.outerIndexPtr();
   const auto* row = L.A.innerIndexPtr();
   const double* value = L.A.valuePtr();
-  const double* b = L.b.data();
+  const double* b = L.B.data();
   const double* inv_diag = L.inv_diag.data();
-  double* x = L.x.data();
-  double* d = L.d.data();
+  double* x = L.X.data();
+  double* d = L.D.data();
   const int parts = active_threads(n, threads());
   const auto step_direction = [&](double keep, double gain) {
 #pragma omp parallel for schedule(static) num_threads(parts)
     for (Eigen::Index i = 0; i < n; ++i) {
-      double r = b[i];
-      for (auto p = start[i]; p < start[i + 1]; ++p) r -= value[p] * x[row[p]];
-      d[i] = (keep == 0 ? 0.0 : keep * d[i]) + gain * r * inv_diag[i];
+      for (Eigen::Index q = 0; q < columns; ++q) {
+        double r = b[i * columns + q];
+        for (auto p = start[i]; p < start[i + 1]; ++p) r -= value[p] * x[row[p] * columns + q];
+        double& direction = d[i * columns + q];
+        direction = (keep == 0 ? 0.0 : keep * direction) + gain * r * inv_diag[i];
+      }
     }
 #pragma omp parallel for schedule(static) num_threads(parts)
-    for (Eigen::Index i = 0; i < n; ++i) x[i] += d[i];
+    for (Eigen::Index i = 0; i < n * columns; ++i) x[i] += d[i];
   };
   step_direction(0.0, 1.0 / theta);
   for (int step = 1; step < options_.chebyshev_degree; ++step) {
@@ -589,30 +591,34 @@ void smoothing_steps(const MultigridOptions& options, bool pre, Sweep&& sweep, C
 
 }  // namespace
 
+// `options.smoothing_steps` of the smoother on levels_[k]: X improved for B, every column at once.
 void MultigridSolver::smooth(std::size_t k, bool pre) {
   Level& L = *levels_[k];
   const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
   const SmootherValues values = cycle_values(L, options_, k);
   const auto sweep = [&](bool forward) {
-    gauss_seidel(L.A, values, split, L.inv_diag, L.b.data(), L.x.data(), 1, forward, threads(), L.halo);
+    gauss_seidel(L.A, values, split, L.inv_diag, L.B.data(), L.X.data(), L.X.cols(), forward, threads(), L.halo);
   };
   smoothing_steps(options_, pre, sweep, [&] { chebyshev(k); });
 }
 
-// Improves levels_[k]->x for the right-hand side levels_[k]->b.
+// Improves levels_[k]->X for the right-hand sides levels_[k]->B (n × k row-major; one column for
+// solve(), several for solve_multiple(): the same arithmetic per column either way).
 void MultigridSolver::vcycle(std::size_t k) {
   Level& L = *levels_[k];
   if (k + 1 == levels_.size()) {
-    L.x = coarsest_.solve(L.b);
+    const Eigen::MatrixXd rhs = L.B;  // column-major for CHOLMOD
+    L.X = coarsest_.solve_multiple(rhs);
     return;
   }
   smooth(k, true);
-  residual_rows(L.A, cycle_values(L, options_, k), L.b.data(), L.x.data(), L.r.data(), 1, threads());
+  L.R.resize(L.X.rows(), L.X.cols());
+  residual_rows(L.A, cycle_values(L, options_, k), L.B.data(), L.X.data(), L.R.data(), L.X.cols(), threads());
   Level& C = *levels_[k + 1];
-  gather_product(L.P, L.r.data(), C.b.data(), false, threads(), L.P.rows());  // C.b = Pᵀ r
-  C.x.setZero();
+  restrict_block(L.P, L.R, C.B, threads());  // C.B = Pᵀ R
+  C.X.setZero(C.A.rows(), L.X.cols());
   vcycle(k + 1);
-  gather_product(L.P_rows, C.x.data(), L.x.data(), true, threads(), L.P_rows.rows());  // L.x += P C.x
+  prolong_add_block(L.P_rows, C.X, L.X, threads());  // X += P C.X
   smooth(k, false);
 }
 
@@ -620,10 +626,10 @@ Eigen::VectorXd MultigridSolver::apply_vcycle(const Eigen::VectorXd& r) {
   if (!is_setup_) throw std::logic_error("MultigridSolver: call setup() first");
   Level& L = *levels_[0];
   if (r.size() != L.A.rows()) throw std::invalid_argument("MultigridSolver::apply_vcycle: wrong size");
-  L.b = r;
-  L.x.setZero();
+  L.B = r;
+  L.X.setZero(r.size(), 1);
   vcycle(0);
-  return L.x;
+  return L.X.col(0);
 }
 
 Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values) {
@@ -661,17 +667,17 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   report_.residuals.push_back(res);
   if (nf > 0 && res > options_.tolerance) {
     if (options_.mode == MultigridMode::vcycle) {
-      L.b = rhs;
-      L.x = x;
+      L.B = rhs;
+      L.X = x;
       while (report_.iterations < options_.max_iterations) {
         vcycle(0);
-        residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), L.x.data(), r.data(), 1, t);
+        residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), L.X.data(), r.data(), 1, t);
         res = norm(r) / scale;
         ++report_.iterations;
         report_.residuals.push_back(res);
         if (res <= options_.tolerance) break;
       }
-      x = L.x;
+      x = L.X.col(0);
     } else {
       Eigen::VectorXd z = apply_vcycle(r), p = z, Ap(nf);
       double rz = dot(r, z, t);
@@ -710,63 +716,11 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   return out;
 }
 
-void MultigridSolver::smooth_block(std::size_t k, bool pre) {
-  Level& L = *levels_[k];
-  const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
-  const SmootherValues values = cycle_values(L, options_, k);
-  const auto sweep = [&](bool forward) {
-    gauss_seidel(L.A, values, split, L.inv_diag, L.B.data(), L.X.data(), L.X.cols(), forward, threads(), L.halo);
-  };
-  // Block Chebyshev: the single-vector recurrence on every column at once.
-  const auto chebyshev_block = [&] {
-    if (L.lambda_max == 0) {  // estimated once by the single-vector code
-      L.b = L.B.col(0);
-      L.x = L.X.col(0);
-      chebyshev(k);
-      L.lambda_max = L.lambda_max == 0 ? 1 : L.lambda_max;
-    }
-    const double upper = L.lambda_max, lower = L.lambda_max / options_.chebyshev_ratio;
-    const double theta = 0.5 * (upper + lower), delta = 0.5 * (upper - lower);
-    const double sigma = theta / delta;
-    double rho = 1.0 / sigma;
-    L.R.resize(L.X.rows(), L.X.cols());
-    residual_block(L.A, L.B, L.X, L.R, threads());
-    L.D = (L.R.array().colwise() * L.inv_diag.array()) / theta;
-    for (int step = 1;; ++step) {
-      L.X += L.D;
-      if (step == options_.chebyshev_degree) break;
-      residual_block(L.A, L.B, L.X, L.R, threads());
-      const double rho_next = 1.0 / (2 * sigma - rho);
-      L.D = (rho_next * rho) * L.D.array() + (2 * rho_next / delta) * (L.R.array().colwise() * L.inv_diag.array());
-      rho = rho_next;
-    }
-  };
-  smoothing_steps(options_, pre, sweep, chebyshev_block);
-}
-
-void MultigridSolver::vcycle_block(std::size_t k) {
-  Level& L = *levels_[k];
-  if (k + 1 == levels_.size()) {
-    const Eigen::MatrixXd rhs = L.B;  // column-major for CHOLMOD
-    L.X = coarsest_.solve_multiple(rhs);
-    return;
-  }
-  smooth_block(k, true);
-  L.R.resize(L.X.rows(), L.X.cols());
-  residual_rows(L.A, cycle_values(L, options_, k), L.B.data(), L.X.data(), L.R.data(), L.X.cols(), threads());
-  Level& C = *levels_[k + 1];
-  restrict_block(L.P, L.R, C.B, threads());
-  C.X.setZero(C.A.rows(), L.X.cols());
-  vcycle_block(k + 1);
-  prolong_add_block(L.P_rows, C.X, L.X, threads());
-  smooth_block(k, false);
-}
-
 void MultigridSolver::apply_vcycle_block(const Eigen::Ref<const Block>& R, Block& Z) {
   Level& L = *levels_[0];
   L.B = R;
   L.X.setZero(R.rows(), R.cols());
-  vcycle_block(0);
+  vcycle(0);
   Z.swap(L.X);
 }
 
@@ -804,7 +758,7 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
       for (int it = 0; it < options_.max_iterations && remaining > 0; ++it) {
         L.B = rhs;
         L.X = X;
-        vcycle_block(0);
+        vcycle(0);
         residual_block(A, rhs, L.X, R, t);
         for (Eigen::Index c = 0; c < k; ++c) {
           if (!active[static_cast<std::size_t>(c)]) continue;

@@ -170,8 +170,6 @@ class MultigridSolver {
   void vcycle(std::size_t k);
   void smooth(std::size_t k, bool pre);
   void chebyshev(std::size_t k);
-  void vcycle_block(std::size_t k);
-  void smooth_block(std::size_t k, bool pre);
   void apply_vcycle_block(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& R,
                           Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& Z);
 
