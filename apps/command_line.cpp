@@ -198,11 +198,9 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
                  "more weight spreads vertices more evenly)")
       ->check(number_between(0, 1))
       ->capture_default_str();
-  cli.add_option("--method", method,
-                 "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
-                 "Decimater with quadrics, input vertices mapped by closest-point projection)")
-      ->transform(CLI::CheckedTransformer(kMethodNames))
-      ->default_str("ice");
+  add_choice(cli, "--method", method, kMethodNames,
+             "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
+             "Decimater with quadrics, input vertices mapped by closest-point projection)");
   cli.add_option("--coarsen-threads", threads,
                  "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = k regions coarsened in parallel, "
                  "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
@@ -257,22 +255,18 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 }
 
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
-  cli.add_option("--operators", operators,
-                 "Coarse operators: 'intrinsic' (cotan Laplacian and mass from the coarse edge lengths) or "
-                 "'galerkin' (P^T L P and P^T M P from the fine operators)")
-      ->transform(CLI::CheckedTransformer(kOperatorNames))
-      ->default_str("intrinsic");
+  add_choice(cli, "--operators", operators, kOperatorNames,
+             "Coarse operators: 'intrinsic' (cotan Laplacian and mass from the coarse edge lengths) or "
+             "'galerkin' (P^T L P and P^T M P from the fine operators)");
 }
 
 void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   cli.add_option("mesh", mesh, "Input mesh (.obj, .off, .ply, .stl); must be connected")->required();
   target.add_to(cli, false);
   add_operators_option(cli, operators);
-  cli.add_option("--qem-operators", qem_geometry,
-                 "With --method qem: coarse geometry from the QEM mesh's positions ('extrinsic') or from its "
-                 "intrinsic Delaunay triangulation ('idt', same vertices, so the same P)")
-      ->transform(CLI::CheckedTransformer(kQemGeometryNames))
-      ->default_str("extrinsic");
+  add_choice(cli, "--qem-operators", qem_geometry, kQemGeometryNames,
+             "With --method qem: coarse geometry from the QEM mesh's positions ('extrinsic') or from its "
+             "intrinsic Delaunay triangulation ('idt', same vertices, so the same P)");
   cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
                "Fine reference (and fine operators of the proxy) on the intrinsic Delaunay triangulation of the "
                "input (default), or on the input triangles as they are (--no-fine-idt)")

@@ -5,6 +5,7 @@
 /// method enums. Reports and formatting: reports.h; what the tools share beyond that: app_common.h.
 #include <functional>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -82,6 +83,24 @@ struct TargetOptions {
   /// weight, threads). Throws AppError(kUsage) with a clear message on a bad combination or value.
   void apply(ice::CoarsenOptions& options, long long n) const;
 };
+
+/// Adds an option whose value is one of `names` (the spellings, listed in --help as {a,b}=default),
+/// stored as the matching enum value; any other value is a usage error naming the choices.
+template <class Enum>
+CLI::Option* add_choice(CLI::App& cli, const std::string& name, Enum& value, const std::map<std::string, Enum>& names,
+                        const std::string& description) {
+  std::vector<std::string> spellings;
+  std::string default_name;
+  for (const auto& [spelling, entry] : names) {
+    spellings.push_back(spelling);
+    if (entry == value) default_name = spelling;
+  }
+  return cli
+      .add_option_function<std::string>(
+          name, [&value, names](const std::string& text) { value = names.at(text); }, description)
+      ->check(CLI::IsMember(spellings))
+      ->default_str(default_name);
+}
 
 /// The command-line spelling of each method choice (--method, --qem-operators, --operators); the
 /// options parse these names straight into the enums.

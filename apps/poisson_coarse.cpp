@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <iostream>
 #include <map>
+#include <optional>
 
 #include "app_common.h"
 #include "fem/coarse_proxy.h"
@@ -46,17 +47,23 @@ nlohmann::json solution_error_json(const Eigen::VectorXd& solution, const Eigen:
 
 const std::string kTool = "poisson-coarse";
 
-// Options of --solver multigrid.
+// Options of --solver multigrid: the hierarchy's, and the solver's (tolerance, threads, cycle,
+// smoother) straight into fem::MultigridOptions.
 struct MultigridCli {
-  double tolerance = 1e-8, ratio = 0.25;
+  double ratio = 0.25;
   long long coarsest = 500;
-  int threads = 0;
-  std::string smoother = "sgs", cycle = "pcg";
+  fem::MultigridOptions options;
 };
+const std::map<std::string, fem::MultigridSmoother> kSmootherNames{
+    {"sgs", fem::MultigridSmoother::symmetric_gauss_seidel},
+    {"gs", fem::MultigridSmoother::gauss_seidel},
+    {"chebyshev", fem::MultigridSmoother::chebyshev}};
+const std::map<std::string, fem::MultigridMode> kCycleNames{{"pcg", fem::MultigridMode::pcg},
+                                                            {"vcycle", fem::MultigridMode::vcycle}};
 
 // --solver multigrid|direct: the fine problem solved exactly (to --mg-tolerance for multigrid) on
-// the fine mesh; writes the outputs and the report itself. Zero-mean Neumann: b = M f made
-// compatible, vertex 0 pinned, u re-centred (as fem::PoissonSolver does).
+// the fine mesh by fem::PoissonSolver (CHOLMOD, or multigrid on an ICE hierarchy); writes the
+// outputs and the report itself.
 app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& mg, const app::PdeOptions& opt,
                        const ice::TriangleMesh& mesh, Eigen::VectorXd f, std::string rhs_name,
                        const std::vector<int>& fixed_vertices, const Eigen::VectorXd& fixed_values, double load_seconds) {
@@ -73,9 +80,12 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   nlohmann::json timings;
   Eigen::VectorXd u;
   double setup_seconds = 0, solve_seconds = 0;
+  const auto make_solver = [&](std::optional<fem::PoissonMultigrid> multigrid) {
+    return dirichlet ? fem::PoissonSolver::dirichlet(L, M, fixed_vertices, std::move(multigrid))
+                     : fem::PoissonSolver::zero_mean(L, M, std::move(multigrid));
+  };
   if (solver == "direct") {
-    const fem::PoissonSolver direct =
-        dirichlet ? fem::PoissonSolver::dirichlet(L, M, fixed_vertices) : fem::PoissonSolver::zero_mean(L, M);
+    const fem::PoissonSolver direct = make_solver(std::nullopt);
     setup_seconds = clock.lap();
     u = direct.solve(f, fixed_values);
     solve_seconds = clock.lap();
@@ -85,45 +95,30 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     ice::HierarchyOptions ho;
     ho.ratio = mg.ratio;
     ho.coarsest_vertices = static_cast<ice::Index>(mg.coarsest);
-    const ice::Hierarchy hierarchy = ice::build_hierarchy(mesh, ho);
+    ice::Hierarchy hierarchy = ice::build_hierarchy(mesh, ho);
     const double hierarchy_seconds = clock.lap();
-    fem::MultigridOptions mo;
-    mo.tolerance = mg.tolerance;
-    mo.threads = mg.threads;
-    mo.mode = mg.cycle == "vcycle" ? fem::MultigridMode::vcycle : fem::MultigridMode::pcg;
-    mo.smoother = mg.smoother == "gs"          ? fem::MultigridSmoother::gauss_seidel
-                  : mg.smoother == "chebyshev" ? fem::MultigridSmoother::chebyshev
-                                               : fem::MultigridSmoother::symmetric_gauss_seidel;
-    fem::MultigridSolver multigrid(hierarchy.prolongations, mo);
-    Eigen::VectorXd b = M * f;
-    std::vector<int> constrained = fixed_vertices;
-    const Eigen::VectorXd m1 = M * Eigen::VectorXd::Ones(n);
-    if (!dirichlet) {
-      b -= m1 * (b.sum() / m1.sum());
-      constrained = {0};
-    }
-    multigrid.setup(L, constrained);
+    const fem::PoissonSolver poisson = make_solver(fem::PoissonMultigrid{std::move(hierarchy.prolongations), mg.options});
     const double numeric_setup = clock.lap();
     setup_seconds = hierarchy_seconds + numeric_setup;
-    u = multigrid.solve(b, dirichlet ? fixed_values : Eigen::VectorXd());
-    if (!dirichlet) u.array() -= m1.dot(u) / m1.sum();
+    u = poisson.solve(f, fixed_values);
     solve_seconds = clock.lap();
+    const fem::MultigridSolver& multigrid = *poisson.multigrid();
     const fem::MultigridReport& r = multigrid.report();
     if (!r.converged)
       app::warn(kTool, "multigrid stopped after " + std::to_string(r.iterations) + " iterations at relative residual " +
-                           std::to_string(r.relative_residual) + " (tolerance " + std::to_string(mg.tolerance) + ")");
+                           std::to_string(r.relative_residual) + " (tolerance " + std::to_string(mg.options.tolerance) + ")");
     nlohmann::json levels = nlohmann::json::array();
     for (const auto& info : multigrid.level_info()) levels.push_back({{"unknowns", info.unknowns}, {"nonzeros", info.nonzeros}});
     solver_json.update({{"iterations", r.iterations},
                         {"converged", r.converged},
                         {"convergence_factor", r.convergence_factor},
                         {"relative_residual", r.relative_residual},
-                        {"tolerance", mg.tolerance},
+                        {"tolerance", mg.options.tolerance},
                         {"residuals", r.residuals},
-                        {"cycle", fem::to_string(mo.mode)},
-                        {"smoother", fem::to_string(mo.smoother)},
-                        {"threads", mg.threads},
-                        {"reorder", mo.reorder},
+                        {"cycle", fem::to_string(mg.options.mode)},
+                        {"smoother", fem::to_string(mg.options.smoother)},
+                        {"threads", mg.options.threads},
+                        {"reorder", mg.options.reorder},
                         {"levels", levels},
                         {"operator_complexity", multigrid.operator_complexity()},
                         {"hierarchy", {{"ratio", mg.ratio}, {"coarsest_vertices", mg.coarsest}, {"levels", hierarchy.num_levels()},
@@ -141,8 +136,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   Eigen::VectorXd reference;
   const bool has_reference = !opt.no_reference && solver != "direct";
   if (has_reference) {
-    const fem::PoissonSolver direct =
-        dirichlet ? fem::PoissonSolver::dirichlet(L, M, fixed_vertices) : fem::PoissonSolver::zero_mean(L, M);
+    const fem::PoissonSolver direct = make_solver(std::nullopt);
     timings["reference_setup"] = clock.lap();
     reference = direct.solve(f, fixed_values);
     timings["reference_solve"] = clock.lap();
@@ -217,16 +211,15 @@ int main(int argc, char** argv) {
                  "on an ICE hierarchy (to --mg-tolerance); direct: exact fine solve by CHOLMOD")
       ->check(CLI::IsMember({"proxy", "multigrid", "direct"}))
       ->capture_default_str();
-  cli.add_option("--mg-tolerance", mg.tolerance, "multigrid: relative residual to reach")->check(app::positive_number())->capture_default_str();
+  cli.add_option("--mg-tolerance", mg.options.tolerance, "multigrid: relative residual to reach")->check(app::positive_number())->capture_default_str();
   cli.add_option("--mg-ratio", mg.ratio, "multigrid: vertex fraction kept per level")->check(app::number_between(0.01, 0.9))->capture_default_str();
   cli.add_option("--mg-coarsest", mg.coarsest, "multigrid: vertices of the coarsest level (CHOLMOD)")
       ->check(app::integer_between(1, std::numeric_limits<int>::max()))
       ->capture_default_str();
-  cli.add_option("--mg-smoother", mg.smoother, "multigrid: sgs (symmetric Gauss-Seidel), gs or chebyshev")
-      ->check(CLI::IsMember({"sgs", "gs", "chebyshev"}))->capture_default_str();
-  cli.add_option("--mg-cycle", mg.cycle, "multigrid: pcg (V-cycle preconditioned CG) or vcycle")
-      ->check(CLI::IsMember({"pcg", "vcycle"}))->capture_default_str();
-  cli.add_option("--mg-threads", mg.threads,
+  app::add_choice(cli, "--mg-smoother", mg.options.smoother, kSmootherNames,
+                  "multigrid: sgs (symmetric Gauss-Seidel), gs or chebyshev");
+  app::add_choice(cli, "--mg-cycle", mg.options.mode, kCycleNames, "multigrid: pcg (V-cycle preconditioned CG) or vcycle");
+  cli.add_option("--mg-threads", mg.options.threads,
                  "multigrid: threads for Gauss-Seidel sweeps, products, transfers and CG vector operations on "
                  "levels of 50,000+ unknowns (0: OMP_NUM_THREADS or all cores)")
       ->check(app::non_negative_integer())->capture_default_str();

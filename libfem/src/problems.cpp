@@ -75,35 +75,45 @@ Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::
 // ---- PoissonSolver ----------------------------------------------------------------------------------
 
 PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                             std::vector<int> constrained, bool zero_mean)
-    : mass_(mass),
-      mass_of_one_(mass * Eigen::VectorXd::Ones(mass.cols())),
-      zero_mean_(zero_mean),
-      solver_(laplacian, std::move(constrained)) {
+                             std::vector<int> constrained, bool zero_mean, std::optional<PoissonMultigrid> multigrid)
+    : mass_(mass), mass_of_one_(mass * Eigen::VectorXd::Ones(mass.cols())), zero_mean_(zero_mean) {
   require_square(mass, laplacian.rows(), "PoissonSolver: mass and Laplacian");
+  if (multigrid) {
+    multigrid_ = std::make_unique<MultigridSolver>(std::move(multigrid->prolongations), multigrid->options);
+    multigrid_->setup(laplacian, std::move(constrained));
+  } else {
+    direct_ = std::make_unique<ConstrainedSolver>(laplacian, std::move(constrained));
+  }
 }
 
 PoissonSolver PoissonSolver::dirichlet(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                                       std::vector<int> dirichlet_vertices) {
+                                       std::vector<int> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid) {
   if (dirichlet_vertices.empty())
     throw std::invalid_argument("PoissonSolver::dirichlet: no Dirichlet vertices (use zero_mean)");
-  return PoissonSolver(laplacian, mass, std::move(dirichlet_vertices), false);
+  return PoissonSolver(laplacian, mass, std::move(dirichlet_vertices), false, std::move(multigrid));
 }
 
-PoissonSolver PoissonSolver::zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass) {
+PoissonSolver PoissonSolver::zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass,
+                                       std::optional<PoissonMultigrid> multigrid) {
   if (laplacian.rows() == 0) throw std::invalid_argument("PoissonSolver::zero_mean: empty system");
-  return PoissonSolver(laplacian, mass, {0}, true);  // any vertex can be pinned; use the first
+  return PoissonSolver(laplacian, mass, {0}, true, std::move(multigrid));  // any vertex can be pinned; use the first
 }
 
 Eigen::VectorXd PoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values) const {
   return solve_weighted(mass_ * f, dirichlet_values);
 }
 
+Eigen::VectorXd PoissonSolver::solve_constrained(const Eigen::VectorXd& b, const Eigen::VectorXd& values) const {
+  if (direct_) return direct_->solve(b, values);
+  if (b.size() != multigrid_->size()) throw std::invalid_argument("PoissonSolver::solve: rhs has the wrong size");
+  return multigrid_->solve(b, values);
+}
+
 Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values) const {
-  if (!zero_mean_) return solver_.solve(b, dirichlet_values);
+  if (!zero_mean_) return solve_constrained(b, dirichlet_values);
   const double total_mass = mass_of_one_.sum();
   const Eigen::VectorXd compatible = b - mass_of_one_ * (b.sum() / total_mass);
-  Eigen::VectorXd u = solver_.solve(compatible);
+  Eigen::VectorXd u = solve_constrained(compatible, Eigen::VectorXd());
   u.array() -= mass_of_one_.dot(u) / total_mass;
   return u;
 }

@@ -2,15 +2,17 @@
 /// \file problems.h
 /// Model PDE solvers on one discretisation: Poisson, backward-Euler heat flow, heat-method geodesic
 /// distance. Every solver factors its matrices once (CHOLMOD) in the constructor and then solves any
-/// number of right-hand sides.
+/// number of right-hand sides; PoissonSolver can use Galerkin multigrid instead (PoissonMultigrid).
 ///
 /// The solvers take operators rather than a mesh, so the same code runs on the fine mesh, on an
 /// intrinsic coarse mesh, or with Galerkin coarse operators (fem/coarse_proxy.h). `laplacian` is the
 /// positive semidefinite cotangent Laplacian (or a Galerkin product of it) and `mass` a mass matrix.
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "fem/cholesky.h"
+#include "fem/multigrid.h"
 #include "fem/operators.h"
 
 namespace fem {
@@ -38,6 +40,15 @@ class ConstrainedSolver {
   CholeskySolver factor_;                   ///< of A_FF
 };
 
+/// PoissonSolver's system solved by Galerkin multigrid (fem/multigrid.h) on these prolongations of
+/// a hierarchy of the same mesh (ice::build_hierarchy) instead of a Cholesky factorisation: setup
+/// (Galerkin products, coarsest factorisation) in the constructor, each solve iterates to
+/// options.tolerance (relative residual).
+struct PoissonMultigrid {
+  std::vector<SparseMatrix> prolongations;
+  MultigridOptions options;
+};
+
 /// Poisson equation L u = M f, the P1 discretisation of −Δu = f (L is positive semidefinite).
 ///  - Dirichlet: u prescribed at given vertices (at least one per connected component).
 ///  - Zero-mean ("Neumann"), for closed surfaces or natural boundary conditions: the mass-weighted
@@ -48,9 +59,11 @@ class ConstrainedSolver {
 ///    connected (otherwise NotPositiveDefinite).
 class PoissonSolver {
  public:
+  /// Without `multigrid`, CHOLMOD (exact); with it, Galerkin multigrid (see PoissonMultigrid).
   static PoissonSolver dirichlet(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                                 std::vector<int> dirichlet_vertices);
-  static PoissonSolver zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass);
+                                 std::vector<int> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid = {});
+  static PoissonSolver zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass,
+                                 std::optional<PoissonMultigrid> multigrid = {});
 
   /// u for the nodal source f (right-hand side M f). `dirichlet_values` align with the Dirichlet
   /// vertices (empty: zeros); ignored in zero-mean mode.
@@ -60,14 +73,19 @@ class PoissonSolver {
 
   bool is_zero_mean() const { return zero_mean_; }
   const SparseMatrix& mass() const { return mass_; }
+  /// The multigrid solver (its report() describes the last solve, level_info() the levels), or
+  /// null with CHOLMOD. A multigrid-backed PoissonSolver must not solve on two threads at once.
+  const MultigridSolver* multigrid() const { return multigrid_.get(); }
 
  private:
   PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, std::vector<int> constrained,
-                bool zero_mean);
+                bool zero_mean, std::optional<PoissonMultigrid> multigrid);
+  Eigen::VectorXd solve_constrained(const Eigen::VectorXd& b, const Eigen::VectorXd& values) const;
   SparseMatrix mass_;
   Eigen::VectorXd mass_of_one_;  ///< M·1
   bool zero_mean_;
-  ConstrainedSolver solver_;
+  std::unique_ptr<ConstrainedSolver> direct_;   ///< CHOLMOD, or
+  std::unique_ptr<MultigridSolver> multigrid_;  ///< multigrid (its solve records a report: not const)
 };
 
 /// Heat flow ∂u/∂t = Δu with natural (Neumann) boundary conditions by backward Euler:
