@@ -134,8 +134,8 @@ double seconds_since(Clock::time_point& mark) {
 }
 
 // The coarse vertices of fine Dirichlet vertices (each must be one).
-std::vector<int> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::vector<int>& fine_vertices) {
-  std::vector<int> coarse;
+std::vector<Index> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::vector<Index>& fine_vertices) {
+  std::vector<Index> coarse;
   for (int v : fine_vertices) {
     const int j = proxy.coarse_vertex_of(v);
     if (j < 0)
@@ -148,7 +148,7 @@ std::vector<int> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::
 
 }  // namespace
 
-ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<int> dirichlet_vertices)
+ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Index> dirichlet_vertices)
     : proxy_(&proxy),
       P_rows_(proxy.prolongation()),
       fine_mass_of_one_(proxy.fine_mass() * Eigen::VectorXd::Ones(proxy.fine_size())),
@@ -224,13 +224,13 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOpe
   P_rows_.makeCompressed();
 }
 
-Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<int>& fine_sources, ProxyPhaseTimes* times) const {
+Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<Index>& fine_sources, ProxyPhaseTimes* times) const {
   if (fine_sources.empty()) throw std::invalid_argument("ProxyGeodesicSolver::distance: no sources");
   Clock::time_point mark = Clock::now();
   // The sources' weights restricted directly from P's rows (Pᵀ of a sparse indicator), without a
   // fine-size pass; a repeated source counts once.
   const Eigen::Index n = P_rows_.rows();
-  std::vector<int> sources = fine_sources;
+  std::vector<Index> sources = fine_sources;
   std::sort(sources.begin(), sources.end());
   sources.erase(std::unique(sources.begin(), sources.end()), sources.end());
   if (sources.front() < 0 || sources.back() >= n) throw std::invalid_argument("ProxyGeodesicSolver::distance: bad source");

@@ -39,8 +39,8 @@ using Block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMa
 struct SweepSplit {
   int parts = 1;
   std::vector<Eigen::Index> bounds;  // range t is rows [bounds[t], bounds[t+1])
-  std::vector<int> column;
-  std::vector<int> halo;             // slot -> row
+  std::vector<Index> column;
+  std::vector<Index> halo;             // slot -> row
 };
 
 SweepSplit make_split(const SparseMatrix& A, int parts) {
@@ -51,7 +51,7 @@ SweepSplit make_split(const SparseMatrix& A, int parts) {
   const auto* start = A.outerIndexPtr();
   const auto* inner = A.innerIndexPtr();
   split.column.assign(inner, inner + A.nonZeros());
-  std::vector<int> slot(static_cast<std::size_t>(n), -1);
+  std::vector<Index> slot(static_cast<std::size_t>(n), -1);
   for (int t = 0; t < parts; ++t)
     for (Eigen::Index i = split.bounds[static_cast<std::size_t>(t)]; i < split.bounds[static_cast<std::size_t>(t) + 1]; ++i)
       for (auto p = start[i]; p < start[i + 1]; ++p) {
@@ -291,8 +291,8 @@ void axpy_columns(const Eigen::VectorXd& a, const Block& X, Block& Y, int thread
 // `order_by_rows` (so a locality ordering of the rows carries over to the columns: a coarse unknown
 // lands next to the fine unknowns it prolongs to), else in their old order. `column_map` receives
 // old column -> new column or −1. Inner indices sorted.
-SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<int>& row_map, Eigen::Index new_rows,
-                                   bool order_by_rows, std::vector<int>& column_map) {
+SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<Index>& row_map, Eigen::Index new_rows,
+                                   bool order_by_rows, std::vector<Index>& column_map) {
   column_map.assign(static_cast<std::size_t>(P.cols()), -1);
   std::vector<std::pair<int, int>> survivors;  // (first new row, old column)
   for (Eigen::Index j = 0; j < P.outerSize(); ++j) {
@@ -317,8 +317,8 @@ SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<int>
 // The free–free block of A in the order `free` (free[i] = original index of free unknown i;
 // free_index its inverse, −1 at constrained indices) and the free–constrained block (free rows,
 // constrained columns). Inner indices sorted.
-void split_matrix(const SparseMatrix& A, const std::vector<int>& free, const std::vector<int>& free_index,
-                  const std::vector<int>& constrained, SparseMatrix& A_ff, SparseMatrix& A_fc) {
+void split_matrix(const SparseMatrix& A, const std::vector<Index>& free, const std::vector<Index>& free_index,
+                  const std::vector<Index>& constrained, SparseMatrix& A_ff, SparseMatrix& A_fc) {
   const Eigen::Index free_count = static_cast<Eigen::Index>(free.size());
   A_ff = assemble_columns(free_count, free_count, A.nonZeros(), [&](Eigen::Index c, std::vector<std::pair<int, double>>& column) {
     for (SparseMatrix::InnerIterator it(A, free[static_cast<std::size_t>(c)]); it; ++it) {
@@ -415,7 +415,7 @@ const SparseMatrix& MultigridSolver::level_operator(int k) const {
   return levels_[static_cast<std::size_t>(k)]->A;
 }
 
-void MultigridSolver::setup(const SparseMatrix& A, std::vector<int> constrained) {
+void MultigridSolver::setup(const SparseMatrix& A, std::vector<Index> constrained) {
   const auto start = Clock::now();
   if (A.rows() != A.cols()) throw std::invalid_argument("MultigridSolver::setup: A must be square");
   const Eigen::Index n = A.rows();
@@ -434,7 +434,7 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<int> constrained)
   reordered_ = options_.reorder;
   free_index_.assign(static_cast<std::size_t>(n), 0);
   for (int c : constrained_) free_index_[static_cast<std::size_t>(c)] = -1;
-  std::vector<int> candidates(static_cast<std::size_t>(n));
+  std::vector<Index> candidates(static_cast<std::size_t>(n));
   if (reordered_)
     candidates = reverse_cuthill_mckee(A);
   else
@@ -448,12 +448,12 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<int> constrained)
 
   // Restricted prolongations: free rows on level 0, then the surviving columns level by level.
   levels_.clear();
-  std::vector<int> row_map = free_index_;
+  std::vector<Index> row_map = free_index_;
   Eigen::Index rows = static_cast<Eigen::Index>(free_.size());
   for (const SparseMatrix& P : prolongations_) {
     auto level = std::make_unique<Level>();
     if (rows == 0) break;
-    std::vector<int> column_map;
+    std::vector<Index> column_map;
     level->P = restrict_prolongation(P, row_map, rows, options_.reorder, column_map);
     level->P_rows = level->P;
     if (level->P.cols() == 0) break;

@@ -118,8 +118,8 @@ SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads)
   const Eigen::Index nc = Pc.cols();
   const int parts = detail::active_threads(Pc.rows(), threads > 0 ? threads : detail::default_threads());
   struct Part {
-    std::vector<int> count;  // lower-triangle entries per column of the part's range
-    std::vector<int> rows;
+    std::vector<Index> count;  // lower-triangle entries per column of the part's range
+    std::vector<Index> rows;
     std::vector<double> values;
   };
   std::vector<Part> part(static_cast<std::size_t>(parts));
@@ -129,7 +129,7 @@ SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads)
     const Eigen::Index first = nc * t / parts, last = nc * (t + 1) / parts;
     out.count.assign(static_cast<std::size_t>(last - first), 0);
     std::vector<double> accumulator(static_cast<std::size_t>(nc), 0.0);
-    std::vector<int> touched;
+    std::vector<Index> touched;
     std::vector<char> is_touched(static_cast<std::size_t>(nc), 0);
     for (Eigen::Index J = first; J < last; ++J) {
       touched.clear();
@@ -162,7 +162,7 @@ SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads)
   }
   // Assemble both triangles: column c holds the mirrored entries (rows < c, in increasing order as
   // the columns are visited in order) followed by its own lower-triangle entries (rows ≥ c).
-  std::vector<int> mirrored(static_cast<std::size_t>(nc), 0), own(static_cast<std::size_t>(nc), 0);
+  std::vector<Index> mirrored(static_cast<std::size_t>(nc), 0), own(static_cast<std::size_t>(nc), 0);
   {
     Eigen::Index J = 0;
     for (const Part& pt : part) {
@@ -183,7 +183,7 @@ SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads)
   start[0] = 0;
   for (Eigen::Index c = 0; c < nc; ++c)
     start[c + 1] = start[c] + mirrored[static_cast<std::size_t>(c)] + own[static_cast<std::size_t>(c)];
-  std::vector<int> mirror_fill(start, start + nc);
+  std::vector<Index> mirror_fill(start, start + nc);
   Eigen::Index J = 0;
   for (const Part& pt : part) {
     std::size_t k = 0;

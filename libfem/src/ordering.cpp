@@ -8,7 +8,7 @@
 
 namespace fem {
 
-std::vector<int> reverse_cuthill_mckee(const SparseMatrix& A) {
+std::vector<Index> reverse_cuthill_mckee(const SparseMatrix& A) {
   if (A.rows() != A.cols()) throw std::invalid_argument("reverse_cuthill_mckee: the matrix must be square");
   SparseMatrix copy;
   const SparseMatrix& C = detail::compressed(A, copy);
@@ -22,11 +22,11 @@ Eigen::Index bandwidth(const SparseMatrix& A) {
   return band;
 }
 
-SparseMatrix permute_symmetric(const SparseMatrix& A, const std::vector<int>& order) {
+SparseMatrix permute_symmetric(const SparseMatrix& A, const std::vector<Index>& order) {
   const Eigen::Index n = A.rows();
   if (A.cols() != n || static_cast<Eigen::Index>(order.size()) != n)
     throw std::invalid_argument("permute_symmetric: the matrix must be square with one order entry per row");
-  std::vector<int> new_index(static_cast<std::size_t>(n), -1);
+  std::vector<Index> new_index(static_cast<std::size_t>(n), -1);
   for (Eigen::Index i = 0; i < n; ++i) {
     const int old = order[static_cast<std::size_t>(i)];
     if (old < 0 || old >= n || new_index[static_cast<std::size_t>(old)] >= 0)

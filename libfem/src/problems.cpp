@@ -20,7 +20,7 @@ void require_square(const SparseMatrix& A, Eigen::Index n, const char* what) {
 
 // ---- ConstrainedSolver ------------------------------------------------------------------------------
 
-ConstrainedSolver::ConstrainedSolver(const SparseMatrix& A, std::vector<int> constrained)
+ConstrainedSolver::ConstrainedSolver(const SparseMatrix& A, std::vector<Index> constrained)
     : size_(A.rows()), constrained_(std::move(constrained)) {
   if (A.rows() != A.cols()) throw std::invalid_argument("ConstrainedSolver: matrix must be square");
   std::sort(constrained_.begin(), constrained_.end());
@@ -75,7 +75,7 @@ Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::
 // ---- PoissonSolver ----------------------------------------------------------------------------------
 
 PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                             std::vector<int> constrained, bool zero_mean, std::optional<PoissonMultigrid> multigrid)
+                             std::vector<Index> constrained, bool zero_mean, std::optional<PoissonMultigrid> multigrid)
     : mass_(mass), mass_of_one_(mass * Eigen::VectorXd::Ones(mass.cols())), zero_mean_(zero_mean) {
   require_square(mass, laplacian.rows(), "PoissonSolver: mass and Laplacian");
   if (multigrid) {
@@ -87,7 +87,7 @@ PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& 
 }
 
 PoissonSolver PoissonSolver::dirichlet(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                                       std::vector<int> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid) {
+                                       std::vector<Index> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid) {
   if (dirichlet_vertices.empty())
     throw std::invalid_argument("PoissonSolver::dirichlet: no Dirichlet vertices (use zero_mean)");
   return PoissonSolver(laplacian, mass, std::move(dirichlet_vertices), false, std::move(multigrid));
@@ -177,7 +177,7 @@ HeatGeodesicSolver::HeatGeodesicSolver(HeatMethodOperators operators)
         SparseMatrix(operators_.mass + operators_.time_step * operators_.laplacian), operators_.boundary_vertices);
 }
 
-Eigen::VectorXd HeatGeodesicSolver::distance(const std::vector<int>& sources) const {
+Eigen::VectorXd HeatGeodesicSolver::distance(const std::vector<Index>& sources) const {
   if (sources.empty()) throw std::invalid_argument("HeatGeodesicSolver::distance: no sources");
   Eigen::VectorXd weights = Eigen::VectorXd::Zero(operators_.laplacian.rows());
   for (int s : sources) {

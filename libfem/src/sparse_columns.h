@@ -22,7 +22,7 @@ inline const SparseMatrix& compressed(const SparseMatrix& M, SparseMatrix& copy)
 /// to `out` (in any order; they are sorted by row). `capacity`: expected non-zeros (a reservation).
 template <class Entries>
 SparseMatrix assemble_columns(Eigen::Index rows, Eigen::Index cols, Eigen::Index capacity, Entries&& entries) {
-  std::vector<int> starts{0}, inner;
+  std::vector<Index> starts{0}, inner;
   std::vector<double> values;
   inner.reserve(static_cast<std::size_t>(capacity));
   values.reserve(static_cast<std::size_t>(capacity));

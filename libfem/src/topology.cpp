@@ -6,7 +6,7 @@
 
 namespace fem {
 
-std::vector<int> boundary_vertices(const ice::Faces& F) {
+std::vector<Index> boundary_vertices(const ice::Faces& F) {
   // Sort undirected edge keys; a key that occurs once is a boundary edge.
   std::vector<std::uint64_t> keys;
   keys.reserve(static_cast<std::size_t>(3 * F.rows()));
@@ -16,7 +16,7 @@ std::vector<int> boundary_vertices(const ice::Faces& F) {
       keys.push_back((std::min(a, b) << 32) | std::max(a, b));
     }
   std::sort(keys.begin(), keys.end());
-  std::vector<int> vertices;
+  std::vector<Index> vertices;
   for (std::size_t i = 0; i < keys.size();) {
     std::size_t j = i;
     while (j < keys.size() && keys[j] == keys[i]) ++j;

@@ -94,8 +94,8 @@ class CoarseProxy {
   const LazyFineOperators& fine_operators() const;
   Faces coarse_faces_;
   FaceLengths coarse_lengths_;
-  std::vector<int> coarse_to_fine_;  ///< fine vertex coinciding with each coarse vertex, or -1
-  std::vector<int> fine_to_coarse_;  ///< coarse vertex each fine vertex coincides with, or -1
+  std::vector<Index> coarse_to_fine_;  ///< fine vertex coinciding with each coarse vertex, or -1
+  std::vector<Index> fine_to_coarse_;  ///< coarse vertex each fine vertex coincides with, or -1
   CholeskySolver coarse_mass_factor_;  ///< for the L² projection
 };
 
@@ -123,7 +123,7 @@ class ProxyPoissonSolver {
  public:
   /// Factors the coarse system. Throws std::invalid_argument if a Dirichlet vertex is out of range or
   /// not a coarse vertex, and NotPositiveDefinite on a disconnected coarse mesh in zero-mean mode.
-  explicit ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<int> dirichlet_vertices = {});
+  explicit ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Index> dirichlet_vertices = {});
   /// Fine nodal source f → fine solution. `dirichlet_values` align with the Dirichlet vertices (empty:
   /// zeros). `times`, when given, receives the seconds of each stage.
   Eigen::VectorXd solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values = {},
@@ -135,7 +135,7 @@ class ProxyPoissonSolver {
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major: prolongation as a gather per row
   Eigen::VectorXd fine_mass_of_one_;                           ///< M·1 (the re-centring weights)
   double total_mass_ = 0;
-  std::vector<int> dirichlet_vertices_;
+  std::vector<Index> dirichlet_vertices_;
   PoissonSolver coarse_;
 };
 
@@ -167,7 +167,7 @@ class ProxyGeodesicSolver {
   /// With coarse operators assembled by the caller (to time assembly and factorisation apart).
   ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOperators coarse_operators);
   /// Distance to the nearest of `fine_sources` (non-empty, in range; repeats count once).
-  Eigen::VectorXd distance(const std::vector<int>& fine_sources, ProxyPhaseTimes* times = nullptr) const;
+  Eigen::VectorXd distance(const std::vector<Index>& fine_sources, ProxyPhaseTimes* times = nullptr) const;
 
  private:
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major (gathers per fine vertex)

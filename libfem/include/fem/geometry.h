@@ -16,6 +16,9 @@ namespace fem {
 
 using ice::FaceLengths;
 using ice::Faces;
+/// Vertex and unknown indices (vertex lists, Dirichlet and constrained sets, orderings): ice::Index,
+/// which is also the sparse matrices' storage index. Sizes and counts are Eigen::Index.
+using ice::Index;
 
 /// Thrown when a face's lengths are not those of a Euclidean triangle (non-positive or non-finite
 /// length, or the triangle inequality violated beyond round-off), or a positive area is required and

@@ -115,7 +115,7 @@ class MultigridSolver {
   /// operators, smoother data, coarsest factorisation (analysis + numeric). Throws
   /// std::invalid_argument on bad sizes or indices, NotPositiveDefinite if the coarsest operator is
   /// not positive definite.
-  void setup(const SparseMatrix& A, std::vector<int> constrained = {});
+  void setup(const SparseMatrix& A, std::vector<Index> constrained = {});
 
   /// Replaces the matrix by one with the same sparsity pattern and the same constrained set (e.g.
   /// M + tL for another t): redoes only the Galerkin products, the smoother data and the coarsest
@@ -155,10 +155,10 @@ class MultigridSolver {
   /// row i of level 0 is unknown free_order()[i].
   const SparseMatrix& level_operator(int k) const;
   Eigen::Index size() const { return size_; }
-  const std::vector<int>& constrained() const { return constrained_; }
+  const std::vector<Index>& constrained() const { return constrained_; }
   /// The free unknowns in the solver's internal order (a permutation of the unconstrained indices;
   /// increasing unless options().reorder).
-  const std::vector<int>& free_order() const { return free_; }
+  const std::vector<Index>& free_order() const { return free_; }
   /// Seconds of the last setup() or update_matrix() (Galerkin products + coarse factorisation).
   double setup_seconds() const { return setup_seconds_; }
 
@@ -178,9 +178,9 @@ class MultigridSolver {
   std::vector<std::unique_ptr<Level>> levels_;
   CholeskySolver coarsest_;
   Eigen::Index size_ = 0;
-  std::vector<int> constrained_;
-  std::vector<int> free_index_;   ///< free index of each unknown, −1 if constrained
-  std::vector<int> free_;         ///< free -> original index
+  std::vector<Index> constrained_;
+  std::vector<Index> free_index_;   ///< free index of each unknown, −1 if constrained
+  std::vector<Index> free_;         ///< free -> original index
   SparseMatrix free_constrained_; ///< A_FC
   MultigridReport report_;
   std::vector<MultigridReport> reports_;

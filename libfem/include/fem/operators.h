@@ -13,6 +13,8 @@
 /// All assembly is linear in the number of faces (triplets, duplicates summed by Eigen).
 #include <optional>
 
+#include <type_traits>
+
 #include <Eigen/SparseCore>
 
 #include "fem/geometry.h"
@@ -20,6 +22,7 @@
 namespace fem {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
+static_assert(std::is_same_v<SparseMatrix::StorageIndex, Index>, "vertex indices are the sparse storage index");
 /// An explicit number of unknowns, or none (then F.maxCoeff() + 1).
 using VertexCount = std::optional<Eigen::Index>;
 

@@ -19,13 +19,13 @@ namespace fem {
 /// symmetric pattern; values are ignored): ice::reverse_cuthill_mckee (ice/graph_ordering.h) on
 /// A's columns. Returns `order` with order[new] = old, a permutation of 0..n−1, each connected
 /// component contiguous; deterministic. Throws std::invalid_argument if A is not square.
-std::vector<int> reverse_cuthill_mckee(const SparseMatrix& A);
+std::vector<Index> reverse_cuthill_mckee(const SparseMatrix& A);
 
 /// Largest |i − j| over the stored entries of A (its bandwidth; 0 for a diagonal or empty matrix).
 Eigen::Index bandwidth(const SparseMatrix& A);
 
 /// P A Pᵀ for the ordering `order` (order[new] = old): entry (i, j) of the result is
 /// A(order[i], order[j]). Inner indices sorted. Throws std::invalid_argument on a size mismatch.
-SparseMatrix permute_symmetric(const SparseMatrix& A, const std::vector<int>& order);
+SparseMatrix permute_symmetric(const SparseMatrix& A, const std::vector<Index>& order);
 
 }  // namespace fem

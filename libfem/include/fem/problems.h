@@ -23,19 +23,19 @@ namespace fem {
 /// NotPositiveDefinite otherwise); constrained indices in range (duplicates are merged).
 class ConstrainedSolver {
  public:
-  ConstrainedSolver(const SparseMatrix& A, std::vector<int> constrained);
+  ConstrainedSolver(const SparseMatrix& A, std::vector<Index> constrained);
 
   /// Full-length solution; x(constrained[i]) = constrained_values(i). An empty `constrained_values`
   /// means all zeros.
   Eigen::VectorXd solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values = {}) const;
 
-  const std::vector<int>& constrained() const { return constrained_; }
+  const std::vector<Index>& constrained() const { return constrained_; }
   Eigen::Index size() const { return size_; }
 
  private:
   Eigen::Index size_ = 0;
-  std::vector<int> constrained_;
-  std::vector<int> free_;  ///< free index of each original index, -1 for constrained ones
+  std::vector<Index> constrained_;
+  std::vector<Index> free_;  ///< free index of each original index, -1 for constrained ones
   SparseMatrix free_constrained_coupling_;  ///< A_FC
   CholeskySolver factor_;                   ///< of A_FF
 };
@@ -61,7 +61,7 @@ class PoissonSolver {
  public:
   /// Without `multigrid`, CHOLMOD (exact); with it, Galerkin multigrid (see PoissonMultigrid).
   static PoissonSolver dirichlet(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                                 std::vector<int> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid = {});
+                                 std::vector<Index> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid = {});
   static PoissonSolver zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass,
                                  std::optional<PoissonMultigrid> multigrid = {});
 
@@ -78,7 +78,7 @@ class PoissonSolver {
   const MultigridSolver* multigrid() const { return multigrid_.get(); }
 
  private:
-  PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, std::vector<int> constrained,
+  PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, std::vector<Index> constrained,
                 bool zero_mean, std::optional<PoissonMultigrid> multigrid);
   Eigen::VectorXd solve_constrained(const Eigen::VectorXd& b, const Eigen::VectorXd& values) const;
   SparseMatrix mass_;
@@ -119,7 +119,7 @@ struct HeatMethodOperators {
   SparseMatrix mass;                   ///< n×n
   SparseMatrix gradient;               ///< 2k×n, per-face gradients in local 2D frames
   Eigen::VectorXd face_areas;          ///< k areas weighting the per-face vectors
-  std::vector<int> boundary_vertices;  ///< of the n unknowns; empty for closed surfaces
+  std::vector<Index> boundary_vertices;  ///< of the n unknowns; empty for closed surfaces
   double time_step = 0;                ///< t of the heat step
 };
 
@@ -148,7 +148,7 @@ class HeatGeodesicSolver {
   explicit HeatGeodesicSolver(HeatMethodOperators operators);
 
   /// Distance to the given source vertices (non-empty, in range).
-  Eigen::VectorXd distance(const std::vector<int>& sources) const;
+  Eigen::VectorXd distance(const std::vector<Index>& sources) const;
   /// Distance from a weighted source: δ = source_weights (non-negative, not all zero); the result is
   /// shifted so that Σ w_i φ_i / Σ w_i = 0.
   Eigen::VectorXd distance_from_weights(const Eigen::VectorXd& source_weights) const;
