@@ -11,6 +11,7 @@
 #include <unordered_map>
 
 #include "corner_fans.h"
+#include "soup_duplicates.h"
 
 namespace ice {
 
@@ -44,28 +45,6 @@ double triangle_shape(const Positions& V, int a, int b, int c) {
   const double longest2 = std::max({ab.squaredNorm(), ac.squaredNorm(), bc.squaredNorm()});
   if (!(longest2 > 0) || !std::isfinite(longest2)) return 0.0;
   return ab.cross(ac).norm() / longest2;
-}
-
-/// Map every vertex to the smallest-id vertex with exactly the same (finite) position.
-std::vector<int> coincident_vertex_map(const Positions& V, std::size_t& merged) {
-  const int nv = static_cast<int>(V.rows());
-  std::vector<int> target(static_cast<std::size_t>(nv));
-  std::iota(target.begin(), target.end(), 0);
-  std::vector<int> order;
-  for (int i = 0; i < nv; ++i)
-    if (finite_row(V, i)) order.push_back(i);
-  std::sort(order.begin(), order.end(), [&](int a, int b) {
-    for (int k = 0; k < 3; ++k)
-      if (V(a, k) != V(b, k)) return V(a, k) < V(b, k);
-    return a < b;
-  });
-  merged = 0;
-  for (std::size_t i = 1; i < order.size(); ++i)
-    if (V.row(order[i]) == V.row(order[i - 1])) {
-      target[order[i]] = target[order[i - 1]];  // chains resolve to the group's smallest id
-      ++merged;
-    }
-  return target;
 }
 
 /// Fan triangulation of `poly` from the corner whose fan has the best worst-triangle shape.
@@ -232,7 +211,10 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
   // 1. welding map (identity unless asked)
   std::vector<int> weld(static_cast<std::size_t>(nv));
   std::iota(weld.begin(), weld.end(), 0);
-  if (options.weld_duplicate_positions) weld = coincident_vertex_map(V, log.welded_vertices);
+  if (options.weld_duplicate_positions) {
+    weld = detail::first_coincident_vertex(V);
+    for (int v = 0; v < static_cast<int>(weld.size()); ++v) log.welded_vertices += weld[v] != v;
+  }
 
   // 2.–4. faces
   std::vector<std::vector<int>> faces;
@@ -292,31 +274,12 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
     }
   }
   {
-    // Sort (vertex set, face id) keys; within a group of equal sets, every face after the first goes.
-    std::vector<std::array<int, 4>> triangles;
-    std::vector<std::pair<std::vector<int>, int>> polygons;  // rare
-    for (std::size_t f = 0; f < faces.size(); ++f) {
-      if (!keep[f] || !indices_in_range(faces[f], nv)) continue;
-      if (faces[f].size() == 3) {
-        std::array<int, 4> key{faces[f][0], faces[f][1], faces[f][2], static_cast<int>(f)};
-        std::sort(key.begin(), key.begin() + 3);
-        triangles.push_back(key);
-      } else {
-        std::vector<int> key = faces[f];
-        std::sort(key.begin(), key.end());
-        polygons.emplace_back(std::move(key), static_cast<int>(f));
-      }
-    }
-    std::sort(triangles.begin(), triangles.end());
-    std::sort(polygons.begin(), polygons.end());
-    auto drop = [&](int f) {
+    std::vector<char> include(faces.size());
+    for (std::size_t f = 0; f < faces.size(); ++f) include[f] = keep[f] && indices_in_range(faces[f], nv);
+    for (int f : detail::later_duplicate_faces(faces, include)) {
       keep[f] = 0;
       ++log.removed_duplicate_faces;
-    };
-    for (std::size_t i = 1; i < triangles.size(); ++i)
-      if (std::equal(triangles[i].begin(), triangles[i].begin() + 3, triangles[i - 1].begin())) drop(triangles[i][3]);
-    for (std::size_t i = 1; i < polygons.size(); ++i)
-      if (polygons[i].first == polygons[i - 1].first) drop(polygons[i].second);
+    }
   }
   std::vector<std::vector<int>> kept;
   for (std::size_t f = 0; f < faces.size(); ++f)

@@ -2,6 +2,7 @@
 #include "ice/triangle_geometry.h"
 
 #include "corner_fans.h"
+#include "soup_duplicates.h"
 #include "disjoint_sets.h"
 
 #include <Eigen/Geometry>
@@ -199,24 +200,11 @@ void scan_vertices(SoupScan& s, ValidationReport& r) {
   s.diagonal = any_finite ? (hi - lo).norm() : 0.0;
 }
 
-// Exactly coincident positions, finite vertices only so the sort order is strict.
+// Exactly coincident positions (finite vertices only): every vertex but the smallest of a group.
 void find_duplicate_positions(const SoupScan& s, ValidationReport& r) {
-  const std::vector<Eigen::Vector3d>& P = s.P;
-  std::vector<int> order;
-  order.reserve(static_cast<std::size_t>(s.nv));
-  for (int i = 0; i < s.nv; ++i)
-    if (s.finite[i]) order.push_back(i);
-  auto less = [&](int a, int b) {
-    for (int k = 0; k < 3; ++k)
-      if (P[a][k] != P[b][k]) return P[a][k] < P[b][k];
-    return a < b;
-  };
-  std::sort(order.begin(), order.end(), less);
-  std::vector<int> dups;
-  for (std::size_t i = 1; i < order.size(); ++i)
-    if (P[order[i]] == P[order[i - 1]]) dups.push_back(order[i]);
-  std::sort(dups.begin(), dups.end());
-  for (int v : dups) r.duplicate_positions.add(v);
+  const std::vector<int> first = detail::first_coincident_vertex(s.V);
+  for (int v = 0; v < s.nv; ++v)
+    if (first[v] != v) r.duplicate_positions.add(v);
 }
 
 // Per-face checks (size, indices, repeats, zero area); marks well-formed faces and referenced vertices.
@@ -260,30 +248,7 @@ void scan_faces(SoupScan& s, ValidationReport& r) {
 
 // Faces with the same vertex set as an earlier well-formed face.
 void find_duplicate_faces(const SoupScan& s, ValidationReport& r) {
-  std::vector<std::array<int, 4>> triangles;                 // sorted corners + face id
-  std::vector<std::pair<std::vector<int>, int>> polygons;  // rare: faces with more corners
-  for (int f = 0; f < s.nf; ++f) {
-    if (!s.well_formed[f]) continue;
-    if (s.polys[f].size() == 3) {
-      std::array<int, 4> key{s.polys[f][0], s.polys[f][1], s.polys[f][2], f};
-      std::sort(key.begin(), key.begin() + 3);
-      triangles.push_back(key);
-    } else {
-      std::vector<int> key = s.polys[f];
-      std::sort(key.begin(), key.end());
-      polygons.emplace_back(std::move(key), f);
-    }
-  }
-  std::sort(triangles.begin(), triangles.end());
-  std::sort(polygons.begin(), polygons.end());
-  std::vector<int> dups;
-  for (std::size_t i = 1; i < triangles.size(); ++i)
-    if (std::equal(triangles[i].begin(), triangles[i].begin() + 3, triangles[i - 1].begin()))
-      dups.push_back(triangles[i][3]);
-  for (std::size_t i = 1; i < polygons.size(); ++i)
-    if (polygons[i].first == polygons[i - 1].first) dups.push_back(polygons[i].second);
-  std::sort(dups.begin(), dups.end());
-  for (int f : dups) r.duplicate_faces.add(f);
+  for (int f : detail::later_duplicate_faces(s.polys, s.well_formed)) r.duplicate_faces.add(f);
 }
 
 // Edges: their faces (boundary, two, more), orientation agreement, lengths; the fans around each

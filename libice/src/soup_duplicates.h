@@ -1,0 +1,21 @@
+#pragma once
+// Internal to libice: exact duplicates in a polygon soup — vertices at the same position, faces on
+// the same vertex set — found one way for the validator (which reports them) and the repair (which
+// welds and drops them).
+#include <cstddef>
+#include <vector>
+
+#include "ice/mesh.h"
+
+namespace ice::detail {
+
+/// For every vertex, the smallest vertex at exactly the same position (itself when none is
+/// smaller). Vertices with a non-finite coordinate are never merged.
+std::vector<int> first_coincident_vertex(const Positions& V);
+
+/// The faces among those with include[f] whose vertex set (ignoring order and orientation) equals
+/// that of an earlier included face, in increasing order. Every index of an included face must be
+/// valid for sorting (no range check is needed: only equality is compared).
+std::vector<int> later_duplicate_faces(const std::vector<std::vector<int>>& faces, const std::vector<char>& include);
+
+}  // namespace ice::detail
