@@ -152,6 +152,19 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   return p;
 }
 
+void write_result_ply(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
+                      const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
+                      std::vector<ice::ScalarField> extra) {
+  if (opt.output.empty()) return;
+  std::vector<ice::ScalarField> fields{{name, result}};
+  if (reference.size() != 0) {
+    fields.push_back({"reference", reference});
+    fields.push_back({"error", result - reference});
+  }
+  for (ice::ScalarField& field : extra) fields.push_back(std::move(field));
+  ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
+}
+
 Eigen::VectorXd demo_poisson_rhs(const ice::TriangleMesh& mesh) {
   const Eigen::Index n = mesh.V.rows();
   const double sigma = 0.1 * (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();

@@ -12,6 +12,7 @@
 #include "command_line.h"
 #include "fem/coarse_proxy.h"
 #include "ice/coarse_space.h"
+#include "ice/scalar_field_io.h"
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
@@ -74,6 +75,13 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
 /// The demo right-hand side of poisson-coarse and ice-report: three Gaussian bumps
 /// exp(−|x − c|²/(2σ²)) with weights +1, −1, +1 centred at the vertices of largest x, y and z,
 /// σ = 0.1 × the bounding-box diagonal (its mean is not removed: see remove_mean).
+/// Writes opt.output (nothing without -o): the input mesh as PLY with the per-vertex field `name`
+/// (the tool's result), then, given a reference (non-empty), 'reference' and 'error' (= result −
+/// reference), then `extra`.
+void write_result_ply(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
+                      const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
+                      std::vector<ice::ScalarField> extra = {});
+
 Eigen::VectorXd demo_poisson_rhs(const ice::TriangleMesh& mesh);
 /// f minus its mass-weighted mean (the compatible right-hand side of a zero-mean Neumann problem).
 Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const Eigen::SparseMatrix<double>& mass);

@@ -105,14 +105,7 @@ int main(int argc, char** argv) {
     }
 
     // ---- outputs
-    if (!opt.output.empty()) {
-      std::vector<ice::ScalarField> fields{{"distance", distance}};
-      if (run.has_reference) {
-        fields.push_back({"reference", reference});
-        fields.push_back({"error", distance - reference});
-      }
-      ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
-    }
+    app::write_result_ply(opt, mesh, "distance", distance, reference);
     run.write = clock.lap();
     nlohmann::json report = run.report();
     report["sources"] = file_sources;

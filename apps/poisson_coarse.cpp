@@ -142,15 +142,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     timings["reference_solve"] = clock.lap();
     error_json = solution_error_json(u, reference, M);
   }
-  if (!opt.output.empty()) {
-    std::vector<ice::ScalarField> fields{{"solution", u}};
-    if (has_reference) {
-      fields.push_back({"reference", reference});
-      fields.push_back({"error", u - reference});
-    }
-    fields.push_back({"rhs", f});
-    ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
-  }
+  app::write_result_ply(opt, mesh, "solution", u, reference, {{"rhs", f}});
   nlohmann::json report = app::report_header(kTool, opt.mesh);
   report["solver"] = solver_json;
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
@@ -334,15 +326,7 @@ int main(int argc, char** argv) {
     }
 
     // ---- outputs
-    if (!opt.output.empty()) {
-      std::vector<ice::ScalarField> fields{{"solution", solution}};
-      if (run.has_reference) {
-        fields.push_back({"reference", reference});
-        fields.push_back({"error", solution - reference});
-      }
-      fields.push_back({"rhs", f});
-      ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
-    }
+    app::write_result_ply(opt, mesh, "solution", solution, reference, {{"rhs", f}});
     run.write = clock.lap();
     nlohmann::json report = run.report();
     report["solver"] = {{"kind", solver}};
