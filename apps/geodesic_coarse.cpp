@@ -48,13 +48,7 @@ int main(int argc, char** argv) {
   return app::run_tool(kTool, [&] {
     opt.check_outputs();
     const std::vector<long long> file_sources = app::parse_index_list(sources_text, "--source");
-    app::PdeRun run;
-    run.tool = kTool;
-    run.mesh_path = opt.mesh;
-    run.operators = opt.operators;
-    run.fine_idt = opt.fine_idt;
-    run.has_reference = !opt.no_reference;
-    run.proxy_uses_fine_mesh = opt.operators == fem::CoarseOperatorKind::galerkin;
+    app::PdeRun run = app::PdeRun::start(kTool, opt, opt.operators == fem::CoarseOperatorKind::galerkin);
 
     // ---- load
     app::Stopwatch clock;

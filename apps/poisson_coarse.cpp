@@ -239,13 +239,7 @@ int main(int argc, char** argv) {
       file_fixes.emplace_back(v, x);
     }
 
-    app::PdeRun run;
-    run.tool = kTool;
-    run.mesh_path = opt.mesh;
-    run.operators = opt.operators;
-    run.fine_idt = opt.fine_idt;
-    run.has_reference = !opt.no_reference;
-    run.proxy_uses_fine_mesh = true;  // for M f (and the Galerkin operators)
+    app::PdeRun run = app::PdeRun::start(kTool, opt, /*proxy_uses_fine_mesh=*/true);  // for M f (and Galerkin)
 
     // ---- load
     app::Stopwatch clock;

@@ -125,6 +125,17 @@ nlohmann::json report_header(const std::string& tool, const std::string& mesh_pa
   return {{"tool", tool}, {"mesh", mesh_path}};
 }
 
+PdeRun PdeRun::start(const std::string& tool, const PdeOptions& opt, bool proxy_uses_fine_mesh) {
+  PdeRun run;
+  run.tool = tool;
+  run.mesh_path = opt.mesh;
+  run.operators = opt.operators;
+  run.fine_idt = opt.fine_idt;
+  run.has_reference = !opt.no_reference;
+  run.proxy_uses_fine_mesh = proxy_uses_fine_mesh;
+  return run;
+}
+
 double PdeRun::proxy_total() const {
   return coarsen + assemble + factor + solve + prolong;
 }

@@ -100,6 +100,8 @@ struct PdeRun {
   double load = 0, coarsen = 0, fine_mesh = 0, assemble = 0, factor = 0, solve = 0, prolong = 0, write = 0;
   double ref_assemble = 0, ref_factor = 0, ref_solve = 0;
 
+  /// A run of `tool` with the shared PDE options (mesh, operators, fine mesh, reference).
+  static PdeRun start(const std::string& tool, const PdeOptions& opt, bool proxy_uses_fine_mesh);
   /// coarsen + assemble + factor + solve + prolong. The fine mesh (intrinsic Delaunay or input
   /// lengths) is a choice of fine discretisation shared by both sides: timed apart, in neither total.
   double proxy_total() const;
