@@ -85,28 +85,13 @@ void write_matrix_market(const std::string& path, Eigen::SparseMatrix<double> P)
   check_stream(out, path);
 }
 
-void write_map(const std::string& path, const ice::IntrinsicTriangulation& T, const ice::CompactMesh& coarse) {
-  // Face slot -> compact face (compact() lists live slots in order, corners from halfedge(f)).
-  std::vector<ice::Index> compact_face(static_cast<std::size_t>(T.num_face_slots()), ice::kInvalid);
-  ice::Index next_face = 0;
-  for (ice::Index f = 0; f < T.num_face_slots(); ++f)
-    if (T.face_alive(f)) compact_face[f] = next_face++;
+void write_map(const std::string& path, const std::vector<ice::CoarsePoint>& map) {
   std::ofstream out = open_output(path);
   out << "input_vertex,coarse_vertex,coarse_face,b0,b1,b2\n";
-  for (ice::Index p = 0; p < T.num_input_vertices(); ++p) {
-    const ice::SurfacePoint s = T.location(p);
-    ice::Index face = s.face;
-    std::array<double, 3> bary = s.bary;
-    if (s.is_vertex()) {  // a face around the vertex, with weight 1 at the corner of its outgoing half-edge
-      const ice::Index h = T.vertex_halfedge(s.vertex);
-      face = T.face(h);
-      ice::Index g = T.halfedge(face);
-      bary = {0, 0, 0};
-      for (int k = 0; k < 3; ++k, g = T.next(g))
-        if (g == h) bary[k] = 1;
-    }
-    out << p << ',' << coarse.from_input[p] << ',' << compact_face[face] << ',' << Num{bary[0]} << ',' << Num{bary[1]}
-        << ',' << Num{bary[2]} << '\n';
+  for (std::size_t p = 0; p < map.size(); ++p) {
+    const ice::CoarsePoint& q = map[p];
+    out << p << ',' << q.coarse_vertex << ',' << q.face << ',' << Num{q.bary[0]} << ',' << Num{q.bary[1]} << ','
+        << Num{q.bary[2]} << '\n';
   }
   check_stream(out, path);
 }
@@ -120,18 +105,6 @@ void write_preview(const std::string& path, const ice::TriangleMesh& mesh, const
     out << "v " << Num{mesh.V(v, 0)} << ' ' << Num{mesh.V(v, 1)} << ' ' << Num{mesh.V(v, 2)} << '\n';
   for (Eigen::Index f = 0; f < coarse.F.rows(); ++f)
     out << "f " << coarse.F(f, 0) + 1 << ' ' << coarse.F(f, 1) + 1 << ' ' << coarse.F(f, 2) + 1 << '\n';
-  check_stream(out, path);
-}
-
-// map.csv of a QEM coarsening: the same columns, faces in coarse.ilm order (= the QEM mesh's).
-void write_qem_map(const std::string& path, const ice::QemResult& qem) {
-  std::ofstream out = open_output(path);
-  out << "input_vertex,coarse_vertex,coarse_face,b0,b1,b2\n";
-  for (std::size_t p = 0; p < qem.map.size(); ++p) {
-    const ice::QemPoint& q = qem.map[p];
-    out << p << ',' << q.coarse_vertex << ',' << q.face << ',' << Num{q.bary[0]} << ',' << Num{q.bary[1]} << ','
-        << Num{q.bary[2]} << '\n';
-  }
   check_stream(out, path);
 }
 
@@ -262,13 +235,11 @@ int main(int argc, char** argv) {
     ice::write_intrinsic_mesh(outputs[0], coarse, static_cast<ice::Index>(n),
                               std::string(qem ? "QEM" : "intrinsic") + " mesh written by ice-coarsen from " + input);
     write_matrix_market(outputs[1], space.P);
-    if (qem) {
-      write_qem_map(outputs[2], *space.qem_result);
+    write_map(outputs[2], ice::fine_to_coarse_map(space));
+    if (qem)
       write_qem_preview(outputs[3], *space.qem_result);
-    } else {
-      write_map(outputs[2], *space.triangulation, coarse);
+    else
       write_preview(outputs[3], mesh, coarse);
-    }
     const double t_write = clock.lap();
 
     const double rate = summary.removed() / std::max(t_coarsen, 1e-9);

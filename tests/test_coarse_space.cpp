@@ -117,6 +117,50 @@ TEST_CASE("build_coarse_space with QEM: both coarse geometries share the vertice
   CHECK_THROWS_AS(ice::build_coarse_space(mesh, options), std::invalid_argument);
 }
 
+TEST_CASE("fine_to_coarse_map: every input vertex in a coarse face, agreeing with P", "[coarse_space][map]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));  // with a boundary
+  for (const ice::CoarseningMethod method : {ice::CoarseningMethod::ice, ice::CoarseningMethod::qem}) {
+    INFO(ice::to_string(method));
+    ice::CoarseSpaceOptions options;
+    options.method = method;
+    options.coarsen.target_ratio = 0.05;
+    options.keep_method_state = true;
+    const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+    const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+    REQUIRE(map.size() == static_cast<std::size_t>(mesh.V.rows()));
+    const Eigen::SparseMatrix<double, Eigen::RowMajor> rows = space.P;
+    int survivors = 0;
+    for (std::size_t i = 0; i < map.size(); ++i) {
+      const ice::CoarsePoint& point = map[i];
+      REQUIRE(point.face >= 0);
+      REQUIRE(point.face < space.mesh.F.rows());
+      CHECK(point.coarse_vertex == space.mesh.from_input[i]);
+      CHECK(std::abs(point.bary[0] + point.bary[1] + point.bary[2] - 1) < 1e-12);
+      // P's row i is the point's barycentric coordinates on its face's corners (summed over repeats).
+      Eigen::SparseVector<double> expected(space.P.cols());
+      for (int k = 0; k < 3; ++k) expected.coeffRef(space.mesh.F(point.face, k)) += point.bary[k];
+      Eigen::VectorXd difference = Eigen::VectorXd(expected) - Eigen::VectorXd(rows.row(static_cast<Eigen::Index>(i)).transpose());
+      CHECK(difference.cwiseAbs().maxCoeff() < 1e-9);
+      if (point.coarse_vertex != ice::kInvalid) {
+        ++survivors;
+        int corner = -1;
+        for (int k = 0; k < 3; ++k)
+          if (space.mesh.F(point.face, k) == point.coarse_vertex) corner = k;
+        REQUIRE(corner >= 0);
+        CHECK(point.bary[corner] == 1.0);
+      }
+    }
+    CHECK(survivors == static_cast<int>(space.mesh.to_input.size()));
+  }
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_ratio = 0.1;
+  CHECK_THROWS_AS(ice::fine_to_coarse_map(ice::build_coarse_space(mesh, options)), std::invalid_argument);
+  options.method = ice::CoarseningMethod::qem;
+  options.qem_geometry = ice::QemGeometry::intrinsic_delaunay;
+  options.keep_method_state = true;
+  CHECK_THROWS_AS(ice::fine_to_coarse_map(ice::build_coarse_space(mesh, options)), std::invalid_argument);
+}
+
 TEST_CASE("fine_mesh: the input triangles or their intrinsic Delaunay triangulation", "[coarse_space]") {
   const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));
   const ice::FineMesh input = ice::fine_mesh(mesh, ice::FineGeometry::input);

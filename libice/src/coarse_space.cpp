@@ -106,6 +106,45 @@ CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOption
   return space;
 }
 
+std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space) {
+  std::vector<CoarsePoint> map;
+  if (space.qem_result) {
+    if (space.summary.qem && space.summary.qem->geometry != QemGeometry::extrinsic)
+      throw std::invalid_argument(
+          "fine_to_coarse_map: the closest-point map of QEM lies in the QEM mesh's faces, not in the faces of its "
+          "intrinsic Delaunay triangulation (see CoarseSpace::qem_result->map)");
+    map.reserve(space.qem_result->map.size());
+    for (const QemPoint& q : space.qem_result->map) map.push_back({q.coarse_vertex, q.face, q.bary});
+    return map;
+  }
+  if (!space.triangulation)
+    throw std::invalid_argument("fine_to_coarse_map: build the coarse space with keep_method_state");
+  const IntrinsicTriangulation& T = *space.triangulation;
+  // Face slot -> compact face (compact() lists the live slots in order, corners from halfedge(f)).
+  std::vector<Index> compact_face(static_cast<std::size_t>(T.num_face_slots()), kInvalid);
+  Index next_face = 0;
+  for (Index f = 0; f < T.num_face_slots(); ++f)
+    if (T.face_alive(f)) compact_face[f] = next_face++;
+  map.resize(static_cast<std::size_t>(T.num_input_vertices()));
+  for (Index p = 0; p < T.num_input_vertices(); ++p) {
+    const SurfacePoint s = T.location(p);
+    CoarsePoint& point = map[p];
+    point.coarse_vertex = space.mesh.from_input[p];
+    Index face = s.face;
+    point.bary = s.bary;
+    if (s.is_vertex()) {  // the face of its outgoing half-edge, weight 1 at that corner
+      const Index h = T.vertex_halfedge(s.vertex);
+      face = T.face(h);
+      Index g = T.halfedge(face);
+      point.bary = {0, 0, 0};
+      for (int k = 0; k < 3; ++k, g = T.next(g))
+        if (g == h) point.bary[k] = 1;
+    }
+    point.face = compact_face[face];
+  }
+  return map;
+}
+
 FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
   FineMesh fine;
   fine.geometry = geometry;

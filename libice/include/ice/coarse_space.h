@@ -14,7 +14,9 @@
 /// Postconditions: P has mesh.V.rows() rows and space.mesh.to_input.size() columns, every row sums
 /// to 1 (barycentric coordinates of the fine vertex in a coarse face; a surviving vertex's row is
 /// e_j); locked vertices survive (both methods).
+#include <array>
 #include <optional>
+#include <vector>
 #include <string>
 
 #include <Eigen/SparseCore>
@@ -98,6 +100,23 @@ CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOption
 /// space of `geometry`, for callers that compare both geometries of one decimation (ice-report).
 /// summary.seconds covers this call only (the decimation's times are in summary.qem).
 CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep_method_state = false);
+
+/// Where one input vertex lies on the coarse mesh: the coarse vertex it became (kInvalid if it was
+/// removed) and, for every input vertex, a face of space.mesh containing it with barycentric
+/// coordinates with respect to that face's corners (a survivor: weight 1 at its own corner).
+struct CoarsePoint {
+  Index coarse_vertex = kInvalid;
+  Index face = kInvalid;
+  std::array<double, 3> bary{0, 0, 0};
+};
+
+/// The fine-to-coarse map: one CoarsePoint per input vertex, faces in space.mesh's numbering (for
+/// ICE the points the coarsened triangulation tracked, for QEM its closest-point map). Its rows
+/// agree with P (P(i, ·) is point i's barycentric coordinates summed over repeated corners).
+/// Preconditions: the space was built with keep_method_state; a QEM space has extrinsic geometry
+/// (with QemGeometry::intrinsic_delaunay the points lie in the QEM mesh's faces, not in
+/// space.mesh's: see space.qem_result->map). Throws std::invalid_argument otherwise.
+std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space);
 
 /// The fine mesh's discretisation for the PDE solvers (and the Galerkin coarse operators).
 enum class FineGeometry {
