@@ -85,8 +85,8 @@ struct LoadOptions {
 /// Everything `load_mesh_with_report` learned about a file.
 struct LoadResult {
   TriangleMesh mesh;               ///< The validated mesh.
-  std::vector<int> source_vertex;  ///< mesh vertex i is vertex source_vertex[i] of the file (0-based).
-  std::vector<int> source_face;    ///< mesh face f comes from face source_face[f] of the file.
+  std::vector<Index> source_vertex;  ///< mesh vertex i is vertex source_vertex[i] of the file (0-based).
+  std::vector<Index> source_face;    ///< mesh face f comes from face source_face[f] of the file.
   MeshFile file;                   ///< Raw input (soup, format, reader notes).
   ValidationReport input_report;   ///< Validation of the raw input.
   RepairLog repairs;               ///< Empty unless options.repair.

@@ -46,8 +46,8 @@ struct RepairLog {
 /// Result of `repair_mesh`: the repaired soup, where each element came from, and its validation.
 struct RepairResult {
   PolygonSoup soup;
-  std::vector<int> source_vertex;  ///< source_vertex[i]: input vertex id of output vertex i.
-  std::vector<int> source_face;    ///< source_face[f]: input face id output face f was cut from.
+  std::vector<Index> source_vertex;  ///< source_vertex[i]: input vertex id of output vertex i.
+  std::vector<Index> source_face;    ///< source_face[f]: input face id output face f was cut from.
   RepairLog log;
   ValidationReport report;         ///< Validation of `soup`; `report.clean()` says if repair succeeded.
 };

@@ -39,7 +39,7 @@ namespace ice {
 /// Raw polygonal input: positions and one index list per face, 0-based, unchecked.
 struct PolygonSoup {
   Positions V;                               ///< n×3 positions (may contain NaN/inf).
-  std::vector<std::vector<int>> polygons;    ///< Face corner lists (any length, any values).
+  std::vector<std::vector<Index>> polygons;    ///< Face corner lists (any length, any values).
 };
 
 /// Convert a triangle mesh to a soup (for validating meshes built in code).
