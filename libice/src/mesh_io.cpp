@@ -14,7 +14,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <charconv>
 #include <cstring>
+#include <string_view>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -169,22 +171,31 @@ PolygonSoup read_with_openmesh(const std::string& path, std::size_t max_records)
   throw MeshError(MeshError::Kind::Unreadable, path, message);
 }
 
-/// Parse a whole token as a double (accepts nan/inf so that validation can report them).
-bool parse_double(const std::string& token, double& value) {
+/// Parse a whole token as a double (accepts nan/inf so that validation can report them). from_chars
+/// first (correctly rounded, like strtod, and without its locale and copying costs); what it does
+/// not take whole (a leading '+', hexadecimal, overflow or underflow) goes to strtod, whose result
+/// is kept (overflow to ±inf is kept and reported as non-finite).
+bool parse_double(std::string_view token, double& value) {
   if (token.empty()) return false;
+  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+  if (error == std::errc() && end == token.data() + token.size()) return true;
+  const std::string text(token);
+  char* text_end = nullptr;
   errno = 0;
-  char* end = nullptr;
-  value = std::strtod(token.c_str(), &end);
-  return end == token.c_str() + token.size();  // overflow to ±inf is kept and reported as non-finite
+  value = std::strtod(text.c_str(), &text_end);
+  return text_end == text.c_str() + text.size();
 }
 
-/// Parse a whole token as an integer; out-of-int-range values become `out_of_range`.
-bool parse_int(const std::string& token, long long& value) {
+/// Parse a whole token as an integer; values beyond long long become its maximum (out of range).
+bool parse_int(std::string_view token, long long& value) {
   if (token.empty()) return false;
+  const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+  if (error == std::errc() && end == token.data() + token.size()) return true;
+  const std::string text(token);
+  char* text_end = nullptr;
   errno = 0;
-  char* end = nullptr;
-  value = std::strtoll(token.c_str(), &end, 10);
-  if (end != token.c_str() + token.size()) return false;
+  value = std::strtoll(text.c_str(), &text_end, 10);
+  if (text_end != text.c_str() + text.size()) return false;
   if (errno == ERANGE) value = std::numeric_limits<long long>::max();
   return true;
 }
@@ -195,6 +206,24 @@ int clamp_index(long long value) {
   return static_cast<int>(value);
 }
 
+/// Whitespace as `std::istream >> std::string` sees it in the C locale.
+bool is_space(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\v' || c == '\f' || c == '\r'; }
+
+/// Replaces `tokens` by the whitespace-separated tokens of `line` before any '#' (views into it).
+void tokenize(std::string_view line, std::vector<std::string_view>& tokens) {
+  tokens.clear();
+  const std::size_t hash = line.find('#');
+  if (hash != std::string_view::npos) line = line.substr(0, hash);
+  std::size_t i = 0;
+  while (true) {
+    while (i < line.size() && is_space(line[i])) ++i;
+    if (i == line.size()) return;
+    const std::size_t start = i;
+    while (i < line.size() && !is_space(line[i])) ++i;
+    tokens.push_back(line.substr(start, i - start));
+  }
+}
+
 std::vector<std::string> split_whitespace(const std::string& line) {
   std::vector<std::string> tokens;
   std::istringstream in(line);
@@ -203,35 +232,73 @@ std::vector<std::string> split_whitespace(const std::string& line) {
   return tokens;
 }
 
+/// The bytes of a whole file (the text readers scan them in place: no per-line strings).
+std::string read_file_bytes(const std::string& path, std::streamoff offset = 0) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, "cannot be opened");
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  std::string bytes(static_cast<std::size_t>(std::max<std::streamoff>(size - offset, 0)), '\0');
+  in.seekg(offset);
+  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  if (in.bad()) fail(path, "read error");
+  bytes.resize(static_cast<std::size_t>(in.gcount()));
+  return bytes;
+}
+
+/// std::getline over bytes in memory: lines end at '\n' (kept out), the last one may lack it.
+class TextLines {
+ public:
+  explicit TextLines(std::string_view text) : text_(text) {}
+  /// The next line; false when none is left. number() is its 1-based number.
+  bool next(std::string_view& line) {
+    if (position_ >= text_.size()) return false;
+    const std::size_t end = std::min(text_.find('\n', position_), text_.size());
+    line = text_.substr(position_, end - position_);
+    position_ = end + 1;
+    ++number_;
+    return true;
+  }
+  std::size_t number() const { return number_; }
+
+ private:
+  std::string_view text_;
+  std::size_t position_ = 0, number_ = 0;
+};
+
 /// OBJ: every `v` line (x y z [w|r g b]) and every `f` line (vertex index before any '/'), 1-based,
 /// negative indices relative to the vertices read so far, as the OBJ specification says.
 PolygonSoup read_obj_exact(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path, "cannot be opened");
-  std::vector<Eigen::Vector3d> points;
+  const std::string bytes = read_file_bytes(path);
+  std::vector<double> coordinates;
   PolygonSoup soup;
-  std::string line;
-  std::size_t line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    const auto hash = line.find('#');
-    if (hash != std::string::npos) line.erase(hash);
-    const auto tokens = split_whitespace(line);
+  std::vector<std::string_view> tokens;
+  std::string_view line;
+  TextLines lines(bytes);
+  while (lines.next(line)) {
+    tokenize(line, tokens);
     if (tokens.empty()) continue;
+    const auto where = [&] { return "line " + std::to_string(lines.number()) + ": "; };
     if (tokens[0] == "v") {
-      Eigen::Vector3d p;
+      double p[3];
       if (tokens.size() < 4 || !parse_double(tokens[1], p[0]) || !parse_double(tokens[2], p[1]) ||
-          !parse_double(tokens[3], p[2]))
-        fail(path, "line " + std::to_string(line_number) + ": vertex needs three numbers: '" + line + "'");
-      points.push_back(p);
+          !parse_double(tokens[3], p[2])) {
+        std::string text(line);
+        const auto hash = text.find('#');
+        if (hash != std::string::npos) text.erase(hash);
+        fail(path, where() + "vertex needs three numbers: '" + text + "'");
+      }
+      coordinates.insert(coordinates.end(), p, p + 3);
     } else if (tokens[0] == "f") {
       std::vector<int> poly;
+      poly.reserve(tokens.size() - 1);
+      const long long vertices_so_far = static_cast<long long>(coordinates.size() / 3);
       for (std::size_t t = 1; t < tokens.size(); ++t) {
         long long value;
         if (!parse_int(tokens[t].substr(0, tokens[t].find('/')), value))
-          fail(path, "line " + std::to_string(line_number) + ": bad face corner '" + tokens[t] + "'");
+          fail(path, where() + "bad face corner '" + std::string(tokens[t]) + "'");
         if (value < 0)
-          value += static_cast<long long>(points.size());  // -1 is the last vertex so far
+          value += vertices_so_far;  // -1 is the last vertex so far
         else
           value -= 1;  // 1-based; 0 becomes -1, which is invalid
         poly.push_back(clamp_index(value));
@@ -239,9 +306,8 @@ PolygonSoup read_obj_exact(const std::string& path) {
       soup.polygons.push_back(std::move(poly));
     }
   }
-  if (in.bad()) fail(path, "read error");
-  soup.V.resize(static_cast<Eigen::Index>(points.size()), 3);
-  for (std::size_t i = 0; i < points.size(); ++i) soup.V.row(i) = points[i];
+  const Eigen::Index nv = static_cast<Eigen::Index>(coordinates.size() / 3);
+  soup.V = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(coordinates.data(), nv, 3);
   return soup;
 }
 
@@ -250,21 +316,6 @@ std::vector<std::string> line_tokens(std::string line) {
   const auto hash = line.find('#');
   if (hash != std::string::npos) line.erase(hash);
   return split_whitespace(line);
-}
-
-/// Non-empty lines of a text file with '#' comments removed, tokenised.
-std::vector<std::pair<std::size_t, std::vector<std::string>>> token_lines(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path, "cannot be opened");
-  std::vector<std::pair<std::size_t, std::vector<std::string>>> lines;
-  std::string line;
-  std::size_t number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    auto tokens = line_tokens(line);
-    if (!tokens.empty()) lines.emplace_back(number, std::move(tokens));
-  }
-  return lines;
 }
 
 /// A token as it may be shown in a message: at most 40 characters, bytes outside printable ASCII as \xNN.
@@ -394,12 +445,31 @@ PolygonSoup read_off_exact(const std::string& path, std::uintmax_t file_size) {
     const OffLayout layout = parse_off_keyword(path, keyword_line[0]);
     if (keyword_line.size() > 1 && keyword_line[1] == "BINARY") return read_off_binary(path, in.tellg(), layout);
   }
-  const auto lines = token_lines(path);
-  std::vector<std::string> header(lines[0].second.begin() + 1, lines[0].second.end());
+  // Non-empty lines (after '#' comments), first counted, so that a short file is named as such
+  // before any record is parsed, then read in place.
+  const std::string bytes = read_file_bytes(path);
+  std::vector<std::string_view> tokens;
+  std::string_view line;
+  std::size_t non_empty = 0;
+  for (TextLines lines(bytes); lines.next(line);) {
+    tokenize(line, tokens);
+    non_empty += !tokens.empty();
+  }
+  TextLines lines(bytes);
+  const auto next_tokens = [&]() -> std::size_t {  // the next non-empty line into `tokens`; its number
+    do {
+      lines.next(line);
+      tokenize(line, tokens);
+    } while (tokens.empty());
+    return lines.number();
+  };
+  next_tokens();  // the keyword line
+  std::vector<std::string_view> header(tokens.begin() + 1, tokens.end());
   std::size_t next = 1;
   if (header.size() < 2) {
-    if (lines.size() < 2) fail(path, "OFF header has no vertex and face counts");
-    header = lines[1].second;
+    if (non_empty < 2) fail(path, "OFF header has no vertex and face counts");
+    next_tokens();
+    header = tokens;
     next = 2;
   }
   long long nv, nf;
@@ -407,27 +477,29 @@ PolygonSoup read_off_exact(const std::string& path, std::uintmax_t file_size) {
     fail(path, "OFF header needs non-negative vertex and face counts");
   if (static_cast<std::uintmax_t>(nv) > file_size || static_cast<std::uintmax_t>(nf) > file_size)
     fail(path, "OFF header announces more elements than the file can hold");
-  if (lines.size() < next + static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
+  if (non_empty < next + static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
     fail(path, "file ends early: the header announces " + std::to_string(nv) + " vertices and " +
                    std::to_string(nf) + " faces");
   PolygonSoup soup;
   soup.V.resize(nv, 3);
   for (long long i = 0; i < nv; ++i) {
-    const auto& [number, tokens] = lines[next++];
+    const std::size_t number = next_tokens();
     if (tokens.size() < 3 || !parse_double(tokens[0], soup.V(i, 0)) || !parse_double(tokens[1], soup.V(i, 1)) ||
         !parse_double(tokens[2], soup.V(i, 2)))
       fail(path, "line " + std::to_string(number) + ": vertex needs three numbers");
   }
   soup.polygons.resize(static_cast<std::size_t>(nf));
   for (long long f = 0; f < nf; ++f) {
-    const auto& [number, tokens] = lines[next++];
+    const std::size_t number = next_tokens();
     long long k;
     if (!parse_int(tokens[0], k) || k < 0 || static_cast<std::size_t>(k) + 1 > tokens.size())
       fail(path, "line " + std::to_string(number) + ": face needs a corner count and that many indices");
+    std::vector<int>& poly = soup.polygons[f];
+    poly.reserve(static_cast<std::size_t>(k));
     for (long long c = 1; c <= k; ++c) {
       long long value;
       if (!parse_int(tokens[c], value)) fail(path, "line " + std::to_string(number) + ": bad face index");
-      soup.polygons[f].push_back(clamp_index(value));
+      poly.push_back(clamp_index(value));
     }
   }
   return soup;
@@ -525,39 +597,44 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
   }
   if (axes_found != 7) fail(path, "PLY vertex element lacks one of the properties x, y, z");
 
-  std::ifstream in(path, std::ios::binary);
-  in.seekg(header.data_offset);
-  std::vector<unsigned char> data;  // binary: everything after the header
+  // Everything after the header, scanned in place: ASCII as whitespace-separated tokens (as
+  // `std::istream >>` reads them), binary as scalars whose decoding is set up once per property.
+  const std::string data = read_file_bytes(path, header.data_offset);
+  const auto* bytes = reinterpret_cast<const unsigned char*>(data.data());
   std::size_t position = 0;
-  if (!ascii) {
-    data.resize(static_cast<std::size_t>(file_size - static_cast<std::uintmax_t>(header.data_offset)));
-    in.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
-    data.resize(static_cast<std::size_t>(in.gcount()));
-  }
-  // The next value of a property of `type`, in element `name` record `record` (ASCII token or binary).
-  std::string token;
-  const auto next_value = [&](const std::string& type, const PlyElement& element, std::size_t record) -> double {
+  std::string_view token;
+  struct Scalar {
+    std::size_t size = 0;
+    bool is_float = false, is_signed = false;
+  };
+  const auto scalar_of = [](const std::string& type) {
+    return Scalar{ply_type_size(type), type.rfind("float", 0) == 0 || type == "double", type[0] != 'u'};
+  };
+  // The next value of a scalar of `type`, in element `element` record `record`.
+  const auto next_value = [&](const Scalar& type, const PlyElement& element, std::size_t record) -> double {
     const auto where = [&] { return "element '" + element.name + "' " + std::to_string(record) + " of " +
                                     std::to_string(element.count); };
     if (ascii) {
-      if (!(in >> token)) fail(path, "file ends early in " + where());
+      while (position < data.size() && is_space(data[position])) ++position;
+      const std::size_t start = position;
+      while (position < data.size() && !is_space(data[position])) ++position;
+      if (position == start) fail(path, "file ends early in " + where());
+      token = std::string_view(data).substr(start, position - start);
       double value;
-      if (!parse_double(token, value)) fail(path, where() + ": bad number '" + token + "'");
+      if (!parse_double(token, value)) fail(path, where() + ": bad number '" + std::string(token) + "'");
       return value;
     }
-    const std::size_t size = ply_type_size(type);
-    if (position + size > data.size()) fail(path, "file ends early in " + where());
-    const double value = decode_binary_scalar(data.data() + position, size, type.rfind("float", 0) == 0 || type == "double",
-                                           type[0] != 'u', big_endian);
-    position += size;
+    if (position + type.size > data.size()) fail(path, "file ends early in " + where());
+    const double value = decode_binary_scalar(bytes + position, type.size, type.is_float, type.is_signed, big_endian);
+    position += type.size;
     return value;
   };
-  // An integer value (list length, vertex index) of a property of `type`.
-  const auto next_integer = [&](const std::string& type, const PlyElement& element, std::size_t record) -> long long {
+  // An integer value (list length, vertex index) of a scalar of `type`.
+  const auto next_integer = [&](const Scalar& type, const PlyElement& element, std::size_t record) -> long long {
     const double value = next_value(type, element, record);
     if (!(std::abs(value) < 9.2e18) || value != std::floor(value))
-      fail(path, "element '" + element.name + "' " + std::to_string(record) + ": '" + (ascii ? token : std::to_string(value)) +
-                     "' is not an integer");
+      fail(path, "element '" + element.name + "' " + std::to_string(record) + ": '" +
+                     (ascii ? std::string(token) : std::to_string(value)) + "' is not an integer");
     return static_cast<long long>(value);
   };
 
@@ -565,24 +642,29 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
   soup.V.resize(static_cast<Eigen::Index>(vertex->count), 3);
   for (const PlyElement& element : header.elements) {
     const bool is_vertex = &element == vertex, is_face = element.name == "face";
+    std::vector<Scalar> value_type, count_type;
+    for (const PlyProperty& prop : element.properties) {
+      value_type.push_back(scalar_of(prop.type));
+      count_type.push_back(prop.count_type.empty() ? Scalar{} : scalar_of(prop.count_type));
+    }
     if (is_face) soup.polygons.reserve(element.count);
     for (std::size_t i = 0; i < element.count; ++i) {
       std::vector<int> polygon;
       bool took_indices = false;
       for (std::size_t k = 0; k < element.properties.size(); ++k) {
-        const PlyProperty& prop = element.properties[k];
-        if (prop.count_type.empty()) {
-          const double value = next_value(prop.type, element, i);
+        if (count_type[k].size == 0) {
+          const double value = next_value(value_type[k], element, i);
           if (is_vertex && axis_of_property[k] >= 0) soup.V(static_cast<Eigen::Index>(i), axis_of_property[k]) = value;
           continue;
         }
-        const long long length = next_integer(prop.count_type, element, i);
+        const long long length = next_integer(count_type[k], element, i);
         if (length < 0 || static_cast<std::uintmax_t>(length) > file_size)
           fail(path, "element '" + element.name + "' " + std::to_string(i) + ": bad list length " + std::to_string(length));
         const bool indices = is_face && !took_indices;
+        if (indices) polygon.reserve(static_cast<std::size_t>(length));
         for (long long c = 0; c < length; ++c) {
-          if (indices) polygon.push_back(clamp_index(next_integer(prop.type, element, i)));
-          else next_value(prop.type, element, i);
+          if (indices) polygon.push_back(clamp_index(next_integer(value_type[k], element, i)));
+          else next_value(value_type[k], element, i);
         }
         took_indices = took_indices || indices;
       }
