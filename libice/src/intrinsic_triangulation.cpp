@@ -1,6 +1,8 @@
 #include "ice/triangle_geometry.h"
 #include "ice/intrinsic_triangulation.h"
 
+#include "vertex_buckets.h"
+
 
 #include <algorithm>
 #include <cmath>
@@ -146,32 +148,18 @@ VertexPairGluing pair_sides_by_vertices(const Faces& F) {
   const Index num_corners = 3 * num_faces;
 
   // Pair corners (directed edges) into undirected edges by sorting on the vertex pair (lower
-  // vertex, higher vertex, corner): a counting sort on the lower vertex, then insertion sort
-  // within each bucket (a vertex's handful of edges). Linear time and cache-friendly, where a
-  // comparison sort of millions of indices spends most of its time in random key lookups.
+  // vertex, higher vertex, corner) with a counting sort on the lower vertex (detail::order_by_vertex).
   std::vector<std::uint64_t> key(num_corners);
-  std::vector<Index> bucket(static_cast<std::size_t>(num_vertices) + 1, 0);
   for (Index c = 0; c < num_corners; ++c) {
     const std::uint64_t a = F(c / 3, c % 3), b = F(c / 3, (c % 3 + 1) % 3);
     if (a == b)
       throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(c / 3) +
                                   " repeats a vertex");
     key[c] = (std::min(a, b) << 32) | std::max(a, b);
-    ++bucket[std::min(a, b) + 1];
   }
-  for (Index v = 0; v < num_vertices; ++v) bucket[v + 1] += bucket[v];
-  std::vector<Index> order(num_corners);
-  {
-    std::vector<Index> fill(bucket.begin(), bucket.end() - 1);
-    for (Index c = 0; c < num_corners; ++c) order[fill[key[c] >> 32]++] = c;  // stable: c ascending
-  }
-  for (Index v = 0; v < num_vertices; ++v)
-    for (Index i = bucket[v] + 1; i < bucket[v + 1]; ++i) {
-      const Index c = order[i];
-      Index j = i;
-      for (; j > bucket[v] && key[order[j - 1]] > key[c]; --j) order[j] = order[j - 1];
-      order[j] = c;
-    }
+  std::vector<Index> order = detail::order_by_vertex(
+      static_cast<std::size_t>(num_corners), num_vertices, [&](Index c) { return static_cast<Index>(key[c] >> 32); },
+      [&](Index x, Index y) { return key[x] < key[y]; });
 
   VertexPairGluing gluing;
   gluing.twin.assign(num_corners, kInvalid);

@@ -276,7 +276,7 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
   {
     std::vector<char> include(faces.size());
     for (std::size_t f = 0; f < faces.size(); ++f) include[f] = keep[f] && indices_in_range(faces[f], nv);
-    for (int f : detail::later_duplicate_faces(faces, include)) {
+    for (int f : detail::later_duplicate_faces(faces, include, nv)) {
       keep[f] = 0;
       ++log.removed_duplicate_faces;
     }

@@ -3,6 +3,7 @@
 
 #include "corner_fans.h"
 #include "soup_duplicates.h"
+#include "vertex_buckets.h"
 #include "disjoint_sets.h"
 
 #include <Eigen/Geometry>
@@ -248,7 +249,7 @@ void scan_faces(SoupScan& s, ValidationReport& r) {
 
 // Faces with the same vertex set as an earlier well-formed face.
 void find_duplicate_faces(const SoupScan& s, ValidationReport& r) {
-  for (int f : detail::later_duplicate_faces(s.polys, s.well_formed)) r.duplicate_faces.add(f);
+  for (int f : detail::later_duplicate_faces(s.polys, s.well_formed, s.nv)) r.duplicate_faces.add(f);
 }
 
 // Edges: their faces (boundary, two, more), orientation agreement, lengths; the fans around each
@@ -269,9 +270,16 @@ void scan_edges(SoupScan& s, ValidationReport& r) {
       uses.push_back({edge_key(a, b), f, static_cast<int>(k), a < b});
     }
   }
-  std::sort(uses.begin(), uses.end(), [](const HalfEdgeUse& x, const HalfEdgeUse& y) {
-    return x.key != y.key ? x.key < y.key : x.face < y.face;
-  });
+  {
+    // By (key, face): the uses were made face by face, so a stable order by the smaller vertex, then
+    // by the larger one within it, is that order.
+    const std::vector<Index> order = detail::order_by_vertex(
+        uses.size(), nv, [&](Index u) { return static_cast<Index>(uses[u].key >> 32); },
+        [&](Index x, Index y) { return (uses[x].key & 0xffffffffu) < (uses[y].key & 0xffffffffu); });
+    std::vector<HalfEdgeUse> sorted(uses.size());
+    for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = uses[order[i]];
+    uses.swap(sorted);
+  }
 
   // Corner of face f at vertex v, found by a short scan (faces are small).
   auto corner_of = [&](int f, int v) -> std::size_t {

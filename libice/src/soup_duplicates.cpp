@@ -1,5 +1,7 @@
 #include "soup_duplicates.h"
 
+#include "vertex_buckets.h"
+
 #include <algorithm>
 #include <array>
 #include <numeric>
@@ -31,10 +33,12 @@ std::vector<int> first_coincident_vertex(const Positions& V) {
   return first;
 }
 
-std::vector<int> later_duplicate_faces(const std::vector<std::vector<int>>& faces, const std::vector<char>& include) {
-  // Sorted (vertex set, face id) keys: within a group of equal sets, every face after the first.
+std::vector<int> later_duplicate_faces(const std::vector<std::vector<int>>& faces, const std::vector<char>& include,
+                                       Index vertices) {
+  // Triangles by sorted corners (a < b < c): ordered by a (a counting sort), then by (b, c, face);
+  // within a run of equal corner sets every face after the first is a duplicate.
   std::vector<std::array<int, 4>> triangles;
-  std::vector<std::pair<std::vector<int>, int>> polygons;  // rare: faces with more corners
+  std::vector<std::pair<std::vector<int>, int>> polygons;  // rare: faces with more corners, sorted whole
   for (std::size_t f = 0; f < faces.size(); ++f) {
     if (!include[f]) continue;
     if (faces[f].size() == 3) {
@@ -47,12 +51,20 @@ std::vector<int> later_duplicate_faces(const std::vector<std::vector<int>>& face
       polygons.emplace_back(std::move(key), static_cast<int>(f));
     }
   }
-  std::sort(triangles.begin(), triangles.end());
+  const std::vector<Index> order = order_by_vertex(
+      triangles.size(), vertices, [&](Index t) { return triangles[t][0]; },
+      [&](Index x, Index y) {
+        const auto& p = triangles[x];
+        const auto& q = triangles[y];
+        return p[1] != q[1] ? p[1] < q[1] : p[2] != q[2] ? p[2] < q[2] : p[3] < q[3];
+      });
   std::sort(polygons.begin(), polygons.end());
   std::vector<int> later;
-  for (std::size_t i = 1; i < triangles.size(); ++i)
-    if (std::equal(triangles[i].begin(), triangles[i].begin() + 3, triangles[i - 1].begin()))
-      later.push_back(triangles[i][3]);
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    const auto& p = triangles[order[i]];
+    const auto& q = triangles[order[i - 1]];
+    if (p[0] == q[0] && p[1] == q[1] && p[2] == q[2]) later.push_back(p[3]);
+  }
   for (std::size_t i = 1; i < polygons.size(); ++i)
     if (polygons[i].first == polygons[i - 1].first) later.push_back(polygons[i].second);
   std::sort(later.begin(), later.end());

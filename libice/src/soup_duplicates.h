@@ -14,8 +14,9 @@ namespace ice::detail {
 std::vector<int> first_coincident_vertex(const Positions& V);
 
 /// The faces among those with include[f] whose vertex set (ignoring order and orientation) equals
-/// that of an earlier included face, in increasing order. Every index of an included face must be
-/// valid for sorting (no range check is needed: only equality is compared).
-std::vector<int> later_duplicate_faces(const std::vector<std::vector<int>>& faces, const std::vector<char>& include);
+/// that of an earlier included face, in increasing order. Every index of an included face must lie
+/// in [0, vertices).
+std::vector<int> later_duplicate_faces(const std::vector<std::vector<int>>& faces, const std::vector<char>& include,
+                                       Index vertices);
 
 }  // namespace ice::detail
