@@ -14,7 +14,7 @@
 //               block_total10_s = setup_s + block10_s,
 //               peak_mb (peak growth of the malloc heap in use during setup + solves, sampled every 2 ms;
 //               the fine matrix, mesh and right-hand sides exist before and are not counted)
-//   cholmod:    analyze_s, factor_s, solve_s, cold_s, solve10_s, total10_s = analyze + factor + 10 solves,
+//   cholmod:    (per ordering: default strategy, AMD, METIS, nested dissection) analyze_s, factor_s, solve_s, cold_s, solve10_s, total10_s = analyze + factor + 10 solves,
 //               block10_s (the same 10 in one supernodal solve with a 10-column right-hand side),
 //               block_total10_s = analyze + factor + block10_s, peak_mb
 //   boomeramg:  setup_s, solve_s, iterations, factor, cold_s, solve10_s, total10_s, peak_mb
@@ -170,12 +170,17 @@ void BM_MultigridICE(benchmark::State& state) {
   }
 }
 
+// Second argument: the fill-reducing ordering (fem::CholeskyOrdering: 0 CHOLMOD's default strategy,
+// 1 AMD only, 2 METIS only, 3 CHOLMOD's nested dissection): a careful user picks the fastest.
 void BM_MultigridCholmod(benchmark::State& state) {
   if (!ice_bench::has_mesh(state, "fandisk.obj")) return;
   const Problem& p = problem(static_cast<int>(state.range(0)));
+  const auto ordering = static_cast<fem::CholeskyOrdering>(state.range(1));
+  state.SetLabel(fem::to_string(ordering));
   for (auto _ : state) {
     PeakMemory memory;
     fem::CholeskySolver chol;
+    chol.set_ordering(ordering);
     auto t = Clock::now();
     chol.analyze(p.A);
     const double analyze = since(t);
@@ -322,6 +327,10 @@ BENCHMARK(BM_MultigridBoomerAMG)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(be
 #endif
 
 BENCHMARK(BM_MultigridICE)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
-BENCHMARK(BM_MultigridCholmod)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_MultigridCholmod)
+    ->ArgsProduct({{2, 3, 4}, {0, 1, 2, 3}})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime();
 
 }  // namespace

@@ -97,6 +97,16 @@ struct CholeskySolver::Impl {
 };
 
 CholeskySolver::CholeskySolver() : impl_(std::make_unique<Impl>()) {}
+const char* to_string(CholeskyOrdering ordering) {
+  switch (ordering) {
+    case CholeskyOrdering::automatic: return "automatic";
+    case CholeskyOrdering::amd: return "amd";
+    case CholeskyOrdering::metis: return "metis";
+    case CholeskyOrdering::nested_dissection: return "nested_dissection";
+  }
+  return "?";
+}
+
 CholeskySolver::CholeskySolver(const Eigen::SparseMatrix<double>& A) : CholeskySolver() { compute(A); }
 CholeskySolver::~CholeskySolver() = default;
 CholeskySolver::CholeskySolver(CholeskySolver&&) noexcept = default;
@@ -109,6 +119,15 @@ void CholeskySolver::analyze(const Eigen::SparseMatrix<double>& A) {
   if (s.factor) cholmod_l_free_factor(&s.factor, &s.common);
   s.factorized = false;
   cholmod_sparse* lower = s.lower_triangle(A);
+  if (ordering_ == CholeskyOrdering::automatic) {
+    s.common.nmethods = 0;  // CHOLMOD's default strategy
+  } else {
+    s.common.nmethods = 1;
+    s.common.method[0].ordering = ordering_ == CholeskyOrdering::amd     ? CHOLMOD_AMD
+                                  : ordering_ == CholeskyOrdering::metis ? CHOLMOD_METIS
+                                                                         : CHOLMOD_NESDIS;
+    s.common.postorder = 1;
+  }
   s.factor = cholmod_l_analyze(lower, &s.common);
   const auto* starts = static_cast<const SuiteSparseLong*>(lower->p);
   const auto* rows = static_cast<const SuiteSparseLong*>(lower->i);

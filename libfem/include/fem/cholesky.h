@@ -24,7 +24,17 @@ class NotPositiveDefinite : public std::runtime_error {
   Eigen::Index column_;
 };
 
-/// LLᵀ factorisation with a fill-reducing ordering chosen by CHOLMOD (AMD/METIS as available).
+/// The fill-reducing ordering of CholeskySolver's analysis.
+enum class CholeskyOrdering {
+  automatic,          ///< CHOLMOD's default strategy: AMD, then METIS if AMD's fill is high; the best kept
+  amd,                ///< approximate minimum degree only (the cheapest analysis)
+  metis,              ///< METIS nested dissection only
+  nested_dissection,  ///< CHOLMOD's own nested dissection (NESDIS: METIS partitions, CAMD on the parts)
+};
+const char* to_string(CholeskyOrdering ordering);
+
+/// LLᵀ factorisation with a fill-reducing ordering (CholeskyOrdering; CHOLMOD's default strategy
+/// unless set_ordering() says otherwise).
 ///
 /// Usage: `analyze(A)` once per sparsity pattern, then `factorize(A)` for every matrix with that
 /// pattern (e.g. M + tL for several t), then `solve(b)` for any number of right-hand sides.
@@ -67,6 +77,10 @@ class CholeskySolver {
   double pivot_tolerance() const { return pivot_tolerance_; }
   void set_pivot_tolerance(double tolerance) { pivot_tolerance_ = tolerance; }
 
+  /// The ordering of the next analyze(); automatic by default.
+  CholeskyOrdering ordering() const { return ordering_; }
+  void set_ordering(CholeskyOrdering ordering) { ordering_ = ordering; }
+
   bool is_factorized() const;
   /// True when CHOLMOD chose a supernodal factor (it is asked to always do so).
   bool is_supernodal() const;
@@ -76,6 +90,7 @@ class CholeskySolver {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   double pivot_tolerance_ = 1e-12;
+  CholeskyOrdering ordering_ = CholeskyOrdering::automatic;
 };
 
 }  // namespace fem
