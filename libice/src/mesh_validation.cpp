@@ -275,16 +275,11 @@ void scan_edges(SoupScan& s, ValidationReport& r) {
       uses.push_back({edge_key(a, b), f, static_cast<int>(k), a < b});
     }
   }
-  {
-    // By (key, face): the uses were made face by face, so a stable order by the smaller vertex, then
-    // by the larger one within it, is that order.
-    const std::vector<Index> order = detail::order_by_vertex(
-        uses.size(), nv, [&](Index u) { return static_cast<Index>(uses[u].key >> 32); },
-        [&](Index x, Index y) { return (uses[x].key & 0xffffffffu) < (uses[y].key & 0xffffffffu); });
-    std::vector<HalfEdgeUse> sorted(uses.size());
-    for (std::size_t i = 0; i < order.size(); ++i) sorted[i] = uses[order[i]];
-    uses.swap(sorted);
-  }
+  // By (key, face): the uses were made face by face, so a stable order by the smaller vertex, then
+  // by the larger one within it, is that order.
+  detail::sort_by_vertex(
+      uses, nv, [](const HalfEdgeUse& use) { return static_cast<Index>(use.key >> 32); },
+      [](const HalfEdgeUse& x, const HalfEdgeUse& y) { return (x.key & 0xffffffffu) < (y.key & 0xffffffffu); });
 
   // The corners of a use's face at the edge's smaller and larger vertex: the use runs from its
   // corner to the next one, from the smaller vertex to the larger when `forward`.
@@ -295,6 +290,8 @@ void scan_edges(SoupScan& s, ValidationReport& r) {
     return use.forward ? std::array<std::size_t, 2>{tail, head} : std::array<std::size_t, 2>{head, tail};
   };
 
+  s.unique_edges.reserve(uses.size() / 2 + 1);
+  s.links.reserve(uses.size());
   DisjointSets fans(n_corners);  // corners at one vertex linked through two-face edges
   s.on_boundary.assign(static_cast<std::size_t>(nv), 0);
   double len_min = std::numeric_limits<double>::infinity(), len_max = 0, len_sum = 0;

@@ -51,18 +51,16 @@ std::vector<int> later_duplicate_faces(const std::vector<std::vector<int>>& face
       polygons.emplace_back(std::move(key), static_cast<int>(f));
     }
   }
-  const std::vector<Index> order = order_by_vertex(
-      triangles.size(), vertices, [&](Index t) { return triangles[t][0]; },
-      [&](Index x, Index y) {
-        const auto& p = triangles[x];
-        const auto& q = triangles[y];
+  sort_by_vertex(
+      triangles, vertices, [](const std::array<int, 4>& t) { return t[0]; },
+      [](const std::array<int, 4>& p, const std::array<int, 4>& q) {
         return p[1] != q[1] ? p[1] < q[1] : p[2] != q[2] ? p[2] < q[2] : p[3] < q[3];
       });
   std::sort(polygons.begin(), polygons.end());
   std::vector<int> later;
-  for (std::size_t i = 1; i < order.size(); ++i) {
-    const auto& p = triangles[order[i]];
-    const auto& q = triangles[order[i - 1]];
+  for (std::size_t i = 1; i < triangles.size(); ++i) {
+    const auto& p = triangles[i];
+    const auto& q = triangles[i - 1];
     if (p[0] == q[0] && p[1] == q[1] && p[2] == q[2]) later.push_back(p[3]);
   }
   for (std::size_t i = 1; i < polygons.size(); ++i)

@@ -40,4 +40,34 @@ std::vector<Index> order_by_vertex(std::size_t count, Index vertices, VertexOf&&
   return order;
 }
 
+/// Sorts `records` in place by (vertex_of(record), then `less` within a vertex), stably, with the
+/// same counting sort as order_by_vertex but moving the records themselves (one scattering pass
+/// instead of an index order and a gathering pass: half the random memory accesses).
+template <class Record, class VertexOf, class Less>
+void sort_by_vertex(std::vector<Record>& records, Index vertices, VertexOf&& vertex_of, Less&& less) {
+  std::vector<std::size_t> start(static_cast<std::size_t>(vertices) + 1, 0);
+  for (const Record& record : records) ++start[static_cast<std::size_t>(vertex_of(record)) + 1];
+  for (std::size_t v = 0; v < static_cast<std::size_t>(vertices); ++v) start[v + 1] += start[v];
+  std::vector<Record> sorted(records.size());
+  {
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (const Record& record : records) sorted[fill[vertex_of(record)]++] = record;
+  }
+  for (std::size_t v = 0; v < static_cast<std::size_t>(vertices); ++v) {
+    const auto begin = sorted.begin() + static_cast<std::ptrdiff_t>(start[v]);
+    const auto end = sorted.begin() + static_cast<std::ptrdiff_t>(start[v + 1]);
+    if (end - begin > 32) {
+      std::stable_sort(begin, end, less);
+      continue;
+    }
+    for (auto i = begin + 1; i < end; ++i) {
+      Record record = *i;
+      auto j = i;
+      for (; j > begin && less(record, *(j - 1)); --j) *j = *(j - 1);
+      *j = record;
+    }
+  }
+  records.swap(sorted);
+}
+
 }  // namespace ice::detail
