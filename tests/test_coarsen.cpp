@@ -287,6 +287,13 @@ TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays c
     options.threads = 1;
     const CoarsenResult serial_result = coarsen(serial, options);
     CHECK(serial_result.parallel_removed == 0);
+    // The phase times: a parallel phase only with threads, and the phases within the whole call.
+    CHECK(result.parallel_seconds > 0);
+    CHECK(serial_result.parallel_seconds == 0);
+    for (const CoarsenResult* r : {&result, &serial_result}) {
+      CHECK(r->serial_seconds > 0);
+      CHECK(r->setup_seconds + r->parallel_seconds + r->serial_seconds <= r->seconds);
+    }
     CHECK(result.max_cost < 1.5 * serial_result.max_cost);
     CHECK(result.max_cost > serial_result.max_cost / 1.5);
   }

@@ -406,19 +406,27 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
     }
   });
   IntrinsicErrorMetric& metric = *metric_storage;
+  const auto since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
+  result.setup_seconds = since(start);
   LargeArray<VertexState> state(static_cast<std::size_t>(n));
   for (Index v : options.locked_vertices)
     if (v >= 0 && v < n) state[v].locked = 1;
   GreedyContext context{T, metric, state, options, target, T.num_vertices()};
 
+  auto phase_start = std::chrono::steady_clock::now();
   if (parallel) {
     const CoarsenResult regions = coarsen_regions(context, partition, threads, intermediate);
     result.add_counts(regions);
     result.parallel_removed = regions.parallel_removed;
     result.last_cost = regions.last_cost;
+    result.parallel_seconds = since(phase_start);
+    phase_start = std::chrono::steady_clock::now();
   }
   if (!context.cancelled.load()) {
     coarsen_whole(context, result);
+    result.serial_seconds = since(phase_start);
   } else {
     result.stop_reason = StopReason::Cancelled;
     result.next_cost = std::numeric_limits<double>::quiet_NaN();

@@ -76,6 +76,11 @@ struct CoarsenResult {
   double next_cost = 0;        ///< cost of the cheapest remaining removal (inf if none, NaN if cancelled in the parallel phase)
   Index parallel_removed = 0;  ///< removals made by the parallel phase (0 when serial)
   double seconds = 0;          ///< wall time of coarsen()
+  /// Where that time went: the error metric's per-vertex records (with threads, beside the partition
+  /// into regions), the parallel phase (each region's first costs and removals, the seams' Delaunay
+  /// flips; 0 when serial) and the serial greedy phase (with its own first costs of the vertices
+  /// left). The setup and the serial phase are what more threads cannot shorten.
+  double setup_seconds = 0, parallel_seconds = 0, serial_seconds = 0;
   /// Adds the counts of a part run (removals, failures by status) and keeps the larger max_cost:
   /// how runs in stages (parallel regions, hierarchy passes) sum up.
   void add_counts(const CoarsenResult& part);
