@@ -2,6 +2,7 @@
 
 #include "ice/vertex_star.h"
 #include "removal_queue.h"
+#include "run_tasks.h"
 #include "two_ring_prefetch.h"
 
 #include <algorithm>
@@ -218,30 +219,6 @@ class GreedyLoop {
   CoarsenResult result_;
 };
 
-// Runs f(task) for task = 0..tasks−1 on `threads` threads (the calling one included), each thread
-// taking the next task when it finishes one (a task's result must not depend on which thread runs
-// it); rethrows the first exception.
-template <class F>
-void run_tasks(int threads, int tasks, F&& f) {
-  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(tasks));
-  std::atomic<int> next{0};
-  const auto work = [&] {
-    for (int task; (task = next.fetch_add(1)) < tasks;) {
-      try {
-        f(task);
-      } catch (...) {
-        errors[task] = std::current_exception();
-      }
-    }
-  };
-  std::vector<std::thread> workers;
-  for (int t = 1; t < std::min(threads, tasks); ++t) workers.emplace_back(work);
-  work();
-  for (std::thread& worker : workers) worker.join();
-  for (const std::exception_ptr& error : errors)
-    if (error) std::rethrow_exception(error);
-}
-
 // Labels the live vertices with `parts` regions: contiguous ranges of a breadth-first order of
 // each component (first vertex first), i.e. a ball and the shells around it, each compact on the
 // surface with a short frontier. Dead vertices get kNoRegion. Returns each region's live vertex
@@ -298,7 +275,7 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
   const Index live = context.T.num_vertices();
   std::vector<IntrinsicTriangulation::WriteRegion> regions(parts);
   std::vector<std::unique_ptr<GreedyLoop>> loops(parts);
-  run_tasks(threads, parts, [&](int r) {
+  detail::run_tasks(threads, parts, [&](int r) {
     regions[r] = {partition.label.data(), static_cast<std::uint8_t>(r)};
     GreedyScope scope;
     scope.region = &regions[r];
@@ -321,7 +298,7 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
        ++round) {
     const double round_threshold = std::min(threshold, options.max_error);
     const Index wanted = vertices - parallel_target;
-    run_tasks(threads, parts, [&](int r) {
+    detail::run_tasks(threads, parts, [&](int r) {
       const Index quota = std::max<Index>(1, static_cast<Index>(std::ceil(static_cast<double>(wanted) * loops[r]->vertices() / vertices)));
       stops[r] = loops[r]->run(round_threshold, quota);
     });
@@ -397,7 +374,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   partition.parts = std::min(4 * threads, 254);
   // The partition (a breadth-first pass) runs on a second thread while the metric is set up.
   std::optional<IntrinsicErrorMetric> metric_storage;
-  run_tasks(parallel ? 2 : 1, parallel ? 2 : 1, [&](int task) {
+  detail::run_tasks(parallel ? 2 : 1, parallel ? 2 : 1, [&](int task) {
     if (task == 0) {
       metric_storage.emplace(T, options.area_weight);
     } else {

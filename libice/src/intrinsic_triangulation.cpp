@@ -1,6 +1,7 @@
 #include "ice/triangle_geometry.h"
 #include "ice/intrinsic_triangulation.h"
 
+#include "run_tasks.h"
 #include "vertex_buckets.h"
 
 
@@ -226,6 +227,11 @@ std::vector<Index> number_glued_sides(const Faces& F, const std::vector<double>&
 
 }  // namespace
 
+namespace {
+// Triangulations of at least this many vertices compute their vertex frames on two threads.
+constexpr Index kParallelFrameVertices = 100000;
+}  // namespace
+
 void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& corner_length,
                                    const std::vector<Index>& twin, const std::vector<Index>& order) {
   const Index num_faces = static_cast<Index>(F.rows());
@@ -249,7 +255,15 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
       throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
                                   " is degenerate or violates the triangle inequality");
   }
-  for (Index v = 0; v < num_vertices; ++v) recompute_vertex_frame(v);
+  // Each vertex's frame is its own (its angle sum and its outgoing half-edges' coordinates), so
+  // large meshes compute them on two threads, with the same result.
+  const auto frames = [this](Index begin, Index end) {
+    for (Index v = begin; v < end; ++v) recompute_vertex_frame(v);
+  };
+  if (num_vertices >= kParallelFrameVertices && std::thread::hardware_concurrency() > 1)
+    detail::run_tasks(2, 2, [&](int half) { frames(half * (num_vertices / 2), half ? num_vertices : num_vertices / 2); });
+  else
+    frames(0, num_vertices);
   points_.assign(num_vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
 }
 

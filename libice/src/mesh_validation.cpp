@@ -2,6 +2,7 @@
 #include "ice/triangle_geometry.h"
 
 #include "corner_fans.h"
+#include "run_tasks.h"
 #include "soup_duplicates.h"
 #include "vertex_buckets.h"
 #include "disjoint_sets.h"
@@ -11,7 +12,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <future>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -477,19 +477,18 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
   // The exact-duplicate searches (two sorts) need only the positions and the well-formed faces and
   // fill their own fields of the report: on large soups they run on a second thread beside the
   // edge, component and orientation stages (1.6M vertices: about a third of the validation).
-  const auto find_duplicates = [&] {
-    find_duplicate_positions(s, r);
-    find_duplicate_faces(s, r);
+  const auto stage = [&](int task) {
+    if (task == 0) {
+      find_duplicate_positions(s, r);
+      find_duplicate_faces(s, r);
+    } else {
+      scan_edges(s, r);
+      find_components(s, r);
+      check_orientability(s, r);
+    }
   };
-  std::future<void> duplicates;
-  if (s.nf >= kParallelValidationFaces)
-    duplicates = std::async(std::launch::async, find_duplicates);
-  else
-    find_duplicates();
-  scan_edges(s, r);
-  find_components(s, r);
-  check_orientability(s, r);
-  if (duplicates.valid()) duplicates.get();  // rethrows what the second thread threw
+  const int threads = s.nf >= kParallelValidationFaces ? 2 : 1;
+  detail::run_tasks(threads, 2, stage);
   sum_topology(r);
   return r;
 }
