@@ -54,17 +54,17 @@ void sort_by_vertex(std::vector<Record>& records, Index vertices, VertexOf&& ver
     for (const Record& record : records) sorted[fill[vertex_of(record)]++] = record;
   }
   for (std::size_t v = 0; v < static_cast<std::size_t>(vertices); ++v) {
-    const auto begin = sorted.begin() + static_cast<std::ptrdiff_t>(start[v]);
-    const auto end = sorted.begin() + static_cast<std::ptrdiff_t>(start[v + 1]);
+    const std::size_t begin = start[v], end = start[v + 1];
+    if (end - begin < 2) continue;  // nothing to order (and no iterator may step past an empty bucket)
     if (end - begin > 32) {
-      std::stable_sort(begin, end, less);
+      std::stable_sort(sorted.begin() + static_cast<std::ptrdiff_t>(begin), sorted.begin() + static_cast<std::ptrdiff_t>(end), less);
       continue;
     }
-    for (auto i = begin + 1; i < end; ++i) {
-      Record record = *i;
-      auto j = i;
-      for (; j > begin && less(record, *(j - 1)); --j) *j = *(j - 1);
-      *j = record;
+    for (std::size_t i = begin + 1; i < end; ++i) {
+      Record record = sorted[i];
+      std::size_t j = i;
+      for (; j > begin && less(record, sorted[j - 1]); --j) sorted[j] = sorted[j - 1];
+      sorted[j] = record;
     }
   }
   records.swap(sorted);
