@@ -26,6 +26,7 @@ JOBS="${ICE_JOBS:-2}"
 
 command -v clang++-14 >/dev/null || { echo "fuzz.sh: clang++-14 missing (apt-get install clang-14 libclang-rt-14-dev)" >&2; exit 2; }
 [[ -d data/default ]] || bash scripts/setup.sh
+mkdir -p "$BUILD"
 
 cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_COMPILER=clang++-14 -DICE_FUZZ=ON \
   -DICE_BUILD_TESTS=OFF -DICE_BUILD_BENCH=OFF -DICE_BUILD_APPS=ON >"$BUILD.configure.log" 2>&1 ||
