@@ -144,6 +144,7 @@ void BM_Coarsen(benchmark::State& state) {
   state.counters["threads"] = options.threads;
   state.counters["parallel_removed"] = result.parallel_removed;
   state.counters["removals_per_s"] = result.removed / result.seconds;
+  state.counters["evaluations_per_removal"] = static_cast<double>(result.cost_evaluations) / result.removed;
   state.counters["max_cost"] = result.max_cost;
   state.counters["peak_rss_mb"] = peak_rss_mb();
   state.counters["rss_growth_bytes_per_vertex"] = (peak_rss_mb() - rss_before) * 1024 * 1024 / m.V.rows();

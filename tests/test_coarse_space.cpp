@@ -16,6 +16,7 @@
 #include "ice/mesh_io.h"
 #include "ice/prolongation.h"
 #include "ice/qem.h"
+#include "locality_numbering.h"  // private to libice (the tests see libice/src)
 #include "test_support.h"
 
 namespace {
@@ -53,6 +54,7 @@ TEST_CASE("build_coarse_space with ICE equals coarsening by hand, with a summary
   options.coarsen.target_vertices = 400;
   options.coarsen.area_weight = 0.25;
   options.coarsen.locked_vertices = {0, 17, 4000};
+  options.locality_numbering = false;  // by hand in the input's numbering (see the next test)
   const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
   check_prolongation(space, n, options.coarsen.locked_vertices);
 
@@ -83,6 +85,86 @@ TEST_CASE("build_coarse_space with ICE equals coarsening by hand, with a summary
   REQUIRE(kept.triangulation.has_value());
   CHECK(kept.triangulation->num_vertices() == 400);
   CHECK(kept.triangulation->validate().empty());
+}
+
+// The coarse space of `mesh` must be that of `reference` with input vertex i of `reference` renamed
+// order[i]: the same faces (in the same order, corners through the renaming), lengths, gluing and
+// P entries, coarse vertices listed by increasing input vertex.
+void check_same_space_renamed(const ice::CoarseSpace& space, const ice::CoarseSpace& reference,
+                              const std::vector<ice::Index>& order) {
+  const ice::CompactMesh &C = space.mesh, &R = reference.mesh;
+  REQUIRE(C.F.rows() == R.F.rows());
+  REQUIRE(C.num_vertices() == R.num_vertices());
+  CHECK(std::is_sorted(C.to_input.begin(), C.to_input.end()));
+  for (Eigen::Index f = 0; f < C.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      CHECK(C.to_input[static_cast<std::size_t>(C.F(f, k))] == order[static_cast<std::size_t>(R.to_input[static_cast<std::size_t>(R.F(f, k))])]);
+  CHECK(C.L == R.L);
+  CHECK(C.twin == R.twin);
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const ice::Index r = R.from_input[i], c = C.from_input[static_cast<std::size_t>(order[i])];
+    CHECK((r == ice::kInvalid) == (c == ice::kInvalid));
+    if (r != ice::kInvalid) CHECK(C.to_input[static_cast<std::size_t>(c)] == order[i]);
+  }
+  // P: entry (i, j) of the reference is entry (order[i], the coarse vertex of j's input vertex renamed).
+  Eigen::SparseMatrix<double, Eigen::RowMajor> P = space.P, Q = reference.P;
+  REQUIRE(P.nonZeros() == Q.nonZeros());
+  for (Eigen::Index i = 0; i < Q.rows(); ++i)
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(Q, i); it; ++it) {
+      const ice::Index input = order[static_cast<std::size_t>(R.to_input[static_cast<std::size_t>(it.col())])];
+      CHECK(P.coeff(order[static_cast<std::size_t>(i)], C.from_input[static_cast<std::size_t>(input)]) == it.value());
+    }
+}
+
+TEST_CASE("build_coarse_space coarsens in a locality numbering and answers in the input's", "[coarse_space]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));
+  const Eigen::Index n = mesh.V.rows();
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_vertices = 400;
+  options.coarsen.locked_vertices = {0, 17, 4000};
+  REQUIRE(options.locality_numbering);  // the default
+  const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  check_prolongation(space, n, options.coarsen.locked_vertices);
+
+  // By hand: the renumbered mesh coarsened with the locked vertices renamed, then renamed back.
+  const ice::detail::LocalityNumbering local = ice::detail::locality_numbering(mesh);
+  REQUIRE(local.order.size() == static_cast<std::size_t>(n));
+  std::vector<ice::Index> new_index(local.order.size());
+  for (std::size_t i = 0; i < local.order.size(); ++i) new_index[static_cast<std::size_t>(local.order[i])] = static_cast<ice::Index>(i);
+  ice::CoarseSpaceOptions by_hand = options;
+  by_hand.locality_numbering = false;
+  for (ice::Index& v : by_hand.coarsen.locked_vertices) v = new_index[static_cast<std::size_t>(v)];
+  ice::TriangleMesh renumbered;
+  renumbered.F = local.F;
+  renumbered.V.resize(n, 3);
+  for (ice::Index i = 0; i < n; ++i) renumbered.V.row(i) = mesh.V.row(local.order[static_cast<std::size_t>(i)]);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)  // each new face is an input face, renamed
+    for (int k = 0; k < 3; ++k)
+      CHECK(local.order[static_cast<std::size_t>(local.F(f, k))] == mesh.F(local.face_order[static_cast<std::size_t>(f)], k));
+  CHECK(local.face_lengths(mesh.V) == ice::face_lengths_from_positions(renumbered.V, renumbered.F));
+  check_same_space_renamed(space, ice::build_coarse_space(renumbered, by_hand), local.order);
+
+  // Users' vertex numbering no longer matters: shuffled input vertices give the same coarse space,
+  // renamed (the Z-order depends on the positions only; the faces keep their order).
+  std::vector<ice::Index> shuffle(static_cast<std::size_t>(n));
+  for (ice::Index i = 0; i < n; ++i) shuffle[static_cast<std::size_t>(i)] = static_cast<ice::Index>((7919LL * i + 13) % n);
+  REQUIRE(std::is_permutation(shuffle.begin(), shuffle.end(), new_index.begin()));  // a permutation of 0..n-1
+  ice::TriangleMesh shuffled;
+  shuffled.V.resize(n, 3);
+  shuffled.F = mesh.F;
+  for (ice::Index i = 0; i < n; ++i) shuffled.V.row(shuffle[static_cast<std::size_t>(i)]) = mesh.V.row(i);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) shuffled.F(f, k) = shuffle[static_cast<std::size_t>(mesh.F(f, k))];
+  ice::CoarseSpaceOptions shuffled_options = options;
+  for (ice::Index& v : shuffled_options.coarsen.locked_vertices) v = shuffle[static_cast<std::size_t>(v)];
+  check_same_space_renamed(ice::build_coarse_space(shuffled, shuffled_options), space, shuffle);
+
+  // Meshes the triangulation refuses keep their error (here an unused last vertex).
+  ice::TriangleMesh unused = mesh;
+  unused.V.conservativeResize(n + 1, 3);
+  unused.V.row(n) = mesh.V.row(0);
+  CHECK(ice::detail::locality_numbering(unused).order.empty());
+  CHECK_THROWS_WITH(ice::build_coarse_space(unused, options), Catch::Contains("unreferenced vertices"));
 }
 
 TEST_CASE("build_coarse_space with QEM: both coarse geometries share the vertices and P", "[coarse_space][qem]") {

@@ -293,6 +293,9 @@ TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays c
     for (const CoarsenResult* r : {&result, &serial_result}) {
       CHECK(r->serial_seconds > 0);
       CHECK(r->setup_seconds + r->parallel_seconds + r->serial_seconds <= r->seconds);
+      // Every vertex's first cost, then the neighbours' after each removal: several per removal.
+      CHECK(r->cost_evaluations > r->input_vertices);
+      CHECK(r->cost_evaluations > 3 * r->removed);
     }
     CHECK(result.max_cost < 1.5 * serial_result.max_cost);
     CHECK(result.max_cost > serial_result.max_cost / 1.5);

@@ -1,13 +1,16 @@
 #include "ice/coarse_space.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <numeric>
 #include <string>
 #include <utility>
 
 #include "ice/prolongation.h"
 #include "ice/qem.h"
+#include "locality_numbering.h"
 
 namespace ice {
 
@@ -41,15 +44,64 @@ void record_sizes(CoarseSpace& space, CoarseningMethod method, Index input_verti
   space.summary.coarse_faces = static_cast<Index>(space.mesh.F.rows());
 }
 
+// The coarse mesh and P of T (whose input vertex t is the mesh's vertex order[t]) in the mesh's
+// numbering: P's rows by input vertex, the coarse vertices in increasing order of their input
+// vertices (as compact() lists them when T is in the mesh's own numbering); faces stay as listed.
+void coarse_mesh_and_prolongation(const IntrinsicTriangulation& T, const std::vector<Index>& order, CoarseSpace& space) {
+  CompactMesh& C = space.mesh;
+  C = T.compact();
+  if (order.empty()) {
+    space.P = prolongation(T, C);
+    return;
+  }
+  const Index coarse = C.num_vertices();
+  std::vector<Index> by_input(static_cast<std::size_t>(coarse));
+  std::iota(by_input.begin(), by_input.end(), 0);
+  const auto input_of = [&](Index c) { return order[static_cast<std::size_t>(C.to_input[static_cast<std::size_t>(c)])]; };
+  std::sort(by_input.begin(), by_input.end(), [&](Index a, Index b) { return input_of(a) < input_of(b); });
+  std::vector<Index> renumbered(static_cast<std::size_t>(coarse)), to_input(static_cast<std::size_t>(coarse));
+  for (Index i = 0; i < coarse; ++i) {
+    renumbered[static_cast<std::size_t>(by_input[static_cast<std::size_t>(i)])] = i;
+    to_input[static_cast<std::size_t>(i)] = input_of(by_input[static_cast<std::size_t>(i)]);
+  }
+  for (Eigen::Index f = 0; f < C.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) C.F(f, k) = renumbered[static_cast<std::size_t>(C.F(f, k))];
+  C.to_input = std::move(to_input);
+  // P with the final coarse columns, T's input vertex t in row order[t].
+  for (Index& c : C.from_input)
+    if (c != kInvalid) c = renumbered[static_cast<std::size_t>(c)];
+  space.P = prolongation(T, C, order);
+  std::vector<Index> from_input(C.from_input.size());
+  for (std::size_t t = 0; t < order.size(); ++t) from_input[static_cast<std::size_t>(order[t])] = C.from_input[t];
+  C.from_input = std::move(from_input);
+}
+
 CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
-  IntrinsicTriangulation T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  // The coarsener works in a numbering with memory locality (detail::locality_numbering); the
+  // result is given back in the mesh's own.
+  detail::LocalityNumbering local;
+  if (options.locality_numbering) local = detail::locality_numbering(mesh);
+  const bool renumbered = !local.order.empty();
+  IntrinsicTriangulation T = renumbered ? IntrinsicTriangulation::from_lengths(local.F, local.face_lengths(mesh.V))
+                                        : IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  local.F = Faces();  // the copy's memory back before coarsening
+  local.face_order = {};
+  CoarsenOptions coarsen_options = options.coarsen;
+  if (renumbered) {
+    std::vector<Index> new_index(local.order.size());
+    for (std::size_t i = 0; i < local.order.size(); ++i) new_index[static_cast<std::size_t>(local.order[i])] = static_cast<Index>(i);
+    for (Index& v : coarsen_options.locked_vertices)  // coarsen() ignores indices out of range: so does this
+      if (v >= 0 && v < static_cast<Index>(new_index.size())) v = new_index[static_cast<std::size_t>(v)];
+  }
   CoarseSpace space;
-  const CoarsenResult result = coarsen(T, options.coarsen);
-  space.mesh = T.compact();
-  space.P = prolongation(T, space.mesh);
+  const CoarsenResult result = coarsen(T, coarsen_options);
+  coarse_mesh_and_prolongation(T, local.order, space);
   space.summary.target_reached = result.stop_reason == StopReason::TargetReached;
   space.summary.ice = result;
-  if (options.keep_method_state) space.triangulation = std::move(T);
+  if (options.keep_method_state) {
+    space.triangulation = std::move(T);
+    space.triangulation_order = std::move(local.order);
+  }
   record_sizes(space, CoarseningMethod::ice, static_cast<Index>(mesh.V.rows()));
   return space;
 }
@@ -126,8 +178,10 @@ std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space) {
   for (Index f = 0; f < T.num_face_slots(); ++f)
     if (T.face_alive(f)) compact_face[f] = next_face++;
   map.resize(static_cast<std::size_t>(T.num_input_vertices()));
-  for (Index p = 0; p < T.num_input_vertices(); ++p) {
-    const SurfacePoint s = T.location(p);
+  const std::vector<Index>& order = space.triangulation_order;
+  for (Index t = 0; t < T.num_input_vertices(); ++t) {
+    const SurfacePoint s = T.location(t);
+    const Index p = order.empty() ? t : order[static_cast<std::size_t>(t)];
     CoarsePoint& point = map[p];
     point.coarse_vertex = space.mesh.from_input[p];
     Index face = s.face;

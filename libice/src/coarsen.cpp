@@ -18,6 +18,7 @@ namespace ice {
 
 void CoarsenResult::add_counts(const CoarsenResult& part) {
   removed += part.removed;
+  cost_evaluations += part.cost_evaluations;
   failed_removals += part.failed_removals;
   for (std::size_t k = 0; k < part.failures_by_status.size(); ++k) failures_by_status[k] += part.failures_by_status[k];
   max_cost = std::max(max_cost, part.max_cost);
@@ -187,8 +188,11 @@ class GreedyLoop {
            (context_.options.remove_boundary || !T_.is_boundary_vertex(v));
   }
   void schedule(Index v) {
-    const double cost = eligible(v) ? context_.metric.removal_cost(T_, v, plan_, &state_[v].log_scale)
-                                    : std::numeric_limits<double>::infinity();
+    double cost = std::numeric_limits<double>::infinity();
+    if (eligible(v)) {
+      cost = context_.metric.removal_cost(T_, v, plan_, &state_[v].log_scale);
+      ++result_.cost_evaluations;
+    }
     if (std::isfinite(cost)) queue_.set(v, cost);
     else queue_.erase(v);
   }

@@ -106,18 +106,26 @@ IntrinsicTriangulation IntrinsicTriangulation::from_mesh(const Positions& V, con
         throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
                                     " has an out-of-range vertex index");
   const std::vector<double> lengths = lengths_by_corner(face_lengths_from_positions(V, F));
-  IntrinsicTriangulation T;
   if (F.size() > 0 && F.maxCoeff() + 1 != V.rows())
     throw std::invalid_argument("IntrinsicTriangulation: unreferenced vertices (the last vertex is unused)");
-  const VertexPairGluing gluing = pair_sides_by_vertices(F);
-  T.build(F, lengths, gluing.twin, gluing.order);
-  return T;
+  return from_corner_lengths(F, lengths);
 }
 
 IntrinsicTriangulation IntrinsicTriangulation::from_lengths(const Faces& F, const FaceLengths& L) {
   if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
     throw std::invalid_argument("IntrinsicTriangulation: F and L must both be m x 3");
-  const std::vector<double> lengths = lengths_by_corner(L);
+  return from_corner_lengths(F, lengths_by_corner(L));
+}
+
+IntrinsicTriangulation IntrinsicTriangulation::from_lengths(const Faces& F, FaceLengths&& L) {
+  if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
+    throw std::invalid_argument("IntrinsicTriangulation: F and L must both be m x 3");
+  std::vector<double> lengths = lengths_by_corner(L);
+  L = FaceLengths();
+  return from_corner_lengths(F, lengths);
+}
+
+IntrinsicTriangulation IntrinsicTriangulation::from_corner_lengths(const Faces& F, const std::vector<double>& lengths) {
   IntrinsicTriangulation T;
   const VertexPairGluing gluing = pair_sides_by_vertices(F);
   T.build(F, lengths, gluing.twin, gluing.order);

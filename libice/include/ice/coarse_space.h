@@ -53,6 +53,12 @@ struct CoarseSpaceOptions {
   /// vertex's location, or the QEM result with its mesh and closest-point map): for the map file,
   /// validation, refinement. Off by default: the PDE tools free it before the fine solves.
   bool keep_method_state = false;
+  /// ICE: coarsen in a copy of the mesh renumbered for memory locality (vertices in the Z-order of
+  /// their positions, faces by their first vertex) and give the result back in the mesh's
+  /// numbering. Same method, other tie-breaks and thread regions, so not bit-identical to a run
+  /// without it; at 1.58M vertices (Loop-subdivided spot) the triangulation builds about 2x faster
+  /// and coarsening runs ~15 % faster. Off: the coarsener works in the input's numbering.
+  bool locality_numbering = true;
 };
 
 /// What QEM did (ice/qem.h, QemResult).
@@ -85,8 +91,11 @@ struct CoarseSpace {
   CompactMesh mesh;                ///< the coarse intrinsic mesh (faces, lengths, gluing, vertex maps)
   Eigen::SparseMatrix<double> P;   ///< fine (input) vertices × coarse vertices
   CoarseSpaceSummary summary;
-  /// With keep_method_state and ICE: the coarsened triangulation (mesh == triangulation->compact()).
+  /// With keep_method_state and ICE: the coarsened triangulation. Its input vertex t is the mesh's
+  /// vertex triangulation_order[t] (empty: t itself); `mesh` is its compact() with the vertex
+  /// numbers translated to the mesh's and the coarse vertices listed in increasing input order.
   std::optional<IntrinsicTriangulation> triangulation;
+  std::vector<Index> triangulation_order;
   /// With keep_method_state and QEM: its result (the QEM mesh, the map; its P is moved into P above).
   std::optional<QemResult> qem_result;
 };

@@ -75,6 +75,7 @@ struct CoarsenResult {
   double max_cost = 0;         ///< largest cost among the removals made
   double next_cost = 0;        ///< cost of the cheapest remaining removal (inf if none, NaN if cancelled in the parallel phase)
   Index parallel_removed = 0;  ///< removals made by the parallel phase (0 when serial)
+  Index cost_evaluations = 0;  ///< removal costs computed (every vertex's first cost included)
   double seconds = 0;          ///< wall time of coarsen()
   /// Where that time went: the error metric's per-vertex records (with threads, beside the partition
   /// into regions), the parallel phase (each region's first costs and removals, the seams' Delaunay

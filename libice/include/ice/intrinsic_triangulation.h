@@ -71,6 +71,8 @@ class IntrinsicTriangulation {
   /// Builds from faces and per-face lengths (ice/mesh.h convention); the two faces of an edge must
   /// agree on its length to 1e-12 relative. Same preconditions as from_mesh.
   static IntrinsicTriangulation from_lengths(const Faces& F, const FaceLengths& L);
+  /// The same, freeing L once read (before the half-edge arrays are built: a lower peak).
+  static IntrinsicTriangulation from_lengths(const Faces& F, FaceLengths&& L);
 
   /// Builds any Δ-complex from faces, per-face lengths and the gluing of their sides (CompactMesh::twin
   /// convention): self-edges and several edges between two vertices are fine. Preconditions (checked,
@@ -233,6 +235,8 @@ class IntrinsicTriangulation {
  private:
   friend class TwoRingPrefetch;  // the coarsener's memory prefetching (libice/src/two_ring_prefetch.h)
   IntrinsicTriangulation() = default;
+  // from_mesh / from_lengths after their checks: lengths per corner (3f + k), sides glued by vertex pairs.
+  static IntrinsicTriangulation from_corner_lengths(const Faces& F, const std::vector<double>& lengths);
   /// `twin`: the gluing of the corners' sides (CompactMesh::twin); edges are numbered in the order the
   /// corners are listed in `order` (a permutation of the corners).
   void build(const Faces& F, const std::vector<double>& halfedge_length_by_corner, const std::vector<Index>& twin,

@@ -6,13 +6,18 @@
 /// column; a removed vertex's row holds its barycentric coordinates in the columns of the corners of
 /// the coarse face that contains it (entries of repeated corners of a Δ-complex face are summed).
 /// Rows sum to 1, at most three non-zeros per row. Restriction is Pᵀ.
+#include <vector>
+
 #include <Eigen/SparseCore>
 
 #include "ice/intrinsic_triangulation.h"
 
 namespace ice {
 
-/// P for the current state of T; `coarse` must be T.compact() of that same state.
-Eigen::SparseMatrix<double> prolongation(const IntrinsicTriangulation& T, const CompactMesh& coarse);
+/// P for the current state of T; `coarse` must be T.compact() of that same state, its coarse
+/// vertices possibly renumbered (P's columns follow coarse.from_input). With `row_of`, T's input
+/// vertex t is row row_of[t] (a permutation: T works in another numbering than the caller's).
+Eigen::SparseMatrix<double> prolongation(const IntrinsicTriangulation& T, const CompactMesh& coarse,
+                                         const std::vector<Index>& row_of = {});
 
 }  // namespace ice
