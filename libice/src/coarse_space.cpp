@@ -207,11 +207,19 @@ FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
     fine.L = face_lengths_from_positions(mesh.V, mesh.F);
     return fine;
   }
-  IntrinsicTriangulation T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  // Built and flipped in the locality numbering (as ICE coarsens), faces then named by input vertex.
+  detail::LocalityNumbering local = detail::locality_numbering(mesh);
+  const bool renumbered = !local.order.empty();
+  IntrinsicTriangulation T = renumbered ? IntrinsicTriangulation::from_lengths(local.F, local.face_lengths(mesh.V))
+                                        : IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  local.F = Faces();
   fine.flips = T.flip_to_delaunay();
-  CompactMesh compact = T.compact();  // no vertex removed: compact indices are input indices
+  CompactMesh compact = T.compact();  // no vertex removed: compact indices are T's input indices
   fine.F = std::move(compact.F);
   fine.L = std::move(compact.L);
+  if (renumbered)
+    for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) fine.F(f, k) = local.order[static_cast<std::size_t>(fine.F(f, k))];
   return fine;
 }
 

@@ -135,7 +135,10 @@ enum class FineGeometry {
 const char* to_string(FineGeometry geometry);
 
 struct FineMesh {
-  Faces F;        ///< in the input's vertex numbering
+  /// In the input's vertex numbering. With FineGeometry::input the input's faces; with
+  /// intrinsic_delaunay faces in an order of their own (the triangulation is built and flipped in
+  /// the locality numbering of build_coarse_space, about 2x faster at 1.6M vertices).
+  Faces F;
   FaceLengths L;
   FineGeometry geometry = FineGeometry::intrinsic_delaunay;
   Index flips = 0;  ///< intrinsic Delaunay flips made
