@@ -20,10 +20,9 @@
 #include "fem/errors.h"
 #include "fem/operators.h"
 #include "fem/problems.h"
-#include "ice/coarsen.h"
+#include "ice/coarse_space.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
-#include "ice/prolongation.h"
 #include "bench_support.h"
 
 using namespace ice;
@@ -52,11 +51,14 @@ Eigen::VectorXd smooth_source(const Positions& V) {
   return f;
 }
 
-// Args: Loop subdivisions of spot_subdiv (0–3), coarse budget in percent, coarsening threads.
+// Args: Loop subdivisions of spot_subdiv (0–3), coarse budget in percent, coarsening threads, the
+// fine CHOLMOD's fill-reducing ordering (fem::CholeskyOrdering: 0 CHOLMOD's default strategy, 1 AMD
+// only, the fastest at 1.6M vertices: BM_MultigridCholmod).
 void BM_ProxyVsFine(benchmark::State& state) {
   const TriangleMesh& m = spot_subdiv(static_cast<int>(state.range(0)));
   const double budget = state.range(1) / 100.0;
   const int threads = static_cast<int>(state.range(2));
+  const auto ordering = static_cast<fem::CholeskyOrdering>(state.range(3));
   const Eigen::VectorXd f = smooth_source(m.V);
   for (auto _ : state) {
     auto t = std::chrono::steady_clock::now();
@@ -65,20 +67,18 @@ void BM_ProxyVsFine(benchmark::State& state) {
     const auto Lf = fem::cotan_laplacian(m.F, L, m.V.rows());
     const auto Mf = fem::mass_matrix(m.F, L, fem::MassKind::lumped, m.V.rows());
     const double fine_assemble = seconds_since(t);
-    const auto fine = fem::PoissonSolver::zero_mean(Lf, Mf);
+    const auto fine = fem::PoissonSolver::zero_mean(Lf, Mf, {}, ordering);
     const double fine_factor = seconds_since(t);
     const Eigen::VectorXd u_fine = fine.solve(f);
     const double fine_solve = seconds_since(t);
-    // Proxy one-shot.
-    auto T = IntrinsicTriangulation::from_mesh(m.V, m.F);
-    CoarsenOptions options;
-    options.target_ratio = budget;
-    options.threads = threads;
-    coarsen(T, options);
-    const CompactMesh coarse = T.compact();
-    Eigen::SparseMatrix<double> P = prolongation(T, coarse);
+    // Proxy one-shot: the library's pipeline (triangulation, coarsening, coarse mesh and P).
+    CoarseSpaceOptions options;
+    options.coarsen.target_ratio = budget;
+    options.coarsen.threads = threads;
+    CoarseSpace space = build_coarse_space(m, options);
+    const CompactMesh& coarse = space.mesh;
     const double coarsen_time = seconds_since(t);
-    const fem::CoarseProxy proxy(m.F, L, coarse.F, coarse.L, std::move(P), fem::CoarseOperatorKind::intrinsic);
+    const fem::CoarseProxy proxy(m.F, L, coarse.F, coarse.L, std::move(space.P), fem::CoarseOperatorKind::intrinsic);
     const double proxy_assemble = seconds_since(t);
     const fem::ProxyPoissonSolver solver(proxy);
     const double proxy_factor = seconds_since(t);
@@ -102,6 +102,7 @@ void BM_ProxyVsFine(benchmark::State& state) {
     state.counters["vertices"] = static_cast<double>(m.V.rows());
     state.counters["coarse_vertices"] = static_cast<double>(coarse.to_input.size());
     state.counters["coarsen_threads"] = threads;
+    state.counters["fine_ordering_amd"] = ordering == fem::CholeskyOrdering::amd;
     state.counters["fine_assemble_s"] = fine_assemble;
     state.counters["fine_factor_s"] = fine_factor;
     state.counters["fine_solve_s"] = fine_solve;
@@ -118,11 +119,19 @@ void BM_ProxyVsFine(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ProxyVsFine)
-    ->ArgsProduct({{0, 1, 2, 3}, {1, 5}, {1}})
+    ->ArgsProduct({{0, 1, 2, 3}, {1, 5}, {1}, {0}})
     ->Unit(benchmark::kSecond)
     ->Iterations(1)
     ->UseRealTime();
-// The largest size again with the coarsener's parallel mode (wall time: it runs on two threads).
-BENCHMARK(BM_ProxyVsFine)->Args({3, 1, 2})->Args({3, 5, 2})->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+// The largest size again with the coarsener's parallel mode (wall time: it runs on two threads), and
+// against the fastest CHOLMOD configuration (AMD only), serial and parallel.
+BENCHMARK(BM_ProxyVsFine)
+    ->Args({3, 1, 2, 0})
+    ->Args({3, 5, 2, 0})
+    ->Args({3, 1, 1, 1})
+    ->Args({3, 1, 2, 1})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1)
+    ->UseRealTime();
 
 }  // namespace

@@ -20,8 +20,9 @@ void require_square(const SparseMatrix& A, Eigen::Index n, const char* what) {
 
 // ---- ConstrainedSolver ------------------------------------------------------------------------------
 
-ConstrainedSolver::ConstrainedSolver(const SparseMatrix& A, std::vector<Index> constrained)
+ConstrainedSolver::ConstrainedSolver(const SparseMatrix& A, std::vector<Index> constrained, CholeskyOrdering ordering)
     : size_(A.rows()), constrained_(std::move(constrained)) {
+  factor_.set_ordering(ordering);
   if (A.rows() != A.cols()) throw std::invalid_argument("ConstrainedSolver: matrix must be square");
   std::sort(constrained_.begin(), constrained_.end());
   constrained_.erase(std::unique(constrained_.begin(), constrained_.end()), constrained_.end());
@@ -75,28 +76,30 @@ Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::
 // ---- PoissonSolver ----------------------------------------------------------------------------------
 
 PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                             std::vector<Index> constrained, bool zero_mean, std::optional<PoissonMultigrid> multigrid)
+                             std::vector<Index> constrained, bool zero_mean, std::optional<PoissonMultigrid> multigrid,
+                             CholeskyOrdering ordering)
     : mass_(mass), mass_of_one_(mass * Eigen::VectorXd::Ones(mass.cols())), zero_mean_(zero_mean) {
   require_square(mass, laplacian.rows(), "PoissonSolver: mass and Laplacian");
   if (multigrid) {
     multigrid_ = std::make_unique<MultigridSolver>(std::move(multigrid->prolongations), multigrid->options);
     multigrid_->setup(laplacian, std::move(constrained));
   } else {
-    direct_ = std::make_unique<ConstrainedSolver>(laplacian, std::move(constrained));
+    direct_ = std::make_unique<ConstrainedSolver>(laplacian, std::move(constrained), ordering);
   }
 }
 
 PoissonSolver PoissonSolver::dirichlet(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                                       std::vector<Index> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid) {
+                                       std::vector<Index> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid,
+                                       CholeskyOrdering ordering) {
   if (dirichlet_vertices.empty())
     throw std::invalid_argument("PoissonSolver::dirichlet: no Dirichlet vertices (use zero_mean)");
-  return PoissonSolver(laplacian, mass, std::move(dirichlet_vertices), false, std::move(multigrid));
+  return PoissonSolver(laplacian, mass, std::move(dirichlet_vertices), false, std::move(multigrid), ordering);
 }
 
 PoissonSolver PoissonSolver::zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                                       std::optional<PoissonMultigrid> multigrid) {
+                                       std::optional<PoissonMultigrid> multigrid, CholeskyOrdering ordering) {
   if (laplacian.rows() == 0) throw std::invalid_argument("PoissonSolver::zero_mean: empty system");
-  return PoissonSolver(laplacian, mass, {0}, true, std::move(multigrid));  // any vertex can be pinned; use the first
+  return PoissonSolver(laplacian, mass, {0}, true, std::move(multigrid), ordering);  // any vertex can be pinned; use the first
 }
 
 Eigen::VectorXd PoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values) const {
