@@ -66,6 +66,14 @@ const std::map<std::string, fem::CholeskyOrdering> kOrderingNames{
     {"metis", fem::CholeskyOrdering::metis},
     {"nested_dissection", fem::CholeskyOrdering::nested_dissection}};
 
+// The fine Poisson solver: Dirichlet at the fixed vertices, or zero-mean without any.
+fem::PoissonSolver fine_poisson_solver(const fem::SparseMatrix& L, const fem::SparseMatrix& M,
+                                       const std::vector<int>& fixed_vertices,
+                                       std::optional<fem::PoissonMultigrid> multigrid, fem::CholeskyOrdering ordering) {
+  return fixed_vertices.empty() ? fem::PoissonSolver::zero_mean(L, M, std::move(multigrid), ordering)
+                                : fem::PoissonSolver::dirichlet(L, M, fixed_vertices, std::move(multigrid), ordering);
+}
+
 // --solver multigrid|direct: the fine problem solved exactly (to --mg-tolerance for multigrid) on
 // the fine mesh by fem::PoissonSolver (CHOLMOD, or multigrid on an ICE hierarchy); writes the
 // outputs and the report itself.
@@ -87,8 +95,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   Eigen::VectorXd u;
   double setup_seconds = 0, solve_seconds = 0;
   const auto make_solver = [&](std::optional<fem::PoissonMultigrid> multigrid) {
-    return dirichlet ? fem::PoissonSolver::dirichlet(L, M, fixed_vertices, std::move(multigrid), ordering)
-                     : fem::PoissonSolver::zero_mean(L, M, std::move(multigrid), ordering);
+    return fine_poisson_solver(L, M, fixed_vertices, std::move(multigrid), ordering);
   };
   if (solver == "direct") {
     const fem::PoissonSolver direct = make_solver(std::nullopt);
@@ -323,9 +330,7 @@ int main(int argc, char** argv) {
       const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
       const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
       run.ref_assemble = clock.lap();
-      const fem::PoissonSolver fine_solver = dirichlet
-                                                 ? fem::PoissonSolver::dirichlet(L, M, fixed_vertices, {}, cholmod_ordering)
-                                                 : fem::PoissonSolver::zero_mean(L, M, {}, cholmod_ordering);
+      const fem::PoissonSolver fine_solver = fine_poisson_solver(L, M, fixed_vertices, std::nullopt, cholmod_ordering);
       run.ref_factor = clock.lap();
       reference = fine_solver.solve(f, fixed_values);
       run.ref_solve = clock.lap();

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <stdexcept>
 #include <numeric>
+#include <stdexcept>
 #include <string>
 #include <utility>
 
@@ -44,6 +44,19 @@ void record_sizes(CoarseSpace& space, CoarseningMethod method, Index input_verti
   space.summary.coarse_faces = static_cast<Index>(space.mesh.F.rows());
 }
 
+// The triangulation of `mesh` built in its locality numbering (detail::locality_numbering), whose
+// order[new] = input vertex lands in *order; in the input's own numbering (*order empty) when
+// `renumber` is false or the mesh cannot be renumbered (its defects are then reported as usual).
+IntrinsicTriangulation triangulation_for_locality(const TriangleMesh& mesh, bool renumber, std::vector<Index>* order) {
+  order->clear();
+  if (!renumber) return IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  detail::LocalityNumbering local = detail::locality_numbering(mesh);
+  if (local.order.empty()) return IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  IntrinsicTriangulation T = IntrinsicTriangulation::from_lengths(local.F, local.face_lengths(mesh.V));
+  *order = std::move(local.order);
+  return T;  // the renumbered faces are freed here, before the caller's work on T
+}
+
 // The coarse mesh and P of T (whose input vertex t is the mesh's vertex order[t]) in the mesh's
 // numbering: P's rows by input vertex, the coarse vertices in increasing order of their input
 // vertices (as compact() lists them when T is in the mesh's own numbering); faces stay as listed.
@@ -77,30 +90,25 @@ void coarse_mesh_and_prolongation(const IntrinsicTriangulation& T, const std::ve
 }
 
 CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
-  // The coarsener works in a numbering with memory locality (detail::locality_numbering); the
-  // result is given back in the mesh's own.
-  detail::LocalityNumbering local;
-  if (options.locality_numbering) local = detail::locality_numbering(mesh);
-  const bool renumbered = !local.order.empty();
-  IntrinsicTriangulation T = renumbered ? IntrinsicTriangulation::from_lengths(local.F, local.face_lengths(mesh.V))
-                                        : IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-  local.F = Faces();  // the copy's memory back before coarsening
-  local.face_order = {};
+  // The coarsener works in a numbering with memory locality; the result is given back in the
+  // mesh's own.
+  std::vector<Index> order;
+  IntrinsicTriangulation T = triangulation_for_locality(mesh, options.locality_numbering, &order);
   CoarsenOptions coarsen_options = options.coarsen;
-  if (renumbered) {
-    std::vector<Index> new_index(local.order.size());
-    for (std::size_t i = 0; i < local.order.size(); ++i) new_index[static_cast<std::size_t>(local.order[i])] = static_cast<Index>(i);
+  if (!order.empty()) {
+    std::vector<Index> new_index(order.size());
+    for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
     for (Index& v : coarsen_options.locked_vertices)  // coarsen() ignores indices out of range: so does this
       if (v >= 0 && v < static_cast<Index>(new_index.size())) v = new_index[static_cast<std::size_t>(v)];
   }
   CoarseSpace space;
   const CoarsenResult result = coarsen(T, coarsen_options);
-  coarse_mesh_and_prolongation(T, local.order, space);
+  coarse_mesh_and_prolongation(T, order, space);
   space.summary.target_reached = result.stop_reason == StopReason::TargetReached;
   space.summary.ice = result;
   if (options.keep_method_state) {
     space.triangulation = std::move(T);
-    space.triangulation_order = std::move(local.order);
+    space.triangulation_order = std::move(order);
   }
   record_sizes(space, CoarseningMethod::ice, static_cast<Index>(mesh.V.rows()));
   return space;
@@ -208,18 +216,15 @@ FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
     return fine;
   }
   // Built and flipped in the locality numbering (as ICE coarsens), faces then named by input vertex.
-  detail::LocalityNumbering local = detail::locality_numbering(mesh);
-  const bool renumbered = !local.order.empty();
-  IntrinsicTriangulation T = renumbered ? IntrinsicTriangulation::from_lengths(local.F, local.face_lengths(mesh.V))
-                                        : IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-  local.F = Faces();
+  std::vector<Index> order;
+  IntrinsicTriangulation T = triangulation_for_locality(mesh, true, &order);
   fine.flips = T.flip_to_delaunay();
   CompactMesh compact = T.compact();  // no vertex removed: compact indices are T's input indices
   fine.F = std::move(compact.F);
   fine.L = std::move(compact.L);
-  if (renumbered)
+  if (!order.empty())
     for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
-      for (int k = 0; k < 3; ++k) fine.F(f, k) = local.order[static_cast<std::size_t>(fine.F(f, k))];
+      for (int k = 0; k < 3; ++k) fine.F(f, k) = order[static_cast<std::size_t>(fine.F(f, k))];
   return fine;
 }
 
