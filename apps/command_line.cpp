@@ -280,6 +280,23 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   cli.add_flag("--repair", repair, "Apply the safe mesh repairs first (see ice-info --repair)");
 }
 
+void PdeOptions::add_polish_options(CLI::App& cli) {
+  cli.add_option("--polish", polish.iterations,
+                 "Polish the prolonged solution with at most N conjugate-gradient iterations on the fine system, "
+                 "preconditioned by a two-level cycle (fine Gauss-Seidel sweeps + the Galerkin coarse operator); "
+                 "no fine factorisation. 0: the plain proxy")
+      ->check(non_negative_integer())
+      ->capture_default_str();
+  cli.add_option("--tolerance", polish.tolerance,
+                 "Polish until the estimated relative error against the fine solution (mass norm, from the fine "
+                 "residual) is at most T, e.g. 1e-3; with --polish N at most N iterations")
+      ->check(positive_number());
+  cli.add_option("--polish-sweeps", polish.cycle.smoothing_steps,
+                 "Symmetric Gauss-Seidel sweeps before and after each coarse correction while polishing")
+      ->check(integer_between(1, 100))
+      ->capture_default_str();
+}
+
 void PdeOptions::check_outputs() const {
   if (!output.empty()) check_output(output, force, "--output");
   if (!report.empty()) check_output(report, force, "--report");

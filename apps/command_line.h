@@ -131,6 +131,10 @@ struct PdeOptions {
   /// Adds every shared option (the mesh positional, the target, --operators, --method, --area-weight,
   /// --fine-idt/--no-fine-idt, --output, --ascii, --no-reference, --report, -q, --force, --repair).
   void add_to(CLI::App& cli, const std::string& field_names);
+  /// Polishing of the proxy solution (fem::PolishOptions): set by add_polish_options.
+  fem::PolishOptions polish;
+  /// --polish N, --tolerance T and --polish-sweeps K, for the tools that polish.
+  void add_polish_options(CLI::App& cli);
   /// Refuses existing outputs (without --force) and bad extensions before any work.
   void check_outputs() const;
   /// The fine discretisation chosen by --fine-idt / --no-fine-idt.

@@ -67,6 +67,8 @@ std::string thousands(long long value);
 std::string fixed(double value, int digits);
 /// A percentage with 2 significant decimals for small values: 0.01234 → "1.23%".
 std::string percent(double fraction);
+/// A relative error: as a percentage from 0.1 %, in scientific notation below (1e-6 is not "0.00%").
+std::string relative_error(double fraction);
 /// The same for a report value; null (an undefined relative error) prints as "undefined".
 std::string percent(const nlohmann::json& fraction);
 
@@ -99,14 +101,21 @@ struct PdeRun {
   bool has_reference = false;
   double load = 0, coarsen = 0, fine_mesh = 0, assemble = 0, factor = 0, solve = 0, prolong = 0, write = 0;
   double ref_assemble = 0, ref_factor = 0, ref_solve = 0;
+  /// Polishing (fem::PolishOptions), when asked for: its setup (fine Laplacian, two-level cycle) and
+  /// its iterations, both counted in the proxy total (the iterations also per solve).
+  fem::PolishOptions polish_options;
+  fem::PolishReport polish_report;
+  double polish_setup = 0, polish = 0;
 
   /// A run of `tool` with the shared PDE options (mesh, operators, fine mesh, reference).
   static PdeRun start(const std::string& tool, const PdeOptions& opt, bool proxy_uses_fine_mesh);
-  /// coarsen + assemble + factor + solve + prolong. The fine mesh (intrinsic Delaunay or input
+  /// coarsen + assemble + factor + solve + prolong (+ polish setup and iterations). The fine mesh (intrinsic Delaunay or input
   /// lengths) is a choice of fine discretisation shared by both sides: timed apart, in neither total.
   double proxy_total() const;
   /// reference assemble + factor + solve.
   double reference_total() const;
+  /// solve + prolong (+ the polishing iterations).
+  double per_solve() const;
   /// tool, mesh, method, operators, input, coarse, fine_mesh, timings_s (incl. reference and
   /// proxy_total), speedup (when there is a reference), peak_rss_mb, blas.
   nlohmann::json report() const;

@@ -146,9 +146,36 @@ std::vector<Index> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std
   return coarse;
 }
 
+// The two-level PCG of polishing (see PolishOptions): P as the one prolongation, the residual
+// criterion out of the way (round-off), the iteration and error-estimate limits from the options.
+PoissonMultigrid polishing_cycle(const CoarseProxy& proxy, const PolishOptions& polish) {
+  if (polish.iterations < 0 || !(polish.tolerance >= 0) || polish.max_iterations < 1 || !(polish.estimate_safety >= 1))
+    throw std::invalid_argument(
+        "PolishOptions: iterations >= 0, tolerance >= 0, max_iterations >= 1 and estimate_safety >= 1 expected");
+  PoissonMultigrid cycle{{proxy.prolongation()}, polish.cycle};
+  cycle.options.mode = MultigridMode::pcg;
+  cycle.options.tolerance = 1e-15;
+  cycle.options.error_tolerance = polish.tolerance / polish.estimate_safety;
+  cycle.options.max_iterations = polish.iterations > 0 ? polish.iterations : polish.max_iterations;
+  return cycle;
+}
+
+void fill_polish_report(const MultigridReport& run, const PolishOptions& polish, PolishReport& report) {
+  report.iterations = run.iterations;
+  report.error_estimates = run.error_estimates;
+  if (!run.error_estimates.empty()) {
+    report.initial_estimated_error = run.error_estimates.front();
+    report.estimated_error = run.error_estimates.back();
+  }
+  report.reached_tolerance = polish.tolerance > 0 && report.estimated_error >= 0 &&
+                            report.estimated_error * polish.estimate_safety <= polish.tolerance;
+  report.seconds = run.seconds;
+}
+
 }  // namespace
 
-ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Index> dirichlet_vertices)
+ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Index> dirichlet_vertices,
+                                       PolishOptions polish)
     : proxy_(&proxy),
       P_rows_(proxy.prolongation()),
       fine_mass_of_one_(proxy.fine_mass() * Eigen::VectorXd::Ones(proxy.fine_size())),
@@ -157,12 +184,22 @@ ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Ind
       coarse_(dirichlet_vertices_.empty()
                   ? PoissonSolver::zero_mean(proxy.coarse_laplacian(), proxy.coarse_mass())
                   : PoissonSolver::dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(),
-                                             coarse_dirichlet_vertices(proxy, dirichlet_vertices_))) {
+                                             coarse_dirichlet_vertices(proxy, dirichlet_vertices_))),
+      polish_(polish) {
   P_rows_.makeCompressed();
+  if (polish_.enabled()) {
+    Clock::time_point mark = Clock::now();
+    PoissonMultigrid cycle = polishing_cycle(proxy, polish_);
+    const SparseMatrix& laplacian = proxy.fine_laplacian();
+    fine_ = std::make_unique<PoissonSolver>(
+        is_zero_mean() ? PoissonSolver::zero_mean(laplacian, proxy.fine_mass(), std::move(cycle))
+                       : PoissonSolver::dirichlet(laplacian, proxy.fine_mass(), dirichlet_vertices_, std::move(cycle)));
+    polish_setup_seconds_ = seconds_since(mark);
+  }
 }
 
 Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values,
-                                          ProxyPhaseTimes* times) const {
+                                          ProxyPhaseTimes* times, PolishReport* polish_report) const {
   using namespace detail;
   const SparseMatrix& P = proxy_->prolongation();
   const SparseMatrix& fine_mass = proxy_->fine_mass();
@@ -186,32 +223,86 @@ Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f, const Eigen:
   gather_product(P_rows_, coarse_u.data(), u.data(), false, threads, n);
   if (is_zero_mean()) add_constant(-fine_mass_of_one_.dot(u) / total_mass_, u, threads);
   if (times) times->prolongation = seconds_since(mark);
-  return u;
+  if (polish_report) *polish_report = PolishReport();
+  if (!fine_) return u;
+  // weighted = M·source is the fine right-hand side (already compatible in zero-mean mode).
+  Eigen::VectorXd polished = fine_->solve_weighted(weighted, dirichlet_values, u);
+  if (polish_report) fill_polish_report(fine_->multigrid()->report(), polish_, *polish_report);
+  return polished;
 }
 
-ProxyHeatSolver::ProxyHeatSolver(const CoarseProxy& proxy, double time_step, RestrictionKind restriction)
-    : proxy_(&proxy), restriction_(restriction), coarse_(proxy.coarse_laplacian(), proxy.coarse_mass(), time_step) {}
+ProxyHeatSolver::ProxyHeatSolver(const CoarseProxy& proxy, double time_step, RestrictionKind restriction,
+                                 PolishOptions polish)
+    : proxy_(&proxy),
+      restriction_(restriction),
+      coarse_(proxy.coarse_laplacian(), proxy.coarse_mass(), time_step),
+      polish_(polish) {
+  if (polish_.enabled()) {
+    Clock::time_point mark = Clock::now();
+    PoissonMultigrid cycle = polishing_cycle(proxy, polish_);
+    fine_ = std::make_unique<MultigridSolver>(std::move(cycle.prolongations), cycle.options);
+    fine_->setup(SparseMatrix(proxy.fine_mass() + time_step * proxy.fine_laplacian()));
+    fine_->set_error_norm(proxy.fine_mass() * Eigen::VectorXd::Ones(proxy.fine_size()), false);
+    polish_setup_seconds_ = seconds_since(mark);
+  }
+}
 
-Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::VectorXd& fine_u0, int steps, ProxyPhaseTimes* times) const {
+ProxyHeatSolver::~ProxyHeatSolver() = default;
+
+Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::VectorXd& fine_u0, int steps, ProxyPhaseTimes* times,
+                                           PolishReport* polish_report) const {
   if (steps < 0 || (steps == 0 && restriction_ == RestrictionKind::l2_projection))
     throw std::invalid_argument("ProxyHeatSolver::integrate: steps must be >= 1 with L2 projection, >= 0 with injection");
   if (fine_u0.size() != proxy_->fine_size()) throw std::invalid_argument("ProxyHeatSolver::integrate: wrong size");
   Clock::time_point mark = Clock::now();
+  // The coarse trajectory: every state when polishing (each step's initial guess), else the last.
+  std::vector<Eigen::VectorXd> coarse_states;
   Eigen::VectorXd u;
   if (restriction_ == RestrictionKind::l2_projection) {
     // Mc u_c0 = Pᵀ M u₀ defines the projection, and it is the first step's right-hand side.
     const Eigen::VectorXd rhs = proxy_->restrict_weighted(proxy_->fine_mass() * fine_u0);
     if (times) times->restriction = seconds_since(mark);
-    u = coarse_.integrate(coarse_.solve_weighted(rhs), steps - 1);
+    u = coarse_.solve_weighted(rhs);
+    for (int k = 1; k < steps; ++k) {
+      if (fine_) coarse_states.push_back(u);
+      u = coarse_.step(u);
+    }
   } else {
-    const Eigen::VectorXd u0 = proxy_->restrict_values(fine_u0, RestrictionKind::injection);
+    u = proxy_->restrict_values(fine_u0, RestrictionKind::injection);
     if (times) times->restriction = seconds_since(mark);
-    u = coarse_.integrate(u0, steps);
+    for (int k = 0; k < steps; ++k) {
+      u = coarse_.step(u);
+      if (fine_ && k + 1 < steps) coarse_states.push_back(u);
+    }
   }
+  if (fine_) coarse_states.push_back(u);
   if (times) times->coarse_solve = seconds_since(mark);
   Eigen::VectorXd fine_u = proxy_->prolong(u);
   if (times) times->prolongation = seconds_since(mark);
-  return fine_u;
+  if (polish_report) *polish_report = PolishReport();
+  if (!fine_ || steps == 0) return fine_u;
+
+  // Polishing: the fine steps, each from the prolonged coarse state of the same step.
+  MultigridOptions options = fine_->options();
+  options.error_tolerance = polish_.tolerance / (polish_.estimate_safety * steps);
+  fine_->set_options(options);
+  PolishReport total;
+  total.reached_tolerance = polish_.tolerance > 0;
+  Eigen::VectorXd state = fine_u0;
+  for (int k = 0; k < steps; ++k) {
+    state = fine_->solve(Eigen::VectorXd(proxy_->fine_mass() * state), Eigen::VectorXd(),
+                         proxy_->prolong(coarse_states[static_cast<std::size_t>(k)]));
+    PolishReport step;
+    fill_polish_report(fine_->report(), polish_, step);
+    if (k == 0) total.initial_estimated_error = step.initial_estimated_error;
+    total.iterations += step.iterations;
+    total.seconds += step.seconds;
+    total.error_estimates = step.error_estimates;
+    total.estimated_error = step.estimated_error;
+    total.reached_tolerance = total.reached_tolerance && fine_->report().converged;
+  }
+  if (polish_report) *polish_report = total;
+  return state;
 }
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor)

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -383,6 +384,56 @@ void MultigridSolver::check_options(const MultigridOptions& o) const {
   if (!(o.chebyshev_ratio > 1)) throw std::invalid_argument("MultigridSolver: chebyshev_ratio must be > 1");
   if (!(o.tolerance > 0)) throw std::invalid_argument("MultigridSolver: tolerance must be > 0");
   if (o.max_iterations < 1) throw std::invalid_argument("MultigridSolver: max_iterations must be >= 1");
+  if (!(o.error_tolerance >= 0)) throw std::invalid_argument("MultigridSolver: error_tolerance must be >= 0");
+}
+
+void MultigridSolver::set_error_norm(Eigen::VectorXd weights, bool remove_weighted_mean) {
+  if (weights.size() != 0 && (!is_setup_ || weights.size() != size_))
+    throw std::invalid_argument("MultigridSolver::set_error_norm: call setup() first; one weight per unknown");
+  if (weights.size() != 0 && !(weights.minCoeff() >= 0))
+    throw std::invalid_argument("MultigridSolver::set_error_norm: weights must be >= 0");
+  error_weights_ = std::move(weights);
+  error_remove_mean_ = remove_weighted_mean;
+}
+
+double MultigridSolver::estimate_error(const Eigen::VectorXd& x, const Eigen::VectorXd& z,
+                                       const Eigen::VectorXd& constrained_values) const {
+  // Constrained unknowns: x is the prescribed value, the error estimate 0.
+  const auto x_constrained = [&](std::size_t c) {
+    return constrained_values.size() ? constrained_values(static_cast<Eigen::Index>(c)) : 0.0;
+  };
+  double mean_x = 0, mean_z = 0;
+  if (error_remove_mean_) {
+    double total = 0;
+    for (std::size_t i = 0; i < free_.size(); ++i) {
+      const double w = error_weights_(free_[i]);
+      total += w;
+      mean_x += w * x(static_cast<Eigen::Index>(i));
+      mean_z += w * z(static_cast<Eigen::Index>(i));
+    }
+    for (std::size_t c = 0; c < constrained_.size(); ++c) {
+      total += error_weights_(constrained_[c]);
+      mean_x += error_weights_(constrained_[c]) * x_constrained(c);
+    }
+    if (total > 0) {
+      mean_x /= total;
+      mean_z /= total;
+    }
+  }
+  double error2 = 0, solution2 = 0;
+  for (std::size_t i = 0; i < free_.size(); ++i) {
+    const double w = error_weights_(free_[i]);
+    const double dz = z(static_cast<Eigen::Index>(i)) - mean_z, dx = x(static_cast<Eigen::Index>(i)) + dz - mean_x;
+    error2 += w * dz * dz;
+    solution2 += w * dx * dx;
+  }
+  for (std::size_t c = 0; c < constrained_.size(); ++c) {
+    const double dz = -mean_z, dx = x_constrained(c) + dz - mean_x;
+    error2 += error_weights_(constrained_[c]) * dz * dz;
+    solution2 += error_weights_(constrained_[c]) * dx * dx;
+  }
+  if (solution2 > 0) return std::sqrt(error2 / solution2);
+  return error2 > 0 ? std::numeric_limits<double>::infinity() : 0.0;
 }
 
 void MultigridSolver::set_options(const MultigridOptions& options) {
@@ -665,21 +716,39 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   const double scale = norm_b > 0 ? norm_b : 1.0;
   double res = norm(r) / scale;
   report_.residuals.push_back(res);
-  if (nf > 0 && res > options_.tolerance) {
+  // Error estimates (set_error_norm): z = B r is PCG's preconditioned residual; in vcycle mode an
+  // extra V-cycle. `done` is either stopping criterion.
+  const bool estimating = error_weights_.size() != 0 && nf > 0;
+  Eigen::VectorXd z;
+  const auto record_estimate = [&] {
+    if (!estimating) return;
+    if (options_.mode == MultigridMode::vcycle) z = apply_vcycle(r);
+    report_.error_estimates.push_back(estimate_error(x, z, constrained_values));
+  };
+  const auto done = [&] {
+    return res <= options_.tolerance ||
+           (estimating && options_.error_tolerance > 0 && report_.error_estimates.back() <= options_.error_tolerance);
+  };
+  if (options_.mode == MultigridMode::pcg && nf > 0) z = apply_vcycle(r);
+  record_estimate();
+  if (nf > 0 && !done()) {
     if (options_.mode == MultigridMode::vcycle) {
       L.B = rhs;
       L.X = x;
       while (report_.iterations < options_.max_iterations) {
         vcycle(0);
-        residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), L.X.data(), r.data(), 1, t);
+        x = L.X.col(0);
+        residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), x.data(), r.data(), 1, t);
         res = norm(r) / scale;
         ++report_.iterations;
         report_.residuals.push_back(res);
-        if (res <= options_.tolerance) break;
+        record_estimate();
+        if (done()) break;
+        L.B = rhs;
+        L.X = x;
       }
-      x = L.X.col(0);
     } else {
-      Eigen::VectorXd z = apply_vcycle(r), p = z, Ap(nf);
+      Eigen::VectorXd p = z, Ap(nf);
       double rz = dot(r, z, t);
       while (report_.iterations < options_.max_iterations) {
         multiply(A, p.data(), Ap.data(), t);
@@ -691,8 +760,12 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
         res = norm(r) / scale;
         ++report_.iterations;
         report_.residuals.push_back(res);
-        if (res <= options_.tolerance) break;
-        z = apply_vcycle(r);
+        if (estimating) {
+          z = apply_vcycle(r);
+          record_estimate();
+        }
+        if (done()) break;
+        if (!estimating) z = apply_vcycle(r);
         const double rz_next = dot(r, z, t);
         xpby(z, rz_next / rz, p, t);
         rz = rz_next;
@@ -703,7 +776,9 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   report_.relative_residual = nf > 0 ? norm(r) / scale : 0.0;
   report_.converged = report_.relative_residual <= options_.tolerance ||
                       (nf > 0 && report_.residuals.back() <= options_.tolerance &&
-                       report_.relative_residual <= 10 * options_.tolerance);
+                       report_.relative_residual <= 10 * options_.tolerance) ||
+                      (estimating && options_.error_tolerance > 0 &&
+                       report_.error_estimates.back() <= options_.error_tolerance);
   if (report_.iterations > 0 && report_.residuals.front() > 0 && report_.residuals.back() > 0)
     report_.convergence_factor =
         std::pow(report_.residuals.back() / report_.residuals.front(), 1.0 / report_.iterations);

@@ -83,6 +83,9 @@ PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& 
   if (multigrid) {
     multigrid_ = std::make_unique<MultigridSolver>(std::move(multigrid->prolongations), multigrid->options);
     multigrid_->setup(laplacian, std::move(constrained));
+    // Error estimates in the mass norm, the norm the errors are reported in (after re-centring in
+    // zero-mean mode): the relative L2 error against the exact fine solution.
+    multigrid_->set_error_norm(mass_of_one_, zero_mean);
   } else {
     direct_ = std::make_unique<ConstrainedSolver>(laplacian, std::move(constrained), ordering);
   }
@@ -106,17 +109,28 @@ Eigen::VectorXd PoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::Vect
   return solve_weighted(mass_ * f, dirichlet_values);
 }
 
-Eigen::VectorXd PoissonSolver::solve_constrained(const Eigen::VectorXd& b, const Eigen::VectorXd& values) const {
+Eigen::VectorXd PoissonSolver::solve_constrained(const Eigen::VectorXd& b, const Eigen::VectorXd& values,
+                                                 const Eigen::VectorXd& initial_guess) const {
   if (direct_) return direct_->solve(b, values);
   if (b.size() != multigrid_->size()) throw std::invalid_argument("PoissonSolver::solve: rhs has the wrong size");
-  return multigrid_->solve(b, values);
+  return multigrid_->solve(b, values, initial_guess);
 }
 
 Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values) const {
-  if (!zero_mean_) return solve_constrained(b, dirichlet_values);
+  return solve_weighted(b, dirichlet_values, Eigen::VectorXd());
+}
+
+Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values,
+                                              const Eigen::VectorXd& initial_guess) const {
+  if (initial_guess.size() != 0 && initial_guess.size() != b.size())
+    throw std::invalid_argument("PoissonSolver::solve: initial guess has the wrong size");
+  if (!zero_mean_) return solve_constrained(b, dirichlet_values, initial_guess);
   const double total_mass = mass_of_one_.sum();
   const Eigen::VectorXd compatible = b - mass_of_one_ * (b.sum() / total_mass);
-  Eigen::VectorXd u = solve_constrained(compatible, Eigen::VectorXd());
+  // The pinned unknown (vertex 0) is 0: shift the guess to agree there (solutions differ by constants).
+  Eigen::VectorXd guess;
+  if (initial_guess.size() != 0) guess = initial_guess.array() - initial_guess(0);
+  Eigen::VectorXd u = solve_constrained(compatible, Eigen::VectorXd(), guess);
   u.array() -= mass_of_one_.dot(u) / total_mass;
   return u;
 }

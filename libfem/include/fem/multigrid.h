@@ -80,10 +80,14 @@ struct MultigridOptions {
   /// Chebyshev, and the finest level in `vcycle` mode (whose fixed point must solve A x = b), always
   /// use double.
   bool single_precision_smoother = true;
+  /// Also stop when the estimated relative error (see MultigridSolver::set_error_norm) is at most
+  /// this; 0: the estimates, if an error norm is set, are only recorded. Either criterion stops.
+  double error_tolerance = 0;
 };
 
 /// Outcome of one solve.
 struct MultigridReport {
+  /// The relative residual reached `tolerance`, or the error estimate `error_tolerance`.
   bool converged = false;
   int iterations = 0;
   /// Relative residual before the first and after every iteration (size iterations + 1).
@@ -93,6 +97,10 @@ struct MultigridReport {
   /// Geometric mean of the residual ratios: (residuals.back() / residuals.front())^(1/iterations).
   double convergence_factor = 0;
   double seconds = 0;
+  /// With an error norm set (MultigridSolver::set_error_norm; single-vector solve() only): the
+  /// estimated relative error of the iterate before the first and after every iteration (size
+  /// iterations + 1), the last one that of the returned x; empty otherwise.
+  std::vector<double> error_estimates;
 };
 
 /// Sizes and setup cost of the levels.
@@ -140,6 +148,19 @@ class MultigridSolver {
   Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values = {});
   const std::vector<MultigridReport>& reports() const { return reports_; }
 
+  /// Makes solve() estimate the relative error of its iterates against the exact solution x*:
+  /// ‖B r‖_w / ‖x + B r‖_w (the error over the estimated solution), with r = b − A x, B one V-cycle (the preconditioned residual, which PCG
+  /// computes anyway; an extra V-cycle per iteration in `vcycle` mode) and ‖v‖_w² = Σ w_i v_i² over
+  /// all n_0 unknowns (constrained ones have no error). With `remove_weighted_mean`, both vectors
+  /// lose their w-weighted mean first: for problems posed up to a constant (zero-mean Poisson with
+  /// one pinned unknown), whose error is measured after re-centring.
+  /// Why it estimates the error: B r = B A (x* − x), so B r − (x* − x) = −(I − BA)(x* − x), and
+  /// ‖I − BA‖_A is the V-cycle's convergence factor ρ: in the energy norm the estimate lies within
+  /// [1 − ρ, 1 + ρ] times the true error. In the w-norm no such bound holds in general; the
+  /// callers state measured ratios (fem/coarse_proxy.h). Weights must be >= 0 and of size n_0.
+  /// An empty `weights` turns the estimates off.
+  void set_error_norm(Eigen::VectorXd weights, bool remove_weighted_mean);
+
   /// One V-cycle on the free system, z ≈ A_FF⁻¹ r from z = 0 (the preconditioner). Sizes: free count.
   Eigen::VectorXd apply_vcycle(const Eigen::VectorXd& r);
 
@@ -185,6 +206,10 @@ class MultigridSolver {
   MultigridReport report_;
   std::vector<MultigridReport> reports_;
   double setup_seconds_ = 0;
+  Eigen::VectorXd error_weights_;  ///< in the caller's order; empty: no estimates
+  bool error_remove_mean_ = false;
+  /// ‖z‖_w / ‖x + z‖_w for free-order vectors x (iterate) and z (its correction estimate), see set_error_norm.
+  double estimate_error(const Eigen::VectorXd& x, const Eigen::VectorXd& z, const Eigen::VectorXd& constrained_values) const;
   bool is_setup_ = false;
   bool reordered_ = false;  ///< setup() used the locality ordering (threaded sweeps need it)
 };

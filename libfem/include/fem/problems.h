@@ -76,6 +76,11 @@ class PoissonSolver {
   Eigen::VectorXd solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values = {}) const;
   /// Same with an already mass-weighted right-hand side b (= M f, or a restriction Pᵀ M f).
   Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values = {}) const;
+  /// Same, iterating from `initial_guess` (full length; any constant shift is fine in zero-mean
+  /// mode) with multigrid; CHOLMOD ignores it. The multigrid report then also estimates the relative
+  /// error in the mass norm (MultigridSolver::set_error_norm; after re-centring in zero-mean mode).
+  Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values,
+                                 const Eigen::VectorXd& initial_guess) const;
 
   bool is_zero_mean() const { return zero_mean_; }
   const SparseMatrix& mass() const { return mass_; }
@@ -86,7 +91,8 @@ class PoissonSolver {
  private:
   PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, std::vector<Index> constrained,
                 bool zero_mean, std::optional<PoissonMultigrid> multigrid, CholeskyOrdering ordering);
-  Eigen::VectorXd solve_constrained(const Eigen::VectorXd& b, const Eigen::VectorXd& values) const;
+  Eigen::VectorXd solve_constrained(const Eigen::VectorXd& b, const Eigen::VectorXd& values,
+                                    const Eigen::VectorXd& initial_guess = {}) const;
   SparseMatrix mass_;
   Eigen::VectorXd mass_of_one_;  ///< M·1
   bool zero_mean_;
