@@ -69,6 +69,20 @@ struct Row {
   double speedup_solve() const { return fine_solve / std::max(solve + prolong, 1e-12); }
 };
 
+// One polished solve (--tolerances): Poisson or heat through the proxy, then polished on the fine
+// system to an estimated relative error (fem::PolishOptions).
+struct PolishRow {
+  std::string mesh, method, problem;
+  long long n = 0, coarse_n = 0;
+  double budget = 0, tolerance = 0;
+  int iterations = 0;
+  bool reached = false;
+  double plain_error = 0, error = 0, estimated_error = 0;
+  double setup = 0, polish = 0, proxy_solve = 0;  ///< polish setup; polish iterations; coarse solve + prolong
+  double fine_factor = 0, fine_solve = 0;
+  double per_solve() const { return proxy_solve + polish; }
+};
+
 // The demo source of poisson-coarse: three Gaussian bumps (+1, −1, +1) at the vertices with the
 // largest x, y, z, σ = 0.1 × bounding-box diagonal, minus its mass-weighted mean.
 std::vector<int> spread_sources(const ice::Positions& V, int count) {
@@ -159,7 +173,7 @@ void record_failure(Row r, const std::string& what, std::vector<Row>& rows) {
 
 // The three problems through the library's proxy solvers (fem/coarse_proxy.h), each phase timed.
 void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind, Row base,
-                    std::vector<Row>& rows) {
+                    std::vector<Row>& rows, const std::vector<double>& tolerances, std::vector<PolishRow>& polished) {
   app::Stopwatch clock;
   const fem::CoarseProxy proxy = app::make_proxy(fine.disc, coarse, kind);
   const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
@@ -195,6 +209,38 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
     r.error = r.error_l2 = fem::relative_l2_error(u, fine.heat, fine.M);
     r.error_max = fem::max_abs_error(u, fine.heat) / fine.heat.cwiseAbs().maxCoeff();
     rows.push_back(r);
+  }
+  // Polished Poisson and heat, to each tolerance (the plain rows above are the starting points).
+  const Row& plain_poisson = rows[rows.size() - 2];
+  const Row& plain_heat = rows.back();
+  for (double tolerance : tolerances) {
+    fem::PolishOptions options;
+    options.tolerance = tolerance;
+    for (const Row* plain : {&plain_poisson, &plain_heat}) {
+      const bool poisson = plain->problem == "poisson";
+      PolishRow p;
+      p.mesh = base.mesh, p.method = base.method, p.problem = plain->problem, p.n = base.n, p.coarse_n = base.coarse_n;
+      p.budget = base.budget, p.tolerance = tolerance, p.plain_error = plain->error;
+      p.fine_factor = plain->fine_factor, p.fine_solve = plain->fine_solve;
+      fem::PolishReport report;
+      fem::ProxyPhaseTimes phases;
+      Eigen::VectorXd u;
+      if (poisson) {
+        const fem::ProxyPoissonSolver solver(proxy, {}, options);
+        p.setup = solver.polish_setup_seconds();
+        u = solver.solve(fine.demo, {}, &phases, &report);
+        p.error = fem::relative_l2_error(u, fine.poisson, fine.M);
+      } else {
+        const fem::ProxyHeatSolver solver(proxy, fine.heat_time, fem::RestrictionKind::l2_projection, options);
+        p.setup = solver.polish_setup_seconds();
+        u = solver.integrate(fine.f, 1, &phases, &report);
+        p.error = fem::relative_l2_error(u, fine.heat, fine.M);
+      }
+      p.iterations = report.iterations, p.reached = report.reached_tolerance, p.estimated_error = report.estimated_error;
+      p.polish = report.seconds;
+      p.proxy_solve = phases.restriction + phases.coarse_solve + phases.prolongation;
+      polished.push_back(p);
+    }
   }
   {  // geodesics from each source
     Row r = base;
@@ -267,6 +313,57 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
 }
 
+void write_polish_csv(const std::string& path, const std::vector<PolishRow>& rows) {
+  std::ofstream out(path);
+  out << "mesh,n,budget,method,problem,coarse_n,tolerance,iterations,reached,plain_error,error,estimated_error,"
+         "polish_setup_s,polish_s,proxy_solve_s,per_solve_s,fine_factor_s,fine_solve_s\n";
+  out << std::setprecision(9);
+  for (const PolishRow& r : rows)
+    out << r.mesh << ',' << r.n << ',' << r.budget << ',' << r.method << ',' << r.problem << ',' << r.coarse_n << ','
+        << r.tolerance << ',' << r.iterations << ',' << (r.reached ? 1 : 0) << ',' << r.plain_error << ',' << r.error
+        << ',' << r.estimated_error << ',' << r.setup << ',' << r.polish << ',' << r.proxy_solve << ',' << r.per_solve()
+        << ',' << r.fine_factor << ',' << r.fine_solve << '\n';
+  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
+}
+
+// Polishing per problem, method and tolerance: is the tolerance met (true error <= T), how many
+// iterations, and what a polished solve costs against the fine factor + solve.
+void write_polish_summary(std::ostream& out, const std::vector<PolishRow>& rows, const std::vector<std::string>& methods) {
+  if (rows.empty()) return;
+  out << "\n## Polished proxy (--tolerances): true error against the fine solution\n\n"
+         "Per problem, method and tolerance T over meshes and budgets: how often the true error is at most T, the "
+         "largest true error / T, the estimate's range (true / estimated), median iterations, and the median cost "
+         "of a polished solve (coarse solve + prolong + polish) over the fine factor + solve.\n\n"
+         "| problem | method | T | true <= T | max true / T | true / estimate min–max | median iterations | median "
+         "plain error | median per solve / fine factor+solve |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
+  std::set<double> tolerances;
+  for (const PolishRow& r : rows) tolerances.insert(r.tolerance);
+  for (const std::string problem : {"poisson", "heat"})
+    for (const auto& m : methods)
+      for (double t : tolerances) {
+        int met = 0, count = 0;
+        double worst = 0, low = std::numeric_limits<double>::infinity(), high = 0;
+        std::vector<double> iterations, plain, cost;
+        for (const PolishRow& r : rows) {
+          if (r.problem != problem || r.method != m || r.tolerance != t) continue;
+          ++count;
+          met += r.error <= t;
+          worst = std::max(worst, r.error / t);
+          if (r.estimated_error > 0) {
+            low = std::min(low, r.error / r.estimated_error);
+            high = std::max(high, r.error / r.estimated_error);
+          }
+          iterations.push_back(r.iterations);
+          plain.push_back(r.plain_error);
+          cost.push_back(r.per_solve() / std::max(r.fine_factor + r.fine_solve, 1e-12));
+        }
+        if (count == 0) continue;
+        out << "| " << problem << " | " << m << " | " << num(t, 3) << " | " << met << "/" << count << " | " << num(worst, 3)
+            << " | " << num(low, 3) << "–" << num(high, 3) << " | " << num(median(iterations), 3) << " | "
+            << pct(median(plain)) << " | " << num(median(cost), 3) << " |\n";
+      }
+}
+
 struct Key {
   std::string mesh, problem;
   double budget;
@@ -275,7 +372,8 @@ struct Key {
 
 void write_summary(const std::string& path, const std::vector<Row>& rows, const std::vector<std::string>& methods,
                    const std::vector<double>& budgets, const std::vector<std::string>& meshes, const std::string& command,
-                   double total_seconds, const std::string& operators, double area_weight) {
+                   double total_seconds, const std::string& operators, double area_weight,
+                   const std::vector<PolishRow>& polished) {
   std::map<Key, std::map<std::string, const Row*>> by_key;
   for (const Row& r : rows) by_key[{r.mesh, r.problem, r.budget}][r.method] = &r;
   const auto has = [&](const std::string& m) { return std::find(methods.begin(), methods.end(), m) != methods.end(); };
@@ -402,6 +500,7 @@ void write_summary(const std::string& path, const std::vector<Row>& rows, const 
     }
   }
   out << losses << " of " << cases << " comparisons (mesh × budget × problem × QEM variant):\n\n" << list.str();
+  write_polish_summary(out, polished, methods);
   std::vector<std::string> notes;
   for (const Row& r : rows)
     if (!r.note.empty() && r.problem == "poisson") notes.push_back(r.mesh + " " + num(100 * r.budget, 3) + "% " + r.method + ": " + r.note);
@@ -525,6 +624,10 @@ int main(int argc, char** argv) {
   cli.add_option("--operators", operators, "Coarse operators: intrinsic (from the coarse mesh) or galerkin (PᵀLP, PᵀMP)")
       ->check(CLI::IsMember({"intrinsic", "galerkin"}))
       ->capture_default_str();
+  std::string tolerances_text;
+  cli.add_option("--tolerances", tolerances_text,
+                 "Comma-separated error tolerances, e.g. 1e-2,1e-3,1e-6: also polish the Poisson and heat proxies to "
+                 "each (fem::PolishOptions) and report true errors, iterations and cost (polish.csv, summary.md)");
   cli.add_flag("--quick", quick, "Small subset for CI: spot and elephant (project set), budgets 5% and 10%");
   cli.add_flag("--no-plots", no_plots, "Do not run gnuplot");
   cli.add_option("--plot-script", plot_script, "The gnuplot script that draws the plots")->capture_default_str();
@@ -544,6 +647,10 @@ int main(int argc, char** argv) {
       if (m != "ice" && m != "ice_area" && m != "qem_ext" && m != "qem_idt")
         throw app::AppError(app::kUsage, "--methods: unknown method '" + m + "'");
     if (methods.empty()) throw app::AppError(app::kUsage, "--methods: none given");
+    const std::vector<double> tolerances =
+        tolerances_text.empty() ? std::vector<double>{} : parse_doubles(tolerances_text, "--tolerances");
+    for (double t : tolerances)
+      if (!(t > 0 && t < 1)) throw app::AppError(app::kUsage, "--tolerances: every tolerance must be in (0, 1)");
     if (!(area_weight >= 0 && area_weight <= 1)) throw app::AppError(app::kUsage, "--area-weight must be in [0, 1]");
     const fem::CoarseOperatorKind kind =
         operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
@@ -569,6 +676,7 @@ int main(int argc, char** argv) {
     if (inputs.empty()) throw app::AppError(app::kUnreadable, "no meshes found (looked in " + where + ")");
 
     std::vector<Row> rows;
+    std::vector<PolishRow> polished;
     std::vector<std::string> used_meshes;
     const std::size_t steps = inputs.size() * budgets.size();
     std::size_t step = 0;
@@ -609,7 +717,7 @@ int main(int argc, char** argv) {
           r.coarse_faces = coarse.summary.coarse_faces;
           r.target_reached = coarse.summary.target_reached;
           if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.stop_reason());
-          solve_on_proxy(fine, coarse, kind, r, rows);
+          solve_on_proxy(fine, coarse, kind, r, rows, tolerances, polished);
           progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
                    << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
         }
@@ -641,7 +749,7 @@ int main(int argc, char** argv) {
           r.coarse_n = coarse.summary.coarse_vertices;
           r.coarse_faces = coarse.summary.coarse_faces;
           try {
-            solve_on_proxy(fine, coarse, kind, r, rows);
+            solve_on_proxy(fine, coarse, kind, r, rows, tolerances, polished);
           } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
             record_failure(r, e.what(), rows);
             continue;
@@ -656,6 +764,7 @@ int main(int argc, char** argv) {
     // ---- outputs
     const double total_seconds = total_clock.seconds();
     write_csv(outdir + "/results.csv", rows);
+    if (!tolerances.empty()) write_polish_csv(outdir + "/polish.csv", polished);
     nlohmann::json results = {{"tool", kTool},
                               {"command", command},
                               {"meshes", used_meshes},
@@ -677,7 +786,7 @@ int main(int argc, char** argv) {
       if (!out) throw app::AppError(app::kNotWritten, outdir + "/results.json: cannot be written");
     }
     write_summary(outdir + "/summary.md", rows, methods, budgets, used_meshes, command, total_seconds, operators,
-                  area_weight);
+                  area_weight, polished);
     write_plot_data(outdir, rows, methods, budgets);
     std::string plots = "no plots (--no-plots)";
     if (!no_plots) {
