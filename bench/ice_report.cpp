@@ -624,6 +624,9 @@ int main(int argc, char** argv) {
   cli.add_option("--operators", operators, "Coarse operators: intrinsic (from the coarse mesh) or galerkin (PᵀLP, PᵀMP)")
       ->check(CLI::IsMember({"intrinsic", "galerkin"}))
       ->capture_default_str();
+  bool normalize_curvature = false;
+  cli.add_flag("--normalize-curvature", normalize_curvature,
+               "ICE methods: curvature masses divided by the total absolute curvature (ice::CoarsenOptions)");
   std::string tolerances_text;
   cli.add_option("--tolerances", tolerances_text,
                  "Comma-separated error tolerances, e.g. 1e-2,1e-3,1e-6: also polish the Poisson and heat proxies to "
@@ -709,6 +712,7 @@ int main(int argc, char** argv) {
           ice::CoarseSpaceOptions options;
           options.coarsen.target_vertices = static_cast<ice::Index>(target);
           options.coarsen.area_weight = m == "ice" ? 0.0 : area_weight;
+          options.coarsen.normalize_curvature = normalize_curvature;
           const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
           Row r = base;
           r.method = m;

@@ -1,5 +1,7 @@
 #include "fem/multigrid.h"
 
+#include <Eigen/Eigenvalues>
+
 #include "fem/ordering.h"
 #include "parallel_kernels.h"
 #include "sparse_columns.h"
@@ -385,6 +387,7 @@ void MultigridSolver::check_options(const MultigridOptions& o) const {
   if (!(o.tolerance > 0)) throw std::invalid_argument("MultigridSolver: tolerance must be > 0");
   if (o.max_iterations < 1) throw std::invalid_argument("MultigridSolver: max_iterations must be >= 1");
   if (!(o.error_tolerance >= 0)) throw std::invalid_argument("MultigridSolver: error_tolerance must be >= 0");
+  if (o.error_min_iterations < 1) throw std::invalid_argument("MultigridSolver: error_min_iterations must be >= 1");
 }
 
 void MultigridSolver::set_error_norm(Eigen::VectorXd weights, bool remove_weighted_mean) {
@@ -718,16 +721,41 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   report_.residuals.push_back(res);
   // Error estimates (set_error_norm): z = B r is PCG's preconditioned residual; in vcycle mode an
   // extra V-cycle. `done` is either stopping criterion.
+  // In PCG mode the raw estimate ‖Br‖/‖x + Br‖ is divided by the smallest eigenvalue μ of BA seen
+  // so far (the smallest Ritz value of CG's Lanczos tridiagonal, from its α and β): an error
+  // component along an eigenvector of BA with eigenvalue μ shows up in Br shrunk by μ, and μ_min is
+  // where the V-cycle is weakest (1 − its convergence factor). Ritz values approach μ_min from
+  // above, so the factor grows towards its true value as iterations proceed; the reported history is
+  // rescaled with the final factor.
   const bool estimating = error_weights_.size() != 0 && nf > 0;
   Eigen::VectorXd z;
+  std::vector<double> raw_estimates, alphas, betas;
+  double estimate_factor = 1;
+  const auto update_factor = [&] {
+    const std::size_t j = alphas.size();
+    if (j == 0 || j > 200) return;  // beyond 200 iterations keep the last (the eigensolve is O(j²))
+    Eigen::VectorXd diagonal(static_cast<Eigen::Index>(j)), off(static_cast<Eigen::Index>(j > 0 ? j - 1 : 0));
+    for (std::size_t i = 0; i < j; ++i) {
+      diagonal(static_cast<Eigen::Index>(i)) = 1 / alphas[i] + (i > 0 ? betas[i - 1] / alphas[i - 1] : 0.0);
+      if (i + 1 < j) off(static_cast<Eigen::Index>(i)) = std::sqrt(betas[i]) / alphas[i];
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> lanczos;
+    lanczos.computeFromTridiagonal(diagonal, off, Eigen::EigenvaluesOnly);
+    const double smallest = lanczos.eigenvalues().minCoeff();
+    if (smallest > 0) estimate_factor = std::max(estimate_factor, 1 / std::min(smallest, 1.0));
+  };
   const auto record_estimate = [&] {
     if (!estimating) return;
     if (options_.mode == MultigridMode::vcycle) z = apply_vcycle(r);
-    report_.error_estimates.push_back(estimate_error(x, z, constrained_values));
+    raw_estimates.push_back(estimate_error(x, z, constrained_values));
+    report_.error_estimates.push_back(raw_estimates.back() * estimate_factor);
   };
+  // The error criterion needs a settled Lanczos factor in PCG mode (MultigridOptions::error_min_iterations).
   const auto done = [&] {
-    return res <= options_.tolerance ||
-           (estimating && options_.error_tolerance > 0 && report_.error_estimates.back() <= options_.error_tolerance);
+    const bool error_known =
+        options_.mode == MultigridMode::vcycle || report_.iterations >= std::max(1, options_.error_min_iterations);
+    return res <= options_.tolerance || (estimating && error_known && options_.error_tolerance > 0 &&
+                                         report_.error_estimates.back() <= options_.error_tolerance);
   };
   if (options_.mode == MultigridMode::pcg && nf > 0) z = apply_vcycle(r);
   record_estimate();
@@ -761,17 +789,21 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
         ++report_.iterations;
         report_.residuals.push_back(res);
         if (estimating) {
+          alphas.push_back(alpha);
+          update_factor();
           z = apply_vcycle(r);
           record_estimate();
         }
         if (done()) break;
         if (!estimating) z = apply_vcycle(r);
         const double rz_next = dot(r, z, t);
+        if (estimating) betas.push_back(rz_next / rz);
         xpby(z, rz_next / rz, p, t);
         rz = rz_next;
       }
     }
   }
+  for (std::size_t k = 0; k < raw_estimates.size(); ++k) report_.error_estimates[k] = raw_estimates[k] * estimate_factor;
   residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), x.data(), r.data(), 1, t);
   report_.relative_residual = nf > 0 ? norm(r) / scale : 0.0;
   report_.converged = report_.relative_residual <= options_.tolerance ||

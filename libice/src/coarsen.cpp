@@ -380,7 +380,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   std::optional<IntrinsicErrorMetric> metric_storage;
   detail::run_tasks(parallel ? 2 : 1, parallel ? 2 : 1, [&](int task) {
     if (task == 0) {
-      metric_storage.emplace(T, options.area_weight);
+      metric_storage.emplace(T, options.area_weight, options.normalize_curvature);
     } else {
       partition.sizes = partition_vertices(T, partition.parts, partition.label);
       partition.frontier.resize(partition.label.size());

@@ -28,7 +28,7 @@ inline std::complex<double> unit_complex(double theta) {
 }
 }
 
-IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight)
+IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight, bool normalize_curvature)
     : area_channel_(area_weight != 0) {
   const Index n = T.num_input_vertices();
   records_.assign(n, Record{});
@@ -41,10 +41,17 @@ IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, doub
     for (int k = 0; k < 3; ++k, h = T.next(h)) vertex_area[T.tail(h)] += third;
     total_area += 3 * third;
   }
+  double curvature_scale = 1 - area_weight;
+  if (normalize_curvature) {
+    double total_curvature = 0;
+    for (Index v = 0; v < n; ++v)
+      if (T.vertex_alive(v)) total_curvature += std::abs(T.curvature(v));
+    if (total_curvature > 0) curvature_scale /= total_curvature;
+  }
   for (Index v = 0; v < n; ++v) {
     if (!T.vertex_alive(v)) continue;
     const double K = T.curvature(v);
-    records_[v].mass = {(1 - area_weight) * std::max(K, 0.0), (1 - area_weight) * std::max(-K, 0.0),
+    records_[v].mass = {curvature_scale * std::max(K, 0.0), curvature_scale * std::max(-K, 0.0),
                         area_weight * vertex_area[v] / total_area};
   }
 }

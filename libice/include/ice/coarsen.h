@@ -38,6 +38,9 @@ struct CoarsenOptions {
   double max_error = std::numeric_limits<double>::infinity();
   /// Mixture weight w ∈ [0,1] of the area channel (0: curvature only).
   double area_weight = 0;
+  /// Divide the curvature masses by the mesh's total absolute curvature, making w the area
+  /// channel's share of the total mass on every mesh (IntrinsicErrorMetric).
+  bool normalize_curvature = false;
   /// Vertices never removed.
   std::vector<Index> locked_vertices;
   /// Whether boundary vertices may be removed (boundary loops always keep at least two edges).
