@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
                  "Source vertex or vertices, 0-based indices in the input file, comma separated (e.g. 0,1500); "
                  "the distance is to the nearest of them")
       ->required();
+  opt.target.use_defaults_for(ice::ProxyUse::geodesic);  // the metric measured best for geodesics
   opt.add_to(cli, "'distance' (prolonged), 'reference' and 'error' (= distance - reference)");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 

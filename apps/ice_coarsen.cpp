@@ -251,6 +251,7 @@ int main(int argc, char** argv) {
                            {"target_ratio", options.target_ratio},
                            {"max_error", std::isfinite(options.max_error) ? nlohmann::json(options.max_error) : nlohmann::json(nullptr)},
                            {"area_weight", options.area_weight},
+                           {"normalize_curvature", options.normalize_curvature},
                            {"coarsen_threads", options.threads},
                            {"keep_boundary", keep_boundary},
                            {"locked_vertices", options.locked_vertices.size()}};

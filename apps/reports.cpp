@@ -71,6 +71,14 @@ std::string percent(double fraction) {
   return fixed(p, std::abs(p) < 10 ? 2 : 1) + "%";
 }
 
+namespace {
+std::string num_text(double value) {
+  std::ostringstream s;
+  s << value;
+  return s.str();
+}
+}  // namespace
+
 std::string relative_error(double fraction) {
   if (fraction < 0) return "n/a";
   if (fraction >= 1e-3) return percent(fraction);
@@ -142,6 +150,8 @@ PdeRun PdeRun::start(const std::string& tool, const PdeOptions& opt, bool proxy_
   run.tool = tool;
   run.mesh_path = opt.mesh;
   run.operators = opt.operators;
+  run.area_weight = opt.target.area_weight;
+  run.normalize_curvature = opt.target.normalize_curvature;
   run.fine_idt = opt.fine_idt;
   run.has_reference = !opt.no_reference;
   run.proxy_uses_fine_mesh = proxy_uses_fine_mesh;
@@ -158,6 +168,7 @@ nlohmann::json PdeRun::report() const {
   nlohmann::json r = report_header(tool, mesh_path);
   r["method"] = cli_name(coarsening.method);
   r["operators"] = cli_name(operators);
+  if (!coarsening.qem) r["metric"] = {{"area_weight", area_weight}, {"normalize_curvature", normalize_curvature}};
   if (coarsening.qem) r["qem"] = qem_json(*coarsening.qem, coarsening.target_reached);
   r["input"] = {{"vertices", fine_vertices}, {"faces", fine_faces}};
   r["coarse"] = coarsen_json(coarsening);
@@ -200,7 +211,9 @@ void PdeRun::print_summary(std::ostream& out) const {
   const bool qem = coarsening.qem.has_value();
   out << tool << ": " << mesh_path << ": " << thousands(fine_vertices) << " vertices -> " << thousands(coarse_vertices)
       << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), "
-      << (qem ? "QEM (" + cli_name(coarsening.qem->geometry) + " mesh)" : std::string("ICE")) << ", " << cli_name(operators)
+      << (qem ? "QEM (" + cli_name(coarsening.qem->geometry) + " mesh)"
+              : "ICE (area weight " + num_text(area_weight) + (normalize_curvature ? ", normalised curvature)" : ")"))
+      << ", " << cli_name(operators)
       << " coarse operators\n";
   const auto row = [&](const std::string& name, double seconds, const std::string& note = "") {
     out << "  " << std::left << std::setw(16) << name << std::right << std::setw(10) << fixed(seconds, 4) << " s"

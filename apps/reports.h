@@ -92,7 +92,9 @@ nlohmann::json report_header(const std::string& tool, const std::string& mesh_pa
 /// summary that both PDE tools share.
 struct PdeRun {
   std::string tool, mesh_path;
-  fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::intrinsic;
+  fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
+  double area_weight = 0;            ///< the ICE metric used (ignored by QEM)
+  bool normalize_curvature = false;
   long long fine_vertices = 0, fine_faces = 0;
   ice::CoarseSpaceSummary coarsening;  ///< method, sizes, outcome (ICE or QEM details)
   bool fine_idt = true;

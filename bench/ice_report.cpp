@@ -3,10 +3,11 @@
 // For every mesh (default: the clean meshes of the project and extended sets present), coarse budget (default 1, 2, 5, 10 % of
 // the vertices, at least --min-vertices) and method:
 //   ice        ICE, curvature only (area weight 0)
-//   ice_area   ICE with area weight --area-weight (default 0.5: more evenly spread vertices)
+//   ice_area   ICE with the pipeline's default metric (ice::recommended_coarsen_options: area weight 0.5 of
+//              normalised masses), or --area-weight / --no-normalize-curvature
 //   qem_ext    QEM (OpenMesh Decimater + quadrics, closest-point map), operators from its positions
 //   qem_idt    the same QEM mesh and P, operators from its intrinsic Delaunay triangulation
-// it solves three problems through the coarse proxy (fem::CoarseProxy, --operators intrinsic by default)
+// it solves three problems through the coarse proxy (fem::CoarseProxy, --operators galerkin by default)
 // and on the fine mesh (its intrinsic Delaunay triangulation, as the tools do by default):
 //   poisson    zero-mean Poisson L u = M f, f = the demo source of poisson-coarse (three Gaussian bumps,
 //              zero mean); error: relative L2 in the fine mass norm
@@ -372,7 +373,7 @@ struct Key {
 
 void write_summary(const std::string& path, const std::vector<Row>& rows, const std::vector<std::string>& methods,
                    const std::vector<double>& budgets, const std::vector<std::string>& meshes, const std::string& command,
-                   double total_seconds, const std::string& operators, double area_weight,
+                   double total_seconds, const std::string& operators, double area_weight, bool normalize_curvature,
                    const std::vector<PolishRow>& polished) {
   std::map<Key, std::map<std::string, const Row*>> by_key;
   for (const Row& r : rows) by_key[{r.mesh, r.problem, r.budget}][r.method] = &r;
@@ -391,9 +392,10 @@ void write_summary(const std::string& path, const std::vector<Row>& rows, const 
            return s;
          }() << "  \n"
       << "Coarse operators: " << operators << "; ICE area weight for `ice_area`: " << area_weight
+      << (normalize_curvature ? " (normalised curvature)" : " (curvature not normalised)")
       << "; fine reference on the intrinsic Delaunay triangulation of the input; BLAS: " << fem::blas_library()
       << "  \nTotal run time " << num(total_seconds, 3) << " s.\n\n"
-      << "Methods: `ice` ICE curvature only; `ice_area` ICE with area weight; `qem_ext` QEM (OpenMesh quadric "
+      << "Methods: `ice` ICE curvature only (the paper's metric); `ice_area` ICE with area weight; `qem_ext` QEM (OpenMesh quadric "
          "decimation, closest-point map) with operators from its positions; `qem_idt` the same QEM mesh and P with "
          "operators from its intrinsic Delaunay triangulation.  \n"
          "Errors: Poisson and heat relative L2 (fine mass norm); geodesic mean |d - d_ref| / max d_ref over 3 "
@@ -606,11 +608,11 @@ int main(int argc, char** argv) {
       "  ice-report --meshes spot.obj,/data/my.off --budgets 0.02,0.05 --methods ice,qem_idt -o r"};
   std::string outdir = "ice-report", meshes_text, budgets_text = "0.01,0.02,0.05,0.1", methods_text = "ice,ice_area,qem_ext,qem_idt";
   // The sources' script when run from the build tree, the installed one otherwise.
-  std::string meshes_dir, operators = "intrinsic",
+  std::string meshes_dir, operators = "galerkin",
                           plot_script = fs::exists(ICE_REPORT_PLOT_SCRIPT_SOURCE) ? ICE_REPORT_PLOT_SCRIPT_SOURCE
                                                                                   : ICE_REPORT_PLOT_SCRIPT;
   long long min_vertices = 100;
-  double area_weight = 0.5;
+  double area_weight = ice::recommended_coarsen_options().area_weight;  // the pipeline's default metric
   bool quick = false, no_plots = false;
   cli.add_option("--output,-o", outdir, "Output directory (created; existing report files in it are replaced)")
       ->capture_default_str();
@@ -624,9 +626,10 @@ int main(int argc, char** argv) {
   cli.add_option("--operators", operators, "Coarse operators: intrinsic (from the coarse mesh) or galerkin (PᵀLP, PᵀMP)")
       ->check(CLI::IsMember({"intrinsic", "galerkin"}))
       ->capture_default_str();
-  bool normalize_curvature = false;
-  cli.add_flag("--normalize-curvature", normalize_curvature,
-               "ICE methods: curvature masses divided by the total absolute curvature (ice::CoarsenOptions)");
+  bool normalize_curvature = ice::recommended_coarsen_options().normalize_curvature;
+  cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
+               "ice_area: curvature masses divided by the total absolute curvature (ice::CoarsenOptions)")
+      ->capture_default_str();
   std::string tolerances_text;
   cli.add_option("--tolerances", tolerances_text,
                  "Comma-separated error tolerances, e.g. 1e-2,1e-3,1e-6: also polish the Poisson and heat proxies to "
@@ -712,7 +715,7 @@ int main(int argc, char** argv) {
           ice::CoarseSpaceOptions options;
           options.coarsen.target_vertices = static_cast<ice::Index>(target);
           options.coarsen.area_weight = m == "ice" ? 0.0 : area_weight;
-          options.coarsen.normalize_curvature = normalize_curvature;
+          options.coarsen.normalize_curvature = m == "ice" ? false : normalize_curvature;
           const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
           Row r = base;
           r.method = m;
@@ -776,6 +779,7 @@ int main(int argc, char** argv) {
                               {"min_vertices", min_vertices},
                               {"methods", methods},
                               {"area_weight", area_weight},
+                              {"normalize_curvature", normalize_curvature},
                               {"operators", operators},
                               {"heat_time", "0.1 x surface area, one backward Euler step"},
                               {"geodesic_sources", "vertex 0 and two farthest-point picks (R^3)"},
@@ -790,7 +794,7 @@ int main(int argc, char** argv) {
       if (!out) throw app::AppError(app::kNotWritten, outdir + "/results.json: cannot be written");
     }
     write_summary(outdir + "/summary.md", rows, methods, budgets, used_meshes, command, total_seconds, operators,
-                  area_weight, polished);
+                  area_weight, normalize_curvature, polished);
     write_plot_data(outdir, rows, methods, budgets);
     std::string plots = "no plots (--no-plots)";
     if (!no_plots) {

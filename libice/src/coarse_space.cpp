@@ -20,6 +20,20 @@ const char* to_string(QemGeometry geometry) {
   return geometry == QemGeometry::intrinsic_delaunay ? "intrinsic_delaunay" : "extrinsic";
 }
 
+const char* to_string(ProxyUse use) { return use == ProxyUse::geodesic ? "geodesic" : "poisson_heat"; }
+
+CoarsenOptions recommended_coarsen_options(ProxyUse use) {
+  CoarsenOptions options;
+  if (use == ProxyUse::geodesic) {
+    options.area_weight = 0.98;
+    options.normalize_curvature = false;
+  } else {
+    options.area_weight = 0.5;
+    options.normalize_curvature = true;
+  }
+  return options;
+}
+
 const char* to_string(FineGeometry geometry) {
   return geometry == FineGeometry::intrinsic_delaunay ? "intrinsic_delaunay" : "input";
 }
