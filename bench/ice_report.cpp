@@ -175,7 +175,8 @@ void record_failure(Row r, const std::string& what, std::vector<Row>& rows) {
 
 // The three problems through the library's proxy solvers (fem/coarse_proxy.h), each phase timed.
 void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind, Row base,
-                    std::vector<Row>& rows, const std::vector<double>& tolerances, std::vector<PolishRow>& polished) {
+                    std::vector<Row>& rows, const std::vector<double>& tolerances, std::vector<PolishRow>& polished,
+                    double geodesic_time_factor) {
   app::Stopwatch clock;
   const fem::CoarseProxy proxy = app::make_proxy(fine.disc, coarse, kind);
   const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
@@ -248,7 +249,7 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
     Row r = base;
     r.problem = "geodesic";
     clock.lap();
-    fem::HeatMethodOperators ops = proxy.coarse_heat_method_operators();
+    fem::HeatMethodOperators ops = proxy.coarse_heat_method_operators(geodesic_time_factor);
     r.assemble = t_proxy + clock.lap();
     const fem::ProxyGeodesicSolver solver(proxy, std::move(ops));
     r.factor = clock.lap();
@@ -636,6 +637,12 @@ int main(int argc, char** argv) {
   cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
                "ice_area: curvature masses divided by the total absolute curvature (ice::CoarsenOptions)")
       ->capture_default_str();
+  double time_factor = 1.0;
+  cli.add_option("--time-factor", time_factor,
+                 "Geodesics through the proxy: heat-method time step t = (factor x coarse mean edge length)^2 (the fine "
+                 "reference keeps t = h^2)")
+      ->check(app::positive_number())
+      ->capture_default_str();
   std::string tolerances_text;
   cli.add_option("--tolerances", tolerances_text,
                  "Comma-separated error tolerances, e.g. 1e-2,1e-3,1e-6: also polish the Poisson and heat proxies to "
@@ -730,7 +737,7 @@ int main(int argc, char** argv) {
           r.coarse_faces = coarse.summary.coarse_faces;
           r.target_reached = coarse.summary.target_reached;
           if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.stop_reason());
-          solve_on_proxy(fine, coarse, kind, r, rows, tolerances, polished);
+          solve_on_proxy(fine, coarse, kind, r, rows, tolerances, polished, time_factor);
           progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
                    << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
         }
@@ -764,7 +771,7 @@ int main(int argc, char** argv) {
           try {
             // QEM with the operators of its own geometry (positions, or their intrinsic Delaunay
             // triangulation): its strongest configuration; Galerkin operators make QEM less accurate.
-            solve_on_proxy(fine, coarse, fem::CoarseOperatorKind::intrinsic, r, rows, tolerances, polished);
+            solve_on_proxy(fine, coarse, fem::CoarseOperatorKind::intrinsic, r, rows, tolerances, polished, time_factor);
           } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
             record_failure(r, e.what(), rows);
             continue;

@@ -8,6 +8,8 @@
 
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
 #include "fem/topology.h"
@@ -191,4 +193,26 @@ TEST_CASE("multigrid error estimate: zero at the exact solution, refused before 
   solver.set_error_norm(Eigen::VectorXd(), false);
   solver.solve(b);
   CHECK(solver.report().error_estimates.empty());
+}
+
+TEST_CASE("Galerkin coarse operators: symmetric, positive semidefinite, constants the only null space",
+          "[fem][coarse_proxy][galerkin]") {
+  for (const char* name : {"lion-head.off", "spot.obj"}) {
+    INFO(name);
+    const PolishFixture fx(name, 0.05);
+    const fem::CoarseProxy proxy = fx.proxy(fem::CoarseOperatorKind::galerkin);
+    const Eigen::MatrixXd L = Eigen::MatrixXd(proxy.coarse_laplacian());
+    const Eigen::MatrixXd M = Eigen::MatrixXd(proxy.coarse_mass());
+    const double scale = L.cwiseAbs().maxCoeff();
+    CHECK((L - L.transpose()).cwiseAbs().maxCoeff() <= 1e-13 * scale);
+    CHECK((M - M.transpose()).cwiseAbs().maxCoeff() <= 1e-13 * M.cwiseAbs().maxCoeff());
+    // P·1 = 1 and L·1 = 0 on the fine mesh, so constants stay in the null space.
+    CHECK((L * Eigen::VectorXd::Ones(L.rows())).cwiseAbs().maxCoeff() <= 1e-10 * scale);
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> laplacian(L);
+    CHECK(laplacian.eigenvalues()(0) >= -1e-10 * scale);
+    CHECK(laplacian.eigenvalues()(1) > 1e-8 * scale);  // connected: a one-dimensional null space
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> mass(M);
+    CHECK(mass.eigenvalues()(0) > 0);
+    CHECK(M.sum() == Approx(proxy.fine_mass().sum()).epsilon(1e-12));  // the same total area
+  }
 }
