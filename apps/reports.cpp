@@ -87,6 +87,10 @@ std::string relative_error(double fraction) {
   return s.str();
 }
 
+std::string relative_error(const nlohmann::json& fraction) {
+  return fraction.is_number() ? relative_error(static_cast<double>(fraction)) : "undefined";
+}
+
 std::string percent(const nlohmann::json& fraction) {
   return fraction.is_number() ? percent(static_cast<double>(fraction)) : "undefined";
 }

@@ -69,6 +69,8 @@ std::string fixed(double value, int digits);
 std::string percent(double fraction);
 /// A relative error: as a percentage from 0.1 %, in scientific notation below (1e-6 is not "0.00%").
 std::string relative_error(double fraction);
+/// The same for a report value; null (undefined) prints as "undefined".
+std::string relative_error(const nlohmann::json& fraction);
 /// The same for a report value; null (an undefined relative error) prints as "undefined".
 std::string percent(const nlohmann::json& fraction);
 
