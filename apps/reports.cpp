@@ -71,14 +71,6 @@ std::string percent(double fraction) {
   return fixed(p, std::abs(p) < 10 ? 2 : 1) + "%";
 }
 
-namespace {
-std::string num_text(double value) {
-  std::ostringstream s;
-  s << value;
-  return s.str();
-}
-}  // namespace
-
 std::string relative_error(double fraction) {
   if (fraction < 0) return "n/a";
   if (fraction >= 1e-3) return percent(fraction);
@@ -216,7 +208,7 @@ void PdeRun::print_summary(std::ostream& out) const {
   out << tool << ": " << mesh_path << ": " << thousands(fine_vertices) << " vertices -> " << thousands(coarse_vertices)
       << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), "
       << (qem ? "QEM (" + cli_name(coarsening.qem->geometry) + " mesh)"
-              : "ICE (area weight " + num_text(area_weight) + (normalize_curvature ? ", normalised curvature)" : ")"))
+              : "ICE (area weight " + fixed(area_weight, 2) + (normalize_curvature ? ", normalised curvature)" : ")"))
       << ", " << cli_name(operators)
       << " coarse operators\n";
   const auto row = [&](const std::string& name, double seconds, const std::string& note = "") {

@@ -152,7 +152,7 @@ PoissonMultigrid polishing_cycle(const CoarseProxy& proxy, const PolishOptions& 
   if (polish.iterations < 0 || !(polish.tolerance >= 0) || polish.max_iterations < 1 || !(polish.estimate_safety >= 1))
     throw std::invalid_argument(
         "PolishOptions: iterations >= 0, tolerance >= 0, max_iterations >= 1 and estimate_safety >= 1 expected");
-  PoissonMultigrid cycle{{proxy.prolongation()}, polish.cycle};
+  PoissonMultigrid cycle{{proxy.prolongation()}, polish.cycle, /*estimate_error=*/true};
   cycle.options.mode = MultigridMode::pcg;
   cycle.options.tolerance = 1e-15;
   cycle.options.error_tolerance = polish.tolerance / polish.estimate_safety;
@@ -167,8 +167,8 @@ void fill_polish_report(const MultigridReport& run, const PolishOptions& polish,
     report.initial_estimated_error = run.error_estimates.front();
     report.estimated_error = run.error_estimates.back();
   }
-  report.reached_tolerance = polish.tolerance > 0 && report.estimated_error >= 0 &&
-                            report.estimated_error * polish.estimate_safety <= polish.tolerance;
+  // The cycle's error_tolerance is the tolerance over the safety (and its steps, for heat).
+  report.reached_tolerance = polish.tolerance > 0 && run.converged;
   report.seconds = run.seconds;
 }
 
@@ -299,7 +299,7 @@ Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::VectorXd& fine_u0, int s
     total.seconds += step.seconds;
     total.error_estimates = step.error_estimates;
     total.estimated_error = step.estimated_error;
-    total.reached_tolerance = total.reached_tolerance && fine_->report().converged;
+    total.reached_tolerance = total.reached_tolerance && step.reached_tolerance;
   }
   if (polish_report) *polish_report = total;
   return state;

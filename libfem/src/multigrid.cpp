@@ -399,21 +399,18 @@ void MultigridSolver::set_error_norm(Eigen::VectorXd weights, bool remove_weight
   error_remove_mean_ = remove_weighted_mean;
 }
 
-double MultigridSolver::estimate_error(const Eigen::VectorXd& x, const Eigen::VectorXd& z,
+double MultigridSolver::estimate_error(const Eigen::VectorXd& x, const Eigen::VectorXd& z, const Eigen::VectorXd& w_free,
                                        const Eigen::VectorXd& constrained_values) const {
   // Constrained unknowns: x is the prescribed value, the error estimate 0.
   const auto x_constrained = [&](std::size_t c) {
     return constrained_values.size() ? constrained_values(static_cast<Eigen::Index>(c)) : 0.0;
   };
+  const Eigen::Index nf = w_free.size();
   double mean_x = 0, mean_z = 0;
   if (error_remove_mean_) {
-    double total = 0;
-    for (std::size_t i = 0; i < free_.size(); ++i) {
-      const double w = error_weights_(free_[i]);
-      total += w;
-      mean_x += w * x(static_cast<Eigen::Index>(i));
-      mean_z += w * z(static_cast<Eigen::Index>(i));
-    }
+    double total = w_free.sum();
+    mean_x = w_free.dot(x);
+    mean_z = w_free.dot(z);
     for (std::size_t c = 0; c < constrained_.size(); ++c) {
       total += error_weights_(constrained_[c]);
       mean_x += error_weights_(constrained_[c]) * x_constrained(c);
@@ -424,11 +421,10 @@ double MultigridSolver::estimate_error(const Eigen::VectorXd& x, const Eigen::Ve
     }
   }
   double error2 = 0, solution2 = 0;
-  for (std::size_t i = 0; i < free_.size(); ++i) {
-    const double w = error_weights_(free_[i]);
-    const double dz = z(static_cast<Eigen::Index>(i)) - mean_z, dx = x(static_cast<Eigen::Index>(i)) + dz - mean_x;
-    error2 += w * dz * dz;
-    solution2 += w * dx * dx;
+  for (Eigen::Index i = 0; i < nf; ++i) {
+    const double dz = z(i) - mean_z, dx = x(i) + dz - mean_x;
+    error2 += w_free(i) * dz * dz;
+    solution2 += w_free(i) * dx * dx;
   }
   for (std::size_t c = 0; c < constrained_.size(); ++c) {
     const double dz = -mean_z, dx = x_constrained(c) + dz - mean_x;
@@ -728,7 +724,11 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   // above, so the factor grows towards its true value as iterations proceed; the reported history is
   // rescaled with the final factor.
   const bool estimating = error_weights_.size() != 0 && nf > 0;
-  Eigen::VectorXd z;
+  Eigen::VectorXd z, w_free;  // the weights in the solver's order of the free unknowns, gathered once
+  if (estimating) {
+    w_free.resize(nf);
+    for (Eigen::Index i = 0; i < nf; ++i) w_free(i) = error_weights_(free_[static_cast<std::size_t>(i)]);
+  }
   std::vector<double> raw_estimates, alphas, betas;
   double estimate_factor = 1;
   const auto update_factor = [&] {
@@ -747,7 +747,7 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   const auto record_estimate = [&] {
     if (!estimating) return;
     if (options_.mode == MultigridMode::vcycle) z = apply_vcycle(r);
-    raw_estimates.push_back(estimate_error(x, z, constrained_values));
+    raw_estimates.push_back(estimate_error(x, z, w_free, constrained_values));
     report_.error_estimates.push_back(raw_estimates.back() * estimate_factor);
   };
   // The error criterion needs a settled Lanczos factor in PCG mode (MultigridOptions::error_min_iterations).
@@ -765,16 +765,19 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
       L.X = x;
       while (report_.iterations < options_.max_iterations) {
         vcycle(0);
-        x = L.X.col(0);
-        residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), x.data(), r.data(), 1, t);
+        residual_rows(A, {A.valuePtr(), nullptr}, rhs.data(), L.X.data(), r.data(), 1, t);
         res = norm(r) / scale;
         ++report_.iterations;
         report_.residuals.push_back(res);
-        record_estimate();
+        if (estimating) {  // the estimate's V-cycle uses the level's work blocks: restore them after it
+          x = L.X.col(0);
+          record_estimate();
+          L.B = rhs;
+          L.X = x;
+        }
         if (done()) break;
-        L.B = rhs;
-        L.X = x;
       }
+      x = L.X.col(0);
     } else {
       Eigen::VectorXd p = z, Ap(nf);
       double rz = dot(r, z, t);

@@ -217,8 +217,10 @@ class MultigridSolver {
   double setup_seconds_ = 0;
   Eigen::VectorXd error_weights_;  ///< in the caller's order; empty: no estimates
   bool error_remove_mean_ = false;
-  /// ‖z‖_w / ‖x + z‖_w for free-order vectors x (iterate) and z (its correction estimate), see set_error_norm.
-  double estimate_error(const Eigen::VectorXd& x, const Eigen::VectorXd& z, const Eigen::VectorXd& constrained_values) const;
+  /// ‖z‖_w / ‖x + z‖_w for free-order vectors x (iterate) and z (its correction estimate), with the
+  /// weights of the free unknowns in that order (w_free); see set_error_norm.
+  double estimate_error(const Eigen::VectorXd& x, const Eigen::VectorXd& z, const Eigen::VectorXd& w_free,
+                        const Eigen::VectorXd& constrained_values) const;
   bool is_setup_ = false;
   bool reordered_ = false;  ///< setup() used the locality ordering (threaded sweeps need it)
 };

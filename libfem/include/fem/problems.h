@@ -49,6 +49,10 @@ class ConstrainedSolver {
 struct PoissonMultigrid {
   std::vector<SparseMatrix> prolongations;
   MultigridOptions options;
+  /// Estimate each iterate's relative error in the mass norm (MultigridSolver::set_error_norm;
+  /// after re-centring in zero-mean mode), which options.error_tolerance can stop on. Off by
+  /// default: an exact solve to a residual tolerance does not need it.
+  bool estimate_error = false;
 };
 
 /// Poisson equation L u = M f, the P1 discretisation of −Δu = f (L is positive semidefinite).
@@ -77,8 +81,7 @@ class PoissonSolver {
   /// Same with an already mass-weighted right-hand side b (= M f, or a restriction Pᵀ M f).
   Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values = {}) const;
   /// Same, iterating from `initial_guess` (full length; any constant shift is fine in zero-mean
-  /// mode) with multigrid; CHOLMOD ignores it. The multigrid report then also estimates the relative
-  /// error in the mass norm (MultigridSolver::set_error_norm; after re-centring in zero-mean mode).
+  /// mode) with multigrid; CHOLMOD ignores it.
   Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values,
                                  const Eigen::VectorXd& initial_guess) const;
 
