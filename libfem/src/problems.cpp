@@ -73,6 +73,20 @@ Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::
   return x;
 }
 
+Eigen::MatrixXd ConstrainedSolver::solve_multiple(const Eigen::MatrixXd& B) const {
+  if (B.rows() != size_) throw std::invalid_argument("ConstrainedSolver::solve_multiple: rhs has the wrong size");
+  Eigen::MatrixXd free_rhs(factor_.rows(), B.cols());
+  for (Eigen::Index i = 0; i < size_; ++i)
+    if (free_[static_cast<std::size_t>(i)] >= 0) free_rhs.row(free_[static_cast<std::size_t>(i)]) = B.row(i);
+  const Eigen::MatrixXd free_solution = free_rhs.rows() > 0 ? factor_.solve_multiple(free_rhs) : free_rhs;
+  Eigen::MatrixXd X = Eigen::MatrixXd::Zero(size_, B.cols());
+  for (Eigen::Index i = 0; i < size_; ++i) {
+    const int index = free_[static_cast<std::size_t>(i)];
+    if (index >= 0) X.row(i) = free_solution.row(index);
+  }
+  return X;
+}
+
 // ---- PoissonSolver ----------------------------------------------------------------------------------
 
 PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass,
@@ -145,6 +159,8 @@ HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, 
 
 Eigen::VectorXd HeatSolver::solve_weighted(const Eigen::VectorXd& b) const { return factor_.solve(b); }
 
+Eigen::MatrixXd HeatSolver::solve_multiple_weighted(const Eigen::MatrixXd& B) const { return factor_.solve_multiple(B); }
+
 Eigen::VectorXd HeatSolver::step(const Eigen::VectorXd& u) const { return factor_.solve(Eigen::VectorXd(mass_ * u)); }
 
 Eigen::VectorXd HeatSolver::integrate(const Eigen::VectorXd& u0, int steps) const {
@@ -203,6 +219,37 @@ Eigen::VectorXd HeatGeodesicSolver::distance(const std::vector<Index>& sources) 
   return distance_from_weights(weights);
 }
 
+// −∇u/|∇u| per face (0 where ∇u vanishes exactly), weighted by the face area for the divergence;
+// g holds the per-face gradients of one or more functions (one per column).
+Eigen::MatrixXd HeatGeodesicSolver::normalized_field(const Eigen::MatrixXd& g) const {
+  Eigen::MatrixXd weighted_field(g.rows(), g.cols());
+  for (Eigen::Index c = 0; c < g.cols(); ++c)
+    for (Eigen::Index f = 0; f < operators_.face_areas.size(); ++f) {
+      const double norm = std::hypot(g(2 * f, c), g(2 * f + 1, c));
+      const double scale = norm > 0 ? -operators_.face_areas(f) / norm : 0.0;
+      weighted_field(2 * f, c) = scale * g(2 * f, c);
+      weighted_field(2 * f + 1, c) = scale * g(2 * f + 1, c);
+    }
+  return weighted_field;
+}
+
+Eigen::MatrixXd HeatGeodesicSolver::distances_from_each(const std::vector<Index>& sources) const {
+  const Eigen::Index n = operators_.laplacian.rows();
+  Eigen::MatrixXd deltas = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(sources.size()));
+  for (std::size_t j = 0; j < sources.size(); ++j) {
+    if (sources[j] < 0 || sources[j] >= n) throw std::invalid_argument("HeatGeodesicSolver::distances_from_each: bad source");
+    deltas(sources[j], static_cast<Eigen::Index>(j)) = 1.0;
+  }
+  if (sources.empty()) return deltas;
+  Eigen::MatrixXd u = neumann_heat_.solve_multiple_weighted(deltas);
+  if (dirichlet_heat_) u = 0.5 * (u + dirichlet_heat_->solve_multiple(deltas));
+  const Eigen::MatrixXd rhs = operators_.gradient.transpose() * normalized_field(operators_.gradient * u);
+  Eigen::MatrixXd phi = pinned_poisson_.solve_multiple(rhs);
+  for (std::size_t j = 0; j < sources.size(); ++j)
+    phi.col(static_cast<Eigen::Index>(j)).array() -= phi(sources[j], static_cast<Eigen::Index>(j));
+  return phi;
+}
+
 Eigen::VectorXd HeatGeodesicSolver::distance_from_weights(const Eigen::VectorXd& source_weights) const {
   if (source_weights.size() != operators_.laplacian.rows() || !(source_weights.minCoeff() >= 0) ||
       !(source_weights.sum() > 0))
@@ -211,17 +258,7 @@ Eigen::VectorXd HeatGeodesicSolver::distance_from_weights(const Eigen::VectorXd&
   Eigen::VectorXd u = neumann_heat_.solve_weighted(source_weights);
   if (dirichlet_heat_) u = 0.5 * (u + dirichlet_heat_->solve(source_weights));
 
-  // Normalised negative gradient per face, weighted by the face area for the divergence.
-  const Eigen::VectorXd g = operators_.gradient * u;
-  Eigen::VectorXd weighted_field(g.size());
-  for (Eigen::Index f = 0; f < operators_.face_areas.size(); ++f) {
-    const double norm = std::hypot(g(2 * f), g(2 * f + 1));
-    const double scale = norm > 0 ? -operators_.face_areas(f) / norm : 0.0;
-    weighted_field(2 * f) = scale * g(2 * f);
-    weighted_field(2 * f + 1) = scale * g(2 * f + 1);
-  }
-  const Eigen::VectorXd rhs = operators_.gradient.transpose() * weighted_field;
-
+  const Eigen::VectorXd rhs = operators_.gradient.transpose() * normalized_field(operators_.gradient * u);
   Eigen::VectorXd phi = pinned_poisson_.solve(rhs);
   phi.array() -= source_weights.dot(phi) / source_weights.sum();
   return phi;

@@ -30,6 +30,9 @@ class ConstrainedSolver {
   /// Full-length solution; x(constrained[i]) = constrained_values(i). An empty `constrained_values`
   /// means all zeros.
   Eigen::VectorXd solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values = {}) const;
+  /// The same for every column of B with zero constrained values, in one CHOLMOD call (blocked
+  /// right-hand sides: dense kernels instead of one triangular sweep per column).
+  Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B) const;
 
   const std::vector<Index>& constrained() const { return constrained_; }
   Eigen::Index size() const { return size_; }
@@ -116,6 +119,8 @@ class HeatSolver {
   Eigen::VectorXd integrate(const Eigen::VectorXd& u0, int steps) const;
   /// (M + τL)⁻¹ b for a mass-weighted right-hand side b.
   Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b) const;
+  /// The same for every column of B, in one CHOLMOD call.
+  Eigen::MatrixXd solve_multiple_weighted(const Eigen::MatrixXd& B) const;
 
   double time_step() const { return time_step_; }
   const SparseMatrix& mass() const { return mass_; }
@@ -167,10 +172,16 @@ class HeatGeodesicSolver {
   /// Distance from a weighted source: δ = source_weights (non-negative, not all zero); the result is
   /// shifted so that Σ w_i φ_i / Σ w_i = 0.
   Eigen::VectorXd distance_from_weights(const Eigen::VectorXd& source_weights) const;
+  /// Distances from each of `sources` separately: column j is distance({sources[j]}) up to
+  /// round-off. The columns go through each factorisation together (blocked multi-right-hand-side
+  /// solves), which is how many-source and all-pairs heat-method distances are computed: callers
+  /// pass blocks of a few hundred sources (memory: 3 dense n × k matrices).
+  Eigen::MatrixXd distances_from_each(const std::vector<Index>& sources) const;
 
   const HeatMethodOperators& operators() const { return operators_; }
 
  private:
+  Eigen::MatrixXd normalized_field(const Eigen::MatrixXd& face_gradients) const;
   HeatMethodOperators operators_;
   HeatSolver neumann_heat_;
   std::unique_ptr<ConstrainedSolver> dirichlet_heat_;  ///< only with a boundary

@@ -131,16 +131,7 @@ CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOption
 /// summary.seconds covers this call only (the decimation's times are in summary.qem).
 CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep_method_state = false);
 
-/// Where one input vertex lies on the coarse mesh: the coarse vertex it became (kInvalid if it was
-/// removed) and, for every input vertex, a face of space.mesh containing it with barycentric
-/// coordinates with respect to that face's corners (a survivor: weight 1 at its own corner).
-struct CoarsePoint {
-  Index coarse_vertex = kInvalid;
-  Index face = kInvalid;
-  std::array<double, 3> bary{0, 0, 0};
-};
-
-/// The fine-to-coarse map: one CoarsePoint per input vertex, faces in space.mesh's numbering (for
+/// The fine-to-coarse map: one CoarsePoint (ice/mesh.h) per input vertex, faces in space.mesh's numbering (for
 /// ICE the points the coarsened triangulation tracked, for QEM its closest-point map). Its rows
 /// agree with P (P(i, ·) is point i's barycentric coordinates summed over repeated corners).
 /// Preconditions: the space was built with keep_method_state; a QEM space has extrinsic geometry

@@ -9,6 +9,7 @@
 ///  - Per-face edge lengths (`FaceLengths`, m×3): column k holds the length of the edge that goes from
 ///    corner k to corner (k+1)%3 of the face, i.e. from F(f,k) to F(f,(k+1)%3). The corner angle at
 ///    corner k is therefore opposite the edge stored in column (k+1)%3.
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -61,6 +62,16 @@ struct CompactMesh {
   std::vector<Index> from_input;    ///< input vertex -> compact vertex, or kInvalid if removed
   /// Vertices of the mesh (also those no face uses, which F alone cannot count).
   Index num_vertices() const { return static_cast<Index>(to_input.size()); }
+};
+
+/// Where one input vertex lies on a coarse mesh (ice/coarse_space.h, fine_to_coarse_map): the coarse
+/// vertex it became (kInvalid if it was removed) and a face of the coarse mesh containing it with
+/// barycentric coordinates with respect to that face's corners (a survivor: weight 1 at its own
+/// corner). What fem::DistanceOracle answers queries with.
+struct CoarsePoint {
+  Index coarse_vertex = kInvalid;
+  Index face = kInvalid;
+  std::array<double, 3> bary{0, 0, 0};
 };
 
 }  // namespace ice

@@ -1,0 +1,421 @@
+#include "fem/distance_oracle.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <queue>
+#include <stdexcept>
+#include <string>
+
+#include "fem/problems.h"
+#include "parallel_kernels.h"
+
+namespace fem {
+
+const char* to_string(CoarseDistanceMethod method) {
+  return method == CoarseDistanceMethod::marching ? "marching" : "heat_method";
+}
+
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+/// Fast marching with exact planar updates on an intrinsic mesh (see the header). One instance per
+/// thread: the flattened layout of every (face, corner) is computed once, the front and values are
+/// per run.
+class CoarseMarcher {
+ public:
+  CoarseMarcher(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) : vertex_count_(vertex_count) {
+    // Corners around each vertex (CSR), and each face seen from each of its corners.
+    corner_start_.assign(static_cast<std::size_t>(vertex_count) + 1, 0);
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) ++corner_start_[static_cast<std::size_t>(F(f, k)) + 1];
+    for (std::size_t v = 0; v < static_cast<std::size_t>(vertex_count); ++v) corner_start_[v + 1] += corner_start_[v];
+    corners_.resize(static_cast<std::size_t>(corner_start_.back()));
+    std::vector<Index> next(corner_start_.begin(), corner_start_.end() - 1);
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        corners_[static_cast<std::size_t>(next[static_cast<std::size_t>(F(f, k))]++)] = static_cast<Index>(3 * f + k);
+    updates_.resize(static_cast<std::size_t>(3 * F.rows()));
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        // Corner v = k, a = k+1, b = k+2: a at the origin, b on the positive x axis, v above.
+        Update& u = updates_[static_cast<std::size_t>(3 * f + k)];
+        u.v = F(f, k);
+        u.a = F(f, (k + 1) % 3);
+        u.b = F(f, (k + 2) % 3);
+        u.to_a = L(f, k);
+        u.base = L(f, (k + 1) % 3);
+        u.to_b = L(f, (k + 2) % 3);
+        u.half_inverse_base = 0.5 / u.base;
+        u.vx = (u.to_a * u.to_a - u.to_b * u.to_b + u.base * u.base) * u.half_inverse_base;
+        u.vy = std::sqrt(std::max(0.0, u.to_a * u.to_a - u.vx * u.vx));
+      }
+  }
+
+  /// Distances from `source` to every vertex into `distance` (+∞ where unreachable).
+  void run(Index source, std::vector<double>& distance) {
+    distance.assign(static_cast<std::size_t>(vertex_count_), kInfinity);
+    accepted_.assign(static_cast<std::size_t>(vertex_count_), 0);
+    position_.assign(static_cast<std::size_t>(vertex_count_), -1);
+    front_.clear();
+    distance[static_cast<std::size_t>(source)] = 0;
+    lower(source, distance);
+    while (!front_.empty()) {
+      const Index u = pop(distance);
+      const double value = distance[static_cast<std::size_t>(u)];
+      accepted_[static_cast<std::size_t>(u)] = 1;
+      for (Index c = corner_start_[static_cast<std::size_t>(u)]; c < corner_start_[static_cast<std::size_t>(u) + 1]; ++c) {
+        const Index corner = corners_[static_cast<std::size_t>(c)];
+        const Index face_start = corner - corner % 3;
+        for (int step = 1; step <= 2; ++step) {
+          const Update& update = updates_[static_cast<std::size_t>(face_start + (corner % 3 + step) % 3)];
+          if (accepted_[static_cast<std::size_t>(update.v)]) continue;
+          // Through the face once both other corners are accepted (u is one of them); before that
+          // along the edge from u only (the face's turn comes when its other corner is accepted).
+          const Index other = update.a == u ? update.b : update.a;
+          const double candidate = accepted_[static_cast<std::size_t>(other)]
+                                       ? value_through(update, distance)
+                                       : value + (update.a == u ? update.to_a : update.to_b);
+          if (candidate < distance[static_cast<std::size_t>(update.v)]) {
+            distance[static_cast<std::size_t>(update.v)] = candidate;
+            lower(update.v, distance);
+          }
+        }
+      }
+    }
+  }
+
+ private:
+  /// Corner v of a face and its layout: a = (0, 0), b = (base, 0), v = (vx, vy) with vy > 0 unless
+  /// the face is degenerate.
+  struct Update {
+    Index v, a, b;
+    double to_a, to_b, base, half_inverse_base, vx, vy;
+  };
+  // The front: a binary min-heap of vertices keyed by their current distance, each vertex at most
+  // once (position_ = its slot, or -1), so a lowered value moves it up instead of adding an entry.
+  void place(std::size_t slot, Index v) {
+    front_[slot] = v;
+    position_[static_cast<std::size_t>(v)] = static_cast<Index>(slot);
+  }
+  void lower(Index v, const std::vector<double>& distance) {
+    std::size_t slot;
+    if (position_[static_cast<std::size_t>(v)] < 0) {
+      slot = front_.size();
+      front_.push_back(v);
+    } else {
+      slot = static_cast<std::size_t>(position_[static_cast<std::size_t>(v)]);
+    }
+    const double key = distance[static_cast<std::size_t>(v)];
+    while (slot > 0) {
+      const std::size_t parent = (slot - 1) / 2;
+      if (!(key < distance[static_cast<std::size_t>(front_[parent])])) break;
+      place(slot, front_[parent]);
+      slot = parent;
+    }
+    place(slot, v);
+  }
+  Index pop(const std::vector<double>& distance) {
+    const Index top = front_.front();
+    position_[static_cast<std::size_t>(top)] = -1;
+    const Index last = front_.back();
+    front_.pop_back();
+    if (front_.empty()) return top;
+    const double key = distance[static_cast<std::size_t>(last)];
+    std::size_t slot = 0;
+    for (;;) {
+      std::size_t child = 2 * slot + 1;
+      if (child >= front_.size()) break;
+      if (child + 1 < front_.size() &&
+          distance[static_cast<std::size_t>(front_[child + 1])] < distance[static_cast<std::size_t>(front_[child])])
+        ++child;
+      if (!(distance[static_cast<std::size_t>(front_[child])] < key)) break;
+      place(slot, front_[child]);
+      slot = child;
+    }
+    place(slot, last);
+    return top;
+  }
+  // The value of corner v through its face from the other two corners a, b.
+  static double value_through(const Update& u, const std::vector<double>& distance) {
+    const double da = distance[static_cast<std::size_t>(u.a)], db = distance[static_cast<std::size_t>(u.b)];
+    const double along_edge = std::min(da + u.to_a, db + u.to_b);
+    if (!(da < kInfinity && db < kInfinity) || !(u.vy > 0)) return along_edge;
+    // The virtual source s below ab with |s a| = da, |s b| = db (two circles); the straight line
+    // from s to v must cross ab between a and b: 0 <= sx + (−sy)(vx − sx)/(vy − sy) <= base.
+    const double sx = (da * da - db * db + u.base * u.base) * u.half_inverse_base;
+    const double sy2 = da * da - sx * sx;
+    if (sy2 < 0) return along_edge;  // da, db not consistent with one source (|da − db| > base)
+    const double sy = -std::sqrt(sy2);
+    const double rise = u.vy - sy;  // > 0
+    const double crossing_times_rise = sx * rise - sy * (u.vx - sx);
+    if (crossing_times_rise < 0 || crossing_times_rise > u.base * rise) return along_edge;
+    const double dx = u.vx - sx;
+    return std::min(along_edge, std::sqrt(dx * dx + rise * rise));
+  }
+
+  Eigen::Index vertex_count_;
+  std::vector<Index> corner_start_, corners_;
+  std::vector<Update> updates_;
+  std::vector<char> accepted_;
+  std::vector<Index> front_, position_;
+};
+
+void check_mesh(const Faces& F, const FaceLengths& L) {
+  if (F.rows() == 0 || F.cols() != 3 || L.rows() != F.rows() || L.cols() != 3)
+    throw std::invalid_argument("DistanceOracle: the coarse mesh needs faces (m x 3) and lengths of the same shape");
+  if (F.minCoeff() < 0) throw std::invalid_argument("DistanceOracle: negative coarse vertex index");
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    if (!(L.row(f).minCoeff() > 0) || !std::isfinite(L.row(f).sum()))
+      throw std::invalid_argument("DistanceOracle: coarse face " + std::to_string(f) + " has a non-positive or non-finite length");
+}
+
+}  // namespace
+
+DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coarse_lengths,
+                               const std::vector<ice::CoarsePoint>& fine_points, const DistanceOracleOptions& options)
+    : options_(options) {
+  check_mesh(coarse_faces, coarse_lengths);
+  if (options.threads < 0 || options.heat_block_size < 1 || !(options.heat_time_factor > 0))
+    throw std::invalid_argument("DistanceOracle: threads must be >= 0, heat_block_size >= 1, heat_time_factor > 0");
+  coarse_size_ = coarse_faces.maxCoeff() + 1;
+  faces_ = coarse_faces;
+  squared_lengths_ = coarse_lengths.array().square();
+  const std::size_t nc = static_cast<std::size_t>(coarse_size_);
+
+  // ---- the fine points first (cheap, and bad input is refused before the long part)
+  auto start = std::chrono::steady_clock::now();
+  points_.resize(fine_points.size());
+  for (std::size_t i = 0; i < fine_points.size(); ++i) {
+    try {
+      points_[i] = make_point(fine_points[i]);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string(e.what()) + " (fine vertex " + std::to_string(i) + ")");
+    }
+  }
+  times_.fine_points = seconds_since(start);
+
+  // ---- all coarse pairs: row a = distances from coarse vertex a
+  start = std::chrono::steady_clock::now();
+  std::vector<float> distances(nc * nc);
+  if (options.method == CoarseDistanceMethod::marching) {
+#pragma omp parallel num_threads(threads())
+    {
+      CoarseMarcher marcher(coarse_faces, coarse_lengths, coarse_size_);
+      std::vector<double> row;
+#pragma omp for schedule(dynamic, 8)
+      for (Eigen::Index a = 0; a < coarse_size_; ++a) {
+        marcher.run(static_cast<Index>(a), row);
+        std::copy(row.begin(), row.end(), distances.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(a) * nc));
+      }
+    }
+  } else {
+    const HeatGeodesicSolver solver(
+        heat_method_operators(coarse_faces, coarse_lengths, MassKind::lumped, options.heat_time_factor, coarse_size_));
+    for (Eigen::Index first = 0; first < coarse_size_; first += options.heat_block_size) {
+      const Eigen::Index count = std::min<Eigen::Index>(options.heat_block_size, coarse_size_ - first);
+      std::vector<Index> sources(static_cast<std::size_t>(count));
+      for (Eigen::Index j = 0; j < count; ++j) sources[static_cast<std::size_t>(j)] = static_cast<Index>(first + j);
+      const Eigen::MatrixXd block = solver.distances_from_each(sources);
+      for (Eigen::Index j = 0; j < count; ++j)
+        for (Eigen::Index b = 0; b < coarse_size_; ++b)
+          distances[static_cast<std::size_t>(first + j) * nc + static_cast<std::size_t>(b)] =
+              static_cast<float>(std::max(0.0, block(b, j)));
+    }
+  }
+  // Symmetrise (neither method is exactly symmetric) and square, in place.
+  for (std::size_t a = 0; a < nc; ++a) {
+    distances[a * nc + a] = 0;
+    for (std::size_t b = a + 1; b < nc; ++b) {
+      const double mean = 0.5 * (static_cast<double>(distances[a * nc + b]) + distances[b * nc + a]);
+      distances[a * nc + b] = distances[b * nc + a] = static_cast<float>(mean * mean);
+    }
+  }
+  squared_distances_ = std::move(distances);
+  times_.coarse_distances = seconds_since(start);
+}
+
+int DistanceOracle::threads() const { return options_.threads > 0 ? options_.threads : detail::default_threads(); }
+
+DistanceOracle::FinePoint DistanceOracle::make_point(const ice::CoarsePoint& point) const {
+  if (point.face < 0 || point.face >= faces_.rows())
+    throw std::invalid_argument("DistanceOracle: coarse face " + std::to_string(point.face) + " out of range");
+  const auto& w = point.bary;
+  if (!(w[0] >= 0 && w[1] >= 0 && w[2] >= 0) || !(std::abs(w[0] + w[1] + w[2] - 1) <= 1e-6))
+    throw std::invalid_argument("DistanceOracle: barycentric coordinates must be non-negative and sum to 1");
+  FinePoint p;
+  p.face = point.face;
+  const double sum = w[0] + w[1] + w[2];
+  for (int k = 0; k < 3; ++k) p.weight[static_cast<std::size_t>(k)] = static_cast<float>(w[static_cast<std::size_t>(k)] / sum);
+  // Corners k and k+1 span edge k.
+  double spread = 0;
+  for (int k = 0; k < 3; ++k)
+    spread += w[static_cast<std::size_t>(k)] * w[static_cast<std::size_t>((k + 1) % 3)] * squared_lengths_(point.face, k) / (sum * sum);
+  p.spread = static_cast<float>(spread);
+  return p;
+}
+
+double DistanceOracle::squared_distance(const FinePoint& x, const FinePoint& y) const {
+  double sum = 0;
+  if (x.face == y.face) {
+    // Inside one flattened face: its own squared edge lengths between corners (0 on the diagonal).
+    const auto& l2 = squared_lengths_.row(x.face);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        if (i == j) continue;
+        const int edge = (j == (i + 1) % 3) ? i : j;  // the edge from corner i to i+1 is column i
+        sum += static_cast<double>(x.weight[static_cast<std::size_t>(i)]) * y.weight[static_cast<std::size_t>(j)] * l2(edge);
+      }
+  } else {
+    for (int i = 0; i < 3; ++i) {
+      const float* row = squared_distances_.data() + static_cast<std::size_t>(faces_(x.face, i)) * static_cast<std::size_t>(coarse_size_);
+      double inner = 0;
+      for (int j = 0; j < 3; ++j) inner += static_cast<double>(y.weight[static_cast<std::size_t>(j)]) * row[faces_(y.face, j)];
+      sum += x.weight[static_cast<std::size_t>(i)] * inner;
+    }
+  }
+  return std::max(0.0, sum - x.spread - y.spread);
+}
+
+double DistanceOracle::distance(Index u, Index v) const {
+  if (u == v) return 0;
+  return std::sqrt(squared_distance(points_[static_cast<std::size_t>(u)], points_[static_cast<std::size_t>(v)]));
+}
+
+double DistanceOracle::distance(const ice::CoarsePoint& x, const ice::CoarsePoint& y) const {
+  return std::sqrt(squared_distance(make_point(x), make_point(y)));
+}
+
+Eigen::VectorXd DistanceOracle::distances(const std::vector<std::array<Index, 2>>& pairs) const {
+  const Index n = static_cast<Index>(points_.size());
+  for (std::size_t i = 0; i < pairs.size(); ++i)
+    if (pairs[i][0] < 0 || pairs[i][0] >= n || pairs[i][1] < 0 || pairs[i][1] >= n)
+      throw std::invalid_argument("DistanceOracle::distances: pair " + std::to_string(i) + " names a vertex out of range");
+  Eigen::VectorXd out(static_cast<Eigen::Index>(pairs.size()));
+  const auto count = static_cast<Eigen::Index>(pairs.size());
+#pragma omp parallel for schedule(static) num_threads(count >= 10000 ? threads() : 1)
+  for (Eigen::Index i = 0; i < count; ++i) out(i) = distance(pairs[static_cast<std::size_t>(i)][0], pairs[static_cast<std::size_t>(i)][1]);
+  return out;
+}
+
+void DistanceOracle::squared_distances_to_coarse(const FinePoint& x, std::vector<double>& out) const {
+  const std::size_t nc = static_cast<std::size_t>(coarse_size_);
+  out.assign(nc, -static_cast<double>(x.spread));
+  for (int i = 0; i < 3; ++i) {
+    const float* row = squared_distances_.data() + static_cast<std::size_t>(faces_(x.face, i)) * nc;
+    const double w = x.weight[static_cast<std::size_t>(i)];
+    for (std::size_t b = 0; b < nc; ++b) out[b] += w * row[b];
+  }
+}
+
+double DistanceOracle::squared_distance_from_row(const std::vector<double>& row, const FinePoint& x,
+                                                 const FinePoint& y) const {
+  if (x.face == y.face) return squared_distance(x, y);
+  double sum = -static_cast<double>(y.spread);
+  for (int j = 0; j < 3; ++j) sum += y.weight[static_cast<std::size_t>(j)] * row[static_cast<std::size_t>(faces_(y.face, j))];
+  return std::max(0.0, sum);
+}
+
+Eigen::VectorXd DistanceOracle::distances_from(Index source) const {
+  const Eigen::Index n = fine_size();
+  if (source < 0 || source >= n) throw std::invalid_argument("DistanceOracle::distances_from: source out of range");
+  std::vector<double> row;
+  const FinePoint& x = points_[static_cast<std::size_t>(source)];
+  squared_distances_to_coarse(x, row);
+  Eigen::VectorXd out(n);
+#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads()))
+  for (Eigen::Index v = 0; v < n; ++v) out(v) = std::sqrt(squared_distance_from_row(row, x, points_[static_cast<std::size_t>(v)]));
+  out(source) = 0;
+  return out;
+}
+
+Eigen::MatrixXf DistanceOracle::distance_matrix(const std::vector<Index>& rows, const std::vector<Index>& cols) const {
+  const Index n = static_cast<Index>(points_.size());
+  for (const std::vector<Index>* set : {&rows, &cols})
+    for (Index v : *set)
+      if (v < 0 || v >= n) throw std::invalid_argument("DistanceOracle::distance_matrix: vertex " + std::to_string(v) + " out of range");
+  Eigen::MatrixXf out(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(cols.size()));
+  const auto row_count = static_cast<Eigen::Index>(rows.size());
+#pragma omp parallel num_threads(row_count * static_cast<Eigen::Index>(cols.size()) >= 10000 ? threads() : 1)
+  {
+    std::vector<double> coarse_row;
+#pragma omp for schedule(dynamic, 4)
+    for (Eigen::Index r = 0; r < row_count; ++r) {
+      const Index u = rows[static_cast<std::size_t>(r)];
+      const FinePoint& x = points_[static_cast<std::size_t>(u)];
+      squared_distances_to_coarse(x, coarse_row);
+      for (std::size_t c = 0; c < cols.size(); ++c) {
+        const Index v = cols[c];
+        out(r, static_cast<Eigen::Index>(c)) =
+            u == v ? 0.0f : static_cast<float>(std::sqrt(squared_distance_from_row(coarse_row, x, points_[static_cast<std::size_t>(v)])));
+      }
+    }
+  }
+  return out;
+}
+
+std::vector<Index> DistanceOracle::farthest_point_samples(Index count, Index first) const {
+  const Eigen::Index n = fine_size();
+  if (count < 1 || count > n) throw std::invalid_argument("DistanceOracle::farthest_point_samples: count must be in [1, vertices]");
+  if (first < 0 || first >= n) throw std::invalid_argument("DistanceOracle::farthest_point_samples: first sample out of range");
+  std::vector<Index> samples{first};
+  std::vector<double> nearest(static_cast<std::size_t>(n), kInfinity);  // squared distance to the nearest sample
+  std::vector<double> row;
+  const int thread_count = detail::active_threads(n, threads());
+  while (static_cast<Index>(samples.size()) < count) {
+    const FinePoint& x = points_[static_cast<std::size_t>(samples.back())];
+    squared_distances_to_coarse(x, row);
+    nearest[static_cast<std::size_t>(samples.back())] = 0;
+    double best_value = -1;
+    Eigen::Index best = 0;
+#pragma omp parallel num_threads(thread_count)
+    {
+      double local_value = -1;
+      Eigen::Index local = 0;
+#pragma omp for schedule(static) nowait
+      for (Eigen::Index v = 0; v < n; ++v) {
+        double& d = nearest[static_cast<std::size_t>(v)];
+        if (d > 0) d = std::min(d, squared_distance_from_row(row, x, points_[static_cast<std::size_t>(v)]));
+        if (d > local_value) {
+          local_value = d;
+          local = v;
+        }
+      }
+#pragma omp critical
+      if (local_value > best_value || (local_value == best_value && local < best)) {
+        best_value = local_value;
+        best = local;
+      }
+    }
+    if (!(best_value > 0)) break;  // every vertex coincides with a sample already
+    samples.push_back(static_cast<Index>(best));
+  }
+  return samples;
+}
+
+bool DistanceOracle::is_near(Index u, Index v) const {
+  const Index f = points_[static_cast<std::size_t>(u)].face, g = points_[static_cast<std::size_t>(v)].face;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (faces_(f, i) == faces_(g, j)) return true;
+  return false;
+}
+
+double DistanceOracle::coarse_distance(Index a, Index b) const {
+  if (a < 0 || b < 0 || a >= coarse_size_ || b >= coarse_size_)
+    throw std::invalid_argument("DistanceOracle::coarse_distance: coarse vertex out of range");
+  return std::sqrt(static_cast<double>(squared_distances_[static_cast<std::size_t>(a) * static_cast<std::size_t>(coarse_size_) + static_cast<std::size_t>(b)]));
+}
+
+std::size_t DistanceOracle::memory_bytes() const {
+  return squared_distances_.size() * sizeof(float) + points_.size() * sizeof(FinePoint) +
+         static_cast<std::size_t>(faces_.size()) * sizeof(Index) + static_cast<std::size_t>(squared_lengths_.size()) * sizeof(double);
+}
+
+}  // namespace fem
