@@ -120,8 +120,9 @@ fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& c
 }
 
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run) {
+                                 PdeRun& run, bool keep_method_state) {
   ice::CoarseSpaceOptions space_options;
+  space_options.keep_method_state = keep_method_state;
   space_options.method = opt.target.method;
   space_options.qem_geometry = opt.qem_geometry;
   space_options.coarsen = options;

@@ -56,9 +56,10 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
 fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind);
 
 /// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
-/// target was missed and records the summary in `run`.
+/// target was missed and records the summary in `run`. `keep_method_state`: keep what
+/// ice::fine_to_coarse_map needs (CoarseSpaceOptions::keep_method_state).
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run);
+                                 PdeRun& run, bool keep_method_state = false);
 
 /// What a PDE tool solves through: the coarse space, the fine discretisation and the coarse proxy.
 struct PdeProxy {

@@ -11,12 +11,24 @@
 // fem::CoarseProxy::coarse_heat_method_operators. Then the reference: fem::HeatGeodesicSolver on the
 // fine mesh (assemble, factor, solve) and the errors of the prolonged distance against it.
 //
+// Distance-oracle modes (--all-pairs, --pairs FILE, --sample K): load → coarsen (keeping the
+// fine-to-coarse map) → fem::DistanceOracle (all coarse pairs by fast marching with exact planar
+// updates, or by the heat method) → the queries → outputs; the reference is the fine heat method
+// from --check-sources random sources in one blocked solve, with errors per pair (near and far
+// pairs apart) and the fine all-pairs time extrapolated from that block.
+//
 // Exit codes: see app_common.h (0 ok, 1 unreadable, 2 defective/unsuitable mesh, 3 output not written,
 // 4 bad command line, 5 computation failed).
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <random>
 
 #include "app_common.h"
 #include "fem/coarse_proxy.h"
+#include "fem/distance_oracle.h"
 #include "fem/errors.h"
 #include "fem/problems.h"
 #include "ice/scalar_field_io.h"
@@ -24,6 +36,232 @@
 namespace {
 
 const std::string kTool = "geodesic-coarse";
+
+/// What the distance-oracle modes were asked for.
+struct OracleRequest {
+  bool all_pairs = false;
+  std::string pairs_path;      ///< --pairs: two vertex indices per pair
+  long long sample_count = 0;  ///< --sample K
+  long long first_sample = 0;
+  std::string matrix_path;     ///< --matrix (.npy or .mtx)
+  std::string pairs_output;    ///< --pairs-out (.csv)
+  fem::CoarseDistanceMethod method = fem::CoarseDistanceMethod::marching;
+  int check_sources = 16;
+  bool active() const { return all_pairs || !pairs_path.empty() || sample_count > 0; }
+  std::string mode() const { return all_pairs ? "all_pairs" : !pairs_path.empty() ? "pairs" : "sample"; }
+};
+
+/// Largest fine mesh whose full distance matrix --all-pairs --matrix writes (65,536² floats = 16 GiB).
+constexpr long long kMaxAllPairsMatrixVertices = 65536;
+
+double quantile(std::vector<double> values, double q) {
+  if (values.empty()) return 0;
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
+nlohmann::json error_stats(const std::vector<double>& errors) {
+  if (errors.empty()) return {{"pairs", 0}};
+  double sum = 0;
+  for (double e : errors) sum += e;
+  return {{"pairs", errors.size()},
+          {"mean_rel", sum / static_cast<double>(errors.size())},
+          {"p95_rel", quantile(errors, 0.95)},
+          {"max_rel", *std::max_element(errors.begin(), errors.end())}};
+}
+
+int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
+  using app::AppError;
+  if (opt.target.method == ice::CoarseningMethod::qem && opt.qem_geometry == ice::QemGeometry::intrinsic_delaunay)
+    throw AppError(app::kUsage, "--qem-operators idt has no fine-to-coarse map onto its coarse mesh; use extrinsic");
+  if (!request.matrix_path.empty()) app::check_output(request.matrix_path, opt.force, "--matrix");
+  if (!request.pairs_output.empty()) app::check_output(request.pairs_output, opt.force, "--pairs-out");
+  app::PdeRun run = app::PdeRun::start(kTool, opt, false);
+
+  // ---- load
+  app::Stopwatch clock;
+  const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+  const ice::TriangleMesh& mesh = loaded.mesh;
+  const long long n = mesh.V.rows();
+  app::require_connected(loaded, opt.mesh, kTool);
+  std::vector<std::array<ice::Index, 2>> pairs;
+  std::vector<std::array<long long, 2>> file_pairs;
+  if (!request.pairs_path.empty()) {
+    const std::vector<double> numbers = app::read_number_file(request.pairs_path);
+    if (numbers.size() % 2 != 0)
+      throw AppError(app::kUnreadable, request.pairs_path + ": an odd count of numbers (" + std::to_string(numbers.size()) +
+                                           "); expected two vertex indices per pair");
+    for (std::size_t i = 0; i < numbers.size(); i += 2) {
+      std::array<long long, 2> file_pair{};
+      std::array<ice::Index, 2> pair{};
+      for (int k = 0; k < 2; ++k) {
+        const double value = numbers[i + static_cast<std::size_t>(k)];
+        if (value != std::floor(value))
+          throw AppError(app::kUnreadable, request.pairs_path + ": pair " + std::to_string(i / 2 + 1) +
+                                               " has a non-integer vertex index");
+        file_pair[static_cast<std::size_t>(k)] = static_cast<long long>(value);
+        pair[static_cast<std::size_t>(k)] = app::mesh_vertex_of_file_vertex(
+            loaded, file_pair[static_cast<std::size_t>(k)], request.pairs_path + ": pair " + std::to_string(i / 2 + 1) + ": vertex");
+      }
+      file_pairs.push_back(file_pair);
+      pairs.push_back(pair);
+    }
+  }
+  ice::Index first_sample = 0;
+  if (request.sample_count > 0) {
+    if (request.sample_count > n)
+      throw AppError(app::kUsage, "--sample " + std::to_string(request.sample_count) + " exceeds the " +
+                                      std::to_string(n) + " vertices of the mesh");
+    first_sample = app::mesh_vertex_of_file_vertex(loaded, request.first_sample, "--first-sample: vertex");
+  }
+  if (request.all_pairs && !request.matrix_path.empty() && n > kMaxAllPairsMatrixVertices)
+    throw AppError(app::kUsage, "--all-pairs --matrix: the " + std::to_string(n) + "x" + std::to_string(n) +
+                                    " matrix would need " + std::to_string(n * n * 4 / (1LL << 30)) +
+                                    " GiB; query pairs (--pairs) or samples (--sample) instead");
+  ice::CoarsenOptions coarsen_options;
+  opt.target.apply(coarsen_options, n);
+  run.fine_vertices = n;
+  run.fine_faces = mesh.F.rows();
+  run.load = clock.lap();
+
+  // ---- coarsen (keeping the map), then the oracle
+  const ice::CoarseSpace space = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true);
+  const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+  run.coarsen = clock.lap();
+  fem::DistanceOracleOptions oracle_options;
+  oracle_options.method = request.method;
+  const fem::DistanceOracle oracle(space.mesh.F, space.mesh.L, map, oracle_options);
+  const double oracle_seconds = clock.lap();
+
+  // ---- the queries
+  nlohmann::json timings = {{"load", run.load}, {"coarsen", run.coarsen}, {"oracle", oracle_seconds}};
+  nlohmann::json report = app::report_header(kTool, opt.mesh);
+  report["mode"] = request.mode();
+  std::vector<ice::Index> samples;
+  if (request.all_pairs && !request.matrix_path.empty()) {
+    ice::NpyMatrixWriter writer(request.matrix_path, n, n, opt.force);
+    std::vector<ice::Index> all(static_cast<std::size_t>(n));
+    for (ice::Index v = 0; v < n; ++v) all[static_cast<std::size_t>(v)] = v;
+    constexpr ice::Index kRowsPerBlock = 256;
+    for (ice::Index first = 0; first < n; first += kRowsPerBlock) {
+      const std::vector<ice::Index> rows(all.begin() + first, all.begin() + std::min<long long>(first + kRowsPerBlock, n));
+      writer.write_rows(oracle.distance_matrix(rows, all));
+    }
+    writer.close();
+    timings["matrix"] = clock.lap();
+  }
+  Eigen::VectorXd pair_distances;
+  if (!pairs.empty() || !request.pairs_path.empty()) {
+    pair_distances = oracle.distances(pairs);
+    const double seconds = clock.lap();
+    timings["queries"] = seconds;
+    report["queries"] = {{"pairs", pairs.size()}, {"seconds", seconds},
+                         {"per_second", seconds > 0 ? static_cast<double>(pairs.size()) / seconds : 0.0}};
+    if (!request.pairs_output.empty()) {
+      std::ofstream out(request.pairs_output);
+      out.precision(9);
+      out << "u,v,distance\n";
+      for (std::size_t i = 0; i < pairs.size(); ++i)
+        out << file_pairs[i][0] << ',' << file_pairs[i][1] << ',' << pair_distances(static_cast<Eigen::Index>(i)) << '\n';
+      out.flush();
+      if (!out) throw AppError(app::kNotWritten, request.pairs_output + ": write failed");
+      timings["write"] = clock.lap();
+    }
+  }
+  if (request.sample_count > 0) {
+    samples = oracle.farthest_point_samples(static_cast<ice::Index>(request.sample_count), first_sample);
+    timings["sampling"] = clock.lap();
+    const Eigen::MatrixXf matrix = oracle.distance_matrix(samples, samples);
+    timings["matrix"] = clock.lap();
+    if (!request.matrix_path.empty()) ice::write_dense_matrix(request.matrix_path, matrix, opt.force);
+    timings["write"] = clock.lap();
+    std::vector<long long> file_samples;
+    for (ice::Index v : samples) file_samples.push_back(loaded.source_vertex.empty() ? v : loaded.source_vertex[static_cast<std::size_t>(v)]);
+    report["samples"] = file_samples;
+    report["sample_matrix"] = {{"size", samples.size()}, {"max_distance", matrix.maxCoeff()}};
+  }
+
+  // ---- reference: the fine heat method from random sources, in one blocked solve
+  nlohmann::json accuracy, speedup;
+  if (!opt.no_reference) {
+    const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
+    run.fine_mesh = clock.lap();
+    fem::HeatMethodOperators fine_ops = fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n);
+    run.ref_assemble = clock.lap();
+    const fem::HeatGeodesicSolver fine_solver(std::move(fine_ops));
+    run.ref_factor = clock.lap();
+    std::mt19937 rng(1);
+    std::uniform_int_distribution<ice::Index> vertex(0, static_cast<ice::Index>(n - 1));
+    std::vector<ice::Index> sources;
+    for (int i = 0; i < request.check_sources; ++i) sources.push_back(vertex(rng));
+    const Eigen::MatrixXd reference = fine_solver.distances_from_each(sources);
+    run.ref_solve = clock.lap();
+    std::vector<double> near, far;
+    for (std::size_t s = 0; s < sources.size(); ++s) {
+      const Eigen::VectorXd d = oracle.distances_from(sources[s]);
+      for (Eigen::Index v = 0; v < n; ++v) {
+        const double r = reference(v, static_cast<Eigen::Index>(s));
+        if (v == sources[s] || !(r > 0)) continue;
+        (oracle.is_near(sources[s], static_cast<ice::Index>(v)) ? near : far).push_back(std::abs(d(v) - r) / r);
+      }
+    }
+    std::vector<double> all = far;
+    all.insert(all.end(), near.begin(), near.end());
+    accuracy = {{"reference", "fine heat method (same t rule), per pair |d - d_ref| / d_ref"},
+                {"sources", sources.size()},
+                {"all", error_stats(all)},
+                {"far", error_stats(far)},
+                {"near", error_stats(near)}};
+    // Fine all-pairs by the heat method with one factorisation and blocked solves, extrapolated from
+    // the block of check sources.
+    const double fine_all_pairs =
+        run.ref_assemble + run.ref_factor + run.ref_solve * static_cast<double>(n) / static_cast<double>(sources.size());
+    speedup = {{"fine_all_pairs_estimate_s", fine_all_pairs},
+               {"vs_fine_all_pairs", fine_all_pairs / oracle_seconds},
+               {"vs_fine_all_pairs_with_coarsening", fine_all_pairs / (oracle_seconds + run.coarsen)}};
+    timings["fine_mesh"] = run.fine_mesh;
+    timings["reference"] = {{"assemble", run.ref_assemble}, {"factor", run.ref_factor}, {"solve", run.ref_solve}};
+  }
+
+  report["method"] = app::cli_name(space.summary.method);
+  if (!space.summary.qem) report["metric"] = {{"area_weight", opt.target.area_weight}, {"normalize_curvature", opt.target.normalize_curvature}};
+  report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
+  report["coarse"] = app::coarsen_json(space.summary);
+  report["oracle"] = {{"coarse_distances", fem::to_string(request.method)},
+                      {"coarse_vertices", oracle.coarse_size()},
+                      {"memory_bytes", oracle.memory_bytes()},
+                      {"coarse_distances_s", oracle.times().coarse_distances}};
+  report["timings_s"] = timings;
+  if (!accuracy.is_null()) report["accuracy"] = accuracy;
+  if (!speedup.is_null()) report["speedup"] = speedup;
+  report["peak_rss_mb"] = app::peak_rss_mb();
+  if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
+
+  std::cout << kTool << ": " << app::thousands(n) << " vertices -> " << app::thousands(oracle.coarse_size())
+            << " coarse vertices (" << app::cli_name(space.summary.method) << "); distance oracle ("
+            << fem::to_string(request.method) << ") in " << app::fixed(oracle_seconds, 3) << " s, "
+            << app::fixed(static_cast<double>(oracle.memory_bytes()) / (1 << 20), 1) << " MiB; coarsening "
+            << app::fixed(run.coarsen, 3) << " s\n";
+  if (report.contains("queries"))
+    std::cout << "  " << app::thousands(static_cast<long long>(pairs.size())) << " pairs answered in "
+              << app::fixed(report["queries"]["seconds"], 4) << " s\n";
+  if (!samples.empty())
+    std::cout << "  " << samples.size() << " farthest-point samples in " << app::fixed(timings["sampling"], 3)
+              << " s, their distance matrix in " << app::fixed(timings["matrix"], 4) << " s\n";
+  if (!accuracy.is_null())
+    std::cout << "  error vs the fine heat method (" << request.check_sources << " sources, every vertex): mean "
+              << app::percent(accuracy["all"]["mean_rel"]) << ", 95th percentile " << app::percent(accuracy["all"]["p95_rel"])
+              << "; far pairs " << app::percent(accuracy["far"].value("mean_rel", 0.0)) << ", near pairs (sharing a coarse vertex) "
+              << app::percent(accuracy["near"].value("mean_rel", 0.0)) << "\n  fine heat-method all-pairs (one factorisation, blocked solves) ~"
+              << app::fixed(speedup["fine_all_pairs_estimate_s"], 1) << " s: the oracle is "
+              << app::fixed(speedup["vs_fine_all_pairs"], 0) << "x faster, "
+              << app::fixed(speedup["vs_fine_all_pairs_with_coarsening"], 0) << "x counting the coarsening\n";
+  if (!request.matrix_path.empty()) std::cout << "  wrote " << request.matrix_path << '\n';
+  if (!request.pairs_output.empty()) std::cout << "  wrote " << request.pairs_output << '\n';
+  if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
+  return app::kOk;
+}
 
 }  // namespace
 
@@ -38,15 +276,56 @@ int main(int argc, char** argv) {
       "4 bad command line (e.g. source out of range), 5 computation failed."};
   app::PdeOptions opt;
   std::string sources_text;
+  OracleRequest oracle;
   cli.add_option("--source,-s", sources_text,
                  "Source vertex or vertices, 0-based indices in the input file, comma separated (e.g. 0,1500); "
-                 "the distance is to the nearest of them")
-      ->required();
+                 "the distance is to the nearest of them");
+  cli.add_flag("--all-pairs", oracle.all_pairs,
+               "Distance oracle: precompute all coarse pairs so that every pair of input vertices is answerable; "
+               "with --matrix write the full n x n matrix (.npy)");
+  cli.add_option("--pairs", oracle.pairs_path,
+                 "Distance oracle: answer the pairs in FILE (two 0-based vertex indices per pair, whitespace or "
+                 "commas, '#' comments); --pairs-out writes them");
+  cli.add_option("--sample", oracle.sample_count,
+                 "Distance oracle: K farthest-point samples and their K x K distance matrix (--matrix)")
+      ->check(app::integer_between(1, 1LL << 31));
+  cli.add_option("--first-sample", oracle.first_sample, "With --sample: the first sample's vertex")->capture_default_str();
+  cli.add_option("--matrix", oracle.matrix_path,
+                 "With --all-pairs or --sample: write the distance matrix (.npy float32, or .mtx Matrix Market; "
+                 "--all-pairs: .npy only)");
+  cli.add_option("--pairs-out", oracle.pairs_output, "With --pairs: write u,v,distance per pair (.csv)");
+  app::add_choice(cli, "--coarse-distances", oracle.method,
+                  {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}},
+                  "Distance oracle: all coarse pairs by fast marching with exact planar updates (more accurate, "
+                  "measured) or by the heat method");
+  cli.add_option("--check-sources", oracle.check_sources,
+                 "Distance oracle: random sources of the fine heat-method reference (errors, speed-up)")
+      ->check(app::integer_between(1, 100000))
+      ->capture_default_str();
   opt.target.use_defaults_for(ice::ProxyUse::geodesic);  // the metric measured best for geodesics
   opt.add_to(cli, "'distance' (prolonged), 'reference' and 'error' (= distance - reference)");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
-  return app::run_tool(kTool, [&] {
+  return app::run_tool(kTool, [&]() -> int {
+    const int modes = (sources_text.empty() ? 0 : 1) + (oracle.all_pairs ? 1 : 0) + (oracle.pairs_path.empty() ? 0 : 1) +
+                      (oracle.sample_count > 0 ? 1 : 0);
+    if (modes != 1)
+      throw app::AppError(app::kUsage, "give exactly one of --source, --all-pairs, --pairs FILE and --sample K");
+    if (!oracle.matrix_path.empty() && !oracle.all_pairs && oracle.sample_count == 0)
+      throw app::AppError(app::kUsage, "--matrix goes with --all-pairs or --sample");
+    if (oracle.all_pairs && !oracle.matrix_path.empty() && std::filesystem::path(oracle.matrix_path).extension() != ".npy")
+      throw app::AppError(app::kUsage, "--all-pairs --matrix writes .npy only (the matrix is written in row blocks)");
+    if (!oracle.matrix_path.empty() && std::filesystem::path(oracle.matrix_path).extension() != ".npy" &&
+        std::filesystem::path(oracle.matrix_path).extension() != ".mtx")
+      throw app::AppError(app::kUsage, "--matrix: use a .npy or .mtx file name");
+    if (!oracle.pairs_output.empty() && oracle.pairs_path.empty())
+      throw app::AppError(app::kUsage, "--pairs-out goes with --pairs");
+    if (oracle.active() && !opt.output.empty())
+      throw app::AppError(app::kUsage, "--output writes a distance field (--source); the oracle modes write --matrix or --pairs-out");
+    if (oracle.active()) {
+      opt.check_outputs();
+      return run_oracle(opt, oracle);
+    }
     opt.check_outputs();
     const std::vector<long long> file_sources = app::parse_index_list(sources_text, "--source");
     app::PdeRun run = app::PdeRun::start(kTool, opt, opt.operators == fem::CoarseOperatorKind::galerkin);

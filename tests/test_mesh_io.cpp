@@ -15,6 +15,7 @@
 #include "ice/mesh_generators.h"
 #include "test_support.h"
 #include "ice/mesh_io.h"
+#include "ice/scalar_field_io.h"
 
 namespace fs = std::filesystem;
 
@@ -323,4 +324,60 @@ TEST_CASE("OFF: binary in either byte order; unknown keywords refused by name, n
   require_mesh_error([&] { ice::read_mesh_file(homogeneous); }, Kind::Unreadable, homogeneous, "not supported");
   const std::string no_extension = dir.write("mesh", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   require_mesh_error([&] { ice::read_mesh_file(no_extension); }, Kind::Unreadable, no_extension, "no file extension");
+}
+
+TEST_CASE("dense matrices round-trip through .npy and .mtx; incomplete or existing files are not left",
+          "[io][matrix]") {
+  ice_test::TempDir dir;
+  Eigen::MatrixXf m(3, 4);
+  m << 0.0f, 1.5f, -2.25f, 1e-7f, 3.0f, 4.0f, 5.0f, 6.125f, 7.0f, 8.0f, 9.0f, 1e6f;
+
+  const std::string npy = dir.file("m.npy");
+  ice::write_dense_matrix(npy, m, false);
+  std::ifstream in(npy, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  REQUIRE(bytes.size() >= 10);
+  CHECK(bytes.compare(0, 8, std::string("\x93NUMPY\x01\x00", 8)) == 0);
+  const std::size_t header_length = static_cast<unsigned char>(bytes[8]) + 256u * static_cast<unsigned char>(bytes[9]);
+  CHECK((10 + header_length) % 64 == 0);  // data aligned, as the format asks
+  const std::string header = bytes.substr(10, header_length);
+  CHECK(header.find("'descr': '<f4'") != std::string::npos);
+  CHECK(header.find("'fortran_order': False") != std::string::npos);
+  CHECK(header.find("'shape': (3, 4)") != std::string::npos);
+  REQUIRE(bytes.size() == 10 + header_length + 12 * sizeof(float));
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) {
+      float value;
+      std::memcpy(&value, bytes.data() + 10 + header_length + sizeof(float) * static_cast<std::size_t>(4 * r + c), sizeof(float));
+      CHECK(value == m(r, c));  // C order, exact
+    }
+  CHECK_THROWS_AS(ice::write_dense_matrix(npy, m, false), ice::MeshError);  // exists
+  ice::write_dense_matrix(npy, m, true);
+
+  const std::string mtx = dir.file("m.mtx");
+  ice::write_dense_matrix(mtx, m, false);
+  std::ifstream text(mtx);
+  std::string banner;
+  std::getline(text, banner);
+  CHECK(banner == "%%MatrixMarket matrix array real general");
+  long rows = 0, cols = 0;
+  text >> rows >> cols;
+  CHECK(rows == 3);
+  CHECK(cols == 4);
+  for (int c = 0; c < 4; ++c)  // column-major, as Matrix Market's array format prescribes
+    for (int r = 0; r < 3; ++r) {
+      double value = 0;
+      text >> value;
+      CHECK(static_cast<float>(value) == m(r, c));  // 9 significant digits round-trip a float
+    }
+  CHECK_THROWS_AS(ice::write_dense_matrix(dir.file("m.csv"), m, false), ice::MeshError);
+
+  // A writer destroyed before all rows were written removes its file.
+  const std::string partial = dir.file("partial.npy");
+  {
+    ice::NpyMatrixWriter writer(partial, 3, 4, false);
+    writer.write_rows(m.topRows(1));
+    CHECK_THROWS_AS(writer.close(), ice::MeshError);
+  }
+  CHECK_FALSE(std::filesystem::exists(partial));
 }

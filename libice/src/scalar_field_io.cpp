@@ -95,4 +95,78 @@ void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, co
   }
 }
 
+// ---- dense matrices --------------------------------------------------------------------------------
+
+NpyMatrixWriter::NpyMatrixWriter(const std::string& path, Eigen::Index rows, Eigen::Index cols, bool overwrite)
+    : path_(path), rows_(rows), cols_(cols) {
+  if (rows < 0 || cols < 0) throw MeshError(MeshError::Kind::Unwritable, path, "negative matrix size");
+  require_writable(path, overwrite);
+  out_.open(path, std::ios::binary);
+  if (!out_) throw MeshError(MeshError::Kind::Unwritable, path, "cannot create the file");
+  // Magic, version 1.0, header length (little-endian uint16), then the header dictionary padded
+  // with spaces and a newline so that the data starts on a multiple of 64 bytes.
+  std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(rows) + ", " +
+                       std::to_string(cols) + "), }";
+  const std::size_t unpadded = 10 + header.size() + 1;
+  header.append((64 - unpadded % 64) % 64, ' ');
+  header.push_back('\n');
+  const auto length = static_cast<std::uint16_t>(header.size());
+  out_.write("\x93NUMPY\x01\x00", 8);
+  const char length_bytes[2] = {static_cast<char>(length & 0xff), static_cast<char>(length >> 8)};
+  out_.write(length_bytes, 2);
+  out_.write(header.data(), static_cast<std::streamsize>(header.size()));
+}
+
+NpyMatrixWriter::~NpyMatrixWriter() {
+  if (!closed_) {
+    out_.close();
+    std::error_code ec;
+    fs::remove(path_, ec);
+  }
+}
+
+void NpyMatrixWriter::write_rows(const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& block) {
+  if (block.cols() != cols_ || written_ + block.rows() > rows_)
+    throw MeshError(MeshError::Kind::Unwritable, path_, "rows beyond the declared matrix shape");
+  out_.write(reinterpret_cast<const char*>(block.data()), static_cast<std::streamsize>(block.size() * sizeof(float)));
+  if (!out_) throw MeshError(MeshError::Kind::Unwritable, path_, "write failed (disk full?)");
+  written_ += block.rows();
+}
+
+void NpyMatrixWriter::close() {
+  if (written_ != rows_)
+    throw MeshError(MeshError::Kind::Unwritable, path_,
+                    std::to_string(written_) + " of " + std::to_string(rows_) + " rows written");
+  out_.flush();
+  if (!out_) throw MeshError(MeshError::Kind::Unwritable, path_, "write failed (disk full?)");
+  out_.close();
+  closed_ = true;
+}
+
+void write_dense_matrix(const std::string& path, const Eigen::MatrixXf& matrix, bool overwrite) {
+  const std::string extension = fs::path(path).extension().string();
+  if (extension == ".npy") {
+    NpyMatrixWriter writer(path, matrix.rows(), matrix.cols(), overwrite);
+    writer.write_rows(matrix);
+    writer.close();
+    return;
+  }
+  if (extension != ".mtx")
+    throw MeshError(MeshError::Kind::Unwritable, path, "unknown matrix format (use .npy or .mtx)");
+  require_writable(path, overwrite);
+  std::ofstream out(path);
+  if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "cannot create the file");
+  out << "%%MatrixMarket matrix array real general\n" << matrix.rows() << ' ' << matrix.cols() << '\n';
+  out.precision(9);
+  for (Eigen::Index c = 0; c < matrix.cols(); ++c)
+    for (Eigen::Index r = 0; r < matrix.rows(); ++r) out << matrix(r, c) << '\n';
+  out.flush();
+  if (!out) {
+    out.close();
+    std::error_code ec;
+    fs::remove(path, ec);
+    throw MeshError(MeshError::Kind::Unwritable, path, "write failed (disk full?)");
+  }
+}
+
 }  // namespace ice

@@ -8,6 +8,7 @@
 /// per field in the given order; `element face m` with `property list uchar int vertex_indices`.
 /// Binary little endian by default (exact doubles, compact); ASCII on request (17 significant digits,
 /// so doubles still round-trip). The writer never replaces an existing file unless asked to.
+#include <fstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -35,5 +36,38 @@ struct ScalarFieldWriteOptions {
 /// of range, or the file cannot be written (a partially written file is removed).
 void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields,
                            const ScalarFieldWriteOptions& options = {});
+
+// ---- dense matrices (distance matrices of fem::DistanceOracle) ---------------------------------------
+
+/// Writes a float32 matrix row by row as a NumPy `.npy` file (format 1.0, '<f4', C order; numpy.load
+/// reads it, also memory-mapped), so that matrices larger than memory can be written in blocks.
+/// Never replaces an existing file unless asked; a file left incomplete (close() not reached, or a
+/// write failed) is removed.
+class NpyMatrixWriter {
+ public:
+  /// Throws MeshError (Unwritable, naming the path) if the file exists and !overwrite, or cannot be
+  /// created.
+  NpyMatrixWriter(const std::string& path, Eigen::Index rows, Eigen::Index cols, bool overwrite);
+  ~NpyMatrixWriter();
+  NpyMatrixWriter(const NpyMatrixWriter&) = delete;
+  NpyMatrixWriter& operator=(const NpyMatrixWriter&) = delete;
+  /// Appends the rows of `block` (block.cols() == cols). Throws MeshError past the declared rows or
+  /// on a failed write.
+  void write_rows(const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& block);
+  /// Checks every declared row was written and closes the file (throws MeshError otherwise).
+  void close();
+
+ private:
+  std::string path_;
+  Eigen::Index rows_, cols_, written_ = 0;
+  std::ofstream out_;
+  bool closed_ = false;
+};
+
+/// Writes `matrix` by the extension of `path`: `.npy` (float32, NpyMatrixWriter) or `.mtx` (Matrix
+/// Market "array real general", column-major as the format prescribes, 9 significant digits: float
+/// precision round-trips). Throws MeshError (Unwritable) on another extension, an existing file
+/// without overwrite, or a failed write.
+void write_dense_matrix(const std::string& path, const Eigen::MatrixXf& matrix, bool overwrite);
 
 }  // namespace ice
