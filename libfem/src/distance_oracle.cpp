@@ -26,12 +26,11 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 }
 
 /// Fast marching with exact planar updates on an intrinsic mesh (see the header). One instance per
-/// thread: the flattened layout of every (face, corner) is computed once, the front and values are
-/// per run.
+/// thread: what the marching reads around each vertex is laid out once, contiguously, in the order
+/// it is read; the front and values are per run.
 class CoarseMarcher {
  public:
   CoarseMarcher(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) : vertex_count_(vertex_count) {
-    // Corners around each vertex (CSR), and each face seen from each of its corners.
     corner_start_.assign(static_cast<std::size_t>(vertex_count) + 1, 0);
     for (Eigen::Index f = 0; f < F.rows(); ++f)
       for (int k = 0; k < 3; ++k) ++corner_start_[static_cast<std::size_t>(F(f, k)) + 1];
@@ -39,22 +38,18 @@ class CoarseMarcher {
     corners_.resize(static_cast<std::size_t>(corner_start_.back()));
     std::vector<Index> next(corner_start_.begin(), corner_start_.end() - 1);
     for (Eigen::Index f = 0; f < F.rows(); ++f)
-      for (int k = 0; k < 3; ++k)
-        corners_[static_cast<std::size_t>(next[static_cast<std::size_t>(F(f, k))]++)] = static_cast<Index>(3 * f + k);
-    updates_.resize(static_cast<std::size_t>(3 * F.rows()));
-    for (Eigen::Index f = 0; f < F.rows(); ++f)
       for (int k = 0; k < 3; ++k) {
-        // Corner v = k, a = k+1, b = k+2: a at the origin, b on the positive x axis, v above.
-        Update& u = updates_[static_cast<std::size_t>(3 * f + k)];
-        u.v = F(f, k);
-        u.a = F(f, (k + 1) % 3);
-        u.b = F(f, (k + 2) % 3);
-        u.to_a = L(f, k);
-        u.base = L(f, (k + 1) % 3);
-        u.to_b = L(f, (k + 2) % 3);
-        u.half_inverse_base = 0.5 / u.base;
-        u.vx = (u.to_a * u.to_a - u.to_b * u.to_b + u.base * u.base) * u.half_inverse_base;
-        u.vy = std::sqrt(std::max(0.0, u.to_a * u.to_a - u.vx * u.vx));
+        // Corner k of face f at vertex u; "first" is corner k+1, "second" corner k+2.
+        Corner& corner = corners_[static_cast<std::size_t>(next[static_cast<std::size_t>(F(f, k))]++)];
+        corner.first = F(f, (k + 1) % 3);
+        corner.second = F(f, (k + 2) % 3);
+        const double to_first = L(f, k), across = L(f, (k + 1) % 3), to_second = L(f, (k + 2) % 3);
+        corner.to_first = static_cast<float>(to_first);
+        corner.to_second = static_cast<float>(to_second);
+        corner.across = static_cast<float>(across);
+        // first through the face from (second, u); second from (u, first).
+        corner.first_layout = layout(across, to_second, to_first);
+        corner.second_layout = layout(to_second, to_first, across);
       }
   }
 
@@ -67,104 +62,125 @@ class CoarseMarcher {
     distance[static_cast<std::size_t>(source)] = 0;
     lower(source, distance);
     while (!front_.empty()) {
-      const Index u = pop(distance);
+      const Index u = pop();
       const double value = distance[static_cast<std::size_t>(u)];
       accepted_[static_cast<std::size_t>(u)] = 1;
+      // Through a face once both its other corners are accepted (u is the second of them); before
+      // that along the edge from u only (the face's turn comes when its other corner is accepted).
       for (Index c = corner_start_[static_cast<std::size_t>(u)]; c < corner_start_[static_cast<std::size_t>(u) + 1]; ++c) {
-        const Index corner = corners_[static_cast<std::size_t>(c)];
-        const Index face_start = corner - corner % 3;
-        for (int step = 1; step <= 2; ++step) {
-          const Update& update = updates_[static_cast<std::size_t>(face_start + (corner % 3 + step) % 3)];
-          if (accepted_[static_cast<std::size_t>(update.v)]) continue;
-          // Through the face once both other corners are accepted (u is one of them); before that
-          // along the edge from u only (the face's turn comes when its other corner is accepted).
-          const Index other = update.a == u ? update.b : update.a;
-          const double candidate = accepted_[static_cast<std::size_t>(other)]
-                                       ? value_through(update, distance)
-                                       : value + (update.a == u ? update.to_a : update.to_b);
-          if (candidate < distance[static_cast<std::size_t>(update.v)]) {
-            distance[static_cast<std::size_t>(update.v)] = candidate;
-            lower(update.v, distance);
-          }
-        }
+        const Corner& corner = corners_[static_cast<std::size_t>(c)];
+        const bool first_accepted = accepted_[static_cast<std::size_t>(corner.first)] != 0;
+        const bool second_accepted = accepted_[static_cast<std::size_t>(corner.second)] != 0;
+        if (!first_accepted)
+          relax(corner.first,
+                second_accepted ? value_through(distance[static_cast<std::size_t>(corner.second)], value, corner.across,
+                                                corner.to_first, corner.first_layout)
+                                : value + corner.to_first,
+                distance);
+        if (!second_accepted)
+          relax(corner.second,
+                first_accepted ? value_through(value, distance[static_cast<std::size_t>(corner.first)], corner.to_second,
+                                               corner.across, corner.second_layout)
+                               : value + corner.to_second,
+                distance);
       }
     }
   }
 
  private:
-  /// Corner v of a face and its layout: a = (0, 0), b = (base, 0), v = (vx, vy) with vy > 0 unless
-  /// the face is degenerate.
-  struct Update {
-    Index v, a, b;
-    double to_a, to_b, base, half_inverse_base, vx, vy;
+  /// A face flattened for the update of its vertex v from its other corners a, b: a = (0, 0),
+  /// b = (base, 0), v = (vx, vy), vy > 0 unless the face is degenerate. Floats: the geometry is
+  /// read for every update and the values stay double.
+  struct Layout {
+    float base, half_inverse_base, vx, vy;
   };
-  // The front: a binary min-heap of vertices keyed by their current distance, each vertex at most
-  // once (position_ = its slot, or -1), so a lowered value moves it up instead of adding an entry.
-  void place(std::size_t slot, Index v) {
-    front_[slot] = v;
-    position_[static_cast<std::size_t>(v)] = static_cast<Index>(slot);
+  static Layout layout(double to_a, double base, double to_b) {
+    const double vx = (to_a * to_a - to_b * to_b + base * base) / (2 * base);
+    return {static_cast<float>(base), static_cast<float>(0.5 / base), static_cast<float>(vx),
+            static_cast<float>(std::sqrt(std::max(0.0, to_a * to_a - vx * vx)))};
+  }
+  /// One corner of a face at vertex u, as the marching reads it when u is accepted: the face's
+  /// other two vertices, its three lengths, and its layouts for updating either of them.
+  struct Corner {
+    Index first, second;
+    float to_first, to_second, across;
+    Layout first_layout, second_layout;
+  };
+  void relax(Index v, double candidate, std::vector<double>& distance) {
+    if (candidate < distance[static_cast<std::size_t>(v)]) {
+      distance[static_cast<std::size_t>(v)] = candidate;
+      lower(v, distance);
+    }
+  }
+  // The value of v through its face from corners a, b at distances da, db (|v a| = to_a, |v b| = to_b).
+  static double value_through(double da, double db, double to_a, double to_b, const Layout& layout) {
+    const double along_edge = std::min(da + to_a, db + to_b);
+    if (!(da < kInfinity && db < kInfinity) || !(layout.vy > 0)) return along_edge;
+    const double base = layout.base, vx = layout.vx, vy = layout.vy;
+    // The virtual source s below ab with |s a| = da, |s b| = db (two circles); the straight line
+    // from s to v must cross ab between a and b: 0 <= sx + (−sy)(vx − sx)/(vy − sy) <= base.
+    const double sx = (da * da - db * db + base * base) * layout.half_inverse_base;
+    const double sy2 = da * da - sx * sx;
+    if (sy2 < 0) return along_edge;  // da, db not consistent with one source (|da − db| > base)
+    const double sy = -std::sqrt(sy2);
+    const double rise = vy - sy;  // > 0
+    const double crossing_times_rise = sx * rise - sy * (vx - sx);
+    if (crossing_times_rise < 0 || crossing_times_rise > base * rise) return along_edge;
+    const double dx = vx - sx;
+    return std::min(along_edge, std::sqrt(dx * dx + rise * rise));
+  }
+  // The front: a binary min-heap of (distance, vertex), each vertex at most once (position_ = its
+  // slot, or -1), so a lowered value moves it up instead of adding an entry.
+  struct Entry {
+    double key;
+    Index vertex;
+  };
+  void place(std::size_t slot, Entry entry) {
+    front_[slot] = entry;
+    position_[static_cast<std::size_t>(entry.vertex)] = static_cast<Index>(slot);
   }
   void lower(Index v, const std::vector<double>& distance) {
     std::size_t slot;
     if (position_[static_cast<std::size_t>(v)] < 0) {
       slot = front_.size();
-      front_.push_back(v);
+      front_.push_back({});
     } else {
       slot = static_cast<std::size_t>(position_[static_cast<std::size_t>(v)]);
     }
-    const double key = distance[static_cast<std::size_t>(v)];
+    const Entry entry{distance[static_cast<std::size_t>(v)], v};
     while (slot > 0) {
       const std::size_t parent = (slot - 1) / 2;
-      if (!(key < distance[static_cast<std::size_t>(front_[parent])])) break;
+      if (!(entry.key < front_[parent].key)) break;
       place(slot, front_[parent]);
       slot = parent;
     }
-    place(slot, v);
+    place(slot, entry);
   }
-  Index pop(const std::vector<double>& distance) {
-    const Index top = front_.front();
+  Index pop() {
+    const Index top = front_.front().vertex;
     position_[static_cast<std::size_t>(top)] = -1;
-    const Index last = front_.back();
+    const Entry last = front_.back();
     front_.pop_back();
     if (front_.empty()) return top;
-    const double key = distance[static_cast<std::size_t>(last)];
     std::size_t slot = 0;
     for (;;) {
       std::size_t child = 2 * slot + 1;
       if (child >= front_.size()) break;
-      if (child + 1 < front_.size() &&
-          distance[static_cast<std::size_t>(front_[child + 1])] < distance[static_cast<std::size_t>(front_[child])])
-        ++child;
-      if (!(distance[static_cast<std::size_t>(front_[child])] < key)) break;
+      if (child + 1 < front_.size() && front_[child + 1].key < front_[child].key) ++child;
+      if (!(front_[child].key < last.key)) break;
       place(slot, front_[child]);
       slot = child;
     }
     place(slot, last);
     return top;
   }
-  // The value of corner v through its face from the other two corners a, b.
-  static double value_through(const Update& u, const std::vector<double>& distance) {
-    const double da = distance[static_cast<std::size_t>(u.a)], db = distance[static_cast<std::size_t>(u.b)];
-    const double along_edge = std::min(da + u.to_a, db + u.to_b);
-    if (!(da < kInfinity && db < kInfinity) || !(u.vy > 0)) return along_edge;
-    // The virtual source s below ab with |s a| = da, |s b| = db (two circles); the straight line
-    // from s to v must cross ab between a and b: 0 <= sx + (−sy)(vx − sx)/(vy − sy) <= base.
-    const double sx = (da * da - db * db + u.base * u.base) * u.half_inverse_base;
-    const double sy2 = da * da - sx * sx;
-    if (sy2 < 0) return along_edge;  // da, db not consistent with one source (|da − db| > base)
-    const double sy = -std::sqrt(sy2);
-    const double rise = u.vy - sy;  // > 0
-    const double crossing_times_rise = sx * rise - sy * (u.vx - sx);
-    if (crossing_times_rise < 0 || crossing_times_rise > u.base * rise) return along_edge;
-    const double dx = u.vx - sx;
-    return std::min(along_edge, std::sqrt(dx * dx + rise * rise));
-  }
 
   Eigen::Index vertex_count_;
-  std::vector<Index> corner_start_, corners_;
-  std::vector<Update> updates_;
+  std::vector<Index> corner_start_;
+  std::vector<Corner> corners_;  ///< around each vertex (CSR by corner_start_)
   std::vector<char> accepted_;
-  std::vector<Index> front_, position_;
+  std::vector<Entry> front_;
+  std::vector<Index> position_;
 };
 
 void check_mesh(const Faces& F, const FaceLengths& L) {
@@ -229,12 +245,21 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
               static_cast<float>(std::max(0.0, block(b, j)));
     }
   }
-  // Symmetrise (neither method is exactly symmetric) and square, in place.
-  for (std::size_t a = 0; a < nc; ++a) {
-    distances[a * nc + a] = 0;
-    for (std::size_t b = a + 1; b < nc; ++b) {
-      const double mean = 0.5 * (static_cast<double>(distances[a * nc + b]) + distances[b * nc + a]);
-      distances[a * nc + b] = distances[b * nc + a] = static_cast<float>(mean * mean);
+  // Symmetrise (neither method is exactly symmetric) and square, in place, tile by tile: the
+  // transposed reads of a row-by-row pass miss the cache on every entry (it took longer than the
+  // marching itself at 1,000 coarse vertices).
+  constexpr std::size_t kTile = 64;
+  const auto tiles = static_cast<std::ptrdiff_t>((nc + kTile - 1) / kTile);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads())
+  for (std::ptrdiff_t tile_row = 0; tile_row < tiles; ++tile_row) {
+    const std::size_t row_begin = static_cast<std::size_t>(tile_row) * kTile, row_end = std::min(nc, row_begin + kTile);
+    for (std::size_t col_begin = row_begin; col_begin < nc; col_begin += kTile) {
+      const std::size_t col_end = std::min(nc, col_begin + kTile);
+      for (std::size_t a = row_begin; a < row_end; ++a)
+        for (std::size_t b = std::max(col_begin, a); b < col_end; ++b) {
+          const double mean = a == b ? 0.0 : 0.5 * (static_cast<double>(distances[a * nc + b]) + distances[b * nc + a]);
+          distances[a * nc + b] = distances[b * nc + a] = static_cast<float>(mean * mean);
+        }
     }
   }
   squared_distances_ = std::move(distances);
