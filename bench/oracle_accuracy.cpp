@@ -1,0 +1,129 @@
+// oracle-accuracy: the geodesic distance oracle (fem/distance_oracle.h) against exact polyhedral
+// geodesics (CGAL's Surface_mesh_shortest_path, Debian's libcgal-dev) and against the fine heat
+// method, per mesh:
+//
+//   oracle-accuracy [--coarse N] [--sources K] mesh...
+//
+// For K random source vertices: exact distances to every vertex (CGAL), fine heat-method distances
+// (one factorisation, blocked solve), and the oracle's at N coarse vertices (ICE, geodesic
+// defaults) with marching and with heat-method coarse distances. Prints one Markdown row per mesh
+// and oracle: mean and 95th-percentile of |d − d_ref| / d_ref over all pairs, far pairs and near
+// pairs (sharing a coarse vertex), against exact and against the fine heat method; and the fine
+// heat method's own error against exact. A benchmark tool: CGAL is not a dependency of the library.
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/Surface_mesh_shortest_path.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "fem/distance_oracle.h"
+#include "fem/problems.h"
+#include "ice/coarse_space.h"
+#include "ice/mesh_io.h"
+
+namespace {
+
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
+using ShortestPaths = CGAL::Surface_mesh_shortest_path<CGAL::Surface_mesh_shortest_path_traits<Kernel, SurfaceMesh>>;
+
+struct Errors {
+  std::vector<double> all, far, near;
+  void add(double error, bool is_near) {
+    all.push_back(error);
+    (is_near ? near : far).push_back(error);
+  }
+};
+
+std::string summary(std::vector<double> e) {
+  if (e.empty()) return "- / -";
+  double sum = 0;
+  for (double x : e) sum += x;
+  std::sort(e.begin(), e.end());
+  char text[64];
+  std::snprintf(text, sizeof text, "%.2f%% / %.2f%%", 100 * sum / static_cast<double>(e.size()),
+                100 * e[(e.size() - 1) * 95 / 100]);
+  return text;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int coarse = 1000, source_count = 4;
+  std::vector<std::string> meshes;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--coarse" && i + 1 < argc) coarse = std::atoi(argv[++i]);
+    else if (arg == "--sources" && i + 1 < argc) source_count = std::atoi(argv[++i]);
+    else meshes.push_back(arg);
+  }
+  if (meshes.empty() || coarse < 10 || source_count < 1) {
+    std::fprintf(stderr, "usage: oracle-accuracy [--coarse N] [--sources K] mesh...\n");
+    return 4;
+  }
+  std::printf("| mesh | vertices | coarse | oracle | vs exact: all (mean / p95) | far | near | vs fine heat: all | far | near "
+              "| fine heat vs exact |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const std::string& path : meshes) {
+    const ice::TriangleMesh mesh = ice::load_mesh(path);
+    const auto n = static_cast<ice::Index>(mesh.V.rows());
+    ice::CoarseSpaceOptions options;
+    options.coarsen = ice::recommended_coarsen_options(ice::ProxyUse::geodesic);
+    options.coarsen.target_vertices = std::min<ice::Index>(coarse, n / 5);
+    options.keep_method_state = true;
+    const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+    const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+
+    std::mt19937 rng(1);
+    std::uniform_int_distribution<ice::Index> vertex(0, n - 1);
+    std::vector<ice::Index> sources;
+    for (int s = 0; s < source_count; ++s) sources.push_back(vertex(rng));
+
+    SurfaceMesh surface;
+    std::vector<SurfaceMesh::Vertex_index> handles;
+    for (ice::Index v = 0; v < n; ++v) handles.push_back(surface.add_vertex({mesh.V(v, 0), mesh.V(v, 1), mesh.V(v, 2)}));
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+      surface.add_face(handles[mesh.F(f, 0)], handles[mesh.F(f, 1)], handles[mesh.F(f, 2)]);
+    Eigen::MatrixXd exact(n, source_count);
+    for (int s = 0; s < source_count; ++s) {
+      ShortestPaths paths(surface);
+      paths.add_source_point(handles[sources[s]]);
+      paths.build_sequence_tree();
+      for (ice::Index v = 0; v < n; ++v) exact(v, s) = paths.shortest_distance_to_source_points(handles[v]).first;
+    }
+    const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
+    const fem::HeatGeodesicSolver fine_solver(fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n));
+    const Eigen::MatrixXd heat = fine_solver.distances_from_each(sources);
+    std::vector<double> heat_vs_exact;
+    for (int s = 0; s < source_count; ++s)
+      for (ice::Index v = 0; v < n; ++v)
+        if (v != sources[s] && exact(v, s) > 0) heat_vs_exact.push_back(std::abs(heat(v, s) - exact(v, s)) / exact(v, s));
+
+    for (const fem::CoarseDistanceMethod method : {fem::CoarseDistanceMethod::marching, fem::CoarseDistanceMethod::heat_method}) {
+      fem::DistanceOracleOptions oracle_options;
+      oracle_options.method = method;
+      const fem::DistanceOracle oracle(space.mesh.F, space.mesh.L, map, oracle_options);
+      Errors vs_exact, vs_heat;
+      for (int s = 0; s < source_count; ++s) {
+        const Eigen::VectorXd d = oracle.distances_from(sources[s]);
+        for (ice::Index v = 0; v < n; ++v) {
+          if (v == sources[s]) continue;
+          const bool near = oracle.is_near(sources[s], v);
+          if (exact(v, s) > 0) vs_exact.add(std::abs(d(v) - exact(v, s)) / exact(v, s), near);
+          if (heat(v, s) > 0) vs_heat.add(std::abs(d(v) - heat(v, s)) / heat(v, s), near);
+        }
+      }
+      const std::string name = path.substr(path.find_last_of('/') + 1);
+      std::printf("| %s | %d | %ld | %s | %s | %s | %s | %s | %s | %s | %s |\n", name.c_str(), n,
+                  static_cast<long>(oracle.coarse_size()), fem::to_string(method), summary(vs_exact.all).c_str(),
+                  summary(vs_exact.far).c_str(), summary(vs_exact.near).c_str(), summary(vs_heat.all).c_str(),
+                  summary(vs_heat.far).c_str(), summary(vs_heat.near).c_str(), summary(heat_vs_exact).c_str());
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
