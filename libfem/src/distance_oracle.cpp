@@ -31,26 +31,40 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 class CoarseMarcher {
  public:
   CoarseMarcher(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) : vertex_count_(vertex_count) {
-    corner_start_.assign(static_cast<std::size_t>(vertex_count) + 1, 0);
-    for (Eigen::Index f = 0; f < F.rows(); ++f)
-      for (int k = 0; k < 3; ++k) ++corner_start_[static_cast<std::size_t>(F(f, k)) + 1];
-    for (std::size_t v = 0; v < static_cast<std::size_t>(vertex_count); ++v) corner_start_[v + 1] += corner_start_[v];
-    corners_.resize(static_cast<std::size_t>(corner_start_.back()));
-    std::vector<Index> next(corner_start_.begin(), corner_start_.end() - 1);
+    // Around each vertex u: its neighbours w (multi-edges merged: the shortest length counts), and
+    // for each, the faces (u, w, x) through which w can be updated from u and x.
+    struct Relation {
+      Index u, w, x;
+      double to_w, to_x, across;  // |u w|, |u x|, |w x|
+    };
+    std::vector<Relation> relations;
+    relations.reserve(static_cast<std::size_t>(6 * F.rows()));
     for (Eigen::Index f = 0; f < F.rows(); ++f)
       for (int k = 0; k < 3; ++k) {
-        // Corner k of face f at vertex u; "first" is corner k+1, "second" corner k+2.
-        Corner& corner = corners_[static_cast<std::size_t>(next[static_cast<std::size_t>(F(f, k))]++)];
-        corner.first = F(f, (k + 1) % 3);
-        corner.second = F(f, (k + 2) % 3);
+        // Corner k at u; "first" is corner k+1, "second" corner k+2.
+        const Index u = F(f, k), first = F(f, (k + 1) % 3), second = F(f, (k + 2) % 3);
         const double to_first = L(f, k), across = L(f, (k + 1) % 3), to_second = L(f, (k + 2) % 3);
-        corner.to_first = static_cast<float>(to_first);
-        corner.to_second = static_cast<float>(to_second);
-        corner.across = static_cast<float>(across);
-        // first through the face from (second, u); second from (u, first).
-        corner.first_layout = layout(across, to_second, to_first);
-        corner.second_layout = layout(to_second, to_first, across);
+        relations.push_back({u, first, second, to_first, to_second, across});
+        relations.push_back({u, second, first, to_second, to_first, across});
       }
+    std::sort(relations.begin(), relations.end(), [](const Relation& p, const Relation& q) {
+      return p.u != q.u ? p.u < q.u : p.w < q.w;
+    });
+    neighbour_start_.assign(static_cast<std::size_t>(vertex_count) + 1, 0);
+    for (std::size_t i = 0; i < relations.size();) {
+      std::size_t j = i;
+      Neighbour neighbour{relations[i].w, static_cast<float>(relations[i].to_w), static_cast<Index>(faces_.size())};
+      for (; j < relations.size() && relations[j].u == relations[i].u && relations[j].w == relations[i].w; ++j) {
+        const Relation& r = relations[j];
+        neighbour.length = std::min(neighbour.length, static_cast<float>(r.to_w));
+        faces_.push_back({r.x, static_cast<float>(r.to_w), static_cast<float>(r.across), layout(r.to_w, r.to_x, r.across)});
+      }
+      neighbours_.push_back(neighbour);
+      ++neighbour_start_[static_cast<std::size_t>(relations[i].u) + 1];
+      i = j;
+    }
+    for (std::size_t v = 0; v < static_cast<std::size_t>(vertex_count); ++v) neighbour_start_[v + 1] += neighbour_start_[v];
+    neighbours_.push_back({0, 0, static_cast<Index>(faces_.size())});  // sentinel: the end of the last face range
   }
 
   /// Distances from `source` to every vertex into `distance` (+∞ where unreachable).
@@ -58,31 +72,32 @@ class CoarseMarcher {
     distance.assign(static_cast<std::size_t>(vertex_count_), kInfinity);
     accepted_.assign(static_cast<std::size_t>(vertex_count_), 0);
     position_.assign(static_cast<std::size_t>(vertex_count_), -1);
-    front_.clear();
+    front_.assign(static_cast<std::size_t>(vertex_count_) + 2, kSentinel);
+    front_size_ = 0;
     distance[static_cast<std::size_t>(source)] = 0;
     lower(source, distance);
-    while (!front_.empty()) {
+    while (front_size_ > 0) {
       const Index u = pop();
       const double value = distance[static_cast<std::size_t>(u)];
       accepted_[static_cast<std::size_t>(u)] = 1;
-      // Through a face once both its other corners are accepted (u is the second of them); before
-      // that along the edge from u only (the face's turn comes when its other corner is accepted).
-      for (Index c = corner_start_[static_cast<std::size_t>(u)]; c < corner_start_[static_cast<std::size_t>(u) + 1]; ++c) {
-        const Corner& corner = corners_[static_cast<std::size_t>(c)];
-        const bool first_accepted = accepted_[static_cast<std::size_t>(corner.first)] != 0;
-        const bool second_accepted = accepted_[static_cast<std::size_t>(corner.second)] != 0;
-        if (!first_accepted)
-          relax(corner.first,
-                second_accepted ? value_through(distance[static_cast<std::size_t>(corner.second)], value, corner.across,
-                                                corner.to_first, corner.first_layout)
-                                : value + corner.to_first,
-                distance);
-        if (!second_accepted)
-          relax(corner.second,
-                first_accepted ? value_through(value, distance[static_cast<std::size_t>(corner.first)], corner.to_second,
-                                               corner.across, corner.second_layout)
-                               : value + corner.to_second,
-                distance);
+      // Each neighbour w once: along the edge, and through every face (u, w, x) whose x is accepted
+      // too (the face's turn for w comes when the second of u and x is accepted).
+      const Index end = neighbour_start_[static_cast<std::size_t>(u) + 1];
+      for (Index i = neighbour_start_[static_cast<std::size_t>(u)]; i < end; ++i) {
+        const Neighbour& neighbour = neighbours_[static_cast<std::size_t>(i)];
+        if (accepted_[static_cast<std::size_t>(neighbour.w)]) continue;
+        double candidate = value + neighbour.length;
+        const Index faces_end = neighbours_[static_cast<std::size_t>(i) + 1].faces_begin;
+        for (Index k = neighbour.faces_begin; k < faces_end; ++k) {
+          const FaceEntry& face = faces_[static_cast<std::size_t>(k)];
+          if (accepted_[static_cast<std::size_t>(face.x)])
+            candidate = std::min(candidate, value_through(value, distance[static_cast<std::size_t>(face.x)], face.to_u,
+                                                          face.to_x, face.layout));
+        }
+        if (candidate < distance[static_cast<std::size_t>(neighbour.w)]) {
+          distance[static_cast<std::size_t>(neighbour.w)] = candidate;
+          lower(neighbour.w, distance);
+        }
       }
     }
   }
@@ -99,19 +114,20 @@ class CoarseMarcher {
     return {static_cast<float>(base), static_cast<float>(0.5 / base), static_cast<float>(vx),
             static_cast<float>(std::sqrt(std::max(0.0, to_a * to_a - vx * vx)))};
   }
-  /// One corner of a face at vertex u, as the marching reads it when u is accepted: the face's
-  /// other two vertices, its three lengths, and its layouts for updating either of them.
-  struct Corner {
-    Index first, second;
-    float to_first, to_second, across;
-    Layout first_layout, second_layout;
+  /// A neighbour w of u: the edge length and where its faces start in faces_ (they end where the
+  /// next neighbour's start).
+  struct Neighbour {
+    Index w;
+    float length;
+    Index faces_begin;
   };
-  void relax(Index v, double candidate, std::vector<double>& distance) {
-    if (candidate < distance[static_cast<std::size_t>(v)]) {
-      distance[static_cast<std::size_t>(v)] = candidate;
-      lower(v, distance);
-    }
-  }
+  /// A face (u, w, x) for updating w from u and x: |w u|, |w x| and the face flattened with u at
+  /// the origin and x on the axis.
+  struct FaceEntry {
+    Index x;
+    float to_u, to_x;
+    Layout layout;
+  };
   // The value of v through its face from corners a, b at distances da, db (|v a| = to_a, |v b| = to_b).
   static double value_through(double da, double db, double to_a, double to_b, const Layout& layout) {
     const double along_edge = std::min(da + to_a, db + to_b);
@@ -129,24 +145,22 @@ class CoarseMarcher {
     const double dx = vx - sx;
     return std::min(along_edge, std::sqrt(dx * dx + rise * rise));
   }
-  // The front: a binary min-heap of (distance, vertex), each vertex at most once (position_ = its
-  // slot, or -1), so a lowered value moves it up instead of adding an entry.
+  // The front: a binary min-heap of (distance, vertex) in front_[0, front_size_), each vertex at
+  // most once (position_ = its slot, or -1), so a lowered value moves it up instead of adding an
+  // entry. The slots past the end hold +∞, so that picking the smaller child needs no bounds test.
   struct Entry {
     double key;
     Index vertex;
   };
+  static constexpr Entry kSentinel{kInfinity, ice::kInvalid};
   void place(std::size_t slot, Entry entry) {
     front_[slot] = entry;
     position_[static_cast<std::size_t>(entry.vertex)] = static_cast<Index>(slot);
   }
   void lower(Index v, const std::vector<double>& distance) {
-    std::size_t slot;
-    if (position_[static_cast<std::size_t>(v)] < 0) {
-      slot = front_.size();
-      front_.push_back({});
-    } else {
-      slot = static_cast<std::size_t>(position_[static_cast<std::size_t>(v)]);
-    }
+    std::size_t slot = position_[static_cast<std::size_t>(v)] < 0
+                           ? front_size_++
+                           : static_cast<std::size_t>(position_[static_cast<std::size_t>(v)]);
     const Entry entry{distance[static_cast<std::size_t>(v)], v};
     while (slot > 0) {
       const std::size_t parent = (slot - 1) / 2;
@@ -157,16 +171,16 @@ class CoarseMarcher {
     place(slot, entry);
   }
   Index pop() {
-    const Index top = front_.front().vertex;
+    const Index top = front_[0].vertex;
     position_[static_cast<std::size_t>(top)] = -1;
-    const Entry last = front_.back();
-    front_.pop_back();
-    if (front_.empty()) return top;
+    const Entry last = front_[--front_size_];
+    front_[front_size_] = kSentinel;
+    if (front_size_ == 0) return top;
     std::size_t slot = 0;
     for (;;) {
       std::size_t child = 2 * slot + 1;
-      if (child >= front_.size()) break;
-      if (child + 1 < front_.size() && front_[child + 1].key < front_[child].key) ++child;
+      if (child >= front_size_) break;
+      child += front_[child + 1].key < front_[child].key ? 1 : 0;
       if (!(front_[child].key < last.key)) break;
       place(slot, front_[child]);
       slot = child;
@@ -176,10 +190,12 @@ class CoarseMarcher {
   }
 
   Eigen::Index vertex_count_;
-  std::vector<Index> corner_start_;
-  std::vector<Corner> corners_;  ///< around each vertex (CSR by corner_start_)
+  std::vector<Index> neighbour_start_;  ///< CSR of neighbours_ by vertex
+  std::vector<Neighbour> neighbours_;    ///< (plus a sentinel closing the last face range)
+  std::vector<FaceEntry> faces_;
   std::vector<char> accepted_;
   std::vector<Entry> front_;
+  std::size_t front_size_ = 0;
   std::vector<Index> position_;
 };
 
