@@ -311,7 +311,7 @@ elseif(CASE STREQUAL "geodesic_oracle")
   endif()
   json(nc "${r}" oracle coarse_vertices)
   check(${nc} EQUAL 300 "oracle.coarse_vertices")
-  # Floats of the coarse pairs (4 n_c^2) + 20 bytes per fine vertex + the coarse faces and lengths.
+  # Floats of the coarse pairs (4 n_c^2) + 16 bytes per fine vertex + the coarse faces and lengths.
   json(bytes "${r}" oracle memory_bytes)
   check(${bytes} LESS 500000 "oracle.memory_bytes (4*300^2 + 32*2930 = 453,760)")
   # Measured 1.8 % mean (far 1.7 %, near 5.5 %) against the fine heat method at 300 coarse vertices.
