@@ -71,6 +71,11 @@ nlohmann::json error_stats(const std::vector<double>& errors) {
           {"max_rel", *std::max_element(errors.begin(), errors.end())}};
 }
 
+/// The mean of an error_stats object as printed: "none" without pairs.
+std::string mean_of(const nlohmann::json& stats) {
+  return stats.contains("mean_rel") ? app::percent(stats["mean_rel"]) : std::string("none");
+}
+
 int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   using app::AppError;
   if (opt.target.method == ice::CoarseningMethod::qem && opt.qem_geometry == ice::QemGeometry::intrinsic_delaunay)
@@ -254,8 +259,8 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   if (!accuracy.is_null())
     std::cout << "  error vs the fine heat method (" << request.check_sources << " sources, every vertex): mean "
               << app::percent(accuracy["all"]["mean_rel"]) << ", 95th percentile " << app::percent(accuracy["all"]["p95_rel"])
-              << "; far pairs " << app::percent(accuracy["far"].value("mean_rel", 0.0)) << ", near pairs (sharing a coarse vertex) "
-              << app::percent(accuracy["near"].value("mean_rel", 0.0)) << "\n  fine heat-method all-pairs extrapolated from this block of "
+              << "; far pairs " << mean_of(accuracy["far"]) << ", near pairs (sharing a coarse vertex) "
+              << mean_of(accuracy["near"]) << "\n  fine heat-method all-pairs extrapolated from this block of "
               << sources_count << " sources ~"
               << app::fixed(speedup["fine_all_pairs_estimate_s"], 1) << " s: the oracle is "
               << app::fixed(speedup["vs_fine_all_pairs"], 0) << "x faster, "
