@@ -417,37 +417,69 @@ std::vector<Index> DistanceOracle::farthest_point_samples(Index count, Index fir
   const Eigen::Index n = fine_size();
   if (count < 1 || count > n) throw std::invalid_argument("DistanceOracle::farthest_point_samples: count must be in [1, vertices]");
   if (first < 0 || first >= n) throw std::invalid_argument("DistanceOracle::farthest_point_samples: first sample out of range");
-  std::vector<Index> samples{first};
+  // The fine vertices of each coarse face (CSR, increasing indices), and per face the largest
+  // squared distance of its vertices to the samples so far (the smallest index attaining it).
+  const auto face_count = static_cast<std::size_t>(faces_.rows());
+  std::vector<Index> start(face_count + 1, 0), members(static_cast<std::size_t>(n));
+  for (const FinePoint& p : points_) ++start[static_cast<std::size_t>(p.face) + 1];
+  for (std::size_t g = 0; g < face_count; ++g) start[g + 1] += start[g];
+  {
+    std::vector<Index> next(start.begin(), start.end() - 1);
+    for (Eigen::Index v = 0; v < n; ++v)
+      members[static_cast<std::size_t>(next[static_cast<std::size_t>(points_[static_cast<std::size_t>(v)].face)]++)] =
+          static_cast<Index>(v);
+  }
+  // A face none of whose vertices can come closer to the new sample than they are to the old ones
+  // is skipped. Why that is exact for the oracle's own distance: for y in face g (not the sample's
+  // face), d² = Σ μ_j r(q_j) − V(y) >= min_j r(q_j) − max_l²/3, as Σ μ_j = 1 and V(y) <= max_l²/3
+  // (max_l the longest side of g); late samples leave most faces untouched.
+  std::vector<double> longest_squared(face_count);
+  for (std::size_t g = 0; g < face_count; ++g) longest_squared[g] = squared_lengths_.row(static_cast<Eigen::Index>(g)).maxCoeff();
   std::vector<double> nearest(static_cast<std::size_t>(n), kInfinity);  // squared distance to the nearest sample
+  std::vector<double> face_value(face_count, kInfinity);
+  std::vector<Index> face_argmax(face_count);
+  for (std::size_t g = 0; g < face_count; ++g) face_argmax[g] = start[g] < start[g + 1] ? members[static_cast<std::size_t>(start[g])] : -1;
+
+  std::vector<Index> samples{first};
   std::vector<double> row;
   const int thread_count = detail::active_threads(n, threads());
   while (static_cast<Index>(samples.size()) < count) {
     const FinePoint& x = points_[static_cast<std::size_t>(samples.back())];
     squared_distances_to_coarse(x, row);
     nearest[static_cast<std::size_t>(samples.back())] = 0;
-    double best_value = -1;
-    Eigen::Index best = 0;
-#pragma omp parallel num_threads(thread_count)
-    {
-      double local_value = -1;
-      Eigen::Index local = 0;
-#pragma omp for schedule(static) nowait
-      for (Eigen::Index v = 0; v < n; ++v) {
+#pragma omp parallel for schedule(dynamic, 64) num_threads(thread_count)
+    for (std::ptrdiff_t gi = 0; gi < static_cast<std::ptrdiff_t>(face_count); ++gi) {
+      const auto g = static_cast<std::size_t>(gi);
+      if (start[g] == start[g + 1]) continue;
+      if (static_cast<Index>(g) != x.face) {
+        double closest = kInfinity;
+        for (int j = 0; j < 3; ++j) closest = std::min(closest, row[static_cast<std::size_t>(faces_(gi, j))]);
+        const double bound = closest - longest_squared[g] / 3;
+        if (bound - 1e-9 * std::abs(bound) >= face_value[g]) continue;  // (a margin for the float weights)
+      }
+      double value = -1;
+      Index argmax = -1;
+      for (Index k = start[g]; k < start[g + 1]; ++k) {
+        const Index v = members[static_cast<std::size_t>(k)];
         double& d = nearest[static_cast<std::size_t>(v)];
         if (d > 0) d = std::min(d, squared_distance_from_row(row, x, points_[static_cast<std::size_t>(v)]));
-        if (d > local_value) {
-          local_value = d;
-          local = v;
+        if (d > value) {
+          value = d;
+          argmax = v;
         }
       }
-#pragma omp critical
-      if (local_value > best_value || (local_value == best_value && local < best)) {
-        best_value = local_value;
-        best = local;
-      }
+      face_value[g] = value;
+      face_argmax[g] = argmax;
     }
+    double best_value = -1;
+    Index best = -1;
+    for (std::size_t g = 0; g < face_count; ++g)
+      if (face_argmax[g] >= 0 && (face_value[g] > best_value || (face_value[g] == best_value && face_argmax[g] < best))) {
+        best_value = face_value[g];
+        best = face_argmax[g];
+      }
     if (!(best_value > 0)) break;  // every vertex coincides with a sample already
-    samples.push_back(static_cast<Index>(best));
+    samples.push_back(best);
   }
   return samples;
 }
