@@ -43,6 +43,7 @@ struct OracleRequest {
   std::string pairs_path;      ///< --pairs: two vertex indices per pair
   long long sample_count = 0;  ///< --sample K
   long long first_sample = 0;
+  bool first_sample_given = false;  ///< otherwise the mesh's first vertex (also when --repair dropped file vertex 0)
   std::string matrix_path;     ///< --matrix (.npy or .mtx)
   std::string pairs_output;    ///< --pairs-out (.csv)
   fem::CoarseDistanceMethod method = fem::CoarseDistanceMethod::marching;
@@ -71,10 +72,22 @@ nlohmann::json error_stats(const std::vector<double>& errors) {
           {"max_rel", *std::max_element(errors.begin(), errors.end())}};
 }
 
-/// The mean of an error_stats object as printed: "none" without pairs.
-std::string mean_of(const nlohmann::json& stats) {
-  return stats.contains("mean_rel") ? app::percent(stats["mean_rel"]) : std::string("none");
+/// One figure of an error_stats object as printed: "none" without pairs.
+std::string stat_of(const nlohmann::json& stats, const char* key = "mean_rel") {
+  return stats.contains(key) ? app::percent(stats[key]) : std::string("none");
 }
+
+/// Outputs this run has begun to write, removed again unless the run completes (a later failure
+/// must not leave files that look like results).
+struct OutputsOfThisRun {
+  std::vector<std::string> paths;
+  bool complete = false;
+  ~OutputsOfThisRun() {
+    if (complete) return;
+    std::error_code ec;
+    for (const std::string& path : paths) std::filesystem::remove(path, ec);
+  }
+};
 
 int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   using app::AppError;
@@ -105,6 +118,11 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
         if (value != std::floor(value))
           throw AppError(app::kUnreadable, request.pairs_path + ": pair " + std::to_string(i / 2 + 1) +
                                                " has a non-integer vertex index");
+        if (!(value >= 0 && value < static_cast<double>(n)))  // before the cast: 1e30 is no long long
+          throw AppError(app::kUsage, request.pairs_path + ": pair " + std::to_string(i / 2 + 1) + ": vertex " +
+                                          app::fixed(value, 0) + " is out of range (the file has " +
+                                          std::to_string(loaded.source_vertex.empty() ? n : static_cast<long long>(loaded.source_vertex.back()) + 1) +
+                                          " vertices or fewer)");
         file_pair[static_cast<std::size_t>(k)] = static_cast<long long>(value);
         pair[static_cast<std::size_t>(k)] = app::mesh_vertex_of_file_vertex(
             loaded, file_pair[static_cast<std::size_t>(k)], request.pairs_path + ": pair " + std::to_string(i / 2 + 1) + ": vertex");
@@ -118,7 +136,11 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
     if (request.sample_count > n)
       throw AppError(app::kUsage, "--sample " + std::to_string(request.sample_count) + " exceeds the " +
                                       std::to_string(n) + " vertices of the mesh");
-    first_sample = app::mesh_vertex_of_file_vertex(loaded, request.first_sample, "--first-sample: vertex");
+    if (request.sample_count > kMaxAllPairsMatrixVertices)
+      throw AppError(app::kUsage, "--sample " + std::to_string(request.sample_count) + ": the K x K matrix is limited to K <= " +
+                                      std::to_string(kMaxAllPairsMatrixVertices) + " (16 GiB)");
+    if (request.first_sample_given)
+      first_sample = app::mesh_vertex_of_file_vertex(loaded, request.first_sample, "--first-sample: vertex");
   }
   if (request.all_pairs && !request.matrix_path.empty() && n > kMaxAllPairsMatrixVertices)
     throw AppError(app::kUsage, "--all-pairs --matrix: the " + std::to_string(n) + "x" + std::to_string(n) +
@@ -144,7 +166,9 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   nlohmann::json report = app::report_header(kTool, opt.mesh);
   report["mode"] = request.mode();
   std::vector<ice::Index> samples;
+  OutputsOfThisRun outputs;
   if (request.all_pairs && !request.matrix_path.empty()) {
+    outputs.paths.push_back(request.matrix_path);
     ice::NpyMatrixWriter writer(request.matrix_path, n, n, opt.force);
     std::vector<ice::Index> all(static_cast<std::size_t>(n));
     for (ice::Index v = 0; v < n; ++v) all[static_cast<std::size_t>(v)] = v;
@@ -164,6 +188,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
     report["queries"] = {{"pairs", pairs.size()}, {"seconds", seconds},
                          {"per_second", seconds > 0 ? static_cast<double>(pairs.size()) / seconds : 0.0}};
     if (!request.pairs_output.empty()) {
+      outputs.paths.push_back(request.pairs_output);
       std::ofstream out(request.pairs_output);
       out.precision(9);
       out << "u,v,distance\n";
@@ -179,7 +204,10 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
     timings["sampling"] = clock.lap();
     const Eigen::MatrixXf matrix = oracle.distance_matrix(samples, samples);
     timings["matrix"] = clock.lap();
-    if (!request.matrix_path.empty()) ice::write_dense_matrix(request.matrix_path, matrix, opt.force);
+    if (!request.matrix_path.empty()) {
+      outputs.paths.push_back(request.matrix_path);
+      ice::write_dense_matrix(request.matrix_path, matrix, opt.force);
+    }
     timings["write"] = clock.lap();
     std::vector<long long> file_samples;
     for (ice::Index v : samples) file_samples.push_back(loaded.source_vertex.empty() ? v : loaded.source_vertex[static_cast<std::size_t>(v)]);
@@ -224,8 +252,8 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
     const double fine_all_pairs =
         run.ref_assemble + run.ref_factor + run.ref_solve * static_cast<double>(n) / static_cast<double>(sources.size());
     speedup = {{"fine_all_pairs_estimate_s", fine_all_pairs},
-               {"vs_fine_all_pairs", fine_all_pairs / oracle_seconds},
-               {"vs_fine_all_pairs_with_coarsening", fine_all_pairs / (oracle_seconds + run.coarsen)}};
+               {"precompute_vs_fine_all_pairs", fine_all_pairs / oracle_seconds},
+               {"precompute_with_coarsening_vs_fine_all_pairs", fine_all_pairs / (oracle_seconds + run.coarsen)}};
     timings["fine_mesh"] = run.fine_mesh;
     timings["reference"] = {{"assemble", run.ref_assemble}, {"factor", run.ref_factor}, {"solve", run.ref_solve}};
   }
@@ -243,6 +271,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   if (!speedup.is_null()) report["speedup"] = speedup;
   report["peak_rss_mb"] = app::peak_rss_mb();
   if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
+  outputs.complete = true;
 
   std::cout << kTool << ": " << app::thousands(n) << " vertices -> " << app::thousands(oracle.coarse_size())
             << " coarse vertices (" << app::cli_name(space.summary.method) << "); distance oracle ("
@@ -258,13 +287,13 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   const long long sources_count = accuracy.is_null() ? 0 : static_cast<long long>(accuracy["sources"]);
   if (!accuracy.is_null())
     std::cout << "  error vs the fine heat method (" << request.check_sources << " sources, every vertex): mean "
-              << app::percent(accuracy["all"]["mean_rel"]) << ", 95th percentile " << app::percent(accuracy["all"]["p95_rel"])
-              << "; far pairs " << mean_of(accuracy["far"]) << ", near pairs (sharing a coarse vertex) "
-              << mean_of(accuracy["near"]) << "\n  fine heat-method all-pairs extrapolated from this block of "
+              << stat_of(accuracy["all"]) << ", 95th percentile " << stat_of(accuracy["all"], "p95_rel")
+              << "; far pairs " << stat_of(accuracy["far"]) << ", near pairs (sharing a coarse vertex) "
+              << stat_of(accuracy["near"]) << "\n  fine heat-method all-pairs extrapolated from this block of "
               << sources_count << " sources ~"
               << app::fixed(speedup["fine_all_pairs_estimate_s"], 1) << " s: the oracle is "
-              << app::fixed(speedup["vs_fine_all_pairs"], 0) << "x faster, "
-              << app::fixed(speedup["vs_fine_all_pairs_with_coarsening"], 0)
+              << app::fixed(speedup["precompute_vs_fine_all_pairs"], 0) << "x faster to make every pair answerable, "
+              << app::fixed(speedup["precompute_with_coarsening_vs_fine_all_pairs"], 0)
               << "x counting the coarsening (small blocks cost more per source than the best, ~256: an upper "
                  "bound; ice_bench's BM_FineHeatAllPairs measures the strongest fine all-pairs)\n";
   if (!request.matrix_path.empty()) std::cout << "  wrote " << request.matrix_path << '\n';
@@ -299,7 +328,9 @@ int main(int argc, char** argv) {
   cli.add_option("--sample", oracle.sample_count,
                  "Distance oracle: K farthest-point samples and their K x K distance matrix (--matrix)")
       ->check(app::integer_between(1, 1LL << 31));
-  cli.add_option("--first-sample", oracle.first_sample, "With --sample: the first sample's vertex")->capture_default_str();
+  const CLI::Option* first_sample_option =
+      cli.add_option("--first-sample", oracle.first_sample,
+                     "With --sample: the first sample's vertex (default: the mesh's first vertex)");
   cli.add_option("--matrix", oracle.matrix_path,
                  "With --all-pairs or --sample: write the distance matrix (.npy float32, or .mtx Matrix Market; "
                  "--all-pairs: .npy only)");
@@ -328,6 +359,9 @@ int main(int argc, char** argv) {
     if (!oracle.matrix_path.empty() && std::filesystem::path(oracle.matrix_path).extension() != ".npy" &&
         std::filesystem::path(oracle.matrix_path).extension() != ".mtx")
       throw app::AppError(app::kUsage, "--matrix: use a .npy or .mtx file name");
+    oracle.first_sample_given = first_sample_option->count() > 0;
+    if (oracle.first_sample_given && oracle.sample_count == 0)
+      throw app::AppError(app::kUsage, "--first-sample goes with --sample");
     if (!oracle.pairs_output.empty() && oracle.pairs_path.empty())
       throw app::AppError(app::kUsage, "--pairs-out goes with --pairs");
     if (oracle.active() && !opt.output.empty())

@@ -120,7 +120,8 @@ TEST_CASE("distance oracle: within 1.5 % of the fine heat method on spot_subdiv 
           "[fem][distance_oracle]") {
   OracleCase c = coarsened(ice::load_mesh(ice_test::project_mesh("spot_subdiv.obj")), 1000);
   const fem::DistanceOracle oracle(c.space.mesh.F, c.space.mesh.L, c.map);
-  CHECK(oracle.memory_bytes() <= 4 * 1000 * 1000 + c.map.size() * sizeof(ice::CoarsePoint) + 100000);
+  // 4 n_c² for the coarse pairs, 16 bytes per fine vertex, the coarse faces and squared lengths.
+  CHECK(oracle.memory_bytes() <= 4 * 1000 * 1000 + 16 * c.map.size() + 36 * static_cast<std::size_t>(c.space.mesh.F.rows()));
 
   const ice::FineMesh fine = ice::fine_mesh(c.mesh, ice::FineGeometry::intrinsic_delaunay);
   const fem::HeatGeodesicSolver fine_solver(
@@ -284,3 +285,42 @@ TEST_CASE("distance oracle against exact polyhedral geodesics (CGAL) on spot", "
   CHECK(near_sum / near_count < 0.04);
 }
 #endif
+
+TEST_CASE("distance oracle on a Δ-complex with a self-folded face, and on two components", "[fem][distance_oracle]") {
+  // Vertices s = 2, a = 0, b = 1: face (s, a, b) with |s a| = 1, |a b| = 0.39, |b s| = 1.35, and a
+  // self-folded face (a, a, b) around a loop edge of length 0.5. The geodesic from s to b is the edge
+  // (1.35 < 1 + 0.39); no source can be consistent with both copies of a in the folded face (it
+  // would put b at 1.266).
+  ice::Faces F(2, 3);
+  F << 2, 0, 1, 0, 0, 1;
+  ice::FaceLengths L(2, 3);
+  L << 1.0, 0.39, 1.35, 0.5, 0.39, 0.39;
+  std::vector<ice::CoarsePoint> corners(3);
+  corners[0] = {0, 0, {0, 1, 0}};
+  corners[1] = {1, 0, {0, 0, 1}};
+  corners[2] = {2, 0, {1, 0, 0}};
+  const fem::DistanceOracle folded(F, L, corners);
+  CHECK(folded.coarse_distance(2, 1) == Approx(1.35).epsilon(1e-6));
+  CHECK(folded.coarse_distance(2, 0) == Approx(1.0).epsilon(1e-6));
+  CHECK(folded.coarse_distance(0, 1) == Approx(0.39).epsilon(1e-6));
+
+  // Two separate triangles: +∞ between them (not 0 from 0 · ∞), and sampling reaches both.
+  ice::Faces G(2, 3);
+  G << 0, 1, 2, 3, 4, 5;
+  ice::FaceLengths M = ice::FaceLengths::Constant(2, 3, 1.0);
+  std::vector<ice::CoarsePoint> points(7);
+  for (int v = 0; v < 6; ++v) {
+    points[v].face = v / 3;
+    points[v].bary = {0, 0, 0};
+    points[v].bary[v % 3] = 1;
+  }
+  points[6] = {ice::kInvalid, 1, {0.2, 0.3, 0.5}};
+  const fem::DistanceOracle apart(G, M, points);
+  CHECK(apart.distance(0, 1) == Approx(1.0).epsilon(1e-6));
+  CHECK(std::isinf(apart.distance(0, 4)));
+  CHECK(std::isinf(apart.distance(1, 6)));
+  CHECK(std::isinf(apart.distances_from(0)(5)));
+  const std::vector<ice::Index> samples = apart.farthest_point_samples(2, 0);
+  REQUIRE(samples.size() == 2);
+  CHECK(samples[1] >= 3);  // the other triangle
+}

@@ -57,7 +57,10 @@ class CoarseMarcher {
       for (; j < relations.size() && relations[j].u == relations[i].u && relations[j].w == relations[i].w; ++j) {
         const Relation& r = relations[j];
         neighbour.length = std::min(neighbour.length, static_cast<float>(r.to_w));
-        faces_.push_back({r.x, static_cast<float>(r.to_w), static_cast<float>(r.across), layout(r.to_w, r.to_x, r.across)});
+        // A face whose other corner is u again (a self-folded face, around a loop edge) offers no
+        // source consistent with both copies of u: only its edge counts.
+        if (r.x != r.u)
+          faces_.push_back({r.x, static_cast<float>(r.to_w), static_cast<float>(r.across), layout(r.to_w, r.to_x, r.across)});
       }
       neighbours_.push_back(neighbour);
       ++neighbour_start_[static_cast<std::size_t>(relations[i].u) + 1];
@@ -316,10 +319,13 @@ double DistanceOracle::squared_distance(const FinePoint& x, const FinePoint& y) 
         sum += wx[static_cast<std::size_t>(i)] * wy[static_cast<std::size_t>(j)] * l2(edge);
       }
   } else {
+    // Zero weights are skipped: D² is +∞ between coarse components, and 0 · ∞ would be NaN.
     for (int i = 0; i < 3; ++i) {
+      if (wx[static_cast<std::size_t>(i)] == 0) continue;
       const float* row = squared_distances_.data() + static_cast<std::size_t>(faces_(x.face, i)) * static_cast<std::size_t>(coarse_size_);
       double inner = 0;
-      for (int j = 0; j < 3; ++j) inner += wy[static_cast<std::size_t>(j)] * row[faces_(y.face, j)];
+      for (int j = 0; j < 3; ++j)
+        if (wy[static_cast<std::size_t>(j)] != 0) inner += wy[static_cast<std::size_t>(j)] * row[faces_(y.face, j)];
       sum += wx[static_cast<std::size_t>(i)] * inner;
     }
   }
@@ -362,6 +368,7 @@ void DistanceOracle::squared_distances_to_coarse(const FinePoint& x, std::vector
   for (int i = 0; i < 3; ++i) {
     const float* row = squared_distances_.data() + static_cast<std::size_t>(faces_(x.face, i)) * nc;
     const double w = x.weights()[static_cast<std::size_t>(i)];
+    if (w == 0) continue;  // (0 · ∞ across components)
     for (std::size_t b = 0; b < nc; ++b) out[b] += w * row[b];
   }
 }
@@ -371,7 +378,8 @@ double DistanceOracle::squared_distance_from_row(const std::vector<double>& row,
   if (x.face == y.face) return squared_distance(x, y);
   double sum = -static_cast<double>(y.spread);
   const std::array<double, 3> wy = y.weights();
-  for (int j = 0; j < 3; ++j) sum += wy[static_cast<std::size_t>(j)] * row[static_cast<std::size_t>(faces_(y.face, j))];
+  for (int j = 0; j < 3; ++j)
+    if (wy[static_cast<std::size_t>(j)] != 0) sum += wy[static_cast<std::size_t>(j)] * row[static_cast<std::size_t>(faces_(y.face, j))];
   return std::max(0.0, sum);
 }
 
