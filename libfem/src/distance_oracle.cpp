@@ -319,14 +319,20 @@ double DistanceOracle::squared_distance(const FinePoint& x, const FinePoint& y) 
         sum += wx[static_cast<std::size_t>(i)] * wy[static_cast<std::size_t>(j)] * l2(edge);
       }
   } else {
-    // Zero weights are skipped: D² is +∞ between coarse components, and 0 · ∞ would be NaN.
     for (int i = 0; i < 3; ++i) {
-      if (wx[static_cast<std::size_t>(i)] == 0) continue;
       const float* row = squared_distances_.data() + static_cast<std::size_t>(faces_(x.face, i)) * static_cast<std::size_t>(coarse_size_);
       double inner = 0;
-      for (int j = 0; j < 3; ++j)
-        if (wy[static_cast<std::size_t>(j)] != 0) inner += wy[static_cast<std::size_t>(j)] * row[faces_(y.face, j)];
+      for (int j = 0; j < 3; ++j) inner += wy[static_cast<std::size_t>(j)] * row[faces_(y.face, j)];
       sum += wx[static_cast<std::size_t>(i)] * inner;
+    }
+    // Between coarse components every D² is +∞ and a zero weight makes 0 · ∞ = NaN: then again
+    // with the positive weights only (a test off the hot path, which branches per weight would slow
+    // down by half).
+    if (std::isnan(sum)) {
+      sum = 0;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          if (wx[static_cast<std::size_t>(i)] > 0 && wy[static_cast<std::size_t>(j)] > 0) sum = kInfinity;
     }
   }
   return std::max(0.0, sum - x.spread - y.spread);
@@ -368,7 +374,7 @@ void DistanceOracle::squared_distances_to_coarse(const FinePoint& x, std::vector
   for (int i = 0; i < 3; ++i) {
     const float* row = squared_distances_.data() + static_cast<std::size_t>(faces_(x.face, i)) * nc;
     const double w = x.weights()[static_cast<std::size_t>(i)];
-    if (w == 0) continue;  // (0 · ∞ across components)
+    if (!(w > 0)) continue;  // (0 · ∞ across components; once per row, off the hot path)
     for (std::size_t b = 0; b < nc; ++b) out[b] += w * row[b];
   }
 }
@@ -378,8 +384,8 @@ double DistanceOracle::squared_distance_from_row(const std::vector<double>& row,
   if (x.face == y.face) return squared_distance(x, y);
   double sum = -static_cast<double>(y.spread);
   const std::array<double, 3> wy = y.weights();
-  for (int j = 0; j < 3; ++j)
-    if (wy[static_cast<std::size_t>(j)] != 0) sum += wy[static_cast<std::size_t>(j)] * row[static_cast<std::size_t>(faces_(y.face, j))];
+  for (int j = 0; j < 3; ++j) sum += wy[static_cast<std::size_t>(j)] * row[static_cast<std::size_t>(faces_(y.face, j))];
+  if (std::isnan(sum)) return kInfinity;  // 0 · ∞: y's face lies in another coarse component
   return std::max(0.0, sum);
 }
 

@@ -42,7 +42,6 @@
 /// components that are not connected are +∞ with marching (farthest-point sampling then visits
 /// every component); the heat method needs a connected coarse mesh (it throws NotPositiveDefinite).
 /// Queries are const and thread-safe.
-#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <vector>
@@ -118,7 +117,7 @@ class DistanceOracle {
     float weight0, weight1;
     float spread;
     std::array<double, 3> weights() const {
-      return {weight0, weight1, std::max(0.0, 1.0 - static_cast<double>(weight0) - static_cast<double>(weight1))};
+      return {weight0, weight1, 1.0 - static_cast<double>(weight0) - static_cast<double>(weight1)};
     }
   };
   FinePoint make_point(const ice::CoarsePoint& point) const;
