@@ -51,6 +51,31 @@ ConstrainedSolver::ConstrainedSolver(const SparseMatrix& A, std::vector<Index> c
   if (free_count > 0) factor_.compute(A_FF);
 }
 
+namespace {
+
+// The rows of `full` at free indices, in free order (free[i] >= 0: the free index of i).
+template <class Dense>
+Dense free_rows(const Dense& full, const std::vector<Index>& free, Eigen::Index free_count) {
+  Dense out(free_count, full.cols());
+  for (Eigen::Index i = 0; i < full.rows(); ++i)
+    if (free[static_cast<std::size_t>(i)] >= 0) out.row(free[static_cast<std::size_t>(i)]) = full.row(i);
+  return out;
+}
+
+// The full-length solution: free rows from `free_solution`, constrained index i from row
+// -free[i] - 1 of `values`.
+template <class Dense>
+Dense full_rows(const Dense& free_solution, const Dense& values, const std::vector<Index>& free) {
+  Dense x(static_cast<Eigen::Index>(free.size()), free_solution.cols());
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    const int index = free[static_cast<std::size_t>(i)];
+    x.row(i) = index >= 0 ? free_solution.row(index) : values.row(-index - 1);
+  }
+  return x;
+}
+
+}  // namespace
+
 Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values) const {
   if (b.size() != size_) throw std::invalid_argument("ConstrainedSolver::solve: rhs has the wrong size");
   const auto constrained_count = static_cast<Eigen::Index>(constrained_.size());
@@ -59,32 +84,18 @@ Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::
   if (values.size() != constrained_count)
     throw std::invalid_argument("ConstrainedSolver::solve: one value per constrained index expected");
 
-  Eigen::VectorXd free_rhs(factor_.rows());
-  for (Eigen::Index i = 0; i < size_; ++i)
-    if (free_[static_cast<std::size_t>(i)] >= 0) free_rhs(free_[static_cast<std::size_t>(i)]) = b(i);
+  Eigen::VectorXd free_rhs = free_rows(b, free_, factor_.rows());
   if (constrained_count > 0) free_rhs -= free_constrained_coupling_ * values;
   const Eigen::VectorXd free_solution = free_rhs.size() > 0 ? factor_.solve(free_rhs) : free_rhs;
-
-  Eigen::VectorXd x(size_);
-  for (Eigen::Index i = 0; i < size_; ++i) {
-    const int index = free_[static_cast<std::size_t>(i)];
-    x(i) = index >= 0 ? free_solution(index) : values(-index - 1);
-  }
-  return x;
+  return full_rows(free_solution, values, free_);
 }
 
 Eigen::MatrixXd ConstrainedSolver::solve_multiple(const Eigen::MatrixXd& B) const {
   if (B.rows() != size_) throw std::invalid_argument("ConstrainedSolver::solve_multiple: rhs has the wrong size");
-  Eigen::MatrixXd free_rhs(factor_.rows(), B.cols());
-  for (Eigen::Index i = 0; i < size_; ++i)
-    if (free_[static_cast<std::size_t>(i)] >= 0) free_rhs.row(free_[static_cast<std::size_t>(i)]) = B.row(i);
+  const Eigen::MatrixXd free_rhs = free_rows(B, free_, factor_.rows());
   const Eigen::MatrixXd free_solution = free_rhs.rows() > 0 ? factor_.solve_multiple(free_rhs) : free_rhs;
-  Eigen::MatrixXd X = Eigen::MatrixXd::Zero(size_, B.cols());
-  for (Eigen::Index i = 0; i < size_; ++i) {
-    const int index = free_[static_cast<std::size_t>(i)];
-    if (index >= 0) X.row(i) = free_solution.row(index);
-  }
-  return X;
+  return full_rows(free_solution, Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(constrained_.size()), B.cols()).eval(),
+                   free_);
 }
 
 // ---- PoissonSolver ----------------------------------------------------------------------------------
