@@ -26,18 +26,34 @@ ice::LoadResult load_input_mesh(const std::string& path, bool repair) {
   return ice::load_mesh_with_report(path, options);
 }
 
-int mesh_vertex_of_file_vertex(const ice::LoadResult& loaded, long long file_vertex, const std::string& what) {
-  const long long n_file = static_cast<long long>(loaded.file.soup.V.rows());
+FileVertexMap::FileVertexMap(const ice::LoadResult& loaded)
+    : mesh_of_file_(static_cast<std::size_t>(loaded.file.soup.V.rows()), -1) {
+  for (std::size_t i = loaded.source_vertex.size(); i-- > 0;)  // backwards: the first mesh vertex wins
+    mesh_of_file_[static_cast<std::size_t>(loaded.source_vertex[i])] = static_cast<int>(i);
+}
+
+int FileVertexMap::mesh_vertex(long long file_vertex, const std::string& what) const {
+  const auto n_file = static_cast<long long>(mesh_of_file_.size());
   if (file_vertex < 0 || file_vertex >= n_file)
     throw AppError(kUsage, what + " " + std::to_string(file_vertex) + " is out of range: the mesh has " +
                                thousands(n_file) + " vertices (valid: 0.." + std::to_string(n_file - 1) + ")");
-  // Identity unless the repairs dropped or welded vertices.
-  const auto& source = loaded.source_vertex;
-  if (static_cast<long long>(source.size()) == n_file && source[static_cast<std::size_t>(file_vertex)] == file_vertex)
-    return static_cast<int>(file_vertex);
-  for (std::size_t i = 0; i < source.size(); ++i)
-    if (source[i] == file_vertex) return static_cast<int>(i);
-  throw AppError(kUsage, what + " " + std::to_string(file_vertex) + " was removed by --repair (unreferenced or welded)");
+  const int v = mesh_of_file_[static_cast<std::size_t>(file_vertex)];
+  if (v < 0)
+    throw AppError(kUsage, what + " " + std::to_string(file_vertex) + " was removed by --repair (unreferenced or welded)");
+  return v;
+}
+
+int FileVertexMap::find(double file_vertex) const {
+  if (!(file_vertex >= 0 && file_vertex < static_cast<double>(mesh_of_file_.size()))) return -1;
+  return mesh_of_file_[static_cast<std::size_t>(file_vertex)];
+}
+
+int FileVertexMap::mesh_vertex(double file_vertex, const std::string& what) const {
+  const auto n_file = static_cast<long long>(mesh_of_file_.size());
+  if (!(std::abs(file_vertex) < 9.0e15))  // beyond, the conversion to long long is undefined
+    throw AppError(kUsage, what + " " + fixed(file_vertex, 0) + " is out of range: the mesh has " + thousands(n_file) +
+                               " vertices (valid: 0.." + std::to_string(n_file - 1) + ")");
+  return mesh_vertex(static_cast<long long>(file_vertex), what);
 }
 
 std::vector<double> read_number_file(const std::string& path) {

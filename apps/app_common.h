@@ -25,10 +25,24 @@ namespace app {
 /// Loads and validates a mesh (ice::load_mesh_with_report); throws the MeshError of the loader.
 ice::LoadResult load_input_mesh(const std::string& path, bool repair);
 
-/// Maps a 0-based vertex index of the input *file* to the loaded mesh's index (they differ only
-/// when --repair dropped vertices). Throws AppError(kUsage) naming `what` when out of range or
-/// dropped.
-int mesh_vertex_of_file_vertex(const ice::LoadResult& loaded, long long file_vertex, const std::string& what);
+/// 0-based vertex indices of the input *file* → the loaded mesh's indices (they differ only when
+/// --repair dropped, welded or split vertices; a split file vertex maps to its first mesh vertex).
+/// Built once (O(n)) for callers that map many indices (--pairs, --lock, --fix lists).
+class FileVertexMap {
+ public:
+  explicit FileVertexMap(const ice::LoadResult& loaded);
+  /// Throws AppError(kUsage) naming `what` when out of range or dropped.
+  int mesh_vertex(long long file_vertex, const std::string& what) const;
+  /// The same for an integral number read from a file, range-checked before the integer
+  /// conversion (1e30 is no long long).
+  int mesh_vertex(double file_vertex, const std::string& what) const;
+  /// The mesh vertex, or -1 when out of range or dropped, without building a message: for long
+  /// lists, which call mesh_vertex for the message only when this fails.
+  int find(double file_vertex) const;
+
+ private:
+  std::vector<int> mesh_of_file_;  ///< -1: dropped by --repair
+};
 
 /// Reads whitespace- or comma-separated numbers from a text file; '#' starts a comment.
 /// Throws AppError(kUnreadable) naming the file, line and token on anything else.

@@ -103,6 +103,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   const ice::TriangleMesh& mesh = loaded.mesh;
   const long long n = mesh.V.rows();
   app::require_connected(loaded, opt.mesh, kTool);
+  const app::FileVertexMap vertices(loaded);
   std::vector<std::array<ice::Index, 2>> pairs;
   std::vector<std::array<long long, 2>> file_pairs;
   if (!request.pairs_path.empty()) {
@@ -118,14 +119,10 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
         if (value != std::floor(value))
           throw AppError(app::kUnreadable, request.pairs_path + ": pair " + std::to_string(i / 2 + 1) +
                                                " has a non-integer vertex index");
-        if (!(value >= 0 && value < static_cast<double>(n)))  // before the cast: 1e30 is no long long
-          throw AppError(app::kUsage, request.pairs_path + ": pair " + std::to_string(i / 2 + 1) + ": vertex " +
-                                          app::fixed(value, 0) + " is out of range (the file has " +
-                                          std::to_string(loaded.source_vertex.empty() ? n : static_cast<long long>(loaded.source_vertex.back()) + 1) +
-                                          " vertices or fewer)");
+        int v = vertices.find(value);
+        if (v < 0) v = vertices.mesh_vertex(value, request.pairs_path + ": pair " + std::to_string(i / 2 + 1) + ": vertex");
         file_pair[static_cast<std::size_t>(k)] = static_cast<long long>(value);
-        pair[static_cast<std::size_t>(k)] = app::mesh_vertex_of_file_vertex(
-            loaded, file_pair[static_cast<std::size_t>(k)], request.pairs_path + ": pair " + std::to_string(i / 2 + 1) + ": vertex");
+        pair[static_cast<std::size_t>(k)] = v;
       }
       file_pairs.push_back(file_pair);
       pairs.push_back(pair);
@@ -140,7 +137,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
       throw AppError(app::kUsage, "--sample " + std::to_string(request.sample_count) + ": the K x K matrix is limited to K <= " +
                                       std::to_string(kMaxAllPairsMatrixVertices) + " (16 GiB)");
     if (request.first_sample_given)
-      first_sample = app::mesh_vertex_of_file_vertex(loaded, request.first_sample, "--first-sample: vertex");
+      first_sample = vertices.mesh_vertex(request.first_sample, "--first-sample: vertex");
   }
   if (request.all_pairs && !request.matrix_path.empty() && n > kMaxAllPairsMatrixVertices)
     throw AppError(app::kUsage, "--all-pairs --matrix: the " + std::to_string(n) + "x" + std::to_string(n) +
@@ -181,7 +178,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
     timings["matrix"] = clock.lap();
   }
   Eigen::VectorXd pair_distances;
-  if (!pairs.empty() || !request.pairs_path.empty()) {
+  if (!request.pairs_path.empty()) {
     pair_distances = oracle.distances(pairs);
     const double seconds = clock.lap();
     timings["queries"] = seconds;
@@ -210,7 +207,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
     }
     timings["write"] = clock.lap();
     std::vector<long long> file_samples;
-    for (ice::Index v : samples) file_samples.push_back(loaded.source_vertex.empty() ? v : loaded.source_vertex[static_cast<std::size_t>(v)]);
+    for (ice::Index v : samples) file_samples.push_back(loaded.source_vertex[static_cast<std::size_t>(v)]);
     report["samples"] = file_samples;
     report["sample_matrix"] = {{"size", samples.size()}, {"max_distance", matrix.maxCoeff()}};
   }
@@ -380,7 +377,8 @@ int main(int argc, char** argv) {
     const ice::TriangleMesh& mesh = loaded.mesh;
     const long long n = mesh.V.rows();
     std::vector<int> sources;
-    for (long long s : file_sources) sources.push_back(app::mesh_vertex_of_file_vertex(loaded, s, "--source: vertex"));
+    const app::FileVertexMap vertices(loaded);
+    for (long long s : file_sources) sources.push_back(vertices.mesh_vertex(s, "--source: vertex"));
     ice::CoarsenOptions coarsen_options;
     opt.target.apply(coarsen_options, n);
     app::require_connected(loaded, opt.mesh, kTool);

@@ -155,9 +155,10 @@ std::string stop_line(const ice::CoarseSpaceSummary& summary) {
 
 std::vector<ice::Index> read_lock_file(const std::string& path, const ice::LoadResult& loaded) {
   std::vector<ice::Index> locked;
+  const app::FileVertexMap vertices(loaded);
   for (double x : app::read_number_file(path)) {
     if (x != std::floor(x)) throw app::AppError(app::kUnreadable, path + ": '" + std::to_string(x) + "' is not a vertex index");
-    locked.push_back(app::mesh_vertex_of_file_vertex(loaded, static_cast<long long>(x), "--lock: vertex"));
+    locked.push_back(vertices.mesh_vertex(x, "--lock: vertex"));
   }
   return locked;
 }

@@ -274,8 +274,9 @@ int main(int argc, char** argv) {
     std::vector<int> fixed_vertices;
     Eigen::VectorXd fixed_values(static_cast<Eigen::Index>(file_fixes.size()));
     std::map<int, double> seen;
+    const app::FileVertexMap vertices(loaded);
     for (const auto& [file_vertex, value] : file_fixes) {
-      const int v = app::mesh_vertex_of_file_vertex(loaded, file_vertex, "--fix: vertex");
+      const int v = vertices.mesh_vertex(file_vertex, "--fix: vertex");
       if (!seen.emplace(v, value).second)
         throw app::AppError(app::kUsage, "--fix: vertex " + std::to_string(file_vertex) + " is fixed twice");
       fixed_values(static_cast<Eigen::Index>(fixed_vertices.size())) = value;
