@@ -31,9 +31,7 @@ inline int omp_get_thread_num() { return 0; }
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+using ice_bench::seconds_since;
 
 struct OracleInput {
   ice::CoarseSpace space;
@@ -53,7 +51,7 @@ const OracleInput& oracle_input(int levels, int coarse_vertices) {
     options.coarsen.threads = 2;
     options.keep_method_state = true;
     OracleInput input;
-    const auto start = std::chrono::steady_clock::now();
+    auto start = std::chrono::steady_clock::now();
     input.space = ice::build_coarse_space(mesh, options);
     input.map = ice::fine_to_coarse_map(input.space);
     input.coarsen_seconds = seconds_since(start);
@@ -89,7 +87,6 @@ void BM_FineHeatAllPairs(benchmark::State& state) {
       solvers[static_cast<std::size_t>(t)] = std::make_unique<fem::HeatGeodesicSolver>(
           fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n));
     setup_seconds = seconds_since(start);
-    start = std::chrono::steady_clock::now();
     double checksum = 0;
     const ice::Index blocks = (sources + block - 1) / block;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads) reduction(+ : checksum)
@@ -158,7 +155,6 @@ void BM_OracleSamples(benchmark::State& state) {
     auto start = std::chrono::steady_clock::now();
     const std::vector<ice::Index> samples = oracle.farthest_point_samples(1000);
     sampling = seconds_since(start);
-    start = std::chrono::steady_clock::now();
     const Eigen::MatrixXf D = oracle.distance_matrix(samples, samples);
     matrix = seconds_since(start);
     benchmark::DoNotOptimize(D.sum());

@@ -29,14 +29,9 @@ using namespace ice;
 
 namespace {
 
-const TriangleMesh& spot_subdiv(int levels) { return ice_bench::subdivided_mesh("spot_subdiv.obj", levels); }
+using ice_bench::seconds_since;
 
-double seconds_since(std::chrono::steady_clock::time_point& t) {
-  const auto now = std::chrono::steady_clock::now();
-  const double s = std::chrono::duration<double>(now - t).count();
-  t = now;
-  return s;
-}
+const TriangleMesh& spot_subdiv(int levels) { return ice_bench::subdivided_mesh("spot_subdiv.obj", levels); }
 
 // A smooth source: a sum of two Gaussian bumps of opposite sign (its mean is removed by the solvers).
 Eigen::VectorXd smooth_source(const Positions& V) {

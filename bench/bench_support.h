@@ -1,5 +1,6 @@
 #pragma once
 /// Helpers shared by the benchmark files.
+#include <chrono>
 #include <map>
 
 #include <benchmark/benchmark.h>
@@ -11,6 +12,14 @@
 #include "mesh_sets.h"
 
 namespace ice_bench {
+
+/// Seconds since `mark`, and moves `mark` to now (a lap timer for the phases inside one iteration).
+inline double seconds_since(std::chrono::steady_clock::time_point& mark) {
+  const auto now = std::chrono::steady_clock::now();
+  const double s = std::chrono::duration<double>(now - mark).count();
+  mark = now;
+  return s;
+}
 
 /// Path of a mesh of the project set (or the extended set); the project set's path when in neither, so
 /// that the load error names where the mesh was expected.
