@@ -227,22 +227,12 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
     for (int i = 0; i < request.check_sources; ++i) sources.push_back(vertex(rng));
     const Eigen::MatrixXd reference = fine_solver.distances_from_each(sources);
     run.ref_solve = clock.lap();
-    std::vector<double> near, far;
-    for (std::size_t s = 0; s < sources.size(); ++s) {
-      const Eigen::VectorXd d = oracle.distances_from(sources[s]);
-      for (Eigen::Index v = 0; v < n; ++v) {
-        const double r = reference(v, static_cast<Eigen::Index>(s));
-        if (v == sources[s] || !(r > 0)) continue;
-        (oracle.is_near(sources[s], static_cast<ice::Index>(v)) ? near : far).push_back(std::abs(d(v) - r) / r);
-      }
-    }
-    std::vector<double> all = far;
-    all.insert(all.end(), near.begin(), near.end());
+    const fem::PairErrors errors = fem::relative_pair_errors(oracle, sources, reference);
     accuracy = {{"reference", "fine heat method (same t rule), per pair |d - d_ref| / d_ref"},
                 {"sources", sources.size()},
-                {"all", error_stats(all)},
-                {"far", error_stats(far)},
-                {"near", error_stats(near)}};
+                {"all", error_stats(errors.all())},
+                {"far", error_stats(errors.far)},
+                {"near", error_stats(errors.near)}};
     // Fine all-pairs by the heat method with one factorisation and blocked solves, extrapolated from
     // the block of check sources: an upper bound, since a block of 16 costs more per source than
     // the best block size (256 on spot_subdiv: 92 s extrapolated from 256, 112 s from 64).

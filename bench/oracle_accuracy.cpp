@@ -32,14 +32,6 @@ using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
 using ShortestPaths = CGAL::Surface_mesh_shortest_path<CGAL::Surface_mesh_shortest_path_traits<Kernel, SurfaceMesh>>;
 
-struct Errors {
-  std::vector<double> all, far, near;
-  void add(double error, bool is_near) {
-    all.push_back(error);
-    (is_near ? near : far).push_back(error);
-  }
-};
-
 std::string summary(std::vector<double> e) {
   if (e.empty()) return "- / -";
   double sum = 0;
@@ -107,20 +99,12 @@ int main(int argc, char** argv) {
       fem::DistanceOracleOptions oracle_options;
       oracle_options.method = method;
       const fem::DistanceOracle oracle(space.mesh.F, space.mesh.L, map, oracle_options);
-      Errors vs_exact, vs_heat;
-      for (int s = 0; s < source_count; ++s) {
-        const Eigen::VectorXd d = oracle.distances_from(sources[s]);
-        for (ice::Index v = 0; v < n; ++v) {
-          if (v == sources[s]) continue;
-          const bool near = oracle.is_near(sources[s], v);
-          if (exact(v, s) > 0) vs_exact.add(std::abs(d(v) - exact(v, s)) / exact(v, s), near);
-          if (heat(v, s) > 0) vs_heat.add(std::abs(d(v) - heat(v, s)) / heat(v, s), near);
-        }
-      }
+      const fem::PairErrors vs_exact = fem::relative_pair_errors(oracle, sources, exact);
+      const fem::PairErrors vs_heat = fem::relative_pair_errors(oracle, sources, heat);
       const std::string name = path.substr(path.find_last_of('/') + 1);
       std::printf("| %s | %d | %ld | %s | %s | %s | %s | %s | %s | %s | %s |\n", name.c_str(), n,
-                  static_cast<long>(oracle.coarse_size()), fem::to_string(method), summary(vs_exact.all).c_str(),
-                  summary(vs_exact.far).c_str(), summary(vs_exact.near).c_str(), summary(vs_heat.all).c_str(),
+                  static_cast<long>(oracle.coarse_size()), fem::to_string(method), summary(vs_exact.all()).c_str(),
+                  summary(vs_exact.far).c_str(), summary(vs_exact.near).c_str(), summary(vs_heat.all()).c_str(),
                   summary(vs_heat.far).c_str(), summary(vs_heat.near).c_str(), summary(heat_vs_exact).c_str());
       std::fflush(stdout);
     }

@@ -517,4 +517,26 @@ std::size_t DistanceOracle::memory_bytes() const {
          static_cast<std::size_t>(faces_.size()) * sizeof(Index) + static_cast<std::size_t>(squared_lengths_.size()) * sizeof(double);
 }
 
+std::vector<double> PairErrors::all() const {
+  std::vector<double> both = far;
+  both.insert(both.end(), near.begin(), near.end());
+  return both;
+}
+
+PairErrors relative_pair_errors(const DistanceOracle& oracle, const std::vector<Index>& sources,
+                                const Eigen::MatrixXd& reference) {
+  if (reference.rows() != oracle.fine_size() || reference.cols() != static_cast<Eigen::Index>(sources.size()))
+    throw std::invalid_argument("relative_pair_errors: one reference column per source, one row per fine vertex");
+  PairErrors errors;
+  for (std::size_t s = 0; s < sources.size(); ++s) {
+    const Eigen::VectorXd d = oracle.distances_from(sources[s]);
+    for (Eigen::Index v = 0; v < d.size(); ++v) {
+      const double r = reference(v, static_cast<Eigen::Index>(s));
+      if (v == sources[s] || !(r > 0)) continue;
+      (oracle.is_near(sources[s], static_cast<Index>(v)) ? errors.near : errors.far).push_back(std::abs(d(v) - r) / r);
+    }
+  }
+  return errors;
+}
+
 }  // namespace fem

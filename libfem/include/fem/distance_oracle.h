@@ -137,4 +137,16 @@ class DistanceOracle {
   DistanceOracleTimes times_;
 };
 
+/// Per-pair relative errors |d − d_ref| / d_ref of the oracle against reference distances from
+/// `sources` (column j of `reference`: from sources[j] to every fine vertex), split into far and
+/// near pairs (DistanceOracle::is_near); the sources themselves and pairs with d_ref <= 0 are left
+/// out. What the tools and benchmarks report. Throws std::invalid_argument on a reference of the
+/// wrong shape.
+struct PairErrors {
+  std::vector<double> far, near;
+  std::vector<double> all() const;  ///< far then near
+};
+PairErrors relative_pair_errors(const DistanceOracle& oracle, const std::vector<Index>& sources,
+                                const Eigen::MatrixXd& reference);
+
 }  // namespace fem
