@@ -1,0 +1,196 @@
+#pragma once
+/// \file vector_fields.h
+/// Tangent vector fields on an intrinsic triangulation, and through a coarse proxy of it.
+///
+/// Tangent spaces. Every vertex v has a frame in which a tangent vector is one complex number. Angles
+/// are measured counter-clockwise from v's *reference side* (at an interior vertex its lowest-numbered
+/// corner's outgoing side, 3f + k; at a boundary vertex the boundary side it starts along) and, at an
+/// interior vertex, scaled by 2π/Θ_v (Θ_v its angle sum), so that the full circle of directions around
+/// a cone point is the full circle of complex phases (the convention of libice's angular coordinates).
+/// Boundary vertices are not scaled: their half-disc of directions keeps its geometric angles, which
+/// makes the frames of a flat domain those of the plane, whatever its boundary angles.
+///
+/// Transport. A vector enters a face from the corner's frame by one rotation, ψ(f, k) (see
+/// TangentFrames): the bisector of the corner has the same direction in the vertex's frame and in the
+/// face's layout (fem::layout_triangle). At a flat vertex (Θ = 2π, or any boundary vertex) that is the
+/// exact planar transport; at a cone the angle defect is spread over the corners in proportion to
+/// their angles. The connection Laplacian is the cotan stiffness matrix of the vectors carried into
+/// each face, Σ_faces Σ_sides ½cot(opposite)·|e^{iψ_i} z_i − e^{iψ_j} z_j|²: Hermitian positive
+/// semidefinite on any triangulation (per face it is a triangle's cotan matrix in a unitary change of
+/// basis), and on a flat mesh unitarily similar to the scalar cotan Laplacian of each component.
+///
+/// Meshes are ice::CompactMesh values with their gluing (`twin`, never empty here: a Δ-complex cannot
+/// be glued by vertex pairs in general; ice::glue_by_vertex_pairs makes it for an ordinary mesh).
+#include <complex>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "fem/cholesky.h"
+#include "fem/operators.h"
+#include "ice/mesh.h"
+
+namespace fem {
+
+using Complex = std::complex<double>;
+using ComplexSparseMatrix = Eigen::SparseMatrix<Complex, Eigen::ColMajor, Index>;
+
+/// The frames of one mesh. Throws std::invalid_argument (from tangent_frames) for a mesh whose twin
+/// is missing or is not an involution, or a vertex whose corners do not form one fan.
+struct TangentFrames {
+  /// m×3: angular coordinate of side k (from corner k to corner k+1) in the frame of corner k's vertex.
+  Eigen::MatrixXd side_coordinate;
+  /// m×3: rotation ψ(f, k) from corner k's vertex frame into face f's layout (fem::layout_triangle):
+  /// a vector z at the vertex is e^{iψ} z in the face.
+  Eigen::MatrixXd corner_rotation;
+  Eigen::VectorXd angle_sum;      ///< Θ_v
+  Eigen::VectorXd angle_scale;    ///< 2π/Θ_v inside, 1 on the boundary
+  std::vector<char> boundary;     ///< 1 for a boundary vertex
+  /// Corner 3f + k of each vertex's reference side (kInvalid for a vertex no face uses).
+  std::vector<Index> reference_corner;
+};
+
+/// Frames of `mesh` (F, L and twin; vertex count mesh.num_vertices() when to_input is set, else
+/// F.maxCoeff() + 1). Throws InvalidTriangle for invalid lengths, std::invalid_argument as above.
+TangentFrames tangent_frames(const ice::CompactMesh& mesh);
+
+/// The connection Laplacian (n×n, Hermitian positive semidefinite; see the file comment).
+ComplexSparseMatrix connection_laplacian(const ice::CompactMesh& mesh, const TangentFrames& frames);
+
+/// Tangent vectors as 3D vectors on an extrinsic mesh with the same faces as `mesh` (positions V):
+/// each vector is drawn in the plane of the face whose corner contains its direction.
+Eigen::MatrixXd tangent_to_ambient(const ice::CompactMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V,
+                                   const Eigen::VectorXcd& field);
+/// The tangent vector at v of a 3D direction (projected into the plane of the corner it points into;
+/// the corner is the one whose face plane makes the projection's angle fall inside it, else the
+/// closest). Length: that of the projection.
+Complex ambient_to_tangent(const ice::CompactMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V, Index v,
+                           const Eigen::Vector3d& direction);
+
+/// Solves A x = b for a Hermitian positive definite complex A through CHOLMOD, as the real symmetric
+/// system [[Re A, −Im A], [Im A, Re A]] with each vertex's two unknowns interleaved (the vertex
+/// graph's pattern in 2×2 blocks, so orderings and supernodes stay those of the scalar problem).
+class ComplexCholeskySolver {
+ public:
+  explicit ComplexCholeskySolver(const ComplexSparseMatrix& A);
+  Eigen::VectorXcd solve(const Eigen::VectorXcd& b) const;
+  Eigen::Index rows() const { return rows_; }
+
+ private:
+  Eigen::Index rows_ = 0;
+  CholeskySolver factor_;
+};
+
+/// Operators of the vector heat method on one discretisation (the fine mesh, an intrinsic coarse
+/// mesh, or Galerkin products): scalar Laplacian and mass for the magnitudes, connection Laplacian
+/// for the directions, and the time step.
+struct VectorHeatOperators {
+  SparseMatrix laplacian, mass;       ///< real, PSD; mass lumped (diagonal)
+  ComplexSparseMatrix connection;     ///< Hermitian PSD
+  double time_step = 0;
+};
+/// The operators of `mesh` with t = (time_factor·h)², h the mean edge length (the heat method's).
+VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames,
+                                          double time_factor = 1.0);
+
+/// Right-hand sides of the vector heat method for vectors prescribed at vertices: Y₀ (the vectors),
+/// u₀ (their lengths) and φ₀ (the sources' indicator), each summed where a vertex repeats.
+struct VectorSources {
+  Eigen::VectorXcd vectors;
+  Eigen::VectorXd magnitudes, indicator;
+};
+/// Throws std::invalid_argument for lists of different sizes, an empty list or a vertex out of [0, n).
+VectorSources vector_sources(Eigen::Index n, const std::vector<Index>& vertices, const std::vector<Complex>& vectors);
+
+/// The three diffused fields of the vector heat method, before they are combined.
+struct VectorHeatParts {
+  Eigen::VectorXcd directions;          ///< Y: (M + tL∇) Y = Y₀
+  Eigen::VectorXd magnitudes, indicator;  ///< u and φ: (M + tL) u = u₀, (M + tL) φ = φ₀
+};
+/// The field Y/|Y|·u/φ (zero where Y or φ vanishes).
+Eigen::VectorXcd vector_heat_field(const VectorHeatParts& parts);
+
+/// The vector heat method (Sharp, Soliman, Crane 2019): diffuse the vectors for time t with the
+/// connection Laplacian, keep the directions Y/|Y|; diffuse the magnitudes and the sources'
+/// indicator with the scalar Laplacian and take u/φ as the magnitude. One source: parallel transport
+/// along shortest geodesics; several: a smooth field interpolating them. Both factorisations
+/// (M + tL∇ and M + tL) happen in the constructor.
+class VectorHeatSolver {
+ public:
+  explicit VectorHeatSolver(VectorHeatOperators operators);
+  /// The three diffusions of given right-hand sides (for a caller that combines them elsewhere, as
+  /// the coarse proxy does after prolongation). Throws std::invalid_argument for wrong sizes.
+  VectorHeatParts diffuse(const Eigen::VectorXcd& vector_sources, const Eigen::VectorXd& magnitudes,
+                          const Eigen::VectorXd& indicator) const;
+  /// The field interpolating `vectors` prescribed at `vertices` (in their frames); one vertex:
+  /// parallel transport of its vector. Throws as vector_sources.
+  Eigen::VectorXcd interpolate(const std::vector<Index>& vertices, const std::vector<Complex>& vectors) const;
+  const VectorHeatOperators& operators() const { return operators_; }
+
+ private:
+  VectorHeatOperators operators_;
+  ComplexCholeskySolver vector_factor_;
+  CholeskySolver scalar_factor_;
+};
+
+/// How well a fine vertex's tangent space was matched with the coarse mesh (vector_prolongation).
+struct VectorProlongationStats {
+  Index fitted = 0;          ///< rotation fitted to the images of the vertex's fine neighbours
+  Index from_corner = 0;     ///< fitted in the polar chart of the nearest coarse corner instead
+  Index unmatched = 0;       ///< no neighbour image found: frame carried through the face unrotated
+  double median_fit_residual = 0;  ///< median over fitted vertices of the fit's relative residual
+};
+
+/// Vector prolongation P_vec (n_fine × n_coarse, complex): a coarse field Y_c becomes the fine field
+/// P_vec Y_c. A fine vertex in coarse face f with barycentric coordinates b gets
+/// Σ_k b_k e^{iψ(f,k)} Y_c(corner k) carried into its own frame; a vertex that survived gets its coarse
+/// vertex's vector carried into its own frame. The frame relation is the rotation that best maps the
+/// vertex's fine one-ring (edge vectors in its own frame) onto the images of its neighbours under the
+/// fine-to-coarse map, laid out around the coarse face (unfolded across its sides and corners) or, for
+/// a survivor, in its coarse vertex's polar chart: the rotation part of the map's differential, fitted
+/// by least squares. Every row's moduli sum to 1 (they are the barycentric coordinates; less where a
+/// Δ-complex face repeats a corner and two entries add); with no coarsening (every vertex survives, same frames) P_vec is the identity up to round-off.
+/// `map` holds one CoarsePoint per fine vertex (ice::fine_to_coarse_map). Throws std::invalid_argument
+/// on size mismatches or a map face out of range.
+ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
+                                        const ice::CompactMesh& coarse, const TangentFrames& coarse_frames,
+                                        const std::vector<ice::CoarsePoint>& map,
+                                        VectorProlongationStats* stats = nullptr);
+
+/// Which coarse operators the vector proxy solves with.
+enum class VectorOperatorKind {
+  intrinsic,  ///< from the coarse lengths: connection_laplacian of the coarse mesh, its cotan L and lumped M
+  galerkin,   ///< P_vecᴴ L∇ P_vec, Pᵀ L P and the lumped Galerkin mass diag(Pᵀ M 1), from the fine operators
+};
+
+/// The vector heat method through a coarse proxy: the sources are restricted (Y₀ by P_vecᴴ, u₀ and
+/// φ₀ by Pᵀ, as the scalar geodesic proxy restricts its source), the three diffusions are solved on
+/// the coarse mesh with t = (time_factor·h_c)² (h_c the coarse mean edge length), prolonged (Y by
+/// P_vec, u and φ by P) and combined on the fine mesh. The fine operators are not needed for
+/// intrinsic coarse operators.
+class VectorHeatProxy {
+ public:
+  /// `P` is the scalar prolongation (fine × coarse, rows summing to 1), `map` the fine-to-coarse map it
+  /// comes from. Throws std::invalid_argument on inconsistent sizes.
+  VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames, const ice::CompactMesh& coarse,
+                  const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map, SparseMatrix P,
+                  VectorOperatorKind kind, double time_factor = 1.0);
+  /// The fine field interpolating `vectors` at fine `vertices` (in the fine frames).
+  Eigen::VectorXcd interpolate(const std::vector<Index>& vertices, const std::vector<Complex>& vectors) const;
+  const ComplexSparseMatrix& vector_prolongation() const { return vector_prolongation_; }
+  const VectorProlongationStats& prolongation_stats() const { return stats_; }
+  const VectorHeatSolver& coarse_solver() const { return *coarse_solver_; }
+
+ private:
+  SparseMatrix P_;
+  ComplexSparseMatrix vector_prolongation_;
+  VectorProlongationStats stats_;
+  std::unique_ptr<VectorHeatSolver> coarse_solver_;
+};
+
+/// Angle between two tangent vectors in degrees ([0, 180]; NaN if either is zero).
+double angle_between_degrees(Complex a, Complex b);
+
+}  // namespace fem

@@ -1,0 +1,322 @@
+// Tangent vector fields: frames, the connection Laplacian, the vector heat method on the fine mesh
+// and through the coarse proxy, and the vector prolongation.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+
+#include "fem/vector_fields.h"
+#include "ice/coarse_space.h"
+#include "ice/intrinsic_triangulation.h"
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+#include "test_support.h"
+
+namespace {
+
+using ice::Index;
+constexpr double kPi = 3.141592653589793238462643383279502884;
+
+ice::CompactMesh glued(const ice::TriangleMesh& mesh) {
+  ice::CompactMesh out;
+  out.F = mesh.F;
+  out.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
+  out.twin = ice::glue_by_vertex_pairs(mesh.F);
+  return out;
+}
+
+double wrap_angle(double a) { return std::remainder(a, 2 * kPi); }
+
+double median(std::vector<double> values) {
+  REQUIRE(!values.empty());
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+  return values[values.size() / 2];
+}
+
+std::vector<double> angle_errors(const Eigen::VectorXcd& a, const Eigen::VectorXcd& b) {
+  std::vector<double> errors;
+  for (Eigen::Index i = 0; i < a.size(); ++i) {
+    const double e = fem::angle_between_degrees(a(i), b(i));
+    if (!std::isnan(e)) errors.push_back(e);
+  }
+  return errors;
+}
+
+// Parallel transport of a unit vector from the vertex nearest the north pole of an icosphere,
+// compared with the exact transport along great circles (rotation about p × x): median and max error
+// in degrees over the vertices at most 150° from the source.
+std::pair<double, double> sphere_transport_error(int subdivisions) {
+  const ice::TriangleMesh mesh = ice::make_icosphere(subdivisions);
+  const ice::CompactMesh fine = glued(mesh);
+  const fem::TangentFrames frames = fem::tangent_frames(fine);
+  const Index source = 0;
+  const Eigen::Vector3d p = mesh.V.row(source).transpose().normalized();
+  Eigen::Vector3d start(1, 0.3, 0.2);
+  start = (start - start.dot(p) * p).normalized();
+  // The projection into a face plane shortens a unit tangent vector by the face's tilt only.
+  fem::Complex z0 = fem::ambient_to_tangent(fine, frames, mesh.V, source, start);
+  CHECK(std::abs(z0) == Approx(1).epsilon(1e-3));
+  z0 /= std::abs(z0);
+  const fem::VectorHeatSolver solver(fem::vector_heat_operators(fine, frames, 3.0));
+  const Eigen::VectorXcd field = solver.interpolate({source}, {z0});
+  const Eigen::MatrixXd ambient = fem::tangent_to_ambient(fine, frames, mesh.V, field);
+  std::vector<double> errors;
+  for (Eigen::Index i = 0; i < mesh.V.rows(); ++i) {
+    const Eigen::Vector3d x = mesh.V.row(i).transpose().normalized();
+    const double distance = std::acos(std::clamp(p.dot(x), -1.0, 1.0));
+    if (distance < 1e-9 || distance > 150 * kPi / 180) continue;
+    const Eigen::Vector3d expected = Eigen::AngleAxisd(distance, p.cross(x).normalized()) * start;
+    Eigen::Vector3d got = ambient.row(i).transpose();
+    CHECK(std::abs(got.norm() - 1) < 1e-6);  // one source: the magnitude is the source's
+    got = (got - got.dot(x) * x).normalized();
+    errors.push_back(std::acos(std::clamp(got.dot(expected), -1.0, 1.0)) * 180 / kPi);
+  }
+  return {median(errors), *std::max_element(errors.begin(), errors.end())};
+}
+
+// The rotation a vector picks up going once around a closed loop of vertices, each step carried by
+// the connection Laplacian's own transport (the phase of −A(next, current)).
+double loop_holonomy(const fem::ComplexSparseMatrix& A, const std::vector<Index>& loop) {
+  double total = 0;
+  for (std::size_t k = 0; k < loop.size(); ++k) {
+    const Index from = loop[k], to = loop[(k + 1) % loop.size()];
+    const fem::Complex entry = A.coeff(to, from);
+    REQUIRE(std::abs(entry) > 0);
+    total += std::arg(-entry);
+  }
+  return wrap_angle(total);
+}
+
+// The boundary loop (counter-clockwise around the cap) of the faces of an icosphere whose three
+// vertices have z > height, and the angle defect enclosed by it.
+struct Cap {
+  std::vector<Index> loop;
+  double inner_defect = 0;    ///< Σ (2π − Θ) over vertices strictly inside
+  double boundary_defect = 0;  ///< Σ |2π − Θ| over the loop's vertices
+};
+Cap sphere_cap(const ice::TriangleMesh& mesh, const fem::TangentFrames& frames, double height) {
+  std::map<Index, Index> next;  // boundary side of the cap: tail -> head
+  std::vector<char> in_cap_face(static_cast<std::size_t>(mesh.F.rows()), 0);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    in_cap_face[static_cast<std::size_t>(f)] =
+        mesh.V(mesh.F(f, 0), 2) > height && mesh.V(mesh.F(f, 1), 2) > height && mesh.V(mesh.F(f, 2), 2) > height;
+  const std::vector<Index> twin = ice::glue_by_vertex_pairs(mesh.F);
+  std::vector<char> on_loop(static_cast<std::size_t>(mesh.V.rows()), 0), touched(static_cast<std::size_t>(mesh.V.rows()), 0);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    if (!in_cap_face[static_cast<std::size_t>(f)]) continue;
+    for (int k = 0; k < 3; ++k) {
+      touched[static_cast<std::size_t>(mesh.F(f, k))] = 1;
+      const Index across = twin[static_cast<std::size_t>(3 * f + k)];
+      if (!in_cap_face[static_cast<std::size_t>(across / 3)]) {
+        next[mesh.F(f, k)] = mesh.F(f, (k + 1) % 3);
+        on_loop[static_cast<std::size_t>(mesh.F(f, k))] = 1;
+      }
+    }
+  }
+  Cap cap;
+  REQUIRE(!next.empty());
+  Index v = next.begin()->first;
+  do {
+    cap.loop.push_back(v);
+    v = next.at(v);
+  } while (v != cap.loop.front() && cap.loop.size() <= next.size());
+  REQUIRE(cap.loop.size() == next.size());  // one simple loop
+  for (Eigen::Index u = 0; u < mesh.V.rows(); ++u) {
+    const double defect = 2 * kPi - frames.angle_sum(u);
+    if (on_loop[static_cast<std::size_t>(u)]) cap.boundary_defect += std::abs(defect);
+    else if (touched[static_cast<std::size_t>(u)]) cap.inner_defect += defect;
+  }
+  return cap;
+}
+
+}  // namespace
+
+TEST_CASE("tangent frames: coordinates start at 0 and span the circle", "[fem][vectors]") {
+  const ice::TriangleMesh disk = ice::make_flat_disk(6, 1.0, 0.2);
+  const ice::TriangleMesh sphere = ice::make_icosphere(2);
+  for (const ice::TriangleMesh* mesh : {&disk, &sphere}) {
+    const ice::CompactMesh m = glued(*mesh);
+    const fem::TangentFrames frames = fem::tangent_frames(m);
+    const Eigen::MatrixXd angles = fem::corner_angles(m.L);
+    for (Eigen::Index v = 0; v < mesh->V.rows(); ++v) {
+      const Index reference = frames.reference_corner[static_cast<std::size_t>(v)];
+      REQUIRE(reference != ice::kInvalid);
+      CHECK(frames.side_coordinate(reference / 3, reference % 3) == 0.0);
+    }
+    // Per vertex, the coordinates plus the scaled corner angles add up to 2π inside and Θ on the boundary.
+    Eigen::VectorXd span = Eigen::VectorXd::Zero(mesh->V.rows());
+    for (Eigen::Index f = 0; f < m.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) span(m.F(f, k)) += frames.angle_scale(m.F(f, k)) * angles(f, k);
+    for (Eigen::Index v = 0; v < mesh->V.rows(); ++v)
+      CHECK(span(v) == Approx(frames.boundary[static_cast<std::size_t>(v)] ? frames.angle_sum(v) : 2 * kPi).epsilon(1e-12));
+  }
+}
+
+TEST_CASE("tangent frames refuse a mesh without its gluing", "[fem][vectors]") {
+  ice::CompactMesh m = glued(ice::make_icosphere(1));
+  m.twin.clear();
+  CHECK_THROWS_AS(fem::tangent_frames(m), std::invalid_argument);
+  m = glued(ice::make_icosphere(1));
+  m.twin[0] = m.twin[1];  // no longer an involution
+  CHECK_THROWS_AS(fem::tangent_frames(m), std::invalid_argument);
+}
+
+TEST_CASE("connection Laplacian of a flat disk is the scalar Laplacian of each component", "[fem][vectors]") {
+  // Written in the plane's own frame (z_v = e^{−iθ_v} w_v, θ_v the direction of v's reference side),
+  // the connection Laplacian must be the real cotan Laplacian: D A Dᴴ = L.
+  const ice::TriangleMesh disk = ice::make_flat_disk(8, 1.0, 0.25);
+  const ice::CompactMesh m = glued(disk);
+  const fem::TangentFrames frames = fem::tangent_frames(m);
+  const fem::ComplexSparseMatrix A = fem::connection_laplacian(m, frames);
+  const fem::SparseMatrix L = fem::cotan_laplacian(m.F, m.L);
+  const Eigen::Index n = disk.V.rows();
+  Eigen::VectorXcd D(n);
+  for (Eigen::Index v = 0; v < n; ++v) {
+    const Index c = frames.reference_corner[static_cast<std::size_t>(v)];
+    const Eigen::RowVector3d side = disk.V.row(m.F(c / 3, (c % 3 + 1) % 3)) - disk.V.row(v);
+    D(v) = std::polar(1.0, std::atan2(side(1), side(0)));
+  }
+  const Eigen::MatrixXcd conjugated = D.asDiagonal() * Eigen::MatrixXcd(A) * D.conjugate().asDiagonal();
+  const Eigen::MatrixXcd scalar = Eigen::MatrixXd(L).cast<fem::Complex>();
+  CHECK((conjugated - scalar).cwiseAbs().maxCoeff() < 1e-12 * scalar.cwiseAbs().maxCoeff());
+}
+
+TEST_CASE("connection Laplacian is Hermitian positive semidefinite on a coarse Δ-complex", "[fem][vectors]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_vertices = 60;
+  const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  const fem::TangentFrames frames = fem::tangent_frames(space.mesh);
+  const Eigen::MatrixXcd A = Eigen::MatrixXcd(fem::connection_laplacian(space.mesh, frames));
+  CHECK((A - A.adjoint()).cwiseAbs().maxCoeff() < 1e-13 * A.cwiseAbs().maxCoeff());
+  const Eigen::VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(A).eigenvalues();
+  CHECK(eigenvalues.minCoeff() > -1e-10 * eigenvalues.maxCoeff());
+  // A closed curved surface has no parallel field: the connection Laplacian is definite.
+  CHECK(eigenvalues.minCoeff() > 1e-8 * eigenvalues.maxCoeff());
+}
+
+TEST_CASE("holonomy around a cap of a sphere equals the enclosed curvature", "[fem][vectors]") {
+  // Carried around the cap's boundary, a vector turns by the curvature inside (discrete Gauss–Bonnet:
+  // the angle defects of the cap's vertices); the loop's own vertices share theirs with the outside,
+  // so the difference is bounded by their defects and shrinks under refinement.
+  double previous_gap = INFINITY, previous_smooth_gap = INFINITY;
+  for (int subdivisions : {3, 4, 5}) {
+    const ice::TriangleMesh mesh = ice::make_icosphere(subdivisions);
+    const ice::CompactMesh m = glued(mesh);
+    const fem::TangentFrames frames = fem::tangent_frames(m);
+    const Cap cap = sphere_cap(mesh, frames, 0.3);
+    const double holonomy = loop_holonomy(fem::connection_laplacian(m, frames), cap.loop);
+    const double gap = std::abs(wrap_angle(holonomy - cap.inner_defect));
+    INFO("subdivisions " << subdivisions << ": holonomy " << holonomy << ", inner defect " << cap.inner_defect
+                         << ", loop vertices' defects " << cap.boundary_defect);
+    CHECK(gap <= cap.boundary_defect);
+    // The smooth cap's curvature 2π(1 − 0.3) is approached too, as the jagged loop nears the circle
+    // z = 0.3 (measured 0.45, 0.18, 0.11).
+    const double smooth_gap = std::abs(wrap_angle(holonomy - 2 * kPi * 0.7));
+    CHECK(smooth_gap < 0.5);
+    CHECK(smooth_gap < previous_smooth_gap);
+    CHECK(gap < previous_gap);
+    previous_gap = gap;
+    previous_smooth_gap = smooth_gap;
+  }
+}
+
+TEST_CASE("vector heat method: parallel transport on a sphere converges to the exact transport", "[fem][vectors]") {
+  const auto [coarse_median, coarse_max] = sphere_transport_error(4);
+  const auto [fine_median, fine_max] = sphere_transport_error(5);
+  INFO("median / max error: " << coarse_median << " / " << coarse_max << " deg at 2,562 vertices, " << fine_median
+                              << " / " << fine_max << " deg at 10,242");
+  CHECK(fine_median < 0.05);
+  CHECK(fine_max < 0.2);
+  CHECK(fine_median < 0.5 * coarse_median);  // second order: ~4x per halving of h
+}
+
+TEST_CASE("vector heat method interpolates prescribed vectors", "[fem][vectors]") {
+  const ice::TriangleMesh mesh = ice::make_icosphere(4);
+  const ice::CompactMesh m = glued(mesh);
+  const fem::TangentFrames frames = fem::tangent_frames(m);
+  const fem::VectorHeatSolver solver(fem::vector_heat_operators(m, frames));
+  const std::vector<Index> sources = {0, 5, 9};
+  const std::vector<fem::Complex> vectors = {std::polar(1.0, 0.3), std::polar(2.0, 2.0), std::polar(3.0, -1.0)};
+  const Eigen::VectorXcd field = solver.interpolate(sources, vectors);
+  for (std::size_t s = 0; s < sources.size(); ++s) {
+    CHECK(fem::angle_between_degrees(field(sources[s]), vectors[s]) < 2.0);
+    CHECK(std::abs(field(sources[s])) == Approx(std::abs(vectors[s])).epsilon(0.05));
+  }
+  for (Eigen::Index v = 0; v < field.size(); ++v) {  // magnitudes interpolate: within the given range
+    CHECK(std::abs(field(v)) >= 1 - 1e-9);
+    CHECK(std::abs(field(v)) <= 3 + 1e-9);
+  }
+  CHECK_THROWS_AS(solver.interpolate({0, 1}, {fem::Complex(1)}), std::invalid_argument);
+  CHECK_THROWS_AS(solver.interpolate({}, {}), std::invalid_argument);
+  CHECK_THROWS_AS(solver.interpolate({static_cast<Index>(mesh.V.rows())}, {fem::Complex(1)}), std::invalid_argument);
+}
+
+TEST_CASE("vector prolongation without coarsening is a change of frames", "[fem][vectors]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+  const ice::CompactMesh fine = glued(mesh);
+  const fem::TangentFrames frames = fem::tangent_frames(fine);
+  const Eigen::Index n = mesh.V.rows();
+  SECTION("the same mesh on both sides: the identity") {
+    std::vector<ice::CoarsePoint> map(static_cast<std::size_t>(n));
+    for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        ice::CoarsePoint& p = map[static_cast<std::size_t>(fine.F(f, k))];
+        p.coarse_vertex = fine.F(f, k);
+        p.face = static_cast<Index>(f);
+        p.bary = {0, 0, 0};
+        p.bary[static_cast<std::size_t>(k)] = 1;
+      }
+    const fem::ComplexSparseMatrix P = fem::vector_prolongation(fine, frames, fine, frames, map);
+    fem::ComplexSparseMatrix identity(n, n);
+    identity.setIdentity();
+    CHECK((Eigen::MatrixXcd(P) - Eigen::MatrixXcd(identity)).cwiseAbs().maxCoeff() < 1e-12);
+  }
+  SECTION("ICE with no removal: diagonal, unitary, and carries one connection Laplacian to the other") {
+    ice::CoarseSpaceOptions options;
+    options.coarsen.target_vertices = static_cast<Index>(n);
+    options.keep_method_state = true;
+    const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+    REQUIRE(space.mesh.num_vertices() == n);
+    const fem::TangentFrames coarse_frames = fem::tangent_frames(space.mesh);
+    const fem::ComplexSparseMatrix P =
+        fem::vector_prolongation(fine, frames, space.mesh, coarse_frames, ice::fine_to_coarse_map(space));
+    CHECK(P.nonZeros() == n);
+    for (Eigen::Index v = 0; v < n; ++v) CHECK(std::abs(std::abs(P.coeff(v, v)) - 1) < 1e-12);
+    const Eigen::MatrixXcd galerkin = Eigen::MatrixXcd(P.adjoint()) * Eigen::MatrixXcd(fem::connection_laplacian(fine, frames)) *
+                                      Eigen::MatrixXcd(P);
+    const Eigen::MatrixXcd coarse = Eigen::MatrixXcd(fem::connection_laplacian(space.mesh, coarse_frames));
+    CHECK((galerkin - coarse).cwiseAbs().maxCoeff() < 1e-9 * coarse.cwiseAbs().maxCoeff());
+  }
+}
+
+TEST_CASE("vector heat method through the coarse proxy approaches the fine field", "[fem][vectors]") {
+  // A sphere coarsened to 5 %: the proxy's transport against the fine mesh's, both operator kinds.
+  const ice::TriangleMesh mesh = ice::make_icosphere(5);
+  const ice::CompactMesh fine = glued(mesh);
+  const fem::TangentFrames frames = fem::tangent_frames(fine);
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_ratio = 0.05;
+  options.keep_method_state = true;
+  const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  const fem::TangentFrames coarse_frames = fem::tangent_frames(space.mesh);
+  const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+  const fem::VectorHeatSolver solver(fem::vector_heat_operators(fine, frames));
+  const Eigen::VectorXcd reference = solver.interpolate({17}, {fem::Complex(0, 1)});
+  for (const fem::VectorOperatorKind kind : {fem::VectorOperatorKind::intrinsic, fem::VectorOperatorKind::galerkin}) {
+    const fem::VectorHeatProxy proxy(fine, frames, space.mesh, coarse_frames, map, space.P, kind);
+    CHECK(proxy.prolongation_stats().unmatched == 0);
+    // Rows: moduli are the barycentric coordinates of P.
+    const Eigen::MatrixXd moduli = Eigen::MatrixXcd(proxy.vector_prolongation()).cwiseAbs();
+    CHECK((moduli - Eigen::MatrixXd(space.P)).cwiseAbs().maxCoeff() < 1e-12);
+    const Eigen::VectorXcd field = proxy.interpolate({17}, {fem::Complex(0, 1)});
+    const std::vector<double> errors = angle_errors(field, reference);
+    INFO("kind " << static_cast<int>(kind) << ": median angle error " << median(errors) << " deg");
+    CHECK(median(errors) < 2.0);
+  }
+}
