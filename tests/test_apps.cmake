@@ -1,4 +1,4 @@
-# End-to-end tests of the command-line tools (ice-coarsen, geodesic-coarse, poisson-coarse).
+# End-to-end tests of the command-line tools (ice-coarsen, geodesic-coarse, poisson-coarse, vector-coarse).
 #
 # This file has two roles:
 #  - included from apps/CMakeLists.txt (normal mode), it registers one CTest test per case below;
@@ -17,7 +17,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
     return()
   endif()
   set(_ice_app_cases
-    coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle poisson_spot poisson_fix_rhs_spot
+    coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot poisson_spot poisson_fix_rhs_spot
     ply_ascii errors)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
@@ -387,6 +387,36 @@ elseif(CASE STREQUAL "geodesic_galerkin_spot")
   if(NOT err)
     fail("--no-reference: the report has an error object")
   endif()
+
+elseif(CASE STREQUAL "vector_spot")
+  # vector-coarse on spot (2,930 vertices) -> 500 coarse vertices: transport of one vector, the
+  # interpolation of two, and its refusals.
+  project_mesh(mesh spot.obj)
+  run(0 vector-coarse "${mesh}" --source 0 --vector 30 --vertices 500 --report "${WORK}/r.json" --output "${WORK}/v.ply" -q)
+  set(r "${WORK}/r.json")
+  require_keys("${r}" ${PDE_KEYS} timings_s.reference error.angle.median_deg error.angle.p95_deg error.magnitude_rel.max
+               vector_prolongation.fitted vector_prolongation.unmatched time_factor)
+  # Measured: median 4.3 deg, p95 24 deg (sources 7 and 1500: 2.6 and 12.3 deg median). A wrong frame
+  # relation or restriction gives tens of degrees.
+  json(median "${r}" error angle median_deg)
+  check(${median} LESS 9 "error.angle.median_deg")
+  json(unmatched "${r}" vector_prolongation unmatched)
+  check(${unmatched} EQUAL 0 "vector_prolongation.unmatched")
+  # One source: every magnitude is the source's.
+  json(magnitude "${r}" error magnitude_rel max)
+  check(${magnitude} LESS 1e-9 "error.magnitude_rel.max")
+  check_ply_header("${WORK}/v.ply" binary_little_endian vector_x vector_y vector_z reference_x reference_y reference_z
+                   angle_error magnitude_error)
+  run(0 vector-coarse "${mesh}" --source 0,1500 --direction 1,0,0,0,1,0 --magnitude 1,2 --vertices 500 --report "${WORK}/two.json" -q)
+  json(median "${WORK}/two.json" error angle median_deg)
+  check(${median} LESS 9 "two sources: error.angle.median_deg")
+  expect_error(4 "2 angles for 1 sources" vector-coarse "${mesh}" --source 0 --vector 1,2 --vertices 500)
+  expect_error(4 "exactly one of --vector" vector-coarse "${mesh}" --source 0 --vertices 500)
+  expect_error(4 "normal to the surface" vector-coarse "${mesh}" --source 0 --direction 0,0,0 --vertices 500)
+  expect_error(4 "input triangles" vector-coarse "${mesh}" --source 0 --vector 1 --fine-idt --vertices 500)
+  expect_error(4 "out of range" vector-coarse "${mesh}" --source 99999 --vector 1 --vertices 500)
+  expect_error(4 "not a finite number" vector-coarse "${mesh}" --source 0 --vector nan --vertices 500)
+  expect_error(4 "positive" vector-coarse "${mesh}" --source 0 --vector 1 --magnitude 0 --vertices 500)
 
 elseif(CASE STREQUAL "poisson_spot")
   project_mesh(mesh spot.obj)
