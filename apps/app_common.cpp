@@ -142,6 +142,7 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
   space_options.method = opt.target.method;
   space_options.qem_geometry = opt.qem_geometry;
   space_options.coarsen = options;
+  space_options.refinement = opt.target.refinement();
   ice::CoarseSpace space;
   try {
     space = build_coarse_space_with_progress(mesh, space_options, !opt.quiet);

@@ -218,6 +218,24 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
                  "not identical to the serial result); 0 = one per hardware thread")
       ->check(integer_between(0, 64))
       ->capture_default_str();
+  cli.add_option("--refine-angle", refine_angle,
+                 "Intrinsic Delaunay refinement of the ICE coarse mesh after coarsening: insert vertices (tracked on the "
+                 "input surface) until every angle is at least DEG degrees, in (0, 30] (e.g. 25); 0 = none. Corners "
+                 "at vertices with an angle sum below 60 degrees are left as they are")
+      ->check(number_between(0, 30))
+      ->capture_default_str();
+  cli.add_option("--refine-budget", refine_budget,
+                 "With --refine-angle: stop once the coarse vertices reach R times their count after coarsening (R >= 1)")
+      ->check(number_between(1, 1e6))
+      ->capture_default_str();
+}
+
+std::optional<ice::RefinementOptions> TargetOptions::refinement() const {
+  if (!(refine_angle > 0)) return std::nullopt;
+  ice::RefinementOptions options;
+  options.min_angle_degrees = refine_angle;
+  options.max_vertex_ratio = refine_budget;
+  return options;
 }
 
 void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
@@ -238,6 +256,10 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
   if (min_vertices != 0 && !has_ratio) throw AppError(kUsage, "--min-vertices goes with --ratio");
   if (min_vertices < 0) throw AppError(kUsage, "--min-vertices must be positive");
   if (!(area_weight >= 0 && area_weight <= 1)) throw AppError(kUsage, "--area-weight must be in [0, 1]");
+  if (!(refine_angle >= 0 && refine_angle <= 30)) throw AppError(kUsage, "--refine-angle must be in (0, 30] degrees (0: none)");
+  if (!(refine_budget >= 1)) throw AppError(kUsage, "--refine-budget must be at least 1");
+  if (refine_angle > 0 && method == ice::CoarseningMethod::qem)
+    throw AppError(kUsage, "--refine-angle refines ICE's intrinsic coarse mesh; it does not apply to --method qem");
   options.target_vertices = has_vertices ? static_cast<ice::Index>(vertices) : 0;
   options.target_ratio = has_ratio ? ratio : 0;
   if (has_ratio && min_vertices > 0) {  // the same rounding as ice::coarsen, then the floor

@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 #include <stdexcept>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -75,6 +76,12 @@ struct TargetOptions {
   bool normalize_curvature = ice::recommended_coarsen_options().normalize_curvature;
   ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< --method ice|qem
   int threads = 1;             ///< ICE coarsening threads (ice::CoarsenOptions::threads)
+  /// --refine-angle DEG (0: no refinement) and --refine-budget R: intrinsic Delaunay refinement of
+  /// the ICE coarse mesh (ice::RefinementOptions).
+  double refine_angle = 0;
+  double refine_budget = ice::RefinementOptions().max_vertex_ratio;
+  /// The refinement asked for, if any (checked by apply()).
+  std::optional<ice::RefinementOptions> refinement() const;
   /// The options as added by add_to: whether a target was given at all (a given 0 is out of range,
   /// not "no target").
   const CLI::Option* vertices_option = nullptr;
@@ -82,7 +89,8 @@ struct TargetOptions {
   /// The metric defaults measured for `use` (call before add_to, so --help shows them).
   void use_defaults_for(ice::ProxyUse use);
   /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight,
-  /// --normalize-curvature/--no-normalize-curvature, --method and --coarsen-threads.
+  /// --normalize-curvature/--no-normalize-curvature, --method, --coarsen-threads, --refine-angle and
+  /// --refine-budget.
   void add_to(CLI::App& cli, bool with_max_error);
   /// Checks the values against an input of n vertices and fills `options` (target, error, area
   /// weight, threads). Throws AppError(kUsage) with a clear message on a bad combination or value.

@@ -96,13 +96,16 @@ void write_map(const std::string& path, const std::vector<ice::CoarsePoint>& map
   check_stream(out, path);
 }
 
-void write_preview(const std::string& path, const ice::TriangleMesh& mesh, const ice::CompactMesh& coarse) {
+void write_preview(const std::string& path, const ice::TriangleMesh& mesh, const ice::CoarseSpace& space) {
+  const ice::CompactMesh& coarse = space.mesh;
   std::ofstream out = open_output(path);
   out << "# EXTRINSIC PREVIEW ONLY of an intrinsic coarse mesh (ice-coarsen): the surviving vertices at their input "
-         "positions, joined by the coarse faces; the true coarse geometry is the edge lengths in coarse.ilm\n";
+         "positions (vertices inserted by refinement at their points of the input surface), joined by the coarse "
+         "faces; the true coarse geometry is the edge lengths in coarse.ilm\n";
   out.precision(17);
-  for (ice::Index v : coarse.to_input)
-    out << "v " << Num{mesh.V(v, 0)} << ' ' << Num{mesh.V(v, 1)} << ' ' << Num{mesh.V(v, 2)} << '\n';
+  const ice::Positions positions = ice::coarse_vertex_positions(mesh, space);
+  for (Eigen::Index v = 0; v < positions.rows(); ++v)
+    out << "v " << Num{positions(v, 0)} << ' ' << Num{positions(v, 1)} << ' ' << Num{positions(v, 2)} << '\n';
   for (Eigen::Index f = 0; f < coarse.F.rows(); ++f)
     out << "f " << coarse.F(f, 0) + 1 << ' ' << coarse.F(f, 1) + 1 << ' ' << coarse.F(f, 2) + 1 << '\n';
   check_stream(out, path);
@@ -218,6 +221,7 @@ int main(int argc, char** argv) {
     ice::CoarseSpaceOptions space_options;
     space_options.method = target.method;
     space_options.coarsen = options;
+    space_options.refinement = target.refinement();
     space_options.keep_method_state = true;  // the map, the preview and --validate need it
     const ice::CoarseSpace space = app::build_coarse_space_with_progress(mesh, space_options, !quiet);
     const ice::CoarseSpaceSummary& summary = space.summary;
@@ -240,7 +244,7 @@ int main(int argc, char** argv) {
     if (qem)
       write_qem_preview(outputs[3], *space.qem_result);
     else
-      write_preview(outputs[3], mesh, coarse);
+      write_preview(outputs[3], mesh, space);
     const double t_write = clock.lap();
 
     const double rate = summary.removed() / std::max(t_coarsen, 1e-9);
@@ -272,6 +276,7 @@ int main(int argc, char** argv) {
               << " faces -> " << app::thousands(nc) << " vertices, " << app::thousands(coarse.F.rows()) << " faces ("
               << app::percent(double(nc) / double(n)) << " of the vertices)\n"
               << "  stop: " << stop_line(summary) << '\n'
+              << (summary.refinement ? "  refine: " + app::refinement_line(summary) + "\n" : std::string())
               << "  time: load " << app::fixed(t_load, 3) << " s, coarsen " << app::fixed(t_coarsen, 3) << " s ("
               << app::thousands(static_cast<long long>(rate)) << " removals/s), "
               << (validate ? "validate " + app::fixed(t_validate, 3) + " s (ok), " : std::string())

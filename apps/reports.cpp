@@ -94,6 +94,20 @@ nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
                       {"faces", summary.coarse_faces},
                       {"stop_reason", ice::to_string(summary.stop_reason())},
                       {"removed", summary.removed()}};
+  if (summary.refinement) {
+    const ice::RefinementResult& r = *summary.refinement;
+    j["refinement"] = {{"inserted", r.inserted},
+                       {"boundary_splits", r.boundary_splits},
+                       {"flips", r.flips},
+                       {"min_angle_before_deg", r.min_angle_before},
+                       {"min_angle_after_deg", r.min_angle_after},
+                       {"faces_below_bound", r.faces_below_bound},
+                       {"sharp_vertex_faces", r.sharp_vertex_faces},
+                       {"tiny_faces", r.tiny_faces},
+                       {"bound_reached", r.bound_reached},
+                       {"budget_exhausted", r.budget_exhausted},
+                       {"seconds", summary.refinement_seconds}};
+  }
   if (!summary.ice) return j;
   const ice::CoarsenResult& result = *summary.ice;
   nlohmann::json failures = nlohmann::json::object();
@@ -114,6 +128,20 @@ nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
                         {"parallel", result.parallel_seconds},
                         {"serial", result.serial_seconds}};
   return j;
+}
+
+std::string refinement_line(const ice::CoarseSpaceSummary& summary) {
+  if (!summary.refinement) return "";
+  const ice::RefinementResult& r = *summary.refinement;
+  std::string line = "+" + thousands(r.inserted) + " vertices (" + thousands(r.boundary_splits) + " boundary midpoints) in " +
+                     fixed(summary.refinement_seconds, 3) + " s, smallest angle " + fixed(r.min_angle_before, 2) +
+                     " -> " + fixed(r.min_angle_after, 2) + " deg";
+  if (r.bound_reached) return line + ", bound reached";
+  line += ", " + thousands(r.faces_below_bound) + " faces below the bound";
+  if (r.sharp_vertex_faces + r.tiny_faces > 0)
+    line += " (" + thousands(r.sharp_vertex_faces) + " at sharp vertices, " + thousands(r.tiny_faces) + " tiny)";
+  if (r.budget_exhausted) line += "; vertex budget spent";
+  return line;
 }
 
 nlohmann::json qem_json(const ice::QemOutcome& qem, bool target_reached) {
@@ -218,6 +246,7 @@ void PdeRun::print_summary(std::ostream& out) const {
   row("load", load);
   row("coarsen", coarsen, thousands(coarsening.removed()) + (qem ? " collapses, " : " removals, ") +
                               thousands(static_cast<long long>(coarsening.removed() / std::max(coarsen, 1e-9))) + "/s");
+  if (coarsening.refinement) out << "  refine          " << refinement_line(coarsening) << '\n';
   row("fine mesh", fine_mesh,
       (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +
           (proxy_uses_fine_mesh ? " (used by the proxy too; counted in neither total)" : " (for the reference; counted in neither total)"));

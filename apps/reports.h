@@ -80,6 +80,10 @@ std::string percent(const nlohmann::json& fraction);
 /// QEM collapses), and for ICE its removal details (failed removals by status, costs).
 nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary);
 
+/// One line on the refinement of a coarse space ("+132 vertices (114 boundary midpoints) in 0.005 s,
+/// smallest angle 0.69° -> 3.75°, ..."), or "" without refinement.
+std::string refinement_line(const ice::CoarseSpaceSummary& summary);
+
 /// The "qem" object of the JSON reports (mapping, guard, distances, times, geometry of the coarse mesh).
 nlohmann::json qem_json(const ice::QemOutcome& qem, bool target_reached);
 

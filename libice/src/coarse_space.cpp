@@ -84,12 +84,18 @@ void coarse_mesh_and_prolongation(const IntrinsicTriangulation& T, const std::ve
   const Index coarse = C.num_vertices();
   std::vector<Index> by_input(static_cast<std::size_t>(coarse));
   std::iota(by_input.begin(), by_input.end(), 0);
-  const auto input_of = [&](Index c) { return order[static_cast<std::size_t>(C.to_input[static_cast<std::size_t>(c)])]; };
+  // Inserted vertices (to_input kInvalid) keep their place after the input ones.
+  const Index input_count = static_cast<Index>(order.size());
+  const auto input_of = [&](Index c) {
+    const Index t = C.to_input[static_cast<std::size_t>(c)];
+    return t == kInvalid ? input_count + c : order[static_cast<std::size_t>(t)];
+  };
   std::sort(by_input.begin(), by_input.end(), [&](Index a, Index b) { return input_of(a) < input_of(b); });
   std::vector<Index> renumbered(static_cast<std::size_t>(coarse)), to_input(static_cast<std::size_t>(coarse));
   for (Index i = 0; i < coarse; ++i) {
     renumbered[static_cast<std::size_t>(by_input[static_cast<std::size_t>(i)])] = i;
-    to_input[static_cast<std::size_t>(i)] = input_of(by_input[static_cast<std::size_t>(i)]);
+    const Index input = input_of(by_input[static_cast<std::size_t>(i)]);
+    to_input[static_cast<std::size_t>(i)] = input < input_count ? input : kInvalid;
   }
   for (Eigen::Index f = 0; f < C.F.rows(); ++f)
     for (int k = 0; k < 3; ++k) C.F(f, k) = renumbered[static_cast<std::size_t>(C.F(f, k))];
@@ -117,6 +123,20 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   }
   CoarseSpace space;
   const CoarsenResult result = coarsen(T, coarsen_options);
+  if (options.refinement) {
+    const auto refine_start = Clock::now();
+    space.summary.refinement = refine_delaunay(T, *options.refinement);
+    // The input faces in T's numbering (rows as in the mesh) locate the inserted vertices.
+    Faces faces_in_t = mesh.F;
+    if (!order.empty()) {
+      std::vector<Index> new_index(order.size());
+      for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
+      for (Eigen::Index f = 0; f < faces_in_t.rows(); ++f)
+        for (int k = 0; k < 3; ++k) faces_in_t(f, k) = new_index[static_cast<std::size_t>(faces_in_t(f, k))];
+    }
+    space.inserted = locate_inserted_vertices(T, faces_in_t);
+    space.summary.refinement_seconds = seconds_since(refine_start);
+  }
   coarse_mesh_and_prolongation(T, order, space);
   space.summary.target_reached = result.stop_reason == StopReason::TargetReached;
   space.summary.ice = result;
@@ -165,6 +185,8 @@ CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOption
   const auto start = Clock::now();
   CoarseSpace space;
   if (options.method == CoarseningMethod::qem) {
+    if (options.refinement)
+      throw std::invalid_argument("build_coarse_space: refinement works on ICE's intrinsic coarse mesh, not on QEM's");
     if (std::isfinite(options.coarsen.max_error))
       throw std::invalid_argument("build_coarse_space: max_error bounds the ICE error metric; QEM takes a vertex target");
     QemOptions q;
@@ -219,6 +241,25 @@ std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space) {
     point.face = compact_face[face];
   }
   return map;
+}
+
+Positions coarse_vertex_positions(const TriangleMesh& mesh, const CoarseSpace& space) {
+  const CompactMesh& coarse = space.mesh;
+  Positions positions(coarse.num_vertices(), 3);
+  std::size_t next_inserted = 0;
+  for (Index c = 0; c < coarse.num_vertices(); ++c) {
+    const Index input = coarse.to_input[static_cast<std::size_t>(c)];
+    if (input != kInvalid) {
+      positions.row(c) = mesh.V.row(input);
+      continue;
+    }
+    if (next_inserted >= space.inserted.size())
+      throw std::invalid_argument("coarse_vertex_positions: an inserted coarse vertex without its input-surface point");
+    const InputSurfacePoint& p = space.inserted[next_inserted++];
+    positions.row(c).setZero();
+    for (int k = 0; k < 3; ++k) positions.row(c) += p.bary[static_cast<std::size_t>(k)] * mesh.V.row(mesh.F(p.face, k));
+  }
+  return positions;
 }
 
 FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {

@@ -155,8 +155,8 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
     if (!reader.next(words)) reader.fail(MeshError::Kind::Unreadable, "file ends after " + std::to_string(v) + " of " + std::to_string(n) + " vertex lines");
     long long id = 0;
     if (words.size() != 2 || words[0] != "v" || !parse(words[1], id))
-      reader.fail(MeshError::Kind::Unreadable, "expected \"v <input vertex id>\" (vertex " + std::to_string(v) + ")");
-    if (id < 0 || id >= file.input_vertices)
+      reader.fail(MeshError::Kind::Unreadable, "expected \"v <input vertex id, or -1 for a vertex inserted by refinement>\" (vertex " + std::to_string(v) + ")");
+    if (id < -1 || id >= file.input_vertices)
       reader.fail(MeshError::Kind::Defective, "vertex " + std::to_string(v) + ": input vertex " + std::to_string(id) +
                                                   " out of range (" + std::to_string(file.input_vertices) + ")");
     if (!used[static_cast<std::size_t>(v)])
@@ -172,7 +172,7 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
     return file.to_input[a] < file.to_input[b] || (file.to_input[a] == file.to_input[b] && a < b);
   });
   for (std::size_t i = 1; i < order.size(); ++i)
-    if (file.to_input[order[i]] == file.to_input[order[i - 1]])
+    if (file.to_input[order[i]] != kInvalid && file.to_input[order[i]] == file.to_input[order[i - 1]])
       throw MeshError(MeshError::Kind::Defective, path,
                       "input vertex " + std::to_string(file.to_input[order[i]]) + " listed twice (vertices " +
                           std::to_string(order[i - 1]) + " and " + std::to_string(order[i]) + ")");
@@ -203,7 +203,7 @@ void write_intrinsic_mesh(const std::string& path, const CompactMesh& mesh, Inde
   out << "ICE-ILM 2\n";
   if (!comment.empty()) out << "# " << comment << "\n";
   out << "# f i j k l_ij l_jk l_ki t_ij t_jk t_ki (0-based vertices, edge lengths, twin sides 3*face+side or -1);"
-         " v input_vertex_of_vertex\n"
+         " v input_vertex_of_vertex (-1: inserted by refinement)\n"
       << "vertices " << mesh.to_input.size() << "\nfaces " << mesh.F.rows() << "\ninput_vertices " << input_vertices
       << '\n';
   const auto twin_text = [&](Eigen::Index side) {

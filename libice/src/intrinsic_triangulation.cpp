@@ -354,7 +354,7 @@ double IntrinsicTriangulation::curvature(Index v) const {
 
 double IntrinsicTriangulation::total_curvature() const {
   double sum = 0;
-  for (Index v = 0; v < num_input_vertices(); ++v)
+  for (Index v = 0; v < num_vertex_slots(); ++v)
     if (vertex_alive(v)) sum += curvature(v);
   return sum;
 }
@@ -727,6 +727,7 @@ void IntrinsicTriangulation::kill_edge(Index e) {
 
 RemovalStatus IntrinsicTriangulation::remove_vertex(Index v, std::vector<Index>* changed_faces,
                                                     std::vector<Index>* touched, double flattening_hint) {
+  // An inserted vertex has no tracked point to become: only input vertices are removed.
   if (v < 0 || v >= num_input_vertices() || !vertex_alive(v)) return RemovalStatus::NotAVertex;
   bool face_only_at_v = false;
   for_each_outgoing(v, [&](Index h) {
@@ -1014,11 +1015,216 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
 }
 
 // ------------------------------------------------------------------------------------------------
+// Insertions (Delaunay refinement)
+
+Index IntrinsicTriangulation::new_vertex(bool boundary, double angle_sum) {
+  vertices_.push_back(VertexRecord{kInvalid, boundary ? 1 : 0, angle_sum});
+  ++num_vertices_;
+  return static_cast<Index>(vertices_.size()) - 1;
+}
+
+Index IntrinsicTriangulation::new_edge(double length) {
+  EdgeRecord record{};
+  for (int side = 0; side < 2; ++side)
+    record.next[side] = record.prev[side] = record.tail[side] = record.face[side] = kInvalid, record.angle[side] = 0;
+  record.length = length;
+  edges_.push_back(record);
+  ++num_edges_;
+  return static_cast<Index>(edges_.size()) - 1;
+}
+
+Index IntrinsicTriangulation::new_face() {
+  faces_.push_back(FaceRecord{kInvalid, kInvalid});
+  ++num_faces_;
+  return static_cast<Index>(faces_.size()) - 1;
+}
+
+namespace {
+// Counter-clockwise angle from direction a to direction b, in [0, 2π).
+double angle_between(Vec2 a, Vec2 b) {
+  const double angle = std::atan2(cross(a, b), a.x * b.x + a.y * b.y);
+  return angle < 0 ? angle + kTwoPi : angle;
+}
+}  // namespace
+
+Index IntrinsicTriangulation::insert_vertex(Index f, const std::array<double, 3>& bary, std::vector<Index>* new_faces) {
+  if (f < 0 || f >= num_face_slots() || !face_alive(f))
+    throw std::invalid_argument("insert_vertex: face " + std::to_string(f) + " is not a live face");
+  if (!(bary[0] > 0 && bary[1] > 0 && bary[2] > 0) || std::abs(bary[0] + bary[1] + bary[2] - 1) > 1e-9)
+    throw std::invalid_argument("insert_vertex: barycentric coordinates must be positive and sum to 1");
+  const Index h0 = fhalfedge(f), h1 = next(h0), h2 = next(h1);
+  const Index c0 = tail(h0), c1 = tail(h1), c2 = tail(h2);
+  const Vec2 p0{0, 0}, p1{length(h0), 0};
+  const Vec2 p2 = layout_third_point(p0, p1, length(h0), length(h2), length(h1));
+  const Vec2 q = p0 * bary[0] + p1 * bary[1] + p2 * bary[2];
+  // As flip(): no triangle thinner than kFlipMinSine (its angles would be mostly round-off).
+  const double d0 = (q - p0).norm(), d1 = (q - p1).norm(), d2 = (q - p2).norm();
+  if (!(smallest_angle_sine(length(h0), d1, d0) > kFlipMinSine && smallest_angle_sine(length(h1), d2, d1) > kFlipMinSine &&
+        smallest_angle_sine(length(h2), d0, d2) > kFlipMinSine))
+    return kInvalid;
+
+  std::vector<PlacedPoint>& points = scratch_points();
+  points.clear();
+  LocalLayout layout;
+  layout.set(h0, p0);
+  layout.set(h1, p1);
+  layout.set(h2, p2);
+  collect_points(f, layout, points);
+
+  // Spokes c_k <-> v: half-edge 2e goes c_k -> v, 2e + 1 goes v -> c_k.
+  const Index v = new_vertex(false, kTwoPi);
+  const Index e0 = new_edge(d0), e1 = new_edge(d1), e2 = new_edge(d2);
+  const Index f1 = new_face(), f2 = new_face();
+  const Index to0 = 2 * e0, from0 = 2 * e0 + 1, to1 = 2 * e1, from1 = 2 * e1 + 1, to2 = 2 * e2, from2 = 2 * e2 + 1;
+  htail(to0) = c0, htail(from0) = v, htail(to1) = c1, htail(from1) = v, htail(to2) = c2, htail(from2) = v;
+  // f = (c0 -> c1 -> v), f1 = (c1 -> c2 -> v), f2 = (c2 -> c0 -> v).
+  link_face(h0, to1, from0);
+  link_face(h1, to2, from1);
+  link_face(h2, to0, from2);
+  hface(h0) = hface(to1) = hface(from0) = f;
+  hface(h1) = hface(to2) = hface(from1) = f1;
+  hface(h2) = hface(to0) = hface(from2) = f2;
+  fhalfedge(f) = h0, fhalfedge(f1) = h1, fhalfedge(f2) = h2;
+  vhalfedge(v) = from0;
+  // The corners keep their angle sums; each new spoke sits inside its corner.
+  hangle(to0) = wrap_angle(hangle(h0) + angle_scale(c0) * angle_between(p1 - p0, q - p0));
+  hangle(to1) = wrap_angle(hangle(h1) + angle_scale(c1) * angle_between(p2 - p1, q - p1));
+  hangle(to2) = wrap_angle(hangle(h2) + angle_scale(c2) * angle_between(p0 - p2, q - p2));
+  hangle(from0) = 0;
+  recompute_vertex_frame(v);
+
+  for (const auto& point : points) {
+    const Vec2 x = point.position;
+    if (orient2d(p0, p1, x) >= 0 && orient2d(p1, q, x) >= 0 && orient2d(q, p0, x) >= 0)
+      add_point_to_face(point.point, f, barycentric(x, p0, p1, q));
+    else if (orient2d(p1, p2, x) >= 0 && orient2d(p2, q, x) >= 0 && orient2d(q, p1, x) >= 0)
+      add_point_to_face(point.point, f1, barycentric(x, p1, p2, q));
+    else
+      add_point_to_face(point.point, f2, barycentric(x, p2, p0, q));
+  }
+  if (new_faces) new_faces->insert(new_faces->end(), {f, f1, f2});
+  return v;
+}
+
+Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* new_faces) {
+  if (h < 0 || h >= num_halfedge_slots() || !halfedge_alive(h))
+    throw std::invalid_argument("split_edge: half-edge " + std::to_string(h) + " is not alive");
+  if (!(t > 0 && t < 1)) throw std::invalid_argument("split_edge: the fraction must lie in (0, 1)");
+  if (is_exterior(h)) {  // split from the interior side
+    h ^= 1;
+    t = 1 - t;
+  }
+  const Index tw = h ^ 1;
+  const bool boundary = is_exterior(tw);
+  if (!boundary && face(h) == face(tw)) return kInvalid;
+  const Index i = tail(h), j = tail(tw);
+  const double l_ij = length(h);
+  // Face A (h: i -> j, a: j -> k, b: k -> i) laid out with i at the origin and j on +x; face B
+  // (tw: j -> i, c: i -> l, d: l -> j) below the axis.
+  const Index fa = face(h), a = next(h), b = next(a), k = tail(b);
+  const Vec2 pi{0, 0}, pj{l_ij, 0};
+  const Vec2 pk = layout_third_point(pi, pj, l_ij, length(b), length(a));
+  const Vec2 pm{t * l_ij, 0};
+  const auto too_thin = [](Vec2 x, Vec2 y, Vec2 z) {
+    return !(smallest_angle_sine((y - x).norm(), (z - y).norm(), (x - z).norm()) > kFlipMinSine);
+  };
+  if (too_thin(pi, pm, pk) || too_thin(pm, pj, pk)) return kInvalid;
+  if (!boundary) {
+    const Index c0 = next(tw);
+    const Vec2 below = layout_third_point(pj, pi, l_ij, length(next(c0)), length(c0));
+    if (too_thin(pj, pm, below) || too_thin(pm, pi, below)) return kInvalid;
+  }
+  std::vector<PlacedPoint>& points = scratch_points();
+  points.clear();
+  LocalLayout layout;
+  layout.set(h, pi);
+  layout.set(a, pj);
+  layout.set(b, pk);
+  collect_points(fa, layout, points);
+  Index fb = kInvalid, c = kInvalid, d = kInvalid, l = kInvalid;
+  Vec2 pl;
+  if (!boundary) {
+    fb = face(tw), c = next(tw), d = next(c), l = tail(d);
+    pl = layout_third_point(pj, pi, l_ij, length(d), length(c));
+    LocalLayout below;
+    below.set(tw, pj);
+    below.set(c, pi);
+    below.set(d, pl);
+    collect_points(fb, below, points);
+  }
+  const double old_angle_tw = hangle(tw);
+  const bool j_started_at_tw = vhalfedge(j) == tw;
+
+  // Edge of h becomes i—m; g is m—j; spokes m—k and m—l.
+  const Index m = new_vertex(boundary, boundary ? kPi : kTwoPi);
+  const Index g = new_edge((1 - t) * l_ij);
+  const Index spoke_k = new_edge((pk - pm).norm());
+  elength(h >> 1) = t * l_ij;
+  const Index m_to_j = 2 * g, j_to_m = 2 * g + 1, m_to_k = 2 * spoke_k, k_to_m = 2 * spoke_k + 1;
+  const Index m_to_i = tw;  // the old twin now runs m -> i
+  htail(m_to_i) = m, htail(m_to_j) = m, htail(j_to_m) = j, htail(m_to_k) = m, htail(k_to_m) = k;
+  const Index fa2 = new_face();
+  // A = (h: i -> m, m -> k, b: k -> i), A2 = (m -> j, a: j -> k, k -> m).
+  link_face(h, m_to_k, b);
+  link_face(m_to_j, a, k_to_m);
+  hface(h) = hface(m_to_k) = hface(b) = fa;
+  hface(m_to_j) = hface(a) = hface(k_to_m) = fa2;
+  fhalfedge(fa) = h, fhalfedge(fa2) = m_to_j;
+  hangle(k_to_m) = wrap_angle(hangle(b) + angle_scale(k) * angle_between(pi - pk, pm - pk));
+  hangle(j_to_m) = old_angle_tw;
+  if (boundary) {
+    hnext(m_to_i) = hprev(m_to_i) = kInvalid;
+    hface(m_to_i) = kInvalid;
+    hnext(j_to_m) = hprev(j_to_m) = kInvalid;
+    hface(j_to_m) = kInvalid;
+    vhalfedge(m) = m_to_j;  // the first outgoing half-edge counter-clockwise: its twin is exterior
+  } else {
+    const Index spoke_l = new_edge((pl - pm).norm());
+    const Index m_to_l = 2 * spoke_l, l_to_m = 2 * spoke_l + 1;
+    htail(m_to_l) = m, htail(l_to_m) = l;
+    const Index fb2 = new_face();
+    // B = (j -> m, m -> l, d: l -> j), B2 = (m -> i, c: i -> l, l -> m).
+    link_face(j_to_m, m_to_l, d);
+    link_face(m_to_i, c, l_to_m);
+    hface(j_to_m) = hface(m_to_l) = hface(d) = fb;
+    hface(m_to_i) = hface(c) = hface(l_to_m) = fb2;
+    fhalfedge(fb) = j_to_m, fhalfedge(fb2) = m_to_i;
+    hangle(l_to_m) = wrap_angle(hangle(d) + angle_scale(l) * angle_between(pj - pl, pm - pl));
+    vhalfedge(m) = m_to_k;
+    hangle(m_to_k) = 0;
+    if (new_faces) new_faces->insert(new_faces->end(), {fb, fb2});
+  }
+  if (j_started_at_tw) vhalfedge(j) = j_to_m;
+  recompute_vertex_frame(m);
+
+  const Index fb2 = boundary ? kInvalid : face(m_to_i);
+  for (const auto& point : points) {
+    const Vec2 x = point.position;
+    if (x.y >= 0 || boundary) {
+      if (orient2d(pm, pk, x) >= 0)
+        add_point_to_face(point.point, fa, barycentric(x, pi, pm, pk));
+      else
+        add_point_to_face(point.point, fa2, barycentric(x, pm, pj, pk));
+    } else {
+      if (orient2d(pl, pm, x) <= 0)
+        add_point_to_face(point.point, fb, barycentric(x, pj, pm, pl));
+      else
+        add_point_to_face(point.point, fb2, barycentric(x, pm, pi, pl));
+    }
+  }
+  if (new_faces) new_faces->insert(new_faces->end(), {fa, fa2});
+  return m;
+}
+
+// ------------------------------------------------------------------------------------------------
 // Export and checks
 
 IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) const {
   CompactMesh arrays = compact();
-  const std::vector<Index>& vertex_id = arrays.from_input;
+  // Slot -> compact vertex and back (compact() lists live input vertices, then live inserted ones).
+  std::vector<Index> vertex_id(static_cast<std::size_t>(num_vertex_slots()), kInvalid), slot_of;
+  for (Index v = 0; v < num_vertex_slots(); ++v)
+    if (vertex_alive(v)) vertex_id[v] = static_cast<Index>(slot_of.size()), slot_of.push_back(v);
   std::vector<Index> face_id(faces_.size(), kInvalid), edge_id(edges_.size(), kInvalid);
   Index faces = 0, edges = 0;
   for (Index f = 0; f < num_face_slots(); ++f)
@@ -1048,7 +1254,7 @@ IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) cons
   const Index vertices = static_cast<Index>(arrays.to_input.size());
   T.vertices_.resize(vertices);
   for (Index c = 0; c < vertices; ++c) {
-    const VertexRecord& old_record = vertices_[arrays.to_input[c]];
+    const VertexRecord& old_record = vertices_[slot_of[static_cast<std::size_t>(c)]];
     T.vertices_[c] = VertexRecord{halfedge_id(old_record.halfedge), old_record.boundary, old_record.angle_sum};
   }
   T.points_.assign(vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
@@ -1059,11 +1265,14 @@ IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) cons
 
 CompactMesh IntrinsicTriangulation::compact() const {
   CompactMesh out;
+  // Live input vertices first (in input order), then live inserted vertices (to_input kInvalid).
+  std::vector<Index> compact_of(static_cast<std::size_t>(num_vertex_slots()), kInvalid);
   out.from_input.assign(num_input_vertices(), kInvalid);
-  for (Index v = 0; v < num_input_vertices(); ++v)
+  for (Index v = 0; v < num_vertex_slots(); ++v)
     if (vertex_alive(v)) {
-      out.from_input[v] = static_cast<Index>(out.to_input.size());
-      out.to_input.push_back(v);
+      compact_of[v] = static_cast<Index>(out.to_input.size());
+      if (v < num_input_vertices()) out.from_input[v] = compact_of[v];
+      out.to_input.push_back(v < num_input_vertices() ? v : kInvalid);
     }
   out.F.resize(num_faces_, 3);
   out.L.resize(num_faces_, 3);
@@ -1074,7 +1283,7 @@ CompactMesh IntrinsicTriangulation::compact() const {
     if (!face_alive(f)) continue;
     Index h = fhalfedge(f);
     for (int k = 0; k < 3; ++k, h = next(h)) {
-      out.F(row, k) = out.from_input[tail(h)];
+      out.F(row, k) = compact_of[tail(h)];
       out.L(row, k) = length(h);
       side_of[h] = 3 * row + k;
     }
@@ -1095,7 +1304,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
   const Index H = num_halfedge_slots();
   Index live_edges = 0, live_faces = 0, live_vertices = 0;
   double face_roundoff_sum = 0;  // Σ over faces of the angle round-off their shape allows
-  std::vector<double> vertex_roundoff(static_cast<std::size_t>(num_input_vertices()), 0.0);
+  std::vector<double> vertex_roundoff(static_cast<std::size_t>(num_vertex_slots()), 0.0);
   for (Index h = 0; h < H; h += 2) {
     const bool alive0 = halfedge_alive(h), alive1 = halfedge_alive(h + 1);
     if (alive0 != alive1) fail("half-edge " + std::to_string(h) + " alive without its twin");
@@ -1108,7 +1317,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
   for (Index h = 0; h < H; ++h) {
     if (!halfedge_alive(h)) continue;
     const Index v = tail(h);
-    if (v < 0 || v >= num_input_vertices() || !vertex_alive(v))
+    if (v < 0 || v >= num_vertex_slots() || !vertex_alive(v))
       fail("half-edge " + std::to_string(h) + " starts at a dead vertex");
     if (is_exterior(h)) continue;
     const Index n = next(h);
@@ -1141,14 +1350,14 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
     const double roundoff = kAngleRoundoffPerSine / smallest_sine;
     face_roundoff_sum += 3 * roundoff;
     for (Index k = 0, g = h; k < 3; ++k, g = next(g))
-      if (tail(g) >= 0 && tail(g) < num_input_vertices()) vertex_roundoff[tail(g)] += roundoff;
+      if (tail(g) >= 0 && tail(g) < num_vertex_slots()) vertex_roundoff[tail(g)] += roundoff;
   }
   if (live_edges != num_edges_ || live_faces != num_faces_)
     fail("element counts out of date");
   if (count > 0) return problems.str();  // connectivity is broken: stop before walking it
 
   double curvature_sum = 0;
-  for (Index v = 0; v < num_input_vertices(); ++v) {
+  for (Index v = 0; v < num_vertex_slots(); ++v) {
     if (!vertex_alive(v)) continue;
     ++live_vertices;
     const Index start = vhalfedge(v);

@@ -25,6 +25,7 @@
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh.h"
 #include "ice/qem.h"
+#include "ice/refinement.h"
 
 namespace ice {
 
@@ -80,6 +81,10 @@ struct CoarseSpaceOptions {
   /// without it; at 1.58M vertices (Loop-subdivided spot) the triangulation builds about 2x faster
   /// and coarsening runs ~15 % faster. Off: the coarsener works in the input's numbering.
   bool locality_numbering = true;
+  /// ICE only: intrinsic Delaunay refinement of the coarse mesh after coarsening (ice/refinement.h),
+  /// inserted vertices becoming coarse vertices of their own (P gains their columns; their places on
+  /// the input surface are CoarseSpace::inserted). Absent: none. With QEM: std::invalid_argument.
+  std::optional<RefinementOptions> refinement;
 };
 
 /// What QEM did (ice/qem.h, QemResult).
@@ -102,6 +107,8 @@ struct CoarseSpaceSummary {
   double seconds = 0;                ///< the whole call: coarsening, map, coarse mesh and P
   std::optional<CoarsenResult> ice;  ///< method == ice: removals, stop reason, costs
   std::optional<QemOutcome> qem;     ///< method == qem
+  std::optional<RefinementResult> refinement;  ///< when refinement was asked for
+  double refinement_seconds = 0;
   /// Removals (ICE) or collapses (QEM).
   Index removed() const;
   /// ICE's stop reason; for QEM TargetReached or NothingRemovable (no further collapse was legal).
@@ -109,7 +116,12 @@ struct CoarseSpaceSummary {
 };
 
 struct CoarseSpace {
-  CompactMesh mesh;                ///< the coarse intrinsic mesh (faces, lengths, gluing, vertex maps)
+  /// The coarse intrinsic mesh (faces, lengths, gluing, vertex maps). Vertices inserted by refinement
+  /// come last, with to_input kInvalid.
+  CompactMesh mesh;
+  /// Where each inserted vertex lies on the input surface (a face of the input mesh and barycentric
+  /// coordinates), in the order of those last coarse vertices. Empty without refinement.
+  std::vector<InputSurfacePoint> inserted;
   Eigen::SparseMatrix<double> P;   ///< fine (input) vertices × coarse vertices
   CoarseSpaceSummary summary;
   /// With keep_method_state and ICE: the coarsened triangulation. Its input vertex t is the mesh's
@@ -138,6 +150,10 @@ CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep
 /// (with QemGeometry::intrinsic_delaunay the points lie in the QEM mesh's faces, not in
 /// space.mesh's: see space.qem_result->map). Throws std::invalid_argument otherwise.
 std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space);
+
+/// Positions of the coarse vertices on the input surface (for drawing): a survivor's input position,
+/// an inserted vertex's point of its input face. Preconditions: `space` was built from `mesh`.
+Positions coarse_vertex_positions(const TriangleMesh& mesh, const CoarseSpace& space);
 
 /// The fine mesh's discretisation for the PDE solvers (and the Galerkin coarse operators).
 enum class FineGeometry {

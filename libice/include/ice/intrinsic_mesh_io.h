@@ -16,7 +16,8 @@
 ///                                       of those sides its twin: 3g + d for side d of face g (the
 ///                                       same edge run the other way), or -1 on the boundary
 ///     v <input vertex id>               n lines: vertex c (the c-th v line, 0-based) is this 0-based
-///                                       vertex of the input mesh
+///                                       vertex of the input mesh, or -1 for a vertex inserted by
+///                                       Delaunay refinement (no input vertex)
 ///
 /// The gluing makes the file say exactly which triangulation it is, Δ-complexes included (a face
 /// repeating a vertex, two edges between the same two vertices: the normal state of a coarse
@@ -42,7 +43,7 @@ struct IntrinsicMeshFile {
   Faces F;                    ///< faces in 0-based vertex ids
   FaceLengths L;              ///< per-face edge lengths
   std::vector<Index> twin;    ///< the gluing (CompactMesh::twin convention); empty for version 1
-  std::vector<Index> to_input;  ///< vertex -> input-mesh vertex
+  std::vector<Index> to_input;  ///< vertex -> input-mesh vertex (kInvalid: inserted by refinement)
   Index input_vertices = 0;   ///< vertex count of the input mesh
 };
 

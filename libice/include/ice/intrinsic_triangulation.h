@@ -83,7 +83,12 @@ class IntrinsicTriangulation {
   static IntrinsicTriangulation from_glued_faces(const Faces& F, const FaceLengths& L, const std::vector<Index>& twin);
 
   // ---- sizes ------------------------------------------------------------------------------
-  Index num_input_vertices() const { return static_cast<Index>(vertices_.size()); }
+  /// Vertices of the input (tracked points): vertex slots 0 .. num_input_vertices() − 1.
+  Index num_input_vertices() const { return static_cast<Index>(points_.size()); }
+  /// Vertex slots: the input's, then one per vertex inserted by insert_vertex / split_edge.
+  Index num_vertex_slots() const { return static_cast<Index>(vertices_.size()); }
+  /// True for a vertex that insert_vertex or split_edge made (it is no input vertex).
+  bool is_inserted_vertex(Index v) const { return v >= num_input_vertices(); }
   Index num_vertices() const { return num_vertices_; }
   Index num_edges() const { return num_edges_; }
   Index num_faces() const { return num_faces_; }
@@ -207,6 +212,22 @@ class IntrinsicTriangulation {
   RemovalStatus remove_vertex(Index v, std::vector<Index>* changed_faces = nullptr,
                               std::vector<Index>* touched = nullptr, double flattening_hint = 0);
 
+  /// Inserts a vertex at the point of face f with barycentric coordinates `bary` (w.r.t. the corners
+  /// tail(halfedge(f)), its next, its next·next; all > 0, summing to 1) and connects it to the three
+  /// corners: f becomes three faces (f and two new ones; appended to *new_faces with f). The new
+  /// vertex is flat (Θ = 2π); the corners' angle sums do not change; the tracked points of f are
+  /// re-located in the three faces exactly. Returns the new vertex's slot (num_vertex_slots() − 1),
+  /// or kInvalid (nothing changed) when a new face would be thinner than flip() allows (smallest-angle
+  /// sine 1e-7). Does not restore Delaunay. Throws std::invalid_argument for a dead face or coordinates outside
+  /// the open face.
+  Index insert_vertex(Index f, const std::array<double, 3>& bary, std::vector<Index>* new_faces = nullptr);
+  /// Inserts a vertex on the edge of h at fraction t ∈ (0, 1) of its length from tail(h) and connects
+  /// it to the opposite corner of each face along the edge (two faces become four; a boundary edge's
+  /// face becomes two, and the new vertex lies on the boundary with Θ = π). Points re-located exactly.
+  /// Returns the new vertex, or kInvalid (nothing changed) when both sides of the edge belong to one
+  /// face or a new face would be thinner than flip() allows. The faces that changed or were made are appended to *new_faces.
+  Index split_edge(Index h, double t, std::vector<Index>* new_faces = nullptr);
+
   // ---- tracked points ---------------------------------------------------------------------
   /// Current location of input vertex p.
   SurfacePoint location(Index p) const;
@@ -262,6 +283,10 @@ class IntrinsicTriangulation {
   // with all of them).
   void refresh_vertex_frame(Index v, Index changed_near, const CornerChange* changes, int change_count);
   void add_point_to_face(Index p, Index f, const std::array<double, 3>& bary);
+  // Storage for insertions: a new vertex slot, edge (two half-edges 2e, 2e + 1) and face slot.
+  Index new_vertex(bool boundary, double angle_sum);
+  Index new_edge(double length);
+  Index new_face();
   void kill_face(Index f);
   void kill_edge(Index e);
   RemovalStatus remove_interior_vertex(Index v, std::vector<Index>* changed_faces, std::vector<Index>* touched,

@@ -58,7 +58,9 @@ struct CompactMesh {
   /// corner k to k+1) the other way, or kInvalid on the boundary. Vertex pairs cannot say this in a
   /// Δ-complex (self-edges, two edges between one pair of vertices). Empty: glue by vertex pairs.
   std::vector<Index> twin;
-  std::vector<Index> to_input;      ///< compact vertex -> input vertex
+  /// compact vertex -> input vertex, or kInvalid for a vertex inserted by refinement (not an input
+  /// vertex; such vertices follow the input ones)
+  std::vector<Index> to_input;
   std::vector<Index> from_input;    ///< input vertex -> compact vertex, or kInvalid if removed
   /// Vertices of the mesh (also those no face uses, which F alone cannot count).
   Index num_vertices() const { return static_cast<Index>(to_input.size()); }
