@@ -17,7 +17,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
     return()
   endif()
   set(_ice_app_cases
-    coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot poisson_spot poisson_fix_rhs_spot
+    coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot refine_spot poisson_spot poisson_fix_rhs_spot
     ply_ascii errors)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
@@ -417,6 +417,34 @@ elseif(CASE STREQUAL "vector_spot")
   expect_error(4 "out of range" vector-coarse "${mesh}" --source 99999 --vector 1 --vertices 500)
   expect_error(4 "not a finite number" vector-coarse "${mesh}" --source 0 --vector nan --vertices 500)
   expect_error(4 "positive" vector-coarse "${mesh}" --source 0 --vector 1 --magnitude 0 --vertices 500)
+
+elseif(CASE STREQUAL "refine_spot")
+  # --refine-angle through ice-coarsen (files readable back, inserted vertices as "v -1") and
+  # poisson-coarse, and its refusals.
+  project_mesh(mesh spot.obj)
+  run(0 ice-coarsen "${mesh}" --ratio 0.05 --refine-angle 25 --validate -o "${WORK}/out" --report "${WORK}/c.json" -q)
+  set(r "${WORK}/c.json")
+  require_keys("${r}" coarse.refinement.inserted coarse.refinement.min_angle_after_deg coarse.refinement.bound_reached)
+  json(reached "${r}" coarse refinement bound_reached)
+  if(NOT reached STREQUAL "ON" AND NOT reached STREQUAL "true")
+    fail("coarse.refinement.bound_reached is ${reached}")
+  endif()
+  json(angle "${r}" coarse refinement min_angle_after_deg)
+  check(${angle} GREATER_EQUAL 25 "coarse.refinement.min_angle_after_deg")
+  json(inserted "${r}" coarse refinement inserted)
+  check(${inserted} GREATER 0 "coarse.refinement.inserted")
+  file(STRINGS "${WORK}/out/coarse.ilm" minus_one REGEX "^v -1$")
+  list(LENGTH minus_one count)
+  check(${count} EQUAL ${inserted} "inserted vertices in coarse.ilm")
+  run(0 ice-info "${WORK}/out/coarse.ilm")
+  if(NOT RUN_OUT MATCHES "angles 2[5-9]\\.")
+    fail("ice-info does not report angles from 25 degrees on the refined mesh:\n${RUN_OUT}")
+  endif()
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --refine-angle 25 --report "${WORK}/p.json" -q)
+  json(rel_l2 "${WORK}/p.json" error rel_l2)
+  check(${rel_l2} LESS 0.05 "refined proxy: error.rel_l2")
+  expect_error(4 "does not apply to --method qem" poisson-coarse "${mesh}" --ratio 0.05 --refine-angle 25 --method qem)
+  expect_error(4 "refine-angle" ice-coarsen "${mesh}" --ratio 0.05 --refine-angle 45 -o "${WORK}/bad")
 
 elseif(CASE STREQUAL "poisson_spot")
   project_mesh(mesh spot.obj)

@@ -10,6 +10,7 @@
 #include <exception>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <thread>
 #include <chrono>
 #include <cmath>
@@ -356,6 +357,8 @@ void coarsen_whole(GreedyContext& context, CoarsenResult& result) {
 
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) {
   const auto start = std::chrono::steady_clock::now();
+  if (T.num_vertex_slots() != T.num_input_vertices())
+    throw std::invalid_argument("coarsen: the triangulation has vertices inserted by refinement; coarsen its compacted() copy");
   const Index n = T.num_input_vertices();
   CoarsenResult result;
   result.input_vertices = T.num_vertices();

@@ -91,7 +91,8 @@ struct CoarsenResult {
 };
 
 /// Coarsens T in place. Preconditions: T was built from a mesh (all input vertices alive or
-/// tracked); locked vertex indices are in range. Deterministic: the same input and options give
+/// tracked) and has no vertex inserted by refinement (std::invalid_argument otherwise: coarsen its
+/// compacted() copy); locked vertex indices are in range. Deterministic: the same input and options give
 /// bit-identical output.
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options);
 
