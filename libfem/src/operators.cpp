@@ -203,6 +203,7 @@ SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads)
       ++J;
     }
   }
+  detail::stabilise_weak_coarse_unknowns(Pc, result);
   return result;
 }
 

@@ -2,6 +2,7 @@
 // Internal to libfem (not installed): building compressed column-major matrices column by column,
 // and compressed views of possibly uncompressed inputs.
 #include <algorithm>
+#include <cmath>
 #include <utility>
 #include <vector>
 
@@ -43,6 +44,43 @@ SparseMatrix assemble_columns(Eigen::Index rows, Eigen::Index cols, Eigen::Index
   std::copy(inner.begin(), inner.end(), M.innerIndexPtr());
   std::copy(values.begin(), values.end(), M.valuePtr());
   return M;
+}
+
+/// Coarse unknowns that a prolongation P reaches weakly would make Pᵀ A P singular: vertices inserted
+/// by refinement where the fine mesh is sparse can have an empty column (no fine vertex in their
+/// faces, or weights below 1e-9), or columns that together span fewer fine vertices than they are
+/// (two inserted vertices sharing one fine vertex: dependent columns). Both are stabilised on the
+/// diagonal, relative to the mean of its other entries (the operator's scale):
+///  - unreached columns get that mean: decoupled; their right-hand sides Pᵀb are zero, so they
+///    solve to zero, and P never carries them to the fine mesh;
+///  - columns whose weights sum to less than 1 (less than one fine vertex's worth; never a vertex
+///    that exists on the fine mesh, whose own weight is 1) get 1e-8 times it: any dependence among
+///    them is lifted, which moves the prolonged solution by about 1e-8 relative to the coarse
+///    operator's smallest eigenvalue.
+/// Returns how many unknowns were stabilised.
+template <class Scalar, class Prolongation>
+Index stabilise_weak_coarse_unknowns(const Prolongation& P, Eigen::SparseMatrix<Scalar, Eigen::ColMajor, Index>& coarse) {
+  std::vector<std::pair<Index, bool>> weak;  // (unknown, unreached)
+  for (Eigen::Index c = 0; c < P.outerSize(); ++c) {
+    double largest = 0, sum = 0;
+    for (typename Prolongation::InnerIterator it(P, c); it; ++it) {
+      largest = std::max(largest, static_cast<double>(std::abs(it.value())));
+      sum += static_cast<double>(std::abs(it.value()));
+    }
+    if (largest < 1e-9) weak.emplace_back(static_cast<Index>(c), true);
+    else if (sum < 1) weak.emplace_back(static_cast<Index>(c), false);
+  }
+  if (weak.empty()) return 0;
+  double diagonal_sum = 0;
+  Eigen::Index diagonal_count = 0;
+  for (Eigen::Index c = 0; c < coarse.rows(); ++c) {
+    const double d = static_cast<double>(std::abs(coarse.coeff(c, c)));
+    if (d > 0) diagonal_sum += d, ++diagonal_count;
+  }
+  const double mean = diagonal_count > 0 ? diagonal_sum / static_cast<double>(diagonal_count) : 1.0;
+  for (const auto& [c, unreached] : weak) coarse.coeffRef(c, c) += Scalar(unreached ? mean : 1e-8 * mean);
+  coarse.makeCompressed();
+  return static_cast<Index>(weak.size());
 }
 
 }  // namespace detail

@@ -1,5 +1,7 @@
 #include "fem/vector_fields.h"
 
+#include "sparse_columns.h"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -654,6 +656,8 @@ VectorHeatProxy::VectorHeatProxy(const ice::CompactMesh& fine, const TangentFram
     coarse_ops.mass = SparseMatrix(coarse_areas.asDiagonal());
     const ComplexSparseMatrix product = vector_prolongation_.adjoint() * (fine_ops.connection * vector_prolongation_);
     coarse_ops.connection = 0.5 * (product + ComplexSparseMatrix(product.adjoint()));
+    detail::stabilise_weak_coarse_unknowns(vector_prolongation_, coarse_ops.connection);
+    detail::stabilise_weak_coarse_unknowns(P_, coarse_ops.mass);  // Pᵀ·areas is zero there too
     const double h = time_factor * mean_edge_length(coarse.L);
     coarse_ops.time_step = h * h;
   }

@@ -55,7 +55,12 @@ SparseMatrix divergence(const Faces& F, const FaceLengths& L, VertexCount vertex
 /// operator A (n_fine×n_fine; precondition, not checked). The lower triangle is computed and
 /// mirrored, so the result is exactly symmetric; inner indices sorted. One fused pass over the
 /// coarse columns, split among `threads` (0: OpenMP's default; 1: serial) when P has at least
-/// 50,000 rows; the result does not depend on the thread count.
+/// 50,000 rows; the result does not depend on the thread count. Coarse unknowns that P reaches
+/// weakly (vertices inserted by refinement where the fine mesh is sparse: an empty column, or
+/// weights summing to less than 1) would make the product singular; they are stabilised on the
+/// diagonal (libfem/src/sparse_columns.h: an unreached one decoupled, a weak one shifted by 1e-8 of
+/// the mean diagonal). A P whose columns all reach a fine vertex with weight 1 (every ICE or QEM
+/// coarsening without refinement) is untouched.
 SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads = 0);
 
 }  // namespace fem
