@@ -147,6 +147,20 @@ CLI::Validator integer_between(long long low, long long high) {
       "in [" + std::to_string(low) + ", " + std::to_string(high) + "]");
 }
 
+std::vector<double> parse_number_list(const std::string& text, const std::string& what) {
+  std::vector<double> numbers;
+  std::size_t begin = 0;
+  while (begin <= text.size()) {
+    const std::size_t end = std::min(text.find(',', begin), text.size());
+    const std::string token = text.substr(begin, end - begin);
+    double value = 0;
+    if (!parse_number(token, value)) throw AppError(kUsage, what + ": '" + token + "' is not a finite number");
+    numbers.push_back(value);
+    begin = end + 1;
+  }
+  return numbers;
+}
+
 std::vector<long long> parse_index_list(const std::string& text, const std::string& what) {
   std::vector<long long> out;
   std::string token;

@@ -63,6 +63,9 @@ CLI::Validator number_between(double low, double high);
 CLI::Validator integer_between(long long low, long long high);
 /// Parses "3,17,42" (commas and/or spaces). Throws AppError(kUsage) naming `what` on junk.
 std::vector<long long> parse_index_list(const std::string& text, const std::string& what);
+/// Parses "30,-12.5,1e-3" (commas): finite numbers. Throws AppError(kUsage) naming `what` on an empty
+/// or non-numeric entry.
+std::vector<double> parse_number_list(const std::string& text, const std::string& what);
 
 /// The stopping rule chosen on the command line: exactly one of --vertices, --ratio, --max-error.
 struct TargetOptions {

@@ -55,20 +55,13 @@ struct OracleRequest {
 /// Largest fine mesh whose full distance matrix --all-pairs --matrix writes (65,536² floats = 16 GiB).
 constexpr long long kMaxAllPairsMatrixVertices = 65536;
 
-double quantile(std::vector<double> values, double q) {
-  if (values.empty()) return 0;
-  const auto k = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1));
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
-  return values[k];
-}
-
 nlohmann::json error_stats(const std::vector<double>& errors) {
   if (errors.empty()) return {{"pairs", 0}};
   double sum = 0;
   for (double e : errors) sum += e;
   return {{"pairs", errors.size()},
           {"mean_rel", sum / static_cast<double>(errors.size())},
-          {"p95_rel", quantile(errors, 0.95)},
+          {"p95_rel", app::quantile(errors, 0.95)},
           {"max_rel", *std::max_element(errors.begin(), errors.end())}};
 }
 

@@ -130,6 +130,13 @@ nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
   return j;
 }
 
+double quantile(std::vector<double> values, double q) {
+  if (values.empty()) return std::nan("");
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
 std::string refinement_line(const ice::CoarseSpaceSummary& summary) {
   if (!summary.refinement) return "";
   const ice::RefinementResult& r = *summary.refinement;

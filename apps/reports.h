@@ -61,6 +61,9 @@ class ProgressBar {
 
 // ---- formatting -------------------------------------------------------------------------------------
 
+/// The q-quantile (0 ≤ q ≤ 1) of `values` by the nearest lower rank; NaN for an empty list.
+double quantile(std::vector<double> values, double q);
+
 /// 1234567 → "1,234,567".
 std::string thousands(long long value);
 /// Fixed-point with `digits` decimals.

@@ -34,42 +34,14 @@ namespace {
 const std::string kTool = "vector-coarse";
 constexpr double kPi = 3.141592653589793238462643383279502884;
 
-double quantile(std::vector<double> values, double q) {
-  if (values.empty()) return std::nan("");
-  const auto k = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1));
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
-  return values[k];
-}
-
-std::vector<double> parse_numbers(const std::string& text, const std::string& option) {
-  std::vector<double> numbers;
-  std::size_t begin = 0;
-  while (begin <= text.size()) {
-    const std::size_t end = std::min(text.find(',', begin), text.size());
-    const std::string token = text.substr(begin, end - begin);
-    std::size_t used = 0;
-    double value = 0;
-    try {
-      value = std::stod(token, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (token.empty() || used != token.size() || !std::isfinite(value))
-      throw app::AppError(app::kUsage, option + ": '" + token + "' is not a finite number");
-    numbers.push_back(value);
-    begin = end + 1;
-  }
-  return numbers;
-}
-
 nlohmann::json angle_error_json(const std::vector<double>& errors, Eigen::Index vertices) {
   double sum = 0;
   for (double e : errors) sum += e;
   return {{"vertices_compared", errors.size()},
           {"vertices_without_field", static_cast<long long>(vertices) - static_cast<long long>(errors.size())},
-          {"median_deg", quantile(errors, 0.5)},
+          {"median_deg", app::quantile(errors, 0.5)},
           {"mean_deg", errors.empty() ? std::nan("") : sum / static_cast<double>(errors.size())},
-          {"p95_deg", quantile(errors, 0.95)},
+          {"p95_deg", app::quantile(errors, 0.95)},
           {"max_deg", errors.empty() ? std::nan("") : *std::max_element(errors.begin(), errors.end())}};
 }
 
@@ -116,11 +88,11 @@ int main(int argc, char** argv) {
     opt.check_outputs();
     const std::vector<long long> file_sources = app::parse_index_list(sources_text, "--source");
     const std::size_t count = file_sources.size();
-    const std::vector<double> angles = angles_text.empty() ? std::vector<double>() : parse_numbers(angles_text, "--vector");
+    const std::vector<double> angles = angles_text.empty() ? std::vector<double>() : app::parse_number_list(angles_text, "--vector");
     const std::vector<double> directions =
-        directions_text.empty() ? std::vector<double>() : parse_numbers(directions_text, "--direction");
+        directions_text.empty() ? std::vector<double>() : app::parse_number_list(directions_text, "--direction");
     std::vector<double> magnitudes = magnitudes_text.empty() ? std::vector<double>(count, 1.0)
-                                                             : parse_numbers(magnitudes_text, "--magnitude");
+                                                             : app::parse_number_list(magnitudes_text, "--magnitude");
     if (!angles.empty() && angles.size() != count)
       throw AppError(app::kUsage, "--vector: " + std::to_string(angles.size()) + " angles for " + std::to_string(count) + " sources");
     if (!directions.empty() && directions.size() != 3 * count)
@@ -207,7 +179,7 @@ int main(int argc, char** argv) {
         magnitude_errors.push_back(std::abs(magnitude_error_field(v)));
       }
       error_json = {{"angle", angle_error_json(angle_errors, n)},
-                    {"magnitude_rel", {{"median", quantile(magnitude_errors, 0.5)}, {"max", quantile(magnitude_errors, 1.0)}}}};
+                    {"magnitude_rel", {{"median", app::quantile(magnitude_errors, 0.5)}, {"max", app::quantile(magnitude_errors, 1.0)}}}};
       clock.lap();
     }
 
