@@ -6,7 +6,6 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 
 #include <Eigen/Geometry>
 
@@ -26,10 +25,18 @@ Index side_of(Index face, int k) { return 3 * face + ((k % 3) + 3) % 3; }
 // The next corner counter-clockwise around the vertex of `corner` (across the side that enters it),
 // or kInvalid at the last corner of a boundary fan.
 Index next_ccw_corner(const std::vector<Index>& twin, Index corner) {
-  const Index face = corner / 3;
-  const int k = corner % 3;
-  const Index across = twin[static_cast<std::size_t>(side_of(face, k + 2))];
-  return across;  // side d of the face across starts at this vertex: it is corner d there
+  // Side d of the face across starts at this vertex: it is corner d there.
+  return twin[static_cast<std::size_t>(side_of(corner / 3, corner % 3 + 2))];
+}
+// Calls fn(corner) for the corners of one fan, counter-clockwise from `first` (a vertex whose
+// corners tangent_frames has checked to form one fan).
+template <class Fn>
+void for_each_fan_corner(const std::vector<Index>& twin, Index first, Fn&& fn) {
+  Index c = first;
+  do {
+    fn(c);
+    c = next_ccw_corner(twin, c);
+  } while (c != ice::kInvalid && c != first);
 }
 // The previous corner (clockwise), or kInvalid at the first corner of a boundary fan.
 Index previous_cw_corner(const std::vector<Index>& twin, Index corner) {
@@ -58,6 +65,11 @@ void check_gluing(const ice::CompactMesh& mesh) {
 }
 
 // Direction of side k of a face in its layout (fem::layout_triangle), from its corner angles.
+// Angle at corner k of face f: fem::corner_angles' formula, for one corner.
+double corner_angle(const FaceLengths& L, Index f, int k) {
+  return ice::angle_opposite(L(f, (k + 2) % 3), L(f, k), L(f, (k + 1) % 3));
+}
+
 double side_direction(const Eigen::MatrixXd& angles, Index f, int k) {
   if (k == 0) return 0;
   if (k == 1) return kPi - angles(f, 1);
@@ -89,12 +101,7 @@ Fans vertex_fans(const ice::CompactMesh& mesh, const TangentFrames& frames) {
   for (std::size_t v = 0; v < n; ++v) {
     fans.start[v] = static_cast<Index>(fans.corners.size());
     const Index first = frames.reference_corner[v];
-    if (first == ice::kInvalid) continue;
-    Index c = first;
-    do {
-      fans.corners.push_back(c);
-      c = next_ccw_corner(mesh.twin, c);
-    } while (c != ice::kInvalid && c != first);
+    if (first != ice::kInvalid) for_each_fan_corner(mesh.twin, first, [&](Index c) { fans.corners.push_back(c); });
   }
   fans.start[n] = static_cast<Index>(fans.corners.size());
   return fans;
@@ -164,18 +171,16 @@ TangentFrames tangent_frames(const ice::CompactMesh& mesh) {
     frames.angle_sum(v) = sum;
     frames.angle_scale(v) = scale;
     double accumulated = 0;
-    c = first;
-    do {
-      const Index f = c / 3;
-      const int k = c % 3;
+    for_each_fan_corner(mesh.twin, first, [&](Index corner_index) {
+      const Index f = corner_index / 3;
+      const int k = corner_index % 3;
       const double corner = angles(f, k);
       const double coordinate = scale * accumulated;
       frames.side_coordinate(f, k) = coordinate;
       // The corner's bisector points the same way in the vertex frame and in the face.
       frames.corner_rotation(f, k) = (side_direction(angles, f, k) + 0.5 * corner) - (coordinate + 0.5 * scale * corner);
       accumulated += corner;
-      c = next_ccw_corner(mesh.twin, c);
-    } while (c != ice::kInvalid && c != first);
+    });
   }
   return frames;
 }
@@ -233,9 +238,7 @@ Eigen::MatrixXd tangent_to_ambient(const ice::CompactMesh& mesh, const TangentFr
     const int k = chosen % 3;
     const double within = (phase - frames.side_coordinate(f, k)) / scale;
     const CornerBasis basis = corner_basis(mesh.F, V, f, k);
-    const Eigen::Vector3d& e1 = basis.along;
-    const Eigen::Vector3d& e2 = basis.across;
-    out.row(v) = (std::abs(z) * (std::cos(within) * e1 + std::sin(within) * e2)).transpose();
+    out.row(v) = (std::abs(z) * (std::cos(within) * basis.along + std::sin(within) * basis.across)).transpose();
   }
   return out;
 }
@@ -245,19 +248,16 @@ Complex ambient_to_tangent(const ice::CompactMesh& mesh, const TangentFrames& fr
   if (v < 0 || static_cast<std::size_t>(v) >= frames.reference_corner.size() ||
       frames.reference_corner[static_cast<std::size_t>(v)] == ice::kInvalid)
     throw std::invalid_argument("ambient_to_tangent: vertex " + std::to_string(v) + " is not a vertex of a face");
-  const Eigen::MatrixXd angles = corner_angles(mesh.L);
-  const Fans fans = vertex_fans(mesh, frames);
+  // Only v's fan: a source's vector must not cost a pass over the mesh.
   Complex best(0);
   double best_gap = INFINITY;
-  fans.for_each(v, [&](Index c) {
+  for_each_fan_corner(mesh.twin, frames.reference_corner[static_cast<std::size_t>(v)], [&](Index c) {
     const Index f = c / 3;
     const int k = c % 3;
     const CornerBasis basis = corner_basis(mesh.F, V, f, k);
-    const Eigen::Vector3d& e1 = basis.along;
-    const Eigen::Vector3d& e2 = basis.across;
-    const double x = direction.dot(e1), y = direction.dot(e2);
+    const double x = direction.dot(basis.along), y = direction.dot(basis.across);
     const double within = std::atan2(y, x);
-    const double corner = angles(f, k);
+    const double corner = corner_angle(mesh.L, f, k);
     const double gap = within < 0 ? -within : (within > corner ? within - corner : 0.0);
     if (gap < best_gap) {
       best_gap = gap;
@@ -507,7 +507,6 @@ bool fit_rotation(const std::vector<std::pair<Index, Complex>>& ring, const std:
                   const Chart& chart, Point origin, RotationFit& fit) {
   Complex cross(0);
   double fine_norm = 0, chart_norm = 0;
-  std::vector<std::pair<Complex, Complex>> pairs;
   for (const auto& [neighbour, fine_edge] : ring) {
     Point image;
     if (!chart.position(map[static_cast<std::size_t>(neighbour)], image)) continue;
@@ -516,14 +515,11 @@ bool fit_rotation(const std::vector<std::pair<Index, Complex>>& ring, const std:
     cross += std::conj(fine_edge) * chart_edge;
     fine_norm += std::norm(fine_edge);
     chart_norm += std::norm(chart_edge);
-    pairs.emplace_back(fine_edge, chart_edge);
   }
-  if (pairs.empty() || std::abs(cross) <= 1e-300) return false;
-  const Complex similarity = cross / fine_norm;
-  double residual = 0;
-  for (const auto& [fine_edge, chart_edge] : pairs) residual += std::norm(chart_edge - similarity * fine_edge);
+  if (!(std::abs(cross) > 1e-300)) return false;
   fit.rotation = cross / std::abs(cross);
-  fit.residual = std::sqrt(residual / chart_norm);
+  // The best similarity a = cross / fine_norm leaves Σ|chart − a·fine|² = chart_norm − |cross|²/fine_norm.
+  fit.residual = std::sqrt(std::max(0.0, 1 - std::norm(cross) / (fine_norm * chart_norm)));
   return true;
 }
 
@@ -570,7 +566,8 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
   VectorProlongationStats counts;
   for (Index i : order) {
     const ice::CoarsePoint& point = map[static_cast<std::size_t>(i)];
-    // The fine one-ring as edge vectors in i's frame.
+    // The fine one-ring as edge vectors in i's frame: each corner's outgoing side, and at the last
+    // corner of a boundary fan its incoming one too (inside a fan that is the next corner's side).
     ring.clear();
     const double scale = fine_frames.angle_scale(i);
     fine_fans.for_each(i, [&](Index c) {
@@ -579,7 +576,8 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
       const double coordinate = fine_frames.side_coordinate(f, k);
       const Index to = fine.F(f, (k + 1) % 3), back = fine.F(f, (k + 2) % 3);
       if (to != i) ring.emplace_back(to, std::polar(fine.L(f, k), coordinate));
-      if (back != i) ring.emplace_back(back, std::polar(fine.L(f, (k + 2) % 3), coordinate + scale * fine_angles(f, k)));
+      if (back != i && next_ccw_corner(fine.twin, c) == ice::kInvalid)
+        ring.emplace_back(back, std::polar(fine.L(f, (k + 2) % 3), coordinate + scale * fine_angles(f, k)));
     });
     RotationFit fit;
     if (point.coarse_vertex != ice::kInvalid) {
@@ -607,8 +605,7 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
       const Index corner_vertex_index = coarse.F(f, k);
       const PolarChart& chart = polar_at(corner_vertex_index);
       Point own;
-      ice::CoarsePoint self = point;
-      if (chart.position(self, own) && fit_rotation(ring, map, chart, own, fit)) {
+      if (chart.position(point, own) && fit_rotation(ring, map, chart, own, fit)) {
         fit.rotation *= std::polar(1.0, coarse_frames.corner_rotation(f, k));
         ++counts.from_corner;
       } else {
