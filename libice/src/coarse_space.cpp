@@ -115,12 +115,11 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   std::vector<Index> order;
   IntrinsicTriangulation T = triangulation_for_locality(mesh, options.locality_numbering, &order);
   CoarsenOptions coarsen_options = options.coarsen;
-  if (!order.empty()) {
-    std::vector<Index> new_index(order.size());
-    for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
+  std::vector<Index> new_index(order.size());  // mesh vertex -> T's input vertex (empty: the same)
+  for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
+  if (!order.empty())
     for (Index& v : coarsen_options.locked_vertices)  // coarsen() ignores indices out of range: so does this
       if (v >= 0 && v < static_cast<Index>(new_index.size())) v = new_index[static_cast<std::size_t>(v)];
-  }
   CoarseSpace space;
   const CoarsenResult result = coarsen(T, coarsen_options);
   if (options.refinement) {
@@ -128,12 +127,9 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
     space.summary.refinement = refine_delaunay(T, *options.refinement);
     // The input faces in T's numbering (rows as in the mesh) locate the inserted vertices.
     Faces faces_in_t = mesh.F;
-    if (!order.empty()) {
-      std::vector<Index> new_index(order.size());
-      for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
+    if (!order.empty())
       for (Eigen::Index f = 0; f < faces_in_t.rows(); ++f)
         for (int k = 0; k < 3; ++k) faces_in_t(f, k) = new_index[static_cast<std::size_t>(faces_in_t(f, k))];
-    }
     space.inserted = locate_inserted_vertices(T, faces_in_t);
     space.summary.refinement_seconds = seconds_since(refine_start);
   }

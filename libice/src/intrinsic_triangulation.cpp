@@ -1093,11 +1093,12 @@ Index IntrinsicTriangulation::insert_vertex(Index f, const std::array<double, 3>
   hangle(from0) = 0;
   recompute_vertex_frame(v);
 
+  // Every point lies in f: the two spokes that bound a sub-face decide.
   for (const auto& point : points) {
     const Vec2 x = point.position;
-    if (orient2d(p0, p1, x) >= 0 && orient2d(p1, q, x) >= 0 && orient2d(q, p0, x) >= 0)
+    if (orient2d(p1, q, x) >= 0 && orient2d(q, p0, x) >= 0)
       add_point_to_face(point.point, f, barycentric(x, p0, p1, q));
-    else if (orient2d(p1, p2, x) >= 0 && orient2d(p2, q, x) >= 0 && orient2d(q, p1, x) >= 0)
+    else if (orient2d(p2, q, x) >= 0 && orient2d(q, p1, x) >= 0)
       add_point_to_face(point.point, f1, barycentric(x, p1, p2, q));
     else
       add_point_to_face(point.point, f2, barycentric(x, p2, p0, q));
@@ -1117,7 +1118,7 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
   const Index tw = h ^ 1;
   const bool boundary = is_exterior(tw);
   if (!boundary && face(h) == face(tw)) return kInvalid;
-  const Index i = tail(h), j = tail(tw);
+  const Index j = tail(tw);
   const double l_ij = length(h);
   // Face A (h: i -> j, a: j -> k, b: k -> i) laid out with i at the origin and j on +x; face B
   // (tw: j -> i, c: i -> l, d: l -> j) below the axis.
@@ -1128,12 +1129,14 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
   const auto too_thin = [](Vec2 x, Vec2 y, Vec2 z) {
     return !(smallest_angle_sine((y - x).norm(), (z - y).norm(), (x - z).norm()) > kFlipMinSine);
   };
-  if (too_thin(pi, pm, pk) || too_thin(pm, pj, pk)) return kInvalid;
+  Index fb = kInvalid, c = kInvalid, d = kInvalid, l = kInvalid;
+  Vec2 pl;
   if (!boundary) {
-    const Index c0 = next(tw);
-    const Vec2 below = layout_third_point(pj, pi, l_ij, length(next(c0)), length(c0));
-    if (too_thin(pj, pm, below) || too_thin(pm, pi, below)) return kInvalid;
+    fb = face(tw), c = next(tw), d = next(c), l = tail(d);
+    pl = layout_third_point(pj, pi, l_ij, length(d), length(c));
   }
+  if (too_thin(pi, pm, pk) || too_thin(pm, pj, pk) || (!boundary && (too_thin(pj, pm, pl) || too_thin(pm, pi, pl))))
+    return kInvalid;
   std::vector<PlacedPoint>& points = scratch_points();
   points.clear();
   LocalLayout layout;
@@ -1141,11 +1144,7 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
   layout.set(a, pj);
   layout.set(b, pk);
   collect_points(fa, layout, points);
-  Index fb = kInvalid, c = kInvalid, d = kInvalid, l = kInvalid;
-  Vec2 pl;
   if (!boundary) {
-    fb = face(tw), c = next(tw), d = next(c), l = tail(d);
-    pl = layout_third_point(pj, pi, l_ij, length(d), length(c));
     LocalLayout below;
     below.set(tw, pj);
     below.set(c, pi);
@@ -1164,6 +1163,7 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
   const Index m_to_i = tw;  // the old twin now runs m -> i
   htail(m_to_i) = m, htail(m_to_j) = m, htail(j_to_m) = j, htail(m_to_k) = m, htail(k_to_m) = k;
   const Index fa2 = new_face();
+  Index fb2 = kInvalid;
   // A = (h: i -> m, m -> k, b: k -> i), A2 = (m -> j, a: j -> k, k -> m).
   link_face(h, m_to_k, b);
   link_face(m_to_j, a, k_to_m);
@@ -1182,7 +1182,7 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
     const Index spoke_l = new_edge((pl - pm).norm());
     const Index m_to_l = 2 * spoke_l, l_to_m = 2 * spoke_l + 1;
     htail(m_to_l) = m, htail(l_to_m) = l;
-    const Index fb2 = new_face();
+    fb2 = new_face();
     // B = (j -> m, m -> l, d: l -> j), B2 = (m -> i, c: i -> l, l -> m).
     link_face(j_to_m, m_to_l, d);
     link_face(m_to_i, c, l_to_m);
@@ -1197,7 +1197,6 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
   if (j_started_at_tw) vhalfedge(j) = j_to_m;
   recompute_vertex_frame(m);
 
-  const Index fb2 = boundary ? kInvalid : face(m_to_i);
   for (const auto& point : points) {
     const Vec2 x = point.position;
     if (x.y >= 0 || boundary) {
@@ -1221,10 +1220,11 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
 
 IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) const {
   CompactMesh arrays = compact();
-  // Slot -> compact vertex and back (compact() lists live input vertices, then live inserted ones).
-  std::vector<Index> vertex_id(static_cast<std::size_t>(num_vertex_slots()), kInvalid), slot_of;
+  // Slot -> compact vertex (as compact() numbers them) and back.
+  const std::vector<Index> vertex_id = compact_vertex_numbers();
+  std::vector<Index> slot_of(arrays.to_input.size());
   for (Index v = 0; v < num_vertex_slots(); ++v)
-    if (vertex_alive(v)) vertex_id[v] = static_cast<Index>(slot_of.size()), slot_of.push_back(v);
+    if (vertex_id[v] != kInvalid) slot_of[static_cast<std::size_t>(vertex_id[v])] = v;
   std::vector<Index> face_id(faces_.size(), kInvalid), edge_id(edges_.size(), kInvalid);
   Index faces = 0, edges = 0;
   for (Index f = 0; f < num_face_slots(); ++f)
@@ -1263,17 +1263,21 @@ IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) cons
   return T;
 }
 
+std::vector<Index> IntrinsicTriangulation::compact_vertex_numbers() const {
+  std::vector<Index> number(static_cast<std::size_t>(num_vertex_slots()), kInvalid);
+  Index next = 0;
+  for (Index v = 0; v < num_vertex_slots(); ++v)
+    if (vertex_alive(v)) number[v] = next++;
+  return number;
+}
+
 CompactMesh IntrinsicTriangulation::compact() const {
   CompactMesh out;
   // Live input vertices first (in input order), then live inserted vertices (to_input kInvalid).
-  std::vector<Index> compact_of(static_cast<std::size_t>(num_vertex_slots()), kInvalid);
-  out.from_input.assign(num_input_vertices(), kInvalid);
+  const std::vector<Index> compact_of = compact_vertex_numbers();
+  out.from_input.assign(compact_of.begin(), compact_of.begin() + num_input_vertices());
   for (Index v = 0; v < num_vertex_slots(); ++v)
-    if (vertex_alive(v)) {
-      compact_of[v] = static_cast<Index>(out.to_input.size());
-      if (v < num_input_vertices()) out.from_input[v] = compact_of[v];
-      out.to_input.push_back(v < num_input_vertices() ? v : kInvalid);
-    }
+    if (vertex_alive(v)) out.to_input.push_back(v < num_input_vertices() ? v : kInvalid);
   out.F.resize(num_faces_, 3);
   out.L.resize(num_faces_, 3);
   // Each live half-edge's side (3·row + k), then the gluing through the twin half-edges.

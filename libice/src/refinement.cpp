@@ -32,6 +32,17 @@ std::array<double, 3> face_angles(const IntrinsicTriangulation& T, Index f) {
   return {T.corner_angle(h0), T.corner_angle(h1), T.corner_angle(h2)};
 }
 
+// The corners of the face of `across` (in its order: halfedge(face), next, next·next) laid out beyond
+// the side that `across` runs along, from `from` to `to`: the unfolding step of tracing and locating.
+std::array<Vec2, 3> unfold_across(const IntrinsicTriangulation& T, Index across, Vec2 from, Vec2 to) {
+  const Index n1 = T.next(across), n2 = T.next(n1);
+  const Vec2 third = layout_third_point(from, to, T.length(across), T.length(n2), T.length(n1));
+  std::array<Vec2, 3> layout{};
+  Index c = T.halfedge(T.face(across));
+  for (int k = 0; k < 3; ++k, c = T.next(c)) layout[static_cast<std::size_t>(k)] = c == across ? from : (c == n1 ? to : third);
+  return layout;
+}
+
 Vec2 circumcentre(Vec2 a, Vec2 b, Vec2 c) {
   const Vec2 ab = b - a, ac = c - a;
   const double d = 2 * cross(ab, ac);
@@ -41,12 +52,11 @@ Vec2 circumcentre(Vec2 a, Vec2 b, Vec2 c) {
 
 // The end of a straight line traced across the intrinsic faces from a point of face f towards
 // `target` (both in f's layout): the face and coordinates where it ends, or the boundary half-edge
-// (and fraction along it) it runs into.
+// it runs into.
 struct TraceEnd {
   Index face = kInvalid;
   std::array<double, 3> bary{0, 0, 0};
   Index boundary_halfedge = kInvalid;
-  double boundary_fraction = 0.5;
   std::array<Vec2, 3> corners{};  ///< the end face laid out in the frame of the trace
 };
 TraceEnd trace_line(const IntrinsicTriangulation& T, Index f, Vec2 start, Vec2 target) {
@@ -58,7 +68,7 @@ TraceEnd trace_line(const IntrinsicTriangulation& T, Index f, Vec2 start, Vec2 t
   const Index max_steps = 4 * T.num_faces() + 16;
   for (Index step = 0; step < max_steps; ++step) {
     const std::array<double, 3> b = barycentric(target, q[0], q[1], q[2]);
-    if (b[0] >= -kOnEdge && b[1] >= -kOnEdge && b[2] >= -kOnEdge) return {face, clamp_barycentric(b), kInvalid, 0, q};
+    if (b[0] >= -kOnEdge && b[1] >= -kOnEdge && b[2] >= -kOnEdge) return {face, clamp_barycentric(b), kInvalid, q};
     // Leave through the first side whose line the segment x -> target crosses outwards.
     int exit = -1;
     double exit_at = std::numeric_limits<double>::infinity();
@@ -70,27 +80,17 @@ TraceEnd trace_line(const IntrinsicTriangulation& T, Index f, Vec2 start, Vec2 t
       const double s = cross(a - x, e) / cross(d, e);
       if (s < exit_at) exit_at = s, exit = k;
     }
-    if (exit < 0) return {face, clamp_barycentric(b), kInvalid, 0, q};  // round-off at a corner: stay here
-    const Vec2 a = q[static_cast<std::size_t>(exit)], e = q[static_cast<std::size_t>((exit + 1) % 3)] - a;
-    const Vec2 y = x + d * std::max(0.0, exit_at);
-    const double along = std::clamp(((y.x - a.x) * e.x + (y.y - a.y) * e.y) / (e.x * e.x + e.y * e.y), 0.0, 1.0);
+    if (exit < 0) return {face, clamp_barycentric(b), kInvalid, q};  // round-off at a corner: stay here
     const Index out = h[static_cast<std::size_t>(exit)];
     const Index across = out ^ 1;
-    if (T.is_exterior(across)) return {kInvalid, {0, 0, 0}, out, along, q};
-    // Unfold the next face across the side: `across` runs from q[exit + 1] to q[exit].
-    const Vec2 from = q[static_cast<std::size_t>((exit + 1) % 3)], to = a;
-    const Index n1 = T.next(across), n2 = T.next(n1);
-    const Vec2 third = layout_third_point(from, to, T.length(across), T.length(n2), T.length(n1));
+    if (T.is_exterior(across)) return {kInvalid, {0, 0, 0}, out, q};
+    // The next face, unfolded across the side: `across` runs from q[exit + 1] to q[exit].
+    q = unfold_across(T, across, q[static_cast<std::size_t>((exit + 1) % 3)], q[static_cast<std::size_t>(exit)]);
     face = T.face(across);
-    const Index first = T.halfedge(face);
-    const std::array<std::pair<Index, Vec2>, 3> placed{{{across, from}, {n1, to}, {n2, third}}};
-    h[0] = first, h[1] = T.next(first), h[2] = T.next(h[1]);
-    for (int k = 0; k < 3; ++k)
-      for (const auto& [halfedge, position] : placed)
-        if (halfedge == h[static_cast<std::size_t>(k)]) q[static_cast<std::size_t>(k)] = position;
-    x = y;
+    h[0] = T.halfedge(face), h[1] = T.next(h[0]), h[2] = T.next(h[1]);
+    x = x + d * std::max(0.0, exit_at);
   }
-  return {face, {1.0 / 3, 1.0 / 3, 1.0 / 3}, kInvalid, 0, q};  // not reached on a valid triangulation
+  return {face, {1.0 / 3, 1.0 / 3, 1.0 / 3}, kInvalid, q};  // not reached on a valid triangulation
 }
 
 // A boundary edge of face f or of a face across one of its sides whose diametral circle holds x
@@ -153,28 +153,43 @@ RefinementResult refine_delaunay(IntrinsicTriangulation& T, const RefinementOpti
 
   // A face needs work when its smallest angle is below the bound and not at a sharp vertex.
   enum class Quality { good, bad, sharp, tiny };
-  const auto quality = [&](Index f) {
+  struct Assessment {
+    Quality quality;
+    double smallest_angle;
+  };
+  const auto assess = [&](Index f) -> Assessment {
     const Index h0 = T.halfedge(f);
     const std::array<Index, 3> h{h0, T.next(h0), T.next(T.next(h0))};
     const std::array<double, 3> angles = face_angles(T, f);
     const int k = static_cast<int>(std::min_element(angles.begin(), angles.end()) - angles.begin());
-    if (angles[static_cast<std::size_t>(k)] >= bound) return Quality::good;
-    if (T.angle_sum(T.tail(h[static_cast<std::size_t>(k)])) < kSharpVertexAngle) return Quality::sharp;
-    return std::min({T.length(h[0]), T.length(h[1]), T.length(h[2])}) < smallest_side ? Quality::tiny : Quality::bad;
+    const double smallest = angles[static_cast<std::size_t>(k)];
+    if (smallest >= bound) return {Quality::good, smallest};
+    if (T.angle_sum(T.tail(h[static_cast<std::size_t>(k)])) < kSharpVertexAngle) return {Quality::sharp, smallest};
+    const bool tiny = std::min({T.length(h[0]), T.length(h[1]), T.length(h[2])}) < smallest_side;
+    return {tiny ? Quality::tiny : Quality::bad, smallest};
   };
   // Bad faces, smallest angle first (measured on four meshes: 1-6 % fewer insertions than first-in
   // first-out or largest circumradius first). Stale entries are skipped when popped.
   std::priority_queue<std::tuple<double, Index, Index>> queue;  // (−smallest angle, −stamp, face)
   Index stamp = 0;
-  const auto push = [&](Index f) {
-    const std::array<double, 3> a = face_angles(T, f);
-    queue.emplace(-std::min({a[0], a[1], a[2]}), -(stamp++), f);
+  const auto push_if_bad = [&](Index f) {
+    const Assessment a = assess(f);
+    if (a.quality == Quality::bad) queue.emplace(-a.smallest_angle, -(stamp++), f);
   };
   for (Index f = 0; f < T.num_face_slots(); ++f)
-    if (T.face_alive(f) && quality(f) == Quality::bad) push(f);
+    if (T.face_alive(f)) push_if_bad(f);
 
   std::vector<Index> changed, touched;
-  std::vector<char> unsplittable(static_cast<std::size_t>(T.num_face_slots()), 0);
+  // Faces whose new vertex could not be placed (a flat face, a point on an existing vertex, a face
+  // thinner than a flip may make): left as they are.
+  std::vector<char> unsplittable;
+  const auto is_unsplittable = [&](Index f) {
+    return static_cast<std::size_t>(f) < unsplittable.size() && unsplittable[static_cast<std::size_t>(f)];
+  };
+  const auto mark_unsplittable = [&](Index f) {
+    if (static_cast<std::size_t>(f) >= unsplittable.size()) unsplittable.resize(static_cast<std::size_t>(f) + 1, 0);
+    unsplittable[static_cast<std::size_t>(f)] = 1;
+  };
   while (!queue.empty()) {
     if (static_cast<double>(T.num_vertices()) >= budget) {
       result.budget_exhausted = true;
@@ -182,8 +197,7 @@ RefinementResult refine_delaunay(IntrinsicTriangulation& T, const RefinementOpti
     }
     const Index f = std::get<2>(queue.top());
     queue.pop();
-    if (!T.face_alive(f) || quality(f) != Quality::bad) continue;
-    if (static_cast<std::size_t>(f) < unsplittable.size() && unsplittable[static_cast<std::size_t>(f)]) continue;
+    if (!T.face_alive(f) || is_unsplittable(f) || assess(f).quality != Quality::bad) continue;
     const std::array<Vec2, 3> p = layout_face(T, f);
     Vec2 centre = circumcentre(p[0], p[1], p[2]);
     {
@@ -201,13 +215,11 @@ RefinementResult refine_delaunay(IntrinsicTriangulation& T, const RefinementOpti
       const double distance = (centre - middle).norm();
       if (distance > reach) centre = middle + (centre - middle) * (reach / distance);
     }
-    const Vec2 barycentre = (p[0] + p[1] + p[2]) * (1.0 / 3);
-    if (!std::isfinite(centre.x) || !std::isfinite(centre.y)) {  // a numerically flat face: leave it
-      if (static_cast<std::size_t>(f) >= unsplittable.size()) unsplittable.resize(static_cast<std::size_t>(f) + 1, 0);
-      unsplittable[static_cast<std::size_t>(f)] = 1;
+    if (!std::isfinite(centre.x) || !std::isfinite(centre.y)) {  // a numerically flat face
+      mark_unsplittable(f);
       continue;
     }
-    const TraceEnd end = trace_line(T, f, barycentre, centre);
+    const TraceEnd end = trace_line(T, f, (p[0] + p[1] + p[2]) * (1.0 / 3), centre);
     changed.clear();
     touched.clear();
     Index inserted = kInvalid;
@@ -221,11 +233,9 @@ RefinementResult refine_delaunay(IntrinsicTriangulation& T, const RefinementOpti
       const auto& b = end.bary;
       const int small = static_cast<int>((b[0] < kOnEdge) + (b[1] < kOnEdge) + (b[2] < kOnEdge));
       const bool finite = std::isfinite(b[0]) && std::isfinite(b[1]) && std::isfinite(b[2]);
-      if (!finite) {
-        // nothing inserted: the face is marked below
-      } else if (small == 0) {
+      if (finite && small == 0) {
         inserted = T.insert_vertex(end.face, b, &changed);
-      } else if (small == 1) {  // on the side opposite the small coordinate's corner
+      } else if (finite && small == 1) {  // on the side opposite the small coordinate's corner
         const int k = b[0] < kOnEdge ? 0 : (b[1] < kOnEdge ? 1 : 2);
         Index side = T.halfedge(end.face);
         for (int i = 0; i < (k + 1) % 3; ++i) side = T.next(side);
@@ -235,9 +245,8 @@ RefinementResult refine_delaunay(IntrinsicTriangulation& T, const RefinementOpti
         if (inserted != kInvalid && T.is_boundary_vertex(inserted)) ++result.boundary_splits;
       }
     }
-    if (inserted == kInvalid) {  // the circumcentre is (numerically) an existing vertex: leave the face
-      if (static_cast<std::size_t>(f) >= unsplittable.size()) unsplittable.resize(static_cast<std::size_t>(f) + 1, 0);
-      unsplittable[static_cast<std::size_t>(f)] = 1;
+    if (inserted == kInvalid) {
+      mark_unsplittable(f);
       continue;
     }
     ++result.inserted;
@@ -246,16 +255,13 @@ RefinementResult refine_delaunay(IntrinsicTriangulation& T, const RefinementOpti
     touched.push_back(inserted);
     for (Index v : touched) {
       if (!T.vertex_alive(v)) continue;
-      T.for_each_outgoing(v, [&](Index h) {
-        const Index g = T.face(h);
-        if (quality(g) == Quality::bad) push(g);
-      });
+      T.for_each_outgoing(v, [&](Index h) { push_if_bad(T.face(h)); });
     }
   }
   result.min_angle_after = min_corner_angle_degrees(T);
   for (Index f = 0; f < T.num_face_slots(); ++f) {
     if (!T.face_alive(f)) continue;
-    const Quality q = quality(f);
+    const Quality q = assess(f).quality;
     if (q == Quality::good) continue;
     ++result.faces_below_bound;
     if (q == Quality::sharp) ++result.sharp_vertex_faces;
@@ -301,7 +307,9 @@ std::vector<InputSurfacePoint> locate_inserted_vertices(const IntrinsicTriangula
     }
     // Grown ring by ring until an input triangle whose corners are all imaged contains the target
     // (fine triangles may span many small intrinsic faces after refinement); then the best found.
-    std::size_t begin = 0, imaged_faces = 0;
+    // Input triangles become candidates when their last corner is imaged, so each attempt looks only
+    // at the triangles around the input vertices imaged since the previous one.
+    std::size_t begin = 0, imaged_faces = 0, candidates_from = 0;
     std::vector<Index> imaged;
     InputSurfacePoint best;
     double best_margin = -std::numeric_limits<double>::infinity();
@@ -314,16 +322,9 @@ std::vector<InputSurfacePoint> locate_inserted_vertices(const IntrinsicTriangula
         for (int k = 0; k < 3; ++k, side = T.next(side)) {
           const Index across = side ^ 1;
           if (T.is_exterior(across) || placed_stamp[T.face(across)] == v) continue;
-          const Index next_face = T.face(across);
-          const Vec2 from = q[static_cast<std::size_t>((k + 1) % 3)], to = q[static_cast<std::size_t>(k)];
-          const Index n1 = T.next(across), n2 = T.next(n1);
-          const Vec2 third = layout_third_point(from, to, T.length(across), T.length(n2), T.length(n1));
-          std::array<Vec2, 3> layout{};
-          Index c = T.halfedge(next_face);
-          for (int j = 0; j < 3; ++j, c = T.next(c))
-            layout[static_cast<std::size_t>(j)] = c == across ? from : (c == n1 ? to : third);
-          placed_stamp[next_face] = v;
-          placed.emplace_back(next_face, layout);
+          placed_stamp[T.face(across)] = v;
+          placed.emplace_back(T.face(across), unfold_across(T, across, q[static_cast<std::size_t>((k + 1) % 3)],
+                                                            q[static_cast<std::size_t>(k)]));
         }
       }
       begin = end;
@@ -352,8 +353,8 @@ std::vector<InputSurfacePoint> locate_inserted_vertices(const IntrinsicTriangula
       // Triangles whose image is folded over (a cone's cut in the unfolding) only when no other has
       // all its corners imaged.
       for (const bool allow_folded : {false, true}) {
-        for (Index p : imaged)
-          for (Index i = start[static_cast<std::size_t>(p)]; i < start[static_cast<std::size_t>(p) + 1]; ++i) {
+        for (std::size_t j = candidates_from; j < imaged.size(); ++j)
+          for (Index i = start[static_cast<std::size_t>(imaged[j])]; i < start[static_cast<std::size_t>(imaged[j]) + 1]; ++i) {
             const Index face = incident[static_cast<std::size_t>(i)];
             const Index a = F(face, 0), b = F(face, 1), c = F(face, 2);
             if (stamp[static_cast<std::size_t>(a)] != v || stamp[static_cast<std::size_t>(b)] != v ||
@@ -369,6 +370,7 @@ std::vector<InputSurfacePoint> locate_inserted_vertices(const IntrinsicTriangula
           }
         if (best.face != kInvalid) break;
       }
+      candidates_from = imaged.size();
     }
     if (best.face == kInvalid) {
       // No input triangle has a proper image here (a component of one or two numerically flat input
@@ -380,7 +382,8 @@ std::vector<InputSurfacePoint> locate_inserted_vertices(const IntrinsicTriangula
         if (d < nearest_distance) nearest_distance = d, nearest = p;
       }
       if (nearest == kInvalid || start[static_cast<std::size_t>(nearest)] == start[static_cast<std::size_t>(nearest) + 1])
-        throw std::runtime_error("locate_inserted_vertices: no input vertex around inserted vertex " + std::to_string(v) + " (" + std::to_string(placed.size()) + " faces, " + std::to_string(imaged.size()) + " imaged, nearest " + std::to_string(nearest) + ")");
+        throw std::runtime_error("locate_inserted_vertices: no input vertex around inserted vertex " + std::to_string(v) +
+                                 " (" + std::to_string(placed.size()) + " intrinsic faces searched)");
       best.face = incident[static_cast<std::size_t>(start[static_cast<std::size_t>(nearest)])];
       for (int k = 0; k < 3; ++k) best.bary[static_cast<std::size_t>(k)] = F(best.face, k) == nearest ? 1.0 : 0.0;
     }

@@ -268,6 +268,9 @@ class IntrinsicTriangulation {
   std::vector<Index> link_halfedges(const Faces& F, const std::vector<double>& corner_length,
                                     const std::vector<Index>& corner_halfedge);
   void link_vertices(const std::vector<Index>& corners_at_vertex);
+  // Vertex slot -> compact vertex (live slots in order: input vertices, then inserted ones), or
+  // kInvalid for a dead slot: the numbering of compact() and compacted().
+  std::vector<Index> compact_vertex_numbers() const;
   void recompute_vertex_frame(Index v);
   FlattenResult flatten_vertex(Index v, double initial_log_scale, bool update_own_frame);
   // The new angle of the corner at tail(halfedge), between halfedge and prev(halfedge).
