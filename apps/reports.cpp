@@ -89,6 +89,52 @@ std::string percent(const nlohmann::json& fraction) {
 
 // ---- JSON reports ---------------------------------------------------------------------------------
 
+namespace {
+template <class T>
+nlohmann::json offenders_json(const ice::Offenders<T>& o) {
+  return {{"count", o.count}, {"first", o.first}};
+}
+}  // namespace
+
+nlohmann::json validation_json(const ice::ValidationReport& r) {
+  nlohmann::json j;
+  j["vertices"] = r.n_vertices;
+  j["faces"] = r.n_faces;
+  j["edges"] = r.n_edges;
+  j["clean"] = r.clean();
+  j["manifold"] = r.manifold();
+  j["orientable"] = r.orientable();
+  j["components"] = r.components.size();
+  j["boundary_loops"] = r.n_boundary_loops;
+  j["euler_characteristic"] = r.euler_characteristic;
+  j["genus"] = r.genus >= 0 ? nlohmann::json(r.genus) : nlohmann::json(nullptr);
+  j["bbox"] = {{"min", {r.bbox_min.x(), r.bbox_min.y(), r.bbox_min.z()}},
+               {"max", {r.bbox_max.x(), r.bbox_max.y(), r.bbox_max.z()}}};
+  j["edge_length"] = {{"min", r.edge_length_min}, {"mean", r.edge_length_mean}, {"max", r.edge_length_max}};
+  j["defects"] = {
+      {"non_triangle_faces", offenders_json(r.non_triangle_faces)},
+      {"out_of_range_faces", offenders_json(r.out_of_range_faces)},
+      {"repeated_index_faces", offenders_json(r.repeated_index_faces)},
+      {"non_finite_vertices", offenders_json(r.non_finite_vertices)},
+      {"unreferenced_vertices", offenders_json(r.unreferenced_vertices)},
+      {"duplicate_faces", offenders_json(r.duplicate_faces)},
+      {"zero_area_faces", offenders_json(r.zero_area_faces)},
+      {"non_manifold_edges", offenders_json(r.non_manifold_edges)},
+      {"non_manifold_vertices", offenders_json(r.non_manifold_vertices)},
+      {"inconsistent_edges", offenders_json(r.inconsistent_edges)},
+      {"non_orientable_components", r.non_orientable_components},
+  };
+  j["duplicate_positions"] = offenders_json(r.duplicate_positions);
+  nlohmann::json comps = nlohmann::json::array();
+  for (const auto& c : r.components)
+    comps.push_back({{"vertices", c.n_vertices}, {"edges", c.n_edges}, {"faces", c.n_faces},
+                     {"boundary_loops", c.n_boundary_loops}, {"euler_characteristic", c.euler_characteristic},
+                     {"manifold", c.manifold}, {"orientable", c.orientable},
+                     {"genus", c.genus >= 0 ? nlohmann::json(c.genus) : nlohmann::json(nullptr)}});
+  j["component_list"] = comps;
+  return j;
+}
+
 nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
   nlohmann::json j = {{"vertices", summary.coarse_vertices},
                       {"faces", summary.coarse_faces},

@@ -11,6 +11,7 @@
 #include "command_line.h"
 #include "fem/coarse_proxy.h"
 #include "ice/coarse_space.h"
+#include "ice/mesh_validation.h"
 
 namespace app {
 
@@ -78,6 +79,11 @@ std::string relative_error(const nlohmann::json& fraction);
 std::string percent(const nlohmann::json& fraction);
 
 // ---- JSON reports ---------------------------------------------------------------------------------
+
+/// A mesh validation report (ice/mesh_validation.h) as ice-info --json writes it and the Python
+/// package returns it: sizes, topology, bounding box, edge lengths, each defect's count and first
+/// offenders, the components.
+nlohmann::json validation_json(const ice::ValidationReport& report);
 
 /// The "coarse" object of the JSON reports: vertices, faces, stop_reason, removed (ICE removals or
 /// QEM collapses), and for ICE its removal details (failed removals by status, costs).

@@ -36,13 +36,16 @@ as_root() {
 # alone would accept the openmp or serial one). libcgal-demo is only needed for its data archive;
 # with --no-install-recommends it does not pull libcgal-qt5-dev (Qt): its Depends are libcgal-dev
 # and, through it, Boost/GMP/MPFR headers. libhypre-dev (which pulls OpenMPI) is only for the
-# BoomerAMG comparison in bench/bench_multigrid.cpp; the build works without it.
+# BoomerAMG comparison in bench/bench_multigrid.cpp; the build works without it. The Python
+# package (python/) is built with pybind11 against Debian's python3 and tested with its numpy,
+# scipy, pytest and matplotlib (the example draws a picture).
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev
   libopenblas-dev libopenblas0-pthread libopenblas-pthread-dev
   libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox
   libcgal-demo libhypre-dev xz-utils
+  pybind11-dev python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
 )
 
 is_installed() {

@@ -764,6 +764,12 @@ LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& opt
   return result;
 }
 
+ValidationReport require_clean_mesh(const TriangleMesh& mesh, const std::string& name) {
+  ValidationReport report = validate_mesh(mesh);
+  if (!report.clean()) throw MeshError(MeshError::Kind::Defective, name, "refused: " + describe_defects(report));
+  return report;
+}
+
 TriangleMesh load_mesh(const std::string& path, const LoadOptions& options) {
   return load_mesh_with_report(path, options).mesh;
 }

@@ -97,6 +97,11 @@ struct LoadResult {
 /// Throws MeshError whose what() names the file and each defect with its count and first offenders.
 LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& options = {});
 
+/// The loading policy for a mesh made in code (the Python package's arrays): validates it and throws
+/// MeshError (Defective) naming `name` and each defect in the words load_mesh uses for files, or
+/// returns the report of a clean mesh.
+ValidationReport require_clean_mesh(const TriangleMesh& mesh, const std::string& name);
+
 /// `load_mesh_with_report(path, options).mesh`.
 TriangleMesh load_mesh(const std::string& path, const LoadOptions& options = {});
 

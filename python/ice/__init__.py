@@ -1,0 +1,135 @@
+"""ICE: PDE solves on triangle meshes through a small intrinsic proxy of the mesh.
+
+Meshes are numpy arrays as in libigl, potpourri3d and trimesh: V (n×3 float64 positions) and
+F (m×3 integer vertex indices, counter-clockwise); operators and P are scipy.sparse matrices.
+
+    import ice
+    V, F = ice.load_mesh("bunny.ply")
+    coarse = ice.coarsen(V, F, ratio=0.05)          # intrinsic coarse mesh, P, fine-to-coarse map
+    u = ice.solve_poisson(V, F, f, coarse=coarse)   # Poisson through the proxy, on every vertex
+
+Long calls release the GIL. Bad arrays raise TypeError/ValueError naming the argument and entry;
+refused meshes and unreadable files raise ice.MeshError with the tools' message.
+"""
+from __future__ import annotations
+
+from ._ice import (  # noqa: F401  (the package's API)
+    CoarseSpace,
+    DistanceOracle,
+    MeshError,
+    MultigridSolver,
+    Proxy,
+    ProxyGeodesicSolver,
+    ProxyHeatSolver,
+    ProxyPoissonSolver,
+    coarsen,
+    cotan_laplacian,
+    face_lengths,
+    hierarchy,
+    intrinsic_delaunay,
+    load_coarse_mesh,
+    loop_subdivide,
+    mass_matrix,
+    save_mesh,
+    validate,
+)
+from . import _ice
+
+__all__ = [
+    "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
+    "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
+    "face_lengths", "geodesic_distance", "heat_flow", "hierarchy", "intrinsic_delaunay", "load_coarse_mesh",
+    "load_mesh", "loop_subdivide", "mass_matrix", "save_mesh", "solve_poisson", "validate",
+]
+__version__ = "0.1.0"
+
+
+class LoadedMesh:
+    """A mesh read by ice.load_mesh. Unpacks as ``V, F = ice.load_mesh(path)``.
+
+    Attributes: V (n×3 float64), F (m×3 int32), report (validation of the loaded mesh, the keys of
+    ``ice-info --json``), input_report (of the file as read), repairs (what repair=True did, one line
+    each), source_vertex / source_face (the file's index of each mesh vertex / face), format.
+    """
+
+    __slots__ = ("V", "F", "report", "input_report", "repairs", "source_vertex", "source_face", "format")
+
+    def __init__(self, fields: dict):
+        for name in self.__slots__:
+            setattr(self, name, fields[name])
+
+    def __iter__(self):
+        return iter((self.V, self.F))
+
+    def __len__(self) -> int:
+        return 2
+
+    def __getitem__(self, index):
+        return (self.V, self.F)[index]
+
+    def __repr__(self) -> str:
+        return f"<ice.LoadedMesh {self.V.shape[0]} vertices, {self.F.shape[0]} faces ({self.format})>"
+
+
+def load_mesh(path, repair: bool = False, weld: bool = False) -> LoadedMesh:
+    """Reads and validates an OBJ, OFF, PLY or STL mesh under ICE's loading policy (as the tools do).
+
+    Refused meshes (non-manifold, inconsistently oriented, zero-area or duplicate faces, ...) raise
+    ice.MeshError naming the file and each defect; repair=True applies the safe repairs first
+    (triangulate, drop zero-area/duplicate faces and unused vertices, re-orient; weld=True also welds
+    exactly coincident vertices). Returns a LoadedMesh (``V, F = ice.load_mesh(path)``).
+    """
+    return LoadedMesh(_ice._load_mesh(str(path), repair, weld))
+
+
+def _coarse_for(V, F, coarse, coarsening, use, locked=None):
+    if coarse is not None:
+        if coarsening:
+            raise ValueError(f"give coarse or coarsening options ({', '.join(sorted(coarsening))}), not both")
+        return coarse
+    if not {"n", "ratio", "max_error"} & coarsening.keys():
+        coarsening["ratio"] = 0.05
+    coarsening.setdefault("use", use)
+    if locked is not None:
+        coarsening["locked"] = locked
+    return coarsen(V, F, **coarsening)
+
+
+def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, values=None,
+                  operators: str = "galerkin", fine: str = "intrinsic_delaunay", polish: int = 0,
+                  tolerance: float = 0.0, **coarsening):
+    """Poisson −Δu = f on (V, F) through a coarse proxy, in one call (poisson-coarse).
+
+    coarse: a CoarseSpace of this mesh, or coarsening options for ice.coarsen (default ratio=0.05);
+    fixed vertices are then locked so they stay coarse vertices. Without fixed vertices the zero-mean
+    Neumann solution; with them, Dirichlet values there (values, default zeros). For many right-hand
+    sides build Proxy and ProxyPoissonSolver once instead.
+    """
+    coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", fixed)
+    proxy = Proxy(V, F, coarse, operators=operators, fine=fine)
+    return ProxyPoissonSolver(proxy, fixed=fixed, polish=polish, tolerance=tolerance).solve(f, values)
+
+
+def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace | None = None,
+              restriction: str = "l2", operators: str = "galerkin", fine: str = "intrinsic_delaunay",
+              polish: int = 0, tolerance: float = 0.0, **coarsening):
+    """Backward-Euler heat flow from u0 for `steps` steps of `time_step` through a coarse proxy.
+
+    coarse / coarsening options as for solve_poisson.
+    """
+    coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
+    proxy = Proxy(V, F, coarse, operators=operators, fine=fine)
+    solver = ProxyHeatSolver(proxy, time_step, restriction=restriction, polish=polish, tolerance=tolerance)
+    return solver.integrate(u0, steps)
+
+
+def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, time_factor: float = 1.0,
+                      operators: str = "galerkin", fine: str = "intrinsic_delaunay", **coarsening):
+    """Heat-method geodesic distance to `sources` through a coarse proxy (geodesic-coarse).
+
+    coarse / coarsening options as for solve_poisson, with the metric measured best for geodesics
+    (use="geodesic") by default. For many sources or pairs see ProxyGeodesicSolver and DistanceOracle.
+    """
+    coarse = _coarse_for(V, F, coarse, coarsening, "geodesic")
+    proxy = Proxy(V, F, coarse, operators=operators, fine=fine)
+    return ProxyGeodesicSolver(proxy, time_factor=time_factor).distance(sources)

@@ -1,0 +1,210 @@
+"""Type stubs of the ice package (the extension module ice._ice and the helpers of __init__.py)."""
+from os import PathLike
+from typing import Any, Callable, Iterator, Literal, Sequence
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse
+
+__version__: str
+
+Path = str | PathLike[str]
+FloatArray = npt.NDArray[np.float64]
+IndexArray = npt.NDArray[np.int32]
+Indices = Sequence[int] | npt.NDArray[np.integer[Any]] | int
+ArrayLike = npt.ArrayLike
+
+class MeshError(RuntimeError):
+    """A file ICE cannot read or write, or a mesh its loading policy refuses; str() is the tools' message."""
+    kind: Literal["unreadable", "defective", "unwritable"]
+    path: str
+
+class LoadedMesh:
+    """ice.load_mesh's result; unpacks as ``V, F = ice.load_mesh(path)``."""
+    V: FloatArray
+    F: IndexArray
+    report: dict[str, Any]
+    input_report: dict[str, Any]
+    repairs: list[str]
+    source_vertex: IndexArray
+    source_face: IndexArray
+    format: str
+    def __iter__(self) -> Iterator[FloatArray | IndexArray]: ...
+    def __len__(self) -> int: ...
+    def __getitem__(self, index: int) -> FloatArray | IndexArray: ...
+
+def load_mesh(path: Path, repair: bool = False, weld: bool = False) -> LoadedMesh:
+    """Reads and validates an OBJ, OFF, PLY or STL mesh under ICE's loading policy."""
+def validate(V: ArrayLike, F: ArrayLike) -> dict[str, Any]:
+    """The validation report of (V, F) (ice-info --json keys); report["clean"]: accepted by the solvers."""
+def save_mesh(path: Path, V: ArrayLike, F: ArrayLike, *, overwrite: bool = False, binary: bool = False) -> None:
+    """Writes (V, F) as OBJ, OFF, PLY or STL; an existing file only with overwrite=True."""
+def face_lengths(V: ArrayLike, F: ArrayLike) -> FloatArray:
+    """Per-face edge lengths (m×3), column k from corner k to corner (k+1)%3."""
+def intrinsic_delaunay(V: ArrayLike, F: ArrayLike) -> tuple[IndexArray, FloatArray, int]:
+    """(F, lengths, flips) of the intrinsic Delaunay triangulation of (V, F)."""
+def loop_subdivide(V: ArrayLike, F: ArrayLike, levels: int = 1) -> tuple[FloatArray, IndexArray]:
+    """Loop subdivision `levels` times (about 4x the vertices each)."""
+def cotan_laplacian(V: ArrayLike | None = None, F: ArrayLike | None = None, *, lengths: ArrayLike | None = None,
+                    n: int | None = None) -> scipy.sparse.csc_matrix:
+    """The cotan Laplacian (positive semidefinite) of (V, F) or of (F, lengths=L)."""
+def mass_matrix(V: ArrayLike | None = None, F: ArrayLike | None = None, *, lengths: ArrayLike | None = None,
+                n: int | None = None, kind: Literal["lumped", "consistent"] = "lumped") -> scipy.sparse.csc_matrix:
+    """The lumped or consistent mass matrix of (V, F) or of (F, lengths=L)."""
+
+class CoarseSpace:
+    """A coarse intrinsic mesh of an input mesh, P and the fine-to-coarse map."""
+    @property
+    def faces(self) -> IndexArray: ...
+    @property
+    def lengths(self) -> FloatArray: ...
+    @property
+    def twin(self) -> IndexArray: ...
+    @property
+    def to_input(self) -> IndexArray: ...
+    @property
+    def from_input(self) -> IndexArray: ...
+    @property
+    def n_vertices(self) -> int: ...
+    @property
+    def n_faces(self) -> int: ...
+    @property
+    def input_vertices(self) -> int: ...
+    @property
+    def P(self) -> scipy.sparse.csr_matrix | None:
+        """Input vertices × coarse vertices, rows summing to 1; None when read from a file."""
+    @property
+    def map(self) -> tuple[IndexArray, FloatArray, IndexArray] | None:
+        """(face, bary, coarse_vertex) of every input vertex; None when not kept."""
+    @property
+    def summary(self) -> dict[str, Any] | None: ...
+    @property
+    def positions(self) -> FloatArray | None: ...
+    @property
+    def inserted(self) -> tuple[IndexArray, FloatArray]: ...
+    def save(self, path: Path, *, overwrite: bool = False, comment: str = "") -> None:
+        """Writes the coarse mesh as .ilm (exact round trip with load_coarse_mesh)."""
+
+def coarsen(V: ArrayLike, F: ArrayLike, *, n: int | None = None, ratio: float | None = None,
+            max_error: float | None = None, method: Literal["ice", "qem"] = "ice",
+            use: Literal["poisson_heat", "geodesic"] = "poisson_heat", area_weight: float | None = None,
+            normalize_curvature: bool | None = None, locked: Indices | None = None, remove_boundary: bool = True,
+            threads: int = 1, qem_geometry: Literal["extrinsic", "intrinsic_delaunay"] = "extrinsic",
+            refine_angle: float | None = None, refine_budget: float = 1.5, keep_map: bool = True,
+            locality_numbering: bool = True,
+            progress: Callable[[dict[str, Any]], bool | None] | None = None) -> CoarseSpace:
+    """Coarsens (V, F) by ICE (or QEM) to n vertices, a ratio of them, or an error bound."""
+def load_coarse_mesh(path: Path) -> CoarseSpace:
+    """Reads an .ilm coarse mesh (faces, lengths, gluing, vertex map)."""
+
+class Proxy:
+    """The fine discretisation and a coarse space linked by P, with the proxy solvers' operators."""
+    def __init__(self, V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
+                 operators: Literal["galerkin", "intrinsic"] = "galerkin",
+                 fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay") -> None: ...
+    @property
+    def fine_size(self) -> int: ...
+    @property
+    def coarse_size(self) -> int: ...
+    @property
+    def fine_faces(self) -> IndexArray: ...
+    @property
+    def fine_lengths(self) -> FloatArray: ...
+    @property
+    def fine_flips(self) -> int: ...
+    @property
+    def fine_laplacian(self) -> scipy.sparse.csc_matrix: ...
+    @property
+    def fine_mass(self) -> scipy.sparse.csc_matrix: ...
+    @property
+    def coarse_laplacian(self) -> scipy.sparse.csc_matrix: ...
+    @property
+    def coarse_mass(self) -> scipy.sparse.csc_matrix: ...
+    def prolong(self, values: ArrayLike) -> FloatArray: ...
+    def restrict_weighted(self, values: ArrayLike) -> FloatArray: ...
+
+class ProxyPoissonSolver:
+    """Poisson through the proxy (zero-mean Neumann, or Dirichlet at `fixed`), optionally polished."""
+    def __init__(self, proxy: Proxy, *, fixed: Indices | None = None, polish: int = 0, tolerance: float = 0.0) -> None: ...
+    def solve(self, f: ArrayLike, values: ArrayLike | None = None) -> FloatArray: ...
+    @property
+    def polish_report(self) -> dict[str, Any]: ...
+    @property
+    def times(self) -> dict[str, float]: ...
+    @property
+    def is_zero_mean(self) -> bool: ...
+
+class ProxyHeatSolver:
+    """Backward-Euler heat flow through the proxy."""
+    def __init__(self, proxy: Proxy, time_step: float, *, restriction: Literal["l2", "injection"] = "l2",
+                 polish: int = 0, tolerance: float = 0.0) -> None: ...
+    def integrate(self, u0: ArrayLike, steps: int = 1) -> FloatArray: ...
+    @property
+    def polish_report(self) -> dict[str, Any]: ...
+    @property
+    def times(self) -> dict[str, float]: ...
+
+class ProxyGeodesicSolver:
+    """Heat-method geodesic distance through the proxy."""
+    def __init__(self, proxy: Proxy, *, time_factor: float = 1.0) -> None: ...
+    def distance(self, sources: Indices) -> FloatArray: ...
+    @property
+    def times(self) -> dict[str, float]: ...
+
+def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
+              max_levels: int = 20) -> list[scipy.sparse.csr_matrix]:
+    """Prolongations of an ICE multigrid hierarchy of (V, F)."""
+
+class MultigridSolver:
+    """Galerkin multigrid on given prolongations for SPD systems."""
+    def __init__(self, prolongations: Sequence[scipy.sparse.spmatrix], *, tolerance: float = 1e-8,
+                 max_iterations: int = 200, mode: Literal["pcg", "vcycle"] = "pcg",
+                 smoother: Literal["sgs", "gs", "chebyshev"] = "sgs", smoothing_steps: int = 1,
+                 threads: int = 0) -> None: ...
+    def setup(self, A: scipy.sparse.spmatrix | ArrayLike, constrained: Indices | None = None) -> None: ...
+    def solve(self, b: ArrayLike, constrained_values: ArrayLike | None = None,
+              x0: ArrayLike | None = None) -> FloatArray: ...
+    @property
+    def report(self) -> dict[str, Any]: ...
+    @property
+    def levels(self) -> list[dict[str, int]]: ...
+    @property
+    def operator_complexity(self) -> float: ...
+    @property
+    def setup_seconds(self) -> float: ...
+    @property
+    def size(self) -> int: ...
+
+class DistanceOracle:
+    """All-pairs geodesic distances of the fine vertices from a coarse space."""
+    def __init__(self, coarse: CoarseSpace, *, method: Literal["marching", "heat"] = "marching",
+                 heat_time_factor: float = 1.0, threads: int = 0) -> None: ...
+    def distance(self, u: int, v: int) -> float: ...
+    def distances(self, pairs: ArrayLike) -> FloatArray: ...
+    def distances_from(self, source: int) -> FloatArray: ...
+    def distance_matrix(self, rows: Indices, cols: Indices | None = None) -> npt.NDArray[np.float32]: ...
+    def farthest_point_samples(self, count: int, first: int = 0) -> IndexArray: ...
+    @property
+    def fine_size(self) -> int: ...
+    @property
+    def coarse_size(self) -> int: ...
+    @property
+    def memory_bytes(self) -> int: ...
+
+def solve_poisson(V: ArrayLike, F: ArrayLike, f: ArrayLike, *, coarse: CoarseSpace | None = None,
+                  fixed: Indices | None = None, values: ArrayLike | None = None,
+                  operators: Literal["galerkin", "intrinsic"] = "galerkin",
+                  fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
+                  tolerance: float = 0.0, **coarsening: Any) -> FloatArray:
+    """Poisson −Δu = f through a coarse proxy in one call."""
+def heat_flow(V: ArrayLike, F: ArrayLike, u0: ArrayLike, time_step: float, steps: int = 1, *,
+              coarse: CoarseSpace | None = None, restriction: Literal["l2", "injection"] = "l2",
+              operators: Literal["galerkin", "intrinsic"] = "galerkin",
+              fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
+              tolerance: float = 0.0, **coarsening: Any) -> FloatArray:
+    """Backward-Euler heat flow through a coarse proxy in one call."""
+def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: CoarseSpace | None = None,
+                      time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",
+                      fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
+                      **coarsening: Any) -> FloatArray:
+    """Heat-method geodesic distance through a coarse proxy in one call."""

@@ -1,0 +1,937 @@
+// ice._ice: the Python bindings of libice and libfem. Every function converts and checks its
+// arguments (arrays.h), releases the GIL, calls the library's pipeline (ice::build_coarse_space,
+// ice::fine_mesh, fem::CoarseProxy and the proxy solvers, fem::MultigridSolver, fem::DistanceOracle)
+// and converts the results back; reports are the tools' JSON objects (apps/reports.h) as dicts, so a
+// script and a tool report the same keys. The package's __init__.py re-exports everything with the
+// documentation; nothing here computes anything the C++ tools do not.
+#include <algorithm>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <pybind11/eigen.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include "arrays.h"
+#include "fem/coarse_proxy.h"
+#include "fem/distance_oracle.h"
+#include "fem/multigrid.h"
+#include "fem/operators.h"
+#include "fem/problems.h"
+#include "ice/coarse_space.h"
+#include "ice/hierarchy.h"
+#include "ice/intrinsic_mesh_io.h"
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+#include "ice/refinement.h"
+#include "reports.h"
+
+namespace py = pybind11;
+using namespace ice_python;
+
+namespace {
+
+// ---- small conversions ---------------------------------------------------------------------------
+
+py::object json_to_python(const nlohmann::json& value) {
+  return py::module_::import("json").attr("loads")(value.dump());
+}
+
+template <class Enum>
+Enum choice(const std::string& value, const char* name, std::initializer_list<std::pair<const char*, Enum>> choices) {
+  std::string names;
+  for (const auto& [spelling, entry] : choices) {
+    if (value == spelling) return entry;
+    names += (names.empty() ? "" : ", ") + std::string("'") + spelling + "'";
+  }
+  throw py::value_error(std::string(name) + " must be one of " + names + ", got '" + value + "'");
+}
+
+ice::TriangleMesh mesh_argument(const py::handle& V, const py::handle& F) {
+  ice::TriangleMesh mesh;
+  mesh.V = positions_argument(V, "V");
+  mesh.F = faces_argument(F, mesh.V.rows(), "F");
+  return mesh;
+}
+
+// The fine discretisation of an operator call: (V, F), or (F, lengths) for an intrinsic mesh.
+struct Discretisation {
+  ice::Faces F;
+  ice::FaceLengths L;
+  Eigen::Index n = 0;
+};
+Discretisation discretisation_argument(const py::object& V, const py::object& F, const py::object& lengths,
+                                       const py::object& n) {
+  Discretisation d;
+  if (!V.is_none() && !lengths.is_none()) throw py::value_error("give V or lengths, not both");
+  if (V.is_none() && lengths.is_none()) throw py::value_error("give V (positions) or lengths (per-face edge lengths)");
+  if (!V.is_none()) {
+    const ice::TriangleMesh mesh = mesh_argument(V, F);
+    d.F = mesh.F;
+    d.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
+    d.n = mesh.V.rows();
+    for (Eigen::Index f = 0; f < d.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        if (!(d.L(f, k) < d.L(f, (k + 1) % 3) + d.L(f, (k + 2) % 3)))
+          throw py::value_error("F[" + std::to_string(f) + "] is a degenerate (zero-area) triangle of V");
+  } else {
+    d.F = faces_argument(F, "F");
+    d.L = lengths_argument(lengths, d.F.rows(), "lengths");
+    d.n = d.F.maxCoeff() + 1;
+  }
+  if (!n.is_none()) {
+    const auto count = n.cast<long long>();
+    if (count < d.n)
+      throw py::value_error("n = " + std::to_string(count) + " is smaller than the vertex count F uses (" +
+                            std::to_string(d.n) + ")");
+    d.n = static_cast<Eigen::Index>(count);
+  }
+  return d;
+}
+
+// ---- meshes --------------------------------------------------------------------------------------
+
+// Validation of arrays, once per mesh content. Scripts pass the same (V, F) to coarsen, Proxy,
+// hierarchy, ...; validating it each time cost 0.23 s per call at 104k vertices (18 % on top of
+// coarsening and proxy setup, measured with bench/python_overhead.py), hashing it costs ~2 ms. The
+// fingerprints of the last meshes found clean (or loaded from a file, which the loader validated)
+// are kept; a mesh is validated again whenever its content differs in any byte (a collision of the
+// 64-bit hash is the only way to skip a needed validation).
+std::uint64_t mesh_fingerprint(const ice::TriangleMesh& mesh) {
+  std::uint64_t hash = 0x9e3779b97f4a7c15ull ^ static_cast<std::uint64_t>(mesh.V.rows()) ^
+                       (static_cast<std::uint64_t>(mesh.F.rows()) << 32);
+  const auto mix = [&hash](std::uint64_t word) {
+    hash ^= word + 0x9e3779b97f4a7c15ull + (hash << 6) + (hash >> 2);
+    hash *= 0xff51afd7ed558ccdull;
+    hash ^= hash >> 33;
+  };
+  const auto* coordinates = reinterpret_cast<const std::uint64_t*>(mesh.V.data());
+  for (Eigen::Index i = 0; i < mesh.V.size(); ++i) mix(coordinates[i]);
+  const int* corners = mesh.F.data();
+  for (Eigen::Index i = 0; i + 1 < mesh.F.size(); i += 2)
+    mix(static_cast<std::uint32_t>(corners[i]) | (static_cast<std::uint64_t>(static_cast<std::uint32_t>(corners[i + 1])) << 32));
+  if (mesh.F.size() % 2 != 0) mix(static_cast<std::uint32_t>(corners[mesh.F.size() - 1]));
+  return hash;
+}
+
+class CleanMeshes {
+ public:
+  bool contains(std::uint64_t fingerprint) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return std::find(recent_.begin(), recent_.end(), fingerprint) != recent_.end();
+  }
+  void add(std::uint64_t fingerprint) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (std::find(recent_.begin(), recent_.end(), fingerprint) != recent_.end()) return;
+    if (recent_.size() == kKept) recent_.pop_front();
+    recent_.push_back(fingerprint);
+  }
+
+ private:
+  static constexpr std::size_t kKept = 32;
+  std::mutex mutex_;
+  std::deque<std::uint64_t> recent_;
+};
+CleanMeshes& clean_meshes() {
+  static CleanMeshes meshes;
+  return meshes;
+}
+
+/// ice::require_clean_mesh for arrays, skipped for a mesh already found clean. No GIL needed.
+void require_clean(const ice::TriangleMesh& mesh) {
+  const std::uint64_t fingerprint = mesh_fingerprint(mesh);
+  if (clean_meshes().contains(fingerprint)) return;
+  ice::require_clean_mesh(mesh, "(V, F)");
+  clean_meshes().add(fingerprint);
+}
+
+py::dict load_mesh(const std::filesystem::path& file_path, bool repair, bool weld) {
+  const std::string path = file_path.string();
+  ice::LoadOptions options;
+  options.repair = repair;
+  options.weld_duplicate_positions = weld;
+  if (weld && !repair) throw py::value_error("weld=True goes with repair=True");
+  ice::LoadResult loaded;
+  {
+    py::gil_scoped_release release;
+    loaded = ice::load_mesh_with_report(path, options);
+    clean_meshes().add(mesh_fingerprint(loaded.mesh));  // the loader validated it
+  }
+  py::dict result;
+  result["V"] = py::cast(std::move(loaded.mesh.V));
+  result["F"] = py::cast(std::move(loaded.mesh.F));
+  result["report"] = json_to_python(app::validation_json(loaded.report));
+  result["input_report"] = json_to_python(app::validation_json(loaded.input_report));
+  result["repairs"] = loaded.repairs.summary();
+  result["source_vertex"] = to_numpy(std::move(loaded.source_vertex));
+  result["source_face"] = to_numpy(std::move(loaded.source_face));
+  result["format"] = loaded.file.format;
+  return result;
+}
+
+py::object validate(const py::object& V, const py::object& F) {
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  ice::ValidationReport report;
+  {
+    py::gil_scoped_release release;
+    report = ice::validate_mesh(mesh);
+    if (report.clean()) clean_meshes().add(mesh_fingerprint(mesh));
+  }
+  return json_to_python(app::validation_json(report));
+}
+
+void save_mesh(const std::filesystem::path& path, const py::object& V, const py::object& F, bool overwrite, bool binary) {
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  py::gil_scoped_release release;
+  ice::write_mesh(path.string(), mesh, {overwrite, binary});
+}
+
+// ---- the coarse space ----------------------------------------------------------------------------
+
+/// A coarse space as Python sees it: the library's CoarseSpace, the fine-to-coarse map (computed
+/// while the method's state exists, which is then freed), and the coarse vertices' positions.
+struct PyCoarseSpace {
+  ice::CoarseSpace space;
+  std::vector<ice::CoarsePoint> map;   ///< empty when loaded from a file or not kept
+  ice::Positions positions;            ///< empty when loaded from a file
+  ice::Index input_vertices = 0;
+  bool has_space = false;              ///< built here (P, summary), not read from a file
+  py::object P_cache;
+};
+
+// Calls a Python progress callback from the coarsener (on the calling thread, GIL released): with
+// the GIL, as a dict; Ctrl-C or an exception in the callback cancels, and is raised afterwards.
+struct ProgressBridge {
+  py::object callback;
+  std::optional<py::error_already_set> error;
+  bool operator()(const ice::CoarsenProgress& progress) {
+    py::gil_scoped_acquire acquire;
+    try {
+      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+      if (callback.is_none()) return true;
+      py::dict state;
+      state["vertices"] = progress.vertices;
+      state["target"] = progress.target;
+      state["removed"] = progress.removed;
+      state["last_cost"] = progress.last_cost;
+      const py::object answer = callback(state);
+      return answer.is_none() || answer.cast<bool>();
+    } catch (py::error_already_set& e) {
+      error = std::move(e);
+      return false;
+    }
+  }
+};
+
+std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F, const py::object& n,
+                                       const py::object& ratio, const py::object& max_error, const std::string& method,
+                                       const std::string& use, const py::object& area_weight,
+                                       const py::object& normalize_curvature, const py::object& locked,
+                                       bool remove_boundary, int threads, const std::string& qem_geometry,
+                                       const py::object& refine_angle, double refine_budget, bool keep_map,
+                                       bool locality_numbering, const py::object& progress) {
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  const auto vertex_count = static_cast<long long>(mesh.V.rows());
+  ice::CoarseSpaceOptions options;
+  options.method = choice<ice::CoarseningMethod>(method, "method",
+                                                 {{"ice", ice::CoarseningMethod::ice}, {"qem", ice::CoarseningMethod::qem}});
+  options.coarsen = ice::recommended_coarsen_options(
+      choice<ice::ProxyUse>(use, "use", {{"poisson_heat", ice::ProxyUse::poisson_heat}, {"geodesic", ice::ProxyUse::geodesic}}));
+  options.qem_geometry = choice<ice::QemGeometry>(
+      qem_geometry, "qem_geometry",
+      {{"extrinsic", ice::QemGeometry::extrinsic}, {"intrinsic_delaunay", ice::QemGeometry::intrinsic_delaunay}});
+  ice::CoarsenOptions& c = options.coarsen;
+  if (!n.is_none() && !ratio.is_none()) throw py::value_error("give n or ratio, not both");
+  if (n.is_none() && ratio.is_none() && max_error.is_none())
+    throw py::value_error("say how far to coarsen: n=N vertices, ratio=R (e.g. 0.05) or max_error=E");
+  if (!n.is_none()) {
+    const auto target = n.cast<long long>();
+    if (target < 1 || target > vertex_count)
+      throw py::value_error("n = " + std::to_string(target) + " is out of range: the mesh has " +
+                            std::to_string(vertex_count) + " vertices (valid 1.." + std::to_string(vertex_count) + ")");
+    c.target_vertices = static_cast<ice::Index>(target);
+  }
+  if (!ratio.is_none()) {
+    c.target_ratio = ratio.cast<double>();
+    if (!(c.target_ratio > 0 && c.target_ratio <= 1))
+      throw py::value_error("ratio = " + std::to_string(c.target_ratio) + " is out of range: it must be in (0, 1], e.g. 0.05");
+  }
+  if (!max_error.is_none()) {
+    c.max_error = max_error.cast<double>();
+    if (!(c.max_error >= 0)) throw py::value_error("max_error must be a number >= 0");
+  }
+  if (!area_weight.is_none()) {
+    c.area_weight = area_weight.cast<double>();
+    if (!(c.area_weight >= 0 && c.area_weight <= 1)) throw py::value_error("area_weight must be in [0, 1]");
+  }
+  if (!normalize_curvature.is_none()) c.normalize_curvature = normalize_curvature.cast<bool>();
+  if (!locked.is_none()) c.locked_vertices = index_argument(locked, mesh.V.rows(), "locked");
+  c.remove_boundary = remove_boundary;
+  if (threads < 0) throw py::value_error("threads must be >= 0 (0: one per core)");
+  c.threads = threads;
+  if (!refine_angle.is_none()) {
+    ice::RefinementOptions refinement;
+    refinement.min_angle_degrees = refine_angle.cast<double>();
+    refinement.max_vertex_ratio = refine_budget;
+    options.refinement = refinement;
+  }
+  options.keep_method_state = keep_map;
+  options.locality_numbering = locality_numbering;
+  ProgressBridge bridge{progress, std::nullopt};
+  c.progress = [&bridge](const ice::CoarsenProgress& state) { return bridge(state); };
+
+  auto result = std::make_shared<PyCoarseSpace>();
+  result->input_vertices = static_cast<ice::Index>(mesh.V.rows());
+  {
+    py::gil_scoped_release release;
+    require_clean(mesh);
+    result->space = ice::build_coarse_space(mesh, options);
+  }
+  if (bridge.error) throw *bridge.error;
+  {
+    py::gil_scoped_release release;
+    if (keep_map && !(options.method == ice::CoarseningMethod::qem &&
+                      options.qem_geometry == ice::QemGeometry::intrinsic_delaunay))
+      result->map = ice::fine_to_coarse_map(result->space);
+    result->space.triangulation.reset();  // the map is made: free the method's state
+    result->space.triangulation_order = {};
+    result->space.qem_result.reset();
+    result->positions = ice::coarse_vertex_positions(mesh, result->space);
+  }
+  result->has_space = true;
+  return result;
+}
+
+std::shared_ptr<PyCoarseSpace> load_coarse_mesh(const std::filesystem::path& file_path) {
+  const std::string path = file_path.string();
+  ice::IntrinsicMeshFile file;
+  {
+    py::gil_scoped_release release;
+    file = ice::read_intrinsic_mesh(path);
+    ice::triangulation_of(file, path);  // refuses files whose faces do not form a triangulation
+  }
+  auto result = std::make_shared<PyCoarseSpace>();
+  ice::CompactMesh& mesh = result->space.mesh;
+  mesh.F = std::move(file.F);
+  mesh.L = std::move(file.L);
+  mesh.twin = std::move(file.twin);
+  mesh.to_input = std::move(file.to_input);
+  mesh.from_input.assign(static_cast<std::size_t>(file.input_vertices), ice::kInvalid);
+  for (std::size_t c = 0; c < mesh.to_input.size(); ++c)
+    if (mesh.to_input[c] != ice::kInvalid) mesh.from_input[static_cast<std::size_t>(mesh.to_input[c])] = static_cast<ice::Index>(c);
+  result->input_vertices = file.input_vertices;
+  return result;
+}
+
+py::object coarse_map(const PyCoarseSpace& space) {
+  if (space.map.empty()) return py::none();
+  const auto n = static_cast<py::ssize_t>(space.map.size());
+  py::array_t<ice::Index> coarse_vertex(n), face(n);
+  py::array_t<double> bary({n, py::ssize_t{3}});
+  auto cv = coarse_vertex.mutable_unchecked<1>();
+  auto fc = face.mutable_unchecked<1>();
+  auto b = bary.mutable_unchecked<2>();
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const ice::CoarsePoint& p = space.map[static_cast<std::size_t>(i)];
+    cv(i) = p.coarse_vertex;
+    fc(i) = p.face;
+    for (int k = 0; k < 3; ++k) b(i, k) = p.bary[static_cast<std::size_t>(k)];
+  }
+  return py::make_tuple(face, bary, coarse_vertex);
+}
+
+py::object coarse_summary(const PyCoarseSpace& space) {
+  if (!space.has_space) return py::none();
+  const ice::CoarseSpaceSummary& s = space.space.summary;
+  nlohmann::json summary = app::coarsen_json(s);
+  summary["method"] = ice::to_string(s.method);
+  summary["input_vertices"] = s.input_vertices;
+  summary["target_reached"] = s.target_reached;
+  summary["seconds"] = s.seconds;
+  if (s.qem) summary["qem"] = app::qem_json(*s.qem, s.target_reached);
+  return json_to_python(summary);
+}
+
+py::object prolongation(PyCoarseSpace& space) {
+  if (!space.has_space) return py::none();
+  if (space.P_cache.is_none() || !space.P_cache) {
+    Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = space.space.P;
+    space.P_cache = to_scipy(std::move(rows));
+  }
+  return space.P_cache;
+}
+
+void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& file_path, bool overwrite, const std::string& comment) {
+  const std::string path = file_path.string();
+  py::gil_scoped_release release;
+  ice::require_writable(path, overwrite);
+  ice::write_intrinsic_mesh(path, space.space.mesh, space.input_vertices, comment);
+}
+
+// ---- the proxy and its solvers -------------------------------------------------------------------
+
+struct PyProxy {
+  ice::FineMesh fine;
+  std::unique_ptr<fem::CoarseProxy> proxy;
+};
+
+std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
+                                    const std::string& operators, const std::string& fine) {
+  if (!coarse.has_space)
+    throw py::value_error("this coarse space was read from a file and has no prolongation: coarsen the mesh to solve through it");
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  if (mesh.V.rows() != coarse.space.P.rows())
+    throw py::value_error("the mesh has " + std::to_string(mesh.V.rows()) + " vertices, the coarse space was made from " +
+                          std::to_string(coarse.space.P.rows()));
+  const auto kind = choice<fem::CoarseOperatorKind>(
+      operators, "operators", {{"galerkin", fem::CoarseOperatorKind::galerkin}, {"intrinsic", fem::CoarseOperatorKind::intrinsic}});
+  const auto geometry = choice<ice::FineGeometry>(
+      fine, "fine", {{"intrinsic_delaunay", ice::FineGeometry::intrinsic_delaunay}, {"input", ice::FineGeometry::input}});
+  auto result = std::make_shared<PyProxy>();
+  py::gil_scoped_release release;
+  require_clean(mesh);
+  result->fine = ice::fine_mesh(mesh, geometry);
+  result->proxy = std::make_unique<fem::CoarseProxy>(result->fine.F, result->fine.L, coarse.space.mesh.F,
+                                                     coarse.space.mesh.L, coarse.space.P, kind, fem::MassKind::lumped);
+  return result;
+}
+
+fem::PolishOptions polish_options(int iterations, double tolerance) {
+  if (iterations < 0) throw py::value_error("polish must be >= 0 (iterations)");
+  if (!(tolerance >= 0)) throw py::value_error("tolerance must be >= 0");
+  fem::PolishOptions polish;
+  polish.iterations = iterations;
+  polish.tolerance = tolerance;
+  return polish;
+}
+
+py::dict polish_dict(const fem::PolishReport& report) {
+  py::dict d;
+  d["iterations"] = report.iterations;
+  d["initial_estimated_error"] = report.initial_estimated_error;
+  d["estimated_error"] = report.estimated_error;
+  d["error_estimates"] = report.error_estimates;
+  d["reached_tolerance"] = report.reached_tolerance;
+  d["seconds"] = report.seconds;
+  return d;
+}
+
+py::dict times_dict(const fem::ProxyPhaseTimes& times) {
+  py::dict d;
+  d["restriction"] = times.restriction;
+  d["coarse_solve"] = times.coarse_solve;
+  d["prolongation"] = times.prolongation;
+  return d;
+}
+
+struct PyPoissonSolver {
+  std::shared_ptr<PyProxy> proxy;  // the solver keeps a reference to it
+  Eigen::Index fixed_count = 0;
+  std::unique_ptr<fem::ProxyPoissonSolver> solver;
+  fem::PolishReport last_polish;
+  fem::ProxyPhaseTimes last_times;
+};
+struct PyHeatSolver {
+  std::shared_ptr<PyProxy> proxy;
+  std::unique_ptr<fem::ProxyHeatSolver> solver;
+  fem::PolishReport last_polish;
+  fem::ProxyPhaseTimes last_times;
+};
+struct PyGeodesicSolver {
+  std::shared_ptr<PyProxy> proxy;
+  std::unique_ptr<fem::ProxyGeodesicSolver> solver;
+  fem::ProxyPhaseTimes last_times;
+};
+
+// ---- multigrid -----------------------------------------------------------------------------------
+
+fem::MultigridOptions multigrid_options(double tolerance, int max_iterations, const std::string& mode,
+                                        const std::string& smoother, int smoothing_steps, int threads) {
+  fem::MultigridOptions options;
+  options.tolerance = tolerance;
+  options.max_iterations = max_iterations;
+  options.mode = choice<fem::MultigridMode>(mode, "mode", {{"pcg", fem::MultigridMode::pcg}, {"vcycle", fem::MultigridMode::vcycle}});
+  options.smoother = choice<fem::MultigridSmoother>(smoother, "smoother",
+                                                    {{"sgs", fem::MultigridSmoother::symmetric_gauss_seidel},
+                                                     {"gs", fem::MultigridSmoother::gauss_seidel},
+                                                     {"chebyshev", fem::MultigridSmoother::chebyshev}});
+  options.smoothing_steps = smoothing_steps;
+  options.threads = threads;
+  return options;
+}
+
+py::dict multigrid_report(const fem::MultigridReport& r) {
+  py::dict d;
+  d["converged"] = r.converged;
+  d["iterations"] = r.iterations;
+  d["relative_residual"] = r.relative_residual;
+  d["convergence_factor"] = r.convergence_factor;
+  d["residuals"] = r.residuals;
+  d["seconds"] = r.seconds;
+  return d;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_ice, m) {
+  m.doc() = "ICE: intrinsic coarsening and coarse-proxy PDE solvers (C++ core; see the ice package)";
+
+  // ice.MeshError: the library's MeshError, message as the tools print it, with .kind and .path.
+  static py::handle mesh_error = py::exception<ice::MeshError>(m, "MeshError", PyExc_RuntimeError).release();
+  py::register_exception_translator([](std::exception_ptr pointer) {
+    try {
+      if (pointer) std::rethrow_exception(pointer);
+    } catch (const ice::MeshError& e) {
+      const char* kind = e.kind() == ice::MeshError::Kind::Unreadable ? "unreadable"
+                         : e.kind() == ice::MeshError::Kind::Defective ? "defective"
+                                                                       : "unwritable";
+      py::object error = py::reinterpret_borrow<py::object>(mesh_error)(e.what());
+      error.attr("kind") = kind;
+      error.attr("path") = e.path();
+      PyErr_SetObject(mesh_error.ptr(), error.ptr());
+    } catch (const fem::NotPositiveDefinite& e) {
+      PyErr_SetString(PyExc_ArithmeticError, e.what());
+    }
+  });
+
+  m.def("_load_mesh", &load_mesh, py::arg("path"), py::arg("repair") = false, py::arg("weld") = false,
+        "The dict behind ice.load_mesh (use that).");
+  m.def("validate", &validate, py::arg("V"), py::arg("F"),
+        R"doc(Validation report of the mesh (V, F): sizes, components, boundary loops, genus, bounding box,
+edge lengths and each defect ICE refuses (count and first offenders), as `ice-info --json` reports it.
+report["clean"] says whether coarsen() and the solvers accept the mesh.)doc");
+  m.def("save_mesh", &save_mesh, py::arg("path"), py::arg("V"), py::arg("F"), py::kw_only(), py::arg("overwrite") = false,
+        py::arg("binary") = false,
+        R"doc(Writes (V, F) as OBJ, OFF, PLY or STL (by the extension; PLY/OBJ/OFF in full double precision).
+An existing file is replaced only with overwrite=True; raises ice.MeshError (kind "unwritable") otherwise.)doc");
+  m.def(
+      "face_lengths",
+      [](const py::object& V, const py::object& F) {
+        const ice::TriangleMesh mesh = mesh_argument(V, F);
+        return ice::face_lengths_from_positions(mesh.V, mesh.F);
+      },
+      py::arg("V"), py::arg("F"),
+      "Per-face edge lengths (m×3): column k is the length of the edge from corner k to corner (k+1)%3.");
+  m.def(
+      "intrinsic_delaunay",
+      [](const py::object& V, const py::object& F) {
+        const ice::TriangleMesh mesh = mesh_argument(V, F);
+        ice::FineMesh fine;
+        {
+          py::gil_scoped_release release;
+          require_clean(mesh);
+          fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
+        }
+        return py::make_tuple(py::cast(std::move(fine.F)), py::cast(std::move(fine.L)), fine.flips);
+      },
+      py::arg("V"), py::arg("F"),
+      R"doc(The intrinsic Delaunay triangulation of (V, F): (F_idt, lengths, flips). Same vertices, edges flipped
+until every cotan weight is >= 0; the fine discretisation the solvers use by default.)doc");
+
+  m.def(
+      "loop_subdivide",
+      [](const py::object& V, const py::object& F, int levels) {
+        if (levels < 0) throw py::value_error("levels must be >= 0");
+        const ice::TriangleMesh mesh = mesh_argument(V, F);
+        ice::TriangleMesh fine;
+        {
+          py::gil_scoped_release release;
+          require_clean(mesh);
+          fine = ice::loop_subdivide(mesh, levels);
+        }
+        return py::make_tuple(py::cast(std::move(fine.V)), py::cast(std::move(fine.F)));
+      },
+      py::arg("V"), py::arg("F"), py::arg("levels") = 1,
+      R"doc(Loop subdivision, `levels` times (about 4x the vertices each): (V, F) of the finer mesh, the input
+vertices first. How the benchmarks make large inputs from real meshes.)doc");
+
+  // ---- operators
+  m.def(
+      "cotan_laplacian",
+      [](const py::object& V, const py::object& F, const py::object& lengths, const py::object& n) {
+        const Discretisation d = discretisation_argument(V, F, lengths, n);
+        Eigen::SparseMatrix<double> L;
+        {
+          py::gil_scoped_release release;
+          L = fem::cotan_laplacian(d.F, d.L, d.n);
+        }
+        return to_scipy(std::move(L));
+      },
+      py::arg("V") = py::none(), py::arg("F") = py::none(), py::kw_only(), py::arg("lengths") = py::none(),
+      py::arg("n") = py::none(),
+      R"doc(The cotan Laplacian as scipy.sparse.csc_matrix (n×n, symmetric positive semidefinite, rows sum to 0:
+the weak form of -Δ). From positions, cotan_laplacian(V, F), or from an intrinsic mesh,
+cotan_laplacian(F=F, lengths=L); n: vertex count when vertices beyond max(F) exist.)doc");
+  m.def(
+      "mass_matrix",
+      [](const py::object& V, const py::object& F, const py::object& lengths, const py::object& n, const std::string& kind) {
+        const Discretisation d = discretisation_argument(V, F, lengths, n);
+        const auto mass_kind =
+            choice<fem::MassKind>(kind, "kind", {{"lumped", fem::MassKind::lumped}, {"consistent", fem::MassKind::consistent}});
+        Eigen::SparseMatrix<double> M;
+        {
+          py::gil_scoped_release release;
+          M = fem::mass_matrix(d.F, d.L, mass_kind, d.n);
+        }
+        return to_scipy(std::move(M));
+      },
+      py::arg("V") = py::none(), py::arg("F") = py::none(), py::kw_only(), py::arg("lengths") = py::none(),
+      py::arg("n") = py::none(), py::arg("kind") = "lumped",
+      R"doc(The mass matrix as scipy.sparse.csc_matrix: kind "lumped" (diagonal, a third of the incident
+face areas) or "consistent" (P1). Arguments as for cotan_laplacian.)doc");
+
+  // ---- coarse space
+  py::class_<PyCoarseSpace, std::shared_ptr<PyCoarseSpace>>(m, "CoarseSpace", R"doc(A coarse intrinsic mesh of an input mesh and how the two are linked (ice.coarsen, ice.load_coarse_mesh).
+
+The coarse mesh is intrinsic: faces with edge lengths and a gluing (self- and multi-edges allowed),
+not positions. P maps coarse nodal values to the input vertices.)doc")
+      .def_property_readonly("faces", [](const PyCoarseSpace& s) { return s.space.mesh.F; }, "Coarse faces (m×3 int32); a face may repeat a vertex (a Δ-complex).")
+      .def_property_readonly("lengths", [](const PyCoarseSpace& s) { return s.space.mesh.L; }, "Per-face edge lengths (m×3): column k is the edge from corner k to corner (k+1)%3.")
+      .def_property_readonly("twin", [](const PyCoarseSpace& s) {
+        std::vector<ice::Index> twin = s.space.mesh.twin;
+        return to_numpy(std::move(twin));
+      }, "The gluing: twin[3f + k] is the side 3g + d along face f's side k, or -1 on the boundary.")
+      .def_property_readonly("to_input", [](const PyCoarseSpace& s) {
+        std::vector<ice::Index> to_input = s.space.mesh.to_input;
+        return to_numpy(std::move(to_input));
+      }, "Coarse vertex -> input vertex (-1: inserted by refinement).")
+      .def_property_readonly("from_input", [](const PyCoarseSpace& s) {
+        std::vector<ice::Index> from_input = s.space.mesh.from_input;
+        return to_numpy(std::move(from_input));
+      }, "Input vertex -> coarse vertex, or -1 if removed.")
+      .def_property_readonly("n_vertices", [](const PyCoarseSpace& s) { return s.space.mesh.num_vertices(); }, "Coarse vertices.")
+      .def_property_readonly("n_faces", [](const PyCoarseSpace& s) { return s.space.mesh.F.rows(); }, "Coarse faces.")
+      .def_property_readonly("input_vertices", [](const PyCoarseSpace& s) { return s.input_vertices; }, "Vertices of the mesh it was made from.")
+      .def_property_readonly("P", &prolongation, R"doc(The prolongation, scipy.sparse.csr_matrix (input vertices × coarse vertices): row i holds the
+barycentric coordinates of input vertex i in a coarse face; every row sums to 1. None when read from a file.)doc")
+      .def_property_readonly("map", &coarse_map, R"doc(The fine-to-coarse map as (face, bary, coarse_vertex): for each input vertex a coarse face containing
+it, its barycentric coordinates (n×3) in that face's corners, and the coarse vertex it became (-1 if removed).
+None when read from a file, with keep_map=False, or for QEM with intrinsic Delaunay geometry.)doc")
+      .def_property_readonly("summary", &coarse_summary, "What the coarsening did (the tools' report keys): sizes, stop reason, removals, costs, seconds.")
+      .def_property_readonly("positions", [](const PyCoarseSpace& s) -> py::object {
+        if (!s.has_space) return py::none();
+        return py::cast(s.positions);
+      }, "Positions of the coarse vertices on the input surface (for drawing; the coarse mesh is intrinsic).")
+      .def_property_readonly("inserted", [](const PyCoarseSpace& s) -> py::object {
+        const auto k = static_cast<py::ssize_t>(s.space.inserted.size());
+        py::array_t<ice::Index> face(k);
+        py::array_t<double> bary({k, py::ssize_t{3}});
+        for (py::ssize_t i = 0; i < k; ++i) {
+          const ice::InputSurfacePoint& p = s.space.inserted[static_cast<std::size_t>(i)];
+          face.mutable_at(i) = p.face;
+          for (int c = 0; c < 3; ++c) bary.mutable_at(i, c) = p.bary[static_cast<std::size_t>(c)];
+        }
+        return py::make_tuple(face, bary);
+      }, "(face, bary): where the vertices inserted by refinement lie on the input surface (the last coarse vertices).")
+      .def("save", &save_coarse_mesh, py::arg("path"), py::kw_only(), py::arg("overwrite") = false, py::arg("comment") = "",
+           R"doc(Writes the coarse intrinsic mesh as .ilm (faces, lengths, gluing, vertex map; exact round trip:
+ice.load_coarse_mesh reads it back). An existing file is replaced only with overwrite=True.)doc")
+      .def("__repr__", [](const PyCoarseSpace& s) {
+        return "<ice.CoarseSpace " + std::to_string(s.space.mesh.num_vertices()) + " vertices, " +
+               std::to_string(s.space.mesh.F.rows()) + " faces, from " + std::to_string(s.input_vertices) +
+               " input vertices" + (s.has_space ? "" : ", read from a file") + ">";
+      });
+
+  m.def("coarsen", &coarsen, py::arg("V"), py::arg("F"), py::kw_only(), py::arg("n") = py::none(),
+        py::arg("ratio") = py::none(), py::arg("max_error") = py::none(), py::arg("method") = "ice",
+        py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(), py::arg("normalize_curvature") = py::none(),
+        py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1,
+        py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
+        py::arg("keep_map") = true, py::arg("locality_numbering") = true, py::arg("progress") = py::none(),
+        R"doc(Coarsens the mesh (V, F) (clean, oriented, manifold; several components, boundaries and any genus
+are fine) and returns its ice.CoarseSpace: the intrinsic coarse mesh, P, the fine-to-coarse map.
+
+Target: exactly one of n (vertices), ratio (of the input vertices, e.g. 0.05), or max_error (the ICE
+error metric; may be combined with n or ratio, whichever stops first).
+method: "ice" (intrinsic vertex removals) or "qem" (the QEM baseline; qem_geometry "extrinsic" or
+"intrinsic_delaunay"). use: "poisson_heat" or "geodesic" picks the measured metric defaults
+(area_weight, normalize_curvature), which the two arguments override. locked: vertices never
+removed (e.g. Dirichlet vertices). threads: coarsening threads (1: the exact serial greedy order).
+refine_angle: intrinsic Delaunay refinement to this smallest angle (degrees), at most refine_budget
+times the vertices. progress: called with a dict (vertices, target, removed, last_cost) every 1000
+removals; returning False stops early (summary["stop_reason"] == "cancelled"), an exception in it or
+Ctrl-C stops and is raised. keep_map: keep the fine-to-coarse map (CoarseSpace.map, DistanceOracle). Raises ice.MeshError naming each defect of a refused mesh.)doc");
+  m.def("load_coarse_mesh", &load_coarse_mesh, py::arg("path"),
+        R"doc(Reads an .ilm coarse mesh (CoarseSpace.save, ice-coarsen): faces, lengths, gluing, vertex map; its
+P, map and summary are None. Raises ice.MeshError naming the file, line and defect.)doc");
+
+  // ---- proxy
+  py::class_<PyProxy, std::shared_ptr<PyProxy>>(m, "Proxy", R"doc(The fine mesh and a coarse space linked by P, with the operators the proxy solvers use.
+
+Proxy(V, F, coarse, operators="galerkin", fine="intrinsic_delaunay"): the fine discretisation ("input"
+triangles or their "intrinsic_delaunay" triangulation), coarse operators "galerkin" (PᵀLP, PᵀMP) or
+"intrinsic" (cotan operators of the coarse lengths); lumped masses. Defaults are the tools'.)doc")
+      .def(py::init(&make_proxy), py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(),
+           py::arg("operators") = "galerkin", py::arg("fine") = "intrinsic_delaunay")
+      .def_property_readonly("fine_size", [](const PyProxy& p) { return p.proxy->fine_size(); }, "Fine vertices.")
+      .def_property_readonly("coarse_size", [](const PyProxy& p) { return p.proxy->coarse_size(); }, "Coarse vertices.")
+      .def_property_readonly("fine_faces", [](const PyProxy& p) { return p.fine.F; }, "Faces of the fine discretisation (the input's, or its intrinsic Delaunay triangulation's).")
+      .def_property_readonly("fine_lengths", [](const PyProxy& p) { return p.fine.L; }, "Edge lengths of the fine discretisation.")
+      .def_property_readonly("fine_flips", [](const PyProxy& p) { return p.fine.flips; }, "Intrinsic Delaunay flips made on the fine mesh.")
+      .def_property_readonly("fine_laplacian", [](const PyProxy& p) {
+        Eigen::SparseMatrix<double> L = p.proxy->fine_laplacian();
+        return to_scipy(std::move(L));
+      }, "The fine cotan Laplacian (scipy.sparse, assembled on first use for intrinsic operators).")
+      .def_property_readonly("fine_mass", [](const PyProxy& p) {
+        Eigen::SparseMatrix<double> M = p.proxy->fine_mass();
+        return to_scipy(std::move(M));
+      }, "The fine lumped mass matrix.")
+      .def_property_readonly("coarse_laplacian", [](const PyProxy& p) {
+        Eigen::SparseMatrix<double> L = p.proxy->coarse_laplacian();
+        return to_scipy(std::move(L));
+      }, "The coarse Laplacian (PᵀLP for Galerkin operators).")
+      .def_property_readonly("coarse_mass", [](const PyProxy& p) {
+        Eigen::SparseMatrix<double> M = p.proxy->coarse_mass();
+        return to_scipy(std::move(M));
+      }, "The coarse mass matrix (PᵀMP for Galerkin operators).")
+      .def("prolong", [](const PyProxy& p, const py::object& values) {
+        const Eigen::VectorXd coarse = vector_argument(values, p.proxy->coarse_size(), "values");
+        return p.proxy->prolong(coarse);
+      }, py::arg("values"), "P @ values: coarse nodal values to the fine vertices.")
+      .def("restrict_weighted", [](const PyProxy& p, const py::object& values) {
+        const Eigen::VectorXd fine = vector_argument(values, p.proxy->fine_size(), "values");
+        return p.proxy->restrict_weighted(fine);
+      }, py::arg("values"), "Pᵀ @ values for an integrated (mass-weighted) fine vector.");
+
+  py::class_<PyPoissonSolver>(m, "ProxyPoissonSolver", R"doc(Poisson L u = M f through the coarse proxy: u ≈ P u_c with (coarse L) u_c = Pᵀ M f.
+
+ProxyPoissonSolver(proxy, fixed=None, polish=0, tolerance=0): without fixed vertices, zero-mean Neumann
+(f made compatible, u with zero mass-weighted mean); with them, Dirichlet values there (they must be
+coarse vertices: lock them when coarsening). polish/tolerance: conjugate gradients on the fine system
+preconditioned by the two-level cycle, for at most `polish` iterations or to the estimated relative
+error `tolerance` (poisson-coarse --polish/--tolerance). Factors once; solve() any number of times.)doc")
+      .def(py::init([](std::shared_ptr<PyProxy> proxy, const py::object& fixed, int polish, double tolerance) {
+             std::vector<ice::Index> dirichlet;
+             if (!fixed.is_none()) dirichlet = index_argument(fixed, proxy->proxy->fine_size(), "fixed");
+             const fem::PolishOptions options = polish_options(polish, tolerance);
+             auto solver = std::make_unique<PyPoissonSolver>();
+             solver->proxy = proxy;
+             solver->fixed_count = static_cast<Eigen::Index>(dirichlet.size());
+             py::gil_scoped_release release;
+             solver->solver = std::make_unique<fem::ProxyPoissonSolver>(*proxy->proxy, std::move(dirichlet), options);
+             return solver;
+           }),
+           py::arg("proxy"), py::kw_only(), py::arg("fixed") = py::none(), py::arg("polish") = 0,
+           py::arg("tolerance") = 0.0)
+      .def("solve", [](PyPoissonSolver& s, const py::object& f, const py::object& values) {
+             const Eigen::Index n = s.proxy->proxy->fine_size();
+             const Eigen::VectorXd rhs = vector_argument(f, n, "f");
+             Eigen::VectorXd fixed_values;
+             if (!values.is_none()) {
+               if (s.solver->is_zero_mean()) throw py::value_error("values are given but the solver has no fixed vertices");
+               fixed_values = vector_argument(values, s.fixed_count, "values");
+             }
+             py::gil_scoped_release release;
+             return s.solver->solve(rhs, fixed_values, &s.last_times, &s.last_polish);
+           }, py::arg("f"), py::arg("values") = py::none(),
+           "u for the nodal source f (n,); values: the Dirichlet values, aligned with `fixed` (default zeros).")
+      .def_property_readonly("polish_report", [](const PyPoissonSolver& s) { return polish_dict(s.last_polish); },
+                             "What polishing did in the last solve (iterations, estimated errors, seconds).")
+      .def_property_readonly("times", [](const PyPoissonSolver& s) { return times_dict(s.last_times); },
+                             "Seconds of the last solve's stages (restriction, coarse_solve, prolongation).")
+      .def_property_readonly("is_zero_mean", [](const PyPoissonSolver& s) { return s.solver->is_zero_mean(); }, "True without fixed vertices (zero-mean Neumann).");
+
+  py::class_<PyHeatSolver>(m, "ProxyHeatSolver", R"doc(Backward-Euler heat flow (M + τL) u_{k+1} = M u_k through the coarse proxy.
+
+ProxyHeatSolver(proxy, time_step, restriction="l2", polish=0, tolerance=0): u0 restricted by L²
+projection ("l2") or injection, stepped on the coarse mesh, prolonged with P; polishing as for
+ProxyPoissonSolver, per step.)doc")
+      .def(py::init([](std::shared_ptr<PyProxy> proxy, double time_step, const std::string& restriction, int polish,
+                       double tolerance) {
+             if (!(time_step > 0)) throw py::value_error("time_step must be > 0");
+             const auto kind = choice<fem::RestrictionKind>(
+                 restriction, "restriction",
+                 {{"l2", fem::RestrictionKind::l2_projection}, {"injection", fem::RestrictionKind::injection}});
+             const fem::PolishOptions options = polish_options(polish, tolerance);
+             auto solver = std::make_unique<PyHeatSolver>();
+             solver->proxy = proxy;
+             py::gil_scoped_release release;
+             solver->solver = std::make_unique<fem::ProxyHeatSolver>(*proxy->proxy, time_step, kind, options);
+             return solver;
+           }),
+           py::arg("proxy"), py::arg("time_step"), py::kw_only(), py::arg("restriction") = "l2",
+           py::arg("polish") = 0, py::arg("tolerance") = 0.0)
+      .def("integrate", [](PyHeatSolver& s, const py::object& u0, int steps) {
+             const Eigen::VectorXd initial = vector_argument(u0, s.proxy->proxy->fine_size(), "u0");
+             if (steps < 1) throw py::value_error("steps must be >= 1");
+             py::gil_scoped_release release;
+             return s.solver->integrate(initial, steps, &s.last_times, &s.last_polish);
+           }, py::arg("u0"), py::arg("steps") = 1, "The state after `steps` steps of time_step from nodal values u0.")
+      .def_property_readonly("polish_report", [](const PyHeatSolver& s) { return polish_dict(s.last_polish); },
+                             "What polishing did in the last integrate().")
+      .def_property_readonly("times", [](const PyHeatSolver& s) { return times_dict(s.last_times); },
+                             "Seconds of the last integrate()'s stages.");
+
+  py::class_<PyGeodesicSolver>(m, "ProxyGeodesicSolver", R"doc(Heat-method geodesic distance through the coarse proxy (geodesic-coarse).
+
+ProxyGeodesicSolver(proxy, time_factor=1.0): heat time t = (time_factor · mean coarse edge length)².
+For the most accurate distances coarsen with use="geodesic". The mesh must be connected.)doc")
+      .def(py::init([](std::shared_ptr<PyProxy> proxy, double time_factor) {
+             if (!(time_factor > 0)) throw py::value_error("time_factor must be > 0");
+             auto solver = std::make_unique<PyGeodesicSolver>();
+             solver->proxy = proxy;
+             py::gil_scoped_release release;
+             solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(*proxy->proxy, time_factor);
+             return solver;
+           }),
+           py::arg("proxy"), py::kw_only(), py::arg("time_factor") = 1.0)
+      .def("distance", [](PyGeodesicSolver& s, const py::object& sources) {
+             const std::vector<ice::Index> fine_sources = index_argument(sources, s.proxy->proxy->fine_size(), "sources");
+             if (fine_sources.empty()) throw py::value_error("sources is empty");
+             py::gil_scoped_release release;
+             return s.solver->distance(fine_sources, &s.last_times);
+           }, py::arg("sources"), "Distance of every vertex to the nearest of `sources` (vertex indices).")
+      .def_property_readonly("times", [](const PyGeodesicSolver& s) { return times_dict(s.last_times); },
+                             "Seconds of the last distance()'s stages.");
+
+  // ---- multigrid
+  m.def(
+      "hierarchy",
+      [](const py::object& V, const py::object& F, double ratio, long long coarsest, int max_levels) {
+        const ice::TriangleMesh mesh = mesh_argument(V, F);
+        if (!(ratio > 0 && ratio < 1)) throw py::value_error("ratio must be in (0, 1)");
+        if (coarsest < 1) throw py::value_error("coarsest must be >= 1");
+        if (max_levels < 1) throw py::value_error("max_levels must be >= 1");
+        ice::HierarchyOptions options;
+        options.ratio = ratio;
+        options.coarsest_vertices = static_cast<ice::Index>(coarsest);
+        options.max_levels = max_levels;
+        ice::Hierarchy hierarchy;
+        {
+          py::gil_scoped_release release;
+          require_clean(mesh);
+          hierarchy = ice::build_hierarchy(mesh, options);
+        }
+        py::list prolongations;
+        for (auto& P : hierarchy.prolongations) {
+          Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = P;
+          prolongations.append(to_scipy(std::move(rows)));
+        }
+        return prolongations;
+      },
+      py::arg("V"), py::arg("F"), py::kw_only(), py::arg("ratio") = 0.25, py::arg("coarsest") = 500,
+      py::arg("max_levels") = 20,
+      R"doc(The prolongations of an ICE multigrid hierarchy of (V, F) (scipy.sparse.csr_matrix, n_k × n_{k+1}, rows
+summing to 1): each level keeps about `ratio` of the previous one's vertices, down to about `coarsest`.
+Pass them to MultigridSolver; one hierarchy serves every operator on the mesh's vertices.)doc");
+
+  py::class_<fem::MultigridSolver>(m, "MultigridSolver", R"doc(Galerkin multigrid on given prolongations (ice.hierarchy) for symmetric positive definite systems.
+
+MultigridSolver(prolongations, tolerance=1e-8, max_iterations=200, mode="pcg"|"vcycle",
+smoother="sgs"|"gs"|"chebyshev", smoothing_steps=1, threads=0), then setup(A) and solve(b).)doc")
+      .def(py::init([](const py::list& prolongations, double tolerance, int max_iterations, const std::string& mode,
+                       const std::string& smoother, int smoothing_steps, int threads) {
+             std::vector<fem::SparseMatrix> matrices;
+             for (const py::handle P : prolongations) matrices.push_back(sparse_argument(P, "prolongations[k]", false));
+             return std::make_unique<fem::MultigridSolver>(
+                 std::move(matrices), multigrid_options(tolerance, max_iterations, mode, smoother, smoothing_steps, threads));
+           }),
+           py::arg("prolongations"), py::kw_only(), py::arg("tolerance") = 1e-8, py::arg("max_iterations") = 200,
+           py::arg("mode") = "pcg", py::arg("smoother") = "sgs", py::arg("smoothing_steps") = 1, py::arg("threads") = 0)
+      .def("setup", [](fem::MultigridSolver& s, const py::object& A, const py::object& constrained) {
+             fem::SparseMatrix matrix = sparse_argument(A, "A", true);
+             std::vector<ice::Index> fixed;
+             if (!constrained.is_none()) fixed = index_argument(constrained, matrix.rows(), "constrained");
+             py::gil_scoped_release release;
+             s.setup(matrix, std::move(fixed));
+           }, py::arg("A"), py::arg("constrained") = py::none(),
+           R"doc(Galerkin level operators of A (scipy.sparse or dense, n×n, n = rows of the first prolongation) and
+the coarsest factorisation; `constrained`: indices whose values solve() prescribes (eliminated).)doc")
+      .def("solve", [](fem::MultigridSolver& s, const py::object& b, const py::object& constrained_values,
+                       const py::object& x0) {
+             if (s.size() == 0) throw py::value_error("call setup(A) first");
+             const Eigen::VectorXd rhs = vector_argument(b, s.size(), "b");
+             Eigen::VectorXd values, guess;
+             if (!constrained_values.is_none())
+               values = vector_argument(constrained_values, static_cast<Eigen::Index>(s.constrained().size()), "constrained_values");
+             if (!x0.is_none()) guess = vector_argument(x0, s.size(), "x0");
+             py::gil_scoped_release release;
+             return x0.is_none() ? s.solve(rhs, values) : s.solve(rhs, values, guess);
+           }, py::arg("b"), py::arg("constrained_values") = py::none(), py::arg("x0") = py::none(),
+           "x with A x = b to the relative residual tolerance (report says how it went); x0: initial guess.")
+      .def_property_readonly("report", [](const fem::MultigridSolver& s) { return multigrid_report(s.report()); },
+                             "The last solve: converged, iterations, relative_residual, convergence_factor, residuals, seconds.")
+      .def_property_readonly("levels", [](const fem::MultigridSolver& s) {
+        py::list levels;
+        for (const auto& info : s.level_info()) {
+          py::dict level;
+          level["unknowns"] = info.unknowns;
+          level["nonzeros"] = info.nonzeros;
+          levels.append(level);
+        }
+        return levels;
+      }, "Unknowns and non-zeros of each level's operator.")
+      .def_property_readonly("operator_complexity", &fem::MultigridSolver::operator_complexity, "Non-zeros of all level operators over those of the finest.")
+      .def_property_readonly("setup_seconds", &fem::MultigridSolver::setup_seconds, "Seconds of the last setup().")
+      .def_property_readonly("size", &fem::MultigridSolver::size, "Unknowns of the system set up (0 before setup()).");
+
+  // ---- the distance oracle
+  py::class_<fem::DistanceOracle>(m, "DistanceOracle", R"doc(All-pairs geodesic distances of the fine vertices from the coarse mesh (geodesic-coarse --pairs).
+
+DistanceOracle(coarse, method="marching"|"heat", heat_time_factor=1.0, threads=0): precomputes the
+coarse all-pairs distances (n_c² floats); each query then costs a few operations. Needs the coarse
+space's map (coarsen(..., keep_map=True), the default).)doc")
+      .def(py::init([](const PyCoarseSpace& coarse, const std::string& method, double heat_time_factor, int threads) {
+             if (coarse.map.empty())
+               throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
+                                     "QEM with extrinsic geometry)");
+             fem::DistanceOracleOptions options;
+             options.method = choice<fem::CoarseDistanceMethod>(
+                 method, "method", {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}});
+             options.heat_time_factor = heat_time_factor;
+             options.threads = threads;
+             py::gil_scoped_release release;
+             return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, coarse.space.mesh.L, coarse.map, options);
+           }),
+           py::arg("coarse"), py::kw_only(), py::arg("method") = "marching", py::arg("heat_time_factor") = 1.0,
+           py::arg("threads") = 0)
+      .def("distance", [](const fem::DistanceOracle& o, long long u, long long v) {
+             const Eigen::Index n = o.fine_size();
+             if (u < 0 || u >= n || v < 0 || v >= n)
+               throw py::value_error("vertex out of range (valid 0.." + std::to_string(n - 1) + ")");
+             return o.distance(static_cast<ice::Index>(u), static_cast<ice::Index>(v));
+           }, py::arg("u"), py::arg("v"), "Distance between fine vertices u and v.")
+      .def("distances", [](const fem::DistanceOracle& o, const py::object& pairs) {
+             const py::array array = py::array::ensure(pairs);
+             if (!array || array.ndim() != 2 || array.shape(1) != 2)
+               throw py::value_error("pairs must have shape (k, 2)");
+             const std::vector<ice::Index> flat = index_argument(array.attr("reshape")(-1), o.fine_size(), "pairs");
+             std::vector<std::array<ice::Index, 2>> list(flat.size() / 2);
+             for (std::size_t i = 0; i < list.size(); ++i) list[i] = {flat[2 * i], flat[2 * i + 1]};
+             py::gil_scoped_release release;
+             return o.distances(list);
+           }, py::arg("pairs"), "Distances of k pairs of fine vertices (k×2 integer array).")
+      .def("distances_from", [](const fem::DistanceOracle& o, long long source) {
+             if (source < 0 || source >= o.fine_size()) throw py::value_error("source out of range");
+             py::gil_scoped_release release;
+             return o.distances_from(static_cast<ice::Index>(source));
+           }, py::arg("source"), "Distances from one fine vertex to all.")
+      .def("distance_matrix", [](const fem::DistanceOracle& o, const py::object& rows, const py::object& cols) {
+             const std::vector<ice::Index> r = index_argument(rows, o.fine_size(), "rows");
+             const std::vector<ice::Index> c = cols.is_none() ? r : index_argument(cols, o.fine_size(), "cols");
+             py::gil_scoped_release release;
+             return o.distance_matrix(r, c);
+           }, py::arg("rows"), py::arg("cols") = py::none(), "float32 matrix of distances between rows and cols (default rows).")
+      .def("farthest_point_samples", [](const fem::DistanceOracle& o, long long count, long long first) {
+             if (count < 1 || count > o.fine_size()) throw py::value_error("count must be in 1..number of vertices");
+             if (first < 0 || first >= o.fine_size()) throw py::value_error("first out of range");
+             std::vector<ice::Index> samples;
+             {
+               py::gil_scoped_release release;
+               samples = o.farthest_point_samples(static_cast<ice::Index>(count), static_cast<ice::Index>(first));
+             }
+             return to_numpy(std::move(samples));
+           }, py::arg("count"), py::arg("first") = 0, "Farthest-point sampling of `count` fine vertices from `first`.")
+      .def_property_readonly("fine_size", &fem::DistanceOracle::fine_size, "Fine vertices the oracle answers for.")
+      .def_property_readonly("coarse_size", &fem::DistanceOracle::coarse_size, "Coarse vertices (the precomputed table is this squared).")
+      .def_property_readonly("memory_bytes", &fem::DistanceOracle::memory_bytes, "Bytes the oracle holds.");
+}

@@ -1,0 +1,175 @@
+"""Operators and solvers: properties, scipy's own solves on the returned operators, the tools' results."""
+import numpy as np
+import pytest
+import scipy.sparse
+import scipy.sparse.linalg
+
+import ice
+from conftest import read_ascii_ply_fields
+
+
+@pytest.fixture(scope="module")
+def spot(project_mesh):
+    V, F = ice.load_mesh(project_mesh("spot.obj"))
+    return V, F, ice.coarsen(V, F, ratio=0.05)
+
+
+def test_operators_from_positions_and_lengths(spot):
+    V, F, _ = spot
+    L = ice.cotan_laplacian(V, F)
+    M = ice.mass_matrix(V, F)
+    assert L.format == "csc" and L.shape == (V.shape[0],) * 2
+    assert abs(L - L.T).max() < 1e-12                       # symmetric
+    assert np.abs(L @ np.ones(V.shape[0])).max() < 1e-10    # L·1 = 0
+    x = np.random.default_rng(1).standard_normal(V.shape[0])
+    assert x @ (L @ x) > 0                                   # positive semidefinite (and not zero)
+    # the same operators from the intrinsic form
+    lengths = ice.face_lengths(V, F)
+    assert abs(ice.cotan_laplacian(F=F, lengths=lengths) - L).max() < 1e-12
+    # lumped mass: diagonal, total = surface area
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+    assert abs(M - scipy.sparse.diags(M.diagonal())).max() == 0 and abs(M.sum() - area) < 1e-12 * area
+    assert abs(ice.mass_matrix(V, F, kind="consistent").sum() - area) < 1e-12 * area
+    # intrinsic Delaunay: same vertices and area, every cotan weight >= 0 (off-diagonals <= 0)
+    F_idt, L_idt, flips = ice.intrinsic_delaunay(V, F)
+    W = ice.cotan_laplacian(F=F_idt, lengths=L_idt, n=V.shape[0]).tocoo()
+    assert flips > 0 and W.data[W.row != W.col].max() <= 1e-12
+    with pytest.raises(ValueError, match="triangle inequality"):
+        bad = lengths.copy()
+        bad[3] = [1, 1, 3]
+        ice.cotan_laplacian(F=F, lengths=bad)
+
+
+def test_poisson_matches_scipy_on_the_returned_operators(spot):
+    V, F, coarse = spot
+    proxy = ice.Proxy(V, F, coarse)
+    f = np.sin(V[:, 0] * 3) + V[:, 1]
+    u = ice.ProxyPoissonSolver(proxy).solve(f)
+    # the same solve by scipy: b_c = Pᵀ M (f − mean), coarse Laplacian with one vertex pinned, u = P u_c
+    P, M, Lc = coarse.P, proxy.fine_mass, proxy.coarse_laplacian
+    ones = np.ones(V.shape[0])
+    f0 = f - (ones @ (M @ f)) / (ones @ (M @ ones))
+    b = P.T @ (M @ f0)
+    uc = np.zeros(coarse.n_vertices)
+    uc[1:] = scipy.sparse.linalg.spsolve(Lc[1:, 1:].tocsc(), b[1:])
+    reference = P @ uc
+    reference -= (ones @ (M @ reference)) / (ones @ (M @ ones))
+    assert np.abs(u - reference).max() < 1e-9 * np.abs(reference).max()
+    # Galerkin coarse operators are PᵀLP
+    assert abs(Lc - P.T @ proxy.fine_laplacian @ P).max() < 1e-9 * abs(Lc).max()
+
+
+def test_dirichlet_poisson_and_error_against_the_fine_solution(spot):
+    V, F, _ = spot
+    fixed = np.array([0, 500, 1000])
+    values = np.array([0.0, 1.0, -1.0])
+    coarse = ice.coarsen(V, F, ratio=0.05, locked=fixed)
+    proxy = ice.Proxy(V, F, coarse)
+    f = np.zeros(V.shape[0])
+    u = ice.ProxyPoissonSolver(proxy, fixed=fixed).solve(f, values)
+    assert np.allclose(u[fixed], values)
+    # fine reference by scipy on the proxy's own fine operators
+    L = proxy.fine_laplacian.tocsr()
+    free = np.setdiff1d(np.arange(V.shape[0]), fixed)
+    reference = np.zeros(V.shape[0])
+    reference[fixed] = values
+    reference[free] = scipy.sparse.linalg.spsolve(L[free][:, free].tocsc(), -L[free][:, fixed] @ values)
+    error = np.abs(u - reference).max()
+    polished = ice.ProxyPoissonSolver(proxy, fixed=fixed, tolerance=1e-8)
+    u_polished = polished.solve(f, values)
+    assert polished.polish_report["reached_tolerance"]
+    assert np.abs(u_polished - reference).max() < 1e-5 and error > 1e3 * np.abs(u_polished - reference).max()
+    with pytest.raises(ValueError, match="values must have 3 entries"):
+        ice.ProxyPoissonSolver(proxy, fixed=fixed).solve(f, [1.0, 2.0])
+    with pytest.raises(ValueError, match="not a coarse vertex|coarse vertex"):
+        ice.ProxyPoissonSolver(ice.Proxy(V, F, spot[2]), fixed=[7])
+
+
+def test_poisson_equals_the_poisson_coarse_tool(tmp_path, tool, project_mesh):
+    path = project_mesh("bear.off")
+    V, F = ice.load_mesh(path)
+    f = np.cos(4 * V[:, 2]) * V[:, 0]
+    np.savetxt(tmp_path / "f.txt", f, fmt="%.17g")
+    out = tmp_path / "u.ply"
+    tool("poisson-coarse", path, "--ratio", "0.05", "--rhs", tmp_path / "f.txt", "--no-reference", "--ascii", "-q",
+         "-o", out)
+    expected = read_ascii_ply_fields(out)["solution"]
+    u = ice.solve_poisson(V, F, f, ratio=0.05)
+    assert np.abs(u - expected).max() <= 1e-12 * np.abs(expected).max()
+
+
+def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
+    path = project_mesh("spot.obj")
+    V, F = ice.load_mesh(path)
+    out = tmp_path / "d.ply"
+    tool("geodesic-coarse", path, "--ratio", "0.05", "--source", "7", "--no-reference", "--ascii", "-q", "-o", out)
+    expected = read_ascii_ply_fields(out)["distance"]
+    d = ice.geodesic_distance(V, F, [7], ratio=0.05)
+    assert np.abs(d - expected).max() <= 1e-12 * expected.max()
+    assert d[7] == pytest.approx(0, abs=1e-12) and d.max() > 0.5 * np.linalg.norm(V.max(0) - V.min(0))
+    with pytest.raises(ValueError, match="sources"):
+        ice.geodesic_distance(V, F, [V.shape[0]], ratio=0.05)
+
+
+def test_heat_flow_conserves_mass_and_matches_scipy(spot):
+    V, F, coarse = spot
+    proxy = ice.Proxy(V, F, coarse)
+    u0 = np.exp(-20 * np.sum((V - V[0]) ** 2, axis=1))
+    tau = 1e-3
+    u = ice.ProxyHeatSolver(proxy, tau).integrate(u0, 3)
+    M = proxy.fine_mass
+    assert u @ (M @ np.ones_like(u)) == pytest.approx(u0 @ (M @ np.ones_like(u0)), rel=1e-9)  # P·1 = 1 keeps mass
+    # scipy on the coarse operators: L² projection, three backward-Euler steps, prolongation
+    Mc, Lc, P = proxy.coarse_mass.tocsc(), proxy.coarse_laplacian.tocsc(), coarse.P
+    state = P.T @ (M @ u0)
+    A = (Mc + tau * Lc).tocsc()
+    uc = scipy.sparse.linalg.spsolve(A, state)
+    for _ in range(2):
+        uc = scipy.sparse.linalg.spsolve(A, Mc @ uc)
+    assert np.abs(P @ uc - u).max() < 1e-9 * np.abs(u).max()
+
+
+def test_multigrid_on_a_scipy_matrix(spot):
+    V, F, _ = spot
+    prolongations = ice.hierarchy(V, F)
+    assert prolongations[0].shape[0] == V.shape[0]
+    for P in prolongations:
+        assert np.abs(np.asarray(P.sum(axis=1)).ravel() - 1).max() < 1e-12
+    L, M = ice.cotan_laplacian(V, F), ice.mass_matrix(V, F)
+    A = (M + 1e-2 * L).tocsr()
+    b = M @ np.cos(V[:, 1] * 5)
+    solver = ice.MultigridSolver(prolongations, tolerance=1e-10)
+    solver.setup(A)
+    x = solver.solve(b)
+    assert solver.report["converged"] and solver.report["iterations"] < 30
+    assert np.abs(x - scipy.sparse.linalg.spsolve(A.tocsc(), b)).max() < 1e-7 * np.abs(x).max()
+    assert len(solver.levels) == len(prolongations) + 1
+    with pytest.raises(ValueError, match="square"):
+        solver.setup(A[:, :-1])
+    with pytest.raises(ValueError, match="b must have"):
+        solver.solve(b[:-1])
+
+
+def test_distance_oracle(spot):
+    V, F, coarse = spot
+    oracle = ice.DistanceOracle(coarse)
+    rng = np.random.default_rng(3)
+    pairs = rng.integers(0, V.shape[0], size=(200, 2))
+    d = oracle.distances(pairs)
+    assert np.allclose(d, oracle.distances(pairs[:, ::-1]))  # symmetric
+    assert oracle.distance(5, 5) == 0
+    row = oracle.distances_from(int(pairs[0, 0]))
+    assert row[pairs[0, 1]] == pytest.approx(d[0])
+    # close to the fine heat-method distance (a coarse space of every vertex: P = I, the fine solve)
+    full = ice.coarsen(V, F, ratio=1.0)
+    assert full.n_vertices == V.shape[0] and abs(full.P - scipy.sparse.identity(V.shape[0])).max() == 0
+    fine = ice.ProxyGeodesicSolver(ice.Proxy(V, F, full)).distance([11])
+    far = fine > 0.05 * fine.max()
+    assert np.mean(np.abs(oracle.distances_from(11)[far] - fine[far]) / fine[far]) < 0.08  # measured 0.041
+    samples = oracle.farthest_point_samples(10)
+    assert len(set(samples.tolist())) == 10
+    D = oracle.distance_matrix(samples)
+    assert D.dtype == np.float32 and D.shape == (10, 10) and np.allclose(D, D.T)
+    with pytest.raises(ValueError, match="pairs"):
+        oracle.distances(np.array([[0, V.shape[0]]]))
