@@ -96,6 +96,19 @@ nlohmann::json offenders_json(const ice::Offenders<T>& o) {
 }
 }  // namespace
 
+nlohmann::json polish_json(const fem::PolishOptions& options, const fem::PolishReport& report) {
+  return {{"iterations_limit", options.iterations},
+          {"tolerance", options.tolerance},
+          {"iterations", report.iterations},
+          {"initial_estimated_error", report.initial_estimated_error},
+          {"estimated_error", report.estimated_error},
+          {"error_estimates", report.error_estimates},
+          {"reached_tolerance", report.reached_tolerance},
+          {"smoother", fem::to_string(options.cycle.smoother)},
+          {"smoothing_steps", options.cycle.smoothing_steps},
+          {"seconds", report.seconds}};
+}
+
 nlohmann::json validation_json(const ice::ValidationReport& r) {
   nlohmann::json j;
   j["vertices"] = r.n_vertices;
@@ -258,16 +271,7 @@ nlohmann::json PdeRun::report() const {
   if (polish_options.enabled()) {
     t["polish_setup"] = polish_setup;
     t["polish"] = polish;
-    const fem::PolishReport& p = polish_report;
-    r["polish"] = {{"iterations_limit", polish_options.iterations},
-                   {"tolerance", polish_options.tolerance},
-                   {"iterations", p.iterations},
-                   {"initial_estimated_error", p.initial_estimated_error},
-                   {"estimated_error", p.estimated_error},
-                   {"error_estimates", p.error_estimates},
-                   {"reached_tolerance", p.reached_tolerance},
-                   {"smoother", fem::to_string(polish_options.cycle.smoother)},
-                   {"smoothing_steps", polish_options.cycle.smoothing_steps}};
+    r["polish"] = polish_json(polish_options, polish_report);
   }
   if (has_reference) {
     t["reference"] = reference_total();

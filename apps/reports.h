@@ -85,6 +85,10 @@ std::string percent(const nlohmann::json& fraction);
 /// offenders, the components.
 nlohmann::json validation_json(const ice::ValidationReport& report);
 
+/// The "polish" object of the PDE tools' reports: the options (iteration limit, tolerance, smoother)
+/// and what polishing did (iterations, estimated errors, whether the tolerance was reached, seconds).
+nlohmann::json polish_json(const fem::PolishOptions& options, const fem::PolishReport& report);
+
 /// The "coarse" object of the JSON reports: vertices, faces, stop_reason, removed (ICE removals or
 /// QEM collapses), and for ICE its removal details (failed removals by status, costs).
 nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary);

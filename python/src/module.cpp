@@ -414,17 +414,6 @@ fem::PolishOptions polish_options(int iterations, double tolerance) {
   return polish;
 }
 
-py::dict polish_dict(const fem::PolishReport& report) {
-  py::dict d;
-  d["iterations"] = report.iterations;
-  d["initial_estimated_error"] = report.initial_estimated_error;
-  d["estimated_error"] = report.estimated_error;
-  d["error_estimates"] = report.error_estimates;
-  d["reached_tolerance"] = report.reached_tolerance;
-  d["seconds"] = report.seconds;
-  return d;
-}
-
 py::dict times_dict(const fem::ProxyPhaseTimes& times) {
   py::dict d;
   d["restriction"] = times.restriction;
@@ -437,12 +426,14 @@ struct PyPoissonSolver {
   std::shared_ptr<PyProxy> proxy;  // the solver keeps a reference to it
   Eigen::Index fixed_count = 0;
   std::unique_ptr<fem::ProxyPoissonSolver> solver;
+  fem::PolishOptions polish;
   fem::PolishReport last_polish;
   fem::ProxyPhaseTimes last_times;
 };
 struct PyHeatSolver {
   std::shared_ptr<PyProxy> proxy;
   std::unique_ptr<fem::ProxyHeatSolver> solver;
+  fem::PolishOptions polish;
   fem::PolishReport last_polish;
   fem::ProxyPhaseTimes last_times;
 };
@@ -716,6 +707,7 @@ error `tolerance` (poisson-coarse --polish/--tolerance). Factors once; solve() a
              auto solver = std::make_unique<PyPoissonSolver>();
              solver->proxy = proxy;
              solver->fixed_count = static_cast<Eigen::Index>(dirichlet.size());
+             solver->polish = options;
              py::gil_scoped_release release;
              solver->solver = std::make_unique<fem::ProxyPoissonSolver>(*proxy->proxy, std::move(dirichlet), options);
              return solver;
@@ -734,7 +726,7 @@ error `tolerance` (poisson-coarse --polish/--tolerance). Factors once; solve() a
              return s.solver->solve(rhs, fixed_values, &s.last_times, &s.last_polish);
            }, py::arg("f"), py::arg("values") = py::none(),
            "u for the nodal source f (n,); values: the Dirichlet values, aligned with `fixed` (default zeros).")
-      .def_property_readonly("polish_report", [](const PyPoissonSolver& s) { return polish_dict(s.last_polish); },
+      .def_property_readonly("polish_report", [](const PyPoissonSolver& s) { return json_to_python(app::polish_json(s.polish, s.last_polish)); },
                              "What polishing did in the last solve (iterations, estimated errors, seconds).")
       .def_property_readonly("times", [](const PyPoissonSolver& s) { return times_dict(s.last_times); },
                              "Seconds of the last solve's stages (restriction, coarse_solve, prolongation).")
@@ -754,6 +746,7 @@ ProxyPoissonSolver, per step.)doc")
              const fem::PolishOptions options = polish_options(polish, tolerance);
              auto solver = std::make_unique<PyHeatSolver>();
              solver->proxy = proxy;
+             solver->polish = options;
              py::gil_scoped_release release;
              solver->solver = std::make_unique<fem::ProxyHeatSolver>(*proxy->proxy, time_step, kind, options);
              return solver;
@@ -766,7 +759,7 @@ ProxyPoissonSolver, per step.)doc")
              py::gil_scoped_release release;
              return s.solver->integrate(initial, steps, &s.last_times, &s.last_polish);
            }, py::arg("u0"), py::arg("steps") = 1, "The state after `steps` steps of time_step from nodal values u0.")
-      .def_property_readonly("polish_report", [](const PyHeatSolver& s) { return polish_dict(s.last_polish); },
+      .def_property_readonly("polish_report", [](const PyHeatSolver& s) { return json_to_python(app::polish_json(s.polish, s.last_polish)); },
                              "What polishing did in the last integrate().")
       .def_property_readonly("times", [](const PyHeatSolver& s) { return times_dict(s.last_times); },
                              "Seconds of the last integrate()'s stages.");
