@@ -3,21 +3,12 @@
 //
 // Outputs (in OUTDIR, created if needed; existing files are only replaced with --force):
 //
-//  coarse.ilm — the coarse intrinsic mesh, plain text ("ICE intrinsic mesh", version 1; written and
-//    read by ice/intrinsic_mesh_io.h):
-//      ICE-ILM 1                         header line (format name and version)
-//      # ...                             comment lines ('#' first) may appear anywhere after it
-//      vertices <n>                      number of coarse vertices
-//      faces <m>                         number of coarse faces
-//      input_vertices <N>                number of vertices of the input mesh
-//      f <i> <j> <k> <lij> <ljk> <lki>   m lines: corners (0-based coarse vertex ids, counter-clockwise)
-//                                        and the lengths of the edges i→j, j→k, k→i (ice/mesh.h
-//                                        FaceLengths convention: column c runs from corner c to c+1)
-//      v <input vertex id>               n lines: coarse vertex c (the c-th v line, 0-based) is this
-//                                        0-based vertex of the input mesh
-//    The mesh is a Δ-complex: a face may repeat a vertex and two faces may share more than one edge,
-//    so readers must take the connectivity from the face lines, not from vertex pairs. Lengths are
-//    printed in the shortest form that reads back to the same double.
+//  coarse.ilm — the coarse intrinsic mesh, plain text ("ICE intrinsic mesh", version 2; the format
+//    is documented, written and read by ice/intrinsic_mesh_io.h): the counts, one line per face
+//    (corners, the three edge lengths in the FaceLengths convention, the three twins saying how the
+//    faces are glued: the mesh is a Δ-complex, so connectivity cannot be taken from vertex pairs), and
+//    one line per coarse vertex naming its input vertex (-1: inserted by --refine-angle). Lengths
+//    are printed in the shortest form that reads back to the same double.
 //  prolongation.mtx — P in Matrix Market "coordinate real general" form (1-based), rows = input
 //    vertices, columns = coarse vertices; rows sum to 1, at most 3 entries per row (scipy.io.mmread).
 //  map.csv — input_vertex,coarse_vertex,coarse_face,b0,b1,b2: where every input vertex lies on the

@@ -82,12 +82,12 @@ const CoarseProxy::LazyFineOperators& CoarseProxy::fine_operators() const {
 
 const SparseMatrix& CoarseProxy::fine_laplacian() const { return fine_operators().laplacian; }
 
-Eigen::VectorXd CoarseProxy::restrict_weighted(const Eigen::VectorXd& b) const {
+Eigen::VectorXd CoarseProxy::restrict_weighted(const Eigen::Ref<const Eigen::VectorXd>& b) const {
   if (b.size() != fine_size()) throw std::invalid_argument("CoarseProxy::restrict_weighted: wrong size");
   return P_.transpose() * b;
 }
 
-Eigen::VectorXd CoarseProxy::restrict_values(const Eigen::VectorXd& u, RestrictionKind kind) const {
+Eigen::VectorXd CoarseProxy::restrict_values(const Eigen::Ref<const Eigen::VectorXd>& u, RestrictionKind kind) const {
   if (u.size() != fine_size()) throw std::invalid_argument("CoarseProxy::restrict_values: wrong size");
   if (kind == RestrictionKind::l2_projection)
     return coarse_mass_factor_.solve(Eigen::VectorXd(P_.transpose() * (fine_mass_ * u)));
@@ -198,7 +198,7 @@ ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Ind
   }
 }
 
-Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values,
+Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::Ref<const Eigen::VectorXd>& f, const Eigen::VectorXd& dirichlet_values,
                                           ProxyPhaseTimes* times, PolishReport* polish_report) const {
   using namespace detail;
   const SparseMatrix& P = proxy_->prolongation();
@@ -213,9 +213,9 @@ Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::VectorXd& f, const Eigen:
   // The mean reductions are Eigen's serial dot products: the same result on any thread count.
   Eigen::VectorXd compatible;
   if (is_zero_mean()) compatible = f.array() - fine_mass_of_one_.dot(f) / total_mass_;
-  const Eigen::VectorXd& source = is_zero_mean() ? compatible : f;
+  const double* source = is_zero_mean() ? compatible.data() : f.data();
   Eigen::VectorXd weighted(n), coarse_rhs(P.cols()), u(n);
-  gather_product(fine_mass, source.data(), weighted.data(), false, threads, n);
+  gather_product(fine_mass, source, weighted.data(), false, threads, n);
   gather_product(P, weighted.data(), coarse_rhs.data(), false, threads, n);
   if (times) times->restriction = seconds_since(mark);
   const Eigen::VectorXd coarse_u = coarse_.solve_weighted(coarse_rhs, dirichlet_values);
@@ -249,7 +249,7 @@ ProxyHeatSolver::ProxyHeatSolver(const CoarseProxy& proxy, double time_step, Res
 
 ProxyHeatSolver::~ProxyHeatSolver() = default;
 
-Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::VectorXd& fine_u0, int steps, ProxyPhaseTimes* times,
+Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::Ref<const Eigen::VectorXd>& fine_u0, int steps, ProxyPhaseTimes* times,
                                            PolishReport* polish_report) const {
   if (steps < 0 || (steps == 0 && restriction_ == RestrictionKind::l2_projection))
     throw std::invalid_argument("ProxyHeatSolver::integrate: steps must be >= 1 with L2 projection, >= 0 with injection");

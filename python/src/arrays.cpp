@@ -167,20 +167,21 @@ ice::FaceLengths lengths_argument(const py::handle& object, Eigen::Index face_co
   return L;
 }
 
-Eigen::VectorXd vector_argument(const py::handle& object, Eigen::Index size, const char* name) {
+py::array_t<double, py::array::c_style> vector_values(const py::handle& object, Eigen::Index size, const char* name) {
   const py::array array = as_array(object, name);
   const bool column = array.ndim() == 2 && array.shape(1) == 1;
   if (!(array.ndim() == 1 || column) || array.shape(0) != size)
     throw py::value_error(std::string(name) + " must have " + std::to_string(size) + " entries (shape (" +
                           std::to_string(size) + ",)), got shape " + shape_text(array));
-  const auto values = real_values(array, name, "a vector");
-  Eigen::VectorXd vector(size);
+  auto values = real_values(array, name, "a vector");
   const double* data = values.data();
-  for (Eigen::Index i = 0; i < size; ++i) {
+  for (Eigen::Index i = 0; i < size; ++i)
     if (!std::isfinite(data[i])) non_finite(name, "[" + std::to_string(i) + "]", data[i]);
-    vector(i) = data[i];
-  }
-  return vector;
+  return values;
+}
+
+Eigen::VectorXd vector_argument(const py::handle& object, Eigen::Index size, const char* name) {
+  return view(vector_values(object, size, name));
 }
 
 Eigen::MatrixXd matrix_argument(const py::handle& object, Eigen::Index rows, const char* name) {

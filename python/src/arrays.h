@@ -29,6 +29,12 @@ ice::Faces faces_argument(const py::handle& array, const char* name = "F");
 ice::FaceLengths lengths_argument(const py::handle& array, Eigen::Index face_count, const char* name = "lengths");
 /// A real vector of `size` finite entries (1-D, or n×1).
 Eigen::VectorXd vector_argument(const py::handle& array, Eigen::Index size, const char* name);
+/// The same without a copy where the layout allows: the caller's float64 contiguous array itself
+/// (else a converted one), checked, kept alive by the returned object; view(array) maps it.
+py::array_t<double, py::array::c_style> vector_values(const py::handle& array, Eigen::Index size, const char* name);
+inline Eigen::Map<const Eigen::VectorXd> view(const py::array_t<double, py::array::c_style>& values) {
+  return {values.data(), static_cast<Eigen::Index>(values.size())};
+}
 /// A real n×k matrix (k >= 1) of finite entries; a 1-D array is one column.
 Eigen::MatrixXd matrix_argument(const py::handle& array, Eigen::Index rows, const char* name);
 /// Integer indices (a sequence or a 1-D array), each in [0, size); duplicates kept.

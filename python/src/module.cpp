@@ -689,8 +689,8 @@ triangles or their "intrinsic_delaunay" triangulation), coarse operators "galerk
         return p.proxy->prolong(coarse);
       }, py::arg("values"), "P @ values: coarse nodal values to the fine vertices.")
       .def("restrict_weighted", [](const PyProxy& p, const py::object& values) {
-        const Eigen::VectorXd fine = vector_argument(values, p.proxy->fine_size(), "values");
-        return p.proxy->restrict_weighted(fine);
+        const auto fine = vector_values(values, p.proxy->fine_size(), "values");
+        return p.proxy->restrict_weighted(view(fine));
       }, py::arg("values"), "Pᵀ @ values for an integrated (mass-weighted) fine vector.");
 
   py::class_<PyPoissonSolver>(m, "ProxyPoissonSolver", R"doc(Poisson L u = M f through the coarse proxy: u ≈ P u_c with (coarse L) u_c = Pᵀ M f.
@@ -716,14 +716,14 @@ error `tolerance` (poisson-coarse --polish/--tolerance). Factors once; solve() a
            py::arg("tolerance") = 0.0)
       .def("solve", [](PyPoissonSolver& s, const py::object& f, const py::object& values) {
              const Eigen::Index n = s.proxy->proxy->fine_size();
-             const Eigen::VectorXd rhs = vector_argument(f, n, "f");
+             const auto rhs = vector_values(f, n, "f");  // read in place
              Eigen::VectorXd fixed_values;
              if (!values.is_none()) {
                if (s.solver->is_zero_mean()) throw py::value_error("values are given but the solver has no fixed vertices");
                fixed_values = vector_argument(values, s.fixed_count, "values");
              }
              py::gil_scoped_release release;
-             return s.solver->solve(rhs, fixed_values, &s.last_times, &s.last_polish);
+             return s.solver->solve(view(rhs), fixed_values, &s.last_times, &s.last_polish);
            }, py::arg("f"), py::arg("values") = py::none(),
            "u for the nodal source f (n,); values: the Dirichlet values, aligned with `fixed` (default zeros).")
       .def_property_readonly("polish_report", [](const PyPoissonSolver& s) { return json_to_python(app::polish_json(s.polish, s.last_polish)); },
@@ -754,10 +754,10 @@ ProxyPoissonSolver, per step.)doc")
            py::arg("proxy"), py::arg("time_step"), py::kw_only(), py::arg("restriction") = "l2",
            py::arg("polish") = 0, py::arg("tolerance") = 0.0)
       .def("integrate", [](PyHeatSolver& s, const py::object& u0, int steps) {
-             const Eigen::VectorXd initial = vector_argument(u0, s.proxy->proxy->fine_size(), "u0");
+             const auto initial = vector_values(u0, s.proxy->proxy->fine_size(), "u0");  // read in place
              if (steps < 1) throw py::value_error("steps must be >= 1");
              py::gil_scoped_release release;
-             return s.solver->integrate(initial, steps, &s.last_times, &s.last_polish);
+             return s.solver->integrate(view(initial), steps, &s.last_times, &s.last_polish);
            }, py::arg("u0"), py::arg("steps") = 1, "The state after `steps` steps of time_step from nodal values u0.")
       .def_property_readonly("polish_report", [](const PyHeatSolver& s) { return json_to_python(app::polish_json(s.polish, s.last_polish)); },
                              "What polishing did in the last integrate().")

@@ -55,10 +55,10 @@ class CoarseProxy {
   Eigen::Index coarse_size() const { return P_.cols(); }
 
   /// Pᵀ b for a mass-weighted (integrated) fine vector b.
-  Eigen::VectorXd restrict_weighted(const Eigen::VectorXd& b) const;
+  Eigen::VectorXd restrict_weighted(const Eigen::Ref<const Eigen::VectorXd>& b) const;
   /// Coarse nodal values from fine nodal values u (see the file comment for the two kinds).
   /// Injection throws std::logic_error if some coarse vertex has no coinciding fine vertex in P.
-  Eigen::VectorXd restrict_values(const Eigen::VectorXd& u, RestrictionKind kind) const;
+  Eigen::VectorXd restrict_values(const Eigen::Ref<const Eigen::VectorXd>& u, RestrictionKind kind) const;
   /// P u_c.
   Eigen::VectorXd prolong(const Eigen::VectorXd& coarse_values) const;
   /// The coarse vertex that fine vertex v is (P's row v equal to e_j), or -1.
@@ -177,7 +177,9 @@ class ProxyPoissonSolver {
   /// Fine nodal source f → fine solution. `dirichlet_values` align with the Dirichlet vertices (empty:
   /// zeros). `times`, when given, receives the seconds of each stage; `polish_report` what
   /// polishing did. Not to be called on two threads at once when polishing.
-  Eigen::VectorXd solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values = {},
+  /// `f` and `fine_u0` below are Eigen::Ref: any contiguous vector (a Map of a caller's buffer, such as
+  /// a numpy array) is read in place.
+  Eigen::VectorXd solve(const Eigen::Ref<const Eigen::VectorXd>& f, const Eigen::VectorXd& dirichlet_values = {},
                         ProxyPhaseTimes* times = nullptr, PolishReport* polish_report = nullptr) const;
   bool is_zero_mean() const { return dirichlet_vertices_.empty(); }
   bool is_polishing() const { return fine_ != nullptr; }
@@ -211,7 +213,7 @@ class ProxyHeatSolver {
   ~ProxyHeatSolver();
   /// `steps` >= 1 with L² projection, >= 0 with injection. Not to be called on two threads at once
   /// when polishing. `polish_report`: iterations summed over the steps, estimates of the last step.
-  Eigen::VectorXd integrate(const Eigen::VectorXd& fine_u0, int steps, ProxyPhaseTimes* times = nullptr,
+  Eigen::VectorXd integrate(const Eigen::Ref<const Eigen::VectorXd>& fine_u0, int steps, ProxyPhaseTimes* times = nullptr,
                             PolishReport* polish_report = nullptr) const;
   bool is_polishing() const { return fine_ != nullptr; }
   double polish_setup_seconds() const { return polish_setup_seconds_; }
