@@ -121,21 +121,8 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     if (!r.converged)
       app::warn(kTool, "multigrid stopped after " + std::to_string(r.iterations) + " iterations at relative residual " +
                            std::to_string(r.relative_residual) + " (tolerance " + std::to_string(mg.options.tolerance) + ")");
-    nlohmann::json levels = nlohmann::json::array();
-    for (const auto& info : multigrid.level_info()) levels.push_back({{"unknowns", info.unknowns}, {"nonzeros", info.nonzeros}});
-    solver_json.update({{"iterations", r.iterations},
-                        {"converged", r.converged},
-                        {"convergence_factor", r.convergence_factor},
-                        {"relative_residual", r.relative_residual},
-                        {"tolerance", mg.options.tolerance},
-                        {"residuals", r.residuals},
-                        {"cycle", fem::to_string(mg.options.mode)},
-                        {"smoother", fem::to_string(mg.options.smoother)},
-                        {"threads", mg.options.threads},
-                        {"reorder", mg.options.reorder},
-                        {"levels", levels},
-                        {"operator_complexity", multigrid.operator_complexity()},
-                        {"hierarchy", {{"ratio", mg.ratio}, {"coarsest_vertices", mg.coarsest}, {"levels", hierarchy.num_levels()},
+    solver_json.update(app::multigrid_json(multigrid));
+    solver_json.update({{"hierarchy", {{"ratio", mg.ratio}, {"coarsest_vertices", mg.coarsest}, {"levels", hierarchy.num_levels()},
                                        {"grid_complexity", hierarchy.grid_complexity()}, {"stop_reason", hierarchy.stop_reason},
                                        {"coarsen_seconds", hierarchy.coarsen_seconds}}}});
     timings = {{"setup", setup_seconds}, {"hierarchy", hierarchy_seconds}, {"galerkin_and_coarse_factor", numeric_setup},

@@ -109,6 +109,27 @@ nlohmann::json polish_json(const fem::PolishOptions& options, const fem::PolishR
           {"seconds", report.seconds}};
 }
 
+nlohmann::json multigrid_json(const fem::MultigridSolver& solver) {
+  const fem::MultigridReport& r = solver.report();
+  const fem::MultigridOptions& options = solver.options();
+  nlohmann::json levels = nlohmann::json::array();
+  for (const auto& info : solver.level_info()) levels.push_back({{"unknowns", info.unknowns}, {"nonzeros", info.nonzeros}});
+  return {{"iterations", r.iterations},
+          {"converged", r.converged},
+          {"convergence_factor", r.convergence_factor},
+          {"relative_residual", r.relative_residual},
+          {"tolerance", options.tolerance},
+          {"residuals", r.residuals},
+          {"seconds", r.seconds},
+          {"cycle", fem::to_string(options.mode)},
+          {"smoother", fem::to_string(options.smoother)},
+          {"threads", options.threads},
+          {"reorder", options.reorder},
+          {"levels", levels},
+          {"operator_complexity", solver.operator_complexity()},
+          {"setup_seconds", solver.setup_seconds()}};
+}
+
 nlohmann::json validation_json(const ice::ValidationReport& r) {
   nlohmann::json j;
   j["vertices"] = r.n_vertices;

@@ -10,6 +10,7 @@
 
 #include "command_line.h"
 #include "fem/coarse_proxy.h"
+#include "fem/multigrid.h"
 #include "ice/coarse_space.h"
 #include "ice/mesh_validation.h"
 
@@ -88,6 +89,10 @@ nlohmann::json validation_json(const ice::ValidationReport& report);
 /// The "polish" object of the PDE tools' reports: the options (iteration limit, tolerance, smoother)
 /// and what polishing did (iterations, estimated errors, whether the tolerance was reached, seconds).
 nlohmann::json polish_json(const fem::PolishOptions& options, const fem::PolishReport& report);
+
+/// A multigrid solver's last solve and set-up as poisson-coarse --solver multigrid reports them
+/// (iterations, convergence, residuals, options, levels, operator complexity, seconds).
+nlohmann::json multigrid_json(const fem::MultigridSolver& solver);
 
 /// The "coarse" object of the JSON reports: vertices, faces, stop_reason, removed (ICE removals or
 /// QEM collapses), and for ICE its removal details (failed removals by status, costs).

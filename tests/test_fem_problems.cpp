@@ -2,7 +2,9 @@
 // zero-mean on a sphere), backward-Euler heat flow, heat-method geodesic distance.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "fem/errors.h"
@@ -161,4 +163,28 @@ TEST_CASE("heat-method geodesics on a disk with boundary", "[fem][problems][geod
   const Eigen::VectorXd exact = (d.mesh.V.rowwise() - d.mesh.V.row(left)).rowwise().norm().cwiseMin(
       (d.mesh.V.rowwise() - d.mesh.V.row(right)).rowwise().norm());
   CHECK(fem::distance_errors(phi, exact).mean_relative < 0.03);
+}
+
+TEST_CASE("Dirichlet values follow the caller's order of the constrained vertices; repeats are refused",
+          "[fem][problems]") {
+  // A linear function is reproduced exactly from its boundary values, so values given in any order
+  // must land on their own vertices; a permutation of (vertices, values) gives the same solution.
+  const Discretisation d = discretise(ice::make_flat_disk(6, 1.0, 0.25, 21));
+  std::vector<int> boundary = fem::boundary_vertices(d.mesh.F);
+  std::reverse(boundary.begin(), boundary.end());
+  std::swap(boundary[0], boundary[7]);
+  const Eigen::VectorXd exact = (0.5 + 2.0 * d.mesh.V.col(0).array() - 3.0 * d.mesh.V.col(1).array()).matrix();
+  Eigen::VectorXd values(static_cast<Eigen::Index>(boundary.size()));
+  for (std::size_t i = 0; i < boundary.size(); ++i) values(static_cast<Eigen::Index>(i)) = exact(boundary[i]);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(exact.size());
+  CHECK(fem::max_abs_error(fem::PoissonSolver::dirichlet(d.laplacian, d.mass, boundary).solve(zero, values), exact) <
+        1e-12);
+  const fem::ConstrainedSolver direct(d.laplacian, boundary);
+  const Eigen::VectorXd x = direct.solve(d.mass * zero, values);
+  for (std::size_t i = 0; i < boundary.size(); ++i) CHECK(x(boundary[i]) == values(static_cast<Eigen::Index>(i)));
+  CHECK(direct.constrained() == boundary);
+
+  std::vector<int> repeated = {boundary[0], boundary[1], boundary[0]};
+  CHECK_THROWS_AS(fem::ConstrainedSolver(d.laplacian, repeated), std::invalid_argument);
+  CHECK_THROWS_AS(fem::PoissonSolver::dirichlet(d.laplacian, d.mass, repeated), std::invalid_argument);
 }

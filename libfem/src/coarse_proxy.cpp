@@ -135,6 +135,11 @@ double seconds_since(Clock::time_point& mark) {
 
 // The coarse vertices of fine Dirichlet vertices (each must be one).
 std::vector<Index> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::vector<Index>& fine_vertices) {
+  std::vector<Index> sorted = fine_vertices;
+  std::sort(sorted.begin(), sorted.end());
+  const auto repeat = std::adjacent_find(sorted.begin(), sorted.end());
+  if (repeat != sorted.end())
+    throw std::invalid_argument("ProxyPoissonSolver: Dirichlet vertex " + std::to_string(*repeat) + " given twice");
   std::vector<Index> coarse;
   for (int v : fine_vertices) {
     const int j = proxy.coarse_vertex_of(v);

@@ -472,18 +472,23 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<Index> constraine
   if (!prolongations_.empty() && prolongations_[0].rows() != n)
     throw std::invalid_argument("MultigridSolver::setup: A has " + std::to_string(n) + " rows but P_0 has " +
                                 std::to_string(prolongations_[0].rows()));
-  std::sort(constrained.begin(), constrained.end());
-  constrained.erase(std::unique(constrained.begin(), constrained.end()), constrained.end());
-  for (int c : constrained)
-    if (c < 0 || c >= n) throw std::invalid_argument("MultigridSolver::setup: constrained index out of range");
+  // Kept in the caller's order: constrained value c belongs to constrained[c]. Checked before any
+  // member changes, so a refused call leaves an earlier setup intact.
+  std::vector<Index> free_index(static_cast<std::size_t>(n), 0);
+  for (int c : constrained) {
+    if (c < 0 || c >= n)
+      throw std::invalid_argument("MultigridSolver::setup: constrained index " + std::to_string(c) + " out of range");
+    if (free_index[static_cast<std::size_t>(c)] != 0)
+      throw std::invalid_argument("MultigridSolver::setup: constrained index " + std::to_string(c) + " given twice");
+    free_index[static_cast<std::size_t>(c)] = -1;
+  }
+  free_index_ = std::move(free_index);
   size_ = n;
   constrained_ = std::move(constrained);
   // The free unknowns in increasing order, or with options.reorder for locality: reverse
   // Cuthill–McKee on A's graph, constrained unknowns left out (they only cut the graph; the order
   // stays local). The coarse levels inherit it through restrict_prolongation's column order.
   reordered_ = options_.reorder;
-  free_index_.assign(static_cast<std::size_t>(n), 0);
-  for (int c : constrained_) free_index_[static_cast<std::size_t>(c)] = -1;
   std::vector<Index> candidates(static_cast<std::size_t>(n));
   if (reordered_)
     candidates = reverse_cuthill_mckee(A);

@@ -24,14 +24,17 @@ ConstrainedSolver::ConstrainedSolver(const SparseMatrix& A, std::vector<Index> c
     : size_(A.rows()), constrained_(std::move(constrained)) {
   factor_.set_ordering(ordering);
   if (A.rows() != A.cols()) throw std::invalid_argument("ConstrainedSolver: matrix must be square");
-  std::sort(constrained_.begin(), constrained_.end());
-  constrained_.erase(std::unique(constrained_.begin(), constrained_.end()), constrained_.end());
-  if (!constrained_.empty() && (constrained_.front() < 0 || constrained_.back() >= size_))
-    throw std::invalid_argument("ConstrainedSolver: constrained index out of range");
-
-  // Index maps: free_[i] is i's position among the free unknowns, or -(c+1) for constrained index c.
+  // Index maps: free_[i] is i's position among the free unknowns, or -(c+1) for constrained index c
+  // in the caller's order (values come in that order).
   free_.assign(static_cast<std::size_t>(size_), 0);
-  for (std::size_t c = 0; c < constrained_.size(); ++c) free_[constrained_[c]] = -static_cast<int>(c) - 1;
+  for (std::size_t c = 0; c < constrained_.size(); ++c) {
+    const Index i = constrained_[c];
+    if (i < 0 || i >= size_)
+      throw std::invalid_argument("ConstrainedSolver: constrained index " + std::to_string(i) + " out of range");
+    if (free_[static_cast<std::size_t>(i)] != 0)
+      throw std::invalid_argument("ConstrainedSolver: constrained index " + std::to_string(i) + " given twice");
+    free_[static_cast<std::size_t>(i)] = -static_cast<int>(c) - 1;
+  }
   int free_count = 0;
   for (int& index : free_)
     if (index == 0) index = free_count++;
@@ -126,6 +129,7 @@ PoissonSolver PoissonSolver::dirichlet(const SparseMatrix& laplacian, const Spar
 PoissonSolver PoissonSolver::zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass,
                                        std::optional<PoissonMultigrid> multigrid, CholeskyOrdering ordering) {
   if (laplacian.rows() == 0) throw std::invalid_argument("PoissonSolver::zero_mean: empty system");
+  require_connected(laplacian, "zero-mean Poisson");
   return PoissonSolver(laplacian, mass, {0}, true, std::move(multigrid), ordering);  // any vertex can be pinned; use the first
 }
 
@@ -206,6 +210,7 @@ HeatMethodOperators checked(HeatMethodOperators ops) {
   require_square(ops.mass, n, "HeatGeodesicSolver: mass");
   if (ops.gradient.cols() != n || ops.gradient.rows() != 2 * ops.face_areas.size())
     throw std::invalid_argument("HeatGeodesicSolver: gradient must be 2k×n with k face areas");
+  require_connected(ops.laplacian, "heat-method geodesic distance");
   return ops;
 }
 

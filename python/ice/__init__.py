@@ -35,6 +35,8 @@ from ._ice import (  # noqa: F401  (the package's API)
 )
 from . import _ice
 
+import numpy as np
+
 __all__ = [
     "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
@@ -90,8 +92,9 @@ def _coarse_for(V, F, coarse, coarsening, use, locked=None):
     if not {"n", "ratio", "max_error"} & coarsening.keys():
         coarsening["ratio"] = 0.05
     coarsening.setdefault("use", use)
-    if locked is not None:
-        coarsening["locked"] = locked
+    if locked is not None:  # the fixed vertices must stay: locked besides the caller's own
+        own = coarsening.get("locked")
+        coarsening["locked"] = locked if own is None else np.union1d(np.asarray(own), np.asarray(locked))
     return coarsen(V, F, **coarsening)
 
 

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
 
 namespace ice_python {
 
@@ -255,24 +256,40 @@ Eigen::SparseMatrix<double> sparse_argument(const py::handle& object, const char
 
 namespace {
 template <class Matrix>
-py::object scipy_view(Matrix&& matrix, const char* format) {
+py::object scipy_matrix(const Matrix& matrix, const py::handle& base, bool writeable) {
+  const char* format = Matrix::IsRowMajor ? "csr_matrix" : "csc_matrix";
+  const auto nonzeros = static_cast<py::ssize_t>(matrix.nonZeros());
+  const auto outer = static_cast<py::ssize_t>(matrix.outerSize());
+  py::array_t<double> data({nonzeros}, {static_cast<py::ssize_t>(sizeof(double))}, matrix.valuePtr(), base);
+  py::array_t<int> indices({nonzeros}, {static_cast<py::ssize_t>(sizeof(int))}, matrix.innerIndexPtr(), base);
+  py::array_t<int> indptr({outer + 1}, {static_cast<py::ssize_t>(sizeof(int))}, matrix.outerIndexPtr(), base);
+  if (!writeable)
+    for (py::array* array : {static_cast<py::array*>(&data), static_cast<py::array*>(&indices), static_cast<py::array*>(&indptr)})
+      array->attr("setflags")(py::arg("write") = false);
+  const py::object sparse = py::module_::import("scipy.sparse");
+  return sparse.attr(format)(py::make_tuple(data, indices, indptr),
+                             py::arg("shape") = py::make_tuple(matrix.rows(), matrix.cols()), py::arg("copy") = false);
+}
+
+template <class Matrix>
+py::object owned_scipy(Matrix&& matrix) {
   matrix.makeCompressed();
   auto* owned = new Matrix(std::move(matrix));
   const py::capsule base(owned, [](void* p) { delete static_cast<Matrix*>(p); });
-  const auto nonzeros = static_cast<py::ssize_t>(owned->nonZeros());
-  const auto outer = static_cast<py::ssize_t>(owned->outerSize());
-  const py::array_t<double> data({nonzeros}, {static_cast<py::ssize_t>(sizeof(double))}, owned->valuePtr(), base);
-  const py::array_t<int> indices({nonzeros}, {static_cast<py::ssize_t>(sizeof(int))}, owned->innerIndexPtr(), base);
-  const py::array_t<int> indptr({outer + 1}, {static_cast<py::ssize_t>(sizeof(int))}, owned->outerIndexPtr(), base);
-  const py::object sparse = py::module_::import("scipy.sparse");
-  return sparse.attr(format)(py::make_tuple(data, indices, indptr),
-                             py::arg("shape") = py::make_tuple(owned->rows(), owned->cols()), py::arg("copy") = false);
+  return scipy_matrix(*owned, base, true);
 }
 }  // namespace
 
-py::object to_scipy(Eigen::SparseMatrix<double>&& matrix) { return scipy_view(std::move(matrix), "csc_matrix"); }
-py::object to_scipy(Eigen::SparseMatrix<double, Eigen::RowMajor, int>&& matrix) {
-  return scipy_view(std::move(matrix), "csr_matrix");
+py::object scipy_view(const Eigen::SparseMatrix<double>& matrix, const py::handle& owner) {
+  if (!matrix.isCompressed()) throw std::logic_error("scipy_view: the matrix is not compressed");
+  return scipy_matrix(matrix, owner, false);
 }
+py::object scipy_view(const Eigen::SparseMatrix<double, Eigen::RowMajor, int>& matrix, const py::handle& owner) {
+  if (!matrix.isCompressed()) throw std::logic_error("scipy_view: the matrix is not compressed");
+  return scipy_matrix(matrix, owner, false);
+}
+
+py::object to_scipy(Eigen::SparseMatrix<double>&& matrix) { return owned_scipy(std::move(matrix)); }
+py::object to_scipy(Eigen::SparseMatrix<double, Eigen::RowMajor, int>&& matrix) { return owned_scipy(std::move(matrix)); }
 
 }  // namespace ice_python

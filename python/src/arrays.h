@@ -47,6 +47,11 @@ Eigen::SparseMatrix<double> sparse_argument(const py::handle& matrix, const char
 /// moved to the heap and owned by the arrays.
 py::object to_scipy(Eigen::SparseMatrix<double>&& matrix);
 py::object to_scipy(Eigen::SparseMatrix<double, Eigen::RowMajor, int>&& matrix);
+/// The same viewing a compressed matrix that `owner` (a Python object) keeps alive, read-only: the
+/// matrices a CoarseSpace or Proxy holds, which its solvers use (a change through the view would
+/// make the two disagree).
+py::object scipy_view(const Eigen::SparseMatrix<double>& matrix, const py::handle& owner);
+py::object scipy_view(const Eigen::SparseMatrix<double, Eigen::RowMajor, int>& matrix, const py::handle& owner);
 /// A numpy array owning `values` (no copy).
 template <class T>
 py::array_t<T> to_numpy(std::vector<T>&& values) {

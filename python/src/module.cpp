@@ -6,8 +6,10 @@
 // documentation; nothing here computes anything the C++ tools do not.
 #include <algorithm>
 #include <cstdint>
+#include <cstring>
 #include <deque>
 #include <memory>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -56,6 +58,35 @@ Enum choice(const std::string& value, const char* name, std::initializer_list<st
   throw py::value_error(std::string(name) + " must be one of " + names + ", got '" + value + "'");
 }
 
+// Python numbers for keyword options, refused with the option's name when of another type (a
+// float where a count is meant, a string where a number is meant).
+long long integer_option(const py::handle& value, const char* name) {
+  if (PyBool_Check(value.ptr()) || !PyIndex_Check(value.ptr()))
+    throw py::type_error(std::string(name) + " must be an integer, got " + py::str(py::type::of(value)).cast<std::string>());
+  const py::int_ number = py::reinterpret_steal<py::int_>(PyNumber_Index(value.ptr()));
+  long long result = 0;
+  try {
+    result = number.cast<long long>();
+  } catch (const py::cast_error&) {
+    throw py::value_error(std::string(name) + " = " + py::str(py::handle(number)).cast<std::string>() + " is out of range");
+  }
+  return result;
+}
+double number_option(const py::handle& value, const char* name) {
+  if (PyBool_Check(value.ptr()) || !(PyFloat_Check(value.ptr()) || PyIndex_Check(value.ptr()) ||
+                                     py::isinstance(value, py::module_::import("numbers").attr("Real"))))
+    throw py::type_error(std::string(name) + " must be a number, got " + py::str(py::type::of(value)).cast<std::string>());
+  return value.cast<double>();
+}
+/// An integer option in [low, high], as the tools' integer_between.
+int bounded_integer(const py::handle& value, const char* name, long long low, long long high) {
+  const long long number = integer_option(value, name);
+  if (number < low || number > high)
+    throw py::value_error(std::string(name) + " = " + std::to_string(number) + " is out of range (valid " +
+                          std::to_string(low) + ".." + std::to_string(high) + ")");
+  return static_cast<int>(number);
+}
+
 ice::TriangleMesh mesh_argument(const py::handle& V, const py::handle& F) {
   ice::TriangleMesh mesh;
   mesh.V = positions_argument(V, "V");
@@ -89,7 +120,7 @@ Discretisation discretisation_argument(const py::object& V, const py::object& F,
     d.n = d.F.maxCoeff() + 1;
   }
   if (!n.is_none()) {
-    const auto count = n.cast<long long>();
+    const auto count = integer_option(n, "n");
     if (count < d.n)
       throw py::value_error("n = " + std::to_string(count) + " is smaller than the vertex count F uses (" +
                             std::to_string(d.n) + ")");
@@ -106,21 +137,30 @@ Discretisation discretisation_argument(const py::object& V, const py::object& F,
 // fingerprints of the last meshes found clean (or loaded from a file, which the loader validated)
 // are kept; a mesh is validated again whenever its content differs in any byte (a collision of the
 // 64-bit hash is the only way to skip a needed validation).
-std::uint64_t mesh_fingerprint(const ice::TriangleMesh& mesh) {
-  std::uint64_t hash = 0x9e3779b97f4a7c15ull ^ static_cast<std::uint64_t>(mesh.V.rows()) ^
-                       (static_cast<std::uint64_t>(mesh.F.rows()) << 32);
+std::uint64_t hash_bytes(const void* data, std::size_t bytes, std::uint64_t hash) {
   const auto mix = [&hash](std::uint64_t word) {
     hash ^= word + 0x9e3779b97f4a7c15ull + (hash << 6) + (hash >> 2);
     hash *= 0xff51afd7ed558ccdull;
     hash ^= hash >> 33;
   };
-  const auto* coordinates = reinterpret_cast<const std::uint64_t*>(mesh.V.data());
-  for (Eigen::Index i = 0; i < mesh.V.size(); ++i) mix(coordinates[i]);
-  const int* corners = mesh.F.data();
-  for (Eigen::Index i = 0; i + 1 < mesh.F.size(); i += 2)
-    mix(static_cast<std::uint32_t>(corners[i]) | (static_cast<std::uint64_t>(static_cast<std::uint32_t>(corners[i + 1])) << 32));
-  if (mesh.F.size() % 2 != 0) mix(static_cast<std::uint32_t>(corners[mesh.F.size() - 1]));
+  const auto* bytes_in = static_cast<const unsigned char*>(data);
+  std::size_t i = 0;
+  for (; i + 8 <= bytes; i += 8) {
+    std::uint64_t word;
+    std::memcpy(&word, bytes_in + i, 8);
+    mix(word);
+  }
+  std::uint64_t tail = 0;
+  std::memcpy(&tail, bytes_in + i, bytes - i);
+  mix(tail ^ (static_cast<std::uint64_t>(bytes) << 56));
   return hash;
+}
+std::uint64_t faces_fingerprint(const ice::Faces& F) {
+  return hash_bytes(F.data(), static_cast<std::size_t>(F.size()) * sizeof(int), 0x9e3779b97f4a7c15ull ^ static_cast<std::uint64_t>(F.rows()));
+}
+std::uint64_t mesh_fingerprint(const ice::TriangleMesh& mesh) {
+  return hash_bytes(mesh.V.data(), static_cast<std::size_t>(mesh.V.size()) * sizeof(double),
+                    faces_fingerprint(mesh.F) ^ (static_cast<std::uint64_t>(mesh.V.rows()) << 32));
 }
 
 class CleanMeshes {
@@ -205,14 +245,16 @@ struct PyCoarseSpace {
   ice::Positions positions;            ///< empty when loaded from a file
   ice::Index input_vertices = 0;
   bool has_space = false;              ///< built here (P, summary), not read from a file
-  py::object P_cache;
+  std::uint64_t faces_fingerprint = 0; ///< of the input's F, which a Proxy must be built on
+  /// P row by row, made on first access of .P, viewed (read-only) by the scipy matrix it returns.
+  std::optional<Eigen::SparseMatrix<double, Eigen::RowMajor, int>> P_rows;
 };
 
 // Calls a Python progress callback from the coarsener (on the calling thread, GIL released): with
 // the GIL, as a dict; Ctrl-C or an exception in the callback cancels, and is raised afterwards.
 struct ProgressBridge {
   py::object callback;
-  std::optional<py::error_already_set> error;
+  std::exception_ptr error;  ///< raised by the caller once the coarsener has returned
   bool operator()(const ice::CoarsenProgress& progress) {
     py::gil_scoped_acquire acquire;
     try {
@@ -224,9 +266,12 @@ struct ProgressBridge {
       state["removed"] = progress.removed;
       state["last_cost"] = progress.last_cost;
       const py::object answer = callback(state);
-      return answer.is_none() || answer.cast<bool>();
-    } catch (py::error_already_set& e) {
-      error = std::move(e);
+      if (answer.is_none()) return true;
+      const int truth = PyObject_IsTrue(answer.ptr());  // Python's own truth (an array's may raise)
+      if (truth < 0) throw py::error_already_set();
+      return truth != 0;
+    } catch (...) {  // nothing may cross the coarsener: stop it, raise afterwards
+      error = std::current_exception();
       return false;
     }
   }
@@ -236,7 +281,7 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
                                        const py::object& ratio, const py::object& max_error, const std::string& method,
                                        const std::string& use, const py::object& area_weight,
                                        const py::object& normalize_curvature, const py::object& locked,
-                                       bool remove_boundary, int threads, const std::string& qem_geometry,
+                                       bool remove_boundary, const py::object& threads, const std::string& qem_geometry,
                                        const py::object& refine_angle, double refine_budget, bool keep_map,
                                        bool locality_numbering, const py::object& progress) {
   const ice::TriangleMesh mesh = mesh_argument(V, F);
@@ -254,39 +299,44 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
   if (n.is_none() && ratio.is_none() && max_error.is_none())
     throw py::value_error("say how far to coarsen: n=N vertices, ratio=R (e.g. 0.05) or max_error=E");
   if (!n.is_none()) {
-    const auto target = n.cast<long long>();
+    const auto target = integer_option(n, "n");
     if (target < 1 || target > vertex_count)
       throw py::value_error("n = " + std::to_string(target) + " is out of range: the mesh has " +
                             std::to_string(vertex_count) + " vertices (valid 1.." + std::to_string(vertex_count) + ")");
     c.target_vertices = static_cast<ice::Index>(target);
   }
   if (!ratio.is_none()) {
-    c.target_ratio = ratio.cast<double>();
+    c.target_ratio = number_option(ratio, "ratio");
     if (!(c.target_ratio > 0 && c.target_ratio <= 1))
       throw py::value_error("ratio = " + std::to_string(c.target_ratio) + " is out of range: it must be in (0, 1], e.g. 0.05");
   }
   if (!max_error.is_none()) {
-    c.max_error = max_error.cast<double>();
+    c.max_error = number_option(max_error, "max_error");
     if (!(c.max_error >= 0)) throw py::value_error("max_error must be a number >= 0");
   }
   if (!area_weight.is_none()) {
-    c.area_weight = area_weight.cast<double>();
+    c.area_weight = number_option(area_weight, "area_weight");
     if (!(c.area_weight >= 0 && c.area_weight <= 1)) throw py::value_error("area_weight must be in [0, 1]");
   }
   if (!normalize_curvature.is_none()) c.normalize_curvature = normalize_curvature.cast<bool>();
   if (!locked.is_none()) c.locked_vertices = index_argument(locked, mesh.V.rows(), "locked");
   c.remove_boundary = remove_boundary;
-  if (threads < 0) throw py::value_error("threads must be >= 0 (0: one per core)");
-  c.threads = threads;
-  if (!refine_angle.is_none()) {
+  c.threads = bounded_integer(threads, "threads", 0, 64);  // the tools' --coarsen-threads range
+  // refine_angle: None or 0 = no refinement (as --refine-angle 0), else (0, 30] degrees.
+  const double angle = refine_angle.is_none() ? 0.0 : number_option(refine_angle, "refine_angle");
+  if (!(angle >= 0 && angle <= 30))
+    throw py::value_error("refine_angle = " + std::to_string(angle) + " is out of range: degrees in (0, 30], or 0 for none");
+  if (!(refine_budget >= 1 && refine_budget <= 1e6))
+    throw py::value_error("refine_budget = " + std::to_string(refine_budget) + " is out of range: [1, 1e6]");
+  if (angle > 0) {
     ice::RefinementOptions refinement;
-    refinement.min_angle_degrees = refine_angle.cast<double>();
+    refinement.min_angle_degrees = angle;
     refinement.max_vertex_ratio = refine_budget;
     options.refinement = refinement;
   }
   options.keep_method_state = keep_map;
   options.locality_numbering = locality_numbering;
-  ProgressBridge bridge{progress, std::nullopt};
+  ProgressBridge bridge{progress, nullptr};
   c.progress = [&bridge](const ice::CoarsenProgress& state) { return bridge(state); };
 
   auto result = std::make_shared<PyCoarseSpace>();
@@ -296,7 +346,7 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     require_clean(mesh);
     result->space = ice::build_coarse_space(mesh, options);
   }
-  if (bridge.error) throw *bridge.error;
+  if (bridge.error) std::rethrow_exception(bridge.error);
   {
     py::gil_scoped_release release;
     if (keep_map && !(options.method == ice::CoarseningMethod::qem &&
@@ -308,6 +358,7 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     result->positions = ice::coarse_vertex_positions(mesh, result->space);
   }
   result->has_space = true;
+  result->faces_fingerprint = faces_fingerprint(mesh.F);
   return result;
 }
 
@@ -361,13 +412,14 @@ py::object coarse_summary(const PyCoarseSpace& space) {
   return json_to_python(summary);
 }
 
-py::object prolongation(PyCoarseSpace& space) {
+py::object prolongation(const py::object& self) {
+  PyCoarseSpace& space = self.cast<PyCoarseSpace&>();
   if (!space.has_space) return py::none();
-  if (space.P_cache.is_none() || !space.P_cache) {
-    Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = space.space.P;
-    space.P_cache = to_scipy(std::move(rows));
+  if (!space.P_rows) {
+    space.P_rows.emplace(space.space.P);
+    space.P_rows->makeCompressed();
   }
-  return space.P_cache;
+  return scipy_view(*space.P_rows, self);
 }
 
 void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& file_path, bool overwrite, const std::string& comment) {
@@ -389,9 +441,9 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
   if (!coarse.has_space)
     throw py::value_error("this coarse space was read from a file and has no prolongation: coarsen the mesh to solve through it");
   const ice::TriangleMesh mesh = mesh_argument(V, F);
-  if (mesh.V.rows() != coarse.space.P.rows())
-    throw py::value_error("the mesh has " + std::to_string(mesh.V.rows()) + " vertices, the coarse space was made from " +
-                          std::to_string(coarse.space.P.rows()));
+  if (mesh.V.rows() != coarse.space.P.rows() || faces_fingerprint(mesh.F) != coarse.faces_fingerprint)
+    throw py::value_error("the coarse space was made from another mesh (" + std::to_string(coarse.space.P.rows()) +
+                          " vertices, other faces): build the Proxy on the (V, F) that was coarsened");
   const auto kind = choice<fem::CoarseOperatorKind>(
       operators, "operators", {{"galerkin", fem::CoarseOperatorKind::galerkin}, {"intrinsic", fem::CoarseOperatorKind::intrinsic}});
   const auto geometry = choice<ice::FineGeometry>(
@@ -403,6 +455,13 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
   result->proxy = std::make_unique<fem::CoarseProxy>(result->fine.F, result->fine.L, coarse.space.mesh.F,
                                                      coarse.space.mesh.L, coarse.space.P, kind, fem::MassKind::lumped);
   return result;
+}
+
+// A matrix the proxy owns, as scipy viewing its arrays (read-only; a copy if not compressed).
+py::object operator_view(const fem::SparseMatrix& matrix, const py::handle& owner) {
+  if (matrix.isCompressed()) return scipy_view(matrix, owner);
+  fem::SparseMatrix copy = matrix;
+  return to_scipy(std::move(copy));
 }
 
 fem::PolishOptions polish_options(int iterations, double tolerance) {
@@ -422,6 +481,14 @@ py::dict times_dict(const fem::ProxyPhaseTimes& times) {
   return d;
 }
 
+/// read() under `mutex`, waited for without the GIL (a solve holding the lock may need it to finish).
+template <class Read>
+auto locked(std::mutex& mutex, Read read) {
+  py::gil_scoped_release release;
+  const std::lock_guard<std::mutex> lock(mutex);
+  return read();
+}
+
 struct PyPoissonSolver {
   std::shared_ptr<PyProxy> proxy;  // the solver keeps a reference to it
   Eigen::Index fixed_count = 0;
@@ -429,6 +496,7 @@ struct PyPoissonSolver {
   fem::PolishOptions polish;
   fem::PolishReport last_polish;
   fem::ProxyPhaseTimes last_times;
+  std::mutex mutex;  // one solve at a time per object (they run without the GIL; polishing is not re-entrant)
 };
 struct PyHeatSolver {
   std::shared_ptr<PyProxy> proxy;
@@ -436,14 +504,25 @@ struct PyHeatSolver {
   fem::PolishOptions polish;
   fem::PolishReport last_polish;
   fem::ProxyPhaseTimes last_times;
+  std::mutex mutex;
 };
 struct PyGeodesicSolver {
   std::shared_ptr<PyProxy> proxy;
   std::unique_ptr<fem::ProxyGeodesicSolver> solver;
   fem::ProxyPhaseTimes last_times;
+  std::mutex mutex;
 };
 
 // ---- multigrid -----------------------------------------------------------------------------------
+
+/// The solver and the lock that makes one object safe to share between Python threads (its calls run
+/// without the GIL; the library's solver is not re-entrant).
+struct PyMultigrid {
+  PyMultigrid(std::vector<fem::SparseMatrix> prolongations, const fem::MultigridOptions& options)
+      : solver(std::move(prolongations), options) {}
+  fem::MultigridSolver solver;
+  std::mutex mutex;
+};
 
 fem::MultigridOptions multigrid_options(double tolerance, int max_iterations, const std::string& mode,
                                         const std::string& smoother, int smoothing_steps, int threads) {
@@ -460,16 +539,6 @@ fem::MultigridOptions multigrid_options(double tolerance, int max_iterations, co
   return options;
 }
 
-py::dict multigrid_report(const fem::MultigridReport& r) {
-  py::dict d;
-  d["converged"] = r.converged;
-  d["iterations"] = r.iterations;
-  d["relative_residual"] = r.relative_residual;
-  d["convergence_factor"] = r.convergence_factor;
-  d["residuals"] = r.residuals;
-  d["seconds"] = r.seconds;
-  return d;
-}
 
 }  // namespace
 
@@ -668,22 +737,18 @@ triangles or their "intrinsic_delaunay" triangulation), coarse operators "galerk
       .def_property_readonly("fine_faces", [](const PyProxy& p) { return p.fine.F; }, "Faces of the fine discretisation (the input's, or its intrinsic Delaunay triangulation's).")
       .def_property_readonly("fine_lengths", [](const PyProxy& p) { return p.fine.L; }, "Edge lengths of the fine discretisation.")
       .def_property_readonly("fine_flips", [](const PyProxy& p) { return p.fine.flips; }, "Intrinsic Delaunay flips made on the fine mesh.")
-      .def_property_readonly("fine_laplacian", [](const PyProxy& p) {
-        Eigen::SparseMatrix<double> L = p.proxy->fine_laplacian();
-        return to_scipy(std::move(L));
-      }, "The fine cotan Laplacian (scipy.sparse, assembled on first use for intrinsic operators).")
-      .def_property_readonly("fine_mass", [](const PyProxy& p) {
-        Eigen::SparseMatrix<double> M = p.proxy->fine_mass();
-        return to_scipy(std::move(M));
-      }, "The fine lumped mass matrix.")
-      .def_property_readonly("coarse_laplacian", [](const PyProxy& p) {
-        Eigen::SparseMatrix<double> L = p.proxy->coarse_laplacian();
-        return to_scipy(std::move(L));
-      }, "The coarse Laplacian (PᵀLP for Galerkin operators).")
-      .def_property_readonly("coarse_mass", [](const PyProxy& p) {
-        Eigen::SparseMatrix<double> M = p.proxy->coarse_mass();
-        return to_scipy(std::move(M));
-      }, "The coarse mass matrix (PᵀMP for Galerkin operators).")
+      .def_property_readonly("fine_laplacian", [](const py::object& self) {
+        return operator_view(self.cast<PyProxy&>().proxy->fine_laplacian(), self);
+      }, "The fine cotan Laplacian (scipy.sparse, assembled on first use for intrinsic operators) (read-only view)")
+      .def_property_readonly("fine_mass", [](const py::object& self) {
+        return operator_view(self.cast<PyProxy&>().proxy->fine_mass(), self);
+      }, "The fine lumped mass matrix (read-only view)")
+      .def_property_readonly("coarse_laplacian", [](const py::object& self) {
+        return operator_view(self.cast<PyProxy&>().proxy->coarse_laplacian(), self);
+      }, "The coarse Laplacian (PᵀLP for Galerkin operators) (read-only view)")
+      .def_property_readonly("coarse_mass", [](const py::object& self) {
+        return operator_view(self.cast<PyProxy&>().proxy->coarse_mass(), self);
+      }, "The coarse mass matrix (PᵀMP for Galerkin operators) (read-only view)")
       .def("prolong", [](const PyProxy& p, const py::object& values) {
         const Eigen::VectorXd coarse = vector_argument(values, p.proxy->coarse_size(), "values");
         return p.proxy->prolong(coarse);
@@ -723,12 +788,13 @@ error `tolerance` (poisson-coarse --polish/--tolerance). Factors once; solve() a
                fixed_values = vector_argument(values, s.fixed_count, "values");
              }
              py::gil_scoped_release release;
+             const std::lock_guard<std::mutex> lock(s.mutex);
              return s.solver->solve(view(rhs), fixed_values, &s.last_times, &s.last_polish);
            }, py::arg("f"), py::arg("values") = py::none(),
            "u for the nodal source f (n,); values: the Dirichlet values, aligned with `fixed` (default zeros).")
-      .def_property_readonly("polish_report", [](const PyPoissonSolver& s) { return json_to_python(app::polish_json(s.polish, s.last_polish)); },
+      .def_property_readonly("polish_report", [](PyPoissonSolver& s) { return json_to_python(locked(s.mutex, [&] { return app::polish_json(s.polish, s.last_polish); })); },
                              "What polishing did in the last solve (iterations, estimated errors, seconds).")
-      .def_property_readonly("times", [](const PyPoissonSolver& s) { return times_dict(s.last_times); },
+      .def_property_readonly("times", [](PyPoissonSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last solve's stages (restriction, coarse_solve, prolongation).")
       .def_property_readonly("is_zero_mean", [](const PyPoissonSolver& s) { return s.solver->is_zero_mean(); }, "True without fixed vertices (zero-mean Neumann).");
 
@@ -757,11 +823,12 @@ ProxyPoissonSolver, per step.)doc")
              const auto initial = vector_values(u0, s.proxy->proxy->fine_size(), "u0");  // read in place
              if (steps < 1) throw py::value_error("steps must be >= 1");
              py::gil_scoped_release release;
+             const std::lock_guard<std::mutex> lock(s.mutex);
              return s.solver->integrate(view(initial), steps, &s.last_times, &s.last_polish);
            }, py::arg("u0"), py::arg("steps") = 1, "The state after `steps` steps of time_step from nodal values u0.")
-      .def_property_readonly("polish_report", [](const PyHeatSolver& s) { return json_to_python(app::polish_json(s.polish, s.last_polish)); },
+      .def_property_readonly("polish_report", [](PyHeatSolver& s) { return json_to_python(locked(s.mutex, [&] { return app::polish_json(s.polish, s.last_polish); })); },
                              "What polishing did in the last integrate().")
-      .def_property_readonly("times", [](const PyHeatSolver& s) { return times_dict(s.last_times); },
+      .def_property_readonly("times", [](PyHeatSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last integrate()'s stages.");
 
   py::class_<PyGeodesicSolver>(m, "ProxyGeodesicSolver", R"doc(Heat-method geodesic distance through the coarse proxy (geodesic-coarse).
@@ -781,23 +848,22 @@ For the most accurate distances coarsen with use="geodesic". The mesh must be co
              const std::vector<ice::Index> fine_sources = index_argument(sources, s.proxy->proxy->fine_size(), "sources");
              if (fine_sources.empty()) throw py::value_error("sources is empty");
              py::gil_scoped_release release;
+             const std::lock_guard<std::mutex> lock(s.mutex);
              return s.solver->distance(fine_sources, &s.last_times);
            }, py::arg("sources"), "Distance of every vertex to the nearest of `sources` (vertex indices).")
-      .def_property_readonly("times", [](const PyGeodesicSolver& s) { return times_dict(s.last_times); },
+      .def_property_readonly("times", [](PyGeodesicSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last distance()'s stages.");
 
   // ---- multigrid
   m.def(
       "hierarchy",
-      [](const py::object& V, const py::object& F, double ratio, long long coarsest, int max_levels) {
+      [](const py::object& V, const py::object& F, double ratio, const py::object& coarsest, const py::object& max_levels) {
         const ice::TriangleMesh mesh = mesh_argument(V, F);
         if (!(ratio > 0 && ratio < 1)) throw py::value_error("ratio must be in (0, 1)");
-        if (coarsest < 1) throw py::value_error("coarsest must be >= 1");
-        if (max_levels < 1) throw py::value_error("max_levels must be >= 1");
         ice::HierarchyOptions options;
         options.ratio = ratio;
-        options.coarsest_vertices = static_cast<ice::Index>(coarsest);
-        options.max_levels = max_levels;
+        options.coarsest_vertices = bounded_integer(coarsest, "coarsest", 1, std::numeric_limits<int>::max());
+        options.max_levels = bounded_integer(max_levels, "max_levels", 1, 1000);
         ice::Hierarchy hierarchy;
         {
           py::gil_scoped_release release;
@@ -817,62 +883,73 @@ For the most accurate distances coarsen with use="geodesic". The mesh must be co
 summing to 1): each level keeps about `ratio` of the previous one's vertices, down to about `coarsest`.
 Pass them to MultigridSolver; one hierarchy serves every operator on the mesh's vertices.)doc");
 
-  py::class_<fem::MultigridSolver>(m, "MultigridSolver", R"doc(Galerkin multigrid on given prolongations (ice.hierarchy) for symmetric positive definite systems.
+  py::class_<PyMultigrid>(m, "MultigridSolver", R"doc(Galerkin multigrid on given prolongations (ice.hierarchy) for symmetric positive definite systems.
 
 MultigridSolver(prolongations, tolerance=1e-8, max_iterations=200, mode="pcg"|"vcycle",
-smoother="sgs"|"gs"|"chebyshev", smoothing_steps=1, threads=0), then setup(A) and solve(b).)doc")
+smoother="sgs"|"gs"|"chebyshev", smoothing_steps=1, threads=0), then setup(A) and solve(b). One
+object serves one thread at a time (calls from several threads wait for each other).)doc")
       .def(py::init([](const py::list& prolongations, double tolerance, int max_iterations, const std::string& mode,
                        const std::string& smoother, int smoothing_steps, int threads) {
              std::vector<fem::SparseMatrix> matrices;
-             for (const py::handle P : prolongations) matrices.push_back(sparse_argument(P, "prolongations[k]", false));
-             return std::make_unique<fem::MultigridSolver>(
+             for (std::size_t k = 0; k < prolongations.size(); ++k)
+               matrices.push_back(sparse_argument(prolongations[k], ("prolongations[" + std::to_string(k) + "]").c_str(), false));
+             return std::make_unique<PyMultigrid>(
                  std::move(matrices), multigrid_options(tolerance, max_iterations, mode, smoother, smoothing_steps, threads));
            }),
            py::arg("prolongations"), py::kw_only(), py::arg("tolerance") = 1e-8, py::arg("max_iterations") = 200,
            py::arg("mode") = "pcg", py::arg("smoother") = "sgs", py::arg("smoothing_steps") = 1, py::arg("threads") = 0)
-      .def("setup", [](fem::MultigridSolver& s, const py::object& A, const py::object& constrained) {
+      .def("setup", [](PyMultigrid& m, const py::object& A, const py::object& constrained) {
              fem::SparseMatrix matrix = sparse_argument(A, "A", true);
              std::vector<ice::Index> fixed;
              if (!constrained.is_none()) fixed = index_argument(constrained, matrix.rows(), "constrained");
              py::gil_scoped_release release;
-             s.setup(matrix, std::move(fixed));
+             const std::lock_guard<std::mutex> lock(m.mutex);
+             m.solver.setup(matrix, std::move(fixed));
            }, py::arg("A"), py::arg("constrained") = py::none(),
            R"doc(Galerkin level operators of A (scipy.sparse or dense, n×n, n = rows of the first prolongation) and
-the coarsest factorisation; `constrained`: indices whose values solve() prescribes (eliminated).)doc")
-      .def("solve", [](fem::MultigridSolver& s, const py::object& b, const py::object& constrained_values,
-                       const py::object& x0) {
-             if (s.size() == 0) throw py::value_error("call setup(A) first");
-             const Eigen::VectorXd rhs = vector_argument(b, s.size(), "b");
+the coarsest factorisation; `constrained`: indices (each once) whose values solve() prescribes, in this order.)doc")
+      .def("solve", [](PyMultigrid& m, const py::object& b, const py::object& constrained_values, const py::object& x0) {
+             Eigen::Index size = 0, constrained = 0;
+             {
+               py::gil_scoped_release release;
+               const std::lock_guard<std::mutex> lock(m.mutex);
+               size = m.solver.size();
+               constrained = static_cast<Eigen::Index>(m.solver.constrained().size());
+             }
+             if (size == 0) throw py::value_error("call setup(A) first");
+             const Eigen::VectorXd rhs = vector_argument(b, size, "b");
              Eigen::VectorXd values, guess;
-             if (!constrained_values.is_none())
-               values = vector_argument(constrained_values, static_cast<Eigen::Index>(s.constrained().size()), "constrained_values");
-             if (!x0.is_none()) guess = vector_argument(x0, s.size(), "x0");
+             if (!constrained_values.is_none()) values = vector_argument(constrained_values, constrained, "constrained_values");
+             if (!x0.is_none()) guess = vector_argument(x0, size, "x0");
              py::gil_scoped_release release;
-             return x0.is_none() ? s.solve(rhs, values) : s.solve(rhs, values, guess);
+             const std::lock_guard<std::mutex> lock(m.mutex);
+             if (m.solver.size() != size) throw std::invalid_argument("the solver was set up again with another size meanwhile");
+             return x0.is_none() ? m.solver.solve(rhs, values) : m.solver.solve(rhs, values, guess);
            }, py::arg("b"), py::arg("constrained_values") = py::none(), py::arg("x0") = py::none(),
            "x with A x = b to the relative residual tolerance (report says how it went); x0: initial guess.")
-      .def_property_readonly("report", [](const fem::MultigridSolver& s) { return multigrid_report(s.report()); },
-                             "The last solve: converged, iterations, relative_residual, convergence_factor, residuals, seconds.")
-      .def_property_readonly("levels", [](const fem::MultigridSolver& s) {
-        py::list levels;
-        for (const auto& info : s.level_info()) {
-          py::dict level;
-          level["unknowns"] = info.unknowns;
-          level["nonzeros"] = info.nonzeros;
-          levels.append(level);
-        }
-        return levels;
-      }, "Unknowns and non-zeros of each level's operator.")
-      .def_property_readonly("operator_complexity", &fem::MultigridSolver::operator_complexity, "Non-zeros of all level operators over those of the finest.")
-      .def_property_readonly("setup_seconds", &fem::MultigridSolver::setup_seconds, "Seconds of the last setup().")
-      .def_property_readonly("size", &fem::MultigridSolver::size, "Unknowns of the system set up (0 before setup()).");
+      .def_property_readonly("report", [](PyMultigrid& m) {
+             nlohmann::json report;
+             {
+               py::gil_scoped_release release;
+               const std::lock_guard<std::mutex> lock(m.mutex);
+               report = app::multigrid_json(m.solver);
+             }
+             return json_to_python(report);
+           }, "The last solve and the set-up, as poisson-coarse --solver multigrid reports them: converged, iterations, "
+              "relative_residual, convergence_factor, residuals, seconds, options, levels, operator_complexity.")
+      .def_property_readonly("size", [](PyMultigrid& m) {
+             py::gil_scoped_release release;
+             const std::lock_guard<std::mutex> lock(m.mutex);
+             return m.solver.size();
+           }, "Unknowns of the system set up (0 before setup()).");
 
   // ---- the distance oracle
   py::class_<fem::DistanceOracle>(m, "DistanceOracle", R"doc(All-pairs geodesic distances of the fine vertices from the coarse mesh (geodesic-coarse --pairs).
 
 DistanceOracle(coarse, method="marching"|"heat", heat_time_factor=1.0, threads=0): precomputes the
 coarse all-pairs distances (n_c² floats); each query then costs a few operations. Needs the coarse
-space's map (coarsen(..., keep_map=True), the default).)doc")
+space's map (coarsen(..., keep_map=True), the default); coarsen with use="geodesic" for the metric
+measured best for distances (what geodesic-coarse does).)doc")
       .def(py::init([](const PyCoarseSpace& coarse, const std::string& method, double heat_time_factor, int threads) {
              if (coarse.map.empty())
                throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "

@@ -19,6 +19,11 @@ def extended_meshes() -> pathlib.Path:
                         or pathlib.Path(__file__).resolve().parents[3] / "shared" / "data" / "meshes")
 
 
+def pytest_configure(config):
+    # Debian's dask.distributed (2022.12) on its tornado: a deprecation inside tornado, not ours.
+    config.addinivalue_line("filterwarnings", "ignore:make_current is deprecated:DeprecationWarning")
+
+
 @pytest.fixture(scope="session")
 def project_mesh():
     """Path of a mesh of the project set (data/default, made by scripts/setup.sh)."""

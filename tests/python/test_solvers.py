@@ -144,7 +144,9 @@ def test_multigrid_on_a_scipy_matrix(spot):
     x = solver.solve(b)
     assert solver.report["converged"] and solver.report["iterations"] < 30
     assert np.abs(x - scipy.sparse.linalg.spsolve(A.tocsc(), b)).max() < 1e-7 * np.abs(x).max()
-    assert len(solver.levels) == len(prolongations) + 1
+    report = solver.report  # the keys of poisson-coarse --solver multigrid
+    assert len(report["levels"]) == len(prolongations) + 1 and report["tolerance"] == 1e-10
+    assert report["cycle"] == "pcg" and report["operator_complexity"] > 1
     with pytest.raises(ValueError, match="square"):
         solver.setup(A[:, :-1])
     with pytest.raises(ValueError, match="b must have"):
@@ -173,3 +175,90 @@ def test_distance_oracle(spot):
     assert D.dtype == np.float32 and D.shape == (10, 10) and np.allclose(D, D.T)
     with pytest.raises(ValueError, match="pairs"):
         oracle.distances(np.array([[0, V.shape[0]]]))
+
+
+def test_dirichlet_values_follow_the_order_of_fixed(spot, project_mesh):
+    """Values belong to the vertices in the caller's order, for ICE and QEM, plain and polished."""
+    V, F, _ = spot
+    fixed = np.array([1385, 1499, 7, 2000])  # not sorted, and QEM numbers its coarse vertices otherwise
+    values = np.array([1.0, -1.0, 0.5, 2.0])
+    for method in ("ice", "qem"):
+        coarse = ice.coarsen(V, F, ratio=0.05, locked=fixed, method=method)
+        proxy = ice.Proxy(V, F, coarse)
+        for polish in (0, 50):
+            u = ice.ProxyPoissonSolver(proxy, fixed=fixed, polish=polish).solve(np.zeros(len(V)), values)
+            assert np.array_equal(u[fixed], values), (method, polish)
+    u = ice.solve_poisson(V, F, np.zeros(len(V)), fixed=fixed[::-1], values=values[::-1], ratio=0.05, locked=[3])
+    assert np.array_equal(u[fixed], values)
+    with pytest.raises(ValueError, match="given twice"):
+        ice.ProxyPoissonSolver(proxy, fixed=[7, 1385, 7])
+    L = ice.cotan_laplacian(V, F) + ice.mass_matrix(V, F)
+    solver = ice.MultigridSolver(ice.hierarchy(V, F))
+    solver.setup(L, constrained=[10, 3])
+    x = solver.solve(np.zeros(len(V)), [2.0, 1.0])
+    assert x[10] == 2.0 and x[3] == 1.0
+    with pytest.raises(ValueError, match="given twice"):
+        solver.setup(L, constrained=[3, 10, 3])
+
+
+def test_disconnected_meshes_are_refused_clearly(project_mesh):
+    V, F = ice.load_mesh(project_mesh("blobby_3cc.off"))
+    proxy = ice.Proxy(V, F, ice.coarsen(V, F, ratio=0.1))
+    with pytest.raises(ValueError, match="3 connected components"):
+        ice.ProxyPoissonSolver(proxy)
+    with pytest.raises(ValueError, match="3 connected components"):
+        ice.ProxyGeodesicSolver(proxy)
+    u = ice.ProxyHeatSolver(proxy, 1e-3).integrate(V[:, 0])  # heat flow has no pinned vertex: fine
+    assert np.isfinite(u).all()
+
+
+def test_a_proxy_needs_the_mesh_that_was_coarsened(spot):
+    V, F, coarse = spot
+    order = np.random.default_rng(0).permutation(len(V))
+    inverse = np.argsort(order)
+    with pytest.raises(ValueError, match="another mesh"):
+        ice.Proxy(V[order], inverse[F], coarse)  # the same surface, renumbered
+
+
+def test_shared_matrices_are_read_only_views(spot):
+    V, F, coarse = spot
+    P = coarse.P
+    with pytest.raises(ValueError):
+        P.data[0] = 2.0
+    assert coarse.P.data.base is not None and np.shares_memory(coarse.P.data, P.data)  # one buffer, no copy
+    proxy = ice.Proxy(V, F, coarse)
+    L1, L2 = proxy.fine_laplacian, proxy.fine_laplacian
+    assert np.shares_memory(L1.data, L2.data) and not L1.data.flags.writeable
+    Q = 2 * P  # arithmetic makes new, writable matrices
+    Q.data[0] = 1.0
+    del proxy, coarse
+    assert np.isfinite(L1.data).all() and abs(P.sum() - len(V)) < 1e-9  # the views keep their owners alive
+
+
+def test_one_solver_shared_by_threads(spot):
+    """Solver objects may be shared: calls from several threads wait for each other and agree."""
+    import threading
+    V, F, coarse = spot
+    proxy = ice.Proxy(V, F, coarse)
+    poisson = ice.ProxyPoissonSolver(proxy, polish=5)  # polishing is the part that is not re-entrant
+    multigrid = ice.MultigridSolver(ice.hierarchy(V, F))
+    A = ice.cotan_laplacian(V, F) + ice.mass_matrix(V, F)
+    multigrid.setup(A)
+    rhs = [np.cos(k * V[:, 0]) for k in range(1, 5)]
+    expected = [(poisson.solve(f), multigrid.solve(f)) for f in rhs]
+    results, errors = [None] * 8, []
+
+    def work(i):
+        try:
+            f = rhs[i % 4]
+            results[i] = (poisson.solve(f), multigrid.solve(f))
+        except Exception as error:  # noqa: BLE001 - reported below
+            errors.append(error)
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    for i, (u, x) in enumerate(results):
+        assert np.array_equal(u, expected[i % 4][0]) and np.array_equal(x, expected[i % 4][1])

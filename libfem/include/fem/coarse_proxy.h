@@ -170,8 +170,8 @@ class ProxyPoissonSolver {
  public:
   /// Factors the coarse system; with `polish` enabled also sets up the fine two-level cycle (the
   /// fine Laplacian, PᵀLP and its factorisation, smoother data; see PolishOptions). Throws
-  /// std::invalid_argument if a Dirichlet vertex is out of range or not a coarse vertex, and
-  /// NotPositiveDefinite on a disconnected coarse mesh in zero-mean mode.
+  /// std::invalid_argument if a Dirichlet vertex is out of range, repeated or not a coarse vertex, or
+  /// the coarse mesh is disconnected in zero-mean mode (fem/topology.h, require_connected).
   explicit ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Index> dirichlet_vertices = {},
                               PolishOptions polish = {});
   /// Fine nodal source f → fine solution. `dirichlet_values` align with the Dirichlet vertices (empty:

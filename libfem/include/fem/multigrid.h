@@ -124,7 +124,7 @@ class MultigridSolver {
   MultigridSolver& operator=(MultigridSolver&&) noexcept;
 
   /// Builds the levels for A (n_0 × n_0, symmetric; A_FF positive definite) with x prescribed at
-  /// `constrained` (indices in range, duplicates merged): restricted prolongations, Galerkin
+  /// `constrained` (indices in range, each at most once; values follow this order): restricted prolongations, Galerkin
   /// operators, smoother data, coarsest factorisation (analysis + numeric). Throws
   /// std::invalid_argument on bad sizes or indices, NotPositiveDefinite if the coarsest operator is
   /// not positive definite.

@@ -20,7 +20,8 @@ namespace fem {
 /// Solves A x = b where x is prescribed on a set of "constrained" indices, eliminating them:
 /// A_FF x_F = b_F − A_FC x_C over the free indices F. The rows of b at constrained indices are
 /// ignored. A_FF is factored once. Precondition: A_FF symmetric positive definite (throws
-/// NotPositiveDefinite otherwise); constrained indices in range (duplicates are merged).
+/// NotPositiveDefinite otherwise); constrained indices in range, each at most once (std::invalid_argument
+/// otherwise); constrained values are taken in the order of `constrained`.
 class ConstrainedSolver {
  public:
   /// `ordering`: the fill-reducing ordering of A_FF's factorisation (fem/cholesky.h).
@@ -65,7 +66,7 @@ struct PoissonMultigrid {
 ///    (b ← b − M1·(1ᵀb)/(1ᵀM1), i.e. f minus its area-weighted mean), one vertex is pinned to 0,
 ///    and the solution is re-centred to zero mass-weighted mean (1ᵀM u = 0). Because b is compatible,
 ///    the pinned solution satisfies every equation, so pinning introduces no error. The mesh must be
-///    connected (otherwise NotPositiveDefinite).
+///    connected (otherwise std::invalid_argument, saying how many components it has).
 class PoissonSolver {
  public:
   /// Without `multigrid`, CHOLMOD (exact) with the fill-reducing `ordering` (CHOLMOD's default
