@@ -38,7 +38,8 @@ as_root() {
 # and, through it, Boost/GMP/MPFR headers. libhypre-dev (which pulls OpenMPI) is only for the
 # BoomerAMG comparison in bench/bench_multigrid.cpp; the build works without it. The Python
 # package (python/) is built with pybind11 against Debian's python3 and tested with its numpy,
-# scipy, pytest and matplotlib (the example draws a picture).
+# scipy, pytest and matplotlib (the example draws a picture); ice-batch runs on Dask distributed
+# (python3-dask, python3-distributed; tqdm for its progress bar, psutil for its tests).
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev
@@ -46,6 +47,7 @@ PACKAGES=(
   libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox
   libcgal-demo libhypre-dev xz-utils
   pybind11-dev python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
+  python3-dask python3-distributed python3-tqdm python3-psutil
 )
 
 is_installed() {

@@ -69,6 +69,9 @@ def test_installed_package_imports_and_solves(tmp_path, project_mesh):
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
                             env={**os.environ, "PYTHONPATH": str(site)})
     assert result.stdout.startswith(str(site)) and float(result.stdout.split()[1]) > 0
+    batch_help = subprocess.run([str(tmp_path / "bin" / "ice-batch"), "--help"], capture_output=True, text=True,
+                                check=True, env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
+    assert "--scheduler" in batch_help.stdout
 
 
 def test_readme_example_runs():

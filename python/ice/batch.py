@@ -1,0 +1,484 @@
+"""Coarsen whole mesh datasets: resumable batch runs on one machine or a Dask cluster.
+
+    ice-batch INPUT -o OUT --ratio 0.05 [--workers 2 | --scheduler tcp://HOST:PORT] [options]
+    python3 -m ice.batch INPUT -o OUT --ratio 0.05
+
+INPUT is a directory (searched recursively for .obj .off .ply .stl), a glob pattern ('scans/**/*.ply',
+quoted), or a text file listing mesh paths (one a line, '#' comments). For each mesh the output tree
+mirrors the input: OUT/<relative path>.ilm (the coarse intrinsic mesh), <...>.npz (P as CSR arrays
+and the fine-to-coarse map: ``ice.batch.load_result`` reads both back) and <...>.json (a one-line
+record: sizes, stop reason, seconds, the options' hash, or the error). OUT/records.jsonl gathers the
+records and OUT/summary.csv one line per mesh; a summary is printed at the end.
+
+Safety: every file is written to a temporary name and renamed, the record last, so a mesh either has
+a complete result or none. A rerun skips the meshes whose record has the same options hash, the same
+input (size and modification time) and its outputs (a failure that depends only on the input, a
+refused or unreadable file, is not retried either); a changed option redoes every mesh. Files in OUT
+that a batch did not write are never replaced without --force, and an output that would replace an
+input mesh is refused before any work.
+
+Isolation: each mesh runs in a worker process of Dask distributed (a LocalCluster of --workers
+processes by default). A defective or failing mesh becomes an error record with the tools' message;
+a mesh over --timeout seconds is cancelled (at the next progress report of the coarsener) and
+recorded; a worker that dies (crash, --memory-limit) loses its tasks to Dask, which reruns them on
+another worker (up to 3 times, Dask's allowed-failures), and a mesh that kills every worker it runs on
+is recorded as crashed. The batch itself never stops for one mesh.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import glob
+import hashlib
+import io
+import json
+import os
+import pathlib
+import statistics
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse
+
+MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
+RECORD_VERSION = 1
+# Coarsening options that a batch passes to ice.coarsen (and hashes).
+COARSEN_OPTIONS = ("n", "ratio", "max_error", "method", "use", "area_weight", "normalize_curvature",
+                   "remove_boundary", "threads", "qem_geometry", "refine_angle", "refine_budget")
+# What ice.coarsen does when an option is not given: a record's hash is of the options with these
+# filled in, so {"ratio": 0.05} and {"ratio": 0.05, "method": "ice"} are the same run.
+COARSEN_DEFAULTS = {"method": "ice", "use": "poisson_heat", "remove_boundary": True, "threads": 1,
+                    "qem_geometry": "extrinsic", "refine_budget": 1.5}
+# Failures that depend only on the input file: not retried by a rerun with the same input.
+DETERMINISTIC_ERRORS = ("unreadable", "defective", "invalid")
+
+
+# ---- the manifest ---------------------------------------------------------------------------------
+
+@dataclass
+class Job:
+    """One mesh: its path and where its outputs go (relative to the output folder, no extension)."""
+    path: pathlib.Path
+    relative: str
+    size: int = 0
+    mtime_ns: int = 0
+
+
+def _is_mesh(path: pathlib.Path) -> bool:
+    return path.suffix.lower() in MESH_EXTENSIONS and path.is_file()
+
+
+def manifest(source: str) -> tuple[list[Job], pathlib.Path]:
+    """The meshes of `source` (a directory, a glob pattern or a list file) and their common root."""
+    root: pathlib.Path
+    given = pathlib.Path(source)
+    if given.is_dir():
+        root = given
+        paths = sorted(p for p in given.rglob("*") if _is_mesh(p))
+    elif given.is_file() and given.suffix.lower() not in MESH_EXTENSIONS:
+        paths = []
+        for number, line in enumerate(given.read_text().splitlines(), 1):
+            line = line.split("#", 1)[0].strip()
+            if not line:
+                continue
+            entry = pathlib.Path(line)
+            if not entry.is_absolute():
+                entry = given.parent / entry
+            paths.append(entry)  # missing files become error records, not a refusal of the batch
+        root = pathlib.Path(os.path.commonpath([p.resolve().parent for p in paths])) if paths else given.parent
+    elif given.is_file():
+        root, paths = given.parent, [given]
+    else:
+        paths = sorted(pathlib.Path(p) for p in glob.glob(source, recursive=True) if _is_mesh(pathlib.Path(p)))
+        magic = min((i for i, c in enumerate(source) if c in "*?["), default=len(source))
+        root = pathlib.Path(source[:magic]).parent if paths else pathlib.Path(".")
+    if not paths:
+        raise ValueError(f"{source}: no meshes found (a directory, a glob pattern or a file listing mesh paths; "
+                         f"extensions {', '.join(MESH_EXTENSIONS)})")
+    jobs, seen = [], set()
+    for p in paths:
+        try:
+            relative = str(p.resolve().relative_to(root.resolve()))
+        except ValueError:
+            relative = p.name
+        if relative in seen:
+            raise ValueError(f"{source}: two inputs map to the same output {relative}")
+        seen.add(relative)
+        job = Job(p, relative)
+        try:
+            stat = p.stat()
+            job.size, job.mtime_ns = stat.st_size, stat.st_mtime_ns
+        except OSError:
+            pass
+        jobs.append(job)
+    return jobs, root
+
+
+# ---- one mesh -------------------------------------------------------------------------------------
+
+def canonical_options(coarsen: dict) -> dict:
+    """The coarsening options as ice.coarsen will use them (defaults filled in, None dropped)."""
+    unknown = set(coarsen) - set(COARSEN_OPTIONS)
+    if unknown:
+        raise ValueError(f"unknown coarsening options {sorted(unknown)} (known: {', '.join(COARSEN_OPTIONS)})")
+    return {**COARSEN_DEFAULTS, **{k: v for k, v in coarsen.items() if v is not None}}
+
+
+def options_hash(options: dict) -> str:
+    """What a record is valid for: the coarsening options, repair, and the package version."""
+    from . import __version__
+    text = json.dumps({"options": options, "version": __version__, "record": RECORD_VERSION}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def output_paths(out: pathlib.Path, relative: str) -> dict[str, pathlib.Path]:
+    base = out / relative
+    return {"ilm": base.with_name(base.name + ".ilm"), "npz": base.with_name(base.name + ".npz"),
+            "record": base.with_name(base.name + ".json")}
+
+
+def _atomic_write(path: pathlib.Path, write) -> None:
+    """write(temporary path), then rename over `path`: readers see the old file or the whole new one."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    os.close(handle)
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        raise
+
+
+def _error_kind(error: BaseException) -> str:
+    from . import MeshError
+    if isinstance(error, MeshError):
+        return error.kind
+    if isinstance(error, (ValueError, TypeError)):
+        return "invalid"
+    if isinstance(error, MemoryError):
+        return "memory"
+    return "failed"
+
+
+def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool, timeout: float | None,
+                 input_size: int, input_mtime_ns: int) -> dict:
+    """Coarsens one mesh file and writes its outputs and record; returns the record. Never raises for
+    a problem of the mesh: that becomes an error record. Runs in a worker process."""
+    import ice
+    started = time.perf_counter()
+    paths = output_paths(pathlib.Path(out), relative)
+    record = {"input": path, "output": relative, "hash": options_hash({**options, "repair": repair}),
+              "input_size": input_size, "input_mtime_ns": input_mtime_ns}
+    try:
+        loaded = ice.load_mesh(path, repair=repair)
+        record["vertices"], record["faces"] = int(loaded.V.shape[0]), int(loaded.F.shape[0])
+        record["repairs"] = loaded.repairs
+        deadline = None if timeout is None else started + timeout
+        timed_out = []
+
+        def progress(state):
+            if deadline is not None and time.perf_counter() > deadline:
+                timed_out.append(True)
+                return False
+            return True
+        coarse = ice.coarsen(loaded.V, loaded.F, progress=progress, **options)
+        if timed_out:
+            raise TimeoutError(f"{path}: coarsening passed the timeout of {timeout:g} s "
+                               f"(at {coarse.n_vertices} vertices); cancelled")
+        P = coarse.P
+        face, bary, coarse_vertex = coarse.map if coarse.map is not None else (None, None, None)
+        arrays = {"P_data": P.data, "P_indices": P.indices, "P_indptr": P.indptr, "P_shape": np.array(P.shape),
+                  "to_input": coarse.to_input, "source_vertex": loaded.source_vertex}
+        if face is not None:
+            arrays.update(map_face=face, map_bary=bary, map_coarse_vertex=coarse_vertex)
+
+        def write_npz(temporary):
+            with open(temporary, "wb") as file:
+                np.savez(file, **arrays)
+        _atomic_write(paths["ilm"], lambda temporary: coarse.save(temporary, overwrite=True))
+        _atomic_write(paths["npz"], write_npz)
+        summary = coarse.summary
+        record.update(status="ok", coarse_vertices=int(coarse.n_vertices), coarse_faces=int(coarse.n_faces),
+                      stop_reason=summary["stop_reason"], target_reached=summary["target_reached"],
+                      coarsen_seconds=summary["seconds"])
+    except Exception as error:  # every failure of one mesh is its record
+        record.update(status="error", error_kind="timeout" if isinstance(error, TimeoutError) else _error_kind(error),
+                      error=str(error) or type(error).__name__)
+    record["seconds"] = time.perf_counter() - started
+    _atomic_write(paths["record"], lambda temporary: pathlib.Path(temporary).write_text(json.dumps(record) + "\n"))
+    return record
+
+
+def load_result(out: str | os.PathLike, relative: str) -> dict:
+    """A finished mesh's outputs: the record, the coarse mesh (ice.CoarseSpace from the .ilm) and P
+    (scipy.sparse.csr_matrix), plus the map arrays when they were kept."""
+    import ice
+    paths = output_paths(pathlib.Path(out), relative)
+    record = json.loads(paths["record"].read_text())
+    if record.get("status") != "ok":
+        raise ValueError(f"{paths['record']}: no result ({record.get('error_kind')}: {record.get('error')})")
+    with np.load(paths["npz"]) as arrays:
+        result = {name: arrays[name] for name in arrays.files}
+    result["P"] = scipy.sparse.csr_matrix((result.pop("P_data"), result.pop("P_indices"), result.pop("P_indptr")),
+                                          shape=tuple(result.pop("P_shape")))
+    result["coarse"] = ice.load_coarse_mesh(paths["ilm"])
+    result["record"] = record
+    return result
+
+
+# ---- the batch ------------------------------------------------------------------------------------
+
+@dataclass
+class BatchOptions:
+    coarsen: dict
+    repair: bool = False
+    workers: int = 2
+    scheduler: str | None = None
+    memory_limit: str | None = "auto"
+    timeout: float | None = None
+    force: bool = False
+    progress: bool = True
+
+
+@dataclass
+class BatchResult:
+    records: list[dict] = field(default_factory=list)
+    skipped: int = 0
+    seconds: float = 0.0          # the whole run
+    cluster_seconds: float = 0.0  # of which starting (or connecting to) the Dask cluster
+
+    def counts(self) -> dict[str, int]:
+        counts: dict[str, int] = {}
+        for record in self.records:
+            key = "ok" if record["status"] == "ok" else record.get("error_kind", "failed")
+            counts[key] = counts.get(key, 0) + 1
+        return counts
+
+
+def _up_to_date(job: Job, paths: dict, digest: str) -> dict | None:
+    """The mesh's record when a rerun need not redo it."""
+    try:
+        record = json.loads(paths["record"].read_text())
+    except (OSError, ValueError):
+        return None
+    if (record.get("hash"), record.get("input_size"), record.get("input_mtime_ns")) != (digest, job.size, job.mtime_ns):
+        return None
+    if record.get("status") == "ok":
+        return record if paths["ilm"].exists() and paths["npz"].exists() else None
+    return record if record.get("error_kind") in DETERMINISTIC_ERRORS else None
+
+
+def _check_outputs(jobs: list[Job], out: pathlib.Path, root: pathlib.Path, force: bool) -> None:
+    """Refuses outputs that would replace an input, or files a batch did not write (without force)."""
+    inputs = {job.path.resolve() for job in jobs}
+    for job in jobs:
+        paths = output_paths(out, job.relative)
+        for kind, path in paths.items():
+            if path.resolve() in inputs:
+                raise ValueError(f"{path}: an output would replace an input mesh; choose another output folder")
+            if kind != "record" and path.exists() and not paths["record"].exists() and not force:
+                raise FileExistsError(f"{path} exists and was not written by a batch (no {paths['record'].name}); "
+                                      f"use --force to replace it")
+
+
+def _client(options: BatchOptions):
+    from distributed import Client, LocalCluster
+    if options.scheduler:
+        return Client(options.scheduler), None
+    import logging
+    cluster = LocalCluster(n_workers=options.workers, threads_per_worker=1, processes=True,
+                           memory_limit=options.memory_limit, dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stderr) -> BatchResult:
+    """Coarsens every mesh of `source` into `out` (see the module documentation); returns the records
+    of this run (done now or found up to date) in manifest order."""
+    from distributed import as_completed
+    from distributed.core import CommClosedError  # noqa: F401  (imported so a lost scheduler is clear)
+    started = time.perf_counter()
+    options = dataclasses.replace(options, coarsen=canonical_options(options.coarsen))
+    jobs, root = manifest(source)
+    out = pathlib.Path(out)
+    _check_outputs(jobs, out, root, options.force)
+    digest = options_hash({**options.coarsen, "repair": options.repair})
+    result = BatchResult()
+    records: dict[str, dict] = {}
+    todo = []
+    for job in jobs:
+        record = _up_to_date(job, output_paths(out, job.relative), digest)
+        if record is None:
+            todo.append(job)
+        else:
+            records[job.relative] = record
+            result.skipped += 1
+    # Temporary files of an interrupted run (killed while writing) for the meshes done again.
+    for job in todo:
+        for path in output_paths(out, job.relative).values():
+            for stale in path.parent.glob(f".{path.name}.*.part"):
+                stale.unlink()
+    # Largest first: the big meshes start early, so the workers finish together.
+    todo.sort(key=lambda job: job.size, reverse=True)
+    if todo:
+        cluster_start = time.perf_counter()
+        client, cluster = _client(options)
+        result.cluster_seconds = time.perf_counter() - cluster_start
+        try:
+            futures = {client.submit(coarsen_file, str(job.path), job.relative, str(out), options.coarsen,
+                                     options.repair, options.timeout, job.size, job.mtime_ns, pure=False,
+                                     key=f"ice-{job.relative}-{digest}"): job for job in todo}
+            bar = _progress_bar(len(todo), options.progress, log)
+            for future in as_completed(futures):
+                job = futures[future]
+                try:
+                    record = future.result()
+                except Exception as error:  # the task's workers died: KilledWorker, or the cluster went away
+                    record = _crash_record(job, out, digest, error)
+                records[job.relative] = record
+                bar(record)
+            bar(None)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    result.records = [records[job.relative] for job in jobs]
+    result.seconds = time.perf_counter() - started
+    _write_summary(out, result)
+    return result
+
+
+def _crash_record(job: Job, out: pathlib.Path, digest: str, error: BaseException) -> dict:
+    record = {"input": str(job.path), "output": job.relative, "hash": digest, "input_size": job.size,
+              "input_mtime_ns": job.mtime_ns, "status": "error", "error_kind": "crashed",
+              "error": f"{job.path}: the worker process died while coarsening it ({type(error).__name__}: {error})",
+              "seconds": None}
+    path = output_paths(out, job.relative)["record"]
+    _atomic_write(path, lambda temporary: pathlib.Path(temporary).write_text(json.dumps(record) + "\n"))
+    return record
+
+
+def _progress_bar(total: int, enabled: bool, log):
+    done = [0, 0]  # finished, failed
+    start = time.perf_counter()
+    try:
+        from tqdm import tqdm
+        bar = tqdm(total=total, unit="mesh", file=log, disable=not enabled, dynamic_ncols=True)
+    except ImportError:
+        bar = None
+
+    def update(record):
+        if record is None:
+            if bar is not None:
+                bar.close()
+            return
+        done[0] += 1
+        done[1] += record["status"] != "ok"
+        if bar is not None:
+            bar.set_postfix(failed=done[1], refresh=False)
+            bar.update(1)
+        elif enabled:
+            print(f"\r{done[0]}/{total} meshes, {done[1]} failed, {time.perf_counter() - start:.0f} s",
+                  end="" if done[0] < total else "\n", file=log, flush=True)
+    return update
+
+
+SUMMARY_FIELDS = ("output", "status", "error_kind", "vertices", "coarse_vertices", "stop_reason", "seconds",
+                  "coarsen_seconds", "error")
+
+
+def _write_summary(out: pathlib.Path, result: BatchResult) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    lines = "".join(json.dumps(record) + "\n" for record in result.records)
+    _atomic_write(out / "records.jsonl", lambda temporary: pathlib.Path(temporary).write_text(lines))
+    text = io.StringIO()
+    writer = csv.DictWriter(text, SUMMARY_FIELDS, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    for record in result.records:
+        writer.writerow(record)
+    _atomic_write(out / "summary.csv", lambda temporary: pathlib.Path(temporary).write_text(text.getvalue()))
+
+
+def summary_text(result: BatchResult, out: pathlib.Path) -> str:
+    counts = result.counts()
+    lines = [f"{len(result.records)} meshes in {result.seconds:.1f} s ({result.cluster_seconds:.1f} s starting Dask): "
+             + ", ".join(f"{count} {kind}" for kind, count in sorted(counts.items()))
+             + f" ({result.skipped} already done)"]
+    times = [r["seconds"] for r in result.records if r.get("seconds") is not None and r["status"] == "ok"]
+    if times:
+        q = statistics.quantiles(times, n=20) if len(times) > 1 else [times[0]] * 19
+        lines.append(f"seconds per mesh: median {statistics.median(times):.3f}, p95 {q[18]:.3f}, max {max(times):.3f}")
+        slowest = sorted((r for r in result.records if r["status"] == "ok"), key=lambda r: -r["seconds"])[:3]
+        lines.append("slowest: " + ", ".join(f"{r['output']} {r['seconds']:.2f} s" for r in slowest))
+    for record in result.records:
+        if record["status"] != "ok":
+            lines.append(f"  {record.get('error_kind')}: {record.get('error')}")
+    lines.append(f"records: {out / 'records.jsonl'}, {out / 'summary.csv'}")
+    return "\n".join(lines)
+
+
+# ---- command line ---------------------------------------------------------------------------------
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="ice-batch", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog="\n\n".join(__doc__.split("\n\n")[1:]))
+    parser.add_argument("input", help="a directory, a glob pattern (quoted) or a file listing mesh paths")
+    parser.add_argument("-o", "--output", required=True, help="output folder (created; mirrors the input tree)")
+    target = parser.add_mutually_exclusive_group()
+    target.add_argument("-n", "--vertices", type=int, help="coarsen to N vertices")
+    target.add_argument("-r", "--ratio", type=float, help="coarsen to a ratio of the vertices, e.g. 0.05")
+    parser.add_argument("-e", "--max-error", type=float, help="bound on the ICE error metric")
+    parser.add_argument("--method", choices=("ice", "qem"), default="ice")
+    parser.add_argument("--use", choices=("poisson_heat", "geodesic"), default="poisson_heat",
+                        help="which measured metric defaults (as the tools)")
+    parser.add_argument("-w", "--area-weight", type=float)
+    parser.add_argument("--keep-boundary", action="store_true", help="never remove boundary vertices")
+    parser.add_argument("--refine-angle", type=float, help="intrinsic Delaunay refinement to this smallest angle")
+    parser.add_argument("--repair", action="store_true", help="apply the safe mesh repairs before coarsening")
+    parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
+                        help="worker processes of the local Dask cluster (default: 2, or the cores if fewer)")
+    parser.add_argument("--scheduler", help="address of a running Dask scheduler (tcp://HOST:PORT) instead")
+    parser.add_argument("--memory-limit", default="auto",
+                        help="per worker, e.g. 4GB (Dask restarts a worker above it; default: memory / workers)")
+    parser.add_argument("--timeout", type=float, help="seconds per mesh before its coarsening is cancelled")
+    parser.add_argument("--force", action="store_true", help="replace output files a batch did not write")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    if args.vertices is None and args.ratio is None and args.max_error is None:
+        print("ice-batch: say how far to coarsen: --vertices N, --ratio R (e.g. 0.05) or --max-error E",
+              file=sys.stderr)
+        return 4
+    coarsen = {"method": args.method, "use": args.use}
+    for name, value in (("n", args.vertices), ("ratio", args.ratio), ("max_error", args.max_error),
+                        ("area_weight", args.area_weight), ("refine_angle", args.refine_angle)):
+        if value is not None:
+            coarsen[name] = value
+    if args.keep_boundary:
+        coarsen["remove_boundary"] = False
+    if args.workers < 1:
+        print("ice-batch: --workers must be >= 1", file=sys.stderr)
+        return 4
+    options = BatchOptions(coarsen=coarsen, repair=args.repair, workers=args.workers, scheduler=args.scheduler,
+                           memory_limit=args.memory_limit, timeout=args.timeout, force=args.force,
+                           progress=not args.quiet and sys.stderr.isatty())
+    try:
+        result = run(args.input, args.output, options)
+    except (ValueError, FileExistsError, OSError) as error:
+        print(f"ice-batch: {error}", file=sys.stderr)
+        return 3 if isinstance(error, FileExistsError) else 4
+    print(summary_text(result, pathlib.Path(args.output)))
+    return 0 if all(r["status"] == "ok" for r in result.records) else 5
+
+
+if __name__ == "__main__":
+    sys.exit(main())

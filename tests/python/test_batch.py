@@ -1,0 +1,176 @@
+"""ice-batch: one record per input, isolation of failures, resumable reruns, Dask workers."""
+import json
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import ice
+import ice.batch as batch
+from conftest import extended_meshes
+
+MESHES = ["spot.obj", "bear.off", "elephant-with-holes.off", "blobby_3cc.off", "fandisk.off", "lion-head.off"]
+NON_MANIFOLD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n"
+
+
+@pytest.fixture()
+def dataset(tmp_path, project_mesh):
+    """A folder of real meshes in two subfolders, a defective file, an unreadable one and a non-mesh."""
+    root = tmp_path / "in"
+    for i, name in enumerate(MESHES):
+        target = root / ("a" if i % 2 else "b") / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(project_mesh(name), target)
+    (root / "b" / "broken.obj").write_text(NON_MANIFOLD_OBJ)
+    (root / "b" / "truncated.off").write_text("OFF\n4 2 0\n0 0 0\n1 0 0\n")
+    (root / "notes.txt").write_text("not a mesh\n")
+    return root
+
+
+def options(**coarsen):
+    return batch.BatchOptions(coarsen=coarsen or {"ratio": 0.05}, workers=2, progress=False)
+
+
+def test_one_record_per_input_and_outputs_read_back(dataset, tmp_path):
+    out = tmp_path / "out"
+    result = batch.run(str(dataset), out, options())
+    assert len(result.records) == len(MESHES) + 2 and result.skipped == 0
+    by_name = {pathlib.Path(r["output"]).name: r for r in result.records}
+    assert by_name["broken.obj"]["error_kind"] == "defective" and "non-manifold" in by_name["broken.obj"]["error"]
+    assert by_name["truncated.off"]["error_kind"] == "unreadable"
+    assert str(dataset / "b" / "broken.obj") in by_name["broken.obj"]["error"]  # the tools' message names the file
+    for name in MESHES:
+        record = by_name[name]
+        assert record["status"] == "ok" and record["coarse_vertices"] >= int(np.ceil(0.05 * record["vertices"]))
+        loaded = batch.load_result(out, record["output"])
+        # the same coarse space as ice.coarsen in this process, to the last bit
+        V, F = ice.load_mesh(record["input"])
+        direct = ice.coarsen(V, F, ratio=0.05)
+        assert abs(loaded["P"] - direct.P).max() == 0
+        assert np.array_equal(loaded["coarse"].lengths, direct.lengths)
+        assert np.array_equal(loaded["map_face"], direct.map[0])
+    # the output tree mirrors the input; records.jsonl and summary.csv list every input
+    assert (out / "a" / "bear.off.ilm").exists() and (out / "b" / "spot.obj.npz").exists()
+    assert len((out / "records.jsonl").read_text().splitlines()) == len(MESHES) + 2
+    assert len((out / "summary.csv").read_text().splitlines()) == len(MESHES) + 3
+    assert not list(out.rglob("*.part"))  # no temporary left
+
+
+def test_rerun_skips_and_changed_option_redoes(dataset, tmp_path):
+    out = tmp_path / "out"
+    first = batch.run(str(dataset), out, options())
+    again = batch.run(str(dataset), out, options())
+    assert again.skipped == len(first.records)  # no work: even the refused files are not retried
+    assert [r["hash"] for r in again.records] == [r["hash"] for r in first.records]
+    changed = batch.run(str(dataset), out, options(ratio=0.1))
+    assert changed.skipped == 0
+    assert all(r["hash"] != first.records[0]["hash"] for r in changed.records)
+    assert all(r["coarse_vertices"] == int(np.ceil(0.1 * r["vertices"])) for r in changed.records
+               if r["status"] == "ok" and r["target_reached"])
+    # an input that changed is redone, alone
+    (dataset / "a" / "bear.off").touch()
+    os.utime(dataset / "a" / "bear.off", ns=(time.time_ns(), time.time_ns() + 10**9))
+    touched = batch.run(str(dataset), out, options(ratio=0.1))
+    assert touched.skipped == len(first.records) - 1
+
+
+def test_foreign_files_are_not_replaced(dataset, tmp_path):
+    out = tmp_path / "out"
+    (out / "a").mkdir(parents=True)
+    (out / "a" / "bear.off.ilm").write_text("mine\n")
+    with pytest.raises(FileExistsError, match="--force"):
+        batch.run(str(dataset), out, options())
+    assert (out / "a" / "bear.off.ilm").read_text() == "mine\n"
+    result = batch.run(str(dataset), out, batch.BatchOptions(coarsen={"ratio": 0.05}, workers=2, progress=False,
+                                                             force=True))
+    assert all(r["status"] == "ok" for r in result.records if r["output"].endswith("bear.off"))
+
+
+def test_manifest_forms(dataset, tmp_path):
+    jobs, _ = batch.manifest(str(dataset))
+    assert len(jobs) == len(MESHES) + 2
+    jobs, _ = batch.manifest(str(dataset / "**" / "*.off"))
+    assert sorted(pathlib.Path(j.relative).name for j in jobs) == sorted(
+        [m for m in MESHES if m.endswith(".off")] + ["truncated.off"])
+    listing = tmp_path / "list.txt"
+    listing.write_text("# two meshes and a missing one\nin/a/bear.off\nin/b/spot.obj\nin/missing.ply\n")
+    out = tmp_path / "from_list"
+    result = batch.run(str(listing), out, options())
+    assert [r["status"] for r in result.records] == ["ok", "ok", "error"]
+    assert result.records[2]["error_kind"] == "unreadable"
+    with pytest.raises(ValueError, match="no meshes found"):
+        batch.manifest(str(tmp_path / "nothing" / "*.obj"))
+
+
+def test_killed_batch_loses_no_mesh(dataset, tmp_path):
+    """The whole batch killed mid-way (SIGKILL of its process group): the rerun does exactly the rest."""
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "ice.batch", str(dataset), "-o", str(out), "--ratio", "0.05", "-q",
+               "--workers", "1"]
+    process = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list(out.rglob("*.json"))) < 2:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    done_before = {p.relative_to(out) for p in out.rglob("*.json")}
+    assert 2 <= len(done_before) < len(MESHES) + 2, "the batch was to be killed mid-way"
+    result = batch.run(str(dataset), out, options())
+    assert result.skipped == len(done_before)
+    assert len(result.records) == len(MESHES) + 2 and not list(out.rglob("*.part"))
+    assert sum(r["status"] == "ok" for r in result.records) == len(MESHES)
+
+
+def test_worker_killed_mid_batch_loses_no_mesh(dataset, tmp_path):
+    """One Dask worker process killed while it coarsens: Dask reruns its task elsewhere."""
+    psutil = pytest.importorskip("psutil")
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "ice.batch", str(dataset), "-o", str(out), "--ratio", "0.05", "-q",
+               "--workers", "2"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    killed = None
+    deadline = time.time() + 120
+    while killed is None and time.time() < deadline and process.poll() is None:
+        # a worker: a process under the batch busy coarsening (the nannies live in the batch process)
+        for child in psutil.Process(process.pid).children(recursive=True):
+            try:
+                if child.cpu_percent(interval=0.05) > 50:
+                    child.kill()
+                    killed = child.pid
+                    break
+            except psutil.Error:
+                continue
+    stdout, stderr = process.communicate(timeout=300)
+    assert killed is not None, "no busy worker was found to kill"
+    records = [json.loads(line) for line in (out / "records.jsonl").read_text().splitlines()]
+    assert len(records) == len(MESHES) + 2
+    assert sum(r["status"] == "ok" for r in records) == len(MESHES), stdout + stderr
+
+
+def test_shared_meshes(tmp_path):
+    folder = extended_meshes()
+    if not folder.is_dir():
+        pytest.skip(f"the shared mesh set is not at {folder} (set ICE_EXTENDED_MESHES)")
+    result = batch.run(str(folder), tmp_path / "out", batch.BatchOptions(coarsen={"ratio": 0.05}, repair=True,
+                                                                         workers=2, progress=False))
+    inputs = [p for p in folder.rglob("*") if p.suffix.lower() in batch.MESH_EXTENSIONS]
+    assert len(result.records) == len(inputs)
+    for record in result.records:
+        assert record["status"] == "ok" or record["error"], record
+
+
+def test_timeout_is_recorded_and_retried(dataset, tmp_path):
+    out = tmp_path / "out"
+    hurried = batch.BatchOptions(coarsen={"ratio": 0.05}, workers=2, progress=False, timeout=1e-9)
+    result = batch.run(str(dataset), out, hurried)
+    timed_out = [r for r in result.records if r.get("error_kind") == "timeout"]
+    assert len(timed_out) == len(MESHES)  # every mesh needs over 1,000 removals, the first progress report
+    assert all("timeout" in r["error"] and r["input"] in r["error"] for r in timed_out)
+    again = batch.run(str(dataset), out, options())  # a timeout is not the input's fault: redone
+    assert again.skipped == 2 and sum(r["status"] == "ok" for r in again.records) == len(MESHES)
