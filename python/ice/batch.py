@@ -292,8 +292,16 @@ def _client(options: BatchOptions):
     if options.scheduler:
         return Client(options.scheduler), None
     import logging
-    cluster = LocalCluster(n_workers=options.workers, threads_per_worker=1, processes=True,
-                           memory_limit=options.memory_limit, dashboard_address=None, silence_logs=logging.ERROR)
+    import dask
+    # Dask starts workers with OMP_NUM_THREADS=OPENBLAS_NUM_THREADS=1 (numpy's threads times its
+    # processes would oversubscribe the cores); ICE's own threaded passes then run on one core even
+    # when the workers are fewer than the cores. Give each worker its share of them.
+    share = str(max(1, (os.cpu_count() or 1) // options.workers))
+    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    environ.update(OMP_NUM_THREADS=share, OPENBLAS_NUM_THREADS=share, MKL_NUM_THREADS=share)
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+        cluster = LocalCluster(n_workers=options.workers, threads_per_worker=1, processes=True,
+                               memory_limit=options.memory_limit, dashboard_address=None, silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
