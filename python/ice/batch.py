@@ -419,7 +419,7 @@ def summary_text(result: BatchResult, out: pathlib.Path) -> str:
              + f" ({result.skipped} already done)"]
     times = [r["seconds"] for r in result.records if r.get("seconds") is not None and r["status"] == "ok"]
     if times:
-        q = statistics.quantiles(times, n=20) if len(times) > 1 else [times[0]] * 19
+        q = statistics.quantiles(times, n=20, method="inclusive") if len(times) > 1 else [times[0]] * 19
         lines.append(f"seconds per mesh: median {statistics.median(times):.3f}, p95 {q[18]:.3f}, max {max(times):.3f}")
         slowest = sorted((r for r in result.records if r["status"] == "ok"), key=lambda r: -r["seconds"])[:3]
         lines.append("slowest: " + ", ".join(f"{r['output']} {r['seconds']:.2f} s" for r in slowest))
