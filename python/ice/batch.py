@@ -274,7 +274,7 @@ def _up_to_date(job: Job, paths: dict, digest: str) -> dict | None:
     return record if record.get("error_kind") in DETERMINISTIC_ERRORS else None
 
 
-def _check_outputs(jobs: list[Job], out: pathlib.Path, root: pathlib.Path, force: bool) -> None:
+def _check_outputs(jobs: list[Job], out: pathlib.Path, force: bool) -> None:
     """Refuses outputs that would replace an input, or files a batch did not write (without force)."""
     inputs = {job.path.resolve() for job in jobs}
     for job in jobs:
@@ -309,12 +309,11 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
     """Coarsens every mesh of `source` into `out` (see the module documentation); returns the records
     of this run (done now or found up to date) in manifest order."""
     from distributed import as_completed
-    from distributed.core import CommClosedError  # noqa: F401  (imported so a lost scheduler is clear)
     started = time.perf_counter()
     options = dataclasses.replace(options, coarsen=canonical_options(options.coarsen))
-    jobs, root = manifest(source)
+    jobs, _ = manifest(source)
     out = pathlib.Path(out)
-    _check_outputs(jobs, out, root, options.force)
+    _check_outputs(jobs, out, options.force)
     digest = options_hash({**options.coarsen, "repair": options.repair})
     result = BatchResult()
     records: dict[str, dict] = {}
