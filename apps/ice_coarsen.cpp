@@ -17,10 +17,15 @@
 //    vertex: a face around it, with 1 at its corner).
 //  preview.obj — the coarse faces drawn with the surviving vertices' input positions. Only a preview:
 //    the coarse mesh is intrinsic (its lengths are not distances between those positions).
+//  coarse_edges.obj (with --trace, ICE only) — the coarse edges traced on the input surface
+//    (ice/coarse_tracing.h): one OBJ polyline ("l") per traced edge, its points on the input
+//    triangles; edges that could not be traced are listed in a comment. Open it with the input mesh
+//    (MeshLab, Blender, ParaView) to see the coarse mesh as the intrinsic method made it.
 //
 // Exit codes: see app_common.h (0 ok, 1 unreadable input, 2 defective mesh, 3 output not written,
 // 4 bad command line, 5 computation failed, e.g. --validate found a problem).
 #include <array>
+#include <map>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -31,6 +36,7 @@
 #include <optional>
 
 #include "app_common.h"
+#include "ice/coarse_tracing.h"
 #include "ice/coarsen.h"
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/intrinsic_triangulation.h"
@@ -100,6 +106,32 @@ void write_preview(const std::string& path, const ice::TriangleMesh& mesh, const
   for (Eigen::Index f = 0; f < coarse.F.rows(); ++f)
     out << "f " << coarse.F(f, 0) + 1 << ' ' << coarse.F(f, 1) + 1 << ' ' << coarse.F(f, 2) + 1 << '\n';
   check_stream(out, path);
+}
+
+// coarse_edges.obj: the traced coarse edges as polylines on the input surface.
+ice::CoarseTracing write_traced_edges(const std::string& path, const ice::TriangleMesh& mesh, const ice::CoarseSpace& space) {
+  const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh.F, space.mesh, ice::fine_to_coarse_map(space),
+                                                            space.inserted, mesh.V, 0);
+  std::ofstream out = open_output(path);
+  out << "# coarse edges of an intrinsic coarse mesh traced on its input surface (ice-coarsen --trace): one polyline "
+         "per edge, from its tail to its head coarse vertex\n"
+      << "# " << tracing.traced << " of " << tracing.edges.size() << " edges traced\n";
+  for (const ice::TracedEdge& edge : tracing.edges)
+    if (edge.status != ice::TraceStatus::traced)
+      out << "# not traced: edge " << edge.tail << " -> " << edge.head << " (" << ice::to_string(edge.status) << ")\n";
+  long long next = 1;
+  for (const ice::TracedEdge& edge : tracing.edges) {
+    if (edge.status != ice::TraceStatus::traced) continue;
+    const ice::Positions points = ice::traced_polyline(mesh.V, mesh.F, edge);
+    for (Eigen::Index i = 0; i < points.rows(); ++i)
+      out << "v " << Num{points(i, 0)} << ' ' << Num{points(i, 1)} << ' ' << Num{points(i, 2)} << '\n';
+    out << 'l';
+    for (Eigen::Index i = 0; i < points.rows(); ++i) out << ' ' << next + i;
+    out << '\n';
+    next += points.rows();
+  }
+  check_stream(out, path);
+  return tracing;
 }
 
 // preview.obj of a QEM coarsening: the QEM mesh itself (its positions are its geometry).
@@ -172,7 +204,7 @@ int main(int argc, char** argv) {
       "5 computation failed."};
   std::string input, outdir, report_path, lock_path;
   app::TargetOptions target;
-  bool keep_boundary = false, quiet = false, force = false, repair = false, validate = false;
+  bool keep_boundary = false, quiet = false, force = false, repair = false, validate = false, trace = false;
   cli.add_option("mesh", input, "Input mesh (.obj, .off, .ply, .stl)")->required();
   target.add_to(cli, true);
   cli.add_flag("--keep-boundary", keep_boundary, "Never remove boundary vertices");
@@ -181,12 +213,20 @@ int main(int argc, char** argv) {
   cli.add_option("--report", report_path, "Also write a JSON report (sizes, stop reason, costs, timings, memory)");
   cli.add_flag("--quiet,-q", quiet, "No progress bar");
   cli.add_flag("--force", force, "Overwrite existing output files");
+  cli.add_flag("--trace", trace,
+               "Also write coarse_edges.obj: the coarse edges traced on the input surface as polylines (ICE only)");
   cli.add_flag("--repair", repair, "Apply the safe mesh repairs before coarsening (see ice-info --repair)");
   cli.add_flag("--validate", validate, "Check every invariant of the coarse triangulation afterwards (fails loudly)");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&] {
-    const std::vector<std::string> names{"coarse.ilm", "prolongation.mtx", "map.csv", "preview.obj"};
+    std::vector<std::string> names{"coarse.ilm", "prolongation.mtx", "map.csv", "preview.obj"};
+    if (trace) {
+      if (target.method == ice::CoarseningMethod::qem)
+        throw app::AppError(app::kUsage, "--trace draws ICE's intrinsic edges on the input surface; a QEM mesh has "
+                                         "positions of its own (preview.obj)");
+      names.push_back("coarse_edges.obj");
+    }
     std::vector<std::string> outputs;
     for (const auto& name : names) outputs.push_back((fs::path(outdir) / name).string());
     std::error_code ec;
@@ -237,6 +277,9 @@ int main(int argc, char** argv) {
     else
       write_preview(outputs[3], mesh, space);
     const double t_write = clock.lap();
+    std::optional<ice::CoarseTracing> tracing;
+    if (trace) tracing = write_traced_edges(outputs[4], mesh, space);
+    const double t_trace = trace ? clock.lap() : 0.0;
 
     const double rate = summary.removed() / std::max(t_coarsen, 1e-9);
     if (!report_path.empty()) {
@@ -255,6 +298,17 @@ int main(int argc, char** argv) {
       if (qem) report["qem"] = app::qem_json(*summary.qem, summary.target_reached);
       report["timings_s"] = {{"load", t_load}, {"coarsen", t_coarsen}, {"write", t_write}};
       if (validate) report["timings_s"]["validate"] = t_validate;
+      if (tracing) {
+        std::map<std::string, long long> untraced;
+        for (const ice::TracedEdge& edge : tracing->edges)
+          if (edge.status != ice::TraceStatus::traced) ++untraced[ice::to_string(edge.status)];
+        report["trace"] = {{"edges", tracing->edges.size()},
+                           {"traced", tracing->traced},
+                           {"untraced", untraced},
+                           {"length_ratio_min", tracing->length_ratio_min},
+                           {"length_ratio_max", tracing->length_ratio_max}};
+        report["timings_s"]["trace"] = t_trace;
+      }
       report["removals_per_second"] = rate;
       report["validated"] = validate;
       report["outputs"] = outputs;
@@ -272,7 +326,12 @@ int main(int argc, char** argv) {
               << app::thousands(static_cast<long long>(rate)) << " removals/s), "
               << (validate ? "validate " + app::fixed(t_validate, 3) + " s (ok), " : std::string())
               << "write " << app::fixed(t_write, 3) << " s; peak memory " << app::fixed(app::peak_rss_mb(), 0) << " MiB\n"
-              << "  wrote " << (fs::path(outdir) / "{coarse.ilm, prolongation.mtx, map.csv, preview.obj}").string()
+              << (tracing ? "  trace: " + app::thousands(tracing->traced) + " of " +
+                                app::thousands(static_cast<long long>(tracing->edges.size())) +
+                                " coarse edges traced on the input surface in " + app::fixed(t_trace, 3) + " s\n"
+                          : std::string())
+              << "  wrote " << (fs::path(outdir) / (trace ? "{coarse.ilm, prolongation.mtx, map.csv, preview.obj, coarse_edges.obj}"
+                                                        : "{coarse.ilm, prolongation.mtx, map.csv, preview.obj}")).string()
               << (report_path.empty() ? "" : " and " + report_path) << '\n';
     return app::kOk;
   });

@@ -1,0 +1,372 @@
+// The coarse mesh traced on the input surface (ice/coarse_tracing.h): every traced edge runs from its
+// tail's input vertex to its head's through segments inside single input faces that join end to end,
+// its positions along the edge run from 0 to its length, two traced edges meet only at coarse
+// vertices, and where the coarse metric is the input's the polyline's length on the surface is the
+// intrinsic length. On procedural meshes (Δ-complex coarse meshes included), the project's meshes and
+// every mesh of the extended set that loads (with repair).
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "ice/coarse_space.h"
+#include "ice/coarse_tracing.h"
+#include "ice/intrinsic_triangulation.h"
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+#include "test_support.h"
+
+namespace {
+
+using ice::Index;
+
+Eigen::RowVector3d point_on(const ice::TriangleMesh& mesh, Index face, const std::array<double, 3>& b) {
+  return mesh.V.row(mesh.F(face, 0)) * b[0] + mesh.V.row(mesh.F(face, 1)) * b[1] + mesh.V.row(mesh.F(face, 2)) * b[2];
+}
+
+// The corner of `face` at which b is 1 (and 0 elsewhere), or −1.
+int unit_corner(const std::array<double, 3>& b) {
+  for (int c = 0; c < 3; ++c)
+    if (b[c] == 1 && b[(c + 1) % 3] == 0 && b[(c + 2) % 3] == 0) return c;
+  return -1;
+}
+
+struct TraceFigures {
+  Index edges = 0, segments = 0, failed = 0;
+  Index long_edges = 0;  // traced edges whose length on the surface differs from the intrinsic one (> 1e-9 relative)
+  double max_length_error = 0;  // |surface length − intrinsic length| / intrinsic length
+};
+
+// Every property of the file comment except the length; returns the figures for the caller's checks.
+TraceFigures check_tracing(const ice::TriangleMesh& mesh, const ice::CompactMesh& coarse,
+                           const std::vector<ice::CoarsePoint>& map, const std::vector<ice::InputSurfacePoint>& inserted,
+                           const ice::CoarseTracing& tracing) {
+  INFO("coarse mesh: " << coarse.num_vertices() << " vertices, " << coarse.F.rows() << " faces");
+  const double scale = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
+  TraceFigures figures;
+  // Edges: one per coarse edge (Euler: sides = 2E − boundary sides).
+  const std::vector<Index> twin = coarse.twin.empty() ? ice::glue_by_vertex_pairs(coarse.F) : coarse.twin;
+  Index boundary_sides = 0;
+  for (const Index s : twin) boundary_sides += s == ice::kInvalid;
+  CHECK(static_cast<Index>(tracing.edges.size()) * 2 == static_cast<Index>(twin.size()) + boundary_sides);
+  CHECK(tracing.traced + tracing.failed == static_cast<Index>(tracing.edges.size()));
+
+  // Where a coarse vertex is on the input surface.
+  Index first_inserted = 0;
+  for (const Index input : coarse.to_input) first_inserted += input != ice::kInvalid;
+  const auto vertex_position = [&](Index c) -> Eigen::RowVector3d {
+    const Index input = coarse.to_input[c];
+    if (input != ice::kInvalid) return mesh.V.row(input);
+    const ice::InputSurfacePoint& p = inserted[static_cast<std::size_t>(c - first_inserted)];
+    return point_on(mesh, p.face, p.bary);
+  };
+  const auto is_coarse_vertex_point = [&](Index face, const std::array<double, 3>& b) {
+    const int c = unit_corner(b);
+    if (c >= 0) return coarse.from_input[mesh.F(face, c)] != ice::kInvalid;
+    for (const ice::InputSurfacePoint& p : inserted)
+      if (p.face == face && std::abs(p.bary[0] - b[0]) + std::abs(p.bary[1] - b[1]) + std::abs(p.bary[2] - b[2]) < 1e-12)
+        return true;
+    return false;
+  };
+
+  // Segments of each input face, for the crossing check: (edge, from, to) in the face's (b1, b2) plane.
+  struct Piece {
+    Index edge;
+    Eigen::Vector2d from, to;
+    std::array<double, 3> bfrom, bto;
+  };
+  std::map<Index, std::vector<Piece>> by_face;
+  for (std::size_t e = 0; e < tracing.edges.size(); ++e) {
+    const ice::TracedEdge& edge = tracing.edges[e];
+    INFO("edge " << e << " (side " << edge.side << ", " << edge.tail << " -> " << edge.head << "): " << ice::to_string(edge.status));
+    if (edge.status != ice::TraceStatus::traced) {  // counted; the callers bound the failures
+      ++figures.failed;
+      continue;
+    }
+    REQUIRE(!edge.segments.empty());
+    CHECK(edge.tail == coarse.F(edge.side / 3, edge.side % 3));
+    CHECK(edge.head == coarse.F(edge.side / 3, (edge.side + 1) % 3));
+    CHECK(edge.length == coarse.L(edge.side / 3, edge.side % 3));
+    ++figures.edges;
+    figures.segments += static_cast<Index>(edge.segments.size());
+    // The ends are the end vertices.
+    CHECK((point_on(mesh, edge.segments.front().face, edge.segments.front().from) - vertex_position(edge.tail)).norm() <=
+          1e-12 * scale);
+    CHECK((point_on(mesh, edge.segments.back().face, edge.segments.back().to) - vertex_position(edge.head)).norm() <=
+          1e-12 * scale);
+    CHECK(edge.segments.front().from_param == 0);
+    CHECK(edge.segments.back().to_param == edge.length);
+    for (std::size_t i = 0; i < edge.segments.size(); ++i) {
+      const ice::TracedSegment& s = edge.segments[i];
+      // Inside one input face.
+      for (const auto& b : {s.from, s.to}) {
+        CHECK(std::min({b[0], b[1], b[2]}) >= -1e-12);
+        CHECK(std::abs(b[0] + b[1] + b[2] - 1) <= 1e-12);
+      }
+      CHECK(s.to_param >= s.from_param - 1e-9 * edge.length);
+      if (i + 1 < edge.segments.size()) {  // joined to the next
+        const ice::TracedSegment& n = edge.segments[i + 1];
+        CHECK((point_on(mesh, s.face, s.to) - point_on(mesh, n.face, n.from)).norm() <= 1e-12 * scale);
+        CHECK(n.from_param == s.to_param);
+      }
+      const auto plane = [](const std::array<double, 3>& b) { return Eigen::Vector2d(b[1], b[2]); };
+      by_face[s.face].push_back({static_cast<Index>(e), plane(s.from), plane(s.to), s.from, s.to});
+    }
+    const double surface = ice::traced_length(mesh.V, mesh.F, edge);
+    const double length_error = std::abs(surface - edge.length) / edge.length;
+    figures.max_length_error = std::max(figures.max_length_error, length_error);
+    figures.long_edges += length_error > 1e-9;
+  }
+
+  // Two traced edges meet only at coarse vertices: no crossing inside a face, no shared point elsewhere.
+  Index crossings = 0;
+  for (const auto& [face, pieces] : by_face) {
+    for (std::size_t a = 0; a < pieces.size(); ++a) {
+      for (std::size_t b = a + 1; b < pieces.size(); ++b) {
+        const Piece& p = pieces[a];
+        const Piece& q = pieces[b];
+        if (p.edge == q.edge) continue;
+        const Eigen::Vector2d r = p.to - p.from, s = q.to - q.from, w = q.from - p.from;
+        const double denominator = r.x() * s.y() - r.y() * s.x();
+        if (std::abs(denominator) > 1e-14) {
+          const double u = (w.x() * s.y() - w.y() * s.x()) / denominator;  // along p
+          const double v = (w.x() * r.y() - w.y() * r.x()) / denominator;  // along q
+          if (u > 1e-9 && u < 1 - 1e-9 && v > 1e-9 && v < 1 - 1e-9) ++crossings;
+        }
+        for (const auto& x : {p.bfrom, p.bto})
+          for (const auto& y : {q.bfrom, q.bto})
+            if (std::abs(x[0] - y[0]) + std::abs(x[1] - y[1]) + std::abs(x[2] - y[2]) < 1e-12 &&
+                !is_coarse_vertex_point(face, x))
+              ++crossings;
+      }
+    }
+  }
+  CHECK(crossings == 0);
+
+  // Labels: every input face names a coarse face; a face whose corners' map points all lie strictly
+  // inside one coarse face names that one; vertices name their map faces.
+  REQUIRE(tracing.face_patch.size() == static_cast<std::size_t>(mesh.F.rows()));
+  Index mislabelled = 0;
+  for (Index t = 0; t < mesh.F.rows(); ++t) {
+    const Index label = tracing.face_patch[t];
+    CHECK((label >= 0 && label < coarse.F.rows()));
+    const ice::CoarsePoint& p0 = map[mesh.F(t, 0)];
+    bool inside_one = true;
+    for (int c = 0; c < 3; ++c) {
+      const ice::CoarsePoint& p = map[mesh.F(t, c)];
+      inside_one = inside_one && p.coarse_vertex == ice::kInvalid && p.face == p0.face &&
+                   std::min({p.bary[0], p.bary[1], p.bary[2]}) > 0;
+    }
+    if (inside_one && label != p0.face) ++mislabelled;
+  }
+  CHECK(mislabelled == 0);
+  for (std::size_t v = 0; v < map.size(); ++v) CHECK(tracing.vertex_patch[v] == map[v].face);
+  return figures;
+}
+
+// The intrinsic Delaunay triangulation of a mesh as a "coarse" mesh: every input vertex survives,
+// the metric is the input's, so traced lengths on the surface equal the intrinsic lengths.
+TraceFigures check_intrinsic_delaunay(const ice::TriangleMesh& mesh) {
+  ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  const int flips = T.flip_to_delaunay();
+  const ice::CompactMesh coarse = T.compact();
+  std::vector<ice::CoarsePoint> map(static_cast<std::size_t>(mesh.V.rows()));
+  for (Index f = 0; f < coarse.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      ice::CoarsePoint& p = map[coarse.to_input[coarse.F(f, k)]];
+      p.coarse_vertex = coarse.F(f, k);
+      p.face = f;
+      p.bary = {0, 0, 0};
+      p.bary[k] = 1;
+    }
+  const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh.F, coarse, map, {}, mesh.V, 2);
+  INFO(flips << " flips");
+  const TraceFigures figures = check_tracing(mesh, coarse, map, {}, tracing);
+  CHECK(figures.segments >= figures.edges);  // an unflipped edge is one input edge: one segment
+  return figures;
+}
+
+// Exact: every edge traced, every traced length the intrinsic one.
+void check_intrinsic_delaunay_exact(const ice::TriangleMesh& mesh) {
+  const TraceFigures figures = check_intrinsic_delaunay(mesh);
+  CHECK(figures.failed == 0);
+  CHECK(figures.long_edges == 0);
+  CHECK(figures.max_length_error <= 1e-9);
+}
+
+ice::CoarseSpace ice_space(const ice::TriangleMesh& mesh, double ratio, bool remove_boundary = true) {
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_ratio = ratio;
+  options.coarsen.remove_boundary = remove_boundary;
+  options.keep_method_state = true;
+  return ice::build_coarse_space(mesh, options);
+}
+
+TraceFigures check_ice(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space) {
+  const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+  const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh.F, space.mesh, map, space.inserted, mesh.V, 2);
+  return check_tracing(mesh, space.mesh, map, space.inserted, tracing);
+}
+
+}  // namespace
+
+TEST_CASE("tracing the intrinsic Delaunay triangulation: lengths on the surface are the intrinsic lengths", "[tracing]") {
+  SECTION("bumpy torus") {
+    ice::TriangleMesh torus = ice::make_torus(40, 16, 1.0, 0.35);
+    for (Eigen::Index v = 0; v < torus.V.rows(); ++v) torus.V.row(v) *= 1 + 0.1 * std::sin(7 * torus.V(v, 0));
+    check_intrinsic_delaunay_exact(torus);
+  }
+  SECTION("jittered flat disk (boundary)") { check_intrinsic_delaunay_exact(ice::make_flat_disk(12, 1.0, 0.3)); }
+  SECTION("project meshes") {
+    for (const char* name : {"bear.off", "spot.obj", "elephant-with-holes.off"}) {
+      INFO(name);
+      check_intrinsic_delaunay_exact(ice::load_mesh(ice_test::project_mesh(name)));
+    }
+  }
+  SECTION("a CAD mesh with long slivers: a known shortfall, bounded") {
+    // mech-holes-shark's slivers span many intrinsic faces; the layout of their far corners is not
+    // always resolved (see ice/coarse_tracing.h, "Limits"): measured 3 of 15,440 edges untraced and
+    // 87 traced 0.1-2.4 % long.
+    const TraceFigures figures = check_intrinsic_delaunay(ice::load_mesh(ice_test::project_mesh("mech-holes-shark.off")));
+    CHECK(figures.failed + figures.long_edges <= (figures.edges + figures.failed) / 100);
+  }
+}
+
+TEST_CASE("tracing ICE on a flat disk: the metric is the input's, so are the traced lengths", "[tracing]") {
+  const ice::TriangleMesh disk = ice::make_flat_disk(16, 1.0, 0.25);
+  for (const double ratio : {0.3, 0.05}) {
+    INFO("ratio " << ratio);
+    const TraceFigures figures = check_ice(disk, ice_space(disk, ratio, false));
+    CHECK(figures.failed == 0);
+    CHECK(figures.max_length_error <= 1e-9);
+  }
+}
+
+TEST_CASE("tracing Δ-complex coarse meshes: self-edges and multi-edges of tiny coarse meshes", "[tracing]") {
+  const ice::TriangleMesh torus = ice::make_torus(24, 12, 1.0, 0.4);
+  const ice::TriangleMesh sphere = ice::make_icosphere(3);
+  for (const auto& [mesh, target] : {std::pair{&torus, 1}, std::pair{&torus, 3}, std::pair{&sphere, 4}}) {
+    ice::CoarseSpaceOptions options;
+    options.coarsen.target_vertices = target;
+    options.keep_method_state = true;
+    const ice::CoarseSpace space = ice::build_coarse_space(*mesh, options);
+    INFO(space.mesh.num_vertices() << " coarse vertices");
+    // The torus down to one vertex is all self-edges: the case the Δ-complex exists for.
+    if (mesh == &torus && target == 1) CHECK(space.mesh.num_vertices() == 1);
+    CHECK(check_ice(*mesh, space).failed == 0);
+  }
+}
+
+TEST_CASE("tracing refined ICE coarse meshes: edges from and to inserted vertices", "[tracing][refinement]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_ratio = 0.05;
+  options.keep_method_state = true;
+  options.refinement = ice::RefinementOptions{};
+  const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  REQUIRE(!space.inserted.empty());
+  CHECK(check_ice(mesh, space).failed == 0);
+}
+
+TEST_CASE("tracing ICE coarse meshes of the project's meshes and the extended set", "[tracing][extended]") {
+  std::vector<std::string> paths;
+  for (const char* name : {"bear.off", "spot.obj", "elephant-with-holes.off", "lion-head.off", "blobby_3cc.off",
+                           "triple_vierbein.obj", "boxpart.obj"})
+    paths.push_back(ice_test::project_mesh(name));
+  const bool extended = ice_mesh_sets::extended_present();
+  if (extended) {
+    for (const auto& entry : std::filesystem::directory_iterator(ice_mesh_sets::extended_dir())) {
+      const std::string ext = entry.path().extension().string();
+      if (ext == ".obj" || ext == ".off" || ext == ".ply") paths.push_back(entry.path().string());
+    }
+    std::sort(paths.begin(), paths.end());
+  }
+  // Edges and failures of the project's meshes and of the extended set, counted apart.
+  std::array<Index, 2> edges{0, 0}, failed{0, 0};
+  Index traced_meshes = 0, smooth_failed = 0;
+  const std::string project_dir = ice_mesh_sets::project_dir();
+  for (const std::string& path : paths) {
+    INFO(path);
+    ice::TriangleMesh mesh;
+    try {
+      mesh = ice::load_mesh(path, {true, false});
+    } catch (const ice::MeshError&) {
+      continue;  // refused even after repair (the extended set's defective files): nothing to trace
+    }
+#if defined(__SANITIZE_ADDRESS__)
+    if (mesh.V.rows() > 60000) continue;  // the sanitizers make the largest scans take minutes; Release traces them
+#endif
+    const int set = path.rfind(project_dir, 0) == 0 ? 0 : 1;
+    const std::string name = std::filesystem::path(path).filename().string();
+    for (const double ratio : {0.05, 0.01}) {
+      INFO("ratio " << ratio);
+      const TraceFigures figures = check_ice(mesh, ice_space(mesh, ratio));
+      edges[set] += figures.edges + figures.failed;
+      failed[set] += figures.failed;
+      if (ratio == 0.05 && set == 0 && (name == "bear.off" || name == "spot.obj" || name == "blobby_3cc.off" || name == "lion-head.off"))
+        smooth_failed += figures.failed;
+    }
+    ++traced_meshes;
+  }
+  CHECK(traced_meshes >= 6);
+  // Smooth meshes at 5 % trace completely. Failures are bounded, not absent (ice/coarse_tracing.h,
+  // "Limits"): measured 350 of 6,705 edges on the project's meshes (boxpart's slivers and
+  // elephant-with-holes' thin parts: 246 and 99 of them) and 1.1 % over the extended set.
+  CHECK(smooth_failed == 0);
+  CHECK(failed[0] * 100 <= 6 * edges[0]);
+  CHECK(failed[1] * 100 <= 2 * edges[1]);
+  if (!extended) ice_test::skip_without_extended_set();
+}
+
+// What the tracing relies on: the straight images of input triangles in the coarse layout do not fold.
+// Checked where the layout is unambiguous (all corners in one coarse face, or in two sharing a side).
+TEST_CASE("ICE's map lays input triangles out without folds inside one face or a diamond", "[tracing]") {
+  for (const char* name : {"bear.off", "spot.obj", "lion-head.off"}) {
+    const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh(name));
+    const ice::CoarseSpace space = ice_space(mesh, 0.05);
+    const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+    Index same = 0, inverted = 0, two = 0, two_inverted = 0;
+    for (Index t = 0; t < mesh.F.rows(); ++t) {
+      const ice::CoarsePoint& a = map[mesh.F(t, 0)];
+      const ice::CoarsePoint& b = map[mesh.F(t, 1)];
+      const ice::CoarsePoint& c = map[mesh.F(t, 2)];
+      if (a.face != b.face || a.face != c.face) {
+        // two faces sharing a side: lay out the diamond
+        const ice::CoarsePoint* pts[3] = {&a, &b, &c};
+        Index f = a.face, g = ice::kInvalid;
+        for (auto* q : pts) if (q->face != f) { if (g == ice::kInvalid) g = q->face; else if (q->face != g) g = -2; }
+        if (g < 0 || a.coarse_vertex != ice::kInvalid || b.coarse_vertex != ice::kInvalid || c.coarse_vertex != ice::kInvalid) continue;
+        const auto& twin = space.mesh.twin;
+        int k = -1, d = -1;
+        for (int s = 0; s < 3; ++s) { Index tw = twin.empty() ? -1 : twin[3 * f + s]; if (tw >= 0 && tw / 3 == g) { k = s; d = tw % 3; } }
+        if (k < 0) continue;
+        ++two;
+        // layout f with side k on the axis
+        const auto& L = space.mesh.L;
+        ice::Vec2 P[3], Q[3];
+        P[k] = {0, 0}; P[(k + 1) % 3] = {L(f, k), 0};
+        P[(k + 2) % 3] = ice::layout_third_point(P[k], P[(k + 1) % 3], L(f, k), L(f, (k + 2) % 3), L(f, (k + 1) % 3));
+        Q[d] = P[(k + 1) % 3]; Q[(d + 1) % 3] = P[k];
+        Q[(d + 2) % 3] = ice::layout_third_point(Q[d], Q[(d + 1) % 3], L(g, d), L(g, (d + 2) % 3), L(g, (d + 1) % 3));
+        ice::Vec2 X[3];
+        for (int i = 0; i < 3; ++i) { const ice::Vec2* C = pts[i]->face == f ? P : Q; X[i] = C[0] * pts[i]->bary[0] + C[1] * pts[i]->bary[1] + C[2] * pts[i]->bary[2]; }
+        two_inverted += ice::orient2d(X[0], X[1], X[2]) <= 0;
+        continue;
+      }
+      ++same;
+      // barycentric orientation: det of bary rows
+      const double det = a.bary[0] * (b.bary[1] * c.bary[2] - b.bary[2] * c.bary[1]) -
+                         a.bary[1] * (b.bary[0] * c.bary[2] - b.bary[2] * c.bary[0]) +
+                         a.bary[2] * (b.bary[0] * c.bary[1] - b.bary[1] * c.bary[0]);
+      inverted += det <= 0;
+    }
+    INFO(name << ": " << mesh.F.rows() << " faces, " << same << " in one coarse face, " << two << " in a diamond");
+    CHECK(same + two > mesh.F.rows() / 2);
+    CHECK(inverted == 0);
+    CHECK(two_inverted == 0);
+  }
+}
