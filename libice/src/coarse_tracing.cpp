@@ -43,6 +43,9 @@ constexpr double kEndTolerance = 1e-6;
 // inside an image (unfolds_through).
 constexpr double kSideShrink = 1e-9;
 
+// Where on the side p → q the x axis crosses it, as a fraction from p (p and q on opposite sides).
+double axis_fraction(Vec2 p, Vec2 q) { return p.y / (p.y - q.y); }
+
 // Closed-set intersection of the segment (a, b) with the convex hull of 1–3 points, with a
 // tolerance of round-off size: touching counts.
 bool segment_meets_hull(Vec2 a, Vec2 b, const std::vector<Vec2>& hull) {
@@ -418,7 +421,7 @@ TracedEdge Tracer::trace(Index side) const {
     for (int e = 0; e < 3; ++e) {
       const Vec2 p = corners[e]->position, q = corners[(e + 1) % 3]->position;
       if (above(p) == above(q)) continue;
-      const double x = p.x + (q.x - p.x) * (p.y / (p.y - q.y));
+      const double x = p.x + (q.x - p.x) * axis_fraction(p, q);
       if (x > best_x) best_x = x, best_side = e;
     }
     return best_side;
@@ -471,18 +474,18 @@ TracedEdge Tracer::trace(Index side) const {
     Cache fan = cache;
     double best_x = 0;
     Placement chosen_a, chosen_b;
+    // A point of the segment just after its start is in the image of the face it starts into:
+    // unfolding through (tail, that point, corner) turns about the tail the way the image does.
+    const std::vector<Vec2> start{origin, Vec2{1e-6 * l, 0}};
     for (Index i = face_start_[tail_input]; i < face_start_[tail_input + 1]; ++i) {
       const Index g = vertex_faces_[i];
       int m = 0;
       while (F_(g, m) != tail_input) ++m;
-      // A point of the segment just after its start is in the image of the face it starts into:
-      // unfolding through (tail, that point, corner) turns about the tail the way the image does.
-      const std::vector<Vec2> start{origin, Vec2{1e-6 * l, 0}};
       const Placement* a = locate(F_(g, (m + 1) % 3), start, origin, fan, kSideShrink);
       const Placement* b = locate(F_(g, (m + 2) % 3), start, origin, fan, kSideShrink);
       if (!a || !b || above(a->position) || !above(b->position)) continue;
       const Vec2 p = a->position, q = b->position;
-      const double x = p.x + (q.x - p.x) * (p.y / (p.y - q.y));
+      const double x = p.x + (q.x - p.x) * axis_fraction(p, q);
       if (x > 0 && (t == kInvalid || x < best_x)) {
         t = g, best_x = x, start_corner = m, exit_side = (m + 1) % 3;
         chosen_a = *a;
@@ -537,7 +540,7 @@ TracedEdge Tracer::trace(Index side) const {
     }
     const int p = exit_side, q = (exit_side + 1) % 3;
     const Vec2 pp = corners[p]->position, qp = corners[q]->position;
-    const double lambda = pp.y / (pp.y - qp.y);
+    const double lambda = axis_fraction(pp, qp);
     const double x = pp.x + (qp.x - pp.x) * lambda;
     // The map embeds the input, so the segment only moves on through the images; a step back means
     // an input vertex was laid out in the wrong copy (an unresolved unfolding): no trace rather than
@@ -726,28 +729,26 @@ CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const
   return result;
 }
 
+namespace {
+// The point of input face `face` with barycentric coordinates b.
+Eigen::RowVector3d surface_point(const Positions& V, const Faces& F, Index face, const std::array<double, 3>& b) {
+  return V.row(F(face, 0)) * b[0] + V.row(F(face, 1)) * b[1] + V.row(F(face, 2)) * b[2];
+}
+}  // namespace
+
 Positions traced_polyline(const Positions& V, const Faces& F, const TracedEdge& edge) {
   Positions points(edge.segments.empty() ? 0 : static_cast<Index>(edge.segments.size()) + 1, 3);
-  const auto at = [&](Index face, const std::array<double, 3>& b) {
-    return (V.row(F(face, 0)) * b[0] + V.row(F(face, 1)) * b[1] + V.row(F(face, 2)) * b[2]).eval();
-  };
   for (std::size_t i = 0; i < edge.segments.size(); ++i)
-    points.row(static_cast<Index>(i)) = at(edge.segments[i].face, edge.segments[i].from);
+    points.row(static_cast<Index>(i)) = surface_point(V, F, edge.segments[i].face, edge.segments[i].from);
   if (!edge.segments.empty())
-    points.row(points.rows() - 1) = at(edge.segments.back().face, edge.segments.back().to);
+    points.row(points.rows() - 1) = surface_point(V, F, edge.segments.back().face, edge.segments.back().to);
   return points;
 }
 
 double traced_length(const Positions& V, const Faces& F, const TracedEdge& edge) {
   double length = 0;
-  for (const TracedSegment& s : edge.segments) {
-    Eigen::RowVector3d a = Eigen::RowVector3d::Zero(), b = Eigen::RowVector3d::Zero();
-    for (int c = 0; c < 3; ++c) {
-      a += V.row(F(s.face, c)) * s.from[c];
-      b += V.row(F(s.face, c)) * s.to[c];
-    }
-    length += (b - a).norm();
-  }
+  for (const TracedSegment& s : edge.segments)
+    length += (surface_point(V, F, s.face, s.to) - surface_point(V, F, s.face, s.from)).norm();
   return length;
 }
 
