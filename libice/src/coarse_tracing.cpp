@@ -459,7 +459,8 @@ TracedEdge Tracer::trace(Index side) const {
       if (coarse_.from_input[static_cast<std::size_t>(w)] != kInvalid) return fail(TraceStatus::lost);
       const Placement* placed = locate(w, {Vec2{param, 0}}, Vec2{param, 0}, cache, 0);
       if (!placed) return fail(TraceStatus::lost);
-      if (placed->position.x < param - 1e-9 * l) return fail(TraceStatus::lost);
+      // Along the edge, and not past its head.
+      if (placed->position.x < param - 1e-9 * l || placed->position.x > l * (1 + 1e-9)) return fail(TraceStatus::lost);
       edge.segments.push_back({t, a, b, param, placed->position.x});
       param = placed->position.x;
       v = w;
@@ -508,6 +509,10 @@ TracedEdge Tracer::trace(Index side) const {
       if (!corners[c]) return fail(TraceStatus::lost);
     }
     from = point.bary;
+    // The tail's image in this layout must be the segment's start (else the corners went to other copies).
+    Vec2 tail_image{0, 0};
+    for (int c = 0; c < 3; ++c) tail_image = tail_image + corners[c]->position * point.bary[c];
+    if (tail_image.norm() > kEndTolerance * l) return fail(TraceStatus::lost);
     exit_side = furthest_exit();
     if (exit_side < 0) return fail(TraceStatus::lost);
   }
@@ -526,7 +531,12 @@ TracedEdge Tracer::trace(Index side) const {
     // The head reached inside t: the segment's end is at its image (see the file comment: once the
     // walk is in the head's star, the straight way to the head stays in the face it entered).
     if (head_point) {
-      if (t == head_point->face) return finish(head_point->bary);
+      if (t == head_point->face) {
+        // Entering the head's face in another copy (a Δ-complex wraps round) is not reaching it.
+        Vec2 head_image{0, 0};
+        for (int c = 0; c < 3; ++c) head_image = head_image + corners[c]->position * head_point->bary[c];
+        if ((head_image - end).norm() <= kEndTolerance * l) return finish(head_point->bary);
+      }
     } else {
       for (int c = 0; c < 3; ++c) {
         if (c == start_corner || F_(t, c) != head_input) continue;
@@ -547,7 +557,10 @@ TracedEdge Tracer::trace(Index side) const {
     // a wrong one.
     if (x < from_param - 1e-9 * l) return fail(TraceStatus::lost);
     if (head_point && x >= l) {  // past an inserted head lying on t's boundary: end at the segment's end
-      return finish(clamp_barycentric(barycentric(end, corners[0]->position, corners[1]->position, corners[2]->position)));
+      const std::array<double, 3> to = barycentric(end, corners[0]->position, corners[1]->position, corners[2]->position);
+      // The end must be in t (up to round-off), else the walk is not where the head is.
+      if (std::min({to[0], to[1], to[2]}) < -kEndTolerance) return fail(TraceStatus::lost);
+      return finish(clamp_barycentric(to));
     }
     std::array<double, 3> to{0, 0, 0};
     to[p] = 1 - lambda;
@@ -569,7 +582,9 @@ TracedEdge Tracer::trace(Index side) const {
     // the entry point on the edge, which lies in them.
     const Vec2 entry{x, 0};
     const std::array<Vec2, 2> entry_side{qp, pp};
-    next[d2] = locate(F_(g, d2), {pp, qp, entry}, entry, cache, 0, &entry_side);
+    // The image being laid out is the triangle (pp, qp, new corner): the entry point lies on its side
+    // pp → qp, so the anchors are that side's ends (unfolds_through tests the whole triangle).
+    next[d2] = locate(F_(g, d2), {pp, qp}, entry, cache, 0, &entry_side);
     if (!next[d2]) return fail(TraceStatus::lost);
     // Input triangles keep their orientation in the layout (the map does not fold them): a new corner
     // on the wrong side of the entry side was laid out in the wrong copy.
@@ -595,10 +610,19 @@ Index Tracer::face_patch(Index t) const {
     inside_one = inside_one && p.coarse_vertex == kInvalid && p.face == first.face;
   }
   if (inside_one) return first.face;
-  const std::vector<FaceCopy> seeds{along_side(first.face, 0)};
+  // The layout starts from the corner deepest inside its coarse face: a corner at a coarse vertex
+  // (a cone) has its neighbours' images in several copies around it, one inside a face has one.
+  int seed_corner = 0;
+  double deepest = -1;
+  for (int c = 0; c < 3; ++c) {
+    const std::array<double, 3>& b = map_[static_cast<std::size_t>(F_(t, c))].bary;
+    const double depth = std::min({b[0], b[1], b[2]});
+    if (depth > deepest) deepest = depth, seed_corner = c;
+  }
+  const std::vector<FaceCopy> seeds{along_side(map_[static_cast<std::size_t>(F_(t, seed_corner))].face, 0)};
   Cache cache;
   Vec2 centre{0, 0};
-  const Placement* corner0 = place(F_(t, 0), seeds, {}, Vec2{0, 0}, cache, 0);
+  const Placement* corner0 = place(F_(t, seed_corner), seeds, {}, Vec2{0, 0}, cache, 0);
   if (!corner0) return first.face;
   for (int c = 0; c < 3; ++c) {
     const Placement* corner = place(F_(t, c), seeds, {corner0->position}, corner0->position, cache, 0);
@@ -672,9 +696,34 @@ void mark_crossing_edges(std::vector<TracedEdge>& edges, const CompactMesh& coar
 CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
                                 const std::vector<InputSurfacePoint>& inserted, const Positions& V, int threads) {
   const Index n = static_cast<Index>(map.size());
-  if (F.size() > 0 && (F.minCoeff() < 0 || F.maxCoeff() >= n))
+  if (F.size() > 0 && F.minCoeff() < 0)
+    throw std::invalid_argument("trace_coarse_mesh: an input face has a negative vertex index (" +
+                                std::to_string(F.minCoeff()) + ")");
+  if (F.size() > 0 && F.maxCoeff() >= n)
     throw std::invalid_argument("trace_coarse_mesh: the map has " + std::to_string(n) +
-                                " points, fewer than the input faces' vertices");
+                                " points, fewer than the input faces' vertices (" + std::to_string(F.maxCoeff() + 1) + ")");
+  if (V.rows() != 0 && V.rows() != n)
+    throw std::invalid_argument("trace_coarse_mesh: " + std::to_string(V.rows()) + " positions for " +
+                                std::to_string(n) + " input vertices");
+  if (static_cast<Index>(coarse.from_input.size()) != n)
+    throw std::invalid_argument("trace_coarse_mesh: the coarse mesh's from_input has " +
+                                std::to_string(coarse.from_input.size()) + " entries for " + std::to_string(n) +
+                                " input vertices");
+  // Coarse vertices: input vertices first (to_input names one), then the inserted ones (kInvalid).
+  bool inserted_seen = false;
+  for (Index c = 0; c < coarse.num_vertices(); ++c) {
+    const Index input = coarse.to_input[static_cast<std::size_t>(c)];
+    if (input == kInvalid) {
+      inserted_seen = true;
+      continue;
+    }
+    if (inserted_seen)
+      throw std::invalid_argument("trace_coarse_mesh: coarse vertex " + std::to_string(c) +
+                                  " is an input vertex after an inserted one (inserted vertices come last)");
+    if (input < 0 || input >= n || coarse.from_input[static_cast<std::size_t>(input)] != c)
+      throw std::invalid_argument("trace_coarse_mesh: coarse vertex " + std::to_string(c) + " names input vertex " +
+                                  std::to_string(input) + ", which does not name it back");
+  }
   for (Index v = 0; v < n; ++v) {
     const CoarsePoint& p = map[static_cast<std::size_t>(v)];
     if (p.face < 0 || p.face >= coarse.F.rows())

@@ -29,8 +29,8 @@
 /// by the metric distortion of ICE's flattening (CoarseTracing::length_ratio_*).
 ///
 /// Limits (measured 2026-11; an edge that cannot be traced is reported, never drawn wrong, with the
-/// exception below): 1.1 % of the edges of ICE coarse meshes at 5 % and 1 % of the project's and the
-/// extended set's meshes fail,
+/// exception below): 1.0 % of the edges of ICE coarse meshes at 5 % and 1 % of the project's and the
+/// extended set's meshes fail (1,389 of 132,660),
 /// none on smooth meshes at 5 %; the failures gather where input triangles are long against coarse
 /// faces (CAD slivers: boxpart fails most of its edges; elephant-with-holes' thin parts, 11 %; the
 /// largest scans, up to 6 % at 1 %), where the layout of a far corner is not resolved. On the
@@ -77,7 +77,9 @@ struct CoarseTracing {
   /// One per coarse edge: interior edges from the side with the smaller index, boundary edges from their face.
   /// Untraced edges keep the segments walked before the failure (not drawn: not on the edge).
   std::vector<TracedEdge> edges;
-  /// Input face -> the coarse face containing the image of its barycentre.
+  /// Input face -> the coarse face containing the image of its barycentre (laid out from its corner
+  /// deepest inside a coarse face). With every edge traced, faces between the same traced edges get
+  /// the same label (tested).
   std::vector<Index> face_patch;
   /// Input vertex -> the coarse face of its map point (a coarse vertex: the face the map names).
   std::vector<Index> vertex_patch;
@@ -90,9 +92,11 @@ struct CoarseTracing {
 /// Traces every edge of `coarse` across the input faces `F`. `map` is the fine-to-coarse map
 /// (one CoarsePoint per input vertex, faces in coarse's numbering: ice::fine_to_coarse_map);
 /// `inserted` the input-surface points of vertices inserted by refinement, in coarse vertex order
-/// after the input ones (CoarseSpace::inserted). Preconditions (std::invalid_argument): map has one
-/// entry per vertex of F, its faces are coarse faces, `inserted` matches the coarse vertices with
-/// to_input == kInvalid. `V` (optional: empty = not measured) gives CoarseTracing's length ratios.
+/// after the input ones (CoarseSpace::inserted). Preconditions (std::invalid_argument): F's indices
+/// are in [0, map.size()); map has one entry per input vertex and names coarse faces;
+/// coarse.from_input has map.size() entries and coarse.to_input is its inverse on the input vertices,
+/// which come first; `inserted` matches the coarse vertices with to_input == kInvalid; V is empty or
+/// has one row per input vertex. `V` (optional: empty = not measured) gives CoarseTracing's length ratios.
 /// Each edge's trace is independent; threads = 0 uses the hardware's.
 CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
                                 const std::vector<InputSurfacePoint>& inserted = {}, const Positions& V = {},
