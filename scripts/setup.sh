@@ -39,12 +39,13 @@ as_root() {
 # BoomerAMG comparison in bench/bench_multigrid.cpp; the build works without it. The Python
 # package (python/) is built with pybind11 against Debian's python3 and tested with its numpy,
 # scipy, pytest and matplotlib (the example draws a picture); ice-batch runs on Dask distributed
-# (python3-dask, python3-distributed; tqdm for its progress bar, psutil for its tests).
+# (python3-dask, python3-distributed; tqdm for its progress bar, psutil for its tests). libtinygltf-dev
+# writes the binary glTF files of ice/scalar_field_io.h.
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev
   libopenblas-dev libopenblas0-pthread libopenblas-pthread-dev
-  libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox
+  libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox libtinygltf-dev
   libcgal-demo libhypre-dev xz-utils
   pybind11-dev python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
   python3-dask python3-distributed python3-tqdm python3-psutil

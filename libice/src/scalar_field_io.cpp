@@ -1,5 +1,8 @@
 #include "ice/scalar_field_io.h"
 
+#include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -9,6 +12,9 @@
 #include <sstream>
 
 #include "ice/mesh_io.h"
+
+#include <Eigen/Geometry>
+#include <tiny_gltf.h>
 
 namespace ice {
 namespace {
@@ -36,10 +42,8 @@ void append(std::vector<char>& buffer, T value) {
   buffer.insert(buffer.end(), bytes, bytes + sizeof(T));
 }
 
-}  // namespace
-
-void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields,
-                           const ScalarFieldWriteOptions& options) {
+// The preconditions both writers share (MeshError naming the path).
+void check_mesh_and_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields) {
   const auto fail = [&](const std::string& message) { throw MeshError(MeshError::Kind::Unwritable, path, message); };
   const Eigen::Index nv = mesh.V.rows(), nf = mesh.F.rows();
   if (mesh.V.cols() != 3 || mesh.F.cols() != 3 || (nf > 0 && (mesh.F.minCoeff() < 0 || mesh.F.maxCoeff() >= nv)))
@@ -47,14 +51,23 @@ void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, co
   std::set<std::string> names{"x", "y", "z"};
   for (const ScalarField& field : fields) {
     if (!valid_property_name(field.name))
-      fail("invalid PLY property name '" + field.name + "' (letters, digits and '_', not starting with a digit)");
-    if (!names.insert(field.name).second) fail("property name '" + field.name + "' is used twice (or is x, y or z)");
+      fail("invalid field name '" + field.name + "' (letters, digits and '_', not starting with a digit)");
+    if (!names.insert(field.name).second) fail("field name '" + field.name + "' is used twice (or is x, y or z)");
     if (field.values.size() != nv) {
       std::ostringstream message;
       message << "field '" << field.name << "' has " << field.values.size() << " values for " << nv << " vertices";
       fail(message.str());
     }
   }
+}
+
+}  // namespace
+
+void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields,
+                           const ScalarFieldWriteOptions& options) {
+  const auto fail = [&](const std::string& message) { throw MeshError(MeshError::Kind::Unwritable, path, message); };
+  const Eigen::Index nv = mesh.V.rows(), nf = mesh.F.rows();
+  check_mesh_and_fields(path, mesh, fields);
   require_writable(path, options.overwrite);
   std::error_code ec;
 
@@ -92,6 +105,259 @@ void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, co
     out.close();
     fs::remove(path, ec);
     fail("write failed (disk full?)");
+  }
+}
+
+// ---- binary glTF --------------------------------------------------------------------------------------
+
+const std::array<std::array<unsigned char, 3>, 17>& viridis_samples() {
+  // matplotlib's viridis (public domain, CC0) at t = k/16.
+  static const std::array<std::array<unsigned char, 3>, 17> samples{{
+      {0x44, 0x01, 0x54}, {0x48, 0x18, 0x6a}, {0x47, 0x2d, 0x7b}, {0x42, 0x40, 0x86}, {0x3b, 0x52, 0x8b},
+      {0x33, 0x63, 0x8d}, {0x2c, 0x72, 0x8e}, {0x26, 0x82, 0x8e}, {0x21, 0x91, 0x8c}, {0x1f, 0xa0, 0x88},
+      {0x28, 0xae, 0x80}, {0x3f, 0xbc, 0x73}, {0x5e, 0xc9, 0x62}, {0x84, 0xd4, 0x4b}, {0xad, 0xdc, 0x30},
+      {0xd8, 0xe2, 0x19}, {0xfd, 0xe7, 0x25}}};
+  return samples;
+}
+
+std::array<double, 3> viridis(double t) {
+  const auto& samples = viridis_samples();
+  if (!(t > 0)) t = 0;  // NaN too
+  if (t > 1) t = 1;
+  const double scaled = t * 16;
+  const int k = std::min(15, static_cast<int>(scaled));
+  const double w = scaled - k;
+  std::array<double, 3> colour{};
+  for (int c = 0; c < 3; ++c) colour[c] = ((1 - w) * samples[k][c] + w * samples[k + 1][c]) / 255.0;
+  return colour;
+}
+
+namespace {
+
+// sRGB → linear (glTF's COLOR_0 and baseColorFactor are linear).
+double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
+
+// Builds a glTF model buffer by buffer view: each block of floats or indices becomes a view and an
+// accessor of the one buffer.
+class GltfBuilder {
+ public:
+  explicit GltfBuilder(tinygltf::Model& model) : model_(model) { model_.buffers.emplace_back(); }
+
+  // float32 elements of `components` each (1 SCALAR, 3 VEC3); min/max recorded when asked (POSITION needs them).
+  int add_floats(const std::vector<float>& data, int components, bool bounds, int target) {
+    const int view = add_view(data.data(), data.size() * sizeof(float), target);
+    tinygltf::Accessor accessor;
+    accessor.bufferView = view;
+    accessor.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    accessor.count = data.size() / static_cast<std::size_t>(components);
+    accessor.type = components == 1 ? TINYGLTF_TYPE_SCALAR : TINYGLTF_TYPE_VEC3;
+    if (bounds && accessor.count > 0) {
+      accessor.minValues.assign(static_cast<std::size_t>(components), std::numeric_limits<double>::infinity());
+      accessor.maxValues.assign(static_cast<std::size_t>(components), -std::numeric_limits<double>::infinity());
+      for (std::size_t i = 0; i < data.size(); ++i) {
+        const std::size_t c = i % static_cast<std::size_t>(components);
+        accessor.minValues[c] = std::min<double>(accessor.minValues[c], data[i]);
+        accessor.maxValues[c] = std::max<double>(accessor.maxValues[c], data[i]);
+      }
+    }
+    model_.accessors.push_back(accessor);
+    return static_cast<int>(model_.accessors.size()) - 1;
+  }
+
+  int add_indices(const std::vector<std::uint32_t>& data) {
+    const int view = add_view(data.data(), data.size() * sizeof(std::uint32_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    tinygltf::Accessor accessor;
+    accessor.bufferView = view;
+    accessor.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    accessor.count = data.size();
+    accessor.type = TINYGLTF_TYPE_SCALAR;
+    model_.accessors.push_back(accessor);
+    return static_cast<int>(model_.accessors.size()) - 1;
+  }
+
+ private:
+  int add_view(const void* data, std::size_t bytes, int target) {
+    std::vector<unsigned char>& buffer = model_.buffers[0].data;
+    buffer.resize((buffer.size() + 3) / 4 * 4);  // 4-byte alignment of every view (float32, uint32)
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = buffer.size();
+    view.byteLength = bytes;
+    view.target = target;
+    const auto* begin = static_cast<const unsigned char*>(data);
+    buffer.insert(buffer.end(), begin, begin + bytes);
+    model_.bufferViews.push_back(view);
+    return static_cast<int>(model_.bufferViews.size()) - 1;
+  }
+
+  tinygltf::Model& model_;
+};
+
+// Finite range of a field ({0, 0} when no value is finite).
+std::array<double, 2> finite_range(const Eigen::VectorXd& values) {
+  double low = std::numeric_limits<double>::infinity(), high = -low;
+  for (Eigen::Index i = 0; i < values.size(); ++i)
+    if (std::isfinite(values(i))) low = std::min(low, values(i)), high = std::max(high, values(i));
+  if (low > high) return {0, 0};
+  return {low, high};
+}
+
+std::string upper_case(std::string name) {
+  for (char& c : name) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return name;
+}
+
+}  // namespace
+
+void write_gltf_with_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields,
+                            const std::vector<Positions>& polylines, const GltfWriteOptions& options) {
+  const auto fail = [&](const std::string& message) { throw MeshError(MeshError::Kind::Unwritable, path, message); };
+  check_mesh_and_fields(path, mesh, fields);
+  std::set<std::string> attributes;
+  for (const ScalarField& field : fields)
+    if (!attributes.insert(upper_case(field.name)).second)
+      fail("field names '" + field.name + "' and another differ only in case (glTF attribute names are upper case)");
+  for (const Positions& line : polylines)
+    if (line.rows() > 0 && line.cols() != 3) fail("a polyline's points are not 3D");
+  int colour_index = fields.empty() ? -1 : 0;
+  if (!options.colour_field.empty()) {
+    colour_index = -1;
+    for (std::size_t i = 0; i < fields.size(); ++i)
+      if (fields[i].name == options.colour_field) colour_index = static_cast<int>(i);
+    if (colour_index < 0) fail("the colour field '" + options.colour_field + "' is not among the fields");
+  }
+  require_writable(path, options.overwrite);
+
+  const Eigen::Index nv = mesh.V.rows(), nf = mesh.F.rows();
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = "ICE (libice write_gltf_with_fields)";
+  GltfBuilder builder(model);
+
+  std::vector<float> positions(static_cast<std::size_t>(3 * nv));
+  for (Eigen::Index i = 0; i < nv; ++i)
+    for (int k = 0; k < 3; ++k) positions[static_cast<std::size_t>(3 * i + k)] = static_cast<float>(mesh.V(i, k));
+  // Area-weighted vertex normals (the cross products' sum), unit length as glTF requires.
+  Eigen::MatrixXd normal_sum = Eigen::MatrixXd::Zero(nv, 3);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();
+    for (int k = 0; k < 3; ++k) normal_sum.row(mesh.F(f, k)) += n;
+  }
+  std::vector<float> normals(static_cast<std::size_t>(3 * nv));
+  for (Eigen::Index i = 0; i < nv; ++i) {
+    const double length = normal_sum.row(i).norm();
+    const Eigen::RowVector3d n = length > 0 && std::isfinite(length) ? Eigen::RowVector3d(normal_sum.row(i) / length)
+                                                                      : Eigen::RowVector3d(0, 0, 1);
+    for (int k = 0; k < 3; ++k) normals[static_cast<std::size_t>(3 * i + k)] = static_cast<float>(n(k));
+  }
+  std::vector<std::uint32_t> indices(static_cast<std::size_t>(3 * nf));
+  for (Eigen::Index f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) indices[static_cast<std::size_t>(3 * f + k)] = static_cast<std::uint32_t>(mesh.F(f, k));
+
+  tinygltf::Primitive surface;
+  surface.mode = TINYGLTF_MODE_TRIANGLES;
+  surface.attributes["POSITION"] = builder.add_floats(positions, 3, true, TINYGLTF_TARGET_ARRAY_BUFFER);
+  surface.attributes["NORMAL"] = builder.add_floats(normals, 3, false, TINYGLTF_TARGET_ARRAY_BUFFER);
+  surface.indices = builder.add_indices(indices);
+  surface.material = 0;
+
+  tinygltf::Value::Array field_records;
+  for (const ScalarField& field : fields) {
+    std::vector<float> values(static_cast<std::size_t>(nv));
+    for (Eigen::Index i = 0; i < nv; ++i) values[static_cast<std::size_t>(i)] = static_cast<float>(field.values(i));
+    const std::string attribute = "_" + upper_case(field.name);
+    surface.attributes[attribute] = builder.add_floats(values, 1, false, TINYGLTF_TARGET_ARRAY_BUFFER);
+    const std::array<double, 2> range = finite_range(field.values);
+    tinygltf::Value::Object record;
+    record["name"] = tinygltf::Value(field.name);
+    record["attribute"] = tinygltf::Value(attribute);
+    record["min"] = tinygltf::Value(range[0]);
+    record["max"] = tinygltf::Value(range[1]);
+    field_records.emplace_back(record);
+  }
+  tinygltf::Value::Object extras;
+  extras["fields"] = tinygltf::Value(field_records);
+  if (colour_index >= 0) {
+    const ScalarField& field = fields[static_cast<std::size_t>(colour_index)];
+    const std::array<double, 2> range = finite_range(field.values);
+    const double span = range[1] - range[0];
+    std::vector<float> colours(static_cast<std::size_t>(3 * nv));
+    for (Eigen::Index i = 0; i < nv; ++i) {
+      const double value = field.values(i);
+      std::array<double, 3> colour{0.5, 0.5, 0.5};  // no value (NaN, unreachable): grey
+      if (std::isfinite(value)) colour = viridis(span > 0 ? (value - range[0]) / span : 0.5);
+      for (int k = 0; k < 3; ++k) colours[static_cast<std::size_t>(3 * i + k)] = static_cast<float>(srgb_to_linear(colour[k]));
+    }
+    surface.attributes["COLOR_0"] = builder.add_floats(colours, 3, false, TINYGLTF_TARGET_ARRAY_BUFFER);
+    extras["colour_field"] = tinygltf::Value(field.name);
+    extras["colour_map"] = tinygltf::Value(std::string("viridis"));
+    extras["range"] = tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(range[0]), tinygltf::Value(range[1])});
+  }
+
+  // Materials: the surface (white base: the vertex colours show; matte), the lines.
+  tinygltf::Material surface_material;
+  surface_material.name = "surface";
+  surface_material.doubleSided = true;
+  surface_material.pbrMetallicRoughness.metallicFactor = 0;
+  surface_material.pbrMetallicRoughness.roughnessFactor = 1;
+  model.materials.push_back(surface_material);
+
+  tinygltf::Mesh surface_mesh;
+  surface_mesh.name = "mesh";
+  surface_mesh.primitives.push_back(surface);
+  surface_mesh.extras = tinygltf::Value(extras);
+  model.meshes.push_back(surface_mesh);
+  tinygltf::Node surface_node;
+  surface_node.name = "mesh";
+  surface_node.mesh = 0;
+  model.nodes.push_back(surface_node);
+
+  std::vector<float> line_points;
+  std::vector<std::uint32_t> line_indices;
+  for (const Positions& line : polylines) {
+    const auto first = static_cast<std::uint32_t>(line_points.size() / 3);
+    for (Eigen::Index i = 0; i < line.rows(); ++i)
+      for (int k = 0; k < 3; ++k) line_points.push_back(static_cast<float>(line(i, k)));
+    for (Eigen::Index i = 0; i + 1 < line.rows(); ++i) {
+      line_indices.push_back(first + static_cast<std::uint32_t>(i));
+      line_indices.push_back(first + static_cast<std::uint32_t>(i + 1));
+    }
+  }
+  if (!line_indices.empty()) {
+    tinygltf::Material line_material;
+    line_material.name = "lines";
+    line_material.pbrMetallicRoughness.baseColorFactor = {srgb_to_linear(options.line_colour[0]),
+                                                          srgb_to_linear(options.line_colour[1]),
+                                                          srgb_to_linear(options.line_colour[2]), 1.0};
+    line_material.pbrMetallicRoughness.metallicFactor = 0;
+    line_material.pbrMetallicRoughness.roughnessFactor = 1;
+    model.materials.push_back(line_material);
+    tinygltf::Primitive lines;
+    lines.mode = TINYGLTF_MODE_LINE;
+    lines.attributes["POSITION"] = builder.add_floats(line_points, 3, true, TINYGLTF_TARGET_ARRAY_BUFFER);
+    lines.indices = builder.add_indices(line_indices);
+    lines.material = 1;
+    tinygltf::Mesh line_mesh;
+    line_mesh.name = "lines";
+    line_mesh.primitives.push_back(lines);
+    model.meshes.push_back(line_mesh);
+    tinygltf::Node line_node;
+    line_node.name = "lines";
+    line_node.mesh = 1;
+    model.nodes.push_back(line_node);
+  }
+  tinygltf::Scene scene;
+  for (int node = 0; node < static_cast<int>(model.nodes.size()); ++node) scene.nodes.push_back(node);
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+
+  tinygltf::TinyGLTF writer;
+  // embedImages, embedBuffers, prettyPrint, writeBinary
+  if (!writer.WriteGltfSceneToFile(&model, path, true, true, false, true)) {
+    std::error_code ec;
+    fs::remove(path, ec);
+    fail("write failed");
   }
 }
 

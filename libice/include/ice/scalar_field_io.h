@@ -2,12 +2,13 @@
 /// \file scalar_field_io.h
 /// Writing a triangle mesh together with named per-vertex scalar fields (solutions, references,
 /// errors, ...) as a PLY file that viewers (MeshLab, ParaView, Blender, polyscope) and numpy/plyfile
-/// read directly.
+/// read directly, or as binary glTF coloured by one field, with polylines drawn over the surface.
 ///
-/// Layout: `element vertex n` with `property double x`, `y`, `z`, then one `property double <name>`
+/// PLY layout: `element vertex n` with `property double x`, `y`, `z`, then one `property double <name>`
 /// per field in the given order; `element face m` with `property list uchar int vertex_indices`.
 /// Binary little endian by default (exact doubles, compact); ASCII on request (17 significant digits,
 /// so doubles still round-trip). The writer never replaces an existing file unless asked to.
+#include <array>
 #include <fstream>
 #include <string>
 #include <utility>
@@ -36,6 +37,40 @@ struct ScalarFieldWriteOptions {
 /// of range, or the file cannot be written (a partially written file is removed).
 void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields,
                            const ScalarFieldWriteOptions& options = {});
+
+// ---- binary glTF: the same mesh and fields for Blender, three.js and web viewers -------------------
+
+/// matplotlib's viridis (a perceptually uniform sequential colour map), sRGB in [0, 1], at t in
+/// [0, 1] (clamped): linear interpolation between 17 evenly spaced samples of the map, within 6/255
+/// of it. The colours of the glTF files below and of the HTML view.
+std::array<double, 3> viridis(double t);
+
+/// The 17 samples of viridis (sRGB, 0–255), t = 0, 1/16, ..., 1.
+const std::array<std::array<unsigned char, 3>, 17>& viridis_samples();
+
+struct GltfWriteOptions {
+  bool overwrite = false;       ///< replace an existing file (otherwise MeshError, kind Unwritable)
+  /// The field drawn as the vertex colours (COLOR_0, viridis over its finite range; non-finite values
+  /// grey). Empty: the first field; no fields: no colours.
+  std::string colour_field;
+  std::array<double, 3> line_colour{1.0, 0.125, 0.125};  ///< sRGB of the polylines
+};
+
+/// Writes `mesh`, `fields` and `polylines` (e.g. the traced coarse edges: ice::traced_polyline) as one
+/// binary glTF 2.0 file (.glb) through tinygltf. Layout:
+///  - node "mesh": triangles with POSITION (float32), NORMAL (area-weighted vertex normals; (0, 0, 1)
+///    where undefined), COLOR_0 (the colour field through viridis, linear RGB as glTF requires) and
+///    one float32 application attribute per field, named "_" + the field name in upper case (glTF's
+///    rule for application-specific attributes), so a viewer can recolour without the PLY;
+///  - node "lines" (only with polylines): a LINES primitive of every polyline's segments, material
+///    "lines" in `line_colour`;
+///  - the mesh's `extras`: {"colour_field", "colour_map": "viridis", "range": [min, max], "fields":
+///    [{"name", "attribute", "min", "max"}]} — ranges over the finite values (a legend needs them).
+/// Field names as for write_ply_with_fields. Positions are float32 (glTF has no doubles): the PLY is
+/// the exact record. Throws MeshError (Unwritable, naming the path) as write_ply_with_fields does,
+/// and for an unknown colour_field; a partially written file is removed.
+void write_gltf_with_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields,
+                            const std::vector<Positions>& polylines = {}, const GltfWriteOptions& options = {});
 
 // ---- dense matrices (distance matrices of fem::DistanceOracle) ---------------------------------------
 
