@@ -1,6 +1,7 @@
 #include "app_common.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -12,7 +13,9 @@
 #include <new>
 #include <sstream>
 
+#include "ice/coarse_tracing.h"
 #include "ice/prolongation.h"
+#include "view_page.h"
 
 namespace app {
 
@@ -160,7 +163,9 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
                          PdeRun& run, Stopwatch& clock) {
   PdeProxy p;
   // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
-  p.coarse = coarsen_for_pde(mesh, options, opt, run);
+  // An output file draws the coarse mesh on the surface (write_result_fields): ICE's map is kept for it.
+  p.coarse = coarsen_for_pde(mesh, options, opt, run,
+                             (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice);
   run.coarsen = clock.lap();
   // The fine discretisation: the reference's, and the Galerkin operators' and M f's
   p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
@@ -170,17 +175,93 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   return p;
 }
 
-void write_result_ply(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
-                      const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
-                      std::vector<ice::ScalarField> extra) {
-  if (opt.output.empty()) return;
+namespace {
+ice::CoarseTracing trace_space(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space) {
+  return ice::trace_coarse_mesh(mesh.F, space.mesh, ice::fine_to_coarse_map(space), space.inserted, mesh.V, 0);
+}
+}  // namespace
+
+bool output_is_gltf(const PdeOptions& opt) {
+  std::string extension = fs::path(opt.output).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension == ".glb";
+}
+
+std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
+                                         const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
+                                         std::vector<ice::ScalarField> extra, const ice::CoarseSpace* space) {
+  std::array<ice::Index, 2> traced{0, 0};
+  if (opt.output.empty()) return traced;
   std::vector<ice::ScalarField> fields{{name, result}};
   if (reference.size() != 0) {
     fields.push_back({"reference", reference});
     fields.push_back({"error", result - reference});
   }
   for (ice::ScalarField& field : extra) fields.push_back(std::move(field));
-  ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
+  const bool gltf = output_is_gltf(opt);
+  std::vector<ice::Positions> lines;
+  if (space && space->triangulation) {  // ICE with its method state
+    const ice::CoarseTracing tracing = trace_space(mesh, *space);
+    Eigen::VectorXd patch(mesh.V.rows());
+    for (Eigen::Index v = 0; v < patch.size(); ++v) patch(v) = static_cast<double>(tracing.vertex_patch[static_cast<std::size_t>(v)]);
+    fields.push_back({"patch", patch});
+    traced = {tracing.traced, static_cast<ice::Index>(tracing.edges.size())};
+    if (gltf)
+      for (const ice::TracedEdge& edge : tracing.edges)
+        if (edge.status == ice::TraceStatus::traced) lines.push_back(ice::traced_polyline(mesh.V, mesh.F, edge));
+  }
+  if (gltf) {
+    ice::GltfWriteOptions options;
+    options.overwrite = opt.force;
+    options.colour_field = reference.size() != 0 ? "error" : name;
+    ice::write_gltf_with_fields(opt.output, mesh, fields, lines, options);
+  } else {
+    ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
+  }
+  return traced;
+}
+
+void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& title,
+                       const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
+                       const Eigen::VectorXd& reference, const ice::CoarseSpace& space, const nlohmann::json& error_json) {
+  if (opt.html.empty()) return;
+  // Above this many vertices the page draws an ICE coarsening of the input (its survivors keep their
+  // positions and values): the 3D view of a 1.6M-vertex mesh then opens in seconds.
+  constexpr long long kDisplayVertices = 200000;
+  ViewMesh view = view_mesh(fs::path(opt.mesh).filename().string(), mesh, kDisplayVertices);
+  view.fields.push_back(view_field(view, name, problem, "solution", "", result));
+  const std::string method = space.summary.method == ice::CoarseningMethod::ice ? "ICE" : "QEM";
+  if (reference.size() != 0) {
+    view.fields.push_back(view_field(view, "reference (fine)", problem, "solution", "", reference));
+    view.fields.push_back(view_field(view, "|error|", problem, "error", method, (result - reference).cwiseAbs()));
+  }
+  ViewMethod drawn;
+  drawn.name = method;
+  drawn.coarse_vertices = space.mesh.num_vertices();
+  if (error_json.is_object() && error_json.contains("rel_l2") && error_json["rel_l2"].is_number())
+    drawn.errors[problem] = error_json["rel_l2"].get<double>();
+  if (space.triangulation) {
+    const ice::CoarseTracing tracing = trace_space(mesh, space);
+    drawn.edges = traced_segments(mesh, tracing);
+    if (tracing.failed > 0) drawn.message = thousands(tracing.failed) + " coarse edges could not be traced and are not drawn";
+    Eigen::VectorXd patch(mesh.V.rows());
+    for (Eigen::Index v = 0; v < patch.size(); ++v) patch(v) = static_cast<double>(tracing.vertex_patch[static_cast<std::size_t>(v)]);
+    view.fields.push_back(view_field(view, "patch", "", "label", method, patch));
+  } else {
+    // QEM's coarse mesh is an extrinsic mesh on its survivors' positions: its edges are the straight
+    // segments between them (each edge once: from the side with the smaller vertex pair order).
+    const ice::Positions positions = ice::coarse_vertex_positions(mesh, space);
+    for (Eigen::Index f = 0; f < space.mesh.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const ice::Index a = space.mesh.F(f, k), b = space.mesh.F(f, (k + 1) % 3);
+        if (a > b) continue;  // the other side of an interior edge draws it (boundary edges: drawn once or twice)
+        for (const ice::Index v : {a, b})
+          for (int c = 0; c < 3; ++c) drawn.edges.push_back(static_cast<float>(positions(v, c)));
+      }
+    drawn.message = "QEM's coarse mesh is extrinsic: its edges are drawn straight between its vertices";
+  }
+  view.methods.push_back(std::move(drawn));
+  write_view_page(opt.html, title, {view}, "", opt.force);
 }
 
 Eigen::VectorXd demo_poisson_rhs(const ice::TriangleMesh& mesh) {

@@ -3,6 +3,7 @@
 /// What the ICE tools (ice-info, ice-coarsen, geodesic-coarse, poisson-coarse) and ice-report share
 /// beyond the command line (command_line.h) and the reports (reports.h), both included here: loading
 /// the input and its side files, the coarsening with a progress bar, the coarse proxy, the demo source.
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -87,16 +88,32 @@ struct PdeProxy {
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                          PdeRun& run, Stopwatch& clock);
 
+/// Writes opt.output (nothing without -o), PLY or binary glTF by its extension (.glb: glTF): the
+/// input mesh with the per-vertex field `name` (the tool's result), then, given a reference
+/// (non-empty), 'reference' and 'error' (= result − reference), then `extra`; with an ICE `space`
+/// built with keep_method_state, also 'patch' (the coarse face of each vertex's map point,
+/// CoarseTracing::vertex_patch) and, in glTF, the coarse edges traced on the surface as lines
+/// (ice/coarse_tracing.h). glTF colours 'error' if present, else `name`. Returns the tracing's
+/// edge counts for the summary ({traced, all}; {0, 0} when nothing was traced).
+std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
+                                         const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
+                                         std::vector<ice::ScalarField> extra = {}, const ice::CoarseSpace* space = nullptr);
+
+/// Writes opt.html (nothing without --html): the 3D page (view_page.h) of one run — the input mesh
+/// (decimated for display above 200,000 vertices) coloured by `name` (the result), 'reference',
+/// 'error' (|result − reference|) and 'patch', with the coarse edges traced on the surface (ICE with
+/// its method state) — titled `title`; `problem` names the problem ("poisson", "geodesic"),
+/// `error_json` the run's errors (its rel_l2 is shown; null or empty: none).
+void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& title,
+                       const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
+                       const Eigen::VectorXd& reference, const ice::CoarseSpace& space, const nlohmann::json& error_json);
+
+/// Whether opt.output names a binary glTF file (.glb), else PLY.
+bool output_is_gltf(const PdeOptions& opt);
+
 /// The demo right-hand side of poisson-coarse and ice-report: three Gaussian bumps
 /// exp(−|x − c|²/(2σ²)) with weights +1, −1, +1 centred at the vertices of largest x, y and z,
 /// σ = 0.1 × the bounding-box diagonal (its mean is not removed: see remove_mean).
-/// Writes opt.output (nothing without -o): the input mesh as PLY with the per-vertex field `name`
-/// (the tool's result), then, given a reference (non-empty), 'reference' and 'error' (= result −
-/// reference), then `extra`.
-void write_result_ply(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
-                      const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
-                      std::vector<ice::ScalarField> extra = {});
-
 Eigen::VectorXd demo_poisson_rhs(const ice::TriangleMesh& mesh);
 /// f minus its mass-weighted mean (the compatible right-hand side of a zero-mean Neumann problem).
 Eigen::VectorXd remove_mean(const Eigen::VectorXd& f, const Eigen::SparseMatrix<double>& mass);

@@ -319,8 +319,16 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
                "Fine reference (and fine operators of the proxy) on the intrinsic Delaunay triangulation of the "
                "input (default), or on the input triangles as they are (--no-fine-idt)")
       ->capture_default_str();
-  cli.add_option("--output,-o", output, "Write the input mesh with the per-vertex fields " + field_names + " as PLY");
+  cli.add_option("--output,-o", output,
+                 "Write the input mesh with the per-vertex fields " + field_names +
+                     " (and, with ICE, 'patch': the coarse face of each vertex) as PLY, or as binary glTF when the "
+                     "name ends in .glb: coloured by the error (viridis), the coarse edges traced on the surface "
+                     "drawn as lines");
   cli.add_flag("--ascii", ascii, "With --output: ASCII PLY instead of binary little endian");
+  cli.add_option("--html", html,
+                 "Write an interactive 3D page (PAGE.html and PAGE_files/, opens from disk, offline): the input mesh "
+                 "coloured by the result, the reference, the error or the patches, with the coarse edges traced on "
+                 "the surface");
   cli.add_flag("--no-reference", no_reference, "Skip the fine reference solve (no errors, no speed-up)");
   cli.add_option("--report", report, "Write a JSON report (sizes, timings per phase, errors, memory, BLAS)");
   cli.add_flag("--quiet,-q", quiet, "No progress bar");
@@ -347,9 +355,15 @@ void PdeOptions::add_polish_options(CLI::App& cli) {
 
 void PdeOptions::check_outputs() const {
   if (!output.empty()) check_output(output, force, "--output");
+  if (ascii && fs::path(output).extension() == ".glb") throw AppError(kUsage, "--ascii writes ASCII PLY; --output names a .glb file");
   if (!report.empty()) check_output(report, force, "--report");
   if (!output.empty() && !report.empty() && fs::path(output) == fs::path(report))
     throw AppError(kUsage, "--output and --report name the same file");
+  if (!html.empty()) {
+    check_output(html, force, "--html");
+    if (fs::path(html).extension() != ".html") throw AppError(kUsage, "--html " + html + ": the page's name must end in .html");
+    if (html == output || html == report) throw AppError(kUsage, "--html names the same file as --output or --report");
+  }
 }
 
 ice::FineGeometry PdeOptions::fine_geometry() const {

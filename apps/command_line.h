@@ -142,12 +142,13 @@ struct PdeOptions {
   fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
   ice::QemGeometry qem_geometry = ice::QemGeometry::extrinsic;  ///< --qem-operators extrinsic|idt
   bool fine_idt = true;
-  std::string output;  ///< PLY
+  std::string output;  ///< PLY or binary glTF (.glb)
+  std::string html;    ///< the interactive 3D page (app/view_page.h)
   bool no_reference = false;
   std::string report;  ///< JSON
   bool quiet = false, force = false, repair = false, ascii = false;
   /// Adds every shared option (the mesh positional, the target, --operators, --method, --area-weight,
-  /// --fine-idt/--no-fine-idt, --output, --ascii, --no-reference, --report, -q, --force, --repair).
+  /// --fine-idt/--no-fine-idt, --output, --ascii, --html, --no-reference, --report, -q, --force, --repair).
   void add_to(CLI::App& cli, const std::string& field_names);
   /// Polishing of the proxy solution (fem::PolishOptions): set by add_polish_options.
   fem::PolishOptions polish;

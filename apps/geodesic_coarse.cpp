@@ -404,9 +404,12 @@ int main(int argc, char** argv) {
     }
 
     // ---- outputs
-    app::write_result_ply(opt, mesh, "distance", distance, reference);
+    const std::array<ice::Index, 2> traced = app::write_result_fields(opt, mesh, "distance", distance, reference, {}, &pde.coarse);
+    app::write_result_page(opt, mesh, "geodesic-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "geodesic",
+                           "distance", distance, reference, pde.coarse, error_json);
     run.write = clock.lap();
     nlohmann::json report = run.report();
+    if (traced[1] > 0) report["trace"] = {{"edges", traced[1]}, {"traced", traced[0]}};
     report["sources"] = file_sources;
     report["max_distance"] = distance.maxCoeff();
     if (run.has_reference) report["error"] = error_json;
@@ -419,7 +422,14 @@ int main(int argc, char** argv) {
                 << app::percent(error_json["max_rel"]) << " of the max distance "
                 << static_cast<double>(error_json["max_reference_distance"]) << "; relative L2 "
                 << app::percent(error_json["rel_l2"]) << ", max abs " << static_cast<double>(error_json["max_abs"]) << '\n';
-    if (!opt.output.empty()) std::cout << "  wrote " << opt.output << '\n';
+    if (!opt.output.empty())
+      std::cout << "  wrote " << opt.output
+                << (traced[1] > 0 ? " (patch labels; " + app::thousands(traced[0]) + " of " + app::thousands(traced[1]) +
+                                        " coarse edges traced on the surface" +
+                                        (app::output_is_gltf(opt) ? ", drawn as lines)" : ")")
+                                  : std::string())
+                << '\n';
+    if (!opt.html.empty()) std::cout << "  wrote " << opt.html << " (open it in a browser)\n";
     if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
     return app::kOk;
   });

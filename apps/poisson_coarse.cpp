@@ -17,6 +17,7 @@
 //
 // Exit codes: see app_common.h.
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <optional>
@@ -143,7 +144,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     timings["reference_solve"] = clock.lap();
     error_json = solution_error_json(u, reference, M);
   }
-  app::write_result_ply(opt, mesh, "solution", u, reference, {{"rhs", f}});
+  app::write_result_fields(opt, mesh, "solution", u, reference, {{"rhs", f}});
   nlohmann::json report = app::report_header(kTool, opt.mesh);
   report["solver"] = solver_json;
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
@@ -336,9 +337,13 @@ int main(int argc, char** argv) {
     }
 
     // ---- outputs
-    app::write_result_ply(opt, mesh, "solution", solution, reference, {{"rhs", f}});
+    const std::array<ice::Index, 2> traced =
+        app::write_result_fields(opt, mesh, "solution", solution, reference, {{"rhs", f}}, &pde.coarse);
+    app::write_result_page(opt, mesh, "poisson-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "poisson", "solution",
+                           solution, reference, pde.coarse, error_json);
     run.write = clock.lap();
     nlohmann::json report = run.report();
+    if (traced[1] > 0) report["trace"] = {{"edges", traced[1]}, {"traced", traced[0]}};
     report["solver"] = {{"kind", solver}};
     if (run.has_reference) report["reference_ordering"] = fem::to_string(cholmod_ordering);
     report["timings_s"]["setup"] = run.coarsen + run.assemble + run.factor + run.polish_setup;
@@ -360,7 +365,14 @@ int main(int argc, char** argv) {
     if (run.has_reference && error_json["rel_l2"].is_null())
       std::cout << "  note: the fine solution is zero (a constant f is zero once its mean is removed), so relative "
                    "errors are undefined\n";
-    if (!opt.output.empty()) std::cout << "  wrote " << opt.output << '\n';
+    if (!opt.output.empty())
+      std::cout << "  wrote " << opt.output
+                << (traced[1] > 0 ? " (patch labels; " + app::thousands(traced[0]) + " of " + app::thousands(traced[1]) +
+                                        " coarse edges traced on the surface" +
+                                        (app::output_is_gltf(opt) ? ", drawn as lines)" : ")")
+                                  : std::string())
+                << '\n';
+    if (!opt.html.empty()) std::cout << "  wrote " << opt.html << " (open it in a browser)\n";
     if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
     return app::kOk;
   });

@@ -51,7 +51,7 @@ app() {
   [[ -n "$exe" ]] || die "target '$name' built but no executable named '$name' found under $BUILD_DIR"
   say "running: ${exe#"$ROOT"/} $*"
   echo "------------------------------------------------------------------------"
-  "$exe" "$@"
+  (cd "$CALLER_DIR" && "$exe" "$@")
 }
 
 # The mesh: argument (relative to the caller's directory) or the first default mesh.
@@ -63,6 +63,8 @@ else
   MESH=""
 fi
 
+# The tool runs in the caller's directory: output paths among ARGS (--html, -o, --report) are the caller's.
+CALLER_DIR="$PWD"
 cd "$ROOT"
 T0=$(now_ms)
 bash scripts/setup.sh

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # scripts/setup.sh : bring a Debian 12 machine to the state ICE needs. Idempotent; quiet when
-# everything is already there. Three steps:
+# everything is already there. Four steps:
 #   1. install the missing Debian packages (apt only, --no-install-recommends);
 #   2. report which BLAS/LAPACK CHOLMOD will load, and switch the reference BLAS to OpenBLAS;
 #   3. make the project's own mesh set in data/default/: the members of CGAL's data archive listed in
 #      data/cgal-meshes.txt (vertex counts checked) and the meshes committed compressed in data/meshes/
 #      (decompressed, checksums of data/meshes/SHA256SUMS checked). Tests, the report's --quick run and
-#      run.sh use only this set.
+#      run.sh use only this set;
+#   4. install the 3D page's front end (three.js, and playwright-core for its browser test) in
+#      apps/viewer/node_modules with `npm ci` (the versions of apps/viewer/package-lock.json).
 #
 # Environment:
 #   ICE_SETUP_SKIP_APT=1     skip step 1 (packages provided some other way)
@@ -40,13 +42,15 @@ as_root() {
 # package (python/) is built with pybind11 against Debian's python3 and tested with its numpy,
 # scipy, pytest and matplotlib (the example draws a picture); ice-batch runs on Dask distributed
 # (python3-dask, python3-distributed; tqdm for its progress bar, psutil for its tests). libtinygltf-dev
-# writes the binary glTF files of ice/scalar_field_io.h.
+# writes the binary glTF files of ice/scalar_field_io.h. chromium runs the browser test of the 3D page
+# (--html; headless, software WebGL); Node.js and npm install the page's three.js and the test's
+# playwright-core (step 4) and are installed from Debian only when the machine has none.
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev
   libopenblas-dev libopenblas0-pthread libopenblas-pthread-dev
   libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox libtinygltf-dev
-  libcgal-demo libhypre-dev xz-utils
+  libcgal-demo libhypre-dev xz-utils chromium
   pybind11-dev python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
   python3-dask python3-distributed python3-tqdm python3-psutil
 )
@@ -66,6 +70,10 @@ install_packages() {
   for p in "${PACKAGES[@]}"; do
     is_installed "$p" || missing+=("$p")
   done
+  # Node.js and npm: any the machine has will do (a Node.js from another source often bundles npm,
+  # and Debian's npm package would conflict with it).
+  command -v node >/dev/null 2>&1 || missing+=(nodejs)
+  command -v npm >/dev/null 2>&1 || missing+=(npm)
   if [[ ${#missing[@]} -eq 0 ]]; then
     say "packages: all ${#PACKAGES[@]} present"
     return
@@ -270,7 +278,28 @@ decompress_committed() {
   say "meshes: $(wc -l <"$sums") committed meshes in data/default/"
 }
 
+# ---------------------------------------------------------------------------------------------
+# 4. The 3D page's front end: apps/viewer/node_modules (three.js, copied beside every page, and
+#    playwright-core for the browser test) from the npm registry, exactly as package-lock.json pins
+#    them. Redone only when the lock file changed since the last install.
+# ---------------------------------------------------------------------------------------------
+install_viewer() {
+  local dir="$ROOT/apps/viewer" stamp="$ROOT/apps/viewer/node_modules/.ice-lock.sha256" sum
+  command -v npm >/dev/null 2>&1 || die "npm is not installed (Debian package npm)"
+  sum="$(sha256sum "$dir/package-lock.json" | cut -d' ' -f1)"
+  if [[ -f "$stamp" && "$(cat "$stamp")" == "$sum" && -f "$dir/node_modules/three/build/three.cjs" ]]; then
+    say "viewer: three.js and playwright-core present"
+    return
+  fi
+  npm ci --prefix "$dir" --no-audit --no-fund --loglevel=error >/dev/null ||
+    die "npm ci in apps/viewer failed (the npm registry must be reachable)"
+  [[ -f "$dir/node_modules/three/build/three.cjs" ]] || die "npm ci did not install three (apps/viewer/node_modules/three/build/three.cjs)"
+  echo "$sum" >"$stamp"
+  say "viewer: installed three.js and playwright-core (apps/viewer/node_modules)"
+}
+
 install_packages
 check_blas
 extract_meshes
 decompress_committed
+install_viewer

@@ -18,7 +18,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   endif()
   set(_ice_app_cases
     coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot refine_spot poisson_spot poisson_fix_rhs_spot
-    ply_ascii errors)
+    ply_ascii errors view_page)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
       COMMAND ${CMAKE_COMMAND}
@@ -26,6 +26,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
         -DBIN_DIR=$<TARGET_FILE_DIR:ice-coarsen>
         -DMESH_DIR=${PROJECT_SOURCE_DIR}/data/default
         -DWORK=${CMAKE_CURRENT_BINARY_DIR}/app_tests/${_case}
+        -DSOURCE_DIR=${PROJECT_SOURCE_DIR}
         -P ${CMAKE_CURRENT_LIST_FILE})
     set_tests_properties(app_${_case} PROPERTIES LABELS apps TIMEOUT 600)
   endforeach()
@@ -466,7 +467,21 @@ elseif(CASE STREQUAL "poisson_spot")
   # (2.5% / 2.0% at 10%; method doc: Poisson 1-3% at 500-1,000 vertices). Bound: about twice that.
   json(rel_l2 "${r}" error rel_l2)
   check(${rel_l2} LESS 0.08 "error.rel_l2")
-  check_ply_header("${WORK}/u.ply" binary_little_endian solution reference error)
+  check_ply_header("${WORK}/u.ply" binary_little_endian solution reference error rhs patch)
+  # Binary glTF (.glb): the magic, and the coarse edges traced on the surface (all of them on spot at 5 %).
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --report "${WORK}/t.json" --output "${WORK}/u.glb" -q)
+  require_file("${WORK}/u.glb")
+  file(READ "${WORK}/u.glb" magic LIMIT 4 HEX)
+  if(NOT magic STREQUAL "676c5446")  # "glTF"
+    fail("u.glb does not start with the glTF magic: '${magic}'")
+  endif()
+  json(edges "${WORK}/t.json" trace edges)
+  json(traced "${WORK}/t.json" trace traced)
+  check(${edges} EQUAL 435 "trace.edges (147 vertices, closed genus 0: 3V - 6)")
+  check(${traced} EQUAL ${edges} "trace.traced")
+  expect_error(3 "exists already" poisson-coarse "${mesh}" --ratio 0.05 --output "${WORK}/u.glb" -q)
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --output "${WORK}/u.glb" --force -q)
+  expect_error(4 "--ascii writes ASCII PLY" poisson-coarse "${mesh}" --ratio 0.05 --output "${WORK}/v.glb" --ascii -q)
   run(0 poisson-coarse "${mesh}" --ratio 0.05 --operators galerkin --report "${WORK}/g.json" -q)
   json(rel_l2 "${WORK}/g.json" error rel_l2)
   check(${rel_l2} LESS 0.08 "error.rel_l2 (galerkin)")
@@ -485,13 +500,13 @@ elseif(CASE STREQUAL "poisson_fix_rhs_spot")
     fail("boundary_conditions = ${bc}")
   endif()
   # The fixed vertices are locked in the coarsening, so the prolonged solution takes the values
-  # exactly (columns: x y z solution reference error rhs; the header has 14 lines).
-  check_ply_header("${WORK}/u.ply" ascii solution reference error rhs)
+  # exactly (columns: x y z solution reference error rhs patch; the header has 15 lines).
+  check_ply_header("${WORK}/u.ply" ascii solution reference error rhs patch)
   file(STRINGS "${WORK}/u.ply" ply)
   foreach(pair "0;1" "1500;-1" "2000;0.5")
     list(GET pair 0 v)
     list(GET pair 1 value)
-    math(EXPR line "14 + ${v}")
+    math(EXPR line "15 + ${v}")
     list(GET ply ${line} row)
     separate_arguments(row)
     list(GET row 3 solution)
@@ -517,14 +532,45 @@ elseif(CASE STREQUAL "poisson_fix_rhs_spot")
 elseif(CASE STREQUAL "ply_ascii")
   project_mesh(mesh spot.obj)
   run(0 geodesic-coarse "${mesh}" --source 3 --ratio 0.05 --output "${WORK}/d.ply" --ascii -q)
-  check_ply_header("${WORK}/d.ply" ascii distance reference error)
+  check_ply_header("${WORK}/d.ply" ascii distance reference error patch)
   file(STRINGS "${WORK}/d.ply" lines)
   list(LENGTH lines n)
-  # header (13 lines: ply, format, comment, element, x, y, z, 3 fields, element, list, end) + V + F
-  check(${n} EQUAL 8799 "ASCII PLY lines")
+  # header (14 lines: ply, format, comment, element, x, y, z, 4 fields, element, list, end) + V + F
+  check(${n} EQUAL 8800 "ASCII PLY lines")
   expect_error(3 "exists already" geodesic-coarse "${mesh}" --source 3 --ratio 0.05 --output "${WORK}/d.ply" -q)
   run(0 geodesic-coarse "${mesh}" --source 3 --ratio 0.05 --output "${WORK}/d.ply" --force --no-reference -q)
   check_ply_header("${WORK}/d.ply" binary_little_endian distance)
+
+elseif(CASE STREQUAL "view_page")
+  # The 3D page (--html) opened in headless Chromium by tests/browser/view_test.mjs: no errors
+  # logged, the mesh fills a fair part of the view in varied colours, the coarse edges are drawn,
+  # the mouse controls work. A page name with a space (its assets' folder is referenced by URL).
+  project_mesh(mesh spot.obj)
+  set(page "${WORK}/spot view.html")
+  run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --html "${page}" -q)
+  foreach(f "spot view.html" "spot view_files/three.js" "spot view_files/viewer.js" "spot view_files/mesh-0.js")
+    require_file("${WORK}/${f}")
+  endforeach()
+  expect_error(3 "exists already" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --html "${page}" -q)
+  expect_error(4 "must end in .html" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --html "${WORK}/page.htm" -q)
+  # A QEM run: its extrinsic coarse edges drawn straight.
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --method qem --html "${WORK}/qem.html" -q)
+  # An intrinsic mesh alone has no positions to draw.
+  run(0 ice-coarsen "${mesh}" --ratio 0.05 -o "${WORK}/coarse" -q)
+  expect_error(1 "no vertex positions" poisson-coarse "${WORK}/coarse/coarse.ilm" --ratio 0.5 --html "${WORK}/ilm.html" -q)
+  find_program(NODE node)
+  if(NOT NODE)
+    fail("node (Node.js) not found: scripts/setup.sh installs it (Debian package nodejs)")
+  endif()
+  foreach(p "${page}" "${WORK}/qem.html")
+    execute_process(COMMAND "${NODE}" "${SOURCE_DIR}/tests/browser/view_test.mjs" "${p}" --screenshot "${p}.png"
+                    RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+    message(STATUS "view_test ${p}:\n${out}${err}")
+    if(NOT rc EQUAL 0)
+      fail("the browser test of ${p} did not pass (exit ${rc}; 2: Chromium or playwright-core missing, which "
+           "scripts/setup.sh installs)")
+    endif()
+  endforeach()
 
 elseif(CASE STREQUAL "errors")
   project_mesh(mesh spot.obj)

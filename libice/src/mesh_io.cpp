@@ -707,6 +707,9 @@ MeshFile read_mesh_file(const std::string& path) {
   file.format = lower_extension(path);
   if (file.format.empty())
     fail(path, "has no file extension: the format is taken from it (.obj, .off, .ply, .stl)");
+  if (file.format == "ilm")
+    fail(path, "is an intrinsic mesh (edge lengths, no vertex positions: nothing to place or draw); give the "
+               "input mesh it was made from (.obj, .off, .ply, .stl)");
   if (file.format != "obj" && file.format != "off" && file.format != "ply" && file.format != "stl")
     fail(path, "unsupported format '." + file.format + "' (supported: .obj, .off, .ply, .stl)");
 
