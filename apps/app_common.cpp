@@ -221,6 +221,17 @@ std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::
   return traced;
 }
 
+void print_written(std::ostream& out, const PdeOptions& opt, const std::array<ice::Index, 2>& traced) {
+  if (!opt.output.empty())
+    out << "  wrote " << opt.output
+        << (traced[1] > 0 ? " (patch labels; " + thousands(traced[0]) + " of " + thousands(traced[1]) +
+                                " coarse edges traced on the surface" + (output_is_gltf(opt) ? ", drawn as lines)" : ")")
+                          : std::string())
+        << '\n';
+  if (!opt.html.empty()) out << "  wrote " << opt.html << " (open it in a browser)\n";
+  if (!opt.report.empty()) out << "  wrote " << opt.report << '\n';
+}
+
 void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& title,
                        const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
                        const Eigen::VectorXd& reference, const ice::CoarseSpace& space, const nlohmann::json& error_json) {

@@ -5,6 +5,7 @@
 /// the input and its side files, the coarsening with a progress bar, the coarse proxy, the demo source.
 #include <array>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -107,6 +108,10 @@ std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::
 void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& title,
                        const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
                        const Eigen::VectorXd& reference, const ice::CoarseSpace& space, const nlohmann::json& error_json);
+
+/// The summary's "wrote ..." lines of --output (with the tracing's counts `traced` of
+/// write_result_fields), --html and --report.
+void print_written(std::ostream& out, const PdeOptions& opt, const std::array<ice::Index, 2>& traced);
 
 /// Whether opt.output names a binary glTF file (.glb), else PLY.
 bool output_is_gltf(const PdeOptions& opt);

@@ -422,15 +422,7 @@ int main(int argc, char** argv) {
                 << app::percent(error_json["max_rel"]) << " of the max distance "
                 << static_cast<double>(error_json["max_reference_distance"]) << "; relative L2 "
                 << app::percent(error_json["rel_l2"]) << ", max abs " << static_cast<double>(error_json["max_abs"]) << '\n';
-    if (!opt.output.empty())
-      std::cout << "  wrote " << opt.output
-                << (traced[1] > 0 ? " (patch labels; " + app::thousands(traced[0]) + " of " + app::thousands(traced[1]) +
-                                        " coarse edges traced on the surface" +
-                                        (app::output_is_gltf(opt) ? ", drawn as lines)" : ")")
-                                  : std::string())
-                << '\n';
-    if (!opt.html.empty()) std::cout << "  wrote " << opt.html << " (open it in a browser)\n";
-    if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
+    app::print_written(std::cout, opt, traced);
     return app::kOk;
   });
 }

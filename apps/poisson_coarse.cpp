@@ -365,15 +365,7 @@ int main(int argc, char** argv) {
     if (run.has_reference && error_json["rel_l2"].is_null())
       std::cout << "  note: the fine solution is zero (a constant f is zero once its mean is removed), so relative "
                    "errors are undefined\n";
-    if (!opt.output.empty())
-      std::cout << "  wrote " << opt.output
-                << (traced[1] > 0 ? " (patch labels; " + app::thousands(traced[0]) + " of " + app::thousands(traced[1]) +
-                                        " coarse edges traced on the surface" +
-                                        (app::output_is_gltf(opt) ? ", drawn as lines)" : ")")
-                                  : std::string())
-                << '\n';
-    if (!opt.html.empty()) std::cout << "  wrote " << opt.html << " (open it in a browser)\n";
-    if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
+    app::print_written(std::cout, opt, traced);
     return app::kOk;
   });
 }
