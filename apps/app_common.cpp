@@ -236,9 +236,6 @@ void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, con
                        const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
                        const Eigen::VectorXd& reference, const ice::CoarseSpace& space, const nlohmann::json& error_json) {
   if (opt.html.empty()) return;
-  // Above this many vertices the page draws an ICE coarsening of the input (its survivors keep their
-  // positions and values): the 3D view of a 1.6M-vertex mesh then opens in seconds.
-  constexpr long long kDisplayVertices = 200000;
   ViewMesh view = view_mesh(fs::path(opt.mesh).filename().string(), mesh, kDisplayVertices);
   view.fields.push_back(view_field(view, name, problem, "solution", "", result));
   const std::string method = space.summary.method == ice::CoarseningMethod::ice ? "ICE" : "QEM";
@@ -246,31 +243,11 @@ void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, con
     view.fields.push_back(view_field(view, "reference (fine)", problem, "solution", "", reference));
     view.fields.push_back(view_field(view, "|error|", problem, "error", method, (result - reference).cwiseAbs()));
   }
-  ViewMethod drawn;
-  drawn.name = method;
-  drawn.coarse_vertices = space.mesh.num_vertices();
+  Eigen::VectorXd patch;
+  ViewMethod drawn = view_method(method, mesh, space, &patch);
   if (error_json.is_object() && error_json.contains("rel_l2") && error_json["rel_l2"].is_number())
     drawn.errors[problem] = error_json["rel_l2"].get<double>();
-  if (space.triangulation) {
-    const ice::CoarseTracing tracing = trace_space(mesh, space);
-    drawn.edges = traced_segments(mesh, tracing);
-    if (tracing.failed > 0) drawn.message = thousands(tracing.failed) + " coarse edges could not be traced and are not drawn";
-    Eigen::VectorXd patch(mesh.V.rows());
-    for (Eigen::Index v = 0; v < patch.size(); ++v) patch(v) = static_cast<double>(tracing.vertex_patch[static_cast<std::size_t>(v)]);
-    view.fields.push_back(view_field(view, "patch", "", "label", method, patch));
-  } else {
-    // QEM's coarse mesh is an extrinsic mesh on its survivors' positions: its edges are the straight
-    // segments between them (each edge once: from the side with the smaller vertex pair order).
-    const ice::Positions positions = ice::coarse_vertex_positions(mesh, space);
-    for (Eigen::Index f = 0; f < space.mesh.F.rows(); ++f)
-      for (int k = 0; k < 3; ++k) {
-        const ice::Index a = space.mesh.F(f, k), b = space.mesh.F(f, (k + 1) % 3);
-        if (a > b) continue;  // the other side of an interior edge draws it (boundary edges: drawn once or twice)
-        for (const ice::Index v : {a, b})
-          for (int c = 0; c < 3; ++c) drawn.edges.push_back(static_cast<float>(positions(v, c)));
-      }
-    drawn.message = "QEM's coarse mesh is extrinsic: its edges are drawn straight between its vertices";
-  }
+  if (patch.size() != 0) view.fields.push_back(view_field(view, "patch", "", "label", method, patch));
   view.methods.push_back(std::move(drawn));
   write_view_page(opt.html, title, {view}, "", opt.force);
 }

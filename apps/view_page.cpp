@@ -201,6 +201,39 @@ std::vector<float> traced_segments(const ice::TriangleMesh& input, const ice::Co
   return segments;
 }
 
+ViewMethod view_method(const std::string& name, const ice::TriangleMesh& input, const ice::CoarseSpace& space,
+                       Eigen::VectorXd* patch) {
+  ViewMethod method;
+  method.name = name;
+  method.coarse_vertices = space.mesh.num_vertices();
+  if (patch) patch->resize(0);
+  if (space.triangulation) {  // ICE with its method state: the edges as they are, on the surface
+    const ice::CoarseTracing tracing =
+        ice::trace_coarse_mesh(input.F, space.mesh, ice::fine_to_coarse_map(space), space.inserted, input.V, 0);
+    method.edges = traced_segments(input, tracing);
+    if (tracing.failed > 0)
+      method.message = std::to_string(tracing.failed) + " of " + std::to_string(tracing.edges.size()) +
+                       " coarse edges could not be traced and are not drawn";
+    if (patch) {
+      patch->resize(input.V.rows());
+      for (Eigen::Index v = 0; v < patch->size(); ++v) (*patch)(v) = static_cast<double>(tracing.vertex_patch[static_cast<std::size_t>(v)]);
+    }
+    return method;
+  }
+  // An extrinsic coarse mesh on its survivors' positions: its edges are the straight segments
+  // between them (an interior edge from the side whose first vertex is the smaller).
+  const ice::Positions positions = ice::coarse_vertex_positions(input, space);
+  for (Eigen::Index f = 0; f < space.mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const ice::Index a = space.mesh.F(f, k), b = space.mesh.F(f, (k + 1) % 3);
+      if (a > b) continue;
+      for (const ice::Index v : {a, b})
+        for (int c = 0; c < 3; ++c) method.edges.push_back(static_cast<float>(positions(v, c)));
+    }
+  method.message = "an extrinsic coarse mesh: its edges are drawn straight between its vertices";
+  return method;
+}
+
 void write_view_page(const std::string& page, const std::string& title, const std::vector<ViewMesh>& meshes,
                      const std::string& plots_html, bool force) {
   check_output(page, force, "--html");

@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 
+#include "ice/coarse_space.h"
 #include "ice/coarse_tracing.h"
 #include "ice/mesh.h"
 
@@ -55,6 +56,11 @@ struct ViewMesh {
   std::vector<ViewMethod> methods;
 };
 
+/// Display meshes above this many vertices are an ICE coarsening of the input: with base64 float32
+/// buffers the page of a 1.66M-vertex input is then ready in 5 s in headless Chromium with software
+/// WebGL (README, "The 3D page").
+constexpr long long kDisplayVertices = 200000;
+
 /// The display mesh of an input: the input itself up to `max_vertices`, else an ICE coarsening to
 /// that many vertices drawn with its surviving vertices' positions (their values are the input's at
 /// those vertices: no resampling).
@@ -66,6 +72,13 @@ ViewField view_field(const ViewMesh& mesh, std::string name, std::string problem
 
 /// The traced coarse edges as segments (untraced edges are left out; their count is in `message`).
 std::vector<float> traced_segments(const ice::TriangleMesh& input, const ice::CoarseTracing& tracing);
+
+/// A coarse space as a page's method: its coarse edges — ICE's (with its method state) traced on the
+/// input surface, otherwise (QEM, an extrinsic mesh) straight between its vertices' positions — and
+/// a note on what is drawn. With `patch`, also the patch labels of ICE's tracing (the coarse face of
+/// each input vertex; left empty otherwise).
+ViewMethod view_method(const std::string& name, const ice::TriangleMesh& input, const ice::CoarseSpace& space,
+                       Eigen::VectorXd* patch = nullptr);
 
 /// Writes PAGE.html and PAGE_files/. Refuses to replace an existing page without `force`
 /// (AppError kNotWritten); throws AppError when the viewer's assets are missing (run

@@ -38,6 +38,7 @@
 #include "fem/problems.h"
 #include "ice/qem.h"
 #include "mesh_sets.h"
+#include "view_page.h"
 
 namespace fs = std::filesystem;
 
@@ -173,10 +174,15 @@ void record_failure(Row r, const std::string& what, std::vector<Row>& rows) {
   }
 }
 
+// The proxy's solutions, kept for the 3D page: Poisson, heat, and the distance from the first source.
+struct ProxySolutions {
+  Eigen::VectorXd poisson, heat, geodesic;
+};
+
 // The three problems through the library's proxy solvers (fem/coarse_proxy.h), each phase timed.
 void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind, Row base,
                     std::vector<Row>& rows, const std::vector<double>& tolerances, std::vector<PolishRow>& polished,
-                    double geodesic_time_factor) {
+                    double geodesic_time_factor, ProxySolutions* kept = nullptr) {
   app::Stopwatch clock;
   const fem::CoarseProxy proxy = app::make_proxy(fine.disc, coarse, kind);
   const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
@@ -194,6 +200,7 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
     r.factor = clock.lap();
     fem::ProxyPhaseTimes phases;
     const Eigen::VectorXd u = solver.solve(fine.demo, {}, &phases);
+    if (kept) kept->poisson = u;
     record(r, 0, phases);
     r.error = r.error_l2 = fem::relative_l2_error(u, fine.poisson, fine.M);
     r.error_max = fem::max_abs_error(u, fine.poisson) / fine.poisson.cwiseAbs().maxCoeff();
@@ -208,6 +215,7 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
     r.factor = clock.lap();
     fem::ProxyPhaseTimes phases;
     const Eigen::VectorXd u = solver.integrate(fine.f, 1, &phases);
+    if (kept) kept->heat = u;
     record(r, 1, phases);
     r.error = r.error_l2 = fem::relative_l2_error(u, fine.heat, fine.M);
     r.error_max = fem::max_abs_error(u, fine.heat) / fine.heat.cwiseAbs().maxCoeff();
@@ -259,6 +267,7 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
     for (std::size_t k = 0; k < fine.sources.size(); ++k) {
       fem::ProxyPhaseTimes phases;
       const Eigen::VectorXd d = solver.distance({fine.sources[k]}, &phases);
+      if (kept && k == 0) kept->geodesic = d;
       total.restriction += phases.restriction, total.coarse_solve += phases.coarse_solve, total.prolongation += phases.prolongation;
       const fem::DistanceErrors e = fem::distance_errors(d, fine.distances[k]);
       mean += e.mean_relative / count;
@@ -604,6 +613,42 @@ std::vector<std::string> split(const std::string& text) {
 
 }  // namespace
 
+// ---- the 3D page ------------------------------------------------------------------------------------
+
+// The fine solutions every method is compared with (common fields of the mesh's view).
+void add_fine_fields(app::ViewMesh& view, const Fine& fine) {
+  view.fields.push_back(app::view_field(view, "poisson: fine solution", "poisson", "solution", "", fine.poisson));
+  view.fields.push_back(app::view_field(view, "heat: fine solution", "heat", "solution", "", fine.heat));
+  view.fields.push_back(app::view_field(view, "geodesic: fine distance", "geodesic", "solution", "", fine.distances.front()));
+}
+
+// One method of the view: its coarse edges, its errors at the page's budget and |u - u_fine| per problem.
+void add_view_method(app::ViewMesh& view, const std::string& method, const ice::TriangleMesh& mesh,
+                     const ice::CoarseSpace& coarse, const Fine& fine, const ProxySolutions& solved,
+                     const std::vector<Row>& rows) {
+  Eigen::VectorXd patch;
+  app::ViewMethod drawn = app::view_method(method, mesh, coarse, &patch);
+  for (auto it = rows.rbegin(); it != rows.rbegin() + std::min<std::ptrdiff_t>(3, static_cast<std::ptrdiff_t>(rows.size())); ++it)
+    if (it->method == method && std::isfinite(it->error)) drawn.errors[it->problem] = it->error;
+  view.methods.push_back(std::move(drawn));
+  view.fields.push_back(app::view_field(view, "poisson |error| " + method, "poisson", "error", method,
+                                        (solved.poisson - fine.poisson).cwiseAbs()));
+  view.fields.push_back(app::view_field(view, "heat |error| " + method, "heat", "error", method,
+                                        (solved.heat - fine.heat).cwiseAbs()));
+  view.fields.push_back(app::view_field(view, "geodesic |error| " + method, "geodesic", "error", method,
+                                        (solved.geodesic - fine.distances.front()).cwiseAbs()));
+  if (patch.size() != 0) view.fields.push_back(app::view_field(view, "patch " + method, "", "label", method, patch));
+}
+
+// A method that failed on the mesh: shown as such on the page, with the reason.
+void add_failed_method(app::ViewMesh& view, const std::string& method, const std::string& reason) {
+  app::ViewMethod failed;
+  failed.name = method;
+  failed.ok = false;
+  failed.message = reason;
+  view.methods.push_back(std::move(failed));
+}
+
 int main(int argc, char** argv) {
   CLI::App cli{
       "ice-report: ICE against the QEM baseline on the same meshes, coarse budgets and PDE problems (Poisson, "
@@ -649,6 +694,12 @@ int main(int argc, char** argv) {
                  "each (fem::PolishOptions) and report true errors, iterations and cost (polish.csv, summary.md)");
   cli.add_flag("--quick", quick, "Small subset for CI: spot and elephant (project set), budgets 5% and 10%");
   cli.add_flag("--no-plots", no_plots, "Do not run gnuplot");
+  bool no_html = false, force = false;
+  double view_budget = 0;
+  cli.add_flag("--no-html", no_html, "Do not write report.html (the interactive 3D page)");
+  cli.add_option("--view-budget", view_budget,
+                 "The budget the 3D page shows (one of --budgets; default: the one nearest 5%)");
+  cli.add_flag("--force", force, "Replace an existing report.html (its other files are always replaced)");
   cli.add_option("--plot-script", plot_script, "The gnuplot script that draws the plots")->capture_default_str();
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
@@ -673,6 +724,15 @@ int main(int argc, char** argv) {
     if (!(area_weight >= 0 && area_weight <= 1)) throw app::AppError(app::kUsage, "--area-weight must be in [0, 1]");
     const fem::CoarseOperatorKind kind =
         operators == "galerkin" ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
+    if (cli.count("--view-budget") == 0) {
+      view_budget = budgets.front();
+      for (double b : budgets)
+        if (std::abs(b - 0.05) < std::abs(view_budget - 0.05)) view_budget = b;
+    } else if (std::find(budgets.begin(), budgets.end(), view_budget) == budgets.end()) {
+      throw app::AppError(app::kUsage, "--view-budget must be one of --budgets");
+    }
+    const std::string page = outdir + "/report.html";
+    if (!no_html) app::check_output(page, force, "the page");
     std::error_code ec;
     fs::create_directories(outdir, ec);
     if (ec) throw app::AppError(app::kNotWritten, "--output " + outdir + ": " + ec.message());
@@ -696,6 +756,7 @@ int main(int argc, char** argv) {
 
     std::vector<Row> rows;
     std::vector<PolishRow> polished;
+    std::vector<app::ViewMesh> views;  // the 3D page: one per mesh
     std::vector<std::string> used_meshes;
     const std::size_t steps = inputs.size() * budgets.size();
     std::size_t step = 0;
@@ -713,8 +774,14 @@ int main(int argc, char** argv) {
       const Fine fine = fine_reference(mesh);
       std::cerr << kTool << ": " << name << " (" << app::thousands(n) << " vertices): fine reference "
                 << app::fixed(mesh_clock.seconds(), 2) << " s\n";
+      std::optional<app::ViewMesh> view;
+      if (!no_html) {
+        view = app::view_mesh(name, mesh, app::kDisplayVertices);
+        add_fine_fields(*view, fine);
+      }
       for (double budget : budgets) {
         ++step;
+        const bool viewed = view && budget == view_budget;
         const long long target =
             std::min(n, std::max(static_cast<long long>(std::ceil(budget * static_cast<double>(n))), min_vertices));
         Row base;
@@ -729,6 +796,7 @@ int main(int argc, char** argv) {
           options.coarsen.target_vertices = static_cast<ice::Index>(target);
           options.coarsen.area_weight = m == "ice" ? 0.0 : area_weight;
           options.coarsen.normalize_curvature = m == "ice" ? false : normalize_curvature;
+          options.keep_method_state = viewed;  // the page traces the coarse edges
           const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
           Row r = base;
           r.method = m;
@@ -737,7 +805,9 @@ int main(int argc, char** argv) {
           r.coarse_faces = coarse.summary.coarse_faces;
           r.target_reached = coarse.summary.target_reached;
           if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.stop_reason());
-          solve_on_proxy(fine, coarse, kind, r, rows, tolerances, polished, time_factor);
+          ProxySolutions solved;
+          solve_on_proxy(fine, coarse, kind, r, rows, tolerances, polished, time_factor, viewed ? &solved : nullptr);
+          if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
           progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
                    << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
         }
@@ -758,6 +828,7 @@ int main(int argc, char** argv) {
                 *decimated, m == "qem_idt" ? ice::QemGeometry::intrinsic_delaunay : ice::QemGeometry::extrinsic);
           } catch (const std::runtime_error& e) {  // the QEM mesh has a face no intrinsic triangulation takes
             record_failure(r, e.what(), rows);
+            if (viewed) add_failed_method(*view, m, e.what());
             continue;
           }
           const ice::QemOutcome& qem = *coarse.summary.qem;
@@ -771,9 +842,13 @@ int main(int argc, char** argv) {
           try {
             // QEM with the operators of its own geometry (positions, or their intrinsic Delaunay
             // triangulation): its strongest configuration; Galerkin operators make QEM less accurate.
-            solve_on_proxy(fine, coarse, fem::CoarseOperatorKind::intrinsic, r, rows, tolerances, polished, time_factor);
+            ProxySolutions solved;
+            solve_on_proxy(fine, coarse, fem::CoarseOperatorKind::intrinsic, r, rows, tolerances, polished, time_factor,
+                           viewed ? &solved : nullptr);
+            if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
           } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
             record_failure(r, e.what(), rows);
+            if (viewed) add_failed_method(*view, m, e.what());
             continue;
           }
           progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
@@ -781,6 +856,7 @@ int main(int argc, char** argv) {
         }
         std::cerr << progress.str() << "  [" << app::fixed(total_clock.seconds(), 0) << " s]\n";
       }
+      if (view) views.push_back(std::move(*view));
     }
 
     // ---- outputs
@@ -826,6 +902,18 @@ int main(int argc, char** argv) {
         if (std::system(cmd.c_str()) != 0) throw app::AppError(app::kFailed, "gnuplot failed: " + cmd);
         plots = "errors.svg, errors_median.svg, phases.svg, speedup.svg";
       }
+    }
+    if (!no_html) {
+      // The plots (SVG files beside the page) and the summary, above the 3D views.
+      std::string plots_html = "<p>Coarse budget shown in 3D: " + num(100 * view_budget, 3) +
+                               " %. Tables: <a href=\"summary.md\">summary.md</a>, <a href=\"results.csv\">results.csv</a>.</p>\n";
+      if (plots.rfind("no plots", 0) != 0)
+        for (const char* svg : {"errors.svg", "errors_median.svg", "phases.svg", "speedup.svg"})
+          plots_html += std::string("<figure><img src=\"") + svg + "\" alt=\"" + svg + "\"><figcaption>" + svg +
+                        "</figcaption></figure>\n";
+      app::write_view_page(page, "ice-report: ICE and QEM on " + std::to_string(views.size()) + " meshes", views,
+                           plots_html, force);
+      plots += ", report.html";
     }
     std::cerr << kTool << ": " << rows.size() << " figures in " << app::fixed(total_seconds, 1) << " s\n";
     std::cout << kTool << ": wrote " << outdir << "/{results.csv, results.json, summary.md}, " << plots << '\n';

@@ -559,16 +559,13 @@ elseif(CASE STREQUAL "view_page")
   run(0 ice-coarsen "${mesh}" --ratio 0.05 -o "${WORK}/coarse" -q)
   expect_error(1 "no vertex positions" poisson-coarse "${WORK}/coarse/coarse.ilm" --ratio 0.5 --html "${WORK}/ilm.html" -q)
   find_program(NODE node)
-  if(NOT NODE)
-    fail("node (Node.js) not found: scripts/setup.sh installs it (Debian package nodejs)")
-  endif()
   foreach(p "${page}" "${WORK}/qem.html")
-    execute_process(COMMAND "${NODE}" "${SOURCE_DIR}/tests/browser/view_test.mjs" "${p}" --screenshot "${p}.png"
+    execute_process(COMMAND "${CMAKE_COMMAND}" -DNODE=${NODE} -DSCRIPT=${SOURCE_DIR}/tests/browser/view_test.mjs
+                            "-DPAGE=${p}" -P "${SOURCE_DIR}/tests/browser/run_view_test.cmake"
                     RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
     message(STATUS "view_test ${p}:\n${out}${err}")
     if(NOT rc EQUAL 0)
-      fail("the browser test of ${p} did not pass (exit ${rc}; 2: Chromium or playwright-core missing, which "
-           "scripts/setup.sh installs)")
+      fail("the browser test of ${p} failed")
     endif()
   endforeach()
 

@@ -377,11 +377,13 @@
       geometry.setIndex(new THREE.BufferAttribute(indices, 1));
       geometry.computeVertexNormals();
       geometry.computeBoundingSphere();
+      geometry.computeBoundingBox();
       mesh.prepared = {
         position: geometry.getAttribute('position'),
         normal: geometry.getAttribute('normal'),
         index: geometry.getIndex(),
         sphere: geometry.boundingSphere,
+        box: geometry.boundingBox,
       };
     }
     return mesh.prepared;
@@ -438,7 +440,8 @@
   function chooseOther() {
     const names = currentMesh().methods.map((m) => m.name);
     if (!names.includes(ui.state.other) || ui.state.other === ui.state.method) {
-      ui.state.other = names.find((n) => n !== ui.state.method) || null;
+      // The last other method: in a report ICE first, QEM last (its strongest configuration, qem_idt).
+      ui.state.other = [...names].reverse().find((n) => n !== ui.state.method) || null;
     }
   }
 
@@ -631,10 +634,36 @@
     return 1.1 * ui.view.size / Math.sin(Math.min(vertical, horizontal));
   }
 
+  // The distance at which every vertex fits the pane, seen from the view's direction: tighter than
+  // the bounding sphere (or box) for long meshes, which those leave small. One pass over the display
+  // vertices (at most a few hundred thousand).
+  function fitVertices(position) {
+    const { width, height } = paneSize();
+    const tanVertical = Math.tan(THREE.MathUtils.degToRad(FOV) / 2);
+    const tanHorizontal = tanVertical * width / height;
+    const view = ui.view;
+    const back = new THREE.Vector3().setFromSphericalCoords(1, view.phi, view.theta);  // target -> camera
+    const right = new THREE.Vector3().crossVectors(new THREE.Vector3(0, 1, 0), back).normalize();
+    const up = new THREE.Vector3().crossVectors(back, right);
+    const p = position.array, t = view.target;
+    let distance = 0;
+    for (let i = 0; i < p.length; i += 3) {
+      const x = p[i] - t.x, y = p[i + 1] - t.y, z = p[i + 2] - t.z;
+      const depth = x * back.x + y * back.y + z * back.z;
+      const across = Math.abs(x * right.x + y * right.y + z * right.z);
+      const along = Math.abs(x * up.x + y * up.y + z * up.z);
+      distance = Math.max(distance, depth + across / tanHorizontal, depth + along / tanVertical);
+    }
+    return 1.08 * distance;
+  }
+
   function resetView() {
-    const sphere = prepareMesh(currentMesh()).sphere;
-    ui.view = { target: sphere.center.clone(), size: sphere.radius || 1, theta: 0.6, phi: 1.15, radius: 1 };
-    ui.view.radius = fitDistance();
+    const prepared = prepareMesh(currentMesh());
+    const sphere = prepared.sphere;
+    const centre = prepared.box.getCenter(new THREE.Vector3());
+    ui.view = { target: centre, size: sphere.radius || 1, theta: 0.6, phi: 1.15, radius: 1 };
+    const fitted = fitVertices(prepared.position);
+    ui.view.radius = fitted > 0 && Number.isFinite(fitted) ? fitted : fitDistance();
   }
 
   function placeCamera() {
