@@ -206,9 +206,11 @@ std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::
     for (Eigen::Index v = 0; v < patch.size(); ++v) patch(v) = static_cast<double>(tracing.vertex_patch[static_cast<std::size_t>(v)]);
     fields.push_back({"patch", patch});
     traced = {tracing.traced, static_cast<ice::Index>(tracing.edges.size())};
-    if (gltf)
-      for (const ice::TracedEdge& edge : tracing.edges)
-        if (edge.status == ice::TraceStatus::traced) lines.push_back(ice::traced_polyline(mesh.V, mesh.F, edge));
+    for (const ice::TracedEdge& edge : tracing.edges)
+      if (edge.status == ice::TraceStatus::traced) lines.push_back(ice::traced_polyline(mesh.V, mesh.F, edge));
+    // PLY has no lines beside a mesh: they go to a companion file of points and edges.
+    if (const std::string edges = opt.coarse_edges_output(); !gltf && !edges.empty())
+      ice::write_ply_polylines(edges, lines, {opt.force, !opt.ascii});
   }
   if (gltf) {
     ice::GltfWriteOptions options;
@@ -228,6 +230,8 @@ void print_written(std::ostream& out, const PdeOptions& opt, const std::array<ic
                                 " coarse edges traced on the surface" + (output_is_gltf(opt) ? ", drawn as lines)" : ")")
                           : std::string())
         << '\n';
+  if (traced[1] > 0 && !opt.coarse_edges_output().empty())
+    out << "  wrote " << opt.coarse_edges_output() << " (the traced coarse edges as lines)\n";
   if (!opt.html.empty()) out << "  wrote " << opt.html << " (open it in a browser)\n";
   if (!opt.report.empty()) out << "  wrote " << opt.report << '\n';
 }

@@ -93,8 +93,8 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
 /// input mesh with the per-vertex field `name` (the tool's result), then, given a reference
 /// (non-empty), 'reference' and 'error' (= result − reference), then `extra`; with an ICE `space`
 /// built with keep_method_state, also 'patch' (the coarse face of each vertex's map point,
-/// CoarseTracing::vertex_patch) and, in glTF, the coarse edges traced on the surface as lines
-/// (ice/coarse_tracing.h). glTF colours 'error' if present, else `name`. Returns the tracing's
+/// CoarseTracing::vertex_patch) and the coarse edges traced on the surface as lines
+/// (ice/coarse_tracing.h): in the glTF file, or beside a PLY in opt.coarse_edges_output(). glTF colours 'error' if present, else `name`. Returns the tracing's
 /// edge counts for the summary ({traced, all}; {0, 0} when nothing was traced).
 std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
                                          const Eigen::VectorXd& result, const Eigen::VectorXd& reference,

@@ -353,8 +353,15 @@ void PdeOptions::add_polish_options(CLI::App& cli) {
       ->capture_default_str();
 }
 
+std::string PdeOptions::coarse_edges_output() const {
+  if (output.empty() || target.method != ice::CoarseningMethod::ice || fs::path(output).extension() == ".glb") return {};
+  const fs::path path(output);
+  return (path.parent_path() / (path.stem().string() + "_coarse_edges.ply")).string();
+}
+
 void PdeOptions::check_outputs() const {
   if (!output.empty()) check_output(output, force, "--output");
+  if (const std::string edges = coarse_edges_output(); !edges.empty()) check_output(edges, force, "--output (its coarse edges)");
   if (ascii && fs::path(output).extension() == ".glb") throw AppError(kUsage, "--ascii writes ASCII PLY; --output names a .glb file");
   if (!report.empty()) check_output(report, force, "--report");
   if (!output.empty() && !report.empty() && fs::path(output) == fs::path(report))

@@ -156,6 +156,9 @@ struct PdeOptions {
   void add_polish_options(CLI::App& cli);
   /// Refuses existing outputs (without --force) and bad extensions before any work.
   void check_outputs() const;
+  /// Where a PLY --output's companion file of ICE's traced coarse edges goes (NAME_coarse_edges.ply
+  /// beside NAME.ply); empty when there is none (no output, glTF output, or QEM).
+  std::string coarse_edges_output() const;
   /// The fine discretisation chosen by --fine-idt / --no-fine-idt.
   ice::FineGeometry fine_geometry() const;
 };

@@ -468,6 +468,13 @@ elseif(CASE STREQUAL "poisson_spot")
   json(rel_l2 "${r}" error rel_l2)
   check(${rel_l2} LESS 0.08 "error.rel_l2")
   check_ply_header("${WORK}/u.ply" binary_little_endian solution reference error rhs patch)
+  # Beside it, the traced coarse edges as PLY points and edges.
+  require_file("${WORK}/u_coarse_edges.ply")
+  file(STRINGS "${WORK}/u_coarse_edges.ply" edges_header LIMIT_COUNT 12)
+  string(JOIN "\n" edges_header ${edges_header})
+  if(NOT edges_header MATCHES "element edge [0-9]+\nproperty int vertex1\nproperty int vertex2\nproperty int polyline")
+    fail("u_coarse_edges.ply: no edge element:\n${edges_header}")
+  endif()
   # Binary glTF (.glb): the magic, and the coarse edges traced on the surface (all of them on spot at 5 %).
   run(0 poisson-coarse "${mesh}" --ratio 0.05 --report "${WORK}/t.json" --output "${WORK}/u.glb" -q)
   require_file("${WORK}/u.glb")

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <string>
 #include <vector>
@@ -197,4 +198,72 @@ TEST_CASE("glTF: no fields, no lines, no colours; bad input refused before writi
   CHECK_THROWS_WITH(ice::write_gltf_with_fields(other, mesh, {{"u", values}}, {}, unknown),
                     Catch::Contains("colour field 'v'"));
   CHECK(!std::filesystem::exists(other));
+}
+
+TEST_CASE("PLY polylines: points and edges, binary and ASCII, read back", "[export]") {
+  std::vector<ice::Positions> polylines(3);
+  polylines[0] = (ice::Positions(3, 3) << 0, 0, 0, 1, 0, 0, 1, 1, 0.1).finished();
+  polylines[1] = ice::Positions(1, 3);  // a single point: no edge
+  polylines[1] << 5, 5, 5;
+  polylines[2] = (ice::Positions(2, 3) << 0.1, 0.2, 0.3, 1.0 / 3, 2.0 / 3, 1e-17).finished();
+  ice_test::TempDir dir;
+  // Expected: 6 points; edges (0,1,0), (1,2,0), (4,5,2).
+  const std::vector<std::array<int, 3>> edges{{0, 1, 0}, {1, 2, 0}, {4, 5, 2}};
+  std::vector<double> points;
+  for (const ice::Positions& line : polylines)
+    for (Eigen::Index i = 0; i < line.rows(); ++i)
+      for (int k = 0; k < 3; ++k) points.push_back(line(i, k));
+
+  SECTION("binary") {
+    const std::string path = dir.file("lines.ply");
+    ice::write_ply_polylines(path, polylines);
+    std::ifstream in(path, std::ios::binary);
+    std::string line, header;
+    while (std::getline(in, line) && line != "end_header") header += line + "\n";
+    CHECK(header.find("format binary_little_endian 1.0") != std::string::npos);
+    CHECK(header.find("element vertex 6\n") != std::string::npos);
+    CHECK(header.find("element edge 3\nproperty int vertex1\nproperty int vertex2\nproperty int polyline\n") !=
+          std::string::npos);
+    for (const double expected : points) {
+      double x;
+      in.read(reinterpret_cast<char*>(&x), sizeof x);
+      CHECK(x == expected);  // exact doubles
+    }
+    for (const auto& edge : edges)
+      for (const int expected : edge) {
+        std::int32_t x;
+        in.read(reinterpret_cast<char*>(&x), sizeof x);
+        CHECK(x == expected);
+      }
+    CHECK(in.good());
+    CHECK(in.peek() == std::char_traits<char>::eof());
+    CHECK_THROWS_WITH(ice::write_ply_polylines(path, polylines), Catch::Contains(path));  // never replaced unasked
+  }
+  SECTION("ASCII") {
+    const std::string path = dir.file("lines_ascii.ply");
+    ice::ScalarFieldWriteOptions options;
+    options.binary = false;
+    ice::write_ply_polylines(path, polylines, options);
+    std::ifstream in(path);
+    std::string line;
+    while (std::getline(in, line) && line != "end_header") {
+    }
+    for (std::size_t p = 0; p < 6; ++p) {
+      double x, y, z;
+      in >> x >> y >> z;
+      CHECK(x == points[3 * p]);
+      CHECK(y == points[3 * p + 1]);
+      CHECK(z == points[3 * p + 2]);
+    }
+    for (const auto& edge : edges) {
+      int a, b, c;
+      in >> a >> b >> c;
+      CHECK(std::array<int, 3>{a, b, c} == edge);
+    }
+  }
+  SECTION("bad polylines refused before writing") {
+    const std::string path = dir.file("bad.ply");
+    CHECK_THROWS_AS(ice::write_ply_polylines(path, {ice::Positions(2, 2)}), ice::MeshError);
+    CHECK(!std::filesystem::exists(path));
+  }
 }

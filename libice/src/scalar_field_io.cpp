@@ -108,6 +108,54 @@ void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, co
   }
 }
 
+void write_ply_polylines(const std::string& path, const std::vector<Positions>& polylines,
+                         const ScalarFieldWriteOptions& options) {
+  const auto fail = [&](const std::string& message) { throw MeshError(MeshError::Kind::Unwritable, path, message); };
+  std::size_t points = 0, edges = 0;
+  for (const Positions& line : polylines) {
+    if (line.rows() > 0 && line.cols() != 3) fail("a polyline's points are not 3D");
+    points += static_cast<std::size_t>(line.rows());
+    edges += line.rows() > 1 ? static_cast<std::size_t>(line.rows() - 1) : 0;
+  }
+  if (points > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) fail("too many points for int indices");
+  require_writable(path, options.overwrite);
+  std::ofstream out(path, options.binary ? std::ios::binary : std::ios::out);
+  if (!out) fail("cannot be opened for writing");
+  out << "ply\nformat " << (options.binary ? "binary_little_endian" : "ascii") << " 1.0\n"
+      << "comment written by ICE (libice write_ply_polylines)\n"
+      << "element vertex " << points << "\nproperty double x\nproperty double y\nproperty double z\n"
+      << "element edge " << edges << "\nproperty int vertex1\nproperty int vertex2\nproperty int polyline\nend_header\n";
+  if (!options.binary) out.precision(std::numeric_limits<double>::max_digits10);
+  std::vector<char> buffer;
+  for (const Positions& line : polylines)
+    for (Eigen::Index i = 0; i < line.rows(); ++i) {
+      if (options.binary)
+        for (int k = 0; k < 3; ++k) append(buffer, line(i, k));
+      else
+        out << line(i, 0) << ' ' << line(i, 1) << ' ' << line(i, 2) << '\n';
+    }
+  std::int32_t first = 0;
+  for (std::size_t p = 0; p < polylines.size(); ++p) {
+    const auto count = static_cast<std::int32_t>(polylines[p].rows());
+    for (std::int32_t i = 0; i + 1 < count; ++i) {
+      const std::int32_t edge[3] = {first + i, first + i + 1, static_cast<std::int32_t>(p)};
+      if (options.binary)
+        for (const std::int32_t value : edge) append(buffer, value);
+      else
+        out << edge[0] << ' ' << edge[1] << ' ' << edge[2] << '\n';
+    }
+    first += count;
+  }
+  if (options.binary) out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+  out.flush();
+  if (!out) {
+    out.close();
+    std::error_code ec;
+    fs::remove(path, ec);
+    fail("write failed (disk full?)");
+  }
+}
+
 // ---- binary glTF --------------------------------------------------------------------------------------
 
 const std::array<std::array<unsigned char, 3>, 17>& viridis_samples() {

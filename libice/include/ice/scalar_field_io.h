@@ -38,6 +38,15 @@ struct ScalarFieldWriteOptions {
 void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields,
                            const ScalarFieldWriteOptions& options = {});
 
+/// Writes polylines (e.g. the traced coarse edges: ice::traced_polyline) as a PLY file of points and
+/// edges that MeshLab and ParaView draw as lines: `element vertex` (double x, y, z: every polyline's
+/// points, in order) and `element edge` (int vertex1, vertex2, and int polyline: the index of the
+/// polyline in `polylines`). Binary little endian unless options.binary is false. Throws MeshError
+/// (Unwritable, naming the path) if the file exists and !options.overwrite, a polyline is not n×3, or
+/// the write fails (a partial file is removed).
+void write_ply_polylines(const std::string& path, const std::vector<Positions>& polylines,
+                         const ScalarFieldWriteOptions& options = {});
+
 // ---- binary glTF: the same mesh and fields for Blender, three.js and web viewers -------------------
 
 /// matplotlib's viridis (a perceptually uniform sequential colour map), sRGB in [0, 1], at t in
