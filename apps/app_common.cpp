@@ -181,11 +181,6 @@ ice::CoarseTracing trace_space(const ice::TriangleMesh& mesh, const ice::CoarseS
 }
 }  // namespace
 
-bool output_is_gltf(const PdeOptions& opt) {
-  std::string extension = fs::path(opt.output).extension().string();
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return extension == ".glb";
-}
 
 std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
                                          const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
@@ -198,7 +193,7 @@ std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::
     fields.push_back({"error", result - reference});
   }
   for (ice::ScalarField& field : extra) fields.push_back(std::move(field));
-  const bool gltf = output_is_gltf(opt);
+  const bool gltf = opt.output_is_gltf();
   std::vector<ice::Positions> lines;
   if (space && space->triangulation) {  // ICE with its method state
     const ice::CoarseTracing tracing = trace_space(mesh, *space);
@@ -227,7 +222,7 @@ void print_written(std::ostream& out, const PdeOptions& opt, const std::array<ic
   if (!opt.output.empty())
     out << "  wrote " << opt.output
         << (traced[1] > 0 ? " (patch labels; " + thousands(traced[0]) + " of " + thousands(traced[1]) +
-                                " coarse edges traced on the surface" + (output_is_gltf(opt) ? ", drawn as lines)" : ")")
+                                " coarse edges traced on the surface" + (opt.output_is_gltf() ? ", drawn as lines)" : ")")
                           : std::string())
         << '\n';
   if (traced[1] > 0 && !opt.coarse_edges_output().empty())

@@ -113,8 +113,6 @@ void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, con
 /// write_result_fields), --html and --report.
 void print_written(std::ostream& out, const PdeOptions& opt, const std::array<ice::Index, 2>& traced);
 
-/// Whether opt.output names a binary glTF file (.glb), else PLY.
-bool output_is_gltf(const PdeOptions& opt);
 
 /// The demo right-hand side of poisson-coarse and ice-report: three Gaussian bumps
 /// exp(−|x − c|²/(2σ²)) with weights +1, −1, +1 centred at the vertices of largest x, y and z,

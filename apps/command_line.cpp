@@ -1,5 +1,9 @@
 #include "command_line.h"
 
+#include <cctype>
+
+#include "view_page.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -353,8 +357,24 @@ void PdeOptions::add_polish_options(CLI::App& cli) {
       ->capture_default_str();
 }
 
+namespace {
+std::string lower_extension(const std::string& path) {
+  std::string extension = fs::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension;
+}
+// Whether two paths name one file (also when written differently: ./a and a).
+bool same_file(const std::string& a, const std::string& b) {
+  std::error_code ec_a, ec_b;
+  const fs::path x = fs::weakly_canonical(a, ec_a), y = fs::weakly_canonical(b, ec_b);
+  return ec_a || ec_b ? fs::path(a) == fs::path(b) : x == y;
+}
+}  // namespace
+
+bool PdeOptions::output_is_gltf() const { return lower_extension(output) == ".glb"; }
+
 std::string PdeOptions::coarse_edges_output() const {
-  if (output.empty() || target.method != ice::CoarseningMethod::ice || fs::path(output).extension() == ".glb") return {};
+  if (output.empty() || !has_coarse_space || target.method != ice::CoarseningMethod::ice || output_is_gltf()) return {};
   const fs::path path(output);
   return (path.parent_path() / (path.stem().string() + "_coarse_edges.ply")).string();
 }
@@ -362,14 +382,16 @@ std::string PdeOptions::coarse_edges_output() const {
 void PdeOptions::check_outputs() const {
   if (!output.empty()) check_output(output, force, "--output");
   if (const std::string edges = coarse_edges_output(); !edges.empty()) check_output(edges, force, "--output (its coarse edges)");
-  if (ascii && fs::path(output).extension() == ".glb") throw AppError(kUsage, "--ascii writes ASCII PLY; --output names a .glb file");
+  if (ascii && output_is_gltf()) throw AppError(kUsage, "--ascii writes ASCII PLY; --output names a .glb file");
   if (!report.empty()) check_output(report, force, "--report");
-  if (!output.empty() && !report.empty() && fs::path(output) == fs::path(report))
+  if (!output.empty() && !report.empty() && same_file(output, report))
     throw AppError(kUsage, "--output and --report name the same file");
   if (!html.empty()) {
-    check_output(html, force, "--html");
-    if (fs::path(html).extension() != ".html") throw AppError(kUsage, "--html " + html + ": the page's name must end in .html");
-    if (html == output || html == report) throw AppError(kUsage, "--html names the same file as --output or --report");
+    if (!has_coarse_space) throw AppError(kUsage, "--html draws the coarse mesh: it needs --solver proxy");
+    if (lower_extension(html) != ".html") throw AppError(kUsage, "--html " + html + ": the page's name must end in .html");
+    if ((!output.empty() && same_file(html, output)) || (!report.empty() && same_file(html, report)))
+      throw AppError(kUsage, "--html names the same file as --output or --report");
+    check_view_page(html, force);  // the page, its folder of assets, the viewer's files: before any work
   }
 }
 

@@ -144,6 +144,9 @@ struct PdeOptions {
   bool fine_idt = true;
   std::string output;  ///< PLY or binary glTF (.glb)
   std::string html;    ///< the interactive 3D page (app/view_page.h)
+  /// False when the run has no coarse space (poisson-coarse --solver direct|multigrid): no coarse
+  /// edges or page to draw.
+  bool has_coarse_space = true;
   bool no_reference = false;
   std::string report;  ///< JSON
   bool quiet = false, force = false, repair = false, ascii = false;
@@ -159,6 +162,8 @@ struct PdeOptions {
   /// Where a PLY --output's companion file of ICE's traced coarse edges goes (NAME_coarse_edges.ply
   /// beside NAME.ply); empty when there is none (no output, glTF output, or QEM).
   std::string coarse_edges_output() const;
+  /// Whether --output names a binary glTF file (.glb, any case), else PLY.
+  bool output_is_gltf() const;
   /// The fine discretisation chosen by --fine-idt / --no-fine-idt.
   ice::FineGeometry fine_geometry() const;
 };

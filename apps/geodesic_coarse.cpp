@@ -344,8 +344,8 @@ int main(int argc, char** argv) {
       throw app::AppError(app::kUsage, "--first-sample goes with --sample");
     if (!oracle.pairs_output.empty() && oracle.pairs_path.empty())
       throw app::AppError(app::kUsage, "--pairs-out goes with --pairs");
-    if (oracle.active() && !opt.output.empty())
-      throw app::AppError(app::kUsage, "--output writes a distance field (--source); the oracle modes write --matrix or --pairs-out");
+    if (oracle.active() && (!opt.output.empty() || !opt.html.empty()))
+      throw app::AppError(app::kUsage, "--output and --html show a distance field (--source); the oracle modes write --matrix or --pairs-out");
     if (oracle.active()) {
       opt.check_outputs();
       return run_oracle(opt, oracle);

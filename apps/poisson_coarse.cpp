@@ -227,6 +227,7 @@ int main(int argc, char** argv) {
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&] {
+    opt.has_coarse_space = solver == "proxy";
     opt.check_outputs();
     if (solver != "proxy" && opt.polish.enabled())
       throw app::AppError(app::kUsage, "--polish and --tolerance polish the proxy's solution: use them with --solver proxy");

@@ -234,16 +234,23 @@ ViewMethod view_method(const std::string& name, const ice::TriangleMesh& input, 
   return method;
 }
 
+void check_view_page(const std::string& page, bool force, const std::string& option) {
+  check_output(page, force, option);
+  const fs::path page_path(page);
+  const fs::path assets_dir = page_path.parent_path() / (page_path.stem().string() + "_files");
+  if (fs::exists(assets_dir) && !force)
+    throw AppError(kNotWritten, option + " " + page + ": " + assets_dir.string() + " exists already (--force overwrites)");
+  find_assets();
+}
+
 void write_view_page(const std::string& page, const std::string& title, const std::vector<ViewMesh>& meshes,
                      const std::string& plots_html, bool force) {
-  check_output(page, force, "--html");
+  // The page's folder of assets is part of it: replaced only with --force too.
+  check_view_page(page, force, "the page");
   const ViewerAssets assets = find_assets();
   const fs::path page_path(page);
   const std::string assets_name = page_path.stem().string() + "_files";
   const fs::path assets_dir = page_path.parent_path() / assets_name;
-  // The page's folder of assets is part of it: replaced only with --force too.
-  if (fs::exists(assets_dir) && !force)
-    throw AppError(kNotWritten, "--html " + page + ": " + assets_dir.string() + " exists already (--force overwrites)");
   const std::string assets_url = url_segment(assets_name);
   std::error_code ec;
   fs::create_directories(assets_dir, ec);

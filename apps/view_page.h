@@ -80,6 +80,10 @@ std::vector<float> traced_segments(const ice::TriangleMesh& input, const ice::Co
 ViewMethod view_method(const std::string& name, const ice::TriangleMesh& input, const ice::CoarseSpace& space,
                        Eigen::VectorXd* patch = nullptr);
 
+/// What write_view_page would refuse, checked before any work (AppError): PAGE.html or PAGE_files/
+/// existing without `force`, PAGE's directory missing, the viewer's files not found.
+void check_view_page(const std::string& page, bool force, const std::string& option = "--html");
+
 /// Writes PAGE.html and PAGE_files/. Refuses to replace an existing page without `force`
 /// (AppError kNotWritten); throws AppError when the viewer's assets are missing (run
 /// `npm ci --prefix apps/viewer`, which scripts/setup.sh does).

@@ -622,14 +622,15 @@ void add_fine_fields(app::ViewMesh& view, const Fine& fine) {
   view.fields.push_back(app::view_field(view, "geodesic: fine distance", "geodesic", "solution", "", fine.distances.front()));
 }
 
-// One method of the view: its coarse edges, its errors at the page's budget and |u - u_fine| per problem.
+// One method of the view: its coarse edges, its relative L2 errors at the page's budget (geodesics:
+// the mean over the sources) and |u - u_fine| per problem (geodesics: from the first source).
 void add_view_method(app::ViewMesh& view, const std::string& method, const ice::TriangleMesh& mesh,
                      const ice::CoarseSpace& coarse, const Fine& fine, const ProxySolutions& solved,
                      const std::vector<Row>& rows) {
   Eigen::VectorXd patch;
   app::ViewMethod drawn = app::view_method(method, mesh, coarse, &patch);
   for (auto it = rows.rbegin(); it != rows.rbegin() + std::min<std::ptrdiff_t>(3, static_cast<std::ptrdiff_t>(rows.size())); ++it)
-    if (it->method == method && std::isfinite(it->error)) drawn.errors[it->problem] = it->error;
+    if (it->method == method && std::isfinite(it->error_l2)) drawn.errors[it->problem] = it->error_l2;  // as the tools' pages
   view.methods.push_back(std::move(drawn));
   view.fields.push_back(app::view_field(view, "poisson |error| " + method, "poisson", "error", method,
                                         (solved.poisson - fine.poisson).cwiseAbs()));
@@ -731,11 +732,11 @@ int main(int argc, char** argv) {
     } else if (std::find(budgets.begin(), budgets.end(), view_budget) == budgets.end()) {
       throw app::AppError(app::kUsage, "--view-budget must be one of --budgets");
     }
-    const std::string page = outdir + "/report.html";
-    if (!no_html) app::check_output(page, force, "the page");
     std::error_code ec;
     fs::create_directories(outdir, ec);
     if (ec) throw app::AppError(app::kNotWritten, "--output " + outdir + ": " + ec.message());
+    const std::string page = outdir + "/report.html";
+    if (!no_html) app::check_view_page(page, force, "the page");  // before the runs: an existing page, missing viewer files
 
     // Resolve the meshes; the default list skips missing files (with a note), an explicit one fails.
     const std::string where = !meshes_dir.empty() ? meshes_dir

@@ -560,6 +560,17 @@ elseif(CASE STREQUAL "view_page")
   endforeach()
   expect_error(3 "exists already" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --html "${page}" -q)
   expect_error(4 "must end in .html" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --html "${WORK}/page.htm" -q)
+  # Refused before any work: the page's folder left from an earlier page, a mode without a coarse
+  # field to show.
+  file(MAKE_DIRECTORY "${WORK}/left_files")
+  expect_error(3 "left_files exists already" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --html "${WORK}/left.html" -q)
+  expect_error(4 "needs --solver proxy" poisson-coarse "${mesh}" --solver direct --html "${WORK}/direct.html" -q)
+  expect_error(4 "oracle modes" geodesic-coarse "${mesh}" --all-pairs --vertices 300 --html "${WORK}/oracle.html" -q)
+  # glTF by the extension in any case: no PLY companion file of the edges.
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 -o "${WORK}/upper.GLB" -q)
+  if(EXISTS "${WORK}/upper_coarse_edges.ply")
+    fail("a .GLB output also wrote a PLY edges file")
+  endif()
   # A QEM run: its extrinsic coarse edges drawn straight.
   run(0 poisson-coarse "${mesh}" --ratio 0.05 --method qem --html "${WORK}/qem.html" -q)
   # An intrinsic mesh alone has no positions to draw.

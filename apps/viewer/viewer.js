@@ -497,7 +497,7 @@
   function setSideBySide(on) {
     ui.state.sideBySide = Boolean(on) && currentMesh().methods.length > 1;
     // The pane's aspect ratio changes: fit the mesh again, keeping the direction of view.
-    ui.view.radius = fitDistance();
+    ui.view.radius = fitView();
     update();
     return api.state();
   }
@@ -662,8 +662,14 @@
     const sphere = prepared.sphere;
     const centre = prepared.box.getCenter(new THREE.Vector3());
     ui.view = { target: centre, size: sphere.radius || 1, theta: 0.6, phi: 1.15, radius: 1 };
-    const fitted = fitVertices(prepared.position);
-    ui.view.radius = fitted > 0 && Number.isFinite(fitted) ? fitted : fitDistance();
+    ui.view.radius = fitView();
+  }
+
+  // The camera distance that fits the current mesh from the current direction (the vertices; the
+  // bounding sphere if they give nothing usable).
+  function fitView() {
+    const fitted = fitVertices(prepareMesh(currentMesh()).position);
+    return fitted > 0 && Number.isFinite(fitted) ? fitted : fitDistance();
   }
 
   function placeCamera() {
