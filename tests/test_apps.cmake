@@ -116,11 +116,17 @@ function(require_file path)
   endif()
 endfunction()
 
-# check_ply_header(<file> <format> <property>...): PLY header with this format and these vertex properties.
-function(check_ply_header file format)
+# ply_header(<var> <file>): the first 30 lines of a PLY file, joined by newlines (the file must exist).
+function(ply_header var file)
   require_file("${file}")
   file(STRINGS "${file}" _header LIMIT_COUNT 30)
   string(JOIN "\n" _text ${_header})
+  set(${var} "${_text}" PARENT_SCOPE)
+endfunction()
+
+# check_ply_header(<file> <format> <property>...): PLY header with this format and these vertex properties.
+function(check_ply_header file format)
+  ply_header(_text "${file}")
   if(NOT _text MATCHES "^ply\nformat ${format} 1.0\n")
     fail("${file}: not a ${format} PLY file:\n${_text}")
   endif()
@@ -469,9 +475,7 @@ elseif(CASE STREQUAL "poisson_spot")
   check(${rel_l2} LESS 0.08 "error.rel_l2")
   check_ply_header("${WORK}/u.ply" binary_little_endian solution reference error rhs patch)
   # Beside it, the traced coarse edges as PLY points and edges.
-  require_file("${WORK}/u_coarse_edges.ply")
-  file(STRINGS "${WORK}/u_coarse_edges.ply" edges_header LIMIT_COUNT 12)
-  string(JOIN "\n" edges_header ${edges_header})
+  ply_header(edges_header "${WORK}/u_coarse_edges.ply")
   if(NOT edges_header MATCHES "element edge [0-9]+\nproperty int vertex1\nproperty int vertex2\nproperty int polyline")
     fail("u_coarse_edges.ply: no edge element:\n${edges_header}")
   endif()
