@@ -42,6 +42,17 @@ void append(std::vector<char>& buffer, T value) {
   buffer.insert(buffer.end(), bytes, bytes + sizeof(T));
 }
 
+// Flushes a written file; if any write failed, removes what was written (never leave a truncated
+// file that looks complete) and throws MeshError naming the path.
+void finish_output(std::ofstream& out, const std::string& path) {
+  out.flush();
+  if (out) return;
+  out.close();
+  std::error_code ec;
+  fs::remove(path, ec);
+  throw MeshError(MeshError::Kind::Unwritable, path, "write failed (disk full?)");
+}
+
 // The preconditions both writers share (MeshError naming the path).
 void check_mesh_and_fields(const std::string& path, const TriangleMesh& mesh, const std::vector<ScalarField>& fields) {
   const auto fail = [&](const std::string& message) { throw MeshError(MeshError::Kind::Unwritable, path, message); };
@@ -69,7 +80,6 @@ void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, co
   const Eigen::Index nv = mesh.V.rows(), nf = mesh.F.rows();
   check_mesh_and_fields(path, mesh, fields);
   require_writable(path, options.overwrite);
-  std::error_code ec;
 
   std::ofstream out(path, options.binary ? std::ios::binary : std::ios::out);
   if (!out) fail("cannot be opened for writing");
@@ -100,12 +110,7 @@ void write_ply_with_fields(const std::string& path, const TriangleMesh& mesh, co
     }
     for (Eigen::Index f = 0; f < nf; ++f) out << "3 " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << '\n';
   }
-  out.flush();
-  if (!out) {
-    out.close();
-    fs::remove(path, ec);
-    fail("write failed (disk full?)");
-  }
+  finish_output(out, path);
 }
 
 void write_ply_polylines(const std::string& path, const std::vector<Positions>& polylines,
@@ -147,13 +152,7 @@ void write_ply_polylines(const std::string& path, const std::vector<Positions>& 
     first += count;
   }
   if (options.binary) out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-  out.flush();
-  if (!out) {
-    out.close();
-    std::error_code ec;
-    fs::remove(path, ec);
-    fail("write failed (disk full?)");
-  }
+  finish_output(out, path);
 }
 
 // ---- binary glTF --------------------------------------------------------------------------------------
@@ -474,13 +473,7 @@ void write_dense_matrix(const std::string& path, const Eigen::MatrixXf& matrix, 
   out.precision(9);
   for (Eigen::Index c = 0; c < matrix.cols(); ++c)
     for (Eigen::Index r = 0; r < matrix.rows(); ++r) out << matrix(r, c) << '\n';
-  out.flush();
-  if (!out) {
-    out.close();
-    std::error_code ec;
-    fs::remove(path, ec);
-    throw MeshError(MeshError::Kind::Unwritable, path, "write failed (disk full?)");
-  }
+  finish_output(out, path);
 }
 
 }  // namespace ice
