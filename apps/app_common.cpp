@@ -13,7 +13,6 @@
 #include <new>
 #include <sstream>
 
-#include "ice/coarse_tracing.h"
 #include "ice/prolongation.h"
 #include "view_page.h"
 
@@ -175,18 +174,16 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   return p;
 }
 
-namespace {
-ice::CoarseTracing trace_space(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space) {
-  return ice::trace_coarse_mesh(mesh.F, space.mesh, ice::fine_to_coarse_map(space), space.inserted, mesh.V, 0);
+std::optional<ice::CoarseTracing> trace_for_outputs(const PdeOptions& opt, const ice::TriangleMesh& mesh,
+                                                    const ice::CoarseSpace& space) {
+  if ((opt.output.empty() && opt.html.empty()) || !space.triangulation) return std::nullopt;
+  return ice::trace_coarse_mesh(mesh, space);
 }
-}  // namespace
 
-
-std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
-                                         const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
-                                         std::vector<ice::ScalarField> extra, const ice::CoarseSpace* space) {
-  std::array<ice::Index, 2> traced{0, 0};
-  if (opt.output.empty()) return traced;
+void write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
+                         const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
+                         std::vector<ice::ScalarField> extra, const ice::CoarseTracing* tracing) {
+  if (opt.output.empty()) return;
   std::vector<ice::ScalarField> fields{{name, result}};
   if (reference.size() != 0) {
     fields.push_back({"reference", reference});
@@ -195,13 +192,9 @@ std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::
   for (ice::ScalarField& field : extra) fields.push_back(std::move(field));
   const bool gltf = opt.output_is_gltf();
   std::vector<ice::Positions> lines;
-  if (space && space->triangulation) {  // ICE with its method state
-    const ice::CoarseTracing tracing = trace_space(mesh, *space);
-    Eigen::VectorXd patch(mesh.V.rows());
-    for (Eigen::Index v = 0; v < patch.size(); ++v) patch(v) = static_cast<double>(tracing.vertex_patch[static_cast<std::size_t>(v)]);
-    fields.push_back({"patch", patch});
-    traced = {tracing.traced, static_cast<ice::Index>(tracing.edges.size())};
-    for (const ice::TracedEdge& edge : tracing.edges)
+  if (tracing) {
+    fields.push_back({"patch", patch_values(*tracing)});
+    for (const ice::TracedEdge& edge : tracing->edges)
       if (edge.status == ice::TraceStatus::traced) lines.push_back(ice::traced_polyline(mesh.V, mesh.F, edge));
     // PLY has no lines beside a mesh: they go to a companion file of points and edges.
     if (const std::string edges = opt.coarse_edges_output(); !gltf && !edges.empty())
@@ -215,17 +208,17 @@ std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::
   } else {
     ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
   }
-  return traced;
 }
 
-void print_written(std::ostream& out, const PdeOptions& opt, const std::array<ice::Index, 2>& traced) {
+void print_written(std::ostream& out, const PdeOptions& opt, const ice::CoarseTracing* tracing) {
   if (!opt.output.empty())
     out << "  wrote " << opt.output
-        << (traced[1] > 0 ? " (patch labels; " + thousands(traced[0]) + " of " + thousands(traced[1]) +
-                                " coarse edges traced on the surface" + (opt.output_is_gltf() ? ", drawn as lines)" : ")")
-                          : std::string())
+        << (tracing ? " (patch labels; " + thousands(tracing->traced) + " of " +
+                          thousands(static_cast<long long>(tracing->edges.size())) + " coarse edges traced on the surface" +
+                          (opt.output_is_gltf() ? ", drawn as lines)" : ")")
+                    : std::string())
         << '\n';
-  if (traced[1] > 0 && !opt.coarse_edges_output().empty())
+  if (tracing && !opt.output.empty() && !opt.coarse_edges_output().empty())
     out << "  wrote " << opt.coarse_edges_output() << " (the traced coarse edges as lines)\n";
   if (!opt.html.empty()) out << "  wrote " << opt.html << " (open it in a browser)\n";
   if (!opt.report.empty()) out << "  wrote " << opt.report << '\n';
@@ -233,7 +226,8 @@ void print_written(std::ostream& out, const PdeOptions& opt, const std::array<ic
 
 void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& title,
                        const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
-                       const Eigen::VectorXd& reference, const ice::CoarseSpace& space, const nlohmann::json& error_json) {
+                       const Eigen::VectorXd& reference, const ice::CoarseSpace& space,
+                       const ice::CoarseTracing* tracing, const nlohmann::json& error_json) {
   if (opt.html.empty()) return;
   ViewMesh view = view_mesh(fs::path(opt.mesh).filename().string(), mesh, kDisplayVertices);
   view.fields.push_back(view_field(view, name, problem, "solution", "", result));
@@ -242,11 +236,10 @@ void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, con
     view.fields.push_back(view_field(view, "reference (fine)", problem, "solution", "", reference));
     view.fields.push_back(view_field(view, "|error|", problem, "error", method, (result - reference).cwiseAbs()));
   }
-  Eigen::VectorXd patch;
-  ViewMethod drawn = view_method(method, mesh, space, &patch);
+  ViewMethod drawn = view_method(method, mesh, space, tracing);
   if (error_json.is_object() && error_json.contains("rel_l2") && error_json["rel_l2"].is_number())
     drawn.errors[problem] = error_json["rel_l2"].get<double>();
-  if (patch.size() != 0) view.fields.push_back(view_field(view, "patch", "", "label", method, patch));
+  if (tracing) view.fields.push_back(view_field(view, "patch", "", "label", method, patch_values(*tracing)));
   view.methods.push_back(std::move(drawn));
   write_view_page(opt.html, title, {view}, "", opt.force);
 }

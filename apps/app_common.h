@@ -5,6 +5,7 @@
 /// the input and its side files, the coarsening with a progress bar, the coarse proxy, the demo source.
 #include <array>
 #include <memory>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "command_line.h"
 #include "fem/coarse_proxy.h"
 #include "ice/coarse_space.h"
+#include "ice/coarse_tracing.h"
 #include "ice/scalar_field_io.h"
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
@@ -89,29 +91,35 @@ struct PdeProxy {
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                          PdeRun& run, Stopwatch& clock);
 
+/// The coarse mesh traced on the input (ice/coarse_tracing.h) when an output draws it: --output or
+/// --html, and an ICE space built with keep_method_state (build_pde_proxy keeps it for them). Traced
+/// once per run, for both.
+std::optional<ice::CoarseTracing> trace_for_outputs(const PdeOptions& opt, const ice::TriangleMesh& mesh,
+                                                    const ice::CoarseSpace& space);
+
 /// Writes opt.output (nothing without -o), PLY or binary glTF by its extension (.glb: glTF): the
 /// input mesh with the per-vertex field `name` (the tool's result), then, given a reference
-/// (non-empty), 'reference' and 'error' (= result − reference), then `extra`; with an ICE `space`
-/// built with keep_method_state, also 'patch' (the coarse face of each vertex's map point,
-/// CoarseTracing::vertex_patch) and the coarse edges traced on the surface as lines
-/// (ice/coarse_tracing.h): in the glTF file, or beside a PLY in opt.coarse_edges_output(). glTF colours 'error' if present, else `name`. Returns the tracing's
-/// edge counts for the summary ({traced, all}; {0, 0} when nothing was traced).
-std::array<ice::Index, 2> write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
-                                         const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
-                                         std::vector<ice::ScalarField> extra = {}, const ice::CoarseSpace* space = nullptr);
+/// (non-empty), 'reference' and 'error' (= result − reference), then `extra`; with a `tracing`,
+/// also 'patch' (the coarse face of each vertex's map point, CoarseTracing::vertex_patch) and the
+/// traced coarse edges as lines: in the glTF file, or beside a PLY in opt.coarse_edges_output().
+/// glTF colours 'error' if present, else `name`.
+void write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& name,
+                         const Eigen::VectorXd& result, const Eigen::VectorXd& reference,
+                         std::vector<ice::ScalarField> extra = {}, const ice::CoarseTracing* tracing = nullptr);
 
 /// Writes opt.html (nothing without --html): the 3D page (view_page.h) of one run — the input mesh
 /// (decimated for display above 200,000 vertices) coloured by `name` (the result), 'reference',
-/// 'error' (|result − reference|) and 'patch', with the coarse edges traced on the surface (ICE with
-/// its method state) — titled `title`; `problem` names the problem ("poisson", "geodesic"),
-/// `error_json` the run's errors (its rel_l2 is shown; null or empty: none).
+/// 'error' (|result − reference|) and, with a `tracing` of `space`, 'patch' and the traced coarse
+/// edges (else the space's straight edges: QEM) — titled `title`; `problem` names the problem
+/// ("poisson", "geodesic"), `error_json` the run's errors (its rel_l2 is shown; null or empty: none).
 void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& title,
                        const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
-                       const Eigen::VectorXd& reference, const ice::CoarseSpace& space, const nlohmann::json& error_json);
+                       const Eigen::VectorXd& reference, const ice::CoarseSpace& space,
+                       const ice::CoarseTracing* tracing, const nlohmann::json& error_json);
 
-/// The summary's "wrote ..." lines of --output (with the tracing's counts `traced` of
-/// write_result_fields), --html and --report.
-void print_written(std::ostream& out, const PdeOptions& opt, const std::array<ice::Index, 2>& traced);
+/// The summary's "wrote ..." lines of --output (with the counts of `tracing`, if any), --html and
+/// --report.
+void print_written(std::ostream& out, const PdeOptions& opt, const ice::CoarseTracing* tracing);
 
 
 /// The demo right-hand side of poisson-coarse and ice-report: three Gaussian bumps

@@ -404,12 +404,14 @@ int main(int argc, char** argv) {
     }
 
     // ---- outputs
-    const std::array<ice::Index, 2> traced = app::write_result_fields(opt, mesh, "distance", distance, reference, {}, &pde.coarse);
+    const std::optional<ice::CoarseTracing> tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
+    const ice::CoarseTracing* traced = tracing ? &*tracing : nullptr;
+    app::write_result_fields(opt, mesh, "distance", distance, reference, {}, traced);
     app::write_result_page(opt, mesh, "geodesic-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "geodesic",
-                           "distance", distance, reference, pde.coarse, error_json);
+                           "distance", distance, reference, pde.coarse, traced, error_json);
     run.write = clock.lap();
     nlohmann::json report = run.report();
-    if (traced[1] > 0) report["trace"] = {{"edges", traced[1]}, {"traced", traced[0]}};
+    if (traced) report["trace"] = {{"edges", traced->edges.size()}, {"traced", traced->traced}};
     report["sources"] = file_sources;
     report["max_distance"] = distance.maxCoeff();
     if (run.has_reference) report["error"] = error_json;

@@ -110,8 +110,7 @@ void write_preview(const std::string& path, const ice::TriangleMesh& mesh, const
 
 // coarse_edges.obj: the traced coarse edges as polylines on the input surface.
 ice::CoarseTracing write_traced_edges(const std::string& path, const ice::TriangleMesh& mesh, const ice::CoarseSpace& space) {
-  const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh.F, space.mesh, ice::fine_to_coarse_map(space),
-                                                            space.inserted, mesh.V, 0);
+  const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh, space);
   std::ofstream out = open_output(path);
   out << "# coarse edges of an intrinsic coarse mesh traced on its input surface (ice-coarsen --trace): one polyline "
          "per edge, from its tail to its head coarse vertex\n"

@@ -169,8 +169,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
               << static_cast<double>(error_json["max_abs"]) << " (CHOLMOD setup "
               << app::fixed(timings["reference_setup"], 4) << " s, solve " << app::fixed(timings["reference_solve"], 4)
               << " s)\n";
-  if (!opt.output.empty()) std::cout << "  wrote " << opt.output << '\n';
-  if (!opt.report.empty()) std::cout << "  wrote " << opt.report << '\n';
+  app::print_written(std::cout, opt, nullptr);
   return app::kOk;
 }
 
@@ -338,13 +337,14 @@ int main(int argc, char** argv) {
     }
 
     // ---- outputs
-    const std::array<ice::Index, 2> traced =
-        app::write_result_fields(opt, mesh, "solution", solution, reference, {{"rhs", f}}, &pde.coarse);
+    const std::optional<ice::CoarseTracing> tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
+    const ice::CoarseTracing* traced = tracing ? &*tracing : nullptr;
+    app::write_result_fields(opt, mesh, "solution", solution, reference, {{"rhs", f}}, traced);
     app::write_result_page(opt, mesh, "poisson-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "poisson", "solution",
-                           solution, reference, pde.coarse, error_json);
+                           solution, reference, pde.coarse, traced, error_json);
     run.write = clock.lap();
     nlohmann::json report = run.report();
-    if (traced[1] > 0) report["trace"] = {{"edges", traced[1]}, {"traced", traced[0]}};
+    if (traced) report["trace"] = {{"edges", traced->edges.size()}, {"traced", traced->traced}};
     report["solver"] = {{"kind", solver}};
     if (run.has_reference) report["reference_ordering"] = fem::to_string(cholmod_ordering);
     report["timings_s"]["setup"] = run.coarsen + run.assemble + run.factor + run.polish_setup;

@@ -201,23 +201,22 @@ std::vector<float> traced_segments(const ice::TriangleMesh& input, const ice::Co
   return segments;
 }
 
+Eigen::VectorXd patch_values(const ice::CoarseTracing& tracing) {
+  Eigen::VectorXd patch(static_cast<Eigen::Index>(tracing.vertex_patch.size()));
+  for (Eigen::Index v = 0; v < patch.size(); ++v) patch(v) = static_cast<double>(tracing.vertex_patch[static_cast<std::size_t>(v)]);
+  return patch;
+}
+
 ViewMethod view_method(const std::string& name, const ice::TriangleMesh& input, const ice::CoarseSpace& space,
-                       Eigen::VectorXd* patch) {
+                       const ice::CoarseTracing* tracing) {
   ViewMethod method;
   method.name = name;
   method.coarse_vertices = space.mesh.num_vertices();
-  if (patch) patch->resize(0);
-  if (space.triangulation) {  // ICE with its method state: the edges as they are, on the surface
-    const ice::CoarseTracing tracing =
-        ice::trace_coarse_mesh(input.F, space.mesh, ice::fine_to_coarse_map(space), space.inserted, input.V, 0);
-    method.edges = traced_segments(input, tracing);
-    if (tracing.failed > 0)
-      method.message = std::to_string(tracing.failed) + " of " + std::to_string(tracing.edges.size()) +
+  if (tracing) {  // ICE: the edges as they are, on the surface
+    method.edges = traced_segments(input, *tracing);
+    if (tracing->failed > 0)
+      method.message = std::to_string(tracing->failed) + " of " + std::to_string(tracing->edges.size()) +
                        " coarse edges could not be traced and are not drawn";
-    if (patch) {
-      patch->resize(input.V.rows());
-      for (Eigen::Index v = 0; v < patch->size(); ++v) (*patch)(v) = static_cast<double>(tracing.vertex_patch[static_cast<std::size_t>(v)]);
-    }
     return method;
   }
   // An extrinsic coarse mesh on its survivors' positions: its edges are the straight segments

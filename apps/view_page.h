@@ -73,12 +73,14 @@ ViewField view_field(const ViewMesh& mesh, std::string name, std::string problem
 /// The traced coarse edges as segments (untraced edges are left out; their count is in `message`).
 std::vector<float> traced_segments(const ice::TriangleMesh& input, const ice::CoarseTracing& tracing);
 
-/// A coarse space as a page's method: its coarse edges — ICE's (with its method state) traced on the
-/// input surface, otherwise (QEM, an extrinsic mesh) straight between its vertices' positions — and
-/// a note on what is drawn. With `patch`, also the patch labels of ICE's tracing (the coarse face of
-/// each input vertex; left empty otherwise).
+/// A coarse space as a page's method: its coarse edges — with `tracing` (ICE: ice::trace_coarse_mesh
+/// of this space) the traced ones on the input surface, otherwise (QEM, an extrinsic mesh) straight
+/// between its vertices' positions — and a note on what is drawn.
 ViewMethod view_method(const std::string& name, const ice::TriangleMesh& input, const ice::CoarseSpace& space,
-                       Eigen::VectorXd* patch = nullptr);
+                       const ice::CoarseTracing* tracing);
+
+/// The patch labels of a tracing as a per-input-vertex field (CoarseTracing::vertex_patch).
+Eigen::VectorXd patch_values(const ice::CoarseTracing& tracing);
 
 /// What write_view_page would refuse, checked before any work (AppError): PAGE.html or PAGE_files/
 /// existing without `force`, PAGE's directory missing, the viewer's files not found.

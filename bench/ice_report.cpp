@@ -627,8 +627,9 @@ void add_fine_fields(app::ViewMesh& view, const Fine& fine) {
 void add_view_method(app::ViewMesh& view, const std::string& method, const ice::TriangleMesh& mesh,
                      const ice::CoarseSpace& coarse, const Fine& fine, const ProxySolutions& solved,
                      const std::vector<Row>& rows) {
-  Eigen::VectorXd patch;
-  app::ViewMethod drawn = app::view_method(method, mesh, coarse, &patch);
+  std::optional<ice::CoarseTracing> tracing;
+  if (coarse.triangulation) tracing = ice::trace_coarse_mesh(mesh, coarse);  // ICE: its edges on the surface
+  app::ViewMethod drawn = app::view_method(method, mesh, coarse, tracing ? &*tracing : nullptr);
   for (auto it = rows.rbegin(); it != rows.rbegin() + std::min<std::ptrdiff_t>(3, static_cast<std::ptrdiff_t>(rows.size())); ++it)
     if (it->method == method && std::isfinite(it->error_l2)) drawn.errors[it->problem] = it->error_l2;  // as the tools' pages
   view.methods.push_back(std::move(drawn));
@@ -638,7 +639,7 @@ void add_view_method(app::ViewMesh& view, const std::string& method, const ice::
                                         (solved.heat - fine.heat).cwiseAbs()));
   view.fields.push_back(app::view_field(view, "geodesic |error| " + method, "geodesic", "error", method,
                                         (solved.geodesic - fine.distances.front()).cwiseAbs()));
-  if (patch.size() != 0) view.fields.push_back(app::view_field(view, "patch " + method, "", "label", method, patch));
+  if (tracing) view.fields.push_back(app::view_field(view, "patch " + method, "", "label", method, app::patch_values(*tracing)));
 }
 
 // A method that failed on the mesh: shown as such on the page, with the reason.

@@ -778,6 +778,12 @@ CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const
   return result;
 }
 
+CoarseTracing trace_coarse_mesh(const TriangleMesh& mesh, const CoarseSpace& space, int threads) {
+  if (!space.triangulation)
+    throw std::invalid_argument("trace_coarse_mesh: the coarse space has no triangulation (ICE with keep_method_state)");
+  return trace_coarse_mesh(mesh.F, space.mesh, fine_to_coarse_map(space), space.inserted, mesh.V, threads);
+}
+
 namespace {
 // The point of input face `face` with barycentric coordinates b.
 Eigen::RowVector3d surface_point(const Positions& V, const Faces& F, Index face, const std::array<double, 3>& b) {

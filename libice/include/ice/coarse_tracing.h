@@ -4,7 +4,7 @@
 /// across the input triangles, and every input face labelled by the coarse face that contains it.
 ///
 ///   const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);   // keep_method_state
-///   const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh.F, space.mesh, ice::fine_to_coarse_map(space));
+///   const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh, space);
 ///   for (const ice::TracedEdge& e : tracing.edges) draw(ice::traced_polyline(mesh.V, mesh.F, e));
 ///
 /// How: the fine-to-coarse map places every input vertex in a coarse face (barycentric coordinates),
@@ -43,6 +43,7 @@
 #include <array>
 #include <vector>
 
+#include "ice/coarse_space.h"
 #include "ice/mesh.h"
 #include "ice/refinement.h"
 
@@ -101,6 +102,12 @@ struct CoarseTracing {
 CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
                                 const std::vector<InputSurfacePoint>& inserted = {}, const Positions& V = {},
                                 int threads = 1);
+
+/// An ICE coarse space traced on its input `mesh`: trace_coarse_mesh of mesh.F, space.mesh, its
+/// fine-to-coarse map, its inserted points and mesh.V (length ratios measured). Precondition
+/// (std::invalid_argument): the space was built with keep_method_state by ICE (a QEM mesh is
+/// extrinsic: its edges are straight segments between its positions, nothing to trace).
+CoarseTracing trace_coarse_mesh(const TriangleMesh& mesh, const CoarseSpace& space, int threads = 0);
 
 /// The polyline of a traced edge on the input surface (positions of its segments' ends, joined:
 /// segments + 1 rows; empty for an edge without segments).
