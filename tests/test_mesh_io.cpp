@@ -248,7 +248,7 @@ TEST_CASE("OFF: comments anywhere, also between the counts and the records", "[i
     REQUIRE(file.soup.V.rows() == 4);
     CHECK(file.soup.V.row(1) == Eigen::RowVector3d(1, 0, 0));
     CHECK(file.soup.V.row(3) == Eigen::RowVector3d(1, 1, 0));
-    CHECK(file.soup.polygons == std::vector<std::vector<int>>{{0, 1, 2}, {1, 3, 2}});
+    CHECK(file.soup.polygons == ice::PolygonList{{0, 1, 2}, {1, 3, 2}});
     const ice::LoadResult loaded = ice::load_mesh_with_report(path);
     CHECK(loaded.report.clean());
     CHECK(loaded.report.n_boundary_loops == 1);
@@ -380,4 +380,71 @@ TEST_CASE("dense matrices round-trip through .npy and .mtx; incomplete or existi
     CHECK_THROWS_AS(writer.close(), ice::MeshError);
   }
   CHECK_FALSE(std::filesystem::exists(partial));
+}
+
+TEST_CASE("large OFF and OBJ files are read in chunks on several threads: the same soup, the first defect named",
+          "[io]") {
+  // Above 4 MB the text readers cut the file into chunks of whole lines parsed on several threads;
+  // nothing about the result may depend on where the cuts fall: records numbered across chunks,
+  // comments and blank lines anywhere, polygons of any size, OBJ's relative indices, and of several
+  // defects the first in the file reported with its line number.
+  const ice::TriangleMesh mesh = ice::make_icosphere(6);  // 40,962 vertices: about 6 MB of text
+  const auto nv = mesh.V.rows(), nf = mesh.F.rows();
+  ice_test::TempDir dir;
+  std::ostringstream off, obj;
+  off.precision(17);
+  obj.precision(17);
+  off << "OFF\n# a comment before the counts\n" << nv << ' ' << nf + 1 << " 0\n";
+  std::vector<std::size_t> off_line_of_vertex(static_cast<std::size_t>(nv));
+  std::size_t off_line = 3;
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (v % 997 == 0) off << "\n# vertex " << v << " next\n", off_line += 2;
+    off << mesh.V(v, 0) << ' ' << mesh.V(v, 1) << ' ' << mesh.V(v, 2) << (v % 5 == 0 ? " 0.5 0.5 0.5 1\n" : "\n");
+    off_line_of_vertex[v] = ++off_line;
+    obj << "v " << mesh.V(v, 0) << ' ' << mesh.V(v, 1) << ' ' << mesh.V(v, 2) << '\n';
+    if (v % 1009 == 0) obj << "vn 0 0 1\n# normal\n";
+  }
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    off << "3 " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << (f % 7 == 0 ? " 255 0 0\n" : "\n");
+    if (f % 2 == 0)
+      obj << "f " << mesh.F(f, 0) + 1 << "//1 " << mesh.F(f, 1) + 1 << ' ' << mesh.F(f, 2) + 1 << '\n';
+    else  // relative to the vertices read so far (all of them)
+      obj << "f " << mesh.F(f, 0) - nv << ' ' << mesh.F(f, 1) - nv << ' ' << mesh.F(f, 2) - nv << '\n';
+  }
+  off << "4 0 1 2 3\n";  // a quad last
+  obj << "f 1 2 3 4\n";
+  REQUIRE(off.str().size() > (std::size_t(4) << 20));
+  REQUIRE(obj.str().size() > (std::size_t(4) << 20));
+  for (const auto& [name, text] : {std::pair<std::string, std::string>{"big.off", off.str()}, {"big.obj", obj.str()}}) {
+    INFO(name);
+    const ice::MeshFile file = ice::read_mesh_file(dir.write(name, text));
+    REQUIRE(file.soup.V.rows() == nv);
+    CHECK(file.soup.V == mesh.V);
+    REQUIRE(file.soup.polygons.size() == static_cast<std::size_t>(nf) + 1);
+    bool same_faces = true;
+    for (Eigen::Index f = 0; f < nf; ++f)
+      same_faces = same_faces && file.soup.polygons[f] == std::vector<int>{mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+    CHECK(same_faces);
+    CHECK(file.soup.polygons[nf] == std::vector<int>{0, 1, 2, 3});
+  }
+
+  // Two defects far apart (different chunks): the earlier one is named, by its line.
+  using Kind = ice::MeshError::Kind;
+  std::string defective = off.str();
+  const auto replace_line = [&](std::size_t line_number, const std::string& with) {
+    std::size_t at = 0;
+    for (std::size_t line = 1; line < line_number; ++line) at = defective.find('\n', at) + 1;
+    defective.replace(at, defective.find('\n', at) - at, with);
+  };
+  const std::size_t early = off_line_of_vertex[static_cast<std::size_t>(nv) * 3 / 4];
+  const std::size_t late = off_line_of_vertex[static_cast<std::size_t>(nv) - 2];
+  replace_line(late, "1 2");
+  replace_line(early, "1 2 x");
+  const std::string path = dir.write("two_defects.off", defective);
+  require_mesh_error([&] { ice::read_mesh_file(path); }, Kind::Unreadable, path,
+                     "line " + std::to_string(early) + ": vertex needs three numbers");
+  // One record short at the very end: the whole file is counted before any record is parsed.
+  const std::string short_text = off.str().substr(0, off.str().size() - std::string("4 0 1 2 3\n").size());
+  const std::string short_path = dir.write("short.off", short_text);
+  require_mesh_error([&] { ice::read_mesh_file(short_path); }, Kind::Unreadable, short_path, "file ends early");
 }

@@ -140,7 +140,8 @@ TEST_CASE("validation: each defect is counted and located", "[validation]") {
     ice::PolygonSoup shifted;
     shifted.V.resize(s.V.rows(), 3);
     shifted.V << s.V.bottomRows(10), s.V.topRows(nv);
-    for (auto poly : s.polygons) {
+    for (const auto corners : s.polygons) {
+      std::vector<int> poly = corners.to_vector();
       for (int& v : poly) v += 10;
       shifted.polygons.push_back(poly);
     }

@@ -1,6 +1,7 @@
 #include "ice/mesh_io.h"
 
 #include "file_extension.h"
+#include "run_tasks.h"
 
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/importer/BaseImporter.hh>
@@ -15,6 +16,8 @@
 #include <cstdint>
 #include <cstdlib>
 #include <charconv>
+#include <array>
+#include <thread>
 #include <cstring>
 #include <string_view>
 #include <filesystem>
@@ -45,7 +48,7 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
   explicit SoupImporter(std::size_t max_records) : max_records_(max_records) {}
 
   std::vector<Eigen::Vector3d> points;
-  std::vector<std::vector<int>> polygons;
+  PolygonList polygons;
 
   OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3f& p) override {
     return add_vertex(OpenMesh::Vec3d(p[0], p[1], p[2]));
@@ -65,13 +68,13 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     std::vector<int> poly;
     poly.reserve(corners.size());
     for (const auto& vh : corners) poly.push_back(vh.idx());  // unchecked on purpose: validation sees it
-    polygons.push_back(std::move(poly));
+    polygons.push_back(poly);
     return OpenMesh::FaceHandle(static_cast<int>(polygons.size() - 1));
   }
   void reserve(unsigned int nv, unsigned int /*ne*/, unsigned int nf) override {
     // Header counts are untrusted: never reserve more than the file could hold.
     points.reserve(std::min<std::size_t>(nv, max_records_));
-    polygons.reserve(std::min<std::size_t>(nf, max_records_));
+    polygons.reserve(std::min<std::size_t>(nf, max_records_), 3 * std::min<std::size_t>(nf, max_records_));
   }
   std::size_t n_vertices() const override { return points.size(); }
   std::size_t n_faces() const override { return polygons.size(); }
@@ -260,54 +263,178 @@ class TextLines {
     return true;
   }
   std::size_t number() const { return number_; }
+  /// The byte offset of the next line.
+  std::size_t offset() const { return position_; }
 
  private:
   std::string_view text_;
   std::size_t position_ = 0, number_ = 0;
 };
 
+/// The tokens of one line, up to a '#' comment, one at a time (no allocation).
+class LineTokens {
+ public:
+  explicit LineTokens(std::string_view line) : rest_(line.substr(0, line.find('#'))) {}
+  bool next(std::string_view& token) {
+    std::size_t i = 0;
+    while (i < rest_.size() && is_space(rest_[i])) ++i;
+    if (i == rest_.size()) return false;
+    std::size_t j = i;
+    while (j < rest_.size() && !is_space(rest_[j])) ++j;
+    token = rest_.substr(i, j - i);
+    rest_ = rest_.substr(j);
+    return true;
+  }
+
+ private:
+  std::string_view rest_;
+};
+
+/// Text files of one record per line are parsed in chunks of whole lines on several threads: a
+/// first pass counts each chunk's lines and records (of up to two kinds), a second parses each
+/// chunk knowing its first line number and its first record of each kind. Results, messages and
+/// the error reported (the first in the file) do not depend on the chunking.
+struct TextChunk {
+  std::size_t begin = 0, end = 0;               ///< Byte range of whole lines.
+  std::size_t lines = 0, first_line = 0;        ///< Its line count and its first line's number (1-based).
+  std::array<std::size_t, 2> records{}, first_record{};
+};
+
+/// Files below this size are read on one thread (starting threads costs more than it saves).
+constexpr std::size_t kParallelTextBytes = std::size_t(1) << 22;
+
+int text_threads(std::size_t bytes) {
+  if (bytes < kParallelTextBytes) return 1;
+  return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
+}
+
+/// Cuts text[begin, size) into chunks of whole lines, counts each one's lines and records (`kind_of`
+/// a line: 0, 1 or -1 for none) on `threads` threads, and numbers them: the first chunk's first line
+/// is `first_line`.
+template <class KindOf>
+std::vector<TextChunk> count_text_chunks(std::string_view text, std::size_t begin, std::size_t first_line,
+                                         int threads, KindOf&& kind_of) {
+  const int parts = threads > 1 ? 4 * threads : 1;
+  std::vector<TextChunk> chunks;
+  std::size_t at = begin;
+  for (int c = 0; c < parts && at < text.size(); ++c) {
+    std::size_t end = c + 1 == parts ? text.size() : at + (text.size() - begin) / static_cast<std::size_t>(parts);
+    if (end < text.size()) {
+      const std::size_t newline = text.find('\n', std::max(end, at));
+      end = newline == std::string_view::npos ? text.size() : newline + 1;
+    }
+    end = std::max(end, at);
+    chunks.push_back({at, end});
+    at = end;
+  }
+  detail::run_tasks(threads, static_cast<int>(chunks.size()), [&](int c) {
+    TextChunk& chunk = chunks[c];
+    TextLines lines(text.substr(chunk.begin, chunk.end - chunk.begin));
+    std::string_view line;
+    while (lines.next(line)) {
+      const int kind = kind_of(line);
+      if (kind >= 0) ++chunk.records[kind];
+    }
+    chunk.lines = lines.number();
+  });
+  std::size_t line = first_line;
+  std::array<std::size_t, 2> record{};
+  for (TextChunk& chunk : chunks) {
+    chunk.first_line = line;
+    chunk.first_record = record;
+    line += chunk.lines;
+    for (int k = 0; k < 2; ++k) record[k] += chunk.records[k];
+  }
+  return chunks;
+}
+
+/// Whether a line holds a token before any comment.
+bool has_token(std::string_view line) {
+  for (char c : line) {
+    if (c == '#') return false;
+    if (!is_space(c)) return true;
+  }
+  return false;
+}
+
+/// Faces parsed by one chunk: corner lists, appended to the soup in chunk order.
+struct ChunkFaces {
+  std::vector<int> corners;
+  std::vector<std::uint32_t> sizes;
+};
+
+void append_faces(PolygonList& polygons, const std::vector<ChunkFaces>& parts) {
+  std::size_t faces = polygons.size(), corners = polygons.corner_count();
+  for (const ChunkFaces& part : parts) faces += part.sizes.size(), corners += part.corners.size();
+  polygons.reserve(faces, corners);
+  for (const ChunkFaces& part : parts) {
+    const int* corner = part.corners.data();
+    for (std::uint32_t size : part.sizes) {
+      polygons.push_back(PolygonList::Corners<const int>(corner, corner + size));
+      corner += size;
+    }
+  }
+}
+
 /// OBJ: every `v` line (x y z [w|r g b]) and every `f` line (vertex index before any '/'), 1-based,
 /// negative indices relative to the vertices read so far, as the OBJ specification says.
 PolygonSoup read_obj_exact(const std::string& path) {
   const std::string bytes = read_file_bytes(path);
-  std::vector<double> coordinates;
+  const auto kind_of = [](std::string_view line) {  // 0: a `v` line, 1: an `f` line
+    std::size_t i = 0;
+    while (i < line.size() && is_space(line[i])) ++i;
+    if (i == line.size() || (line[i] != 'v' && line[i] != 'f')) return -1;
+    if (i + 1 < line.size() && !is_space(line[i + 1])) return -1;  // vn, vt, ...
+    return line[i] == 'v' ? 0 : 1;
+  };
+  const int threads = text_threads(bytes.size());
+  const std::vector<TextChunk> chunks = count_text_chunks(bytes, 0, 1, threads, kind_of);
+  std::size_t nv = 0;
+  for (const TextChunk& chunk : chunks) nv += chunk.records[0];
   PolygonSoup soup;
-  std::vector<std::string_view> tokens;
-  std::string_view line;
-  TextLines lines(bytes);
-  while (lines.next(line)) {
-    tokenize(line, tokens);
-    if (tokens.empty()) continue;
-    const auto where = [&] { return "line " + std::to_string(lines.number()) + ": "; };
-    if (tokens[0] == "v") {
-      double p[3];
-      if (tokens.size() < 4 || !parse_double(tokens[1], p[0]) || !parse_double(tokens[2], p[1]) ||
-          !parse_double(tokens[3], p[2])) {
-        std::string text(line);
-        const auto hash = text.find('#');
-        if (hash != std::string::npos) text.erase(hash);
-        fail(path, where() + "vertex needs three numbers: '" + text + "'");
+  soup.V.resize(static_cast<Eigen::Index>(nv), 3);
+  std::vector<ChunkFaces> faces(chunks.size());
+  detail::run_tasks(threads, static_cast<int>(chunks.size()), [&](int c) {
+    const TextChunk& chunk = chunks[c];
+    TextLines lines(std::string_view(bytes).substr(chunk.begin, chunk.end - chunk.begin));
+    std::string_view line, token;
+    long long vertices_so_far = static_cast<long long>(chunk.first_record[0]);
+    while (lines.next(line)) {
+      const int kind = kind_of(line);
+      if (kind < 0) continue;
+      const auto where = [&] { return "line " + std::to_string(chunk.first_line + lines.number() - 1) + ": "; };
+      LineTokens tokens(line);
+      tokens.next(token);  // "v" or "f"
+      if (kind == 0) {
+        double p[3];
+        for (double& x : p)
+          if (!tokens.next(token) || !parse_double(token, x)) {
+            std::string text(line);
+            const auto hash = text.find('#');
+            if (hash != std::string::npos) text.erase(hash);
+            fail(path, where() + "vertex needs three numbers: '" + text + "'");
+          }
+        for (int k = 0; k < 3; ++k) soup.V(vertices_so_far, k) = p[k];
+        ++vertices_so_far;
+      } else {
+        ChunkFaces& out = faces[c];
+        std::uint32_t size = 0;
+        while (tokens.next(token)) {
+          long long value;
+          if (!parse_int(token.substr(0, token.find('/')), value))
+            fail(path, where() + "bad face corner '" + std::string(token) + "'");
+          if (value < 0)
+            value += vertices_so_far;  // -1 is the last vertex so far
+          else
+            value -= 1;  // 1-based; 0 becomes -1, which is invalid
+          out.corners.push_back(clamp_index(value));
+          ++size;
+        }
+        out.sizes.push_back(size);
       }
-      coordinates.insert(coordinates.end(), p, p + 3);
-    } else if (tokens[0] == "f") {
-      std::vector<int> poly;
-      poly.reserve(tokens.size() - 1);
-      const long long vertices_so_far = static_cast<long long>(coordinates.size() / 3);
-      for (std::size_t t = 1; t < tokens.size(); ++t) {
-        long long value;
-        if (!parse_int(tokens[t].substr(0, tokens[t].find('/')), value))
-          fail(path, where() + "bad face corner '" + std::string(tokens[t]) + "'");
-        if (value < 0)
-          value += vertices_so_far;  // -1 is the last vertex so far
-        else
-          value -= 1;  // 1-based; 0 becomes -1, which is invalid
-        poly.push_back(clamp_index(value));
-      }
-      soup.polygons.push_back(std::move(poly));
     }
-  }
-  const Eigen::Index nv = static_cast<Eigen::Index>(coordinates.size() / 3);
-  soup.V = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(coordinates.data(), nv, 3);
+  });
+  append_faces(soup.polygons, faces);
   return soup;
 }
 
@@ -419,11 +546,13 @@ PolygonSoup read_off_binary(const std::string& path, std::streamoff data_offset,
       const double value = next(true);
       if (k < 3) soup.V(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(k)) = value;
     }
-  soup.polygons.resize(nf);
+  soup.polygons.reserve(nf, 3 * nf);
+  std::vector<int> poly;
   for (std::size_t f = 0; f < nf; ++f) {
     const std::size_t corners = next_count("face corner count", 4);
-    soup.polygons[f].reserve(corners);
-    for (std::size_t c = 0; c < corners; ++c) soup.polygons[f].push_back(clamp_index(static_cast<long long>(next(false))));
+    poly.clear();
+    for (std::size_t c = 0; c < corners; ++c) poly.push_back(clamp_index(static_cast<long long>(next(false))));
+    soup.polygons.push_back(poly);
     const std::size_t colors = next_count("face colour count", 4);
     if (colors > 4) fail(path, "binary OFF: face " + std::to_string(f) + " has " + std::to_string(colors) + " colour values (at most 4)");
     at += 4 * colors;
@@ -445,63 +574,76 @@ PolygonSoup read_off_exact(const std::string& path, std::uintmax_t file_size) {
     const OffLayout layout = parse_off_keyword(path, keyword_line[0]);
     if (keyword_line.size() > 1 && keyword_line[1] == "BINARY") return read_off_binary(path, in.tellg(), layout);
   }
-  // Non-empty lines (after '#' comments), first counted, so that a short file is named as such
-  // before any record is parsed, then read in place.
+  // The header (keyword line, counts on it or on the next non-empty line), then the records: one
+  // per non-empty line (after '#' comments), counted first so that a short file is named as such
+  // before any record is parsed.
   const std::string bytes = read_file_bytes(path);
-  std::vector<std::string_view> tokens;
-  std::string_view line;
-  std::size_t non_empty = 0;
-  for (TextLines lines(bytes); lines.next(line);) {
-    tokenize(line, tokens);
-    non_empty += !tokens.empty();
-  }
   TextLines lines(bytes);
-  const auto next_tokens = [&]() -> std::size_t {  // the next non-empty line into `tokens`; its number
-    do {
-      lines.next(line);
+  std::string_view line;
+  std::vector<std::string_view> tokens;
+  const auto next_tokens = [&] {  // the next non-empty line into `tokens`; false at the end
+    while (lines.next(line)) {
       tokenize(line, tokens);
-    } while (tokens.empty());
-    return lines.number();
+      if (!tokens.empty()) return true;
+    }
+    return false;
   };
   next_tokens();  // the keyword line
   std::vector<std::string_view> header(tokens.begin() + 1, tokens.end());
-  std::size_t next = 1;
   if (header.size() < 2) {
-    if (non_empty < 2) fail(path, "OFF header has no vertex and face counts");
-    next_tokens();
+    if (!next_tokens()) fail(path, "OFF header has no vertex and face counts");
     header = tokens;
-    next = 2;
   }
   long long nv, nf;
   if (header.size() < 2 || !parse_int(header[0], nv) || !parse_int(header[1], nf) || nv < 0 || nf < 0)
     fail(path, "OFF header needs non-negative vertex and face counts");
   if (static_cast<std::uintmax_t>(nv) > file_size || static_cast<std::uintmax_t>(nf) > file_size)
     fail(path, "OFF header announces more elements than the file can hold");
-  if (non_empty < next + static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
+  const std::size_t data_begin = std::min(lines.offset(), bytes.size());
+  const int threads = text_threads(bytes.size());
+  const std::vector<TextChunk> chunks = count_text_chunks(bytes, data_begin, lines.number() + 1, threads,
+                                                          [](std::string_view l) { return has_token(l) ? 0 : -1; });
+  std::size_t records = 0;
+  for (const TextChunk& chunk : chunks) records += chunk.records[0];
+  if (records < static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
     fail(path, "file ends early: the header announces " + std::to_string(nv) + " vertices and " +
                    std::to_string(nf) + " faces");
   PolygonSoup soup;
   soup.V.resize(nv, 3);
-  for (long long i = 0; i < nv; ++i) {
-    const std::size_t number = next_tokens();
-    if (tokens.size() < 3 || !parse_double(tokens[0], soup.V(i, 0)) || !parse_double(tokens[1], soup.V(i, 1)) ||
-        !parse_double(tokens[2], soup.V(i, 2)))
-      fail(path, "line " + std::to_string(number) + ": vertex needs three numbers");
-  }
-  soup.polygons.resize(static_cast<std::size_t>(nf));
-  for (long long f = 0; f < nf; ++f) {
-    const std::size_t number = next_tokens();
-    long long k;
-    if (!parse_int(tokens[0], k) || k < 0 || static_cast<std::size_t>(k) + 1 > tokens.size())
-      fail(path, "line " + std::to_string(number) + ": face needs a corner count and that many indices");
-    std::vector<int>& poly = soup.polygons[f];
-    poly.reserve(static_cast<std::size_t>(k));
-    for (long long c = 1; c <= k; ++c) {
-      long long value;
-      if (!parse_int(tokens[c], value)) fail(path, "line " + std::to_string(number) + ": bad face index");
-      poly.push_back(clamp_index(value));
+  std::vector<ChunkFaces> faces(chunks.size());
+  const auto vertices = static_cast<std::size_t>(nv), wanted = vertices + static_cast<std::size_t>(nf);
+  detail::run_tasks(threads, static_cast<int>(chunks.size()), [&](int c) {
+    const TextChunk& chunk = chunks[c];
+    if (chunk.first_record[0] >= wanted) return;  // trailing records are ignored
+    TextLines chunk_lines(std::string_view(bytes).substr(chunk.begin, chunk.end - chunk.begin));
+    std::string_view text, token;
+    std::size_t record = chunk.first_record[0];
+    while (record < wanted && chunk_lines.next(text)) {
+      if (!has_token(text)) continue;
+      const auto where = [&] { return "line " + std::to_string(chunk.first_line + chunk_lines.number() - 1) + ": "; };
+      LineTokens line_tokens(text);
+      if (record < vertices) {
+        const auto row = static_cast<Eigen::Index>(record);
+        for (Eigen::Index k = 0; k < 3; ++k)
+          if (!line_tokens.next(token) || !parse_double(token, soup.V(row, k))) fail(path, where() + "vertex needs three numbers");
+      } else {
+        long long k;
+        line_tokens.next(token);
+        if (!parse_int(token, k) || k < 0 || static_cast<std::uintmax_t>(k) > text.size())
+          fail(path, where() + "face needs a corner count and that many indices");
+        ChunkFaces& out = faces[c];
+        for (long long corner = 0; corner < k; ++corner) {
+          long long value;
+          if (!line_tokens.next(token)) fail(path, where() + "face needs a corner count and that many indices");
+          if (!parse_int(token, value)) fail(path, where() + "bad face index");
+          out.corners.push_back(clamp_index(value));
+        }
+        out.sizes.push_back(static_cast<std::uint32_t>(k));
+      }
+      ++record;
     }
-  }
+  });
+  append_faces(soup.polygons, faces);
   return soup;
 }
 
@@ -647,9 +789,10 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
       value_type.push_back(scalar_of(prop.type));
       count_type.push_back(prop.count_type.empty() ? Scalar{} : scalar_of(prop.count_type));
     }
-    if (is_face) soup.polygons.reserve(element.count);
+    if (is_face) soup.polygons.reserve(element.count, 3 * element.count);
+    std::vector<int> polygon;
     for (std::size_t i = 0; i < element.count; ++i) {
-      std::vector<int> polygon;
+      polygon.clear();
       bool took_indices = false;
       for (std::size_t k = 0; k < element.properties.size(); ++k) {
         if (count_type[k].size == 0) {
@@ -661,14 +804,13 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
         if (length < 0 || static_cast<std::uintmax_t>(length) > file_size)
           fail(path, "element '" + element.name + "' " + std::to_string(i) + ": bad list length " + std::to_string(length));
         const bool indices = is_face && !took_indices;
-        if (indices) polygon.reserve(static_cast<std::size_t>(length));
         for (long long c = 0; c < length; ++c) {
           if (indices) polygon.push_back(clamp_index(next_integer(value_type[k], element, i)));
           else next_value(value_type[k], element, i);
         }
         took_indices = took_indices || indices;
       }
-      if (is_face) soup.polygons.push_back(std::move(polygon));
+      if (is_face) soup.polygons.push_back(polygon);
     }
   }
   return soup;

@@ -21,7 +21,8 @@ bool finite_row(const Positions& V, int i) {
   return std::isfinite(V(i, 0)) && std::isfinite(V(i, 1)) && std::isfinite(V(i, 2));
 }
 
-bool indices_in_range(const std::vector<int>& poly, int nv) {
+template <class Corners>
+bool indices_in_range(const Corners& poly, int nv) {
   return std::all_of(poly.begin(), poly.end(), [&](int v) { return v >= 0 && v < nv; });
 }
 
@@ -217,10 +218,11 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
   }
 
   // 2.–4. faces
-  std::vector<std::vector<int>> faces;
+  PolygonList faces;
+  faces.reserve(input.polygons.size(), input.polygons.corner_count());
   std::vector<int> face_source;
   for (std::size_t f = 0; f < input.polygons.size(); ++f) {
-    const std::vector<int>& original = input.polygons[f];
+    const auto original = input.polygons[f];
     if (!indices_in_range(original, nv)) {  // cannot be repaired: keep for the report
       faces.push_back(original);
       face_source.push_back(static_cast<int>(f));
@@ -234,7 +236,7 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
         continue;
       }
     }
-    std::vector<int> poly = original;
+    std::vector<int> poly = original.to_vector();
     for (int& v : poly) v = weld[v];
     // Remove cyclically consecutive repeats (a b b c -> a b c; a b c a -> a b c).
     std::vector<int> collapsed;
@@ -250,7 +252,7 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
       continue;
     }
     if (distinct.size() != collapsed.size() || collapsed.size() == 3 || !options.triangulate_polygons) {
-      faces.push_back(std::move(collapsed));  // non-consecutive repeats stay and get reported
+      faces.push_back(collapsed);  // non-consecutive repeats stay and get reported
       face_source.push_back(static_cast<int>(f));
       continue;
     }
@@ -264,7 +266,7 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
   // zero-area triangles, then duplicates (same vertex set; keep the first)
   std::vector<char> keep(faces.size(), 1);
   for (std::size_t f = 0; f < faces.size(); ++f) {
-    const auto& t = faces[f];
+    const auto t = faces[f];
     if (t.size() != 3 || !indices_in_range(t, nv)) continue;
     const Eigen::Vector3d a = V.row(t[0]), b = V.row(t[1]), c = V.row(t[2]);
     if (!a.allFinite() || !b.allFinite() || !c.allFinite()) continue;  // reported, not fixed
@@ -281,20 +283,20 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
       ++log.removed_duplicate_faces;
     }
   }
-  std::vector<std::vector<int>> kept;
+  PolygonList kept;
+  kept.reserve(faces.size(), faces.corner_count());
   for (std::size_t f = 0; f < faces.size(); ++f)
     if (keep[f]) {
-      kept.push_back(std::move(faces[f]));
+      kept.push_back(faces[f]);
       out.source_face.push_back(face_source[f]);
     }
 
   // 5. drop unreferenced vertices (only possible when every index is in range)
-  const bool remappable = std::all_of(kept.begin(), kept.end(), [&](const auto& p) { return indices_in_range(p, nv); });
+  const bool remappable = std::all_of(kept.corners().begin(), kept.corners().end(), [&](int v) { return v >= 0 && v < nv; });
   if (remappable) {
     std::vector<int> new_id(static_cast<std::size_t>(nv), -1);
-    for (const auto& poly : kept)
-      for (int v : poly)
-        if (new_id[v] < 0) new_id[v] = 0;
+    for (int v : kept.corners())
+      if (new_id[v] < 0) new_id[v] = 0;
     int next = 0;
     for (int v = 0; v < nv; ++v)
       if (new_id[v] == 0) {
@@ -304,8 +306,8 @@ RepairResult repair_mesh(const PolygonSoup& input, const RepairOptions& options)
     log.removed_unreferenced_vertices = static_cast<std::size_t>(nv - next);
     out.soup.V.resize(next, 3);
     for (int i = 0; i < next; ++i) out.soup.V.row(i) = V.row(out.source_vertex[i]);
-    for (auto& poly : kept)
-      for (int& v : poly) v = new_id[v];
+    for (std::size_t f = 0; f < kept.size(); ++f)
+      for (int& v : kept[f]) v = new_id[v];
   } else {
     out.soup.V = V;
     out.source_vertex.resize(static_cast<std::size_t>(nv));

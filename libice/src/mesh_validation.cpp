@@ -23,26 +23,8 @@ namespace {
 
 using detail::DisjointSets;
 
-/// One directed use of an undirected edge by a face corner.
-struct HalfEdgeUse {
-  std::uint64_t key;  ///< (min << 32) | max of the endpoint ids.
-  int face;
-  int corner;         ///< The half-edge goes from corner to corner+1 of `face`.
-  bool forward;       ///< True if it goes from the smaller to the larger vertex id.
-};
-
-std::uint64_t edge_key(int a, int b) {
-  const auto lo = static_cast<std::uint64_t>(std::min(a, b));
-  const auto hi = static_cast<std::uint64_t>(std::max(a, b));
-  return (lo << 32) | hi;
-}
-
-VertexPair edge_pair(std::uint64_t key) {
-  return {static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffffu)};
-}
-
 /// Twice the vector area of a polygon (Newell's formula), for faces with more than three corners.
-Eigen::Vector3d polygon_double_area(const Positions& V, const std::vector<int>& poly) {
+Eigen::Vector3d polygon_double_area(const Positions& V, PolygonList::Corners<const Index> poly) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   const Eigen::Vector3d origin = V.row(poly[0]).transpose();  // translation-invariant: subtract a corner
   for (std::size_t k = 0; k < poly.size(); ++k) {
@@ -54,9 +36,9 @@ Eigen::Vector3d polygon_double_area(const Positions& V, const std::vector<int>& 
 }
 
 /// True if a corner list names a vertex twice (quadratic scan: faces are small).
-bool has_repeated_index(const std::vector<int>& poly) {
+bool has_repeated_index(PolygonList::Corners<const Index> poly) {
   if (poly.size() > 32) {  // big polygons: sort a copy instead
-    std::vector<int> sorted = poly;
+    std::vector<int> sorted = poly.to_vector();
     std::sort(sorted.begin(), sorted.end());
     return std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
   }
@@ -97,9 +79,10 @@ void describe(std::vector<std::string>& lines, const Offenders<T>& offenders, co
 PolygonSoup to_polygon_soup(const TriangleMesh& mesh) {
   PolygonSoup soup;
   soup.V = mesh.V;
-  soup.polygons.resize(static_cast<std::size_t>(mesh.F.rows()));
+  std::vector<Index> corners(3 * static_cast<std::size_t>(mesh.F.rows()));
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
-    soup.polygons[f] = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+    for (int k = 0; k < 3; ++k) corners[3 * static_cast<std::size_t>(f) + k] = mesh.F(f, k);
+  soup.polygons = PolygonList::triangles(std::move(corners));
   return soup;
 }
 
@@ -161,19 +144,22 @@ struct SoupScan {
   SoupScan(const PolygonSoup& soup)
       : V(soup.V), polys(soup.polygons), nv(static_cast<int>(soup.V.rows())), nf(static_cast<int>(soup.polygons.size())) {}
   const Positions& V;
-  const std::vector<std::vector<int>>& polys;
+  const PolygonList& polys;
   const int nv, nf;
   // Plain copies for the hot loops (Eigen element access is slow in unoptimised sanitizer builds).
   std::vector<Eigen::Vector3d> P;
   std::vector<char> finite;
   double diagonal = 0;
   std::vector<char> well_formed, referenced;
-  // Half-edges grouped by undirected edge, and each well-formed face's first corner.
-  std::vector<std::size_t> corner_offset;
-  std::vector<HalfEdgeUse> uses;
-  std::vector<char> on_boundary, vertex_non_manifold;
-  std::vector<std::size_t> corner_fan;  // each corner's fan (its smallest corner), corner_offset numbering
-  std::vector<std::uint64_t> unique_edges, non_manifold_edge_keys;
+  // Each well-formed face's first corner, and the corners grouped by vertex (CSR: the faces of each
+  // vertex's star in increasing order).
+  std::vector<std::size_t> corner_offset, star_offset;
+  std::vector<int> star_face;
+  // What each vertex's star scan found (VertexFlag bits) and how many edges it owns.
+  std::vector<unsigned char> vertex_flags;
+  std::vector<int> owned_edges;
+  std::vector<VertexPair> boundary_edges;
+  std::vector<std::size_t> corner_fan;  // each corner's fan (its smallest corner), corner_offset numbering; filled when sized
   // Face graph through two-face edges: (face, other face, parity 1 if they must flip relative to each other).
   std::vector<std::array<int, 3>> links;
   std::vector<int> component;  // of each referenced vertex
@@ -213,11 +199,14 @@ void find_duplicate_positions(const SoupScan& s, ValidationReport& r) {
     if (first[v] != v) r.duplicate_positions.add(v);
 }
 
-// Per-face checks (size, indices, repeats, zero area); marks well-formed faces and referenced vertices.
-void scan_faces(SoupScan& s, ValidationReport& r) {
-  s.well_formed.assign(static_cast<std::size_t>(s.nf), 0);
-  s.referenced.assign(static_cast<std::size_t>(s.nv), 0);
-  for (int f = 0; f < s.nf; ++f) {
+// Per-face checks (size, indices, repeats, zero area); marks the well-formed faces.
+// The offenders of faces [begin, end) (one range of scan_faces).
+struct FaceFindings {
+  Offenders<int> non_triangle_faces, out_of_range_faces, repeated_index_faces, zero_area_faces;
+};
+
+void scan_face_range(SoupScan& s, int begin, int end, FaceFindings& r) {
+  for (int f = begin; f < end; ++f) {
     const auto& poly = s.polys[f];
     if (poly.size() != 3) r.non_triangle_faces.add(f);
     const bool in_range = std::all_of(poly.begin(), poly.end(), [&](int v) { return v >= 0 && v < s.nv; });
@@ -231,7 +220,6 @@ void scan_faces(SoupScan& s, ValidationReport& r) {
     }
     if (poly.size() < 3) continue;
     s.well_formed[f] = 1;
-    for (int v : poly) s.referenced[v] = 1;
 
     if (!std::all_of(poly.begin(), poly.end(), [&](int v) { return s.finite[v] != 0; }))
       continue;  // already reported through its vertices
@@ -248,8 +236,28 @@ void scan_faces(SoupScan& s, ValidationReport& r) {
     }
     if (degenerate) r.zero_area_faces.add(f);
   }
-  for (int v = 0; v < s.nv; ++v)
-    if (!s.referenced[v]) r.unreferenced_vertices.add(v);
+}
+
+template <class T>
+void append(Offenders<T>& to, const Offenders<T>& from) {
+  for (const T& element : from.first)
+    if (to.first.size() < kMaxOffenders) to.first.push_back(element);
+  to.count += from.count;
+}
+
+// Per-face checks in face ranges on `threads` threads, merged in face order.
+void scan_faces(SoupScan& s, ValidationReport& r, int threads) {
+  s.well_formed.assign(static_cast<std::size_t>(s.nf), 0);
+  const int tasks = threads > 1 ? 4 * threads : 1;
+  std::vector<FaceFindings> parts(static_cast<std::size_t>(tasks));
+  const auto bound = [&](int t) { return static_cast<int>(static_cast<long long>(s.nf) * t / tasks); };
+  detail::run_tasks(threads, tasks, [&](int t) { scan_face_range(s, bound(t), bound(t + 1), parts[t]); });
+  for (const FaceFindings& part : parts) {
+    append(r.non_triangle_faces, part.non_triangle_faces);
+    append(r.out_of_range_faces, part.out_of_range_faces);
+    append(r.repeated_index_faces, part.repeated_index_faces);
+    append(r.zero_area_faces, part.zero_area_faces);
+  }
 }
 
 // Faces with the same vertex set as an earlier well-formed face.
@@ -257,104 +265,214 @@ void find_duplicate_faces(const SoupScan& s, ValidationReport& r) {
   for (int f : detail::later_duplicate_faces(s.polys, s.well_formed, s.nv)) r.duplicate_faces.add(f);
 }
 
-// Edges: their faces (boundary, two, more), orientation agreement, lengths; the fans around each
-// vertex (corners linked through two-face edges) give the non-manifold vertices.
-void scan_edges(SoupScan& s, ValidationReport& r) {
+// The corners of the well-formed faces grouped by vertex (each vertex's star), faces in increasing
+// order; corners are numbered face by face (corner_offset). Referenced vertices are those with a star.
+void group_corners_by_vertex(SoupScan& s) {
   const auto& polys = s.polys;
   const int nv = s.nv, nf = s.nf;
   s.corner_offset.assign(static_cast<std::size_t>(nf) + 1, 0);
-  for (int f = 0; f < nf; ++f) s.corner_offset[f + 1] = s.corner_offset[f] + (s.well_formed[f] ? polys[f].size() : 0);
-  const std::size_t n_corners = s.corner_offset[nf];
-  std::vector<HalfEdgeUse>& uses = s.uses;
-  uses.reserve(n_corners);
+  s.star_offset.assign(static_cast<std::size_t>(nv) + 1, 0);
   for (int f = 0; f < nf; ++f) {
+    s.corner_offset[f + 1] = s.corner_offset[f];
     if (!s.well_formed[f]) continue;
-    const auto& poly = polys[f];
-    for (std::size_t k = 0; k < poly.size(); ++k) {
-      const int a = poly[k], b = poly[(k + 1) % poly.size()];
-      uses.push_back({edge_key(a, b), f, static_cast<int>(k), a < b});
-    }
+    s.corner_offset[f + 1] += polys[f].size();
+    for (int v : polys[f]) ++s.star_offset[static_cast<std::size_t>(v) + 1];
   }
-  // By (key, face): the uses were made face by face, so a stable order by the smaller vertex, then
-  // by the larger one within it, is that order.
-  detail::sort_by_vertex(
-      uses, nv, [](const HalfEdgeUse& use) { return static_cast<Index>(use.key >> 32); },
-      [](const HalfEdgeUse& x, const HalfEdgeUse& y) { return (x.key & 0xffffffffu) < (y.key & 0xffffffffu); });
-
-  // The corners of a use's face at the edge's smaller and larger vertex: the use runs from its
-  // corner to the next one, from the smaller vertex to the larger when `forward`.
-  const auto corners_of = [&](const HalfEdgeUse& use) -> std::array<std::size_t, 2> {
-    const std::size_t begin = s.corner_offset[use.face], size = s.corner_offset[use.face + 1] - begin;
-    const std::size_t tail = begin + static_cast<std::size_t>(use.corner);
-    const std::size_t head = begin + (static_cast<std::size_t>(use.corner) + 1) % size;
-    return use.forward ? std::array<std::size_t, 2>{tail, head} : std::array<std::size_t, 2>{head, tail};
-  };
-
-  s.unique_edges.reserve(uses.size() / 2 + 1);
-  s.links.reserve(uses.size());
-  DisjointSets fans(n_corners);  // corners at one vertex linked through two-face edges
-  s.on_boundary.assign(static_cast<std::size_t>(nv), 0);
-  double len_min = std::numeric_limits<double>::infinity(), len_max = 0, len_sum = 0;
-  std::size_t len_count = 0;
-  for (std::size_t i = 0; i < uses.size();) {
-    std::size_t j = i;
-    while (j < uses.size() && uses[j].key == uses[i].key) ++j;
-    const std::size_t valence = j - i;
-    const VertexPair ab = edge_pair(uses[i].key);
-    s.unique_edges.push_back(uses[i].key);
-    if (s.finite[ab[0]] && s.finite[ab[1]]) {
-      const double len = (s.P[ab[0]] - s.P[ab[1]]).norm();
-      len_min = std::min(len_min, len);
-      len_max = std::max(len_max, len);
-      len_sum += len;
-      ++len_count;
-    }
-    if (valence == 1) {
-      s.on_boundary[ab[0]] = s.on_boundary[ab[1]] = 1;
-    } else if (valence == 2) {
-      const HalfEdgeUse& x = uses[i];
-      const HalfEdgeUse& y = uses[i + 1];
-      if (x.forward == y.forward) r.inconsistent_edges.add(ab);
-      const auto cx = corners_of(x), cy = corners_of(y);
-      fans.unite(cx[0], cy[0]);  // the corners at the smaller vertex
-      fans.unite(cx[1], cy[1]);  // and at the larger
-      const int parity = x.forward == y.forward ? 1 : 0;
-      s.links.push_back({x.face, y.face, parity});
-      s.links.push_back({y.face, x.face, parity});
-    } else {
-      r.non_manifold_edges.add(ab);
-      s.non_manifold_edge_keys.push_back(uses[i].key);
-    }
-    i = j;
-  }
-  r.n_edges = s.unique_edges.size();
-  if (len_count > 0) {
-    r.edge_length_min = len_min;
-    r.edge_length_max = len_max;
-    r.edge_length_mean = len_sum / static_cast<double>(len_count);
-  }
-
-  // Non-manifold vertices: more than one fan.
-  s.corner_fan.resize(n_corners);
-  std::vector<int> fan_count(static_cast<std::size_t>(nv), 0);
-  for (int f = 0; f < nf; ++f) {
-    if (!s.well_formed[f]) continue;
-    for (std::size_t k = 0; k < polys[f].size(); ++k) {
-      const std::size_t c = s.corner_offset[f] + k;
-      s.corner_fan[c] = fans.find(c);
-      if (s.corner_fan[c] == c) ++fan_count[polys[f][k]];
-    }
-  }
-  s.vertex_non_manifold.assign(static_cast<std::size_t>(nv), 0);
-  for (int v = 0; v < nv; ++v)
-    if (fan_count[v] > 1) {
-      r.non_manifold_vertices.add(v);
-      s.vertex_non_manifold[v] = 1;
-    }
+  for (int v = 0; v < nv; ++v) s.star_offset[v + 1] += s.star_offset[v];
+  s.star_face.resize(s.star_offset[nv]);
+  std::vector<std::size_t> fill(s.star_offset.begin(), s.star_offset.end() - 1);
+  for (int f = 0; f < nf; ++f)
+    if (s.well_formed[f])
+      for (int v : polys[f]) s.star_face[fill[v]++] = f;
+  s.referenced.resize(static_cast<std::size_t>(nv));
+  for (int v = 0; v < nv; ++v) s.referenced[v] = s.star_offset[v + 1] > s.star_offset[v];
 }
 
-// Connected components through shared vertices, with their sizes, boundary loops, manifoldness and
-// orientation consistency.
+void find_unreferenced_vertices(const SoupScan& s, ValidationReport& r) {
+  for (int v = 0; v < s.nv; ++v)
+    if (!s.referenced[v]) r.unreferenced_vertices.add(v);
+}
+
+// What one range of vertices found about the edges it owns (an edge is owned by its smaller vertex,
+// so every edge is seen once and the offenders come in (smaller, larger) order, range by range).
+struct StarFindings {
+  Offenders<VertexPair> non_manifold_edges, inconsistent_edges;
+  Offenders<int> non_manifold_vertices;
+  std::size_t n_edges = 0, length_count = 0;
+  double length_min = std::numeric_limits<double>::infinity(), length_max = 0, length_sum = 0;
+  std::vector<VertexPair> boundary_edges;
+  std::vector<std::array<int, 3>> links;  // (face, other face, parity), only when asked
+};
+
+// Bits of SoupScan::vertex_flags, each written only by the vertex's own range.
+enum VertexFlag : unsigned char {
+  kOnBoundary = 1,          // has an edge with one face
+  kNonManifoldVertex = 2,   // its faces form more than one fan
+  kOwnsNonManifoldEdge = 4, // the smaller end of an edge with more than two faces
+  kOwnsInconsistentEdge = 8 // the smaller end of an inconsistently oriented edge
+};
+
+// One vertex star at a time: every edge at v is a run of equal neighbours among v's corners (a face
+// uses the edge {v, u} through exactly one corner at v, as its next or previous corner), so the
+// run's length is the edge's face count; corners of a two-face edge's faces are in one fan. Local
+// to the star, hence cache-friendly and split over threads by vertex ranges.
+void scan_stars(SoupScan& s, int begin, int end, StarFindings& out, bool want_links) {
+  // One use of an edge at v packed for sorting: neighbour (high 32 bits), the corner's index in the
+  // star, and whether the face runs v -> neighbour (lowest bit).
+  std::vector<std::uint64_t> uses;
+  const auto neighbour_of = [](std::uint64_t use) { return static_cast<int>(use >> 32); };
+  const auto corner_of = [](std::uint64_t use) { return static_cast<int>((use & 0xffffffffu) >> 1); };
+  const auto outgoing = [](std::uint64_t use) { return (use & 1u) != 0; };
+  std::vector<int> fan_parent;
+  std::vector<std::size_t> corner_id;
+  const auto find = [&](int c) {
+    while (fan_parent[c] != c) c = fan_parent[c] = fan_parent[fan_parent[c]];
+    return c;
+  };
+  for (int v = begin; v < end; ++v) {
+    const std::size_t star_begin = s.star_offset[v];
+    const int m = static_cast<int>(s.star_offset[v + 1] - star_begin);
+    if (m == 0) continue;
+    uses.clear();
+    corner_id.resize(static_cast<std::size_t>(m));
+    for (int i = 0; i < m; ++i) {
+      const int f = s.star_face[star_begin + i];
+      const auto& poly = s.polys[f];
+      const std::size_t n = poly.size();
+      std::size_t k = 0;
+      while (poly[k] != v) ++k;
+      corner_id[i] = s.corner_offset[f] + k;
+      const auto pack = [&](int neighbour, bool out) {
+        return (static_cast<std::uint64_t>(neighbour) << 32) | (static_cast<std::uint64_t>(i) << 1) | (out ? 1u : 0u);
+      };
+      uses.push_back(pack(poly[(k + 1) % n], true));
+      uses.push_back(pack(poly[(k + n - 1) % n], false));
+    }
+    if (uses.size() > 32) {
+      std::sort(uses.begin(), uses.end());
+    } else {
+      for (std::size_t i = 1; i < uses.size(); ++i) {
+        const std::uint64_t use = uses[i];
+        std::size_t j = i;
+        for (; j > 0 && use < uses[j - 1]; --j) uses[j] = uses[j - 1];
+        uses[j] = use;
+      }
+    }
+    fan_parent.resize(static_cast<std::size_t>(m));
+    std::iota(fan_parent.begin(), fan_parent.end(), 0);
+    unsigned char flags = 0;
+    for (std::size_t i = 0; i < uses.size();) {
+      std::size_t j = i;
+      const int u = neighbour_of(uses[i]);
+      while (j < uses.size() && neighbour_of(uses[j]) == u) ++j;
+      const std::size_t valence = j - i;
+      const bool owner = u > v;
+      if (valence == 1) flags |= kOnBoundary;
+      if (valence == 2) {
+        const int a = find(corner_of(uses[i])), b = find(corner_of(uses[i + 1]));
+        if (a != b) fan_parent[std::max(a, b)] = std::min(a, b);
+      }
+      if (owner) {
+        const VertexPair edge{v, u};
+        ++out.n_edges;
+        ++s.owned_edges[v];
+        if (s.finite[v] && s.finite[u]) {
+          const double length = (s.P[v] - s.P[u]).norm();
+          out.length_min = std::min(out.length_min, length);
+          out.length_max = std::max(out.length_max, length);
+          out.length_sum += length;
+          ++out.length_count;
+        }
+        if (valence == 1) {
+          out.boundary_edges.push_back(edge);
+        } else if (valence == 2) {
+          const bool same_direction = outgoing(uses[i]) == outgoing(uses[i + 1]);
+          if (same_direction) {
+            out.inconsistent_edges.add(edge);
+            flags |= kOwnsInconsistentEdge;
+          }
+          if (want_links) {
+            const int f = s.star_face[star_begin + corner_of(uses[i])];
+            const int g = s.star_face[star_begin + corner_of(uses[i + 1])];
+            out.links.push_back({f, g, same_direction ? 1 : 0});
+            out.links.push_back({g, f, same_direction ? 1 : 0});
+          }
+        } else {
+          out.non_manifold_edges.add(edge);
+          flags |= kOwnsNonManifoldEdge;
+        }
+      }
+      i = j;
+    }
+    int fans = 0;
+    for (int i = 0; i < m; ++i) fans += find(i) == i;
+    if (fans > 1) {
+      out.non_manifold_vertices.add(v);
+      flags |= kNonManifoldVertex;
+    }
+    s.vertex_flags[v] = flags;
+    if (!s.corner_fan.empty())  // a fan is named by its smallest corner: the root's (roots are minima)
+      for (int i = 0; i < m; ++i) s.corner_fan[corner_id[i]] = corner_id[find(i)];
+  }
+}
+
+// Vertex ranges [bounds[t], bounds[t+1]) of about equal corner counts, for `tasks` tasks.
+std::vector<int> star_ranges(const SoupScan& s, int tasks) {
+  std::vector<int> bounds{0};
+  const std::size_t corners = s.star_offset[s.nv];
+  for (int t = 1; t < tasks; ++t) {
+    const std::size_t wanted = corners * static_cast<std::size_t>(t) / static_cast<std::size_t>(tasks);
+    const auto it = std::lower_bound(s.star_offset.begin(), s.star_offset.end(), wanted);
+    const auto vertex = static_cast<int>(std::min<std::ptrdiff_t>(it - s.star_offset.begin(), s.nv));
+    bounds.push_back(std::max(bounds.back(), vertex));
+  }
+  bounds.push_back(s.nv);
+  return bounds;
+}
+
+// The ranges' findings in vertex order, into the report (and the boundary edges and links into the scan).
+void report_edges(SoupScan& s, std::vector<StarFindings>& parts, ValidationReport& r) {
+  std::size_t length_count = 0;
+  double length_min = std::numeric_limits<double>::infinity(), length_max = 0, length_sum = 0;
+  s.boundary_edges.clear();
+  s.links.clear();
+  r.n_edges = 0;
+  r.non_manifold_edges = {};
+  r.inconsistent_edges = {};
+  r.non_manifold_vertices = {};
+  for (const StarFindings& part : parts) {
+    append(r.non_manifold_edges, part.non_manifold_edges);
+    append(r.inconsistent_edges, part.inconsistent_edges);
+    append(r.non_manifold_vertices, part.non_manifold_vertices);
+    r.n_edges += part.n_edges;
+    length_count += part.length_count;
+    length_min = std::min(length_min, part.length_min);
+    length_max = std::max(length_max, part.length_max);
+    length_sum += part.length_sum;
+    s.boundary_edges.insert(s.boundary_edges.end(), part.boundary_edges.begin(), part.boundary_edges.end());
+    s.links.insert(s.links.end(), part.links.begin(), part.links.end());
+  }
+  if (length_count > 0) {
+    r.edge_length_min = length_min;
+    r.edge_length_max = length_max;
+    r.edge_length_mean = length_sum / static_cast<double>(length_count);
+  }
+}
+
+// Edges (their faces: boundary, two, more; orientation agreement; lengths) and the fans around each
+// vertex (the non-manifold vertices), star by star, on `threads` threads; with `want_links` also the
+// face graph for the orientability check.
+void scan_edges(SoupScan& s, ValidationReport& r, int threads, bool want_links) {
+  s.vertex_flags.assign(static_cast<std::size_t>(s.nv), 0);
+  s.owned_edges.assign(static_cast<std::size_t>(s.nv), 0);
+  const int tasks = threads > 1 ? 8 * threads : 1;
+  const std::vector<int> bounds = star_ranges(s, tasks);
+  std::vector<StarFindings> parts(static_cast<std::size_t>(tasks));
+  detail::run_tasks(threads, tasks, [&](int t) { scan_stars(s, bounds[t], bounds[t + 1], parts[t], want_links); });
+  report_edges(s, parts, r);
+}
+
+// Connected components through shared vertices, with their vertex and face counts.
 void find_components(SoupScan& s, ValidationReport& r) {
   const auto& polys = s.polys;
   const int nv = s.nv, nf = s.nf;
@@ -374,29 +492,29 @@ void find_components(SoupScan& s, ValidationReport& r) {
     s.component[v] = component_of_root[root];
     ++r.components[s.component[v]].n_vertices;
   }
+  for (int f = 0; f < nf; ++f)
+    if (s.well_formed[f]) ++r.components[s.component[polys[f][0]]].n_faces;
+}
+
+// What the star scans found, per component: edge counts, manifoldness, orientation consistency,
+// boundary loops.
+void summarise_components(const SoupScan& s, ValidationReport& r) {
+  const int nv = s.nv;
   auto& comps = r.components;
   const std::vector<int>& component = s.component;
-  for (int f = 0; f < nf; ++f)
-    if (s.well_formed[f]) ++comps[component[polys[f][0]]].n_faces;
-  for (std::uint64_t key : s.unique_edges) ++comps[component[edge_pair(key)[0]]].n_edges;
-  for (std::uint64_t key : s.non_manifold_edge_keys) comps[component[edge_pair(key)[0]]].manifold = false;
-  for (int v = 0; v < nv; ++v)
-    if (s.vertex_non_manifold[v]) comps[component[v]].manifold = false;
+  for (int v = 0; v < nv; ++v) {
+    if (!s.referenced[v]) continue;
+    ComponentInfo& c = comps[component[v]];
+    c.n_edges += static_cast<std::size_t>(s.owned_edges[v]);
+    if (s.vertex_flags[v] & (kNonManifoldVertex | kOwnsNonManifoldEdge)) c.manifold = false;
+    if (s.vertex_flags[v] & kOwnsInconsistentEdge) c.consistently_oriented = false;
+  }
   // Boundary loops: the boundary edges' connected pieces (one root per loop).
   DisjointSets boundary_graph(static_cast<std::size_t>(std::max(nv, 0)));
-  for (std::size_t i = 0; i < s.uses.size();) {
-    std::size_t j = i;
-    while (j < s.uses.size() && s.uses[j].key == s.uses[i].key) ++j;
-    if (j - i == 1) {
-      const VertexPair ab = edge_pair(s.uses[i].key);
-      boundary_graph.unite(ab[0], ab[1]);
-    }
-    if (j - i == 2 && s.uses[i].forward == s.uses[i + 1].forward)  // per-component consistency
-      comps[component[polys[s.uses[i].face][0]]].consistently_oriented = false;
-    i = j;
-  }
+  for (const VertexPair& edge : s.boundary_edges) boundary_graph.unite(edge[0], edge[1]);
   for (int v = 0; v < nv; ++v)
-    if (s.on_boundary[v] && boundary_graph.find(v) == static_cast<std::size_t>(v)) ++comps[component[v]].n_boundary_loops;
+    if ((s.vertex_flags[v] & kOnBoundary) && boundary_graph.find(v) == static_cast<std::size_t>(v))
+      ++comps[component[v]].n_boundary_loops;
 }
 
 // Orientability: 2-colour the face graph of two-face edges by flip parity; a conflict makes the
@@ -462,8 +580,10 @@ std::vector<std::size_t> detail::corner_fans(const PolygonSoup& soup) {
   ValidationReport unused;
   SoupScan s(soup);
   scan_vertices(s, unused);
-  scan_faces(s, unused);
-  scan_edges(s, unused);
+  scan_faces(s, unused, 1);
+  group_corners_by_vertex(s);
+  s.corner_fan.resize(s.corner_offset[s.nf]);
+  scan_edges(s, unused, 1, false);
   return std::move(s.corner_fan);
 }
 
@@ -472,23 +592,29 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
   SoupScan s(soup);
   r.n_vertices = static_cast<std::size_t>(s.nv);
   r.n_faces = static_cast<std::size_t>(s.nf);
+  const int threads = s.nf >= kParallelValidationFaces ? 2 : 1;
+  // The stages fill disjoint fields of the report; the exact-duplicate searches (a hash table, a
+  // sort) need only the positions or the well-formed faces and run beside the others.
   scan_vertices(s, r);
-  scan_faces(s, r);
-  // The exact-duplicate searches (two sorts) need only the positions and the well-formed faces and
-  // fill their own fields of the report: on large soups they run on a second thread beside the
-  // edge, component and orientation stages (1.6M vertices: about a third of the validation).
-  const auto stage = [&](int task) {
+  scan_faces(s, r, threads);
+  detail::run_tasks(threads, 2, [&](int task) {
     if (task == 0) {
       find_duplicate_positions(s, r);
       find_duplicate_faces(s, r);
     } else {
-      scan_edges(s, r);
+      group_corners_by_vertex(s);
       find_components(s, r);
-      check_orientability(s, r);
     }
-  };
-  const int threads = s.nf >= kParallelValidationFaces ? 2 : 1;
-  detail::run_tasks(threads, 2, stage);
+  });
+  find_unreferenced_vertices(s, r);
+  scan_edges(s, r, threads, false);
+  summarise_components(s, r);
+  // All two-face edges consistently oriented proves every component orientable; only a soup with
+  // an inconsistent edge needs the face graph's 2-colouring.
+  if (!r.inconsistent_edges.empty()) {
+    scan_edges(s, r, threads, true);
+    check_orientability(s, r);
+  }
   sum_topology(r);
   return r;
 }

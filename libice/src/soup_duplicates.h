@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "ice/mesh.h"
+#include "ice/mesh_validation.h"
 
 namespace ice::detail {
 
@@ -16,7 +17,6 @@ std::vector<int> first_coincident_vertex(const Positions& V);
 /// The faces among those with include[f] whose vertex set (ignoring order and orientation) equals
 /// that of an earlier included face, in increasing order. Every index of an included face must lie
 /// in [0, vertices).
-std::vector<int> later_duplicate_faces(const std::vector<std::vector<int>>& faces, const std::vector<char>& include,
-                                       Index vertices);
+std::vector<int> later_duplicate_faces(const PolygonList& faces, const std::vector<char>& include, Index vertices);
 
 }  // namespace ice::detail
