@@ -26,7 +26,8 @@ namespace app {
 
 // ---- input ------------------------------------------------------------------------------------------
 
-/// Loads and validates a mesh (ice::load_mesh_with_report); throws the MeshError of the loader.
+/// Loads and validates a mesh (ice::load_mesh_with_report) and drops the raw soup (`file.soup` is
+/// empty; `input_report.n_vertices` is the file's vertex count); throws the MeshError of the loader.
 ice::LoadResult load_input_mesh(const std::string& path, bool repair);
 
 /// 0-based vertex indices of the input *file* → the loaded mesh's indices (they differ only when

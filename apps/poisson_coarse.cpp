@@ -280,7 +280,7 @@ int main(int argc, char** argv) {
     std::string rhs_name = "demo (three Gaussian bumps, zero mean)";
     if (!rhs_path.empty()) {
       const std::vector<double> values = app::read_number_file(rhs_path);
-      const std::size_t expected = static_cast<std::size_t>(loaded.file.soup.V.rows());
+      const std::size_t expected = loaded.input_report.n_vertices;
       if (values.size() != expected)
         throw app::AppError(app::kUnreadable, rhs_path + ": has " + std::to_string(values.size()) +
                                                   " values, the mesh has " + std::to_string(expected) +

@@ -21,6 +21,11 @@
 #include <cstring>
 #include <string_view>
 #include <filesystem>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -235,19 +240,46 @@ std::vector<std::string> split_whitespace(const std::string& line) {
   return tokens;
 }
 
-/// The bytes of a whole file (the text readers scan them in place: no per-line strings).
-std::string read_file_bytes(const std::string& path, std::streamoff offset = 0) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path, "cannot be opened");
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  std::string bytes(static_cast<std::size_t>(std::max<std::streamoff>(size - offset, 0)), '\0');
-  in.seekg(offset);
-  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  if (in.bad()) fail(path, "read error");
-  bytes.resize(static_cast<std::size_t>(in.gcount()));
-  return bytes;
-}
+/// The bytes of a file from `offset` on, scanned in place by the readers: mapped read-only (no copy;
+/// reading 170 MB into a string took 0.25 s of a 1.6M-vertex load), or read into memory when the
+/// file cannot be mapped.
+class FileBytes {
+ public:
+  FileBytes(const std::string& path, std::size_t offset = 0) {
+    const int fd = ::open(path.c_str(), O_RDONLY);
+    if (fd < 0) fail(path, "cannot be opened");
+    struct stat status;
+    if (::fstat(fd, &status) == 0 && status.st_size > 0) {
+      void* mapped = ::mmap(nullptr, static_cast<std::size_t>(status.st_size), PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+      if (mapped != MAP_FAILED) {
+        mapped_ = mapped;
+        mapped_size_ = static_cast<std::size_t>(status.st_size);
+        view_ = std::string_view(static_cast<const char*>(mapped), mapped_size_);
+      }
+    }
+    ::close(fd);
+    if (!mapped_) {
+      std::ifstream in(path, std::ios::binary);
+      if (!in) fail(path, "cannot be opened");
+      copy_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+      if (in.bad()) fail(path, "read error");
+      view_ = copy_;
+    }
+    view_ = view_.substr(std::min(offset, view_.size()));
+  }
+  ~FileBytes() {
+    if (mapped_) ::munmap(mapped_, mapped_size_);
+  }
+  FileBytes(const FileBytes&) = delete;
+  FileBytes& operator=(const FileBytes&) = delete;
+  std::string_view view() const { return view_; }
+
+ private:
+  void* mapped_ = nullptr;
+  std::size_t mapped_size_ = 0;
+  std::string copy_;
+  std::string_view view_;
+};
 
 /// std::getline over bytes in memory: lines end at '\n' (kept out), the last one may lack it.
 class TextLines {
@@ -379,7 +411,8 @@ void append_faces(PolygonList& polygons, const std::vector<ChunkFaces>& parts) {
 /// OBJ: every `v` line (x y z [w|r g b]) and every `f` line (vertex index before any '/'), 1-based,
 /// negative indices relative to the vertices read so far, as the OBJ specification says.
 PolygonSoup read_obj_exact(const std::string& path) {
-  const std::string bytes = read_file_bytes(path);
+  const FileBytes file(path);
+  const std::string_view bytes = file.view();
   const auto kind_of = [](std::string_view line) {  // 0: a `v` line, 1: an `f` line
     std::size_t i = 0;
     while (i < line.size() && is_space(line[i])) ++i;
@@ -577,7 +610,8 @@ PolygonSoup read_off_exact(const std::string& path, std::uintmax_t file_size) {
   // The header (keyword line, counts on it or on the next non-empty line), then the records: one
   // per non-empty line (after '#' comments), counted first so that a short file is named as such
   // before any record is parsed.
-  const std::string bytes = read_file_bytes(path);
+  const FileBytes file(path);
+  const std::string_view bytes = file.view();
   TextLines lines(bytes);
   std::string_view line;
   std::vector<std::string_view> tokens;
@@ -741,7 +775,8 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
 
   // Everything after the header, scanned in place: ASCII as whitespace-separated tokens (as
   // `std::istream >>` reads them), binary as scalars whose decoding is set up once per property.
-  const std::string data = read_file_bytes(path, header.data_offset);
+  const FileBytes file(path, static_cast<std::size_t>(header.data_offset));
+  const std::string_view data = file.view();
   const auto* bytes = reinterpret_cast<const unsigned char*>(data.data());
   std::size_t position = 0;
   std::string_view token;
@@ -761,7 +796,7 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
       const std::size_t start = position;
       while (position < data.size() && !is_space(data[position])) ++position;
       if (position == start) fail(path, "file ends early in " + where());
-      token = std::string_view(data).substr(start, position - start);
+      token = data.substr(start, position - start);
       double value;
       if (!parse_double(token, value)) fail(path, where() + ": bad number '" + std::string(token) + "'");
       return value;
