@@ -382,7 +382,7 @@ TEST_CASE("dense matrices round-trip through .npy and .mtx; incomplete or existi
   CHECK_FALSE(std::filesystem::exists(partial));
 }
 
-TEST_CASE("large OFF and OBJ files are read in chunks on several threads: the same soup, the first defect named",
+TEST_CASE("large OFF, OBJ and ASCII PLY files are read in chunks on several threads: the same soup, the first defect named",
           "[io]") {
   // Above 4 MB the text readers cut the file into chunks of whole lines parsed on several threads;
   // nothing about the result may depend on where the cuts fall: records numbered across chunks,
@@ -427,6 +427,39 @@ TEST_CASE("large OFF and OBJ files are read in chunks on several threads: the sa
     CHECK(same_faces);
     CHECK(file.soup.polygons[nf] == std::vector<int>{0, 1, 2, 3});
   }
+
+  // ASCII PLY, one record per line (read in parallel), with an extra element before the faces and
+  // extra properties; then the same records two to a line (not one record per line: read as the
+  // token stream) and with a defect (named by the stream reader).
+  std::ostringstream ply;
+  ply.precision(17);
+  ply << "ply\nformat ascii 1.0\nelement vertex " << nv
+      << "\nproperty double x\nproperty float confidence\nproperty double y\nproperty double z\n"
+         "element material 2\nproperty list uchar float rgb\nelement face "
+      << nf << "\nproperty list uchar int vertex_indices\nproperty uchar flags\nend_header\n";
+  const std::size_t data_begin = ply.str().size();
+  for (Eigen::Index v = 0; v < nv; ++v) ply << mesh.V(v, 0) << " 0.5 " << mesh.V(v, 1) << ' ' << mesh.V(v, 2) << '\n';
+  ply << "3 0.1 0.2 0.3\n0\n";
+  for (Eigen::Index f = 0; f < nf; ++f) ply << "3 " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << " 7\n";
+  std::string paired = ply.str();
+  for (std::size_t at = data_begin, line = 0; (at = paired.find('\n', at)) != std::string::npos; ++line)
+    if (line % 2 == 0) paired[at] = ' ';  // two records per line
+    else ++at;
+  std::string bad = ply.str();
+  bad.replace(bad.size() - 2, 1, "x");  // the last face's flags
+  for (const auto& [name, text] : {std::pair<std::string, std::string>{"big.ply", ply.str()}, {"paired.ply", paired}}) {
+    INFO(name);
+    const ice::MeshFile file = ice::read_mesh_file(dir.write(name, text));
+    CHECK(file.soup.V == mesh.V);
+    REQUIRE(file.soup.polygons.size() == static_cast<std::size_t>(nf));
+    bool same_faces = true;
+    for (Eigen::Index f = 0; f < nf; ++f)
+      same_faces = same_faces && file.soup.polygons[f] == std::vector<int>{mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+    CHECK(same_faces);
+  }
+  const std::string bad_ply = dir.write("bad.ply", bad);
+  require_mesh_error([&] { ice::read_mesh_file(bad_ply); }, ice::MeshError::Kind::Unreadable, bad_ply,
+                     "element 'face' " + std::to_string(nf - 1) + " of " + std::to_string(nf) + ": bad number 'x'");
 
   // Two defects far apart (different chunks): the earlier one is named, by its line.
   using Kind = ice::MeshError::Kind;

@@ -306,7 +306,9 @@ class TextLines {
 /// The tokens of one line, up to a '#' comment, one at a time (no allocation).
 class LineTokens {
  public:
-  explicit LineTokens(std::string_view line) : rest_(line.substr(0, line.find('#'))) {}
+  /// `comments`: '#' starts a comment (OBJ, OFF); PLY data has none.
+  explicit LineTokens(std::string_view line, bool comments = true)
+      : rest_(comments ? line.substr(0, line.find('#')) : line) {}
   bool next(std::string_view& token) {
     std::size_t i = 0;
     while (i < rest_.size() && is_space(rest_[i])) ++i;
@@ -736,6 +738,91 @@ PlyHeader read_ply_header(const std::string& path, std::uintmax_t file_size) {
   fail(path, "PLY header has no end_header line");
 }
 
+/// Whether a line holds anything but whitespace.
+bool has_non_space(std::string_view line) {
+  return std::any_of(line.begin(), line.end(), [](char c) { return !is_space(c); });
+}
+
+/// ASCII PLY data read in parallel when it has one record per line, as every writer makes it: the
+/// non-empty lines are counted in chunks; if they are exactly the records, each chunk parses its
+/// lines as records (record r of the file is record r − (records of earlier elements) of its
+/// element). Returns false — and the caller reads the token stream, which names any defect — when
+/// the lines are not the records or a line is not exactly one record; every line that is parses
+/// token for token as the stream reader parses it, so both give the same soup.
+bool read_ply_ascii_lines(std::string_view data, const std::vector<PlyElement>& elements, const PlyElement* vertex,
+                          const int* axis_of_property, std::uintmax_t file_size, PolygonSoup& soup) {
+  const int threads = text_threads(data.size());
+  if (threads < 2) return false;
+  std::size_t total = 0;
+  for (const PlyElement& element : elements) total += element.count;
+  const std::vector<TextChunk> chunks =
+      count_text_chunks(data, 0, 1, threads, [](std::string_view line) { return has_non_space(line) ? 0 : -1; });
+  std::size_t lines = 0;
+  for (const TextChunk& chunk : chunks) lines += chunk.records[0];
+  if (lines != total) return false;
+  std::vector<std::size_t> element_begin{0};  // first record of each element in the file
+  for (const PlyElement& element : elements) element_begin.push_back(element_begin.back() + element.count);
+  std::vector<ChunkFaces> faces(chunks.size());
+  std::vector<char> parsed(chunks.size(), 0);
+  detail::run_tasks(threads, static_cast<int>(chunks.size()), [&](int c) {
+    const TextChunk& chunk = chunks[c];
+    TextLines chunk_lines(data.substr(chunk.begin, chunk.end - chunk.begin));
+    std::string_view text, token;
+    std::size_t record = chunk.first_record[0];
+    std::size_t e = static_cast<std::size_t>(std::upper_bound(element_begin.begin(), element_begin.end(), record) -
+                                             element_begin.begin()) - 1;
+    while (chunk_lines.next(text)) {
+      if (!has_non_space(text)) continue;
+      while (record >= element_begin[e + 1]) ++e;
+      const PlyElement& element = elements[e];
+      const bool is_vertex = &element == vertex, is_face = element.name == "face";
+      const std::size_t index = record - element_begin[e];
+      LineTokens tokens(text, false);
+      const auto number = [&](double& value) { return tokens.next(token) && parse_double(token, value); };
+      const auto integer = [&](long long& value) {
+        double x;
+        if (!number(x) || !(std::abs(x) < 9.2e18) || x != std::floor(x)) return false;
+        value = static_cast<long long>(x);
+        return true;
+      };
+      bool took_indices = false;
+      std::uint32_t corners = 0;
+      for (std::size_t k = 0; k < element.properties.size(); ++k) {
+        if (element.properties[k].count_type.empty()) {
+          double value;
+          if (!number(value)) return;
+          if (is_vertex && axis_of_property[k] >= 0)
+            soup.V(static_cast<Eigen::Index>(index), axis_of_property[k]) = value;
+          continue;
+        }
+        long long length;
+        if (!integer(length) || length < 0 || static_cast<std::uintmax_t>(length) > file_size) return;
+        const bool indices = is_face && !took_indices;
+        for (long long i = 0; i < length; ++i) {
+          if (indices) {
+            long long value;
+            if (!integer(value)) return;
+            faces[c].corners.push_back(clamp_index(value));
+            ++corners;
+          } else {
+            double value;
+            if (!number(value)) return;
+          }
+        }
+        took_indices = took_indices || indices;
+      }
+      if (tokens.next(token)) return;  // more than one record on the line
+      if (is_face) faces[c].sizes.push_back(corners);
+      ++record;
+    }
+    parsed[c] = 1;
+  });
+  if (std::find(parsed.begin(), parsed.end(), 0) != parsed.end()) return false;
+  soup.polygons.clear();
+  append_faces(soup.polygons, faces);
+  return true;
+}
+
 /// PLY, ASCII or binary, with its elements in any order: the `vertex` element's x, y, z (scalar
 /// properties only) and the first list property of the `face` element (the vertex indices); every
 /// other element and property is read past. Layouts it does not handle (no or several vertex
@@ -817,6 +904,7 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
 
   PolygonSoup soup;
   soup.V.resize(static_cast<Eigen::Index>(vertex->count), 3);
+  if (ascii && read_ply_ascii_lines(data, header.elements, vertex, axis_of_property, file_size, soup)) return soup;
   for (const PlyElement& element : header.elements) {
     const bool is_vertex = &element == vertex, is_face = element.name == "face";
     std::vector<Scalar> value_type, count_type;
