@@ -10,8 +10,9 @@ and the fine-to-coarse map: ``ice.batch.load_result`` reads both back) and <...>
 record: sizes, stop reason, seconds, the options' hash, or the error). OUT/records.jsonl gathers the
 records and OUT/summary.csv one line per mesh; a summary is printed at the end.
 
-Safety: every file is written to a temporary name and renamed, the record last, so a mesh either has
-a complete result or none. A rerun skips the meshes whose record has the same options hash, the same
+Safety: every file is written to a temporary name and renamed; a mesh's outputs are renamed into
+place after its record is written, so a batch killed at any point leaves no output without its
+record, and a mesh whose outputs are not all there is redone. A rerun skips the meshes whose record has the same options hash, the same
 input (size and modification time) and its outputs (a failure that depends only on the input, a
 refused or unreadable file, is not retried either); a changed option redoes every mesh. Files in OUT
 that a batch did not write are never replaced without --force, and an output that would replace an
@@ -22,7 +23,10 @@ processes by default). A defective or failing mesh becomes an error record with 
 a mesh over --timeout seconds is cancelled (at the next progress report of the coarsener) and
 recorded; a worker that dies (crash, --memory-limit) loses its tasks to Dask, which reruns them on
 another worker (up to 3 times, Dask's allowed-failures), and a mesh that kills every worker it runs on
-is recorded as crashed. The batch itself never stops for one mesh.
+is recorded as crashed. The batch itself never stops for one mesh, and never hangs: when no mesh
+has finished for --stall-timeout seconds (default 1800; a worker hung in the kernel, a cluster that
+lost its workers), the meshes still queued or running get a "stalled" error record, which a rerun
+retries, and the batch ends.
 """
 from __future__ import annotations
 
@@ -141,18 +145,22 @@ def output_paths(out: pathlib.Path, relative: str) -> dict[str, pathlib.Path]:
             "record": base.with_name(base.name + ".json")}
 
 
-def _atomic_write(path: pathlib.Path, write) -> None:
-    """write(temporary path), then rename over `path`: readers see the old file or the whole new one."""
+def _write_temporary(path: pathlib.Path, write) -> str:
+    """write(temporary path) beside `path` (a `.NAME.*.part` file, which a rerun cleans up); returns it."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     os.close(handle)
     try:
         write(temporary)
-        os.replace(temporary, path)
     except BaseException:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
+        os.unlink(temporary)
         raise
+    return temporary
+
+
+def _atomic_write(path: pathlib.Path, write) -> None:
+    """write(temporary path), then rename over `path`: readers see the old file or the whole new one."""
+    os.replace(_write_temporary(path, write), path)
 
 
 def _error_kind(error: BaseException) -> str:
@@ -175,6 +183,7 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
     paths = output_paths(pathlib.Path(out), relative)
     record = {"input": path, "output": relative, "hash": options_hash({**options, "repair": repair}),
               "input_size": input_size, "input_mtime_ns": input_mtime_ns}
+    finished: list[tuple[pathlib.Path, str]] = []  # (output, its written temporary)
     try:
         loaded = ice.load_mesh(path, repair=repair)
         record["vertices"], record["faces"] = int(loaded.V.shape[0]), int(loaded.F.shape[0])
@@ -201,8 +210,11 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
         def write_npz(temporary):
             with open(temporary, "wb") as file:
                 np.savez(file, **arrays)
-        _atomic_write(paths["ilm"], lambda temporary: coarse.save(temporary, overwrite=True))
-        _atomic_write(paths["npz"], write_npz)
+        # The outputs are renamed into place only after the record is written: a batch killed in
+        # between leaves outputs *with* their record (redone by the rerun as incomplete), never
+        # outputs without one, which a rerun would have to refuse as files a batch did not write.
+        finished.append((paths["ilm"], _write_temporary(paths["ilm"], lambda temporary: coarse.save(temporary, overwrite=True))))
+        finished.append((paths["npz"], _write_temporary(paths["npz"], write_npz)))
         summary = coarse.summary
         record.update(status="ok", coarse_vertices=int(coarse.n_vertices), coarse_faces=int(coarse.n_faces),
                       stop_reason=summary["stop_reason"], target_reached=summary["target_reached"],
@@ -210,8 +222,13 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
     except Exception as error:  # every failure of one mesh is its record
         record.update(status="error", error_kind="timeout" if isinstance(error, TimeoutError) else _error_kind(error),
                       error=str(error) or type(error).__name__)
+        for _, temporary in finished:
+            os.unlink(temporary)
+        finished.clear()
     record["seconds"] = time.perf_counter() - started
     _atomic_write(paths["record"], lambda temporary: pathlib.Path(temporary).write_text(json.dumps(record) + "\n"))
+    for path, temporary in finished:
+        os.replace(temporary, path)
     return record
 
 
@@ -242,6 +259,7 @@ class BatchOptions:
     scheduler: str | None = None
     memory_limit: str | None = "auto"
     timeout: float | None = None
+    stall_timeout: float | None = 1800.0  # seconds without any mesh finishing before the batch gives up
     force: bool = False
     progress: bool = True
 
@@ -309,6 +327,8 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
     """Coarsens every mesh of `source` into `out` (see the module documentation); returns the records
     of this run (done now or found up to date) in manifest order."""
     from distributed import as_completed
+    if options.stall_timeout is not None and not options.stall_timeout > 0:
+        raise ValueError(f"the stall timeout must be positive, not {options.stall_timeout}")
     started = time.perf_counter()
     options = dataclasses.replace(options, coarsen=canonical_options(options.coarsen))
     jobs, _ = manifest(source)
@@ -341,14 +361,33 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
                                      options.repair, options.timeout, job.size, job.mtime_ns, pure=False,
                                      key=f"ice-{job.relative}-{digest}"): job for job in todo}
             bar = _progress_bar(len(todo), options.progress, log)
-            for future in as_completed(futures):
-                job = futures[future]
-                try:
-                    record = future.result()
-                except Exception as error:  # the task's workers died: KilledWorker, or the cluster went away
-                    record = _crash_record(job, out, digest, error)
-                records[job.relative] = record
-                bar(record)
+            finished = as_completed(futures)
+            last_finish = time.monotonic()
+            while not finished.is_empty():
+                if not finished.has_ready():
+                    if options.stall_timeout is not None and time.monotonic() - last_finish > options.stall_timeout:
+                        for future, job in futures.items():  # the watchdog: stop waiting, record the rest
+                            if job.relative not in records:
+                                future.cancel()
+                                records[job.relative] = _error_record(job, out, digest, "stalled",
+                                    f"{job.path}: no mesh of the batch finished for {options.stall_timeout:g} s "
+                                    f"while this one was queued or running (a hung or lost worker?); the batch "
+                                    f"stopped waiting: rerun to retry it")
+                                bar(records[job.relative])
+                        break
+                    time.sleep(0.05)
+                    continue
+                for future in finished.next_batch(block=False):
+                    job = futures[future]
+                    try:
+                        record = future.result()
+                    except Exception as error:  # the task's workers died: KilledWorker, or the cluster went away
+                        record = _error_record(job, out, digest, "crashed",
+                                               f"{job.path}: the worker process died while coarsening it "
+                                               f"({type(error).__name__}: {error})")
+                    records[job.relative] = record
+                    bar(record)
+                last_finish = time.monotonic()
             bar(None)
         finally:
             client.close()
@@ -360,10 +399,10 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
     return result
 
 
-def _crash_record(job: Job, out: pathlib.Path, digest: str, error: BaseException) -> dict:
+def _error_record(job: Job, out: pathlib.Path, digest: str, kind: str, message: str) -> dict:
+    """The record of a mesh whose task did not return one (its workers died, or the batch stopped waiting)."""
     record = {"input": str(job.path), "output": job.relative, "hash": digest, "input_size": job.size,
-              "input_mtime_ns": job.mtime_ns, "status": "error", "error_kind": "crashed",
-              "error": f"{job.path}: the worker process died while coarsening it ({type(error).__name__}: {error})",
+              "input_mtime_ns": job.mtime_ns, "status": "error", "error_kind": kind, "error": message,
               "seconds": None}
     path = output_paths(out, job.relative)["record"]
     _atomic_write(path, lambda temporary: pathlib.Path(temporary).write_text(json.dumps(record) + "\n"))
@@ -454,6 +493,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--memory-limit", default="auto",
                         help="per worker, e.g. 4GB (Dask restarts a worker above it; default: memory / workers)")
     parser.add_argument("--timeout", type=float, help="seconds per mesh before its coarsening is cancelled")
+    parser.add_argument("--stall-timeout", type=float, default=1800.0,
+                        help="seconds without any mesh finishing before the batch stops waiting and records the "
+                             "meshes still queued or running as stalled (default: 1800)")
     parser.add_argument("--force", action="store_true", help="replace output files a batch did not write")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     return parser
@@ -476,7 +518,8 @@ def main(argv=None) -> int:
         print("ice-batch: --workers must be >= 1", file=sys.stderr)
         return 4
     options = BatchOptions(coarsen=coarsen, repair=args.repair, workers=args.workers, scheduler=args.scheduler,
-                           memory_limit=args.memory_limit, timeout=args.timeout, force=args.force,
+                           memory_limit=args.memory_limit, timeout=args.timeout,
+                           stall_timeout=args.stall_timeout, force=args.force,
                            progress=not args.quiet and sys.stderr.isatty())
     try:
         result = run(args.input, args.output, options)

@@ -181,3 +181,53 @@ def test_timeout_is_recorded_and_retried(dataset, tmp_path):
     assert all("timeout" in r["error"] and r["input"] in r["error"] for r in timed_out)
     again = batch.run(str(dataset), out, options())  # a timeout is not the input's fault: redone
     assert again.skipped == 2 and sum(r["status"] == "ok" for r in again.records) == len(MESHES)
+
+
+def test_stalled_worker_does_not_hang_the_batch(dataset, tmp_path):
+    """A worker frozen while it coarsens (SIGSTOP: alive to Dask, doing nothing): once no mesh has
+    finished for --stall-timeout seconds the batch records what it still waits for as stalled and
+    ends; a rerun retries exactly those meshes."""
+    psutil = pytest.importorskip("psutil")
+    V, F = ice.loop_subdivide(*ice.load_mesh(dataset / "b" / "spot.obj"), 2)
+    ice.save_mesh(dataset / "big.ply", V, F, binary=True)
+    out = tmp_path / "out"
+    stall = 8.0
+    command = [sys.executable, "-m", "ice.batch", str(dataset), "-o", str(out), "--ratio", "0.05", "-q",
+               "--workers", "2", "--stall-timeout", str(stall)]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    frozen = None
+    deadline = time.time() + 120
+    try:
+        while frozen is None and time.time() < deadline and process.poll() is None:
+            if not list(out.rglob("*.json")):  # the workers are up once a first record exists
+                time.sleep(0.02)
+                continue
+            for child in psutil.Process(process.pid).children(recursive=True):
+                try:
+                    if "spawn_main" in " ".join(child.cmdline()) and child.cpu_percent(interval=0.05) > 50:
+                        child.suspend()
+                        frozen = child
+                        break
+                except psutil.Error:
+                    continue
+        assert frozen is not None, "no busy worker was found to freeze"
+        stopped_at = time.time()
+        stdout, stderr = process.communicate(timeout=stall + 120)
+        assert time.time() - stopped_at < stall + 90, "the batch waited far past its stall timeout"
+    finally:
+        if frozen is not None:
+            try:
+                frozen.kill()
+            except psutil.Error:
+                pass
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 5, stdout + stderr  # not every mesh is done
+    records = [json.loads(line) for line in (out / "records.jsonl").read_text().splitlines()]
+    assert len(records) == len(MESHES) + 3
+    stalled = [r for r in records if r.get("error_kind") == "stalled"]
+    assert stalled and all("stall" in r["error"] and r["input"] in r["error"] for r in stalled), stdout + stderr
+    assert sum(r["status"] == "ok" for r in records) + len(stalled) == len(MESHES) + 1
+    again = batch.run(str(dataset), out, options())
+    assert again.skipped == len(MESHES) + 3 - len(stalled)
+    assert sum(r["status"] == "ok" for r in again.records) == len(MESHES) + 1
