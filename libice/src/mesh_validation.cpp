@@ -155,6 +155,7 @@ struct SoupScan {
   // vertex's star in increasing order).
   std::vector<std::size_t> corner_offset, star_offset;
   std::vector<int> star_face;
+  const int* triangles = nullptr;  // the corner array when every face is a well-formed triangle
   // What each vertex's star scan found (VertexFlag bits) and how many edges it owns.
   std::vector<unsigned char> vertex_flags;
   std::vector<int> owned_edges;
@@ -267,25 +268,38 @@ void find_duplicate_faces(const SoupScan& s, ValidationReport& r) {
 
 // The corners of the well-formed faces grouped by vertex (each vertex's star), faces in increasing
 // order; corners are numbered face by face (corner_offset). Referenced vertices are those with a star.
-void group_corners_by_vertex(SoupScan& s) {
+void group_corners_by_vertex(SoupScan& s, int threads) {
   const auto& polys = s.polys;
   const int nv = s.nv, nf = s.nf;
   s.corner_offset.assign(static_cast<std::size_t>(nf) + 1, 0);
+  for (int f = 0; f < nf; ++f) s.corner_offset[f + 1] = s.corner_offset[f] + (s.well_formed[f] ? polys[f].size() : 0);
+  // A counting sort of the corners by vertex; with threads each takes a range of vertices (and
+  // reads every face, which is cheap beside the scattered writes it shares out).
   s.star_offset.assign(static_cast<std::size_t>(nv) + 1, 0);
-  for (int f = 0; f < nf; ++f) {
-    s.corner_offset[f + 1] = s.corner_offset[f];
-    if (!s.well_formed[f]) continue;
-    s.corner_offset[f + 1] += polys[f].size();
-    for (int v : polys[f]) ++s.star_offset[static_cast<std::size_t>(v) + 1];
-  }
+  const auto vertex_bound = [&](int t) { return static_cast<int>(static_cast<long long>(nv) * t / threads); };
+  const auto for_each_corner = [&](int t, auto&& visit) {
+    const int lo = vertex_bound(t), hi = vertex_bound(t + 1);
+    for (int f = 0; f < nf; ++f)
+      if (s.well_formed[f])
+        for (int v : polys[f])
+          if (v >= lo && v < hi) visit(f, v);
+  };
+  detail::run_tasks(threads, threads, [&](int t) {
+    for_each_corner(t, [&](int, int v) { ++s.star_offset[static_cast<std::size_t>(v) + 1]; });
+  });
   for (int v = 0; v < nv; ++v) s.star_offset[v + 1] += s.star_offset[v];
   s.star_face.resize(s.star_offset[nv]);
   std::vector<std::size_t> fill(s.star_offset.begin(), s.star_offset.end() - 1);
-  for (int f = 0; f < nf; ++f)
-    if (s.well_formed[f])
-      for (int v : polys[f]) s.star_face[fill[v]++] = f;
+  detail::run_tasks(threads, threads, [&](int t) {
+    for_each_corner(t, [&](int f, int v) { s.star_face[fill[v]++] = f; });
+  });
   s.referenced.resize(static_cast<std::size_t>(nv));
   for (int v = 0; v < nv; ++v) s.referenced[v] = s.star_offset[v + 1] > s.star_offset[v];
+  // Every face a well-formed triangle: faces are read straight from the corner array.
+  const std::vector<std::size_t>& offsets = polys.offsets();
+  bool triangles = s.corner_offset[nf] == 3 * static_cast<std::size_t>(nf);  // all well formed, if all have 3 corners
+  for (int f = 0; triangles && f < nf; ++f) triangles = offsets[f + 1] - offsets[f] == 3;
+  if (triangles) s.triangles = polys.corners().data();
 }
 
 void find_unreferenced_vertices(const SoupScan& s, ValidationReport& r) {
@@ -337,14 +351,22 @@ void scan_stars(SoupScan& s, int begin, int end, StarFindings& out, bool want_li
     corner_id.resize(static_cast<std::size_t>(m));
     for (int i = 0; i < m; ++i) {
       const int f = s.star_face[star_begin + i];
+      const auto pack = [&](int neighbour, bool out) {
+        return (static_cast<std::uint64_t>(neighbour) << 32) | (static_cast<std::uint64_t>(i) << 1) | (out ? 1u : 0u);
+      };
+      if (s.triangles) {  // the common case: one cache line per face, corner ids 3f + k
+        const int* t = s.triangles + 3 * static_cast<std::size_t>(f);
+        const int k = t[0] == v ? 0 : t[1] == v ? 1 : 2;
+        corner_id[i] = 3 * static_cast<std::size_t>(f) + static_cast<std::size_t>(k);
+        uses.push_back(pack(t[k == 2 ? 0 : k + 1], true));
+        uses.push_back(pack(t[k == 0 ? 2 : k - 1], false));
+        continue;
+      }
       const auto& poly = s.polys[f];
       const std::size_t n = poly.size();
       std::size_t k = 0;
       while (poly[k] != v) ++k;
       corner_id[i] = s.corner_offset[f] + k;
-      const auto pack = [&](int neighbour, bool out) {
-        return (static_cast<std::uint64_t>(neighbour) << 32) | (static_cast<std::uint64_t>(i) << 1) | (out ? 1u : 0u);
-      };
       uses.push_back(pack(poly[(k + 1) % n], true));
       uses.push_back(pack(poly[(k + n - 1) % n], false));
     }
@@ -460,16 +482,31 @@ void report_edges(SoupScan& s, std::vector<StarFindings>& parts, ValidationRepor
 }
 
 // Edges (their faces: boundary, two, more; orientation agreement; lengths) and the fans around each
-// vertex (the non-manifold vertices), star by star, on `threads` threads; with `want_links` also the
-// face graph for the orientability check.
+// vertex (the non-manifold vertices), star by star in `tasks()` vertex ranges that may run beside
+// other work; with `want_links` also the face graph for the orientability check.
+class EdgeScan {
+ public:
+  EdgeScan(SoupScan& s, int threads, bool want_links) : s_(s), want_links_(want_links) {
+    s.vertex_flags.assign(static_cast<std::size_t>(s.nv), 0);
+    s.owned_edges.assign(static_cast<std::size_t>(s.nv), 0);
+    bounds_ = star_ranges(s, threads > 1 ? 8 * threads : 1);
+    parts_.resize(bounds_.size() - 1);
+  }
+  int tasks() const { return static_cast<int>(parts_.size()); }
+  void run(int task) { scan_stars(s_, bounds_[task], bounds_[task + 1], parts_[task], want_links_); }
+  void report(ValidationReport& r) { report_edges(s_, parts_, r); }
+
+ private:
+  SoupScan& s_;
+  bool want_links_;
+  std::vector<int> bounds_;
+  std::vector<StarFindings> parts_;
+};
+
 void scan_edges(SoupScan& s, ValidationReport& r, int threads, bool want_links) {
-  s.vertex_flags.assign(static_cast<std::size_t>(s.nv), 0);
-  s.owned_edges.assign(static_cast<std::size_t>(s.nv), 0);
-  const int tasks = threads > 1 ? 8 * threads : 1;
-  const std::vector<int> bounds = star_ranges(s, tasks);
-  std::vector<StarFindings> parts(static_cast<std::size_t>(tasks));
-  detail::run_tasks(threads, tasks, [&](int t) { scan_stars(s, bounds[t], bounds[t + 1], parts[t], want_links); });
-  report_edges(s, parts, r);
+  EdgeScan scan(s, threads, want_links);
+  detail::run_tasks(threads, scan.tasks(), [&](int task) { scan.run(task); });
+  scan.report(r);
 }
 
 // Connected components through shared vertices, with their vertex and face counts.
@@ -581,7 +618,7 @@ std::vector<std::size_t> detail::corner_fans(const PolygonSoup& soup) {
   SoupScan s(soup);
   scan_vertices(s, unused);
   scan_faces(s, unused, 1);
-  group_corners_by_vertex(s);
+  group_corners_by_vertex(s, 1);
   s.corner_fan.resize(s.corner_offset[s.nf]);
   scan_edges(s, unused, 1, false);
   return std::move(s.corner_fan);
@@ -593,21 +630,25 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
   r.n_vertices = static_cast<std::size_t>(s.nv);
   r.n_faces = static_cast<std::size_t>(s.nf);
   const int threads = s.nf >= kParallelValidationFaces ? 2 : 1;
-  // The stages fill disjoint fields of the report; the exact-duplicate searches (a hash table, a
-  // sort) need only the positions or the well-formed faces and run beside the others.
+  // The stages fill disjoint fields of the report. The exact-duplicate searches (a hash table, a
+  // counting sort) and the components run as tasks beside the edge scan's vertex ranges, which the
+  // threads take as they come free.
   scan_vertices(s, r);
   scan_faces(s, r, threads);
-  detail::run_tasks(threads, 2, [&](int task) {
+  group_corners_by_vertex(s, threads);
+  find_unreferenced_vertices(s, r);
+  EdgeScan edges(s, threads, false);
+  detail::run_tasks(threads, 2 + edges.tasks(), [&](int task) {
     if (task == 0) {
       find_duplicate_positions(s, r);
       find_duplicate_faces(s, r);
-    } else {
-      group_corners_by_vertex(s);
+    } else if (task == 1) {
       find_components(s, r);
+    } else {
+      edges.run(task - 2);
     }
   });
-  find_unreferenced_vertices(s, r);
-  scan_edges(s, r, threads, false);
+  edges.report(r);
   summarise_components(s, r);
   // All two-face edges consistently oriented proves every component orientable; only a soup with
   // an inconsistent edge needs the face graph's 2-colouring.
