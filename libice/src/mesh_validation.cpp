@@ -15,6 +15,7 @@
 #include <limits>
 #include <numeric>
 #include <sstream>
+#include <thread>
 #include <type_traits>
 
 namespace ice {
@@ -135,9 +136,16 @@ namespace {
 
 // ---- the stages of validate_mesh ----------------------------------------------------------------
 
-// Soups of at least this many faces are validated on two threads (below it, starting a thread
-// costs more than the work it takes over).
+// Soups of at least this many faces are validated on several threads (below it, starting a thread
+// costs more than the work it takes over), in a fixed number of tasks, so that the report (even the
+// rounding of the edge-length mean's partial sums) does not depend on the thread count.
 constexpr int kParallelValidationFaces = 100000;
+constexpr int kValidationTasks = 16;
+
+int validation_threads(int faces) {
+  if (faces < kParallelValidationFaces) return 1;
+  return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 2u, 8u));
+}
 
 // What the stages share: the soup and what earlier stages found about it.
 struct SoupScan {
@@ -249,7 +257,7 @@ void append(Offenders<T>& to, const Offenders<T>& from) {
 // Per-face checks in face ranges on `threads` threads, merged in face order.
 void scan_faces(SoupScan& s, ValidationReport& r, int threads) {
   s.well_formed.assign(static_cast<std::size_t>(s.nf), 0);
-  const int tasks = threads > 1 ? 4 * threads : 1;
+  const int tasks = threads > 1 ? kValidationTasks : 1;
   std::vector<FaceFindings> parts(static_cast<std::size_t>(tasks));
   const auto bound = [&](int t) { return static_cast<int>(static_cast<long long>(s.nf) * t / tasks); };
   detail::run_tasks(threads, tasks, [&](int t) { scan_face_range(s, bound(t), bound(t + 1), parts[t]); });
@@ -489,7 +497,7 @@ class EdgeScan {
   EdgeScan(SoupScan& s, int threads, bool want_links) : s_(s), want_links_(want_links) {
     s.vertex_flags.assign(static_cast<std::size_t>(s.nv), 0);
     s.owned_edges.assign(static_cast<std::size_t>(s.nv), 0);
-    bounds_ = star_ranges(s, threads > 1 ? 8 * threads : 1);
+    bounds_ = star_ranges(s, threads > 1 ? kValidationTasks : 1);
     parts_.resize(bounds_.size() - 1);
   }
   int tasks() const { return static_cast<int>(parts_.size()); }
@@ -629,7 +637,7 @@ ValidationReport validate_mesh(const PolygonSoup& soup) {
   SoupScan s(soup);
   r.n_vertices = static_cast<std::size_t>(s.nv);
   r.n_faces = static_cast<std::size_t>(s.nf);
-  const int threads = s.nf >= kParallelValidationFaces ? 2 : 1;
+  const int threads = validation_threads(s.nf);
   // The stages fill disjoint fields of the report. The exact-duplicate searches (a hash table, a
   // counting sort) and the components run as tasks beside the edge scan's vertex ranges, which the
   // threads take as they come free.

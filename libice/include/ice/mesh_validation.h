@@ -6,7 +6,7 @@
 /// The input is a `PolygonSoup` (positions + arbitrary index lists), exactly as it came out of the file,
 /// so that non-manifold, non-triangle and out-of-range faces are visible. `validate_mesh` never throws
 /// on bad input and runs in O(V + C) for C face corners, apart from sorting each vertex's few edges
-/// (soups of 100,000 faces or more on two threads).
+/// (soups of 100,000 faces or more on up to 8 threads; the report does not depend on their number).
 ///
 /// Definitions used by the report (they match the figures of the mesh sets' tables, data/README.md):
 ///  - A face is *well formed* if it has >= 3 corners, all indices in [0, V) and no repeated index.
