@@ -39,6 +39,7 @@ import io
 import json
 import os
 import pathlib
+import signal
 import statistics
 import sys
 import tempfile
@@ -380,7 +381,7 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
                 for future in finished.next_batch(block=False):
                     job = futures[future]
                     try:
-                        record = future.result()
+                        record = _finished_record(future, out, job)
                     except Exception as error:  # the task's workers died: KilledWorker, or the cluster went away
                         record = _error_record(job, out, digest, "crashed",
                                                f"{job.path}: the worker process died while coarsening it "
@@ -390,13 +391,42 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
                 last_finish = time.monotonic()
             bar(None)
         finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+            _shut_down(client, cluster, stalled=any(r.get("error_kind") == "stalled" for r in records.values()))
     result.records = [records[job.relative] for job in jobs]
     result.seconds = time.perf_counter() - started
     _write_summary(out, result)
     return result
+
+
+def _finished_record(future, out: pathlib.Path, job: Job) -> dict:
+    """The record of a finished task, read from the file its worker wrote before returning: fetching
+    the returned copy from the worker would block for as long as that worker hangs (its result is
+    held there), out of the watchdog's reach. Raises the task's exception if it failed."""
+    if future.status == "finished":
+        try:
+            return json.loads(output_paths(out, job.relative)["record"].read_text())
+        except (OSError, ValueError):
+            pass
+    return future.result()
+
+
+def _shut_down(client, cluster, stalled: bool) -> None:
+    """Closes the client and a local cluster within bounded time. After a stall the local workers
+    may be hung or stopped (they answer no close request, and a stopped process keeps a SIGTERM
+    pending): they are killed first."""
+    if stalled and cluster is not None:
+        for nanny in list(cluster.workers.values()):
+            pid = getattr(getattr(nanny, "process", None), "pid", None)
+            if pid:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except OSError:
+                    pass
+    for close in ([client.close] + ([cluster.close] if cluster is not None else [])):
+        try:
+            close(timeout=30)
+        except Exception:  # a cluster that does not answer in time is left to the process exit
+            pass
 
 
 def _error_record(job: Job, out: pathlib.Path, digest: str, kind: str, message: str) -> dict:

@@ -127,6 +127,24 @@ def test_killed_batch_loses_no_mesh(dataset, tmp_path):
     assert sum(r["status"] == "ok" for r in result.records) == len(MESHES)
 
 
+def busy_worker(psutil, process, out, seconds=120):
+    """A Dask worker process of the batch `process` busy coarsening (None if none is found in time):
+    once a first record exists the workers are up (a worker stopped while Dask still starts it is
+    another case), and a worker runs multiprocessing's spawn_main."""
+    deadline = time.time() + seconds
+    while time.time() < deadline and process.poll() is None:
+        if not list(out.rglob("*.json")):
+            time.sleep(0.02)
+            continue
+        for child in psutil.Process(process.pid).children(recursive=True):
+            try:
+                if "spawn_main" in " ".join(child.cmdline()) and child.cpu_percent(interval=0.05) > 50:
+                    return child
+            except psutil.Error:
+                continue
+    return None
+
+
 def test_worker_killed_mid_batch_loses_no_mesh(dataset, tmp_path):
     """One Dask worker process killed while it coarsens: Dask reruns its task elsewhere."""
     psutil = pytest.importorskip("psutil")
@@ -137,24 +155,10 @@ def test_worker_killed_mid_batch_loses_no_mesh(dataset, tmp_path):
     command = [sys.executable, "-m", "ice.batch", str(dataset), "-o", str(out), "--ratio", "0.05", "-q",
                "--workers", "2"]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    killed = None
-    deadline = time.time() + 120
-    while killed is None and time.time() < deadline and process.poll() is None:
-        # a worker busy coarsening: once a first record exists the workers are up (a worker killed
-        # while Dask still starts it is another case), and a worker runs multiprocessing's spawn_main
-        if not list(out.rglob("*.json")):
-            time.sleep(0.02)
-            continue
-        for child in psutil.Process(process.pid).children(recursive=True):
-            try:
-                if "spawn_main" in " ".join(child.cmdline()) and child.cpu_percent(interval=0.05) > 50:
-                    child.kill()
-                    killed = child.pid
-                    break
-            except psutil.Error:
-                continue
+    worker = busy_worker(psutil, process, out)
+    assert worker is not None, "no busy worker was found to kill"
+    worker.kill()  # a worker busy a moment ago has not finished a batch of several meshes
     stdout, stderr = process.communicate(timeout=300)
-    assert killed is not None, "no busy worker was found to kill"
     records = [json.loads(line) for line in (out / "records.jsonl").read_text().splitlines()]
     assert len(records) == len(MESHES) + 3
     assert sum(r["status"] == "ok" for r in records) == len(MESHES) + 1, stdout + stderr
@@ -188,29 +192,20 @@ def test_stalled_worker_does_not_hang_the_batch(dataset, tmp_path):
     finished for --stall-timeout seconds the batch records what it still waits for as stalled and
     ends; a rerun retries exactly those meshes."""
     psutil = pytest.importorskip("psutil")
-    V, F = ice.loop_subdivide(*ice.load_mesh(dataset / "b" / "spot.obj"), 2)
-    ice.save_mesh(dataset / "big.ply", V, F, binary=True)
+    # Three meshes of a few seconds, started first (largest first): the worker found busy after the
+    # first record is on one of them, so it is frozen holding a running task.
+    V, F = ice.loop_subdivide(*ice.load_mesh(dataset / "b" / "spot.obj"), 3)
+    for copy in range(3):
+        ice.save_mesh(dataset / f"big{copy}.ply", V, F, binary=True)
     out = tmp_path / "out"
     stall = 8.0
     command = [sys.executable, "-m", "ice.batch", str(dataset), "-o", str(out), "--ratio", "0.05", "-q",
                "--workers", "2", "--stall-timeout", str(stall)]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    frozen = None
-    deadline = time.time() + 120
+    frozen = busy_worker(psutil, process, out)
     try:
-        while frozen is None and time.time() < deadline and process.poll() is None:
-            if not list(out.rglob("*.json")):  # the workers are up once a first record exists
-                time.sleep(0.02)
-                continue
-            for child in psutil.Process(process.pid).children(recursive=True):
-                try:
-                    if "spawn_main" in " ".join(child.cmdline()) and child.cpu_percent(interval=0.05) > 50:
-                        child.suspend()
-                        frozen = child
-                        break
-                except psutil.Error:
-                    continue
         assert frozen is not None, "no busy worker was found to freeze"
+        frozen.suspend()
         stopped_at = time.time()
         stdout, stderr = process.communicate(timeout=stall + 120)
         assert time.time() - stopped_at < stall + 90, "the batch waited far past its stall timeout"
@@ -224,10 +219,10 @@ def test_stalled_worker_does_not_hang_the_batch(dataset, tmp_path):
             process.kill()
     assert process.returncode == 5, stdout + stderr  # not every mesh is done
     records = [json.loads(line) for line in (out / "records.jsonl").read_text().splitlines()]
-    assert len(records) == len(MESHES) + 3
+    assert len(records) == len(MESHES) + 5
     stalled = [r for r in records if r.get("error_kind") == "stalled"]
     assert stalled and all("stall" in r["error"] and r["input"] in r["error"] for r in stalled), stdout + stderr
-    assert sum(r["status"] == "ok" for r in records) + len(stalled) == len(MESHES) + 1
+    assert sum(r["status"] == "ok" for r in records) + len(stalled) == len(MESHES) + 3
     again = batch.run(str(dataset), out, options())
-    assert again.skipped == len(MESHES) + 3 - len(stalled)
-    assert sum(r["status"] == "ok" for r in again.records) == len(MESHES) + 1
+    assert again.skipped == len(MESHES) + 5 - len(stalled)
+    assert sum(r["status"] == "ok" for r in again.records) == len(MESHES) + 3
