@@ -30,7 +30,6 @@
 #include <iterator>
 #include <limits>
 #include <numeric>
-#include <sstream>
 
 namespace ice {
 
@@ -217,28 +216,51 @@ int clamp_index(long long value) {
 /// Whitespace as `std::istream >> std::string` sees it in the C locale.
 bool is_space(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\v' || c == '\f' || c == '\r'; }
 
+/// The tokens of one line, up to a '#' comment, one at a time (no allocation).
+class LineTokens {
+ public:
+  /// `comments`: '#' starts a comment (OBJ, OFF); PLY data has none.
+  explicit LineTokens(std::string_view line, bool comments = true)
+      : rest_(comments ? line.substr(0, line.find('#')) : line) {}
+  bool next(std::string_view& token) {
+    std::size_t i = 0;
+    while (i < rest_.size() && is_space(rest_[i])) ++i;
+    if (i == rest_.size()) return false;
+    std::size_t j = i;
+    while (j < rest_.size() && !is_space(rest_[j])) ++j;
+    token = rest_.substr(i, j - i);
+    rest_ = rest_.substr(j);
+    return true;
+  }
+
+ private:
+  std::string_view rest_;
+};
+
 /// Replaces `tokens` by the whitespace-separated tokens of `line` before any '#' (views into it).
 void tokenize(std::string_view line, std::vector<std::string_view>& tokens) {
   tokens.clear();
-  const std::size_t hash = line.find('#');
-  if (hash != std::string_view::npos) line = line.substr(0, hash);
-  std::size_t i = 0;
-  while (true) {
-    while (i < line.size() && is_space(line[i])) ++i;
-    if (i == line.size()) return;
-    const std::size_t start = i;
-    while (i < line.size() && !is_space(line[i])) ++i;
-    tokens.push_back(line.substr(start, i - start));
-  }
+  LineTokens line_tokens(line);
+  for (std::string_view token; line_tokens.next(token);) tokens.push_back(token);
 }
 
-std::vector<std::string> split_whitespace(const std::string& line) {
+/// The tokens of one text line as strings, after any '#' comment is removed if `comments`.
+std::vector<std::string> line_tokens(std::string_view line, bool comments = true) {
   std::vector<std::string> tokens;
-  std::istringstream in(line);
-  std::string token;
-  while (in >> token) tokens.push_back(token);
+  LineTokens all(line, comments);
+  for (std::string_view token; all.next(token);) tokens.emplace_back(token);
   return tokens;
 }
+
+/// Whether a line holds a token (before any '#' comment if `comments`).
+bool has_token(std::string_view line, bool comments = true) {
+  std::string_view token;
+  return LineTokens(line, comments).next(token);
+}
+
+/// Whether a number read as a double is a whole number that fits a long long (PLY list lengths
+/// and vertex indices, whatever their declared type, are read as doubles first).
+bool whole_number(double value) { return std::abs(value) < 9.2e18 && value == std::floor(value); }
 
 /// The bytes of a file from `offset` on, scanned in place by the readers: mapped read-only (no copy;
 /// reading 170 MB into a string took 0.25 s of a 1.6M-vertex load), or read into memory when the
@@ -303,27 +325,6 @@ class TextLines {
   std::size_t position_ = 0, number_ = 0;
 };
 
-/// The tokens of one line, up to a '#' comment, one at a time (no allocation).
-class LineTokens {
- public:
-  /// `comments`: '#' starts a comment (OBJ, OFF); PLY data has none.
-  explicit LineTokens(std::string_view line, bool comments = true)
-      : rest_(comments ? line.substr(0, line.find('#')) : line) {}
-  bool next(std::string_view& token) {
-    std::size_t i = 0;
-    while (i < rest_.size() && is_space(rest_[i])) ++i;
-    if (i == rest_.size()) return false;
-    std::size_t j = i;
-    while (j < rest_.size() && !is_space(rest_[j])) ++j;
-    token = rest_.substr(i, j - i);
-    rest_ = rest_.substr(j);
-    return true;
-  }
-
- private:
-  std::string_view rest_;
-};
-
 /// Text files of one record per line are parsed in chunks of whole lines on several threads: a
 /// first pass counts each chunk's lines and records (of up to two kinds), a second parses each
 /// chunk knowing its first line number and its first record of each kind. Results, messages and
@@ -382,13 +383,11 @@ std::vector<TextChunk> count_text_chunks(std::string_view text, std::size_t begi
   return chunks;
 }
 
-/// Whether a line holds a token before any comment.
-bool has_token(std::string_view line) {
-  for (char c : line) {
-    if (c == '#') return false;
-    if (!is_space(c)) return true;
-  }
-  return false;
+/// The records of one kind in all chunks.
+std::size_t total_records(const std::vector<TextChunk>& chunks, int kind) {
+  std::size_t total = 0;
+  for (const TextChunk& chunk : chunks) total += chunk.records[static_cast<std::size_t>(kind)];
+  return total;
 }
 
 /// Faces parsed by one chunk: corner lists, appended to the soup in chunk order.
@@ -424,14 +423,13 @@ PolygonSoup read_obj_exact(const std::string& path) {
   };
   const int threads = text_threads(bytes.size());
   const std::vector<TextChunk> chunks = count_text_chunks(bytes, 0, 1, threads, kind_of);
-  std::size_t nv = 0;
-  for (const TextChunk& chunk : chunks) nv += chunk.records[0];
+  const std::size_t nv = total_records(chunks, 0);
   PolygonSoup soup;
   soup.V.resize(static_cast<Eigen::Index>(nv), 3);
   std::vector<ChunkFaces> faces(chunks.size());
   detail::run_tasks(threads, static_cast<int>(chunks.size()), [&](int c) {
     const TextChunk& chunk = chunks[c];
-    TextLines lines(std::string_view(bytes).substr(chunk.begin, chunk.end - chunk.begin));
+    TextLines lines(bytes.substr(chunk.begin, chunk.end - chunk.begin));
     std::string_view line, token;
     long long vertices_so_far = static_cast<long long>(chunk.first_record[0]);
     while (lines.next(line)) {
@@ -471,13 +469,6 @@ PolygonSoup read_obj_exact(const std::string& path) {
   });
   append_faces(soup.polygons, faces);
   return soup;
-}
-
-/// The tokens of one text line, '#' comment removed.
-std::vector<std::string> line_tokens(std::string line) {
-  const auto hash = line.find('#');
-  if (hash != std::string::npos) line.erase(hash);
-  return split_whitespace(line);
 }
 
 /// A token as it may be shown in a message: at most 40 characters, bytes outside printable ASCII as \xNN.
@@ -639,9 +630,7 @@ PolygonSoup read_off_exact(const std::string& path, std::uintmax_t file_size) {
   const int threads = text_threads(bytes.size());
   const std::vector<TextChunk> chunks = count_text_chunks(bytes, data_begin, lines.number() + 1, threads,
                                                           [](std::string_view l) { return has_token(l) ? 0 : -1; });
-  std::size_t records = 0;
-  for (const TextChunk& chunk : chunks) records += chunk.records[0];
-  if (records < static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
+  if (total_records(chunks, 0) < static_cast<std::size_t>(nv) + static_cast<std::size_t>(nf))
     fail(path, "file ends early: the header announces " + std::to_string(nv) + " vertices and " +
                    std::to_string(nf) + " faces");
   PolygonSoup soup;
@@ -651,7 +640,7 @@ PolygonSoup read_off_exact(const std::string& path, std::uintmax_t file_size) {
   detail::run_tasks(threads, static_cast<int>(chunks.size()), [&](int c) {
     const TextChunk& chunk = chunks[c];
     if (chunk.first_record[0] >= wanted) return;  // trailing records are ignored
-    TextLines chunk_lines(std::string_view(bytes).substr(chunk.begin, chunk.end - chunk.begin));
+    TextLines chunk_lines(bytes.substr(chunk.begin, chunk.end - chunk.begin));
     std::string_view text, token;
     std::size_t record = chunk.first_record[0];
     while (record < wanted && chunk_lines.next(text)) {
@@ -714,7 +703,7 @@ PlyHeader read_ply_header(const std::string& path, std::uintmax_t file_size) {
   PlyHeader header;
   while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    const auto tokens = split_whitespace(line);
+    const auto tokens = line_tokens(line, false);
     if (tokens.empty()) continue;
     if (tokens[0] == "end_header") {
       header.data_offset = in.tellg();
@@ -738,11 +727,6 @@ PlyHeader read_ply_header(const std::string& path, std::uintmax_t file_size) {
   fail(path, "PLY header has no end_header line");
 }
 
-/// Whether a line holds anything but whitespace.
-bool has_non_space(std::string_view line) {
-  return std::any_of(line.begin(), line.end(), [](char c) { return !is_space(c); });
-}
-
 /// ASCII PLY data read in parallel when it has one record per line, as every writer makes it: the
 /// non-empty lines are counted in chunks; if they are exactly the records, each chunk parses its
 /// lines as records (record r of the file is record r − (records of earlier elements) of its
@@ -756,10 +740,8 @@ bool read_ply_ascii_lines(std::string_view data, const std::vector<PlyElement>& 
   std::size_t total = 0;
   for (const PlyElement& element : elements) total += element.count;
   const std::vector<TextChunk> chunks =
-      count_text_chunks(data, 0, 1, threads, [](std::string_view line) { return has_non_space(line) ? 0 : -1; });
-  std::size_t lines = 0;
-  for (const TextChunk& chunk : chunks) lines += chunk.records[0];
-  if (lines != total) return false;
+      count_text_chunks(data, 0, 1, threads, [](std::string_view line) { return has_token(line, false) ? 0 : -1; });
+  if (total_records(chunks, 0) != total) return false;
   std::vector<std::size_t> element_begin{0};  // first record of each element in the file
   for (const PlyElement& element : elements) element_begin.push_back(element_begin.back() + element.count);
   std::vector<ChunkFaces> faces(chunks.size());
@@ -772,7 +754,7 @@ bool read_ply_ascii_lines(std::string_view data, const std::vector<PlyElement>& 
     std::size_t e = static_cast<std::size_t>(std::upper_bound(element_begin.begin(), element_begin.end(), record) -
                                              element_begin.begin()) - 1;
     while (chunk_lines.next(text)) {
-      if (!has_non_space(text)) continue;
+      if (!has_token(text, false)) continue;
       while (record >= element_begin[e + 1]) ++e;
       const PlyElement& element = elements[e];
       const bool is_vertex = &element == vertex, is_face = element.name == "face";
@@ -781,7 +763,7 @@ bool read_ply_ascii_lines(std::string_view data, const std::vector<PlyElement>& 
       const auto number = [&](double& value) { return tokens.next(token) && parse_double(token, value); };
       const auto integer = [&](long long& value) {
         double x;
-        if (!number(x) || !(std::abs(x) < 9.2e18) || x != std::floor(x)) return false;
+        if (!number(x) || !whole_number(x)) return false;
         value = static_cast<long long>(x);
         return true;
       };
@@ -818,7 +800,6 @@ bool read_ply_ascii_lines(std::string_view data, const std::vector<PlyElement>& 
     parsed[c] = 1;
   });
   if (std::find(parsed.begin(), parsed.end(), 0) != parsed.end()) return false;
-  soup.polygons.clear();
   append_faces(soup.polygons, faces);
   return true;
 }
@@ -896,7 +877,7 @@ PolygonSoup read_ply_exact(const std::string& path, std::uintmax_t file_size) {
   // An integer value (list length, vertex index) of a scalar of `type`.
   const auto next_integer = [&](const Scalar& type, const PlyElement& element, std::size_t record) -> long long {
     const double value = next_value(type, element, record);
-    if (!(std::abs(value) < 9.2e18) || value != std::floor(value))
+    if (!whole_number(value))
       fail(path, "element '" + element.name + "' " + std::to_string(record) + ": '" +
                      (ascii ? std::string(token) : std::to_string(value)) + "' is not an integer");
     return static_cast<long long>(value);

@@ -13,7 +13,6 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <numeric>
 #include <sstream>
 #include <thread>
 #include <type_traits>
@@ -345,12 +344,8 @@ void scan_stars(SoupScan& s, int begin, int end, StarFindings& out, bool want_li
   const auto neighbour_of = [](std::uint64_t use) { return static_cast<int>(use >> 32); };
   const auto corner_of = [](std::uint64_t use) { return static_cast<int>((use & 0xffffffffu) >> 1); };
   const auto outgoing = [](std::uint64_t use) { return (use & 1u) != 0; };
-  std::vector<int> fan_parent;
+  DisjointSets fans(0);  // the star's corners, joined across its two-face edges
   std::vector<std::size_t> corner_id;
-  const auto find = [&](int c) {
-    while (fan_parent[c] != c) c = fan_parent[c] = fan_parent[fan_parent[c]];
-    return c;
-  };
   for (int v = begin; v < end; ++v) {
     const std::size_t star_begin = s.star_offset[v];
     const int m = static_cast<int>(s.star_offset[v + 1] - star_begin);
@@ -388,8 +383,7 @@ void scan_stars(SoupScan& s, int begin, int end, StarFindings& out, bool want_li
         uses[j] = use;
       }
     }
-    fan_parent.resize(static_cast<std::size_t>(m));
-    std::iota(fan_parent.begin(), fan_parent.end(), 0);
+    fans.reset(static_cast<std::size_t>(m));
     unsigned char flags = 0;
     for (std::size_t i = 0; i < uses.size();) {
       std::size_t j = i;
@@ -399,8 +393,7 @@ void scan_stars(SoupScan& s, int begin, int end, StarFindings& out, bool want_li
       const bool owner = u > v;
       if (valence == 1) flags |= kOnBoundary;
       if (valence == 2) {
-        const int a = find(corner_of(uses[i])), b = find(corner_of(uses[i + 1]));
-        if (a != b) fan_parent[std::max(a, b)] = std::min(a, b);
+        fans.unite(static_cast<std::size_t>(corner_of(uses[i])), static_cast<std::size_t>(corner_of(uses[i + 1])));
       }
       if (owner) {
         const VertexPair edge{v, u};
@@ -434,15 +427,15 @@ void scan_stars(SoupScan& s, int begin, int end, StarFindings& out, bool want_li
       }
       i = j;
     }
-    int fans = 0;
-    for (int i = 0; i < m; ++i) fans += find(i) == i;
-    if (fans > 1) {
+    std::size_t fan_count = 0;
+    for (std::size_t i = 0; i < static_cast<std::size_t>(m); ++i) fan_count += fans.find(i) == i;
+    if (fan_count > 1) {
       out.non_manifold_vertices.add(v);
       flags |= kNonManifoldVertex;
     }
     s.vertex_flags[v] = flags;
     if (!s.corner_fan.empty())  // a fan is named by its smallest corner: the root's (roots are minima)
-      for (int i = 0; i < m; ++i) s.corner_fan[corner_id[i]] = corner_id[find(i)];
+      for (std::size_t i = 0; i < static_cast<std::size_t>(m); ++i) s.corner_fan[corner_id[i]] = corner_id[fans.find(i)];
   }
 }
 
