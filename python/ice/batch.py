@@ -12,8 +12,8 @@ records and OUT/summary.csv one line per mesh; a summary is printed at the end.
 
 Safety: every file is written to a temporary name and renamed; a mesh's outputs are renamed into
 place after its record is written, so a batch killed at any point leaves no output without its
-record, and a mesh whose outputs are not all there is redone. A rerun skips the meshes whose record has the same options hash, the same
-input (size and modification time) and its outputs (a failure that depends only on the input, a
+record, and a mesh whose outputs are not all there is redone. A rerun skips the meshes whose record
+has the same options hash, the same input (size and modification time) and its outputs (a failure that depends only on the input, a
 refused or unreadable file, is not retried either); a changed option redoes every mesh. Files in OUT
 that a batch did not write are never replaced without --force, and an output that would replace an
 input mesh is refused before any work.
@@ -357,6 +357,7 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
         cluster_start = time.perf_counter()
         client, cluster = _client(options)
         result.cluster_seconds = time.perf_counter() - cluster_start
+        stalled = False  # set by the watchdog
         try:
             futures = {client.submit(coarsen_file, str(job.path), job.relative, str(out), options.coarsen,
                                      options.repair, options.timeout, job.size, job.mtime_ns, pure=False,
@@ -367,6 +368,7 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
             while not finished.is_empty():
                 if not finished.has_ready():
                     if options.stall_timeout is not None and time.monotonic() - last_finish > options.stall_timeout:
+                        stalled = True
                         for future, job in futures.items():  # the watchdog: stop waiting, record the rest
                             if job.relative not in records:
                                 future.cancel()
@@ -391,7 +393,7 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
                 last_finish = time.monotonic()
             bar(None)
         finally:
-            _shut_down(client, cluster, stalled=any(r.get("error_kind") == "stalled" for r in records.values()))
+            _shut_down(client, cluster, stalled)
     result.records = [records[job.relative] for job in jobs]
     result.seconds = time.perf_counter() - started
     _write_summary(out, result)
@@ -523,9 +525,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--memory-limit", default="auto",
                         help="per worker, e.g. 4GB (Dask restarts a worker above it; default: memory / workers)")
     parser.add_argument("--timeout", type=float, help="seconds per mesh before its coarsening is cancelled")
-    parser.add_argument("--stall-timeout", type=float, default=1800.0,
+    parser.add_argument("--stall-timeout", type=float, default=BatchOptions.stall_timeout,
                         help="seconds without any mesh finishing before the batch stops waiting and records the "
-                             "meshes still queued or running as stalled (default: 1800)")
+                             "meshes still queued or running as stalled (default: %(default)g)")
     parser.add_argument("--force", action="store_true", help="replace output files a batch did not write")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     return parser
