@@ -231,10 +231,16 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
              "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
              "Decimater with quadrics, input vertices mapped by closest-point projection)");
   cli.add_option("--coarsen-threads", threads,
-                 "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = k regions coarsened in parallel, "
+                 "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = 4k regions coarsened in parallel, "
                  "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
                  "not identical to the serial result); 0 = one per hardware thread")
       ->check(integer_between(0, 64))
+      ->capture_default_str();
+  cli.add_option("--coarsen-regions", regions,
+                 "Regions of ICE's parallel phase: R >= 2 runs it with R regions on --coarsen-threads threads, one "
+                 "included, with a result that depends on R only (the same for any thread count: reproducible across "
+                 "machines); 1 = the serial greedy order; 0 = 4 x --coarsen-threads")
+      ->check(integer_between(0, 254))
       ->capture_default_str();
   cli.add_option("--refine-angle", refine_angle,
                  "Intrinsic Delaunay refinement of the ICE coarse mesh after coarsening: insert vertices (tracked on the "
@@ -288,6 +294,7 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
   options.area_weight = area_weight;
   options.normalize_curvature = normalize_curvature;
   options.threads = threads;
+  options.regions = regions;
 }
 
 std::string cli_name(ice::CoarseningMethod method) { return name_of(kMethodNames, method); }

@@ -79,6 +79,7 @@ struct TargetOptions {
   bool normalize_curvature = ice::recommended_coarsen_options().normalize_curvature;
   ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< --method ice|qem
   int threads = 1;             ///< ICE coarsening threads (ice::CoarsenOptions::threads)
+  int regions = 0;             ///< regions of the parallel phase (ice::CoarsenOptions::regions)
   /// --refine-angle DEG (0: no refinement) and --refine-budget R: intrinsic Delaunay refinement of
   /// the ICE coarse mesh (ice::RefinementOptions).
   double refine_angle = 0;
@@ -92,11 +93,12 @@ struct TargetOptions {
   /// The metric defaults measured for `use` (call before add_to, so --help shows them).
   void use_defaults_for(ice::ProxyUse use);
   /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight,
-  /// --normalize-curvature/--no-normalize-curvature, --method, --coarsen-threads, --refine-angle and
+  /// --normalize-curvature/--no-normalize-curvature, --method, --coarsen-threads, --coarsen-regions,
+  /// --refine-angle and
   /// --refine-budget.
   void add_to(CLI::App& cli, bool with_max_error);
   /// Checks the values against an input of n vertices and fills `options` (target, error, area
-  /// weight, threads). Throws AppError(kUsage) with a clear message on a bad combination or value.
+  /// weight, threads, regions). Throws AppError(kUsage) with a clear message on a bad combination or value.
   void apply(ice::CoarsenOptions& options, long long n) const;
 };
 

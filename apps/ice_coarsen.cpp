@@ -291,6 +291,7 @@ int main(int argc, char** argv) {
                            {"area_weight", options.area_weight},
                            {"normalize_curvature", options.normalize_curvature},
                            {"coarsen_threads", options.threads},
+                           {"coarsen_regions", options.regions},
                            {"keep_boundary", keep_boundary},
                            {"locked_vertices", options.locked_vertices.size()}};
       report["coarse"] = app::coarsen_json(summary);

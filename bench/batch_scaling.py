@@ -5,8 +5,9 @@ calling the library directly.
     PYTHONPATH=build/release/python python3 bench/batch_scaling.py [FOLDER] [--ratio 0.05] [--rounds 3]
 
 Each round (alternating, fresh output folders) runs: the library directly in this process (for every
-mesh: ice.load_mesh, ice.coarsen, CoarseSpace.save, P and the map saved with numpy, one process, no
-Dask), then ice.batch.run with 1 worker and with 2. Prints medians of the wall times, the speed-up of
+mesh: ice.load_mesh, ice.coarsen with the batch's options on one thread, CoarseSpace.save, P and the
+map saved with numpy, one process, no Dask), then ice.batch.run with 1 worker and with 2 (the batch's
+default threads per mesh: 1 and 2, for meshes of 20,000+ vertices). Prints medians of the wall times, the speed-up of
 2 workers over 1, and (batch with 1 worker − direct) / meshes, with and without the cluster's start.
 Default folder: ../shared/data/meshes beside the repository (with --repair, as it has defective files).
 """
@@ -30,7 +31,7 @@ def direct(jobs, out: pathlib.Path, coarsen: dict, repair: bool) -> float:
     for job in jobs:
         try:
             V, F = ice.load_mesh(job.path, repair=repair)
-            coarse = ice.coarsen(V, F, **coarsen)
+            coarse = ice.coarsen(V, F, threads=1, **batch.canonical_options(coarsen))  # as a 1-worker batch
         except (ice.MeshError, ValueError, RuntimeError):
             continue
         target = out / job.relative

@@ -291,6 +291,13 @@ elseif(CASE STREQUAL "coarsen_threads")
   json(threads "${WORK}/r.json" options coarsen_threads)
   check(${threads} EQUAL 2 "options.coarsen_threads")
   expect_error(4 "coarsen-threads" ice-coarsen "${mesh}" --ratio 0.05 --coarsen-threads -1 -o "${WORK}/out2" -q)
+  # A fixed region count: the same coarse mesh on one thread as on two (2 threads = 8 regions too).
+  run(0 ice-coarsen "${mesh}" --ratio 0.05 --coarsen-threads 1 --coarsen-regions 8 -o "${WORK}/one" --report "${WORK}/one.json" -q)
+  execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files "${WORK}/one/coarse.ilm" "${WORK}/out/coarse.ilm" RESULT_VARIABLE differ)
+  check(${differ} EQUAL 0 "coarse.ilm of 1 thread with 8 regions against 2 threads (files differ)")
+  json(regions "${WORK}/one.json" options coarsen_regions)
+  check(${regions} EQUAL 8 "options.coarsen_regions")
+  expect_error(4 "coarsen-regions" ice-coarsen "${mesh}" --ratio 0.05 --coarsen-regions 255 -o "${WORK}/out3" -q)
 
 elseif(CASE STREQUAL "geodesic_spot")
   project_mesh(mesh spot.obj)

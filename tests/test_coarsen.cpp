@@ -302,6 +302,50 @@ TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays c
   }
 }
 
+TEST_CASE("with a fixed region count the result does not depend on the thread count", "[coarsen][meshes]") {
+  // Two components and a boundary (blobby_3cc), a closed surface once subdivided (spot: 11.7k).
+  for (const auto& [name, subdivisions] : {std::pair{"blobby_3cc.off", 0}, std::pair{"spot.obj", 1}}) {
+    INFO(name);
+    const TriangleMesh mesh = loop_subdivide(load_mesh(ice_test::project_mesh(name)), subdivisions);
+    const auto coarsened = [&](int threads, int regions, CoarsenResult* result = nullptr) {
+      CoarsenOptions options;
+      options.target_ratio = 0.03;
+      options.threads = threads;
+      options.regions = regions;
+      options.parallel_min_vertices = 1000;
+      auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+      const CoarsenResult r = coarsen(T, options);
+      if (result) *result = r;
+      CHECK(T.validate() == "");
+      return T.compact();
+    };
+    const auto check_equal = [](const CompactMesh& a, const CompactMesh& b) {
+      CHECK(a.F == b.F);
+      CHECK(a.L == b.L);  // bit-identical
+      CHECK(a.to_input == b.to_input);
+      CHECK(a.twin == b.twin);
+    };
+    CoarsenResult one_thread, serial;
+    const CompactMesh reference = coarsened(1, 8, &one_thread);
+    CHECK(one_thread.parallel_removed > one_thread.removed / 2);  // the regions ran, on one thread
+    check_equal(coarsened(2, 8), reference);
+    check_equal(coarsened(3, 8), reference);
+    check_equal(coarsened(2, 0), reference);  // 0: 4 × threads regions, as before
+    // One region (or the default with one thread) is the serial greedy order, which differs.
+    const CompactMesh exact = coarsened(1, 0, &serial);
+    CHECK(serial.parallel_removed == 0);
+    check_equal(coarsened(4, 1), exact);
+    CHECK(exact.L != reference.L);
+  }
+  auto T = IntrinsicTriangulation::from_mesh(make_icosphere(2).V, make_icosphere(2).F);
+  CoarsenOptions options;
+  options.target_ratio = 0.5;
+  for (int regions : {-1, 255}) {
+    options.regions = regions;
+    CHECK_THROWS_AS(coarsen(T, options), std::invalid_argument);
+  }
+}
+
 TEST_CASE("the parallel mode honours thresholds and cancellation", "[coarsen]") {
   const TriangleMesh mesh = make_icosphere(5);  // 10,242 vertices
   CoarsenOptions options;

@@ -11,6 +11,7 @@
 #include <memory>
 #include <optional>
 #include <stdexcept>
+#include <string>
 #include <thread>
 #include <chrono>
 #include <cmath>
@@ -372,16 +373,18 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   // restores the Delaunay property along the seams and then continues the global greedy order from
   // exact costs over all vertices (so the last, most visible removals are ordered as in the serial
   // algorithm, and the vertices along the seams are removed too).
+  if (options.regions < 0 || options.regions > 254)
+    throw std::invalid_argument("coarsen: regions = " + std::to_string(options.regions) + " is out of range [0, 254]");
   const int threads = std::min(options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
   const Index live = T.num_vertices();
   const Index intermediate = target + std::max<Index>(target, (live - target) / 32);
-  const bool parallel = threads > 1 && live >= options.parallel_min_vertices && intermediate < live / 2;
   RegionPartition partition;
   // More regions than threads: a thread that finishes its region early in a round takes another.
-  partition.parts = std::min(4 * threads, 254);
+  partition.parts = options.regions > 0 ? options.regions : threads > 1 ? std::min(4 * threads, 254) : 1;
+  const bool parallel = partition.parts > 1 && live >= options.parallel_min_vertices && intermediate < live / 2;
   // The partition (a breadth-first pass) runs on a second thread while the metric is set up.
   std::optional<IntrinsicErrorMetric> metric_storage;
-  detail::run_tasks(parallel ? 2 : 1, parallel ? 2 : 1, [&](int task) {
+  detail::run_tasks(parallel ? std::min(threads, 2) : 1, parallel ? 2 : 1, [&](int task) {
     if (task == 0) {
       metric_storage.emplace(T, options.area_weight, options.normalize_curvature);
     } else {

@@ -89,7 +89,7 @@ def coarsen(V: ArrayLike, F: ArrayLike, *, n: int | None = None, ratio: float | 
             max_error: float | None = None, method: Literal["ice", "qem"] = "ice",
             use: Literal["poisson_heat", "geodesic"] = "poisson_heat", area_weight: float | None = None,
             normalize_curvature: bool | None = None, locked: Indices | None = None, remove_boundary: bool = True,
-            threads: int = 1, qem_geometry: Literal["extrinsic", "intrinsic_delaunay"] = "extrinsic",
+            threads: int = 1, regions: int = 0, qem_geometry: Literal["extrinsic", "intrinsic_delaunay"] = "extrinsic",
             refine_angle: float | None = None, refine_budget: float = 1.5, keep_map: bool = True,
             locality_numbering: bool = True,
             progress: Callable[[dict[str, Any]], bool | None] | None = None) -> CoarseSpace:

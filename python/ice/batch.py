@@ -27,6 +27,11 @@ is recorded as crashed. The batch itself never stops for one mesh, and never han
 has finished for --stall-timeout seconds (default 1800; a worker hung in the kernel, a cluster that
 lost its workers), the meshes still queued or running get a "stalled" error record, which a rerun
 retries, and the batch ends.
+
+Threads: meshes of 20,000+ vertices run ICE's parallel phase with a fixed number of regions
+(--regions, default 16), so their result does not depend on where or on how many threads they run;
+each gets --mesh-threads threads (default: the number of local workers), so the last large meshes
+use the cores that workers with nothing left to do leave idle. The meshes go largest first.
 """
 from __future__ import annotations
 
@@ -51,12 +56,17 @@ import scipy.sparse
 
 MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
 RECORD_VERSION = 1
-# Coarsening options that a batch passes to ice.coarsen (and hashes).
+# Coarsening options that a batch passes to ice.coarsen (and hashes). Not the thread count: the
+# batch chooses it per mesh (BatchOptions.mesh_threads) and it does not change the result.
 COARSEN_OPTIONS = ("n", "ratio", "max_error", "method", "use", "area_weight", "normalize_curvature",
-                   "remove_boundary", "threads", "qem_geometry", "refine_angle", "refine_budget")
-# What ice.coarsen does when an option is not given: a record's hash is of the options with these
-# filled in, so {"ratio": 0.05} and {"ratio": 0.05, "method": "ice"} are the same run.
-COARSEN_DEFAULTS = {"method": "ice", "use": "poisson_heat", "remove_boundary": True, "threads": 1,
+                   "remove_boundary", "regions", "qem_geometry", "refine_angle", "refine_budget")
+# A record's hash is of the options with these filled in, so {"ratio": 0.05} and {"ratio": 0.05,
+# "method": "ice"} are the same run. All but one are what ice.coarsen does when an option is not
+# given; "regions" is the batch's own: meshes of 20,000+ vertices are coarsened by ICE's parallel
+# phase with 16 regions (ice.coarsen's default 0 would tie the result to the thread count), so a
+# mesh's result is the same whichever worker, machine or number of threads runs it, and a large
+# mesh can take cores that other workers leave idle. regions=1: the exact serial greedy order.
+COARSEN_DEFAULTS = {"method": "ice", "use": "poisson_heat", "remove_boundary": True, "regions": 16,
                     "qem_geometry": "extrinsic", "refine_budget": 1.5}
 # Failures that depend only on the input file: not retried by a rerun with the same input.
 DETERMINISTIC_ERRORS = ("unreadable", "defective", "invalid")
@@ -127,10 +137,17 @@ def manifest(source: str) -> tuple[list[Job], pathlib.Path]:
 
 def canonical_options(coarsen: dict) -> dict:
     """The coarsening options as ice.coarsen will use them (defaults filled in, None dropped)."""
+    if "threads" in coarsen:
+        raise ValueError("the batch chooses the threads of each mesh (BatchOptions.mesh_threads, --mesh-threads); "
+                         "they do not change the result, which depends on 'regions'")
     unknown = set(coarsen) - set(COARSEN_OPTIONS)
     if unknown:
         raise ValueError(f"unknown coarsening options {sorted(unknown)} (known: {', '.join(COARSEN_OPTIONS)})")
-    return {**COARSEN_DEFAULTS, **{k: v for k, v in coarsen.items() if v is not None}}
+    options = {**COARSEN_DEFAULTS, **{k: v for k, v in coarsen.items() if v is not None}}
+    if options["regions"] == 0:
+        raise ValueError("regions=0 (4 x threads) would make a mesh's result depend on the threads the batch gives it; "
+                         "give a fixed count (default 16; 1 = the exact serial greedy order)")
+    return options
 
 
 def options_hash(options: dict) -> str:
@@ -176,14 +193,15 @@ def _error_kind(error: BaseException) -> str:
 
 
 def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool, timeout: float | None,
-                 input_size: int, input_mtime_ns: int) -> dict:
-    """Coarsens one mesh file and writes its outputs and record; returns the record. Never raises for
-    a problem of the mesh: that becomes an error record. Runs in a worker process."""
+                 input_size: int, input_mtime_ns: int, threads: int = 1) -> dict:
+    """Coarsens one mesh file on `threads` threads and writes its outputs and record; returns the
+    record. Never raises for a problem of the mesh: that becomes an error record. Runs in a worker
+    process."""
     import ice
     started = time.perf_counter()
     paths = output_paths(pathlib.Path(out), relative)
     record = {"input": path, "output": relative, "hash": options_hash({**options, "repair": repair}),
-              "input_size": input_size, "input_mtime_ns": input_mtime_ns}
+              "input_size": input_size, "input_mtime_ns": input_mtime_ns, "threads": threads}
     finished: list[tuple[pathlib.Path, str]] = []  # (output, its written temporary)
     try:
         loaded = ice.load_mesh(path, repair=repair)
@@ -197,7 +215,7 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
                 timed_out.append(True)
                 return False
             return True
-        coarse = ice.coarsen(loaded.V, loaded.F, progress=progress, **options)
+        coarse = ice.coarsen(loaded.V, loaded.F, progress=progress, threads=threads, **options)
         if timed_out:
             raise TimeoutError(f"{path}: coarsening passed the timeout of {timeout:g} s "
                                f"(at {coarse.n_vertices} vertices); cancelled")
@@ -261,6 +279,10 @@ class BatchOptions:
     memory_limit: str | None = "auto"
     timeout: float | None = None
     stall_timeout: float | None = 1800.0  # seconds without any mesh finishing before the batch gives up
+    # Threads per mesh (only meshes of 20,000+ vertices use more than one). None: on a LocalCluster
+    # the batch's cores (= workers), so the last large meshes run on the cores the finished workers
+    # left idle (while others run, the system shares the cores among them); with --scheduler, 1.
+    mesh_threads: int | None = None
     force: bool = False
     progress: bool = True
 
@@ -330,6 +352,9 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
     from distributed import as_completed
     if options.stall_timeout is not None and not options.stall_timeout > 0:
         raise ValueError(f"the stall timeout must be positive, not {options.stall_timeout}")
+    if options.mesh_threads is not None and not 1 <= options.mesh_threads <= 64:
+        raise ValueError(f"the threads per mesh must be in 1..64, not {options.mesh_threads}")
+    threads = options.mesh_threads or (1 if options.scheduler else max(1, min(options.workers, os.cpu_count() or 1)))
     started = time.perf_counter()
     options = dataclasses.replace(options, coarsen=canonical_options(options.coarsen))
     jobs, _ = manifest(source)
@@ -360,7 +385,7 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
         stalled = False  # set by the watchdog
         try:
             futures = {client.submit(coarsen_file, str(job.path), job.relative, str(out), options.coarsen,
-                                     options.repair, options.timeout, job.size, job.mtime_ns, pure=False,
+                                     options.repair, options.timeout, job.size, job.mtime_ns, threads, pure=False,
                                      key=f"ice-{job.relative}-{digest}"): job for job in todo}
             bar = _progress_bar(len(todo), options.progress, log)
             finished = as_completed(futures)
@@ -522,6 +547,14 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
                         help="worker processes of the local Dask cluster (default: 2, or the cores if fewer)")
     parser.add_argument("--scheduler", help="address of a running Dask scheduler (tcp://HOST:PORT) instead")
+    parser.add_argument("--mesh-threads", type=int,
+                        help="threads per mesh, for meshes of 20,000+ vertices (default: the number of local "
+                             "workers, so the last large meshes use the cores idle workers leave; 1 with "
+                             "--scheduler); the result does not depend on it")
+    parser.add_argument("--regions", type=int, default=COARSEN_DEFAULTS["regions"],
+                        help="regions of ICE's parallel phase for meshes of 20,000+ vertices (fixed, so a mesh's "
+                             "result does not depend on the threads or the machine; 1 = the exact serial greedy "
+                             "order; default: %(default)s)")
     parser.add_argument("--memory-limit", default="auto",
                         help="per worker, e.g. 4GB (Dask restarts a worker above it; default: memory / workers)")
     parser.add_argument("--timeout", type=float, help="seconds per mesh before its coarsening is cancelled")
@@ -539,7 +572,7 @@ def main(argv=None) -> int:
         print("ice-batch: say how far to coarsen: --vertices N, --ratio R (e.g. 0.05) or --max-error E",
               file=sys.stderr)
         return 4
-    coarsen = {"method": args.method, "use": args.use}
+    coarsen = {"method": args.method, "use": args.use, "regions": args.regions}
     for name, value in (("n", args.vertices), ("ratio", args.ratio), ("max_error", args.max_error),
                         ("area_weight", args.area_weight), ("refine_angle", args.refine_angle)):
         if value is not None:
@@ -550,6 +583,7 @@ def main(argv=None) -> int:
         print("ice-batch: --workers must be >= 1", file=sys.stderr)
         return 4
     options = BatchOptions(coarsen=coarsen, repair=args.repair, workers=args.workers, scheduler=args.scheduler,
+                           mesh_threads=args.mesh_threads,
                            memory_limit=args.memory_limit, timeout=args.timeout,
                            stall_timeout=args.stall_timeout, force=args.force,
                            progress=not args.quiet and sys.stderr.isatty())

@@ -281,7 +281,8 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
                                        const py::object& ratio, const py::object& max_error, const std::string& method,
                                        const std::string& use, const py::object& area_weight,
                                        const py::object& normalize_curvature, const py::object& locked,
-                                       bool remove_boundary, const py::object& threads, const std::string& qem_geometry,
+                                       bool remove_boundary, const py::object& threads, const py::object& regions,
+                                       const std::string& qem_geometry,
                                        const py::object& refine_angle, double refine_budget, bool keep_map,
                                        bool locality_numbering, const py::object& progress) {
   const ice::TriangleMesh mesh = mesh_argument(V, F);
@@ -322,6 +323,7 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
   if (!locked.is_none()) c.locked_vertices = index_argument(locked, mesh.V.rows(), "locked");
   c.remove_boundary = remove_boundary;
   c.threads = bounded_integer(threads, "threads", 0, 64);  // the tools' --coarsen-threads range
+  c.regions = bounded_integer(regions, "regions", 0, 254);  // --coarsen-regions
   // refine_angle: None or 0 = no refinement (as --refine-angle 0), else (0, 30] degrees.
   const double angle = refine_angle.is_none() ? 0.0 : number_option(refine_angle, "refine_angle");
   if (!(angle >= 0 && angle <= 30))
@@ -705,7 +707,7 @@ ice.load_coarse_mesh reads it back). An existing file is replaced only with over
         py::arg("ratio") = py::none(), py::arg("max_error") = py::none(), py::arg("method") = "ice",
         py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(), py::arg("normalize_curvature") = py::none(),
         py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1,
-        py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
+        py::arg("regions") = 0, py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
         py::arg("keep_map") = true, py::arg("locality_numbering") = true, py::arg("progress") = py::none(),
         R"doc(Coarsens the mesh (V, F) (clean, oriented, manifold; several components, boundaries and any genus
 are fine) and returns its ice.CoarseSpace: the intrinsic coarse mesh, P, the fine-to-coarse map.
@@ -715,7 +717,10 @@ error metric; may be combined with n or ratio, whichever stops first).
 method: "ice" (intrinsic vertex removals) or "qem" (the QEM baseline; qem_geometry "extrinsic" or
 "intrinsic_delaunay"). use: "poisson_heat" or "geodesic" picks the measured metric defaults
 (area_weight, normalize_curvature), which the two arguments override. locked: vertices never
-removed (e.g. Dirichlet vertices). threads: coarsening threads (1: the exact serial greedy order).
+removed (e.g. Dirichlet vertices). threads: coarsening threads (1: the exact serial greedy order; k > 1: 4k regions coarsened in
+parallel on meshes of 20,000+ vertices, then a serial pass). regions: R >= 2 runs that parallel
+phase with R regions on `threads` threads, one included, with a result that depends on R only
+(bit-identical for any thread count); 1: the serial order; 0: 4 x threads.
 refine_angle: intrinsic Delaunay refinement to this smallest angle (degrees), at most refine_budget
 times the vertices. progress: called with a dict (vertices, target, removed, last_cost) every 1000
 removals; returning False stops early (summary["stop_reason"] == "cancelled"), an exception in it or

@@ -80,6 +80,42 @@ def test_rerun_skips_and_changed_option_redoes(dataset, tmp_path):
     assert touched.skipped == len(first.records) - 1
 
 
+def test_large_mesh_result_does_not_depend_on_workers_or_threads(project_mesh, tmp_path):
+    """A mesh of 20,000+ vertices runs ICE's parallel phase with the batch's fixed region count: one
+    worker (one thread per mesh) and two workers (two threads per mesh) give the same result to the
+    bit, which is ice.coarsen's with regions=16 on one thread."""
+    V, F = ice.loop_subdivide(*ice.load_mesh(project_mesh("spot.obj")), 2)  # 46,850 vertices
+    folder = tmp_path / "in"
+    folder.mkdir()
+    ice.save_mesh(folder / "big.ply", V, F, binary=True)
+    results = {}
+    for workers in (1, 2):
+        out = tmp_path / f"out{workers}"
+        run = batch.run(str(folder), out, batch.BatchOptions(coarsen={"ratio": 0.05}, workers=workers, progress=False))
+        assert run.records[0]["status"] == "ok" and run.records[0]["threads"] == workers
+        results[workers] = batch.load_result(out, "big.ply")
+    assert results[1]["record"]["hash"] == results[2]["record"]["hash"]  # the threads are not an option
+    V, F = ice.load_mesh(folder / "big.ply")
+    direct = ice.coarsen(V, F, ratio=0.05, regions=16)
+    assert direct.summary["parallel_removed"] > direct.summary["removed"] // 2
+    for result in results.values():
+        assert abs(result["P"] - direct.P).max() == 0
+        assert np.array_equal(result["coarse"].lengths, direct.lengths)
+        assert np.array_equal(result["map_face"], direct.map[0])
+    # the exact serial order is one region; 0 (4 x threads) would tie the result to the threads
+    serial = batch.run(str(folder), tmp_path / "serial", options(ratio=0.05, regions=1))
+    assert serial.records[0]["coarse_vertices"] == direct.n_vertices
+    assert not np.array_equal(batch.load_result(tmp_path / "serial", "big.ply")["coarse"].lengths, direct.lengths)
+    with pytest.raises(ValueError, match="regions=0"):
+        batch.run(str(folder), tmp_path / "bad", options(ratio=0.05, regions=0))
+    with pytest.raises(ValueError, match="mesh_threads"):
+        batch.run(str(folder), tmp_path / "bad", options(ratio=0.05, threads=2))
+    command = [sys.executable, "-m", "ice.batch", str(folder), "-o", str(tmp_path / "bad"), "--ratio", "0.05",
+               "--mesh-threads", "0"]
+    refused = subprocess.run(command, capture_output=True, text=True)
+    assert refused.returncode == 4 and "threads per mesh" in refused.stderr
+
+
 def test_foreign_files_are_not_replaced(dataset, tmp_path):
     out = tmp_path / "out"
     (out / "a").mkdir(parents=True)

@@ -50,15 +50,23 @@ struct CoarsenOptions {
   std::function<bool(const CoarsenProgress&)> progress;
   Index progress_interval = 1000;
   /// Threads (1: serial, the exact greedy order; 0: one per hardware thread). With k > 1 and at
-  /// least `parallel_min_vertices` live vertices, the mesh is first cut into 4k compact regions
+  /// least `parallel_min_vertices` live vertices, the mesh is first cut into 4k compact regions (or `regions`)
   /// (ranges of a breadth-first order) and the threads run the greedy order inside the regions,
   /// never removing a vertex with a neighbour in another region nor flipping an edge across two,
   /// in rounds with a common cost threshold (growing 1.4x per round, so the regions advance in
   /// nearly the global cost order), down to an intermediate size that leaves max(target, 1/32 of
   /// the removals) to a final serial greedy pass over the whole mesh (which first restores the
   /// Delaunay property along the region seams). In that phase `progress` is called once per round.
-  /// The result is deterministic for a given thread count, but differs from the serial one.
+  /// The result is deterministic for a given region count (`regions`), but differs from the
+  /// serial one.
   int threads = 1;
+  /// Regions of the parallel phase, in [0, 254] (std::invalid_argument otherwise). 0: 4 × threads,
+  /// and no parallel phase with one thread. 1: no parallel phase. R ≥ 2: the parallel phase with R
+  /// regions on however many threads there are, one included: the result depends on R, never on
+  /// `threads` (bit-identical for 1, 2, … threads), so a caller can fix R for reproducible output
+  /// and choose the threads by the cores free at the time (ice-batch gives large meshes the cores
+  /// its other workers leave idle).
+  int regions = 0;
   Index parallel_min_vertices = 20000;
 };
 
