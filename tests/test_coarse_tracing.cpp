@@ -262,9 +262,10 @@ TEST_CASE("tracing the intrinsic Delaunay triangulation: lengths on the surface 
   SECTION("a CAD mesh with long slivers: a known shortfall, bounded") {
     // mech-holes-shark's slivers span many intrinsic faces; the layout of their far corners is not
     // always resolved (see ice/coarse_tracing.h, "Limits"): measured 3 of 15,440 edges untraced and
-    // 87 traced 0.1-2.4 % long.
+    // 1 traced 7.5e-5 long (87 traced 0.1-2.4 % long before far corners were chosen by the input
+    // triangle's shape).
     const TraceFigures figures = check_intrinsic_delaunay(ice::load_mesh(ice_test::project_mesh("mech-holes-shark.off")));
-    CHECK(figures.failed + figures.long_edges <= (figures.edges + figures.failed) / 100);
+    CHECK(figures.failed + figures.long_edges <= (figures.edges + figures.failed) / 500);
   }
 }
 
@@ -356,6 +357,33 @@ TEST_CASE("tracing ICE coarse meshes of the extended set", "[tracing][extended]"
   CHECK(paths.size() >= 20);
   const std::array<Index, 3> counts = trace_mesh_files(paths);
   CHECK(counts[1] * 100 <= 2 * counts[0]);
+}
+
+TEST_CASE("tracing the intrinsic Delaunay triangulations of the extended set: lengths are the intrinsic ones", "[tracing][extended]") {
+  ICE_SKIP_WITHOUT_EXTENDED_SET();
+  // Where the metric is the input's, a trace's length on the surface is the intrinsic length: a
+  // wrong layout shows. Measured (2026-11-27) over the 27 meshes below 200k vertices that load after
+  // repair: 451 of 820,179 edges untraced and 198 traced with a length error above 1e-9 (93 above
+  // 1e-6), 0.79 per thousand; 477 and 1,188 (2.0 per thousand) before far corners were chosen by the
+  // shape of their input triangle.
+  Index edges = 0, wrong = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(ice_mesh_sets::extended_dir())) {
+    const std::string ext = entry.path().extension().string();
+    if (ext != ".obj" && ext != ".off" && ext != ".ply") continue;
+    INFO(entry.path().string());
+    ice::TriangleMesh mesh;
+    try {
+      mesh = ice::load_mesh(entry.path().string(), {true, false});
+    } catch (const ice::MeshError&) {
+      continue;  // refused even after repair
+    }
+    if (mesh.V.rows() > 200000) continue;  // the 437k-vertex scan: 12 s in Release alone
+    const TraceFigures figures = check_intrinsic_delaunay(mesh);
+    edges += figures.edges + figures.failed;
+    wrong += figures.failed + figures.long_edges;
+  }
+  CHECK(edges > 500000);
+  CHECK(wrong * 1000 <= edges);
 }
 
 // What the tracing relies on: the straight images of input triangles in the coarse layout do not fold.

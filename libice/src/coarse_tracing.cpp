@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -81,8 +82,8 @@ bool segment_meets_hull(Vec2 a, Vec2 b, const std::vector<Vec2>& hull) {
 class Tracer {
  public:
   Tracer(const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
-         const std::vector<InputSurfacePoint>& inserted)
-      : F_(F), coarse_(coarse), map_(map), inserted_(inserted) {
+         const std::vector<InputSurfacePoint>& inserted, const Positions& V)
+      : F_(F), coarse_(coarse), map_(map), inserted_(inserted), V_(V) {
     coarse_twin_ = coarse.twin.empty() ? glue_by_vertex_pairs(coarse.F) : coarse.twin;
     fine_twin_ = glue_by_vertex_pairs(F);
     // Input vertex -> its faces (compressed rows), for the first step out of a vertex.
@@ -169,7 +170,9 @@ class Tracer {
   // star copies within the cut (a coarse vertex: each corner that is it), the one nearest `near`.
   // The stars hold every coarse face an input triangle crossed by the edge reaches, unless input
   // triangles are large against coarse faces: then place() searches further.
-  const Placement* place_in_star(Index v, const std::vector<StarCopy>& star, Vec2 near, Cache& cache) const {
+  using Score = std::function<double(Vec2)>;
+  const Placement* place_in_star(Index v, const std::vector<StarCopy>& star, Vec2 near, Cache& cache,
+                                 const Score* score = nullptr) const {
     const auto hit = cache.find(v);
     if (hit != cache.end()) return &hit->second;
     const CoarsePoint& point = map_[static_cast<std::size_t>(v)];
@@ -186,7 +189,7 @@ class Tracer {
         const double within = w.norm() == 0 ? 0 : std::atan2(cross(first, w), first.x * w.x + first.y * w.y);
         const double angle = member.start + within;
         if (angle < -half || angle > half) return;
-        const double distance = (position - near).norm();
+        const double distance = score ? (*score)(position) : (position - near).norm();
         if (!have || distance < best) {
           have = true;
           best = distance;
@@ -321,7 +324,8 @@ class Tracer {
   // shortened by `shrink` at each end; 0 where the image is only a segment out of a vertex and the
   // unfolding must turn about it), then the one nearest `near`.
   const Placement* place(Index v, const std::vector<FaceCopy>& seeds, const std::vector<Vec2>& anchors, Vec2 near,
-                         Cache& cache, double shrink, const std::array<Vec2, 2>* left_of = nullptr) const {
+                         Cache& cache, double shrink, const std::array<Vec2, 2>* left_of = nullptr,
+                         const Score* score = nullptr) const {
     const auto hit = cache.find(v);
     if (hit != cache.end()) return &hit->second;
     const CoarsePoint& point = map_[static_cast<std::size_t>(v)];
@@ -343,7 +347,7 @@ class Tracer {
         // (the map does not fold input triangles: the test "ICE's map lays input triangles out...").
         const bool left = !left_of || orient2d((*left_of)[0], (*left_of)[1], position) > 0;
         const int rank = (valid ? 0 : 2) + (left ? 0 : 1);
-        const double distance = (position - near).norm();
+        const double distance = score ? (*score)(position) : (position - near).norm();
         // Ties (images rotated about `near`'s vertex, e.g. around a cone at the segment's start) go
         // to the shallower unfolding.
         if (!have || rank < best_rank || (rank == best_rank && distance < best * (1 - 1e-9))) {
@@ -364,6 +368,7 @@ class Tracer {
   const CompactMesh& coarse_;
   const std::vector<CoarsePoint>& map_;
   const std::vector<InputSurfacePoint>& inserted_;
+  const Positions& V_;
   std::vector<Index> coarse_twin_, fine_twin_;
   std::vector<Index> face_start_, vertex_faces_;
   Index first_inserted_ = 0;
@@ -395,9 +400,9 @@ TracedEdge Tracer::trace(Index side) const {
   add_star(frame, (k + 1) % 3, -corner_angle(f, (k + 1) % 3), star);
   // Near the edge: in the stars; a vertex of a large input triangle beyond them: by unfolding.
   const auto locate = [&](Index v, const std::vector<Vec2>& anchors, Vec2 near, Cache& in, double shrink,
-                          const std::array<Vec2, 2>* left_of = nullptr) {
-    const Placement* placed = place_in_star(v, star, near, in);
-    return placed ? placed : place(v, frame_seeds, anchors, near, in, shrink, left_of);
+                          const std::array<Vec2, 2>* left_of = nullptr, const Score* score = nullptr) {
+    const Placement* placed = place_in_star(v, star, near, in, score);
+    return placed ? placed : place(v, frame_seeds, anchors, near, in, shrink, left_of, score);
   };
   const auto above = [boundary](Vec2 p) { return boundary ? p.y > 0 : p.y >= 0; };
   const Vec2 origin{0, 0}, end{l, 0};
@@ -584,7 +589,20 @@ TracedEdge Tracer::trace(Index side) const {
     const std::array<Vec2, 2> entry_side{qp, pp};
     // The image being laid out is the triangle (pp, qp, new corner): the entry point lies on its side
     // pp → qp, so the anchors are that side's ends (unfolds_through tests the whole triangle).
-    next[d2] = locate(F_(g, d2), {pp, qp}, entry, cache, 0, &entry_side);
+    // With positions: the image whose distances to the entry side's ends, relative to that side,
+    // are nearest the input triangle's (ICE's map is nearly conformal on a small triangle; an image
+    // in a wrong copy is turned by a cone's angle defect about some coarse vertex).
+    Score shape;
+    if (V_.rows() > 0) {
+      const Eigen::RowVector3d A = V_.row(F_(g, d)), B = V_.row(F_(g, d1)), C = V_.row(F_(g, d2));
+      const double side = (B - A).norm();
+      const double to_a = (C - A).norm() / side, to_b = (C - B).norm() / side;
+      const double image_side = (pp - qp).norm();
+      shape = [=](Vec2 x) {
+        return std::abs(std::log((x - qp).norm() / image_side / to_a)) + std::abs(std::log((x - pp).norm() / image_side / to_b));
+      };
+    }
+    next[d2] = locate(F_(g, d2), {pp, qp}, entry, cache, 0, &entry_side, V_.rows() > 0 ? &shape : nullptr);
     if (!next[d2]) return fail(TraceStatus::lost);
     // Input triangles keep their orientation in the layout (the map does not fold them): a new corner
     // on the wrong side of the entry side was laid out in the wrong copy.
@@ -738,7 +756,7 @@ CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const
   for (const InputSurfacePoint& p : inserted)
     if (p.face < 0 || p.face >= F.rows()) throw std::invalid_argument("trace_coarse_mesh: an inserted point names no input face");
 
-  const Tracer tracer(F, coarse, map, inserted);
+  const Tracer tracer(F, coarse, map, inserted, V);
   CoarseTracing result;
   std::vector<Index> sides;
   const std::vector<Index>& twin = tracer.coarse_twin();
