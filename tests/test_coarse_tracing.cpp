@@ -363,7 +363,7 @@ TEST_CASE("tracing the intrinsic Delaunay triangulations of the extended set: le
   ICE_SKIP_WITHOUT_EXTENDED_SET();
   // Where the metric is the input's, a trace's length on the surface is the intrinsic length: a
   // wrong layout shows. Measured (2026-11-27) over the 27 meshes below 200k vertices that load after
-  // repair: 451 of 820,179 edges untraced and 198 traced with a length error above 1e-9 (93 above
+  // repair: 448 of 820,179 edges untraced and 199 traced with a length error above 1e-9 (94 above
   // 1e-6), 0.79 per thousand; 477 and 1,188 (2.0 per thousand) before far corners were chosen by the
   // shape of their input triangle.
   Index edges = 0, wrong = 0;

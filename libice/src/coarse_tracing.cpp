@@ -172,7 +172,7 @@ class Tracer {
   // triangles are large against coarse faces: then place() searches further.
   using Score = std::function<double(Vec2)>;
   const Placement* place_in_star(Index v, const std::vector<StarCopy>& star, Vec2 near, Cache& cache,
-                                 const Score* score = nullptr) const {
+                                 const Score* score = nullptr, const std::array<Vec2, 2>* left_of = nullptr) const {
     const auto hit = cache.find(v);
     if (hit != cache.end()) return &hit->second;
     const CoarsePoint& point = map_[static_cast<std::size_t>(v)];
@@ -189,6 +189,8 @@ class Tracer {
         const double within = w.norm() == 0 ? 0 : std::atan2(cross(first, w), first.x * w.x + first.y * w.y);
         const double angle = member.start + within;
         if (angle < -half || angle > half) return;
+        // With `left_of` (see place()), only images on its left.
+        if (left_of && orient2d((*left_of)[0], (*left_of)[1], position) <= 0) return;
         const double distance = score ? (*score)(position) : (position - near).norm();
         if (!have || distance < best) {
           have = true;
@@ -401,7 +403,7 @@ TracedEdge Tracer::trace(Index side) const {
   // Near the edge: in the stars; a vertex of a large input triangle beyond them: by unfolding.
   const auto locate = [&](Index v, const std::vector<Vec2>& anchors, Vec2 near, Cache& in, double shrink,
                           const std::array<Vec2, 2>* left_of = nullptr, const Score* score = nullptr) {
-    const Placement* placed = place_in_star(v, star, near, in, score);
+    const Placement* placed = place_in_star(v, star, near, in, score, left_of);
     return placed ? placed : place(v, frame_seeds, anchors, near, in, shrink, left_of, score);
   };
   const auto above = [boundary](Vec2 p) { return boundary ? p.y > 0 : p.y >= 0; };

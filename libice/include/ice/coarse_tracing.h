@@ -28,21 +28,22 @@
 /// surface equals the intrinsic edge length to round-off; on a coarsened curved mesh the two differ
 /// by the metric distortion of ICE's flattening (CoarseTracing::length_ratio_*).
 ///
-/// A far corner has several candidate images (unfoldings around coarse vertices); with positions
-/// given, the walk takes the one whose distances to the entry side's ends, relative to that side, are
-/// nearest the input triangle's (ICE's map is close to conformal on a small triangle, and an image in
-/// a wrong copy is turned about a coarse vertex by its angle defect); without, the one nearest the
-/// entry point.
+/// A far corner has several candidate images (unfoldings around coarse vertices). Only those on the
+/// left of the side the walk entered through count (the map does not fold input triangles); with
+/// positions given, the walk takes the one whose distances to the entry side's ends, relative to that
+/// side, are nearest the input triangle's (ICE's map is close to conformal on a small triangle, and
+/// an image in a wrong copy is turned about a coarse vertex by its angle defect); without, the one
+/// nearest the entry point.
 ///
 /// Limits (measured 2026-11-27; an edge that cannot be traced is reported, never drawn wrong, with the
 /// exception below): of the edges of ICE coarse meshes at 5 % and 1 % of the project's and the shared
-/// meshes (`ice-coarsen MESH --ratio R --repair --trace`), 1,593 of 152,932 fail (1.0 %), none on
+/// meshes (`ice-coarsen MESH --ratio R --repair --trace`), 1,529 of 152,932 fail (1.0 %), none on
 /// smooth meshes at 5 %; the failures gather where input triangles are long against coarse faces
 /// (CAD slivers: boxpart fails most of its edges; elephant-with-holes' thin parts, 11 %; the largest
 /// scans, up to 5 % at 1 %), where the layout of a far corner is not resolved. Where the metric is
 /// the input's, a wrong layout shows in the length: on the intrinsic Delaunay retriangulations of
-/// the 27 shared meshes under 200k vertices, 451 of 820,179 edges are untraced and 198 traced ones
-/// differ from their intrinsic length by more than 1e-9 (93 by more than 1e-6, at most 2.9 %, on CAD
+/// the 27 shared meshes under 200k vertices, 448 of 820,179 edges are untraced and 199 traced ones
+/// differ from their intrinsic length by more than 1e-9 (94 by more than 1e-6, at most 2.9 %, on CAD
 /// slivers and scans: camelhead, scan_test1_vcg, boxpart): wrong layouts that the checks above do not
 /// catch (1,188 before the shape criterion; mech-holes-shark's went from 87 to 1).
 ///
