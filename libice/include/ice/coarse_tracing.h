@@ -107,7 +107,8 @@ struct CoarseTracing {
 /// are in [0, map.size()); map has one entry per input vertex and names coarse faces;
 /// coarse.from_input has map.size() entries and coarse.to_input is its inverse on the input vertices,
 /// which come first; `inserted` matches the coarse vertices with to_input == kInvalid; V is empty or
-/// has one row per input vertex. `V` (optional: empty = not measured) gives CoarseTracing's length ratios.
+/// has one row per input vertex. `V` (optional) gives CoarseTracing's length ratios and the input
+/// triangles' shapes that choose among a far corner's images (see above); empty: neither.
 /// Each edge's trace is independent; threads = 0 uses the hardware's.
 CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
                                 const std::vector<InputSurfacePoint>& inserted = {}, const Positions& V = {},
