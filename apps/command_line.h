@@ -94,11 +94,11 @@ struct TargetOptions {
   void use_defaults_for(ice::ProxyUse use);
   /// Adds --vertices, --ratio, --min-vertices (and --max-error if asked), --area-weight,
   /// --normalize-curvature/--no-normalize-curvature, --method, --coarsen-threads, --coarsen-regions,
-  /// --refine-angle and
-  /// --refine-budget.
+  /// --refine-angle and --refine-budget.
   void add_to(CLI::App& cli, bool with_max_error);
   /// Checks the values against an input of n vertices and fills `options` (target, error, area
-  /// weight, threads, regions). Throws AppError(kUsage) with a clear message on a bad combination or value.
+  /// weight, threads, regions). Throws AppError(kUsage) with a clear message on a bad combination or
+  /// value.
   void apply(ice::CoarsenOptions& options, long long n) const;
 };
 

@@ -7,8 +7,9 @@ calling the library directly.
 Each round (alternating, fresh output folders) runs: the library directly in this process (for every
 mesh: ice.load_mesh, ice.coarsen with the batch's options on one thread, CoarseSpace.save, P and the
 map saved with numpy, one process, no Dask), then ice.batch.run with 1 worker and with 2 (the batch's
-default threads per mesh: 1 and 2, for meshes of 20,000+ vertices). Prints medians of the wall times, the speed-up of
-2 workers over 1, and (batch with 1 worker − direct) / meshes, with and without the cluster's start.
+default threads per mesh: 1 and 2, for meshes of 20,000+ vertices). Prints medians of the wall
+times, the speed-up of 2 workers over 1, and (batch with 1 worker − direct) / meshes, with and
+without the cluster's start.
 Default folder: ../shared/data/meshes beside the repository (with --repair, as it has defective files).
 """
 import argparse

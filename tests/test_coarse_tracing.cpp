@@ -11,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <set>
 #include <utility>
 #include <string>
@@ -305,18 +306,36 @@ TEST_CASE("tracing refined ICE coarse meshes: edges from and to inserted vertice
   CHECK(check_ice(mesh, space).failed == 0);
 }
 
+// The mesh of `path` after the safe repairs, or nothing when it is refused even then (the extended
+// set's defective files: nothing to trace).
+static std::optional<ice::TriangleMesh> repaired_mesh(const std::string& path) {
+  try {
+    return ice::load_mesh(path, {true, false});
+  } catch (const ice::MeshError&) {
+    return std::nullopt;
+  }
+}
+
+// The extended set's mesh files, sorted.
+static std::vector<std::string> extended_mesh_paths() {
+  std::vector<std::string> paths;
+  for (const auto& entry : std::filesystem::directory_iterator(ice_mesh_sets::extended_dir())) {
+    const std::string ext = entry.path().extension().string();
+    if (ext == ".obj" || ext == ".off" || ext == ".ply") paths.push_back(entry.path().string());
+  }
+  std::sort(paths.begin(), paths.end());
+  return paths;
+}
+
 // Traces ICE coarse meshes at 5 % and 1 % of every mesh in `paths` (refused files are passed over),
 // checking the properties; returns {edges, failed, failed on the smooth meshes at 5 %}.
 static std::array<Index, 3> trace_mesh_files(const std::vector<std::string>& paths) {
   std::array<Index, 3> counts{0, 0, 0};
   for (const std::string& path : paths) {
     INFO(path);
-    ice::TriangleMesh mesh;
-    try {
-      mesh = ice::load_mesh(path, {true, false});
-    } catch (const ice::MeshError&) {
-      continue;  // refused even after repair (the extended set's defective files): nothing to trace
-    }
+    const std::optional<ice::TriangleMesh> loaded = repaired_mesh(path);
+    if (!loaded) continue;
+    const ice::TriangleMesh& mesh = *loaded;
 #if defined(__SANITIZE_ADDRESS__)
     if (mesh.V.rows() > 60000) continue;  // the sanitizers make the largest scans take minutes; Release traces them
 #endif
@@ -348,12 +367,7 @@ TEST_CASE("tracing ICE coarse meshes of the project's meshes", "[tracing]") {
 
 TEST_CASE("tracing ICE coarse meshes of the extended set", "[tracing][extended]") {
   ICE_SKIP_WITHOUT_EXTENDED_SET();
-  std::vector<std::string> paths;
-  for (const auto& entry : std::filesystem::directory_iterator(ice_mesh_sets::extended_dir())) {
-    const std::string ext = entry.path().extension().string();
-    if (ext == ".obj" || ext == ".off" || ext == ".ply") paths.push_back(entry.path().string());
-  }
-  std::sort(paths.begin(), paths.end());
+  const std::vector<std::string> paths = extended_mesh_paths();
   CHECK(paths.size() >= 20);
   const std::array<Index, 3> counts = trace_mesh_files(paths);
   CHECK(counts[1] * 100 <= 2 * counts[0]);
@@ -367,18 +381,11 @@ TEST_CASE("tracing the intrinsic Delaunay triangulations of the extended set: le
   // 1e-6), 0.79 per thousand; 477 and 1,188 (2.0 per thousand) before far corners were chosen by the
   // shape of their input triangle.
   Index edges = 0, wrong = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(ice_mesh_sets::extended_dir())) {
-    const std::string ext = entry.path().extension().string();
-    if (ext != ".obj" && ext != ".off" && ext != ".ply") continue;
-    INFO(entry.path().string());
-    ice::TriangleMesh mesh;
-    try {
-      mesh = ice::load_mesh(entry.path().string(), {true, false});
-    } catch (const ice::MeshError&) {
-      continue;  // refused even after repair
-    }
-    if (mesh.V.rows() > 200000) continue;  // the 437k-vertex scan: 12 s in Release alone
-    const TraceFigures figures = check_intrinsic_delaunay(mesh);
+  for (const std::string& path : extended_mesh_paths()) {
+    INFO(path);
+    const std::optional<ice::TriangleMesh> mesh = repaired_mesh(path);
+    if (!mesh || mesh->V.rows() > 200000) continue;  // the 437k-vertex scan: 12 s in Release alone
+    const TraceFigures figures = check_intrinsic_delaunay(*mesh);
     edges += figures.edges + figures.failed;
     wrong += figures.failed + figures.long_edges;
   }

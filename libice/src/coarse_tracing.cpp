@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -78,6 +77,18 @@ bool segment_meets_hull(Vec2 a, Vec2 b, const std::vector<Vec2>& hull) {
   }
   return segments_meet(a, b, p, q) || segments_meet(a, b, q, r) || segments_meet(a, b, r, p);
 }
+
+// The shape of an input triangle (p, q, c) whose side p → q is laid out at (p_image, q_image): how
+// far an image x of c is from that shape, by its distances to the side's ends relative to the side
+// (0 for an image similar to the input triangle).
+struct TriangleShape {
+  Vec2 p_image, q_image;
+  double image_side = 0, to_p = 0, to_q = 0;  // |p_image q_image|; |pc| and |qc| over |pq| on the input
+  double error(Vec2 x) const {
+    return std::abs(std::log((x - p_image).norm() / image_side / to_p)) +
+           std::abs(std::log((x - q_image).norm() / image_side / to_q));
+  }
+};
 
 class Tracer {
  public:
@@ -170,9 +181,13 @@ class Tracer {
   // star copies within the cut (a coarse vertex: each corner that is it), the one nearest `near`.
   // The stars hold every coarse face an input triangle crossed by the edge reaches, unless input
   // triangles are large against coarse faces: then place() searches further.
-  using Score = std::function<double(Vec2)>;
+  // How a candidate image ranks (smaller first): by `shape` when given, else by its distance to `near`.
+  static double closeness(Vec2 position, Vec2 near, const TriangleShape* shape) {
+    return shape ? shape->error(position) : (position - near).norm();
+  }
+
   const Placement* place_in_star(Index v, const std::vector<StarCopy>& star, Vec2 near, Cache& cache,
-                                 const Score* score = nullptr, const std::array<Vec2, 2>* left_of = nullptr) const {
+                                 const TriangleShape* shape = nullptr, const std::array<Vec2, 2>* left_of = nullptr) const {
     const auto hit = cache.find(v);
     if (hit != cache.end()) return &hit->second;
     const CoarsePoint& point = map_[static_cast<std::size_t>(v)];
@@ -191,7 +206,7 @@ class Tracer {
         if (angle < -half || angle > half) return;
         // With `left_of` (see place()), only images on its left.
         if (left_of && orient2d((*left_of)[0], (*left_of)[1], position) <= 0) return;
-        const double distance = score ? (*score)(position) : (position - near).norm();
+        const double distance = closeness(position, near, shape);
         if (!have || distance < best) {
           have = true;
           best = distance;
@@ -327,7 +342,7 @@ class Tracer {
   // unfolding must turn about it), then the one nearest `near`.
   const Placement* place(Index v, const std::vector<FaceCopy>& seeds, const std::vector<Vec2>& anchors, Vec2 near,
                          Cache& cache, double shrink, const std::array<Vec2, 2>* left_of = nullptr,
-                         const Score* score = nullptr) const {
+                         const TriangleShape* shape = nullptr) const {
     const auto hit = cache.find(v);
     if (hit != cache.end()) return &hit->second;
     const CoarsePoint& point = map_[static_cast<std::size_t>(v)];
@@ -349,7 +364,7 @@ class Tracer {
         // (the map does not fold input triangles: the test "ICE's map lays input triangles out...").
         const bool left = !left_of || orient2d((*left_of)[0], (*left_of)[1], position) > 0;
         const int rank = (valid ? 0 : 2) + (left ? 0 : 1);
-        const double distance = score ? (*score)(position) : (position - near).norm();
+        const double distance = closeness(position, near, shape);
         // Ties (images rotated about `near`'s vertex, e.g. around a cone at the segment's start) go
         // to the shallower unfolding.
         if (!have || rank < best_rank || (rank == best_rank && distance < best * (1 - 1e-9))) {
@@ -402,9 +417,9 @@ TracedEdge Tracer::trace(Index side) const {
   add_star(frame, (k + 1) % 3, -corner_angle(f, (k + 1) % 3), star);
   // Near the edge: in the stars; a vertex of a large input triangle beyond them: by unfolding.
   const auto locate = [&](Index v, const std::vector<Vec2>& anchors, Vec2 near, Cache& in, double shrink,
-                          const std::array<Vec2, 2>* left_of = nullptr, const Score* score = nullptr) {
-    const Placement* placed = place_in_star(v, star, near, in, score, left_of);
-    return placed ? placed : place(v, frame_seeds, anchors, near, in, shrink, left_of, score);
+                          const std::array<Vec2, 2>* left_of = nullptr, const TriangleShape* shape = nullptr) {
+    const Placement* placed = place_in_star(v, star, near, in, shape, left_of);
+    return placed ? placed : place(v, frame_seeds, anchors, near, in, shrink, left_of, shape);
   };
   const auto above = [boundary](Vec2 p) { return boundary ? p.y > 0 : p.y >= 0; };
   const Vec2 origin{0, 0}, end{l, 0};
@@ -594,15 +609,11 @@ TracedEdge Tracer::trace(Index side) const {
     // With positions: the image whose distances to the entry side's ends, relative to that side,
     // are nearest the input triangle's (ICE's map is nearly conformal on a small triangle; an image
     // in a wrong copy is turned by a cone's angle defect about some coarse vertex).
-    Score shape;
-    if (V_.rows() > 0) {
+    TriangleShape shape;
+    if (V_.rows() > 0) {  // corner d is at qp, d1 at pp
       const Eigen::RowVector3d A = V_.row(F_(g, d)), B = V_.row(F_(g, d1)), C = V_.row(F_(g, d2));
       const double side = (B - A).norm();
-      const double to_a = (C - A).norm() / side, to_b = (C - B).norm() / side;
-      const double image_side = (pp - qp).norm();
-      shape = [=](Vec2 x) {
-        return std::abs(std::log((x - qp).norm() / image_side / to_a)) + std::abs(std::log((x - pp).norm() / image_side / to_b));
-      };
+      shape = {qp, pp, (pp - qp).norm(), (C - A).norm() / side, (C - B).norm() / side};
     }
     next[d2] = locate(F_(g, d2), {pp, qp}, entry, cache, 0, &entry_side, V_.rows() > 0 ? &shape : nullptr);
     if (!next[d2]) return fail(TraceStatus::lost);

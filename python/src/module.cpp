@@ -717,10 +717,11 @@ error metric; may be combined with n or ratio, whichever stops first).
 method: "ice" (intrinsic vertex removals) or "qem" (the QEM baseline; qem_geometry "extrinsic" or
 "intrinsic_delaunay"). use: "poisson_heat" or "geodesic" picks the measured metric defaults
 (area_weight, normalize_curvature), which the two arguments override. locked: vertices never
-removed (e.g. Dirichlet vertices). threads: coarsening threads (1: the exact serial greedy order; k > 1: 4k regions coarsened in
-parallel on meshes of 20,000+ vertices, then a serial pass). regions: R >= 2 runs that parallel
-phase with R regions on `threads` threads, one included, with a result that depends on R only
-(bit-identical for any thread count); 1: the serial order; 0: 4 x threads.
+removed (e.g. Dirichlet vertices). threads: coarsening threads (1: the exact serial greedy order;
+k > 1: 4k regions coarsened in parallel on meshes of 20,000+ vertices, then a serial pass).
+regions: R >= 2 runs that parallel phase with R regions on `threads` threads, one included, with a
+result that depends on R only (bit-identical for any thread count); 1: the serial order; 0: 4 x
+threads.
 refine_angle: intrinsic Delaunay refinement to this smallest angle (degrees), at most refine_budget
 times the vertices. progress: called with a dict (vertices, target, removed, last_cost) every 1000
 removals; returning False stops early (summary["stop_reason"] == "cancelled"), an exception in it or
