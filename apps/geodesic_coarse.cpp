@@ -1,15 +1,17 @@
-// geodesic-coarse: geodesic distance on a mesh by the heat method, solved on an ICE coarse proxy and
-// prolonged to the input vertices; optionally compared with the same solve on the fine mesh.
+// geodesic-coarse: geodesic distance on a mesh, solved on an ICE coarse proxy and carried to the
+// input vertices; optionally compared with the heat method on the fine mesh.
 //
 // Pipeline (every phase timed apart): load → coarsen (ice::build_coarse_space: ICE from the input's
 // intrinsic triangulation, or QEM; includes the coarse mesh and the prolongation P) → fine mesh
 // (ice::fine_mesh: the reference's discretisation, intrinsic Delaunay by default) → assemble
-// (fem::CoarseProxy and the coarse heat-method operators) → factor (fem::ProxyGeodesicSolver) → solve
-// (heat method on the coarse mesh from the restricted sources Pᵀ e_s) → prolong (P φ_c, shifted to
-// vanish on average at the sources), the last two timed by the solver. The heat step uses the lumped
-// (row-sum) coarse mass, which matters for Galerkin operators: see
-// fem::CoarseProxy::coarse_heat_method_operators. Then the reference: fem::HeatGeodesicSolver on the
-// fine mesh (assemble, factor, solve) and the errors of the prolonged distance against it.
+// (fem::CoarseProxy; with --coarse-distances heat the coarse heat-method operators) → factor
+// (fem::ProxyGeodesicSolver: the marching's mesh, or the heat method's factorisations) → solve and
+// prolong, timed by the solver: by default fast marching on the coarse mesh from the sources'
+// points and the squared distance interpolated to the input vertices; with the heat method, its
+// solve from the restricted sources Pᵀ e_s and P φ_c shifted to vanish on average at the sources
+// (the heat step uses the lumped coarse mass, which matters for Galerkin operators: see
+// fem::CoarseProxy::coarse_heat_method_operators). Then the reference: fem::HeatGeodesicSolver on
+// the fine mesh (assemble, factor, solve) and the errors of the proxy's distance against it.
 //
 // Distance-oracle modes (--all-pairs, --pairs FILE, --sample K): load → coarsen (keeping the
 // fine-to-coarse map) → fem::DistanceOracle (all coarse pairs by fast marching with exact planar
@@ -24,6 +26,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <random>
 
 #include "app_common.h"
@@ -317,8 +320,10 @@ int main(int argc, char** argv) {
   cli.add_option("--pairs-out", oracle.pairs_output, "With --pairs: write u,v,distance per pair (.csv)");
   app::add_choice(cli, "--coarse-distances", oracle.method,
                   {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}},
-                  "Distance oracle: all coarse pairs by fast marching with exact planar updates (more accurate, "
-                  "measured) or by the heat method");
+                  "Coarse distances: fast marching with exact planar updates on the coarse mesh (the default: more "
+                  "accurate, measured; with --source from the sources' points, the squared distance interpolated to "
+                  "the input vertices) or the heat method on the coarse operators (with --source: its distance "
+                  "prolonged with P); in the oracle modes, for all coarse pairs");
   cli.add_option("--check-sources", oracle.check_sources,
                  "Distance oracle: random sources of the fine heat-method reference (errors, speed-up)")
       ->check(app::integer_between(1, 100000))
@@ -374,12 +379,18 @@ int main(int argc, char** argv) {
     const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock);
     const ice::FineMesh& fine = pde.fine;
     const fem::CoarseProxy& proxy = *pde.proxy;
-    fem::HeatMethodOperators coarse_ops = proxy.coarse_heat_method_operators();  // lumped mass for Galerkin
-    run.assemble = clock.lap();
-    const fem::ProxyGeodesicSolver proxy_solver(proxy, std::move(coarse_ops));
+    std::optional<fem::ProxyGeodesicSolver> proxy_solver;
+    if (oracle.method == fem::CoarseDistanceMethod::heat_method) {
+      fem::HeatMethodOperators coarse_ops = proxy.coarse_heat_method_operators();  // lumped mass for Galerkin
+      run.assemble = clock.lap();
+      proxy_solver.emplace(proxy, std::move(coarse_ops));
+    } else {
+      run.assemble = clock.lap();
+      proxy_solver.emplace(proxy);  // the marching's mesh and each fine vertex's spread
+    }
     run.factor = clock.lap();
     fem::ProxyPhaseTimes phases;
-    const Eigen::VectorXd distance = proxy_solver.distance(sources, &phases);
+    const Eigen::VectorXd distance = proxy_solver->distance(sources, &phases);
     run.solve = phases.restriction + phases.coarse_solve;
     run.prolong = phases.prolongation;
     clock.lap();
@@ -413,6 +424,7 @@ int main(int argc, char** argv) {
     nlohmann::json report = run.report();
     if (traced) report["trace"] = {{"edges", traced->edges.size()}, {"traced", traced->traced}};
     report["sources"] = file_sources;
+    report["coarse_distances"] = fem::to_string(oracle.method);
     report["max_distance"] = distance.maxCoeff();
     if (run.has_reference) report["error"] = error_json;
     if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);

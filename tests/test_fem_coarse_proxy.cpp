@@ -2,8 +2,12 @@
 // Galerkin proxy satisfies Galerkin orthogonality and both proxies approximate the fine solutions.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <map>
 #include <set>
+#include <utility>
 #include <vector>
 
 #include "fem/coarse_proxy.h"
@@ -51,6 +55,71 @@ fem::SparseMatrix nested_sphere_prolongation(const ice::TriangleMesh& coarse, co
   return P;
 }
 
+/// The 1:4 midpoint split of a mesh (new vertices at the edge midpoints, after the old ones) and its
+/// prolongation (old vertices: their coarse vertex; midpoints: ½, ½ of the edge's ends).
+std::pair<ice::TriangleMesh, fem::SparseMatrix> midpoint_split(const ice::TriangleMesh& coarse) {
+  std::map<std::pair<int, int>, int> midpoint;
+  std::vector<Eigen::RowVector3d> points;
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (Eigen::Index v = 0; v < coarse.V.rows(); ++v) {
+    points.push_back(coarse.V.row(v));
+    triplets.emplace_back(v, v, 1.0);
+  }
+  const auto middle = [&](int a, int b) {
+    const auto key = std::minmax(a, b);
+    const auto [it, added] = midpoint.emplace(key, static_cast<int>(points.size()));
+    if (added) {
+      points.push_back(0.5 * (coarse.V.row(a) + coarse.V.row(b)));
+      triplets.emplace_back(it->second, a, 0.5);
+      triplets.emplace_back(it->second, b, 0.5);
+    }
+    return it->second;
+  };
+  ice::TriangleMesh fine;
+  fine.F.resize(4 * coarse.F.rows(), 3);
+  for (Eigen::Index f = 0; f < coarse.F.rows(); ++f) {
+    const int a = coarse.F(f, 0), b = coarse.F(f, 1), c = coarse.F(f, 2);
+    const int ab = middle(a, b), bc = middle(b, c), ca = middle(c, a);
+    fine.F.row(4 * f) << a, ab, ca;
+    fine.F.row(4 * f + 1) << ab, b, bc;
+    fine.F.row(4 * f + 2) << ca, bc, c;
+    fine.F.row(4 * f + 3) << ab, bc, ca;
+  }
+  fine.V.resize(static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t v = 0; v < points.size(); ++v) fine.V.row(static_cast<Eigen::Index>(v)) = points[v];
+  fem::SparseMatrix P(fine.V.rows(), coarse.V.rows());
+  P.setFromTriplets(triplets.begin(), triplets.end());
+  return {fine, P};
+}
+
+/// A hexagon of equilateral triangles of unit side, `rings` rings around the origin (acute
+/// everywhere, where fast marching with planar updates is exact for point sources).
+ice::TriangleMesh equilateral_hexagon(int rings) {
+  std::map<std::pair<int, int>, int> index;
+  std::vector<std::array<double, 3>> points;
+  const auto inside = [&](int i, int j) { return std::abs(i) <= rings && std::abs(j) <= rings && std::abs(i + j) <= rings; };
+  for (int i = -rings; i <= rings; ++i)
+    for (int j = -rings; j <= rings; ++j)
+      if (inside(i, j)) {
+        index[{i, j}] = static_cast<int>(points.size());
+        points.push_back({i + 0.5 * j, std::sqrt(3.0) / 2 * j, 0.0});
+      }
+  std::vector<std::array<int, 3>> faces;
+  for (const auto& [at, v] : index) {
+    const auto [i, j] = at;
+    if (inside(i + 1, j) && inside(i, j + 1)) faces.push_back({v, index[{i + 1, j}], index[{i, j + 1}]});
+    if (inside(i + 1, j) && inside(i + 1, j - 1)) faces.push_back({v, index[{i + 1, j - 1}], index[{i + 1, j}]});
+  }
+  ice::TriangleMesh mesh;
+  mesh.V.resize(static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t v = 0; v < points.size(); ++v)
+    mesh.V.row(static_cast<Eigen::Index>(v)) << points[v][0], points[v][1], points[v][2];
+  mesh.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (std::size_t f = 0; f < faces.size(); ++f)
+    mesh.F.row(static_cast<Eigen::Index>(f)) << faces[f][0], faces[f][1], faces[f][2];
+  return mesh;
+}
+
 }  // namespace
 
 TEST_CASE("coarse proxy with P = identity reproduces the fine solutions", "[fem][coarse_proxy]") {
@@ -72,7 +141,9 @@ TEST_CASE("coarse proxy with P = identity reproduces the fine solutions", "[fem]
     CHECK(fem::relative_l2_error(fem::ProxyPoissonSolver(proxy).solve(f), poisson, M) < 1e-12);
     for (fem::RestrictionKind restriction : {fem::RestrictionKind::l2_projection, fem::RestrictionKind::injection})
       CHECK(fem::relative_l2_error(fem::ProxyHeatSolver(proxy, 0.01, restriction).integrate(f, 5), heat, M) < 1e-12);
-    CHECK(fem::max_abs_error(fem::ProxyGeodesicSolver(proxy).distance({7}), distance) < 1e-12 * distance.maxCoeff());
+    fem::ProxyGeodesicOptions heat_method;
+    heat_method.method = fem::CoarseDistanceMethod::heat_method;
+    CHECK(fem::max_abs_error(fem::ProxyGeodesicSolver(proxy, heat_method).distance({7}), distance) < 1e-12 * distance.maxCoeff());
   }
 }
 
@@ -107,9 +178,15 @@ TEST_CASE("coarse proxy on nested icospheres", "[fem][coarse_proxy]") {
       const Eigen::VectorXd residual = P.transpose() * (L * (poisson - u));
       CHECK(residual.norm() < 1e-10 * (P.transpose() * (L * poisson)).norm());
     }
-    const fem::DistanceErrors errors = fem::distance_errors(fem::ProxyGeodesicSolver(proxy).distance({static_cast<int>(source)}), distance);
-    UNSCOPED_INFO("  geodesic vs fine heat method: mean " << errors.mean_relative << ", max " << errors.max_relative);
-    CHECK(errors.mean_relative < 0.02);
+    fem::ProxyGeodesicOptions heat_method;
+    heat_method.method = fem::CoarseDistanceMethod::heat_method;
+    for (const fem::ProxyGeodesicOptions& options : {fem::ProxyGeodesicOptions{}, heat_method}) {
+      const fem::DistanceErrors errors =
+          fem::distance_errors(fem::ProxyGeodesicSolver(proxy, options).distance({static_cast<int>(source)}), distance);
+      UNSCOPED_INFO("  geodesic (" << fem::to_string(options.method) << ") vs fine heat method: mean "
+                                   << errors.mean_relative << ", max " << errors.max_relative);
+      CHECK(errors.mean_relative < 0.02);
+    }
 
     // Restrictions: injection recovers coarse nodal values; the Galerkin L² projection is exact on span P.
     const Eigen::VectorXd coarse_values = coarse.V.col(0) + 2.0 * coarse.V.col(1);
@@ -135,4 +212,52 @@ TEST_CASE("coarse proxy rejects a prolongation whose rows do not sum to 1", "[fe
   const fem::SparseMatrix wrong_size = identity(mesh.V.rows() - 1);
   CHECK_THROWS_AS(fem::CoarseProxy(mesh.F, lengths, mesh.F, lengths, wrong_size, fem::CoarseOperatorKind::intrinsic),
                   std::invalid_argument);
+}
+
+TEST_CASE("geodesics by coarse marching are the straight-line distance on a flat mesh", "[fem][coarse_proxy]") {
+  // On a flat convex patch the distance is |y − s|. On acute coarse triangles the marching's planar
+  // updates reach it at the coarse vertices, and the squared-distance interpolation is exact inside
+  // flat faces, so the fine vertices of a nested (midpoint-split) mesh get it too, from sources at
+  // old vertices and at midpoints (points on coarse edges) alike. The heat method smooths: it is
+  // only close.
+  const ice::TriangleMesh coarse = equilateral_hexagon(6);
+  const auto [fine, P] = midpoint_split(coarse);
+  const ice::FaceLengths coarse_lengths = ice::face_lengths_from_positions(coarse.V, coarse.F);
+  const ice::FaceLengths fine_lengths = ice::face_lengths_from_positions(fine.V, fine.F);
+  const fem::CoarseProxy proxy(fine.F, fine_lengths, coarse.F, coarse_lengths, P, fem::CoarseOperatorKind::galerkin);
+  const fem::ProxyGeodesicSolver marching(proxy);
+  CHECK(marching.method() == fem::CoarseDistanceMethod::marching);
+  fem::ProxyGeodesicOptions heat_options;
+  heat_options.method = fem::CoarseDistanceMethod::heat_method;
+  const fem::ProxyGeodesicSolver heat(proxy, heat_options);
+  const int midpoint = static_cast<int>(coarse.V.rows()) + 5;
+  for (int source : {0, 17, midpoint}) {
+    INFO("source " << source);
+    const Eigen::VectorXd exact = (fine.V.rowwise() - fine.V.row(source)).rowwise().norm();
+    const Eigen::VectorXd d = marching.distance({source});
+    CHECK(d(source) == 0.0);
+    CHECK(fem::max_abs_error(d, exact) <= 1e-6 * exact.maxCoeff());  // the marching's face layouts are floats
+    const double heat_error = fem::distance_errors(heat.distance({source}), exact).mean_relative;
+    CHECK(heat_error > 1e-4);
+    CHECK(heat_error < 0.05);
+  }
+  // Two sources: the nearer one's distance, exact where both ends of the fine vertex's coarse edge
+  // are clearly nearer to one source; where the two fronts meet, interpolated linearly (within half
+  // a coarse edge, which is 1 here).
+  const int far_midpoint = static_cast<int>(fine.V.rows()) - 1;
+  const Eigen::VectorXd to_first = (fine.V.rowwise() - fine.V.row(0)).rowwise().norm();
+  const Eigen::VectorXd to_second = (fine.V.rowwise() - fine.V.row(far_midpoint)).rowwise().norm();
+  const Eigen::VectorXd both = marching.distance({0, far_midpoint});
+  Eigen::Index clear = 0;
+  for (Eigen::Index v = 0; v < fine.V.rows(); ++v) {
+    const double nearer = std::min(to_first(v), to_second(v));
+    CHECK(std::abs(both(v) - nearer) <= 0.5);
+    if (std::abs(to_first(v) - to_second(v)) > 2.0) {  // both coarse ends (1/2 away) on the same side
+      ++clear;
+      CHECK(std::abs(both(v) - nearer) <= 1e-6 * to_first.maxCoeff());
+    }
+  }
+  CHECK(clear > fine.V.rows() / 2);
+  CHECK_THROWS_AS(marching.distance({}), std::invalid_argument);
+  CHECK_THROWS_AS(marching.distance({static_cast<int>(fine.V.rows())}), std::invalid_argument);
 }

@@ -1,11 +1,13 @@
 #include "fem/coarse_proxy.h"
 
+#include "coarse_marching.h"
 #include "parallel_kernels.h"
 
 #include <algorithm>
 #include <chrono>
-#include <string>
 #include <cmath>
+#include <limits>
+#include <string>
 #include <stdexcept>
 #include <utility>
 
@@ -310,31 +312,68 @@ Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::Ref<const Eigen::VectorX
   return state;
 }
 
-ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor)
-    : ProxyGeodesicSolver(proxy, proxy.coarse_heat_method_operators(time_factor)) {}
+ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGeodesicOptions& options)
+    : P_rows_(proxy.prolongation()) {
+  P_rows_.makeCompressed();
+  if (options.method == CoarseDistanceMethod::heat_method) {
+    heat_ = std::make_unique<HeatGeodesicSolver>(proxy.coarse_heat_method_operators(options.time_factor));
+    return;
+  }
+  const Faces& Fc = proxy.coarse_faces();
+  const FaceLengths& Lc = proxy.coarse_lengths();
+  if (Fc.rows() == 0 || Lc.rows() != Fc.rows() || Lc.cols() != 3)
+    throw std::invalid_argument("ProxyGeodesicSolver: marching needs the coarse faces and their lengths");
+  for (Eigen::Index f = 0; f < Fc.rows(); ++f)
+    if (!(Lc.row(f).minCoeff() > 0) || !std::isfinite(Lc.row(f).sum()))
+      throw std::invalid_argument("ProxyGeodesicSolver: coarse face " + std::to_string(f) + " has a non-positive or non-finite length");
+  marching_ = std::make_unique<detail::MarchingMesh>(Fc, Lc, proxy.coarse_size());
+  const Eigen::Index n = P_rows_.rows();
+  spread_.resize(static_cast<std::size_t>(n));
+  const int* outer = P_rows_.outerIndexPtr();
+  const int* column = P_rows_.innerIndexPtr();
+  const double* weight = P_rows_.valuePtr();
+#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, detail::default_threads()))
+  for (Eigen::Index y = 0; y < n; ++y) {
+    double spread = 0;
+    for (int j = outer[y]; j < outer[y + 1]; ++j)
+      for (int k = j + 1; k < outer[y + 1]; ++k) {
+        const double length = marching_->edge_length(column[j], column[k]);
+        spread += weight[j] * weight[k] * length * length;  // NaN when not an edge: linear
+      }
+    spread_[static_cast<std::size_t>(y)] = spread;
+  }
+}
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOperators coarse_operators)
-    : P_rows_(proxy.prolongation()), coarse_(std::move(coarse_operators)) {
-  if (coarse_.operators().laplacian.rows() != proxy.coarse_size())
+    : P_rows_(proxy.prolongation()), heat_(std::make_unique<HeatGeodesicSolver>(std::move(coarse_operators))) {
+  if (heat_->operators().laplacian.rows() != proxy.coarse_size())
     throw std::invalid_argument("ProxyGeodesicSolver: coarse operators of the wrong size");
   P_rows_.makeCompressed();
 }
 
+ProxyGeodesicSolver::ProxyGeodesicSolver(ProxyGeodesicSolver&&) noexcept = default;
+ProxyGeodesicSolver::~ProxyGeodesicSolver() = default;
+
 Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<Index>& fine_sources, ProxyPhaseTimes* times) const {
   if (fine_sources.empty()) throw std::invalid_argument("ProxyGeodesicSolver::distance: no sources");
-  Clock::time_point mark = Clock::now();
-  // The sources' weights restricted directly from P's rows (Pᵀ of a sparse indicator), without a
-  // fine-size pass; a repeated source counts once.
-  const Eigen::Index n = P_rows_.rows();
   std::vector<Index> sources = fine_sources;
   std::sort(sources.begin(), sources.end());
   sources.erase(std::unique(sources.begin(), sources.end()), sources.end());
-  if (sources.front() < 0 || sources.back() >= n) throw std::invalid_argument("ProxyGeodesicSolver::distance: bad source");
+  if (sources.front() < 0 || sources.back() >= P_rows_.rows())
+    throw std::invalid_argument("ProxyGeodesicSolver::distance: bad source");
+  return heat_ ? heat_distance(sources, times) : marching_distance(sources, times);
+}
+
+Eigen::VectorXd ProxyGeodesicSolver::heat_distance(const std::vector<Index>& sources, ProxyPhaseTimes* times) const {
+  Clock::time_point mark = Clock::now();
+  // The sources' weights restricted directly from P's rows (Pᵀ of a sparse indicator), without a
+  // fine-size pass.
+  const Eigen::Index n = P_rows_.rows();
   Eigen::VectorXd coarse_weights = Eigen::VectorXd::Zero(P_rows_.cols());
   for (int s : sources)
     for (decltype(P_rows_)::InnerIterator it(P_rows_, s); it; ++it) coarse_weights(it.col()) += it.value();
   if (times) times->restriction = seconds_since(mark);
-  const Eigen::VectorXd coarse_phi = coarse_.distance_from_weights(coarse_weights);
+  const Eigen::VectorXd coarse_phi = heat_->distance_from_weights(coarse_weights);
   if (times) times->coarse_solve = seconds_since(mark);
   Eigen::VectorXd phi(n);
   detail::gather_product(P_rows_, coarse_phi.data(), phi.data(), false, detail::default_threads(), n);
@@ -342,6 +381,98 @@ Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<Index>& fine_sou
   double sum = 0;
   for (int s : sources) sum += phi(s);
   detail::add_constant(-sum / static_cast<double>(sources.size()), phi, detail::default_threads());
+  if (times) times->prolongation = seconds_since(mark);
+  return phi;
+}
+
+Eigen::VectorXd ProxyGeodesicSolver::marching_distance(const std::vector<Index>& sources, ProxyPhaseTimes* times) const {
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  Clock::time_point mark = Clock::now();
+  const int* outer = P_rows_.outerIndexPtr();
+  const int* column = P_rows_.innerIndexPtr();
+  const double* weight = P_rows_.valuePtr();
+  const auto nc = static_cast<std::size_t>(P_rows_.cols());
+  // Each source x = Σ λ_i p_i seeds its corners at their planar distances,
+  // |x p_i|² = Σ_k λ_k |p_k p_i|² − V(x). A source whose corners are not joined by edges has no
+  // planar layout here: its squared distances come from a marching run from each corner instead,
+  // combined as the distance oracle does (d(x, q)² = Σ_k λ_k d(p_k, q)² − V(x), with V(x) from
+  // the corners' marched distances).
+  std::vector<detail::CoarseMarcher::Seed> seeds;
+  for (std::size_t number = 0; number < sources.size(); ++number) {
+    const Index x = sources[number];
+    const double spread = spread_[static_cast<std::size_t>(x)];
+    if (std::isnan(spread)) continue;  // marched from its corners below
+    for (int i = outer[x]; i < outer[x + 1]; ++i) {
+      double squared = -spread;
+      for (int k = outer[x]; k < outer[x + 1]; ++k)
+        if (k != i) {
+          const double length = marching_->edge_length(column[k], column[i]);
+          squared += weight[k] * length * length;
+        }
+      seeds.push_back({column[i], std::sqrt(std::max(0.0, squared)), static_cast<Index>(number)});
+    }
+  }
+  if (times) times->restriction = seconds_since(mark);
+  detail::CoarseMarcher marcher(*marching_);
+  std::vector<double> squared(nc, kInfinity);  // squared distance from the nearest source
+  std::vector<Index> nearest(nc, -1);          // which source (its number in `sources`)
+  if (!seeds.empty()) {
+    marcher.run(seeds, squared, nearest);
+    for (double& d : squared) d *= d;
+  }
+  std::vector<double> corner_rows, row;
+  for (std::size_t number = 0; number < sources.size(); ++number) {
+    const Index x = sources[number];
+    if (!std::isnan(spread_[static_cast<std::size_t>(x)])) continue;
+    const int begin = outer[x], count = outer[x + 1] - begin;
+    corner_rows.resize(static_cast<std::size_t>(count) * nc);
+    for (int k = 0; k < count; ++k) {
+      marcher.run(column[begin + k], row);
+      std::copy(row.begin(), row.end(), corner_rows.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(k) * nc));
+    }
+    double spread = 0;
+    for (int j = 0; j < count; ++j)
+      for (int k = j + 1; k < count; ++k) {
+        const double d = corner_rows[static_cast<std::size_t>(j) * nc + static_cast<std::size_t>(column[begin + k])];
+        spread += weight[begin + j] * weight[begin + k] * d * d;
+      }
+    for (std::size_t q = 0; q < nc; ++q) {
+      double sum = -spread;
+      for (int k = 0; k < count; ++k) {
+        const double d = corner_rows[static_cast<std::size_t>(k) * nc + q];
+        if (weight[begin + k] > 0) sum += weight[begin + k] * d * d;  // (0 · ∞ across components)
+      }
+      if (std::max(0.0, sum) < squared[q]) {
+        squared[q] = std::max(0.0, sum);
+        nearest[q] = static_cast<Index>(number);
+      }
+    }
+  }
+  if (times) times->coarse_solve = seconds_since(mark);
+  // Fine values: the squared distance interpolated with V(y) subtracted — valid for the distance
+  // from one source, so where y's coarse corners are nearest to different sources (near where two
+  // sources' fronts meet), or V(y) is unknown, the distance is interpolated linearly. Zero weights
+  // are skipped (0 · ∞ in a coarse component no source reaches).
+  const Eigen::Index n = P_rows_.rows();
+  Eigen::VectorXd phi(n);
+#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, detail::default_threads()))
+  for (Eigen::Index y = 0; y < n; ++y) {
+    const double spread = spread_[static_cast<std::size_t>(y)];
+    bool one_source = true;
+    for (int j = outer[y] + 1; j < outer[y + 1]; ++j)
+      one_source = one_source && nearest[static_cast<std::size_t>(column[j])] == nearest[static_cast<std::size_t>(column[outer[y]])];
+    double sum = 0;
+    if (std::isnan(spread) || !one_source) {
+      for (int j = outer[y]; j < outer[y + 1]; ++j)
+        if (weight[j] > 0) sum += weight[j] * std::sqrt(squared[static_cast<std::size_t>(column[j])]);
+      phi(y) = sum;
+    } else {
+      for (int j = outer[y]; j < outer[y + 1]; ++j)
+        if (weight[j] > 0) sum += weight[j] * squared[static_cast<std::size_t>(column[j])];
+      phi(y) = std::sqrt(std::max(0.0, sum - spread));
+    }
+  }
+  for (Index x : sources) phi(x) = 0;
   if (times) times->prolongation = seconds_since(mark);
   return phi;
 }

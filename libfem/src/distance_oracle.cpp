@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "coarse_marching.h"
 #include "fem/problems.h"
 #include "parallel_kernels.h"
 
@@ -24,183 +25,6 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
-
-/// Fast marching with exact planar updates on an intrinsic mesh (see the header). One instance per
-/// thread: what the marching reads around each vertex is laid out once, contiguously, in the order
-/// it is read; the front and values are per run.
-class CoarseMarcher {
- public:
-  CoarseMarcher(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) : vertex_count_(vertex_count) {
-    // Around each vertex u: its neighbours w (multi-edges merged: the shortest length counts), and
-    // for each, the faces (u, w, x) through which w can be updated from u and x.
-    struct Relation {
-      Index u, w, x;
-      double to_w, to_x, across;  // |u w|, |u x|, |w x|
-    };
-    std::vector<Relation> relations;
-    relations.reserve(static_cast<std::size_t>(6 * F.rows()));
-    for (Eigen::Index f = 0; f < F.rows(); ++f)
-      for (int k = 0; k < 3; ++k) {
-        // Corner k at u; "first" is corner k+1, "second" corner k+2.
-        const Index u = F(f, k), first = F(f, (k + 1) % 3), second = F(f, (k + 2) % 3);
-        const double to_first = L(f, k), across = L(f, (k + 1) % 3), to_second = L(f, (k + 2) % 3);
-        relations.push_back({u, first, second, to_first, to_second, across});
-        relations.push_back({u, second, first, to_second, to_first, across});
-      }
-    std::sort(relations.begin(), relations.end(), [](const Relation& p, const Relation& q) {
-      return p.u != q.u ? p.u < q.u : p.w < q.w;
-    });
-    neighbour_start_.assign(static_cast<std::size_t>(vertex_count) + 1, 0);
-    for (std::size_t i = 0; i < relations.size();) {
-      std::size_t j = i;
-      Neighbour neighbour{relations[i].w, static_cast<float>(relations[i].to_w), static_cast<Index>(faces_.size())};
-      for (; j < relations.size() && relations[j].u == relations[i].u && relations[j].w == relations[i].w; ++j) {
-        const Relation& r = relations[j];
-        neighbour.length = std::min(neighbour.length, static_cast<float>(r.to_w));
-        // A face whose other corner is u again (a self-folded face, around a loop edge) offers no
-        // source consistent with both copies of u: only its edge counts.
-        if (r.x != r.u)
-          faces_.push_back({r.x, static_cast<float>(r.to_w), static_cast<float>(r.across), layout(r.to_w, r.to_x, r.across)});
-      }
-      neighbours_.push_back(neighbour);
-      ++neighbour_start_[static_cast<std::size_t>(relations[i].u) + 1];
-      i = j;
-    }
-    for (std::size_t v = 0; v < static_cast<std::size_t>(vertex_count); ++v) neighbour_start_[v + 1] += neighbour_start_[v];
-    neighbours_.push_back({0, 0, static_cast<Index>(faces_.size())});  // sentinel: the end of the last face range
-  }
-
-  /// Distances from `source` to every vertex into `distance` (+∞ where unreachable).
-  void run(Index source, std::vector<double>& distance) {
-    distance.assign(static_cast<std::size_t>(vertex_count_), kInfinity);
-    accepted_.assign(static_cast<std::size_t>(vertex_count_), 0);
-    position_.assign(static_cast<std::size_t>(vertex_count_), -1);
-    front_.assign(static_cast<std::size_t>(vertex_count_) + 2, kSentinel);
-    front_size_ = 0;
-    distance[static_cast<std::size_t>(source)] = 0;
-    lower(source, distance);
-    while (front_size_ > 0) {
-      const Index u = pop();
-      const double value = distance[static_cast<std::size_t>(u)];
-      accepted_[static_cast<std::size_t>(u)] = 1;
-      // Each neighbour w once: along the edge, and through every face (u, w, x) whose x is accepted
-      // too (the face's turn for w comes when the second of u and x is accepted).
-      const Index end = neighbour_start_[static_cast<std::size_t>(u) + 1];
-      for (Index i = neighbour_start_[static_cast<std::size_t>(u)]; i < end; ++i) {
-        const Neighbour& neighbour = neighbours_[static_cast<std::size_t>(i)];
-        if (accepted_[static_cast<std::size_t>(neighbour.w)]) continue;
-        double candidate = value + neighbour.length;
-        const Index faces_end = neighbours_[static_cast<std::size_t>(i) + 1].faces_begin;
-        for (Index k = neighbour.faces_begin; k < faces_end; ++k) {
-          const FaceEntry& face = faces_[static_cast<std::size_t>(k)];
-          if (accepted_[static_cast<std::size_t>(face.x)])
-            candidate = std::min(candidate, value_through(value, distance[static_cast<std::size_t>(face.x)], face.to_u,
-                                                          face.to_x, face.layout));
-        }
-        if (candidate < distance[static_cast<std::size_t>(neighbour.w)]) {
-          distance[static_cast<std::size_t>(neighbour.w)] = candidate;
-          lower(neighbour.w, distance);
-        }
-      }
-    }
-  }
-
- private:
-  /// A face flattened for the update of its vertex v from its other corners a, b: a = (0, 0),
-  /// b = (base, 0), v = (vx, vy), vy > 0 unless the face is degenerate. Floats: the geometry is
-  /// read for every update and the values stay double.
-  struct Layout {
-    float base, half_inverse_base, vx, vy;
-  };
-  static Layout layout(double to_a, double base, double to_b) {
-    const double vx = (to_a * to_a - to_b * to_b + base * base) / (2 * base);
-    return {static_cast<float>(base), static_cast<float>(0.5 / base), static_cast<float>(vx),
-            static_cast<float>(std::sqrt(std::max(0.0, to_a * to_a - vx * vx)))};
-  }
-  /// A neighbour w of u: the edge length and where its faces start in faces_ (they end where the
-  /// next neighbour's start).
-  struct Neighbour {
-    Index w;
-    float length;
-    Index faces_begin;
-  };
-  /// A face (u, w, x) for updating w from u and x: |w u|, |w x| and the face flattened with u at
-  /// the origin and x on the axis.
-  struct FaceEntry {
-    Index x;
-    float to_u, to_x;
-    Layout layout;
-  };
-  // The value of v through its face from corners a, b at distances da, db (|v a| = to_a, |v b| = to_b).
-  static double value_through(double da, double db, double to_a, double to_b, const Layout& layout) {
-    const double along_edge = std::min(da + to_a, db + to_b);
-    if (!(da < kInfinity && db < kInfinity) || !(layout.vy > 0)) return along_edge;
-    const double base = layout.base, vx = layout.vx, vy = layout.vy;
-    // The virtual source s below ab with |s a| = da, |s b| = db (two circles); the straight line
-    // from s to v must cross ab between a and b: 0 <= sx + (−sy)(vx − sx)/(vy − sy) <= base.
-    const double sx = (da * da - db * db + base * base) * layout.half_inverse_base;
-    const double sy2 = da * da - sx * sx;
-    if (sy2 < 0) return along_edge;  // da, db not consistent with one source (|da − db| > base)
-    const double sy = -std::sqrt(sy2);
-    const double rise = vy - sy;  // > 0
-    const double crossing_times_rise = sx * rise - sy * (vx - sx);
-    if (crossing_times_rise < 0 || crossing_times_rise > base * rise) return along_edge;
-    const double dx = vx - sx;
-    return std::min(along_edge, std::sqrt(dx * dx + rise * rise));
-  }
-  // The front: a binary min-heap of (distance, vertex) in front_[0, front_size_), each vertex at
-  // most once (position_ = its slot, or -1), so a lowered value moves it up instead of adding an
-  // entry. The slots past the end hold +∞, so that picking the smaller child needs no bounds test.
-  struct Entry {
-    double key;
-    Index vertex;
-  };
-  static constexpr Entry kSentinel{kInfinity, ice::kInvalid};
-  void place(std::size_t slot, Entry entry) {
-    front_[slot] = entry;
-    position_[static_cast<std::size_t>(entry.vertex)] = static_cast<Index>(slot);
-  }
-  void lower(Index v, const std::vector<double>& distance) {
-    std::size_t slot = position_[static_cast<std::size_t>(v)] < 0
-                           ? front_size_++
-                           : static_cast<std::size_t>(position_[static_cast<std::size_t>(v)]);
-    const Entry entry{distance[static_cast<std::size_t>(v)], v};
-    while (slot > 0) {
-      const std::size_t parent = (slot - 1) / 2;
-      if (!(entry.key < front_[parent].key)) break;
-      place(slot, front_[parent]);
-      slot = parent;
-    }
-    place(slot, entry);
-  }
-  Index pop() {
-    const Index top = front_[0].vertex;
-    position_[static_cast<std::size_t>(top)] = -1;
-    const Entry last = front_[--front_size_];
-    front_[front_size_] = kSentinel;
-    if (front_size_ == 0) return top;
-    std::size_t slot = 0;
-    for (;;) {
-      std::size_t child = 2 * slot + 1;
-      if (child >= front_size_) break;
-      child += front_[child + 1].key < front_[child].key ? 1 : 0;
-      if (!(front_[child].key < last.key)) break;
-      place(slot, front_[child]);
-      slot = child;
-    }
-    place(slot, last);
-    return top;
-  }
-
-  Eigen::Index vertex_count_;
-  std::vector<Index> neighbour_start_;  ///< CSR of neighbours_ by vertex
-  std::vector<Neighbour> neighbours_;    ///< (plus a sentinel closing the last face range)
-  std::vector<FaceEntry> faces_;
-  std::vector<char> accepted_;
-  std::vector<Entry> front_;
-  std::size_t front_size_ = 0;
-  std::vector<Index> position_;
-};
 
 void check_mesh(const Faces& F, const FaceLengths& L) {
   if (F.rows() == 0 || F.cols() != 3 || L.rows() != F.rows() || L.cols() != 3)
@@ -240,9 +64,10 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
   start = std::chrono::steady_clock::now();
   std::vector<float> distances(nc * nc);
   if (options.method == CoarseDistanceMethod::marching) {
+    const detail::MarchingMesh marching_mesh(coarse_faces, coarse_lengths, coarse_size_);
 #pragma omp parallel num_threads(threads())
     {
-      CoarseMarcher marcher(coarse_faces, coarse_lengths, coarse_size_);
+      detail::CoarseMarcher marcher(marching_mesh);
       std::vector<double> row;
 #pragma omp for schedule(dynamic, 8)
       for (Eigen::Index a = 0; a < coarse_size_; ++a) {

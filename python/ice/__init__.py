@@ -126,13 +126,16 @@ def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace
     return solver.integrate(u0, steps)
 
 
-def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, time_factor: float = 1.0,
-                      operators: str = "galerkin", fine: str = "intrinsic_delaunay", **coarsening):
-    """Heat-method geodesic distance to `sources` through a coarse proxy (geodesic-coarse).
+def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, method: str = "marching",
+                      time_factor: float = 1.0, operators: str = "galerkin", fine: str = "intrinsic_delaunay",
+                      **coarsening):
+    """Geodesic distance to `sources` through a coarse proxy (geodesic-coarse).
 
-    coarse / coarsening options as for solve_poisson, with the metric measured best for geodesics
-    (use="geodesic") by default. For many sources or pairs see ProxyGeodesicSolver and DistanceOracle.
+    method: "marching" (fast marching on the coarse mesh, the default) or "heat" (the coarse heat
+    method, t = (time_factor · mean coarse edge length)²). coarse / coarsening options as for
+    solve_poisson, with the metric measured best for geodesics (use="geodesic") by default. For many
+    sources or pairs see ProxyGeodesicSolver and DistanceOracle.
     """
     coarse = _coarse_for(V, F, coarse, coarsening, "geodesic")
     proxy = Proxy(V, F, coarse, operators=operators, fine=fine)
-    return ProxyGeodesicSolver(proxy, time_factor=time_factor).distance(sources)
+    return ProxyGeodesicSolver(proxy, method=method, time_factor=time_factor).distance(sources)

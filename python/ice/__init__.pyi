@@ -145,8 +145,9 @@ class ProxyHeatSolver:
     def times(self) -> dict[str, float]: ...
 
 class ProxyGeodesicSolver:
-    """Heat-method geodesic distance through the proxy."""
-    def __init__(self, proxy: Proxy, *, time_factor: float = 1.0) -> None: ...
+    """Geodesic distance through the proxy (coarse fast marching, or the coarse heat method)."""
+    def __init__(self, proxy: Proxy, *, method: Literal["marching", "heat"] = "marching",
+                 time_factor: float = 1.0) -> None: ...
     def distance(self, sources: Indices) -> FloatArray: ...
     @property
     def times(self) -> dict[str, float]: ...
@@ -198,7 +199,8 @@ def heat_flow(V: ArrayLike, F: ArrayLike, u0: ArrayLike, time_step: float, steps
               tolerance: float = 0.0, **coarsening: Any) -> FloatArray:
     """Backward-Euler heat flow through a coarse proxy in one call."""
 def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: CoarseSpace | None = None,
+                      method: Literal["marching", "heat"] = "marching",
                       time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
                       **coarsening: Any) -> FloatArray:
-    """Heat-method geodesic distance through a coarse proxy in one call."""
+    """Geodesic distance through a coarse proxy in one call (coarse fast marching by default)."""

@@ -837,19 +837,26 @@ ProxyPoissonSolver, per step.)doc")
       .def_property_readonly("times", [](PyHeatSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last integrate()'s stages.");
 
-  py::class_<PyGeodesicSolver>(m, "ProxyGeodesicSolver", R"doc(Heat-method geodesic distance through the coarse proxy (geodesic-coarse).
+  py::class_<PyGeodesicSolver>(m, "ProxyGeodesicSolver", R"doc(Geodesic distance through the coarse proxy (geodesic-coarse).
 
-ProxyGeodesicSolver(proxy, time_factor=1.0): heat time t = (time_factor · mean coarse edge length)².
-For the most accurate distances coarsen with use="geodesic". The mesh must be connected.)doc")
-      .def(py::init([](std::shared_ptr<PyProxy> proxy, double time_factor) {
+ProxyGeodesicSolver(proxy, method="marching", time_factor=1.0): method "marching" (fast marching with
+exact planar updates on the coarse mesh from the sources' points, the squared distance interpolated to
+the fine vertices; the default, the more accurate) or "heat" (the heat method on the coarse operators,
+heat time t = (time_factor · mean coarse edge length)²; needs a connected mesh). For the most accurate
+distances coarsen with use="geodesic".)doc")
+      .def(py::init([](std::shared_ptr<PyProxy> proxy, const std::string& method, double time_factor) {
              if (!(time_factor > 0)) throw py::value_error("time_factor must be > 0");
+             if (method != "marching" && method != "heat") throw py::value_error("method must be 'marching' or 'heat', not '" + method + "'");
+             fem::ProxyGeodesicOptions options;
+             options.method = method == "heat" ? fem::CoarseDistanceMethod::heat_method : fem::CoarseDistanceMethod::marching;
+             options.time_factor = time_factor;
              auto solver = std::make_unique<PyGeodesicSolver>();
              solver->proxy = proxy;
              py::gil_scoped_release release;
-             solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(*proxy->proxy, time_factor);
+             solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(*proxy->proxy, options);
              return solver;
            }),
-           py::arg("proxy"), py::kw_only(), py::arg("time_factor") = 1.0)
+           py::arg("proxy"), py::kw_only(), py::arg("method") = "marching", py::arg("time_factor") = 1.0)
       .def("distance", [](PyGeodesicSolver& s, const py::object& sources) {
              const std::vector<ice::Index> fine_sources = index_argument(sources, s.proxy->proxy->fine_size(), "sources");
              if (fine_sources.empty()) throw py::value_error("sources is empty");

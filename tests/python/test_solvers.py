@@ -166,7 +166,7 @@ def test_distance_oracle(spot):
     # close to the fine heat-method distance (a coarse space of every vertex: P = I, the fine solve)
     full = ice.coarsen(V, F, ratio=1.0)
     assert full.n_vertices == V.shape[0] and abs(full.P - scipy.sparse.identity(V.shape[0])).max() == 0
-    fine = ice.ProxyGeodesicSolver(ice.Proxy(V, F, full)).distance([11])
+    fine = ice.ProxyGeodesicSolver(ice.Proxy(V, F, full), method="heat").distance([11])
     far = fine > 0.05 * fine.max()
     assert np.mean(np.abs(oracle.distances_from(11)[far] - fine[far]) / fine[far]) < 0.08  # measured 0.041
     samples = oracle.farthest_point_samples(10)
@@ -207,7 +207,15 @@ def test_disconnected_meshes_are_refused_clearly(project_mesh):
     with pytest.raises(ValueError, match="3 connected components"):
         ice.ProxyPoissonSolver(proxy)
     with pytest.raises(ValueError, match="3 connected components"):
-        ice.ProxyGeodesicSolver(proxy)
+        ice.ProxyGeodesicSolver(proxy, method="heat")
+    # Coarse marching reaches the source's component only: the others are infinitely far.
+    d = ice.ProxyGeodesicSolver(proxy).distance([0])
+    reached = np.isfinite(d)
+    assert d[0] == 0 and 0 < reached.sum() < len(d)
+    for face in F:  # a component is reached whole or not at all
+        assert reached[face].all() or not reached[face].any()
+    with pytest.raises(ValueError, match="marching"):
+        ice.ProxyGeodesicSolver(proxy, method="dijkstra")
     u = ice.ProxyHeatSolver(proxy, 1e-3).integrate(V[:, 0])  # heat flow has no pinned vertex: fine
     assert np.isfinite(u).all()
 

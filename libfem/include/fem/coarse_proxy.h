@@ -17,17 +17,28 @@
 ///  - Heat: the initial nodal values u₀, either by L² projection (solve M_c u_c = Pᵀ M u₀; exact
 ///    L² projection onto span P with Galerkin operators) or by injection (u_c(j) = u₀ at the fine
 ///    vertex that coincides with coarse vertex j, read off P as the row equal to e_j).
-///  - Geodesic distance: a fine source vertex s becomes the coarse source weights Pᵀ e_s, i.e. the
-///    corners of the coarse face containing s weighted by P's row s; the prolonged distance is shifted
-///    so that it vanishes (on average) at the fine sources.
+///  - Geodesic distance (ProxyGeodesicSolver), by one of two coarse solvers:
+///    marching (the default): fast marching with exact planar updates on the coarse intrinsic mesh
+///    from the sources' points (each source seeds the corners of its coarse face at their planar
+///    distances from it), carried to the fine vertices by interpolating the *squared* distance as
+///    the distance oracle does (fem/distance_oracle.h): d(y)² = Σ_j μ_j d(q_j)² − Σ_{j<k} μ_j μ_k
+///    |q_j q_k|² over P's row of y, exact inside the source's face and wherever one virtual source
+///    reaches y's face; heat_method: a fine source vertex becomes the coarse source weights Pᵀ e_s,
+///    the coarse heat method solves, and the distance is prolonged with P and shifted so that it
+///    vanishes (on average) at the fine sources.
 #include <memory>
 #include <mutex>
 #include <vector>
 
+#include "fem/distance_oracle.h"
 #include "fem/operators.h"
 #include "fem/problems.h"
 
 namespace fem {
+
+namespace detail {
+class MarchingMesh;
+}
 
 enum class CoarseOperatorKind { intrinsic, galerkin };
 enum class RestrictionKind { l2_projection, injection };
@@ -51,6 +62,9 @@ class CoarseProxy {
   const SparseMatrix& fine_mass() const { return fine_mass_; }
   const SparseMatrix& coarse_laplacian() const { return coarse_laplacian_; }
   const SparseMatrix& coarse_mass() const { return coarse_mass_; }
+  /// The coarse mesh as given (Fc, Lc).
+  const Faces& coarse_faces() const { return coarse_faces_; }
+  const FaceLengths& coarse_lengths() const { return coarse_lengths_; }
   Eigen::Index fine_size() const { return P_.rows(); }
   Eigen::Index coarse_size() const { return P_.cols(); }
 
@@ -227,23 +241,47 @@ class ProxyHeatSolver {
   double polish_setup_seconds_ = 0;
 };
 
-/// Heat-method distance on the coarse space, from fine source vertices (see the file comment): the
-/// sources' rows of P are the coarse source weights, the coarse distance is prolonged with P and
-/// shifted so that its mean over the sources is 0 (the value at a single source is 0).
-/// The prolongation to the fine vertices is a threaded gather on meshes of 50,000+ vertices, as in
-/// ProxyPoissonSolver.
+/// Options of ProxyGeodesicSolver.
+struct ProxyGeodesicOptions {
+  /// The coarse solver (see the file comment). Marching is the default because it is the more
+  /// accurate of the two on every shared mesh measured, for ICE and for QEM coarse meshes alike
+  /// (README, Accuracy), and needs no factorisation.
+  CoarseDistanceMethod method = CoarseDistanceMethod::marching;
+  /// heat_method only: t = (time_factor · h_c)², h_c the coarse mean edge length.
+  double time_factor = 1.0;
+};
+
+/// Geodesic distance from fine source vertices through the coarse space (see the file comment).
+/// Marching needs the coarse lengths to be a valid intrinsic mesh and P's rows to be barycentric
+/// coordinates of a point in a coarse face; a row whose nonzero columns are not joined by coarse
+/// edges (QEM with intrinsic Delaunay geometry: a QEM face the flips removed) is interpolated
+/// linearly instead, and a source on such a row is reached by marching from each of its corners.
+/// Vertices of coarse components no source reaches are +∞ with marching (the heat method needs a
+/// connected coarse mesh: it throws NotPositiveDefinite).
+/// The prolongation to the fine vertices is threaded on meshes of 50,000+ vertices.
 class ProxyGeodesicSolver {
  public:
-  /// Assembles proxy.coarse_heat_method_operators(time_factor) and factors them.
-  explicit ProxyGeodesicSolver(const CoarseProxy& proxy, double time_factor = 1.0);
-  /// With coarse operators assembled by the caller (to time assembly and factorisation apart).
+  /// Prepares the coarse solver: the marching's mesh, or the heat method's operators
+  /// (proxy.coarse_heat_method_operators(options.time_factor)) and their factorisations.
+  explicit ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGeodesicOptions& options = {});
+  /// The heat method with coarse operators assembled by the caller (to time assembly and
+  /// factorisation apart).
   ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOperators coarse_operators);
-  /// Distance to the nearest of `fine_sources` (non-empty, in range; repeats count once).
+  ProxyGeodesicSolver(ProxyGeodesicSolver&&) noexcept;
+  ~ProxyGeodesicSolver();
+  CoarseDistanceMethod method() const { return heat_ ? CoarseDistanceMethod::heat_method : CoarseDistanceMethod::marching; }
+  /// Distance to the nearest of `fine_sources` (non-empty, in range; repeats count once); 0 at the sources.
   Eigen::VectorXd distance(const std::vector<Index>& fine_sources, ProxyPhaseTimes* times = nullptr) const;
 
  private:
+  Eigen::VectorXd heat_distance(const std::vector<Index>& sources, ProxyPhaseTimes* times) const;
+  Eigen::VectorXd marching_distance(const std::vector<Index>& sources, ProxyPhaseTimes* times) const;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major (gathers per fine vertex)
-  HeatGeodesicSolver coarse_;
+  std::unique_ptr<HeatGeodesicSolver> heat_;                  ///< the heat method, or null
+  std::unique_ptr<detail::MarchingMesh> marching_;            ///< marching, or null
+  /// Marching: Σ_{j<k} μ_j μ_k |q_j q_k|² of each fine vertex's row of P, NaN where some pair of its
+  /// columns is not a coarse edge (then interpolated linearly).
+  std::vector<double> spread_;
 };
 
 }  // namespace fem

@@ -1,0 +1,240 @@
+#pragma once
+/// \file coarse_marching.h
+/// Fast marching with exact planar updates on an intrinsic mesh (private to libfem): the coarse
+/// distances of the distance oracle and of the geodesic proxy (see fem/distance_oracle.h for the
+/// update). A MarchingMesh is what the marching reads around each vertex, laid out once,
+/// contiguously, in the order it is read, and shared (read-only) by any number of CoarseMarchers,
+/// which hold the per-run front and values (one per thread).
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <vector>
+
+#include "fem/operators.h"
+
+namespace fem::detail {
+
+class MarchingMesh {
+ public:
+  /// Faces and lengths of a valid intrinsic mesh (a Δ-complex: repeated corners allowed) on
+  /// vertex_count vertices.
+  MarchingMesh(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) : vertex_count_(vertex_count) {
+    // Around each vertex u: its neighbours w (multi-edges merged: the shortest length counts), and
+    // for each, the faces (u, w, x) through which w can be updated from u and x.
+    struct Relation {
+      Index u, w, x;
+      double to_w, to_x, across;  // |u w|, |u x|, |w x|
+    };
+    std::vector<Relation> relations;
+    relations.reserve(static_cast<std::size_t>(6 * F.rows()));
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        // Corner k at u; "first" is corner k+1, "second" corner k+2.
+        const Index u = F(f, k), first = F(f, (k + 1) % 3), second = F(f, (k + 2) % 3);
+        const double to_first = L(f, k), across = L(f, (k + 1) % 3), to_second = L(f, (k + 2) % 3);
+        relations.push_back({u, first, second, to_first, to_second, across});
+        relations.push_back({u, second, first, to_second, to_first, across});
+      }
+    std::sort(relations.begin(), relations.end(), [](const Relation& p, const Relation& q) {
+      return p.u != q.u ? p.u < q.u : p.w < q.w;
+    });
+    neighbour_start_.assign(static_cast<std::size_t>(vertex_count) + 1, 0);
+    for (std::size_t i = 0; i < relations.size();) {
+      std::size_t j = i;
+      Neighbour neighbour{relations[i].w, static_cast<float>(relations[i].to_w), static_cast<Index>(faces_.size())};
+      for (; j < relations.size() && relations[j].u == relations[i].u && relations[j].w == relations[i].w; ++j) {
+        const Relation& r = relations[j];
+        neighbour.length = std::min(neighbour.length, static_cast<float>(r.to_w));
+        // A face whose other corner is u again (a self-folded face, around a loop edge) offers no
+        // source consistent with both copies of u: only its edge counts.
+        if (r.x != r.u)
+          faces_.push_back({r.x, static_cast<float>(r.to_w), static_cast<float>(r.across), layout(r.to_w, r.to_x, r.across)});
+      }
+      neighbours_.push_back(neighbour);
+      ++neighbour_start_[static_cast<std::size_t>(relations[i].u) + 1];
+      i = j;
+    }
+    for (std::size_t v = 0; v < static_cast<std::size_t>(vertex_count); ++v) neighbour_start_[v + 1] += neighbour_start_[v];
+    neighbours_.push_back({0, 0, static_cast<Index>(faces_.size())});  // sentinel: the end of the last face range
+  }
+
+  Eigen::Index vertex_count() const { return vertex_count_; }
+  /// The length of the (shortest) edge between u and w, or NaN if they are not neighbours.
+  double edge_length(Index u, Index w) const {
+    const Index end = neighbour_start_[static_cast<std::size_t>(u) + 1];
+    for (Index i = neighbour_start_[static_cast<std::size_t>(u)]; i < end; ++i)
+      if (neighbours_[static_cast<std::size_t>(i)].w == w) return neighbours_[static_cast<std::size_t>(i)].length;
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+
+ private:
+  friend class CoarseMarcher;
+  /// A face flattened for the update of its vertex v from its other corners a, b: a = (0, 0),
+  /// b = (base, 0), v = (vx, vy), vy > 0 unless the face is degenerate. Floats: the geometry is
+  /// read for every update and the values stay double.
+  struct Layout {
+    float base, half_inverse_base, vx, vy;
+  };
+  static Layout layout(double to_a, double base, double to_b) {
+    const double vx = (to_a * to_a - to_b * to_b + base * base) / (2 * base);
+    return {static_cast<float>(base), static_cast<float>(0.5 / base), static_cast<float>(vx),
+            static_cast<float>(std::sqrt(std::max(0.0, to_a * to_a - vx * vx)))};
+  }
+  /// A neighbour w of u: the edge length and where its faces start in faces_ (they end where the
+  /// next neighbour's start).
+  struct Neighbour {
+    Index w;
+    float length;
+    Index faces_begin;
+  };
+  /// A face (u, w, x) for updating w from u and x: |w u|, |w x| and the face flattened with u at
+  /// the origin and x on the axis.
+  struct FaceEntry {
+    Index x;
+    float to_u, to_x;
+    Layout layout;
+  };
+
+  Eigen::Index vertex_count_;
+  std::vector<Index> neighbour_start_;  ///< CSR of neighbours_ by vertex
+  std::vector<Neighbour> neighbours_;    ///< (plus a sentinel closing the last face range)
+  std::vector<FaceEntry> faces_;
+};
+
+/// One marching run at a time over a MarchingMesh (which must outlive it).
+class CoarseMarcher {
+ public:
+  /// A vertex where the front starts, at a given distance (a point source inside a face starts at
+  /// its corners, at their planar distances from it), and the source it belongs to.
+  struct Seed {
+    Index vertex;
+    double value;
+    Index source = 0;
+  };
+  explicit CoarseMarcher(const MarchingMesh& mesh) : mesh_(mesh) {}
+
+  /// Distances from `source` to every vertex into `distance` (+∞ where unreachable).
+  void run(Index source, std::vector<double>& distance) { run(std::vector<Seed>{{source, 0.0}}, distance, source_); }
+
+  /// Distances from the seeds (the least seed value + path length over the seeds; a vertex seeded
+  /// twice keeps the smaller value) into `distance` (+∞ where unreachable), and into `source` the
+  /// source of the seed each vertex's value comes from (-1 where unreachable). A face updates a
+  /// vertex through its interior only from two corners of one source (corners of two sources are
+  /// not consistent with one virtual source).
+  void run(const std::vector<Seed>& seeds, std::vector<double>& distance, std::vector<Index>& source) {
+    const auto n = static_cast<std::size_t>(mesh_.vertex_count_);
+    distance.assign(n, kInfinity);
+    source.assign(n, -1);
+    accepted_.assign(n, 0);
+    position_.assign(n, -1);
+    front_.assign(n + 2, kSentinel);
+    front_size_ = 0;
+    for (const Seed& seed : seeds)
+      if (seed.value < distance[static_cast<std::size_t>(seed.vertex)]) {
+        distance[static_cast<std::size_t>(seed.vertex)] = seed.value;
+        source[static_cast<std::size_t>(seed.vertex)] = seed.source;
+        lower(seed.vertex, distance);
+      }
+    const auto& neighbours = mesh_.neighbours_;
+    const auto& faces = mesh_.faces_;
+    while (front_size_ > 0) {
+      const Index u = pop();
+      const double value = distance[static_cast<std::size_t>(u)];
+      const Index from = source[static_cast<std::size_t>(u)];
+      accepted_[static_cast<std::size_t>(u)] = 1;
+      // Each neighbour w once: along the edge, and through every face (u, w, x) whose x is accepted
+      // too (the face's turn for w comes when the second of u and x is accepted).
+      const Index end = mesh_.neighbour_start_[static_cast<std::size_t>(u) + 1];
+      for (Index i = mesh_.neighbour_start_[static_cast<std::size_t>(u)]; i < end; ++i) {
+        const MarchingMesh::Neighbour& neighbour = neighbours[static_cast<std::size_t>(i)];
+        if (accepted_[static_cast<std::size_t>(neighbour.w)]) continue;
+        double candidate = value + neighbour.length;
+        const Index faces_end = neighbours[static_cast<std::size_t>(i) + 1].faces_begin;
+        for (Index k = neighbour.faces_begin; k < faces_end; ++k) {
+          const MarchingMesh::FaceEntry& face = faces[static_cast<std::size_t>(k)];
+          if (accepted_[static_cast<std::size_t>(face.x)] && source[static_cast<std::size_t>(face.x)] == from)
+            candidate = std::min(candidate, value_through(value, distance[static_cast<std::size_t>(face.x)], face.to_u,
+                                                          face.to_x, face.layout));
+        }
+        if (candidate < distance[static_cast<std::size_t>(neighbour.w)]) {
+          distance[static_cast<std::size_t>(neighbour.w)] = candidate;
+          source[static_cast<std::size_t>(neighbour.w)] = from;
+          lower(neighbour.w, distance);
+        }
+      }
+    }
+  }
+
+ private:
+  static constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  // The value of v through its face from corners a, b at distances da, db (|v a| = to_a, |v b| = to_b).
+  static double value_through(double da, double db, double to_a, double to_b, const MarchingMesh::Layout& layout) {
+    const double along_edge = std::min(da + to_a, db + to_b);
+    if (!(da < kInfinity && db < kInfinity) || !(layout.vy > 0)) return along_edge;
+    const double base = layout.base, vx = layout.vx, vy = layout.vy;
+    // The virtual source s below ab with |s a| = da, |s b| = db (two circles); the straight line
+    // from s to v must cross ab between a and b: 0 <= sx + (−sy)(vx − sx)/(vy − sy) <= base.
+    const double sx = (da * da - db * db + base * base) * layout.half_inverse_base;
+    const double sy2 = da * da - sx * sx;
+    if (sy2 < 0) return along_edge;  // da, db not consistent with one source (|da − db| > base)
+    const double sy = -std::sqrt(sy2);
+    const double rise = vy - sy;  // > 0
+    const double crossing_times_rise = sx * rise - sy * (vx - sx);
+    if (crossing_times_rise < 0 || crossing_times_rise > base * rise) return along_edge;
+    const double dx = vx - sx;
+    return std::min(along_edge, std::sqrt(dx * dx + rise * rise));
+  }
+  // The front: a binary min-heap of (distance, vertex) in front_[0, front_size_), each vertex at
+  // most once (position_ = its slot, or -1), so a lowered value moves it up instead of adding an
+  // entry. The slots past the end hold +∞, so that picking the smaller child needs no bounds test.
+  struct Entry {
+    double key;
+    Index vertex;
+  };
+  static constexpr Entry kSentinel{std::numeric_limits<double>::infinity(), -1};
+  void place(std::size_t slot, Entry entry) {
+    front_[slot] = entry;
+    position_[static_cast<std::size_t>(entry.vertex)] = static_cast<Index>(slot);
+  }
+  void lower(Index v, const std::vector<double>& distance) {
+    std::size_t slot = position_[static_cast<std::size_t>(v)] < 0
+                           ? front_size_++
+                           : static_cast<std::size_t>(position_[static_cast<std::size_t>(v)]);
+    const Entry entry{distance[static_cast<std::size_t>(v)], v};
+    while (slot > 0) {
+      const std::size_t parent = (slot - 1) / 2;
+      if (!(entry.key < front_[parent].key)) break;
+      place(slot, front_[parent]);
+      slot = parent;
+    }
+    place(slot, entry);
+  }
+  Index pop() {
+    const Index top = front_[0].vertex;
+    position_[static_cast<std::size_t>(top)] = -1;
+    const Entry last = front_[--front_size_];
+    front_[front_size_] = kSentinel;
+    if (front_size_ == 0) return top;
+    std::size_t slot = 0;
+    for (;;) {
+      std::size_t child = 2 * slot + 1;
+      if (child >= front_size_) break;
+      child += front_[child + 1].key < front_[child].key ? 1 : 0;
+      if (!(front_[child].key < last.key)) break;
+      place(slot, front_[child]);
+      slot = child;
+    }
+    place(slot, last);
+    return top;
+  }
+
+  const MarchingMesh& mesh_;
+  std::vector<Index> source_;  ///< the single-source run's (all 0)
+  std::vector<char> accepted_;
+  std::vector<Entry> front_;
+  std::size_t front_size_ = 0;
+  std::vector<Index> position_;
+};
+
+}  // namespace fem::detail
