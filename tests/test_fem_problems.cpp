@@ -139,6 +139,21 @@ TEST_CASE("heat-method geodesics on spheres converge to R·θ", "[fem][problems]
   CHECK(previous_mean < 0.01);
 }
 
+TEST_CASE("heat-method geodesics stay finite where the heat solution is subnormal", "[fem][problems][geodesic]") {
+  // A short time step on a long torus: u falls below 1e-308 (subnormal doubles, 250 vertices) and
+  // to 0 on the far side, as it does at t = h² on meshes of a million vertices. Normalising such a
+  // gradient divided the face area by a subnormal norm: ∞, and ∞ · 0 made every distance NaN.
+  const double major = 4.0, minor = 0.5;
+  const Discretisation d = discretise(ice::make_torus(800, 8, major, minor));
+  fem::HeatMethodOperators ops = fem::heat_method_operators(d.mesh.F, d.lengths, fem::MassKind::lumped, 0.04);
+  const fem::HeatGeodesicSolver solver(std::move(ops));
+  const Eigen::VectorXd phi = solver.distance({0});
+  REQUIRE(phi.allFinite());
+  CHECK(phi(0) == Approx(0.0).margin(1e-14));
+  CHECK(phi.minCoeff() > -0.05);
+  CHECK(phi.maxCoeff() < M_PI * (major + minor) + M_PI * minor);  // half way round, outside, then across
+}
+
 TEST_CASE("heat-method geodesics on a disk with boundary", "[fem][problems][geodesic]") {
   double previous_mean = INFINITY;
   for (int rings : {8, 16, 32}) {
