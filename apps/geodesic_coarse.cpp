@@ -357,7 +357,8 @@ int main(int argc, char** argv) {
     }
     opt.check_outputs();
     const std::vector<long long> file_sources = app::parse_index_list(sources_text, "--source");
-    app::PdeRun run = app::PdeRun::start(kTool, opt, opt.operators == fem::CoarseOperatorKind::galerkin);
+    app::PdeRun run = app::PdeRun::start(kTool, opt, opt.operators == fem::CoarseOperatorKind::galerkin &&
+                                                                oracle.method == fem::CoarseDistanceMethod::heat_method);
 
     // ---- load
     app::Stopwatch clock;
@@ -376,17 +377,18 @@ int main(int argc, char** argv) {
 
     // ---- coarsen, fine discretisation, then the proxy (fem::ProxyGeodesicSolver): assemble, factor,
     // restrict + solve and prolong, the last two timed by the solver
-    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock);
+    const bool marching = oracle.method == fem::CoarseDistanceMethod::marching;
+    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/!marching);
     const ice::FineMesh& fine = pde.fine;
-    const fem::CoarseProxy& proxy = *pde.proxy;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
-    if (oracle.method == fem::CoarseDistanceMethod::heat_method) {
-      fem::HeatMethodOperators coarse_ops = proxy.coarse_heat_method_operators();  // lumped mass for Galerkin
+    if (marching) {  // no coarse operators: the coarse mesh and P are all the marching reads
+      run.coarse_solver = "coarse fast marching";
       run.assemble = clock.lap();
-      proxy_solver.emplace(proxy, std::move(coarse_ops));
+      proxy_solver.emplace(pde.coarse.mesh.F, pde.coarse.mesh.L, pde.coarse.P);
     } else {
+      fem::HeatMethodOperators coarse_ops = pde.proxy->coarse_heat_method_operators();  // lumped mass for Galerkin
       run.assemble = clock.lap();
-      proxy_solver.emplace(proxy);  // the marching's mesh and each fine vertex's spread
+      proxy_solver.emplace(*pde.proxy, std::move(coarse_ops));
     }
     run.factor = clock.lap();
     fem::ProxyPhaseTimes phases;

@@ -315,8 +315,7 @@ void PdeRun::print_summary(std::ostream& out) const {
       << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), "
       << (qem ? "QEM (" + cli_name(coarsening.qem->geometry) + " mesh)"
               : "ICE (area weight " + fixed(area_weight, 2) + (normalize_curvature ? ", normalised curvature)" : ")"))
-      << ", " << cli_name(operators)
-      << " coarse operators\n";
+      << ", " << (coarse_solver.empty() ? cli_name(operators) + " coarse operators" : coarse_solver) << '\n';
   const auto row = [&](const std::string& name, double seconds, const std::string& note = "") {
     out << "  " << std::left << std::setw(16) << name << std::right << std::setw(10) << fixed(seconds, 4) << " s"
         << (note.empty() ? "" : "   " + note) << '\n';

@@ -258,6 +258,10 @@ TEST_CASE("geodesics by coarse marching are the straight-line distance on a flat
     }
   }
   CHECK(clear > fine.V.rows() / 2);
+  // Without a CoarseProxy (no operators assembled): the same answer.
+  const fem::ProxyGeodesicSolver bare(coarse.F, coarse_lengths, P);
+  CHECK((bare.distance({17, midpoint}) - marching.distance({17, midpoint})).cwiseAbs().maxCoeff() == 0.0);
+  CHECK_THROWS_AS(fem::ProxyGeodesicSolver(coarse.F, coarse_lengths, fem::SparseMatrix(0.5 * P)), std::invalid_argument);
   CHECK_THROWS_AS(marching.distance({}), std::invalid_argument);
   CHECK_THROWS_AS(marching.distance({static_cast<int>(fine.V.rows())}), std::invalid_argument);
 }

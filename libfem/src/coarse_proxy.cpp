@@ -315,18 +315,31 @@ Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::Ref<const Eigen::VectorX
 ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGeodesicOptions& options)
     : P_rows_(proxy.prolongation()) {
   P_rows_.makeCompressed();
-  if (options.method == CoarseDistanceMethod::heat_method) {
+  if (options.method == CoarseDistanceMethod::heat_method)
     heat_ = std::make_unique<HeatGeodesicSolver>(proxy.coarse_heat_method_operators(options.time_factor));
-    return;
-  }
-  const Faces& Fc = proxy.coarse_faces();
-  const FaceLengths& Lc = proxy.coarse_lengths();
-  if (Fc.rows() == 0 || Lc.rows() != Fc.rows() || Lc.cols() != 3)
+  else
+    prepare_marching(proxy.coarse_faces(), proxy.coarse_lengths());
+}
+
+ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P)
+    : P_rows_(std::move(P)) {
+  P_rows_.makeCompressed();
+  if (coarse_faces.size() > 0 && coarse_faces.maxCoeff() >= P_rows_.cols())
+    throw std::invalid_argument("ProxyGeodesicSolver: P must be n_fine × n_coarse (the coarse faces name vertices beyond it)");
+  const Eigen::VectorXd row_sums = P_rows_ * Eigen::VectorXd::Ones(P_rows_.cols());
+  for (Eigen::Index i = 0; i < row_sums.size(); ++i)
+    if (!(std::abs(row_sums(i) - 1.0) <= 1e-10))
+      throw std::invalid_argument("ProxyGeodesicSolver: row " + std::to_string(i) + " of P does not sum to 1");
+  prepare_marching(coarse_faces, coarse_lengths);
+}
+
+void ProxyGeodesicSolver::prepare_marching(const Faces& Fc, const FaceLengths& Lc) {
+  if (Fc.rows() == 0 || Lc.rows() != Fc.rows() || Lc.cols() != 3 || Fc.minCoeff() < 0)
     throw std::invalid_argument("ProxyGeodesicSolver: marching needs the coarse faces and their lengths");
   for (Eigen::Index f = 0; f < Fc.rows(); ++f)
     if (!(Lc.row(f).minCoeff() > 0) || !std::isfinite(Lc.row(f).sum()))
       throw std::invalid_argument("ProxyGeodesicSolver: coarse face " + std::to_string(f) + " has a non-positive or non-finite length");
-  marching_ = std::make_unique<detail::MarchingMesh>(Fc, Lc, proxy.coarse_size());
+  marching_ = std::make_unique<detail::MarchingMesh>(Fc, Lc, P_rows_.cols());
   const Eigen::Index n = P_rows_.rows();
   spread_.resize(static_cast<std::size_t>(n));
   const int* outer = P_rows_.outerIndexPtr();

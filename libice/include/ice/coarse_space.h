@@ -57,7 +57,9 @@ const char* to_string(ProxyUse use);
 ///    normalisation makes the weight mean the same on every mesh (Σ|K| ranges 0.7–195 × 4π).
 ///  - geodesic: area weight 0.98, curvature not normalised (geodesics want more curvature than
 ///    Poisson: with normalisation the best weight sits at 0.1 and still loses to this, 6 % in the
-///    geometric mean): ratio 0.88, median at 5 % 0.90, worse in 39 % of cases.
+///    geometric mean): ratio 0.88, median at 5 % 0.90, worse in 39 % of cases with the coarse heat
+///    method; with coarse fast marching (fem::ProxyGeodesicSolver's default) 0.825 / 0.876 / 39 %,
+///    and normalised 0.5 still loses (0.830 / 0.918 / 42 %).
 /// Curvature only (area weight 0, the ICE paper's metric and CoarsenOptions' own default) was never
 /// best: 0.80 / 0.83 / 1.00 for the three problems with intrinsic operators.
 CoarsenOptions recommended_coarsen_options(ProxyUse use = ProxyUse::poisson_heat);
