@@ -131,11 +131,13 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
                       **coarsening):
     """Geodesic distance to `sources` through a coarse proxy (geodesic-coarse).
 
-    method: "marching" (fast marching on the coarse mesh, the default) or "heat" (the coarse heat
-    method, t = (time_factor · mean coarse edge length)²). coarse / coarsening options as for
+    method: "marching" (fast marching on the coarse mesh, the default; operators and fine are then
+    unused) or "heat" (the coarse heat method, t = (time_factor · mean coarse edge length)²). coarse / coarsening options as for
     solve_poisson, with the metric measured best for geodesics (use="geodesic") by default. For many
     sources or pairs see ProxyGeodesicSolver and DistanceOracle.
     """
     coarse = _coarse_for(V, F, coarse, coarsening, "geodesic")
+    if method == "marching":  # needs only the coarse mesh and P: no Proxy (fine mesh, operators) to build
+        return ProxyGeodesicSolver.from_coarse(V, F, coarse).distance(sources)
     proxy = Proxy(V, F, coarse, operators=operators, fine=fine)
     return ProxyGeodesicSolver(proxy, method=method, time_factor=time_factor).distance(sources)

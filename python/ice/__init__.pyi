@@ -148,6 +148,9 @@ class ProxyGeodesicSolver:
     """Geodesic distance through the proxy (coarse fast marching, or the coarse heat method)."""
     def __init__(self, proxy: Proxy, *, method: Literal["marching", "heat"] = "marching",
                  time_factor: float = 1.0) -> None: ...
+    @staticmethod
+    def from_coarse(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace) -> ProxyGeodesicSolver:
+        """Coarse marching from a coarse space of (V, F) alone, without a Proxy."""
     def distance(self, sources: Indices) -> FloatArray: ...
     @property
     def times(self) -> dict[str, float]: ...

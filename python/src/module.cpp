@@ -438,14 +438,21 @@ struct PyProxy {
   std::unique_ptr<fem::CoarseProxy> proxy;
 };
 
-std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
-                                    const std::string& operators, const std::string& fine) {
+/// The mesh (V, F), checked to be the one `coarse` was made from (vertex count and faces), with P.
+ice::TriangleMesh require_coarse_space_of(const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
+                                          const std::string& what) {
   if (!coarse.has_space)
     throw py::value_error("this coarse space was read from a file and has no prolongation: coarsen the mesh to solve through it");
-  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  ice::TriangleMesh mesh = mesh_argument(V, F);
   if (mesh.V.rows() != coarse.space.P.rows() || faces_fingerprint(mesh.F) != coarse.faces_fingerprint)
     throw py::value_error("the coarse space was made from another mesh (" + std::to_string(coarse.space.P.rows()) +
-                          " vertices, other faces): build the Proxy on the (V, F) that was coarsened");
+                          " vertices, other faces): build the " + what + " on the (V, F) that was coarsened");
+  return mesh;
+}
+
+std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
+                                    const std::string& operators, const std::string& fine) {
+  const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "Proxy");
   const auto kind = choice<fem::CoarseOperatorKind>(
       operators, "operators", {{"galerkin", fem::CoarseOperatorKind::galerkin}, {"intrinsic", fem::CoarseOperatorKind::intrinsic}});
   const auto geometry = choice<ice::FineGeometry>(
@@ -509,7 +516,8 @@ struct PyHeatSolver {
   std::mutex mutex;
 };
 struct PyGeodesicSolver {
-  std::shared_ptr<PyProxy> proxy;
+  std::shared_ptr<PyProxy> proxy;  ///< null when made from a coarse space alone (marching)
+  Eigen::Index fine_size = 0;
   std::unique_ptr<fem::ProxyGeodesicSolver> solver;
   fem::ProxyPhaseTimes last_times;
   std::mutex mutex;
@@ -852,13 +860,24 @@ distances coarsen with use="geodesic".)doc")
              options.time_factor = time_factor;
              auto solver = std::make_unique<PyGeodesicSolver>();
              solver->proxy = proxy;
+             solver->fine_size = proxy->proxy->fine_size();
              py::gil_scoped_release release;
              solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(*proxy->proxy, options);
              return solver;
            }),
            py::arg("proxy"), py::kw_only(), py::arg("method") = "marching", py::arg("time_factor") = 1.0)
+      .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse) {
+             require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
+             auto solver = std::make_unique<PyGeodesicSolver>();
+             solver->fine_size = coarse.space.P.rows();
+             py::gil_scoped_release release;
+             solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, coarse.space.mesh.L, coarse.space.P);
+             return solver;
+           }, py::arg("V"), py::arg("F"), py::arg("coarse"),
+           "Coarse marching from a coarse space of (V, F) alone: no Proxy (no fine intrinsic Delaunay mesh, no operators), "
+           "which the marching does not need. The same distances as ProxyGeodesicSolver(Proxy(V, F, coarse)).")
       .def("distance", [](PyGeodesicSolver& s, const py::object& sources) {
-             const std::vector<ice::Index> fine_sources = index_argument(sources, s.proxy->proxy->fine_size(), "sources");
+             const std::vector<ice::Index> fine_sources = index_argument(sources, s.fine_size, "sources");
              if (fine_sources.empty()) throw py::value_error("sources is empty");
              py::gil_scoped_release release;
              const std::lock_guard<std::mutex> lock(s.mutex);

@@ -110,6 +110,15 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
     assert d[7] == pytest.approx(0, abs=1e-12) and d.max() > 0.5 * np.linalg.norm(V.max(0) - V.min(0))
     with pytest.raises(ValueError, match="sources"):
         ice.geodesic_distance(V, F, [V.shape[0]], ratio=0.05)
+    # The tool's heat method too, and the coarse marching without a Proxy (what geodesic_distance
+    # uses) equals the one through a Proxy.
+    tool("geodesic-coarse", path, "--ratio", "0.05", "--source", "7", "--no-reference", "--ascii", "-q",
+         "--coarse-distances", "heat", "-o", tmp_path / "h.ply")
+    heat = ice.geodesic_distance(V, F, [7], ratio=0.05, method="heat")
+    assert np.abs(heat - read_ascii_ply_fields(tmp_path / "h.ply")["distance"]).max() <= 1e-12 * heat.max()
+    coarse = ice.coarsen(V, F, ratio=0.05, use="geodesic")
+    bare = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([7, 100])
+    assert np.array_equal(bare, ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse)).distance([7, 100]))
 
 
 def test_heat_flow_conserves_mass_and_matches_scipy(spot):
@@ -226,6 +235,8 @@ def test_a_proxy_needs_the_mesh_that_was_coarsened(spot):
     inverse = np.argsort(order)
     with pytest.raises(ValueError, match="another mesh"):
         ice.Proxy(V[order], inverse[F], coarse)  # the same surface, renumbered
+    with pytest.raises(ValueError, match="another mesh"):
+        ice.ProxyGeodesicSolver.from_coarse(V[order], inverse[F], coarse)
 
 
 def test_shared_matrices_are_read_only_views(spot):
