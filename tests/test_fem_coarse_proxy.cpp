@@ -262,6 +262,40 @@ TEST_CASE("geodesics by coarse marching are the straight-line distance on a flat
   const fem::ProxyGeodesicSolver bare(coarse.F, coarse_lengths, P);
   CHECK((bare.distance({17, midpoint}) - marching.distance({17, midpoint})).cwiseAbs().maxCoeff() == 0.0);
   CHECK_THROWS_AS(fem::ProxyGeodesicSolver(coarse.F, coarse_lengths, fem::SparseMatrix(0.5 * P)), std::invalid_argument);
+
+  // A row whose columns are not joined by an edge (as QEM's rows can be after intrinsic Delaunay
+  // flips): the point (−1, 0), halfway between the vertices at (−2, 0) and (0, 0). As a source it
+  // is marched from both and combined, exact here; as a target it is interpolated linearly.
+  const auto vertex_at = [&](double x, double y) {
+    Eigen::Index found = -1;
+    for (Eigen::Index v = 0; v < coarse.V.rows(); ++v)
+      if ((coarse.V.row(v) - Eigen::RowVector3d(x, y, 0)).norm() < 1e-12) found = v;
+    REQUIRE(found >= 0);
+    return static_cast<int>(found);
+  };
+  const int left = vertex_at(-2, 0), right = vertex_at(0, 0);
+  const auto nc = static_cast<Eigen::Index>(coarse.V.rows());
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (Eigen::Index v = 0; v < nc; ++v) triplets.emplace_back(v, v, 1.0);
+  triplets.emplace_back(nc, left, 0.5);
+  triplets.emplace_back(nc, right, 0.5);
+  fem::SparseMatrix unlaid(nc + 1, nc);
+  unlaid.setFromTriplets(triplets.begin(), triplets.end());
+  const fem::ProxyGeodesicSolver across(coarse.F, coarse_lengths, unlaid);
+  fem::SparseMatrix negative = unlaid;  // rows summing to 1, one with a negative weight: refused
+  negative.coeffRef(nc, left) = 1.5;
+  negative.coeffRef(nc, right) = -0.5;
+  CHECK_THROWS_AS(fem::ProxyGeodesicSolver(coarse.F, coarse_lengths, negative), std::invalid_argument);
+  const Eigen::VectorXd from_point = across.distance({static_cast<int>(nc)});
+  const Eigen::VectorXd to_point = (coarse.V.rowwise() - Eigen::RowVector3d(-1, 0, 0)).rowwise().norm();
+  CHECK(from_point(nc) == 0.0);
+  // (float layouts, and the square root of a rounding error where the point meets a vertex: 1.2e-4)
+  CHECK((from_point.head(nc) - to_point).cwiseAbs().maxCoeff() <= 1e-4 * to_point.maxCoeff());
+  const Eigen::VectorXd from_vertex = across.distance({0});
+  CHECK(from_vertex(nc) == Approx(0.5 * (from_vertex(left) + from_vertex(right))).epsilon(1e-12));
+  // Both kinds of source at once: the nearer one's distance at every coarse vertex.
+  const Eigen::VectorXd mixed = across.distance({static_cast<int>(nc), 0});
+  CHECK((mixed.head(nc) - from_point.head(nc).cwiseMin(from_vertex.head(nc))).cwiseAbs().maxCoeff() <= 1e-4 * to_point.maxCoeff());
   CHECK_THROWS_AS(marching.distance({}), std::invalid_argument);
   CHECK_THROWS_AS(marching.distance({static_cast<int>(fine.V.rows())}), std::invalid_argument);
 }

@@ -9,11 +9,24 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "fem/operators.h"
 
 namespace fem::detail {
+
+/// Throws std::invalid_argument (message prefixed by `who`) unless F and L are m × 3 with m > 0,
+/// non-negative vertex indices and positive finite lengths.
+inline void check_marching_mesh(const Faces& F, const FaceLengths& L, const std::string& who) {
+  if (F.rows() == 0 || F.cols() != 3 || L.rows() != F.rows() || L.cols() != 3)
+    throw std::invalid_argument(who + ": the coarse mesh needs faces (m x 3) and lengths of the same shape");
+  if (F.minCoeff() < 0) throw std::invalid_argument(who + ": negative coarse vertex index");
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    if (!(L.row(f).minCoeff() > 0) || !std::isfinite(L.row(f).sum()))
+      throw std::invalid_argument(who + ": coarse face " + std::to_string(f) + " has a non-positive or non-finite length");
+}
 
 class MarchingMesh {
  public:
@@ -40,11 +53,18 @@ class MarchingMesh {
       return p.u != q.u ? p.u < q.u : p.w < q.w;
     });
     neighbour_start_.assign(static_cast<std::size_t>(vertex_count) + 1, 0);
+    repeated_corner_.assign(static_cast<std::size_t>(vertex_count), 0);
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        if (F(f, k) == F(f, (k + 1) % 3)) repeated_corner_[static_cast<std::size_t>(F(f, k))] = 1;
     for (std::size_t i = 0; i < relations.size();) {
       std::size_t j = i;
       Neighbour neighbour{relations[i].w, static_cast<float>(relations[i].to_w), static_cast<Index>(faces_.size())};
       for (; j < relations.size() && relations[j].u == relations[i].u && relations[j].w == relations[i].w; ++j) {
         const Relation& r = relations[j];
+        // One edge is seen from at most two faces, with one length; more, or another length, are
+        // parallel edges: which one a point's coordinates refer to is unknown.
+        if (j - i >= 2 || static_cast<float>(r.to_w) != neighbour.length) neighbour.parallel = true;
         neighbour.length = std::min(neighbour.length, static_cast<float>(r.to_w));
         // A face whose other corner is u again (a self-folded face, around a loop edge) offers no
         // source consistent with both copies of u: only its edge counts.
@@ -56,16 +76,22 @@ class MarchingMesh {
       i = j;
     }
     for (std::size_t v = 0; v < static_cast<std::size_t>(vertex_count); ++v) neighbour_start_[v + 1] += neighbour_start_[v];
-    neighbours_.push_back({0, 0, static_cast<Index>(faces_.size())});  // sentinel: the end of the last face range
+    neighbours_.push_back({0, 0, static_cast<Index>(faces_.size()), false});  // sentinel: the end of the last face range
   }
 
   Eigen::Index vertex_count() const { return vertex_count_; }
-  /// The length of the (shortest) edge between u and w, or NaN if they are not neighbours.
+  /// The length of the one edge between u and w; NaN if they are not neighbours, are joined by
+  /// parallel edges, or one of them is a repeated corner of some face (a loop edge): then
+  /// barycentric weights over {u, w} do not say which flat layout they refer to.
   double edge_length(Index u, Index w) const {
+    constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
+    if (repeated_corner_[static_cast<std::size_t>(u)] || repeated_corner_[static_cast<std::size_t>(w)]) return kUnknown;
     const Index end = neighbour_start_[static_cast<std::size_t>(u) + 1];
-    for (Index i = neighbour_start_[static_cast<std::size_t>(u)]; i < end; ++i)
-      if (neighbours_[static_cast<std::size_t>(i)].w == w) return neighbours_[static_cast<std::size_t>(i)].length;
-    return std::numeric_limits<double>::quiet_NaN();
+    for (Index i = neighbour_start_[static_cast<std::size_t>(u)]; i < end; ++i) {
+      const Neighbour& neighbour = neighbours_[static_cast<std::size_t>(i)];
+      if (neighbour.w == w) return neighbour.parallel ? kUnknown : neighbour.length;
+    }
+    return kUnknown;
   }
 
  private:
@@ -87,6 +113,7 @@ class MarchingMesh {
     Index w;
     float length;
     Index faces_begin;
+    bool parallel = false;  ///< several edges join u and w (length is the shortest)
   };
   /// A face (u, w, x) for updating w from u and x: |w u|, |w x| and the face flattened with u at
   /// the origin and x on the axis.
@@ -100,6 +127,7 @@ class MarchingMesh {
   std::vector<Index> neighbour_start_;  ///< CSR of neighbours_ by vertex
   std::vector<Neighbour> neighbours_;    ///< (plus a sentinel closing the last face range)
   std::vector<FaceEntry> faces_;
+  std::vector<char> repeated_corner_;  ///< the vertex is two corners of one face
 };
 
 /// One marching run at a time over a MarchingMesh (which must outlive it).

@@ -314,6 +314,7 @@ Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::Ref<const Eigen::VectorX
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGeodesicOptions& options)
     : P_rows_(proxy.prolongation()) {
+  P_rows_.prune(0.0);  // (an explicit zero would join a row's corners, and 0 · ∞ spoil sums)
   P_rows_.makeCompressed();
   if (options.method == CoarseDistanceMethod::heat_method)
     heat_ = std::make_unique<HeatGeodesicSolver>(proxy.coarse_heat_method_operators(options.time_factor));
@@ -323,9 +324,13 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGe
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P)
     : P_rows_(std::move(P)) {
+  P_rows_.prune(0.0);
   P_rows_.makeCompressed();
   if (coarse_faces.size() > 0 && coarse_faces.maxCoeff() >= P_rows_.cols())
     throw std::invalid_argument("ProxyGeodesicSolver: P must be n_fine × n_coarse (the coarse faces name vertices beyond it)");
+  for (Eigen::Index k = 0; k < P_rows_.nonZeros(); ++k)
+    if (!(P_rows_.valuePtr()[k] > 0))
+      throw std::invalid_argument("ProxyGeodesicSolver: P has a negative or non-finite weight (rows are barycentric coordinates)");
   const Eigen::VectorXd row_sums = P_rows_ * Eigen::VectorXd::Ones(P_rows_.cols());
   for (Eigen::Index i = 0; i < row_sums.size(); ++i)
     if (!(std::abs(row_sums(i) - 1.0) <= 1e-10))
@@ -334,11 +339,7 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLe
 }
 
 void ProxyGeodesicSolver::prepare_marching(const Faces& Fc, const FaceLengths& Lc) {
-  if (Fc.rows() == 0 || Lc.rows() != Fc.rows() || Lc.cols() != 3 || Fc.minCoeff() < 0)
-    throw std::invalid_argument("ProxyGeodesicSolver: marching needs the coarse faces and their lengths");
-  for (Eigen::Index f = 0; f < Fc.rows(); ++f)
-    if (!(Lc.row(f).minCoeff() > 0) || !std::isfinite(Lc.row(f).sum()))
-      throw std::invalid_argument("ProxyGeodesicSolver: coarse face " + std::to_string(f) + " has a non-positive or non-finite length");
+  detail::check_marching_mesh(Fc, Lc, "ProxyGeodesicSolver");
   marching_ = std::make_unique<detail::MarchingMesh>(Fc, Lc, P_rows_.cols());
   const Eigen::Index n = P_rows_.rows();
   spread_.resize(static_cast<std::size_t>(n));
@@ -364,7 +365,7 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOpe
   P_rows_.makeCompressed();
 }
 
-ProxyGeodesicSolver::ProxyGeodesicSolver(ProxyGeodesicSolver&&) noexcept = default;
+ProxyGeodesicSolver::ProxyGeodesicSolver(ProxyGeodesicSolver&&) = default;
 ProxyGeodesicSolver::~ProxyGeodesicSolver() = default;
 
 Eigen::VectorXd ProxyGeodesicSolver::distance(const std::vector<Index>& fine_sources, ProxyPhaseTimes* times) const {
@@ -455,6 +456,7 @@ Eigen::VectorXd ProxyGeodesicSolver::marching_distance(const std::vector<Index>&
         const double d = corner_rows[static_cast<std::size_t>(k) * nc + q];
         if (weight[begin + k] > 0) sum += weight[begin + k] * d * d;  // (0 · ∞ across components)
       }
+      if (std::isnan(sum)) continue;  // unreachable from some corner
       if (std::max(0.0, sum) < squared[q]) {
         squared[q] = std::max(0.0, sum);
         nearest[q] = static_cast<Index>(number);

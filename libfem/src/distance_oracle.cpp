@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <queue>
 #include <stdexcept>
 #include <string>
 
@@ -26,21 +25,12 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void check_mesh(const Faces& F, const FaceLengths& L) {
-  if (F.rows() == 0 || F.cols() != 3 || L.rows() != F.rows() || L.cols() != 3)
-    throw std::invalid_argument("DistanceOracle: the coarse mesh needs faces (m x 3) and lengths of the same shape");
-  if (F.minCoeff() < 0) throw std::invalid_argument("DistanceOracle: negative coarse vertex index");
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    if (!(L.row(f).minCoeff() > 0) || !std::isfinite(L.row(f).sum()))
-      throw std::invalid_argument("DistanceOracle: coarse face " + std::to_string(f) + " has a non-positive or non-finite length");
-}
-
 }  // namespace
 
 DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coarse_lengths,
                                const std::vector<ice::CoarsePoint>& fine_points, const DistanceOracleOptions& options)
     : options_(options) {
-  check_mesh(coarse_faces, coarse_lengths);
+  detail::check_marching_mesh(coarse_faces, coarse_lengths, "DistanceOracle");
   if (options.threads < 0 || options.heat_block_size < 1 || !(options.heat_time_factor > 0))
     throw std::invalid_argument("DistanceOracle: threads must be >= 0, heat_block_size >= 1, heat_time_factor > 0");
   coarse_size_ = coarse_faces.maxCoeff() + 1;

@@ -136,6 +136,8 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     solve_poisson, with the metric measured best for geodesics (use="geodesic") by default. For many
     sources or pairs see ProxyGeodesicSolver and DistanceOracle.
     """
+    if method not in ("marching", "heat"):
+        raise ValueError(f"method must be 'marching' or 'heat', not {method!r}")
     coarse = _coarse_for(V, F, coarse, coarsening, "geodesic")
     if method == "marching":  # needs only the coarse mesh and P: no Proxy (fine mesh, operators) to build
         return ProxyGeodesicSolver.from_coarse(V, F, coarse).distance(sources)

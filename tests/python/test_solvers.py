@@ -119,6 +119,8 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
     coarse = ice.coarsen(V, F, ratio=0.05, use="geodesic")
     bare = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([7, 100])
     assert np.array_equal(bare, ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse)).distance([7, 100]))
+    with pytest.raises(ValueError, match="method"):
+        ice.geodesic_distance(V, F, [7], coarse=coarse, method="dijkstra")
 
 
 def test_heat_flow_conserves_mass_and_matches_scipy(spot):
