@@ -27,6 +27,18 @@ SparseMatrix lumped(const SparseMatrix& mass) {
   return diagonal;
 }
 
+// P (n_fine × n_coarse) fits the coarse faces and its rows sum to 1: what a CoarseProxy and a
+// ProxyGeodesicSolver made without one both require. Throws std::invalid_argument prefixed by `who`.
+template <class Matrix>
+void require_prolongation(const Matrix& P, const Faces& coarse_faces, const std::string& who) {
+  if (coarse_faces.size() > 0 && coarse_faces.maxCoeff() >= P.cols())
+    throw std::invalid_argument(who + ": P must be n_fine × n_coarse (the coarse faces name vertices beyond it)");
+  const Eigen::VectorXd row_sums = P * Eigen::VectorXd::Ones(P.cols());
+  for (Eigen::Index i = 0; i < row_sums.size(); ++i)
+    if (!(std::abs(row_sums(i) - 1.0) <= 1e-10))
+      throw std::invalid_argument(who + ": every row of P must sum to 1 (row " + std::to_string(i) + " does not)");
+}
+
 }  // namespace
 
 CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
@@ -34,17 +46,15 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
     : kind_(kind), mass_kind_(mass_kind), P_(std::move(P)), coarse_faces_(Fc), coarse_lengths_(Lc) {
   P_.makeCompressed();  // the proxy solvers gather straight from its arrays
   const Eigen::Index n_fine = P_.rows(), n_coarse = P_.cols();
-  if ((F.size() > 0 && F.maxCoeff() >= n_fine) || (Fc.size() > 0 && Fc.maxCoeff() >= n_coarse))
-    throw std::invalid_argument("CoarseProxy: P must be n_fine × n_coarse (the faces name vertices beyond its shape)");
+  if (F.size() > 0 && F.maxCoeff() >= n_fine)
+    throw std::invalid_argument("CoarseProxy: P must be n_fine × n_coarse (the fine faces name vertices beyond it)");
+  require_prolongation(P_, Fc, "CoarseProxy");
   fine_mass_ = mass_matrix(F, L, mass_kind, n_fine);
   fine_mass_.makeCompressed();
   lazy_ = std::make_unique<LazyFineOperators>();
   lazy_->F = F;
   lazy_->L = L;
   lazy_->n = n_fine;
-  const Eigen::VectorXd row_sums = P_ * Eigen::VectorXd::Ones(n_coarse);
-  if (n_fine > 0 && (row_sums.array() - 1.0).abs().maxCoeff() > 1e-10)
-    throw std::invalid_argument("CoarseProxy: every row of P must sum to 1");
 
   if (kind == CoarseOperatorKind::intrinsic) {
     coarse_laplacian_ = cotan_laplacian(Fc, Lc, n_coarse);
@@ -326,15 +336,10 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLe
     : P_rows_(std::move(P)) {
   P_rows_.prune(0.0);
   P_rows_.makeCompressed();
-  if (coarse_faces.size() > 0 && coarse_faces.maxCoeff() >= P_rows_.cols())
-    throw std::invalid_argument("ProxyGeodesicSolver: P must be n_fine × n_coarse (the coarse faces name vertices beyond it)");
+  require_prolongation(P_rows_, coarse_faces, "ProxyGeodesicSolver");
   for (Eigen::Index k = 0; k < P_rows_.nonZeros(); ++k)
     if (!(P_rows_.valuePtr()[k] > 0))
       throw std::invalid_argument("ProxyGeodesicSolver: P has a negative or non-finite weight (rows are barycentric coordinates)");
-  const Eigen::VectorXd row_sums = P_rows_ * Eigen::VectorXd::Ones(P_rows_.cols());
-  for (Eigen::Index i = 0; i < row_sums.size(); ++i)
-    if (!(std::abs(row_sums(i) - 1.0) <= 1e-10))
-      throw std::invalid_argument("ProxyGeodesicSolver: row " + std::to_string(i) + " of P does not sum to 1");
   prepare_marching(coarse_faces, coarse_lengths);
 }
 

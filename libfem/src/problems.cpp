@@ -245,11 +245,11 @@ Eigen::MatrixXd HeatGeodesicSolver::normalized_field(const Eigen::MatrixXd& g) c
   Eigen::MatrixXd weighted_field(g.rows(), g.cols());
   for (Eigen::Index c = 0; c < g.cols(); ++c)
     for (Eigen::Index f = 0; f < operators_.face_areas.size(); ++f) {
-      const double largest = std::max(std::abs(g(2 * f, c)), std::abs(g(2 * f + 1, c)));
       if (std::isnan(g(2 * f, c)) || std::isnan(g(2 * f + 1, c))) {  // propagate, do not hide
         weighted_field(2 * f, c) = weighted_field(2 * f + 1, c) = std::numeric_limits<double>::quiet_NaN();
         continue;
       }
+      const double largest = std::max(std::abs(g(2 * f, c)), std::abs(g(2 * f + 1, c)));
       if (!(largest > 0)) {
         weighted_field(2 * f, c) = weighted_field(2 * f + 1, c) = 0.0;
         continue;

@@ -58,6 +58,12 @@ Enum choice(const std::string& value, const char* name, std::initializer_list<st
   throw py::value_error(std::string(name) + " must be one of " + names + ", got '" + value + "'");
 }
 
+/// "marching" or "heat": the coarse distances of ProxyGeodesicSolver and DistanceOracle.
+fem::CoarseDistanceMethod coarse_distance_method(const std::string& method) {
+  return choice<fem::CoarseDistanceMethod>(
+      method, "method", {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}});
+}
+
 // Python numbers for keyword options, refused with the option's name when of another type (a
 // float where a count is meant, a string where a number is meant).
 long long integer_option(const py::handle& value, const char* name) {
@@ -515,9 +521,7 @@ struct PyHeatSolver {
   fem::ProxyPhaseTimes last_times;
   std::mutex mutex;
 };
-struct PyGeodesicSolver {
-  std::shared_ptr<PyProxy> proxy;  ///< null when made from a coarse space alone (marching)
-  Eigen::Index fine_size = 0;
+struct PyGeodesicSolver {  // (the solver copies what it needs of a Proxy: none is kept)
   std::unique_ptr<fem::ProxyGeodesicSolver> solver;
   fem::ProxyPhaseTimes last_times;
   std::mutex mutex;
@@ -854,13 +858,10 @@ heat time t = (time_factor · mean coarse edge length)²; needs a connected mesh
 distances coarsen with use="geodesic".)doc")
       .def(py::init([](std::shared_ptr<PyProxy> proxy, const std::string& method, double time_factor) {
              if (!(time_factor > 0)) throw py::value_error("time_factor must be > 0");
-             if (method != "marching" && method != "heat") throw py::value_error("method must be 'marching' or 'heat', not '" + method + "'");
              fem::ProxyGeodesicOptions options;
-             options.method = method == "heat" ? fem::CoarseDistanceMethod::heat_method : fem::CoarseDistanceMethod::marching;
+             options.method = coarse_distance_method(method);
              options.time_factor = time_factor;
              auto solver = std::make_unique<PyGeodesicSolver>();
-             solver->proxy = proxy;
-             solver->fine_size = proxy->proxy->fine_size();
              py::gil_scoped_release release;
              solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(*proxy->proxy, options);
              return solver;
@@ -869,7 +870,6 @@ distances coarsen with use="geodesic".)doc")
       .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse) {
              require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
              auto solver = std::make_unique<PyGeodesicSolver>();
-             solver->fine_size = coarse.space.P.rows();
              py::gil_scoped_release release;
              solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, coarse.space.mesh.L, coarse.space.P);
              return solver;
@@ -877,7 +877,7 @@ distances coarsen with use="geodesic".)doc")
            "Coarse marching from a coarse space of (V, F) alone: no Proxy (no fine intrinsic Delaunay mesh, no operators), "
            "which the marching does not need. The same distances as ProxyGeodesicSolver(Proxy(V, F, coarse)).")
       .def("distance", [](PyGeodesicSolver& s, const py::object& sources) {
-             const std::vector<ice::Index> fine_sources = index_argument(sources, s.fine_size, "sources");
+             const std::vector<ice::Index> fine_sources = index_argument(sources, s.solver->fine_size(), "sources");
              if (fine_sources.empty()) throw py::value_error("sources is empty");
              py::gil_scoped_release release;
              const std::lock_guard<std::mutex> lock(s.mutex);
@@ -987,8 +987,7 @@ measured best for distances (what geodesic-coarse does).)doc")
                throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
                                      "QEM with extrinsic geometry)");
              fem::DistanceOracleOptions options;
-             options.method = choice<fem::CoarseDistanceMethod>(
-                 method, "method", {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}});
+             options.method = coarse_distance_method(method);
              options.heat_time_factor = heat_time_factor;
              options.threads = threads;
              py::gil_scoped_release release;
