@@ -149,6 +149,12 @@ IntrinsicTriangulation IntrinsicTriangulation::from_glued_faces(const Faces& F, 
 std::vector<Index> glue_by_vertex_pairs(const Faces& F) { return pair_sides_by_vertices(F).twin; }
 
 namespace {
+// Triangulations of at least this many vertices are built on several threads: the first touch of
+// the records (the kernel zeroing their pages), the corner passes and the vertex frames. Every
+// element is written by one thread with what a serial pass writes: the result does not depend on
+// the thread count.
+constexpr std::size_t kParallelBuildVertices = 100000;
+
 VertexPairGluing pair_sides_by_vertices(const Faces& F) {
   const Index num_faces = static_cast<Index>(F.rows());
   if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
@@ -159,13 +165,16 @@ VertexPairGluing pair_sides_by_vertices(const Faces& F) {
   // Pair corners (directed edges) into undirected edges by sorting on the vertex pair (lower
   // vertex, higher vertex, corner) with a counting sort on the lower vertex (detail::order_by_vertex).
   std::vector<std::uint64_t> key(num_corners);
-  for (Index c = 0; c < num_corners; ++c) {
-    const std::uint64_t a = F(c / 3, c % 3), b = F(c / 3, (c % 3 + 1) % 3);
-    if (a == b)
-      throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(c / 3) +
-                                  " repeats a vertex");
-    key[c] = (std::min(a, b) << 32) | std::max(a, b);
-  }
+  detail::run_ranges(detail::threads_for(static_cast<std::size_t>(num_vertices), kParallelBuildVertices), num_corners,
+                     [&](Index begin, Index end) {
+                       for (Index c = begin; c < end; ++c) {
+                         const std::uint64_t a = F(c / 3, c % 3), b = F(c / 3, (c % 3 + 1) % 3);
+                         if (a == b)
+                           throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(c / 3) +
+                                                       " repeats a vertex");
+                         key[c] = (std::min(a, b) << 32) | std::max(a, b);
+                       }
+                     });
   std::vector<Index> order = detail::order_by_vertex(
       static_cast<std::size_t>(num_corners), num_vertices, [&](Index c) { return static_cast<Index>(key[c] >> 32); },
       [&](Index x, Index y) { return key[x] < key[y]; });
@@ -236,8 +245,15 @@ std::vector<Index> number_glued_sides(const Faces& F, const std::vector<double>&
 }  // namespace
 
 namespace {
-// Triangulations of at least this many vertices compute their vertex frames on two threads.
-constexpr Index kParallelFrameVertices = 100000;
+// Sets `records` to `count` copies of `value`, each range first touched by the thread that fills it.
+template <class Record>
+void fill_records(LargeArray<Record>& records, Index count, const Record& value, int threads) {
+  records.clear();
+  records.resize(static_cast<std::size_t>(count));  // default-initialised: no page touched yet
+  detail::run_ranges(threads, count, [&](Index begin, Index end) {
+    std::fill(records.begin() + begin, records.begin() + end, value);
+  });
+}
 }  // namespace
 
 void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& corner_length,
@@ -246,53 +262,64 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
   const Index num_vertices = F.minCoeff() < 0 ? -1 : F.maxCoeff() + 1;
   if (num_vertices <= 0) throw std::invalid_argument("IntrinsicTriangulation: negative vertex index");
+  const int threads = detail::threads_for(static_cast<std::size_t>(num_vertices), kParallelBuildVertices);
   // The gluing, checked, numbers the edges: corner c's side is half-edge corner_halfedge[c].
   Index num_edges = 0;
   const std::vector<Index> corner_halfedge = number_glued_sides(F, corner_length, twin, order, num_edges);
 
-  edges_.assign(num_edges, EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0});
-  faces_.assign(num_faces, FaceRecord{kInvalid, kInvalid});
-  vertices_.assign(num_vertices, VertexRecord{kInvalid, 0, 0.0});
+  fill_records(edges_, num_edges,
+               EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0},
+               threads);
+  fill_records(faces_, num_faces, FaceRecord{kInvalid, kInvalid}, threads);
+  fill_records(vertices_, num_vertices, VertexRecord{kInvalid, 0, 0.0}, threads);
   num_vertices_ = num_vertices;
   num_edges_ = num_edges;
   num_faces_ = num_faces;
-  link_vertices(link_halfedges(F, corner_length, corner_halfedge));
-  for (Index f = 0; f < num_faces; ++f) {
-    const Index h = fhalfedge(f);
-    if (!triangle_inequality_holds(length(h), length(next(h)), length(prev(h))))
-      throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
-                                  " is degenerate or violates the triangle inequality");
-  }
-  // Each vertex's frame is its own (its angle sum and its outgoing half-edges' coordinates), so
-  // large meshes compute them on two threads, with the same result.
-  const auto frames = [this](Index begin, Index end) {
+  link_vertices(link_halfedges(F, corner_length, twin, corner_halfedge, threads));
+  // The first face that breaks the triangle inequality, as a serial scan finds it (run_tasks
+  // rethrows the lowest range's error).
+  detail::run_ranges(threads, num_faces, [&](Index begin, Index end) {
+    for (Index f = begin; f < end; ++f) {
+      const Index h = fhalfedge(f);
+      if (!triangle_inequality_holds(length(h), length(next(h)), length(prev(h))))
+        throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(f) +
+                                    " is degenerate or violates the triangle inequality");
+    }
+  });
+  // Each vertex's frame is its own (its angle sum and its outgoing half-edges' coordinates).
+  detail::run_ranges(threads, num_vertices, [this](Index begin, Index end) {
     for (Index v = begin; v < end; ++v) recompute_vertex_frame(v);
-  };
-  if (num_vertices >= kParallelFrameVertices && std::thread::hardware_concurrency() > 1)
-    detail::run_tasks(2, 2, [&](int half) { frames(half * (num_vertices / 2), half ? num_vertices : num_vertices / 2); });
-  else
-    frames(0, num_vertices);
-  points_.assign(num_vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
+  });
+  fill_records(points_, num_vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}}, threads);
 }
 
 std::vector<Index> IntrinsicTriangulation::link_halfedges(const Faces& F, const std::vector<double>& corner_length,
-                                                          const std::vector<Index>& corner_halfedge) {
+                                                          const std::vector<Index>& twin,
+                                                          const std::vector<Index>& corner_halfedge, int threads) {
   const Index num_corners = static_cast<Index>(corner_halfedge.size());
-  std::vector<Index> corners_at_vertex(static_cast<std::size_t>(num_vertices_), 0);
-  for (Index c = 0; c < num_corners; ++c) {
-    const Index h = corner_halfedge[c];
-    const Index f = c / 3;
-    hnext(h) = corner_halfedge[3 * f + (c % 3 + 1) % 3];
-    htail(h) = F(f, c % 3);
-    hface(h) = f;
-    elength(h >> 1) = corner_length[c];
-    fhalfedge(f) = corner_halfedge[3 * f];
-    ++corners_at_vertex[htail(h)];
-  }
-  for (Index c = 0; c < num_corners; ++c) hprev(hnext(corner_halfedge[c])) = corner_halfedge[c];
+  // Every corner writes its own half-edge; an edge's length is its later corner's (as a serial
+  // pass over the corners left it: the two sides agree to 1e-12, not always to the bit).
+  detail::run_ranges(threads, num_corners, [&](Index begin, Index end) {
+    for (Index c = begin; c < end; ++c) {
+      const Index h = corner_halfedge[c];
+      const Index f = c / 3;
+      hnext(h) = corner_halfedge[3 * f + (c % 3 + 1) % 3];
+      htail(h) = F(f, c % 3);
+      hface(h) = f;
+      if (twin[c] == kInvalid || twin[c] < c) elength(h >> 1) = corner_length[c];
+      if (c % 3 == 0) fhalfedge(f) = h;
+    }
+  });
+  detail::run_ranges(threads, num_corners, [&](Index begin, Index end) {
+    for (Index c = begin; c < end; ++c) hprev(hnext(corner_halfedge[c])) = corner_halfedge[c];
+  });
   // Exterior half-edges: tail is the head of their interior twin.
-  for (Index h = 0; h < 2 * num_edges_; ++h)
-    if (htail(h) == kInvalid) htail(h) = htail(hnext(h ^ 1));
+  detail::run_ranges(threads, 2 * num_edges_, [&](Index begin, Index end) {
+    for (Index h = begin; h < end; ++h)
+      if (htail(h) == kInvalid) htail(h) = htail(hnext(h ^ 1));
+  });
+  std::vector<Index> corners_at_vertex(static_cast<std::size_t>(num_vertices_), 0);
+  for (Index c = 0; c < num_corners; ++c) ++corners_at_vertex[F(c / 3, c % 3)];
   return corners_at_vertex;
 }
 

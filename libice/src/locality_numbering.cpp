@@ -1,5 +1,7 @@
 #include "locality_numbering.h"
 
+#include "run_tasks.h"
+
 #include <algorithm>
 #include <cstdint>
 #include <utility>
@@ -17,6 +19,9 @@ std::uint64_t spread_bits(std::uint64_t x) {
   x = (x | x << 2) & 0x1249249249249249ULL;
   return x;
 }
+
+// Meshes of at least this many faces get their lengths on several threads.
+constexpr std::size_t kParallelFaces = 200000;
 
 }  // namespace
 
@@ -82,9 +87,11 @@ LocalityNumbering locality_numbering(const TriangleMesh& mesh) {
 
 FaceLengths LocalityNumbering::face_lengths(const Positions& V) const {
   FaceLengths lengths(F.rows(), 3);
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int k = 0; k < 3; ++k)
-      lengths(f, k) = edge_length(V, order[static_cast<std::size_t>(F(f, k))], order[static_cast<std::size_t>(F(f, (k + 1) % 3))]);
+  run_ranges(threads_for(static_cast<std::size_t>(F.rows()), kParallelFaces), F.rows(), [&](Eigen::Index begin, Eigen::Index end) {
+    for (Eigen::Index f = begin; f < end; ++f)
+      for (int k = 0; k < 3; ++k)
+        lengths(f, k) = edge_length(V, order[static_cast<std::size_t>(F(f, k))], order[static_cast<std::size_t>(F(f, (k + 1) % 3))]);
+  });
   return lengths;
 }
 

@@ -33,4 +33,24 @@ void run_tasks(int threads, int tasks, F&& f) {
     if (error) std::rethrow_exception(error);
 }
 
+// The threads of a pass over `size` elements: the hardware's (at most 8) from `parallel_from`
+// elements on, else 1 (below that, starting threads costs more than it saves).
+inline int threads_for(std::size_t size, std::size_t parallel_from) {
+  if (size < parallel_from) return 1;
+  return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
+}
+
+// Runs f(begin, end) over [0, count) cut into contiguous ranges (4 per thread, so a thread that
+// finishes early takes another), on `threads` threads; one call f(0, count) when threads <= 1.
+template <class Count, class F>
+void run_ranges(int threads, Count count, F&& f) {
+  if (threads <= 1 || count < 2) {
+    f(Count{0}, count);
+    return;
+  }
+  const int tasks = static_cast<int>(std::min<Count>(count, static_cast<Count>(4 * threads)));
+  const auto bound = [&](int t) { return static_cast<Count>(static_cast<long long>(count) * t / tasks); };
+  run_tasks(threads, tasks, [&](int t) { f(bound(t), bound(t + 1)); });
+}
+
 }  // namespace ice::detail

@@ -266,7 +266,8 @@ class IntrinsicTriangulation {
   // count), then each vertex's outgoing half-edge and boundary flag, checking that every vertex
   // has one fan (the corners it was given).
   std::vector<Index> link_halfedges(const Faces& F, const std::vector<double>& corner_length,
-                                    const std::vector<Index>& corner_halfedge);
+                                    const std::vector<Index>& twin, const std::vector<Index>& corner_halfedge,
+                                    int threads);
   void link_vertices(const std::vector<Index>& corners_at_vertex);
   // Vertex slot -> compact vertex (live slots in order: input vertices, then inserted ones), or
   // kInvalid for a dead slot: the numbering of compact() and compacted().

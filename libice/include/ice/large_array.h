@@ -15,6 +15,7 @@
 #include <cstddef>
 #include <memory>
 #include <new>
+#include <utility>
 #include <vector>
 
 namespace ice {
@@ -42,6 +43,17 @@ struct LargeArrayAllocator {
       std::allocator<T>().deallocate(pointer, n);
     else
       detail::deallocate_large(pointer);
+  }
+  /// resize(n) and LargeArray(n) default-initialise: trivial records are left unwritten (no page
+  /// is touched), so that the caller can fill a large array on several threads, each first touch
+  /// (the kernel zeroing a page) on the thread that fills it. Give a value to have it filled.
+  template <class U>
+  void construct(U* pointer) noexcept(noexcept(::new (static_cast<void*>(pointer)) U)) {
+    ::new (static_cast<void*>(pointer)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* pointer, Args&&... args) {
+    ::new (static_cast<void*>(pointer)) U(std::forward<Args>(args)...);
   }
   template <class U>
   bool operator==(const LargeArrayAllocator<U>&) const noexcept { return true; }
