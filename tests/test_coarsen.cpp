@@ -263,6 +263,16 @@ TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays c
     const CoarsenResult result = coarsen(T, options);
     CHECK(result.stop_reason == StopReason::TargetReached);
     CHECK(result.parallel_removed > result.removed / 2);  // most removals ran in the regions
+    // The stages after the regions coarsen the seams: the serial pass makes the last
+    // max(target, removals / 32) removals and the few the regions could not (boundary, locked
+    // and the last stage's seam vertices). Measured on these small meshes of 8-12 regions: 7-19 %
+    // of the vertices with the stages, 31-44 % without (the first regions' seams kept the input's
+    // density).
+    const Index n = mesh.V.rows(), target = static_cast<Index>(std::ceil(0.02 * static_cast<double>(n)));
+    const Index last_removals = std::max(target, (n - target) / 32);
+    INFO("serial pass: " << result.removed - result.parallel_removed << " removals of " << n << " vertices; "
+         << last_removals << " are its share");
+    CHECK(result.removed - result.parallel_removed < last_removals + n / 5);
     CHECK(result.removed == mesh.V.rows() - T.num_vertices());
     CHECK(T.validate() == "");
     CHECK(T.euler_characteristic() == chi);

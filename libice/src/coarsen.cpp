@@ -265,6 +265,24 @@ struct RegionPartition {
   std::vector<Index> sizes;
 };
 
+// Relabels the live vertices by pairs {k, k + 1} of the first partition's regions (`first`, with
+// `first_parts` regions), for k = shift, shift + 2, ... modulo the count, so that the seams between
+// the members of a pair become interior. Dead vertices get kNoRegion.
+void pair_regions(const IntrinsicTriangulation& T, const std::vector<std::uint8_t>& first, int first_parts, int shift,
+                  RegionPartition& partition) {
+  partition.parts = (first_parts + 1) / 2;
+  partition.sizes.assign(static_cast<std::size_t>(partition.parts), 0);
+  for (std::size_t v = 0; v < first.size(); ++v) {
+    if (!T.vertex_alive(static_cast<Index>(v))) {
+      partition.label[v] = kNoRegion;
+      continue;
+    }
+    const int pair = ((first[v] + shift) % first_parts) / 2;
+    partition.label[v] = static_cast<std::uint8_t>(pair);
+    ++partition.sizes[pair];
+  }
+}
+
 // The parallel phase of coarsen(): the regions of `partition`, coarsened by `threads` threads down
 // to about `intermediate` vertices. The regions advance in rounds with a common cost threshold that
 // grows by kGrowth per round, so they remove vertices in nearly the global cost order (a region
@@ -404,10 +422,20 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
 
   auto phase_start = std::chrono::steady_clock::now();
   if (parallel) {
-    const CoarsenResult regions = coarsen_regions(context, partition, threads, intermediate);
-    result.add_counts(regions);
-    result.parallel_removed = regions.parallel_removed;
-    result.last_cost = regions.last_cost;
+    // Three stages. The seams of the first partition keep the input's density (their vertices are
+    // never removed there): the second stage pairs neighbouring regions across every other seam
+    // (ranges of one breadth-first order: region k borders k - 1 and k + 1), the third across the
+    // others, so the seams are coarsened in parallel as well instead of by the serial phase.
+    const int stages = partition.parts >= 4 ? 3 : 1;
+    const std::vector<std::uint8_t> first = stages > 1 ? partition.label : std::vector<std::uint8_t>{};
+    const int first_parts = partition.parts;
+    for (int stage = 0; stage < stages && !context.cancelled.load(); ++stage) {
+      if (stage > 0) pair_regions(T, first, first_parts, stage == 1 ? 1 : 0, partition);
+      const CoarsenResult regions = coarsen_regions(context, partition, threads, intermediate);
+      result.add_counts(regions);
+      result.parallel_removed += regions.parallel_removed;
+      result.last_cost = std::max(result.last_cost, regions.last_cost);
+    }
     result.parallel_seconds = since(phase_start);
     phase_start = std::chrono::steady_clock::now();
   }

@@ -56,7 +56,12 @@ struct CoarsenOptions {
   /// in rounds with a common cost threshold (growing 1.4x per round, so the regions advance in
   /// nearly the global cost order), down to an intermediate size that leaves max(target, 1/32 of
   /// the removals) to a final serial greedy pass over the whole mesh (which first restores the
-  /// Delaunay property along the region seams). In that phase `progress` is called once per round.
+  /// Delaunay property along the region seams). With 4+ regions that phase runs in three stages:
+  /// the regions, then pairs of neighbouring regions across every other seam, then across the
+  /// others, so the seams' vertices (which a region never removes) are coarsened in parallel too
+  /// instead of by the serial pass (dragon_vrip_bin, 437k vertices, to 5 %, 16 regions: serial
+  /// pass 69k → 32k removals, whole coarsening 1.2x faster on 1 and 2 threads). In that phase
+  /// `progress` is called once per round.
   /// The result is deterministic for a given region count (`regions`), but differs from the
   /// serial one.
   int threads = 1;
