@@ -200,6 +200,21 @@ void TargetOptions::use_defaults_for(ice::ProxyUse use) {
   normalize_curvature = recommended.normalize_curvature;
 }
 
+void add_coarsen_parallel_options(CLI::App& cli, int& threads, int& regions) {
+  cli.add_option("--coarsen-threads", threads,
+                 "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = 4k regions coarsened in parallel, "
+                 "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
+                 "not identical to the serial result); 0 = one per hardware thread")
+      ->check(integer_between(0, 64))
+      ->capture_default_str();
+  cli.add_option("--coarsen-regions", regions,
+                 "Regions of ICE's parallel phase: R >= 2 runs it with R regions on --coarsen-threads threads, one "
+                 "included, with a result that depends on R only (the same for any thread count: reproducible across "
+                 "machines); 1 = the serial greedy order; 0 = 4 x --coarsen-threads")
+      ->check(integer_between(0, 254))
+      ->capture_default_str();
+}
+
 void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
   vertices_option = cli.add_option("--vertices,-n", vertices, "Coarsen down to N vertices (1 <= N <= input vertices)")
                        ->check(integer_between(1, std::numeric_limits<int>::max()));
@@ -230,18 +245,7 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
   add_choice(cli, "--method", method, kMethodNames,
              "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
              "Decimater with quadrics, input vertices mapped by closest-point projection)");
-  cli.add_option("--coarsen-threads", threads,
-                 "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = 4k regions coarsened in parallel, "
-                 "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
-                 "not identical to the serial result); 0 = one per hardware thread")
-      ->check(integer_between(0, 64))
-      ->capture_default_str();
-  cli.add_option("--coarsen-regions", regions,
-                 "Regions of ICE's parallel phase: R >= 2 runs it with R regions on --coarsen-threads threads, one "
-                 "included, with a result that depends on R only (the same for any thread count: reproducible across "
-                 "machines); 1 = the serial greedy order; 0 = 4 x --coarsen-threads")
-      ->check(integer_between(0, 254))
-      ->capture_default_str();
+  add_coarsen_parallel_options(cli, threads, regions);
   cli.add_option("--refine-angle", refine_angle,
                  "Intrinsic Delaunay refinement of the ICE coarse mesh after coarsening: insert vertices (tracked on the "
                  "input surface) until every angle is at least DEG degrees, in (0, 30] (e.g. 25); 0 = none. Corners "

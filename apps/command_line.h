@@ -102,6 +102,9 @@ struct TargetOptions {
   void apply(ice::CoarsenOptions& options, long long n) const;
 };
 
+/// Adds --coarsen-threads and --coarsen-regions (ice::CoarsenOptions::threads and ::regions).
+void add_coarsen_parallel_options(CLI::App& cli, int& threads, int& regions);
+
 /// Adds an option whose value is one of `names` (the spellings, listed in --help as {a,b}=default),
 /// stored as the matching enum value; any other value is a usage error naming the choices.
 template <class Enum>

@@ -204,9 +204,11 @@ nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary) {
   j["next_cost"] = std::isfinite(result.next_cost) ? nlohmann::json(result.next_cost) : nlohmann::json(nullptr);
   j["parallel_removed"] = result.parallel_removed;
   j["cost_evaluations"] = result.cost_evaluations;
-  j["phase_seconds"] = {{"setup", result.setup_seconds},
+  j["phase_seconds"] = {{"triangulation", summary.triangulation_seconds},
+                        {"setup", result.setup_seconds},
                         {"parallel", result.parallel_seconds},
-                        {"serial", result.serial_seconds}};
+                        {"serial", result.serial_seconds},
+                        {"prolongation", summary.prolongation_seconds}};
   return j;
 }
 

@@ -386,7 +386,7 @@ struct Key {
 void write_summary(const std::string& path, const std::vector<Row>& rows, const std::vector<std::string>& methods,
                    const std::vector<double>& budgets, const std::vector<std::string>& meshes, const std::string& command,
                    double total_seconds, const std::string& operators, double area_weight, bool normalize_curvature,
-                   const std::vector<PolishRow>& polished) {
+                   const std::vector<PolishRow>& polished, const nlohmann::json& skipped) {
   std::map<Key, std::map<std::string, const Row*>> by_key;
   for (const Row& r : rows) by_key[{r.mesh, r.problem, r.budget}][r.method] = &r;
   const auto has = [&](const std::string& m) { return std::find(methods.begin(), methods.end(), m) != methods.end(); };
@@ -402,8 +402,10 @@ void write_summary(const std::string& path, const std::vector<Row>& rows, const 
            std::string s;
            for (const auto& m : meshes) s += (s.empty() ? "" : ", ") + m;
            return s;
-         }() << "  \n"
-      << "Coarse operators of ICE: " << operators << " (QEM: from its own geometry); ICE area weight for `ice_area`: " << area_weight
+         }() << "  \n";
+  for (const auto& entry : skipped)
+    out << "Skipped " << entry["mesh"].get<std::string>() << ": " << entry["reason"].get<std::string>() << "  \n";
+  out << "Coarse operators of ICE: " << operators << " (QEM: from its own geometry); ICE area weight for `ice_area`: " << area_weight
       << (normalize_curvature ? " (normalised curvature)" : " (curvature not normalised)")
       << "; fine reference on the intrinsic Delaunay triangulation of the input; BLAS: " << fem::blas_library()
       << "  \nTotal run time " << num(total_seconds, 3) << " s.\n\n"
@@ -695,10 +697,16 @@ int main(int argc, char** argv) {
                  "keeps t = h^2)")
       ->check(app::positive_number())
       ->capture_default_str();
+  int coarsen_threads = 1, coarsen_regions = 0;  // ICE coarsening's parallel phase (default: the serial order)
+  app::add_coarsen_parallel_options(cli, coarsen_threads, coarsen_regions);
   std::string tolerances_text;
   cli.add_option("--tolerances", tolerances_text,
                  "Comma-separated error tolerances, e.g. 1e-2,1e-3,1e-6: also polish the Poisson and heat proxies to "
                  "each (fem::PolishOptions) and report true errors, iterations and cost (polish.csv, summary.md)");
+  bool repair = false;
+  cli.add_flag("--repair", repair,
+               "Apply the safe mesh repairs to every input (see ice-info --repair); without it a defective mesh is "
+               "skipped with its defect named");
   cli.add_flag("--quick", quick, "Small subset for CI: spot and elephant (project set), budgets 5% and 10%");
   cli.add_flag("--no-plots", no_plots, "Do not run gnuplot");
   bool no_html = false, force = false;
@@ -765,13 +773,27 @@ int main(int argc, char** argv) {
     std::vector<PolishRow> polished;
     std::vector<app::ViewMesh> views;  // the 3D page: one per mesh
     std::vector<std::string> used_meshes;
+    nlohmann::json skipped = nlohmann::json::array();  // {mesh, reason} of the inputs not used
     const std::size_t steps = inputs.size() * budgets.size();
     std::size_t step = 0;
     for (const auto& [name, path] : inputs) {
       app::Stopwatch mesh_clock;
-      const ice::LoadResult loaded = app::load_input_mesh(path, false);
+      // A mesh that cannot be used is skipped with its reason (in results.json too), not the report.
+      std::optional<ice::LoadResult> loaded_or;
+      try {
+        loaded_or.emplace(app::load_input_mesh(path, repair));
+      } catch (const ice::MeshError& e) {
+        std::string reason = e.what();
+        if (e.kind() == ice::MeshError::Kind::Defective && !repair) reason += " (--repair applies the safe repairs)";
+        app::warn(kTool, "skipping " + name + ": " + reason);
+        skipped.push_back({{"mesh", name}, {"reason", reason}});
+        continue;
+      }
+      const ice::LoadResult& loaded = *loaded_or;
       if (loaded.report.components.size() != 1) {
-        app::warn(kTool, "skipping " + name + ": not connected");
+        const std::string reason = "not connected (" + std::to_string(loaded.report.components.size()) + " components)";
+        app::warn(kTool, "skipping " + name + ": " + reason);
+        skipped.push_back({{"mesh", name}, {"reason", reason}});
         continue;
       }
       used_meshes.push_back(name);
@@ -803,6 +825,8 @@ int main(int argc, char** argv) {
           options.coarsen.target_vertices = static_cast<ice::Index>(target);
           options.coarsen.area_weight = m == "ice" ? 0.0 : area_weight;
           options.coarsen.normalize_curvature = m == "ice" ? false : normalize_curvature;
+          options.coarsen.threads = coarsen_threads;
+          options.coarsen.regions = coarsen_regions;
           options.keep_method_state = viewed;  // the page traces the coarse edges
           const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
           Row r = base;
@@ -866,6 +890,8 @@ int main(int argc, char** argv) {
       if (view) views.push_back(std::move(*view));
     }
 
+    if (used_meshes.empty()) throw app::AppError(app::kDefective, "no mesh could be used (see the warnings above)");
+
     // ---- outputs
     const double total_seconds = total_clock.seconds();
     write_csv(outdir + "/results.csv", rows);
@@ -873,6 +899,8 @@ int main(int argc, char** argv) {
     nlohmann::json results = {{"tool", kTool},
                               {"command", command},
                               {"meshes", used_meshes},
+                              {"skipped_meshes", skipped},
+                              {"repair", repair},
                               {"budgets", budgets},
                               {"min_vertices", min_vertices},
                               {"methods", methods},
@@ -893,7 +921,7 @@ int main(int argc, char** argv) {
       if (!out) throw app::AppError(app::kNotWritten, outdir + "/results.json: cannot be written");
     }
     write_summary(outdir + "/summary.md", rows, methods, budgets, used_meshes, command, total_seconds, operators,
-                  area_weight, normalize_curvature, polished);
+                  area_weight, normalize_curvature, polished, skipped);
     write_plot_data(outdir, rows, methods, budgets);
     std::string plots = "no plots (--no-plots)";
     if (!no_plots) {

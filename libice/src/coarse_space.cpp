@@ -113,7 +113,9 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   // The coarsener works in a numbering with memory locality; the result is given back in the
   // mesh's own.
   std::vector<Index> order;
+  const auto triangulation_start = Clock::now();
   IntrinsicTriangulation T = triangulation_for_locality(mesh, options.locality_numbering, &order);
+  const double triangulation_seconds = seconds_since(triangulation_start);
   CoarsenOptions coarsen_options = options.coarsen;
   std::vector<Index> new_index(order.size());  // mesh vertex -> T's input vertex (empty: the same)
   for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
@@ -133,7 +135,10 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
     space.inserted = locate_inserted_vertices(T, faces_in_t);
     space.summary.refinement_seconds = seconds_since(refine_start);
   }
+  const auto prolongation_start = Clock::now();
   coarse_mesh_and_prolongation(T, order, space);
+  space.summary.prolongation_seconds = seconds_since(prolongation_start);
+  space.summary.triangulation_seconds = triangulation_seconds;
   space.summary.target_reached = result.stop_reason == StopReason::TargetReached;
   space.summary.ice = result;
   if (options.keep_method_state) {

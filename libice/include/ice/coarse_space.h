@@ -107,6 +107,9 @@ struct CoarseSpaceSummary {
   /// ErrorThreshold here as false).
   bool target_reached = false;
   double seconds = 0;                ///< the whole call: coarsening, map, coarse mesh and P
+  /// ICE: where `seconds` went besides coarsen() (whose phases are in `ice`): numbering the mesh for
+  /// locality and building its intrinsic triangulation, then the compact coarse mesh and P.
+  double triangulation_seconds = 0, prolongation_seconds = 0;
   std::optional<CoarsenResult> ice;  ///< method == ice: removals, stop reason, costs
   std::optional<QemOutcome> qem;     ///< method == qem
   std::optional<RefinementResult> refinement;  ///< when refinement was asked for
