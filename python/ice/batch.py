@@ -31,7 +31,11 @@ retries, and the batch ends.
 Threads: meshes of 20,000+ vertices run ICE's parallel phase with a fixed number of regions
 (--regions, default 16), so their result does not depend on where or on how many threads they run;
 each gets --mesh-threads threads (default: the number of local workers), so the last large meshes
-use the cores that workers with nothing left to do leave idle. The meshes go largest first.
+use the cores that workers with nothing left to do leave idle. The meshes go largest first; on a
+local cluster with more than one thread per mesh, the largest ones (one per worker) keep their
+priority and the others run at the lowest (nice 19, on a thread of their own), so that they take
+the cores a large mesh leaves idle instead of slowing down the batch's critical path. Each record
+says the threads and the priority (`nice`) its mesh ran with.
 """
 from __future__ import annotations
 
@@ -48,6 +52,7 @@ import signal
 import statistics
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -192,16 +197,37 @@ def _error_kind(error: BaseException) -> str:
     return "failed"
 
 
+# The priority (nice value) of the meshes that yield their cores to the batch's largest ones.
+YIELDING_NICE = 19
+
+
 def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool, timeout: float | None,
-                 input_size: int, input_mtime_ns: int, threads: int = 1) -> dict:
+                 input_size: int, input_mtime_ns: int, threads: int = 1, yielding: bool = False) -> dict:
     """Coarsens one mesh file on `threads` threads and writes its outputs and record; returns the
     record. Never raises for a problem of the mesh: that becomes an error record. Runs in a worker
-    process."""
+    process. `yielding`: run at the lowest priority (a thread of its own at nice YIELDING_NICE, the
+    mesh's threads inheriting it), so that on shared cores the batch's largest meshes go first."""
+    if yielding and hasattr(os, "setpriority") and hasattr(threading, "get_native_id"):
+        outcome: list = []
+
+        def low_priority():
+            try:
+                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), YIELDING_NICE)
+            except OSError:
+                pass
+            outcome.append(coarsen_file(path, relative, out, options, repair, timeout, input_size, input_mtime_ns,
+                                        threads))
+        worker = threading.Thread(target=low_priority, name=f"ice-batch {relative}")
+        worker.start()
+        worker.join()
+        return outcome[0]
     import ice
     started = time.perf_counter()
     paths = output_paths(pathlib.Path(out), relative)
     record = {"input": path, "output": relative, "hash": options_hash({**options, "repair": repair}),
               "input_size": input_size, "input_mtime_ns": input_mtime_ns, "threads": threads}
+    if hasattr(os, "getpriority") and hasattr(threading, "get_native_id"):
+        record["nice"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())  # the priority it ran at
     finished: list[tuple[pathlib.Path, str]] = []  # (output, its written temporary)
     try:
         loaded = ice.load_mesh(path, repair=repair)
@@ -384,9 +410,14 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
         result.cluster_seconds = time.perf_counter() - cluster_start
         stalled = False  # set by the watchdog
         try:
+            # On a local cluster the largest meshes (one per worker) keep their priority and the rest
+            # yield: while a large mesh runs on more threads than its share of the cores, the small
+            # ones take what it leaves idle instead of slowing it down (the batch's critical path).
+            yield_from = options.workers if not options.scheduler and threads > 1 else len(todo)
             futures = {client.submit(coarsen_file, str(job.path), job.relative, str(out), options.coarsen,
-                                     options.repair, options.timeout, job.size, job.mtime_ns, threads, pure=False,
-                                     key=f"ice-{job.relative}-{digest}"): job for job in todo}
+                                     options.repair, options.timeout, job.size, job.mtime_ns, threads,
+                                     rank >= yield_from, pure=False, key=f"ice-{job.relative}-{digest}"): job
+                       for rank, job in enumerate(todo)}
             bar = _progress_bar(len(todo), options.progress, log)
             finished = as_completed(futures)
             last_finish = time.monotonic()
