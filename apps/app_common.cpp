@@ -163,7 +163,7 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
 }
 
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                         PdeRun& run, Stopwatch& clock, bool assemble_proxy) {
+                         PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine) {
   PdeProxy p;
   // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
   // An output file draws the coarse mesh on the surface (write_result_fields): ICE's map is kept for it.
@@ -171,8 +171,11 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
                              (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice);
   run.coarsen = clock.lap();
   // The fine discretisation: the reference's, and the Galerkin operators' and M f's
-  p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
-  run.idt_flips = p.fine.flips;
+  run.fine_built = need_fine || assemble_proxy;
+  if (run.fine_built) {
+    p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
+    run.idt_flips = p.fine.flips;
+  }
   run.fine_mesh = clock.lap();
   if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(p.fine, p.coarse, opt.operators));
   return p;

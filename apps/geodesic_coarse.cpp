@@ -378,7 +378,9 @@ int main(int argc, char** argv) {
     // ---- coarsen, fine discretisation, then the proxy (fem::ProxyGeodesicSolver): assemble, factor,
     // restrict + solve and prolong, the last two timed by the solver
     const bool marching = oracle.method == fem::CoarseDistanceMethod::marching;
-    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/!marching);
+    // The marching proxy reads only the coarse mesh and P: the fine mesh is built for a reference.
+    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/!marching,
+                                                   /*need_fine=*/!marching || run.has_reference);
     const ice::FineMesh& fine = pde.fine;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
     if (marching) {  // no coarse operators: the coarse mesh and P are all the marching reads

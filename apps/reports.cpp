@@ -285,7 +285,7 @@ nlohmann::json PdeRun::report() const {
   if (coarsening.qem) r["qem"] = qem_json(*coarsening.qem, coarsening.target_reached);
   r["input"] = {{"vertices", fine_vertices}, {"faces", fine_faces}};
   r["coarse"] = coarsen_json(coarsening);
-  r["fine_mesh"] = {{"kind", fine_idt ? "intrinsic Delaunay" : "input"},
+  r["fine_mesh"] = {{"kind", !fine_built ? "none (not needed)" : fine_idt ? "intrinsic Delaunay" : "input"},
                     {"flips", idt_flips},
                     {"used_by_proxy", proxy_uses_fine_mesh}};
   nlohmann::json t = {{"load", load},       {"coarsen", coarsen}, {"fine_mesh", fine_mesh}, {"assemble", assemble},
@@ -326,9 +326,12 @@ void PdeRun::print_summary(std::ostream& out) const {
   row("coarsen", coarsen, thousands(coarsening.removed()) + (qem ? " collapses, " : " removals, ") +
                               thousands(static_cast<long long>(coarsening.removed() / std::max(coarsen, 1e-9))) + "/s");
   if (coarsening.refinement) out << "  refine          " << refinement_line(coarsening) << '\n';
-  row("fine mesh", fine_mesh,
-      (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +
-          (proxy_uses_fine_mesh ? " (used by the proxy too; counted in neither total)" : " (for the reference; counted in neither total)"));
+  if (fine_built)
+    row("fine mesh", fine_mesh,
+        (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +
+            (proxy_uses_fine_mesh ? " (used by the proxy too; counted in neither total)" : " (for the reference; counted in neither total)"));
+  else
+    row("fine mesh", 0, "not built (neither the proxy nor a reference needs it)");
   row("assemble", assemble);
   row("factor", factor);
   row("solve", solve);

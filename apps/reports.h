@@ -124,6 +124,7 @@ struct PdeRun {
   long long fine_vertices = 0, fine_faces = 0;
   ice::CoarseSpaceSummary coarsening;  ///< method, sizes, outcome (ICE or QEM details)
   bool fine_idt = true;
+  bool fine_built = true;  ///< false: no fine mesh was needed (a marching proxy without reference)
   long long idt_flips = 0;
   bool proxy_uses_fine_mesh = false;  ///< the proxy needed the fine discretisation (Galerkin, M f)
   bool has_reference = false;

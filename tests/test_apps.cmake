@@ -412,6 +412,16 @@ elseif(CASE STREQUAL "geodesic_galerkin_spot")
   if(NOT err)
     fail("--no-reference: the report has an error object")
   endif()
+  # The marching proxy without a reference needs no fine mesh: none is built.
+  json(fine_kind "${WORK}/r2.json" fine_mesh kind)
+  if(NOT fine_kind MATCHES "^none")
+    fail("--no-reference with coarse marching built a fine mesh: fine_mesh.kind = '${fine_kind}'")
+  endif()
+  run(0 geodesic-coarse "${mesh}" --source 7 --vertices 300 --no-reference --coarse-distances heat --report "${WORK}/r3.json" -q)
+  json(fine_kind "${WORK}/r3.json" fine_mesh kind)
+  if(NOT fine_kind STREQUAL "intrinsic Delaunay")
+    fail("the coarse heat method's proxy needs the fine mesh: fine_mesh.kind = '${fine_kind}'")
+  endif()
 
 elseif(CASE STREQUAL "vector_spot")
   # vector-coarse on spot (2,930 vertices) -> 500 coarse vertices: transport of one vector, the
