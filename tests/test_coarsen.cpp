@@ -343,6 +343,8 @@ TEST_CASE("with a fixed region count the result does not depend on the thread co
     check_equal(coarsened(2, 8), reference);
     check_equal(coarsened(3, 8), reference);
     check_equal(coarsened(2, 0), reference);  // 0: 4 × threads regions, as before
+    // An odd region count (its stages pair the regions unevenly) is as independent of the threads.
+    check_equal(coarsened(2, 5), coarsened(1, 5));
     // One region (or the default with one thread) is the serial greedy order, which differs.
     const CompactMesh exact = coarsened(1, 0, &serial);
     CHECK(serial.parallel_removed == 0);

@@ -265,19 +265,20 @@ struct RegionPartition {
   std::vector<Index> sizes;
 };
 
-// Relabels the live vertices by pairs {k, k + 1} of the first partition's regions (`first`, with
-// `first_parts` regions), for k = shift, shift + 2, ... modulo the count, so that the seams between
-// the members of a pair become interior. Dead vertices get kNoRegion.
+// Relabels the live vertices by pairs of the first partition's neighbouring regions (`first`,
+// with `first_parts` regions): {0, 1}, {2, 3}, ... with shift 0, {0}, {1, 2}, {3, 4}, ... with
+// shift 1, so that the seams between the members of a pair become interior and the two shifts
+// between them cover every seam k | k + 1. Dead vertices get kNoRegion.
 void pair_regions(const IntrinsicTriangulation& T, const std::vector<std::uint8_t>& first, int first_parts, int shift,
                   RegionPartition& partition) {
-  partition.parts = (first_parts + 1) / 2;
+  partition.parts = (first_parts + shift) / 2 + (first_parts + shift) % 2;
   partition.sizes.assign(static_cast<std::size_t>(partition.parts), 0);
   for (std::size_t v = 0; v < first.size(); ++v) {
     if (!T.vertex_alive(static_cast<Index>(v))) {
       partition.label[v] = kNoRegion;
       continue;
     }
-    const int pair = ((first[v] + shift) % first_parts) / 2;
+    const int pair = (first[v] + shift) / 2;
     partition.label[v] = static_cast<std::uint8_t>(pair);
     ++partition.sizes[pair];
   }
@@ -336,7 +337,7 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
     if (!any_left) break;  // every region is out of candidates
     if (options.progress) {
       const Index removed = context.removed.load();
-      if (!options.progress(CoarsenProgress{live - removed, context.final_target, removed, threshold}))
+      if (!options.progress(CoarsenProgress{context.vertices_at_start - removed, context.final_target, removed, threshold}))
         context.cancelled.store(true);
     }
     if (!quota_hit) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <exception>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -26,7 +27,13 @@ void run_tasks(int threads, int tasks, F&& f) {
     }
   };
   std::vector<std::thread> workers;
-  for (int t = 1; t < std::min(threads, tasks); ++t) workers.emplace_back(work);
+  for (int t = 1; t < std::min(threads, tasks); ++t) {
+    try {
+      workers.emplace_back(work);
+    } catch (const std::system_error&) {  // no more threads (a process limit): the others take the tasks
+      break;
+    }
+  }
   work();
   for (std::thread& worker : workers) worker.join();
   for (const std::exception_ptr& error : errors)

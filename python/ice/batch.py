@@ -30,8 +30,10 @@ retries, and the batch ends.
 
 Threads: meshes of 20,000+ vertices run ICE's parallel phase with a fixed number of regions
 (--regions, default 16), so their result does not depend on where or on how many threads they run;
-each gets --mesh-threads threads (default: the number of local workers), so the last large meshes
-use the cores that workers with nothing left to do leave idle. The meshes go largest first; on a
+each gets --mesh-threads threads (default: the number of local workers) for its coarsening, so the
+last large meshes use the cores that workers with nothing left to do leave idle (reading and
+validating a mesh and building its triangulation run their short passes on the machine's cores,
+at most 8, from 100k vertices on, whatever the setting). The meshes go largest first; on a
 local cluster with more than one thread per mesh, the largest ones (one per worker) keep their
 priority and the others run at the lowest (nice 19, on a thread of their own), so that they take
 the cores a large mesh leaves idle instead of slowing down the batch's critical path. Each record
@@ -199,6 +201,9 @@ def _error_kind(error: BaseException) -> str:
 
 # The priority (nice value) of the meshes that yield their cores to the batch's largest ones.
 YIELDING_NICE = 19
+# Linux gives each thread its own nice value (setpriority on a thread id); elsewhere the id would
+# name a process, so meshes run at the worker's priority there.
+_PER_THREAD_PRIORITY = sys.platform.startswith("linux") and hasattr(os, "setpriority") and hasattr(threading, "get_native_id")
 
 
 def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool, timeout: float | None,
@@ -207,7 +212,7 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
     record. Never raises for a problem of the mesh: that becomes an error record. Runs in a worker
     process. `yielding`: run at the lowest priority (a thread of its own at nice YIELDING_NICE, the
     mesh's threads inheriting it), so that on shared cores the batch's largest meshes go first."""
-    if yielding and hasattr(os, "setpriority") and hasattr(threading, "get_native_id"):
+    if yielding and _PER_THREAD_PRIORITY:
         outcome: list = []
 
         def low_priority():
@@ -215,18 +220,23 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
                 os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), YIELDING_NICE)
             except OSError:
                 pass
-            outcome.append(coarsen_file(path, relative, out, options, repair, timeout, input_size, input_mtime_ns,
-                                        threads))
+            try:
+                outcome.append(coarsen_file(path, relative, out, options, repair, timeout, input_size,
+                                            input_mtime_ns, threads))
+            except BaseException as error:  # re-raised on the task's own thread, as without yielding
+                outcome.append(error)
         worker = threading.Thread(target=low_priority, name=f"ice-batch {relative}")
         worker.start()
         worker.join()
+        if isinstance(outcome[0], BaseException):
+            raise outcome[0]
         return outcome[0]
     import ice
     started = time.perf_counter()
     paths = output_paths(pathlib.Path(out), relative)
     record = {"input": path, "output": relative, "hash": options_hash({**options, "repair": repair}),
               "input_size": input_size, "input_mtime_ns": input_mtime_ns, "threads": threads}
-    if hasattr(os, "getpriority") and hasattr(threading, "get_native_id"):
+    if _PER_THREAD_PRIORITY:
         record["nice"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())  # the priority it ran at
     finished: list[tuple[pathlib.Path, str]] = []  # (output, its written temporary)
     try:
@@ -305,9 +315,10 @@ class BatchOptions:
     memory_limit: str | None = "auto"
     timeout: float | None = None
     stall_timeout: float | None = 1800.0  # seconds without any mesh finishing before the batch gives up
-    # Threads per mesh (only meshes of 20,000+ vertices use more than one). None: on a LocalCluster
-    # the batch's cores (= workers), so the last large meshes run on the cores the finished workers
-    # left idle (while others run, the system shares the cores among them); with --scheduler, 1.
+    # Coarsening threads per mesh (only meshes of 20,000+ vertices use more than one). None: on a
+    # LocalCluster the batch's cores (= workers), so the last large meshes run on the cores the
+    # finished workers left idle (while others run, the system shares the cores among them); with
+    # --scheduler, 1.
     mesh_threads: int | None = None
     force: bool = False
     progress: bool = True

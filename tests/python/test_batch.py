@@ -68,6 +68,19 @@ def test_one_record_per_input_and_outputs_read_back(dataset, tmp_path):
     assert not list(out.rglob("*.part"))  # no temporary left
 
 
+def test_a_yielding_mesh_fails_with_its_own_error(project_mesh, tmp_path):
+    """A mesh run at low priority on a thread of its own raises what it raises on the worker's
+    thread: here the record cannot be written (the output folder lies under a file)."""
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    mesh = project_mesh("spot.obj")
+    stat = os.stat(mesh)
+    for yielding in (False, True):
+        with pytest.raises(OSError):
+            batch.coarsen_file(str(mesh), "spot.obj", str(blocker / "out"), {"ratio": 0.1}, False, None,
+                               stat.st_size, stat.st_mtime_ns, 1, yielding)
+
+
 def test_rerun_skips_and_changed_option_redoes(dataset, tmp_path):
     out = tmp_path / "out"
     first = batch.run(str(dataset), out, options())

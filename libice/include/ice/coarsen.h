@@ -55,8 +55,9 @@ struct CoarsenOptions {
   /// never removing a vertex with a neighbour in another region nor flipping an edge across two,
   /// in rounds with a common cost threshold (growing 1.4x per round, so the regions advance in
   /// nearly the global cost order), down to an intermediate size that leaves max(target, 1/32 of
-  /// the removals) to a final serial greedy pass over the whole mesh (which first restores the
-  /// Delaunay property along the region seams). With 4+ regions that phase runs in three stages:
+  /// the removals), plus the vertices the regions cannot remove (boundary, locked, along the last
+  /// seams), to a final serial greedy pass over the whole mesh (which first restores the Delaunay
+  /// property along the region seams). With 4+ regions that phase runs in three stages:
   /// the regions, then pairs of neighbouring regions across every other seam, then across the
   /// others, so the seams' vertices (which a region never removes) are coarsened in parallel too
   /// instead of by the serial pass (dragon_vrip_bin, 437k vertices, to 5 %, 16 regions: serial
