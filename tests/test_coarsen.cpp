@@ -45,12 +45,25 @@ void check_map(const IntrinsicTriangulation& T) {
     bad += nonzeros < 1 || nonzeros > 3;
   }
   CHECK(bad == 0);
+  // The same matrix as the plain definition: one entry per corner of the point's face (repeated
+  // corners of a Δ-complex face summed), a vertex's own column with weight 1.
+  std::vector<Eigen::Triplet<double>> entries;
   for (Index p = 0; p < T.num_input_vertices(); ++p) {
     const SurfacePoint s = T.location(p);
-    if (s.is_vertex()) continue;
+    if (s.is_vertex()) {
+      entries.emplace_back(p, coarse.from_input[static_cast<std::size_t>(p)], 1.0);
+      continue;
+    }
     REQUIRE(T.face_alive(s.face));
     CHECK((s.bary[0] >= 0 && s.bary[1] >= 0 && s.bary[2] >= 0));
+    Index h = T.halfedge(s.face);
+    for (int k = 0; k < 3; ++k, h = T.next(h))
+      if (s.bary[k] != 0) entries.emplace_back(p, coarse.from_input[static_cast<std::size_t>(T.tail(h))], s.bary[k]);
   }
+  Eigen::SparseMatrix<double> reference(P.rows(), P.cols());
+  reference.setFromTriplets(entries.begin(), entries.end());
+  CHECK(P.nonZeros() == reference.nonZeros());
+  CHECK((P - reference).norm() == 0);
 }
 
 // A run with options.max_error = bound stopped there: nothing removed above it, the next above it.
