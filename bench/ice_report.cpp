@@ -779,21 +779,21 @@ int main(int argc, char** argv) {
     for (const auto& [name, path] : inputs) {
       app::Stopwatch mesh_clock;
       // A mesh that cannot be used is skipped with its reason (in results.json too), not the report.
+      const auto skip = [&, &name = name](const std::string& reason) {
+        app::warn(kTool, "skipping " + name + ": " + reason);
+        skipped.push_back({{"mesh", name}, {"reason", reason}});
+      };
       std::optional<ice::LoadResult> loaded_or;
       try {
         loaded_or.emplace(app::load_input_mesh(path, repair));
       } catch (const ice::MeshError& e) {
-        std::string reason = e.what();
-        if (e.kind() == ice::MeshError::Kind::Defective && !repair) reason += " (--repair applies the safe repairs)";
-        app::warn(kTool, "skipping " + name + ": " + reason);
-        skipped.push_back({{"mesh", name}, {"reason", reason}});
+        const bool repairable = e.kind() == ice::MeshError::Kind::Defective && !repair;
+        skip(std::string(e.what()) + (repairable ? " (--repair applies the safe repairs)" : ""));
         continue;
       }
       const ice::LoadResult& loaded = *loaded_or;
       if (loaded.report.components.size() != 1) {
-        const std::string reason = "not connected (" + std::to_string(loaded.report.components.size()) + " components)";
-        app::warn(kTool, "skipping " + name + ": " + reason);
-        skipped.push_back({{"mesh", name}, {"reason", reason}});
+        skip("not connected (" + std::to_string(loaded.report.components.size()) + " components)");
         continue;
       }
       used_meshes.push_back(name);

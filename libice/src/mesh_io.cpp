@@ -338,10 +338,7 @@ struct TextChunk {
 /// Files below this size are read on one thread (starting threads costs more than it saves).
 constexpr std::size_t kParallelTextBytes = std::size_t(1) << 22;
 
-int text_threads(std::size_t bytes) {
-  if (bytes < kParallelTextBytes) return 1;
-  return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
-}
+int text_threads(std::size_t bytes) { return detail::threads_for(bytes, kParallelTextBytes); }
 
 /// Cuts text[begin, size) into chunks of whole lines, counts each one's lines and records (`kind_of`
 /// a line: 0, 1 or -1 for none) on `threads` threads, and numbers them: the first chunk's first line

@@ -2,8 +2,6 @@
 
 #include "run_tasks.h"
 
-#include <array>
-#include <cstdint>
 #include <stdexcept>
 #include <vector>
 
@@ -30,25 +28,29 @@ Eigen::SparseMatrix<double> prolongation(const IntrinsicTriangulation& T, const 
   const auto column = [&](Index slot) {
     return slot < rows ? coarse.from_input[static_cast<std::size_t>(slot)] : inserted_column[static_cast<std::size_t>(slot - rows)];
   };
-  // Each row's (at most three) entries, repeated corners summed in corner order, on several threads
-  // for large meshes; then the rows assembled (row-major) and transposed into P's column-major
-  // storage, which lists each column's rows in increasing order, as setFromTriplets did.
-  std::vector<std::array<Index, 3>> row_columns(static_cast<std::size_t>(rows));
-  std::vector<std::array<double, 3>> row_values(static_cast<std::size_t>(rows));
-  std::vector<std::uint8_t> row_size(static_cast<std::size_t>(rows), 0);
+  // Each row's (at most three) entries in three slots, repeated corners summed in corner order, on
+  // several threads for large meshes; the slots seen as a row-major matrix (uncompressed: a row's
+  // count of used slots) and transposed into P's column-major storage, which lists each column's
+  // rows in increasing order, as setFromTriplets did.
+  std::vector<int> slot_start(static_cast<std::size_t>(rows) + 1), columns(3 * static_cast<std::size_t>(rows)),
+      used(static_cast<std::size_t>(rows), 0);
+  std::vector<double> values(columns.size());
+  for (std::size_t r = 0; r < slot_start.size(); ++r) slot_start[r] = static_cast<int>(3 * r);
   detail::run_ranges(detail::threads_for(static_cast<std::size_t>(rows), 100000), rows, [&](Index begin, Index end) {
     for (Index p = begin; p < end; ++p) {
       const SurfacePoint s = T.location(p);
       const auto row = static_cast<std::size_t>(row_of.empty() ? p : row_of[static_cast<std::size_t>(p)]);
-      std::uint8_t size = 0;
+      int* const row_columns = &columns[3 * row];
+      double* const row_values = &values[3 * row];
+      int& size = used[row];
       const auto add = [&](Index c, double value) {
-        for (std::uint8_t i = 0; i < size; ++i)
-          if (row_columns[row][i] == c) {
-            row_values[row][i] += value;
+        for (int i = 0; i < size; ++i)
+          if (row_columns[i] == c) {
+            row_values[i] += value;
             return;
           }
-        row_columns[row][size] = c;
-        row_values[row][size++] = value;
+        row_columns[size] = c;
+        row_values[size++] = value;
       };
       if (s.is_vertex()) {
         add(column(p), 1.0);
@@ -57,22 +59,10 @@ Eigen::SparseMatrix<double> prolongation(const IntrinsicTriangulation& T, const 
         for (int k = 0; k < 3; ++k, h = T.next(h))
           if (s.bary[k] != 0.0) add(column(T.tail(h)), s.bary[k]);
       }
-      row_size[row] = size;
     }
   });
-  std::vector<int> outer(static_cast<std::size_t>(rows) + 1, 0);
-  for (Index r = 0; r < rows; ++r) outer[static_cast<std::size_t>(r) + 1] = outer[static_cast<std::size_t>(r)] + row_size[static_cast<std::size_t>(r)];
-  std::vector<int> inner(static_cast<std::size_t>(outer.back()));
-  std::vector<double> values(inner.size());
-  for (Index r = 0; r < rows; ++r) {
-    const auto row = static_cast<std::size_t>(r);
-    for (std::uint8_t i = 0; i < row_size[row]; ++i) {
-      inner[static_cast<std::size_t>(outer[row]) + i] = row_columns[row][i];
-      values[static_cast<std::size_t>(outer[row]) + i] = row_values[row][i];
-    }
-  }
-  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor, int>> by_row(rows, cols, outer.back(), outer.data(),
-                                                                                   inner.data(), values.data());
+  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor, int>> by_row(
+      rows, cols, static_cast<Eigen::Index>(columns.size()), slot_start.data(), columns.data(), values.data(), used.data());
   Eigen::SparseMatrix<double> P = by_row;  // the transpose into column-major storage
   return P;
 }
