@@ -3,6 +3,7 @@
 #include "ice/vertex_star.h"
 #include "removal_queue.h"
 #include "run_tasks.h"
+#include "task_team.h"
 #include "two_ring_prefetch.h"
 
 #include <algorithm>
@@ -284,7 +285,7 @@ void pair_regions(const IntrinsicTriangulation& T, const std::vector<std::uint8_
   }
 }
 
-// The parallel phase of coarsen(): the regions of `partition`, coarsened by `threads` threads down
+// The parallel phase of coarsen(): the regions of `partition`, coarsened by the threads of `team` down
 // to about `intermediate` vertices. The regions advance in rounds with a common cost threshold that
 // grows by kGrowth per round, so they remove vertices in nearly the global cost order (a region
 // whose vertices are all expensive waits instead of being forced to its share of the removals);
@@ -292,7 +293,7 @@ void pair_regions(const IntrinsicTriangulation& T, const std::vector<std::uint8_
 // overshooting the intermediate size. Region outcomes depend only on the thresholds and quotas,
 // which are computed between rounds from the regions' counts: deterministic. Leaves the seams
 // (edges with a corner in two regions, never flipped) Delaunay again.
-CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition, int threads, Index intermediate) {
+CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition, detail::TaskTeam& team, Index intermediate) {
   constexpr double kGrowth = 1.4;
   constexpr int kMaxRounds = 1000;
   const CoarsenOptions& options = context.options;
@@ -300,7 +301,7 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
   const Index live = context.T.num_vertices();
   std::vector<IntrinsicTriangulation::WriteRegion> regions(parts);
   std::vector<std::unique_ptr<GreedyLoop>> loops(parts);
-  detail::run_tasks(threads, parts, [&](int r) {
+  team.run(parts, [&](int r) {
     regions[r] = {partition.label.data(), static_cast<std::uint8_t>(r)};
     GreedyScope scope;
     scope.region = &regions[r];
@@ -323,7 +324,7 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
        ++round) {
     const double round_threshold = std::min(threshold, options.max_error);
     const Index wanted = vertices - parallel_target;
-    detail::run_tasks(threads, parts, [&](int r) {
+    team.run(parts, [&](int r) {
       const Index quota = std::max<Index>(1, static_cast<Index>(std::ceil(static_cast<double>(wanted) * loops[r]->vertices() / vertices)));
       stops[r] = loops[r]->run(round_threshold, quota);
     });
@@ -430,9 +431,10 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
     const int stages = partition.parts >= 4 ? 3 : 1;
     const std::vector<std::uint8_t> first = stages > 1 ? partition.label : std::vector<std::uint8_t>{};
     const int first_parts = partition.parts;
+    detail::TaskTeam team(std::min(threads, partition.parts));  // for the stages' ~100 short rounds
     for (int stage = 0; stage < stages && !context.cancelled.load(); ++stage) {
       if (stage > 0) pair_regions(T, first, first_parts, stage == 1 ? 1 : 0, partition);
-      const CoarsenResult regions = coarsen_regions(context, partition, threads, intermediate);
+      const CoarsenResult regions = coarsen_regions(context, partition, team, intermediate);
       result.add_counts(regions);
       result.parallel_removed += regions.parallel_removed;
       result.last_cost = std::max(result.last_cost, regions.last_cost);

@@ -1,0 +1,133 @@
+#include "task_team.h"
+
+#include <chrono>
+#include <system_error>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
+
+namespace ice::detail {
+
+namespace {
+
+// A helper waits this long spinning for the next round before it blocks: longer than the serial
+// part between two rounds of the parallel phase (microseconds), shorter than a stage's serial
+// Delaunay pass (milliseconds), which it would only burn a core through.
+constexpr auto kSpinTime = std::chrono::microseconds(200);
+
+inline void pause() {
+#if defined(__x86_64__) || defined(__i386__)
+  _mm_pause();
+#else
+  std::this_thread::yield();
+#endif
+}
+
+// Spins until done() or the time is up; returns done().
+template <class Done>
+bool spin_until(Done&& done, std::chrono::steady_clock::duration limit) {
+  const auto start = std::chrono::steady_clock::now();
+  for (int spins = 1;; ++spins) {
+    if (done()) return true;
+    pause();
+    if (spins % 64 == 0 && std::chrono::steady_clock::now() - start > limit) return done();
+  }
+}
+
+}  // namespace
+
+TaskTeam::TaskTeam(int threads) {
+  for (int t = 1; t < threads; ++t) {
+    try {
+      helpers_.emplace_back([this] { helper_loop(); });
+    } catch (const std::system_error&) {  // no more threads (a process limit): fewer helpers
+      break;
+    }
+  }
+}
+
+TaskTeam::~TaskTeam() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_.store(true);
+  }
+  wake_.notify_all();
+  for (std::thread& helper : helpers_) helper.join();
+}
+
+void TaskTeam::take_tasks() {
+  for (int task; (task = next_.fetch_add(1, std::memory_order_relaxed)) < tasks_;) {
+    try {
+      call_(function_, task);
+    } catch (...) {
+      errors_[task] = std::current_exception();
+    }
+    remaining_.fetch_sub(1, std::memory_order_release);  // the task's writes, to run()'s caller
+  }
+}
+
+void TaskTeam::helper_loop() {
+  // The generation the team was made with (not read here: the caller may have opened a round
+  // before this thread started).
+  std::uint64_t seen = kClosedAtStart;
+  for (;;) {
+    std::uint64_t open = 0;
+    const auto round_open = [&] {
+      open = generation_.load();
+      return open != seen && open % 2 == 0;
+    };
+    if (!spin_until([&] { return stopping_.load() || round_open(); }, kSpinTime)) {
+      std::unique_lock<std::mutex> lock(mutex_);
+      sleepers_.fetch_add(1);
+      wake_.wait(lock, [&] { return stopping_.load() || round_open(); });
+      sleepers_.fetch_sub(1);
+    }
+    if (stopping_.load()) return;
+    // Enter, then check that the round is still open: run() closes a round before it waits for the
+    // helpers inside to leave (each side writes, then reads the other's flag: one of them sees it).
+    entered_.fetch_add(1);
+    if (generation_.load() == open) take_tasks();
+    entered_.fetch_sub(1);
+    seen = open;
+  }
+}
+
+void TaskTeam::run_erased(int tasks, Call call, void* function) {
+  if (tasks <= 0) return;
+  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(tasks));
+  if (helpers_.empty() || tasks == 1) {
+    for (int task = 0; task < tasks; ++task) {
+      try {
+        call(function, task);
+      } catch (...) {
+        errors[task] = std::current_exception();
+      }
+    }
+  } else {
+    // The round is closed and no helper is inside: the fields are ours to write.
+    call_ = call;
+    function_ = function;
+    tasks_ = tasks;
+    errors_ = errors.data();
+    next_.store(0, std::memory_order_relaxed);
+    remaining_.store(tasks, std::memory_order_relaxed);
+    const std::uint64_t open = generation_.load() + 1;
+    generation_.store(open);  // opens the round (and publishes the fields)
+    if (sleepers_.load() > 0) {
+      { std::lock_guard<std::mutex> lock(mutex_); }  // a helper between its check and its wait gets the notice
+      wake_.notify_all();
+    }
+    take_tasks();
+    // A helper may have been preempted inside a task: spin, then let it have the core.
+    if (!spin_until([&] { return remaining_.load(std::memory_order_acquire) == 0; }, std::chrono::milliseconds(1)))
+      while (remaining_.load(std::memory_order_acquire) > 0) std::this_thread::yield();
+    generation_.store(open + 1);  // closed
+    if (!spin_until([&] { return entered_.load() == 0; }, std::chrono::milliseconds(1)))
+      while (entered_.load() > 0) std::this_thread::yield();
+  }
+  for (const std::exception_ptr& error : errors)
+    if (error) std::rethrow_exception(error);
+}
+
+}  // namespace ice::detail
