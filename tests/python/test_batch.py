@@ -108,12 +108,14 @@ def test_large_mesh_result_does_not_depend_on_workers_or_threads(project_mesh, t
     folder.mkdir()
     ice.save_mesh(folder / "big.ply", V, F, binary=True)
     results = {}
-    for workers in (1, 2):
-        out = tmp_path / f"out{workers}"
-        run = batch.run(str(folder), out, batch.BatchOptions(coarsen={"ratio": 0.05}, workers=workers, progress=False))
+    # Workers forked from this process (the default on Linux) and spawned afresh give the same files.
+    for workers, method in ((1, None), (2, None), (2, "spawn")):
+        out = tmp_path / f"out{workers}{method}"
+        run = batch.run(str(folder), out, batch.BatchOptions(coarsen={"ratio": 0.05}, workers=workers, progress=False,
+                                                             start_method=method))
         assert run.records[0]["status"] == "ok" and run.records[0]["threads"] == workers
-        results[workers] = batch.load_result(out, "big.ply")
-    assert results[1]["record"]["hash"] == results[2]["record"]["hash"]  # the threads are not an option
+        results[workers, method] = batch.load_result(out, "big.ply")
+    assert len({result["record"]["hash"] for result in results.values()}) == 1  # the threads are not an option
     V, F = ice.load_mesh(folder / "big.ply")
     direct = ice.coarsen(V, F, ratio=0.05, regions=16)
     assert direct.summary["parallel_removed"] > direct.summary["removed"] // 2
@@ -129,6 +131,9 @@ def test_large_mesh_result_does_not_depend_on_workers_or_threads(project_mesh, t
         batch.run(str(folder), tmp_path / "bad", options(ratio=0.05, regions=0))
     with pytest.raises(ValueError, match="mesh_threads"):
         batch.run(str(folder), tmp_path / "bad", options(ratio=0.05, threads=2))
+    with pytest.raises(ValueError, match="start method"):
+        batch.run(str(folder), tmp_path / "bad", batch.BatchOptions(coarsen={"ratio": 0.05}, start_method="vfork"))
+    assert not (tmp_path / "bad").exists()
     command = [sys.executable, "-m", "ice.batch", str(folder), "-o", str(tmp_path / "bad"), "--ratio", "0.05",
                "--mesh-threads", "0"]
     refused = subprocess.run(command, capture_output=True, text=True)
@@ -185,7 +190,8 @@ def test_killed_batch_loses_no_mesh(dataset, tmp_path):
 def busy_worker(psutil, process, out, seconds=120):
     """A Dask worker process of the batch `process` busy coarsening (None if none is found in time):
     once a first record exists the workers are up (a worker stopped while Dask still starts it is
-    another case), and a worker runs multiprocessing's spawn_main."""
+    another case); a worker is a child of the batch (forked, or running multiprocessing's
+    spawn_main), not its resource tracker."""
     deadline = time.time() + seconds
     while time.time() < deadline and process.poll() is None:
         if not list(out.rglob("*.json")):
@@ -193,7 +199,7 @@ def busy_worker(psutil, process, out, seconds=120):
             continue
         for child in psutil.Process(process.pid).children(recursive=True):
             try:
-                if "spawn_main" in " ".join(child.cmdline()) and child.cpu_percent(interval=0.05) > 50:
+                if "resource_tracker" not in " ".join(child.cmdline()) and child.cpu_percent(interval=0.05) > 50:
                     return child
             except psutil.Error:
                 continue
