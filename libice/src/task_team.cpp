@@ -11,9 +11,11 @@ namespace ice::detail {
 
 namespace {
 
-// A helper waits this long spinning for the next round before it blocks: longer than the serial
-// part between two rounds of the parallel phase (microseconds), shorter than a stage's serial
-// Delaunay pass (milliseconds), which it would only burn a core through.
+// A thread waits this long spinning before it blocks. A helper waiting for the next round: longer
+// than the serial part between two rounds of the parallel phase (microseconds), shorter than a
+// stage's serial Delaunay pass (milliseconds), which it would only burn a core through. run()'s
+// caller waiting for the helpers' last tasks: blocking sooner hands the core to a preempted
+// helper (or to other processes) instead of burning it.
 constexpr auto kSpinTime = std::chrono::microseconds(200);
 
 inline void pause() {
@@ -63,7 +65,12 @@ void TaskTeam::take_tasks() {
     } catch (...) {
       errors_[task] = std::current_exception();
     }
-    remaining_.fetch_sub(1, std::memory_order_release);  // the task's writes, to run()'s caller
+    // Publishes the task's writes to run()'s caller; the last task wakes it if it blocked (each
+    // side writes, then reads the other's flag: one of them sees it).
+    if (remaining_.fetch_sub(1) == 1 && caller_waiting_.load()) {
+      { std::lock_guard<std::mutex> lock(mutex_); }
+      done_.notify_one();
+    }
   }
 }
 
@@ -119,9 +126,14 @@ void TaskTeam::run_erased(int tasks, Call call, void* function) {
       wake_.notify_all();
     }
     take_tasks();
-    // A helper may have been preempted inside a task: spin, then let it have the core.
-    if (!spin_until([&] { return remaining_.load(std::memory_order_acquire) == 0; }, std::chrono::milliseconds(1)))
-      while (remaining_.load(std::memory_order_acquire) > 0) std::this_thread::yield();
+    // The helpers' last tasks: spin as long as a task takes, then block (a helper preempted inside
+    // a task, e.g. by other processes' threads, needs a core more than this thread does).
+    if (!spin_until([&] { return remaining_.load() == 0; }, kSpinTime)) {
+      std::unique_lock<std::mutex> lock(mutex_);
+      caller_waiting_.store(true);
+      done_.wait(lock, [&] { return remaining_.load() == 0; });
+      caller_waiting_.store(false);
+    }
     generation_.store(open + 1);  // closed
     if (!spin_until([&] { return entered_.load() == 0; }, std::chrono::milliseconds(1)))
       while (entered_.load() > 0) std::this_thread::yield();

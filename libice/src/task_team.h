@@ -64,8 +64,9 @@ class TaskTeam {
   std::atomic<std::uint64_t> generation_{kClosedAtStart};  // even: a round is open; odd: closed
   std::atomic<bool> stopping_{false};  // set under mutex_
   std::atomic<int> sleepers_{0};       // helpers blocked on wake_
+  std::atomic<bool> caller_waiting_{false};  // run()'s caller blocked on done_
   std::mutex mutex_;
-  std::condition_variable wake_;
+  std::condition_variable wake_, done_;
 };
 
 }  // namespace ice::detail
