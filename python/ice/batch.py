@@ -19,7 +19,7 @@ that a batch did not write are never replaced without --force, and an output tha
 input mesh is refused before any work.
 
 Isolation: each mesh runs in a worker process of Dask distributed (a LocalCluster of --workers
-processes by default, forked from the batch's process on Linux: --start-method). A defective or failing mesh becomes an error record with the tools' message;
+processes by default). A defective or failing mesh becomes an error record with the tools' message;
 a mesh over --timeout seconds is cancelled (at the next progress report of the coarsener) and
 recorded; a worker that dies (crash, --memory-limit) loses its tasks to Dask, which reruns them on
 another worker (up to 3 times, Dask's allowed-failures), and a mesh that kills every worker it runs on
@@ -76,7 +76,7 @@ COARSEN_OPTIONS = ("n", "ratio", "max_error", "method", "use", "area_weight", "n
 COARSEN_DEFAULTS = {"method": "ice", "use": "poisson_heat", "remove_boundary": True, "regions": 16,
                     "qem_geometry": "extrinsic", "refine_budget": 1.5}
 # How a local cluster can start its worker processes (Python's multiprocessing start methods).
-START_METHODS = ("fork", "forkserver", "spawn")
+START_METHODS = ("spawn", "forkserver")
 # Failures that depend only on the input file: not retried by a rerun with the same input.
 DETERMINISTIC_ERRORS = ("unreadable", "defective", "invalid")
 
@@ -324,12 +324,13 @@ class BatchOptions:
     mesh_threads: int | None = None
     force: bool = False
     progress: bool = True
-    # How a local cluster starts its workers (START_METHODS). None: "fork" on Linux (the workers are
-    # copies of this process, with ice already imported: measured 0.07 s to start two against
-    # 0.4 s for "spawn", which imports Python, Dask, numpy and ice again in each), else "spawn".
-    # Choose "spawn" from a process with much memory or threads of its own (a fork copies the
-    # process as it is; its threads' locks included).
-    start_method: str | None = None
+    # How a local cluster starts its workers (START_METHODS): "spawn", a fresh Python per worker
+    # (anywhere); "forkserver", workers forked from one clean server process that imports Dask and
+    # its packages once (Linux, macOS; cheaper per worker when there are many). Not "fork": workers
+    # forked from the batch's own process start fastest (0.07 s for two against 0.4 s, ice already
+    # imported) but a lock another of its threads holds at the fork stays held in the worker: in
+    # one of two test-suite runs a forked worker hung at its start.
+    start_method: str = "spawn"
 
 
 @dataclass
@@ -374,9 +375,8 @@ def _check_outputs(jobs: list[Job], out: pathlib.Path, force: bool) -> None:
 
 
 def _start_method(options: BatchOptions) -> str:
-    """How a local cluster starts its worker processes: options.start_method, else "fork" on Linux
-    and "spawn" elsewhere."""
-    method = options.start_method or ("fork" if sys.platform.startswith("linux") else "spawn")
+    """How a local cluster starts its worker processes (BatchOptions.start_method)."""
+    method = options.start_method
     if method not in START_METHODS:
         raise ValueError(f"unknown start method {method!r} (known: {', '.join(START_METHODS)})")
     return method
@@ -389,14 +389,16 @@ def _client(options: BatchOptions):
     import logging
     import dask
     method = _start_method(options)
-    # Spawned workers start with OMP_NUM_THREADS=OPENBLAS_NUM_THREADS=1 from Dask (numpy's threads
-    # times its processes would oversubscribe the cores); ICE's own threaded passes then run on one
-    # core even when the workers are fewer than the cores. Give each worker its share of them.
-    # Forked workers inherit this process's libraries as they are (already initialised): these
-    # variables, like Dask's MALLOC_TRIM_THRESHOLD_, no longer apply to them.
+    # Dask starts workers with OMP_NUM_THREADS=OPENBLAS_NUM_THREADS=1 (numpy's threads times its
+    # processes would oversubscribe the cores); ICE's own threaded passes then run on one core even
+    # when the workers are fewer than the cores. Give each worker its share of them.
     share = str(max(1, (os.cpu_count() or 1) // options.workers))
     environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
     environ.update(OMP_NUM_THREADS=share, OPENBLAS_NUM_THREADS=share, MKL_NUM_THREADS=share)
+    # Nor Dask's MALLOC_TRIM_THRESHOLD_: setting it also fixes glibc's mmap threshold, so every large
+    # array of every mesh is mapped afresh and its pages faulted in and zeroed again. The batch over
+    # the shared meshes on one worker: 8.97 s with it, 8.28 s without (medians of 5 interleaved).
+    environ.pop("MALLOC_TRIM_THRESHOLD_", None)
     with dask.config.set({"distributed.nanny.pre-spawn-environ": environ,
                           "distributed.worker.multiprocessing-method": method}):
         cluster = LocalCluster(n_workers=options.workers, threads_per_worker=1, processes=True,
@@ -618,9 +620,10 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
                         help="worker processes of the local Dask cluster (default: 2, or the cores if fewer)")
     parser.add_argument("--scheduler", help="address of a running Dask scheduler (tcp://HOST:PORT) instead")
-    parser.add_argument("--start-method", choices=START_METHODS,
-                        help="how the local cluster starts its workers (default: fork on Linux, where it is the "
-                             "fastest: the workers are copies of this process; spawn elsewhere)")
+    parser.add_argument("--start-method", choices=START_METHODS, default=BatchOptions.start_method,
+                        help="how the local cluster starts its workers: spawn (a fresh Python each) or forkserver "
+                             "(forked from one server process that imports Dask once; cheaper with many "
+                             "workers) (default: %(default)s)")
     parser.add_argument("--mesh-threads", type=int,
                         help="threads per mesh, for meshes of 20,000+ vertices (default: the number of local "
                              "workers, so the last large meshes use the cores idle workers leave; 1 with "

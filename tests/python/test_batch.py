@@ -108,8 +108,8 @@ def test_large_mesh_result_does_not_depend_on_workers_or_threads(project_mesh, t
     folder.mkdir()
     ice.save_mesh(folder / "big.ply", V, F, binary=True)
     results = {}
-    # Workers forked from this process (the default on Linux) and spawned afresh give the same files.
-    for workers, method in ((1, None), (2, None), (2, "spawn")):
+    # Workers spawned afresh (the default) and forked from a server process give the same files.
+    for workers, method in ((1, "spawn"), (2, "spawn"), (2, "forkserver")):
         out = tmp_path / f"out{workers}{method}"
         run = batch.run(str(folder), out, batch.BatchOptions(coarsen={"ratio": 0.05}, workers=workers, progress=False,
                                                              start_method=method))
@@ -132,7 +132,7 @@ def test_large_mesh_result_does_not_depend_on_workers_or_threads(project_mesh, t
     with pytest.raises(ValueError, match="mesh_threads"):
         batch.run(str(folder), tmp_path / "bad", options(ratio=0.05, threads=2))
     with pytest.raises(ValueError, match="start method"):
-        batch.run(str(folder), tmp_path / "bad", batch.BatchOptions(coarsen={"ratio": 0.05}, start_method="vfork"))
+        batch.run(str(folder), tmp_path / "bad", batch.BatchOptions(coarsen={"ratio": 0.05}, start_method="fork"))
     assert not (tmp_path / "bad").exists()
     command = [sys.executable, "-m", "ice.batch", str(folder), "-o", str(tmp_path / "bad"), "--ratio", "0.05",
                "--mesh-threads", "0"]
@@ -190,8 +190,8 @@ def test_killed_batch_loses_no_mesh(dataset, tmp_path):
 def busy_worker(psutil, process, out, seconds=120):
     """A Dask worker process of the batch `process` busy coarsening (None if none is found in time):
     once a first record exists the workers are up (a worker stopped while Dask still starts it is
-    another case); a worker is a child of the batch (forked, or running multiprocessing's
-    spawn_main), not its resource tracker."""
+    another case); a worker is a busy child of the batch (spawned, or forked from a fork server),
+    not its resource tracker."""
     deadline = time.time() + seconds
     while time.time() < deadline and process.poll() is None:
         if not list(out.rglob("*.json")):
