@@ -10,8 +10,9 @@
 /// How: the fine-to-coarse map places every input vertex in a coarse face (barycentric coordinates),
 /// so every input triangle has an image in the coarse metric: the triangle spanned by its vertices'
 /// images, laid out in one plane by unfolding the coarse faces between them (the coarse metric is
-/// flat away from coarse vertices). ICE's map does not fold these images (tested on the triangles
-/// inside one coarse face or two sharing a side). A coarse edge is a straight segment in the layout
+/// flat away from coarse vertices). On the project's test meshes ICE's map does not fold these
+/// images (tested on the triangles inside one coarse face or two sharing a side; but see Limits). A
+/// coarse edge is a straight segment in the layout
 /// of its face; the trace walks that segment across the images of the input triangles, each
 /// crossing read back on the input triangle through the same barycentric coordinates. Input
 /// vertices near the edge are laid out in the stars of its two end vertices, unfolded about each end
@@ -46,6 +47,15 @@
 /// differ from their intrinsic length by more than 1e-9 (94 by more than 1e-6, at most 2.9 %, on CAD
 /// slivers and scans: camelhead, scan_test1_vcg, boxpart): wrong layouts that the checks above do not
 /// catch (1,188 before the shape criterion; mech-holes-shark's went from 87 to 1).
+/// Why, where the coarse mesh is ICE's: its map is piecewise affine on the triangulations the
+/// coarsening went through (each flattening, flip and merge moves a face's points affinely), not on
+/// input triangles, so an input triangle that is large against the coarse faces is bent by it, and
+/// the straight triangle between its corners' images can invert. Counted at 5 % (all three corners
+/// inside one coarse face with three distinct vertices, so the layout is unambiguous; 2026-11-27):
+/// cow 9 of 1,950 such triangles inverted, boxpart 3 of 71, scan_test1_vcg 1 of 12,660; none on
+/// camelhead, bunny_zipper_holes, face_scan (nor bear, spot, lion-head: the test). The walk's model
+/// fails there; tracing those edges exactly needs the input edges carried through every flattening,
+/// flip and removal (a common subdivision kept by the coarsener), which this project does not keep.
 ///
 /// Δ-complex coarse meshes (self-edges, several edges between two vertices) are traced like any
 /// other edge; an edge with an end at a vertex inserted by refinement (not an input vertex) is traced
