@@ -1,5 +1,6 @@
 #include "task_team.h"
 
+#include <algorithm>
 #include <chrono>
 #include <system_error>
 
@@ -40,6 +41,7 @@ bool spin_until(Done&& done, std::chrono::steady_clock::duration limit) {
 }  // namespace
 
 TaskTeam::TaskTeam(int threads) {
+  helpers_.reserve(static_cast<std::size_t>(std::max(threads - 1, 0)));  // no reallocation (a throw) once threads run
   for (int t = 1; t < threads; ++t) {
     try {
       helpers_.emplace_back([this] { helper_loop(); });
@@ -120,6 +122,8 @@ void TaskTeam::run_erased(int tasks, Call call, void* function) {
     next_.store(0, std::memory_order_relaxed);
     remaining_.store(tasks, std::memory_order_relaxed);
     const std::uint64_t open = generation_.load() + 1;
+    // From here to the close below nothing may throw (helpers would go on using `errors`): tasks'
+    // exceptions are caught, and only a mutex could throw (std::system_error, a broken system).
     generation_.store(open);  // opens the round (and publishes the fields)
     if (sleepers_.load() > 0) {
       { std::lock_guard<std::mutex> lock(mutex_); }  // a helper between its check and its wait gets the notice

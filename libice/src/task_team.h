@@ -51,8 +51,9 @@ class TaskTeam {
   void take_tasks();  // runs tasks of the open round until none is left
 
   std::vector<std::thread> helpers_;
-  // The round: written by run() while the round is closed (generation odd) and no helper has
-  // entered it; read by helpers only between entering and leaving an open round.
+  // The round: written by run() while the round is closed (generation odd) and no helper that will
+  // read them is inside (a helper entering late sees the round closed and reads nothing); read by
+  // helpers only between entering an open round and leaving it.
   Call call_ = nullptr;
   void* function_ = nullptr;
   int tasks_ = 0;
