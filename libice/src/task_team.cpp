@@ -1,5 +1,7 @@
 #include "task_team.h"
 
+#include "run_tasks.h"
+
 #include <algorithm>
 #include <chrono>
 #include <system_error>
@@ -103,45 +105,38 @@ void TaskTeam::helper_loop() {
 }
 
 void TaskTeam::run_erased(int tasks, Call call, void* function) {
-  if (tasks <= 0) return;
-  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(tasks));
-  if (helpers_.empty() || tasks == 1) {
-    for (int task = 0; task < tasks; ++task) {
-      try {
-        call(function, task);
-      } catch (...) {
-        errors[task] = std::current_exception();
-      }
-    }
-  } else {
-    // The round is closed and no helper is inside: the fields are ours to write.
-    call_ = call;
-    function_ = function;
-    tasks_ = tasks;
-    errors_ = errors.data();
-    next_.store(0, std::memory_order_relaxed);
-    remaining_.store(tasks, std::memory_order_relaxed);
-    const std::uint64_t open = generation_.load() + 1;
-    // From here to the close below nothing may throw (helpers would go on using `errors`): tasks'
-    // exceptions are caught, and only a mutex could throw (std::system_error, a broken system).
-    generation_.store(open);  // opens the round (and publishes the fields)
-    if (sleepers_.load() > 0) {
-      { std::lock_guard<std::mutex> lock(mutex_); }  // a helper between its check and its wait gets the notice
-      wake_.notify_all();
-    }
-    take_tasks();
-    // The helpers' last tasks: spin as long as a task takes, then block (a helper preempted inside
-    // a task, e.g. by other processes' threads, needs a core more than this thread does).
-    if (!spin_until([&] { return remaining_.load() == 0; }, kSpinTime)) {
-      std::unique_lock<std::mutex> lock(mutex_);
-      caller_waiting_.store(true);
-      done_.wait(lock, [&] { return remaining_.load() == 0; });
-      caller_waiting_.store(false);
-    }
-    generation_.store(open + 1);  // closed
-    if (!spin_until([&] { return entered_.load() == 0; }, std::chrono::milliseconds(1)))
-      while (entered_.load() > 0) std::this_thread::yield();
+  if (helpers_.empty() || tasks <= 1) {  // on this thread alone, as detail::run_tasks does it
+    run_tasks(1, tasks, [&](int task) { call(function, task); });
+    return;
   }
+  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(tasks));
+  // The round is closed and no helper is inside: the fields are ours to write.
+  call_ = call;
+  function_ = function;
+  tasks_ = tasks;
+  errors_ = errors.data();
+  next_.store(0, std::memory_order_relaxed);
+  remaining_.store(tasks, std::memory_order_relaxed);
+  const std::uint64_t open = generation_.load() + 1;
+  // From here to the close below nothing may throw (helpers would go on using `errors`): tasks'
+  // exceptions are caught, and only a mutex could throw (std::system_error, a broken system).
+  generation_.store(open);  // opens the round (and publishes the fields)
+  if (sleepers_.load() > 0) {
+    { std::lock_guard<std::mutex> lock(mutex_); }  // a helper between its check and its wait gets the notice
+    wake_.notify_all();
+  }
+  take_tasks();
+  // The helpers' last tasks: spin as long as a task takes, then block (a helper preempted inside
+  // a task, e.g. by other processes' threads, needs a core more than this thread does).
+  if (!spin_until([&] { return remaining_.load() == 0; }, kSpinTime)) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    caller_waiting_.store(true);
+    done_.wait(lock, [&] { return remaining_.load() == 0; });
+    caller_waiting_.store(false);
+  }
+  generation_.store(open + 1);  // closed
+  if (!spin_until([&] { return entered_.load() == 0; }, std::chrono::milliseconds(1)))
+    while (entered_.load() > 0) std::this_thread::yield();
   for (const std::exception_ptr& error : errors)
     if (error) std::rethrow_exception(error);
 }
