@@ -386,6 +386,40 @@ TEST_CASE("solve_multiple equals column-by-column solves, with and without Diric
     }
 }
 
+TEST_CASE("a large level's independent sets go range by range: the hierarchy is the same for any thread count, every level Delaunay",
+          "[multigrid][hierarchy][threads][meshes]") {
+  // 99k vertices: level 0 (50,000+ vertices) removes its sets in 16 index ranges, on the threads.
+  const ice::TriangleMesh mesh = ice::loop_subdivide(ice::load_mesh(ice_test::project_mesh("spot_subdiv.obj")), 1);
+  REQUIRE(mesh.V.rows() >= 50000);
+  ice::HierarchyOptions options;
+  options.threads = 1;
+  const ice::Hierarchy serial = ice::build_hierarchy(mesh, options);
+  options.threads = 2;
+  const ice::Hierarchy threaded = ice::build_hierarchy(mesh, options);
+  REQUIRE(serial.num_levels() == threaded.num_levels());
+  REQUIRE(serial.num_levels() >= 4);
+  for (std::size_t k = 0; k < serial.prolongations.size(); ++k) {
+    INFO("level " << k);
+    const auto& a = serial.prolongations[k];
+    const auto& b = threaded.prolongations[k];
+    REQUIRE(a.rows() == b.rows());
+    REQUIRE(a.cols() == b.cols());
+    CHECK(a.nonZeros() == b.nonZeros());
+    CHECK((Eigen::SparseMatrix<double>(a - b)).coeffs().cwiseAbs().maxCoeff() == 0.0);
+    CHECK(serial.levels[k + 1].to_fine == threaded.levels[k + 1].to_fine);
+  }
+  // The seams between the ranges are made Delaunay again, and so is every coarse level.
+  for (int k = 1; k < threaded.num_levels(); ++k) {
+    INFO("level " << k);
+    const ice::HierarchyLevel& level = threaded.levels[static_cast<std::size_t>(k)];
+    const ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_lengths(level.F, level.L);
+    ice::Index non_delaunay = 0;
+    for (ice::Index h = 0; h < T.num_halfedge_slots(); h += 2)
+      if (T.halfedge_alive(h) && !T.is_delaunay(h, 1e-8)) ++non_delaunay;
+    CHECK(non_delaunay == 0);
+  }
+}
+
 TEST_CASE("threaded multigrid solves equal serial ones on a 99k-vertex mesh", "[multigrid][threads][meshes]") {
   // spot_subdiv Loop-subdivided once: 98,960+ unknowns, so the finest levels take the threaded
   // kernels (50,000 rows and more). With 2 threads the Gauss–Seidel sweeps split the rows in two

@@ -7,9 +7,11 @@
 #include <numeric>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 
 #include "ice/graph_ordering.h"
 #include "ice/prolongation.h"
+#include "run_tasks.h"
 
 namespace ice {
 
@@ -60,13 +62,30 @@ Index strongest_neighbour(const IntrinsicTriangulation& T, Index v, double share
 // boundary rows reached 8–14 edges away (lion-head), the slowest V-cycle mode sat within four
 // edges of the boundary (99 % of its energy, 3 % of the vertices) and PCG converged at 0.29–0.32
 // per iteration on scans with holes against 0.07 on closed meshes.
+//
+// Large levels in a locality numbering are removed range by range on threads: the vertex slots are
+// cut into kRegions index ranges (breadth-first layers of the numbering, so each range is a band of
+// the surface), and a pass first removes, range by range in parallel, the set's vertices whose
+// neighbours all lie in their own range, then the rest serially, then restores Delaunay across
+// the ranges' seams. The ranges do not depend on the thread count, so neither does the hierarchy.
+constexpr Index kRegionalFrom = 50000;  // live vertices of a pass, at least
+constexpr int kRegions = 16;
+
 CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const CoarsenOptions& base, double area_weight,
-                                          SetOrder set_order, bool use_metric, double anchor_share) {
+                                          SetOrder set_order, bool use_metric, double anchor_share,
+                                          bool locality_numbered, int threads) {
   const bool exact_costs = set_order == SetOrder::exact_cost;
   const auto start = std::chrono::steady_clock::now();
   CoarsenResult total;
   total.input_vertices = T.num_vertices();
   const Index slots = T.num_input_vertices();
+  std::vector<std::uint8_t> region_label;  // empty: no ranges on this level
+  const auto region_start = [&](int r) { return static_cast<Index>(static_cast<long long>(slots) * r / kRegions); };
+  if (locality_numbered && set_order == SetOrder::vertex_index && !use_metric && T.num_vertices() >= kRegionalFrom) {
+    region_label.resize(static_cast<std::size_t>(slots));
+    for (int r = 0; r < kRegions; ++r)
+      std::fill(region_label.begin() + region_start(r), region_label.begin() + region_start(r + 1), static_cast<std::uint8_t>(r));
+  }
   std::vector<std::uint8_t> user_locked(static_cast<std::size_t>(slots), 0), blocked(static_cast<std::size_t>(slots));
   for (Index v : base.locked_vertices) user_locked[static_cast<std::size_t>(v)] = 1;
   // A removed boundary vertex is interpolated along its loop's new edge, so one whose strong link
@@ -164,12 +183,12 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
     if (selected == 0) break;
     CoarsenResult r;
     if (!use_metric) {
-      // Remove the set directly, flattest first, restoring Delaunay around each removal.
-      std::vector<Index> changed;
-      for (const auto& entry : order) {
-        const Index v = entry.second;  // a plain variable: lambdas below capture it (clang 14 cannot capture bindings)
-        if (T.num_vertices() <= base.target_vertices) break;
-        if (blocked[static_cast<std::size_t>(v)] != 2) continue;  // boundary vertices only if remove_boundary
+      // Remove the set directly in `order`, restoring Delaunay around each removal. When the whole
+      // set may go and the level is large, the vertices inside the index ranges of the locality
+      // numbering go first, range by range on the threads, and the rest (next to another range, or
+      // on the boundary) after them in `order` (see kRegionalFrom).
+      const auto remove_one = [&](Index v, const IntrinsicTriangulation::WriteRegion* region, std::vector<Index>& changed,
+                                  CoarsenResult& counts) {
         if (anchor_share > 0) {
           // The neighbour carrying most of v's cotan weight stays for the rest of this level, so that
           // v is interpolated from the vertex it is tied to (HierarchyOptions::strong_neighbour_share).
@@ -179,11 +198,71 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
         changed.clear();
         const RemovalStatus status = T.remove_vertex(v, &changed);
         if (status == RemovalStatus::Removed) {
-          ++r.removed;
+          ++counts.removed;
         } else {
-          ++r.failed_removals;
-          ++r.failures_by_status[static_cast<int>(status)];
+          ++counts.failed_removals;
+          ++counts.failures_by_status[static_cast<int>(status)];
         }
+        T.flip_to_delaunay_around(changed, nullptr, region);
+      };
+      std::vector<Index> changed;
+      std::vector<Index> rest;  // the set's vertices left to the serial loop, in `order`
+      std::vector<Index> seam_edges;  // half-edges the threads left unflipped (diamonds across a seam)
+      if (!region_label.empty() && T.num_vertices() - selected < base.target_vertices) {
+        // Only the first vertices of the set (in `order`) may go, about as many as the serial loop
+        // would remove before reaching the target.
+        Index allowed = std::max<Index>(0, T.num_vertices() - base.target_vertices);
+        for (const auto& entry : order)
+          if (blocked[static_cast<std::size_t>(entry.second)] == 2) {
+            if (allowed > 0) --allowed;
+            else blocked[static_cast<std::size_t>(entry.second)] = 1;
+          }
+        selected = std::min(selected, T.num_vertices() - base.target_vertices);
+      }
+      const bool regional = !region_label.empty() && T.num_vertices() >= kRegionalFrom;
+      if (regional) {
+        std::vector<CoarsenResult> counts(kRegions);
+        std::vector<std::vector<Index>> left(kRegions), skipped(kRegions);
+        // `order` is by vertex index, so each range's vertices are a contiguous stretch of it.
+        const auto first_in = [&](int r) {
+          return std::lower_bound(order.begin(), order.end(), region_start(r),
+                                  [](const std::pair<double, Index>& entry, Index v) { return entry.second < v; }) - order.begin();
+        };
+        detail::run_tasks(threads, kRegions, [&](int r) {
+          const IntrinsicTriangulation::WriteRegion region{region_label.data(), static_cast<std::uint8_t>(r),
+                                                           &skipped[static_cast<std::size_t>(r)]};
+          std::vector<Index> changed_here;
+          for (auto i = first_in(r), end = first_in(r + 1); i < end; ++i) {
+            const Index v = order[static_cast<std::size_t>(i)].second;
+            if (blocked[static_cast<std::size_t>(v)] != 2) continue;
+            // Only a vertex whose neighbours all lie in the range: its star and the flips around it
+            // stay inside, where no other thread writes (as in coarsen()'s parallel phase).
+            bool inside = !T.is_boundary_vertex(v);
+            if (inside) T.for_each_outgoing(v, [&](Index h) { inside = inside && region.contains(T.head(h)); });
+            if (inside) remove_one(v, &region, changed_here, counts[static_cast<std::size_t>(r)]);
+            else left[static_cast<std::size_t>(r)].push_back(v);
+          }
+        });
+        for (int k = 0; k < kRegions; ++k) {
+          r.add_counts(counts[static_cast<std::size_t>(k)]);
+          rest.insert(rest.end(), left[static_cast<std::size_t>(k)].begin(), left[static_cast<std::size_t>(k)].end());
+          seam_edges.insert(seam_edges.end(), skipped[static_cast<std::size_t>(k)].begin(), skipped[static_cast<std::size_t>(k)].end());
+        }
+      } else {
+        for (const auto& entry : order)
+          if (blocked[static_cast<std::size_t>(entry.second)] == 2) rest.push_back(entry.second);
+      }
+      for (const Index v : rest) {
+        if (T.num_vertices() <= base.target_vertices) break;
+        remove_one(v, nullptr, changed, r);
+      }
+      // Delaunay across the seams, from the faces on both sides of the edges the threads could not
+      // flip (before the next pass reads cotan weights).
+      if (!seam_edges.empty()) {
+        changed.clear();
+        for (const Index h : seam_edges)
+          for (const Index side : {h, h ^ 1})
+            if (T.halfedge_alive(side) && !T.is_exterior(side)) changed.push_back(T.face(side));
         T.flip_to_delaunay_around(changed);
       }
       r.stop_reason = T.num_vertices() <= base.target_vertices ? StopReason::TargetReached : StopReason::NothingRemovable;
@@ -242,6 +321,8 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     throw std::invalid_argument("build_hierarchy: ratio must be in (0, 1)");
   if (options.coarsest_vertices < 1) throw std::invalid_argument("build_hierarchy: coarsest_vertices must be >= 1");
   if (options.max_levels < 1) throw std::invalid_argument("build_hierarchy: max_levels must be >= 1");
+  if (options.threads < 0) throw std::invalid_argument("build_hierarchy: threads must be >= 0");
+  const int threads = std::min(options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
   if (!(options.strong_neighbour_share >= 0 && options.strong_neighbour_share <= 1))
     throw std::invalid_argument("build_hierarchy: strong_neighbour_share must be in [0, 1]");
 
@@ -282,7 +363,12 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
             ? coarsen(T, co)
             : coarsen_by_independent_sets(T, co, options.area_weight, options.set_order,
                                           options.coarsening == LevelCoarsening::independent_sets_by_metric,
-                                          options.strong_neighbour_share);
+                                          options.strong_neighbour_share, options.reorder, threads);
+    // Every coarse level intrinsic Delaunay (non-negative cotan weights, which the strong-neighbour
+    // rule and the next level's removals read): the removals restore Delaunay only around
+    // themselves, so non-Delaunay edges of the input (an extrinsic mesh) that no removal reached
+    // would stay.
+    T.flip_to_delaunay();
     H.coarsen_seconds += result.seconds;
     if (T.num_vertices() > n - std::max<Index>(1, n / 10)) {
       H.stop_reason = "coarsening stalled (" + std::string(to_string(result.stop_reason)) + ")";

@@ -595,12 +595,14 @@ int IntrinsicTriangulation::flip_to_delaunay_around(const std::vector<Index>& fa
   if (queued.size() < edges_.size()) queued.resize(edges_.size(), 0);
   const auto push = [&](Index h) {
     const Index e = h >> 1;
-    if (!queued[e] && !is_boundary_edge(h) &&
-        (!region || (region->contains(tail(h)) && region->contains(head(h)) && region->contains(tail(prev(h))) &&
-                     region->contains(tail(prev(h ^ 1)))))) {
-      queued[e] = 1;
-      stack.push_back(e);
+    if (queued[e] || is_boundary_edge(h)) return;
+    if (region && !(region->contains(tail(h)) && region->contains(head(h)) && region->contains(tail(prev(h))) &&
+                    region->contains(tail(prev(h ^ 1))))) {
+      if (region->skipped) region->skipped->push_back(h);
+      return;
     }
+    queued[e] = 1;
+    stack.push_back(e);
   };
   for (Index f : faces) {
     if (!face_alive(f)) continue;

@@ -87,6 +87,10 @@ struct HierarchyOptions {
   /// Internal only: level 0, prolongations[0]'s rows and every to_fine are in the input's numbering.
   /// Which vertices each level keeps depends on the numbering (vertex-order independent sets).
   bool reorder = true;
+  /// Threads of the independent-set passes on levels of 50,000+ vertices (0: one per hardware
+  /// thread). With `reorder`, such a level is cut into 16 index ranges whatever the thread count, so
+  /// the hierarchy is the same for every thread count.
+  int threads = 0;
   /// Fine (level-0) vertices that stay on every level (e.g. to keep sources as coarse vertices).
   /// Not needed for Dirichlet conditions: fem::MultigridSolver handles those algebraically.
   std::vector<Index> locked_vertices;

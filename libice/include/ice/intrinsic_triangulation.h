@@ -180,6 +180,10 @@ class IntrinsicTriangulation {
   struct WriteRegion {
     const std::uint8_t* label = nullptr;
     std::uint8_t value = 0;
+    /// If given, flip_to_delaunay_around appends the half-edges it left unchecked because a corner
+    /// of their diamond lies outside (some may be Delaunay; repeats possible), so that a caller can
+    /// restore Delaunay across the seams from them afterwards.
+    std::vector<Index>* skipped = nullptr;
     bool contains(Index v) const { return label[v] == value; }
   };
   /// As flip_to_delaunay, but starts from the edges of the given faces (and spreads as needed).
