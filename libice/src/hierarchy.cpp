@@ -383,13 +383,11 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
       C = T.compact();
     else
       next.emplace(T.compacted(&C));
-    Eigen::SparseMatrix<double> P = prolongation(T, C);  // this level's vertices × next level's
-    if (options.reorder && H.num_levels() == 1) {
-      // Level 0's rows back in the input's numbering: T's row i is input vertex fine_order[i].
-      Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, Index> to_input(n0);
-      for (Index i = 0; i < n0; ++i) to_input.indices()[i] = fine_order[static_cast<std::size_t>(i)];
-      P = to_input * P;
-    }
+    // This level's vertices × the next level's; level 0's rows back in the input's numbering (T's
+    // input vertex i is input vertex fine_order[i]), set as P is built (a permutation product after
+    // it took 0.2 s at 1.66M).
+    const std::vector<Index> same_rows;
+    Eigen::SparseMatrix<double> P = prolongation(T, C, options.reorder && H.num_levels() == 1 ? fine_order : same_rows);
     P.makeCompressed();
     HierarchyLevel level;
     level.to_fine.resize(C.to_input.size());
