@@ -112,7 +112,9 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     ho.coarsest_vertices = static_cast<ice::Index>(mg.coarsest);
     ice::Hierarchy hierarchy = ice::build_hierarchy(mesh, ho);
     const double hierarchy_seconds = clock.lap();
-    const fem::PoissonSolver poisson = make_solver(fem::PoissonMultigrid{std::move(hierarchy.prolongations), mg.options});
+    // The hierarchy's locality order of the fine vertices, not a second ordering of the same mesh.
+    fem::PoissonMultigrid cycle_setup{std::move(hierarchy.prolongations), mg.options, false, std::move(hierarchy.fine_order)};
+    const fem::PoissonSolver poisson = make_solver(std::move(cycle_setup));
     const double numeric_setup = clock.lap();
     setup_seconds = hierarchy_seconds + numeric_setup;
     u = poisson.solve(f, fixed_values);

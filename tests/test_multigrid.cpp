@@ -312,6 +312,39 @@ TEST_CASE("multigrid refuses bad input", "[multigrid]") {
   CHECK(solver.report().iterations == 0);
   CHECK_THROWS_AS(ice::build_hierarchy(s.mesh, [] { ice::HierarchyOptions o; o.ratio = 1.5; return o; }()),
                   std::invalid_argument);
+  // A locality order that is not a permutation of the unknowns.
+  fem::MultigridSolver ordered(s.hierarchy.prolongations);
+  std::vector<int> order = s.hierarchy.fine_order;
+  order.pop_back();
+  ordered.set_locality_order(order);
+  CHECK_THROWS_AS(ordered.setup(s.L), std::invalid_argument);
+  order.push_back(order.front());
+  ordered.set_locality_order(order);
+  CHECK_THROWS_AS(ordered.setup(s.L), std::invalid_argument);
+}
+
+TEST_CASE("the hierarchy's locality order numbers the solver's unknowns: the same solution as with RCM of A", "[multigrid][meshes]") {
+  const Setup& s = mesh_setup("lion-head.off");
+  const fem::SparseMatrix A = s.L + shift(s) * s.M;
+  const Eigen::VectorXd b = test_rhs(s);
+  REQUIRE(s.hierarchy.fine_order.size() == static_cast<std::size_t>(A.rows()));
+  fem::MultigridOptions options;
+  options.tolerance = 1e-10;
+  fem::MultigridSolver own(s.hierarchy.prolongations, options), given(s.hierarchy.prolongations, options);
+  given.set_locality_order(s.hierarchy.fine_order);
+  own.setup(A);
+  given.setup(A);
+  CHECK(given.free_order() == s.hierarchy.fine_order);
+  const Eigen::VectorXd x_own = own.solve(b), x_given = given.solve(b);
+  CHECK(given.report().converged);
+  CHECK(std::abs(given.report().iterations - own.report().iterations) <= 1);
+  CHECK(relative_difference(x_given, x_own) < 1e-8);
+  // Constrained unknowns are left out of the given order, which the others keep.
+  given.setup(A, {0, 7});
+  std::vector<int> expected;
+  for (int v : s.hierarchy.fine_order)
+    if (v != 0 && v != 7) expected.push_back(v);
+  CHECK(given.free_order() == expected);
 }
 
 TEST_CASE("hierarchy variants (metric-ordered sets, plain greedy ICE, input numbering) give valid multigrid levels", "[multigrid][hierarchy][meshes]") {
@@ -667,7 +700,7 @@ TEST_CASE("PoissonSolver with a multigrid backend solves the same problems as wi
     for (Eigen::Index i = 0; i < n; ++i) f(i) = std::sin(3 * s.mesh.V(i, 0)) + std::cos(5 * s.mesh.V(i, 1));
     fem::MultigridOptions options;
     options.tolerance = 1e-10;
-    const fem::PoissonMultigrid multigrid{s.hierarchy.prolongations, options};
+    const fem::PoissonMultigrid multigrid{s.hierarchy.prolongations, options, false, s.hierarchy.fine_order};
 
     const fem::PoissonSolver direct = fem::PoissonSolver::zero_mean(s.L, s.M);
     const fem::PoissonSolver iterative = fem::PoissonSolver::zero_mean(s.L, s.M, multigrid);

@@ -169,7 +169,7 @@ PoissonMultigrid polishing_cycle(const CoarseProxy& proxy, const PolishOptions& 
   if (polish.iterations < 0 || !(polish.tolerance >= 0) || polish.max_iterations < 1 || !(polish.estimate_safety >= 1))
     throw std::invalid_argument(
         "PolishOptions: iterations >= 0, tolerance >= 0, max_iterations >= 1 and estimate_safety >= 1 expected");
-  PoissonMultigrid cycle{{proxy.prolongation()}, polish.cycle, /*estimate_error=*/true};
+  PoissonMultigrid cycle{{proxy.prolongation()}, polish.cycle, /*estimate_error=*/true, /*locality_order=*/{}};
   cycle.options.mode = MultigridMode::pcg;
   cycle.options.tolerance = 1e-15;
   cycle.options.error_tolerance = polish.tolerance / polish.estimate_safety;

@@ -490,10 +490,22 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<Index> constraine
   // stays local). The coarse levels inherit it through restrict_prolongation's column order.
   reordered_ = options_.reorder;
   std::vector<Index> candidates(static_cast<std::size_t>(n));
-  if (reordered_)
+  if (reordered_ && !locality_order_.empty()) {
+    if (static_cast<Eigen::Index>(locality_order_.size()) != n)
+      throw std::invalid_argument("MultigridSolver::setup: the locality order has " + std::to_string(locality_order_.size()) +
+                                  " entries for " + std::to_string(n) + " unknowns");
+    std::vector<char> seen(static_cast<std::size_t>(n), 0);
+    for (Index v : locality_order_) {
+      if (v < 0 || v >= n || seen[static_cast<std::size_t>(v)])
+        throw std::invalid_argument("MultigridSolver::setup: the locality order is not a permutation");
+      seen[static_cast<std::size_t>(v)] = 1;
+    }
+    candidates = locality_order_;
+  } else if (reordered_) {
     candidates = reverse_cuthill_mckee(A);
-  else
+  } else {
     std::iota(candidates.begin(), candidates.end(), 0);
+  }
   free_.clear();
   for (int v : candidates)
     if (free_index_[static_cast<std::size_t>(v)] >= 0) {

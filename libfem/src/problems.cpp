@@ -111,6 +111,7 @@ PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& 
   require_square(mass, laplacian.rows(), "PoissonSolver: mass and Laplacian");
   if (multigrid) {
     multigrid_ = std::make_unique<MultigridSolver>(std::move(multigrid->prolongations), multigrid->options);
+    multigrid_->set_locality_order(std::move(multigrid->locality_order));
     multigrid_->setup(laplacian, std::move(constrained));
     // In the mass norm, the norm the errors are reported in (after re-centring in zero-mean mode).
     if (multigrid->estimate_error) multigrid_->set_error_norm(mass_of_one_, zero_mean);

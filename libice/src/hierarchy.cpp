@@ -402,6 +402,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     T = std::move(*next);
     t_to_fine = H.levels.back().to_fine;
   }
+  H.fine_order = std::move(fine_order);
   H.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return H;
 }

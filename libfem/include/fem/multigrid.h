@@ -130,6 +130,12 @@ class MultigridSolver {
   /// not positive definite.
   void setup(const SparseMatrix& A, std::vector<Index> constrained = {});
 
+  /// With options().reorder: number the fine unknowns by `order` (order[new] = old, a permutation
+  /// of 0..n_0−1, checked by setup()) instead of by reverse Cuthill–McKee on A's graph, e.g.
+  /// ice::Hierarchy::fine_order, the same kind of order of the same mesh (0.19 s saved at 1.66M
+  /// unknowns). Empty: RCM again. Applies at the next setup().
+  void set_locality_order(std::vector<Index> order) { locality_order_ = std::move(order); }
+
   /// Replaces the matrix by one with the same sparsity pattern and the same constrained set (e.g.
   /// M + tL for another t): redoes only the Galerkin products, the smoother data and the coarsest
   /// numeric factorisation (its symbolic analysis is reused). Precondition: setup() was called.
@@ -223,6 +229,7 @@ class MultigridSolver {
                         const Eigen::VectorXd& constrained_values) const;
   bool is_setup_ = false;
   bool reordered_ = false;  ///< setup() used the locality ordering (threaded sweeps need it)
+  std::vector<Index> locality_order_;  ///< set_locality_order's, or empty
 };
 
 }  // namespace fem

@@ -57,6 +57,9 @@ struct PoissonMultigrid {
   /// after re-centring in zero-mean mode), which options.error_tolerance can stop on. Off by
   /// default: an exact solve to a residual tolerance does not need it.
   bool estimate_error = false;
+  /// The fine unknowns' locality order (MultigridSolver::set_locality_order), e.g.
+  /// ice::Hierarchy::fine_order; empty: the solver orders A's graph itself.
+  std::vector<Index> locality_order;
 };
 
 /// Poisson equation L u = M f, the P1 discretisation of −Δu = f (L is positive semidefinite).

@@ -113,6 +113,11 @@ struct Hierarchy {
   std::vector<CoarsenResult> coarsening;
   /// Why the building stopped (human readable).
   std::string stop_reason;
+  /// With HierarchyOptions::reorder, level 0's vertices in the breadth-first (reverse
+  /// Cuthill–McKee) order the levels were coarsened in (fine_order[new] = level-0 vertex), else
+  /// empty. A multigrid solver on these levels can number its unknowns by it instead of ordering
+  /// the matrix's graph again (fem::MultigridSolver::set_locality_order).
+  std::vector<Index> fine_order;
   /// Wall time of build_hierarchy, and the part spent inside ice::coarsen.
   double seconds = 0, coarsen_seconds = 0;
 
