@@ -577,10 +577,24 @@ bool IntrinsicTriangulation::flip(Index h) {
 }
 
 int IntrinsicTriangulation::flip_to_delaunay() {
+  // The edges that need a flip are found on all threads (on a mesh that is nearly Delaunay, as a
+  // coarsened level or an input's intrinsic Delaunay triangulation after a few flips, that pass is
+  // most of the work); the flips, which spread, start from their faces on this thread.
+  const Index edge_slots = static_cast<Index>(edges_.size());
+  constexpr std::size_t kParallelScanEdges = 300000;  // as the builds' 100,000 vertices
+  const int threads = detail::threads_for(static_cast<std::size_t>(edge_slots), kParallelScanEdges);
+  const int tasks = threads > 1 ? 4 * threads : 1;
+  std::vector<std::vector<Index>> found(static_cast<std::size_t>(tasks));
+  detail::run_tasks(threads, tasks, [&](int task) {
+    const Index begin = static_cast<Index>(static_cast<long long>(edge_slots) * task / tasks);
+    const Index end = static_cast<Index>(static_cast<long long>(edge_slots) * (task + 1) / tasks);
+    for (Index e = begin; e < end; ++e) {
+      const Index h = 2 * e;
+      if (halfedge_alive(h) && !is_delaunay(h)) found[static_cast<std::size_t>(task)].push_back(hface(h));  // interior
+    }
+  });
   std::vector<Index> faces;
-  faces.reserve(num_faces_);
-  for (Index f = 0; f < num_face_slots(); ++f)
-    if (face_alive(f)) faces.push_back(f);
+  for (const std::vector<Index>& part : found) faces.insert(faces.end(), part.begin(), part.end());
   return flip_to_delaunay_around(faces);
 }
 
