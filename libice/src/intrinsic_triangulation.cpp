@@ -1261,84 +1261,122 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
 // ------------------------------------------------------------------------------------------------
 // Export and checks
 
+namespace {
+// Numbers the i in [0, count) for which alive(i) holds 0, 1, ... in increasing order (kInvalid for
+// the others) into `id`, and returns how many there are: a count per range on the threads, then
+// each range numbered from its offset.
+template <class Alive>
+Index number_alive(Index count, const Alive& alive, int threads, std::vector<Index>& id) {
+  id.resize(static_cast<std::size_t>(count));
+  const int tasks = threads > 1 ? 4 * threads : 1;
+  const auto bound = [&](int t) { return static_cast<Index>(static_cast<long long>(count) * t / tasks); };
+  std::vector<Index> offset(static_cast<std::size_t>(tasks) + 1, 0);
+  detail::run_tasks(threads, tasks, [&](int t) {
+    Index live = 0;
+    for (Index i = bound(t); i < bound(t + 1); ++i) live += alive(i) ? 1 : 0;
+    offset[static_cast<std::size_t>(t) + 1] = live;
+  });
+  for (int t = 0; t < tasks; ++t) offset[static_cast<std::size_t>(t) + 1] += offset[static_cast<std::size_t>(t)];
+  detail::run_tasks(threads, tasks, [&](int t) {
+    Index next = offset[static_cast<std::size_t>(t)];
+    for (Index i = bound(t); i < bound(t + 1); ++i) id[static_cast<std::size_t>(i)] = alive(i) ? next++ : kInvalid;
+  });
+  return offset.back();
+}
+
+// Threads for the passes of compact() and compacted() over a mesh of `slots` vertex slots.
+int compact_threads(Index slots) { return detail::threads_for(static_cast<std::size_t>(slots), kParallelBuildVertices); }
+}  // namespace
+
+IntrinsicTriangulation::CompactNumbers IntrinsicTriangulation::compact_numbers(int threads) const {
+  CompactNumbers numbers;
+  numbers.vertices = number_alive(num_vertex_slots(), [this](Index v) { return vertex_alive(v); }, threads, numbers.vertex);
+  numbers.faces = number_alive(num_face_slots(), [this](Index f) { return face_alive(f); }, threads, numbers.face);
+  return numbers;
+}
+
 IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) const {
-  CompactMesh arrays = compact();
-  // Slot -> compact vertex (as compact() numbers them) and back.
-  const std::vector<Index> vertex_id = compact_vertex_numbers();
-  std::vector<Index> slot_of(arrays.to_input.size());
-  for (Index v = 0; v < num_vertex_slots(); ++v)
-    if (vertex_id[v] != kInvalid) slot_of[static_cast<std::size_t>(vertex_id[v])] = v;
-  std::vector<Index> face_id(faces_.size(), kInvalid), edge_id(edges_.size(), kInvalid);
-  Index faces = 0, edges = 0;
-  for (Index f = 0; f < num_face_slots(); ++f)
-    if (face_alive(f)) face_id[f] = faces++;  // same order as compact()'s rows
-  for (Index e = 0; e < static_cast<Index>(edges_.size()); ++e)
-    if (halfedge_alive(2 * e)) edge_id[e] = edges++;
+  const int threads = compact_threads(num_vertex_slots());
+  const CompactNumbers numbers = compact_numbers(threads);
+  CompactMesh arrays = compact(numbers, threads);
+  const std::vector<Index>& vertex_id = numbers.vertex;
+  const std::vector<Index>& face_id = numbers.face;
+  std::vector<Index> edge_id;
+  const Index edges = number_alive(static_cast<Index>(edges_.size()), [this](Index e) { return halfedge_alive(2 * e); }, threads, edge_id);
   const auto halfedge_id = [&](Index h) { return h == kInvalid ? kInvalid : 2 * edge_id[h >> 1] + (h & 1); };
 
   IntrinsicTriangulation T;
   T.edges_.resize(edges);
-  for (Index e = 0; e < static_cast<Index>(edges_.size()); ++e) {
-    if (edge_id[e] == kInvalid) continue;
-    const EdgeRecord& old_record = edges_[e];
-    EdgeRecord& record = T.edges_[edge_id[e]];
-    for (int side = 0; side < 2; ++side) {
-      record.next[side] = halfedge_id(old_record.next[side]);
-      record.prev[side] = halfedge_id(old_record.prev[side]);
-      record.tail[side] = vertex_id[old_record.tail[side]];
-      record.face[side] = old_record.face[side] == kInvalid ? kInvalid : face_id[old_record.face[side]];
-      record.angle[side] = old_record.angle[side];
+  detail::run_ranges(threads, static_cast<Index>(edges_.size()), [&](Index begin, Index end) {
+    for (Index e = begin; e < end; ++e) {
+      if (edge_id[e] == kInvalid) continue;
+      const EdgeRecord& old_record = edges_[e];
+      EdgeRecord& record = T.edges_[edge_id[e]];
+      for (int side = 0; side < 2; ++side) {
+        record.next[side] = halfedge_id(old_record.next[side]);
+        record.prev[side] = halfedge_id(old_record.prev[side]);
+        record.tail[side] = vertex_id[old_record.tail[side]];
+        record.face[side] = old_record.face[side] == kInvalid ? kInvalid : face_id[old_record.face[side]];
+        record.angle[side] = old_record.angle[side];
+      }
+      record.length = old_record.length;
     }
-    record.length = old_record.length;
-  }
-  T.faces_.resize(faces);
-  for (Index f = 0; f < num_face_slots(); ++f)
-    if (face_id[f] != kInvalid) T.faces_[face_id[f]] = FaceRecord{halfedge_id(fhalfedge(f)), kInvalid};
-  const Index vertices = static_cast<Index>(arrays.to_input.size());
-  T.vertices_.resize(vertices);
-  for (Index c = 0; c < vertices; ++c) {
-    const VertexRecord& old_record = vertices_[slot_of[static_cast<std::size_t>(c)]];
-    T.vertices_[c] = VertexRecord{halfedge_id(old_record.halfedge), old_record.boundary, old_record.angle_sum};
-  }
-  T.points_.assign(vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
-  T.num_vertices_ = vertices, T.num_edges_ = edges, T.num_faces_ = faces;
+  });
+  T.faces_.resize(numbers.faces);
+  detail::run_ranges(threads, num_face_slots(), [&](Index begin, Index end) {
+    for (Index f = begin; f < end; ++f)
+      if (face_id[f] != kInvalid) T.faces_[face_id[f]] = FaceRecord{halfedge_id(fhalfedge(f)), kInvalid};
+  });
+  T.vertices_.resize(numbers.vertices);
+  detail::run_ranges(threads, num_vertex_slots(), [&](Index begin, Index end) {
+    for (Index v = begin; v < end; ++v)
+      if (vertex_id[v] != kInvalid) {
+        const VertexRecord& old_record = vertices_[v];
+        T.vertices_[vertex_id[v]] = VertexRecord{halfedge_id(old_record.halfedge), old_record.boundary, old_record.angle_sum};
+      }
+  });
+  T.points_.assign(numbers.vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
+  T.num_vertices_ = numbers.vertices, T.num_edges_ = edges, T.num_faces_ = numbers.faces;
   if (maps) *maps = std::move(arrays);
   return T;
 }
 
-std::vector<Index> IntrinsicTriangulation::compact_vertex_numbers() const {
-  std::vector<Index> number(static_cast<std::size_t>(num_vertex_slots()), kInvalid);
-  Index next = 0;
-  for (Index v = 0; v < num_vertex_slots(); ++v)
-    if (vertex_alive(v)) number[v] = next++;
-  return number;
+CompactMesh IntrinsicTriangulation::compact() const {
+  const int threads = compact_threads(num_vertex_slots());
+  return compact(compact_numbers(threads), threads);
 }
 
-CompactMesh IntrinsicTriangulation::compact() const {
+CompactMesh IntrinsicTriangulation::compact(const CompactNumbers& numbers, int threads) const {
   CompactMesh out;
   // Live input vertices first (in input order), then live inserted vertices (to_input kInvalid).
-  const std::vector<Index> compact_of = compact_vertex_numbers();
+  const std::vector<Index>& compact_of = numbers.vertex;
   out.from_input.assign(compact_of.begin(), compact_of.begin() + num_input_vertices());
-  for (Index v = 0; v < num_vertex_slots(); ++v)
-    if (vertex_alive(v)) out.to_input.push_back(v < num_input_vertices() ? v : kInvalid);
-  out.F.resize(num_faces_, 3);
-  out.L.resize(num_faces_, 3);
+  out.to_input.resize(static_cast<std::size_t>(numbers.vertices));
+  detail::run_ranges(threads, num_vertex_slots(), [&](Index begin, Index end) {
+    for (Index v = begin; v < end; ++v)
+      if (compact_of[v] != kInvalid) out.to_input[static_cast<std::size_t>(compact_of[v])] = v < num_input_vertices() ? v : kInvalid;
+  });
+  out.F.resize(numbers.faces, 3);
+  out.L.resize(numbers.faces, 3);
   // Each live half-edge's side (3·row + k), then the gluing through the twin half-edges.
   std::vector<Index> side_of(static_cast<std::size_t>(num_halfedge_slots()), kInvalid);
-  Index row = 0;
-  for (Index f = 0; f < num_face_slots(); ++f) {
-    if (!face_alive(f)) continue;
-    Index h = fhalfedge(f);
-    for (int k = 0; k < 3; ++k, h = next(h)) {
-      out.F(row, k) = compact_of[tail(h)];
-      out.L(row, k) = length(h);
-      side_of[h] = 3 * row + k;
+  detail::run_ranges(threads, num_face_slots(), [&](Index begin, Index end) {
+    for (Index f = begin; f < end; ++f) {
+      const Index row = numbers.face[f];
+      if (row == kInvalid) continue;
+      Index h = fhalfedge(f);
+      for (int k = 0; k < 3; ++k, h = next(h)) {
+        out.F(row, k) = compact_of[tail(h)];
+        out.L(row, k) = length(h);
+        side_of[h] = 3 * row + k;
+      }
     }
-    ++row;
-  }
-  out.twin.assign(static_cast<std::size_t>(3 * row), kInvalid);
-  for (Index h = 0; h < num_halfedge_slots(); ++h)
-    if (side_of[h] != kInvalid) out.twin[side_of[h]] = side_of[h ^ 1];  // kInvalid: exterior twin
+  });
+  out.twin.assign(static_cast<std::size_t>(3 * numbers.faces), kInvalid);
+  detail::run_ranges(threads, num_halfedge_slots(), [&](Index begin, Index end) {
+    for (Index h = begin; h < end; ++h)
+      if (side_of[h] != kInvalid) out.twin[side_of[h]] = side_of[h ^ 1];  // kInvalid: exterior twin
+  });
   return out;
 }
 

@@ -273,9 +273,14 @@ class IntrinsicTriangulation {
                                     const std::vector<Index>& twin, const std::vector<Index>& corner_halfedge,
                                     int threads);
   void link_vertices(const std::vector<Index>& corners_at_vertex);
-  // Vertex slot -> compact vertex (live slots in order: input vertices, then inserted ones), or
-  // kInvalid for a dead slot: the numbering of compact() and compacted().
-  std::vector<Index> compact_vertex_numbers() const;
+  // Live vertex and face slots numbered in slot order (vertices: input ones, then inserted ones),
+  // kInvalid for dead slots: the numbering of compact() and compacted().
+  struct CompactNumbers {
+    std::vector<Index> vertex, face;
+    Index vertices = 0, faces = 0;
+  };
+  CompactNumbers compact_numbers(int threads) const;
+  CompactMesh compact(const CompactNumbers& numbers, int threads) const;
   void recompute_vertex_frame(Index v);
   FlattenResult flatten_vertex(Index v, double initial_log_scale, bool update_own_frame);
   // The new angle of the corner at tail(halfedge), between halfedge and prev(halfedge).
