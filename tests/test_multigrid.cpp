@@ -312,6 +312,16 @@ TEST_CASE("multigrid refuses bad input", "[multigrid]") {
   CHECK(solver.report().iterations == 0);
   CHECK_THROWS_AS(ice::build_hierarchy(s.mesh, [] { ice::HierarchyOptions o; o.ratio = 1.5; return o; }()),
                   std::invalid_argument);
+  // Bad faces or lengths, with and without the breadth-first numbering.
+  for (const bool reorder : {true, false}) {
+    ice::HierarchyOptions o;
+    o.reorder = reorder;
+    ice::Faces F = s.mesh.F;
+    const ice::FaceLengths L = ice::face_lengths_from_positions(s.mesh.V, s.mesh.F);
+    CHECK_THROWS_AS(ice::build_hierarchy(F, ice::FaceLengths(L.topRows(L.rows() - 1)), o), std::invalid_argument);
+    F(3, 1) = -2;
+    CHECK_THROWS_AS(ice::build_hierarchy(F, L, o), std::invalid_argument);
+  }
   // A locality order that is not a permutation of the unknowns.
   fem::MultigridSolver ordered(s.hierarchy.prolongations);
   std::vector<int> order = s.hierarchy.fine_order;

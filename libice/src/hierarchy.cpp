@@ -11,6 +11,7 @@
 
 #include "ice/graph_ordering.h"
 #include "ice/prolongation.h"
+#include "locality_numbering.h"
 #include "run_tasks.h"
 
 namespace ice {
@@ -284,10 +285,17 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
   return total;
 }
 
-// F renumbered breadth first (ice::reverse_cuthill_mckee on the vertex graph of F); order[new] =
-// old. Vertices that no face uses keep a place (isolated vertices of the graph).
-Faces breadth_first_numbering(const Faces& F, std::vector<Index>& order) {
-  const Index n = F.rows() == 0 || F.minCoeff() < 0 ? 0 : F.maxCoeff() + 1;
+// F and L renumbered breadth first (ice::reverse_cuthill_mckee on the vertex graph of F; order[new]
+// = old) with the faces sorted by their smallest new vertex (detail::renumber_faces): a removal's
+// faces then lie together in memory as its vertices do. Vertices that no face uses keep a place
+// (isolated vertices of the graph).
+void breadth_first_numbering(const Faces& F, const FaceLengths& L, std::vector<Index>& order, Faces& F_out,
+                             FaceLengths& L_out) {
+  // What IntrinsicTriangulation::from_lengths would refuse, refused before the arrays are indexed.
+  if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
+    throw std::invalid_argument("build_hierarchy: F and L must both be m x 3");
+  if (F.rows() > 0 && F.minCoeff() < 0) throw std::invalid_argument("build_hierarchy: negative vertex index");
+  const Index n = F.rows() == 0 ? 0 : F.maxCoeff() + 1;
   std::vector<Index> offsets(static_cast<std::size_t>(n) + 1, 0), adjacency(static_cast<std::size_t>(6 * F.rows()));
   for (Eigen::Index f = 0; f < F.rows(); ++f)
     for (int k = 0; k < 3; ++k) offsets[static_cast<std::size_t>(F(f, k)) + 1] += 2;
@@ -303,10 +311,10 @@ Faces breadth_first_numbering(const Faces& F, std::vector<Index>& order) {
   order.assign(rcm.begin(), rcm.end());
   std::vector<Index> new_index(static_cast<std::size_t>(n));
   for (Index i = 0; i < n; ++i) new_index[static_cast<std::size_t>(order[static_cast<std::size_t>(i)])] = i;
-  Faces out(F.rows(), 3);
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int k = 0; k < 3; ++k) out(f, k) = new_index[static_cast<std::size_t>(F(f, k))];
-  return out;
+  detail::RenumberedFaces faces = detail::renumber_faces(F, new_index);
+  F_out = std::move(faces.F);
+  L_out.resize(L.rows(), 3);
+  for (Eigen::Index row = 0; row < L.rows(); ++row) L_out.row(row) = L.row(faces.face_order[static_cast<std::size_t>(row)]);
 }
 
 }  // namespace
@@ -330,8 +338,13 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
   // (IntrinsicTriangulation::compacted restarts tracking), t_to_fine maps them to level-0 vertices.
   // With options.reorder, T's level-0 vertex i is input vertex fine_order[i].
   std::vector<Index> fine_order;
-  IntrinsicTriangulation T = options.reorder ? IntrinsicTriangulation::from_lengths(breadth_first_numbering(F, fine_order), L)
-                                             : IntrinsicTriangulation::from_lengths(F, L);
+  IntrinsicTriangulation T = [&] {
+    if (!options.reorder) return IntrinsicTriangulation::from_lengths(F, L);
+    Faces renumbered;
+    FaceLengths lengths;
+    breadth_first_numbering(F, L, fine_order, renumbered, lengths);
+    return IntrinsicTriangulation::from_lengths(renumbered, std::move(lengths));
+  }();
   const Index n0 = T.num_input_vertices();
   for (Index v : options.locked_vertices)
     if (v < 0 || v >= n0) throw std::invalid_argument("build_hierarchy: locked vertex out of range");

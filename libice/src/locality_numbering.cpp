@@ -65,22 +65,32 @@ LocalityNumbering locality_numbering(const TriangleMesh& mesh) {
   out.order = morton_order(mesh.V);
   std::vector<Index> new_index(static_cast<std::size_t>(n));
   for (Index i = 0; i < n; ++i) new_index[static_cast<std::size_t>(out.order[static_cast<std::size_t>(i)])] = i;
+  RenumberedFaces faces = renumber_faces(mesh.F, new_index);
+  out.F = std::move(faces.F);
+  out.face_order = std::move(faces.face_order);
+  return out;
+}
+
+RenumberedFaces renumber_faces(const Faces& F, const std::vector<Index>& new_index) {
+  const Eigen::Index m = F.rows();
+  const auto n = static_cast<Index>(new_index.size());
   // Faces by their smallest new vertex: a counting sort, stable (ties keep the input's order).
   std::vector<Index> first_vertex(static_cast<std::size_t>(m));
   std::vector<Index> start(static_cast<std::size_t>(n) + 1, 0);
   for (Eigen::Index f = 0; f < m; ++f) {
     Index smallest = n;
-    for (int k = 0; k < 3; ++k) smallest = std::min(smallest, new_index[static_cast<std::size_t>(mesh.F(f, k))]);
+    for (int k = 0; k < 3; ++k) smallest = std::min(smallest, new_index[static_cast<std::size_t>(F(f, k))]);
     first_vertex[static_cast<std::size_t>(f)] = smallest;
     ++start[static_cast<std::size_t>(smallest) + 1];
   }
   for (Index v = 0; v < n; ++v) start[static_cast<std::size_t>(v) + 1] += start[static_cast<std::size_t>(v)];
+  RenumberedFaces out;
   out.F.resize(m, 3);
   out.face_order.resize(static_cast<std::size_t>(m));
   for (Eigen::Index f = 0; f < m; ++f) {
     const Index row = start[static_cast<std::size_t>(first_vertex[static_cast<std::size_t>(f)])]++;
     out.face_order[static_cast<std::size_t>(row)] = static_cast<Index>(f);
-    for (int k = 0; k < 3; ++k) out.F(row, k) = new_index[static_cast<std::size_t>(mesh.F(f, k))];
+    for (int k = 0; k < 3; ++k) out.F(row, k) = new_index[static_cast<std::size_t>(F(f, k))];
   }
   return out;
 }

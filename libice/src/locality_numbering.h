@@ -30,6 +30,15 @@ struct LocalityNumbering {
 /// coarsener (measured at 1.58M vertices) without building the adjacency, at a third of the time.
 LocalityNumbering locality_numbering(const TriangleMesh& mesh);
 
+/// F with its vertices renumbered (new_index[old] = new) and its faces sorted by their smallest new
+/// vertex (a counting sort, stable: ties keep F's order), so that a vertex's faces lie near each
+/// other; face_order[new row] = F's row. Preconditions: every index of F lies in new_index.
+struct RenumberedFaces {
+  Faces F;
+  std::vector<Index> face_order;
+};
+RenumberedFaces renumber_faces(const Faces& F, const std::vector<Index>& new_index);
+
 /// The Morton order alone: order[new] = old vertex.
 std::vector<Index> morton_order(const Positions& V);
 
