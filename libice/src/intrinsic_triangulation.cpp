@@ -155,51 +155,80 @@ namespace {
 // the thread count.
 constexpr std::size_t kParallelBuildVertices = 100000;
 
+// Numbers the i in [0, count) for which alive(i) holds 0, 1, ... in increasing order (kInvalid for
+// the others) into `id`, and returns how many there are: a count per range on the threads, then
+// each range numbered from its offset.
+template <class Alive>
+Index number_alive(Index count, const Alive& alive, int threads, std::vector<Index>& id) {
+  id.resize(static_cast<std::size_t>(count));
+  const int tasks = threads > 1 ? 4 * threads : 1;
+  const auto bound = [&](int t) { return static_cast<Index>(static_cast<long long>(count) * t / tasks); };
+  std::vector<Index> offset(static_cast<std::size_t>(tasks) + 1, 0);
+  detail::run_tasks(threads, tasks, [&](int t) {
+    Index live = 0;
+    for (Index i = bound(t); i < bound(t + 1); ++i) live += alive(i) ? 1 : 0;
+    offset[static_cast<std::size_t>(t) + 1] = live;
+  });
+  for (int t = 0; t < tasks; ++t) offset[static_cast<std::size_t>(t) + 1] += offset[static_cast<std::size_t>(t)];
+  detail::run_tasks(threads, tasks, [&](int t) {
+    Index next = offset[static_cast<std::size_t>(t)];
+    for (Index i = bound(t); i < bound(t + 1); ++i) id[static_cast<std::size_t>(i)] = alive(i) ? next++ : kInvalid;
+  });
+  return offset.back();
+}
+
 VertexPairGluing pair_sides_by_vertices(const Faces& F) {
   const Index num_faces = static_cast<Index>(F.rows());
   if (num_faces == 0) throw std::invalid_argument("IntrinsicTriangulation: no faces");
   const Index num_vertices = F.minCoeff() < 0 ? -1 : F.maxCoeff() + 1;
   if (num_vertices <= 0) throw std::invalid_argument("IntrinsicTriangulation: negative vertex index");
   const Index num_corners = 3 * num_faces;
+  const int threads = detail::threads_for(static_cast<std::size_t>(num_vertices), kParallelBuildVertices);
 
   // Pair corners (directed edges) into undirected edges by sorting on the vertex pair (lower
   // vertex, higher vertex, corner) with a counting sort on the lower vertex (detail::order_by_vertex).
   std::vector<std::uint64_t> key(num_corners);
-  detail::run_ranges(detail::threads_for(static_cast<std::size_t>(num_vertices), kParallelBuildVertices), num_corners,
-                     [&](Index begin, Index end) {
-                       for (Index c = begin; c < end; ++c) {
-                         const std::uint64_t a = F(c / 3, c % 3), b = F(c / 3, (c % 3 + 1) % 3);
-                         if (a == b)
-                           throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(c / 3) +
-                                                       " repeats a vertex");
-                         key[c] = (std::min(a, b) << 32) | std::max(a, b);
-                       }
-                     });
+  detail::run_ranges(threads, num_corners, [&](Index begin, Index end) {
+    for (Index c = begin; c < end; ++c) {
+      const std::uint64_t a = F(c / 3, c % 3), b = F(c / 3, (c % 3 + 1) % 3);
+      if (a == b)
+        throw std::invalid_argument("IntrinsicTriangulation: face " + std::to_string(c / 3) + " repeats a vertex");
+      key[c] = (std::min(a, b) << 32) | std::max(a, b);
+    }
+  });
   std::vector<Index> order = detail::order_by_vertex(
       static_cast<std::size_t>(num_corners), num_vertices, [&](Index c) { return static_cast<Index>(key[c] >> 32); },
-      [&](Index x, Index y) { return key[x] < key[y]; });
+      [&](Index x, Index y) { return key[x] < key[y]; }, threads);
 
+  // Runs of equal keys are one edge's sides. Ranges of the sorted corners are paired on the threads,
+  // each from the first run that starts in it (the first error in sorted order is the one thrown).
   VertexPairGluing gluing;
   gluing.twin.assign(num_corners, kInvalid);
-  for (Index i = 0; i < num_corners;) {
-    Index j = i + 1;
-    while (j < num_corners && key[order[j]] == key[order[i]]) ++j;
-    const Index c0 = order[i];
-    const auto edge_name = [&] {
-      return "edge (" + std::to_string(F(c0 / 3, c0 % 3)) + ", " + std::to_string(F(c0 / 3, (c0 % 3 + 1) % 3)) + ")";
-    };
-    if (j - i > 2)
-      throw std::invalid_argument("IntrinsicTriangulation: non-manifold " + edge_name() + " has " +
-                                  std::to_string(j - i) + " faces");
-    if (j - i == 2) {
-      const Index c1 = order[i + 1];
-      if (F(c0 / 3, c0 % 3) == F(c1 / 3, c1 % 3))
-        throw std::invalid_argument("IntrinsicTriangulation: inconsistent orientation at " + edge_name());
-      gluing.twin[c0] = c1;
-      gluing.twin[c1] = c0;
+  const auto run_start = [&](Index i) {
+    while (i > 0 && i < num_corners && key[order[i]] == key[order[i - 1]]) ++i;
+    return i;
+  };
+  detail::run_ranges(threads, num_corners, [&](Index begin, Index end) {
+    for (Index i = run_start(begin), stop = run_start(end); i < stop;) {
+      Index j = i + 1;
+      while (j < num_corners && key[order[j]] == key[order[i]]) ++j;
+      const Index c0 = order[i];
+      const auto edge_name = [&] {
+        return "edge (" + std::to_string(F(c0 / 3, c0 % 3)) + ", " + std::to_string(F(c0 / 3, (c0 % 3 + 1) % 3)) + ")";
+      };
+      if (j - i > 2)
+        throw std::invalid_argument("IntrinsicTriangulation: non-manifold " + edge_name() + " has " +
+                                    std::to_string(j - i) + " faces");
+      if (j - i == 2) {
+        const Index c1 = order[i + 1];
+        if (F(c0 / 3, c0 % 3) == F(c1 / 3, c1 % 3))
+          throw std::invalid_argument("IntrinsicTriangulation: inconsistent orientation at " + edge_name());
+        gluing.twin[c0] = c1;
+        gluing.twin[c1] = c0;
+      }
+      i = j;
     }
-    i = j;
-  }
+  });
   gluing.order = std::move(order);
   return gluing;
 }
@@ -211,20 +240,33 @@ VertexPairGluing pair_sides_by_vertices(const Faces& F) {
 // the first edge that breaks a rule.
 std::vector<Index> number_glued_sides(const Faces& F, const std::vector<double>& corner_length,
                                       const std::vector<Index>& twin, const std::vector<Index>& order,
-                                      Index& num_edges) {
+                                      Index& num_edges, int threads) {
   const Index num_corners = static_cast<Index>(3 * F.rows());
   const auto tail_of = [&](Index c) { return F(c / 3, c % 3); };
   const auto head_of = [&](Index c) { return F(c / 3, (c % 3 + 1) % 3); };
+  // An edge is numbered at the first of its sides in `order`: a side is first unless its twin, a
+  // proper one, comes earlier. Edge numbers are counts of first sides (per range, then offsets).
+  std::vector<Index> position(static_cast<std::size_t>(num_corners));
+  detail::run_ranges(threads, num_corners, [&](Index begin, Index end) {
+    for (Index i = begin; i < end; ++i) position[static_cast<std::size_t>(order[i])] = i;
+  });
+  const auto is_first = [&](Index i) {
+    const Index c = order[i], t = twin[c];
+    return t == kInvalid || t < 0 || t >= num_corners || t == c || twin[t] != c || position[static_cast<std::size_t>(t)] > i;
+  };
+  std::vector<Index> edge_at;  // the edge numbered at each position of `order` (kInvalid: a second side)
+  num_edges = number_alive(num_corners, is_first, threads, edge_at);
   std::vector<Index> corner_halfedge(num_corners, kInvalid);
-  num_edges = 0;
-  for (Index c : order) {
-    if (corner_halfedge[c] != kInvalid) continue;
-    const Index t = twin[c];
-    corner_halfedge[c] = 2 * num_edges;
-    if (t != kInvalid) {
+  // The checks, at each first side (the first failure in `order` is the one thrown).
+  detail::run_ranges(threads, num_corners, [&](Index begin, Index end) {
+    for (Index i = begin; i < end; ++i) {
+      const Index edge = edge_at[static_cast<std::size_t>(i)];
+      if (edge == kInvalid) continue;
+      const Index c = order[i], t = twin[c];
+      corner_halfedge[c] = 2 * edge;
+      if (t == kInvalid) continue;
       const auto edge_name = [&] {
-        return "edge (" + std::to_string(tail_of(c)) + ", " + std::to_string(head_of(c)) + ") of face " +
-               std::to_string(c / 3);
+        return "edge (" + std::to_string(tail_of(c)) + ", " + std::to_string(head_of(c)) + ") of face " + std::to_string(c / 3);
       };
       if (t < 0 || t >= num_corners || t == c || twin[t] != c)
         throw std::invalid_argument("IntrinsicTriangulation: the gluing of " + edge_name() + " is not symmetric");
@@ -233,10 +275,9 @@ std::vector<Index> number_glued_sides(const Faces& F, const std::vector<double>&
       const double l0 = corner_length[c], l1 = corner_length[t];
       if (std::abs(l0 - l1) > 1e-12 * std::max(l0, l1))
         throw std::invalid_argument("IntrinsicTriangulation: the two faces of " + edge_name() + " disagree on its length");
-      corner_halfedge[t] = 2 * num_edges + 1;
+      corner_halfedge[t] = 2 * edge + 1;
     }
-    ++num_edges;
-  }
+  });
   for (Index c = 0; c < num_corners; ++c)
     if (corner_halfedge[c] == kInvalid) throw std::invalid_argument("IntrinsicTriangulation: the edge order misses a side");
   return corner_halfedge;
@@ -265,7 +306,7 @@ void IntrinsicTriangulation::build(const Faces& F, const std::vector<double>& co
   const int threads = detail::threads_for(static_cast<std::size_t>(num_vertices), kParallelBuildVertices);
   // The gluing, checked, numbers the edges: corner c's side is half-edge corner_halfedge[c].
   Index num_edges = 0;
-  const std::vector<Index> corner_halfedge = number_glued_sides(F, corner_length, twin, order, num_edges);
+  const std::vector<Index> corner_halfedge = number_glued_sides(F, corner_length, twin, order, num_edges, threads);
 
   fill_records(edges_, num_edges,
                EdgeRecord{{kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {kInvalid, kInvalid}, {0.0, 0.0}, 0.0},
@@ -1262,28 +1303,6 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
 // Export and checks
 
 namespace {
-// Numbers the i in [0, count) for which alive(i) holds 0, 1, ... in increasing order (kInvalid for
-// the others) into `id`, and returns how many there are: a count per range on the threads, then
-// each range numbered from its offset.
-template <class Alive>
-Index number_alive(Index count, const Alive& alive, int threads, std::vector<Index>& id) {
-  id.resize(static_cast<std::size_t>(count));
-  const int tasks = threads > 1 ? 4 * threads : 1;
-  const auto bound = [&](int t) { return static_cast<Index>(static_cast<long long>(count) * t / tasks); };
-  std::vector<Index> offset(static_cast<std::size_t>(tasks) + 1, 0);
-  detail::run_tasks(threads, tasks, [&](int t) {
-    Index live = 0;
-    for (Index i = bound(t); i < bound(t + 1); ++i) live += alive(i) ? 1 : 0;
-    offset[static_cast<std::size_t>(t) + 1] = live;
-  });
-  for (int t = 0; t < tasks; ++t) offset[static_cast<std::size_t>(t) + 1] += offset[static_cast<std::size_t>(t)];
-  detail::run_tasks(threads, tasks, [&](int t) {
-    Index next = offset[static_cast<std::size_t>(t)];
-    for (Index i = bound(t); i < bound(t + 1); ++i) id[static_cast<std::size_t>(i)] = alive(i) ? next++ : kInvalid;
-  });
-  return offset.back();
-}
-
 // Threads for the passes of compact() and compacted() over a mesh of `slots` vertex slots.
 int compact_threads(Index slots) { return detail::threads_for(static_cast<std::size_t>(slots), kParallelBuildVertices); }
 }  // namespace

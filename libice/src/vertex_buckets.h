@@ -9,13 +9,15 @@
 #include <vector>
 
 #include "ice/mesh.h"
+#include "run_tasks.h"
 
 namespace ice::detail {
 
 /// The permutation of records 0..count−1 sorted by (vertex_of(r), then `less` within a vertex),
-/// stable (equal records keep their order). vertex_of(r) must lie in [0, vertices).
+/// stable (equal records keep their order). vertex_of(r) must lie in [0, vertices). The buckets are
+/// ordered on `threads` threads (`less` is then called concurrently).
 template <class VertexOf, class Less>
-std::vector<Index> order_by_vertex(std::size_t count, Index vertices, VertexOf&& vertex_of, Less&& less) {
+std::vector<Index> order_by_vertex(std::size_t count, Index vertices, VertexOf&& vertex_of, Less&& less, int threads = 1) {
   std::vector<std::size_t> start(static_cast<std::size_t>(vertices) + 1, 0);
   for (std::size_t r = 0; r < count; ++r) ++start[static_cast<std::size_t>(vertex_of(static_cast<Index>(r))) + 1];
   for (std::size_t v = 0; v < static_cast<std::size_t>(vertices); ++v) start[v + 1] += start[v];
@@ -24,19 +26,21 @@ std::vector<Index> order_by_vertex(std::size_t count, Index vertices, VertexOf&&
     std::vector<std::size_t> fill(start.begin(), start.end() - 1);
     for (std::size_t r = 0; r < count; ++r) order[fill[vertex_of(static_cast<Index>(r))]++] = static_cast<Index>(r);
   }
-  for (std::size_t v = 0; v < static_cast<std::size_t>(vertices); ++v) {
-    const std::size_t begin = start[v], end = start[v + 1];
-    if (end - begin > 32) {  // a vertex of very high valence: no quadratic insertion sort
-      std::stable_sort(order.begin() + begin, order.begin() + end, less);
-      continue;
+  run_ranges(threads, static_cast<std::size_t>(vertices), [&](std::size_t first, std::size_t last) {
+    for (std::size_t v = first; v < last; ++v) {
+      const std::size_t begin = start[v], end = start[v + 1];
+      if (end - begin > 32) {  // a vertex of very high valence: no quadratic insertion sort
+        std::stable_sort(order.begin() + static_cast<std::ptrdiff_t>(begin), order.begin() + static_cast<std::ptrdiff_t>(end), less);
+        continue;
+      }
+      for (std::size_t i = begin + 1; i < end; ++i) {
+        const Index r = order[i];
+        std::size_t j = i;
+        for (; j > begin && less(r, order[j - 1]); --j) order[j] = order[j - 1];
+        order[j] = r;
+      }
     }
-    for (std::size_t i = begin + 1; i < end; ++i) {
-      const Index r = order[i];
-      std::size_t j = i;
-      for (; j > begin && less(r, order[j - 1]); --j) order[j] = order[j - 1];
-      order[j] = r;
-    }
-  }
+  });
   return order;
 }
 
