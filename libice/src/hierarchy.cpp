@@ -80,12 +80,20 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
   CoarsenResult total;
   total.input_vertices = T.num_vertices();
   const Index slots = T.num_input_vertices();
-  std::vector<std::uint8_t> region_label;  // empty: no ranges on this level
+  // The ranges, and the same shifted by half a range (first and last shorter and longer), whose
+  // interiors hold the first ranges' seams.
+  std::vector<std::uint8_t> region_label, shifted_label;  // empty: no ranges on this level
   const auto region_start = [&](int r) { return static_cast<Index>(static_cast<long long>(slots) * r / kRegions); };
+  const auto shifted_start = [&](int r) {
+    return r == 0 ? 0 : r == kRegions ? slots : static_cast<Index>(static_cast<long long>(slots) * (2 * r - 1) / (2 * kRegions));
+  };
   if (locality_numbered && set_order == SetOrder::vertex_index && !use_metric && T.num_vertices() >= kRegionalFrom) {
     region_label.resize(static_cast<std::size_t>(slots));
-    for (int r = 0; r < kRegions; ++r)
+    shifted_label.resize(static_cast<std::size_t>(slots));
+    for (int r = 0; r < kRegions; ++r) {
       std::fill(region_label.begin() + region_start(r), region_label.begin() + region_start(r + 1), static_cast<std::uint8_t>(r));
+      std::fill(shifted_label.begin() + shifted_start(r), shifted_label.begin() + shifted_start(r + 1), static_cast<std::uint8_t>(r));
+    }
   }
   std::vector<std::uint8_t> user_locked(static_cast<std::size_t>(slots), 0), blocked(static_cast<std::size_t>(slots));
   for (Index v : base.locked_vertices) user_locked[static_cast<std::size_t>(v)] = 1;
@@ -184,10 +192,10 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
     if (selected == 0) break;
     CoarsenResult r;
     if (!use_metric) {
-      // Remove the set directly in `order`, restoring Delaunay around each removal. When the whole
-      // set may go and the level is large, the vertices inside the index ranges of the locality
-      // numbering go first, range by range on the threads, and the rest (next to another range, or
-      // on the boundary) after them in `order` (see kRegionalFrom).
+      // Remove the set directly in `order`, restoring Delaunay around each removal. On a large level
+      // the vertices inside the index ranges of the locality numbering go first, range by range on
+      // the threads, then those inside the shifted ranges, and the rest (on the boundary, or next to
+      // seams of both) after them in `order` (see kRegionalFrom).
       const auto remove_one = [&](Index v, const IntrinsicTriangulation::WriteRegion* region, std::vector<Index>& changed,
                                   CoarsenResult& counts) {
         if (anchor_share > 0) {
@@ -220,52 +228,59 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
           }
         selected = std::min(selected, T.num_vertices() - base.target_vertices);
       }
-      const bool regional = !region_label.empty() && T.num_vertices() >= kRegionalFrom;
-      if (regional) {
-        std::vector<CoarsenResult> counts(kRegions);
-        std::vector<std::vector<Index>> left(kRegions), skipped(kRegions);
-        // `order` is by vertex index, so each range's vertices are a contiguous stretch of it.
-        const auto first_in = [&](int r) {
-          return std::lower_bound(order.begin(), order.end(), region_start(r),
-                                  [](const std::pair<double, Index>& entry, Index v) { return entry.second < v; }) - order.begin();
-        };
-        detail::run_tasks(threads, kRegions, [&](int r) {
-          const IntrinsicTriangulation::WriteRegion region{region_label.data(), static_cast<std::uint8_t>(r),
-                                                           &skipped[static_cast<std::size_t>(r)]};
-          std::vector<Index> changed_here;
-          for (auto i = first_in(r), end = first_in(r + 1); i < end; ++i) {
-            const Index v = order[static_cast<std::size_t>(i)].second;
-            if (blocked[static_cast<std::size_t>(v)] != 2) continue;
-            // Only a vertex whose neighbours all lie in the range: its star and the flips around it
-            // stay inside, where no other thread writes (as in coarsen()'s parallel phase).
-            bool inside = !T.is_boundary_vertex(v);
-            if (inside) T.for_each_outgoing(v, [&](Index h) { inside = inside && region.contains(T.head(h)); });
-            if (inside) remove_one(v, &region, changed_here, counts[static_cast<std::size_t>(r)]);
-            else left[static_cast<std::size_t>(r)].push_back(v);
-          }
-        });
-        for (int k = 0; k < kRegions; ++k) {
-          r.add_counts(counts[static_cast<std::size_t>(k)]);
-          rest.insert(rest.end(), left[static_cast<std::size_t>(k)].begin(), left[static_cast<std::size_t>(k)].end());
-          seam_edges.insert(seam_edges.end(), skipped[static_cast<std::size_t>(k)].begin(), skipped[static_cast<std::size_t>(k)].end());
-        }
-      } else {
-        for (const auto& entry : order)
-          if (blocked[static_cast<std::size_t>(entry.second)] == 2) rest.push_back(entry.second);
-      }
-      for (const Index v : rest) {
-        if (T.num_vertices() <= base.target_vertices) break;
-        remove_one(v, nullptr, changed, r);
-      }
       // Delaunay across the seams, from the faces on both sides of the edges the threads could not
-      // flip (before the next pass reads cotan weights).
-      if (!seam_edges.empty()) {
+      // flip (before the next removals read cotan weights).
+      const auto restore_seams = [&] {
+        if (seam_edges.empty()) return;
         changed.clear();
         for (const Index h : seam_edges)
           for (const Index side : {h, h ^ 1})
             if (T.halfedge_alive(side) && !T.is_exterior(side)) changed.push_back(T.face(side));
         T.flip_to_delaunay_around(changed);
+        seam_edges.clear();
+      };
+      // One round over `candidates` (by increasing index) in the ranges [start(k), start(k + 1))
+      // that `label` names: the vertices whose neighbours all lie in their own range are removed,
+      // range by range on the threads (their stars and the flips around them stay inside, where no
+      // other thread writes, as in coarsen()'s parallel phase); the others are returned in order.
+      const auto remove_in_ranges = [&](const std::vector<Index>& candidates, const std::vector<std::uint8_t>& label,
+                                        const auto& start) {
+        std::vector<CoarsenResult> counts(kRegions);
+        std::vector<std::vector<Index>> left(kRegions), skipped(kRegions);
+        const auto first_in = [&](int k) { return std::lower_bound(candidates.begin(), candidates.end(), start(k)) - candidates.begin(); };
+        detail::run_tasks(threads, kRegions, [&](int k) {
+          const IntrinsicTriangulation::WriteRegion region{label.data(), static_cast<std::uint8_t>(k), &skipped[static_cast<std::size_t>(k)]};
+          std::vector<Index> changed_here;
+          for (auto i = first_in(k), end = first_in(k + 1); i < end; ++i) {
+            const Index v = candidates[static_cast<std::size_t>(i)];
+            bool inside = !T.is_boundary_vertex(v);
+            if (inside) T.for_each_outgoing(v, [&](Index h) { inside = inside && region.contains(T.head(h)); });
+            if (inside) remove_one(v, &region, changed_here, counts[static_cast<std::size_t>(k)]);
+            else left[static_cast<std::size_t>(k)].push_back(v);
+          }
+        });
+        std::vector<Index> others;
+        for (int k = 0; k < kRegions; ++k) {
+          r.add_counts(counts[static_cast<std::size_t>(k)]);
+          others.insert(others.end(), left[static_cast<std::size_t>(k)].begin(), left[static_cast<std::size_t>(k)].end());
+          seam_edges.insert(seam_edges.end(), skipped[static_cast<std::size_t>(k)].begin(), skipped[static_cast<std::size_t>(k)].end());
+        }
+        return others;
+      };
+      for (const auto& entry : order)
+        if (blocked[static_cast<std::size_t>(entry.second)] == 2) rest.push_back(entry.second);
+      if (!region_label.empty() && T.num_vertices() >= kRegionalFrom) {
+        // The ranges, then the shifted ranges for the vertices next to the first ranges' seams: what
+        // is left for the serial loop is the boundary and the few vertices next to both seams.
+        rest = remove_in_ranges(rest, region_label, region_start);
+        restore_seams();
+        rest = remove_in_ranges(rest, shifted_label, shifted_start);
       }
+      for (const Index v : rest) {
+        if (T.num_vertices() <= base.target_vertices) break;
+        remove_one(v, nullptr, changed, r);
+      }
+      restore_seams();
       r.stop_reason = T.num_vertices() <= base.target_vertices ? StopReason::TargetReached : StopReason::NothingRemovable;
     } else {
       co.target_vertices = std::max(base.target_vertices, T.num_vertices() - selected);
