@@ -69,11 +69,17 @@ std::vector<int> reverse_cuthill_mckee(int n, const Offset* offsets, const Neigh
   for (int v = 0; v < n; ++v)
     for (auto p = offsets[v]; p < offsets[v + 1]; ++p)
       if (static_cast<int>(adjacency[p]) != v) ++degree[static_cast<std::size_t>(v)];
-  // Component roots are tried in increasing degree (then index).
+  // Component roots are tried in increasing degree (then index): a counting sort on the degree
+  // (a comparison sort of all vertices took a third of the ordering's time at 1.66M vertices).
+  int max_degree = 0;
+  for (int v = 0; v < n; ++v) max_degree = std::max(max_degree, degree[static_cast<std::size_t>(v)]);
   std::vector<int> by_degree(static_cast<std::size_t>(n));
-  for (int v = 0; v < n; ++v) by_degree[static_cast<std::size_t>(v)] = v;
-  std::stable_sort(by_degree.begin(), by_degree.end(),
-                   [&](int a, int b) { return degree[static_cast<std::size_t>(a)] < degree[static_cast<std::size_t>(b)]; });
+  {
+    std::vector<std::size_t> start(static_cast<std::size_t>(max_degree) + 2, 0);
+    for (int v = 0; v < n; ++v) ++start[static_cast<std::size_t>(degree[static_cast<std::size_t>(v)]) + 1];
+    for (std::size_t d = 1; d < start.size(); ++d) start[d] += start[d - 1];
+    for (int v = 0; v < n; ++v) by_degree[start[static_cast<std::size_t>(degree[static_cast<std::size_t>(v)])]++] = v;
+  }
 
   std::vector<int> order, probe;
   order.reserve(static_cast<std::size_t>(n));
