@@ -295,7 +295,7 @@ void axpy_columns(const Eigen::VectorXd& a, const Block& X, Block& Y, int thread
 // lands next to the fine unknowns it prolongs to), else in their old order. `column_map` receives
 // old column -> new column or −1. Inner indices sorted.
 SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<Index>& row_map, Eigen::Index new_rows,
-                                   bool order_by_rows, std::vector<Index>& column_map) {
+                                   bool order_by_rows, std::vector<Index>& column_map, int threads) {
   column_map.assign(static_cast<std::size_t>(P.cols()), -1);
   std::vector<std::pair<int, int>> survivors;  // (first new row, old column)
   for (Eigen::Index j = 0; j < P.outerSize(); ++j) {
@@ -314,21 +314,21 @@ SparseMatrix restrict_prolongation(const SparseMatrix& P, const std::vector<Inde
                               const int r = row_map[static_cast<std::size_t>(it.row())];
                               if (r >= 0 && it.value() != 0.0) column.emplace_back(r, it.value());
                             }
-                          });
+                          }, active_threads(P.cols(), threads));
 }
 
 // The free–free block of A in the order `free` (free[i] = original index of free unknown i;
 // free_index its inverse, −1 at constrained indices) and the free–constrained block (free rows,
 // constrained columns). Inner indices sorted.
 void split_matrix(const SparseMatrix& A, const std::vector<Index>& free, const std::vector<Index>& free_index,
-                  const std::vector<Index>& constrained, SparseMatrix& A_ff, SparseMatrix& A_fc) {
+                  const std::vector<Index>& constrained, SparseMatrix& A_ff, SparseMatrix& A_fc, int threads) {
   const Eigen::Index free_count = static_cast<Eigen::Index>(free.size());
   A_ff = assemble_columns(free_count, free_count, A.nonZeros(), [&](Eigen::Index c, std::vector<std::pair<int, double>>& column) {
     for (SparseMatrix::InnerIterator it(A, free[static_cast<std::size_t>(c)]); it; ++it) {
       const int fi = free_index[static_cast<std::size_t>(it.row())];
       if (fi >= 0) column.emplace_back(fi, it.value());
     }
-  });
+  }, active_threads(free_count, threads));
   A_fc = assemble_columns(free_count, static_cast<Eigen::Index>(constrained.size()), 0,
                           [&](Eigen::Index c, std::vector<std::pair<int, double>>& column) {
                             for (SparseMatrix::InnerIterator it(A, constrained[static_cast<std::size_t>(c)]); it; ++it) {
@@ -521,7 +521,7 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<Index> constraine
     auto level = std::make_unique<Level>();
     if (rows == 0) break;
     std::vector<Index> column_map;
-    level->P = restrict_prolongation(P, row_map, rows, options_.reorder, column_map);
+    level->P = restrict_prolongation(P, row_map, rows, options_.reorder, column_map, threads());
     level->P_rows = level->P;
     if (level->P.cols() == 0) break;
     rows = level->P.cols();
@@ -546,7 +546,7 @@ void MultigridSolver::update_matrix(const SparseMatrix& A) {
 
 void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis) {
   Level& fine = *levels_[0];
-  split_matrix(A, free_, free_index_, constrained_, fine.A, free_constrained_);
+  split_matrix(A, free_, free_index_, constrained_, fine.A, free_constrained_, threads());
   for (std::size_t k = 0; k < levels_.size(); ++k) {
     Level& level = *levels_[k];
     if (k > 0) {

@@ -21,28 +21,54 @@ inline const SparseMatrix& compressed(const SparseMatrix& M, SparseMatrix& copy)
 
 /// A rows × cols matrix whose column c holds the (row, value) pairs that `entries(c, out)` appends
 /// to `out` (in any order; they are sorted by row). `capacity`: expected non-zeros (a reservation).
+/// With threads > 1, ranges of columns are gathered on that many threads (`entries` is then called
+/// concurrently) and copied into place: the same matrix.
 template <class Entries>
-SparseMatrix assemble_columns(Eigen::Index rows, Eigen::Index cols, Eigen::Index capacity, Entries&& entries) {
-  std::vector<Index> starts{0}, inner;
-  std::vector<double> values;
-  inner.reserve(static_cast<std::size_t>(capacity));
-  values.reserve(static_cast<std::size_t>(capacity));
-  std::vector<std::pair<int, double>> column;
-  for (Eigen::Index c = 0; c < cols; ++c) {
-    column.clear();
-    entries(c, column);
-    std::sort(column.begin(), column.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (const auto& [row, value] : column) {
-      inner.push_back(row);
-      values.push_back(value);
+SparseMatrix assemble_columns(Eigen::Index rows, Eigen::Index cols, Eigen::Index capacity, Entries&& entries, int threads = 1) {
+  // Ranges of columns gathered into arrays of their own, then copied into place.
+  threads = std::max(threads, 1);
+  const int tasks = threads > 1 ? 4 * threads : 1;
+  const auto bound = [&](int t) { return static_cast<Eigen::Index>(static_cast<long long>(cols) * t / tasks); };
+  std::vector<std::vector<Index>> inner_of(static_cast<std::size_t>(tasks)), count_of(static_cast<std::size_t>(tasks));
+  std::vector<std::vector<double>> values_of(static_cast<std::size_t>(tasks));
+  if (tasks == 1) {
+    inner_of[0].reserve(static_cast<std::size_t>(capacity));
+    values_of[0].reserve(static_cast<std::size_t>(capacity));
+  }
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (threads > 1)
+  for (int t = 0; t < tasks; ++t) {
+    std::vector<std::pair<int, double>> column;
+    auto& inner = inner_of[static_cast<std::size_t>(t)];
+    auto& values = values_of[static_cast<std::size_t>(t)];
+    auto& counts = count_of[static_cast<std::size_t>(t)];
+    for (Eigen::Index c = bound(t); c < bound(t + 1); ++c) {
+      column.clear();
+      entries(c, column);
+      std::sort(column.begin(), column.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+      for (const auto& [row, value] : column) {
+        inner.push_back(row);
+        values.push_back(value);
+      }
+      counts.push_back(static_cast<Index>(column.size()));
     }
-    starts.push_back(static_cast<int>(inner.size()));
   }
   SparseMatrix M(rows, cols);
-  M.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
-  std::copy(starts.begin(), starts.end(), M.outerIndexPtr());
-  std::copy(inner.begin(), inner.end(), M.innerIndexPtr());
-  std::copy(values.begin(), values.end(), M.valuePtr());
+  std::vector<Index> offset(static_cast<std::size_t>(tasks) + 1, 0);
+  for (int t = 0; t < tasks; ++t)
+    offset[static_cast<std::size_t>(t) + 1] = offset[static_cast<std::size_t>(t)] + static_cast<Index>(inner_of[static_cast<std::size_t>(t)].size());
+  M.resizeNonZeros(static_cast<Eigen::Index>(offset.back()));
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) if (threads > 1)
+  for (int t = 0; t < tasks; ++t) {
+    Index at = offset[static_cast<std::size_t>(t)];
+    Eigen::Index c = bound(t);
+    for (const Index count : count_of[static_cast<std::size_t>(t)]) {
+      M.outerIndexPtr()[c++] = at;
+      at += count;
+    }
+    std::copy(inner_of[static_cast<std::size_t>(t)].begin(), inner_of[static_cast<std::size_t>(t)].end(), M.innerIndexPtr() + offset[static_cast<std::size_t>(t)]);
+    std::copy(values_of[static_cast<std::size_t>(t)].begin(), values_of[static_cast<std::size_t>(t)].end(), M.valuePtr() + offset[static_cast<std::size_t>(t)]);
+  }
+  M.outerIndexPtr()[cols] = offset.back();
   return M;
 }
 
