@@ -395,7 +395,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   // algorithm, and the vertices along the seams are removed too).
   if (options.regions < 0 || options.regions > 254)
     throw std::invalid_argument("coarsen: regions = " + std::to_string(options.regions) + " is out of range [0, 254]");
-  const int threads = std::min(options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
+  const int threads = detail::requested_threads(options.threads);
   const Index live = T.num_vertices();
   const Index intermediate = target + std::max<Index>(target, (live - target) / 32);
   RegionPartition partition;

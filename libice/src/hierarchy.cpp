@@ -4,10 +4,10 @@
 #include <chrono>
 #include <cstdint>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <optional>
 #include <stdexcept>
-#include <thread>
 
 #include "ice/graph_ordering.h"
 #include "ice/prolongation.h"
@@ -215,19 +215,16 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
         T.flip_to_delaunay_around(changed, nullptr, region);
       };
       std::vector<Index> changed;
-      std::vector<Index> rest;  // the set's vertices left to the serial loop, in `order`
       std::vector<Index> seam_edges;  // half-edges the threads left unflipped (diamonds across a seam)
-      if (!region_label.empty() && T.num_vertices() - selected < base.target_vertices) {
-        // Only the first vertices of the set (in `order`) may go, about as many as the serial loop
-        // would remove before reaching the target.
-        Index allowed = std::max<Index>(0, T.num_vertices() - base.target_vertices);
-        for (const auto& entry : order)
-          if (blocked[static_cast<std::size_t>(entry.second)] == 2) {
-            if (allowed > 0) --allowed;
-            else blocked[static_cast<std::size_t>(entry.second)] = 1;
-          }
-        selected = std::min(selected, T.num_vertices() - base.target_vertices);
-      }
+      // The set in `order`. With ranges, only its first vertices, about as many as the serial loop
+      // would remove before reaching the target (it stops there by itself).
+      std::vector<Index> rest;
+      Index allowed = region_label.empty() ? std::numeric_limits<Index>::max() : std::max<Index>(0, T.num_vertices() - base.target_vertices);
+      for (const auto& entry : order)
+        if (blocked[static_cast<std::size_t>(entry.second)] == 2 && allowed > 0) {
+          rest.push_back(entry.second);
+          --allowed;
+        }
       // Delaunay across the seams, from the faces on both sides of the edges the threads could not
       // flip (before the next removals read cotan weights).
       const auto restore_seams = [&] {
@@ -267,8 +264,6 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
         }
         return others;
       };
-      for (const auto& entry : order)
-        if (blocked[static_cast<std::size_t>(entry.second)] == 2) rest.push_back(entry.second);
       if (!region_label.empty() && T.num_vertices() >= kRegionalFrom) {
         // The ranges, then the shifted ranges for the vertices next to the first ranges' seams: what
         // is left for the serial loop is the boundary and the few vertices next to both seams.
@@ -345,7 +340,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
   if (options.coarsest_vertices < 1) throw std::invalid_argument("build_hierarchy: coarsest_vertices must be >= 1");
   if (options.max_levels < 1) throw std::invalid_argument("build_hierarchy: max_levels must be >= 1");
   if (options.threads < 0) throw std::invalid_argument("build_hierarchy: threads must be >= 0");
-  const int threads = std::min(options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
+  const int threads = detail::requested_threads(options.threads);
   if (!(options.strong_neighbour_share >= 0 && options.strong_neighbour_share <= 1))
     throw std::invalid_argument("build_hierarchy: strong_neighbour_share must be in [0, 1]");
 

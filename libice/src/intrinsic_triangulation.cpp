@@ -161,18 +161,17 @@ constexpr std::size_t kParallelBuildVertices = 100000;
 template <class Alive>
 Index number_alive(Index count, const Alive& alive, int threads, std::vector<Index>& id) {
   id.resize(static_cast<std::size_t>(count));
-  const int tasks = threads > 1 ? 4 * threads : 1;
-  const auto bound = [&](int t) { return static_cast<Index>(static_cast<long long>(count) * t / tasks); };
-  std::vector<Index> offset(static_cast<std::size_t>(tasks) + 1, 0);
-  detail::run_tasks(threads, tasks, [&](int t) {
+  const int ranges = detail::range_count(threads, count);
+  std::vector<Index> offset(static_cast<std::size_t>(ranges) + 1, 0);
+  detail::run_numbered_ranges(threads, count, [&](int range, Index begin, Index end) {
     Index live = 0;
-    for (Index i = bound(t); i < bound(t + 1); ++i) live += alive(i) ? 1 : 0;
-    offset[static_cast<std::size_t>(t) + 1] = live;
+    for (Index i = begin; i < end; ++i) live += alive(i) ? 1 : 0;
+    offset[static_cast<std::size_t>(range) + 1] = live;
   });
-  for (int t = 0; t < tasks; ++t) offset[static_cast<std::size_t>(t) + 1] += offset[static_cast<std::size_t>(t)];
-  detail::run_tasks(threads, tasks, [&](int t) {
-    Index next = offset[static_cast<std::size_t>(t)];
-    for (Index i = bound(t); i < bound(t + 1); ++i) id[static_cast<std::size_t>(i)] = alive(i) ? next++ : kInvalid;
+  for (int range = 0; range < ranges; ++range) offset[static_cast<std::size_t>(range) + 1] += offset[static_cast<std::size_t>(range)];
+  detail::run_numbered_ranges(threads, count, [&](int range, Index begin, Index end) {
+    Index next = offset[static_cast<std::size_t>(range)];
+    for (Index i = begin; i < end; ++i) id[static_cast<std::size_t>(i)] = alive(i) ? next++ : kInvalid;
   });
   return offset.back();
 }
@@ -624,14 +623,11 @@ int IntrinsicTriangulation::flip_to_delaunay() {
   const Index edge_slots = static_cast<Index>(edges_.size());
   constexpr std::size_t kParallelScanEdges = 300000;  // as the builds' 100,000 vertices
   const int threads = detail::threads_for(static_cast<std::size_t>(edge_slots), kParallelScanEdges);
-  const int tasks = threads > 1 ? 4 * threads : 1;
-  std::vector<std::vector<Index>> found(static_cast<std::size_t>(tasks));
-  detail::run_tasks(threads, tasks, [&](int task) {
-    const Index begin = static_cast<Index>(static_cast<long long>(edge_slots) * task / tasks);
-    const Index end = static_cast<Index>(static_cast<long long>(edge_slots) * (task + 1) / tasks);
+  std::vector<std::vector<Index>> found(static_cast<std::size_t>(detail::range_count(threads, edge_slots)));
+  detail::run_numbered_ranges(threads, edge_slots, [&](int range, Index begin, Index end) {
     for (Index e = begin; e < end; ++e) {
       const Index h = 2 * e;
-      if (halfedge_alive(h) && !is_delaunay(h)) found[static_cast<std::size_t>(task)].push_back(hface(h));  // interior
+      if (halfedge_alive(h) && !is_delaunay(h)) found[static_cast<std::size_t>(range)].push_back(hface(h));  // interior
     }
   });
   std::vector<Index> faces;

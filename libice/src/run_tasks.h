@@ -47,17 +47,35 @@ inline int threads_for(std::size_t size, std::size_t parallel_from) {
   return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
 }
 
-// Runs f(begin, end) over [0, count) cut into contiguous ranges (4 per thread, so a thread that
-// finishes early takes another), on `threads` threads; one call f(0, count) when threads <= 1.
+// The threads an option asks for: `requested`, or one per hardware thread for 0; at most 64.
+inline int requested_threads(int requested) {
+  return std::min(requested > 0 ? requested : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
+}
+
+// How many contiguous ranges run_ranges cuts [0, count) into on `threads` threads: 4 per thread (so
+// a thread that finishes early takes another), one when threads <= 1.
+template <class Count>
+int range_count(int threads, Count count) {
+  return threads <= 1 || count < 2 ? 1 : static_cast<int>(std::min<Count>(count, static_cast<Count>(4 * threads)));
+}
+
+// Runs f(range, begin, end) over those ranges of [0, count) on `threads` threads (range numbers
+// 0 .. range_count − 1, in the order of the ranges): per-range results can be kept in order.
 template <class Count, class F>
-void run_ranges(int threads, Count count, F&& f) {
-  if (threads <= 1 || count < 2) {
-    f(Count{0}, count);
+void run_numbered_ranges(int threads, Count count, F&& f) {
+  const int ranges = range_count(threads, count);
+  if (ranges == 1) {
+    f(0, Count{0}, count);
     return;
   }
-  const int tasks = static_cast<int>(std::min<Count>(count, static_cast<Count>(4 * threads)));
-  const auto bound = [&](int t) { return static_cast<Count>(static_cast<long long>(count) * t / tasks); };
-  run_tasks(threads, tasks, [&](int t) { f(bound(t), bound(t + 1)); });
+  const auto bound = [&](int t) { return static_cast<Count>(static_cast<long long>(count) * t / ranges); };
+  run_tasks(threads, ranges, [&](int t) { f(t, bound(t), bound(t + 1)); });
+}
+
+// Runs f(begin, end) over the same ranges.
+template <class Count, class F>
+void run_ranges(int threads, Count count, F&& f) {
+  run_numbered_ranges(threads, count, [&](int, Count begin, Count end) { f(begin, end); });
 }
 
 }  // namespace ice::detail
