@@ -34,6 +34,7 @@
 #include "fem/distance_oracle.h"
 #include "fem/errors.h"
 #include "fem/problems.h"
+#include "ice/large_array.h"
 #include "ice/scalar_field_io.h"
 
 namespace {
@@ -288,6 +289,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "geodesic-coarse: geodesic distance from source vertices by the heat method, solved on a small ICE "
       "coarse proxy of the mesh and carried back to every input vertex; by default also solved on the "

@@ -27,6 +27,7 @@
 #include "fem/errors.h"
 #include "fem/multigrid.h"
 #include "fem/problems.h"
+#include "ice/large_array.h"
 #include "ice/hierarchy.h"
 #include "ice/scalar_field_io.h"
 
@@ -178,6 +179,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
 }  // namespace
 
 int main(int argc, char** argv) {
+  ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "poisson-coarse: solve the Poisson equation -Laplace(u) = f on a mesh through a small ICE coarse proxy "
       "and carry the solution back to every input vertex; by default also solve on the fine mesh to report the "

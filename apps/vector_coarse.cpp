@@ -27,6 +27,7 @@
 #include "app_common.h"
 #include "fem/vector_fields.h"
 #include "ice/intrinsic_triangulation.h"
+#include "ice/large_array.h"
 #include "ice/scalar_field_io.h"
 
 namespace {
@@ -48,6 +49,7 @@ nlohmann::json angle_error_json(const std::vector<double>& errors, Eigen::Index 
 }  // namespace
 
 int main(int argc, char** argv) {
+  ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "Tangent vector fields through an ICE coarse mesh: the vector heat method (parallel transport of a vector "
       "from a source, or the smooth field through several prescribed vectors) solved on the coarse proxy and "

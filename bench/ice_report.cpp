@@ -38,6 +38,7 @@
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
 #include "fem/problems.h"
+#include "ice/large_array.h"
 #include "ice/qem.h"
 #include "mesh_sets.h"
 #include "view_page.h"
@@ -655,6 +656,7 @@ void add_failed_method(app::ViewMesh& view, const std::string& method, const std
 }
 
 int main(int argc, char** argv) {
+  ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "ice-report: ICE against the QEM baseline on the same meshes, coarse budgets and PDE problems (Poisson, "
       "long-time heat, heat-method geodesics), all in one process; writes results.csv, results.json, summary.md and "

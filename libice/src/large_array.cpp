@@ -1,6 +1,11 @@
 #include "ice/large_array.h"
 
+#include <climits>
 #include <cstdlib>
+
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -24,3 +29,18 @@ void* allocate_large(std::size_t bytes) {
 void deallocate_large(void* pointer) noexcept { std::free(pointer); }
 
 }  // namespace ice::detail
+
+namespace ice {
+
+bool keep_freed_memory_for_reuse() noexcept {
+#if defined(__GLIBC__)
+  // mallopt returns 1 on success (AddressSanitizer's replacement returns 0).
+  const bool heap_only = mallopt(M_MMAP_MAX, 0) == 1;
+  const bool no_trim = mallopt(M_TRIM_THRESHOLD, INT_MAX) == 1;
+  return heap_only && no_trim;
+#else
+  return false;
+#endif
+}
+
+}  // namespace ice
