@@ -380,6 +380,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   const auto start = std::chrono::steady_clock::now();
   if (T.num_vertex_slots() != T.num_input_vertices())
     throw std::invalid_argument("coarsen: the triangulation has vertices inserted by refinement; coarsen its compacted() copy");
+  T.maintain_frames(true);  // the metric's transports read them
   const Index n = T.num_input_vertices();
   CoarsenResult result;
   result.input_vertices = T.num_vertices();

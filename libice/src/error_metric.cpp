@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace ice {
 namespace {
@@ -30,6 +31,8 @@ inline std::complex<double> unit_complex(double theta) {
 
 IntrinsicErrorMetric::IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight, bool normalize_curvature)
     : area_channel_(area_weight != 0) {
+  if (!T.frames_maintained())
+    throw std::invalid_argument("IntrinsicErrorMetric: the triangulation does not maintain its frames (maintain_frames(true))");
   const Index n = T.num_input_vertices();
   records_.assign(n, Record{});
   std::vector<double> vertex_area(n, 0.0);

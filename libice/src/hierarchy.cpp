@@ -355,6 +355,10 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     breadth_first_numbering(F, L, fine_order, renumbered, lengths);
     return IntrinsicTriangulation::from_lengths(renumbered, std::move(lengths));
   }();
+  // The independent-set passes read no angular coordinate (only ice::coarsen's metric does), so
+  // their levels skip maintaining them (IntrinsicTriangulation::maintain_frames).
+  const bool frameless = options.coarsening == LevelCoarsening::independent_sets && options.set_order != SetOrder::exact_cost;
+  T.maintain_frames(!frameless);
   const Index n0 = T.num_input_vertices();
   for (Index v : options.locked_vertices)
     if (v < 0 || v >= n0) throw std::invalid_argument("build_hierarchy: locked vertex out of range");
@@ -423,6 +427,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     H.levels.push_back(std::move(level));
     if (last) continue;
     T = std::move(*next);
+    T.maintain_frames(!frameless);
     t_to_fine = H.levels.back().to_fine;
   }
   H.fine_order = std::move(fine_order);

@@ -426,7 +426,24 @@ double IntrinsicTriangulation::total_curvature() const {
   return sum;
 }
 
-void IntrinsicTriangulation::recompute_vertex_frame(Index v) { refresh_vertex_frame(v, kInvalid, nullptr, 0); }
+void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
+  if (frames_maintained_)
+    refresh_vertex_frame(v, kInvalid, nullptr, 0);
+  else
+    vsum(v) = compute_angle_sum(v);
+}
+
+void IntrinsicTriangulation::maintain_frames(bool on) {
+  if (on && !frames_maintained_) {
+    frames_maintained_ = true;
+    const int threads = detail::threads_for(static_cast<std::size_t>(num_vertex_slots()), kParallelBuildVertices);
+    detail::run_ranges(threads, num_vertex_slots(), [this](Index begin, Index end) {
+      for (Index v = begin; v < end; ++v)
+        if (vertex_alive(v)) recompute_vertex_frame(v);
+    });
+  }
+  frames_maintained_ = on;
+}
 
 void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near, const CornerChange* changes,
                                                   int change_count) {
@@ -601,11 +618,13 @@ bool IntrinsicTriangulation::flip(Index h) {
   elength(h >> 1) = l_kl;
   // New angular coordinates from the layout: at l the corner from d (l->j) to h (l->k), at k the
   // corner from b (k->i) to t (k->l).
-  const Vec2 lj = pj - pl, lk = pk - pl, ki = pi - pk, kl_dir = pl - pk;
-  const double corner_l = std::atan2(cross(lj, lk), lj.x * lk.x + lj.y * lk.y);
-  const double corner_k = std::atan2(cross(ki, kl_dir), ki.x * kl_dir.x + ki.y * kl_dir.y);
-  hangle(h) = wrap_angle(hangle(d) + angle_scale(l) * corner_l);
-  hangle(t) = wrap_angle(hangle(b) + angle_scale(k) * corner_k);
+  if (frames_maintained_) {
+    const Vec2 lj = pj - pl, lk = pk - pl, ki = pi - pk, kl_dir = pl - pk;
+    const double corner_l = std::atan2(cross(lj, lk), lj.x * lk.x + lj.y * lk.y);
+    const double corner_k = std::atan2(cross(ki, kl_dir), ki.x * kl_dir.x + ki.y * kl_dir.y);
+    hangle(h) = wrap_angle(hangle(d) + angle_scale(l) * corner_l);
+    hangle(t) = wrap_angle(hangle(b) + angle_scale(k) * corner_k);
+  }
 
   for (const auto& q : points) {
     if (orient2d(pk, pl, q.position) > 0)
@@ -727,6 +746,12 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   const bool simple = has_distinct_neighbours(star);
   thread_local std::vector<CornerChange> changes;
   changes.clear();
+  // Without frames, a simple star's neighbours take their angle sums' increments instead
+  // (new − old corner, both by corner_angle's expression: round-off only), not a walk of each fan;
+  // `old_corners` holds the old corners in `changes`' order.
+  const bool increments = !frames_maintained_ && simple;
+  thread_local std::vector<double> old_corners;
+  old_corners.clear();
   const double scale[3] = {1.0, half_scale, half_scale * half_scale};
   for (const StarCorner& c : star.corners) {
     const double a = c.l_out * scale[c.m_out], b = c.l_in * scale[c.m_in], o = c.l_opposite * scale[c.m_opposite];
@@ -734,6 +759,11 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
     // prev(h): sides b, o, opposite a), so stored and recomputed angle sums agree to round-off.
     if (c.out_vertex != v) changes.push_back({next(c.halfedge), std::atan2(c.four_area_flat, (o - b) * (o + b) + a * a)});
     if (c.in_vertex != v) changes.push_back({c.in_halfedge, std::atan2(c.four_area_flat, (b - a) * (b + a) + o * o)});
+    if (increments) {
+      const double a0 = c.l_out, b0 = c.l_in, o0 = c.l_opposite;
+      old_corners.push_back(std::atan2(c.four_area, (o0 - b0) * (o0 + b0) + a0 * a0));
+      old_corners.push_back(std::atan2(c.four_area, (b0 - a0) * (b0 + a0) + o0 * o0));
+    }
   }
   // Every outgoing half-edge (interior and, at the boundary, the exterior one) scales its edge by
   // e^{u/2}; a self-edge is outgoing twice and so scales by e^u.
@@ -771,6 +801,15 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
     });
   }
   if (update_own_frame) recompute_vertex_frame(v);
+  if (increments) {
+    // The same pairing as the frames' refresh below.
+    const int count = static_cast<int>(star.corners.size());
+    const auto increment = [&](int i) { return changes[static_cast<std::size_t>(i)].corner - old_corners[static_cast<std::size_t>(i)]; };
+    for (int k = 0; k < count; ++k)
+      vsum(star.corners[k].out_vertex) += increment(2 * k) + (star.boundary && k == 0 ? 0.0 : increment(k > 0 ? 2 * k - 1 : 2 * count - 1));
+    if (star.boundary) vsum(star.corners[count - 1].in_vertex) += increment(2 * count - 1);
+    return result;
+  }
   if (simple) {
     // Neighbour k changes at two corners: in face k (changes[2k]) and in face k−1 (changes[2k−1]);
     // at a boundary vertex the first neighbour only in face 0 and the extra last one only in the
@@ -786,7 +825,12 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   std::sort(neighbours.begin(), neighbours.end());
   neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
   for (Index w : neighbours)
-    if (w != v) refresh_vertex_frame(w, v, changes.data(), static_cast<int>(changes.size()));
+    if (w != v) {
+      if (frames_maintained_)
+        refresh_vertex_frame(w, v, changes.data(), static_cast<int>(changes.size()));
+      else
+        vsum(w) = compute_angle_sum(w);
+    }
   return result;
 }
 
@@ -1484,7 +1528,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
       const double got = hangle(t);
       double gap = std::fmod(std::abs(expected - got), kTwoPi);
       gap = std::min(gap, kTwoPi - gap);
-      if (gap > 1e-7) fail("vertex " + std::to_string(v) + ": angular coordinates inconsistent");
+      if (gap > 1e-7 && frames_maintained_) fail("vertex " + std::to_string(v) + ": angular coordinates inconsistent");
       if (is_exterior(t) || t == start) break;
       h = t;
     }

@@ -106,7 +106,8 @@ struct CoarsenResult {
 
 /// Coarsens T in place. Preconditions: T was built from a mesh (all input vertices alive or
 /// tracked) and has no vertex inserted by refinement (std::invalid_argument otherwise: coarsen its
-/// compacted() copy); locked vertex indices are in range. Deterministic: the same input and options give
+/// compacted() copy); locked vertex indices are in range. Resumes T's frames if they were stopped
+/// (IntrinsicTriangulation::maintain_frames). Deterministic: the same input and options give
 /// bit-identical output.
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options);
 

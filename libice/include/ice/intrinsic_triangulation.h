@@ -153,8 +153,20 @@ class IntrinsicTriangulation {
   double curvature(Index v) const;
   /// Σ curvature over live vertices; equals 2πχ (Gauss–Bonnet).
   double total_curvature() const;
-  /// Angular coordinate of the outgoing half-edge h at tail(h), in [0, 2π).
+  /// Angular coordinate of the outgoing half-edge h at tail(h), in [0, 2π). Meaningful only while
+  /// frames_maintained().
   double angular_coordinate(Index h) const { return hangle(h); }
+  /// Whether operations keep the angular coordinates up to date (true unless maintain_frames(false)).
+  bool frames_maintained() const { return frames_maintained_; }
+  /// Stops (false) or resumes (true) maintaining the angular coordinates. Angle sums, lengths and
+  /// tracked points are maintained either way, so curvature, flattening, removals, flips, P and the
+  /// coarse mesh are unchanged; without frames, flips and flattenings skip the coordinates' updates
+  /// (a flattening then adjusts each neighbour's angle sum by its two changed corners instead of
+  /// re-accumulating its whole fan), validate() skips the coordinates' check, and the ICE error metric
+  /// (whose transports read them) refuses the triangulation; ice::coarsen resumes them itself.
+  /// Resuming recomputes every live vertex's frame from the lengths. For callers that read no frame:
+  /// the multigrid hierarchy's independent-set levels (measured in hierarchy.h).
+  void maintain_frames(bool on);
   /// The factor that maps corner angles at v to angular coordinates.
   double angle_scale(Index v) const {
     constexpr double kTurn = 6.283185307179586476925286766559;
@@ -382,6 +394,7 @@ class IntrinsicTriangulation {
   // Element counts change through these (atomic: threads in disjoint regions remove concurrently).
   static void decrement(Index& count) { __atomic_fetch_sub(&count, 1, __ATOMIC_RELAXED); }
   Index num_vertices_ = 0, num_edges_ = 0, num_faces_ = 0;
+  bool frames_maintained_ = true;
 };
 
 /// The gluing of a mesh whose edges are named by their vertex pairs (no self- or multi-edges), in the
