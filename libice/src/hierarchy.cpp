@@ -229,10 +229,6 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
                ? std::min(0.5, static_cast<double>(boundary_now - boundary_goal) / static_cast<double>(boundary_now))
                : 0.0);
     if (selected == 0 && base.remove_boundary && boundary_now > 0) choose(0.5);
-    CoarsenOptions co = base;
-    co.locked_vertices.clear();
-    for (Index v = 0; v < slots; ++v)
-      if (T.vertex_alive(v) && blocked[static_cast<std::size_t>(v)] != 2) co.locked_vertices.push_back(v);
     if (selected == 0) break;
     CoarsenResult r;
     if (!use_metric) {
@@ -322,6 +318,11 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
       restore_seams();
       r.stop_reason = T.num_vertices() <= base.target_vertices ? StopReason::TargetReached : StopReason::NothingRemovable;
     } else {
+      // Everything but the set locked for this pass.
+      CoarsenOptions co = base;
+      co.locked_vertices.clear();
+      for (Index v = 0; v < slots; ++v)
+        if (T.vertex_alive(v) && blocked[static_cast<std::size_t>(v)] != 2) co.locked_vertices.push_back(v);
       co.target_vertices = std::max(base.target_vertices, T.num_vertices() - selected);
       co.target_ratio = 0;
       r = coarsen(T, co);
