@@ -1,6 +1,6 @@
 """Type stubs of the ice package (the extension module ice._ice and the helpers of __init__.py)."""
 from os import PathLike
-from typing import Any, Callable, Iterator, Literal, Sequence
+from typing import Any, Callable, Iterator, Literal, Sequence, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -155,16 +155,23 @@ class ProxyGeodesicSolver:
     @property
     def times(self) -> dict[str, float]: ...
 
+@overload
 def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
-              max_levels: int = 20) -> list[scipy.sparse.csr_matrix]:
+              max_levels: int = 20, threads: int = 0,
+              return_order: Literal[False] = False) -> list[scipy.sparse.csr_matrix]:
     """Prolongations of an ICE multigrid hierarchy of (V, F)."""
+@overload
+def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
+              max_levels: int = 20, threads: int = 0,
+              return_order: Literal[True]) -> tuple[list[scipy.sparse.csr_matrix], IndexArray]:
+    """Prolongations and the breadth-first numbering the hierarchy coarsened in."""
 
 class MultigridSolver:
     """Galerkin multigrid on given prolongations for SPD systems."""
     def __init__(self, prolongations: Sequence[scipy.sparse.spmatrix], *, tolerance: float = 1e-8,
                  max_iterations: int = 200, mode: Literal["pcg", "vcycle"] = "pcg",
                  smoother: Literal["sgs", "gs", "chebyshev"] = "sgs", smoothing_steps: int = 1,
-                 threads: int = 0) -> None: ...
+                 threads: int = 0, locality_order: Indices | None = None) -> None: ...
     def setup(self, A: scipy.sparse.spmatrix | ArrayLike, constrained: Indices | None = None) -> None: ...
     def solve(self, b: ArrayLike, constrained_values: ArrayLike | None = None,
               x0: ArrayLike | None = None) -> FloatArray: ...

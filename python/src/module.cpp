@@ -889,13 +889,15 @@ distances coarsen with use="geodesic".)doc")
   // ---- multigrid
   m.def(
       "hierarchy",
-      [](const py::object& V, const py::object& F, double ratio, const py::object& coarsest, const py::object& max_levels) {
+      [](const py::object& V, const py::object& F, double ratio, const py::object& coarsest, const py::object& max_levels,
+         const py::object& threads, bool return_order) -> py::object {
         const ice::TriangleMesh mesh = mesh_argument(V, F);
         if (!(ratio > 0 && ratio < 1)) throw py::value_error("ratio must be in (0, 1)");
         ice::HierarchyOptions options;
         options.ratio = ratio;
         options.coarsest_vertices = bounded_integer(coarsest, "coarsest", 1, std::numeric_limits<int>::max());
         options.max_levels = bounded_integer(max_levels, "max_levels", 1, 1000);
+        options.threads = bounded_integer(threads, "threads", 0, 64);
         ice::Hierarchy hierarchy;
         {
           py::gil_scoped_release release;
@@ -907,29 +909,47 @@ distances coarsen with use="geodesic".)doc")
           Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = P;
           prolongations.append(to_scipy(std::move(rows)));
         }
-        return prolongations;
+        if (!return_order) return std::move(prolongations);
+        return py::make_tuple(prolongations, to_numpy(std::move(hierarchy.fine_order)));
       },
       py::arg("V"), py::arg("F"), py::kw_only(), py::arg("ratio") = 0.25, py::arg("coarsest") = 500,
-      py::arg("max_levels") = 20,
+      py::arg("max_levels") = 20, py::arg("threads") = 0, py::arg("return_order") = false,
       R"doc(The prolongations of an ICE multigrid hierarchy of (V, F) (scipy.sparse.csr_matrix, n_k × n_{k+1}, rows
 summing to 1): each level keeps about `ratio` of the previous one's vertices, down to about `coarsest`.
-Pass them to MultigridSolver; one hierarchy serves every operator on the mesh's vertices.)doc");
+Pass them to MultigridSolver; one hierarchy serves every operator on the mesh's vertices.
+threads: for the large levels' removals (0: one per core; the result does not depend on it).
+return_order=True returns (prolongations, order) instead: the breadth-first numbering the hierarchy
+coarsened in (order[new] = old vertex), which MultigridSolver(..., locality_order=order) reuses
+instead of ordering the matrix's graph again.)doc");
 
   py::class_<PyMultigrid>(m, "MultigridSolver", R"doc(Galerkin multigrid on given prolongations (ice.hierarchy) for symmetric positive definite systems.
 
 MultigridSolver(prolongations, tolerance=1e-8, max_iterations=200, mode="pcg"|"vcycle",
-smoother="sgs"|"gs"|"chebyshev", smoothing_steps=1, threads=0), then setup(A) and solve(b). One
-object serves one thread at a time (calls from several threads wait for each other).)doc")
+smoother="sgs"|"gs"|"chebyshev", smoothing_steps=1, threads=0, locality_order=None), then setup(A)
+and solve(b). locality_order: the fine unknowns' numbering for the threaded sweeps (the order of
+ice.hierarchy(..., return_order=True)); None orders A's graph by reverse Cuthill–McKee. One object
+serves one thread at a time (calls from several threads wait for each other).)doc")
       .def(py::init([](const py::list& prolongations, double tolerance, int max_iterations, const std::string& mode,
-                       const std::string& smoother, int smoothing_steps, int threads) {
+                       const std::string& smoother, int smoothing_steps, int threads, const py::object& locality_order) {
              std::vector<fem::SparseMatrix> matrices;
              for (std::size_t k = 0; k < prolongations.size(); ++k)
                matrices.push_back(sparse_argument(prolongations[k], ("prolongations[" + std::to_string(k) + "]").c_str(), false));
-             return std::make_unique<PyMultigrid>(
+             std::vector<ice::Index> order;
+             if (!locality_order.is_none()) {
+               if (matrices.empty()) throw py::value_error("locality_order needs at least one prolongation");
+               order = index_argument(locality_order, matrices.front().rows(), "locality_order");
+               if (static_cast<Eigen::Index>(order.size()) != matrices.front().rows())
+                 throw py::value_error("locality_order must list each of the " + std::to_string(matrices.front().rows()) +
+                                       " fine unknowns once");
+             }
+             auto solver = std::make_unique<PyMultigrid>(
                  std::move(matrices), multigrid_options(tolerance, max_iterations, mode, smoother, smoothing_steps, threads));
+             solver->solver.set_locality_order(std::move(order));  // a permutation: setup() checks
+             return solver;
            }),
            py::arg("prolongations"), py::kw_only(), py::arg("tolerance") = 1e-8, py::arg("max_iterations") = 200,
-           py::arg("mode") = "pcg", py::arg("smoother") = "sgs", py::arg("smoothing_steps") = 1, py::arg("threads") = 0)
+           py::arg("mode") = "pcg", py::arg("smoother") = "sgs", py::arg("smoothing_steps") = 1, py::arg("threads") = 0,
+           py::arg("locality_order") = py::none())
       .def("setup", [](PyMultigrid& m, const py::object& A, const py::object& constrained) {
              fem::SparseMatrix matrix = sparse_argument(A, "A", true);
              std::vector<ice::Index> fixed;

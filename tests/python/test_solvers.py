@@ -164,6 +164,32 @@ def test_multigrid_on_a_scipy_matrix(spot):
         solver.solve(b[:-1])
 
 
+def test_hierarchy_order_and_threads(spot):
+    """The hierarchy's breadth-first numbering serves the solver, and its thread count changes nothing."""
+    V, F, _ = spot
+    prolongations, order = ice.hierarchy(V, F, threads=2, return_order=True)
+    assert order.dtype == np.int32 and np.array_equal(np.sort(order), np.arange(V.shape[0]))
+    for P, Q in zip(prolongations, ice.hierarchy(V, F, threads=1)):
+        assert (P != Q).nnz == 0
+    L, M = ice.cotan_laplacian(V, F), ice.mass_matrix(V, F)
+    A = (M + 1e-2 * L).tocsr()
+    b = M @ np.cos(V[:, 1] * 5)
+    x = {}
+    for name, given in (("rcm", None), ("hierarchy", order)):
+        solver = ice.MultigridSolver(prolongations, tolerance=1e-10, locality_order=given)
+        solver.setup(A)
+        x[name] = solver.solve(b)
+        assert solver.report["converged"]
+    assert np.abs(x["rcm"] - x["hierarchy"]).max() < 1e-8 * np.abs(x["rcm"]).max()
+    with pytest.raises(ValueError, match="locality_order"):
+        ice.MultigridSolver(prolongations, locality_order=order[:-1])
+    solver = ice.MultigridSolver(prolongations, locality_order=np.zeros(V.shape[0], dtype=np.int32))
+    with pytest.raises(ValueError):  # not a permutation: refused when it is used
+        solver.setup(A)
+    with pytest.raises(ValueError, match="threads"):
+        ice.hierarchy(V, F, threads=-1)
+
+
 def test_distance_oracle(spot):
     V, F, coarse = spot
     oracle = ice.DistanceOracle(coarse)
