@@ -39,6 +39,14 @@ int breadth_first(const Offset* offsets, const Neighbour* adjacency, const std::
   };
   while (true) {
     for (; head < level_end; ++head) {
+      // The queue is known ahead: request the rows and the marks of the vertices a few places on
+      // (the input numbering may scatter them), so that the misses overlap.
+      if (head + 8 < out.size()) __builtin_prefetch(&offsets[out[head + 8]]);
+      if (head + 4 < out.size()) __builtin_prefetch(&adjacency[offsets[out[head + 4]]]);
+      if (head + 2 < out.size()) {
+        const int w = out[head + 2];
+        for (auto p = offsets[w]; p < offsets[w + 1]; ++p) __builtin_prefetch(&mark[static_cast<std::size_t>(adjacency[p])]);
+      }
       const int v = out[head];
       neighbours.clear();
       for (auto p = offsets[v]; p < offsets[v + 1]; ++p) {
