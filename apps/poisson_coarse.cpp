@@ -27,8 +27,8 @@
 #include "fem/errors.h"
 #include "fem/multigrid.h"
 #include "fem/problems.h"
-#include "ice/large_array.h"
 #include "ice/hierarchy.h"
+#include "ice/large_array.h"
 #include "ice/scalar_field_io.h"
 
 namespace {

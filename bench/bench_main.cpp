@@ -8,7 +8,7 @@
 
 int main(int argc, char** argv) {
   const bool kept = ice::keep_freed_memory_for_reuse();
-  benchmark::AddCustomContext("malloc", kept ? "freed memory kept for reuse (mallopt)" : "default");
+  benchmark::AddCustomContext("malloc", kept ? "glibc malloc keeps freed memory for reuse (mallopt accepted)" : "default");
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "ice/triangle_geometry.h"
+#include "ice/coarsen.h"
 #include "ice/error_metric.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_generators.h"
@@ -519,8 +520,18 @@ TEST_CASE("without frames, removals and flips keep exact angle sums and tracked 
       if (T.vertex_alive(v)) sum_gap = std::max(sum_gap, std::abs(T.angle_sum(v) - T.compute_angle_sum(v)));
     CHECK(sum_gap < 1e-11);
     if (name == "flat disk") CHECK(planar_tracking_error(T, mesh.V) < 1e-10);
-    // The metric refuses a triangulation without frames; resuming them gives consistent ones.
+    // The metric refuses a triangulation without frames, and a compacted copy too (its coordinates
+    // are copies of stale ones); resuming them gives consistent ones, and coarsen() does so itself.
     CHECK_THROWS_AS(IntrinsicErrorMetric(T, 0.5), std::invalid_argument);
+    IntrinsicTriangulation copy = T.compacted();
+    CHECK(!copy.frames_maintained());
+    CHECK(copy.validate() == "");
+    CHECK_THROWS_AS(IntrinsicErrorMetric(copy, 0.5), std::invalid_argument);
+    CoarsenOptions options;
+    options.target_vertices = std::max<Index>(4, copy.num_vertices() / 2);
+    coarsen(copy, options);
+    CHECK(copy.frames_maintained());
+    CHECK(copy.validate() == "");
     T.maintain_frames(true);
     CHECK(T.validate() == "");
     CHECK_NOTHROW(IntrinsicErrorMetric(T, 0.5));

@@ -158,6 +158,7 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
   std::vector<std::pair<double, Index>> order;
   std::vector<std::uint8_t> on_walked_loop(static_cast<std::size_t>(slots));
   FanBatch batch;
+  std::vector<Index> boundary_ring;
   for (int pass = 0; pass < 64 && T.num_vertices() > base.target_vertices; ++pass) {
     order.clear();
     if (exact_costs) {
@@ -174,14 +175,21 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
     }
     if (set_order != SetOrder::vertex_index) std::sort(order.begin(), order.end());  // else: vertex order already
     Index selected = 0;
-    auto select = [&](Index v) {
+    // v joins the set; its neighbours (with repeats) may not.
+    auto take = [&](Index v, const std::vector<Index>& neighbours) {
       ++selected;
       blocked[static_cast<std::size_t>(v)] = 2;  // selected
-      // The heads of the outgoing half-edges are all the neighbours of an interior vertex; at a
-      // boundary vertex the one across the incoming boundary edge is the tail of a prev().
-      T.for_each_outgoing(v, [&](Index h) { blocked[static_cast<std::size_t>(T.head(h))] |= 1; });
-      if (T.is_boundary_vertex(v))
-        T.for_each_outgoing(v, [&](Index h) { blocked[static_cast<std::size_t>(T.tail(T.prev(h)))] |= 1; });
+      for (const Index w : neighbours) blocked[static_cast<std::size_t>(w)] |= 1;
+    };
+    // A boundary vertex's neighbours: the heads of its outgoing half-edges and, across the incoming
+    // boundary edge, the tail of a prev(). (An interior vertex's are the heads alone: FanBatch.)
+    auto take_boundary = [&](Index v) {
+      boundary_ring.clear();
+      T.for_each_outgoing(v, [&](Index h) {
+        boundary_ring.push_back(T.head(h));
+        boundary_ring.push_back(T.tail(T.prev(h)));
+      });
+      take(v, boundary_ring);
     };
     // Boundary first: a fraction `remove` of each loop's vertices, evenly along it (at most every
     // other one, as an independent set allows), until the loops are down to √r of their vertices.
@@ -202,12 +210,12 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
             if (carry < 1) continue;
             if (blocked[static_cast<std::size_t>(v)] || user_locked[static_cast<std::size_t>(v)]) continue;
             carry -= 1;
-            select(v);
+            take_boundary(v);
           }
         }
       }
-      // Interior vertices in `order`, each taken unless a neighbour was: select() in batches whose
-      // fans are gathered together first (a vertex blocked when its batch forms stays blocked).
+      // Interior vertices in `order`, each taken unless a neighbour was, in batches whose fans are
+      // gathered together first (a vertex blocked when its batch forms stays blocked).
       for (std::size_t next = 0; next < order.size();) {
         batch.count = 0;
         for (; next < order.size() && batch.count < FanBatch::kSize; ++next) {
@@ -215,13 +223,8 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
           if (!blocked[static_cast<std::size_t>(v)] && !T.is_boundary_vertex(v)) batch.vertex[batch.count++] = v;
         }
         batch.gather(T);
-        for (int i = 0; i < batch.count; ++i) {
-          const Index v = batch.vertex[i];
-          if (blocked[static_cast<std::size_t>(v)]) continue;
-          ++selected;
-          blocked[static_cast<std::size_t>(v)] = 2;
-          for (const Index w : batch.neighbours[i]) blocked[static_cast<std::size_t>(w)] |= 1;
-        }
+        for (int i = 0; i < batch.count; ++i)
+          if (!blocked[static_cast<std::size_t>(batch.vertex[i])]) take(batch.vertex[i], batch.neighbours[i]);
       }
     };
     const Index boundary_now = count_boundary();

@@ -738,9 +738,11 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
   const double u = result.log_scale;
   const double half_scale = std::exp(0.5 * u);
   // The new corners of the star's faces away from v, from the flattened areas Newton left in the
-  // star (no second Heron). They are computed afresh rather than as increments of the old corners:
-  // an increment carries the relative error of two areas, which on thin faces reaches 1e-11 rad
-  // and would accumulate over the many flattenings a vertex's neighbours go through.
+  // star (no second Heron). Each is computed afresh from its lengths rather than as a change of the
+  // old corner worked out from the two areas: such a change carries the relative error of two
+  // areas, which on thin faces reaches 1e-11 rad and would accumulate over the many flattenings a
+  // vertex's neighbours go through. (The frameless increments below are differences of two corners
+  // each computed afresh: they add only summation round-off.)
   // (With distinct neighbours, corner k's two entries are changes[2k] at its out_vertex and
   // changes[2k+1] at its in_vertex, and every listed corner is a different one.)
   const bool simple = has_distinct_neighbours(star);
@@ -1396,6 +1398,7 @@ IntrinsicTriangulation IntrinsicTriangulation::compacted(CompactMesh* maps) cons
   });
   T.points_.assign(numbers.vertices, TrackedPoint{kInvalid, kInvalid, {0, 0, 0}});
   T.num_vertices_ = numbers.vertices, T.num_edges_ = edges, T.num_faces_ = numbers.faces;
+  T.frames_maintained_ = frames_maintained_;  // the coordinates copied are current only if they were
   if (maps) *maps = std::move(arrays);
   return T;
 }

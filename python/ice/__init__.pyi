@@ -165,6 +165,10 @@ def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int 
               max_levels: int = 20, threads: int = 0,
               return_order: Literal[True]) -> tuple[list[scipy.sparse.csr_matrix], IndexArray]:
     """Prolongations and the breadth-first numbering the hierarchy coarsened in."""
+@overload
+def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
+              max_levels: int = 20, threads: int = 0, return_order: bool = False
+              ) -> list[scipy.sparse.csr_matrix] | tuple[list[scipy.sparse.csr_matrix], IndexArray]: ...
 
 class MultigridSolver:
     """Galerkin multigrid on given prolongations for SPD systems."""

@@ -938,13 +938,17 @@ serves one thread at a time (calls from several threads wait for each other).)do
              if (!locality_order.is_none()) {
                if (matrices.empty()) throw py::value_error("locality_order needs at least one prolongation");
                order = index_argument(locality_order, matrices.front().rows(), "locality_order");
-               if (static_cast<Eigen::Index>(order.size()) != matrices.front().rows())
+               std::vector<char> listed(order.size(), 0);
+               bool permutation = static_cast<Eigen::Index>(order.size()) == matrices.front().rows();
+               for (std::size_t i = 0; permutation && i < order.size(); ++i)
+                 permutation = !std::exchange(listed[static_cast<std::size_t>(order[i])], 1);
+               if (!permutation)
                  throw py::value_error("locality_order must list each of the " + std::to_string(matrices.front().rows()) +
                                        " fine unknowns once");
              }
              auto solver = std::make_unique<PyMultigrid>(
                  std::move(matrices), multigrid_options(tolerance, max_iterations, mode, smoother, smoothing_steps, threads));
-             solver->solver.set_locality_order(std::move(order));  // a permutation: setup() checks
+             solver->solver.set_locality_order(std::move(order));
              return solver;
            }),
            py::arg("prolongations"), py::kw_only(), py::arg("tolerance") = 1e-8, py::arg("max_iterations") = 200,

@@ -67,7 +67,8 @@ class IntrinsicErrorMetric {
   /// both channels sum to fractions of 1 and w is the area channel's share of the total mass on any
   /// mesh (without it, Σ|K| — from under 4π to over 100·4π on real meshes — sets the balance).
   /// Precondition: T.frames_maintained() (the transports read the angular coordinates); throws
-  /// std::invalid_argument otherwise.
+  /// std::invalid_argument otherwise. T (and any triangulation passed to the methods below) must keep
+  /// its frames for as long as the metric is used: only the constructor checks.
   IntrinsicErrorMetric(const IntrinsicTriangulation& T, double area_weight, bool normalize_curvature = false);
   /// Cost of removing v (a dry run that changes nothing but `scratch`); +inf when v cannot be
   /// flattened. The flattening scale it found is written to *log_scale (NaN when none).

@@ -32,9 +32,10 @@ enum class LevelCoarsening {
   /// Default: in passes; a pass picks a maximal independent set of the current triangulation greedily
   /// (every other vertex stays for that pass) and removes it directly (IntrinsicTriangulation::
   /// remove_vertex + Delaunay repair). Levels stay uniform in density, which multigrid needs. No
-  /// angular coordinate is read, so the levels are coarsened without maintaining them
-  /// (IntrinsicTriangulation::maintain_frames(false); hierarchy 4.3 → 4.2 s at 1.66M vertices and
-  /// 10–20 % faster at 100k–320k, with the same PCG iteration counts).
+  /// angular coordinate is read (except with SetOrder::exact_cost, whose costs come from the ICE
+  /// metric), so the levels are coarsened without maintaining them
+  /// (IntrinsicTriangulation::maintain_frames(false); hierarchy 4.27–4.36 → 4.07–4.19 s at 1.66M
+  /// vertices and 10–20 % faster at 100k–320k, with the same PCG iteration counts).
   independent_sets,
   /// The same sets, removed through ice::coarsen in ICE-metric order (every other vertex locked): the
   /// same removals up to order, measured 1.4x slower (8.9 s vs 6.3 s at 414k vertices); no anchors.

@@ -160,12 +160,15 @@ class IntrinsicTriangulation {
   bool frames_maintained() const { return frames_maintained_; }
   /// Stops (false) or resumes (true) maintaining the angular coordinates. Angle sums, lengths and
   /// tracked points are maintained either way, so curvature, flattening, removals, flips, P and the
-  /// coarse mesh are unchanged; without frames, flips and flattenings skip the coordinates' updates
-  /// (a flattening then adjusts each neighbour's angle sum by its two changed corners instead of
-  /// re-accumulating its whole fan), validate() skips the coordinates' check, and the ICE error metric
-  /// (whose transports read them) refuses the triangulation; ice::coarsen resumes them itself.
-  /// Resuming recomputes every live vertex's frame from the lengths. For callers that read no frame:
-  /// the multigrid hierarchy's independent-set levels (measured in hierarchy.h).
+  /// coarse mesh agree with a framed run up to round-off (not bit for bit: the angle sums are summed
+  /// differently, and a tie may then break the other way). Without frames, flips and flattenings
+  /// skip the coordinates' updates (a flattening of a star with distinct neighbours adjusts each
+  /// neighbour's angle sum by its two changed corners; other stars re-accumulate the neighbours'
+  /// sums), validate() skips the coordinates' check, compacted() copies carry the setting, and the
+  /// ICE error metric (whose transports read them) refuses the triangulation; ice::coarsen resumes
+  /// them itself. Resuming recomputes every live vertex's frame from the lengths (on the hardware's
+  /// threads, at most 8, for 100,000+ vertex slots, as the builders do). For callers that read no
+  /// frame: the multigrid hierarchy's independent-set levels (measured in hierarchy.h).
   void maintain_frames(bool on);
   /// The factor that maps corner angles at v to angular coordinates.
   double angle_scale(Index v) const {
@@ -259,7 +262,7 @@ class IntrinsicTriangulation {
   /// A new triangulation of the live elements only, renumbered compactly (vertex i is compact
   /// vertex i of compact(), and `to_input` of *maps gives its input vertex). Connectivity is copied
   /// through the twin/next relations, so any Δ-complex (self-edges, multi-edges) carries over, and
-  /// angular coordinates are kept. Tracking restarts: every vertex is its own input vertex. This is
+  /// angular coordinates are kept (with frames_maintained() as here). Tracking restarts: every vertex is its own input vertex. This is
   /// how one coarsened level becomes the input of the next.
   IntrinsicTriangulation compacted(CompactMesh* maps = nullptr) const;
   /// Checks every invariant; returns an empty string when all hold, else the first few problems.

@@ -31,20 +31,23 @@ void deallocate_large(void* pointer) noexcept;
 /// Asks this process's malloc (glibc's) to serve every block from its heap and to keep the memory
 /// freed there for later allocations instead of handing it back to the kernel (mallopt: M_MMAP_MAX
 /// = 0, M_TRIM_THRESHOLD = INT_MAX). Returns whether the allocator took both settings: false off
-/// glibc and under AddressSanitizer, which replaces malloc (nothing changes then).
+/// glibc and under AddressSanitizer, which replaces malloc (nothing changes then). True means glibc's
+/// malloc took them; it says nothing about an allocator preloaded in its place (jemalloc, mimalloc),
+/// which ignores them.
 ///
 /// Why: a solve pipeline allocates and frees arrays of tens to hundreds of MB one after another
 /// (each multigrid level's triangulation, numbering, sparse products). glibc maps every block above
 /// its mmap threshold (at most 32 MiB) afresh and unmaps it when freed, so each such array pays a
 /// page fault and the kernel's zeroing per page on first touch, every time. Measured at 1,657,090
-/// vertices (`poisson-coarse --solver multigrid`, fandisk Loop-subdivided 4 times, runs alternated):
-/// page faults were 15 % of the process's CPU samples; with this setting the hierarchy took 4.3–4.6 s
-/// instead of 5.0–5.7 s and setup + solve 6.0–6.5 s instead of 7.0–8.2 s, the fine operators'
-/// assembly 0.93 s instead of 1.2 s. Raising only the mmap threshold (to its 32 MiB cap) gained
-/// nothing: the churn is in the larger blocks.
+/// vertices (`poisson-coarse --solver multigrid`, fandisk Loop-subdivided 4 times, the previous
+/// version and this one alternated, three runs each): page faults were 15 % of the process's CPU
+/// samples; with this setting the hierarchy took 4.48–4.81 s instead of 5.12–5.19 s and setup +
+/// solve 6.25–6.87 s instead of 7.18–7.36 s, the fine operators' assembly 0.94–1.01 s instead of
+/// 1.19–1.20 s. Raising only the mmap threshold (to its 32 MiB cap) gained nothing: the churn is in
+/// the larger blocks.
 ///
 /// Cost: resident memory no longer shrinks when arrays are freed, and the heap's fragmentation
-/// counts (peak RSS 1,569 → 1,760 MB in that run). Hence the policy: the solving tools
+/// counts (peak RSS 1,569 → 1,773–1,778 MB in those runs). Hence the policy: the solving tools
 /// (poisson-coarse, geodesic-coarse, vector-coarse, ice-report) and the benchmarks call this at
 /// start (one process per job); ice-coarsen does not (at 1.58M vertices it would gain 5 % and pass
 /// 500 bytes per input vertex: 494 → 517); the libraries never call it themselves, since a
