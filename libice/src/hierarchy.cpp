@@ -474,8 +474,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     H.coarsening.push_back(result);
     H.levels.push_back(std::move(level));
     if (last) continue;
-    T = std::move(*next);
-    T.maintain_frames(!frameless);
+    T = std::move(*next);  // compacted() carried the frames setting
     t_to_fine = H.levels.back().to_fine;
   }
   H.fine_order = std::move(fine_order);

@@ -434,15 +434,14 @@ void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
 }
 
 void IntrinsicTriangulation::maintain_frames(bool on) {
-  if (on && !frames_maintained_) {
-    frames_maintained_ = true;
-    const int threads = detail::threads_for(static_cast<std::size_t>(num_vertex_slots()), kParallelBuildVertices);
-    detail::run_ranges(threads, num_vertex_slots(), [this](Index begin, Index end) {
-      for (Index v = begin; v < end; ++v)
-        if (vertex_alive(v)) recompute_vertex_frame(v);
-    });
-  }
+  const bool resume = on && !frames_maintained_;
   frames_maintained_ = on;
+  if (!resume) return;
+  const int threads = detail::threads_for(static_cast<std::size_t>(num_vertex_slots()), kParallelBuildVertices);
+  detail::run_ranges(threads, num_vertex_slots(), [this](Index begin, Index end) {
+    for (Index v = begin; v < end; ++v)
+      if (vertex_alive(v)) recompute_vertex_frame(v);
+  });
 }
 
 void IntrinsicTriangulation::refresh_vertex_frame(Index v, Index changed_near, const CornerChange* changes,
@@ -803,25 +802,24 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
     });
   }
   if (update_own_frame) recompute_vertex_frame(v);
-  if (increments) {
-    // The same pairing as the frames' refresh below.
-    const int count = static_cast<int>(star.corners.size());
-    const auto increment = [&](int i) { return changes[static_cast<std::size_t>(i)].corner - old_corners[static_cast<std::size_t>(i)]; };
-    for (int k = 0; k < count; ++k)
-      vsum(star.corners[k].out_vertex) += increment(2 * k) + (star.boundary && k == 0 ? 0.0 : increment(k > 0 ? 2 * k - 1 : 2 * count - 1));
-    if (star.boundary) vsum(star.corners[count - 1].in_vertex) += increment(2 * count - 1);
-    return result;
-  }
   if (simple) {
     // Neighbour k changes at two corners: in face k (changes[2k]) and in face k−1 (changes[2k−1]);
     // at a boundary vertex the first neighbour only in face 0 and the extra last one only in the
     // last face. The frames of distinct vertices are independent: any order gives the same result.
+    // Without frames each neighbour's angle sum takes its corners' increments instead.
     const int count = static_cast<int>(star.corners.size());
-    for (int k = 0; k < count; ++k) {
-      const CornerChange pair[2] = {changes[2 * k], changes[k > 0 ? 2 * k - 1 : 2 * count - 1]};
-      refresh_vertex_frame(star.corners[k].out_vertex, kInvalid, pair, star.boundary && k == 0 ? 1 : 2);
-    }
-    if (star.boundary) refresh_vertex_frame(star.corners[count - 1].in_vertex, kInvalid, &changes[2 * count - 1], 1);
+    const auto update = [&](Index w, int first, int second, int listed) {
+      if (increments) {
+        const auto increment = [&](int i) { return changes[static_cast<std::size_t>(i)].corner - old_corners[static_cast<std::size_t>(i)]; };
+        vsum(w) += increment(first) + (listed == 2 ? increment(second) : 0.0);
+      } else {
+        const CornerChange pair[2] = {changes[static_cast<std::size_t>(first)], changes[static_cast<std::size_t>(second)]};
+        refresh_vertex_frame(w, kInvalid, pair, listed);
+      }
+    };
+    for (int k = 0; k < count; ++k)
+      update(star.corners[k].out_vertex, 2 * k, k > 0 ? 2 * k - 1 : 2 * count - 1, star.boundary && k == 0 ? 1 : 2);
+    if (star.boundary) update(star.corners[count - 1].in_vertex, 2 * count - 1, 2 * count - 1, 1);
     return result;
   }
   std::sort(neighbours.begin(), neighbours.end());
