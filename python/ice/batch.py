@@ -35,13 +35,15 @@ last large meshes use the cores that workers with nothing left to do leave idle 
 validating a mesh and building its triangulation run their short passes on the machine's cores,
 at most 8, from 100k vertices on, whatever the setting). The meshes go largest first; on a
 local cluster with more than one thread per mesh, the largest ones (one per worker) keep their
-priority and the others run at the lowest (nice 19, on a thread of their own), so that they take
-the cores a large mesh leaves idle instead of slowing down the batch's critical path. Each record
-says the threads and the priority (`nice`) its mesh ran with.
+priority and the others run at the lowest (the idle scheduling policy, SCHED_IDLE, on a thread of
+their own; nice 19 where that policy is not available), so that they take the cores a large mesh
+leaves idle instead of slowing down the batch's critical path. Each record says the threads and
+the priority (`nice`, `policy`) its mesh ran with.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import dataclasses
 import glob
@@ -201,27 +203,52 @@ def _error_kind(error: BaseException) -> str:
     return "failed"
 
 
-# The priority (nice value) of the meshes that yield their cores to the batch's largest ones.
+# The priority of the meshes that yield their cores to the batch's largest ones: the idle scheduling
+# policy (SCHED_IDLE) where the system has it, else nice 19. Under nice 19 the largest mesh's threads
+# lost ~0.4 s of 3.3 s to a yielding mesh (dragon_vrip_bin on 2 threads beside a nice-19 coarsening
+# loop: 3.6-3.9 s against 3.2-3.6 s alone; under SCHED_IDLE 3.2-3.5 s, the loop doing as much work):
+# a CPU that runs only idle-policy threads counts as idle when the scheduler places a woken thread.
 YIELDING_NICE = 19
-# Linux gives each thread its own nice value (setpriority on a thread id); elsewhere the id would
-# name a process, so meshes run at the worker's priority there.
+# Linux gives each thread its own priority (setpriority / sched_setscheduler on a thread id);
+# elsewhere the id would name a process, so meshes run at the worker's priority there.
 _PER_THREAD_PRIORITY = sys.platform.startswith("linux") and hasattr(os, "setpriority") and hasattr(threading, "get_native_id")
+
+
+def _yield_cores() -> None:
+    """Puts the calling thread (and the threads it starts) at the lowest priority."""
+    thread = threading.get_native_id()
+    try:
+        os.setpriority(os.PRIO_PROCESS, thread, YIELDING_NICE)
+    except OSError:
+        pass
+    if hasattr(os, "SCHED_IDLE"):
+        try:
+            os.sched_setscheduler(thread, os.SCHED_IDLE, os.sched_param(0))
+        except OSError:  # not allowed here: nice 19 it is
+            pass
+
+
+def _scheduling_policy() -> str:
+    """The calling thread's scheduling policy, for its mesh's record."""
+    try:
+        policy = os.sched_getscheduler(threading.get_native_id())
+    except (AttributeError, OSError):
+        return "unknown"
+    return "idle" if policy == getattr(os, "SCHED_IDLE", None) else "other" if policy == os.SCHED_OTHER else str(policy)
 
 
 def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool, timeout: float | None,
                  input_size: int, input_mtime_ns: int, threads: int = 1, yielding: bool = False) -> dict:
     """Coarsens one mesh file on `threads` threads and writes its outputs and record; returns the
     record. Never raises for a problem of the mesh: that becomes an error record. Runs in a worker
-    process. `yielding`: run at the lowest priority (a thread of its own at nice YIELDING_NICE, the
-    mesh's threads inheriting it), so that on shared cores the batch's largest meshes go first."""
+    process. `yielding`: run at the lowest priority (a thread of its own under the idle scheduling
+    policy, or at nice YIELDING_NICE; the mesh's threads inherit it), so that on shared cores the
+    batch's largest meshes go first."""
     if yielding and _PER_THREAD_PRIORITY:
         outcome: list = []
 
         def low_priority():
-            try:
-                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), YIELDING_NICE)
-            except OSError:
-                pass
+            _yield_cores()
             try:
                 outcome.append(coarsen_file(path, relative, out, options, repair, timeout, input_size,
                                             input_mtime_ns, threads))
@@ -240,6 +267,7 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
               "input_size": input_size, "input_mtime_ns": input_mtime_ns, "threads": threads}
     if _PER_THREAD_PRIORITY:
         record["nice"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())  # the priority it ran at
+        record["policy"] = _scheduling_policy()
     finished: list[tuple[pathlib.Path, str]] = []  # (output, its written temporary)
     try:
         loaded = ice.load_mesh(path, repair=repair)
@@ -382,7 +410,8 @@ def _start_method(options: BatchOptions) -> str:
     return method
 
 
-def _client(options: BatchOptions):
+def _client(options: BatchOptions, stack: contextlib.ExitStack):
+    """A client of the scheduler, or of a new local cluster whose Dask settings `stack`'s exit ends."""
     from distributed import Client, LocalCluster
     if options.scheduler:
         return Client(options.scheduler), None
@@ -399,11 +428,18 @@ def _client(options: BatchOptions):
     # array of every mesh is mapped afresh and its pages faulted in and zeroed again. The batch over
     # the shared meshes on one worker: 8.97 s with it, 8.28 s without (medians of 5 interleaved).
     environ.pop("MALLOC_TRIM_THRESHOLD_", None)
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": environ,
-                          "distributed.worker.multiprocessing-method": method}):
-        cluster = LocalCluster(n_workers=options.workers, threads_per_worker=1, processes=True,
-                               memory_limit=options.memory_limit, dashboard_address=None, silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+    # Held while the cluster lives: a nanny reads them whenever it starts a worker process, also
+    # when it restarts one after a crash.
+    stack.enter_context(dask.config.set({"distributed.nanny.pre-spawn-environ": environ,
+                                         "distributed.worker.multiprocessing-method": method}))
+    cluster = LocalCluster(n_workers=options.workers, threads_per_worker=1, processes=True,
+                           memory_limit=options.memory_limit, dashboard_address=None, silence_logs=logging.ERROR)
+    try:
+        client = Client(cluster)
+    except BaseException:
+        cluster.close()
+        raise
+    return client, cluster
 
 
 def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stderr) -> BatchResult:
@@ -442,7 +478,12 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
     todo.sort(key=lambda job: job.size, reverse=True)
     if todo:
         cluster_start = time.perf_counter()
-        client, cluster = _client(options)
+        stack = contextlib.ExitStack()
+        try:
+            client, cluster = _client(options, stack)
+        except BaseException:
+            stack.close()
+            raise
         result.cluster_seconds = time.perf_counter() - cluster_start
         stalled = False  # set by the watchdog
         try:
@@ -491,7 +532,8 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
                 last_finish = time.monotonic()
             bar(None)
         finally:
-            _shut_down(client, cluster, stalled)
+            with stack:
+                _shut_down(client, cluster, stalled)
     result.records = [records[job.relative] for job in jobs]
     result.seconds = time.perf_counter() - started
     _write_summary(out, result)

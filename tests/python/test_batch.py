@@ -61,6 +61,8 @@ def test_one_record_per_input_and_outputs_read_back(dataset, tmp_path):
     if ran and ran[0]["threads"] > 1:
         base = os.getpriority(os.PRIO_PROCESS, 0)
         assert [r["nice"] for r in ran] == [base] * 2 + [max(base, batch.YIELDING_NICE)] * (len(ran) - 2)
+        if hasattr(os, "SCHED_IDLE") and os.sched_getscheduler(0) == os.SCHED_OTHER:
+            assert [r["policy"] for r in ran] == ["other"] * 2 + ["idle"] * (len(ran) - 2)
     # the output tree mirrors the input; records.jsonl and summary.csv list every input
     assert (out / "a" / "bear.off.ilm").exists() and (out / "b" / "spot.obj.npz").exists()
     assert len((out / "records.jsonl").read_text().splitlines()) == len(MESHES) + 2
