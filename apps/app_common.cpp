@@ -137,8 +137,10 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
                    std::to_string(result.next_cost) + " > --max-error");
 }
 
-fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind) {
-  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped);
+fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind,
+                            fem::ProlongationKind prolongation) {
+  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped,
+                          prolongation);
 }
 
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
@@ -177,7 +179,7 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
     run.idt_flips = p.fine.flips;
   }
   run.fine_mesh = clock.lap();
-  if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(p.fine, p.coarse, opt.operators));
+  if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(p.fine, p.coarse, opt.operators, opt.prolongation));
   return p;
 }
 

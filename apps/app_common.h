@@ -70,9 +70,10 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
 
 // ---- the coarse proxy of the PDE tools ----------------------------------------------------------------
 
-/// The coarse proxy of the PDE tools: the fine discretisation, the coarse space and its P, with coarse
-/// operators of `kind`, lumped mass.
-fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind);
+/// The coarse proxy of the PDE tools: the fine discretisation, the coarse space and its P (smoothed
+/// or not), with coarse operators of `kind`, lumped mass.
+fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind,
+                            fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric);
 
 /// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
 /// target was missed and records the summary in `run`. `keep_method_state`: keep what

@@ -128,6 +128,7 @@ CLI::Option* add_choice(CLI::App& cli, const std::string& name, Enum& value, con
 std::string cli_name(ice::CoarseningMethod method);
 std::string cli_name(ice::QemGeometry geometry);
 std::string cli_name(fem::CoarseOperatorKind kind);
+std::string cli_name(fem::ProlongationKind kind);
 
 /// Throws AppError(kNotWritten) if `path` exists and !overwrite (the tools call it for every output
 /// before doing any work), or if its directory does not exist (ice::check_writable's policy).
@@ -135,6 +136,10 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 
 /// Adds --operators intrinsic|galerkin.
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators);
+/// Adds --prolongation barycentric|smoothed.
+void add_prolongation_option(CLI::App& cli, fem::ProlongationKind& prolongation);
+/// Throws AppError(kUsage) for a smoothed prolongation without Galerkin operators.
+void check_prolongation(fem::ProlongationKind prolongation, fem::CoarseOperatorKind operators);
 
 // ---- the command line both PDE tools share (geodesic-coarse, poisson-coarse) ---------------------------
 
@@ -145,6 +150,9 @@ struct PdeOptions {
   /// Galerkin by default: more accurate than intrinsic for ICE on every problem and area weight
   /// measured (README, Accuracy), e.g. 0.89x the intrinsic error (geometric mean) at the defaults.
   fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
+  /// --prolongation barycentric|smoothed (fem::ProlongationKind; smoothed needs Galerkin operators),
+  /// added by poisson-coarse (add_prolongation_option): geodesics gain nothing from it.
+  fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric;
   ice::QemGeometry qem_geometry = ice::QemGeometry::extrinsic;  ///< --qem-operators extrinsic|idt
   bool fine_idt = true;
   std::string output;  ///< PLY or binary glTF (.glb)
@@ -162,7 +170,8 @@ struct PdeOptions {
   fem::PolishOptions polish;
   /// --polish N, --tolerance T and --polish-sweeps K, for the tools that polish.
   void add_polish_options(CLI::App& cli);
-  /// Refuses existing outputs (without --force) and bad extensions before any work.
+  /// Refuses existing outputs (without --force), bad extensions and a smoothed prolongation without
+  /// Galerkin operators, before any work.
   void check_outputs() const;
   /// Where a PLY --output's companion file of ICE's traced coarse edges goes (NAME_coarse_edges.ply
   /// beside NAME.ply); empty when there is none (no output, glTF output, or QEM).

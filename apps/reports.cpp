@@ -263,6 +263,7 @@ PdeRun PdeRun::start(const std::string& tool, const PdeOptions& opt, bool proxy_
   run.tool = tool;
   run.mesh_path = opt.mesh;
   run.operators = opt.operators;
+  run.prolongation = opt.prolongation;
   run.area_weight = opt.target.area_weight;
   run.normalize_curvature = opt.target.normalize_curvature;
   run.fine_idt = opt.fine_idt;
@@ -281,6 +282,7 @@ nlohmann::json PdeRun::report() const {
   nlohmann::json r = report_header(tool, mesh_path);
   r["method"] = cli_name(coarsening.method);
   r["operators"] = cli_name(operators);
+  r["prolongation"] = cli_name(prolongation);
   if (!coarsening.qem) r["metric"] = {{"area_weight", area_weight}, {"normalize_curvature", normalize_curvature}};
   if (coarsening.qem) r["qem"] = qem_json(*coarsening.qem, coarsening.target_reached);
   r["input"] = {{"vertices", fine_vertices}, {"faces", fine_faces}};

@@ -117,6 +117,7 @@ nlohmann::json report_header(const std::string& tool, const std::string& mesh_pa
 struct PdeRun {
   std::string tool, mesh_path;
   fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
+  fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric;
   /// Printed instead of "<operators> coarse operators" by a solve that uses none (coarse marching).
   std::string coarse_solver;
   double area_weight = 0;            ///< the ICE metric used (ignored by QEM)

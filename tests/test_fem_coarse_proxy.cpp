@@ -55,6 +55,22 @@ fem::SparseMatrix nested_sphere_prolongation(const ice::TriangleMesh& coarse, co
   return P;
 }
 
+/// Two nested icospheres (levels `level` and `level + 1`), their lengths and the prolongation between them.
+struct NestedSpheres {
+  ice::TriangleMesh coarse, fine;
+  ice::FaceLengths coarse_lengths, fine_lengths;
+  fem::SparseMatrix P;
+};
+NestedSpheres nested_spheres(int level) {
+  NestedSpheres s;
+  s.coarse = ice::make_icosphere(level);
+  s.fine = ice::make_icosphere(level + 1);
+  s.coarse_lengths = ice::face_lengths_from_positions(s.coarse.V, s.coarse.F);
+  s.fine_lengths = ice::face_lengths_from_positions(s.fine.V, s.fine.F);
+  s.P = nested_sphere_prolongation(s.coarse, s.fine);
+  return s;
+}
+
 /// The 1:4 midpoint split of a mesh (new vertices at the edge midpoints, after the old ones) and its
 /// prolongation (old vertices: their coarse vertex; midpoints: ½, ½ of the edge's ends).
 std::pair<ice::TriangleMesh, fem::SparseMatrix> midpoint_split(const ice::TriangleMesh& coarse) {
@@ -148,11 +164,7 @@ TEST_CASE("coarse proxy with P = identity reproduces the fine solutions", "[fem]
 }
 
 TEST_CASE("coarse proxy on nested icospheres", "[fem][coarse_proxy]") {
-  const ice::TriangleMesh coarse = ice::make_icosphere(3);
-  const ice::TriangleMesh fine = ice::make_icosphere(4);
-  const ice::FaceLengths coarse_lengths = ice::face_lengths_from_positions(coarse.V, coarse.F);
-  const ice::FaceLengths fine_lengths = ice::face_lengths_from_positions(fine.V, fine.F);
-  const fem::SparseMatrix P = nested_sphere_prolongation(coarse, fine);
+  const auto [coarse, fine, coarse_lengths, fine_lengths, P] = nested_spheres(3);
   const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine_lengths);
   const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine_lengths);
 
@@ -298,4 +310,78 @@ TEST_CASE("geodesics by coarse marching are the straight-line distance on a flat
   CHECK((mixed.head(nc) - from_point.head(nc).cwiseMin(from_vertex.head(nc))).cwiseAbs().maxCoeff() <= 1e-4 * to_point.maxCoeff());
   CHECK_THROWS_AS(marching.distance({}), std::invalid_argument);
   CHECK_THROWS_AS(marching.distance({static_cast<int>(fine.V.rows())}), std::invalid_argument);
+}
+
+TEST_CASE("smoothed prolongation: one damped Jacobi step of P, a better Galerkin coarse space", "[fem][coarse_proxy]") {
+  const auto [coarse, fine, coarse_lengths, fine_lengths, P] = nested_spheres(2);
+  const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine_lengths);
+  const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine_lengths);
+
+  // The definition, entry by entry against dense arithmetic, and rows still summing to 1.
+  const fem::SparseMatrix S = fem::smoothed_prolongation(P, L);
+  const Eigen::MatrixXd dense_L(L), dense_P(P);
+  const Eigen::MatrixXd expected =
+      dense_P - fem::kProlongationSmoothingWeight * dense_L.diagonal().cwiseInverse().asDiagonal() * dense_L * dense_P;
+  CHECK((Eigen::MatrixXd(S) - expected).cwiseAbs().maxCoeff() < 1e-12);
+  CHECK((S * Eigen::VectorXd::Ones(S.cols()) - Eigen::VectorXd::Ones(S.rows())).cwiseAbs().maxCoeff() < 1e-12);
+  CHECK(S.nonZeros() > P.nonZeros());  // each row reaches the coarse vertices of its neighbours
+  CHECK_THROWS_AS(fem::smoothed_prolongation(P, fem::cotan_laplacian(coarse.F, coarse_lengths)), std::invalid_argument);
+
+  const fem::CoarseProxy plain(fine.F, fine_lengths, coarse.F, coarse_lengths, P, fem::CoarseOperatorKind::galerkin);
+  const fem::CoarseProxy smoothed(fine.F, fine_lengths, coarse.F, coarse_lengths, P, fem::CoarseOperatorKind::galerkin,
+                                  fem::MassKind::lumped, fem::ProlongationKind::smoothed);
+  CHECK(smoothed.prolongation_kind() == fem::ProlongationKind::smoothed);
+  CHECK((Eigen::MatrixXd(smoothed.prolongation()) - Eigen::MatrixXd(S)).cwiseAbs().maxCoeff() == 0.0);
+  CHECK((Eigen::MatrixXd(smoothed.barycentric_prolongation()) - dense_P).cwiseAbs().maxCoeff() == 0.0);
+  CHECK(smoothed.coarse_vertex_of(0) == plain.coarse_vertex_of(0));  // read off the barycentric P
+
+  // Poisson and heat: Galerkin orthogonality in the smoothed space, and smaller errors than the
+  // barycentric space's on smooth data (z + xy).
+  const Eigen::ArrayXd x = fine.V.col(0), y = fine.V.col(1), z = fine.V.col(2);
+  const Eigen::VectorXd f = (z + x * y).matrix();
+  const Eigen::VectorXd poisson = fem::PoissonSolver::zero_mean(L, M).solve(f);
+  const Eigen::VectorXd u_plain = fem::ProxyPoissonSolver(plain).solve(f);
+  const Eigen::VectorXd u_smoothed = fem::ProxyPoissonSolver(smoothed).solve(f);
+  const Eigen::VectorXd residual = S.transpose() * (L * (poisson - u_smoothed));
+  CHECK(residual.norm() < 1e-10 * (S.transpose() * (L * poisson)).norm());
+  const double plain_error = fem::relative_l2_error(u_plain, poisson, M);
+  const double smoothed_error = fem::relative_l2_error(u_smoothed, poisson, M);
+  UNSCOPED_INFO("Poisson relative L2 error: barycentric " << plain_error << ", smoothed " << smoothed_error);
+  CHECK(smoothed_error < 0.7 * plain_error);
+  const Eigen::VectorXd heat = fem::HeatSolver(L, M, 0.01).integrate(f, 10);
+  const double heat_plain = fem::relative_l2_error(
+      fem::ProxyHeatSolver(plain, 0.01, fem::RestrictionKind::l2_projection).integrate(f, 10), heat, M);
+  const double heat_smoothed = fem::relative_l2_error(
+      fem::ProxyHeatSolver(smoothed, 0.01, fem::RestrictionKind::l2_projection).integrate(f, 10), heat, M);
+  UNSCOPED_INFO("heat relative L2 error: barycentric " << heat_plain << ", smoothed " << heat_smoothed);
+  CHECK(heat_smoothed < heat_plain);
+
+  // Coarse marching interpolates with the barycentric P either way: the same distances.
+  Eigen::Index source = 0;
+  fine.V.col(2).maxCoeff(&source);
+  const std::vector<int> sources{static_cast<int>(source)};
+  CHECK(fem::max_abs_error(fem::ProxyGeodesicSolver(smoothed).distance(sources),
+                           fem::ProxyGeodesicSolver(plain).distance(sources)) == 0.0);
+
+  // What a smoothed P cannot do: intrinsic coarse operators, Dirichlet vertices.
+  CHECK_THROWS_AS(fem::CoarseProxy(fine.F, fine_lengths, coarse.F, coarse_lengths, P, fem::CoarseOperatorKind::intrinsic,
+                                   fem::MassKind::lumped, fem::ProlongationKind::smoothed),
+                  std::invalid_argument);
+  const int fixed = static_cast<int>(source);
+  REQUIRE(plain.coarse_vertex_of(fixed) >= 0);
+  CHECK_NOTHROW(fem::ProxyPoissonSolver(plain, {fixed}));
+  CHECK_THROWS_AS(fem::ProxyPoissonSolver(smoothed, {fixed}), std::invalid_argument);
+}
+
+TEST_CASE("the coarse heat method refuses a smoothed prolongation", "[fem][coarse_proxy]") {
+  // Its sources' weights would be negative, and its distances through the smoothed space were 6x
+  // less accurate (2.4 % against 0.37 % mean error here); marching reads the barycentric P.
+  const NestedSpheres s = nested_spheres(2);
+  const fem::CoarseProxy proxy(s.fine.F, s.fine_lengths, s.coarse.F, s.coarse_lengths, s.P, fem::CoarseOperatorKind::galerkin,
+                               fem::MassKind::lumped, fem::ProlongationKind::smoothed);
+  fem::ProxyGeodesicOptions heat_method;
+  heat_method.method = fem::CoarseDistanceMethod::heat_method;
+  CHECK_THROWS_AS(fem::ProxyGeodesicSolver(proxy, heat_method), std::invalid_argument);
+  CHECK_THROWS_AS(fem::ProxyGeodesicSolver(proxy, proxy.coarse_heat_method_operators()), std::invalid_argument);
+  CHECK_NOTHROW(fem::ProxyGeodesicSolver(proxy));
 }

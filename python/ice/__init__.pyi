@@ -101,7 +101,10 @@ class Proxy:
     """The fine discretisation and a coarse space linked by P, with the proxy solvers' operators."""
     def __init__(self, V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
                  operators: Literal["galerkin", "intrinsic"] = "galerkin",
-                 fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay") -> None: ...
+                 fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
+                 prolongation: Literal["barycentric", "smoothed"] = "barycentric") -> None: ...
+    @property
+    def prolongation(self) -> scipy.sparse.csc_matrix: ...
     @property
     def fine_size(self) -> int: ...
     @property
@@ -204,13 +207,15 @@ def solve_poisson(V: ArrayLike, F: ArrayLike, f: ArrayLike, *, coarse: CoarseSpa
                   fixed: Indices | None = None, values: ArrayLike | None = None,
                   operators: Literal["galerkin", "intrinsic"] = "galerkin",
                   fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
-                  tolerance: float = 0.0, **coarsening: Any) -> FloatArray:
+                  tolerance: float = 0.0, prolongation: Literal["barycentric", "smoothed"] = "barycentric",
+                  **coarsening: Any) -> FloatArray:
     """Poisson −Δu = f through a coarse proxy in one call."""
 def heat_flow(V: ArrayLike, F: ArrayLike, u0: ArrayLike, time_step: float, steps: int = 1, *,
               coarse: CoarseSpace | None = None, restriction: Literal["l2", "injection"] = "l2",
               operators: Literal["galerkin", "intrinsic"] = "galerkin",
               fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
-              tolerance: float = 0.0, **coarsening: Any) -> FloatArray:
+              tolerance: float = 0.0, prolongation: Literal["barycentric", "smoothed"] = "barycentric",
+              **coarsening: Any) -> FloatArray:
     """Backward-Euler heat flow through a coarse proxy in one call."""
 def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: CoarseSpace | None = None,
                       method: Literal["marching", "heat"] = "marching",

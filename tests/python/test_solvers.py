@@ -60,6 +60,37 @@ def test_poisson_matches_scipy_on_the_returned_operators(spot):
     assert abs(Lc - P.T @ proxy.fine_laplacian @ P).max() < 1e-9 * abs(Lc).max()
 
 
+def test_smoothed_prolongation(spot):
+    V, F, coarse = spot
+    plain = ice.Proxy(V, F, coarse)
+    smoothed = ice.Proxy(V, F, coarse, prolongation="smoothed")
+    P, S, L = coarse.P, smoothed.prolongation, smoothed.fine_laplacian
+    # one damped Jacobi step of P on the fine Laplacian; rows still sum to 1
+    expected = P - scipy.sparse.diags(2.0 / 3.0 / L.diagonal()) @ (L @ P)
+    assert abs(S - expected).max() < 1e-12 and abs(plain.prolongation - P).max() == 0
+    assert np.abs(S @ np.ones(S.shape[1]) - 1).max() < 1e-12
+    assert abs(smoothed.coarse_laplacian - S.T @ L @ S).max() < 1e-9 * abs(smoothed.coarse_laplacian).max()
+    # a smaller Poisson error than the barycentric P's, against scipy's fine solve
+    M = plain.fine_mass
+    f = np.sin(V[:, 0] * 3) + V[:, 1]
+    ones = np.ones(V.shape[0])
+    f0 = f - (ones @ (M @ f)) / (ones @ (M @ ones))
+    reference = np.zeros(V.shape[0])
+    reference[1:] = scipy.sparse.linalg.spsolve(L.tocsc()[1:, 1:], (M @ f0)[1:])
+    reference -= (ones @ (M @ reference)) / (ones @ (M @ ones))
+
+    def error(u):
+        d = u - reference
+        return np.sqrt(d @ (M @ d) / (reference @ (M @ reference)))
+    e_plain = error(ice.ProxyPoissonSolver(plain).solve(f))
+    e_smoothed = error(ice.solve_poisson(V, F, f, coarse=coarse, prolongation="smoothed"))
+    assert e_smoothed < 0.8 * e_plain, (e_smoothed, e_plain)
+    with pytest.raises(ValueError, match="galerkin"):
+        ice.Proxy(V, F, coarse, operators="intrinsic", prolongation="smoothed")
+    with pytest.raises(ValueError, match="prolongation"):
+        ice.Proxy(V, F, coarse, prolongation="bogus")
+
+
 def test_dirichlet_poisson_and_error_against_the_fine_solution(spot):
     V, F, _ = spot
     fixed = np.array([0, 500, 1000])
