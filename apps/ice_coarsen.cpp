@@ -173,8 +173,11 @@ std::string stop_line(const ice::CoarseSpaceSummary& summary) {
   line << ice::to_string(summary.stop_reason()) << " after " << app::thousands(summary.removed());
   if (summary.qem) return line.str() + " QEM collapses";
   const ice::CoarsenResult& r = *summary.ice;
-  line << " removals (" << r.failed_removals << " failed attempts); last cost " << r.last_cost << ", next cost "
-       << r.next_cost;
+  line << " removals (" << r.failed_removals << " failed attempts); last cost " << r.last_cost << ", next cost ";
+  // +inf: no vertex is left that could be removed; NaN: cancelled during the parallel phase.
+  if (std::isinf(r.next_cost)) line << "none (no removable vertex left)";
+  else if (std::isnan(r.next_cost)) line << "unknown (cancelled)";
+  else line << r.next_cost;
   return line.str();
 }
 
