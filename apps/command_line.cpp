@@ -31,6 +31,9 @@ const std::map<std::string, fem::CoarseOperatorKind> kOperatorNames{{"intrinsic"
                                                                     {"galerkin", fem::CoarseOperatorKind::galerkin}};
 const std::map<std::string, fem::ProlongationKind> kProlongationNames{
     {"barycentric", fem::ProlongationKind::barycentric}, {"smoothed", fem::ProlongationKind::smoothed}};
+const std::map<std::string, ProlongationChoice> kProlongationChoices{{"auto", ProlongationChoice::automatic},
+                                                                     {"barycentric", ProlongationChoice::barycentric},
+                                                                     {"smoothed", ProlongationChoice::smoothed}};
 
 template <class Enum>
 std::string name_of(const std::map<std::string, Enum>& names, Enum value) {
@@ -326,16 +329,27 @@ void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
              "'galerkin' (P^T L P and P^T M P from the fine operators)");
 }
 
-void add_prolongation_option(CLI::App& cli, fem::ProlongationKind& prolongation) {
-  add_choice(cli, "--prolongation", prolongation, kProlongationNames,
+void add_prolongation_option(CLI::App& cli, ProlongationChoice& choice) {
+  add_choice(cli, "--prolongation", choice, kProlongationChoices,
              "How coarse values reach the fine vertices: 'barycentric' (from the corners of each fine vertex's "
-             "coarse face) or 'smoothed' (that P after one damped Jacobi step on the fine Laplacian: about half "
-             "the Poisson and heat error at 5 % of the vertices; Galerkin operators, no Dirichlet vertices)");
+             "coarse face), 'smoothed' (that P after one damped Jacobi step on the fine Laplacian: about half "
+             "the Poisson and heat error at 5 % of the vertices; needs Galerkin operators and no Dirichlet "
+             "vertices) or 'auto' (smoothed where allowed, else barycentric)");
 }
 
-void check_prolongation(fem::ProlongationKind prolongation, fem::CoarseOperatorKind operators) {
-  if (prolongation == fem::ProlongationKind::smoothed && operators != fem::CoarseOperatorKind::galerkin)
-    throw AppError(kUsage, "--prolongation smoothed needs --operators galerkin");
+fem::ProlongationKind resolve_prolongation(ProlongationChoice choice, fem::CoarseOperatorKind operators,
+                                           const std::string& needs_barycentric) {
+  const bool galerkin = operators == fem::CoarseOperatorKind::galerkin;
+  if (choice == ProlongationChoice::smoothed) {
+    if (!galerkin) throw AppError(kUsage, "--prolongation smoothed needs --operators galerkin");
+    if (!needs_barycentric.empty())
+      throw AppError(kUsage, needs_barycentric + " needs --prolongation barycentric or auto (a smoothed prolongation "
+                                                 "does not serve it)");
+    return fem::ProlongationKind::smoothed;
+  }
+  if (choice == ProlongationChoice::automatic && galerkin && needs_barycentric.empty())
+    return fem::ProlongationKind::smoothed;
+  return fem::ProlongationKind::barycentric;
 }
 
 void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
@@ -406,7 +420,6 @@ std::string PdeOptions::coarse_edges_output() const {
 }
 
 void PdeOptions::check_outputs() const {
-  check_prolongation(prolongation, operators);
   if (!output.empty()) check_output(output, force, "--output");
   if (const std::string edges = coarse_edges_output(); !edges.empty()) check_output(edges, force, "--output (its coarse edges)");
   if (ascii && output_is_gltf()) throw AppError(kUsage, "--ascii writes ASCII PLY; --output names a .glb file");

@@ -136,10 +136,15 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 
 /// Adds --operators intrinsic|galerkin.
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators);
-/// Adds --prolongation barycentric|smoothed.
-void add_prolongation_option(CLI::App& cli, fem::ProlongationKind& prolongation);
-/// Throws AppError(kUsage) for a smoothed prolongation without Galerkin operators.
-void check_prolongation(fem::ProlongationKind prolongation, fem::CoarseOperatorKind operators);
+/// --prolongation as given: auto (the default: smoothed wherever the problem allows it), or one kind.
+enum class ProlongationChoice { automatic, barycentric, smoothed };
+/// Adds --prolongation auto|barycentric|smoothed.
+void add_prolongation_option(CLI::App& cli, ProlongationChoice& choice);
+/// The prolongation a proxy with `operators` solves with: auto is smoothed with Galerkin operators
+/// unless `needs_barycentric` names what rules it out (e.g. "--fix"; empty: nothing), else
+/// barycentric. Throws AppError(kUsage) for an explicit smoothed choice that cannot be honoured.
+fem::ProlongationKind resolve_prolongation(ProlongationChoice choice, fem::CoarseOperatorKind operators,
+                                           const std::string& needs_barycentric = "");
 
 // ---- the command line both PDE tools share (geodesic-coarse, poisson-coarse) ---------------------------
 
@@ -150,8 +155,9 @@ struct PdeOptions {
   /// Galerkin by default: more accurate than intrinsic for ICE on every problem and area weight
   /// measured (README, Accuracy), e.g. 0.89x the intrinsic error (geometric mean) at the defaults.
   fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
-  /// --prolongation barycentric|smoothed (fem::ProlongationKind; smoothed needs Galerkin operators),
-  /// added by poisson-coarse (add_prolongation_option): geodesics gain nothing from it.
+  /// The prolongation the proxy solves with (fem::ProlongationKind): resolved by poisson-coarse from
+  /// its --prolongation (resolve_prolongation); the other tools keep the barycentric P (geodesics by
+  /// marching read it, and gain nothing from smoothing).
   fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric;
   ice::QemGeometry qem_geometry = ice::QemGeometry::extrinsic;  ///< --qem-operators extrinsic|idt
   bool fine_idt = true;
@@ -170,8 +176,7 @@ struct PdeOptions {
   fem::PolishOptions polish;
   /// --polish N, --tolerance T and --polish-sweeps K, for the tools that polish.
   void add_polish_options(CLI::App& cli);
-  /// Refuses existing outputs (without --force), bad extensions and a smoothed prolongation without
-  /// Galerkin operators, before any work.
+  /// Refuses existing outputs (without --force) and bad extensions before any work.
   void check_outputs() const;
   /// Where a PLY --output's companion file of ICE's traced coarse edges goes (NAME_coarse_edges.ply
   /// beside NAME.ply); empty when there is none (no output, glTF output, or QEM).

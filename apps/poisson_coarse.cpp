@@ -227,7 +227,8 @@ int main(int argc, char** argv) {
       ->check(app::non_negative_integer())->capture_default_str();
   opt.add_to(cli, "'solution' (prolonged), 'reference' and 'error' (= solution - reference)");
   opt.add_polish_options(cli);
-  app::add_prolongation_option(cli, opt.prolongation);
+  app::ProlongationChoice prolongation = app::ProlongationChoice::automatic;
+  app::add_prolongation_option(cli, prolongation);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&] {
@@ -238,9 +239,8 @@ int main(int argc, char** argv) {
     if (opt.polish.tolerance > 0 && opt.target.method == ice::CoarseningMethod::qem)
       app::warn(kTool, "--tolerance with --method qem: the error estimate is validated on ICE coarse spaces; on QEM's "
                        "it can underestimate (measured up to 60x on 2 of 40 meshes)");
-    if (!fixes.empty() && opt.prolongation == fem::ProlongationKind::smoothed)
-      throw app::AppError(app::kUsage, "--fix needs --prolongation barycentric (a smoothed prolongation does not take "
-                                       "the fixed values at the fixed vertices)");
+    // A smoothed P does not take the fixed values at the fixed vertices.
+    opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, fixes.empty() ? "" : "--fix");
     // "V=value" pairs, checked for syntax before loading anything.
     std::vector<std::pair<long long, double>> file_fixes;
     for (const std::string& fix : fixes) {

@@ -490,6 +490,22 @@ elseif(CASE STREQUAL "poisson_spot")
   # (2.5% / 2.0% at 10%; method doc: Poisson 1-3% at 500-1,000 vertices). Bound: about twice that.
   json(rel_l2 "${r}" error rel_l2)
   check(${rel_l2} LESS 0.08 "error.rel_l2")
+  # The default prolongation is the smoothed P (Galerkin operators, no --fix), and it is more accurate
+  # than the barycentric one; intrinsic operators keep the barycentric P.
+  json(prolongation "${r}" prolongation)
+  if(NOT prolongation STREQUAL "smoothed")
+    fail("prolongation = ${prolongation}, expected smoothed by default")
+  endif()
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --prolongation barycentric --report "${WORK}/b.json" -q)
+  json(rel_l2_barycentric "${WORK}/b.json" error rel_l2)
+  check(${rel_l2} LESS ${rel_l2_barycentric} "error.rel_l2 smoothed < barycentric")
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --operators intrinsic --report "${WORK}/i.json" -q)
+  json(prolongation "${WORK}/i.json" prolongation)
+  if(NOT prolongation STREQUAL "barycentric")
+    fail("prolongation = ${prolongation} with intrinsic operators")
+  endif()
+  expect_error(4 "needs --operators galerkin" poisson-coarse "${mesh}" --ratio 0.05 --operators intrinsic
+               --prolongation smoothed -q)
   check_ply_header("${WORK}/u.ply" binary_little_endian solution reference error rhs patch)
   # Beside it, the traced coarse edges as PLY points and edges.
   ply_header(edges_header "${WORK}/u_coarse_edges.ply")
@@ -522,6 +538,12 @@ elseif(CASE STREQUAL "poisson_fix_rhs_spot")
   run(0 poisson-coarse "${mesh}" --ratio 0.1 --rhs "${WORK}/rhs.txt" --fix 0=1 --fix 1500=-1,2000=0.5
       --report "${WORK}/r.json" -o "${WORK}/u.ply" --ascii -q)
   json(bc "${WORK}/r.json" boundary_conditions)
+  json(prolongation "${WORK}/r.json" prolongation)
+  if(NOT prolongation STREQUAL "barycentric")
+    fail("prolongation = ${prolongation} with --fix (auto must keep the barycentric P)")
+  endif()
+  expect_error(4 "--fix needs --prolongation barycentric or auto" poisson-coarse "${mesh}" --ratio 0.1 --fix 0=1
+               --prolongation smoothed -q)
   json(nfix "${WORK}/r.json" fixed_vertices)
   check(${nfix} EQUAL 3 "fixed_vertices")
   if(NOT bc STREQUAL "dirichlet")

@@ -98,31 +98,41 @@ def _coarse_for(V, F, coarse, coarsening, use, locked=None):
     return coarsen(V, F, **coarsening)
 
 
+def _resolve_prolongation(prolongation: str, operators: str, dirichlet: bool) -> str:
+    """"auto": the smoothed P where it serves (Galerkin operators, no Dirichlet vertices), as the tools."""
+    if prolongation != "auto":
+        return prolongation
+    return "smoothed" if operators == "galerkin" and not dirichlet else "barycentric"
+
+
 def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, values=None,
                   operators: str = "galerkin", fine: str = "intrinsic_delaunay", polish: int = 0,
-                  tolerance: float = 0.0, prolongation: str = "barycentric", **coarsening):
+                  tolerance: float = 0.0, prolongation: str = "auto", **coarsening):
     """Poisson −Δu = f on (V, F) through a coarse proxy, in one call (poisson-coarse).
 
     coarse: a CoarseSpace of this mesh, or coarsening options for ice.coarsen (default ratio=0.05);
     fixed vertices are then locked so they stay coarse vertices. Without fixed vertices the zero-mean
     Neumann solution; with them, Dirichlet values there (values, default zeros). For many right-hand
-    sides build Proxy and ProxyPoissonSolver once instead. prolongation="smoothed": see Proxy (not
-    with fixed vertices).
+    sides build Proxy and ProxyPoissonSolver once instead. prolongation: "barycentric", "smoothed"
+    (see Proxy; not with fixed vertices) or "auto" (smoothed with Galerkin operators and no fixed
+    vertices, as poisson-coarse).
     """
     coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", fixed)
+    prolongation = _resolve_prolongation(prolongation, operators, fixed is not None and len(fixed) > 0)
     proxy = Proxy(V, F, coarse, operators=operators, fine=fine, prolongation=prolongation)
     return ProxyPoissonSolver(proxy, fixed=fixed, polish=polish, tolerance=tolerance).solve(f, values)
 
 
 def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace | None = None,
               restriction: str = "l2", operators: str = "galerkin", fine: str = "intrinsic_delaunay",
-              polish: int = 0, tolerance: float = 0.0, prolongation: str = "barycentric", **coarsening):
+              polish: int = 0, tolerance: float = 0.0, prolongation: str = "auto", **coarsening):
     """Backward-Euler heat flow from u0 for `steps` steps of `time_step` through a coarse proxy.
 
-    coarse / coarsening options as for solve_poisson.
+    coarse / coarsening options and prolongation as for solve_poisson.
     """
     coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
-    proxy = Proxy(V, F, coarse, operators=operators, fine=fine, prolongation=prolongation)
+    proxy = Proxy(V, F, coarse, operators=operators, fine=fine,
+                  prolongation=_resolve_prolongation(prolongation, operators, False))
     solver = ProxyHeatSolver(proxy, time_step, restriction=restriction, polish=polish, tolerance=tolerance)
     return solver.integrate(u0, steps)
 

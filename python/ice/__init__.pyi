@@ -207,14 +207,14 @@ def solve_poisson(V: ArrayLike, F: ArrayLike, f: ArrayLike, *, coarse: CoarseSpa
                   fixed: Indices | None = None, values: ArrayLike | None = None,
                   operators: Literal["galerkin", "intrinsic"] = "galerkin",
                   fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
-                  tolerance: float = 0.0, prolongation: Literal["barycentric", "smoothed"] = "barycentric",
+                  tolerance: float = 0.0, prolongation: Literal["auto", "barycentric", "smoothed"] = "auto",
                   **coarsening: Any) -> FloatArray:
     """Poisson −Δu = f through a coarse proxy in one call."""
 def heat_flow(V: ArrayLike, F: ArrayLike, u0: ArrayLike, time_step: float, steps: int = 1, *,
               coarse: CoarseSpace | None = None, restriction: Literal["l2", "injection"] = "l2",
               operators: Literal["galerkin", "intrinsic"] = "galerkin",
               fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
-              tolerance: float = 0.0, prolongation: Literal["barycentric", "smoothed"] = "barycentric",
+              tolerance: float = 0.0, prolongation: Literal["auto", "barycentric", "smoothed"] = "auto",
               **coarsening: Any) -> FloatArray:
     """Backward-Euler heat flow through a coarse proxy in one call."""
 def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: CoarseSpace | None = None,

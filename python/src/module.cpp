@@ -755,8 +755,10 @@ Proxy(V, F, coarse, operators="galerkin", fine="intrinsic_delaunay", prolongatio
 discretisation ("input" triangles or their "intrinsic_delaunay" triangulation), coarse operators
 "galerkin" (PᵀLP, PᵀMP) or "intrinsic" (cotan operators of the coarse lengths); lumped masses; the
 coarse space's P as given ("barycentric") or smoothed by one damped Jacobi step on the fine Laplacian
-("smoothed": Galerkin operators only, no Dirichlet vertices; about half the Poisson and heat error at
-5 % of the vertices). Defaults are the tools'.)doc")
+("smoothed": Galerkin operators only, no Dirichlet vertices, not for the coarse heat method; about
+half the Poisson and heat error at 5 % of the vertices). The operators and fine mesh default to the
+tools'; the prolongation to the barycentric P, which serves every solver (solve_poisson, heat_flow
+and poisson-coarse pick the smoothed one where it serves: prolongation="auto").)doc")
       .def(py::init(&make_proxy), py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(),
            py::arg("operators") = "galerkin", py::arg("fine") = "intrinsic_delaunay",
            py::arg("prolongation") = "barycentric")
