@@ -29,8 +29,6 @@ const std::map<std::string, ice::QemGeometry> kQemGeometryNames{{"extrinsic", ic
                                                                 {"idt", ice::QemGeometry::intrinsic_delaunay}};
 const std::map<std::string, fem::CoarseOperatorKind> kOperatorNames{{"intrinsic", fem::CoarseOperatorKind::intrinsic},
                                                                     {"galerkin", fem::CoarseOperatorKind::galerkin}};
-const std::map<std::string, fem::ProlongationKind> kProlongationNames{
-    {"barycentric", fem::ProlongationKind::barycentric}, {"smoothed", fem::ProlongationKind::smoothed}};
 const std::map<std::string, ProlongationChoice> kProlongationChoices{{"auto", ProlongationChoice::automatic},
                                                                      {"barycentric", ProlongationChoice::barycentric},
                                                                      {"smoothed", ProlongationChoice::smoothed}};
@@ -309,7 +307,7 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
 std::string cli_name(ice::CoarseningMethod method) { return name_of(kMethodNames, method); }
 std::string cli_name(ice::QemGeometry geometry) { return name_of(kQemGeometryNames, geometry); }
 std::string cli_name(fem::CoarseOperatorKind kind) { return name_of(kOperatorNames, kind); }
-std::string cli_name(fem::ProlongationKind kind) { return name_of(kProlongationNames, kind); }
+std::string cli_name(fem::ProlongationKind kind) { return fem::to_string(kind); }
 
 
 void check_output(const std::string& path, bool overwrite, const std::string& option) {
@@ -329,21 +327,24 @@ void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
              "'galerkin' (P^T L P and P^T M P from the fine operators)");
 }
 
-void add_prolongation_option(CLI::App& cli, ProlongationChoice& choice) {
-  add_choice(cli, "--prolongation", choice, kProlongationChoices,
-             "How coarse values reach the fine vertices: 'barycentric' (from the corners of each fine vertex's "
-             "coarse face), 'smoothed' (that P after one damped Jacobi step on the fine Laplacian: about half "
-             "the Poisson and heat error at 5 % of the vertices; needs Galerkin operators and no Dirichlet "
-             "vertices) or 'auto' (smoothed where allowed, else barycentric)");
+void add_prolongation_option(CLI::App& cli, ProlongationChoice& choice, const std::string& name,
+                             const std::string& description) {
+  add_choice(cli, name, choice, kProlongationChoices,
+             description.empty()
+                 ? "How coarse values reach the fine vertices: 'barycentric' (from the corners of each fine vertex's "
+                   "coarse face), 'smoothed' (that P after one damped Jacobi step on the fine Laplacian: about half "
+                   "the Poisson and heat error at 5 % of the vertices; needs Galerkin operators and no Dirichlet "
+                   "vertices) or 'auto' (smoothed where allowed, else barycentric)"
+                 : description);
 }
 
 fem::ProlongationKind resolve_prolongation(ProlongationChoice choice, fem::CoarseOperatorKind operators,
-                                           const std::string& needs_barycentric) {
+                                           const std::string& needs_barycentric, const std::string& option) {
   const bool galerkin = operators == fem::CoarseOperatorKind::galerkin;
   if (choice == ProlongationChoice::smoothed) {
-    if (!galerkin) throw AppError(kUsage, "--prolongation smoothed needs --operators galerkin");
+    if (!galerkin) throw AppError(kUsage, option + " smoothed needs --operators galerkin");
     if (!needs_barycentric.empty())
-      throw AppError(kUsage, needs_barycentric + " needs --prolongation barycentric or auto (a smoothed prolongation "
+      throw AppError(kUsage, needs_barycentric + " needs " + option + " barycentric or auto (a smoothed prolongation "
                                                  "does not serve it)");
     return fem::ProlongationKind::smoothed;
   }

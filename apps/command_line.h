@@ -138,13 +138,16 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators);
 /// --prolongation as given: auto (the default: smoothed wherever the problem allows it), or one kind.
 enum class ProlongationChoice { automatic, barycentric, smoothed };
-/// Adds --prolongation auto|barycentric|smoothed.
-void add_prolongation_option(CLI::App& cli, ProlongationChoice& choice);
+/// Adds the option `name` (auto|barycentric|smoothed; empty `description`: --prolongation's help).
+void add_prolongation_option(CLI::App& cli, ProlongationChoice& choice, const std::string& name = "--prolongation",
+                             const std::string& description = "");
 /// The prolongation a proxy with `operators` solves with: auto is smoothed with Galerkin operators
 /// unless `needs_barycentric` names what rules it out (e.g. "--fix"; empty: nothing), else
-/// barycentric. Throws AppError(kUsage) for an explicit smoothed choice that cannot be honoured.
+/// barycentric. Throws AppError(kUsage), naming `option`, for an explicit smoothed choice that
+/// cannot be honoured.
 fem::ProlongationKind resolve_prolongation(ProlongationChoice choice, fem::CoarseOperatorKind operators,
-                                           const std::string& needs_barycentric = "");
+                                           const std::string& needs_barycentric = "",
+                                           const std::string& option = "--prolongation");
 
 // ---- the command line both PDE tools share (geodesic-coarse, poisson-coarse) ---------------------------
 

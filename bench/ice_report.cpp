@@ -689,13 +689,12 @@ int main(int argc, char** argv) {
   app::ProlongationChoice prolongation_choice = app::ProlongationChoice::automatic;
   app::add_prolongation_option(cli, prolongation_choice);
   app::ProlongationChoice qem_choice = app::ProlongationChoice::automatic;
-  app::add_choice(cli, "--qem-prolongation", qem_choice,
-                  {{"auto", app::ProlongationChoice::automatic}, {"barycentric", app::ProlongationChoice::barycentric},
-                   {"smoothed", app::ProlongationChoice::smoothed}},
-                  "QEM's proxy: 'smoothed' = Galerkin operators of its smoothed P (its most accurate configuration for "
-                  "Poisson and heat: 0.78x and 0.70x the error of the next, geometric means over 40 meshes), "
-                  "'barycentric' = the intrinsic operators of its own geometry with its P as given (the most accurate "
-                  "before the smoothed P), 'auto' = smoothed unless --coarse-distances heat");
+  app::add_prolongation_option(
+      cli, qem_choice, "--qem-prolongation",
+      "QEM's proxy: 'smoothed' = Galerkin operators of its smoothed P (its most accurate configuration for Poisson "
+      "and heat: 0.78x and 0.70x the error of the next, geometric means over 40 meshes), 'barycentric' = the "
+      "intrinsic operators of its own geometry with its P as given (the most accurate before the smoothed P), "
+      "'auto' = smoothed unless --coarse-distances heat");
   bool normalize_curvature = ice::recommended_coarsen_options().normalize_curvature;
   cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
                "ice_area: curvature masses divided by the total absolute curvature (ice::CoarsenOptions)")
@@ -757,8 +756,12 @@ int main(int argc, char** argv) {
     const std::string heat_geodesics =
         geodesic.method == fem::CoarseDistanceMethod::heat_method ? "--coarse-distances heat" : "";
     const fem::ProlongationKind prolongation = app::resolve_prolongation(prolongation_choice, kind, heat_geodesics);
-    const bool qem_smoothed = app::resolve_prolongation(qem_choice, fem::CoarseOperatorKind::galerkin, heat_geodesics) ==
-                              fem::ProlongationKind::smoothed;
+    // QEM: Galerkin operators of its smoothed P, or the operators of its own geometry with its P as given.
+    const fem::ProlongationKind qem_prolongation =
+        app::resolve_prolongation(qem_choice, fem::CoarseOperatorKind::galerkin, heat_geodesics, "--qem-prolongation");
+    const fem::CoarseOperatorKind qem_kind = qem_prolongation == fem::ProlongationKind::smoothed
+                                                 ? fem::CoarseOperatorKind::galerkin
+                                                 : fem::CoarseOperatorKind::intrinsic;
     if (cli.count("--view-budget") == 0) {
       view_budget = budgets.front();
       for (double b : budgets)
@@ -892,13 +895,12 @@ int main(int argc, char** argv) {
           r.coarse_n = coarse.summary.coarse_vertices;
           r.coarse_faces = coarse.summary.coarse_faces;
           try {
-            // QEM with the operators of its own geometry (positions, or their intrinsic Delaunay
-            // triangulation; Galerkin operators with its barycentric P make QEM less accurate), or
-            // with --qem-smoothed Galerkin operators of the smoothed P.
+            // QEM with Galerkin operators of its smoothed P, or with the operators of its own geometry
+            // (positions, or their intrinsic Delaunay triangulation; Galerkin operators with its
+            // barycentric P make QEM less accurate).
             ProxySolutions solved;
-            solve_on_proxy(fine, coarse, qem_smoothed ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic,
-                           qem_smoothed ? fem::ProlongationKind::smoothed : fem::ProlongationKind::barycentric, r, rows,
-                           tolerances, polished, geodesic, viewed ? &solved : nullptr);
+            solve_on_proxy(fine, coarse, qem_kind, qem_prolongation, r, rows, tolerances, polished, geodesic,
+                           viewed ? &solved : nullptr);
             if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
           } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
             record_failure(r, e.what(), rows);
@@ -931,7 +933,9 @@ int main(int argc, char** argv) {
                               {"normalize_curvature", normalize_curvature},
                               {"operators", operators},
                               {"prolongation", app::cli_name(prolongation)},
-                              {"qem_operators", qem_smoothed ? "galerkin, smoothed prolongation" : "its own geometry's"},
+                              {"qem_operators", qem_prolongation == fem::ProlongationKind::smoothed
+                                                    ? "galerkin, smoothed prolongation"
+                                                    : "its own geometry's"},
                               {"heat_time", "0.1 x surface area, one backward Euler step"},
                               {"geodesic_sources", "vertex 0 and two farthest-point picks (R^3)"},
                               {"geodesic_coarse_distances", fem::to_string(geodesic.method)},

@@ -360,8 +360,7 @@ Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::Ref<const Eigen::VectorX
 }
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGeodesicOptions& options)
-    : P_rows_(options.method == CoarseDistanceMethod::heat_method ? proxy.prolongation()
-                                                                   : proxy.barycentric_prolongation()) {
+    : P_rows_(proxy.barycentric_prolongation()) {  // the heat method requires it to be the proxy's P
   P_rows_.prune(0.0);  // (an explicit zero would join a row's corners, and 0 · ∞ spoil sums)
   P_rows_.makeCompressed();
   if (options.method == CoarseDistanceMethod::heat_method) {
@@ -403,7 +402,7 @@ void ProxyGeodesicSolver::prepare_marching(const Faces& Fc, const FaceLengths& L
 }
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOperators coarse_operators)
-    : P_rows_(proxy.prolongation()), heat_(std::make_unique<HeatGeodesicSolver>(std::move(coarse_operators))) {
+    : P_rows_(proxy.barycentric_prolongation()), heat_(std::make_unique<HeatGeodesicSolver>(std::move(coarse_operators))) {
   if (heat_->operators().laplacian.rows() != proxy.coarse_size())
     throw std::invalid_argument("ProxyGeodesicSolver: coarse operators of the wrong size");
   P_rows_.makeCompressed();
