@@ -208,13 +208,15 @@ int main(int argc, char** argv) {
     report["vector_prolongation"] = {{"fitted", stats.fitted},
                                      {"from_corner_chart", stats.from_corner},
                                      {"unmatched", stats.unmatched},
-                                     {"median_fit_residual", stats.median_fit_residual}};
+                                     {"median_fit_residual", stats.median_fit_residual},
+                                     {"poor_fits", stats.poor_fits}};
     if (run.has_reference) report["error"] = error_json;
     if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
 
     run.print_summary(std::cout);
     std::cout << "  sources: " << sources_text << "; vector prolongation: " << stats.fitted << " frames fitted, "
-              << stats.from_corner << " from a corner's chart, " << stats.unmatched << " unmatched\n";
+              << stats.from_corner << " from a corner's chart, " << stats.unmatched << " unmatched, " << stats.poor_fits
+              << " poor fits\n";
     if (run.has_reference)
       std::cout << "  angle error vs fine: median " << app::fixed(error_json["angle"]["median_deg"], 2) << " deg, mean "
                 << app::fixed(error_json["angle"]["mean_deg"], 2) << ", p95 " << app::fixed(error_json["angle"]["p95_deg"], 2)

@@ -40,6 +40,7 @@ const std::vector<ice_test::Expected> kTable = {
     {"elephant.off", 2775, 5558, 0, 1, 0, 0, 3, 0, 0, 0, 0, 0, true},
     {"elephant-with-holes.off", 2798, 4463, 106, 1, 0, 0, 3, 0, 65, 0, 0, 0, true},
     {"spot.obj", 2930, 5856, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, true},
+    {"dino.off", 3916, 7828, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, true},
     {"mech-holes-shark.off", 5246, 10192, 4, 1, 0, 0, 0, 0, 0, 0, 0, 0, true},
     {"bob_tri.obj", 5344, 10688, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, true},
     {"fandisk.off", 6475, 12946, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, true},

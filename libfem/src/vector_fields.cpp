@@ -372,71 +372,119 @@ Eigen::VectorXcd VectorHeatSolver::interpolate(const std::vector<Index>& vertice
 
 namespace {
 
-// A patch of the coarse mesh unfolded into one plane: the faces reached from a root face by crossing
-// at most `depth` sides, each laid out once (the first, shortest, route wins).
+// A patch of the coarse mesh unfolded into one plane: every route of at most `depth` side crossings
+// from a root face that never crosses straight back. A face reached by several routes (around a cone
+// vertex, or two faces of a Δ-complex glued along two sides) is laid out once per route, as the
+// routes unfold it to different places. A point is looked up at the copy that the straight segment
+// from where it is expected reaches through the copy's own route (the image of a short fine edge is
+// a short path on the coarse surface, which unfolds along the faces it crosses); the nearest such
+// copy, or the nearest copy if no segment follows its route.
 class UnfoldedPatch {
  public:
   UnfoldedPatch(const ice::CompactMesh& mesh, int depth) : mesh_(mesh), depth_(depth) {}
   void build(Index root) {
-    for (Index f : placed_) slot_[f] = -1;
-    placed_.clear();
-    positions_.clear();
-    if (slot_.empty()) slot_.assign(static_cast<std::size_t>(mesh_.F.rows()), -1);
-    place(root, face_layout(mesh_.L, root));
+    for (const Placement& p : placements_) first_[static_cast<std::size_t>(p.face)] = -1;
+    placements_.clear();
+    if (first_.empty()) first_.assign(static_cast<std::size_t>(mesh_.F.rows()), -1);
+    place({root, -1, -1, face_layout(mesh_.L, root), -1});
     std::size_t begin = 0;
     for (int level = 0; level < depth_; ++level) {
-      const std::size_t end = placed_.size();
-      for (std::size_t i = begin; i < end && placed_.size() < kMaxFaces; ++i) {
-        const Index f = placed_[i];
-        const std::array<Point, 3> corners = positions_[i];
-        for (int k = 0; k < 3; ++k) {
-          const Index across = mesh_.twin[static_cast<std::size_t>(side_of(f, k))];
-          if (across == ice::kInvalid || slot_[across / 3] >= 0) continue;
+      const std::size_t end = placements_.size();
+      for (std::size_t i = begin; i < end && placements_.size() < kMaxPlacements; ++i) {
+        const Placement from = placements_[i];
+        for (int k = 0; k < 3 && placements_.size() < kMaxPlacements; ++k) {
+          if (k == from.entered_by) continue;
+          const Index across = mesh_.twin[static_cast<std::size_t>(side_of(from.face, k))];
+          if (across == ice::kInvalid) continue;
           const Index g = across / 3;
           const int d = across % 3;  // side d of g runs from corner k+1 of f to corner k of f
-          const Point a = corners[static_cast<std::size_t>((k + 1) % 3)], b = corners[static_cast<std::size_t>(k)];
+          const Point a = from.corners[static_cast<std::size_t>((k + 1) % 3)], b = from.corners[static_cast<std::size_t>(k)];
           const ice::Vec2 third = ice::layout_third_point({a.real(), a.imag()}, {b.real(), b.imag()}, mesh_.L(g, d),
                                                            mesh_.L(g, (d + 2) % 3), mesh_.L(g, (d + 1) % 3));
           std::array<Point, 3> layout;
           layout[static_cast<std::size_t>(d)] = a;
           layout[static_cast<std::size_t>((d + 1) % 3)] = b;
           layout[static_cast<std::size_t>((d + 2) % 3)] = Point(third.x, third.y);
-          place(g, layout);
+          place({g, d, static_cast<Index>(i), layout, -1});
         }
       }
       begin = end;
     }
   }
-  // Position of a point of the map in the patch, if its face (or, for a coarse vertex, a face at it)
-  // was laid out.
-  bool position(const ice::CoarsePoint& point, Point& out) const {
-    if (point.face >= 0 && slot_[point.face] >= 0) {
-      const std::array<Point, 3>& c = positions_[static_cast<std::size_t>(slot_[point.face])];
-      out = point.bary[0] * c[0] + point.bary[1] * c[1] + point.bary[2] * c[2];
-      return true;
+  // Position of a point of the map in the patch as seen from `from` (see the class comment), if its
+  // face (or, for a coarse vertex, a face at it) was laid out.
+  bool position(const ice::CoarsePoint& point, Point from, Point& out) const {
+    candidates_.clear();
+    const auto add = [&](Index placement, Point candidate) {
+      for (const auto& [other, place] : candidates_)
+        if (std::abs(place - candidate) <= 1e-12 * std::abs(place - from)) return;  // the same place again
+      candidates_.emplace_back(placement, candidate);
+    };
+    if (point.coarse_vertex == ice::kInvalid) {
+      if (point.face < 0) return false;
+      for (Index i = first_[static_cast<std::size_t>(point.face)]; i >= 0; i = placements_[static_cast<std::size_t>(i)].next_copy) {
+        const std::array<Point, 3>& c = placements_[static_cast<std::size_t>(i)].corners;
+        add(i, point.bary[0] * c[0] + point.bary[1] * c[1] + point.bary[2] * c[2]);
+      }
+    } else {
+      for (std::size_t i = 0; i < placements_.size(); ++i)
+        for (int k = 0; k < 3; ++k)
+          if (mesh_.F(placements_[i].face, k) == point.coarse_vertex)
+            add(static_cast<Index>(i), placements_[i].corners[static_cast<std::size_t>(k)]);
     }
-    if (point.coarse_vertex == ice::kInvalid) return false;
-    for (std::size_t i = 0; i < placed_.size(); ++i)
-      for (int k = 0; k < 3; ++k)
-        if (mesh_.F(placed_[i], k) == point.coarse_vertex) {
-          out = positions_[i][static_cast<std::size_t>(k)];
-          return true;
+    if (candidates_.empty()) return false;
+    // Nearest first; the first whose segment follows its route, else the nearest.
+    std::sort(candidates_.begin(), candidates_.end(),
+              [&](const auto& x, const auto& y) { return std::abs(x.second - from) < std::abs(y.second - from); });
+    out = candidates_.front().second;
+    if (candidates_.size() > 1)
+      for (const auto& [placement, candidate] : candidates_)
+        if (follows_route(placement, from, candidate)) {
+          out = candidate;
+          break;
         }
-    return false;
+    return true;
   }
 
  private:
-  static constexpr std::size_t kMaxFaces = 96;
-  void place(Index f, const std::array<Point, 3>& layout) {
-    slot_[f] = static_cast<Index>(placed_.size());
-    placed_.push_back(f);
-    positions_.push_back(layout);
+  struct Placement {
+    Index face;
+    int entered_by;    // side of `face` crossed to reach it (-1: the root)
+    Index parent;      // placement it was reached from (-1: the root)
+    std::array<Point, 3> corners;
+    Index next_copy;   // the face's previous placement, or -1
+  };
+  static constexpr std::size_t kMaxPlacements = 96;
+  void place(Placement p) {
+    p.next_copy = first_[static_cast<std::size_t>(p.face)];
+    first_[static_cast<std::size_t>(p.face)] = static_cast<Index>(placements_.size());
+    placements_.push_back(p);
+  }
+  // Whether the segment p→q crosses every side its placement's route crossed (up to round-off), i.e.
+  // unfolds along that route.
+  bool follows_route(Index placement, Point p, Point q) const {
+    for (Index i = placement; i >= 0 && placements_[static_cast<std::size_t>(i)].parent >= 0;
+         i = placements_[static_cast<std::size_t>(i)].parent) {
+      const Placement& step = placements_[static_cast<std::size_t>(i)];
+      const Point a = step.corners[static_cast<std::size_t>(step.entered_by)];
+      const Point b = step.corners[static_cast<std::size_t>((step.entered_by + 1) % 3)];
+      if (!segments_meet(p, q, a, b)) return false;
+    }
+    return true;
+  }
+  static double cross(Point u, Point v) { return u.real() * v.imag() - u.imag() * v.real(); }
+  static bool segments_meet(Point p, Point q, Point a, Point b) {
+    const double slack = 1e-9 * std::norm(std::abs(q - p) + std::abs(b - a));  // round-off of the cross products
+    const double side_a = cross(q - p, a - p), side_b = cross(q - p, b - p);
+    const double side_p = cross(b - a, p - a), side_q = cross(b - a, q - a);
+    return std::min(side_a, side_b) <= slack && std::max(side_a, side_b) >= -slack && std::min(side_p, side_q) <= slack &&
+           std::max(side_p, side_q) >= -slack;
   }
   const ice::CompactMesh& mesh_;
   int depth_;
-  std::vector<Index> slot_;
-  std::vector<Index> placed_;
-  std::vector<std::array<Point, 3>> positions_;
+  std::vector<Index> first_;  // per face: its latest placement, or -1
+  std::vector<Placement> placements_;
+  mutable std::vector<std::pair<Index, Point>> candidates_;  // position()'s scratch
 };
 
 // The polar chart of a coarse vertex: a point in a face at the vertex becomes ρ·e^{i(coordinate)} in
@@ -450,7 +498,7 @@ class PolarChart {
     corners_.clear();
     fans_.for_each(vertex, [&](Index c) { corners_.push_back(c); });
   }
-  bool position(const ice::CoarsePoint& point, Point& out) const {
+  bool position(const ice::CoarsePoint& point, Point near, Point& out) const {
     if (point.coarse_vertex == vertex_) {
       out = 0;
       return true;
@@ -470,22 +518,21 @@ class PolarChart {
       out = std::polar(std::abs(offset), frames_.side_coordinate(f, k) + frames_.angle_scale(vertex_) * within);
       return true;
     }
-    // A coarse vertex at the far end of one of the fan's sides.
+    // A coarse vertex at the far end of one of the fan's sides (the nearest, with multi-edges).
     if (point.coarse_vertex == ice::kInvalid) return false;
+    bool found = false;
+    const auto consider = [&](Point candidate) {
+      if (!found || std::abs(candidate - near) < std::abs(out - near)) out = candidate;
+      found = true;
+    };
     for (Index c : corners_) {
       const Index f = c / 3;
       const int k = c % 3;
-      if (mesh_.F(f, (k + 1) % 3) == point.coarse_vertex) {
-        out = std::polar(mesh_.L(f, k), frames_.side_coordinate(f, k));
-        return true;
-      }
-      if (mesh_.F(f, (k + 2) % 3) == point.coarse_vertex) {
-        out = std::polar(mesh_.L(f, (k + 2) % 3),
-                         frames_.side_coordinate(f, k) + frames_.angle_scale(vertex_) * angles_(f, k));
-        return true;
-      }
+      if (mesh_.F(f, (k + 1) % 3) == point.coarse_vertex) consider(std::polar(mesh_.L(f, k), frames_.side_coordinate(f, k)));
+      if (mesh_.F(f, (k + 2) % 3) == point.coarse_vertex)
+        consider(std::polar(mesh_.L(f, (k + 2) % 3), frames_.side_coordinate(f, k) + frames_.angle_scale(vertex_) * angles_(f, k)));
     }
-    return false;
+    return found;
   }
 
  private:
@@ -509,7 +556,7 @@ bool fit_rotation(const std::vector<std::pair<Index, Complex>>& ring, const std:
   double fine_norm = 0, chart_norm = 0;
   for (const auto& [neighbour, fine_edge] : ring) {
     Point image;
-    if (!chart.position(map[static_cast<std::size_t>(neighbour)], image)) continue;
+    if (!chart.position(map[static_cast<std::size_t>(neighbour)], origin, image)) continue;
     const Complex chart_edge = image - origin;
     if (std::abs(chart_edge) == 0) continue;
     cross += std::conj(fine_edge) * chart_edge;
@@ -584,6 +631,7 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
       // A survivor: its fine frame against its coarse vertex's frame.
       if (fit_rotation(ring, map, polar_at(point.coarse_vertex), Point(0), fit)) {
         ++counts.fitted;
+        counts.poor_fits += fit.residual > kPoorFitResidual;
         residuals.push_back(fit.residual);
       } else {
         ++counts.unmatched;
@@ -598,6 +646,7 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
     const Point origin = point.bary[0] * corners[0] + point.bary[1] * corners[1] + point.bary[2] * corners[2];
     if (fit_rotation(ring, map, patch, origin, fit)) {
       ++counts.fitted;
+      counts.poor_fits += fit.residual > kPoorFitResidual;
       residuals.push_back(fit.residual);
     } else {
       // Fall back on the polar chart of the nearest corner (the vertex frame, then into the face).
@@ -605,7 +654,7 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
       const Index corner_vertex_index = coarse.F(f, k);
       const PolarChart& chart = polar_at(corner_vertex_index);
       Point own;
-      if (chart.position(point, own) && fit_rotation(ring, map, chart, own, fit)) {
+      if (chart.position(point, Point(0), own) && fit_rotation(ring, map, chart, own, fit)) {
         fit.rotation *= std::polar(1.0, coarse_frames.corner_rotation(f, k));
         ++counts.from_corner;
       } else {

@@ -141,7 +141,14 @@ struct VectorProlongationStats {
   Index from_corner = 0;     ///< fitted in the polar chart of the nearest coarse corner instead
   Index unmatched = 0;       ///< no neighbour image found: frame carried through the face unrotated
   double median_fit_residual = 0;  ///< median over fitted vertices of the fit's relative residual
+  /// Fitted vertices whose relative residual exceeds kPoorFitResidual: their one-ring's images are no
+  /// rotation of the ring (the map folds there, or the images are far apart), so their frame is a guess.
+  Index poor_fits = 0;
 };
+
+/// Relative residual above which a fit counts as poor (for images turned by a common angle from the
+/// best rotation, the residual is about its sine: here ~30°).
+inline constexpr double kPoorFitResidual = 0.5;
 
 /// Vector prolongation P_vec (n_fine × n_coarse, complex): a coarse field Y_c becomes the fine field
 /// P_vec Y_c. A fine vertex in coarse face f with barycentric coordinates b gets
@@ -150,7 +157,9 @@ struct VectorProlongationStats {
 /// vertex's fine one-ring (edge vectors in its own frame) onto the images of its neighbours under the
 /// fine-to-coarse map, laid out around the coarse face (unfolded across its sides and corners) or, for
 /// a survivor, in its coarse vertex's polar chart: the rotation part of the map's differential, fitted
-/// by least squares. Every row's moduli sum to 1 (they are the barycentric coordinates; less where a
+/// by least squares. Where the unfolding reaches a face or a coarse vertex by several routes (around a
+/// cone vertex; two Δ-complex faces glued along two sides) it lays it out once per route and each
+/// neighbour's image is its copy nearest the vertex (the image of a short fine edge is a short path). Every row's moduli sum to 1 (they are the barycentric coordinates; less where a
 /// Δ-complex face repeats a corner and two entries add); with no coarsening (every vertex survives, same frames) P_vec is the identity up to round-off.
 /// `map` holds one CoarsePoint per fine vertex (ice::fine_to_coarse_map). Throws std::invalid_argument
 /// on size mismatches or a map face out of range.
