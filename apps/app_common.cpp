@@ -143,6 +143,22 @@ fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& c
                           prolongation);
 }
 
+TangentMesh tangent_mesh(const ice::TriangleMesh& mesh) {
+  TangentMesh out;
+  out.mesh.F = mesh.F;
+  out.mesh.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
+  out.mesh.twin = ice::glue_by_vertex_pairs(mesh.F);
+  out.frames = fem::tangent_frames(out.mesh);
+  return out;
+}
+
+fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::CoarseSpace& coarse,
+                                       const std::vector<ice::CoarsePoint>& map, fem::VectorOperatorKind kind,
+                                       double time_factor) {
+  const fem::TangentFrames coarse_frames = fem::tangent_frames(coarse.mesh);
+  return fem::VectorHeatProxy(fine.mesh, fine.frames, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
+}
+
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                                  PdeRun& run, bool keep_method_state) {
   ice::CoarseSpaceOptions space_options;

@@ -14,6 +14,7 @@
 
 #include "command_line.h"
 #include "fem/coarse_proxy.h"
+#include "fem/vector_fields.h"
 #include "ice/coarse_space.h"
 #include "ice/coarse_tracing.h"
 #include "ice/scalar_field_io.h"
@@ -74,6 +75,22 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
 /// or not), with coarse operators of `kind`, lumped mass.
 fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind,
                             fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric);
+
+/// The fine mesh of the vector heat method (vector-coarse, the Python package): the input triangles
+/// with their own edge lengths, glued by vertex pairs, and their tangent frames — not the intrinsic
+/// Delaunay retriangulation, since the fields are drawn on the input triangles.
+struct TangentMesh {
+  ice::CompactMesh mesh;
+  fem::TangentFrames frames;
+};
+TangentMesh tangent_mesh(const ice::TriangleMesh& mesh);
+
+/// The vector proxy through `coarse`, a coarse space of the mesh `fine` was made from, and its
+/// fine-to-coarse map (ice::fine_to_coarse_map: ICE, or QEM with extrinsic geometry): the coarse
+/// mesh's frames, P_vec fitted from the map, the coarse operators of `kind`.
+fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::CoarseSpace& coarse,
+                                       const std::vector<ice::CoarsePoint>& map, fem::VectorOperatorKind kind,
+                                       double time_factor = fem::kVectorProxyTimeFactor);
 
 /// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
 /// target was missed and records the summary in `run`. `keep_method_state`: keep what

@@ -6,8 +6,8 @@
 // that interpolates them (directions by the connection Laplacian, magnitudes by scalar diffusion).
 //
 // Pipeline (every phase timed apart): load → coarsen (ice::build_coarse_space with the fine-to-coarse
-// map) → assemble (tangent frames of the input triangles and of the coarse mesh) → factor
-// (fem::VectorHeatProxy: the vector prolongation P_vec fitted from the map, the coarse operators —
+// map) → assemble (app::tangent_mesh: the input triangles and their tangent frames) → factor
+// (app::make_vector_proxy: the coarse frames, the vector prolongation P_vec fitted from the map, the coarse operators —
 // Galerkin P_vecᴴ L∇ P_vec or intrinsic — and their factorisations) → solve (restricted sources,
 // three coarse solves) → prolong (P_vec and P, combined on the fine mesh). Then the reference:
 // fem::VectorHeatSolver on the fine mesh, and the angle and magnitude errors against it.
@@ -118,10 +118,6 @@ int main(int argc, char** argv) {
     std::vector<ice::Index> sources;
     for (long long s : file_sources) sources.push_back(vertices.mesh_vertex(s, "--source: vertex"));
     app::require_connected(loaded, opt.mesh, kTool);
-    ice::CompactMesh fine;
-    fine.F = mesh.F;
-    fine.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
-    fine.twin = ice::glue_by_vertex_pairs(mesh.F);
     run.fine_vertices = n;
     run.fine_faces = mesh.F.rows();
     ice::CoarsenOptions coarsen_options;
@@ -130,12 +126,11 @@ int main(int argc, char** argv) {
 
     // ---- coarsen (with the map P_vec is fitted from)
     const ice::CoarseSpace coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true);
-    const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(coarse);
     run.coarsen = clock.lap();
 
-    // ---- frames, the source vectors in them
-    const fem::TangentFrames fine_frames = fem::tangent_frames(fine);
-    const fem::TangentFrames coarse_frames = fem::tangent_frames(coarse.mesh);
+    // ---- the input triangles' frames, the source vectors in them
+    const app::TangentMesh fine = app::tangent_mesh(mesh);
+    const fem::TangentFrames& fine_frames = fine.frames;
     std::vector<fem::Complex> vectors;
     for (std::size_t s = 0; s < count; ++s) {
       fem::Complex z;
@@ -143,7 +138,7 @@ int main(int argc, char** argv) {
         z = std::polar(1.0, angles[s] * kPi / 180);
       } else {
         const Eigen::Vector3d d(directions[3 * s], directions[3 * s + 1], directions[3 * s + 2]);
-        z = fem::ambient_to_tangent(fine, fine_frames, mesh.V, sources[s], d);
+        z = fem::ambient_to_tangent(fine.mesh, fine_frames, mesh.V, sources[s], d);
         if (std::abs(z) <= 1e-12 * d.norm() || d.norm() == 0)
           throw AppError(app::kUsage, "--direction of source " + std::to_string(file_sources[s]) +
                                           " is normal to the surface (nothing left after projection)");
@@ -152,7 +147,7 @@ int main(int argc, char** argv) {
       vectors.push_back(magnitudes[s] * z);
     }
     run.assemble = clock.lap();
-    const fem::VectorHeatProxy proxy(fine, fine_frames, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
+    const fem::VectorHeatProxy proxy = app::make_vector_proxy(fine, coarse, ice::fine_to_coarse_map(coarse), kind, time_factor);
     run.factor = clock.lap();
     const Eigen::VectorXcd field = proxy.interpolate(sources, vectors);
     run.solve = clock.lap();  // restriction, coarse solves, prolongation and combination in one call
@@ -163,7 +158,7 @@ int main(int argc, char** argv) {
     std::vector<double> angle_errors;
     Eigen::VectorXd angle_error_field, magnitude_error_field;
     if (run.has_reference) {
-      fem::VectorHeatOperators fine_ops = fem::vector_heat_operators(fine, fine_frames);
+      fem::VectorHeatOperators fine_ops = fem::vector_heat_operators(fine.mesh, fine_frames);
       run.ref_assemble = clock.lap();
       const fem::VectorHeatSolver fine_solver(std::move(fine_ops));
       run.ref_factor = clock.lap();
@@ -189,7 +184,7 @@ int main(int argc, char** argv) {
     if (!opt.output.empty()) {
       std::vector<ice::ScalarField> fields;
       const auto add_vectors = [&](const std::string& name, const Eigen::VectorXcd& values) {
-        const Eigen::MatrixXd ambient = fem::tangent_to_ambient(fine, fine_frames, mesh.V, values);
+        const Eigen::MatrixXd ambient = fem::tangent_to_ambient(fine.mesh, fine_frames, mesh.V, values);
         for (int axis = 0; axis < 3; ++axis) fields.push_back({name + "_" + "xyz"[axis], ambient.col(axis)});
       };
       add_vectors("vector", field);

@@ -22,6 +22,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     ProxyGeodesicSolver,
     ProxyHeatSolver,
     ProxyPoissonSolver,
+    VectorHeatSolver,
     coarsen,
     cotan_laplacian,
     face_lengths,
@@ -41,7 +42,8 @@ __all__ = [
     "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
     "face_lengths", "geodesic_distance", "heat_flow", "hierarchy", "intrinsic_delaunay", "load_coarse_mesh",
-    "load_mesh", "loop_subdivide", "mass_matrix", "save_mesh", "solve_poisson", "validate",
+    "load_mesh", "loop_subdivide", "mass_matrix", "save_mesh", "solve_poisson", "transport_vectors", "validate",
+    "VectorHeatSolver",
 ]
 __version__ = "0.1.0"
 
@@ -154,3 +156,21 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
         return ProxyGeodesicSolver.from_coarse(V, F, coarse).distance(sources)
     proxy = Proxy(V, F, coarse, operators=operators, fine=fine)
     return ProxyGeodesicSolver(proxy, method=method, time_factor=time_factor).distance(sources)
+
+
+def transport_vectors(V, F, sources, vectors=1.0, *, coarse: CoarseSpace | None = None, operators: str = "galerkin",
+                      time_factor: float | None = None, ambient: bool = False, **coarsening):
+    """Tangent vectors carried from `sources` to every vertex through a coarse proxy, in one call (vector-coarse).
+
+    vectors: one complex number per source, in its tangent frame (see VectorHeatSolver; default 1, the
+    direction of the source's reference edge); one source is parallel-transported along shortest
+    geodesics, several give the smooth field through them. coarse / coarsening options as for
+    solve_poisson. Returns the complex field (one tangent vector per vertex), or with ambient=True its
+    n×3 vectors in the planes of the input triangles. For many calls build VectorHeatSolver once.
+    """
+    coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
+    solver = VectorHeatSolver(V, F, coarse, operators=operators, time_factor=time_factor)
+    indices = np.atleast_1d(np.asarray(sources))
+    values = np.broadcast_to(np.asarray(vectors, dtype=complex), indices.shape)
+    field = solver.interpolate(indices, np.ascontiguousarray(values))
+    return solver.to_ambient(field) if ambient else field

@@ -203,6 +203,23 @@ class DistanceOracle:
     @property
     def memory_bytes(self) -> int: ...
 
+ComplexArray = npt.NDArray[np.complex128]
+
+class VectorHeatSolver:
+    """The vector heat method on the input triangles, or through a coarse space (vector-coarse)."""
+    def __init__(self, V: ArrayLike, F: ArrayLike, coarse: CoarseSpace | None = None, *,
+                 operators: Literal["galerkin", "intrinsic"] = "galerkin", time_factor: float | None = None) -> None: ...
+    def interpolate(self, sources: Indices, vectors: ArrayLike) -> ComplexArray: ...
+    def transport(self, source: int, vector: complex = 1) -> ComplexArray: ...
+    def to_ambient(self, field: ArrayLike) -> FloatArray: ...
+    def to_tangent(self, vertices: Indices, directions: ArrayLike) -> ComplexArray: ...
+    @property
+    def vector_prolongation(self) -> scipy.sparse.csc_matrix | None: ...
+    @property
+    def prolongation_stats(self) -> dict[str, Any] | None: ...
+    @property
+    def size(self) -> int: ...
+
 def solve_poisson(V: ArrayLike, F: ArrayLike, f: ArrayLike, *, coarse: CoarseSpace | None = None,
                   fixed: Indices | None = None, values: ArrayLike | None = None,
                   operators: Literal["galerkin", "intrinsic"] = "galerkin",
@@ -223,3 +240,7 @@ def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: C
                       fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
                       **coarsening: Any) -> FloatArray:
     """Geodesic distance through a coarse proxy in one call (coarse fast marching by default)."""
+def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: ArrayLike = 1.0, *,
+                      coarse: CoarseSpace | None = None, operators: Literal["galerkin", "intrinsic"] = "galerkin",
+                      time_factor: float | None = None, ambient: bool = False, **coarsening: Any) -> ComplexArray | FloatArray:
+    """Tangent vectors carried from sources to every vertex through a coarse proxy in one call."""

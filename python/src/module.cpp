@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include <pybind11/complex.h>
 #include <pybind11/eigen.h>
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>
@@ -23,12 +24,14 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include "app_common.h"
 #include "arrays.h"
 #include "fem/coarse_proxy.h"
 #include "fem/distance_oracle.h"
 #include "fem/multigrid.h"
 #include "fem/operators.h"
 #include "fem/problems.h"
+#include "fem/vector_fields.h"
 #include "ice/coarse_space.h"
 #include "ice/hierarchy.h"
 #include "ice/intrinsic_mesh_io.h"
@@ -478,6 +481,55 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
   return result;
 }
 
+// ---- tangent vector fields -------------------------------------------------------------------------
+
+// The vector heat method on the input triangles (vector-coarse's fine mesh), alone or through a
+// coarse space: one of fine_solver / proxy is set.
+struct PyVectorHeat {
+  ice::Positions V;
+  app::TangentMesh fine;
+  std::unique_ptr<fem::VectorHeatSolver> fine_solver;
+  std::unique_ptr<fem::VectorHeatProxy> proxy;
+  Eigen::Index size() const { return V.rows(); }
+};
+
+// A 1-D array of `size` finite complex numbers (real numbers are taken as complex).
+std::vector<fem::Complex> complex_argument(const py::handle& values, std::size_t size, const char* name) {
+  const auto array = py::array_t<std::complex<double>, py::array::c_style | py::array::forcecast>::ensure(values);
+  if (!array) throw py::type_error(std::string(name) + " must be complex numbers (an array or a sequence)");
+  if (array.ndim() > 1) throw py::value_error(std::string(name) + " must be one-dimensional");
+  if (static_cast<std::size_t>(array.size()) != size)
+    throw py::value_error(std::string(name) + " has " + std::to_string(array.size()) + " entries, expected " + std::to_string(size));
+  std::vector<fem::Complex> out(array.data(), array.data() + array.size());
+  for (std::size_t i = 0; i < out.size(); ++i)
+    if (!std::isfinite(out[i].real()) || !std::isfinite(out[i].imag()))
+      throw py::value_error(std::string(name) + "[" + std::to_string(i) + "] is not finite");
+  return out;
+}
+
+std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::object& F, const py::object& coarse_object,
+                                               const std::string& operators, const py::object& time_factor_object) {
+  auto result = std::make_unique<PyVectorHeat>();
+  const PyCoarseSpace* coarse = coarse_object.is_none() ? nullptr : &coarse_object.cast<const PyCoarseSpace&>();
+  const ice::TriangleMesh mesh = coarse ? require_coarse_space_of(V, F, *coarse, "VectorHeatSolver") : mesh_argument(V, F);
+  if (coarse && coarse->map.empty())
+    throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or QEM with extrinsic geometry)");
+  const auto kind = choice<fem::VectorOperatorKind>(
+      operators, "operators", {{"galerkin", fem::VectorOperatorKind::galerkin}, {"intrinsic", fem::VectorOperatorKind::intrinsic}});
+  const double time_factor = time_factor_object.is_none() ? (coarse ? fem::kVectorProxyTimeFactor : 1.0)
+                                                          : number_option(time_factor_object, "time_factor");
+  if (!(time_factor > 0) || !std::isfinite(time_factor)) throw py::value_error("time_factor must be > 0");
+  result->V = mesh.V;
+  py::gil_scoped_release release;
+  require_clean(mesh);
+  result->fine = app::tangent_mesh(mesh);
+  if (coarse)
+    result->proxy = std::make_unique<fem::VectorHeatProxy>(app::make_vector_proxy(result->fine, coarse->space, coarse->map, kind, time_factor));
+  else
+    result->fine_solver = std::make_unique<fem::VectorHeatSolver>(fem::vector_heat_operators(result->fine.mesh, result->fine.frames, time_factor));
+  return result;
+}
+
 // A matrix the proxy owns, as scipy viewing its arrays (read-only; a copy if not compressed).
 py::object operator_view(const fem::SparseMatrix& matrix, const py::handle& owner) {
   if (matrix.isCompressed()) return scipy_view(matrix, owner);
@@ -900,6 +952,83 @@ distances coarsen with use="geodesic".)doc")
            }, py::arg("sources"), "Distance of every vertex to the nearest of `sources` (vertex indices).")
       .def_property_readonly("times", [](PyGeodesicSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last distance()'s stages.");
+
+  // ---- tangent vector fields
+  py::class_<PyVectorHeat>(m, "VectorHeatSolver", R"doc(The vector heat method (Sharp, Soliman, Crane 2019) on the input triangles, or through a coarse space (vector-coarse).
+
+VectorHeatSolver(V, F, coarse=None, operators="galerkin", time_factor=None): without `coarse`, on
+(V, F) itself with heat time t = (time_factor · mean edge length)², time_factor 1 by default; with a
+coarse space of (V, F) (ice.coarsen, keep_map=True), through it: the sources restricted by the vector
+prolongation P_vec (complex, fitted from the fine-to-coarse map) and by P, the three diffusions solved
+on the coarse mesh with Galerkin ("galerkin", the default) or the coarse mesh's own ("intrinsic")
+operators, t = (time_factor · mean coarse edge length)² with time_factor 0.5 by default, prolonged back.
+
+Tangent vectors are complex numbers in each vertex's frame: the angle counter-clockwise from the
+vertex's reference edge (at an interior vertex scaled by 2π over its angle sum), the modulus the
+length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions into such numbers.)doc")
+      .def(py::init(&make_vector_heat), py::arg("V"), py::arg("F"), py::arg("coarse") = py::none(), py::kw_only(),
+           py::arg("operators") = "galerkin", py::arg("time_factor") = py::none())
+      .def("interpolate", [](const PyVectorHeat& s, const py::object& sources, const py::object& vectors) {
+             const std::vector<ice::Index> vertices = index_argument(sources, s.size(), "sources");
+             if (vertices.empty()) throw py::value_error("sources is empty");
+             const std::vector<fem::Complex> values = complex_argument(vectors, vertices.size(), "vectors");
+             for (const fem::Complex& z : values)
+               if (z == fem::Complex(0)) throw py::value_error("vectors must be nonzero (a zero vector has no direction)");
+             py::gil_scoped_release release;
+             return s.proxy ? s.proxy->interpolate(vertices, values) : s.fine_solver->interpolate(vertices, values);
+           }, py::arg("sources"), py::arg("vectors"),
+           "The smooth field through `vectors` (complex, one per source vertex): one source transports its vector "
+           "along shortest geodesics, several are interpolated (directions by the connection Laplacian, magnitudes "
+           "by scalar diffusion). Complex array, one tangent vector per vertex.")
+      .def("transport", [](const PyVectorHeat& s, long long source, std::complex<double> vector) {
+             if (source < 0 || source >= s.size())
+               throw py::value_error("source = " + std::to_string(source) + " is out of range (valid 0.." + std::to_string(s.size() - 1) + ")");
+             if (!std::isfinite(vector.real()) || !std::isfinite(vector.imag()) || vector == fem::Complex(0))
+               throw py::value_error("vector must be a finite nonzero complex number");
+             const std::vector<ice::Index> vertices{static_cast<ice::Index>(source)};
+             py::gil_scoped_release release;
+             return s.proxy ? s.proxy->interpolate(vertices, {vector}) : s.fine_solver->interpolate(vertices, {vector});
+           }, py::arg("source"), py::arg("vector") = std::complex<double>(1, 0),
+           "Parallel transport of `vector` (complex, in the source's frame) from vertex `source` to every vertex.")
+      .def("to_ambient", [](const PyVectorHeat& s, const py::object& field) {
+             const std::vector<fem::Complex> values = complex_argument(field, static_cast<std::size_t>(s.size()), "field");
+             const Eigen::VectorXcd vector = Eigen::Map<const Eigen::VectorXcd>(values.data(), s.size());
+             py::gil_scoped_release release;
+             return fem::tangent_to_ambient(s.fine.mesh, s.fine.frames, s.V, vector);
+           }, py::arg("field"), "A field (complex, one per vertex) as n×3 vectors in the planes of the input triangles.")
+      .def("to_tangent", [](const PyVectorHeat& s, const py::object& vertices, const py::object& directions) {
+             const std::vector<ice::Index> at = index_argument(vertices, s.size(), "vertices");
+             const Eigen::MatrixXd d = matrix_argument(directions, static_cast<Eigen::Index>(at.size()), "directions");
+             if (d.cols() != 3) throw py::value_error("directions must have 3 columns");
+             Eigen::VectorXcd out(static_cast<Eigen::Index>(at.size()));
+             for (std::size_t i = 0; i < at.size(); ++i)
+               out(static_cast<Eigen::Index>(i)) =
+                   fem::ambient_to_tangent(s.fine.mesh, s.fine.frames, s.V, at[i], d.row(static_cast<Eigen::Index>(i)).transpose());
+             return out;
+           }, py::arg("vertices"), py::arg("directions"),
+           "3D directions (k×3) at `vertices` as tangent vectors (complex): projected into the surface, the length the projection's.")
+      .def_property_readonly("vector_prolongation", [](const PyVectorHeat& s) -> py::object {
+             if (!s.proxy) return py::none();
+             const fem::ComplexSparseMatrix& P = s.proxy->vector_prolongation();
+             const py::module_ sparse = py::module_::import("scipy.sparse");
+             std::vector<fem::Complex> data(P.valuePtr(), P.valuePtr() + P.nonZeros());
+             std::vector<int> indices(P.innerIndexPtr(), P.innerIndexPtr() + P.nonZeros());
+             std::vector<int> indptr(P.outerIndexPtr(), P.outerIndexPtr() + P.outerSize() + 1);
+             return sparse.attr("csc_matrix")(py::make_tuple(py::array(py::cast(data)), py::array(py::cast(indices)), py::array(py::cast(indptr))),
+                                              py::make_tuple(P.rows(), P.cols()));
+           }, "P_vec (scipy.sparse.csc_matrix, complex, fine × coarse), None without a coarse space.")
+      .def_property_readonly("prolongation_stats", [](const PyVectorHeat& s) -> py::object {
+             if (!s.proxy) return py::none();
+             const fem::VectorProlongationStats& st = s.proxy->prolongation_stats();
+             py::dict d;
+             d["fitted"] = st.fitted;
+             d["from_corner_chart"] = st.from_corner;
+             d["unmatched"] = st.unmatched;
+             d["median_fit_residual"] = st.median_fit_residual;
+             d["poor_fits"] = st.poor_fits;
+             return std::move(d);
+           }, "How P_vec's frames were fitted (vector-coarse's report keys), None without a coarse space.")
+      .def_property_readonly("size", &PyVectorHeat::size, "Vertices of (V, F).");
 
   // ---- multigrid
   m.def(

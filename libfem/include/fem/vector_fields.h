@@ -158,9 +158,11 @@ inline constexpr double kPoorFitResidual = 0.5;
 /// fine-to-coarse map, laid out around the coarse face (unfolded across its sides and corners) or, for
 /// a survivor, in its coarse vertex's polar chart: the rotation part of the map's differential, fitted
 /// by least squares. Where the unfolding reaches a face or a coarse vertex by several routes (around a
-/// cone vertex; two Δ-complex faces glued along two sides) it lays it out once per route and each
-/// neighbour's image is its copy nearest the vertex (the image of a short fine edge is a short path). Every row's moduli sum to 1 (they are the barycentric coordinates; less where a
-/// Δ-complex face repeats a corner and two entries add); with no coarsening (every vertex survives, same frames) P_vec is the identity up to round-off.
+/// cone vertex; two Δ-complex faces glued along two sides) it lays it out once per route, and each
+/// neighbour's image is the nearest copy that the straight segment from the vertex reaches through
+/// that copy's own route (the image of a short fine edge is a short path). Every row's moduli sum to 1
+/// (they are the barycentric coordinates; less where a Δ-complex face repeats a corner and two entries
+/// add); with no coarsening (every vertex survives, same frames) P_vec is the identity up to round-off.
 /// `map` holds one CoarsePoint per fine vertex (ice::fine_to_coarse_map). Throws std::invalid_argument
 /// on size mismatches or a map face out of range.
 ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
