@@ -334,12 +334,19 @@ VectorHeatParts VectorHeatSolver::diffuse(const Eigen::VectorXcd& vector_sources
   return parts;
 }
 
-Eigen::VectorXcd vector_heat_field(const VectorHeatParts& parts) {
+Eigen::VectorXcd vector_heat_field(const VectorHeatParts& parts, double min_magnitude, double max_magnitude) {
   const Eigen::Index n = parts.directions.size();
   Eigen::VectorXcd field(n);
   for (Eigen::Index i = 0; i < n; ++i) {
     const double length = std::abs(parts.directions(i));
-    const double magnitude = parts.indicator(i) > 0 ? parts.magnitudes(i) / parts.indicator(i) : 0.0;
+    // u/φ is a mean of the sources' magnitudes weighted by the diffused indicator, so it lies in
+    // their range; where cotan weights are negative (a non-Delaunay mesh) u and φ can both turn
+    // negative far from the sources, and the ratio is kept, clamped to that range.
+    double magnitude = 0;
+    if (min_magnitude == max_magnitude)
+      magnitude = parts.indicator(i) != 0 ? min_magnitude : 0.0;  // one magnitude: exactly it, wherever reached
+    else if (parts.indicator(i) != 0)
+      magnitude = std::clamp(parts.magnitudes(i) / parts.indicator(i), min_magnitude, max_magnitude);
     field(i) = length > 0 ? parts.directions(i) * (magnitude / length) : Complex(0);
   }
   return field;
@@ -359,13 +366,16 @@ VectorSources vector_sources(Eigen::Index n, const std::vector<Index>& vertices,
     sources.vectors(v) += vectors[s];
     sources.magnitudes(v) += std::abs(vectors[s]);
     sources.indicator(v) += 1;
+    sources.min_magnitude = s == 0 ? std::abs(vectors[s]) : std::min(sources.min_magnitude, std::abs(vectors[s]));
+    sources.max_magnitude = std::max(sources.max_magnitude, std::abs(vectors[s]));
   }
   return sources;
 }
 
 Eigen::VectorXcd VectorHeatSolver::interpolate(const std::vector<Index>& vertices, const std::vector<Complex>& vectors) const {
   const VectorSources sources = vector_sources(operators_.mass.rows(), vertices, vectors);
-  return vector_heat_field(diffuse(sources.vectors, sources.magnitudes, sources.indicator));
+  return vector_heat_field(diffuse(sources.vectors, sources.magnitudes, sources.indicator), sources.min_magnitude,
+                           sources.max_magnitude);
 }
 
 // ---- vector prolongation ----------------------------------------------------------------------
@@ -720,7 +730,7 @@ Eigen::VectorXcd VectorHeatProxy::interpolate(const std::vector<Index>& vertices
   prolonged.directions = vector_prolongation_ * coarse.directions;
   prolonged.magnitudes = P_ * coarse.magnitudes;
   prolonged.indicator = P_ * coarse.indicator;
-  return vector_heat_field(prolonged);
+  return vector_heat_field(prolonged, sources.min_magnitude, sources.max_magnitude);
 }
 
 double angle_between_degrees(Complex a, Complex b) {
