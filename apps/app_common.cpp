@@ -181,12 +181,13 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
 }
 
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                         PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine) {
+                         PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine, bool keep_method_state) {
   PdeProxy p;
   // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
   // An output file draws the coarse mesh on the surface (write_result_fields): ICE's map is kept for it.
   p.coarse = coarsen_for_pde(mesh, options, opt, run,
-                             (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice);
+                             keep_method_state ||
+                                 ((!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice));
   run.coarsen = clock.lap();
   // The fine discretisation: the reference's, and the Galerkin operators' and M f's
   run.fine_built = need_fine || assemble_proxy;
@@ -197,6 +198,13 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   run.fine_mesh = clock.lap();
   if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(p.fine, p.coarse, opt.operators, opt.prolongation));
   return p;
+}
+
+ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
+                                  const ice::CoarseTracing* tracing) {
+  if (!traced) return space.mesh.L;
+  if (tracing) return ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, *tracing);
+  return ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, ice::trace_coarse_mesh(mesh, space));
 }
 
 std::optional<ice::CoarseTracing> trace_for_outputs(const PdeOptions& opt, const ice::TriangleMesh& mesh,

@@ -104,12 +104,20 @@ struct PdeProxy {
   ice::FineMesh fine;
   std::unique_ptr<fem::CoarseProxy> proxy;
 };
-/// Builds them in that order (coarsen_for_pde, ice::fine_mesh of --fine-idt unless !need_fine,
+/// Builds them in that order (coarsen_for_pde, keeping the method's state for outputs that draw the
+/// coarse mesh or when asked; ice::fine_mesh of --fine-idt unless !need_fine,
 /// make_proxy of --operators unless !assemble_proxy: then proxy stays null; assembling needs the
 /// fine mesh), with run.coarsen, run.fine_mesh, run.fine_built and run.idt_flips recorded; the
 /// proxy's assembly is left running on `clock`, for the caller's assemble phase.
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                         PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true);
+                         PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
+                         bool keep_method_state = false);
+
+/// The coarse edge lengths coarse marching runs on: the coarse mesh's own, or (`traced`) those of its
+/// edges traced on the input surface (ice::traced_edge_lengths; `tracing` if the caller has traced
+/// already, else traced here: an ICE space built with keep_method_state).
+ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
+                                  const ice::CoarseTracing* tracing = nullptr);
 
 /// The coarse mesh traced on the input (ice/coarse_tracing.h) when an output draws it: --output or
 /// --html, and an ICE space built with keep_method_state (build_pde_proxy keeps it for them). Traced

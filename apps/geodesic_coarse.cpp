@@ -51,6 +51,7 @@ struct OracleRequest {
   std::string matrix_path;     ///< --matrix (.npy or .mtx)
   std::string pairs_output;    ///< --pairs-out (.csv)
   fem::CoarseDistanceMethod method = fem::CoarseDistanceMethod::marching;
+  bool traced_lengths = false;  ///< --coarse-lengths traced: marching on the coarse edges' lengths on the surface
   int check_sources = 16;
   bool active() const { return all_pairs || !pairs_path.empty() || sample_count > 0; }
   std::string mode() const { return all_pairs ? "all_pairs" : !pairs_path.empty() ? "pairs" : "sample"; }
@@ -152,8 +153,9 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   run.coarsen = clock.lap();
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
-  const fem::DistanceOracle oracle(space.mesh.F, space.mesh.L, map, oracle_options);
-  const double oracle_seconds = clock.lap();
+  const fem::DistanceOracle oracle(space.mesh.F, app::marching_lengths(mesh, space, request.traced_lengths), map,
+                                   oracle_options);
+  const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced
 
   // ---- the queries
   nlohmann::json timings = {{"load", run.load}, {"coarsen", run.coarsen}, {"oracle", oracle_seconds}};
@@ -246,6 +248,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   if (!space.summary.qem) report["metric"] = {{"area_weight", opt.target.area_weight}, {"normalize_curvature", opt.target.normalize_curvature}};
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
   report["coarse"] = app::coarsen_json(space.summary);
+  report["coarse_lengths"] = request.traced_lengths ? "traced" : "intrinsic";
   report["oracle"] = {{"coarse_distances", fem::to_string(request.method)},
                       {"coarse_vertices", oracle.coarse_size()},
                       {"memory_bytes", oracle.memory_bytes()},
@@ -326,6 +329,11 @@ int main(int argc, char** argv) {
                   "accurate, measured; with --source from the sources' points, the squared distance interpolated to "
                   "the input vertices) or the heat method on the coarse operators (with --source: its distance "
                   "prolonged with P); in the oracle modes, for all coarse pairs");
+  app::add_choice(cli, "--coarse-lengths", oracle.traced_lengths, {{"intrinsic", false}, {"traced", true}},
+                  "Coarse marching on the coarse mesh's intrinsic edge lengths (the default) or on the lengths of its "
+                  "edges traced on the input surface (ICE only: more accurate, 0.95x the error over 40 meshes x 1-10 % "
+                  "in geometric mean, better in 113 of 160 cases, at the cost of the tracing: 2.6 s at 1.6M vertices "
+                  "and 1 %; README, Accuracy)");
   cli.add_option("--check-sources", oracle.check_sources,
                  "Distance oracle: random sources of the fine heat-method reference (errors, speed-up)")
       ->check(app::integer_between(1, 100000))
@@ -351,6 +359,11 @@ int main(int argc, char** argv) {
       throw app::AppError(app::kUsage, "--first-sample goes with --sample");
     if (!oracle.pairs_output.empty() && oracle.pairs_path.empty())
       throw app::AppError(app::kUsage, "--pairs-out goes with --pairs");
+    if (oracle.traced_lengths && oracle.method != fem::CoarseDistanceMethod::marching)
+      throw app::AppError(app::kUsage, "--coarse-lengths traced is for coarse marching, not --coarse-distances heat");
+    if (oracle.traced_lengths && opt.target.method != ice::CoarseningMethod::ice)
+      throw app::AppError(app::kUsage, "--coarse-lengths traced needs ICE's coarse mesh (QEM's edges are straight segments: "
+                                       "nothing to trace)");
     if (oracle.active() && (!opt.output.empty() || !opt.html.empty()))
       throw app::AppError(app::kUsage, "--output and --html show a distance field (--source); the oracle modes write --matrix or --pairs-out");
     if (oracle.active()) {
@@ -382,13 +395,17 @@ int main(int argc, char** argv) {
     const bool marching = oracle.method == fem::CoarseDistanceMethod::marching;
     // The marching proxy reads only the coarse mesh and P: the fine mesh is built for a reference.
     const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/!marching,
-                                                   /*need_fine=*/!marching || run.has_reference);
+                                                   /*need_fine=*/!marching || run.has_reference,
+                                                   /*keep_method_state=*/oracle.traced_lengths);
+    std::optional<ice::CoarseTracing> tracing;  // traced once, for the marching lengths and the outputs
     const ice::FineMesh& fine = pde.fine;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
     if (marching) {  // no coarse operators: the coarse mesh and P are all the marching reads
       run.coarse_solver = "coarse fast marching";
-      run.assemble = clock.lap();
-      proxy_solver.emplace(pde.coarse.mesh.F, pde.coarse.mesh.L, pde.coarse.P);
+      if (oracle.traced_lengths) tracing = ice::trace_coarse_mesh(mesh, pde.coarse);
+      ice::FaceLengths lengths = app::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, tracing ? &*tracing : nullptr);
+      run.assemble = clock.lap();  // with the tracing of --coarse-lengths traced
+      proxy_solver.emplace(pde.coarse.mesh.F, lengths, pde.coarse.P);
     } else {
       fem::HeatMethodOperators coarse_ops = pde.proxy->coarse_heat_method_operators();  // lumped mass for Galerkin
       run.assemble = clock.lap();
@@ -421,8 +438,8 @@ int main(int argc, char** argv) {
     }
 
     // ---- outputs
-    const std::optional<ice::CoarseTracing> tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
-    const ice::CoarseTracing* traced = tracing ? &*tracing : nullptr;
+    if (!tracing) tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
+    const ice::CoarseTracing* traced = tracing && (!opt.output.empty() || !opt.html.empty()) ? &*tracing : nullptr;
     app::write_result_fields(opt, mesh, "distance", distance, reference, {}, traced);
     app::write_result_page(opt, mesh, "geodesic-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "geodesic",
                            "distance", distance, reference, pde.coarse, traced, error_json);
@@ -431,6 +448,8 @@ int main(int argc, char** argv) {
     if (traced) report["trace"] = {{"edges", traced->edges.size()}, {"traced", traced->traced}};
     report["sources"] = file_sources;
     report["coarse_distances"] = fem::to_string(oracle.method);
+    report["coarse_lengths"] = oracle.traced_lengths ? "traced" : "intrinsic";
+    if (oracle.traced_lengths && tracing) report["coarse_lengths_traced_edges"] = {{"edges", tracing->edges.size()}, {"traced", tracing->traced}};
     report["max_distance"] = distance.maxCoeff();
     if (run.has_reference) report["error"] = error_json;
     if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);

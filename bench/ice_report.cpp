@@ -186,7 +186,8 @@ struct ProxySolutions {
 void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind,
                     fem::ProlongationKind prolongation, Row base, std::vector<Row>& rows,
                     const std::vector<double>& tolerances, std::vector<PolishRow>& polished,
-                    const fem::ProxyGeodesicOptions& geodesic, ProxySolutions* kept = nullptr) {
+                    const fem::ProxyGeodesicOptions& geodesic, ProxySolutions* kept = nullptr,
+                    const ice::FaceLengths* marching_lengths = nullptr) {
   app::Stopwatch clock;
   const fem::CoarseProxy proxy = app::make_proxy(fine.disc, coarse, kind, prolongation);
   const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
@@ -262,7 +263,11 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
     r.problem = "geodesic";
     clock.lap();
     r.assemble = t_proxy;
-    const fem::ProxyGeodesicSolver solver(proxy, geodesic);  // the heat method's assembly counts as its factorisation
+    // The heat method's assembly counts as its factorisation; marching on other lengths than the
+    // coarse mesh's own (--geodesic-lengths traced) takes the mesh and the barycentric P directly.
+    const fem::ProxyGeodesicSolver solver = marching_lengths
+                                                ? fem::ProxyGeodesicSolver(coarse.mesh.F, *marching_lengths, coarse.P)
+                                                : fem::ProxyGeodesicSolver(proxy, geodesic);
     r.factor = clock.lap();
     fem::ProxyPhaseTimes total;
     double mean = 0, max = 0, l2 = 0;
@@ -709,6 +714,11 @@ int main(int argc, char** argv) {
                  "keeps t = h^2)")
       ->check(app::positive_number())
       ->capture_default_str();
+  bool traced_lengths = false;
+  app::add_choice(cli, "--geodesic-lengths", traced_lengths, {{"intrinsic", false}, {"traced", true}},
+                  "ICE's geodesics by coarse marching on the coarse mesh's intrinsic edge lengths, or on the lengths of "
+                  "its edges traced on the input surface (ice::traced_edge_lengths; the tracing counts in the geodesic "
+                  "row's factor time)");
   int coarsen_threads = 1, coarsen_regions = 0;  // ICE coarsening's parallel phase (default: the serial order)
   app::add_coarsen_parallel_options(cli, coarsen_threads, coarsen_regions);
   std::string tolerances_text;
@@ -755,6 +765,8 @@ int main(int argc, char** argv) {
     // the three problems.
     const std::string heat_geodesics =
         geodesic.method == fem::CoarseDistanceMethod::heat_method ? "--coarse-distances heat" : "";
+    if (traced_lengths && !heat_geodesics.empty())
+      throw app::AppError(app::kUsage, "--geodesic-lengths traced: the lengths are for coarse marching, not with --coarse-distances heat");
     const fem::ProlongationKind prolongation = app::resolve_prolongation(prolongation_choice, kind, heat_geodesics);
     // QEM: Galerkin operators of its smoothed P, or the operators of its own geometry with its P as given.
     const fem::ProlongationKind qem_prolongation =
@@ -850,8 +862,13 @@ int main(int argc, char** argv) {
           options.coarsen.normalize_curvature = m == "ice" ? false : normalize_curvature;
           options.coarsen.threads = coarsen_threads;
           options.coarsen.regions = coarsen_regions;
-          options.keep_method_state = viewed;  // the page traces the coarse edges
+          options.keep_method_state = viewed || traced_lengths;  // the page and traced lengths trace the coarse edges
           const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
+          std::optional<ice::FaceLengths> marching_lengths;
+          app::Stopwatch trace_clock;
+          if (traced_lengths)
+            marching_lengths = ice::traced_edge_lengths(mesh.V, mesh.F, coarse.mesh, ice::trace_coarse_mesh(mesh, coarse));
+          const double trace_seconds = trace_clock.lap();
           Row r = base;
           r.method = m;
           r.coarsen = coarse.summary.seconds;
@@ -861,7 +878,8 @@ int main(int argc, char** argv) {
           if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.stop_reason());
           ProxySolutions solved;
           solve_on_proxy(fine, coarse, kind, prolongation, r, rows, tolerances, polished, geodesic,
-                         viewed ? &solved : nullptr);
+                         viewed ? &solved : nullptr, marching_lengths ? &*marching_lengths : nullptr);
+          rows.back().factor += trace_seconds;  // the geodesic row: its marching needs the tracing
           if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
           progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
                    << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
@@ -939,6 +957,7 @@ int main(int argc, char** argv) {
                               {"heat_time", "0.1 x surface area, one backward Euler step"},
                               {"geodesic_sources", "vertex 0 and two farthest-point picks (R^3)"},
                               {"geodesic_coarse_distances", fem::to_string(geodesic.method)},
+                              {"geodesic_lengths", traced_lengths ? "traced" : "intrinsic"},
                               {"fine_reference", "intrinsic Delaunay triangulation of the input"},
                               {"blas", fem::blas_library()},
                               {"total_seconds", total_seconds},

@@ -106,6 +106,13 @@ function(check value op bound what)
   message(STATUS "ok: ${what} = ${value} (${op} ${bound})")
 endfunction()
 
+# A text value (a JSON string read by json()) must be `expected`.
+function(check_text value expected what)
+  if(NOT "${value}" STREQUAL "${expected}")
+    fail("${what} = '${value}', expected '${expected}'")
+  endif()
+endfunction()
+
 function(require_file path)
   if(NOT EXISTS "${path}")
     fail("missing output file ${path}")
@@ -322,6 +329,19 @@ elseif(CASE STREQUAL "geodesic_spot")
   file(SIZE "${WORK}/d.ply" size)
   # 2930 vertices × 6 doubles + 5856 faces × 13 bytes after the header
   check(${size} GREATER 210000 "d.ply size")
+  # --coarse-lengths traced: the same coarse mesh, marching on its edges' lengths on the surface,
+  # which is closer to the surface's metric (sources 0,1500: mean 4.0 % -> measured below it); the
+  # refusals (QEM has nothing to trace; the lengths are for marching).
+  json(intrinsic_mean "${r}" error mean_rel)
+  run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths traced --report "${WORK}/t.json" -q)
+  json(lengths "${WORK}/t.json" coarse_lengths)
+  check_text("${lengths}" traced "coarse_lengths")
+  json(traced_edges "${WORK}/t.json" coarse_lengths_traced_edges traced)
+  check(${traced_edges} GREATER 400 "coarse_lengths_traced_edges.traced (435 edges at 147 coarse vertices)")
+  json(traced_mean "${WORK}/t.json" error mean_rel)
+  check(${traced_mean} LESS ${intrinsic_mean} "error.mean_rel with traced lengths")
+  expect_error(4 "needs ICE" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --coarse-lengths traced --method qem)
+  expect_error(4 "for coarse marching" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --coarse-lengths traced --coarse-distances heat)
 
 elseif(CASE STREQUAL "geodesic_oracle")
   # The distance-oracle modes of geodesic-coarse on spot (2,930 vertices) -> 300 coarse vertices.

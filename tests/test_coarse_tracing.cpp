@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "fem/coarse_proxy.h"
 #include "ice/coarse_space.h"
 #include "ice/coarse_tracing.h"
 #include "ice/intrinsic_triangulation.h"
@@ -278,6 +279,52 @@ TEST_CASE("tracing ICE on a flat disk: the metric is the input's, so are the tra
     CHECK(figures.failed == 0);
     CHECK(figures.max_length_error <= 1e-9);
   }
+}
+
+TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric closer to the surface's on a sphere", "[tracing]") {
+  // Flat: ICE's flattening changes nothing, so the traced lengths are the intrinsic ones.
+  const ice::TriangleMesh disk = ice::make_flat_disk(16, 1.0, 0.25);
+  const ice::CoarseSpace flat = ice_space(disk, 0.05, false);
+  const ice::FaceLengths flat_lengths = ice::traced_edge_lengths(disk.V, disk.F, flat.mesh, ice::trace_coarse_mesh(disk, flat));
+  CHECK((flat_lengths - flat.mesh.L).cwiseAbs().maxCoeff() <= 1e-9 * flat.mesh.L.maxCoeff());
+
+  // Curved: every face keeps the triangle inequality, both sides of an edge agree, traced edges take
+  // their polyline's length; and coarse marching on them is closer to the sphere's great-circle
+  // distances than on ICE's flattened metric.
+  const ice::TriangleMesh sphere = ice::make_icosphere(5);
+  const ice::CoarseSpace space = ice_space(sphere, 0.05);
+  const ice::CoarseTracing tracing = ice::trace_coarse_mesh(sphere, space);
+  const ice::FaceLengths L = ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, tracing);
+  Index changed = 0;
+  for (Eigen::Index f = 0; f < L.rows(); ++f) {
+    CHECK(L(f, 0) < L(f, 1) + L(f, 2));
+    CHECK(L(f, 1) < L(f, 0) + L(f, 2));
+    CHECK(L(f, 2) < L(f, 0) + L(f, 1));
+    for (int k = 0; k < 3; ++k) {
+      const Index twin = space.mesh.twin[static_cast<std::size_t>(3 * f + k)];
+      if (twin != ice::kInvalid) CHECK(L(f, k) == L(twin / 3, twin % 3));
+      changed += L(f, k) != space.mesh.L(f, k);
+    }
+  }
+  CHECK(changed > L.size() / 2);
+  for (const ice::TracedEdge& edge : tracing.edges)
+    if (edge.status == ice::TraceStatus::traced)
+      CHECK(L(edge.side / 3, edge.side % 3) == Approx(ice::traced_length(sphere.V, sphere.F, edge)).epsilon(1e-12));
+  const double radius = sphere.V.row(0).norm();
+  double intrinsic_error = 0, traced_error = 0;
+  const fem::ProxyGeodesicSolver on_intrinsic(space.mesh.F, space.mesh.L, space.P), on_traced(space.mesh.F, L, space.P);
+  for (const Index source : {0, 1000, 5000}) {
+    const Eigen::VectorXd a = on_intrinsic.distance({source}), b = on_traced.distance({source});
+    for (Eigen::Index v = 0; v < sphere.V.rows(); ++v) {
+      const double exact = radius * std::acos(std::clamp(sphere.V.row(v).dot(sphere.V.row(source)) / (radius * radius), -1.0, 1.0));
+      intrinsic_error += std::abs(a(v) - exact);
+      traced_error += std::abs(b(v) - exact);
+    }
+  }
+  INFO("mean absolute errors: intrinsic " << intrinsic_error << ", traced " << traced_error);
+  CHECK(traced_error < 0.95 * intrinsic_error);  // measured 0.87
+
+  CHECK_THROWS_AS(ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, ice::CoarseTracing{}), std::invalid_argument);
 }
 
 TEST_CASE("tracing Δ-complex coarse meshes: self-edges and multi-edges of tiny coarse meshes", "[tracing]") {

@@ -838,4 +838,38 @@ double traced_length(const Positions& V, const Faces& F, const TracedEdge& edge)
   return length;
 }
 
+FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const CompactMesh& coarse, const CoarseTracing& tracing) {
+  const std::size_t sides = static_cast<std::size_t>(3 * coarse.F.rows());
+  if (coarse.twin.size() != sides || (tracing.edges.empty() && sides > 0))
+    throw std::invalid_argument("traced_edge_lengths: the tracing is not of this coarse mesh (no edges, or no gluing)");
+  FaceLengths L = coarse.L;
+  const auto twin_of = [&](Index side) { return coarse.twin[static_cast<std::size_t>(side)]; };
+  for (const TracedEdge& edge : tracing.edges) {
+    if (edge.side < 0 || static_cast<std::size_t>(edge.side) >= sides)
+      throw std::invalid_argument("traced_edge_lengths: a traced edge names side " + std::to_string(edge.side) +
+                                  " beyond the coarse mesh");
+    if (edge.status != TraceStatus::traced) continue;
+    const double length = traced_length(V, F, edge);
+    L(edge.side / 3, edge.side % 3) = length;
+    if (const Index twin = twin_of(edge.side); twin != kInvalid) L(twin / 3, twin % 3) = length;
+  }
+  // Faces whose traced lengths break the triangle inequality take their intrinsic lengths back, on
+  // both sides of each edge; that can break a neighbour, so repeat until none does (each round
+  // restores at least one face for good: the intrinsic lengths are valid).
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (Eigen::Index f = 0; f < L.rows(); ++f) {
+      const double a = L(f, 0), b = L(f, 1), c = L(f, 2);
+      if (a < b + c && b < a + c && c < a + b) continue;
+      for (int k = 0; k < 3; ++k) {
+        const Index side = static_cast<Index>(3 * f + k);
+        L(f, k) = coarse.L(f, k);
+        if (const Index twin = twin_of(side); twin != kInvalid) L(twin / 3, twin % 3) = coarse.L(twin / 3, twin % 3);
+      }
+      changed = true;
+    }
+  }
+  return L;
+}
+
 }  // namespace ice

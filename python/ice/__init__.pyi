@@ -152,7 +152,8 @@ class ProxyGeodesicSolver:
     def __init__(self, proxy: Proxy, *, method: Literal["marching", "heat"] = "marching",
                  time_factor: float = 1.0) -> None: ...
     @staticmethod
-    def from_coarse(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace) -> ProxyGeodesicSolver:
+    def from_coarse(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
+                    lengths: Literal["intrinsic", "traced"] = "intrinsic") -> ProxyGeodesicSolver:
         """Coarse marching from a coarse space of (V, F) alone, without a Proxy."""
     def distance(self, sources: Indices) -> FloatArray: ...
     @property
@@ -238,6 +239,7 @@ def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: C
                       method: Literal["marching", "heat"] = "marching",
                       time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
+                      lengths: Literal["intrinsic", "traced"] = "intrinsic",
                       **coarsening: Any) -> FloatArray:
     """Geodesic distance through a coarse proxy in one call (coarse fast marching by default)."""
 def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: ArrayLike = 1.0, *,

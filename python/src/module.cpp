@@ -33,6 +33,7 @@
 #include "fem/problems.h"
 #include "fem/vector_fields.h"
 #include "ice/coarse_space.h"
+#include "ice/coarse_tracing.h"
 #include "ice/hierarchy.h"
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_generators.h"
@@ -934,15 +935,24 @@ distances coarsen with use="geodesic".)doc")
              return solver;
            }),
            py::arg("proxy"), py::kw_only(), py::arg("method") = "marching", py::arg("time_factor") = 1.0)
-      .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse) {
-             require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
+      .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse, const std::string& lengths) {
+             const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
+             const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
+             if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
+               throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
              auto solver = std::make_unique<PyGeodesicSolver>();
              py::gil_scoped_release release;
-             solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, coarse.space.mesh.L, coarse.space.P);
+             const ice::FaceLengths L =
+                 traced ? ice::traced_edge_lengths(mesh.V, mesh.F, coarse.space.mesh,
+                                                   ice::trace_coarse_mesh(mesh.F, coarse.space.mesh, coarse.map, coarse.space.inserted, mesh.V, 0))
+                        : coarse.space.mesh.L;
+             solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, L, coarse.space.P);
              return solver;
-           }, py::arg("V"), py::arg("F"), py::arg("coarse"),
+           }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = "intrinsic",
            "Coarse marching from a coarse space of (V, F) alone: no Proxy (no fine intrinsic Delaunay mesh, no operators), "
-           "which the marching does not need. The same distances as ProxyGeodesicSolver(Proxy(V, F, coarse)).")
+           "which the marching does not need. The same distances as ProxyGeodesicSolver(Proxy(V, F, coarse)). "
+           "lengths='traced' (ICE): march on the coarse edges' lengths traced on the surface (geodesic-coarse "
+           "--coarse-lengths traced: more accurate on most meshes, at the cost of the tracing).")
       .def("distance", [](PyGeodesicSolver& s, const py::object& sources) {
              const std::vector<ice::Index> fine_sources = index_argument(sources, s.solver->fine_size(), "sources");
              if (fine_sources.empty()) throw py::value_error("sources is empty");

@@ -152,6 +152,18 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
     assert np.array_equal(bare, ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse)).distance([7, 100]))
     with pytest.raises(ValueError, match="method"):
         ice.geodesic_distance(V, F, [7], coarse=coarse, method="dijkstra")
+    # Traced lengths: the tool's --coarse-lengths traced, and refused where there is nothing to trace.
+    tool("geodesic-coarse", path, "--ratio", "0.05", "--source", "7", "--no-reference", "--ascii", "-q",
+         "--coarse-lengths", "traced", "-o", tmp_path / "t.ply")
+    traced = ice.geodesic_distance(V, F, [7], ratio=0.05, lengths="traced")
+    assert np.abs(traced - read_ascii_ply_fields(tmp_path / "t.ply")["distance"]).max() <= 1e-12 * traced.max()
+    assert np.abs(traced - d).max() > 1e-6 * d.max()  # another metric: other distances
+    with pytest.raises(ValueError, match="traced"):
+        ice.ProxyGeodesicSolver.from_coarse(V, F, ice.coarsen(V, F, ratio=0.05, method="qem"), lengths="traced")
+    with pytest.raises(ValueError, match="marching"):
+        ice.geodesic_distance(V, F, [7], coarse=coarse, method="heat", lengths="traced")
+    with pytest.raises(ValueError, match="lengths"):
+        ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="exact")
 
 
 def test_heat_flow_conserves_mass_and_matches_scipy(spot):

@@ -137,4 +137,12 @@ Positions traced_polyline(const Positions& V, const Faces& F, const TracedEdge& 
 /// Length of that polyline.
 double traced_length(const Positions& V, const Faces& F, const TracedEdge& edge);
 
+/// The coarse mesh's edge lengths measured on the input surface: each traced edge's polyline length
+/// (traced_length, on both sides of the edge), where ICE's flattening has changed the metric. An
+/// edge that was not traced keeps its intrinsic length, and so do the three edges of a face whose
+/// traced lengths break the triangle inequality (and their other sides), so the result is a valid
+/// intrinsic metric on `coarse`'s faces. Preconditions: `tracing` traced `coarse` on (V, F);
+/// std::invalid_argument otherwise.
+FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const CompactMesh& coarse, const CoarseTracing& tracing);
+
 }  // namespace ice
