@@ -401,7 +401,7 @@ int main(int argc, char** argv) {
     const ice::FineMesh& fine = pde.fine;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
     if (marching) {  // no coarse operators: the coarse mesh and P are all the marching reads
-      run.coarse_solver = "coarse fast marching";
+      run.coarse_solver = oracle.traced_lengths ? "coarse fast marching on traced lengths" : "coarse fast marching";
       if (oracle.traced_lengths) tracing = ice::trace_coarse_mesh(mesh, pde.coarse);
       ice::FaceLengths lengths = app::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, tracing ? &*tracing : nullptr);
       run.assemble = clock.lap();  // with the tracing of --coarse-lengths traced
