@@ -867,7 +867,7 @@ int main(int argc, char** argv) {
           std::optional<ice::FaceLengths> marching_lengths;
           app::Stopwatch trace_clock;
           if (traced_lengths)
-            marching_lengths = ice::traced_edge_lengths(mesh.V, mesh.F, coarse.mesh, ice::trace_coarse_mesh(mesh, coarse));
+            marching_lengths = app::marching_lengths(mesh, coarse, true);
           const double trace_seconds = trace_clock.lap();
           Row r = base;
           r.method = m;

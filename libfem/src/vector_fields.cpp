@@ -342,11 +342,10 @@ Eigen::VectorXcd vector_heat_field(const VectorHeatParts& parts, double min_magn
     // u/φ is a mean of the sources' magnitudes weighted by the diffused indicator, so it lies in
     // their range; where cotan weights are negative (a non-Delaunay mesh) u and φ can both turn
     // negative far from the sources, and the ratio is kept, clamped to that range.
-    double magnitude = 0;
-    if (min_magnitude == max_magnitude)
-      magnitude = parts.indicator(i) != 0 ? min_magnitude : 0.0;  // one magnitude: exactly it, wherever reached
-    else if (parts.indicator(i) != 0)
-      magnitude = std::clamp(parts.magnitudes(i) / parts.indicator(i), min_magnitude, max_magnitude);
+    // With one magnitude the clamp gives exactly it, wherever the sources reach.
+    const double magnitude = parts.indicator(i) != 0
+                                 ? std::clamp(parts.magnitudes(i) / parts.indicator(i), min_magnitude, max_magnitude)
+                                 : 0.0;
     field(i) = length > 0 ? parts.directions(i) * (magnitude / length) : Complex(0);
   }
   return field;
@@ -621,6 +620,11 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
   std::vector<std::pair<Index, Complex>> ring;
   std::vector<double> residuals;
   VectorProlongationStats counts;
+  const auto count_fit = [&](const RotationFit& fit) {
+    ++counts.fitted;
+    counts.poor_fits += fit.residual > kPoorFitResidual;
+    residuals.push_back(fit.residual);
+  };
   for (Index i : order) {
     const ice::CoarsePoint& point = map[static_cast<std::size_t>(i)];
     // The fine one-ring as edge vectors in i's frame: each corner's outgoing side, and at the last
@@ -640,9 +644,7 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
     if (point.coarse_vertex != ice::kInvalid) {
       // A survivor: its fine frame against its coarse vertex's frame.
       if (fit_rotation(ring, map, polar_at(point.coarse_vertex), Point(0), fit)) {
-        ++counts.fitted;
-        counts.poor_fits += fit.residual > kPoorFitResidual;
-        residuals.push_back(fit.residual);
+        count_fit(fit);
       } else {
         ++counts.unmatched;
       }
@@ -655,9 +657,7 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
     const std::array<Point, 3> corners = face_layout(coarse.L, f);
     const Point origin = point.bary[0] * corners[0] + point.bary[1] * corners[1] + point.bary[2] * corners[2];
     if (fit_rotation(ring, map, patch, origin, fit)) {
-      ++counts.fitted;
-      counts.poor_fits += fit.residual > kPoorFitResidual;
-      residuals.push_back(fit.residual);
+      count_fit(fit);
     } else {
       // Fall back on the polar chart of the nearest corner (the vertex frame, then into the face).
       const int k = static_cast<int>(std::max_element(point.bary.begin(), point.bary.end()) - point.bary.begin());

@@ -859,8 +859,7 @@ FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const Compac
   for (bool changed = true; changed;) {
     changed = false;
     for (Eigen::Index f = 0; f < L.rows(); ++f) {
-      const double a = L(f, 0), b = L(f, 1), c = L(f, 2);
-      if (a < b + c && b < a + c && c < a + b) continue;
+      if (triangle_inequality_holds(L(f, 0), L(f, 1), L(f, 2))) continue;
       for (int k = 0; k < 3; ++k) {
         const Index side = static_cast<Index>(3 * f + k);
         L(f, k) = coarse.L(f, k);

@@ -492,6 +492,9 @@ struct PyVectorHeat {
   std::unique_ptr<fem::VectorHeatSolver> fine_solver;
   std::unique_ptr<fem::VectorHeatProxy> proxy;
   Eigen::Index size() const { return V.rows(); }
+  Eigen::VectorXcd interpolate(const std::vector<ice::Index>& vertices, const std::vector<fem::Complex>& vectors) const {
+    return proxy ? proxy->interpolate(vertices, vectors) : fine_solver->interpolate(vertices, vectors);
+  }
 };
 
 // A 1-D array of `size` finite complex numbers (real numbers are taken as complex).
@@ -985,7 +988,7 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
              for (const fem::Complex& z : values)
                if (z == fem::Complex(0)) throw py::value_error("vectors must be nonzero (a zero vector has no direction)");
              py::gil_scoped_release release;
-             return s.proxy ? s.proxy->interpolate(vertices, values) : s.fine_solver->interpolate(vertices, values);
+             return s.interpolate(vertices, values);
            }, py::arg("sources"), py::arg("vectors"),
            "The smooth field through `vectors` (complex, one per source vertex): one source transports its vector "
            "along shortest geodesics, several are interpolated (directions by the connection Laplacian, magnitudes "
@@ -997,7 +1000,7 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
                throw py::value_error("vector must be a finite nonzero complex number");
              const std::vector<ice::Index> vertices{static_cast<ice::Index>(source)};
              py::gil_scoped_release release;
-             return s.proxy ? s.proxy->interpolate(vertices, {vector}) : s.fine_solver->interpolate(vertices, {vector});
+             return s.interpolate(vertices, {vector});
            }, py::arg("source"), py::arg("vector") = std::complex<double>(1, 0),
            "Parallel transport of `vector` (complex, in the source's frame) from vertex `source` to every vertex.")
       .def("to_ambient", [](const PyVectorHeat& s, const py::object& field) {
