@@ -307,9 +307,24 @@ TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric close
     }
   }
   CHECK(changed > L.size() / 2);
+  // Each traced edge: the shortest path in its strip of input faces by default, no longer than its
+  // polyline and no shorter than the chord between its ends; the polyline's length on request.
+  const ice::FaceLengths polyline_lengths =
+      ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, tracing, ice::TracedLengthMeasure::polyline);
+  Index shorter = 0;
   for (const ice::TracedEdge& edge : tracing.edges)
-    if (edge.status == ice::TraceStatus::traced)
-      CHECK(L(edge.side / 3, edge.side % 3) == Approx(ice::traced_length(sphere.V, sphere.F, edge)).epsilon(1e-12));
+    if (edge.status == ice::TraceStatus::traced) {
+      const double polyline = ice::traced_length(sphere.V, sphere.F, edge), strip = L(edge.side / 3, edge.side % 3);
+      const double chord = (sphere.V.row(space.mesh.to_input[static_cast<std::size_t>(edge.tail)]) -
+                            sphere.V.row(space.mesh.to_input[static_cast<std::size_t>(edge.head)]))
+                               .norm();
+      CHECK(strip == Approx(ice::shortest_traced_length(sphere.V, sphere.F, edge)).epsilon(1e-14));
+      CHECK(strip <= polyline * (1 + 1e-12));
+      CHECK(strip >= chord * (1 - 1e-12));
+      CHECK(polyline_lengths(edge.side / 3, edge.side % 3) == Approx(polyline).epsilon(1e-12));
+      shorter += strip < polyline * (1 - 1e-6);
+    }
+  CHECK(shorter > 0);
   const double radius = sphere.V.row(0).norm();
   double intrinsic_error = 0, traced_error = 0;
   const fem::ProxyGeodesicSolver on_intrinsic(space.mesh.F, space.mesh.L, space.P), on_traced(space.mesh.F, L, space.P);
@@ -325,6 +340,90 @@ TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric close
   CHECK(traced_error < 0.95 * intrinsic_error);  // measured 0.87
 
   CHECK_THROWS_AS(ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, ice::CoarseTracing{}), std::invalid_argument);
+}
+
+// A strip of 2 × `cells` triangles along x in the plane (cell i: lower (i,0) (i+1,0) (i+1,1), upper
+// (i,0) (i+1,1) (i,1)), faces in strip order (upper 0, lower 0, upper 1, ...), and a path from
+// (0,1) to (cells,0) zig-zagging through the midpoints of the sides between consecutive faces,
+// as a TracedEdge. `place` moves the vertices afterwards (the barycentric coordinates stay).
+struct StripPath {
+  ice::TriangleMesh mesh;
+  ice::TracedEdge edge;
+};
+StripPath zigzag_strip(int cells) {
+  StripPath strip;
+  const auto vertex = [](int i, int j) { return static_cast<Index>(2 * i + j); };
+  strip.mesh.V.resize(2 * (cells + 1), 3);
+  for (int i = 0; i <= cells; ++i)
+    for (int j = 0; j < 2; ++j) strip.mesh.V.row(vertex(i, j)) << i, j, 0;
+  strip.mesh.F.resize(2 * cells, 3);
+  for (int i = 0; i < cells; ++i) {
+    strip.mesh.F.row(2 * i) << vertex(i, 0), vertex(i + 1, 1), vertex(i, 1);
+    strip.mesh.F.row(2 * i + 1) << vertex(i, 0), vertex(i + 1, 0), vertex(i + 1, 1);
+  }
+  // Barycentric coordinates of the midpoint of the side (u, w) in face f.
+  const auto midpoint = [&](Index f, Index u, Index w) {
+    std::array<double, 3> b{0, 0, 0};
+    for (int k = 0; k < 3; ++k)
+      if (strip.mesh.F(f, k) == u || strip.mesh.F(f, k) == w) b[static_cast<std::size_t>(k)] = 0.5;
+    return b;
+  };
+  const auto corner = [&](Index f, Index v) {
+    std::array<double, 3> b{0, 0, 0};
+    for (int k = 0; k < 3; ++k)
+      if (strip.mesh.F(f, k) == v) b[static_cast<std::size_t>(k)] = 1;
+    return b;
+  };
+  std::array<double, 3> from = corner(0, vertex(0, 1));
+  for (Index f = 0; f < strip.mesh.F.rows(); ++f) {
+    // The side shared with the next face: the diagonal inside a cell, the vertical side between cells.
+    const int i = static_cast<int>(f / 2);
+    std::array<double, 3> to;
+    if (f + 1 == strip.mesh.F.rows()) to = corner(f, vertex(cells, 0));
+    else if (f % 2 == 0) to = midpoint(f, vertex(i, 0), vertex(i + 1, 1));
+    else to = midpoint(f, vertex(i + 1, 0), vertex(i + 1, 1));
+    strip.edge.segments.push_back({f, from, to, 0, 0});
+    if (f + 1 < strip.mesh.F.rows())
+      from = f % 2 == 0 ? midpoint(f + 1, vertex(i, 0), vertex(i + 1, 1)) : midpoint(f + 1, vertex(i + 1, 0), vertex(i + 1, 1));
+  }
+  return strip;
+}
+
+TEST_CASE("shortest traced length: the funnel through a strip of faces, straight, folded and bent", "[tracing]") {
+  const int cells = 4;
+  {  // flat: the straight line from (0,1) to (4,0) lies inside the strip
+    const StripPath strip = zigzag_strip(cells);
+    CHECK(ice::traced_length(strip.mesh.V, strip.mesh.F, strip.edge) > std::sqrt(17.0) * 1.05);
+    CHECK(ice::shortest_traced_length(strip.mesh.V, strip.mesh.F, strip.edge) == Approx(std::sqrt(17.0)).epsilon(1e-12));
+  }
+  {  // folded by 70 degrees along x = 2 in space: unfolding is an isometry, the answer the same
+    StripPath strip = zigzag_strip(cells);
+    const double angle = 70.0 * M_PI / 180;
+    for (Eigen::Index v = 0; v < strip.mesh.V.rows(); ++v)
+      if (const double x = strip.mesh.V(v, 0); x > 2)
+        strip.mesh.V.row(v) << 2 + (x - 2) * std::cos(angle), strip.mesh.V(v, 1), (x - 2) * std::sin(angle);
+    CHECK(ice::shortest_traced_length(strip.mesh.V, strip.mesh.F, strip.edge) == Approx(std::sqrt(17.0)).epsilon(1e-12));
+  }
+  {  // bent in the plane: the part beyond x = 2 turned 30 degrees clockwise about (2,1); the straight
+     // line leaves the strip, and the shortest path turns at the inner corner (2,0)
+    StripPath strip = zigzag_strip(cells);
+    const double angle = 30.0 * M_PI / 180;
+    for (Eigen::Index v = 0; v < strip.mesh.V.rows(); ++v)
+      if (const double x = strip.mesh.V(v, 0), y = strip.mesh.V(v, 1); x > 2)
+        strip.mesh.V.row(v) << 2 + (x - 2) * std::cos(angle) + (y - 1) * std::sin(angle),
+            1 - (x - 2) * std::sin(angle) + (y - 1) * std::cos(angle), 0;
+    const Eigen::RowVector3d start = strip.mesh.V.row(1), bend = strip.mesh.V.row(4), end = strip.mesh.V.row(2 * cells);
+    const double expected = (bend - start).norm() + (end - bend).norm();
+    CHECK(expected > (end - start).norm() * (1 + 1e-3));  // 3.742 against 3.732
+    CHECK(ice::shortest_traced_length(strip.mesh.V, strip.mesh.F, strip.edge) == Approx(expected).epsilon(1e-12));
+  }
+  {  // the same path reversed gives the same length
+    StripPath strip = zigzag_strip(cells);
+    ice::TracedEdge reversed;
+    for (auto s = strip.edge.segments.rbegin(); s != strip.edge.segments.rend(); ++s)
+      reversed.segments.push_back({s->face, s->to, s->from, 0, 0});
+    CHECK(ice::shortest_traced_length(strip.mesh.V, strip.mesh.F, reversed) == Approx(std::sqrt(17.0)).epsilon(1e-12));
+  }
 }
 
 TEST_CASE("tracing Δ-complex coarse meshes: self-edges and multi-edges of tiny coarse meshes", "[tracing]") {

@@ -838,18 +838,131 @@ double traced_length(const Positions& V, const Faces& F, const TracedEdge& edge)
   return length;
 }
 
-FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const CompactMesh& coarse, const CoarseTracing& tracing) {
+namespace {
+
+double distance_3d(const Positions& V, Index a, Index b) { return (V.row(a) - V.row(b)).norm(); }
+
+// Length of the shortest path between the first and last of `portals` (the path's start and end
+// as degenerate portals, between them the (left, right) ends of the edges it crosses, in order)
+// through the planar channel they bound: the funnel algorithm (Lee & Preparata 1984), which keeps
+// the apex of the current shortest path and the two rays through the portals' tightest ends, and
+// turns a corner wherever one ray crosses the other. NaN if it has not finished after a generous
+// number of steps (it restarts from a turned corner; a channel folded on itself could cycle).
+double funnel_length(const std::vector<std::pair<Vec2, Vec2>>& portals) {
+  const auto same = [](Vec2 a, Vec2 b) { return a.x == b.x && a.y == b.y; };
+  Vec2 apex = portals.front().first, left = apex, right = apex;
+  std::size_t left_index = 0, right_index = 0;
+  double length = 0;
+  std::size_t steps = 0;
+  const std::size_t step_limit = 4 * portals.size() * portals.size() + 16;
+  for (std::size_t i = 1; i < portals.size(); ++i) {
+    if (++steps > step_limit) return std::numeric_limits<double>::quiet_NaN();
+    const Vec2 next_left = portals[i].first, next_right = portals[i].second;
+    if (orient2d(apex, right, next_right) >= 0) {  // the right ray tightens
+      if (same(apex, right) || orient2d(apex, left, next_right) < 0) {
+        right = next_right, right_index = i;
+      } else {  // past the left ray: the path turns at the left end
+        length += (left - apex).norm();
+        apex = right = left, right_index = i = left_index;
+        continue;
+      }
+    }
+    if (orient2d(apex, left, next_left) <= 0) {  // the left ray tightens
+      if (same(apex, left) || orient2d(apex, right, next_left) > 0) {
+        left = next_left, left_index = i;
+      } else {  // past the right ray: the path turns at the right end
+        length += (right - apex).norm();
+        apex = left = right, left_index = i = right_index;
+        continue;
+      }
+    }
+  }
+  return length + (portals.back().first - apex).norm();
+}
+
+// The shortest path from a traced edge's tail to its head within the input faces it crosses,
+// unfolded into the plane (the traced polyline is one path among those; this is the shortest, so
+// never longer). Where the trace passes from one face to the next through a vertex rather than a
+// shared side, that point stays on the path and the two runs are shortened apart.
+double shortest_length_in_strip(const Positions& V, const Faces& F, const std::vector<Index>& fine_twin,
+                                const TracedEdge& edge) {
+  const std::vector<TracedSegment>& segments = edge.segments;
+  double total = 0;
+  std::vector<std::pair<Vec2, Vec2>> portals;
+  std::size_t begin = 0;
+  while (begin < segments.size()) {
+    // Lay out the first face of the run, then unfold each next face across the side it shares.
+    Index face = segments[begin].face;
+    std::array<Vec2, 3> corner;
+    corner[0] = {0, 0};
+    corner[1] = {distance_3d(V, F(face, 0), F(face, 1)), 0};
+    corner[2] = layout_third_point(corner[0], corner[1], corner[1].x, distance_3d(V, F(face, 0), F(face, 2)),
+                                   distance_3d(V, F(face, 1), F(face, 2)));
+    const auto at = [&](const std::array<double, 3>& b) {
+      return corner[0] * b[0] + corner[1] * b[1] + corner[2] * b[2];
+    };
+    portals.clear();
+    const Vec2 start = at(segments[begin].from);
+    portals.emplace_back(start, start);
+    std::size_t last = begin;
+    for (; last + 1 < segments.size(); ++last) {
+      const Index next = segments[last + 1].face;
+      int shared = -1;
+      for (int k = 0; k < 3; ++k) {
+        const Index twin = fine_twin[static_cast<std::size_t>(3 * face + k)];
+        if (twin != kInvalid && twin / 3 == next) shared = k;
+      }
+      if (shared < 0 || next == face) break;  // through a vertex (or the same face): the run ends here
+      // Leaving a face through side (a, b) with the face's interior on the left of a → b, b is on
+      // the left of the path and a on its right (the layout, not F's orientation, decides).
+      const Index a = F(face, shared), b = F(face, (shared + 1) % 3);
+      const Vec2 pa = corner[shared], pb = corner[(shared + 1) % 3];
+      if (orient2d(pa, pb, corner[(shared + 2) % 3]) > 0) portals.emplace_back(pb, pa);
+      else portals.emplace_back(pa, pb);
+      std::array<Vec2, 3> next_corner;
+      for (int k = 0; k < 3; ++k) {
+        const Index v = F(next, k);
+        if (v == a && v != b) next_corner[k] = pa;
+        else if (v == b && v != a) next_corner[k] = pb;
+        else
+          next_corner[k] = layout_third_point(pb, pa, (pa - pb).norm(), distance_3d(V, b, v), distance_3d(V, a, v));
+      }
+      corner = next_corner;
+      face = next;
+    }
+    const Vec2 end = at(segments[last].to);
+    portals.emplace_back(end, end);
+    const double length = funnel_length(portals);
+    if (!std::isfinite(length)) return traced_length(V, F, edge);
+    total += length;
+    begin = last + 1;
+  }
+  return std::min(total, traced_length(V, F, edge));
+}
+
+}  // namespace
+
+double shortest_traced_length(const Positions& V, const Faces& F, const TracedEdge& edge) {
+  return shortest_length_in_strip(V, F, glue_by_vertex_pairs(F), edge);
+}
+
+FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const CompactMesh& coarse, const CoarseTracing& tracing,
+                                TracedLengthMeasure measure) {
   const std::size_t sides = static_cast<std::size_t>(3 * coarse.F.rows());
   if (coarse.twin.size() != sides || (tracing.edges.empty() && sides > 0))
     throw std::invalid_argument("traced_edge_lengths: the tracing is not of this coarse mesh (no edges, or no gluing)");
   FaceLengths L = coarse.L;
+  const std::vector<Index> fine_twin =
+      measure == TracedLengthMeasure::shortest_in_strip ? glue_by_vertex_pairs(F) : std::vector<Index>{};
   const auto twin_of = [&](Index side) { return coarse.twin[static_cast<std::size_t>(side)]; };
   for (const TracedEdge& edge : tracing.edges) {
     if (edge.side < 0 || static_cast<std::size_t>(edge.side) >= sides)
       throw std::invalid_argument("traced_edge_lengths: a traced edge names side " + std::to_string(edge.side) +
                                   " beyond the coarse mesh");
     if (edge.status != TraceStatus::traced) continue;
-    const double length = traced_length(V, F, edge);
+    const double length = measure == TracedLengthMeasure::shortest_in_strip
+                              ? shortest_length_in_strip(V, F, fine_twin, edge)
+                              : traced_length(V, F, edge);
     L(edge.side / 3, edge.side % 3) = length;
     if (const Index twin = twin_of(edge.side); twin != kInvalid) L(twin / 3, twin % 3) = length;
   }

@@ -137,12 +137,28 @@ Positions traced_polyline(const Positions& V, const Faces& F, const TracedEdge& 
 /// Length of that polyline.
 double traced_length(const Positions& V, const Faces& F, const TracedEdge& edge);
 
-/// The coarse mesh's edge lengths measured on the input surface: each traced edge's polyline length
-/// (traced_length, on both sides of the edge), where ICE's flattening has changed the metric. An
+/// The shortest path between the ends of a traced edge within the input faces it crosses, unfolded
+/// into the plane (the funnel algorithm; where the trace passes from one face to the next through
+/// a vertex, that point stays on the path): never longer than traced_length, and the surface's
+/// geodesic between the ends wherever that runs inside those faces. Gathers F's gluing (O(|F|)) for
+/// this one edge; traced_edge_lengths measures them all with one.
+double shortest_traced_length(const Positions& V, const Faces& F, const TracedEdge& edge);
+
+/// How traced_edge_lengths measures a traced edge on the input surface.
+enum class TracedLengthMeasure {
+  polyline,           ///< its polyline's length (traced_length)
+  shortest_in_strip,  ///< the shortest path between its ends within the input faces it crosses, unfolded
+                      ///< (the funnel algorithm): never longer than the polyline, a geodesic where the
+                      ///< strip holds one
+};
+
+/// The coarse mesh's edge lengths measured on the input surface: each traced edge's length by
+/// `measure` (on both sides of the edge), where ICE's flattening has changed the metric. An
 /// edge that was not traced keeps its intrinsic length, and so do the three edges of a face whose
 /// traced lengths break the triangle inequality (and their other sides), so the result is a valid
 /// intrinsic metric on `coarse`'s faces. Preconditions: `tracing` traced `coarse` on (V, F);
 /// std::invalid_argument otherwise.
-FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const CompactMesh& coarse, const CoarseTracing& tracing);
+FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const CompactMesh& coarse, const CoarseTracing& tracing,
+                                TracedLengthMeasure measure = TracedLengthMeasure::shortest_in_strip);
 
 }  // namespace ice
