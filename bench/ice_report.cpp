@@ -17,7 +17,9 @@
 //   geodesic   distance from each of 3 sources (vertex 0, then twice the vertex farthest in R³ from those
 //              chosen): through the proxy by coarse fast marching (--coarse-distances heat: the coarse heat
 //              method), on the fine mesh by the heat method; error: mean |d − d_ref| / max d_ref, averaged
-//              over the sources
+//              over the sources, d_ref the fine heat method's distances or (--geodesic-reference exact, when
+//              built with CGAL) exact polyhedral geodesics, against which the fine heat method's own error
+//              is reported too
 // and writes results.csv, results.json, summary.md and (with gnuplot) SVG plots into the output dir.
 // Progress goes to stderr. --quick: 2 small meshes, 2 budgets (the CTest test report_quick).
 #include <algorithm>
@@ -27,13 +29,18 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <optional>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 
 #include "app_common.h"
+#ifdef ICE_REPORT_EXACT_GEODESICS
+#include "exact_geodesics.h"
+#endif
 #include "fem/blas_info.h"
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
@@ -130,11 +137,14 @@ struct Fine {
   double heat_time = 0;
   std::vector<int> sources;
   Eigen::VectorXd poisson, heat;
-  std::vector<Eigen::VectorXd> distances;
+  std::vector<Eigen::VectorXd> distances;  // the geodesic reference, per source
+  /// With the exact reference: the fine heat method's error against it (mean |d - d_ref| / max d_ref,
+  /// averaged over the sources); NaN otherwise.
+  double heat_method_error = std::numeric_limits<double>::quiet_NaN();
   double t_assemble[3] = {0, 0, 0}, t_factor[3] = {0, 0, 0}, t_solve[3] = {0, 0, 0};
 };
 
-Fine fine_reference(const ice::TriangleMesh& mesh) {
+Fine fine_reference(const ice::TriangleMesh& mesh, bool exact_geodesics) {
   Fine r;
   r.mesh = mesh;
   const Eigen::Index n = mesh.V.rows();
@@ -162,6 +172,20 @@ Fine fine_reference(const ice::TriangleMesh& mesh) {
   r.t_factor[2] = clock.lap();
   for (int s : r.sources) r.distances.push_back(geodesic.distance({s}));
   r.t_solve[2] = clock.lap();
+#ifdef ICE_REPORT_EXACT_GEODESICS
+  if (exact_geodesics) {
+    const Eigen::MatrixXd exact =
+        ice_bench::exact_geodesic_distances(mesh, std::vector<ice::Index>(r.sources.begin(), r.sources.end()));
+    r.heat_method_error = 0;
+    for (std::size_t k = 0; k < r.sources.size(); ++k) {
+      r.heat_method_error += fem::distance_errors(r.distances[k], exact.col(static_cast<Eigen::Index>(k))).mean_relative /
+                             static_cast<double>(r.sources.size());
+      r.distances[k] = exact.col(static_cast<Eigen::Index>(k));
+    }
+  }
+#else
+  if (exact_geodesics) throw std::logic_error("exact geodesics: not built with CGAL");
+#endif
   return r;
 }
 
@@ -266,7 +290,7 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
     // The heat method's assembly counts as its factorisation; marching on other lengths than the
     // coarse mesh's own (--geodesic-lengths traced) takes the mesh and the barycentric P directly.
     const fem::ProxyGeodesicSolver solver = marching_lengths
-                                                ? fem::ProxyGeodesicSolver(coarse.mesh.F, *marching_lengths, coarse.P)
+                                                ? fem::ProxyGeodesicSolver(coarse.mesh.F, *marching_lengths, coarse.P, geodesic.subdivisions)
                                                 : fem::ProxyGeodesicSolver(proxy, geodesic);
     r.factor = clock.lap();
     fem::ProxyPhaseTimes total;
@@ -393,7 +417,8 @@ struct Key {
 void write_summary(const std::string& path, const std::vector<Row>& rows, const std::vector<std::string>& methods,
                    const std::vector<double>& budgets, const std::vector<std::string>& meshes, const std::string& command,
                    double total_seconds, const std::string& operators, double area_weight, bool normalize_curvature,
-                   const std::vector<PolishRow>& polished, const nlohmann::json& skipped) {
+                   const std::vector<PolishRow>& polished, const nlohmann::json& skipped,
+                   const std::map<std::string, double>& fine_heat_method_errors) {
   std::map<Key, std::map<std::string, const Row*>> by_key;
   for (const Row& r : rows) by_key[{r.mesh, r.problem, r.budget}][r.method] = &r;
   const auto has = [&](const std::string& m) { return std::find(methods.begin(), methods.end(), m) != methods.end(); };
@@ -420,7 +445,15 @@ void write_summary(const std::string& path, const std::vector<Row>& rows, const 
          "decimation, closest-point map) with operators from its positions; `qem_idt` the same QEM mesh and P with "
          "operators from its intrinsic Delaunay triangulation.  \n"
          "Errors: Poisson and heat relative L2 (fine mass norm); geodesic mean |d - d_ref| / max d_ref over 3 "
-         "sources. Ratios < 1 mean ICE is more accurate.\n\n";
+         "sources, d_ref "
+      << (fine_heat_method_errors.empty() ? "the fine heat method's distances" : "exact polyhedral geodesics (CGAL)")
+      << ". Ratios < 1 mean ICE is more accurate.\n\n";
+  if (!fine_heat_method_errors.empty()) {
+    std::vector<double> errors;
+    for (const auto& [mesh, error] : fine_heat_method_errors) errors.push_back(error);
+    out << "The fine heat method against exact geodesics (same error measure): median " << pct(median(errors))
+        << " over " << errors.size() << " meshes.\n\n";
+  }
 
   for (const std::string& problem : kProblems) {
     out << "## " << problem << ": median error per method, median ICE/QEM error ratio\n\n| budget | median coarse n |";
@@ -714,6 +747,15 @@ int main(int argc, char** argv) {
                  "keeps t = h^2)")
       ->check(app::positive_number())
       ->capture_default_str();
+  cli.add_option("--marching-subdivisions", geodesic.subdivisions,
+                 "Coarse marching on the coarse mesh split 1:4 this many times (fem::ProxyGeodesicOptions::subdivisions)")
+      ->check(CLI::Range(0, 6))
+      ->capture_default_str();
+  bool exact_geodesics = false;
+  app::add_choice(cli, "--geodesic-reference", exact_geodesics, {{"heat", false}, {"exact", true}},
+                  "What geodesic errors are measured against: the fine heat method (t = h^2) or exact polyhedral "
+                  "geodesics (CGAL's Surface_mesh_shortest_path; only in builds with libcgal-dev). With 'exact' the "
+                  "fine heat method's own error is reported per mesh too");
   bool traced_lengths = false;
   app::add_choice(cli, "--geodesic-lengths", traced_lengths, {{"intrinsic", false}, {"traced", true}},
                   "ICE's geodesics by coarse marching on the coarse mesh's intrinsic edge lengths, or on the lengths of "
@@ -765,6 +807,10 @@ int main(int argc, char** argv) {
     // the three problems.
     const std::string heat_geodesics =
         geodesic.method == fem::CoarseDistanceMethod::heat_method ? "--coarse-distances heat" : "";
+#ifndef ICE_REPORT_EXACT_GEODESICS
+    if (exact_geodesics)
+      throw app::AppError(app::kUsage, "--geodesic-reference exact: this ice-report was built without CGAL (libcgal-dev)");
+#endif
     if (traced_lengths && !heat_geodesics.empty())
       throw app::AppError(app::kUsage, "--geodesic-lengths traced: the lengths are for coarse marching, not with --coarse-distances heat");
     const fem::ProlongationKind prolongation = app::resolve_prolongation(prolongation_choice, kind, heat_geodesics);
@@ -808,6 +854,7 @@ int main(int argc, char** argv) {
     std::vector<PolishRow> polished;
     std::vector<app::ViewMesh> views;  // the 3D page: one per mesh
     std::vector<std::string> used_meshes;
+    std::map<std::string, double> fine_heat_method_errors;  // --geodesic-reference exact: mesh -> error
     nlohmann::json skipped = nlohmann::json::array();  // {mesh, reason} of the inputs not used
     const std::size_t steps = inputs.size() * budgets.size();
     std::size_t step = 0;
@@ -835,7 +882,8 @@ int main(int argc, char** argv) {
       const ice::TriangleMesh& mesh = loaded.mesh;
       const long long n = mesh.V.rows();
       const double diagonal = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
-      const Fine fine = fine_reference(mesh);
+      const Fine fine = fine_reference(mesh, exact_geodesics);
+      if (exact_geodesics) fine_heat_method_errors[name] = fine.heat_method_error;
       std::cerr << kTool << ": " << name << " (" << app::thousands(n) << " vertices): fine reference "
                 << app::fixed(mesh_clock.seconds(), 2) << " s\n";
       std::optional<app::ViewMesh> view;
@@ -959,6 +1007,8 @@ int main(int argc, char** argv) {
                               {"geodesic_coarse_distances", fem::to_string(geodesic.method)},
                               {"geodesic_lengths", traced_lengths ? "traced" : "intrinsic"},
                               {"fine_reference", "intrinsic Delaunay triangulation of the input"},
+                              {"geodesic_reference", exact_geodesics ? "exact polyhedral geodesics (CGAL)" : "fine heat method"},
+                              {"fine_heat_method_geodesic_errors", fine_heat_method_errors},
                               {"blas", fem::blas_library()},
                               {"total_seconds", total_seconds},
                               {"rows", nlohmann::json::array()}};
@@ -969,7 +1019,7 @@ int main(int argc, char** argv) {
       if (!out) throw app::AppError(app::kNotWritten, outdir + "/results.json: cannot be written");
     }
     write_summary(outdir + "/summary.md", rows, methods, budgets, used_meshes, command, total_seconds, operators,
-                  area_weight, normalize_curvature, polished, skipped);
+                  area_weight, normalize_curvature, polished, skipped, fine_heat_method_errors);
     write_plot_data(outdir, rows, methods, budgets);
     std::string plots = "no plots (--no-plots)";
     if (!no_plots) {

@@ -10,10 +10,6 @@
 // and oracle: mean and 95th-percentile of |d − d_ref| / d_ref over all pairs, far pairs and near
 // pairs (sharing a coarse vertex), against exact and against the fine heat method; and the fine
 // heat method's own error against exact. A benchmark tool: CGAL is not a dependency of the library.
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Surface_mesh.h>
-#include <CGAL/Surface_mesh_shortest_path.h>
-
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -24,13 +20,10 @@
 #include "fem/distance_oracle.h"
 #include "fem/problems.h"
 #include "ice/coarse_space.h"
+#include "exact_geodesics.h"
 #include "ice/mesh_io.h"
 
 namespace {
-
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
-using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
-using ShortestPaths = CGAL::Surface_mesh_shortest_path<CGAL::Surface_mesh_shortest_path_traits<Kernel, SurfaceMesh>>;
 
 std::string summary(std::vector<double> e) {
   if (e.empty()) return "- / -";
@@ -75,18 +68,7 @@ int main(int argc, char** argv) {
     std::vector<ice::Index> sources;
     for (int s = 0; s < source_count; ++s) sources.push_back(vertex(rng));
 
-    SurfaceMesh surface;
-    std::vector<SurfaceMesh::Vertex_index> handles;
-    for (ice::Index v = 0; v < n; ++v) handles.push_back(surface.add_vertex({mesh.V(v, 0), mesh.V(v, 1), mesh.V(v, 2)}));
-    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
-      surface.add_face(handles[mesh.F(f, 0)], handles[mesh.F(f, 1)], handles[mesh.F(f, 2)]);
-    Eigen::MatrixXd exact(n, source_count);
-    for (int s = 0; s < source_count; ++s) {
-      ShortestPaths paths(surface);
-      paths.add_source_point(handles[sources[s]]);
-      paths.build_sequence_tree();
-      for (ice::Index v = 0; v < n; ++v) exact(v, s) = paths.shortest_distance_to_source_points(handles[v]).first;
-    }
+    const Eigen::MatrixXd exact = ice_bench::exact_geodesic_distances(mesh, sources);
     const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
     const fem::HeatGeodesicSolver fine_solver(fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n));
     const Eigen::MatrixXd heat = fine_solver.distances_from_each(sources);

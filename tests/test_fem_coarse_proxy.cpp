@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <random>
 #include <set>
 #include <utility>
 #include <vector>
@@ -310,6 +311,50 @@ TEST_CASE("geodesics by coarse marching are the straight-line distance on a flat
   CHECK((mixed.head(nc) - from_point.head(nc).cwiseMin(from_vertex.head(nc))).cwiseAbs().maxCoeff() <= 1e-4 * to_point.maxCoeff());
   CHECK_THROWS_AS(marching.distance({}), std::invalid_argument);
   CHECK_THROWS_AS(marching.distance({static_cast<int>(fine.V.rows())}), std::invalid_argument);
+}
+
+TEST_CASE("coarse marching on the subdivided coarse mesh: the same metric, nearer its geodesics", "[fem][coarse_proxy]") {
+  // Flat and acute (the equilateral hexagon): exact with or without subdivision.
+  {
+    const ice::TriangleMesh coarse = equilateral_hexagon(6);
+    const auto [fine, P] = midpoint_split(coarse);
+    const ice::FaceLengths lengths = ice::face_lengths_from_positions(coarse.V, coarse.F);
+    for (int subdivisions = 0; subdivisions < 3; ++subdivisions) {
+      const fem::ProxyGeodesicSolver solver(coarse.F, lengths, P, subdivisions);
+      for (int source : {0, 17, static_cast<int>(coarse.V.rows()) + 5}) {
+        const Eigen::VectorXd exact = (fine.V.rowwise() - fine.V.row(source)).rowwise().norm();
+        const Eigen::VectorXd d = solver.distance({source});
+        CHECK(d(source) == 0.0);
+        CHECK(fem::max_abs_error(d, exact) <= 1e-6 * exact.maxCoeff());  // float layouts
+      }
+    }
+    CHECK_THROWS_AS(fem::ProxyGeodesicSolver(coarse.F, lengths, P, -1), std::invalid_argument);
+  }
+  // Curved (a coarse icosphere's polyhedral metric, its curvature at the vertices): the marching's
+  // planar updates miss the polyhedron's geodesics; on its 1:4 subdivisions (the same metric, flat
+  // pieces) they converge to them: the distances approach those of the finest subdivision
+  // (measured mean gaps 2.6 %, 0.31 %, 0.14 %, ... of the largest distance).
+  {
+    const ice::TriangleMesh coarse = ice::make_icosphere(1);
+    const auto [fine, P] = midpoint_split(coarse);
+    const ice::FaceLengths lengths = ice::face_lengths_from_positions(coarse.V, coarse.F);
+    const std::vector<int> sources{0, static_cast<int>(coarse.V.rows()) + 7};
+    std::vector<Eigen::VectorXd> distances;
+    for (int subdivisions = 0; subdivisions <= 4; ++subdivisions) {
+      const fem::ProxyGeodesicSolver solver(coarse.F, lengths, P, subdivisions);
+      Eigen::VectorXd d(2 * fine.V.rows());
+      d << solver.distance({sources[0]}), solver.distance({sources[1]});
+      distances.push_back(d);
+    }
+    const Eigen::VectorXd& finest = distances.back();
+    std::array<double, 4> gap{};
+    for (std::size_t k = 0; k < 4; ++k) gap[k] = (distances[k] - finest).cwiseAbs().mean() / finest.maxCoeff();
+    INFO("mean gap to the 1:256 subdivision: " << gap[0] << ", " << gap[1] << ", " << gap[2] << ", " << gap[3]);
+    CHECK(gap[0] > 1e-3);
+    CHECK(gap[1] < gap[0]);
+    CHECK(gap[2] < gap[1]);
+    CHECK(gap[3] < gap[2]);
+  }
 }
 
 TEST_CASE("smoothed prolongation: one damped Jacobi step of P, a better Galerkin coarse space", "[fem][coarse_proxy]") {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <array>
 #include <limits>
 #include <string>
 #include <stdexcept>
@@ -166,6 +167,144 @@ double seconds_since(Clock::time_point& mark) {
   const double s = std::chrono::duration<double>(now - mark).count();
   mark = now;
   return s;
+}
+
+// One 1:4 midpoint subdivision of the coarse mesh for marching, with P's rows carried into the
+// sub-triangles. A side's midpoint is shared by the sides with the same end vertices and the same
+// length (the two sides of one edge; parallel edges of one length would share it too, which the
+// marching, reading vertex pairs, does not mind). Each face (a, b, c) becomes (a, m_ab, m_ca),
+// (m_ab, b, m_bc), (m_ca, m_bc, c) and (m_ab, m_bc, m_ca), flat and similar to it with half its
+// lengths. A row of P whose columns are one face's corners (the only face with them) or one edge's
+// ends is re-expressed in the sub-triangle holding its point; other rows (interpolated linearly by
+// the marching, see prepare_marching) keep their columns, which stay vertices.
+struct SubdividedCoarseMesh {
+  Faces F;
+  FaceLengths L;
+  Eigen::SparseMatrix<double, Eigen::RowMajor, int> P;
+};
+
+SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& Lc,
+                                             const Eigen::SparseMatrix<double, Eigen::RowMajor, int>& P) {
+  // Sides sorted by (ends, length): equal keys share a midpoint, numbered after the old vertices.
+  struct Side {
+    Index low, high;
+    double length;
+    Index side;  // 3f + k
+  };
+  const auto key_less = [](const Side& p, const Side& q) {
+    return p.low != q.low ? p.low < q.low : p.high != q.high ? p.high < q.high : p.length < q.length;
+  };
+  std::vector<Side> sides;
+  sides.reserve(static_cast<std::size_t>(3 * Fc.rows()));
+  for (Eigen::Index f = 0; f < Fc.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Index u = Fc(f, k), w = Fc(f, (k + 1) % 3);
+      sides.push_back({std::min(u, w), std::max(u, w), Lc(f, k), static_cast<Index>(3 * f + k)});
+    }
+  std::sort(sides.begin(), sides.end(), key_less);
+  std::vector<Index> midpoint(sides.size());
+  // Edges by their ends: the one length and midpoint of the vertex pair, NaN length where sides of
+  // several lengths join it (parallel edges: which one a row's weights refer to is unknown).
+  struct Edge {
+    Index low, high;
+    double length;
+    Index midpoint;
+  };
+  std::vector<Edge> edges;
+  Index count = static_cast<Index>(P.cols());
+  for (std::size_t i = 0; i < sides.size(); ++i) {
+    const bool new_key = i == 0 || key_less(sides[i - 1], sides[i]);
+    if (new_key) ++count;
+    midpoint[static_cast<std::size_t>(sides[i].side)] = count - 1;
+    if (i == 0 || sides[i - 1].low != sides[i].low || sides[i - 1].high != sides[i].high)
+      edges.push_back({sides[i].low, sides[i].high, sides[i].length, count - 1});
+    else if (new_key)
+      edges.back().length = std::numeric_limits<double>::quiet_NaN();
+  }
+  // Faces by their sorted corners (face −1: several faces have them).
+  struct Corners {
+    std::array<Index, 3> sorted;
+    Eigen::Index face;
+  };
+  std::vector<Corners> faces;
+  faces.reserve(static_cast<std::size_t>(Fc.rows()));
+  SubdividedCoarseMesh out;
+  out.F.resize(4 * Fc.rows(), 3);
+  out.L.resize(4 * Fc.rows(), 3);
+  for (Eigen::Index f = 0; f < Fc.rows(); ++f) {
+    const Index a = Fc(f, 0), b = Fc(f, 1), c = Fc(f, 2);
+    const double ab = Lc(f, 0), bc = Lc(f, 1), ca = Lc(f, 2);
+    const Index m_ab = midpoint[static_cast<std::size_t>(3 * f)], m_bc = midpoint[static_cast<std::size_t>(3 * f + 1)],
+                m_ca = midpoint[static_cast<std::size_t>(3 * f + 2)];
+    out.F.row(4 * f) << a, m_ab, m_ca;
+    out.L.row(4 * f) << ab / 2, bc / 2, ca / 2;
+    out.F.row(4 * f + 1) << m_ab, b, m_bc;
+    out.L.row(4 * f + 1) << ab / 2, bc / 2, ca / 2;
+    out.F.row(4 * f + 2) << m_ca, m_bc, c;
+    out.L.row(4 * f + 2) << ab / 2, bc / 2, ca / 2;
+    out.F.row(4 * f + 3) << m_ab, m_bc, m_ca;
+    out.L.row(4 * f + 3) << ca / 2, ab / 2, bc / 2;
+    std::array<Index, 3> sorted{a, b, c};
+    std::sort(sorted.begin(), sorted.end());
+    faces.push_back({sorted, f});
+  }
+  std::sort(faces.begin(), faces.end(), [](const Corners& p, const Corners& q) { return p.sorted < q.sorted; });
+  for (std::size_t i = 1; i < faces.size(); ++i)
+    if (faces[i].sorted == faces[i - 1].sorted) faces[i].face = faces[i - 1].face = -1;
+  const auto find_edge = [&](Index u, Index w) -> const Edge* {
+    const Index low = std::min(u, w), high = std::max(u, w);
+    const auto it = std::lower_bound(edges.begin(), edges.end(), std::pair{low, high}, [](const Edge& e, const std::pair<Index, Index>& k) {
+      return e.low != k.first ? e.low < k.first : e.high < k.second;
+    });
+    return it != edges.end() && it->low == low && it->high == high && !std::isnan(it->length) ? &*it : nullptr;
+  };
+  const auto find_face = [&](std::array<Index, 3> sorted) -> Eigen::Index {
+    const auto it = std::lower_bound(faces.begin(), faces.end(), sorted,
+                                     [](const Corners& c, const std::array<Index, 3>& k) { return c.sorted < k; });
+    return it != faces.end() && it->sorted == sorted ? it->face : -1;
+  };
+
+  // P's rows, re-expressed; at most three weights each, built in place (row-major).
+  out.P.resize(P.rows(), count);
+  out.P.reserve(P.nonZeros());
+  std::vector<std::pair<Index, double>> row, placed;
+  for (Eigen::Index y = 0; y < P.rows(); ++y) {
+    row.clear();
+    placed.clear();
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor, int>::InnerIterator it(P, y); it; ++it)
+      row.emplace_back(static_cast<Index>(it.col()), it.value());
+    if (row.size() == 2 && row[0].first != row[1].first) {
+      auto [u, lu] = row[0];
+      auto [w, lw] = row[1];
+      if (const Edge* edge = find_edge(u, w)) {
+        if (lu < lw) std::swap(u, w), std::swap(lu, lw);  // u holds at least half
+        placed = {{u, 2 * lu - 1}, {edge->midpoint, 2 * lw}};
+      }
+    } else if (row.size() == 3) {
+      std::array<Index, 3> sorted{row[0].first, row[1].first, row[2].first};
+      std::sort(sorted.begin(), sorted.end());
+      const Eigen::Index f = sorted[0] != sorted[1] && sorted[1] != sorted[2] ? find_face(sorted) : -1;
+      if (f >= 0) {
+        std::array<double, 3> weight{0, 0, 0};  // in the face's corner order
+        for (const auto& [v, w] : row)
+          for (int k = 0; k < 3; ++k)
+            if (Fc(f, k) == v) weight[static_cast<std::size_t>(k)] = w;
+        const auto sub = [&](int piece, int k) { return static_cast<Index>(out.F(4 * f + piece, k)); };
+        const double la = weight[0], lb = weight[1], lc = weight[2];
+        if (la >= 0.5) placed = {{sub(0, 0), 2 * la - 1}, {sub(0, 1), 2 * lb}, {sub(0, 2), 2 * lc}};
+        else if (lb >= 0.5) placed = {{sub(1, 0), 2 * la}, {sub(1, 1), 2 * lb - 1}, {sub(1, 2), 2 * lc}};
+        else if (lc >= 0.5) placed = {{sub(2, 0), 2 * la}, {sub(2, 1), 2 * lb}, {sub(2, 2), 2 * lc - 1}};
+        else placed = {{sub(3, 0), 1 - 2 * lc}, {sub(3, 1), 1 - 2 * la}, {sub(3, 2), 1 - 2 * lb}};
+      }
+    }
+    if (placed.empty()) placed = row;
+    std::sort(placed.begin(), placed.end());
+    out.P.startVec(y);
+    for (const auto& [v, w] : placed)
+      if (w > 0) out.P.insertBack(y, v) = w;
+  }
+  out.P.finalize();
+  return out;
 }
 
 // The coarse heat method needs the barycentric P: a smoothed row has negative weights (no source
@@ -367,10 +506,11 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGe
     require_barycentric(proxy);
     heat_ = std::make_unique<HeatGeodesicSolver>(proxy.coarse_heat_method_operators(options.time_factor));
   } else
-    prepare_marching(proxy.coarse_faces(), proxy.coarse_lengths());
+    prepare_marching(proxy.coarse_faces(), proxy.coarse_lengths(), options.subdivisions);
 }
 
-ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P)
+ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P,
+                                         int subdivisions)
     : P_rows_(std::move(P)) {
   P_rows_.prune(0.0);
   P_rows_.makeCompressed();
@@ -378,11 +518,18 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLe
   for (Eigen::Index k = 0; k < P_rows_.nonZeros(); ++k)
     if (!(P_rows_.valuePtr()[k] > 0))
       throw std::invalid_argument("ProxyGeodesicSolver: P has a negative or non-finite weight (rows are barycentric coordinates)");
-  prepare_marching(coarse_faces, coarse_lengths);
+  prepare_marching(coarse_faces, coarse_lengths, subdivisions);
 }
 
-void ProxyGeodesicSolver::prepare_marching(const Faces& Fc, const FaceLengths& Lc) {
-  detail::check_marching_mesh(Fc, Lc, "ProxyGeodesicSolver");
+void ProxyGeodesicSolver::prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths, int subdivisions) {
+  detail::check_marching_mesh(coarse_faces, coarse_lengths, "ProxyGeodesicSolver");
+  if (subdivisions < 0) throw std::invalid_argument("ProxyGeodesicSolver: negative subdivision count");
+  Faces Fc = coarse_faces;
+  FaceLengths Lc = coarse_lengths;
+  for (int level = 0; level < subdivisions; ++level) {
+    SubdividedCoarseMesh finer = subdivide_for_marching(Fc, Lc, P_rows_);
+    Fc = std::move(finer.F), Lc = std::move(finer.L), P_rows_ = std::move(finer.P);
+  }
   marching_ = std::make_unique<detail::MarchingMesh>(Fc, Lc, P_rows_.cols());
   const Eigen::Index n = P_rows_.rows();
   spread_.resize(static_cast<std::size_t>(n));

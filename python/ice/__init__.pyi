@@ -150,10 +150,11 @@ class ProxyHeatSolver:
 class ProxyGeodesicSolver:
     """Geodesic distance through the proxy (coarse fast marching, or the coarse heat method)."""
     def __init__(self, proxy: Proxy, *, method: Literal["marching", "heat"] = "marching",
-                 time_factor: float = 1.0) -> None: ...
+                 time_factor: float = 1.0, subdivisions: int = 1) -> None: ...
     @staticmethod
     def from_coarse(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
-                    lengths: Literal["intrinsic", "traced"] = "intrinsic") -> ProxyGeodesicSolver:
+                    lengths: Literal["intrinsic", "traced"] = "intrinsic",
+                    subdivisions: int = 1) -> ProxyGeodesicSolver:
         """Coarse marching from a coarse space of (V, F) alone, without a Proxy."""
     def distance(self, sources: Indices) -> FloatArray: ...
     @property
@@ -239,7 +240,7 @@ def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: C
                       method: Literal["marching", "heat"] = "marching",
                       time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
-                      lengths: Literal["intrinsic", "traced"] = "intrinsic",
+                      lengths: Literal["intrinsic", "traced"] = "intrinsic", subdivisions: int = 1,
                       **coarsening: Any) -> FloatArray:
     """Geodesic distance through a coarse proxy in one call (coarse fast marching by default)."""
 def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: ArrayLike = 1.0, *,

@@ -164,6 +164,17 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
         ice.geodesic_distance(V, F, [7], coarse=coarse, method="heat", lengths="traced")
     with pytest.raises(ValueError, match="lengths"):
         ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="exact")
+    # Marching on the coarse mesh split 1:4 twice: the tool's --marching-subdivisions 2, other
+    # distances than the default (1), and a subdivision count out of range refused.
+    tool("geodesic-coarse", path, "--ratio", "0.05", "--source", "7", "--no-reference", "--ascii", "-q",
+         "--marching-subdivisions", "2", "-o", tmp_path / "s.ply")
+    split = ice.geodesic_distance(V, F, [7], ratio=0.05, subdivisions=2)
+    assert np.abs(split - read_ascii_ply_fields(tmp_path / "s.ply")["distance"]).max() <= 1e-12 * split.max()
+    assert np.abs(split - d).max() > 1e-6 * d.max()
+    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, subdivisions=0).distance([7]),
+                          ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse), subdivisions=0).distance([7]))
+    with pytest.raises(ValueError, match="subdivisions"):
+        ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, subdivisions=-1)
 
 
 def test_heat_flow_conserves_mass_and_matches_scipy(spot):

@@ -293,6 +293,14 @@ struct ProxyGeodesicOptions {
   CoarseDistanceMethod method = CoarseDistanceMethod::marching;
   /// heat_method only: t = (time_factor · h_c)², h_c the coarse mean edge length.
   double time_factor = 1.0;
+  /// marching only: the coarse mesh is split 1:4 this many times (flat midpoint subdivision, the
+  /// coarse metric unchanged) before marching, and P's rows carried into the sub-triangles: the
+  /// marching's planar updates then follow the coarse metric's geodesics more closely, and the
+  /// distance is interpolated over smaller pieces. Measured against exact polyhedral geodesics
+  /// (CGAL) on 40 meshes × 1, 2, 5, 10 % (README, Accuracy): geometric-mean error 0.92x (ICE) and
+  /// 0.82x (QEM-iDT) of no subdivision with 1, 0.82x and 0.73x with 2; at 1.6M vertices and 1 %,
+  /// setup 0.13 / 0.46 / 1.06 s and 12 / 25-37 / 100 ms per solve for 0 / 1 / 2.
+  int subdivisions = 1;
 };
 
 /// Geodesic distance from fine source vertices through the coarse space (see the file comment).
@@ -314,7 +322,8 @@ class ProxyGeodesicSolver {
   /// non-negative weights summing to 1), not the fine or coarse operators a CoarseProxy assembles
   /// (3.6 of the 14 s of a 1 % proxy at 1.6M vertices). Throws std::invalid_argument on a bad coarse
   /// mesh or P.
-  ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P);
+  ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P,
+                      int subdivisions = ProxyGeodesicOptions{}.subdivisions);
   /// The heat method with coarse operators assembled by the caller (to time assembly and
   /// factorisation apart).
   ProxyGeodesicSolver(const CoarseProxy& proxy, HeatMethodOperators coarse_operators);
@@ -329,7 +338,7 @@ class ProxyGeodesicSolver {
  private:
   Eigen::VectorXd heat_distance(const std::vector<Index>& sources, ProxyPhaseTimes* times) const;
   Eigen::VectorXd marching_distance(const std::vector<Index>& sources, ProxyPhaseTimes* times) const;
-  void prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths);
+  void prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths, int subdivisions);
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major (gathers per fine vertex)
   std::unique_ptr<HeatGeodesicSolver> heat_;                  ///< the heat method, or null
   std::unique_ptr<detail::MarchingMesh> marching_;            ///< marching, or null
