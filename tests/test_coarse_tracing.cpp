@@ -325,6 +325,13 @@ TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric close
       shorter += strip < polyline * (1 - 1e-6);
     }
   CHECK(shorter > 0);
+  // Traced without positions: no lengths stored with the edges; traced_edge_lengths measures them.
+  const ice::CoarseTracing unmeasured =
+      ice::trace_coarse_mesh(sphere.F, space.mesh, ice::fine_to_coarse_map(space), space.inserted);
+  for (const ice::TracedEdge& edge : unmeasured.edges) CHECK(edge.surface_length == -1);
+  for (const ice::TracedEdge& edge : tracing.edges)
+    if (edge.status == ice::TraceStatus::traced) CHECK(edge.surface_length >= 0);
+  CHECK((ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, unmeasured) - L).cwiseAbs().maxCoeff() <= 1e-12 * L.maxCoeff());
   const double radius = sphere.V.row(0).norm();
   double intrinsic_error = 0, traced_error = 0;
   const fem::ProxyGeodesicSolver on_intrinsic(space.mesh.F, space.mesh.L, space.P), on_traced(space.mesh.F, L, space.P);

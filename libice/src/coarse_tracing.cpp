@@ -120,6 +120,7 @@ class Tracer {
   }
 
   const std::vector<Index>& coarse_twin() const { return coarse_twin_; }
+  const std::vector<Index>& fine_twin() const { return fine_twin_; }
 
   TracedEdge trace(Index side) const;
   Index face_patch(Index t) const;
@@ -724,120 +725,6 @@ void mark_crossing_edges(std::vector<TracedEdge>& edges, const CompactMesh& coar
 
 }  // namespace
 
-CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
-                                const std::vector<InputSurfacePoint>& inserted, const Positions& V, int threads) {
-  const Index n = static_cast<Index>(map.size());
-  if (F.size() > 0 && F.minCoeff() < 0)
-    throw std::invalid_argument("trace_coarse_mesh: an input face has a negative vertex index (" +
-                                std::to_string(F.minCoeff()) + ")");
-  if (F.size() > 0 && F.maxCoeff() >= n)
-    throw std::invalid_argument("trace_coarse_mesh: the map has " + std::to_string(n) +
-                                " points, fewer than the input faces' vertices (" + std::to_string(F.maxCoeff() + 1) + ")");
-  if (V.rows() != 0 && V.rows() != n)
-    throw std::invalid_argument("trace_coarse_mesh: " + std::to_string(V.rows()) + " positions for " +
-                                std::to_string(n) + " input vertices");
-  if (static_cast<Index>(coarse.from_input.size()) != n)
-    throw std::invalid_argument("trace_coarse_mesh: the coarse mesh's from_input has " +
-                                std::to_string(coarse.from_input.size()) + " entries for " + std::to_string(n) +
-                                " input vertices");
-  // Coarse vertices: input vertices first (to_input names one), then the inserted ones (kInvalid).
-  bool inserted_seen = false;
-  for (Index c = 0; c < coarse.num_vertices(); ++c) {
-    const Index input = coarse.to_input[static_cast<std::size_t>(c)];
-    if (input == kInvalid) {
-      inserted_seen = true;
-      continue;
-    }
-    if (inserted_seen)
-      throw std::invalid_argument("trace_coarse_mesh: coarse vertex " + std::to_string(c) +
-                                  " is an input vertex after an inserted one (inserted vertices come last)");
-    if (input < 0 || input >= n || coarse.from_input[static_cast<std::size_t>(input)] != c)
-      throw std::invalid_argument("trace_coarse_mesh: coarse vertex " + std::to_string(c) + " names input vertex " +
-                                  std::to_string(input) + ", which does not name it back");
-  }
-  for (Index v = 0; v < n; ++v) {
-    const CoarsePoint& p = map[static_cast<std::size_t>(v)];
-    if (p.face < 0 || p.face >= coarse.F.rows())
-      throw std::invalid_argument("trace_coarse_mesh: map point " + std::to_string(v) + " names coarse face " +
-                                  std::to_string(p.face) + " of " + std::to_string(coarse.F.rows()));
-  }
-  Index inserted_vertices = 0;
-  for (const Index input : coarse.to_input) inserted_vertices += input == kInvalid;
-  if (static_cast<std::size_t>(inserted_vertices) != inserted.size())
-    throw std::invalid_argument("trace_coarse_mesh: " + std::to_string(inserted.size()) + " inserted points for " +
-                                std::to_string(inserted_vertices) + " inserted coarse vertices");
-  for (const InputSurfacePoint& p : inserted)
-    if (p.face < 0 || p.face >= F.rows()) throw std::invalid_argument("trace_coarse_mesh: an inserted point names no input face");
-
-  const Tracer tracer(F, coarse, map, inserted, V);
-  CoarseTracing result;
-  std::vector<Index> sides;
-  const std::vector<Index>& twin = tracer.coarse_twin();
-  for (Index s = 0; s < static_cast<Index>(twin.size()); ++s)
-    if (twin[s] == kInvalid || s < twin[s]) sides.push_back(s);
-  result.edges.resize(sides.size());
-  result.face_patch.assign(static_cast<std::size_t>(F.rows()), kInvalid);
-  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  constexpr Index kChunk = 256;
-  const Index edge_chunks = (static_cast<Index>(sides.size()) + kChunk - 1) / kChunk;
-  const Index face_chunks = (static_cast<Index>(F.rows()) + kChunk - 1) / kChunk;
-  detail::run_tasks(threads, static_cast<int>(edge_chunks + face_chunks), [&](int task) {
-    if (task < edge_chunks) {
-      const Index begin = task * kChunk, stop = std::min<Index>(begin + kChunk, static_cast<Index>(sides.size()));
-      for (Index e = begin; e < stop; ++e) result.edges[e] = tracer.trace(sides[e]);
-    } else {
-      const Index begin = (task - edge_chunks) * kChunk, stop = std::min<Index>(begin + kChunk, F.rows());
-      for (Index t = begin; t < stop; ++t) result.face_patch[t] = tracer.face_patch(t);
-    }
-  });
-  mark_crossing_edges(result.edges, coarse, F, inserted);
-  result.vertex_patch.resize(map.size());
-  for (std::size_t v = 0; v < map.size(); ++v) result.vertex_patch[v] = map[v].face;
-  bool first_ratio = true;
-  for (const TracedEdge& edge : result.edges) {
-    if (edge.status != TraceStatus::traced) {
-      ++result.failed;
-      continue;
-    }
-    ++result.traced;
-    if (V.rows() == 0) continue;
-    const double ratio = traced_length(V, F, edge) / edge.length;
-    result.length_ratio_min = first_ratio ? ratio : std::min(result.length_ratio_min, ratio);
-    result.length_ratio_max = first_ratio ? ratio : std::max(result.length_ratio_max, ratio);
-    first_ratio = false;
-  }
-  return result;
-}
-
-CoarseTracing trace_coarse_mesh(const TriangleMesh& mesh, const CoarseSpace& space, int threads) {
-  if (!space.triangulation)
-    throw std::invalid_argument("trace_coarse_mesh: the coarse space has no triangulation (ICE with keep_method_state)");
-  return trace_coarse_mesh(mesh.F, space.mesh, fine_to_coarse_map(space), space.inserted, mesh.V, threads);
-}
-
-namespace {
-// The point of input face `face` with barycentric coordinates b.
-Eigen::RowVector3d surface_point(const Positions& V, const Faces& F, Index face, const std::array<double, 3>& b) {
-  return V.row(F(face, 0)) * b[0] + V.row(F(face, 1)) * b[1] + V.row(F(face, 2)) * b[2];
-}
-}  // namespace
-
-Positions traced_polyline(const Positions& V, const Faces& F, const TracedEdge& edge) {
-  Positions points(edge.segments.empty() ? 0 : static_cast<Index>(edge.segments.size()) + 1, 3);
-  for (std::size_t i = 0; i < edge.segments.size(); ++i)
-    points.row(static_cast<Index>(i)) = surface_point(V, F, edge.segments[i].face, edge.segments[i].from);
-  if (!edge.segments.empty())
-    points.row(points.rows() - 1) = surface_point(V, F, edge.segments.back().face, edge.segments.back().to);
-  return points;
-}
-
-double traced_length(const Positions& V, const Faces& F, const TracedEdge& edge) {
-  double length = 0;
-  for (const TracedSegment& s : edge.segments)
-    length += (surface_point(V, F, s.face, s.to) - surface_point(V, F, s.face, s.from)).norm();
-  return length;
-}
-
 namespace {
 
 double distance_3d(const Positions& V, Index a, Index b) { return (V.row(a) - V.row(b)).norm(); }
@@ -942,6 +829,127 @@ double shortest_length_in_strip(const Positions& V, const Faces& F, const std::v
 
 }  // namespace
 
+CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
+                                const std::vector<InputSurfacePoint>& inserted, const Positions& V, int threads) {
+  const Index n = static_cast<Index>(map.size());
+  if (F.size() > 0 && F.minCoeff() < 0)
+    throw std::invalid_argument("trace_coarse_mesh: an input face has a negative vertex index (" +
+                                std::to_string(F.minCoeff()) + ")");
+  if (F.size() > 0 && F.maxCoeff() >= n)
+    throw std::invalid_argument("trace_coarse_mesh: the map has " + std::to_string(n) +
+                                " points, fewer than the input faces' vertices (" + std::to_string(F.maxCoeff() + 1) + ")");
+  if (V.rows() != 0 && V.rows() != n)
+    throw std::invalid_argument("trace_coarse_mesh: " + std::to_string(V.rows()) + " positions for " +
+                                std::to_string(n) + " input vertices");
+  if (static_cast<Index>(coarse.from_input.size()) != n)
+    throw std::invalid_argument("trace_coarse_mesh: the coarse mesh's from_input has " +
+                                std::to_string(coarse.from_input.size()) + " entries for " + std::to_string(n) +
+                                " input vertices");
+  // Coarse vertices: input vertices first (to_input names one), then the inserted ones (kInvalid).
+  bool inserted_seen = false;
+  for (Index c = 0; c < coarse.num_vertices(); ++c) {
+    const Index input = coarse.to_input[static_cast<std::size_t>(c)];
+    if (input == kInvalid) {
+      inserted_seen = true;
+      continue;
+    }
+    if (inserted_seen)
+      throw std::invalid_argument("trace_coarse_mesh: coarse vertex " + std::to_string(c) +
+                                  " is an input vertex after an inserted one (inserted vertices come last)");
+    if (input < 0 || input >= n || coarse.from_input[static_cast<std::size_t>(input)] != c)
+      throw std::invalid_argument("trace_coarse_mesh: coarse vertex " + std::to_string(c) + " names input vertex " +
+                                  std::to_string(input) + ", which does not name it back");
+  }
+  for (Index v = 0; v < n; ++v) {
+    const CoarsePoint& p = map[static_cast<std::size_t>(v)];
+    if (p.face < 0 || p.face >= coarse.F.rows())
+      throw std::invalid_argument("trace_coarse_mesh: map point " + std::to_string(v) + " names coarse face " +
+                                  std::to_string(p.face) + " of " + std::to_string(coarse.F.rows()));
+  }
+  Index inserted_vertices = 0;
+  for (const Index input : coarse.to_input) inserted_vertices += input == kInvalid;
+  if (static_cast<std::size_t>(inserted_vertices) != inserted.size())
+    throw std::invalid_argument("trace_coarse_mesh: " + std::to_string(inserted.size()) + " inserted points for " +
+                                std::to_string(inserted_vertices) + " inserted coarse vertices");
+  for (const InputSurfacePoint& p : inserted)
+    if (p.face < 0 || p.face >= F.rows()) throw std::invalid_argument("trace_coarse_mesh: an inserted point names no input face");
+
+  const Tracer tracer(F, coarse, map, inserted, V);
+  CoarseTracing result;
+  std::vector<Index> sides;
+  const std::vector<Index>& twin = tracer.coarse_twin();
+  for (Index s = 0; s < static_cast<Index>(twin.size()); ++s)
+    if (twin[s] == kInvalid || s < twin[s]) sides.push_back(s);
+  result.edges.resize(sides.size());
+  result.face_patch.assign(static_cast<std::size_t>(F.rows()), kInvalid);
+  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  constexpr Index kChunk = 256;
+  const Index edge_chunks = (static_cast<Index>(sides.size()) + kChunk - 1) / kChunk;
+  const Index face_chunks = (static_cast<Index>(F.rows()) + kChunk - 1) / kChunk;
+  detail::run_tasks(threads, static_cast<int>(edge_chunks + face_chunks), [&](int task) {
+    if (task < edge_chunks) {
+      const Index begin = task * kChunk, stop = std::min<Index>(begin + kChunk, static_cast<Index>(sides.size()));
+      for (Index e = begin; e < stop; ++e) result.edges[e] = tracer.trace(sides[e]);
+    } else {
+      const Index begin = (task - edge_chunks) * kChunk, stop = std::min<Index>(begin + kChunk, F.rows());
+      for (Index t = begin; t < stop; ++t) result.face_patch[t] = tracer.face_patch(t);
+    }
+  });
+  mark_crossing_edges(result.edges, coarse, F, inserted);
+  if (V.rows() != 0)  // each traced edge's shortest path through its strip, with the tracer's gluing of F
+    detail::run_tasks(threads, static_cast<int>(edge_chunks), [&](int task) {
+      const Index begin = task * kChunk, stop = std::min<Index>(begin + kChunk, static_cast<Index>(sides.size()));
+      for (Index e = begin; e < stop; ++e)
+        if (TracedEdge& edge = result.edges[e]; edge.status == TraceStatus::traced)
+          edge.surface_length = shortest_length_in_strip(V, F, tracer.fine_twin(), edge);
+    });
+  result.vertex_patch.resize(map.size());
+  for (std::size_t v = 0; v < map.size(); ++v) result.vertex_patch[v] = map[v].face;
+  bool first_ratio = true;
+  for (const TracedEdge& edge : result.edges) {
+    if (edge.status != TraceStatus::traced) {
+      ++result.failed;
+      continue;
+    }
+    ++result.traced;
+    if (V.rows() == 0) continue;
+    const double ratio = traced_length(V, F, edge) / edge.length;
+    result.length_ratio_min = first_ratio ? ratio : std::min(result.length_ratio_min, ratio);
+    result.length_ratio_max = first_ratio ? ratio : std::max(result.length_ratio_max, ratio);
+    first_ratio = false;
+  }
+  return result;
+}
+
+CoarseTracing trace_coarse_mesh(const TriangleMesh& mesh, const CoarseSpace& space, int threads) {
+  if (!space.triangulation)
+    throw std::invalid_argument("trace_coarse_mesh: the coarse space has no triangulation (ICE with keep_method_state)");
+  return trace_coarse_mesh(mesh.F, space.mesh, fine_to_coarse_map(space), space.inserted, mesh.V, threads);
+}
+
+namespace {
+// The point of input face `face` with barycentric coordinates b.
+Eigen::RowVector3d surface_point(const Positions& V, const Faces& F, Index face, const std::array<double, 3>& b) {
+  return V.row(F(face, 0)) * b[0] + V.row(F(face, 1)) * b[1] + V.row(F(face, 2)) * b[2];
+}
+}  // namespace
+
+Positions traced_polyline(const Positions& V, const Faces& F, const TracedEdge& edge) {
+  Positions points(edge.segments.empty() ? 0 : static_cast<Index>(edge.segments.size()) + 1, 3);
+  for (std::size_t i = 0; i < edge.segments.size(); ++i)
+    points.row(static_cast<Index>(i)) = surface_point(V, F, edge.segments[i].face, edge.segments[i].from);
+  if (!edge.segments.empty())
+    points.row(points.rows() - 1) = surface_point(V, F, edge.segments.back().face, edge.segments.back().to);
+  return points;
+}
+
+double traced_length(const Positions& V, const Faces& F, const TracedEdge& edge) {
+  double length = 0;
+  for (const TracedSegment& s : edge.segments)
+    length += (surface_point(V, F, s.face, s.to) - surface_point(V, F, s.face, s.from)).norm();
+  return length;
+}
+
 double shortest_traced_length(const Positions& V, const Faces& F, const TracedEdge& edge) {
   return shortest_length_in_strip(V, F, glue_by_vertex_pairs(F), edge);
 }
@@ -952,17 +960,22 @@ FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const Compac
   if (coarse.twin.size() != sides || (tracing.edges.empty() && sides > 0))
     throw std::invalid_argument("traced_edge_lengths: the tracing is not of this coarse mesh (no edges, or no gluing)");
   FaceLengths L = coarse.L;
-  const std::vector<Index> fine_twin =
-      measure == TracedLengthMeasure::shortest_in_strip ? glue_by_vertex_pairs(F) : std::vector<Index>{};
+  std::vector<Index> fine_twin;  // glued only for edges traced without positions
   const auto twin_of = [&](Index side) { return coarse.twin[static_cast<std::size_t>(side)]; };
   for (const TracedEdge& edge : tracing.edges) {
     if (edge.side < 0 || static_cast<std::size_t>(edge.side) >= sides)
       throw std::invalid_argument("traced_edge_lengths: a traced edge names side " + std::to_string(edge.side) +
                                   " beyond the coarse mesh");
     if (edge.status != TraceStatus::traced) continue;
-    const double length = measure == TracedLengthMeasure::shortest_in_strip
-                              ? shortest_length_in_strip(V, F, fine_twin, edge)
-                              : traced_length(V, F, edge);
+    double length = 0;
+    if (measure == TracedLengthMeasure::polyline) {
+      length = traced_length(V, F, edge);
+    } else if (edge.surface_length >= 0) {
+      length = edge.surface_length;
+    } else {
+      if (fine_twin.empty()) fine_twin = glue_by_vertex_pairs(F);
+      length = shortest_length_in_strip(V, F, fine_twin, edge);
+    }
     L(edge.side / 3, edge.side % 3) = length;
     if (const Index twin = twin_of(edge.side); twin != kInvalid) L(twin / 3, twin % 3) = length;
   }

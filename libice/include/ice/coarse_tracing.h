@@ -92,6 +92,9 @@ struct TracedEdge {
   double length = 0;                      ///< the intrinsic (coarse) length
   TraceStatus status = TraceStatus::traced;
   std::vector<TracedSegment> segments;    ///< tail to head; what was traced before a failure otherwise
+  /// A traced edge's shortest_traced_length, set by trace_coarse_mesh when given positions; −1
+  /// otherwise.
+  double surface_length = -1;
 };
 
 struct CoarseTracing {
