@@ -52,7 +52,7 @@ struct OracleRequest {
   std::string pairs_output;    ///< --pairs-out (.csv)
   fem::CoarseDistanceMethod method = fem::CoarseDistanceMethod::marching;
   bool traced_lengths = false;  ///< --coarse-lengths traced: marching on the coarse edges' lengths on the surface
-  int subdivisions = fem::ProxyGeodesicOptions{}.subdivisions;  ///< --marching-subdivisions (--source only)
+  int subdivisions = fem::ProxyGeodesicOptions{}.subdivisions;  ///< --marching-subdivisions (coarse marching)
   int check_sources = 16;
   bool active() const { return all_pairs || !pairs_path.empty() || sample_count > 0; }
   std::string mode() const { return all_pairs ? "all_pairs" : !pairs_path.empty() ? "pairs" : "sample"; }
@@ -154,6 +154,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   run.coarsen = clock.lap();
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
+  oracle_options.subdivisions = request.subdivisions;
   const fem::DistanceOracle oracle(space.mesh.F, app::marching_lengths(mesh, space, request.traced_lengths), map,
                                    oracle_options);
   const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced
@@ -250,6 +251,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
   report["coarse"] = app::coarsen_json(space.summary);
   report["coarse_lengths"] = request.traced_lengths ? "traced" : "intrinsic";
+  if (request.method == fem::CoarseDistanceMethod::marching) report["marching_subdivisions"] = request.subdivisions;
   report["oracle"] = {{"coarse_distances", fem::to_string(request.method)},
                       {"coarse_vertices", oracle.coarse_size()},
                       {"memory_bytes", oracle.memory_bytes()},
@@ -337,9 +339,10 @@ int main(int argc, char** argv) {
                   "and 1 %; README, Accuracy)");
   const CLI::Option* subdivisions_option = cli.add_option(
       "--marching-subdivisions", oracle.subdivisions,
-      "With --source and coarse marching: march on the coarse mesh split 1:4 this many times (flat midpoint "
-      "subdivision, the coarse metric unchanged): nearer exact geodesics, measured 0.92x the error with 1 and 0.82x "
-      "with 2 against none (ICE, 40 meshes), at 2-3x and 8x the cost per source (README, Accuracy)")
+      "Coarse marching on the coarse mesh split 1:4 this many times (flat midpoint subdivision, the coarse metric "
+      "unchanged): nearer exact geodesics, measured 0.92x the error with 1 and 0.82x with 2 against none (--source, "
+      "ICE, 40 meshes), at 2-3x and 8x the cost per source; in the oracle modes for the coarse pairs (about 3x and "
+      "20x their time; README, Accuracy)")
       ->check(CLI::Range(0, 4))
       ->capture_default_str();
   cli.add_option("--check-sources", oracle.check_sources,
@@ -367,8 +370,8 @@ int main(int argc, char** argv) {
       throw app::AppError(app::kUsage, "--first-sample goes with --sample");
     if (!oracle.pairs_output.empty() && oracle.pairs_path.empty())
       throw app::AppError(app::kUsage, "--pairs-out goes with --pairs");
-    if (subdivisions_option->count() > 0 && (oracle.active() || oracle.method != fem::CoarseDistanceMethod::marching))
-      throw app::AppError(app::kUsage, "--marching-subdivisions goes with --source and coarse marching");
+    if (subdivisions_option->count() > 0 && oracle.method != fem::CoarseDistanceMethod::marching)
+      throw app::AppError(app::kUsage, "--marching-subdivisions goes with coarse marching, not --coarse-distances heat");
     if (oracle.traced_lengths && oracle.method != fem::CoarseDistanceMethod::marching)
       throw app::AppError(app::kUsage, "--coarse-lengths traced is for coarse marching, not --coarse-distances heat");
     if (oracle.traced_lengths && opt.target.method != ice::CoarseningMethod::ice)

@@ -10,6 +10,7 @@
 #include <set>
 #include <vector>
 
+#include "fem/coarse_proxy.h"
 #include "fem/distance_oracle.h"
 #include "fem/problems.h"
 #include "ice/coarse_space.h"
@@ -225,6 +226,37 @@ TEST_CASE("blocked multi-source heat-method distances equal the one-source ones"
     const Eigen::VectorXd one = solver.distance({sources[j]});
     CHECK((blocked.col(static_cast<Eigen::Index>(j)) - one).cwiseAbs().maxCoeff() < 1e-10 * one.maxCoeff());
   }
+}
+
+TEST_CASE("distance oracle: marching on the subdivided coarse mesh, as the proxy does", "[fem][distance_oracle]") {
+  const OracleCase c = coarsened(ice::make_icosphere(4), 200);
+  const auto great_circle = [&](int u, int v) {
+    return std::acos(std::clamp(c.mesh.V.row(u).dot(c.mesh.V.row(v)) / c.mesh.V.row(u).norm() / c.mesh.V.row(v).norm(), -1.0, 1.0));
+  };
+  std::array<double, 3> mean{};
+  for (int subdivisions = 0; subdivisions < 3; ++subdivisions) {
+    fem::DistanceOracleOptions options;
+    options.subdivisions = subdivisions;
+    const fem::DistanceOracle oracle(c.space.mesh.F, c.space.mesh.L, c.map, options);
+    mean[static_cast<std::size_t>(subdivisions)] = relative_errors(oracle, great_circle, 20000, 0.1).mean;
+    // Between coarse vertices: the proxy's marching on the same subdivision, both ways averaged (the
+    // oracle symmetrises), in floats.
+    const fem::ProxyGeodesicSolver proxy(c.space.mesh.F, c.space.mesh.L, c.space.P, subdivisions);
+    const auto input = [&](ice::Index coarse_vertex) { return c.space.mesh.to_input[static_cast<std::size_t>(coarse_vertex)]; };
+    std::vector<Eigen::VectorXd> from(static_cast<std::size_t>(oracle.coarse_size()));
+    for (ice::Index b = 0; b < oracle.coarse_size(); ++b) from[static_cast<std::size_t>(b)] = proxy.distance({input(b)});
+    for (const ice::Index a : {0, 50, 150})
+      for (ice::Index b = 0; b < oracle.coarse_size(); ++b) {
+        const double mean_of_both = 0.5 * (from[static_cast<std::size_t>(a)](input(b)) + from[static_cast<std::size_t>(b)](input(a)));
+        CHECK(std::abs(oracle.coarse_distance(a, b) - mean_of_both) <= 1e-5 * mean_of_both + 1e-6);
+      }
+  }
+  INFO("mean relative error against great circles: " << mean[0] << ", " << mean[1] << ", " << mean[2]);
+  CHECK(mean[1] < mean[0]);
+  CHECK(mean[2] < mean[1]);
+  fem::DistanceOracleOptions negative;
+  negative.subdivisions = -1;
+  CHECK_THROWS_AS(fem::DistanceOracle(c.space.mesh.F, c.space.mesh.L, c.map, negative), std::invalid_argument);
 }
 
 TEST_CASE("distance oracle refuses bad points and options", "[fem][distance_oracle]") {

@@ -265,4 +265,61 @@ class CoarseMarcher {
   std::vector<Index> position_;
 };
 
+/// One 1:4 midpoint subdivision of an intrinsic mesh for marching: each face (a, b, c) becomes
+/// (a, m_ab, m_ca), (m_ab, b, m_bc), (m_ca, m_bc, c) and (m_ab, m_bc, m_ca), flat and similar to it
+/// with half its lengths (faces 4f .. 4f + 3). Old vertices keep their numbers; the midpoints follow.
+/// A side's midpoint is shared by the sides with the same end vertices and the same length (the two
+/// sides of one edge; parallel edges of one length would share it too, which the marching, reading
+/// vertex pairs, does not mind).
+struct SubdividedMesh {
+  Faces F;
+  FaceLengths L;
+  Eigen::Index vertex_count = 0;
+  std::vector<Index> side_midpoint;  ///< per side 3f + k of the input mesh
+};
+
+inline SubdividedMesh subdivide_midpoints(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {
+  struct Side {
+    Index low, high;
+    double length;
+    Index side;  // 3f + k
+  };
+  const auto key_less = [](const Side& p, const Side& q) {
+    return p.low != q.low ? p.low < q.low : p.high != q.high ? p.high < q.high : p.length < q.length;
+  };
+  std::vector<Side> sides;
+  sides.reserve(static_cast<std::size_t>(3 * F.rows()));
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Index u = F(f, k), w = F(f, (k + 1) % 3);
+      sides.push_back({std::min(u, w), std::max(u, w), L(f, k), static_cast<Index>(3 * f + k)});
+    }
+  std::sort(sides.begin(), sides.end(), key_less);
+  SubdividedMesh out;
+  out.side_midpoint.resize(sides.size());
+  out.vertex_count = vertex_count;
+  for (std::size_t i = 0; i < sides.size(); ++i) {
+    if (i == 0 || key_less(sides[i - 1], sides[i])) ++out.vertex_count;
+    out.side_midpoint[static_cast<std::size_t>(sides[i].side)] = static_cast<Index>(out.vertex_count - 1);
+  }
+  out.F.resize(4 * F.rows(), 3);
+  out.L.resize(4 * F.rows(), 3);
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const Index a = F(f, 0), b = F(f, 1), c = F(f, 2);
+    const double ab = L(f, 0), bc = L(f, 1), ca = L(f, 2);
+    const Index m_ab = out.side_midpoint[static_cast<std::size_t>(3 * f)],
+                m_bc = out.side_midpoint[static_cast<std::size_t>(3 * f + 1)],
+                m_ca = out.side_midpoint[static_cast<std::size_t>(3 * f + 2)];
+    out.F.row(4 * f) << a, m_ab, m_ca;
+    out.L.row(4 * f) << ab / 2, bc / 2, ca / 2;
+    out.F.row(4 * f + 1) << m_ab, b, m_bc;
+    out.L.row(4 * f + 1) << ab / 2, bc / 2, ca / 2;
+    out.F.row(4 * f + 2) << m_ca, m_bc, c;
+    out.L.row(4 * f + 2) << ab / 2, bc / 2, ca / 2;
+    out.F.row(4 * f + 3) << m_ab, m_bc, m_ca;
+    out.L.row(4 * f + 3) << ca / 2, ab / 2, bc / 2;
+  }
+  return out;
+}
+
 }  // namespace fem::detail

@@ -169,14 +169,11 @@ double seconds_since(Clock::time_point& mark) {
   return s;
 }
 
-// One 1:4 midpoint subdivision of the coarse mesh for marching, with P's rows carried into the
-// sub-triangles. A side's midpoint is shared by the sides with the same end vertices and the same
-// length (the two sides of one edge; parallel edges of one length would share it too, which the
-// marching, reading vertex pairs, does not mind). Each face (a, b, c) becomes (a, m_ab, m_ca),
-// (m_ab, b, m_bc), (m_ca, m_bc, c) and (m_ab, m_bc, m_ca), flat and similar to it with half its
-// lengths. A row of P whose columns are one face's corners (the only face with them) or one edge's
-// ends is re-expressed in the sub-triangle holding its point; other rows (interpolated linearly by
-// the marching, see prepare_marching) keep their columns, which stay vertices.
+// One 1:4 midpoint subdivision of the coarse mesh for marching (detail::subdivide_midpoints), with
+// P's rows carried into the sub-triangles: a row whose columns are one face's corners (the only face
+// with them) or one edge's ends is re-expressed in the sub-triangle holding its point; other rows
+// (interpolated linearly by the marching, see prepare_marching) keep their columns, which stay
+// vertices.
 struct SubdividedCoarseMesh {
   Faces F;
   FaceLengths L;
@@ -185,24 +182,11 @@ struct SubdividedCoarseMesh {
 
 SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& Lc,
                                              const Eigen::SparseMatrix<double, Eigen::RowMajor, int>& P) {
-  // Sides sorted by (ends, length): equal keys share a midpoint, numbered after the old vertices.
-  struct Side {
-    Index low, high;
-    double length;
-    Index side;  // 3f + k
-  };
-  const auto key_less = [](const Side& p, const Side& q) {
-    return p.low != q.low ? p.low < q.low : p.high != q.high ? p.high < q.high : p.length < q.length;
-  };
-  std::vector<Side> sides;
-  sides.reserve(static_cast<std::size_t>(3 * Fc.rows()));
-  for (Eigen::Index f = 0; f < Fc.rows(); ++f)
-    for (int k = 0; k < 3; ++k) {
-      const Index u = Fc(f, k), w = Fc(f, (k + 1) % 3);
-      sides.push_back({std::min(u, w), std::max(u, w), Lc(f, k), static_cast<Index>(3 * f + k)});
-    }
-  std::sort(sides.begin(), sides.end(), key_less);
-  std::vector<Index> midpoint(sides.size());
+  detail::SubdividedMesh mesh = detail::subdivide_midpoints(Fc, Lc, P.cols());
+  SubdividedCoarseMesh out;
+  out.F = std::move(mesh.F);
+  out.L = std::move(mesh.L);
+  const Index count = static_cast<Index>(mesh.vertex_count);
   // Edges by their ends: the one length and midpoint of the vertex pair, NaN length where sides of
   // several lengths join it (parallel edges: which one a row's weights refer to is unknown).
   struct Edge {
@@ -211,16 +195,22 @@ SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& 
     Index midpoint;
   };
   std::vector<Edge> edges;
-  Index count = static_cast<Index>(P.cols());
-  for (std::size_t i = 0; i < sides.size(); ++i) {
-    const bool new_key = i == 0 || key_less(sides[i - 1], sides[i]);
-    if (new_key) ++count;
-    midpoint[static_cast<std::size_t>(sides[i].side)] = count - 1;
-    if (i == 0 || sides[i - 1].low != sides[i].low || sides[i - 1].high != sides[i].high)
-      edges.push_back({sides[i].low, sides[i].high, sides[i].length, count - 1});
-    else if (new_key)
-      edges.back().length = std::numeric_limits<double>::quiet_NaN();
+  edges.reserve(static_cast<std::size_t>(3 * Fc.rows()));
+  for (Eigen::Index f = 0; f < Fc.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Index u = Fc(f, k), w = Fc(f, (k + 1) % 3);
+      edges.push_back({std::min(u, w), std::max(u, w), Lc(f, k), mesh.side_midpoint[static_cast<std::size_t>(3 * f + k)]});
+    }
+  const auto pair_less = [](const Edge& p, const Edge& q) { return p.low != q.low ? p.low < q.low : p.high < q.high; };
+  std::sort(edges.begin(), edges.end(), [&](const Edge& p, const Edge& q) {
+    return pair_less(p, q) || (!pair_less(q, p) && p.length < q.length);
+  });
+  std::vector<Edge> unique_edges;
+  for (const Edge& e : edges) {
+    if (unique_edges.empty() || pair_less(unique_edges.back(), e)) unique_edges.push_back(e);
+    else if (unique_edges.back().length != e.length) unique_edges.back().length = std::numeric_limits<double>::quiet_NaN();
   }
+  edges = std::move(unique_edges);
   // Faces by their sorted corners (face −1: several faces have them).
   struct Corners {
     std::array<Index, 3> sorted;
@@ -228,23 +218,8 @@ SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& 
   };
   std::vector<Corners> faces;
   faces.reserve(static_cast<std::size_t>(Fc.rows()));
-  SubdividedCoarseMesh out;
-  out.F.resize(4 * Fc.rows(), 3);
-  out.L.resize(4 * Fc.rows(), 3);
   for (Eigen::Index f = 0; f < Fc.rows(); ++f) {
-    const Index a = Fc(f, 0), b = Fc(f, 1), c = Fc(f, 2);
-    const double ab = Lc(f, 0), bc = Lc(f, 1), ca = Lc(f, 2);
-    const Index m_ab = midpoint[static_cast<std::size_t>(3 * f)], m_bc = midpoint[static_cast<std::size_t>(3 * f + 1)],
-                m_ca = midpoint[static_cast<std::size_t>(3 * f + 2)];
-    out.F.row(4 * f) << a, m_ab, m_ca;
-    out.L.row(4 * f) << ab / 2, bc / 2, ca / 2;
-    out.F.row(4 * f + 1) << m_ab, b, m_bc;
-    out.L.row(4 * f + 1) << ab / 2, bc / 2, ca / 2;
-    out.F.row(4 * f + 2) << m_ca, m_bc, c;
-    out.L.row(4 * f + 2) << ab / 2, bc / 2, ca / 2;
-    out.F.row(4 * f + 3) << m_ab, m_bc, m_ca;
-    out.L.row(4 * f + 3) << ca / 2, ab / 2, bc / 2;
-    std::array<Index, 3> sorted{a, b, c};
+    std::array<Index, 3> sorted{Fc(f, 0), Fc(f, 1), Fc(f, 2)};
     std::sort(sorted.begin(), sorted.end());
     faces.push_back({sorted, f});
   }

@@ -31,8 +31,9 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
                                const std::vector<ice::CoarsePoint>& fine_points, const DistanceOracleOptions& options)
     : options_(options) {
   detail::check_marching_mesh(coarse_faces, coarse_lengths, "DistanceOracle");
-  if (options.threads < 0 || options.heat_block_size < 1 || !(options.heat_time_factor > 0))
-    throw std::invalid_argument("DistanceOracle: threads must be >= 0, heat_block_size >= 1, heat_time_factor > 0");
+  if (options.threads < 0 || options.heat_block_size < 1 || !(options.heat_time_factor > 0) || options.subdivisions < 0)
+    throw std::invalid_argument(
+        "DistanceOracle: threads must be >= 0, heat_block_size >= 1, heat_time_factor > 0, subdivisions >= 0");
   coarse_size_ = coarse_faces.maxCoeff() + 1;
   faces_ = coarse_faces;
   squared_lengths_ = coarse_lengths.array().square();
@@ -54,7 +55,10 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
   start = std::chrono::steady_clock::now();
   std::vector<float> distances(nc * nc);
   if (options.method == CoarseDistanceMethod::marching) {
-    const detail::MarchingMesh marching_mesh(coarse_faces, coarse_lengths, coarse_size_);
+    detail::SubdividedMesh finer{coarse_faces, coarse_lengths, coarse_size_, {}};
+    for (int level = 0; level < options.subdivisions; ++level)
+      finer = detail::subdivide_midpoints(finer.F, finer.L, finer.vertex_count);
+    const detail::MarchingMesh marching_mesh(finer.F, finer.L, finer.vertex_count);
 #pragma omp parallel num_threads(threads())
     {
       detail::CoarseMarcher marcher(marching_mesh);
@@ -62,7 +66,8 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
 #pragma omp for schedule(dynamic, 8)
       for (Eigen::Index a = 0; a < coarse_size_; ++a) {
         marcher.run(static_cast<Index>(a), row);
-        std::copy(row.begin(), row.end(), distances.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(a) * nc));
+        std::copy(row.begin(), row.begin() + static_cast<std::ptrdiff_t>(nc),  // the coarse vertices come first
+                  distances.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(a) * nc));
       }
     }
   } else {

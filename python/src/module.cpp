@@ -1168,11 +1168,14 @@ the coarsest factorisation; `constrained`: indices (each once) whose values solv
   // ---- the distance oracle
   py::class_<fem::DistanceOracle>(m, "DistanceOracle", R"doc(All-pairs geodesic distances of the fine vertices from the coarse mesh (geodesic-coarse --pairs).
 
-DistanceOracle(coarse, method="marching"|"heat", heat_time_factor=1.0, threads=0): precomputes the
-coarse all-pairs distances (n_c² floats); each query then costs a few operations. Needs the coarse
+DistanceOracle(coarse, method="marching"|"heat", heat_time_factor=1.0, threads=0, subdivisions=1):
+precomputes the coarse all-pairs distances (n_c² floats; marching on the coarse mesh split 1:4
+`subdivisions` times); each query then costs a few operations. Needs the coarse
 space's map (coarsen(..., keep_map=True), the default); coarsen with use="geodesic" for the metric
 measured best for distances (what geodesic-coarse does).)doc")
-      .def(py::init([](const PyCoarseSpace& coarse, const std::string& method, double heat_time_factor, int threads) {
+      .def(py::init([](const PyCoarseSpace& coarse, const std::string& method, double heat_time_factor, int threads,
+                       int subdivisions) {
+             if (subdivisions < 0 || subdivisions > 4) throw py::value_error("subdivisions must be in [0, 4]");
              if (coarse.map.empty())
                throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
                                      "QEM with extrinsic geometry)");
@@ -1180,11 +1183,12 @@ measured best for distances (what geodesic-coarse does).)doc")
              options.method = coarse_distance_method(method);
              options.heat_time_factor = heat_time_factor;
              options.threads = threads;
+             options.subdivisions = subdivisions;
              py::gil_scoped_release release;
              return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, coarse.space.mesh.L, coarse.map, options);
            }),
            py::arg("coarse"), py::kw_only(), py::arg("method") = "marching", py::arg("heat_time_factor") = 1.0,
-           py::arg("threads") = 0)
+           py::arg("threads") = 0, py::arg("subdivisions") = fem::DistanceOracleOptions{}.subdivisions)
       .def("distance", [](const fem::DistanceOracle& o, long long u, long long v) {
              const Eigen::Index n = o.fine_size();
              if (u < 0 || u >= n || v < 0 || v >= n)
