@@ -270,6 +270,12 @@ def test_distance_oracle(spot):
     assert D.dtype == np.float32 and D.shape == (10, 10) and np.allclose(D, D.T)
     with pytest.raises(ValueError, match="pairs"):
         oracle.distances(np.array([[0, V.shape[0]]]))
+    # Coarse pairs marched without subdividing the coarse mesh (the default subdivides once): other
+    # distances.
+    plain = ice.DistanceOracle(coarse, subdivisions=0)
+    assert np.abs(plain.distances(pairs) - d).max() > 1e-6 * d.max()
+    with pytest.raises(ValueError, match="subdivisions"):
+        ice.DistanceOracle(coarse, subdivisions=-1)
 
 
 def test_dirichlet_values_follow_the_order_of_fixed(spot, project_mesh):
