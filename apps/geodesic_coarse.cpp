@@ -343,7 +343,7 @@ int main(int argc, char** argv) {
       "unchanged): nearer exact geodesics, measured 0.92x the error with 1 and 0.82x with 2 against none (--source, "
       "ICE, 40 meshes), at 2-3x and 8x the cost per source; in the oracle modes for the coarse pairs (about 3x and "
       "20x their time; README, Accuracy)")
-      ->check(CLI::Range(0, 4))
+      ->check(CLI::Range(0, fem::kMaxMarchingSubdivisions))
       ->capture_default_str();
   cli.add_option("--check-sources", oracle.check_sources,
                  "Distance oracle: random sources of the fine heat-method reference (errors, speed-up)")

@@ -749,7 +749,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   cli.add_option("--marching-subdivisions", geodesic.subdivisions,
                  "Coarse marching on the coarse mesh split 1:4 this many times (fem::ProxyGeodesicOptions::subdivisions)")
-      ->check(CLI::Range(0, 4))
+      ->check(CLI::Range(0, fem::kMaxMarchingSubdivisions))
       ->capture_default_str();
   bool exact_geodesics = false;
   app::add_choice(cli, "--geodesic-reference", exact_geodesics, {{"heat", false}, {"exact", true}},

@@ -4,11 +4,12 @@
 #include "parallel_kernels.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
-#include <array>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <stdexcept>
 #include <utility>
 
@@ -187,30 +188,28 @@ SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& 
   out.F = std::move(mesh.F);
   out.L = std::move(mesh.L);
   const Index count = static_cast<Index>(mesh.vertex_count);
-  // Edges by their ends: the one length and midpoint of the vertex pair, NaN length where sides of
-  // several lengths join it (parallel edges: which one a row's weights refer to is unknown).
+  // Vertex pairs and the midpoint of their one edge, ice::kInvalid where sides with several midpoints
+  // join the pair (parallel edges: which one a row's weights refer to is unknown).
   struct Edge {
-    Index low, high;
-    double length;
-    Index midpoint;
+    Index low, high, midpoint;
   };
   std::vector<Edge> edges;
   edges.reserve(static_cast<std::size_t>(3 * Fc.rows()));
   for (Eigen::Index f = 0; f < Fc.rows(); ++f)
     for (int k = 0; k < 3; ++k) {
       const Index u = Fc(f, k), w = Fc(f, (k + 1) % 3);
-      edges.push_back({std::min(u, w), std::max(u, w), Lc(f, k), mesh.side_midpoint[static_cast<std::size_t>(3 * f + k)]});
+      edges.push_back({std::min(u, w), std::max(u, w), mesh.side_midpoint[static_cast<std::size_t>(3 * f + k)]});
     }
-  const auto pair_less = [](const Edge& p, const Edge& q) { return p.low != q.low ? p.low < q.low : p.high < q.high; };
-  std::sort(edges.begin(), edges.end(), [&](const Edge& p, const Edge& q) {
-    return pair_less(p, q) || (!pair_less(q, p) && p.length < q.length);
-  });
-  std::vector<Edge> unique_edges;
+  const auto key = [](const Edge& e) { return std::tuple(e.low, e.high, e.midpoint); };
+  std::sort(edges.begin(), edges.end(), [&](const Edge& p, const Edge& q) { return key(p) < key(q); });
+  edges.erase(std::unique(edges.begin(), edges.end(), [&](const Edge& p, const Edge& q) { return key(p) == key(q); }),
+              edges.end());
+  std::vector<Edge> pairs;  // one per vertex pair
   for (const Edge& e : edges) {
-    if (unique_edges.empty() || pair_less(unique_edges.back(), e)) unique_edges.push_back(e);
-    else if (unique_edges.back().length != e.length) unique_edges.back().length = std::numeric_limits<double>::quiet_NaN();
+    if (!pairs.empty() && pairs.back().low == e.low && pairs.back().high == e.high) pairs.back().midpoint = ice::kInvalid;
+    else pairs.push_back(e);
   }
-  edges = std::move(unique_edges);
+  edges = std::move(pairs);
   // Faces by their sorted corners (face −1: several faces have them).
   struct Corners {
     std::array<Index, 3> sorted;
@@ -231,7 +230,7 @@ SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& 
     const auto it = std::lower_bound(edges.begin(), edges.end(), std::pair{low, high}, [](const Edge& e, const std::pair<Index, Index>& k) {
       return e.low != k.first ? e.low < k.first : e.high < k.second;
     });
-    return it != edges.end() && it->low == low && it->high == high && !std::isnan(it->length) ? &*it : nullptr;
+    return it != edges.end() && it->low == low && it->high == high && it->midpoint != ice::kInvalid ? &*it : nullptr;
   };
   const auto find_face = [&](std::array<Index, 3> sorted) -> Eigen::Index {
     const auto it = std::lower_bound(faces.begin(), faces.end(), sorted,
@@ -498,7 +497,9 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLe
 
 void ProxyGeodesicSolver::prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths, int subdivisions) {
   detail::check_marching_mesh(coarse_faces, coarse_lengths, "ProxyGeodesicSolver");
-  if (subdivisions < 0) throw std::invalid_argument("ProxyGeodesicSolver: negative subdivision count");
+  if (subdivisions < 0 || subdivisions > kMaxMarchingSubdivisions)
+    throw std::invalid_argument("ProxyGeodesicSolver: subdivisions must be in [0, " +
+                                std::to_string(kMaxMarchingSubdivisions) + "]");
   Faces Fc = coarse_faces;
   FaceLengths Lc = coarse_lengths;
   for (int level = 0; level < subdivisions; ++level) {

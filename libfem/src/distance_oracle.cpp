@@ -31,9 +31,10 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
                                const std::vector<ice::CoarsePoint>& fine_points, const DistanceOracleOptions& options)
     : options_(options) {
   detail::check_marching_mesh(coarse_faces, coarse_lengths, "DistanceOracle");
-  if (options.threads < 0 || options.heat_block_size < 1 || !(options.heat_time_factor > 0) || options.subdivisions < 0)
-    throw std::invalid_argument(
-        "DistanceOracle: threads must be >= 0, heat_block_size >= 1, heat_time_factor > 0, subdivisions >= 0");
+  if (options.threads < 0 || options.heat_block_size < 1 || !(options.heat_time_factor > 0) || options.subdivisions < 0 ||
+      options.subdivisions > kMaxMarchingSubdivisions)
+    throw std::invalid_argument("DistanceOracle: threads must be >= 0, heat_block_size >= 1, heat_time_factor > 0, "
+                                "subdivisions in [0, " + std::to_string(kMaxMarchingSubdivisions) + "]");
   coarse_size_ = coarse_faces.maxCoeff() + 1;
   faces_ = coarse_faces;
   squared_lengths_ = coarse_lengths.array().square();

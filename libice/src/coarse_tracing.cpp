@@ -723,10 +723,6 @@ void mark_crossing_edges(std::vector<TracedEdge>& edges, const CompactMesh& coar
     if (crossed[e]) edges[e].status = TraceStatus::crossed;
 }
 
-}  // namespace
-
-namespace {
-
 double distance_3d(const Positions& V, Index a, Index b) { return (V.row(a) - V.row(b)).norm(); }
 
 // Length of the shortest path between the first and last of `portals` (the path's start and end

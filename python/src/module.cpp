@@ -931,7 +931,6 @@ subdivisions: marching on the coarse mesh split 1:4 that many times (the coarse 
 coarsen with use="geodesic".)doc")
       .def(py::init([](std::shared_ptr<PyProxy> proxy, const std::string& method, double time_factor, int subdivisions) {
              if (!(time_factor > 0)) throw py::value_error("time_factor must be > 0");
-             if (subdivisions < 0 || subdivisions > 4) throw py::value_error("subdivisions must be in [0, 4]");
              fem::ProxyGeodesicOptions options;
              options.method = coarse_distance_method(method);
              options.time_factor = time_factor;
@@ -945,7 +944,6 @@ coarsen with use="geodesic".)doc")
            py::arg("subdivisions") = fem::ProxyGeodesicOptions{}.subdivisions)
       .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse, const std::string& lengths,
                                     int subdivisions) {
-             if (subdivisions < 0 || subdivisions > 4) throw py::value_error("subdivisions must be in [0, 4]");
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
              const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
              if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
@@ -1175,7 +1173,6 @@ space's map (coarsen(..., keep_map=True), the default); coarsen with use="geodes
 measured best for distances (what geodesic-coarse does).)doc")
       .def(py::init([](const PyCoarseSpace& coarse, const std::string& method, double heat_time_factor, int threads,
                        int subdivisions) {
-             if (subdivisions < 0 || subdivisions > 4) throw py::value_error("subdivisions must be in [0, 4]");
              if (coarse.map.empty())
                throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
                                      "QEM with extrinsic geometry)");

@@ -56,6 +56,11 @@ namespace fem {
 enum class CoarseDistanceMethod { marching, heat_method };
 const char* to_string(CoarseDistanceMethod method);
 
+/// Most 1:4 subdivisions of the coarse mesh the marching takes (DistanceOracleOptions, and
+/// fem::ProxyGeodesicOptions): each multiplies the faces by 4 for a shrinking gain (the gap to the
+/// 1:256 subdivision on a coarse icosphere: 2.6, 0.31, 0.14 % of the largest distance for 0, 1, 2).
+constexpr int kMaxMarchingSubdivisions = 4;
+
 struct DistanceOracleOptions {
   CoarseDistanceMethod method = CoarseDistanceMethod::marching;
   /// heat_method only: t = (time_factor · mean coarse edge)², and sources per block of solves.
