@@ -160,9 +160,10 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::Coars
 }
 
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run, bool keep_method_state) {
+                                 PdeRun& run, bool keep_method_state, bool record_history) {
   ice::CoarseSpaceOptions space_options;
   space_options.keep_method_state = keep_method_state;
+  space_options.record_history = record_history;
   space_options.method = opt.target.method;
   space_options.qem_geometry = opt.qem_geometry;
   space_options.coarsen = options;
@@ -185,9 +186,10 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   PdeProxy p;
   // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
   // An output file draws the coarse mesh on the surface (write_result_fields): ICE's map is kept for it.
-  p.coarse = coarsen_for_pde(mesh, options, opt, run,
-                             keep_method_state ||
-                                 ((!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice));
+  // Kept for the tracing only (the outputs' drawing, traced lengths): with the history it draws from.
+  const bool keep = keep_method_state ||
+                    ((!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice);
+  p.coarse = coarsen_for_pde(mesh, options, opt, run, keep, keep);
   run.coarsen = clock.lap();
   // The fine discretisation: the reference's, and the Galerkin operators' and M f's
   run.fine_built = need_fine || assemble_proxy;

@@ -94,9 +94,10 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::Coars
 
 /// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
 /// target was missed and records the summary in `run`. `keep_method_state`: keep what
-/// ice::fine_to_coarse_map needs (CoarseSpaceOptions::keep_method_state).
+/// ice::fine_to_coarse_map needs (CoarseSpaceOptions::keep_method_state); `record_history`: and
+/// what ice::trace_coarse_mesh draws the coarse edges exactly from (CoarseSpaceOptions::record_history).
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run, bool keep_method_state = false);
+                                 PdeRun& run, bool keep_method_state = false, bool record_history = false);
 
 /// What a PDE tool solves through: the coarse space, the fine discretisation and the coarse proxy.
 struct PdeProxy {
@@ -104,8 +105,8 @@ struct PdeProxy {
   ice::FineMesh fine;
   std::unique_ptr<fem::CoarseProxy> proxy;
 };
-/// Builds them in that order (coarsen_for_pde, keeping the method's state for outputs that draw the
-/// coarse mesh or when asked; ice::fine_mesh of --fine-idt unless !need_fine,
+/// Builds them in that order (coarsen_for_pde, keeping the method's state and its history, for the
+/// tracing, for outputs that draw the coarse mesh or when asked; ice::fine_mesh of --fine-idt unless !need_fine,
 /// make_proxy of --operators unless !assemble_proxy: then proxy stays null; assembling needs the
 /// fine mesh), with run.coarsen, run.fine_mesh, run.fine_built and run.idt_flips recorded; the
 /// proxy's assembly is left running on `clock`, for the caller's assemble phase.

@@ -149,7 +149,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   run.load = clock.lap();
 
   // ---- coarsen (keeping the map), then the oracle
-  const ice::CoarseSpace space = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true);
+  const ice::CoarseSpace space = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true, request.traced_lengths);
   const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
   run.coarsen = clock.lap();
   fem::DistanceOracleOptions oracle_options;

@@ -256,6 +256,7 @@ int main(int argc, char** argv) {
     space_options.coarsen = options;
     space_options.refinement = target.refinement();
     space_options.keep_method_state = true;  // the map, the preview and --validate need it
+    space_options.record_history = trace;     // --trace draws the coarse edges exactly from it
     const ice::CoarseSpace space = app::build_coarse_space_with_progress(mesh, space_options, !quiet);
     const ice::CoarseSpaceSummary& summary = space.summary;
     const ice::CompactMesh& coarse = space.mesh;

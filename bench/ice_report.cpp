@@ -911,6 +911,7 @@ int main(int argc, char** argv) {
           options.coarsen.threads = coarsen_threads;
           options.coarsen.regions = coarsen_regions;
           options.keep_method_state = viewed || traced_lengths;  // the page and traced lengths trace the coarse edges
+          options.record_history = options.keep_method_state;    // exactly
           const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
           std::optional<ice::FaceLengths> marching_lengths;
           app::Stopwatch trace_clock;

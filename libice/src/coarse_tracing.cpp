@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <unordered_map>
 
 #include "ice/intrinsic_triangulation.h"  // glue_by_vertex_pairs
@@ -790,12 +792,13 @@ double shortest_length_in_strip(const Positions& V, const Faces& F, const std::v
     std::size_t last = begin;
     for (; last + 1 < segments.size(); ++last) {
       const Index next = segments[last + 1].face;
+      if (next == face) continue;  // a bend inside the face (an exact trace's): the same run
       int shared = -1;
       for (int k = 0; k < 3; ++k) {
         const Index twin = fine_twin[static_cast<std::size_t>(3 * face + k)];
         if (twin != kInvalid && twin / 3 == next) shared = k;
       }
-      if (shared < 0 || next == face) break;  // through a vertex (or the same face): the run ends here
+      if (shared < 0) break;  // through a vertex: the run ends here
       // Leaving a face through side (a, b) with the face's interior on the left of a → b, b is on
       // the left of the path and a on its right (the layout, not F's orientation, decides).
       const Index a = F(face, shared), b = F(face, (shared + 1) % 3);
@@ -822,6 +825,10 @@ double shortest_length_in_strip(const Positions& V, const Faces& F, const std::v
   }
   return std::min(total, traced_length(V, F, edge));
 }
+
+void complete_tracing(CoarseTracing& result, const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
+                      const std::vector<InputSurfacePoint>& inserted, const Positions& V,
+                      const std::vector<Index>& fine_twin, int threads);
 
 }  // namespace
 
@@ -891,16 +898,29 @@ CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const
       for (Index t = begin; t < stop; ++t) result.face_patch[t] = tracer.face_patch(t);
     }
   });
+  complete_tracing(result, F, coarse, map, inserted, V, tracer.fine_twin(), threads);
+  return result;
+}
+
+namespace {
+// What both ways of tracing finish with: edges that cross marked, the surface lengths (with the
+// gluing `fine_twin` of F), the vertices' labels, the counts and length ratios.
+void complete_tracing(CoarseTracing& result, const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
+                      const std::vector<InputSurfacePoint>& inserted, const Positions& V,
+                      const std::vector<Index>& fine_twin, int threads) {
   mark_crossing_edges(result.edges, coarse, F, inserted);
-  if (V.rows() != 0)  // each traced edge's shortest path through its strip, with the tracer's gluing of F
-    detail::run_tasks(threads, static_cast<int>(edge_chunks), [&](int task) {
-      const Index begin = task * kChunk, stop = std::min<Index>(begin + kChunk, static_cast<Index>(sides.size()));
+  constexpr Index kChunk = 256;
+  const Index edges = static_cast<Index>(result.edges.size());
+  if (V.rows() != 0)  // each traced edge's shortest path through its strip
+    detail::run_tasks(threads, static_cast<int>((edges + kChunk - 1) / kChunk), [&](int task) {
+      const Index begin = task * kChunk, stop = std::min<Index>(begin + kChunk, edges);
       for (Index e = begin; e < stop; ++e)
         if (TracedEdge& edge = result.edges[e]; edge.status == TraceStatus::traced)
-          edge.surface_length = shortest_length_in_strip(V, F, tracer.fine_twin(), edge);
+          edge.surface_length = shortest_length_in_strip(V, F, fine_twin, edge);
     });
   result.vertex_patch.resize(map.size());
   for (std::size_t v = 0; v < map.size(); ++v) result.vertex_patch[v] = map[v].face;
+  result.traced = result.failed = 0;
   bool first_ratio = true;
   for (const TracedEdge& edge : result.edges) {
     if (edge.status != TraceStatus::traced) {
@@ -914,12 +934,122 @@ CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const
     result.length_ratio_max = first_ratio ? ratio : std::max(result.length_ratio_max, ratio);
     first_ratio = false;
   }
+}
+
+// The point b of input face `from` in the coordinates of face `to`, when it lies on their common
+// side or corner (its weight off the corners they share is round-off), else nothing.
+std::optional<std::array<double, 3>> express_in(const Faces& F, Index from, const std::array<double, 3>& b, Index to,
+                                                bool renormalise = true) {
+  constexpr double kOnSide = 1e-7;  // round-off of many records on slivers reaches ~2e-9
+  if (from == to) return b;
+  std::array<double, 3> out{0, 0, 0};
+  double off = 0, on = 0;
+  for (int c = 0; c < 3; ++c) {
+    int corner = -1;
+    for (int k = 0; k < 3; ++k)
+      if (F(from, c) == F(to, k)) corner = k;
+    if (corner < 0) {
+      off += b[c];
+    } else {
+      on += b[c];
+      out[static_cast<std::size_t>(corner)] = b[c];
+    }
+  }
+  if (off > kOnSide || on <= 0) return std::nullopt;
+  if (renormalise)
+    for (double& x : out) x /= on;
+  return out;
+}
+
+// Makes the ends of consecutive segments of a trace the same point to the bit (pulled back
+// separately through many records, they agree to round-off only): the same coordinates in one
+// face; in faces that share a side or a corner, the point there by the same weights.
+void weld_joints(const Faces& F, std::vector<TracedSegment>& segments) {
+  for (std::size_t i = 0; i + 1 < segments.size(); ++i) {
+    TracedSegment& s = segments[i];
+    TracedSegment& n = segments[i + 1];
+    const std::optional<std::array<double, 3>> there = express_in(F, s.face, s.to, n.face);
+    if (!there) continue;
+    if (s.face != n.face)  // s's own end: the same weights at the same corners (the same sums to the bit)
+      if (const std::optional<std::array<double, 3>> back = express_in(F, n.face, *there, s.face, false)) s.to = *back;
+    n.from = *there;
+  }
+}
+
+// The exact tracing: every coarse edge pulled back through the triangulation's recorded history
+// (ice/triangulation_history.h) onto the faces it was built from, i.e. the input's; every input
+// face's barycentre pushed forward to label it.
+CoarseTracing trace_from_history(const TriangleMesh& mesh, const CoarseSpace& space, int threads) {
+  const IntrinsicTriangulation& T = *space.triangulation;
+  const CompactMesh& coarse = space.mesh;
+  const std::vector<Index>& face_order = space.triangulation_face_order;
+  const auto input_face = [&](Index slot) { return face_order.empty() ? slot : face_order[static_cast<std::size_t>(slot)]; };
+  std::vector<Index> slot_of, compact_of(static_cast<std::size_t>(T.num_face_slots()), kInvalid);
+  for (Index f = 0; f < T.num_face_slots(); ++f)
+    if (T.face_alive(f)) {
+      compact_of[static_cast<std::size_t>(f)] = static_cast<Index>(slot_of.size());
+      slot_of.push_back(f);
+    }
+  const std::vector<Index> twin = coarse.twin.empty() ? glue_by_vertex_pairs(coarse.F) : coarse.twin;
+  std::vector<Index> sides;
+  for (Index s = 0; s < static_cast<Index>(twin.size()); ++s)
+    if (twin[s] == kInvalid || s < twin[s]) sides.push_back(s);
+  std::vector<std::vector<FaceSegment>> curves(sides.size());
+  for (std::size_t e = 0; e < sides.size(); ++e) {
+    const Index f = sides[e] / 3;
+    const int k = static_cast<int>(sides[e] % 3);
+    FaceSegment side;
+    side.face = slot_of[static_cast<std::size_t>(f)];
+    side.from[k] = 1;
+    side.to[(k + 1) % 3] = 1;
+    side.to_param = coarse.L(f, k);
+    curves[e].push_back(side);
+  }
+  curves = pull_back(T.history(), std::move(curves));
+  Index first_inserted = 0;
+  for (const Index input : coarse.to_input) first_inserted += input != kInvalid;
+  CoarseTracing result;
+  result.edges.resize(sides.size());
+  for (std::size_t e = 0; e < sides.size(); ++e) {
+    TracedEdge& edge = result.edges[e];
+    const Index f = sides[e] / 3;
+    const int k = static_cast<int>(sides[e] % 3);
+    edge.side = sides[e];
+    edge.tail = coarse.F(f, k);
+    edge.head = coarse.F(f, (k + 1) % 3);
+    edge.length = coarse.L(f, k);
+    edge.segments.reserve(curves[e].size());
+    for (const FaceSegment& piece : curves[e])
+      edge.segments.push_back({input_face(piece.face), piece.from, piece.to, piece.from_param, piece.to_param});
+    weld_joints(mesh.F, edge.segments);
+    // Ends at inserted vertices: their points as the coarse space gives them (pulled back the same
+    // way, equal up to round-off), so that edges meeting there meet at one point.
+    for (int end = 0; end < 2 && !edge.segments.empty(); ++end) {
+      const Index vertex = end == 0 ? edge.tail : edge.head;
+      if (coarse.to_input[static_cast<std::size_t>(vertex)] != kInvalid) continue;
+      const InputSurfacePoint& point = space.inserted[static_cast<std::size_t>(vertex - first_inserted)];
+      TracedSegment& segment = end == 0 ? edge.segments.front() : edge.segments.back();
+      if (const std::optional<std::array<double, 3>> b = express_in(mesh.F, point.face, point.bary, segment.face))
+        (end == 0 ? segment.from : segment.to) = *b;
+    }
+  }
+  std::vector<FacePoint> centres(static_cast<std::size_t>(T.history().initial_faces));
+  for (Index slot = 0; slot < T.history().initial_faces; ++slot)
+    centres[static_cast<std::size_t>(slot)] = {slot, {1.0 / 3, 1.0 / 3, 1.0 / 3}};
+  centres = push_forward(T.history(), std::move(centres));
+  result.face_patch.assign(static_cast<std::size_t>(mesh.F.rows()), kInvalid);
+  for (Index slot = 0; slot < static_cast<Index>(centres.size()); ++slot)
+    result.face_patch[static_cast<std::size_t>(input_face(slot))] = compact_of[static_cast<std::size_t>(centres[slot].face)];
+  complete_tracing(result, mesh.F, coarse, fine_to_coarse_map(space), space.inserted, mesh.V, glue_by_vertex_pairs(mesh.F),
+                   threads <= 0 ? static_cast<int>(std::max(1u, std::thread::hardware_concurrency())) : threads);
   return result;
 }
+}  // namespace
 
 CoarseTracing trace_coarse_mesh(const TriangleMesh& mesh, const CoarseSpace& space, int threads) {
   if (!space.triangulation)
     throw std::invalid_argument("trace_coarse_mesh: the coarse space has no triangulation (ICE with keep_method_state)");
+  if (space.triangulation->records_history()) return trace_from_history(mesh, space, threads);
   return trace_coarse_mesh(mesh.F, space.mesh, fine_to_coarse_map(space), space.inserted, mesh.V, threads);
 }
 

@@ -301,7 +301,19 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
   const Index live = context.T.num_vertices();
   std::vector<IntrinsicTriangulation::WriteRegion> regions(parts);
   std::vector<std::unique_ptr<GreedyLoop>> loops(parts);
+  // A recording triangulation's operations, region by region: each region's thread writes its own
+  // shard, appended in region order after each pass over the regions (their faces are disjoint).
+  const bool recording = context.T.records_history();
+  std::vector<TriangulationHistory> shards(recording ? parts : 0);
+  const auto append_shards = [&] {
+    for (TriangulationHistory& shard : shards) {
+      context.T.append_history(shard);
+      shard = TriangulationHistory{};
+    }
+  };
   team.run(parts, [&](int r) {
+    std::optional<IntrinsicTriangulation::HistoryShard> shard;
+    if (recording) shard.emplace(shards[r]);
     regions[r] = {partition.label.data(), static_cast<std::uint8_t>(r)};
     GreedyScope scope;
     scope.region = &regions[r];
@@ -310,6 +322,7 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
     scope.target = 0;
     loops[r] = std::make_unique<GreedyLoop>(context, scope);
   });
+  append_shards();
   double threshold = std::numeric_limits<double>::infinity();
   for (auto& loop : loops) threshold = std::min(threshold, loop->next_cost());
   // The vertices the regions cannot remove stay on top of the intermediate size: the regions
@@ -325,9 +338,12 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
     const double round_threshold = std::min(threshold, options.max_error);
     const Index wanted = vertices - parallel_target;
     team.run(parts, [&](int r) {
+      std::optional<IntrinsicTriangulation::HistoryShard> shard;
+      if (recording) shard.emplace(shards[r]);
       const Index quota = std::max<Index>(1, static_cast<Index>(std::ceil(static_cast<double>(wanted) * loops[r]->vertices() / vertices)));
       stops[r] = loops[r]->run(round_threshold, quota);
     });
+    append_shards();
     vertices = 0;
     bool quota_hit = false, any_left = false;
     for (int r = 0; r < parts; ++r) {

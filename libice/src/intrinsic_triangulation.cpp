@@ -79,6 +79,61 @@ class LocalLayout {
   int size_ = 0;
 };
 
+// The history shard of this thread (IntrinsicTriangulation::HistoryShard), if one is alive.
+thread_local TriangulationHistory* t_history_shard = nullptr;
+
+// Writes one record of a history (nothing without one): the faces replaced, then the faces that
+// replace them, each by its corners' positions in one layout (equal positions share a point), or
+// the faces of a flattened star.
+class RecordWriter {
+ public:
+  explicit RecordWriter(TriangulationHistory* history, bool flattening = false, double weight = 1) : history_(history) {
+    if (!history_) return;
+    TriangulationHistory::Record record;
+    record.first_point = static_cast<std::uint32_t>(history_->points.size());
+    record.first_face = static_cast<std::uint32_t>(history_->faces.size());
+    record.flattening = flattening;
+    record.weight = weight;
+    history_->records.push_back(record);
+  }
+  bool active() const { return history_ != nullptr; }
+  // A face by its corners' positions, in its corner order.
+  void face(Index slot, Vec2 p0, Vec2 p1, Vec2 p2, bool replacement) {
+    if (!history_) return;
+    TriangulationHistory::Record& record = history_->records.back();
+    TriangulationHistory::Face face;
+    face.slot = slot;
+    const Vec2 corner[3] = {p0, p1, p2};
+    for (int k = 0; k < 3; ++k) face.corner[k] = point(record, corner[k]);
+    history_->faces.push_back(face);
+    ++(replacement ? record.new_faces : record.old_faces);
+  }
+  // A face about to be replaced, its corners (tails of its half-edges from halfedge(f)) in `layout`.
+  void old_face(const IntrinsicTriangulation& T, Index f, const LocalLayout& layout) {
+    if (!history_) return;
+    const Index h0 = T.halfedge(f), h1 = T.next(h0), h2 = T.next(h1);
+    face(f, layout.at(h0), layout.at(h1), layout.at(h2), false);
+  }
+  // A face of a flattened star: which of its corners are at the vertex.
+  void star_face(Index slot, const bool at_vertex[3]) {
+    if (!history_) return;
+    TriangulationHistory::Face face;
+    face.slot = slot;
+    for (int k = 0; k < 3; ++k) face.corner[k] = at_vertex[k] ? 1 : 0;
+    history_->faces.push_back(face);
+    ++history_->records.back().old_faces;
+  }
+
+ private:
+  std::uint8_t point(TriangulationHistory::Record& record, Vec2 p) {
+    for (std::size_t i = record.first_point; i < history_->points.size(); ++i)
+      if (history_->points[i].x == p.x && history_->points[i].y == p.y) return static_cast<std::uint8_t>(i - record.first_point);
+    history_->points.push_back(p);
+    return record.num_points++;
+  }
+  TriangulationHistory* history_;
+};
+
 }  // namespace
 
 const char* to_string(RemovalStatus status) {
@@ -433,6 +488,23 @@ void IntrinsicTriangulation::recompute_vertex_frame(Index v) {
     vsum(v) = compute_angle_sum(v);
 }
 
+void IntrinsicTriangulation::record_history(bool on) {
+  recording_ = on;
+  history_ = TriangulationHistory{};
+  history_.initial_faces = num_face_slots();
+}
+
+TriangulationHistory* IntrinsicTriangulation::history_sink() {
+  if (!recording_) return nullptr;
+  return t_history_shard ? t_history_shard : &history_;
+}
+
+IntrinsicTriangulation::HistoryShard::HistoryShard(TriangulationHistory& shard) : previous_(t_history_shard) {
+  t_history_shard = &shard;
+}
+
+IntrinsicTriangulation::HistoryShard::~HistoryShard() { t_history_shard = previous_; }
+
 void IntrinsicTriangulation::maintain_frames(bool on) {
   const bool resume = on && !frames_maintained_;
   frames_maintained_ = on;
@@ -589,6 +661,14 @@ bool IntrinsicTriangulation::flip(Index h) {
   if (!(twice_area0 > kFlipMinSine * two_longest(l_kl, l_b, l_c) && twice_area1 > kFlipMinSine * two_longest(l_kl, l_d, l_a)))
     return false;
 
+  if (RecordWriter record(history_sink()); record.active()) {
+    LocalLayout diamond;
+    diamond.set(h, pi), diamond.set(a, pj), diamond.set(b, pk), diamond.set(t, pj), diamond.set(c, pi), diamond.set(d, pl);
+    record.old_face(*this, f0, diamond);
+    record.old_face(*this, f1, diamond);
+    record.face(f0, pl, pk, pi, true);  // the faces as rewired below: f0 = (l, k, i), f1 = (k, l, j)
+    record.face(f1, pk, pl, pj, true);
+  }
   // Tracked points of both faces, with their positions in the layout.
   const bool has_points = ffirst(f0) != kInvalid || ffirst(f1) != kInvalid;
   std::vector<PlacedPoint>& points = scratch_points();
@@ -791,9 +871,11 @@ FlattenResult IntrinsicTriangulation::flatten_vertex(Index v, double initial_log
     std::sort(star_faces.begin(), star_faces.end());
     star_faces.erase(std::unique(star_faces.begin(), star_faces.end()), star_faces.end());
   }
+  RecordWriter record(history_sink(), true, weight);
   for (Index f : star_faces) {
     const Index h0 = fhalfedge(f);
     const bool at_v[3] = {tail(h0) == v, tail(next(h0)) == v, tail(prev(h0)) == v};
+    record.star_face(f, at_v);
     for_each_point_in_face(f, [&](Index p) {
       std::array<double, 3>& b = points_[p].bary;
       for (int k = 0; k < 3; ++k)
@@ -977,6 +1059,10 @@ void IntrinsicTriangulation::merge_star_into_face(Index v, const std::vector<Ind
   layout.set(h0, pv), layout.set(o0, p0), layout.set(prev(h0), p1);
   layout.set(h1, pv), layout.set(o1, p1), layout.set(prev(h1), p2);
   layout.set(h2, pv), layout.set(o2, p2), layout.set(prev(h2), p0);
+  if (RecordWriter record(history_sink()); record.active()) {
+    for (Index h : star) record.old_face(*this, face(h), layout);
+    record.face(face(h0), p0, p1, p2, true);
+  }
   std::vector<PlacedPoint>& points = scratch_points();
   points.clear();
   for (Index h : star) collect_points(face(h), layout, points);
@@ -1035,6 +1121,11 @@ bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Inde
     return false;
   LocalLayout layout;
   for (int k = 0; k < 4; ++k) layout.set(s[k], pv), layout.set(o[k], p[k]), layout.set(prev(s[k]), p[(k + 1) % 4]);
+  if (RecordWriter record(history_sink()); record.active()) {
+    for (int k = 0; k < 4; ++k) record.old_face(*this, face(s[k]), layout);
+    record.face(face(s[0]), p[0], p[1], p[2], true);  // A and B below
+    record.face(face(s[2]), p[2], p[3], p[0], true);
+  }
   std::vector<PlacedPoint>& points = scratch_points();
   points.clear();
   for (int k = 0; k < 4; ++k) collect_points(face(s[k]), layout, points);
@@ -1108,6 +1199,11 @@ RemovalStatus IntrinsicTriangulation::remove_boundary_vertex(Index v, std::vecto
   LocalLayout layout;
   layout.set(hb, pv), layout.set(o1, pk), layout.set(prev(hb), pm);
   layout.set(h2, pv), layout.set(o2, pm), layout.set(in, pj);
+  if (RecordWriter record(history_sink()); record.active()) {
+    record.old_face(*this, face(hb), layout);
+    record.old_face(*this, face(h2), layout);
+    record.face(face(hb), pk, pm, pj, true);
+  }
   std::vector<PlacedPoint>& points = scratch_points();
   points.clear();
   collect_points(face(hb), layout, points);
@@ -1194,6 +1290,8 @@ Index IntrinsicTriangulation::insert_vertex(Index f, const std::array<double, 3>
   layout.set(h1, p1);
   layout.set(h2, p2);
   collect_points(f, layout, points);
+  RecordWriter record(history_sink());
+  record.old_face(*this, f, layout);
 
   // Spokes c_k <-> v: half-edge 2e goes c_k -> v, 2e + 1 goes v -> c_k.
   const Index v = new_vertex(false, kTwoPi);
@@ -1216,6 +1314,9 @@ Index IntrinsicTriangulation::insert_vertex(Index f, const std::array<double, 3>
   hangle(to2) = wrap_angle(hangle(h2) + angle_scale(c2) * angle_between(p0 - p2, q - p2));
   hangle(from0) = 0;
   recompute_vertex_frame(v);
+  record.face(f, p0, p1, q, true);
+  record.face(f1, p1, p2, q, true);
+  record.face(f2, p2, p0, q, true);
 
   // Every point lies in f: the two spokes that bound a sub-face decide.
   for (const auto& point : points) {
@@ -1275,6 +1376,13 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
     below.set(d, pl);
     collect_points(fb, below, points);
   }
+  RecordWriter record(history_sink());
+  record.old_face(*this, fa, layout);
+  if (!boundary) {
+    LocalLayout below;
+    below.set(tw, pj), below.set(c, pi), below.set(d, pl);
+    record.old_face(*this, fb, below);
+  }
   const double old_angle_tw = hangle(tw);
   const bool j_started_at_tw = vhalfedge(j) == tw;
 
@@ -1320,6 +1428,12 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
   }
   if (j_started_at_tw) vhalfedge(j) = j_to_m;
   recompute_vertex_frame(m);
+  record.face(fa, pi, pm, pk, true);
+  record.face(fa2, pm, pj, pk, true);
+  if (!boundary) {
+    record.face(fb, pj, pm, pl, true);
+    record.face(fb2, pm, pi, pl, true);
+  }
 
   for (const auto& point : points) {
     const Vec2 x = point.position;

@@ -77,6 +77,10 @@ struct CoarseSpaceOptions {
   /// vertex's location, or the QEM result with its mesh and closest-point map): for the map file,
   /// validation, refinement. Off by default: the PDE tools free it before the fine solves.
   bool keep_method_state = false;
+  /// ICE with keep_method_state: the triangulation also records its history of local operations
+  /// (IntrinsicTriangulation::record_history), so that trace_coarse_mesh draws every coarse edge
+  /// exactly (ice/coarse_tracing.h). Costs memory in proportion to the removals (measured there).
+  bool record_history = false;
   /// ICE: coarsen in a copy of the mesh renumbered for memory locality (vertices in the Z-order of
   /// their positions, faces by their first vertex) and give the result back in the mesh's
   /// numbering. Same method, other tie-breaks and thread regions, so not bit-identical to a run
@@ -125,7 +129,10 @@ struct CoarseSpace {
   /// come last, with to_input kInvalid.
   CompactMesh mesh;
   /// Where each inserted vertex lies on the input surface (a face of the input mesh and barycentric
-  /// coordinates), in the order of those last coarse vertices. Empty without refinement.
+  /// coordinates), in the order of those last coarse vertices. Empty without refinement. With
+  /// record_history, each pulled back through the history (exact); else located by laying out the
+  /// input triangles around it by the map (ice::locate_inserted_vertices: ~1e-2 off in coordinates
+  /// on spot at 5 %, where the map bends input triangles).
   std::vector<InputSurfacePoint> inserted;
   Eigen::SparseMatrix<double> P;   ///< fine (input) vertices × coarse vertices
   CoarseSpaceSummary summary;
@@ -134,6 +141,9 @@ struct CoarseSpace {
   /// numbers translated to the mesh's and the coarse vertices listed in increasing input order.
   std::optional<IntrinsicTriangulation> triangulation;
   std::vector<Index> triangulation_order;
+  /// With record_history: the mesh's face of each face slot the triangulation was built with (same
+  /// corner order; empty: slot f is face f).
+  std::vector<Index> triangulation_face_order;
   /// With keep_method_state and QEM: its result (the QEM mesh, the map; its P is moved into P above).
   std::optional<QemResult> qem_result;
 };

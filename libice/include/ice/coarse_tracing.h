@@ -3,59 +3,50 @@
 /// The coarse mesh drawn on the input surface: every coarse (intrinsic) edge traced as a polyline
 /// across the input triangles, and every input face labelled by the coarse face that contains it.
 ///
-///   const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);   // keep_method_state
+///   ice::CoarseSpaceOptions options;
+///   options.keep_method_state = options.record_history = true;   // ICE, its history kept
+///   const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
 ///   const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh, space);
 ///   for (const ice::TracedEdge& e : tracing.edges) draw(ice::traced_polyline(mesh.V, mesh.F, e));
 ///
-/// How: the fine-to-coarse map places every input vertex in a coarse face (barycentric coordinates),
-/// so every input triangle has an image in the coarse metric: the triangle spanned by its vertices'
-/// images, laid out in one plane by unfolding the coarse faces between them (the coarse metric is
-/// flat away from coarse vertices). On the project's test meshes ICE's map does not fold these
-/// images (tested on the triangles inside one coarse face or two sharing a side; but see Limits). A
-/// coarse edge is a straight segment in the layout
-/// of its face; the trace walks that segment across the images of the input triangles, each
-/// crossing read back on the input triangle through the same barycentric coordinates. Input
-/// vertices near the edge are laid out in the stars of its two end vertices, unfolded about each end
-/// and cut opposite the edge (one image per vertex, however curved the cone); vertices further away
-/// (input triangles long against coarse faces) by a search over unfoldings that pass through the
-/// triangle's image. A boundary edge is the input's boundary chain between its ends.
+/// Two ways, one result type:
 ///
-/// Properties (tests/test_coarse_tracing.cpp, on procedural meshes, the project's and the extended
-/// set's): a traced edge runs from its tail to its head through segments inside single input faces
-/// that join end to end, its positions along the edge increase from 0 to its intrinsic length, two
-/// traced edges meet only at coarse vertices (checked here too: edges that cross are marked
-/// `crossed`). Where the coarse metric is the input's (an intrinsic Delaunay retriangulation of the
-/// input, or ICE on a flat mesh, whose removals flatten nothing) the polyline's length on the input
-/// surface equals the intrinsic edge length to round-off; on a coarsened curved mesh the two differ
-/// by the metric distortion of ICE's flattening (CoarseTracing::length_ratio_*).
+/// **Exact, from the coarsening's history** (trace_coarse_mesh(mesh, space) of a space built with
+/// CoarseSpaceOptions::record_history). Every operation of the coarsening maps straight segments to
+/// straight segments piece by piece (ice/triangulation_history.h), so each coarse edge is pulled back
+/// through the recorded operations, last first, onto the input faces: the preimage of the edge under
+/// the fine-to-coarse map itself. Each input face is labelled by pushing its barycentre forward the
+/// same way. Measured (2026-11-28, `ice-coarsen MESH --ratio R --repair --trace`, the project's and
+/// the shared meshes at 5 % and 1 %): every edge traced, none crossing another (tests: the shared
+/// meshes and the project's, Δ-complex and refined coarse meshes). Cost: the history holds ~1 KB
+/// per removal while the coarse space lives (dragon_vrip_bin, 437,645 vertices to 5 %: 233 → 773
+/// MiB peak), and the pull-back is serial.
 ///
-/// A far corner has several candidate images (unfoldings around coarse vertices). Only those on the
-/// left of the side the walk entered through count (the map does not fold input triangles); with
-/// positions given, the walk takes the one whose distances to the entry side's ends, relative to that
-/// side, are nearest the input triangle's (ICE's map is close to conformal on a small triangle, and
-/// an image in a wrong copy is turned about a coarse vertex by its angle defect); without, the one
-/// nearest the entry point.
+/// **A walk over the map** (trace_coarse_mesh(F, coarse, map, ...), and the space overload without
+/// a history): the fine-to-coarse map places every input vertex in a coarse face, so every input
+/// triangle has an image in the coarse metric, the triangle spanned by its vertices' images laid out
+/// by unfolding the coarse faces between them. A coarse edge is a straight segment in the layout of
+/// its face; the walk crosses the images of the input triangles, each crossing read back on the input
+/// triangle through the same barycentric coordinates. Input vertices near the edge are laid out in
+/// the stars of its two end vertices, unfolded about each end and cut opposite the edge; vertices
+/// further away by a search over unfoldings that pass through the triangle's image (with positions,
+/// the image whose shape is nearest the input triangle's). A boundary edge is the input's boundary
+/// chain between its ends. Limits: ICE's map is piecewise affine on the triangulations the
+/// coarsening went through, not on input triangles, so an input triangle large against the coarse
+/// faces is bent by it and its straight image can fold; the walk then fails (reported, never drawn):
+/// 1,529 of 152,932 edges (1.0 %) of the project's and the shared meshes at 5 % and 1 % (boxpart 67
+/// of 111 at 5 %, elephant-with-holes 98 of 877, dragon_vrip_bin 219 of 64,506). Where the metric is
+/// the input's (an intrinsic Delaunay retriangulation of it, or ICE on a flat mesh) the walk's
+/// polylines have the intrinsic lengths to round-off, with rare exceptions on CAD slivers (199 of
+/// 820,179 iDT edges of the shared meshes longer by > 1e-9).
 ///
-/// Limits (measured 2026-11-27; an edge that cannot be traced is reported, never drawn wrong, with the
-/// exception below): of the edges of ICE coarse meshes at 5 % and 1 % of the project's and the shared
-/// meshes (`ice-coarsen MESH --ratio R --repair --trace`), 1,529 of 152,932 fail (1.0 %), none on
-/// smooth meshes at 5 %; the failures gather where input triangles are long against coarse faces
-/// (CAD slivers: boxpart fails most of its edges; elephant-with-holes' thin parts, 11 %; the largest
-/// scans, up to 5 % at 1 %), where the layout of a far corner is not resolved. Where the metric is
-/// the input's, a wrong layout shows in the length: on the intrinsic Delaunay retriangulations of
-/// the 27 shared meshes under 200k vertices, 448 of 820,179 edges are untraced and 199 traced ones
-/// differ from their intrinsic length by more than 1e-9 (94 by more than 1e-6, at most 2.9 %, on CAD
-/// slivers and scans: camelhead, scan_test1_vcg, boxpart): wrong layouts that the checks above do not
-/// catch (1,188 before the shape criterion; mech-holes-shark's went from 87 to 1).
-/// Why, where the coarse mesh is ICE's: its map is piecewise affine on the triangulations the
-/// coarsening went through (each flattening, flip and merge moves a face's points affinely), not on
-/// input triangles, so an input triangle that is large against the coarse faces is bent by it, and
-/// the straight triangle between its corners' images can invert. Counted at 5 % (all three corners
-/// inside one coarse face with three distinct vertices, so the layout is unambiguous; 2026-11-27):
-/// cow 9 of 1,950 such triangles inverted, boxpart 3 of 71, scan_test1_vcg 1 of 12,660; none on
-/// camelhead, bunny_zipper_holes, face_scan (nor bear, spot, lion-head: the test). The walk's model
-/// fails there; tracing those edges exactly needs the input edges carried through every flattening,
-/// flip and removal (a common subdivision kept by the coarsener), which this project does not keep.
+/// Properties (tests/test_coarse_tracing.cpp): a traced edge runs from its tail to its head through
+/// segments inside single input faces that join end to end, its positions along the edge increase
+/// from 0 to its intrinsic length, two traced edges meet only at coarse vertices (checked here too:
+/// edges that cross are marked `crossed`). On a coarsened curved mesh the polyline's length on the
+/// input surface differs from the intrinsic length by the metric distortion of ICE's flattening
+/// (CoarseTracing::length_ratio_*); an exact trace may bend inside an input face (the map is not
+/// affine there), the walk's never does.
 ///
 /// Δ-complex coarse meshes (self-edges, several edges between two vertices) are traced like any
 /// other edge; an edge with an end at a vertex inserted by refinement (not an input vertex) is traced
@@ -127,10 +118,12 @@ CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const
                                 const std::vector<InputSurfacePoint>& inserted = {}, const Positions& V = {},
                                 int threads = 1);
 
-/// An ICE coarse space traced on its input `mesh`: trace_coarse_mesh of mesh.F, space.mesh, its
-/// fine-to-coarse map, its inserted points and mesh.V (length ratios measured). Precondition
-/// (std::invalid_argument): the space was built with keep_method_state by ICE (a QEM mesh is
-/// extrinsic: its edges are straight segments between its positions, nothing to trace).
+/// An ICE coarse space traced on its input `mesh`: exactly, pulled back through the triangulation's
+/// history, when the space was built with record_history; else trace_coarse_mesh of mesh.F,
+/// space.mesh, its fine-to-coarse map, its inserted points and mesh.V (the walk). Length ratios
+/// measured either way. Precondition (std::invalid_argument): the space was built with
+/// keep_method_state by ICE (a QEM mesh is extrinsic: its edges are straight segments between its
+/// positions, nothing to trace).
 CoarseTracing trace_coarse_mesh(const TriangleMesh& mesh, const CoarseSpace& space, int threads = 0);
 
 /// The polyline of a traced edge on the input surface (positions of its segments' ends, joined:

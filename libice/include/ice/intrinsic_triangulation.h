@@ -36,6 +36,7 @@
 #include "ice/mesh.h"
 #include "ice/large_array.h"
 #include "ice/triangle_geometry.h"
+#include "ice/triangulation_history.h"
 #include "ice/vertex_star.h"
 
 namespace ice {
@@ -170,6 +171,32 @@ class IntrinsicTriangulation {
   /// threads, at most 8, for 100,000+ vertex slots, as the builders do). For callers that read no
   /// frame: the multigrid hierarchy's independent-set levels (measured in hierarchy.h).
   void maintain_frames(bool on);
+  /// Records (true) every local operation from now on in history(), or stops and clears it (false):
+  /// what pulls the current faces' curves back to the faces it had when recording started (call it
+  /// right after building to reach the input's)
+  /// (ice/triangulation_history.h; the exact tracing of ice/coarse_tracing.h). Off by default: about
+  /// 100 bytes per operation (a coarsening makes ~10 per removal). Copies carry the history;
+  /// compacted() copies start without one.
+  void record_history(bool on);
+  bool records_history() const { return recording_; }
+  const TriangulationHistory& history() const { return history_; }
+  /// While one is alive on a thread, the operations that thread makes on a recording triangulation
+  /// go to its shard instead of the triangulation's history: a region coarsened on a thread of its
+  /// own (ice::coarsen's parallel phase), whose shard is appended after the region's round.
+  class HistoryShard {
+   public:
+    explicit HistoryShard(TriangulationHistory& shard);
+    ~HistoryShard();
+    HistoryShard(const HistoryShard&) = delete;
+    HistoryShard& operator=(const HistoryShard&) = delete;
+
+   private:
+    TriangulationHistory* previous_;
+  };
+  /// Appends a shard's records to the history (in the order the shards are appended).
+  void append_history(const TriangulationHistory& shard) {
+    if (recording_) history_.append(shard);
+  }
   /// The factor that maps corner angles at v to angular coordinates.
   double angle_scale(Index v) const {
     constexpr double kTurn = 6.283185307179586476925286766559;
@@ -398,6 +425,10 @@ class IntrinsicTriangulation {
   static void decrement(Index& count) { __atomic_fetch_sub(&count, 1, __ATOMIC_RELAXED); }
   Index num_vertices_ = 0, num_edges_ = 0, num_faces_ = 0;
   bool frames_maintained_ = true;
+  // The operations' record (record_history): where they go on this thread, or null when not recording.
+  TriangulationHistory* history_sink();
+  bool recording_ = false;
+  TriangulationHistory history_;
 };
 
 /// The gluing of a mesh whose edges are named by their vertex pairs (no self- or multi-edges), in the

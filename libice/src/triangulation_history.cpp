@@ -1,0 +1,296 @@
+#include "ice/triangulation_history.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace ice {
+
+void TriangulationHistory::append(const TriangulationHistory& other) {
+  const auto point_offset = static_cast<std::uint32_t>(points.size());
+  const auto face_offset = static_cast<std::uint32_t>(faces.size());
+  records.reserve(records.size() + other.records.size());
+  for (Record record : other.records) {
+    record.first_point += point_offset;
+    record.first_face += face_offset;
+    records.push_back(record);
+  }
+  points.insert(points.end(), other.points.begin(), other.points.end());
+  faces.insert(faces.end(), other.faces.begin(), other.faces.end());
+}
+
+namespace {
+
+using Triangle = std::array<Vec2, 3>;
+constexpr int kMaxRecordFaces = 8;  // the largest record: an edge split, 2 old and 4 new faces
+
+Triangle corners(const TriangulationHistory::Face& face, const Vec2* points) {
+  return {points[face.corner[0]], points[face.corner[1]], points[face.corner[2]]};
+}
+
+Vec2 position(const Triangle& t, const std::array<double, 3>& b) { return t[0] * b[0] + t[1] * b[1] + t[2] * b[2]; }
+
+// How deep x lies inside t: the smallest signed distance to its sides (negative outside).
+double depth(const Triangle& t, Vec2 x) {
+  double smallest = 1e300;
+  for (int k = 0; k < 3; ++k) {
+    const Vec2 side = t[(k + 1) % 3] - t[k];
+    const double length = side.norm();
+    if (length > 0) smallest = std::min(smallest, orient2d(t[k], t[(k + 1) % 3], x) / length);
+  }
+  return smallest;
+}
+
+// The parameters t ∈ [lo, hi] ⊂ [0, 1] for which a + t (b − a) lies in t's triangle, its sides
+// moved out by `tolerance`; false when there are none. *exit: the side (corner k to k + 1) that
+// ends the interval before b, or −1.
+bool clip(const Triangle& t, Vec2 a, Vec2 b, double tolerance, double& lo, double& hi, int* exit) {
+  lo = 0, hi = 1;
+  *exit = -1;
+  for (int k = 0; k < 3; ++k) {
+    const Vec2 side = t[(k + 1) % 3] - t[k];
+    const double length = side.norm();
+    if (length == 0) continue;
+    const double da = orient2d(t[k], t[(k + 1) % 3], a) / length + tolerance;
+    const double db = orient2d(t[k], t[(k + 1) % 3], b) / length + tolerance;
+    if (da < 0 && db < 0) return false;
+    if (da >= 0 && db >= 0) continue;
+    const double cut = da / (da - db);
+    if (da < 0) {
+      lo = std::max(lo, cut);
+    } else if (cut < hi) {
+      hi = cut;
+      *exit = k;
+    }
+  }
+  return lo <= hi;
+}
+
+// Where a → b crosses the line of side k of t: the fraction along the side from corner k, in [0, 1].
+double side_fraction(const Triangle& t, int k, Vec2 a, Vec2 b) {
+  const Vec2 p = t[k], q = t[(k + 1) % 3];
+  const double da = orient2d(p, q, a), db = orient2d(p, q, b);
+  const Vec2 x = da == db ? a : a + (b - a) * (da / (da - db));
+  const Vec2 side = q - p;
+  const double squared = side.x * side.x + side.y * side.y;
+  return std::clamp(((x.x - p.x) * side.x + (x.y - p.y) * side.y) / squared, 0.0, 1.0);
+}
+
+std::array<double, 3> normalised(std::array<double, 3> b) {
+  const double sum = b[0] + b[1] + b[2];
+  for (double& c : b) c /= sum;
+  return b;
+}
+
+// Round-off tolerance of a record's layout: its points' extent times 1e-10.
+double layout_tolerance(const Vec2* points, int count) {
+  double extent = 0;
+  for (int i = 1; i < count; ++i) extent = std::max(extent, (points[i] - points[0]).norm());
+  return 1e-10 * extent;
+}
+
+}  // namespace
+
+std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& history,
+                                                std::vector<std::vector<FaceSegment>> curves) {
+  Index slots = history.initial_faces;
+  for (const TriangulationHistory::Face& face : history.faces) slots = std::max(slots, face.slot + 1);
+  // The segments in a pool, each curve a linked list through it; each face slot lists the segments
+  // that lie in it now.
+  struct Piece {
+    FaceSegment segment;
+    int next = -1;
+  };
+  std::vector<Piece> pool;
+  std::vector<int> first(curves.size(), -1);
+  std::vector<std::vector<int>> in_face(static_cast<std::size_t>(slots));
+  for (std::size_t c = 0; c < curves.size(); ++c) {
+    int previous = -1;
+    for (const FaceSegment& segment : curves[c]) {
+      if (segment.face < 0 || segment.face >= slots)
+        throw std::invalid_argument("pull_back: a curve lies on face slot " + std::to_string(segment.face) +
+                                    ", which the triangulation does not have");
+      const int id = static_cast<int>(pool.size());
+      pool.push_back({segment, -1});
+      (previous < 0 ? first[c] : pool[static_cast<std::size_t>(previous)].next) = id;
+      previous = id;
+      in_face[static_cast<std::size_t>(segment.face)].push_back(id);
+    }
+  }
+
+  std::vector<std::pair<int, int>> moved;  // (segment, new face of the record it lies in)
+  for (auto record = history.records.rbegin(); record != history.records.rend(); ++record) {
+    const TriangulationHistory::Face* faces = history.faces.data() + record->first_face;
+    if (record->flattening) {  // undo the rescaling at the vertex's corners, face by face
+      for (int i = 0; i < record->old_faces; ++i)
+        for (const int id : in_face[static_cast<std::size_t>(faces[i].slot)]) {
+          FaceSegment& s = pool[static_cast<std::size_t>(id)].segment;
+          for (int k = 0; k < 3; ++k)
+            if (faces[i].corner[k]) s.from[k] /= record->weight, s.to[k] /= record->weight;
+          s.from = normalised(s.from);
+          s.to = normalised(s.to);
+        }
+      continue;
+    }
+    const TriangulationHistory::Face* old_faces = faces;
+    const TriangulationHistory::Face* new_faces = faces + record->old_faces;
+    moved.clear();
+    for (int j = 0; j < record->new_faces; ++j) {
+      std::vector<int>& list = in_face[static_cast<std::size_t>(new_faces[j].slot)];
+      for (const int id : list) moved.emplace_back(id, j);
+      list.clear();
+    }
+    if (moved.empty()) continue;
+    const Vec2* points = history.points.data() + record->first_point;
+    const double tolerance = layout_tolerance(points, record->num_points);
+    std::array<Triangle, kMaxRecordFaces> before{};
+    for (int i = 0; i < record->old_faces; ++i) before[i] = corners(old_faces[i], points);
+    for (const auto& [id, j] : moved) {
+      const FaceSegment segment = pool[static_cast<std::size_t>(id)].segment;
+      const Triangle now = corners(new_faces[j], points);
+      const Vec2 a = position(now, segment.from), b = position(now, segment.to);
+      const double length = (b - a).norm();
+      // The pieces of a → b in the old faces, in order along it: (face, t0, t1), and the side of
+      // the face it leaves through (−1: its end, or a corner) with the fraction along that side, so
+      // that the point where one piece ends and the next begins is the same point of their common
+      // side in both faces (a crossing computed from the tolerance band would drift along a side
+      // the segment meets at a grazing angle).
+      struct Cut {
+        int face;
+        double t0, t1;
+        int exit;
+        double fraction;
+      };
+      std::array<Cut, 2 * kMaxRecordFaces> cuts{};
+      int count = 0;
+      if (length > tolerance) {
+        std::array<double, kMaxRecordFaces> lo{}, hi{};
+        std::array<int, kMaxRecordFaces> exit{};
+        std::array<bool, kMaxRecordFaces> meets{};
+        for (int i = 0; i < record->old_faces; ++i) meets[i] = clip(before[i], a, b, tolerance, lo[i], hi[i], &exit[i]);
+        const double slack = tolerance / length + 1e-12;
+        for (double at = 0; at < 1 && count < static_cast<int>(cuts.size());) {
+          int best = -1;
+          double reach = at;
+          for (int i = 0; i < record->old_faces; ++i)
+            if (meets[i] && lo[i] <= at + slack && hi[i] > reach) best = i, reach = hi[i];
+          if (best < 0) {  // a gap of round-off: on into the face that starts next
+            for (int i = 0; i < record->old_faces; ++i)
+              if (meets[i] && lo[i] > at && (best < 0 || lo[i] < lo[best])) best = i;
+            if (best < 0) break;
+            reach = hi[best];
+          }
+          if (reach >= 1 - slack) reach = 1;
+          const int side = reach < 1 ? exit[best] : -1;
+          cuts[count++] = {best, at, reach, side, side >= 0 ? side_fraction(before[best], side, a, b) : 0.0};
+          at = reach;
+        }
+      }
+      if (count == 0) {  // a point (or nothing found): the face that holds its middle deepest
+        const Vec2 middle = (a + b) * 0.5;
+        int best = 0;
+        for (int i = 1; i < record->old_faces; ++i)
+          if (depth(before[i], middle) > depth(before[best], middle)) best = i;
+        cuts[count++] = {best, 0, 1, -1, 0.0};
+      }
+      cuts[count - 1].t1 = 1;
+      cuts[count - 1].exit = -1;
+      // The first piece takes the segment's place in its curve, the others follow it.
+      const int after = pool[static_cast<std::size_t>(id)].next;
+      int previous = -1;
+      for (int c = 0; c < count; ++c) {
+        const Cut& cut = cuts[c];
+        const Triangle& t = before[cut.face];
+        const auto point_at = [&](double s) { return s == 0 ? a : s == 1 ? b : a + (b - a) * s; };
+        FaceSegment piece;
+        piece.face = old_faces[cut.face].slot;
+        piece.from = clamp_barycentric(barycentric(point_at(cut.t0), t[0], t[1], t[2]));
+        piece.to = clamp_barycentric(barycentric(point_at(cut.t1), t[0], t[1], t[2]));
+        if (cut.exit >= 0) {  // ends on its side `exit`
+          piece.to = {0, 0, 0};
+          piece.to[cut.exit] = 1 - cut.fraction;
+          piece.to[(cut.exit + 1) % 3] = cut.fraction;
+        }
+        if (c > 0 && cuts[c - 1].exit >= 0) {  // begins where the last piece left its face: on the same side here
+          const TriangulationHistory::Face& last = old_faces[cuts[c - 1].face];
+          const int from_point = last.corner[cuts[c - 1].exit], to_point = last.corner[(cuts[c - 1].exit + 1) % 3];
+          const TriangulationHistory::Face& here = old_faces[cut.face];
+          for (int k = 0; k < 3; ++k)
+            if (here.corner[k] == to_point && here.corner[(k + 1) % 3] == from_point) {
+              piece.from = {0, 0, 0};
+              piece.from[k] = cuts[c - 1].fraction;
+              piece.from[(k + 1) % 3] = 1 - cuts[c - 1].fraction;
+            }
+        }
+        piece.from_param = segment.from_param + cut.t0 * (segment.to_param - segment.from_param);
+        piece.to_param = cut.t1 == 1 ? segment.to_param : segment.from_param + cut.t1 * (segment.to_param - segment.from_param);
+        int piece_id = id;
+        if (c > 0) {
+          piece_id = static_cast<int>(pool.size());
+          pool.push_back({});
+          pool[static_cast<std::size_t>(previous)].next = piece_id;
+        }
+        pool[static_cast<std::size_t>(piece_id)].segment = piece;
+        pool[static_cast<std::size_t>(piece_id)].next = after;
+        in_face[static_cast<std::size_t>(piece.face)].push_back(piece_id);
+        previous = piece_id;
+      }
+    }
+  }
+
+  std::vector<std::vector<FaceSegment>> result(curves.size());
+  for (std::size_t c = 0; c < curves.size(); ++c)
+    for (int id = first[c]; id >= 0; id = pool[static_cast<std::size_t>(id)].next)
+      result[c].push_back(pool[static_cast<std::size_t>(id)].segment);
+  return result;
+}
+
+std::vector<FacePoint> push_forward(const TriangulationHistory& history, std::vector<FacePoint> points) {
+  Index slots = history.initial_faces;
+  for (const TriangulationHistory::Face& face : history.faces) slots = std::max(slots, face.slot + 1);
+  std::vector<std::vector<int>> in_face(static_cast<std::size_t>(slots));
+  for (std::size_t p = 0; p < points.size(); ++p) {
+    if (points[p].face < 0 || points[p].face >= history.initial_faces)
+      throw std::invalid_argument("push_forward: a point lies on face slot " + std::to_string(points[p].face) +
+                                  ", not one of the " + std::to_string(history.initial_faces) + " initial faces");
+    in_face[static_cast<std::size_t>(points[p].face)].push_back(static_cast<int>(p));
+  }
+  std::vector<std::pair<int, Vec2>> moved;
+  for (const TriangulationHistory::Record& record : history.records) {
+    const TriangulationHistory::Face* faces = history.faces.data() + record.first_face;
+    if (record.flattening) {
+      for (int i = 0; i < record.old_faces; ++i)
+        for (const int p : in_face[static_cast<std::size_t>(faces[i].slot)]) {
+          std::array<double, 3>& b = points[static_cast<std::size_t>(p)].bary;
+          for (int k = 0; k < 3; ++k)
+            if (faces[i].corner[k]) b[k] *= record.weight;
+          b = normalised(b);
+        }
+      continue;
+    }
+    const Vec2* layout = history.points.data() + record.first_point;
+    moved.clear();
+    for (int i = 0; i < record.old_faces; ++i) {
+      std::vector<int>& list = in_face[static_cast<std::size_t>(faces[i].slot)];
+      const Triangle t = corners(faces[i], layout);
+      for (const int p : list) moved.emplace_back(p, position(t, points[static_cast<std::size_t>(p)].bary));
+      list.clear();
+    }
+    const TriangulationHistory::Face* new_faces = faces + record.old_faces;
+    for (const auto& [p, x] : moved) {
+      int best = 0;
+      double deepest = -1e300;
+      for (int j = 0; j < record.new_faces; ++j) {
+        const double d = depth(corners(new_faces[j], layout), x);
+        if (d > deepest) deepest = d, best = j;
+      }
+      const Triangle t = corners(new_faces[best], layout);
+      points[static_cast<std::size_t>(p)] = {new_faces[best].slot, clamp_barycentric(barycentric(x, t[0], t[1], t[2]))};
+      in_face[static_cast<std::size_t>(new_faces[best].slot)].push_back(p);
+    }
+  }
+  return points;
+}
+
+}  // namespace ice
