@@ -1005,7 +1005,16 @@ CoarseTracing trace_from_history(const TriangleMesh& mesh, const CoarseSpace& sp
     side.to_param = coarse.L(f, k);
     curves[e].push_back(side);
   }
-  curves = pull_back(T.history(), std::move(curves));
+  // The edges pulled back and the faces' barycentres pushed forward, side by side.
+  std::vector<FacePoint> centres(static_cast<std::size_t>(T.history().initial_faces));
+  for (Index slot = 0; slot < T.history().initial_faces; ++slot)
+    centres[static_cast<std::size_t>(slot)] = {slot, {1.0 / 3, 1.0 / 3, 1.0 / 3}};
+  detail::run_tasks(threads == 1 ? 1 : 2, 2, [&](int task) {
+    if (task == 0)
+      curves = pull_back(T.history(), std::move(curves));
+    else
+      centres = push_forward(T.history(), std::move(centres));
+  });
   Index first_inserted = 0;
   for (const Index input : coarse.to_input) first_inserted += input != kInvalid;
   CoarseTracing result;
@@ -1033,10 +1042,6 @@ CoarseTracing trace_from_history(const TriangleMesh& mesh, const CoarseSpace& sp
         (end == 0 ? segment.from : segment.to) = *b;
     }
   }
-  std::vector<FacePoint> centres(static_cast<std::size_t>(T.history().initial_faces));
-  for (Index slot = 0; slot < T.history().initial_faces; ++slot)
-    centres[static_cast<std::size_t>(slot)] = {slot, {1.0 / 3, 1.0 / 3, 1.0 / 3}};
-  centres = push_forward(T.history(), std::move(centres));
   result.face_patch.assign(static_cast<std::size_t>(mesh.F.rows()), kInvalid);
   for (Index slot = 0; slot < static_cast<Index>(centres.size()); ++slot)
     result.face_patch[static_cast<std::size_t>(input_face(slot))] = compact_of[static_cast<std::size_t>(centres[slot].face)];

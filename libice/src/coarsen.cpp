@@ -306,10 +306,7 @@ CoarsenResult coarsen_regions(GreedyContext& context, RegionPartition& partition
   const bool recording = context.T.records_history();
   std::vector<TriangulationHistory> shards(recording ? parts : 0);
   const auto append_shards = [&] {
-    for (TriangulationHistory& shard : shards) {
-      context.T.append_history(shard);
-      shard = TriangulationHistory{};
-    }
+    for (TriangulationHistory& shard : shards) context.T.append_history(std::move(shard));
   };
   team.run(parts, [&](int r) {
     std::optional<IntrinsicTriangulation::HistoryShard> shard;

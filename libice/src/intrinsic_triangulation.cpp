@@ -87,51 +87,58 @@ thread_local TriangulationHistory* t_history_shard = nullptr;
 // the faces of a flattened star.
 class RecordWriter {
  public:
-  explicit RecordWriter(TriangulationHistory* history, bool flattening = false, double weight = 1) : history_(history) {
-    if (!history_) return;
+  explicit RecordWriter(TriangulationHistory* history, bool flattening = false, double weight = 1) {
+    if (!history) return;
+    history_ = history;
+    chunk_ = &history->writable();
+    first_point_ = chunk_->points.size();
     TriangulationHistory::Record record;
-    record.first_point = static_cast<std::uint32_t>(history_->points.size());
-    record.first_face = static_cast<std::uint32_t>(history_->faces.size());
     record.flattening = flattening;
-    record.weight = weight;
-    history_->records.push_back(record);
+    chunk_->records.push_back(record);
+    if (flattening) point(Vec2{weight, 0});
   }
-  bool active() const { return history_ != nullptr; }
+  bool active() const { return chunk_ != nullptr; }
   // A face by its corners' positions, in its corner order.
   void face(Index slot, Vec2 p0, Vec2 p1, Vec2 p2, bool replacement) {
-    if (!history_) return;
-    TriangulationHistory::Record& record = history_->records.back();
+    if (!chunk_) return;
     TriangulationHistory::Face face;
     face.slot = slot;
     const Vec2 corner[3] = {p0, p1, p2};
-    for (int k = 0; k < 3; ++k) face.corner[k] = point(record, corner[k]);
-    history_->faces.push_back(face);
-    ++(replacement ? record.new_faces : record.old_faces);
+    for (int k = 0; k < 3; ++k) face.corner[k] = point(corner[k]);
+    add(face, replacement);
   }
   // A face about to be replaced, its corners (tails of its half-edges from halfedge(f)) in `layout`.
   void old_face(const IntrinsicTriangulation& T, Index f, const LocalLayout& layout) {
-    if (!history_) return;
+    if (!chunk_) return;
     const Index h0 = T.halfedge(f), h1 = T.next(h0), h2 = T.next(h1);
     face(f, layout.at(h0), layout.at(h1), layout.at(h2), false);
   }
   // A face of a flattened star: which of its corners are at the vertex.
   void star_face(Index slot, const bool at_vertex[3]) {
-    if (!history_) return;
+    if (!chunk_) return;
     TriangulationHistory::Face face;
     face.slot = slot;
     for (int k = 0; k < 3; ++k) face.corner[k] = at_vertex[k] ? 1 : 0;
-    history_->faces.push_back(face);
-    ++history_->records.back().old_faces;
+    add(face, false);
   }
 
  private:
-  std::uint8_t point(TriangulationHistory::Record& record, Vec2 p) {
-    for (std::size_t i = record.first_point; i < history_->points.size(); ++i)
-      if (history_->points[i].x == p.x && history_->points[i].y == p.y) return static_cast<std::uint8_t>(i - record.first_point);
-    history_->points.push_back(p);
-    return record.num_points++;
+  void add(const TriangulationHistory::Face& face, bool replacement) {
+    chunk_->faces.push_back(face);
+    TriangulationHistory::Record& record = chunk_->records.back();
+    ++(replacement ? record.new_faces : record.old_faces);
+    history_->face_slots = std::max(history_->face_slots, face.slot + 1);
   }
-  TriangulationHistory* history_;
+  std::uint8_t point(Vec2 p) {
+    std::vector<Vec2>& points = chunk_->points;
+    for (std::size_t i = first_point_; i < points.size(); ++i)
+      if (points[i].x == p.x && points[i].y == p.y) return static_cast<std::uint8_t>(i - first_point_);
+    points.push_back(p);
+    return chunk_->records.back().num_points++;
+  }
+  TriangulationHistory* history_ = nullptr;
+  TriangulationHistory::Chunk* chunk_ = nullptr;
+  std::size_t first_point_ = 0;
 };
 
 }  // namespace

@@ -7,17 +7,11 @@
 
 namespace ice {
 
-void TriangulationHistory::append(const TriangulationHistory& other) {
-  const auto point_offset = static_cast<std::uint32_t>(points.size());
-  const auto face_offset = static_cast<std::uint32_t>(faces.size());
-  records.reserve(records.size() + other.records.size());
-  for (Record record : other.records) {
-    record.first_point += point_offset;
-    record.first_face += face_offset;
-    records.push_back(record);
-  }
-  points.insert(points.end(), other.points.begin(), other.points.end());
-  faces.insert(faces.end(), other.faces.begin(), other.faces.end());
+void TriangulationHistory::append(TriangulationHistory&& shard) {
+  face_slots = std::max(face_slots, shard.face_slots);
+  for (Chunk& chunk : shard.chunks)
+    if (!chunk.records.empty()) chunks.push_back(std::move(chunk));
+  shard.chunks.clear();
 }
 
 namespace {
@@ -25,18 +19,46 @@ namespace {
 using Triangle = std::array<Vec2, 3>;
 constexpr int kMaxRecordFaces = 8;  // the largest record: an edge split, 2 old and 4 new faces
 
+// Calls visit(record, its points, its faces) for every record, first to last (forward) or last to first.
+template <class Visit>
+void for_each_record(const TriangulationHistory& history, bool forward, Visit&& visit) {
+  const std::size_t chunks = history.chunks.size();
+  for (std::size_t c = 0; c < chunks; ++c) {
+    const TriangulationHistory::Chunk& chunk = history.chunks[forward ? c : chunks - 1 - c];
+    if (forward) {
+      std::size_t point = 0, face = 0;
+      for (const TriangulationHistory::Record& record : chunk.records) {
+        visit(record, chunk.points.data() + point, chunk.faces.data() + face);
+        point += record.num_points;
+        face += static_cast<std::size_t>(record.old_faces) + record.new_faces;
+      }
+    } else {
+      std::size_t point = chunk.points.size(), face = chunk.faces.size();
+      for (auto record = chunk.records.rbegin(); record != chunk.records.rend(); ++record) {
+        point -= record->num_points;
+        face -= static_cast<std::size_t>(record->old_faces) + record->new_faces;
+        visit(*record, chunk.points.data() + point, chunk.faces.data() + face);
+      }
+    }
+  }
+}
+
 Triangle corners(const TriangulationHistory::Face& face, const Vec2* points) {
   return {points[face.corner[0]], points[face.corner[1]], points[face.corner[2]]};
 }
 
 Vec2 position(const Triangle& t, const std::array<double, 3>& b) { return t[0] * b[0] + t[1] * b[1] + t[2] * b[2]; }
 
+// |v| by a square root (Vec2::norm's hypot guards against overflow that lengths of a layout never
+// reach, at several times the cost: most of the pull-back's arithmetic).
+double length_of(Vec2 v) { return std::sqrt(v.x * v.x + v.y * v.y); }
+
 // How deep x lies inside t: the smallest signed distance to its sides (negative outside).
 double depth(const Triangle& t, Vec2 x) {
   double smallest = 1e300;
   for (int k = 0; k < 3; ++k) {
     const Vec2 side = t[(k + 1) % 3] - t[k];
-    const double length = side.norm();
+    const double length = length_of(side);
     if (length > 0) smallest = std::min(smallest, orient2d(t[k], t[(k + 1) % 3], x) / length);
   }
   return smallest;
@@ -50,7 +72,7 @@ bool clip(const Triangle& t, Vec2 a, Vec2 b, double tolerance, double& lo, doubl
   *exit = -1;
   for (int k = 0; k < 3; ++k) {
     const Vec2 side = t[(k + 1) % 3] - t[k];
-    const double length = side.norm();
+    const double length = length_of(side);
     if (length == 0) continue;
     const double da = orient2d(t[k], t[(k + 1) % 3], a) / length + tolerance;
     const double db = orient2d(t[k], t[(k + 1) % 3], b) / length + tolerance;
@@ -86,25 +108,32 @@ std::array<double, 3> normalised(std::array<double, 3> b) {
 // Round-off tolerance of a record's layout: its points' extent times 1e-10.
 double layout_tolerance(const Vec2* points, int count) {
   double extent = 0;
-  for (int i = 1; i < count; ++i) extent = std::max(extent, (points[i] - points[0]).norm());
-  return 1e-10 * extent;
+  for (int i = 1; i < count; ++i) {
+    const Vec2 d = points[i] - points[0];
+    extent = std::max(extent, d.x * d.x + d.y * d.y);
+  }
+  return 1e-10 * std::sqrt(extent);
 }
 
 }  // namespace
 
 std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& history,
                                                 std::vector<std::vector<FaceSegment>> curves) {
-  Index slots = history.initial_faces;
-  for (const TriangulationHistory::Face& face : history.faces) slots = std::max(slots, face.slot + 1);
-  // The segments in a pool, each curve a linked list through it; each face slot lists the segments
-  // that lie in it now.
+  const Index slots = std::max(history.initial_faces, history.face_slots);
+  // The segments in a pool, each curve a linked list through it (next), each face slot one through
+  // the segments that lie in it now (next_in_face from first_in_face).
   struct Piece {
     FaceSegment segment;
-    int next = -1;
+    int next = -1, next_in_face = -1;
   };
   std::vector<Piece> pool;
   std::vector<int> first(curves.size(), -1);
-  std::vector<std::vector<int>> in_face(static_cast<std::size_t>(slots));
+  std::vector<int> first_in_face(static_cast<std::size_t>(slots), -1);
+  const auto file = [&](int id) {
+    int& head = first_in_face[static_cast<std::size_t>(pool[static_cast<std::size_t>(id)].segment.face)];
+    pool[static_cast<std::size_t>(id)].next_in_face = head;
+    head = id;
+  };
   for (std::size_t c = 0; c < curves.size(); ++c) {
     int previous = -1;
     for (const FaceSegment& segment : curves[c]) {
@@ -112,45 +141,46 @@ std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& hist
         throw std::invalid_argument("pull_back: a curve lies on face slot " + std::to_string(segment.face) +
                                     ", which the triangulation does not have");
       const int id = static_cast<int>(pool.size());
-      pool.push_back({segment, -1});
+      pool.push_back({segment, -1, -1});
       (previous < 0 ? first[c] : pool[static_cast<std::size_t>(previous)].next) = id;
       previous = id;
-      in_face[static_cast<std::size_t>(segment.face)].push_back(id);
+      file(id);
     }
   }
 
   std::vector<std::pair<int, int>> moved;  // (segment, new face of the record it lies in)
-  for (auto record = history.records.rbegin(); record != history.records.rend(); ++record) {
-    const TriangulationHistory::Face* faces = history.faces.data() + record->first_face;
-    if (record->flattening) {  // undo the rescaling at the vertex's corners, face by face
-      for (int i = 0; i < record->old_faces; ++i)
-        for (const int id : in_face[static_cast<std::size_t>(faces[i].slot)]) {
+  for_each_record(history, false, [&](const TriangulationHistory::Record& record, const Vec2* points,
+                                      const TriangulationHistory::Face* faces) {
+    if (record.flattening) {  // undo the rescaling at the vertex's corners, face by face
+      const double weight = points[0].x;
+      for (int i = 0; i < record.old_faces; ++i)
+        for (int id = first_in_face[static_cast<std::size_t>(faces[i].slot)]; id >= 0;
+             id = pool[static_cast<std::size_t>(id)].next_in_face) {
           FaceSegment& s = pool[static_cast<std::size_t>(id)].segment;
           for (int k = 0; k < 3; ++k)
-            if (faces[i].corner[k]) s.from[k] /= record->weight, s.to[k] /= record->weight;
+            if (faces[i].corner[k]) s.from[k] /= weight, s.to[k] /= weight;
           s.from = normalised(s.from);
           s.to = normalised(s.to);
         }
-      continue;
+      return;
     }
     const TriangulationHistory::Face* old_faces = faces;
-    const TriangulationHistory::Face* new_faces = faces + record->old_faces;
+    const TriangulationHistory::Face* new_faces = faces + record.old_faces;
     moved.clear();
-    for (int j = 0; j < record->new_faces; ++j) {
-      std::vector<int>& list = in_face[static_cast<std::size_t>(new_faces[j].slot)];
-      for (const int id : list) moved.emplace_back(id, j);
-      list.clear();
+    for (int j = 0; j < record.new_faces; ++j) {
+      int& head = first_in_face[static_cast<std::size_t>(new_faces[j].slot)];
+      for (int id = head; id >= 0; id = pool[static_cast<std::size_t>(id)].next_in_face) moved.emplace_back(id, j);
+      head = -1;
     }
-    if (moved.empty()) continue;
-    const Vec2* points = history.points.data() + record->first_point;
-    const double tolerance = layout_tolerance(points, record->num_points);
+    if (moved.empty()) return;
+    const double tolerance = layout_tolerance(points, record.num_points);
     std::array<Triangle, kMaxRecordFaces> before{};
-    for (int i = 0; i < record->old_faces; ++i) before[i] = corners(old_faces[i], points);
+    for (int i = 0; i < record.old_faces; ++i) before[i] = corners(old_faces[i], points);
     for (const auto& [id, j] : moved) {
       const FaceSegment segment = pool[static_cast<std::size_t>(id)].segment;
       const Triangle now = corners(new_faces[j], points);
       const Vec2 a = position(now, segment.from), b = position(now, segment.to);
-      const double length = (b - a).norm();
+      const double length = length_of(b - a);
       // The pieces of a → b in the old faces, in order along it: (face, t0, t1), and the side of
       // the face it leaves through (−1: its end, or a corner) with the fraction along that side, so
       // that the point where one piece ends and the next begins is the same point of their common
@@ -168,15 +198,15 @@ std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& hist
         std::array<double, kMaxRecordFaces> lo{}, hi{};
         std::array<int, kMaxRecordFaces> exit{};
         std::array<bool, kMaxRecordFaces> meets{};
-        for (int i = 0; i < record->old_faces; ++i) meets[i] = clip(before[i], a, b, tolerance, lo[i], hi[i], &exit[i]);
+        for (int i = 0; i < record.old_faces; ++i) meets[i] = clip(before[i], a, b, tolerance, lo[i], hi[i], &exit[i]);
         const double slack = tolerance / length + 1e-12;
         for (double at = 0; at < 1 && count < static_cast<int>(cuts.size());) {
           int best = -1;
           double reach = at;
-          for (int i = 0; i < record->old_faces; ++i)
+          for (int i = 0; i < record.old_faces; ++i)
             if (meets[i] && lo[i] <= at + slack && hi[i] > reach) best = i, reach = hi[i];
           if (best < 0) {  // a gap of round-off: on into the face that starts next
-            for (int i = 0; i < record->old_faces; ++i)
+            for (int i = 0; i < record.old_faces; ++i)
               if (meets[i] && lo[i] > at && (best < 0 || lo[i] < lo[best])) best = i;
             if (best < 0) break;
             reach = hi[best];
@@ -190,7 +220,7 @@ std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& hist
       if (count == 0) {  // a point (or nothing found): the face that holds its middle deepest
         const Vec2 middle = (a + b) * 0.5;
         int best = 0;
-        for (int i = 1; i < record->old_faces; ++i)
+        for (int i = 1; i < record.old_faces; ++i)
           if (depth(before[i], middle) > depth(before[best], middle)) best = i;
         cuts[count++] = {best, 0, 1, -1, 0.0};
       }
@@ -233,11 +263,11 @@ std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& hist
         }
         pool[static_cast<std::size_t>(piece_id)].segment = piece;
         pool[static_cast<std::size_t>(piece_id)].next = after;
-        in_face[static_cast<std::size_t>(piece.face)].push_back(piece_id);
+        file(piece_id);
         previous = piece_id;
       }
     }
-  }
+  });
 
   std::vector<std::vector<FaceSegment>> result(curves.size());
   for (std::size_t c = 0; c < curves.size(); ++c)
@@ -247,49 +277,57 @@ std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& hist
 }
 
 std::vector<FacePoint> push_forward(const TriangulationHistory& history, std::vector<FacePoint> points) {
-  Index slots = history.initial_faces;
-  for (const TriangulationHistory::Face& face : history.faces) slots = std::max(slots, face.slot + 1);
-  std::vector<std::vector<int>> in_face(static_cast<std::size_t>(slots));
+  const Index slots = std::max(history.initial_faces, history.face_slots);
+  // Each face slot's points, a linked list through next_in_face.
+  std::vector<int> first_in_face(static_cast<std::size_t>(slots), -1), next_in_face(points.size(), -1);
+  const auto file = [&](int p) {
+    int& head = first_in_face[static_cast<std::size_t>(points[static_cast<std::size_t>(p)].face)];
+    next_in_face[static_cast<std::size_t>(p)] = head;
+    head = p;
+  };
   for (std::size_t p = 0; p < points.size(); ++p) {
     if (points[p].face < 0 || points[p].face >= history.initial_faces)
       throw std::invalid_argument("push_forward: a point lies on face slot " + std::to_string(points[p].face) +
                                   ", not one of the " + std::to_string(history.initial_faces) + " initial faces");
-    in_face[static_cast<std::size_t>(points[p].face)].push_back(static_cast<int>(p));
+    file(static_cast<int>(p));
   }
   std::vector<std::pair<int, Vec2>> moved;
-  for (const TriangulationHistory::Record& record : history.records) {
-    const TriangulationHistory::Face* faces = history.faces.data() + record.first_face;
+  for_each_record(history, true, [&](const TriangulationHistory::Record& record, const Vec2* layout,
+                                     const TriangulationHistory::Face* faces) {
     if (record.flattening) {
+      const double weight = layout[0].x;
       for (int i = 0; i < record.old_faces; ++i)
-        for (const int p : in_face[static_cast<std::size_t>(faces[i].slot)]) {
+        for (int p = first_in_face[static_cast<std::size_t>(faces[i].slot)]; p >= 0; p = next_in_face[static_cast<std::size_t>(p)]) {
           std::array<double, 3>& b = points[static_cast<std::size_t>(p)].bary;
           for (int k = 0; k < 3; ++k)
-            if (faces[i].corner[k]) b[k] *= record.weight;
+            if (faces[i].corner[k]) b[k] *= weight;
           b = normalised(b);
         }
-      continue;
+      return;
     }
-    const Vec2* layout = history.points.data() + record.first_point;
     moved.clear();
     for (int i = 0; i < record.old_faces; ++i) {
-      std::vector<int>& list = in_face[static_cast<std::size_t>(faces[i].slot)];
+      int& head = first_in_face[static_cast<std::size_t>(faces[i].slot)];
       const Triangle t = corners(faces[i], layout);
-      for (const int p : list) moved.emplace_back(p, position(t, points[static_cast<std::size_t>(p)].bary));
-      list.clear();
+      for (int p = head; p >= 0; p = next_in_face[static_cast<std::size_t>(p)])
+        moved.emplace_back(p, position(t, points[static_cast<std::size_t>(p)].bary));
+      head = -1;
     }
     const TriangulationHistory::Face* new_faces = faces + record.old_faces;
-    for (const auto& [p, x] : moved) {
+    for (const auto& [p, x] : moved) {  // into the new face where it lies deepest (by its coordinates)
       int best = 0;
       double deepest = -1e300;
+      std::array<double, 3> best_bary{};
       for (int j = 0; j < record.new_faces; ++j) {
-        const double d = depth(corners(new_faces[j], layout), x);
-        if (d > deepest) deepest = d, best = j;
+        const Triangle t = corners(new_faces[j], layout);
+        const std::array<double, 3> b = barycentric(x, t[0], t[1], t[2]);
+        const double d = std::min({b[0], b[1], b[2]});
+        if (d > deepest) deepest = d, best = j, best_bary = b;
       }
-      const Triangle t = corners(new_faces[best], layout);
-      points[static_cast<std::size_t>(p)] = {new_faces[best].slot, clamp_barycentric(barycentric(x, t[0], t[1], t[2]))};
-      in_face[static_cast<std::size_t>(new_faces[best].slot)].push_back(p);
+      points[static_cast<std::size_t>(p)] = {new_faces[best].slot, clamp_barycentric(best_bary)};
+      file(p);
     }
-  }
+  });
   return points;
 }
 

@@ -193,9 +193,10 @@ class IntrinsicTriangulation {
    private:
     TriangulationHistory* previous_;
   };
-  /// Appends a shard's records to the history (in the order the shards are appended).
-  void append_history(const TriangulationHistory& shard) {
-    if (recording_) history_.append(shard);
+  /// Moves a shard's records to the end of the history (in the order the shards are appended),
+  /// leaving the shard empty.
+  void append_history(TriangulationHistory&& shard) {
+    if (recording_) history_.append(std::move(shard));
   }
   /// The factor that maps corner angles at v to angular coordinates.
   double angle_scale(Index v) const {

@@ -29,31 +29,50 @@ struct TriangulationHistory {
   /// One operation. A retriangulation replaces `old_faces` by `new_faces`, all laid out in one plane
   /// through `num_points` points; each face lists its corners' points in its own corner order (the
   /// corners of its halfedge, next, next·next) at that time. A flattening lists the faces of the
-  /// star (old and new are the same slots): corner entries 1 mark the corners at the flattened
-  /// vertex, whose coordinates were multiplied by `weight` before renormalising.
+  /// star (old and new are the same slots) with corner entries 1 at the flattened vertex, whose
+  /// coordinates were multiplied by a weight before renormalising: its one point is (weight, 0).
+  /// A record's points and faces follow the previous record's in its chunk.
   struct Record {
-    std::uint32_t first_point = 0;
-    std::uint32_t first_face = 0;   ///< old faces first, then new ones
     std::uint8_t num_points = 0, old_faces = 0, new_faces = 0;
     bool flattening = false;
-    double weight = 1;
   };
   struct Face {
     Index slot = kInvalid;
     std::array<std::uint8_t, 3> corner{0, 0, 0};
   };
-  std::vector<Record> records;
-  std::vector<Vec2> points;
-  std::vector<Face> faces;
-  /// Face slots of the triangulation as built: initial_faces (every slot below it is one).
+  /// Records in order, with their points and faces; chunks keep appends and growth from copying.
+  struct Chunk {
+    std::vector<Record> records;
+    std::vector<Vec2> points;
+    std::vector<Face> faces;
+  };
+  std::vector<Chunk> chunks;
+  /// Face slots of the triangulation when recording started: the initial faces are slots below it.
   Index initial_faces = 0;
+  /// One past the largest face slot any record names.
+  Index face_slots = 0;
 
-  std::size_t memory_bytes() const {
-    return records.capacity() * sizeof(Record) + points.capacity() * sizeof(Vec2) + faces.capacity() * sizeof(Face);
+  std::size_t num_records() const {
+    std::size_t count = 0;
+    for (const Chunk& chunk : chunks) count += chunk.records.size();
+    return count;
   }
-  /// Appends the records of `other` (operations on faces disjoint from those of the records since the
-  /// last append: a region coarsened on another thread) after this history's own.
-  void append(const TriangulationHistory& other);
+  std::size_t memory_bytes() const {
+    std::size_t bytes = chunks.capacity() * sizeof(Chunk);
+    for (const Chunk& chunk : chunks)
+      bytes += chunk.records.capacity() * sizeof(Record) + chunk.points.capacity() * sizeof(Vec2) +
+               chunk.faces.capacity() * sizeof(Face);
+    return bytes;
+  }
+  /// The chunk new records go to (a new one when the last holds kChunkRecords).
+  Chunk& writable() {
+    if (chunks.empty() || chunks.back().records.size() >= kChunkRecords) chunks.emplace_back();
+    return chunks.back();
+  }
+  /// Appends the records of `shard` (operations on faces disjoint from those of the records since
+  /// the last append: a region coarsened on another thread) after this history's own, moving them.
+  void append(TriangulationHistory&& shard);
+  static constexpr std::size_t kChunkRecords = std::size_t{1} << 20;
 };
 
 /// A straight piece of a curve inside one face: barycentric coordinates of its ends w.r.t. the
