@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cstdio>
 #include <array>
 #include <cmath>
 #include <filesystem>
@@ -53,6 +54,7 @@ TraceFigures check_tracing(const ice::TriangleMesh& mesh, const ice::CompactMesh
                            const ice::CoarseTracing& tracing) {
   INFO("coarse mesh: " << coarse.num_vertices() << " vertices, " << coarse.F.rows() << " faces");
   const double scale = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
+  const double coordinate_size = mesh.V.cwiseAbs().maxCoeff();
   TraceFigures figures;
   // Edges: one per coarse edge (Euler: sides = 2E − boundary sides).
   const std::vector<Index> twin = coarse.twin.empty() ? ice::glue_by_vertex_pairs(coarse.F) : coarse.twin;
@@ -122,10 +124,13 @@ TraceFigures check_tracing(const ice::TriangleMesh& mesh, const ice::CompactMesh
       const auto plane = [](const std::array<double, 3>& b) { return Eigen::Vector2d(b[1], b[2]); };
       by_face[s.face].push_back({static_cast<Index>(e), plane(s.from), plane(s.to), s.from, s.to});
     }
+    // The length on the surface, up to the round-off of the positions themselves (a mesh placed
+    // 1e6 away from the origin, spot_offset1e6, has its points to ~1e-10 only).
     const double surface = ice::traced_length(mesh.V, mesh.F, edge);
     const double length_error = std::abs(surface - edge.length) / edge.length;
+    const double position_roundoff = 4e-16 * coordinate_size * static_cast<double>(edge.segments.size() + 1);
     figures.max_length_error = std::max(figures.max_length_error, length_error);
-    figures.long_edges += length_error > 1e-9;
+    figures.long_edges += std::abs(surface - edge.length) > 1e-9 * edge.length + position_roundoff;
   }
 
   // Two traced edges meet only at coarse vertices: no crossing inside a face, no shared point elsewhere.
@@ -191,9 +196,11 @@ TraceFigures check_tracing(const ice::TriangleMesh& mesh, const ice::CompactMesh
 }
 
 // The intrinsic Delaunay triangulation of a mesh as a "coarse" mesh: every input vertex survives,
-// the metric is the input's, so traced lengths on the surface equal the intrinsic lengths.
-TraceFigures check_intrinsic_delaunay(const ice::TriangleMesh& mesh) {
+// the metric is the input's, so traced lengths on the surface equal the intrinsic lengths. Traced
+// exactly (its flips recorded and pulled back, as a coarse space with its history is) or by the walk.
+TraceFigures check_intrinsic_delaunay(const ice::TriangleMesh& mesh, bool exact = true) {
   ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  if (exact) T.record_history(true);
   const int flips = T.flip_to_delaunay();
   const ice::CompactMesh coarse = T.compact();
   std::vector<ice::CoarsePoint> map(static_cast<std::size_t>(mesh.V.rows()));
@@ -205,8 +212,15 @@ TraceFigures check_intrinsic_delaunay(const ice::TriangleMesh& mesh) {
       p.bary = {0, 0, 0};
       p.bary[k] = 1;
     }
-  const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh.F, coarse, map, {}, mesh.V, 2);
-  INFO(flips << " flips");
+  ice::CoarseSpace space;
+  if (exact) {
+    space.mesh = coarse;
+    space.triangulation = std::move(T);
+  }
+  const ice::CoarseTracing tracing =
+      exact ? ice::trace_coarse_mesh(mesh, space, 2) : ice::trace_coarse_mesh(mesh.F, coarse, map, {}, mesh.V, 2);
+  INFO(flips << " flips" << (exact ? ", traced exactly" : ", traced by the walk"));
+  if (exact) map = ice::fine_to_coarse_map(space);  // each vertex in the face of its own half-edge
   const TraceFigures figures = check_tracing(mesh, coarse, map, {}, tracing);
   // An edge that flipping left alone is an input edge: one segment. (An edge between the ends of an
   // input edge with that edge's length; a flipped edge between them would be longer, the straight
@@ -270,13 +284,14 @@ TEST_CASE("tracing the intrinsic Delaunay triangulation: lengths on the surface 
       check_intrinsic_delaunay_exact(ice::load_mesh(ice_test::project_mesh(name)));
     }
   }
-  SECTION("a CAD mesh with long slivers: a known shortfall, bounded") {
-    // mech-holes-shark's slivers span many intrinsic faces; the layout of their far corners is not
-    // always resolved (see ice/coarse_tracing.h, "Limits"): measured 3 of 15,440 edges untraced and
-    // 1 traced 7.5e-5 long (87 traced 0.1-2.4 % long before far corners were chosen by the input
-    // triangle's shape).
-    const TraceFigures figures = check_intrinsic_delaunay(ice::load_mesh(ice_test::project_mesh("mech-holes-shark.off")));
-    CHECK(figures.failed + figures.long_edges <= (figures.edges + figures.failed) / 500);
+  SECTION("a CAD mesh with long slivers: exact, and the walk's known shortfall") {
+    // mech-holes-shark's slivers span many intrinsic faces. Pulled back through the flips, every
+    // edge has its intrinsic length; the walk does not always resolve the layout of their far
+    // corners (ice/coarse_tracing.h): measured 3 of 15,440 edges untraced and 1 traced 7.5e-5 long.
+    const ice::TriangleMesh shark = ice::load_mesh(ice_test::project_mesh("mech-holes-shark.off"));
+    check_intrinsic_delaunay_exact(shark);
+    const TraceFigures walk = check_intrinsic_delaunay(shark, false);
+    CHECK(walk.failed + walk.long_edges <= (walk.edges + walk.failed) / 500);
   }
 }
 
@@ -603,10 +618,9 @@ TEST_CASE("the recorded history reproduces the tracked points", "[tracing]") {
 TEST_CASE("tracing the intrinsic Delaunay triangulations of the extended set: lengths are the intrinsic ones", "[tracing][extended]") {
   ICE_SKIP_WITHOUT_EXTENDED_SET();
   // Where the metric is the input's, a trace's length on the surface is the intrinsic length: a
-  // wrong layout shows. Measured (2026-11-27) over the 27 meshes below 200k vertices that load after
-  // repair: 448 of 820,179 edges untraced and 199 traced with a length error above 1e-9 (94 above
-  // 1e-6), 0.79 per thousand; 477 and 1,188 (2.0 per thousand) before far corners were chosen by the
-  // shape of their input triangle.
+  // wrong trace shows. Exact (pulled back through the flips): none. The walk over the map, measured
+  // (2026-11-27) over the 27 meshes below 200k vertices that load after repair: 448 of 820,179 edges
+  // untraced and 199 traced with a length error above 1e-9 (94 above 1e-6).
   Index edges = 0, wrong = 0;
   for (const std::string& path : extended_mesh_paths()) {
     INFO(path);
@@ -617,7 +631,7 @@ TEST_CASE("tracing the intrinsic Delaunay triangulations of the extended set: le
     wrong += figures.failed + figures.long_edges;
   }
   CHECK(edges > 500000);
-  CHECK(wrong * 1000 <= edges);
+  CHECK(wrong == 0);
 }
 
 // What the tracing relies on: the straight images of input triangles in the coarse layout do not fold.
