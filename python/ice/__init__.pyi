@@ -81,6 +81,9 @@ class CoarseSpace:
     @property
     def positions(self) -> FloatArray | None: ...
     @property
+    def traced_edges(self) -> tuple[list[FloatArray], IndexArray] | None:
+        """With coarsen(..., trace=True): each coarse edge's polyline on the input surface and its (tail, head)."""
+    @property
     def inserted(self) -> tuple[IndexArray, FloatArray]: ...
     def save(self, path: Path, *, overwrite: bool = False, comment: str = "") -> None:
         """Writes the coarse mesh as .ilm (exact round trip with load_coarse_mesh)."""
@@ -91,7 +94,7 @@ def coarsen(V: ArrayLike, F: ArrayLike, *, n: int | None = None, ratio: float | 
             normalize_curvature: bool | None = None, locked: Indices | None = None, remove_boundary: bool = True,
             threads: int = 1, regions: int = 0, qem_geometry: Literal["extrinsic", "intrinsic_delaunay"] = "extrinsic",
             refine_angle: float | None = None, refine_budget: float = 1.5, keep_map: bool = True,
-            locality_numbering: bool = True,
+            locality_numbering: bool = True, trace: bool = False,
             progress: Callable[[dict[str, Any]], bool | None] | None = None) -> CoarseSpace:
     """Coarsens (V, F) by ICE (or QEM) to n vertices, a ratio of them, or an error bound."""
 def load_coarse_mesh(path: Path) -> CoarseSpace:

@@ -252,6 +252,9 @@ void save_mesh(const std::filesystem::path& path, const py::object& V, const py:
 struct PyCoarseSpace {
   ice::CoarseSpace space;
   std::vector<ice::CoarsePoint> map;   ///< empty when loaded from a file or not kept
+  /// With trace=True: the coarse edges traced exactly on the input surface, and their polylines.
+  std::optional<ice::CoarseTracing> tracing;
+  std::vector<ice::Positions> traced_polylines;
   ice::Positions positions;            ///< empty when loaded from a file
   ice::Index input_vertices = 0;
   bool has_space = false;              ///< built here (P, summary), not read from a file
@@ -294,7 +297,7 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
                                        bool remove_boundary, const py::object& threads, const py::object& regions,
                                        const std::string& qem_geometry,
                                        const py::object& refine_angle, double refine_budget, bool keep_map,
-                                       bool locality_numbering, const py::object& progress) {
+                                       bool locality_numbering, bool trace, const py::object& progress) {
   const ice::TriangleMesh mesh = mesh_argument(V, F);
   const auto vertex_count = static_cast<long long>(mesh.V.rows());
   ice::CoarseSpaceOptions options;
@@ -346,7 +349,10 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     refinement.max_vertex_ratio = refine_budget;
     options.refinement = refinement;
   }
-  options.keep_method_state = keep_map;
+  if (trace && options.method != ice::CoarseningMethod::ice)
+    throw py::value_error("trace=True draws ICE's intrinsic coarse edges on the surface; a QEM mesh has straight edges (method='ice')");
+  options.keep_method_state = keep_map || trace;
+  options.record_history = trace;  // exact tracing (ice/coarse_tracing.h), made below before the history is freed
   options.locality_numbering = locality_numbering;
   ProgressBridge bridge{progress, nullptr};
   c.progress = [&bridge](const ice::CoarsenProgress& state) { return bridge(state); };
@@ -364,7 +370,12 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     if (keep_map && !(options.method == ice::CoarseningMethod::qem &&
                       options.qem_geometry == ice::QemGeometry::intrinsic_delaunay))
       result->map = ice::fine_to_coarse_map(result->space);
-    result->space.triangulation.reset();  // the map is made: free the method's state
+    if (trace) {
+      result->tracing = ice::trace_coarse_mesh(mesh, result->space, c.threads);
+      for (const ice::TracedEdge& edge : result->tracing->edges)
+        result->traced_polylines.push_back(ice::traced_polyline(mesh.V, mesh.F, edge));
+    }
+    result->space.triangulation.reset();  // the map (and the tracing) made: free the method's state
     result->space.triangulation_order = {};
     result->space.qem_result.reset();
     result->positions = ice::coarse_vertex_positions(mesh, result->space);
@@ -757,6 +768,21 @@ None when read from a file, with keep_map=False, or for QEM with intrinsic Delau
         if (!s.has_space) return py::none();
         return py::cast(s.positions);
       }, "Positions of the coarse vertices on the input surface (for drawing; the coarse mesh is intrinsic).")
+      .def_property_readonly("traced_edges", [](const PyCoarseSpace& s) -> py::object {
+        if (!s.tracing) return py::none();
+        py::list polylines;
+        const auto m = static_cast<py::ssize_t>(s.tracing->edges.size());
+        py::array_t<ice::Index> ends({m, py::ssize_t{2}});
+        for (py::ssize_t e = 0; e < m; ++e) {
+          const ice::TracedEdge& edge = s.tracing->edges[static_cast<std::size_t>(e)];
+          ends.mutable_at(e, 0) = edge.tail;
+          ends.mutable_at(e, 1) = edge.head;
+          polylines.append(py::cast(s.traced_polylines[static_cast<std::size_t>(e)]));
+        }
+        return py::make_tuple(polylines, ends);
+      }, R"doc((polylines, ends) with coarsen(..., trace=True), else None: each coarse edge's polyline on the input surface
+(k×3 points, tail to head: the preimage of the edge under the fine-to-coarse map; ice-coarsen --trace draws the same)
+and its (tail, head) coarse vertices (m×2).)doc")
       .def_property_readonly("inserted", [](const PyCoarseSpace& s) -> py::object {
         const auto k = static_cast<py::ssize_t>(s.space.inserted.size());
         py::array_t<ice::Index> face(k);
@@ -782,7 +808,7 @@ ice.load_coarse_mesh reads it back). An existing file is replaced only with over
         py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(), py::arg("normalize_curvature") = py::none(),
         py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1,
         py::arg("regions") = 0, py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
-        py::arg("keep_map") = true, py::arg("locality_numbering") = true, py::arg("progress") = py::none(),
+        py::arg("keep_map") = true, py::arg("locality_numbering") = true, py::arg("trace") = false, py::arg("progress") = py::none(),
         R"doc(Coarsens the mesh (V, F) (clean, oriented, manifold; several components, boundaries and any genus
 are fine) and returns its ice.CoarseSpace: the intrinsic coarse mesh, P, the fine-to-coarse map.
 
@@ -799,7 +825,10 @@ threads.
 refine_angle: intrinsic Delaunay refinement to this smallest angle (degrees), at most refine_budget
 times the vertices. progress: called with a dict (vertices, target, removed, last_cost) every 1000
 removals; returning False stops early (summary["stop_reason"] == "cancelled"), an exception in it or
-Ctrl-C stops and is raised. keep_map: keep the fine-to-coarse map (CoarseSpace.map, DistanceOracle). Raises ice.MeshError naming each defect of a refused mesh.)doc");
+Ctrl-C stops and is raised. keep_map: keep the fine-to-coarse map (CoarseSpace.map, DistanceOracle). trace (ICE):
+also trace every coarse edge on the input surface exactly (ice-coarsen --trace: the coarsening's history recorded
+while it runs, ~1 KB per removal until this call returns): CoarseSpace.traced_edges, and the lengths of
+ProxyGeodesicSolver.from_coarse(..., lengths='traced'). Raises ice.MeshError naming each defect of a refused mesh.)doc");
   m.def("load_coarse_mesh", &load_coarse_mesh, py::arg("path"),
         R"doc(Reads an .ilm coarse mesh (CoarseSpace.save, ice-coarsen): faces, lengths, gluing, vertex map; its
 P, map and summary are None. Raises ice.MeshError naming the file, line and defect.)doc");
@@ -946,14 +975,18 @@ coarsen with use="geodesic".)doc")
                                     int subdivisions) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
              const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
-             if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
-               throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
+             if (traced && !coarse.tracing && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
+               throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True) "
+                                     "or traced (coarsen with trace=True)");
              auto solver = std::make_unique<PyGeodesicSolver>();
              py::gil_scoped_release release;
+             // The exact tracing of coarsen(..., trace=True), else the walk over the map.
              const ice::FaceLengths L =
-                 traced ? ice::traced_edge_lengths(mesh.V, mesh.F, coarse.space.mesh,
-                                                   ice::trace_coarse_mesh(mesh.F, coarse.space.mesh, coarse.map, coarse.space.inserted, mesh.V, 0))
-                        : coarse.space.mesh.L;
+                 !traced ? coarse.space.mesh.L
+                 : coarse.tracing
+                     ? ice::traced_edge_lengths(mesh.V, mesh.F, coarse.space.mesh, *coarse.tracing)
+                     : ice::traced_edge_lengths(mesh.V, mesh.F, coarse.space.mesh,
+                                                ice::trace_coarse_mesh(mesh.F, coarse.space.mesh, coarse.map, coarse.space.inserted, mesh.V, 0));
              solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, L, coarse.space.P, subdivisions);
              return solver;
            }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = "intrinsic",

@@ -177,6 +177,27 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
         ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, subdivisions=-1)
 
 
+def test_traced_coarse_edges(project_mesh):
+    # coarsen(trace=True): every coarse edge drawn on the input surface exactly (ice-coarsen --trace),
+    # from its tail's position to its head's, as many polylines as coarse edges; refused for QEM.
+    V, F = ice.load_mesh(project_mesh("elephant-with-holes.off"))
+    coarse = ice.coarsen(V, F, ratio=0.05, trace=True)
+    polylines, ends = coarse.traced_edges
+    twin = coarse.twin.ravel()
+    assert len(polylines) == ends.shape[0] == int(np.sum((twin < 0) | (np.arange(twin.size) < twin)))
+    size = np.linalg.norm(V.max(0) - V.min(0))
+    for line, (tail, head) in zip(polylines, ends):
+        assert line.shape[0] >= 2
+        assert np.linalg.norm(line[0] - coarse.positions[tail]) <= 1e-12 * size
+        assert np.linalg.norm(line[-1] - coarse.positions[head]) <= 1e-12 * size
+    assert ice.coarsen(V, F, ratio=0.05).traced_edges is None
+    with pytest.raises(ValueError, match="trace"):
+        ice.coarsen(V, F, ratio=0.05, method="qem", trace=True)
+    # Traced lengths from the exact tracing: the coarse space's own (no walk over the map).
+    d = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="traced").distance([0])
+    assert np.isfinite(d).all() and d[0] == pytest.approx(0, abs=1e-12)
+
+
 def test_heat_flow_conserves_mass_and_matches_scipy(spot):
     V, F, coarse = spot
     proxy = ice.Proxy(V, F, coarse)
