@@ -1700,7 +1700,7 @@ std::string IntrinsicTriangulation::validate(double tolerance) const {
 
 std::size_t IntrinsicTriangulation::memory_bytes() const {
   const auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return bytes(edges_) + bytes(vertices_) + bytes(faces_) + bytes(points_);
+  return bytes(edges_) + bytes(vertices_) + bytes(faces_) + bytes(points_) + history_.memory_bytes();
 }
 
 }  // namespace ice

@@ -297,7 +297,7 @@ class IntrinsicTriangulation {
   /// `tolerance` bounds the numerical checks; stored angle sums are compared with recomputed ones to
   /// max(tolerance, 3.6e-8), the round-off that the thinnest triangles a flip may create leave behind.
   std::string validate(double tolerance = 1e-9) const;
-  /// Bytes held by the arrays of this object (capacity, not size).
+  /// Bytes held by the arrays of this object (capacity, not size), its recorded history included.
   std::size_t memory_bytes() const;
 
  private:
