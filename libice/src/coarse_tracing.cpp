@@ -5,7 +5,6 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <unordered_map>
 
 #include "ice/intrinsic_triangulation.h"  // glue_by_vertex_pairs
@@ -830,6 +829,15 @@ void complete_tracing(CoarseTracing& result, const Faces& F, const CompactMesh& 
                       const std::vector<InputSurfacePoint>& inserted, const Positions& V,
                       const std::vector<Index>& fine_twin, int threads);
 
+// The coarse sides traced, one per coarse edge (CoarseTracing::edges' order): interior edges from
+// the side with the smaller index, boundary edges from their face; `twin` is the coarse gluing.
+std::vector<Index> traced_sides(const std::vector<Index>& twin) {
+  std::vector<Index> sides;
+  for (Index s = 0; s < static_cast<Index>(twin.size()); ++s)
+    if (twin[s] == kInvalid || s < twin[s]) sides.push_back(s);
+  return sides;
+}
+
 }  // namespace
 
 CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
@@ -879,13 +887,10 @@ CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const
 
   const Tracer tracer(F, coarse, map, inserted, V);
   CoarseTracing result;
-  std::vector<Index> sides;
-  const std::vector<Index>& twin = tracer.coarse_twin();
-  for (Index s = 0; s < static_cast<Index>(twin.size()); ++s)
-    if (twin[s] == kInvalid || s < twin[s]) sides.push_back(s);
+  const std::vector<Index> sides = traced_sides(tracer.coarse_twin());
   result.edges.resize(sides.size());
   result.face_patch.assign(static_cast<std::size_t>(F.rows()), kInvalid);
-  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  threads = detail::requested_threads(threads);
   constexpr Index kChunk = 256;
   const Index edge_chunks = (static_cast<Index>(sides.size()) + kChunk - 1) / kChunk;
   const Index face_chunks = (static_cast<Index>(F.rows()) + kChunk - 1) / kChunk;
@@ -980,6 +985,7 @@ void weld_joints(const Faces& F, std::vector<TracedSegment>& segments) {
 // (ice/triangulation_history.h) onto the faces it was built from, i.e. the input's; every input
 // face's barycentre pushed forward to label it.
 CoarseTracing trace_from_history(const TriangleMesh& mesh, const CoarseSpace& space, int threads) {
+  threads = detail::requested_threads(threads);
   const IntrinsicTriangulation& T = *space.triangulation;
   const CompactMesh& coarse = space.mesh;
   const std::vector<Index>& face_order = space.triangulation_face_order;
@@ -990,10 +996,7 @@ CoarseTracing trace_from_history(const TriangleMesh& mesh, const CoarseSpace& sp
       compact_of[static_cast<std::size_t>(f)] = static_cast<Index>(slot_of.size());
       slot_of.push_back(f);
     }
-  const std::vector<Index> twin = coarse.twin.empty() ? glue_by_vertex_pairs(coarse.F) : coarse.twin;
-  std::vector<Index> sides;
-  for (Index s = 0; s < static_cast<Index>(twin.size()); ++s)
-    if (twin[s] == kInvalid || s < twin[s]) sides.push_back(s);
+  const std::vector<Index> sides = traced_sides(coarse.twin.empty() ? glue_by_vertex_pairs(coarse.F) : coarse.twin);
   std::vector<std::vector<FaceSegment>> curves(sides.size());
   for (std::size_t e = 0; e < sides.size(); ++e) {
     const Index f = sides[e] / 3;
@@ -1009,7 +1012,7 @@ CoarseTracing trace_from_history(const TriangleMesh& mesh, const CoarseSpace& sp
   std::vector<FacePoint> centres(static_cast<std::size_t>(T.history().initial_faces));
   for (Index slot = 0; slot < T.history().initial_faces; ++slot)
     centres[static_cast<std::size_t>(slot)] = {slot, {1.0 / 3, 1.0 / 3, 1.0 / 3}};
-  detail::run_tasks(threads == 1 ? 1 : 2, 2, [&](int task) {
+  detail::run_tasks(std::min(threads, 2), 2, [&](int task) {
     if (task == 0)
       curves = pull_back(T.history(), std::move(curves));
     else
@@ -1046,7 +1049,7 @@ CoarseTracing trace_from_history(const TriangleMesh& mesh, const CoarseSpace& sp
   for (Index slot = 0; slot < static_cast<Index>(centres.size()); ++slot)
     result.face_patch[static_cast<std::size_t>(input_face(slot))] = compact_of[static_cast<std::size_t>(centres[slot].face)];
   complete_tracing(result, mesh.F, coarse, fine_to_coarse_map(space), space.inserted, mesh.V, glue_by_vertex_pairs(mesh.F),
-                   threads <= 0 ? static_cast<int>(std::max(1u, std::thread::hardware_concurrency())) : threads);
+                   threads);
   return result;
 }
 }  // namespace

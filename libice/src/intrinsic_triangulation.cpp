@@ -668,26 +668,25 @@ bool IntrinsicTriangulation::flip(Index h) {
   if (!(twice_area0 > kFlipMinSine * two_longest(l_kl, l_b, l_c) && twice_area1 > kFlipMinSine * two_longest(l_kl, l_d, l_a)))
     return false;
 
-  if (RecordWriter record(history_sink()); record.active()) {
-    LocalLayout diamond;
-    diamond.set(h, pi), diamond.set(a, pj), diamond.set(b, pk), diamond.set(t, pj), diamond.set(c, pi), diamond.set(d, pl);
-    record.old_face(*this, f0, diamond);
-    record.old_face(*this, f1, diamond);
-    record.face(f0, pl, pk, pi, true);  // the faces as rewired below: f0 = (l, k, i), f1 = (k, l, j)
-    record.face(f1, pk, pl, pj, true);
-  }
-  // Tracked points of both faces, with their positions in the layout.
+  // The diamond's layout, for the tracked points of both faces and the history's record.
   const bool has_points = ffirst(f0) != kInvalid || ffirst(f1) != kInvalid;
-  std::vector<PlacedPoint>& points = scratch_points();
-  points.clear();
-  if (has_points) {
-    LocalLayout layout;
+  RecordWriter record(history_sink());
+  LocalLayout layout;
+  if (has_points || record.active()) {
     layout.set(h, pi);
     layout.set(a, pj);
     layout.set(b, pk);
     layout.set(t, pj);
     layout.set(c, pi);
     layout.set(d, pl);
+  }
+  record.old_face(*this, f0, layout);
+  record.old_face(*this, f1, layout);
+  record.face(f0, pl, pk, pi, true);  // the faces as rewired below: f0 = (l, k, i), f1 = (k, l, j)
+  record.face(f1, pk, pl, pj, true);
+  std::vector<PlacedPoint>& points = scratch_points();
+  points.clear();
+  if (has_points) {
     collect_points(f0, layout, points);
     collect_points(f1, layout, points);
   }
@@ -1376,18 +1375,14 @@ Index IntrinsicTriangulation::split_edge(Index h, double t, std::vector<Index>* 
   layout.set(a, pj);
   layout.set(b, pk);
   collect_points(fa, layout, points);
+  RecordWriter record(history_sink());
+  record.old_face(*this, fa, layout);
   if (!boundary) {
     LocalLayout below;
     below.set(tw, pj);
     below.set(c, pi);
     below.set(d, pl);
     collect_points(fb, below, points);
-  }
-  RecordWriter record(history_sink());
-  record.old_face(*this, fa, layout);
-  if (!boundary) {
-    LocalLayout below;
-    below.set(tw, pj), below.set(c, pi), below.set(d, pl);
     record.old_face(*this, fb, below);
   }
   const double old_angle_tw = hangle(tw);

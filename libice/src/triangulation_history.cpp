@@ -53,15 +53,18 @@ Vec2 position(const Triangle& t, const std::array<double, 3>& b) { return t[0] *
 // reach, at several times the cost: most of the pull-back's arithmetic).
 double length_of(Vec2 v) { return std::sqrt(v.x * v.x + v.y * v.y); }
 
-// How deep x lies inside t: the smallest signed distance to its sides (negative outside).
-double depth(const Triangle& t, Vec2 x) {
-  double smallest = 1e300;
-  for (int k = 0; k < 3; ++k) {
-    const Vec2 side = t[(k + 1) % 3] - t[k];
-    const double length = length_of(side);
-    if (length > 0) smallest = std::min(smallest, orient2d(t[k], t[(k + 1) % 3], x) / length);
+// Of `count` triangles of one layout, the one x lies deepest in by its smallest barycentric
+// coordinate (the one holding it; at round-off outside all, the nearest), and x's coordinates there.
+int deepest(const Triangle* triangles, int count, Vec2 x, std::array<double, 3>& bary) {
+  int best = 0;
+  double deepest_coordinate = -1e300;
+  for (int j = 0; j < count; ++j) {
+    const Triangle& t = triangles[j];
+    const std::array<double, 3> b = barycentric(x, t[0], t[1], t[2]);
+    const double d = std::min({b[0], b[1], b[2]});
+    if (d > deepest_coordinate) deepest_coordinate = d, best = j, bary = b;
   }
-  return smallest;
+  return best;
 }
 
 // The parameters t ∈ [lo, hi] ⊂ [0, 1] for which a + t (b − a) lies in t's triangle, its sides
@@ -103,6 +106,14 @@ std::array<double, 3> normalised(std::array<double, 3> b) {
   const double sum = b[0] + b[1] + b[2];
   for (double& c : b) c /= sum;
   return b;
+}
+
+// A flattening's map of one face's coordinates b: those at the flattened vertex's corners
+// (face.corner 1) multiplied by `weight` (or, undoing it, divided), then renormalised.
+std::array<double, 3> rescaled(const TriangulationHistory::Face& face, std::array<double, 3> b, double weight, bool undo) {
+  for (int k = 0; k < 3; ++k)
+    if (face.corner[k]) b[k] = undo ? b[k] / weight : b[k] * weight;
+  return normalised(b);
 }
 
 // Round-off tolerance of a record's layout: its points' extent times 1e-10.
@@ -157,10 +168,8 @@ std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& hist
         for (int id = first_in_face[static_cast<std::size_t>(faces[i].slot)]; id >= 0;
              id = pool[static_cast<std::size_t>(id)].next_in_face) {
           FaceSegment& s = pool[static_cast<std::size_t>(id)].segment;
-          for (int k = 0; k < 3; ++k)
-            if (faces[i].corner[k]) s.from[k] /= weight, s.to[k] /= weight;
-          s.from = normalised(s.from);
-          s.to = normalised(s.to);
+          s.from = rescaled(faces[i], s.from, weight, true);
+          s.to = rescaled(faces[i], s.to, weight, true);
         }
       return;
     }
@@ -218,11 +227,8 @@ std::vector<std::vector<FaceSegment>> pull_back(const TriangulationHistory& hist
         }
       }
       if (count == 0) {  // a point (or nothing found): the face that holds its middle deepest
-        const Vec2 middle = (a + b) * 0.5;
-        int best = 0;
-        for (int i = 1; i < record.old_faces; ++i)
-          if (depth(before[i], middle) > depth(before[best], middle)) best = i;
-        cuts[count++] = {best, 0, 1, -1, 0.0};
+        std::array<double, 3> unused;
+        cuts[count++] = {deepest(before.data(), record.old_faces, (a + b) * 0.5, unused), 0, 1, -1, 0.0};
       }
       cuts[count - 1].t1 = 1;
       cuts[count - 1].exit = -1;
@@ -299,9 +305,7 @@ std::vector<FacePoint> push_forward(const TriangulationHistory& history, std::ve
       for (int i = 0; i < record.old_faces; ++i)
         for (int p = first_in_face[static_cast<std::size_t>(faces[i].slot)]; p >= 0; p = next_in_face[static_cast<std::size_t>(p)]) {
           std::array<double, 3>& b = points[static_cast<std::size_t>(p)].bary;
-          for (int k = 0; k < 3; ++k)
-            if (faces[i].corner[k]) b[k] *= weight;
-          b = normalised(b);
+          b = rescaled(faces[i], b, weight, false);
         }
       return;
     }
@@ -314,17 +318,12 @@ std::vector<FacePoint> push_forward(const TriangulationHistory& history, std::ve
       head = -1;
     }
     const TriangulationHistory::Face* new_faces = faces + record.old_faces;
-    for (const auto& [p, x] : moved) {  // into the new face where it lies deepest (by its coordinates)
-      int best = 0;
-      double deepest = -1e300;
-      std::array<double, 3> best_bary{};
-      for (int j = 0; j < record.new_faces; ++j) {
-        const Triangle t = corners(new_faces[j], layout);
-        const std::array<double, 3> b = barycentric(x, t[0], t[1], t[2]);
-        const double d = std::min({b[0], b[1], b[2]});
-        if (d > deepest) deepest = d, best = j, best_bary = b;
-      }
-      points[static_cast<std::size_t>(p)] = {new_faces[best].slot, clamp_barycentric(best_bary)};
+    std::array<Triangle, kMaxRecordFaces> after{};
+    for (int j = 0; j < record.new_faces; ++j) after[j] = corners(new_faces[j], layout);
+    for (const auto& [p, x] : moved) {  // into the new face where it lies deepest
+      std::array<double, 3> bary{};
+      const int best = deepest(after.data(), record.new_faces, x, bary);
+      points[static_cast<std::size_t>(p)] = {new_faces[best].slot, clamp_barycentric(bary)};
       file(p);
     }
   });
