@@ -110,7 +110,7 @@ def test_large_mesh_result_does_not_depend_on_workers_or_threads(project_mesh, t
     folder.mkdir()
     ice.save_mesh(folder / "big.ply", V, F, binary=True)
     results = {}
-    # Workers spawned afresh (the default) and forked from a server process give the same files.
+    # Workers spawned afresh and forked from a server process (the default on Linux) give the same files.
     for workers, method in ((1, "spawn"), (2, "spawn"), (2, "forkserver")):
         out = tmp_path / f"out{workers}{method}"
         run = batch.run(str(folder), out, batch.BatchOptions(coarsen={"ratio": 0.05}, workers=workers, progress=False,
