@@ -13,6 +13,7 @@
 #include <new>
 #include <sstream>
 
+#include "fem/topology.h"
 #include "ice/prolongation.h"
 #include "view_page.h"
 
@@ -100,6 +101,25 @@ void require_connected(const ice::LoadResult& loaded, const std::string& path, c
   if (components > 1)
     throw AppError(kDefective, path + ": the mesh has " + std::to_string(components) + " connected components; " + tool +
                                    " needs a connected mesh (its solvers pin one vertex): split it first");
+}
+
+void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::vector<int>& fixed_vertices,
+                                      const std::string& path) {
+  if (fixed_vertices.empty() || loaded.report.components.size() <= 1) return;
+  const ice::TriangleMesh& mesh = loaded.mesh;
+  const fem::ComponentLabels components = fem::vertex_components(mesh.F, static_cast<fem::Index>(mesh.V.rows()));
+  std::vector<char> held(static_cast<std::size_t>(components.count()), 0), has_face(held.size(), 0);
+  for (int v : fixed_vertices) held[static_cast<std::size_t>(components.label[static_cast<std::size_t>(v)])] = 1;
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) has_face[static_cast<std::size_t>(components.label[static_cast<std::size_t>(mesh.F(f, 0))])] = 1;
+  for (std::size_t c = 0; c < held.size(); ++c)
+    if (has_face[c] && !held[c]) {
+      const auto v = static_cast<std::size_t>(components.first[c]);
+      const long long file_vertex = v < loaded.source_vertex.size() ? loaded.source_vertex[v] : static_cast<long long>(v);
+      throw AppError(kUsage, path + ": the mesh has " + std::to_string(loaded.report.components.size()) +
+                                 " connected components and the one of vertex " + std::to_string(file_vertex) +
+                                 " has no --fix vertex: fix a value in every component, or none (the zero-mean "
+                                 "problem, solved on each component)");
+    }
 }
 
 // ---- coarsening -------------------------------------------------------------------------------------

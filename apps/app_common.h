@@ -54,9 +54,15 @@ class FileVertexMap {
 /// Throws AppError(kUnreadable) naming the file, line and token on anything else.
 std::vector<double> read_number_file(const std::string& path);
 
-/// The fine mesh's connected components must be 1 for the PDE tools (heat method and zero-mean
-/// Poisson pin one vertex). Throws AppError(kDefective) otherwise.
+/// The fine mesh's connected components must be 1 for the tools that still need it (the vector heat
+/// method). Throws AppError(kDefective) otherwise.
 void require_connected(const ice::LoadResult& loaded, const std::string& path, const std::string& tool);
+
+/// With Dirichlet values (--fix), every connected component of the mesh needs one, or its solution
+/// is undetermined: throws AppError(kUsage) naming a component (by a vertex of the file) without.
+/// Nothing to check without fixed vertices (the zero-mean problem is solved on each component).
+void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::vector<int>& fixed_vertices,
+                                      const std::string& path);
 
 // ---- coarsening -------------------------------------------------------------------------------------
 

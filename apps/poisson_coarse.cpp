@@ -283,7 +283,7 @@ int main(int argc, char** argv) {
     if (coarsen_options.target_vertices > 0 && coarsen_options.target_vertices < static_cast<ice::Index>(fixed_vertices.size()))
       throw app::AppError(app::kUsage, "--vertices is smaller than the number of --fix vertices (they all stay)");
     coarsen_options.locked_vertices.assign(fixed_vertices.begin(), fixed_vertices.end());
-    app::require_connected(loaded, opt.mesh, kTool);
+    app::require_fixed_in_every_component(loaded, fixed_vertices, opt.mesh);
     Eigen::VectorXd f;
     std::string rhs_name = "demo (three Gaussian bumps, zero mean)";
     if (!rhs_path.empty()) {

@@ -771,10 +771,25 @@ elseif(CASE STREQUAL "errors")
   # A zero-area face (refused without --repair; naming the file and the defect).
   file(WRITE "${WORK}/nullface.off" "OFF\n5 3 0\n0 0 0\n1 -1 0\n1 0 0\n2 0 0\n2 1 0\n3 0 1 2\n3 0 2 3\n3 0 3 4\n")
   expect_error(2 "nullface.off.*1 zero-area faces" ice-coarsen "${WORK}/nullface.off" --ratio 0.5 -o "${WORK}/d" -q)
-  # Several components: coarsening is fine, the PDE tools refuse.
+  # Several components: coarsening is fine; Poisson and geodesics are solved on each component (the
+  # zero-mean problem on each; distances +inf where no source lies, left out of the errors), with
+  # --fix a value is needed in every component; the vector heat method still refuses.
   project_mesh(three blobby_3cc.off)
-  expect_error(2 "connected components" geodesic-coarse "${three}" --source 0 --ratio 0.2 -q)
   run(0 ice-coarsen "${three}" --ratio 0.2 -o "${WORK}/three" -q --validate)
+  run(0 geodesic-coarse "${three}" --source 0 --ratio 0.2 -q --report "${WORK}/three_g.json")
+  json(_unreached "${WORK}/three_g.json" unreached_vertices)
+  check(${_unreached} GREATER 100 "geodesic-coarse, three components: vertices of the others unreached")
+  check(${_unreached} LESS 1820 "geodesic-coarse, three components: the source's component reached")
+  json(_mean "${WORK}/three_g.json" error mean_rel)
+  check(${_mean} LESS 0.05 "geodesic-coarse, three components: mean error over the reached vertices")
+  run(0 poisson-coarse "${three}" --ratio 0.2 -q --report "${WORK}/three_p.json")
+  json(_l2 "${WORK}/three_p.json" error rel_l2)
+  check(${_l2} LESS 0.1 "poisson-coarse, three components: relative L2 error")
+  run(0 poisson-coarse "${three}" --solver multigrid -q --report "${WORK}/three_m.json")
+  json(_l2 "${WORK}/three_m.json" error rel_l2)
+  check(${_l2} LESS 1e-6 "poisson-coarse multigrid, three components: against CHOLMOD")
+  expect_error(4 "no --fix vertex" poisson-coarse "${three}" --ratio 0.2 --fix 0=1 -q)
+  expect_error(2 "connected components" vector-coarse "${three}" --source 0 --vector 0 --ratio 0.2 -q)
 
 elseif(CASE STREQUAL "report_skips")
   # ice-report (registered from bench/CMakeLists.txt: BIN_DIR is ice-report's): a defective mesh

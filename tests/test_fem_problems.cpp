@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -202,4 +204,74 @@ TEST_CASE("Dirichlet values follow the caller's order of the constrained vertice
   std::vector<int> repeated = {boundary[0], boundary[1], boundary[0]};
   CHECK_THROWS_AS(fem::ConstrainedSolver(d.laplacian, repeated), std::invalid_argument);
   CHECK_THROWS_AS(fem::PoissonSolver::dirichlet(d.laplacian, d.mass, repeated), std::invalid_argument);
+}
+
+TEST_CASE("several components: zero-mean Poisson and heat-method geodesics equal each component solved apart",
+          "[fem][problems][components]") {
+  // A sphere and a torus side by side (vertex numbers interleave nothing: the torus's follow).
+  const ice::TriangleMesh sphere = ice::make_icosphere(3);
+  ice::TriangleMesh torus = ice::make_torus(24, 12, 1.0, 0.35);
+  torus.V.col(0).array() += 4.0;
+  ice::TriangleMesh both;
+  const Eigen::Index ns = sphere.V.rows(), nt = torus.V.rows();
+  both.V.resize(ns + nt, 3);
+  both.V << sphere.V, torus.V;
+  both.F.resize(sphere.F.rows() + torus.F.rows(), 3);
+  both.F << sphere.F, (torus.F.array() + static_cast<int>(ns)).matrix();
+  const Discretisation d_both = discretise(both), d_sphere = discretise(sphere), d_torus = discretise(torus);
+
+  const fem::ComponentLabels components = fem::component_labels(d_both.laplacian);
+  REQUIRE(components.count() == 2);
+  CHECK(components.first == std::vector<fem::Index>{0, static_cast<fem::Index>(ns)});
+  CHECK(fem::vertex_components(both.F, ns + nt).label == components.label);
+
+  // A source with a non-zero mean on each component: each is made compatible on its own.
+  Eigen::VectorXd f(ns + nt);
+  for (Eigen::Index i = 0; i < ns + nt; ++i) f[i] = both.V(i, 2) + 0.3 * both.V(i, 1) + (i < ns ? 1.0 : -2.0);
+  const Eigen::VectorXd u = fem::PoissonSolver::zero_mean(d_both.laplacian, d_both.mass).solve(f);
+  const Eigen::VectorXd u_sphere = fem::PoissonSolver::zero_mean(d_sphere.laplacian, d_sphere.mass).solve(f.head(ns));
+  const Eigen::VectorXd u_torus = fem::PoissonSolver::zero_mean(d_torus.laplacian, d_torus.mass).solve(f.tail(nt));
+  CHECK((u.head(ns) - u_sphere).cwiseAbs().maxCoeff() < 1e-10 * u_sphere.cwiseAbs().maxCoeff());
+  CHECK((u.tail(nt) - u_torus).cwiseAbs().maxCoeff() < 1e-10 * u_torus.cwiseAbs().maxCoeff());
+  // zero mass-weighted mean on each
+  const Eigen::VectorXd m = d_both.mass * Eigen::VectorXd::Ones(ns + nt);
+  CHECK(std::abs(m.head(ns).dot(u.head(ns))) < 1e-12);
+  CHECK(std::abs(m.tail(nt).dot(u.tail(nt))) < 1e-12);
+
+  // Dirichlet needs a value in each component, and says which one lacks it.
+  CHECK_THROWS_WITH(fem::PoissonSolver::dirichlet(d_both.laplacian, d_both.mass, {3}),
+                    Catch::Contains("2 connected components") && Catch::Contains("vertex " + std::to_string(ns)));
+  CHECK_NOTHROW(fem::PoissonSolver::dirichlet(d_both.laplacian, d_both.mass, {3, static_cast<fem::Index>(ns + 5)}));
+
+  // Geodesics from a sphere vertex: the sphere's distances, +inf on the torus; and from one source
+  // on each, each component's own.
+  // (one time step for all: t = h² follows the mean edge length, which the union averages)
+  fem::HeatMethodOperators ops_both = fem::heat_method_operators(both.F, d_both.lengths);
+  fem::HeatMethodOperators ops_sphere = fem::heat_method_operators(sphere.F, d_sphere.lengths);
+  fem::HeatMethodOperators ops_torus = fem::heat_method_operators(torus.F, d_torus.lengths);
+  ops_sphere.time_step = ops_torus.time_step = ops_both.time_step;
+  const fem::HeatGeodesicSolver geodesic_both(std::move(ops_both));
+  const fem::HeatGeodesicSolver geodesic_sphere(std::move(ops_sphere));
+  const fem::HeatGeodesicSolver geodesic_torus(std::move(ops_torus));
+  const Eigen::VectorXd d = geodesic_both.distance({7});
+  const Eigen::VectorXd d_alone = geodesic_sphere.distance({7});
+  CHECK((d.head(ns) - d_alone).cwiseAbs().maxCoeff() < 1e-9);
+  CHECK((d.tail(nt).array() == std::numeric_limits<double>::infinity()).all());
+  const Eigen::VectorXd d2 = geodesic_both.distance({7, static_cast<fem::Index>(ns + 11)});
+  CHECK((d2.head(ns) - d_alone).cwiseAbs().maxCoeff() < 1e-9);
+  CHECK((d2.tail(nt) - geodesic_torus.distance({11})).cwiseAbs().maxCoeff() < 1e-9);
+  const Eigen::MatrixXd each = geodesic_both.distances_from_each({7, static_cast<fem::Index>(ns + 11)});
+  CHECK((each.col(0).head(ns) - d_alone).cwiseAbs().maxCoeff() < 1e-9);
+  CHECK((each.col(0).tail(nt).array() == std::numeric_limits<double>::infinity()).all());
+  CHECK((each.col(1).head(ns).array() == std::numeric_limits<double>::infinity()).all());
+  CHECK((each.col(1).tail(nt) - geodesic_torus.distance({11})).cwiseAbs().maxCoeff() < 1e-9);
+
+  // Errors leave out the vertices neither reaches; one +inf against a finite value is an infinite error.
+  Eigen::VectorXd approx = d;
+  approx.head(ns) *= 1.01;
+  const fem::DistanceErrors e = fem::distance_errors(approx, d);
+  CHECK(e.max_relative == Approx(0.01).epsilon(1e-9));
+  CHECK(std::isfinite(fem::relative_l2_error(approx, d, d_both.mass)));
+  approx[ns] = 1.0;
+  CHECK(std::isinf(fem::distance_errors(approx, d).max_relative));
 }

@@ -83,7 +83,7 @@
       if (!Number.isFinite(min) || !Number.isFinite(max)) {
         // The writer emits null for a range it could not compute (JSON has no NaN).
         min = Infinity; max = -Infinity;
-        for (const v of values) if (v === v) { if (v < min) min = v; if (v > max) max = v; }
+        for (const v of values) if (Number.isFinite(v)) { if (v < min) min = v; if (v > max) max = v; }
       }
       field.decoded = { values, min, max };
     }
@@ -155,7 +155,7 @@
     const scale = hi > lo ? 255 / (hi - lo) : 0;
     for (let i = 0; i < n; i++) {
       const v = values[i];
-      if (v !== v) {
+      if (!Number.isFinite(v)) {  // NaN, or +inf: a distance on a component no source reaches
         out[3 * i] = grey.r; out[3 * i + 1] = grey.g; out[3 * i + 2] = grey.b;
         continue;
       }

@@ -354,6 +354,22 @@ ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Ind
                                              coarse_dirichlet_vertices(proxy, dirichlet_vertices_))),
       polish_(polish) {
   P_rows_.makeCompressed();
+  if (is_zero_mean()) {
+    // Several coarse components: each fine vertex belongs to the one its row of P lies in (P never
+    // joins components: a row's columns are corners of one coarse face, or their neighbours).
+    ComponentLabels coarse = component_labels(proxy.coarse_laplacian());
+    if (coarse.count() > 1) {
+      fine_components_.first.assign(static_cast<std::size_t>(coarse.count()), -1);
+      fine_components_.label.assign(static_cast<std::size_t>(P_rows_.rows()), 0);
+      for (Eigen::Index y = 0; y < P_rows_.rows(); ++y) {
+        const int begin = P_rows_.outerIndexPtr()[y];
+        if (begin == P_rows_.outerIndexPtr()[y + 1]) continue;
+        const Index c = coarse.label[static_cast<std::size_t>(P_rows_.innerIndexPtr()[begin])];
+        fine_components_.label[static_cast<std::size_t>(y)] = c;
+        if (fine_components_.first[static_cast<std::size_t>(c)] < 0) fine_components_.first[static_cast<std::size_t>(c)] = static_cast<Index>(y);
+      }
+    }
+  }
   if (polish_.enabled()) {
     Clock::time_point mark = Clock::now();
     PoissonMultigrid cycle = polishing_cycle(proxy, polish_);
@@ -379,7 +395,12 @@ Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::Ref<const Eigen::VectorXd
   // Fine-size passes as gathers (M is symmetric, so its columns are its rows): M f, Pᵀ (M f), P u_c.
   // The mean reductions are Eigen's serial dot products: the same result on any thread count.
   Eigen::VectorXd compatible;
-  if (is_zero_mean()) compatible = f.array() - fine_mass_of_one_.dot(f) / total_mass_;
+  if (is_zero_mean() && fine_components_.count() > 1) {
+    compatible = f;
+    remove_component_means(fine_components_, fine_mass_of_one_, compatible);
+  } else if (is_zero_mean()) {
+    compatible = f.array() - fine_mass_of_one_.dot(f) / total_mass_;
+  }
   const double* source = is_zero_mean() ? compatible.data() : f.data();
   Eigen::VectorXd weighted(n), coarse_rhs(P.cols()), u(n);
   gather_product(fine_mass, source, weighted.data(), false, threads, n);
@@ -388,7 +409,10 @@ Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::Ref<const Eigen::VectorXd
   const Eigen::VectorXd coarse_u = coarse_.solve_weighted(coarse_rhs, dirichlet_values);
   if (times) times->coarse_solve = seconds_since(mark);
   gather_product(P_rows_, coarse_u.data(), u.data(), false, threads, n);
-  if (is_zero_mean()) add_constant(-fine_mass_of_one_.dot(u) / total_mass_, u, threads);
+  if (is_zero_mean() && fine_components_.count() > 1)
+    remove_component_means(fine_components_, fine_mass_of_one_, u);
+  else if (is_zero_mean())
+    add_constant(-fine_mass_of_one_.dot(u) / total_mass_, u, threads);
   if (times) times->prolongation = seconds_since(mark);
   if (polish_report) *polish_report = PolishReport();
   if (!fine_) return u;

@@ -13,12 +13,30 @@ void require_same_size(const Eigen::VectorXd& a, const Eigen::VectorXd& r, const
     throw std::invalid_argument(std::string(what) + ": vectors must be non-empty and of equal size");
 }
 
+// Distances on a mesh of several components are +∞ on the components no source lies in. Entries
+// where approximation and reference are both +∞ agree and are left out of an error (replaced by 0
+// in both, and not counted); one +∞ against a finite value makes the error +∞. Returns the number
+// of entries left out (0: the vectors are returned unchanged).
+Eigen::Index leave_out_unreached(Eigen::VectorXd& approx, Eigen::VectorXd& reference) {
+  Eigen::Index left_out = 0;
+  for (Eigen::Index i = 0; i < reference.size(); ++i)
+    if (std::isinf(reference[i]) && std::isinf(approx[i]) && (reference[i] > 0) == (approx[i] > 0)) {
+      reference[i] = approx[i] = 0;
+      ++left_out;
+    }
+  return left_out;
+}
+
 }  // namespace
 
 double relative_l2_error(const Eigen::VectorXd& approx, const Eigen::VectorXd& reference, const SparseMatrix& mass) {
   require_same_size(approx, reference, "relative_l2_error");
   if (mass.rows() != reference.size() || mass.cols() != reference.size())
     throw std::invalid_argument("relative_l2_error: mass matrix size mismatch");
+  if (!approx.allFinite() || !reference.allFinite()) {
+    Eigen::VectorXd a = approx, r = reference;
+    if (leave_out_unreached(a, r) > 0) return relative_l2_error(a, r, mass);
+  }
   const Eigen::VectorXd difference = approx - reference;
   const double reference_norm2 = reference.dot(mass * reference);
   if (!(reference_norm2 > 0)) throw std::invalid_argument("relative_l2_error: reference has zero mass norm");
@@ -27,11 +45,28 @@ double relative_l2_error(const Eigen::VectorXd& approx, const Eigen::VectorXd& r
 
 double max_abs_error(const Eigen::VectorXd& approx, const Eigen::VectorXd& reference) {
   require_same_size(approx, reference, "max_abs_error");
+  if (!approx.allFinite() || !reference.allFinite()) {
+    Eigen::VectorXd a = approx, r = reference;
+    if (leave_out_unreached(a, r) > 0) return (a - r).cwiseAbs().maxCoeff();
+  }
   return (approx - reference).cwiseAbs().maxCoeff();
 }
 
 DistanceErrors distance_errors(const Eigen::VectorXd& approx, const Eigen::VectorXd& reference) {
   require_same_size(approx, reference, "distance_errors");
+  if (!approx.allFinite() || !reference.allFinite()) {
+    Eigen::VectorXd a = approx, r = reference;
+    const Eigen::Index left_out = leave_out_unreached(a, r);
+    if (left_out == a.size()) throw std::invalid_argument("distance_errors: no vertex is reached");
+    if (left_out > 0) {
+      double largest = 0;  // the largest distance reached
+      for (double value : r)
+        if (std::isfinite(value)) largest = std::max(largest, value);
+      if (!(largest > 0)) throw std::invalid_argument("distance_errors: reference distances must have a positive maximum");
+      const Eigen::ArrayXd error = (a - r).array().abs();
+      return {error.sum() / static_cast<double>(a.size() - left_out) / largest, error.maxCoeff() / largest};
+    }
+  }
   const double largest = reference.maxCoeff();
   if (!(largest > 0)) throw std::invalid_argument("distance_errors: reference distances must have a positive maximum");
   const Eigen::ArrayXd error = (approx - reference).array().abs();

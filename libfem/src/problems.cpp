@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "fem/topology.h"
@@ -105,9 +106,10 @@ Eigen::MatrixXd ConstrainedSolver::solve_multiple(const Eigen::MatrixXd& B) cons
 // ---- PoissonSolver ----------------------------------------------------------------------------------
 
 PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass,
-                             std::vector<Index> constrained, bool zero_mean, std::optional<PoissonMultigrid> multigrid,
-                             CholeskyOrdering ordering)
-    : mass_(mass), mass_of_one_(mass * Eigen::VectorXd::Ones(mass.cols())), zero_mean_(zero_mean) {
+                             std::vector<Index> constrained, ComponentLabels components, bool zero_mean,
+                             std::optional<PoissonMultigrid> multigrid, CholeskyOrdering ordering)
+    : mass_(mass), mass_of_one_(mass * Eigen::VectorXd::Ones(mass.cols())), zero_mean_(zero_mean),
+      components_(std::move(components)) {
   require_square(mass, laplacian.rows(), "PoissonSolver: mass and Laplacian");
   if (multigrid) {
     multigrid_ = std::make_unique<MultigridSolver>(std::move(multigrid->prolongations), multigrid->options);
@@ -125,14 +127,26 @@ PoissonSolver PoissonSolver::dirichlet(const SparseMatrix& laplacian, const Spar
                                        CholeskyOrdering ordering) {
   if (dirichlet_vertices.empty())
     throw std::invalid_argument("PoissonSolver::dirichlet: no Dirichlet vertices (use zero_mean)");
-  return PoissonSolver(laplacian, mass, std::move(dirichlet_vertices), false, std::move(multigrid), ordering);
+  const ComponentLabels components = component_labels(laplacian);
+  if (components.count() > 1) {  // each component needs a prescribed value, or it floats
+    std::vector<char> held(static_cast<std::size_t>(components.count()), 0);
+    for (Index v : dirichlet_vertices)
+      if (v >= 0 && v < laplacian.rows()) held[static_cast<std::size_t>(components.label[static_cast<std::size_t>(v)])] = 1;
+    for (std::size_t c = 0; c < held.size(); ++c)
+      if (!held[c])
+        throw std::invalid_argument("PoissonSolver::dirichlet: the mesh has " + std::to_string(components.count()) +
+                                    " connected components and the one of vertex " + std::to_string(components.first[c]) +
+                                    " has no Dirichlet vertex (fix a value in each component)");
+  }
+  return PoissonSolver(laplacian, mass, std::move(dirichlet_vertices), {}, false, std::move(multigrid), ordering);
 }
 
 PoissonSolver PoissonSolver::zero_mean(const SparseMatrix& laplacian, const SparseMatrix& mass,
                                        std::optional<PoissonMultigrid> multigrid, CholeskyOrdering ordering) {
   if (laplacian.rows() == 0) throw std::invalid_argument("PoissonSolver::zero_mean: empty system");
-  require_connected(laplacian, "zero-mean Poisson");
-  return PoissonSolver(laplacian, mass, {0}, true, std::move(multigrid), ordering);  // any vertex can be pinned; use the first
+  ComponentLabels components = component_labels(laplacian);
+  std::vector<Index> pinned = components.first;  // any vertex of each component can be pinned; use its first
+  return PoissonSolver(laplacian, mass, std::move(pinned), std::move(components), true, std::move(multigrid), ordering);
 }
 
 Eigen::VectorXd PoissonSolver::solve(const Eigen::VectorXd& f, const Eigen::VectorXd& dirichlet_values) const {
@@ -155,13 +169,22 @@ Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Ei
   if (initial_guess.size() != 0 && initial_guess.size() != b.size())
     throw std::invalid_argument("PoissonSolver::solve: initial guess has the wrong size");
   if (!zero_mean_) return solve_constrained(b, dirichlet_values, initial_guess);
-  const double total_mass = mass_of_one_.sum();
-  const Eigen::VectorXd compatible = b - mass_of_one_ * (b.sum() / total_mass);
-  // The pinned unknown (vertex 0) is 0: shift the guess to agree there (solutions differ by constants).
+  Eigen::VectorXd compatible = b;
+  make_compatible(components_, mass_of_one_, compatible);
+  // The pinned unknowns (each component's first vertex) are 0: shift the guess to agree there
+  // (solutions differ by a constant per component).
   Eigen::VectorXd guess;
-  if (initial_guess.size() != 0) guess = initial_guess.array() - initial_guess(0);
+  if (initial_guess.size() != 0) {
+    guess = initial_guess;
+    if (components_.count() == 1) {
+      guess.array() -= initial_guess(components_.first[0]);
+    } else {
+      for (Eigen::Index i = 0; i < guess.size(); ++i)
+        guess[i] -= initial_guess(components_.first[static_cast<std::size_t>(components_.label[static_cast<std::size_t>(i)])]);
+    }
+  }
   Eigen::VectorXd u = solve_constrained(compatible, Eigen::VectorXd(), guess);
-  u.array() -= mass_of_one_.dot(u) / total_mass;
+  remove_component_means(components_, mass_of_one_, u);
   return u;
 }
 
@@ -212,7 +235,6 @@ HeatMethodOperators checked(HeatMethodOperators ops) {
   require_square(ops.mass, n, "HeatGeodesicSolver: mass");
   if (ops.gradient.cols() != n || ops.gradient.rows() != 2 * ops.face_areas.size())
     throw std::invalid_argument("HeatGeodesicSolver: gradient must be 2k×n with k face areas");
-  require_connected(ops.laplacian, "heat-method geodesic distance");
   return ops;
 }
 
@@ -220,8 +242,9 @@ HeatMethodOperators checked(HeatMethodOperators ops) {
 
 HeatGeodesicSolver::HeatGeodesicSolver(HeatMethodOperators operators)
     : operators_(checked(std::move(operators))),
+      components_(component_labels(operators_.laplacian)),
       neumann_heat_(operators_.laplacian, operators_.mass, operators_.time_step),
-      pinned_poisson_(operators_.laplacian, {0}) {
+      pinned_poisson_(operators_.laplacian, components_.first) {
   if (!operators_.boundary_vertices.empty())
     dirichlet_heat_ = std::make_unique<ConstrainedSolver>(
         SparseMatrix(operators_.mass + operators_.time_step * operators_.laplacian), operators_.boundary_vertices);
@@ -275,8 +298,19 @@ Eigen::MatrixXd HeatGeodesicSolver::distances_from_each(const std::vector<Index>
   if (dirichlet_heat_) u = 0.5 * (u + dirichlet_heat_->solve_multiple(deltas));
   const Eigen::MatrixXd rhs = operators_.gradient.transpose() * normalized_field(operators_.gradient * u);
   Eigen::MatrixXd phi = pinned_poisson_.solve_multiple(rhs);
-  for (std::size_t j = 0; j < sources.size(); ++j)
-    phi.col(static_cast<Eigen::Index>(j)).array() -= phi(sources[j], static_cast<Eigen::Index>(j));
+  for (std::size_t j = 0; j < sources.size(); ++j) {
+    const auto column = static_cast<Eigen::Index>(j);
+    if (components_.count() == 1) {
+      phi.col(column).array() -= phi(sources[j], column);
+      continue;
+    }
+    const Index component = components_.label[static_cast<std::size_t>(sources[j])];
+    const double at_source = phi(sources[j], column);
+    for (Eigen::Index i = 0; i < n; ++i)
+      phi(i, column) = components_.label[static_cast<std::size_t>(i)] == component
+                           ? phi(i, column) - at_source
+                           : std::numeric_limits<double>::infinity();
+  }
   return phi;
 }
 
@@ -290,7 +324,18 @@ Eigen::VectorXd HeatGeodesicSolver::distance_from_weights(const Eigen::VectorXd&
 
   const Eigen::VectorXd rhs = operators_.gradient.transpose() * normalized_field(operators_.gradient * u);
   Eigen::VectorXd phi = pinned_poisson_.solve(rhs);
-  phi.array() -= source_weights.dot(phi) / source_weights.sum();
+  if (components_.count() == 1) {
+    phi.array() -= source_weights.dot(phi) / source_weights.sum();
+    return phi;
+  }
+  // Per component: shifted by its sources' weighted mean; +∞ where it has no source.
+  remove_component_means(components_, source_weights, phi);
+  std::vector<char> reached(static_cast<std::size_t>(components_.count()), 0);
+  for (Eigen::Index i = 0; i < phi.size(); ++i)
+    if (source_weights[i] > 0) reached[static_cast<std::size_t>(components_.label[static_cast<std::size_t>(i)])] = 1;
+  for (Eigen::Index i = 0; i < phi.size(); ++i)
+    if (!reached[static_cast<std::size_t>(components_.label[static_cast<std::size_t>(i)])])
+      phi[i] = std::numeric_limits<double>::infinity();
   return phi;
 }
 

@@ -32,9 +32,13 @@ std::vector<Index> boundary_vertices(const ice::Faces& F) {
   return vertices;
 }
 
-Index connected_components(const SparseMatrix& A) {
-  // Union–find with path halving over the non-zeros.
-  std::vector<Index> parent(static_cast<std::size_t>(A.rows()));
+namespace {
+
+// Union–find with path halving over the pairs that for_each_pair(unite) passes to unite(a, b); every
+// root is its set's smallest index, so components come out numbered by their smallest member.
+template <class ForEachPair>
+ComponentLabels label_components(Index count, ForEachPair&& for_each_pair) {
+  std::vector<Index> parent(static_cast<std::size_t>(count));
   for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<Index>(i);
   const auto root = [&parent](Index i) {
     while (parent[static_cast<std::size_t>(i)] != i) {
@@ -43,17 +47,78 @@ Index connected_components(const SparseMatrix& A) {
     }
     return i;
   };
-  Index components = static_cast<Index>(A.rows());
-  for (Eigen::Index j = 0; j < A.outerSize(); ++j)
-    for (SparseMatrix::InnerIterator it(A, j); it; ++it) {
-      if (it.value() == 0) continue;
-      const Index a = root(static_cast<Index>(it.row())), b = root(static_cast<Index>(it.col()));
-      if (a != b) {
-        parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
-        --components;
-      }
+  for_each_pair([&](Index a, Index b) {
+    a = root(a), b = root(b);
+    if (a != b) parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
+  });
+  ComponentLabels components;
+  components.label.resize(parent.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) {
+    const Index r = root(static_cast<Index>(i));
+    if (r == static_cast<Index>(i)) {  // the smallest member of its component comes first
+      components.label[i] = components.count();
+      components.first.push_back(r);
+    } else {
+      components.label[i] = components.label[static_cast<std::size_t>(r)];
     }
+  }
   return components;
+}
+
+}  // namespace
+
+ComponentLabels component_labels(const SparseMatrix& A) {
+  return label_components(static_cast<Index>(A.rows()), [&](auto&& unite) {
+    for (Eigen::Index j = 0; j < A.outerSize(); ++j)
+      for (SparseMatrix::InnerIterator it(A, j); it; ++it)
+        if (it.value() != 0) unite(static_cast<Index>(it.row()), static_cast<Index>(it.col()));
+  });
+}
+
+Index connected_components(const SparseMatrix& A) { return component_labels(A).count(); }
+
+ComponentLabels vertex_components(const ice::Faces& F, Index vertex_count) {
+  return label_components(vertex_count, [&](auto&& unite) {
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      unite(F(f, 0), F(f, 1));
+      unite(F(f, 1), F(f, 2));
+    }
+  });
+}
+
+void remove_component_means(const ComponentLabels& components, const Eigen::VectorXd& weights, Eigen::VectorXd& x) {
+  if (components.count() <= 1) {
+    const double total = weights.sum();
+    if (total != 0) x.array() -= weights.dot(x) / total;
+    return;
+  }
+  std::vector<double> weighted(static_cast<std::size_t>(components.count()), 0.0), total(weighted.size(), 0.0);
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    const auto c = static_cast<std::size_t>(components.label[static_cast<std::size_t>(i)]);
+    weighted[c] += weights[i] * x[i];
+    total[c] += weights[i];
+  }
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    const auto c = static_cast<std::size_t>(components.label[static_cast<std::size_t>(i)]);
+    if (total[c] != 0) x[i] -= weighted[c] / total[c];
+  }
+}
+
+void make_compatible(const ComponentLabels& components, const Eigen::VectorXd& weights, Eigen::VectorXd& b) {
+  if (components.count() <= 1) {
+    b -= weights * (b.sum() / weights.sum());
+    return;
+  }
+  std::vector<double> sum(static_cast<std::size_t>(components.count()), 0.0), total(sum.size(), 0.0);
+  for (Eigen::Index i = 0; i < b.size(); ++i) {
+    const auto c = static_cast<std::size_t>(components.label[static_cast<std::size_t>(i)]);
+    sum[c] += b[i];
+    total[c] += weights[i];
+  }
+  for (Eigen::Index i = 0; i < b.size(); ++i) {
+    const auto c = static_cast<std::size_t>(components.label[static_cast<std::size_t>(i)]);
+    if (total[c] != 0) b[i] -= weights[i] * (sum[c] / total[c]);
+  }
 }
 
 void require_connected(const SparseMatrix& A, const char* what) {

@@ -954,7 +954,8 @@ ProxyPoissonSolver, per step.)doc")
 ProxyGeodesicSolver(proxy, method="marching", time_factor=1.0, subdivisions=1): method "marching" (fast
 marching with exact planar updates on the coarse mesh from the sources' points, the squared distance
 interpolated to the fine vertices; the default, the more accurate) or "heat" (the heat method on the
-coarse operators, heat time t = (time_factor · mean coarse edge length)²; needs a connected mesh).
+coarse operators, heat time t = (time_factor · mean coarse edge length)²). On a mesh of several
+components the distance is +inf on the components without a source.
 subdivisions: marching on the coarse mesh split 1:4 that many times (the coarse metric unchanged; 0, 1 or
 2 measured: 2 is the most accurate, at ~8x the cost per source of 0). For the most accurate distances
 coarsen with use="geodesic".)doc")

@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 import scipy.sparse
+import scipy.sparse.csgraph
 import scipy.sparse.linalg
 
 import ice
@@ -323,19 +324,30 @@ def test_dirichlet_values_follow_the_order_of_fixed(spot, project_mesh):
         solver.setup(L, constrained=[3, 10, 3])
 
 
-def test_disconnected_meshes_are_refused_clearly(project_mesh):
+def test_meshes_of_several_components_are_solved_on_each(project_mesh):
+    """blobby_3cc (three components): zero-mean Poisson is solved on each component (compatible and
+    re-centred on each, a constant per component gives 0), Dirichlet values are needed in every
+    component, and geodesics reach the sources' components only (+inf elsewhere) by either coarse
+    solver."""
     V, F = ice.load_mesh(project_mesh("blobby_3cc.off"))
-    proxy = ice.Proxy(V, F, ice.coarsen(V, F, ratio=0.1))
-    with pytest.raises(ValueError, match="3 connected components"):
-        ice.ProxyPoissonSolver(proxy)
-    with pytest.raises(ValueError, match="3 connected components"):
-        ice.ProxyGeodesicSolver(proxy, method="heat")
-    # Coarse marching reaches the source's component only: the others are infinitely far.
-    d = ice.ProxyGeodesicSolver(proxy).distance([0])
-    reached = np.isfinite(d)
-    assert d[0] == 0 and 0 < reached.sum() < len(d)
-    for face in F:  # a component is reached whole or not at all
-        assert reached[face].all() or not reached[face].any()
+    coarse = ice.coarsen(V, F, ratio=0.1)
+    proxy = ice.Proxy(V, F, coarse)
+    L = ice.cotan_laplacian(V, F)
+    n_components, label = scipy.sparse.csgraph.connected_components(L, directed=False)
+    assert n_components == 3
+    mass = proxy.fine_mass @ np.ones(len(V))  # the proxy's fine mass (of the intrinsic Delaunay mesh)
+    f = V[:, 2] + label  # a different mean on each component
+    u = ice.ProxyPoissonSolver(proxy).solve(f)
+    for c in range(3):
+        assert abs(mass[label == c] @ u[label == c]) < 1e-12 * mass.sum() * np.abs(u).max()
+    assert np.abs(ice.ProxyPoissonSolver(proxy).solve(label.astype(float))).max() < 1e-12
+    with pytest.raises(ValueError, match="no Dirichlet vertex|no --fix"):
+        ice.ProxyPoissonSolver(proxy, fixed=[int(coarse.to_input[0])])
+    for method in ("marching", "heat"):
+        d = ice.ProxyGeodesicSolver(proxy, method=method).distance([0])
+        reached = np.isfinite(d)
+        assert np.array_equal(reached, label == label[0]), method
+        assert d[reached].min() > -0.05 * d[reached].max() and abs(d[0]) < 0.05 * d[reached].max(), method
     with pytest.raises(ValueError, match="marching"):
         ice.ProxyGeodesicSolver(proxy, method="dijkstra")
     u = ice.ProxyHeatSolver(proxy, 1e-3).integrate(V[:, 0])  # heat flow has no pinned vertex: fine

@@ -33,6 +33,7 @@
 #include "fem/distance_oracle.h"
 #include "fem/operators.h"
 #include "fem/problems.h"
+#include "fem/topology.h"
 
 namespace fem {
 
@@ -214,7 +215,9 @@ struct PolishReport {
 /// (coarse L) u_c = Pᵀ M f.
 ///  - Zero-mean Neumann (no Dirichlet vertices): f is first made compatible on the fine mesh
 ///    (f − its mass-weighted mean, so a constant f gives u = 0 exactly), and P u_c is re-centred to
-///    zero fine-mass mean.
+///    zero fine-mass mean. On a mesh of several components both are done per coarse component (the
+///    fine vertices grouped by the component their row of P lies in) and the coarse solve pins one
+///    vertex in each (PoissonSolver::zero_mean).
 ///  - Dirichlet: `dirichlet_vertices` are fine vertices that must be coarse vertices too (lock them
 ///    when coarsening: their rows of P are e_j); the coarse solve prescribes the values there, so P u_c
 ///    takes them exactly. Elsewhere the boundary is natural. Not with a smoothed prolongation
@@ -227,8 +230,7 @@ class ProxyPoissonSolver {
  public:
   /// Factors the coarse system; with `polish` enabled also sets up the fine two-level cycle (the
   /// fine Laplacian, PᵀLP and its factorisation, smoother data; see PolishOptions). Throws
-  /// std::invalid_argument if a Dirichlet vertex is out of range, repeated or not a coarse vertex, or
-  /// the coarse mesh is disconnected in zero-mean mode (fem/topology.h, require_connected).
+  /// std::invalid_argument if a Dirichlet vertex is out of range, repeated or not a coarse vertex.
   explicit ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Index> dirichlet_vertices = {},
                               PolishOptions polish = {});
   /// Fine nodal source f → fine solution. `dirichlet_values` align with the Dirichlet vertices (empty:
@@ -248,6 +250,7 @@ class ProxyPoissonSolver {
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major: prolongation as a gather per row
   Eigen::VectorXd fine_mass_of_one_;                           ///< M·1 (the re-centring weights)
   double total_mass_ = 0;
+  ComponentLabels fine_components_;  ///< zero-mean mode on 2+ coarse components: each fine vertex's (its row's)
   std::vector<Index> dirichlet_vertices_;
   PoissonSolver coarse_;
   PolishOptions polish_;

@@ -9,6 +9,8 @@ namespace fem {
 
 /// Relative error in the mass norm: sqrt((a−r)ᵀM(a−r) / rᵀMr). Preconditions: equal sizes, M the
 /// n×n mass matrix, rᵀMr > 0 (throws std::invalid_argument otherwise).
+/// Here and below, entries where both vectors are +∞ (distances on a component that no source
+/// reaches) are left out; +∞ against a finite value gives an infinite error.
 double relative_l2_error(const Eigen::VectorXd& approx, const Eigen::VectorXd& reference, const SparseMatrix& mass);
 
 /// max_i |a_i − r_i|. Precondition: equal, non-zero sizes.

@@ -14,6 +14,7 @@
 #include "fem/cholesky.h"
 #include "fem/multigrid.h"
 #include "fem/operators.h"
+#include "fem/topology.h"
 
 namespace fem {
 
@@ -63,13 +64,16 @@ struct PoissonMultigrid {
 };
 
 /// Poisson equation L u = M f, the P1 discretisation of −Δu = f (L is positive semidefinite).
-///  - Dirichlet: u prescribed at given vertices (at least one per connected component).
+///  - Dirichlet: u prescribed at given vertices, at least one per connected component
+///    (std::invalid_argument naming a component without one).
 ///  - Zero-mean ("Neumann"), for closed surfaces or natural boundary conditions: the mass-weighted
 ///    right-hand side b = M f is first made compatible by removing its mean
 ///    (b ← b − M1·(1ᵀb)/(1ᵀM1), i.e. f minus its area-weighted mean), one vertex is pinned to 0,
 ///    and the solution is re-centred to zero mass-weighted mean (1ᵀM u = 0). Because b is compatible,
-///    the pinned solution satisfies every equation, so pinning introduces no error. The mesh must be
-///    connected (otherwise std::invalid_argument, saying how many components it has).
+///    the pinned solution satisfies every equation, so pinning introduces no error. On a mesh of
+///    several connected components (of L's graph) all of this is done on each: compatible and
+///    re-centred per component, one vertex pinned in each (its smallest), as if each were solved
+///    apart.
 class PoissonSolver {
  public:
   /// Without `multigrid`, CHOLMOD (exact) with the fill-reducing `ordering` (CHOLMOD's default
@@ -100,12 +104,14 @@ class PoissonSolver {
 
  private:
   PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, std::vector<Index> constrained,
-                bool zero_mean, std::optional<PoissonMultigrid> multigrid, CholeskyOrdering ordering);
+                ComponentLabels components, bool zero_mean, std::optional<PoissonMultigrid> multigrid,
+                CholeskyOrdering ordering);
   Eigen::VectorXd solve_constrained(const Eigen::VectorXd& b, const Eigen::VectorXd& values,
                                     const Eigen::VectorXd& initial_guess = {}) const;
   SparseMatrix mass_;
   Eigen::VectorXd mass_of_one_;  ///< M·1
   bool zero_mean_;
+  ComponentLabels components_;  ///< zero-mean mode: L's components (first[] are the pinned vertices)
   std::unique_ptr<ConstrainedSolver> direct_;   ///< CHOLMOD, or
   std::unique_ptr<MultigridSolver> multigrid_;  ///< multigrid (its solve records a report: not const)
 };
@@ -159,12 +165,14 @@ HeatMethodOperators heat_method_operators(const Faces& F, const FaceLengths& L,
 ///     with a boundary, u is the average of the Neumann solution and the Dirichlet one (u = 0 on the
 ///     boundary), the paper's recommended boundary treatment;
 ///  2. X = −∇u/|∇u| per face (X = 0 where ∇u vanishes exactly);
-///  3. Poisson L φ = Gᵀ·diag(A)·X (= −∇·X in the integrated sense), solved with one vertex pinned;
-///     its right-hand side always sums to zero because G·1 = 0, so pinning is exact;
-///  4. φ shifted so its source-weighted mean is 0 (the value at a single source is 0).
+///  3. Poisson L φ = Gᵀ·diag(A)·X (= −∇·X in the integrated sense), solved with one vertex pinned
+///     per connected component; its right-hand side sums to zero on each because G·1 = 0 there, so
+///     pinning is exact;
+///  4. φ shifted so its source-weighted mean is 0 on each component (the value at a single source
+///     is 0); on a component without a source φ is +∞ (no heat reaches it: no distance).
 /// Factorisations of M + tL (both boundary variants) and of the pinned L happen in the constructor.
-/// Preconditions: a connected mesh (vertex 0 is pinned in step 3); sources on the boundary get no heat
-/// in the Dirichlet variant, so near them the result is that of the Neumann solution alone.
+/// Sources on the boundary get no heat in the Dirichlet variant, so near them the result is that of
+/// the Neumann solution alone.
 /// Limitation: u decays roughly like exp(−d/√t); beyond a few hundred mean edge lengths from the
 /// sources it drops below round-off and distances there become unreliable.
 class HeatGeodesicSolver {
@@ -187,6 +195,7 @@ class HeatGeodesicSolver {
  private:
   Eigen::MatrixXd normalized_field(const Eigen::MatrixXd& face_gradients) const;
   HeatMethodOperators operators_;
+  ComponentLabels components_;  ///< of the Laplacian's graph (first[] are the pinned vertices)
   HeatSolver neumann_heat_;
   std::unique_ptr<ConstrainedSolver> dirichlet_heat_;  ///< only with a boundary
   ConstrainedSolver pinned_poisson_;
