@@ -54,9 +54,9 @@ class FileVertexMap {
 /// Throws AppError(kUnreadable) naming the file, line and token on anything else.
 std::vector<double> read_number_file(const std::string& path);
 
-/// The fine mesh's connected components must be 1 for the tools that still need it (the vector heat
-/// method). Throws AppError(kDefective) otherwise.
-void require_connected(const ice::LoadResult& loaded, const std::string& path, const std::string& tool);
+/// The fine mesh's connected components must be 1 for the modes that still need it (the distance
+/// oracle of geodesic-coarse). Throws AppError(kDefective) otherwise.
+void require_connected(const ice::LoadResult& loaded, const std::string& path, const std::string& what);
 
 /// With Dirichlet values (--fix), every connected component of the mesh needs one, or its solution
 /// is undetermined: throws AppError(kUsage) naming a component (by a vertex of the file) without.

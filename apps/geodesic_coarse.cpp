@@ -110,7 +110,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
   const ice::TriangleMesh& mesh = loaded.mesh;
   const long long n = mesh.V.rows();
-  app::require_connected(loaded, opt.mesh, kTool);
+  app::require_connected(loaded, opt.mesh, "the distance-oracle modes (--all-pairs, --pairs, --sample; --source solves on each component)");
   const app::FileVertexMap vertices(loaded);
   std::vector<std::array<ice::Index, 2>> pairs;
   std::vector<std::array<long long, 2>> file_pairs;

@@ -133,7 +133,6 @@ int main(int argc, char** argv) {
     const app::FileVertexMap vertices(loaded);
     std::vector<ice::Index> sources;
     for (long long s : file_sources) sources.push_back(vertices.mesh_vertex(s, "--source: vertex"));
-    app::require_connected(loaded, opt.mesh, kTool);
     run.fine_vertices = n;
     run.fine_faces = mesh.F.rows();
     ice::CoarsenOptions coarsen_options;

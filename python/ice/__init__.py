@@ -114,7 +114,8 @@ def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, val
 
     coarse: a CoarseSpace of this mesh, or coarsening options for ice.coarsen (default ratio=0.05);
     fixed vertices are then locked so they stay coarse vertices. Without fixed vertices the zero-mean
-    Neumann solution; with them, Dirichlet values there (values, default zeros). For many right-hand
+    Neumann solution (on a mesh of several components, zero-mean on each); with them, Dirichlet
+    values there (values, default zeros; every component needs one). For many right-hand
     sides build Proxy and ProxyPoissonSolver once instead. prolongation: "barycentric", "smoothed"
     (see Proxy; not with fixed vertices) or "auto" (smoothed with Galerkin operators and no fixed
     vertices, as poisson-coarse).
@@ -149,7 +150,8 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     solve_poisson, with the metric measured best for geodesics (use="geodesic") by default. lengths:
     "intrinsic" or, with marching on an ICE coarse space, "traced" (the coarse edges' lengths on the
     surface: geodesic-coarse --coarse-lengths traced). subdivisions: marching on the coarse mesh split
-    1:4 that many times (geodesic-coarse --marching-subdivisions). For many sources or pairs see
+    1:4 that many times (geodesic-coarse --marching-subdivisions). On a mesh of several components
+    the distance is +inf on the components without a source. For many sources or pairs see
     ProxyGeodesicSolver and DistanceOracle.
     """
     if method not in ("marching", "heat"):
