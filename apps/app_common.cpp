@@ -96,13 +96,6 @@ std::vector<double> read_number_file(const std::string& path) {
   return values;
 }
 
-void require_connected(const ice::LoadResult& loaded, const std::string& path, const std::string& what) {
-  const std::size_t components = loaded.report.components.size();
-  if (components > 1)
-    throw AppError(kDefective, path + ": the mesh has " + std::to_string(components) + " connected components; " + what +
-                                   " need a connected mesh: split it first");
-}
-
 void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::vector<int>& fixed_vertices,
                                       const std::string& path) {
   if (fixed_vertices.empty() || loaded.report.components.size() <= 1) return;

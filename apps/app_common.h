@@ -54,10 +54,6 @@ class FileVertexMap {
 /// Throws AppError(kUnreadable) naming the file, line and token on anything else.
 std::vector<double> read_number_file(const std::string& path);
 
-/// The fine mesh's connected components must be 1 for the modes that still need it (the distance
-/// oracle of geodesic-coarse). Throws AppError(kDefective) otherwise.
-void require_connected(const ice::LoadResult& loaded, const std::string& path, const std::string& what);
-
 /// With Dirichlet values (--fix), every connected component of the mesh needs one, or its solution
 /// is undetermined: throws AppError(kUsage) naming a component (by a vertex of the file) without.
 /// Nothing to check without fixed vertices (the zero-mean problem is solved on each component).

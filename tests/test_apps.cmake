@@ -773,7 +773,8 @@ elseif(CASE STREQUAL "errors")
   expect_error(2 "nullface.off.*1 zero-area faces" ice-coarsen "${WORK}/nullface.off" --ratio 0.5 -o "${WORK}/d" -q)
   # Several components: coarsening is fine; Poisson and geodesics are solved on each component (the
   # zero-mean problem on each; distances +inf where no source lies, left out of the errors), with
-  # --fix a value is needed in every component; vectors: none on the components without a source.
+  # --fix a value is needed in every component; vectors: none on the components without a source;
+  # the distance oracle puts pairs in different components at +inf.
   project_mesh(three blobby_3cc.off)
   run(0 ice-coarsen "${three}" --ratio 0.2 -o "${WORK}/three" -q --validate)
   run(0 geodesic-coarse "${three}" --source 0 --ratio 0.2 -q --report "${WORK}/three_g.json")
@@ -789,7 +790,9 @@ elseif(CASE STREQUAL "errors")
   json(_l2 "${WORK}/three_m.json" error rel_l2)
   check(${_l2} LESS 1e-6 "poisson-coarse multigrid, three components: against CHOLMOD")
   expect_error(4 "no --fix vertex" poisson-coarse "${three}" --ratio 0.2 --fix 0=1 -q)
-  expect_error(2 "distance-oracle modes" geodesic-coarse "${three}" --sample 10 --ratio 0.2 -q)
+  run(0 geodesic-coarse "${three}" --sample 12 --ratio 0.2 -q --report "${WORK}/three_o.json" --matrix "${WORK}/three_o.npy")
+  json(_oracle_error "${WORK}/three_o.json" accuracy all mean_rel)
+  check(${_oracle_error} LESS 0.05 "geodesic-coarse oracle, three components: pairs in one component")
   run(0 vector-coarse "${three}" --source 0 --vector 0 --ratio 0.2 -q --report "${WORK}/three_v.json")
   json(_without "${WORK}/three_v.json" error angle vertices_without_field)
   check(${_without} GREATER 100 "vector-coarse, three components: no field on the others")

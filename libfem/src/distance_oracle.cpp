@@ -353,7 +353,7 @@ PairErrors relative_pair_errors(const DistanceOracle& oracle, const std::vector<
     const Eigen::VectorXd d = oracle.distances_from(sources[s]);
     for (Eigen::Index v = 0; v < d.size(); ++v) {
       const double r = reference(v, static_cast<Eigen::Index>(s));
-      if (v == sources[s] || !(r > 0)) continue;
+      if (v == sources[s] || !(r > 0) || (std::isinf(r) && std::isinf(d(v)))) continue;
       (oracle.is_near(sources[s], static_cast<Index>(v)) ? errors.near : errors.far).push_back(std::abs(d(v) - r) / r);
     }
   }

@@ -150,8 +150,8 @@ class DistanceOracle {
 
 /// Per-pair relative errors |d − d_ref| / d_ref of the oracle against reference distances from
 /// `sources` (column j of `reference`: from sources[j] to every fine vertex), split into far and
-/// near pairs (DistanceOracle::is_near); the sources themselves and pairs with d_ref <= 0 are left
-/// out. What the tools and benchmarks report. Throws std::invalid_argument on a reference of the
+/// near pairs (DistanceOracle::is_near); the sources themselves, pairs with d_ref <= 0 and pairs
+/// both put at +∞ (in different components) are left out. What the tools and benchmarks report. Throws std::invalid_argument on a reference of the
 /// wrong shape.
 struct PairErrors {
   std::vector<double> far, near;
