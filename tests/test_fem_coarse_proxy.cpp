@@ -11,7 +11,9 @@
 #include <utility>
 #include <vector>
 
+#include "coarse_marching.h"  // libfem's private marching mesh and subdivision
 #include "fem/coarse_proxy.h"
+#include "fem/geometry.h"
 #include "fem/errors.h"
 #include "ice/mesh_generators.h"
 
@@ -429,4 +431,39 @@ TEST_CASE("the coarse heat method refuses a smoothed prolongation", "[fem][coars
   CHECK_THROWS_AS(fem::ProxyGeodesicSolver(proxy, heat_method), std::invalid_argument);
   CHECK_THROWS_AS(fem::ProxyGeodesicSolver(proxy, proxy.coarse_heat_method_operators()), std::invalid_argument);
   CHECK_NOTHROW(fem::ProxyGeodesicSolver(proxy));
+}
+
+TEST_CASE("the marching's subdivision keeps each edge's midpoint apart, loop edges and parallel edges too",
+          "[fem][coarse_proxy]") {
+  // A flat 1 x 0.7 torus of one vertex and two faces (three loop edges). One subdivision turns each
+  // loop into two parallel edges of one length (vertex -> midpoint); pairing sides by length alone
+  // would give the next subdivision one midpoint for both, joining two places of the torus. The
+  // gluing carried from level to level keeps χ = 0 and every vertex flat.
+  ice::Faces F(2, 3);
+  F << 0, 0, 0, 0, 0, 0;
+  const double diagonal = std::sqrt(1.0 + 0.49);
+  ice::FaceLengths L(2, 3);
+  L << 1.0, 0.7, diagonal, diagonal, 1.0, 0.7;  // (0,0)->(1,0)->(1,.7) and (0,0)->(1,.7)->(0,.7)
+  fem::detail::SubdividedMesh mesh{F, L, 1, {}, {}};
+  for (int level = 1; level <= 3; ++level) {
+    mesh = fem::detail::subdivide_midpoints(mesh.F, mesh.L, mesh.vertex_count, mesh.twin);
+    const Eigen::Index faces = mesh.F.rows(), edges = 3 * faces / 2;
+    CHECK(mesh.vertex_count - edges + faces == 0);  // χ of the torus
+    const Eigen::MatrixXd angles = fem::corner_angles(mesh.L);
+    Eigen::VectorXd angle_sum = Eigen::VectorXd::Zero(mesh.vertex_count);
+    for (Eigen::Index f = 0; f < faces; ++f)
+      for (int k = 0; k < 3; ++k) angle_sum[mesh.F(f, k)] += angles(f, k);
+    CHECK((angle_sum.array() - 2 * M_PI).abs().maxCoeff() < 1e-12);
+    REQUIRE(mesh.twin.size() == static_cast<std::size_t>(3 * faces));
+    for (std::size_t side = 0; side < mesh.twin.size(); ++side) {  // a closed surface: every side glued, both ways
+      const ice::Index other = mesh.twin[side];
+      REQUIRE(other >= 0);
+      CHECK(mesh.twin[static_cast<std::size_t>(other)] == static_cast<ice::Index>(side));
+      const auto f = static_cast<Eigen::Index>(side / 3), g = static_cast<Eigen::Index>(other / 3);
+      const int k = static_cast<int>(side % 3), j = static_cast<int>(other % 3);
+      CHECK(mesh.L(f, k) == mesh.L(g, j));
+      CHECK(mesh.F(f, k) == mesh.F(g, (j + 1) % 3));  // opposite directions
+      CHECK(mesh.F(f, (k + 1) % 3) == mesh.F(g, j));
+    }
+  }
 }

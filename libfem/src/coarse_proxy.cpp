@@ -179,14 +179,17 @@ struct SubdividedCoarseMesh {
   Faces F;
   FaceLengths L;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P;
+  std::vector<Index> twin;  ///< the sides' gluing, for the next subdivision (detail::SubdividedMesh)
 };
 
 SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& Lc,
-                                             const Eigen::SparseMatrix<double, Eigen::RowMajor, int>& P) {
-  detail::SubdividedMesh mesh = detail::subdivide_midpoints(Fc, Lc, P.cols());
+                                             const Eigen::SparseMatrix<double, Eigen::RowMajor, int>& P,
+                                             const std::vector<Index>& twin) {
+  detail::SubdividedMesh mesh = detail::subdivide_midpoints(Fc, Lc, P.cols(), twin);
   SubdividedCoarseMesh out;
   out.F = std::move(mesh.F);
   out.L = std::move(mesh.L);
+  out.twin = std::move(mesh.twin);
   const Index count = static_cast<Index>(mesh.vertex_count);
   // Vertex pairs and the midpoint of their one edge, ice::kInvalid where sides with several midpoints
   // join the pair (parallel edges: which one a row's weights refer to is unknown).
@@ -526,9 +529,10 @@ void ProxyGeodesicSolver::prepare_marching(const Faces& coarse_faces, const Face
                                 std::to_string(kMaxMarchingSubdivisions) + "]");
   Faces Fc = coarse_faces;
   FaceLengths Lc = coarse_lengths;
+  std::vector<Index> twin;  // the first subdivision pairs sides by their lengths, the next by this
   for (int level = 0; level < subdivisions; ++level) {
-    SubdividedCoarseMesh finer = subdivide_for_marching(Fc, Lc, P_rows_);
-    Fc = std::move(finer.F), Lc = std::move(finer.L), P_rows_ = std::move(finer.P);
+    SubdividedCoarseMesh finer = subdivide_for_marching(Fc, Lc, P_rows_, twin);
+    Fc = std::move(finer.F), Lc = std::move(finer.L), P_rows_ = std::move(finer.P), twin = std::move(finer.twin);
   }
   marching_ = std::make_unique<detail::MarchingMesh>(Fc, Lc, P_rows_.cols());
   const Eigen::Index n = P_rows_.rows();

@@ -56,9 +56,9 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
   start = std::chrono::steady_clock::now();
   std::vector<float> distances(nc * nc);
   if (options.method == CoarseDistanceMethod::marching) {
-    detail::SubdividedMesh finer{coarse_faces, coarse_lengths, coarse_size_, {}};
-    for (int level = 0; level < options.subdivisions; ++level)
-      finer = detail::subdivide_midpoints(finer.F, finer.L, finer.vertex_count);
+    detail::SubdividedMesh finer{coarse_faces, coarse_lengths, coarse_size_, {}, {}};
+    for (int level = 0; level < options.subdivisions; ++level)  // the gluing carried from level to level
+      finer = detail::subdivide_midpoints(finer.F, finer.L, finer.vertex_count, finer.twin);
     const detail::MarchingMesh marching_mesh(finer.F, finer.L, finer.vertex_count);
 #pragma omp parallel num_threads(threads())
     {
