@@ -101,8 +101,8 @@ void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::
   if (fixed_vertices.empty() || loaded.report.components.size() <= 1) return;
   const ice::TriangleMesh& mesh = loaded.mesh;
   const fem::ComponentLabels components = fem::vertex_components(mesh.F, static_cast<fem::Index>(mesh.V.rows()));
-  std::vector<char> held(static_cast<std::size_t>(components.count()), 0), has_face(held.size(), 0);
-  for (int v : fixed_vertices) held[static_cast<std::size_t>(components.label[static_cast<std::size_t>(v)])] = 1;
+  const std::vector<char> held = fem::components_holding(components, fixed_vertices);
+  std::vector<char> has_face(held.size(), 0);  // vertices no face uses are components of their own
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) has_face[static_cast<std::size_t>(components.label[static_cast<std::size_t>(mesh.F(f, 0))])] = 1;
   for (std::size_t c = 0; c < held.size(); ++c)
     if (has_face[c] && !held[c]) {

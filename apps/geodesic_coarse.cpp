@@ -473,16 +473,15 @@ int main(int argc, char** argv) {
     if (marching) report["marching_subdivisions"] = oracle.subdivisions;
     if (oracle.traced_lengths && tracing) report["coarse_lengths_traced_edges"] = {{"edges", tracing->edges.size()}, {"traced", tracing->traced}};
     report["max_distance"] = largest_finite(distance);
-    if (!distance.allFinite())  // several components: those without a source are not reached
-      report["unreached_vertices"] = (distance.array() == std::numeric_limits<double>::infinity()).count();
+    // Several components: the vertices of those without a source are not reached.
+    const Eigen::Index unreached = (distance.array() == std::numeric_limits<double>::infinity()).count();
+    if (unreached > 0) report["unreached_vertices"] = unreached;
     if (run.has_reference) report["error"] = error_json;
     if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
 
     run.print_summary(std::cout);
     std::cout << "  sources: " << sources_text << "; prolonged max distance " << largest_finite(distance);
-    if (!distance.allFinite())
-      std::cout << " (" << (distance.array() == std::numeric_limits<double>::infinity()).count()
-                << " vertices in components without a source: +inf)";
+    if (unreached > 0) std::cout << " (" << unreached << " vertices in components without a source: +inf)";
     std::cout << '\n';
     if (run.has_reference)
       std::cout << "  error vs fine: mean " << app::percent(error_json["mean_rel"]) << ", max "

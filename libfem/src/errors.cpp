@@ -54,23 +54,23 @@ double max_abs_error(const Eigen::VectorXd& approx, const Eigen::VectorXd& refer
 
 DistanceErrors distance_errors(const Eigen::VectorXd& approx, const Eigen::VectorXd& reference) {
   require_same_size(approx, reference, "distance_errors");
-  if (!approx.allFinite() || !reference.allFinite()) {
-    Eigen::VectorXd a = approx, r = reference;
-    const Eigen::Index left_out = leave_out_unreached(a, r);
+  // Copies only where some entry is not finite (a mesh of several components).
+  const bool finite = approx.allFinite() && reference.allFinite();
+  Eigen::VectorXd a, r;
+  Eigen::Index left_out = 0;
+  if (!finite) {
+    a = approx, r = reference;
+    left_out = leave_out_unreached(a, r);
     if (left_out == a.size()) throw std::invalid_argument("distance_errors: no vertex is reached");
-    if (left_out > 0) {
-      double largest = 0;  // the largest distance reached
-      for (double value : r)
-        if (std::isfinite(value)) largest = std::max(largest, value);
-      if (!(largest > 0)) throw std::invalid_argument("distance_errors: reference distances must have a positive maximum");
-      const Eigen::ArrayXd error = (a - r).array().abs();
-      return {error.sum() / static_cast<double>(a.size() - left_out) / largest, error.maxCoeff() / largest};
-    }
   }
-  const double largest = reference.maxCoeff();
+  const Eigen::VectorXd& x = finite ? approx : a;
+  const Eigen::VectorXd& y = finite ? reference : r;
+  double largest = 0;  // the largest distance reached
+  for (double value : y)
+    if (std::isfinite(value)) largest = std::max(largest, value);
   if (!(largest > 0)) throw std::invalid_argument("distance_errors: reference distances must have a positive maximum");
-  const Eigen::ArrayXd error = (approx - reference).array().abs();
-  return {error.mean() / largest, error.maxCoeff() / largest};
+  const Eigen::ArrayXd error = (x - y).array().abs();
+  return {error.sum() / static_cast<double>(x.size() - left_out) / largest, error.maxCoeff() / largest};
 }
 
 }  // namespace fem

@@ -129,9 +129,7 @@ PoissonSolver PoissonSolver::dirichlet(const SparseMatrix& laplacian, const Spar
     throw std::invalid_argument("PoissonSolver::dirichlet: no Dirichlet vertices (use zero_mean)");
   const ComponentLabels components = component_labels(laplacian);
   if (components.count() > 1) {  // each component needs a prescribed value, or it floats
-    std::vector<char> held(static_cast<std::size_t>(components.count()), 0);
-    for (Index v : dirichlet_vertices)
-      if (v >= 0 && v < laplacian.rows()) held[static_cast<std::size_t>(components.label[static_cast<std::size_t>(v)])] = 1;
+    const std::vector<char> held = components_holding(components, dirichlet_vertices);
     for (std::size_t c = 0; c < held.size(); ++c)
       if (!held[c])
         throw std::invalid_argument("PoissonSolver::dirichlet: the mesh has " + std::to_string(components.count()) +
@@ -176,12 +174,8 @@ Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Ei
   Eigen::VectorXd guess;
   if (initial_guess.size() != 0) {
     guess = initial_guess;
-    if (components_.count() == 1) {
-      guess.array() -= initial_guess(components_.first[0]);
-    } else {
-      for (Eigen::Index i = 0; i < guess.size(); ++i)
-        guess[i] -= initial_guess(components_.first[static_cast<std::size_t>(components_.label[static_cast<std::size_t>(i)])]);
-    }
+    for (Eigen::Index i = 0; i < guess.size(); ++i)
+      guess[i] -= initial_guess(components_.first[static_cast<std::size_t>(components_.label[static_cast<std::size_t>(i)])]);
   }
   Eigen::VectorXd u = solve_constrained(compatible, Eigen::VectorXd(), guess);
   remove_component_means(components_, mass_of_one_, u);
@@ -300,10 +294,6 @@ Eigen::MatrixXd HeatGeodesicSolver::distances_from_each(const std::vector<Index>
   Eigen::MatrixXd phi = pinned_poisson_.solve_multiple(rhs);
   for (std::size_t j = 0; j < sources.size(); ++j) {
     const auto column = static_cast<Eigen::Index>(j);
-    if (components_.count() == 1) {
-      phi.col(column).array() -= phi(sources[j], column);
-      continue;
-    }
     const Index component = components_.label[static_cast<std::size_t>(sources[j])];
     const double at_source = phi(sources[j], column);
     for (Eigen::Index i = 0; i < n; ++i)
@@ -324,10 +314,6 @@ Eigen::VectorXd HeatGeodesicSolver::distance_from_weights(const Eigen::VectorXd&
 
   const Eigen::VectorXd rhs = operators_.gradient.transpose() * normalized_field(operators_.gradient * u);
   Eigen::VectorXd phi = pinned_poisson_.solve(rhs);
-  if (components_.count() == 1) {
-    phi.array() -= source_weights.dot(phi) / source_weights.sum();
-    return phi;
-  }
   // Per component: shifted by its sources' weighted mean; +∞ where it has no source.
   remove_component_means(components_, source_weights, phi);
   std::vector<char> reached(static_cast<std::size_t>(components_.count()), 0);

@@ -86,6 +86,14 @@ ComponentLabels vertex_components(const ice::Faces& F, Index vertex_count) {
   });
 }
 
+std::vector<char> components_holding(const ComponentLabels& components, const std::vector<Index>& vertices) {
+  std::vector<char> held(static_cast<std::size_t>(components.count()), 0);
+  for (Index v : vertices)
+    if (v >= 0 && static_cast<std::size_t>(v) < components.label.size())
+      held[static_cast<std::size_t>(components.label[static_cast<std::size_t>(v)])] = 1;
+  return held;
+}
+
 void remove_component_means(const ComponentLabels& components, const Eigen::VectorXd& weights, Eigen::VectorXd& x) {
   if (components.count() <= 1) {
     const double total = weights.sum();

@@ -29,6 +29,9 @@ ComponentLabels component_labels(const SparseMatrix& A);
 /// vertex no face uses is a component of its own), labelled as above. O(m α(n)).
 ComponentLabels vertex_components(const ice::Faces& F, Index vertex_count);
 
+/// Per component: whether it holds one of `vertices` (those out of range are ignored).
+std::vector<char> components_holding(const ComponentLabels& components, const std::vector<Index>& vertices);
+
 /// Per component c of x's entries: x_i −= (Σ_{j∈c} w_j x_j) / (Σ_{j∈c} w_j), i.e. zero w-weighted
 /// mean on each (a component of zero total weight is left as it is). One component: x −= w·x / Σw.
 void remove_component_means(const ComponentLabels& components, const Eigen::VectorXd& weights, Eigen::VectorXd& x);
