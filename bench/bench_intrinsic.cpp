@@ -7,6 +7,10 @@
 // Loop subdivision: fertility.off (4,494 vertices) subdivided 4 times has 1,150,214 vertices.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+
 #include <cstdlib>
 #include <map>
 #include <numeric>
@@ -16,6 +20,7 @@
 #include <sys/resource.h>
 
 #include "ice/coarsen.h"
+#include "ice/error_metric.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "bench_support.h"
@@ -151,5 +156,70 @@ void BM_Coarsen(benchmark::State& state) {
 }
 BENCHMARK(BM_Coarsen)->Args({0, 1})->Args({0, 2})->Unit(benchmark::kMillisecond)->Iterations(3)->UseRealTime();
 BENCHMARK(BM_Coarsen)->Args({1, 1})->Args({1, 2})->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
+
+// The removals of BM_Coarsen without what makes them greedy: no cost evaluation, no queue. Passes
+// over the vertices in index order each remove an independent set (a vertex is skipped when it or a
+// neighbour was touched earlier in the pass), through the same steps as coarsen(): one Newton
+// flattening (compute_flattening, then reused as the hint), the metric's prepared records,
+// remove_vertex, the Delaunay flips around it, the records written. Boundary vertices are left.
+// What any order of removals costs at least, so it bounds how fast ICE coarsening can be made by
+// changing the order alone (issue #22: the 300 k removals/s floor, the one-shot proxy's floors).
+void BM_RemovalsOnly(benchmark::State& state) {
+  const bool large = state.range(0) == 1;
+  if (large && !ice_bench::has_mesh(state, "fertility.off")) return;
+  const TriangleMesh& m = large ? mesh("fertility.off", 4) : mesh("spot_subdiv.obj");
+  const Index target = large ? 10000 : 1000;
+  Index removed = 0, failed = 0;
+  double seconds = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto T = IntrinsicTriangulation::from_mesh(m.V, m.F);
+    state.ResumeTiming();
+    const auto start = std::chrono::steady_clock::now();
+    T.maintain_frames(true);
+    IntrinsicErrorMetric metric(T, 0.0);
+    IntrinsicErrorMetric::RemovalPlan plan;
+    const Index n = T.num_input_vertices();
+    std::vector<std::uint8_t> touched(static_cast<std::size_t>(n)), failures(static_cast<std::size_t>(n));
+    std::vector<Index> around, changed;
+    removed = failed = 0;
+    for (Index removed_in_pass = 1; removed_in_pass > 0 && T.num_vertices() > target;) {
+      removed_in_pass = 0;
+      std::fill(touched.begin(), touched.end(), 0);
+      for (Index v = 0; v < n && T.num_vertices() > target; ++v) {
+        if (!T.vertex_alive(v) || touched[v] || failures[v] >= 3 || T.is_boundary_vertex(v)) continue;
+        bool free = true;
+        around.clear();
+        T.for_each_outgoing(v, [&](Index h) {
+          around.push_back(T.head(h));
+          free = free && !touched[T.head(h)];
+        });
+        if (!free) continue;
+        const FlattenResult flattening = T.compute_flattening(v);
+        if (!flattening.success || !metric.prepare_removal(T, v, plan, flattening.log_scale)) {
+          ++failures[v];
+          continue;
+        }
+        changed.clear();
+        if (T.remove_vertex(v, &changed, &around, flattening.log_scale) == RemovalStatus::Removed) {
+          metric.apply_removal(plan);
+          ++removed, ++removed_in_pass;
+        } else {
+          ++failed, ++failures[v];
+        }
+        T.flip_to_delaunay_around(changed, &around);
+        touched[v] = 1;
+        for (Index u : around) touched[u] = 1;
+      }
+    }
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  state.counters["input_vertices"] = static_cast<double>(m.V.rows());
+  state.counters["removed"] = static_cast<double>(removed);
+  state.counters["failed"] = static_cast<double>(failed);
+  state.counters["removals_per_s"] = removed / seconds;
+}
+BENCHMARK(BM_RemovalsOnly)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(3)->UseRealTime();
+BENCHMARK(BM_RemovalsOnly)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
