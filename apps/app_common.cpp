@@ -156,12 +156,22 @@ fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& c
                           prolongation);
 }
 
-TangentMesh tangent_mesh(const ice::TriangleMesh& mesh) {
+TangentMesh tangent_mesh(const ice::TriangleMesh& mesh, ice::FineGeometry geometry, double time_factor) {
   TangentMesh out;
   out.mesh.F = mesh.F;
   out.mesh.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
   out.mesh.twin = ice::glue_by_vertex_pairs(mesh.F);
   out.frames = fem::tangent_frames(out.mesh);
+  out.geometry = geometry;
+  if (geometry == ice::FineGeometry::input) {
+    out.operators = fem::vector_heat_operators(out.mesh, out.frames, time_factor);
+  } else {
+    ice::FineMesh delaunay = ice::fine_mesh(mesh, geometry);
+    out.flips = delaunay.flips;
+    out.operators = fem::vector_heat_operators(
+        out.mesh, out.frames, ice::CompactMesh{std::move(delaunay.F), std::move(delaunay.L), std::move(delaunay.twin), {}, {}},
+        time_factor);
+  }
   return out;
 }
 
@@ -169,7 +179,7 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::Coars
                                        const std::vector<ice::CoarsePoint>& map, fem::VectorOperatorKind kind,
                                        double time_factor) {
   const fem::TangentFrames coarse_frames = fem::tangent_frames(coarse.mesh);
-  return fem::VectorHeatProxy(fine.mesh, fine.frames, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
+  return fem::VectorHeatProxy(fine.mesh, fine.frames, fine.operators, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
 }
 
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,

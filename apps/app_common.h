@@ -79,17 +79,24 @@ fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& c
                             fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric);
 
 /// The fine mesh of the vector heat method (vector-coarse, the Python package): the input triangles
-/// with their own edge lengths, glued by vertex pairs, and their tangent frames — not the intrinsic
-/// Delaunay retriangulation, since the fields are drawn on the input triangles.
+/// with their own edge lengths, glued by vertex pairs, and their tangent frames, in which every field
+/// is given (one vector per input vertex, drawn on the input triangles); and the method's fine
+/// operators in those frames, discretised on the input triangles or (FineGeometry::intrinsic_delaunay,
+/// the default) on their intrinsic Delaunay triangulation (fem::vector_heat_operators with a second
+/// triangulation), with t = (time_factor · the input's mean edge length)².
 struct TangentMesh {
   ice::CompactMesh mesh;
   fem::TangentFrames frames;
+  fem::VectorHeatOperators operators;
+  ice::FineGeometry geometry = ice::FineGeometry::intrinsic_delaunay;
+  ice::Index flips = 0;  ///< intrinsic Delaunay flips
 };
-TangentMesh tangent_mesh(const ice::TriangleMesh& mesh);
+TangentMesh tangent_mesh(const ice::TriangleMesh& mesh, ice::FineGeometry geometry, double time_factor = 1.0);
 
 /// The vector proxy through `coarse`, a coarse space of the mesh `fine` was made from, and its
 /// fine-to-coarse map (ice::fine_to_coarse_map: ICE, or QEM with extrinsic geometry): the coarse
-/// mesh's frames, P_vec fitted from the map, the coarse operators of `kind`.
+/// mesh's frames, P_vec fitted from the map, the coarse operators of `kind` (Galerkin ones from
+/// fine.operators).
 fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::CoarseSpace& coarse,
                                        const std::vector<ice::CoarsePoint>& map, fem::VectorOperatorKind kind,
                                        double time_factor = fem::kVectorProxyTimeFactor);

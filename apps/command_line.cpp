@@ -354,7 +354,7 @@ fem::ProlongationKind resolve_prolongation(ProlongationChoice choice, fem::Coars
 }
 
 void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
-  cli.add_option("mesh", mesh, "Input mesh (.obj, .off, .ply, .stl); must be connected")->required();
+  cli.add_option("mesh", mesh, "Input mesh (.obj, .off, .ply, .stl)")->required();
   target.add_to(cli, false);
   add_operators_option(cli, operators);
   add_choice(cli, "--qem-operators", qem_geometry, kQemGeometryNames,

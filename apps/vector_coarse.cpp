@@ -6,11 +6,13 @@
 // that interpolates them (directions by the connection Laplacian, magnitudes by scalar diffusion).
 //
 // Pipeline (every phase timed apart): load → coarsen (ice::build_coarse_space with the fine-to-coarse
-// map) → assemble (app::tangent_mesh: the input triangles and their tangent frames) → factor
-// (app::make_vector_proxy: the coarse frames, the vector prolongation P_vec fitted from the map, the coarse operators —
-// Galerkin P_vecᴴ L∇ P_vec or intrinsic — and their factorisations) → solve (restricted sources,
-// three coarse solves) → prolong (P_vec and P, combined on the fine mesh). Then the reference:
-// fem::VectorHeatSolver on the fine mesh, and the angle and magnitude errors against it.
+// map) → fine mesh (app::tangent_mesh: the input triangles and their tangent frames, in which the
+// fields are given, and the fine operators in those frames, on the input's intrinsic Delaunay
+// triangulation unless --no-fine-idt) → factor (app::make_vector_proxy: the coarse frames, the vector
+// prolongation P_vec fitted from the map, the coarse operators — Galerkin P_vecᴴ L∇ P_vec or
+// intrinsic — and their factorisations) → solve (restricted sources, three coarse solves) → prolong
+// (P_vec and P, combined on the fine mesh). Then the reference: fem::VectorHeatSolver with the fine
+// operators, and the angle and magnitude errors against it.
 //
 // Vectors are given in each source's tangent frame (fem/vector_fields.h): an angle in degrees,
 // counter-clockwise from the vertex's reference edge (the first edge of its first face in the file;
@@ -91,14 +93,11 @@ int main(int argc, char** argv) {
                  "measured over the shared meshes)")
       ->check(app::positive_number())
       ->capture_default_str();
-  opt.fine_idt = false;
   opt.add_to(cli, "vector_x/y/z (prolonged field), reference_x/y/z, angle_error (degrees) and magnitude_error");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&]() -> int {
     using app::AppError;
-    if (opt.fine_idt)
-      throw AppError(app::kUsage, "--fine-idt: vector-coarse solves on the input triangles, where its fields are drawn");
     if (angles_text.empty() == directions_text.empty())
       throw AppError(app::kUsage, "give the vectors by exactly one of --vector (angles) and --direction (3D)");
     if (opt.target.method == ice::CoarseningMethod::qem && opt.qem_geometry == ice::QemGeometry::intrinsic_delaunay)
@@ -143,9 +142,12 @@ int main(int argc, char** argv) {
     const ice::CoarseSpace coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true);
     run.coarsen = clock.lap();
 
-    // ---- the input triangles' frames, the source vectors in them
-    const app::TangentMesh fine = app::tangent_mesh(mesh);
+    // ---- the input triangles' frames (the fields' and the sources'), the fine operators in them
+    const app::TangentMesh fine = app::tangent_mesh(mesh, opt.fine_geometry());
     const fem::TangentFrames& fine_frames = fine.frames;
+    run.idt_flips = fine.flips;
+    run.proxy_uses_fine_mesh = kind == fem::VectorOperatorKind::galerkin;
+    run.fine_mesh = clock.lap();
     std::vector<fem::Complex> vectors;
     for (std::size_t s = 0; s < count; ++s) {
       fem::Complex z;
@@ -174,9 +176,8 @@ int main(int argc, char** argv) {
     std::vector<double> angle_errors;
     Eigen::VectorXd angle_error_field, magnitude_error_field;
     if (run.has_reference) {
-      fem::VectorHeatOperators fine_ops = fem::vector_heat_operators(fine.mesh, fine_frames);
-      run.ref_assemble = clock.lap();
-      const fem::VectorHeatSolver fine_solver(std::move(fine_ops));
+      run.ref_assemble = clock.lap();  // the fine operators: built with the fine mesh above
+      const fem::VectorHeatSolver fine_solver(fine.operators);
       run.ref_factor = clock.lap();
       reference = fine_solver.interpolate(sources, vectors);
       run.ref_solve = clock.lap();

@@ -3,6 +3,7 @@
 /// errors against the truth rather than against the fine heat method (whose own error, 0.6-8 % on
 /// the shared meshes, is of the size of the proxy errors being compared). Built only where CGAL
 /// (Debian's libcgal-dev) is found: a benchmark dependency, not one of the libraries.
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -17,5 +18,24 @@ namespace ice_bench {
 /// Precondition: an oriented 2-manifold (with or without boundary) whose faces CGAL's Surface_mesh
 /// accepts; std::invalid_argument names the first face it refuses.
 Eigen::MatrixXd exact_geodesic_distances(const ice::TriangleMesh& mesh, const std::vector<ice::Index>& sources);
+
+/// The exact shortest path from a source to a vertex, by the directions that parallel transport
+/// along it needs (unit 3D vectors, each in the plane of the face its segment runs in): `departure`
+/// leaves the source along the path, `back` leaves the end vertex back along it, and at every mesh
+/// vertex the path runs through (a saddle, or along an edge), in order from the source, `back`
+/// (towards the source) and `ahead` (towards the end). Between vertices a transported vector keeps
+/// its angle with the path.
+struct ExactPath {
+  struct Through {
+    ice::Index vertex;
+    Eigen::Vector3d back, ahead;
+  };
+  Eigen::Vector3d departure, back;
+  std::vector<Through> through;
+};
+/// Calls visit(v, path) for every vertex v other than `source` that the source reaches, from one
+/// sequence tree (CGAL's Surface_mesh_shortest_path). Precondition as exact_geodesic_distances.
+void for_each_exact_path(const ice::TriangleMesh& mesh, ice::Index source,
+                         const std::function<void(ice::Index, const ExactPath&)>& visit);
 
 }  // namespace ice_bench

@@ -395,3 +395,53 @@ TEST_CASE("vector heat method: every vertex reached gets a vector, of the source
     CHECK(std::abs(std::abs(two(4000)) - 2.0) < 0.05);
   }
 }
+
+TEST_CASE("vector heat operators on a second triangulation: the same operators in the input's frames", "[fem][vectors]") {
+  SECTION("a Delaunay input: no flip, the input's own operators") {
+    const ice::TriangleMesh mesh = ice::make_icosphere(2);
+    const ice::CompactMesh fine = glued(mesh);
+    const fem::TangentFrames frames = fem::tangent_frames(fine);
+    ice::IntrinsicTriangulation delaunay = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    REQUIRE(delaunay.flip_to_delaunay() == 0);
+    const fem::VectorHeatOperators own = fem::vector_heat_operators(fine, frames, 2.0);
+    const fem::VectorHeatOperators other = fem::vector_heat_operators(fine, frames, delaunay.compact(), 2.0);
+    CHECK(other.time_step == own.time_step);
+    CHECK(largest_entry(other.connection - own.connection) < 1e-12 * largest_entry(own.connection));
+    CHECK((Eigen::MatrixXd(other.laplacian - own.laplacian)).cwiseAbs().maxCoeff() < 1e-12);
+    CHECK((Eigen::MatrixXd(other.mass - own.mass)).cwiseAbs().maxCoeff() < 1e-15);
+  }
+  SECTION("a flat disk with obtuse triangles: the parallel field is in the null space") {
+    // In the plane a field of one direction is parallel: e^{−iθ_v} in v's frame, θ_v the direction of
+    // v's reference side. Any flat triangulation's connection Laplacian annihilates it, so the input's
+    // frames must have been matched with the Delaunay triangulation's exactly.
+    const ice::TriangleMesh disk = ice::make_flat_disk(10, 1.0, 0.3, 7);
+    const ice::CompactMesh fine = glued(disk);
+    const fem::TangentFrames frames = fem::tangent_frames(fine);
+    ice::IntrinsicTriangulation delaunay = ice::IntrinsicTriangulation::from_mesh(disk.V, disk.F);
+    REQUIRE(delaunay.flip_to_delaunay() > 0);  // the input triangles are not Delaunay
+    const fem::VectorHeatOperators ops = fem::vector_heat_operators(fine, frames, delaunay.compact());
+    const Eigen::Index n = disk.V.rows();
+    Eigen::VectorXcd parallel(n);
+    for (Eigen::Index v = 0; v < n; ++v) {
+      const Index c = frames.reference_corner[static_cast<std::size_t>(v)];
+      const Eigen::RowVector3d side = disk.V.row(fine.F(c / 3, (c % 3 + 1) % 3)) - disk.V.row(v);
+      parallel(v) = std::polar(1.0, -std::atan2(side(1), side(0)));
+    }
+    CHECK((ops.connection * parallel).cwiseAbs().maxCoeff() < 1e-10 * largest_entry(ops.connection));
+    CHECK(largest_entry(ops.connection - fem::ComplexSparseMatrix(ops.connection.adjoint())) == 0);
+    // Every cotan weight of the Delaunay triangulation is >= 0 inside, so the heat kernel stays
+    // positive and transport from any vertex is exactly the parallel field.
+    const fem::VectorHeatSolver solver(ops);
+    const Eigen::VectorXcd field = solver.interpolate({0}, {parallel(0)});
+    const std::vector<double> errors = angle_errors(field, parallel);
+    CHECK(*std::max_element(errors.begin(), errors.end()) < 1e-6);
+  }
+  SECTION("another vertex count is refused") {
+    const ice::TriangleMesh mesh = ice::make_icosphere(1);
+    const ice::CompactMesh fine = glued(mesh);
+    const fem::TangentFrames frames = fem::tangent_frames(fine);
+    ice::CompactMesh bigger = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F).compact();
+    bigger.F(0, 0) = static_cast<Index>(mesh.V.rows());
+    CHECK_THROWS_AS(fem::vector_heat_operators(fine, frames, bigger), std::invalid_argument);
+  }
+}

@@ -309,6 +309,39 @@ VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const Ta
   return ops;
 }
 
+VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames,
+                                          const ice::CompactMesh& delaunay, double time_factor) {
+  if (!(time_factor > 0)) throw std::invalid_argument("vector_heat_operators: the time factor must be positive");
+  const auto n = static_cast<Index>(frames.reference_corner.size());
+  if (delaunay.F.rows() == 0 || delaunay.F.maxCoeff() >= n || delaunay.F.minCoeff() < 0)
+    throw std::invalid_argument("vector_heat_operators: the second triangulation's vertices are not the mesh's");
+  // Every vertex is its own coarse vertex, at one of its corners.
+  ice::CompactMesh same = delaunay;
+  same.to_input.resize(static_cast<std::size_t>(n));
+  for (Index v = 0; v < n; ++v) same.to_input[static_cast<std::size_t>(v)] = v;
+  same.from_input = same.to_input;
+  std::vector<ice::CoarsePoint> own(static_cast<std::size_t>(n));
+  for (Eigen::Index f = 0; f < same.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      ice::CoarsePoint& point = own[static_cast<std::size_t>(same.F(f, k))];
+      if (point.face != ice::kInvalid) continue;
+      point = {same.F(f, k), static_cast<Index>(f), {0, 0, 0}};
+      point.bary[static_cast<std::size_t>(k)] = 1;
+    }
+  for (Index v = 0; v < n; ++v)
+    if (own[static_cast<std::size_t>(v)].face == ice::kInvalid && frames.reference_corner[static_cast<std::size_t>(v)] != ice::kInvalid)
+      throw std::invalid_argument("vector_heat_operators: vertex " + std::to_string(v) + " is in no face of the second triangulation");
+  const TangentFrames same_frames = tangent_frames(same);
+  // One unit entry per row: the rotation from the vertex's frame in `same` into its frame in `mesh`.
+  const ComplexSparseMatrix turn = vector_prolongation(mesh, frames, same, same_frames, own);
+  VectorHeatOperators ops = vector_heat_operators(same, same_frames, 1.0);
+  const ComplexSparseMatrix turned = turn * ops.connection * ComplexSparseMatrix(turn.adjoint());
+  ops.connection = 0.5 * (turned + ComplexSparseMatrix(turned.adjoint()));
+  const double h = time_factor * mean_edge_length(mesh.L);
+  ops.time_step = h * h;
+  return ops;
+}
+
 namespace {
 ComplexSparseMatrix as_complex(const SparseMatrix& A) { return A.cast<Complex>(); }
 }  // namespace
@@ -696,17 +729,35 @@ VectorHeatProxy::VectorHeatProxy(const ice::CompactMesh& fine, const TangentFram
                                  const std::vector<ice::CoarsePoint>& map, SparseMatrix P, VectorOperatorKind kind,
                                  double time_factor)
     : P_(std::move(P)) {
+  build(fine, fine_frames, nullptr, coarse, coarse_frames, map, kind, time_factor);
+}
+
+VectorHeatProxy::VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
+                                 const VectorHeatOperators& fine_operators, const ice::CompactMesh& coarse,
+                                 const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map,
+                                 SparseMatrix P, VectorOperatorKind kind, double time_factor)
+    : P_(std::move(P)) {
+  build(fine, fine_frames, &fine_operators, coarse, coarse_frames, map, kind, time_factor);
+}
+
+void VectorHeatProxy::build(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
+                            const VectorHeatOperators* fine_operators, const ice::CompactMesh& coarse,
+                            const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map,
+                            VectorOperatorKind kind, double time_factor) {
   const Eigen::Index n_fine = static_cast<Eigen::Index>(fine_frames.reference_corner.size());
   const Eigen::Index n_coarse = static_cast<Eigen::Index>(coarse_frames.reference_corner.size());
   if (P_.rows() != n_fine || P_.cols() != n_coarse)
     throw std::invalid_argument("VectorHeatProxy: P is " + std::to_string(P_.rows()) + " x " + std::to_string(P_.cols()) +
                                 ", the meshes have " + std::to_string(n_fine) + " and " + std::to_string(n_coarse) + " vertices");
+  if (fine_operators && fine_operators->mass.rows() != n_fine)
+    throw std::invalid_argument("VectorHeatProxy: the fine operators are not of the fine mesh's size");
   vector_prolongation_ = fem::vector_prolongation(fine, fine_frames, coarse, coarse_frames, map, &stats_);
   VectorHeatOperators coarse_ops;
   if (kind == VectorOperatorKind::intrinsic) {
     coarse_ops = vector_heat_operators(coarse, coarse_frames, time_factor);
   } else {
-    const VectorHeatOperators fine_ops = vector_heat_operators(fine, fine_frames, time_factor);
+    const VectorHeatOperators own = fine_operators ? VectorHeatOperators{} : vector_heat_operators(fine, fine_frames, time_factor);
+    const VectorHeatOperators& fine_ops = fine_operators ? *fine_operators : own;
     coarse_ops.laplacian = galerkin(P_, fine_ops.laplacian);
     const Eigen::VectorXd coarse_areas = P_.transpose() * fine_ops.mass.diagonal();
     coarse_ops.mass = SparseMatrix(coarse_areas.asDiagonal());

@@ -315,6 +315,7 @@ FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
   CompactMesh compact = T.compact();  // no vertex removed: compact indices are T's input indices
   fine.F = std::move(compact.F);
   fine.L = std::move(compact.L);
+  fine.twin = std::move(compact.twin);  // sides keep their faces: renaming vertices leaves it valid
   if (!order.empty())
     for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
       for (int k = 0; k < 3; ++k) fine.F(f, k) = order[static_cast<std::size_t>(fine.F(f, k))];

@@ -523,7 +523,8 @@ std::vector<fem::Complex> complex_argument(const py::handle& values, std::size_t
 }
 
 std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::object& F, const py::object& coarse_object,
-                                               const std::string& operators, const py::object& time_factor_object) {
+                                               const std::string& operators, const py::object& time_factor_object,
+                                               const std::string& fine) {
   auto result = std::make_unique<PyVectorHeat>();
   const PyCoarseSpace* coarse = coarse_object.is_none() ? nullptr : &coarse_object.cast<const PyCoarseSpace&>();
   const ice::TriangleMesh mesh = coarse ? require_coarse_space_of(V, F, *coarse, "VectorHeatSolver") : mesh_argument(V, F);
@@ -534,14 +535,17 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   const double time_factor = time_factor_object.is_none() ? (coarse ? fem::kVectorProxyTimeFactor : 1.0)
                                                           : number_option(time_factor_object, "time_factor");
   if (!(time_factor > 0) || !std::isfinite(time_factor)) throw py::value_error("time_factor must be > 0");
+  const auto geometry = choice<ice::FineGeometry>(
+      fine, "fine", {{"intrinsic_delaunay", ice::FineGeometry::intrinsic_delaunay}, {"input", ice::FineGeometry::input}});
   result->V = mesh.V;
   py::gil_scoped_release release;
   require_clean(mesh);
-  result->fine = app::tangent_mesh(mesh);
+  // Through a coarse space the fine operators' time step is not used (Galerkin products only).
+  result->fine = app::tangent_mesh(mesh, geometry, coarse ? 1.0 : time_factor);
   if (coarse)
     result->proxy = std::make_unique<fem::VectorHeatProxy>(app::make_vector_proxy(result->fine, coarse->space, coarse->map, kind, time_factor));
   else
-    result->fine_solver = std::make_unique<fem::VectorHeatSolver>(fem::vector_heat_operators(result->fine.mesh, result->fine.frames, time_factor));
+    result->fine_solver = std::make_unique<fem::VectorHeatSolver>(result->fine.operators);
   return result;
 }
 
@@ -1010,18 +1014,21 @@ coarsen with use="geodesic".)doc")
   // ---- tangent vector fields
   py::class_<PyVectorHeat>(m, "VectorHeatSolver", R"doc(The vector heat method (Sharp, Soliman, Crane 2019) on the input triangles, or through a coarse space (vector-coarse).
 
-VectorHeatSolver(V, F, coarse=None, operators="galerkin", time_factor=None): without `coarse`, on
-(V, F) itself with heat time t = (time_factor · mean edge length)², time_factor 1 by default; with a
+VectorHeatSolver(V, F, coarse=None, operators="galerkin", time_factor=None, fine="intrinsic_delaunay"):
+without `coarse`, on (V, F) itself with heat time t = (time_factor · mean edge length)², time_factor 1
+by default, discretised on the intrinsic Delaunay triangulation of (V, F) (fine="input": on its
+triangles as they are, whose obtuse angles can send far directions anywhere) — fields are given per
+vertex in the frames of the input triangles either way; with a
 coarse space of (V, F) (ice.coarsen, keep_map=True), through it: the sources restricted by the vector
 prolongation P_vec (complex, fitted from the fine-to-coarse map) and by P, the three diffusions solved
-on the coarse mesh with Galerkin ("galerkin", the default) or the coarse mesh's own ("intrinsic")
-operators, t = (time_factor · mean coarse edge length)² with time_factor 0.5 by default, prolonged back.
+on the coarse mesh with Galerkin ("galerkin", the default: from the fine operators of `fine`) or the
+coarse mesh's own ("intrinsic") operators, t = (time_factor · mean coarse edge length)² with time_factor 0.5 by default, prolonged back.
 
 Tangent vectors are complex numbers in each vertex's frame: the angle counter-clockwise from the
 vertex's reference edge (at an interior vertex scaled by 2π over its angle sum), the modulus the
 length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions into such numbers.)doc")
       .def(py::init(&make_vector_heat), py::arg("V"), py::arg("F"), py::arg("coarse") = py::none(), py::kw_only(),
-           py::arg("operators") = "galerkin", py::arg("time_factor") = py::none())
+           py::arg("operators") = "galerkin", py::arg("time_factor") = py::none(), py::arg("fine") = "intrinsic_delaunay")
       .def("interpolate", [](const PyVectorHeat& s, const py::object& sources, const py::object& vectors) {
              const std::vector<ice::Index> vertices = index_argument(sources, s.size(), "sources");
              if (vertices.empty()) throw py::value_error("sources is empty");

@@ -40,6 +40,23 @@ def test_transport_in_the_plane_is_the_identity():
     assert np.abs(field - direction).max() < 1e-9
 
 
+def test_obtuse_input_triangles_are_solved_on_their_intrinsic_delaunay_triangulation():
+    # Rows of the grid sheared alternately by 0.45 of a cell: half the triangles are obtuse, their
+    # long diagonals not Delaunay. On the intrinsic Delaunay triangulation (the default) transport
+    # in the plane is still the identity; the input's own triangles are kept with fine="input".
+    V, F = flat_grid(16)
+    row = np.round(V[:, 1] * 15).astype(int)
+    V[:, 0] += np.where(row % 2 == 1, 0.45 / 15, 0.0) * (row < 15)
+    default = ice.VectorHeatSolver(V, F)
+    direction = np.array([[0.6, 0.8, 0.0]])
+    start = default.to_tangent([100], direction)[0]
+    assert np.abs(default.to_ambient(default.transport(100, start)) - direction).max() < 1e-9
+    on_input = ice.VectorHeatSolver(V, F, fine="input")
+    assert np.all(np.isfinite(on_input.transport(100, start)))
+    with pytest.raises(ValueError, match="fine"):
+        ice.VectorHeatSolver(V, F, fine="delaunay")
+
+
 def test_the_proxy_approaches_the_fine_transport(spot):
     V, F, coarse = spot
     reference = ice.VectorHeatSolver(V, F).transport(0, 1j)

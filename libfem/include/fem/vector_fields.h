@@ -94,6 +94,21 @@ struct VectorHeatOperators {
 /// The operators of `mesh` with t = (time_factor·h)², h the mean edge length (the heat method's).
 VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames,
                                           double time_factor = 1.0);
+/// The operators of `mesh` (an input's triangles, with `frames`) discretised on `delaunay`, another
+/// triangulation of the same surface and vertices — its intrinsic Delaunay triangulation, faces in
+/// the input's vertex numbering, with their gluing — and written in `mesh`'s frames: L and M are
+/// `delaunay`'s, L∇ is `delaunay`'s with each vertex's frame turned into `mesh`'s (the rotation
+/// between the two frames, fitted from the vertex's one-ring as vector_prolongation fits a vertex
+/// that is its own coarse vertex: exact up to round-off, both describe one metric), and
+/// t = (time_factor·h)² with h `mesh`'s mean edge length (so that only the discretisation changes).
+/// Why: where an input triangle has an angle over 90° opposite an edge whose cotan weight is then
+/// negative, the heat method's short-time solutions lose the maximum principle, and far from the
+/// sources the vector heat method's directions can be anything (camel from CGAL's data, 12 % of
+/// its edges not Delaunay: 133° median from exact parallel transport on the input triangles, 7.4° on
+/// its intrinsic Delaunay triangulation; README, Tangent vector fields). Throws
+/// std::invalid_argument when `delaunay` has another vertex count or a vertex no face uses.
+VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames,
+                                          const ice::CompactMesh& delaunay, double time_factor = 1.0);
 
 /// Right-hand sides of the vector heat method for vectors prescribed at vertices: Y₀ (the vectors),
 /// u₀ (their lengths) and φ₀ (the sources' indicator), each summed where a vertex repeats.
@@ -202,6 +217,13 @@ class VectorHeatProxy {
   VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames, const ice::CompactMesh& coarse,
                   const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map, SparseMatrix P,
                   VectorOperatorKind kind, double time_factor = kVectorProxyTimeFactor);
+  /// The same with the fine operators given, in `fine`'s frames, for the Galerkin coarse operators
+  /// (e.g. vector_heat_operators(fine, fine_frames, delaunay): the input's intrinsic Delaunay
+  /// discretisation) instead of those of `fine`'s own triangles.
+  VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames, const VectorHeatOperators& fine_operators,
+                  const ice::CompactMesh& coarse, const TangentFrames& coarse_frames,
+                  const std::vector<ice::CoarsePoint>& map, SparseMatrix P, VectorOperatorKind kind,
+                  double time_factor = kVectorProxyTimeFactor);
   /// The fine field interpolating `vectors` at fine `vertices` (in the fine frames).
   Eigen::VectorXcd interpolate(const std::vector<Index>& vertices, const std::vector<Complex>& vectors) const;
   const ComplexSparseMatrix& vector_prolongation() const { return vector_prolongation_; }
@@ -213,6 +235,9 @@ class VectorHeatProxy {
   ComplexSparseMatrix vector_prolongation_;
   VectorProlongationStats stats_;
   std::unique_ptr<VectorHeatSolver> coarse_solver_;
+  void build(const ice::CompactMesh& fine, const TangentFrames& fine_frames, const VectorHeatOperators* fine_operators,
+             const ice::CompactMesh& coarse, const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map,
+             VectorOperatorKind kind, double time_factor);
 };
 
 /// Angle between two tangent vectors in degrees ([0, 180]; NaN if either is zero).

@@ -183,6 +183,9 @@ struct FineMesh {
   /// the locality numbering of build_coarse_space, about 2x faster at 1.6M vertices).
   Faces F;
   FaceLengths L;
+  /// With intrinsic_delaunay, how the faces' sides are glued (CompactMesh::twin): flips can join two
+  /// vertices by two edges, which vertex pairs cannot tell apart. Empty for the input triangles.
+  std::vector<Index> twin;
   FineGeometry geometry = FineGeometry::intrinsic_delaunay;
   Index flips = 0;  ///< intrinsic Delaunay flips made
 };

@@ -1,0 +1,129 @@
+// vector-accuracy: parallel transport by the vector heat method — on the input triangles and through
+// the coarse proxy (fem::VectorHeatProxy, vector-coarse's pipeline) — against exact parallel
+// transport along exact polyhedral geodesics (CGAL's Surface_mesh_shortest_path), per mesh:
+//
+//   vector-accuracy [--ratio R] [--time-factor F] mesh...
+//
+// Sources: vertices 0, n/3 and 2n/3 (vector-coarse's sweeps), each with the vector of angle 0 in its
+// frame. The exact transport of z from s to v keeps its angle with the geodesic: z times the path's
+// direction at v over its direction at s, both read in the vertices' frames (fem::ambient_to_tangent
+// of the path's first segment at s and, reversed, of its last segment at v); paths that
+// runs through other vertices carry it across each in the frames' convention (arriving is half a
+// turn from leaving back, as at any vertex of the discrete connection). Prints one Markdown row per
+// mesh: median angle errors (degrees; median over vertices, then over the sources) of the fine
+// method and of the proxy against exact transport, and of the proxy against the fine method (what
+// vector-coarse reports). A benchmark tool: CGAL is not a dependency of the libraries.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "exact_geodesics.h"
+#include "fem/geometry.h"
+#include "fem/vector_fields.h"
+#include "ice/coarse_space.h"
+#include "ice/intrinsic_triangulation.h"
+#include "ice/mesh_io.h"
+
+namespace {
+
+double median(std::vector<double> values) {
+  if (values.empty()) return std::nan("");
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+  return values[values.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  double ratio = 0.05, time_factor = fem::kVectorProxyTimeFactor;
+  std::vector<std::string> meshes;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--ratio" && i + 1 < argc) ratio = std::atof(argv[++i]);
+    else if (arg == "--time-factor" && i + 1 < argc) time_factor = std::atof(argv[++i]);
+    else meshes.push_back(arg);
+  }
+  if (meshes.empty() || !(ratio > 0 && ratio <= 1) || !(time_factor > 0)) {
+    std::fprintf(stderr, "usage: vector-accuracy [--ratio R] [--time-factor F] mesh...\n");
+    return 4;
+  }
+  std::printf("| mesh | vertices | coarse | fine vs exact: input / iDT | proxy vs exact: input / iDT | proxy vs its fine: input / iDT "
+              "| vertices compared |\n|---|---|---|---|---|---|---|\n");
+  for (const std::string& path : meshes) {
+    ice::TriangleMesh mesh;
+    try {
+      mesh = ice::load_mesh(path);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "vector-accuracy: skipping %s: %s\n", path.c_str(), e.what());
+      continue;
+    }
+    const auto n = static_cast<ice::Index>(mesh.V.rows());
+    ice::CompactMesh fine{mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), ice::glue_by_vertex_pairs(mesh.F), {}, {}};
+    const fem::TangentFrames fine_frames = fem::tangent_frames(fine);
+    ice::CoarseSpaceOptions options;
+    options.coarsen.target_ratio = ratio;
+    options.keep_method_state = true;
+    const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+    const fem::VectorHeatProxy proxy(fine, fine_frames, space.mesh, fem::tangent_frames(space.mesh),
+                                     ice::fine_to_coarse_map(space), space.P, fem::VectorOperatorKind::galerkin, time_factor);
+    const fem::VectorHeatSolver fine_solver(fem::vector_heat_operators(fine, fine_frames));
+    // The fine operators on the input's intrinsic Delaunay triangulation (every cotan weight >= 0),
+    // in the input's frames: the fine method there, and the Galerkin proxy built from them.
+    ice::IntrinsicTriangulation delaunay = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+    delaunay.flip_to_delaunay();
+    const fem::VectorHeatOperators idt_operators = fem::vector_heat_operators(fine, fine_frames, delaunay.compact());
+    const fem::VectorHeatSolver idt_solver(idt_operators);
+    const fem::VectorHeatProxy idt_proxy(fine, fine_frames, idt_operators, space.mesh, fem::tangent_frames(space.mesh),
+                                         ice::fine_to_coarse_map(space), space.P, fem::VectorOperatorKind::galerkin,
+                                         time_factor);
+    std::vector<double> fine_errors, idt_errors, proxy_errors, idt_proxy_errors, proxy_vs_fine, idt_proxy_vs_idt;
+    long long compared = 0;
+    for (const ice::Index source : {ice::Index{0}, static_cast<ice::Index>(n / 3), static_cast<ice::Index>(2 * n / 3)}) {
+      const fem::Complex z(1, 0);
+      const Eigen::VectorXcd fine_field = fine_solver.interpolate({source}, {z});
+      const Eigen::VectorXcd proxy_field = proxy.interpolate({source}, {z});
+      const Eigen::VectorXcd idt_field = idt_solver.interpolate({source}, {z});
+      const Eigen::VectorXcd idt_proxy_field = idt_proxy.interpolate({source}, {z});
+      std::vector<double> direct_here, fine_here, idt_here, proxy_here, idt_proxy_here, between_here, idt_between_here;
+      const auto unit_tangent = [&](ice::Index v, const Eigen::Vector3d& direction) {
+        const fem::Complex t = fem::ambient_to_tangent(fine, fine_frames, mesh.V, v, direction);
+        return t / std::abs(t);
+      };
+      ice_bench::for_each_exact_path(mesh, source, [&](ice::Index v, const ice_bench::ExactPath& path) {
+        // The vector's angle with the path, carried from the source: kept along each straight piece;
+        // at a vertex the path runs through, arriving along it is half a turn from leaving back
+        // along it in the vertex's frame (the frames' convention at cones and saddles).
+        fem::Complex relative = z / unit_tangent(source, path.departure);
+        for (const ice_bench::ExactPath::Through& through : path.through)
+          relative = -unit_tangent(through.vertex, through.back) * relative / unit_tangent(through.vertex, through.ahead);
+        const fem::Complex exact = -unit_tangent(v, path.back) * relative;
+        if (!std::isfinite(std::abs(exact))) return;
+        fine_here.push_back(fem::angle_between_degrees(fine_field(v), exact));
+        idt_here.push_back(fem::angle_between_degrees(idt_field(v), exact));
+        if (path.through.empty()) direct_here.push_back(idt_here.back());
+        proxy_here.push_back(fem::angle_between_degrees(proxy_field(v), exact));
+        idt_proxy_here.push_back(fem::angle_between_degrees(idt_proxy_field(v), exact));
+        idt_between_here.push_back(fem::angle_between_degrees(idt_proxy_field(v), idt_field(v)));
+        between_here.push_back(fem::angle_between_degrees(proxy_field(v), fine_field(v)));
+      });
+      compared += static_cast<long long>(fine_here.size());
+      fine_errors.push_back(median(fine_here));
+      idt_errors.push_back(median(idt_here));
+      std::fprintf(stderr, "  source %lld: %zu of %zu paths through no vertex, fine iDT vs exact there %.2f\n", (long long)source, direct_here.size(), idt_here.size(), median(direct_here));
+      proxy_errors.push_back(median(proxy_here));
+      idt_proxy_errors.push_back(median(idt_proxy_here));
+      idt_proxy_vs_idt.push_back(median(idt_between_here));
+      proxy_vs_fine.push_back(median(between_here));
+    }
+    const std::string name = path.substr(path.find_last_of('/') + 1);
+    std::printf("| %s | %lld | %lld | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %lld |\n", name.c_str(),
+                static_cast<long long>(n), static_cast<long long>(space.mesh.num_vertices()), median(fine_errors),
+                median(idt_errors), median(proxy_errors), median(idt_proxy_errors), median(proxy_vs_fine),
+                median(idt_proxy_vs_idt), compared);
+    std::fflush(stdout);
+  }
+  return 0;
+}
