@@ -1,18 +1,21 @@
-// vector-accuracy: parallel transport by the vector heat method — on the input triangles and through
-// the coarse proxy (fem::VectorHeatProxy, vector-coarse's pipeline) — against exact parallel
-// transport along exact polyhedral geodesics (CGAL's Surface_mesh_shortest_path), per mesh:
+// vector-accuracy: parallel transport by the vector heat method against exact parallel transport
+// along exact polyhedral geodesics (CGAL's Surface_mesh_shortest_path), per mesh:
 //
 //   vector-accuracy [--ratio R] [--time-factor F] mesh...
 //
 // Sources: vertices 0, n/3 and 2n/3 (vector-coarse's sweeps), each with the vector of angle 0 in its
 // frame. The exact transport of z from s to v keeps its angle with the geodesic: z times the path's
 // direction at v over its direction at s, both read in the vertices' frames (fem::ambient_to_tangent
-// of the path's first segment at s and, reversed, of its last segment at v); paths that
-// runs through other vertices carry it across each in the frames' convention (arriving is half a
-// turn from leaving back, as at any vertex of the discrete connection). Prints one Markdown row per
-// mesh: median angle errors (degrees; median over vertices, then over the sources) of the fine
-// method and of the proxy against exact transport, and of the proxy against the fine method (what
-// vector-coarse reports). A benchmark tool: CGAL is not a dependency of the libraries.
+// of the path's first segment at s and, reversed, of its last segment at v); a path that runs
+// through mesh vertices carries it across each in the frames' convention (arriving is half a turn
+// from leaving back, as at any vertex of the discrete connection) — a convention, so the reference is
+// uncertain by up to the angle excess of the saddles crossed (stderr: per source, how many paths
+// cross none, and the fine method's error on those). Prints one Markdown row per mesh: median angle
+// errors (degrees; median over vertices, then over the sources) of the fine method and of the proxy
+// at R of the vertices (vector-coarse's pipeline), each with the fine operators of the input triangles
+// and of their intrinsic Delaunay triangulation, against exact transport and the proxy against its
+// own fine method (what vector-coarse reports). A benchmark tool: CGAL is not a dependency of the
+// libraries.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -112,7 +115,8 @@ int main(int argc, char** argv) {
       compared += static_cast<long long>(fine_here.size());
       fine_errors.push_back(median(fine_here));
       idt_errors.push_back(median(idt_here));
-      std::fprintf(stderr, "  source %lld: %zu of %zu paths through no vertex, fine iDT vs exact there %.2f\n", (long long)source, direct_here.size(), idt_here.size(), median(direct_here));
+      std::fprintf(stderr, "%s, source %lld: %zu of %zu paths cross no vertex; fine method (Delaunay) vs exact on them %.2f\n",
+                   path.c_str(), static_cast<long long>(source), direct_here.size(), idt_here.size(), median(direct_here));
       proxy_errors.push_back(median(proxy_here));
       idt_proxy_errors.push_back(median(idt_proxy_here));
       idt_proxy_vs_idt.push_back(median(idt_between_here));
