@@ -332,11 +332,14 @@ VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const Ta
     if (own[static_cast<std::size_t>(v)].face == ice::kInvalid && frames.reference_corner[static_cast<std::size_t>(v)] != ice::kInvalid)
       throw std::invalid_argument("vector_heat_operators: vertex " + std::to_string(v) + " is in no face of the second triangulation");
   const TangentFrames same_frames = tangent_frames(same);
-  // One unit entry per row: the rotation from the vertex's frame in `same` into its frame in `mesh`.
+  // Diagonal (each vertex is its own coarse vertex): the rotation from the vertex's frame in `same`
+  // into its frame in `mesh`. L∇ becomes D L∇ Dᴴ, entry by entry (Hermitian as it was).
   const ComplexSparseMatrix turn = vector_prolongation(mesh, frames, same, same_frames, own);
+  const Eigen::VectorXcd rotation = turn.diagonal();
   VectorHeatOperators ops = vector_heat_operators(same, same_frames, 1.0);
-  const ComplexSparseMatrix turned = turn * ops.connection * ComplexSparseMatrix(turn.adjoint());
-  ops.connection = 0.5 * (turned + ComplexSparseMatrix(turned.adjoint()));
+  for (Eigen::Index col = 0; col < ops.connection.outerSize(); ++col)
+    for (ComplexSparseMatrix::InnerIterator it(ops.connection, col); it; ++it)
+      it.valueRef() *= rotation(it.row()) * std::conj(rotation(col));
   const double h = time_factor * mean_edge_length(mesh.L);
   ops.time_step = h * h;
   return ops;
