@@ -1,7 +1,7 @@
 // vector-accuracy: parallel transport by the vector heat method against exact parallel transport
 // along exact polyhedral geodesics (CGAL's Surface_mesh_shortest_path), per mesh:
 //
-//   vector-accuracy [--ratio R] [--time-factor F] mesh...
+//   vector-accuracy [--ratio R] [--time-factor F] [--repair] mesh...
 //
 // Sources: vertices 0, n/3 and 2n/3 (vector-coarse's sweeps), each with the vector of angle 0 in its
 // frame. The exact transport of z from s to v keeps its angle with the geodesic: z times the path's
@@ -42,15 +42,17 @@ double median(std::vector<double> values) {
 
 int main(int argc, char** argv) {
   double ratio = 0.05, time_factor = fem::kVectorProxyTimeFactor;
+  ice::LoadOptions load;
   std::vector<std::string> meshes;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--ratio" && i + 1 < argc) ratio = std::atof(argv[++i]);
     else if (arg == "--time-factor" && i + 1 < argc) time_factor = std::atof(argv[++i]);
+    else if (arg == "--repair") load.repair = true;  // the safe repairs (ice-info --repair)
     else meshes.push_back(arg);
   }
   if (meshes.empty() || !(ratio > 0 && ratio <= 1) || !(time_factor > 0)) {
-    std::fprintf(stderr, "usage: vector-accuracy [--ratio R] [--time-factor F] mesh...\n");
+    std::fprintf(stderr, "usage: vector-accuracy [--ratio R] [--time-factor F] [--repair] mesh...\n");
     return 4;
   }
   std::printf("| mesh | vertices | coarse | fine vs exact: input / iDT | proxy vs exact: input / iDT | proxy vs its fine: input / iDT "
@@ -58,7 +60,7 @@ int main(int argc, char** argv) {
   for (const std::string& path : meshes) {
     ice::TriangleMesh mesh;
     try {
-      mesh = ice::load_mesh(path);
+      mesh = ice::load_mesh(path, load);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "vector-accuracy: skipping %s: %s\n", path.c_str(), e.what());
       continue;
