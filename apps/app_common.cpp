@@ -156,13 +156,14 @@ fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& c
                           prolongation);
 }
 
-TangentMesh tangent_mesh(const ice::TriangleMesh& mesh, ice::FineGeometry geometry, double time_factor) {
+TangentMesh tangent_mesh(const ice::TriangleMesh& mesh, ice::FineGeometry geometry, bool with_operators,
+                         double time_factor) {
   TangentMesh out;
   out.mesh.F = mesh.F;
   out.mesh.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
   out.mesh.twin = ice::glue_by_vertex_pairs(mesh.F);
   out.frames = fem::tangent_frames(out.mesh);
-  out.geometry = geometry;
+  if (!with_operators) return out;
   if (geometry == ice::FineGeometry::input) {
     out.operators = fem::vector_heat_operators(out.mesh, out.frames, time_factor);
   } else {
@@ -179,7 +180,11 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::Coars
                                        const std::vector<ice::CoarsePoint>& map, fem::VectorOperatorKind kind,
                                        double time_factor) {
   const fem::TangentFrames coarse_frames = fem::tangent_frames(coarse.mesh);
-  return fem::VectorHeatProxy(fine.mesh, fine.frames, fine.operators, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
+  if (fine.operators)
+    return fem::VectorHeatProxy(fine.mesh, fine.frames, *fine.operators, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
+  if (kind == fem::VectorOperatorKind::galerkin)
+    throw std::logic_error("make_vector_proxy: Galerkin operators need the fine operators (tangent_mesh with_operators)");
+  return fem::VectorHeatProxy(fine.mesh, fine.frames, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
 }
 
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,

@@ -83,20 +83,22 @@ fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& c
 /// is given (one vector per input vertex, drawn on the input triangles); and the method's fine
 /// operators in those frames, discretised on the input triangles or (FineGeometry::intrinsic_delaunay,
 /// the default) on their intrinsic Delaunay triangulation (fem::vector_heat_operators with a second
-/// triangulation), with t = (time_factor · the input's mean edge length)².
+/// triangulation), with t = (time_factor · the input's mean edge length)². The operators are only
+/// built when asked (`with_operators`): a fine reference or Galerkin coarse operators need them, an
+/// intrinsic proxy alone does not.
 struct TangentMesh {
   ice::CompactMesh mesh;
   fem::TangentFrames frames;
-  fem::VectorHeatOperators operators;
-  ice::FineGeometry geometry = ice::FineGeometry::intrinsic_delaunay;
+  std::optional<fem::VectorHeatOperators> operators;
   ice::Index flips = 0;  ///< intrinsic Delaunay flips
 };
-TangentMesh tangent_mesh(const ice::TriangleMesh& mesh, ice::FineGeometry geometry, double time_factor = 1.0);
+TangentMesh tangent_mesh(const ice::TriangleMesh& mesh, ice::FineGeometry geometry, bool with_operators,
+                         double time_factor = 1.0);
 
 /// The vector proxy through `coarse`, a coarse space of the mesh `fine` was made from, and its
 /// fine-to-coarse map (ice::fine_to_coarse_map: ICE, or QEM with extrinsic geometry): the coarse
 /// mesh's frames, P_vec fitted from the map, the coarse operators of `kind` (Galerkin ones from
-/// fine.operators).
+/// fine.operators, which must then have been built: std::logic_error otherwise).
 fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::CoarseSpace& coarse,
                                        const std::vector<ice::CoarsePoint>& map, fem::VectorOperatorKind kind,
                                        double time_factor = fem::kVectorProxyTimeFactor);

@@ -20,14 +20,14 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "app_common.h"
 #include "exact_geodesics.h"
-#include "fem/geometry.h"
 #include "fem/vector_fields.h"
 #include "ice/coarse_space.h"
-#include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
 
 namespace {
@@ -66,37 +66,42 @@ int main(int argc, char** argv) {
       continue;
     }
     const auto n = static_cast<ice::Index>(mesh.V.rows());
-    ice::CompactMesh fine{mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), ice::glue_by_vertex_pairs(mesh.F), {}, {}};
-    const fem::TangentFrames fine_frames = fem::tangent_frames(fine);
     ice::CoarseSpaceOptions options;
     options.coarsen.target_ratio = ratio;
     options.keep_method_state = true;
     const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
-    const fem::VectorHeatProxy proxy(fine, fine_frames, space.mesh, fem::tangent_frames(space.mesh),
-                                     ice::fine_to_coarse_map(space), space.P, fem::VectorOperatorKind::galerkin, time_factor);
-    const fem::VectorHeatSolver fine_solver(fem::vector_heat_operators(fine, fine_frames));
-    // The fine operators on the input's intrinsic Delaunay triangulation (every cotan weight >= 0),
-    // in the input's frames: the fine method there, and the Galerkin proxy built from them.
-    ice::IntrinsicTriangulation delaunay = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-    delaunay.flip_to_delaunay();
-    const fem::VectorHeatOperators idt_operators = fem::vector_heat_operators(fine, fine_frames, delaunay.compact());
-    const fem::VectorHeatSolver idt_solver(idt_operators);
-    const fem::VectorHeatProxy idt_proxy(fine, fine_frames, idt_operators, space.mesh, fem::tangent_frames(space.mesh),
-                                         ice::fine_to_coarse_map(space), space.P, fem::VectorOperatorKind::galerkin,
-                                         time_factor);
-    std::vector<double> fine_errors, idt_errors, proxy_errors, idt_proxy_errors, proxy_vs_fine, idt_proxy_vs_idt;
+    const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+    // vector-coarse's pipeline with the fine operators of the input triangles, then of their
+    // intrinsic Delaunay triangulation (both in the input triangles' frames).
+    struct Discretisation {
+      app::TangentMesh fine;
+      fem::VectorHeatSolver solver;
+      fem::VectorHeatProxy proxy;
+      std::vector<double> fine_errors, proxy_errors, proxy_vs_fine;  // per source
+    };
+    std::vector<std::unique_ptr<Discretisation>> runs;
+    for (const ice::FineGeometry geometry : {ice::FineGeometry::input, ice::FineGeometry::intrinsic_delaunay}) {
+      app::TangentMesh fine = app::tangent_mesh(mesh, geometry, true);
+      fem::VectorHeatSolver solver(*fine.operators);
+      fem::VectorHeatProxy proxy = app::make_vector_proxy(fine, space, map, fem::VectorOperatorKind::galerkin, time_factor);
+      runs.push_back(std::make_unique<Discretisation>(Discretisation{std::move(fine), std::move(solver), std::move(proxy), {}, {}, {}}));
+    }
+    const ice::CompactMesh& input = runs.front()->fine.mesh;  // the same triangles and frames in both
+    const fem::TangentFrames& frames = runs.front()->fine.frames;
+    const auto unit_tangent = [&](ice::Index v, const Eigen::Vector3d& direction) {
+      const fem::Complex t = fem::ambient_to_tangent(input, frames, mesh.V, v, direction);
+      return t / std::abs(t);
+    };
     long long compared = 0;
     for (const ice::Index source : {ice::Index{0}, static_cast<ice::Index>(n / 3), static_cast<ice::Index>(2 * n / 3)}) {
       const fem::Complex z(1, 0);
-      const Eigen::VectorXcd fine_field = fine_solver.interpolate({source}, {z});
-      const Eigen::VectorXcd proxy_field = proxy.interpolate({source}, {z});
-      const Eigen::VectorXcd idt_field = idt_solver.interpolate({source}, {z});
-      const Eigen::VectorXcd idt_proxy_field = idt_proxy.interpolate({source}, {z});
-      std::vector<double> direct_here, fine_here, idt_here, proxy_here, idt_proxy_here, between_here, idt_between_here;
-      const auto unit_tangent = [&](ice::Index v, const Eigen::Vector3d& direction) {
-        const fem::Complex t = fem::ambient_to_tangent(fine, fine_frames, mesh.V, v, direction);
-        return t / std::abs(t);
-      };
+      std::vector<Eigen::VectorXcd> fine_fields, proxy_fields;
+      for (const auto& run : runs) {
+        fine_fields.push_back(run->solver.interpolate({source}, {z}));
+        proxy_fields.push_back(run->proxy.interpolate({source}, {z}));
+      }
+      std::vector<std::vector<double>> fine_here(runs.size()), proxy_here(runs.size()), between_here(runs.size());
+      std::vector<double> direct_here;  // the Delaunay fine method on paths that cross no vertex
       ice_bench::for_each_exact_path(mesh, source, [&](ice::Index v, const ice_bench::ExactPath& path) {
         // The vector's angle with the path, carried from the source: kept along each straight piece;
         // at a vertex the path runs through, arriving along it is half a turn from leaving back
@@ -106,29 +111,28 @@ int main(int argc, char** argv) {
           relative = -unit_tangent(through.vertex, through.back) * relative / unit_tangent(through.vertex, through.ahead);
         const fem::Complex exact = -unit_tangent(v, path.back) * relative;
         if (!std::isfinite(std::abs(exact))) return;
-        fine_here.push_back(fem::angle_between_degrees(fine_field(v), exact));
-        idt_here.push_back(fem::angle_between_degrees(idt_field(v), exact));
-        if (path.through.empty()) direct_here.push_back(idt_here.back());
-        proxy_here.push_back(fem::angle_between_degrees(proxy_field(v), exact));
-        idt_proxy_here.push_back(fem::angle_between_degrees(idt_proxy_field(v), exact));
-        idt_between_here.push_back(fem::angle_between_degrees(idt_proxy_field(v), idt_field(v)));
-        between_here.push_back(fem::angle_between_degrees(proxy_field(v), fine_field(v)));
+        for (std::size_t r = 0; r < runs.size(); ++r) {
+          fine_here[r].push_back(fem::angle_between_degrees(fine_fields[r](v), exact));
+          proxy_here[r].push_back(fem::angle_between_degrees(proxy_fields[r](v), exact));
+          between_here[r].push_back(fem::angle_between_degrees(proxy_fields[r](v), fine_fields[r](v)));
+        }
+        if (path.through.empty()) direct_here.push_back(fine_here.back().back());
       });
-      compared += static_cast<long long>(fine_here.size());
-      fine_errors.push_back(median(fine_here));
-      idt_errors.push_back(median(idt_here));
+      compared += static_cast<long long>(fine_here.front().size());
+      for (std::size_t r = 0; r < runs.size(); ++r) {
+        runs[r]->fine_errors.push_back(median(fine_here[r]));
+        runs[r]->proxy_errors.push_back(median(proxy_here[r]));
+        runs[r]->proxy_vs_fine.push_back(median(between_here[r]));
+      }
       std::fprintf(stderr, "%s, source %lld: %zu of %zu paths cross no vertex; fine method (Delaunay) vs exact on them %.2f\n",
-                   path.c_str(), static_cast<long long>(source), direct_here.size(), idt_here.size(), median(direct_here));
-      proxy_errors.push_back(median(proxy_here));
-      idt_proxy_errors.push_back(median(idt_proxy_here));
-      idt_proxy_vs_idt.push_back(median(idt_between_here));
-      proxy_vs_fine.push_back(median(between_here));
+                   path.c_str(), static_cast<long long>(source), direct_here.size(), fine_here.back().size(), median(direct_here));
     }
     const std::string name = path.substr(path.find_last_of('/') + 1);
+    const Discretisation &on_input = *runs.front(), &on_delaunay = *runs.back();
     std::printf("| %s | %lld | %lld | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %lld |\n", name.c_str(),
-                static_cast<long long>(n), static_cast<long long>(space.mesh.num_vertices()), median(fine_errors),
-                median(idt_errors), median(proxy_errors), median(idt_proxy_errors), median(proxy_vs_fine),
-                median(idt_proxy_vs_idt), compared);
+                static_cast<long long>(n), static_cast<long long>(space.mesh.num_vertices()), median(on_input.fine_errors),
+                median(on_delaunay.fine_errors), median(on_input.proxy_errors), median(on_delaunay.proxy_errors),
+                median(on_input.proxy_vs_fine), median(on_delaunay.proxy_vs_fine), compared);
     std::fflush(stdout);
   }
   return 0;

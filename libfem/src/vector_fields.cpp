@@ -727,44 +727,36 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
   return P;
 }
 
+// The fine operators only serve the Galerkin products.
 VectorHeatProxy::VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
                                  const ice::CompactMesh& coarse, const TangentFrames& coarse_frames,
                                  const std::vector<ice::CoarsePoint>& map, SparseMatrix P, VectorOperatorKind kind,
                                  double time_factor)
-    : P_(std::move(P)) {
-  build(fine, fine_frames, nullptr, coarse, coarse_frames, map, kind, time_factor);
-}
+    : VectorHeatProxy(fine, fine_frames,
+                      kind == VectorOperatorKind::galerkin ? vector_heat_operators(fine, fine_frames) : VectorHeatOperators{},
+                      coarse, coarse_frames, map, std::move(P), kind, time_factor) {}
 
 VectorHeatProxy::VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
                                  const VectorHeatOperators& fine_operators, const ice::CompactMesh& coarse,
                                  const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map,
                                  SparseMatrix P, VectorOperatorKind kind, double time_factor)
     : P_(std::move(P)) {
-  build(fine, fine_frames, &fine_operators, coarse, coarse_frames, map, kind, time_factor);
-}
-
-void VectorHeatProxy::build(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
-                            const VectorHeatOperators* fine_operators, const ice::CompactMesh& coarse,
-                            const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map,
-                            VectorOperatorKind kind, double time_factor) {
   const Eigen::Index n_fine = static_cast<Eigen::Index>(fine_frames.reference_corner.size());
   const Eigen::Index n_coarse = static_cast<Eigen::Index>(coarse_frames.reference_corner.size());
   if (P_.rows() != n_fine || P_.cols() != n_coarse)
     throw std::invalid_argument("VectorHeatProxy: P is " + std::to_string(P_.rows()) + " x " + std::to_string(P_.cols()) +
                                 ", the meshes have " + std::to_string(n_fine) + " and " + std::to_string(n_coarse) + " vertices");
-  if (fine_operators && fine_operators->mass.rows() != n_fine)
+  if (kind == VectorOperatorKind::galerkin && fine_operators.mass.rows() != n_fine)
     throw std::invalid_argument("VectorHeatProxy: the fine operators are not of the fine mesh's size");
   vector_prolongation_ = fem::vector_prolongation(fine, fine_frames, coarse, coarse_frames, map, &stats_);
   VectorHeatOperators coarse_ops;
   if (kind == VectorOperatorKind::intrinsic) {
     coarse_ops = vector_heat_operators(coarse, coarse_frames, time_factor);
   } else {
-    const VectorHeatOperators own = fine_operators ? VectorHeatOperators{} : vector_heat_operators(fine, fine_frames, time_factor);
-    const VectorHeatOperators& fine_ops = fine_operators ? *fine_operators : own;
-    coarse_ops.laplacian = galerkin(P_, fine_ops.laplacian);
-    const Eigen::VectorXd coarse_areas = P_.transpose() * fine_ops.mass.diagonal();
+    coarse_ops.laplacian = galerkin(P_, fine_operators.laplacian);
+    const Eigen::VectorXd coarse_areas = P_.transpose() * fine_operators.mass.diagonal();
     coarse_ops.mass = SparseMatrix(coarse_areas.asDiagonal());
-    const ComplexSparseMatrix product = vector_prolongation_.adjoint() * (fine_ops.connection * vector_prolongation_);
+    const ComplexSparseMatrix product = vector_prolongation_.adjoint() * (fine_operators.connection * vector_prolongation_);
     coarse_ops.connection = 0.5 * (product + ComplexSparseMatrix(product.adjoint()));
     detail::stabilise_weak_coarse_unknowns(vector_prolongation_, coarse_ops.connection);
     detail::stabilise_weak_coarse_unknowns(P_, coarse_ops.mass);  // Pᵀ·areas is zero there too

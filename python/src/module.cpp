@@ -471,13 +471,18 @@ ice::TriangleMesh require_coarse_space_of(const py::object& V, const py::object&
   return mesh;
 }
 
+// The `fine=` argument of Proxy and VectorHeatSolver: the fine mesh's discretisation.
+ice::FineGeometry fine_geometry_argument(const std::string& fine) {
+  return choice<ice::FineGeometry>(
+      fine, "fine", {{"intrinsic_delaunay", ice::FineGeometry::intrinsic_delaunay}, {"input", ice::FineGeometry::input}});
+}
+
 std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
                                     const std::string& operators, const std::string& fine, const std::string& prolongation) {
   const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "Proxy");
   const auto kind = choice<fem::CoarseOperatorKind>(
       operators, "operators", {{"galerkin", fem::CoarseOperatorKind::galerkin}, {"intrinsic", fem::CoarseOperatorKind::intrinsic}});
-  const auto geometry = choice<ice::FineGeometry>(
-      fine, "fine", {{"intrinsic_delaunay", ice::FineGeometry::intrinsic_delaunay}, {"input", ice::FineGeometry::input}});
+  const ice::FineGeometry geometry = fine_geometry_argument(fine);
   const auto smoothing = choice<fem::ProlongationKind>(
       prolongation, "prolongation",
       {{"barycentric", fem::ProlongationKind::barycentric}, {"smoothed", fem::ProlongationKind::smoothed}});
@@ -535,17 +540,16 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   const double time_factor = time_factor_object.is_none() ? (coarse ? fem::kVectorProxyTimeFactor : 1.0)
                                                           : number_option(time_factor_object, "time_factor");
   if (!(time_factor > 0) || !std::isfinite(time_factor)) throw py::value_error("time_factor must be > 0");
-  const auto geometry = choice<ice::FineGeometry>(
-      fine, "fine", {{"intrinsic_delaunay", ice::FineGeometry::intrinsic_delaunay}, {"input", ice::FineGeometry::input}});
+  const ice::FineGeometry geometry = fine_geometry_argument(fine);
   result->V = mesh.V;
   py::gil_scoped_release release;
   require_clean(mesh);
   // Through a coarse space the fine operators' time step is not used (Galerkin products only).
-  result->fine = app::tangent_mesh(mesh, geometry, coarse ? 1.0 : time_factor);
+  result->fine = app::tangent_mesh(mesh, geometry, !coarse || kind == fem::VectorOperatorKind::galerkin, coarse ? 1.0 : time_factor);
   if (coarse)
     result->proxy = std::make_unique<fem::VectorHeatProxy>(app::make_vector_proxy(result->fine, coarse->space, coarse->map, kind, time_factor));
   else
-    result->fine_solver = std::make_unique<fem::VectorHeatSolver>(result->fine.operators);
+    result->fine_solver = std::make_unique<fem::VectorHeatSolver>(*result->fine.operators);
   return result;
 }
 

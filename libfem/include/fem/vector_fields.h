@@ -235,9 +235,6 @@ class VectorHeatProxy {
   ComplexSparseMatrix vector_prolongation_;
   VectorProlongationStats stats_;
   std::unique_ptr<VectorHeatSolver> coarse_solver_;
-  void build(const ice::CompactMesh& fine, const TangentFrames& fine_frames, const VectorHeatOperators* fine_operators,
-             const ice::CompactMesh& coarse, const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map,
-             VectorOperatorKind kind, double time_factor);
 };
 
 /// Angle between two tangent vectors in degrees ([0, 180]; NaN if either is zero).
