@@ -13,6 +13,7 @@
 #include <new>
 #include <sstream>
 
+#include "fem/curvature_correction.h"
 #include "fem/topology.h"
 #include "ice/prolongation.h"
 #include "view_page.h"
@@ -230,11 +231,28 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   return p;
 }
 
+bool corrects_curvature(CurvatureCorrection correction, const ice::CoarseSpace& space) {
+  return correction == CurvatureCorrection::on ||
+         (correction == CurvatureCorrection::automatic && space.summary.method == ice::CoarseningMethod::ice);
+}
+
 ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                  const ice::CoarseTracing* tracing) {
-  if (!traced) return space.mesh.L;
-  if (tracing) return ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, *tracing);
-  return ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, ice::trace_coarse_mesh(mesh, space));
+                                  CurvatureCorrection correction, const ice::CoarseTracing* tracing) {
+  ice::FaceLengths lengths = !traced ? space.mesh.L
+                             : tracing ? ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, *tracing)
+                                       : ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, ice::trace_coarse_mesh(mesh, space));
+  if (!corrects_curvature(correction, space)) return lengths;
+  return fem::curvature_corrected_lengths(mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F,
+                                          lengths, space.P);
+}
+
+void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction) {
+  add_choice(cli, "--curvature-correction", correction,
+             {{"auto", CurvatureCorrection::automatic}, {"on", CurvatureCorrection::on}, {"off", CurvatureCorrection::off}},
+             "Coarse marching on edge lengths scaled by exp(K l^2/24) for the Gaussian curvature K each coarse face "
+             "flattens (fem::curvature_corrected_lengths): 'auto' (the default) for ICE coarse meshes, not QEM's. "
+             "Against exact geodesics at 5 % over 40 meshes: ICE 0.71x the error, better on 36 of 40; QEM 1.14x "
+             "(README, Accuracy)");
 }
 
 std::optional<ice::CoarseTracing> trace_for_outputs(const PdeOptions& opt, const ice::TriangleMesh& mesh,

@@ -125,11 +125,20 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
                          PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
                          bool keep_method_state = false);
 
+/// Whether coarse marching runs on curvature-corrected lengths (fem/curvature_correction.h): `automatic`
+/// for ICE coarse meshes and not for QEM's, as measured (README, Accuracy).
+enum class CurvatureCorrection { automatic, on, off };
+
 /// The coarse edge lengths coarse marching runs on: the coarse mesh's own, or (`traced`) those of its
 /// edges traced on the input surface (ice::traced_edge_lengths; `tracing` if the caller has traced
-/// already, else traced here: an ICE space built with keep_method_state).
+/// already, else traced here: an ICE space built with keep_method_state); then curvature-corrected
+/// (fem::curvature_corrected_lengths with the input mesh and space.P) as `correction` says.
 ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                  const ice::CoarseTracing* tracing = nullptr);
+                                  CurvatureCorrection correction, const ice::CoarseTracing* tracing = nullptr);
+/// Whether `correction` corrects marching on `space` (automatic: an ICE space).
+bool corrects_curvature(CurvatureCorrection correction, const ice::CoarseSpace& space);
+/// --curvature-correction auto|on|off, for the tools that march on the coarse mesh.
+void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction);
 
 /// The coarse mesh traced on the input (ice/coarse_tracing.h) when an output draws it: --output or
 /// --html, and an ICE space built with keep_method_state (build_pde_proxy keeps it for them). Traced

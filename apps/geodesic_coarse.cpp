@@ -63,6 +63,7 @@ struct OracleRequest {
   fem::CoarseDistanceMethod method = fem::CoarseDistanceMethod::marching;
   bool traced_lengths = false;  ///< --coarse-lengths traced: marching on the coarse edges' lengths on the surface
   int subdivisions = fem::ProxyGeodesicOptions{}.subdivisions;  ///< --marching-subdivisions (coarse marching)
+  app::CurvatureCorrection curvature_correction = app::CurvatureCorrection::automatic;  ///< --curvature-correction
   int check_sources = 16;
   bool active() const { return all_pairs || !pairs_path.empty() || sample_count > 0; }
   std::string mode() const { return all_pairs ? "all_pairs" : !pairs_path.empty() ? "pairs" : "sample"; }
@@ -164,7 +165,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
   oracle_options.subdivisions = request.subdivisions;
-  const fem::DistanceOracle oracle(space.mesh.F, app::marching_lengths(mesh, space, request.traced_lengths), map,
+  const fem::DistanceOracle oracle(space.mesh.F, app::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction), map,
                                    oracle_options);
   const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced
 
@@ -260,6 +261,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
   report["coarse"] = app::coarsen_json(space.summary);
   report["coarse_lengths"] = request.traced_lengths ? "traced" : "intrinsic";
+  report["curvature_corrected"] = app::corrects_curvature(request.curvature_correction, space);
   if (request.method == fem::CoarseDistanceMethod::marching) report["marching_subdivisions"] = request.subdivisions;
   report["oracle"] = {{"coarse_distances", fem::to_string(request.method)},
                       {"coarse_vertices", oracle.coarse_size()},
@@ -346,6 +348,7 @@ int main(int argc, char** argv) {
                   "edges traced on the input surface (ICE only: more accurate, 0.95x the error over 40 meshes x 1-10 % "
                   "in geometric mean, better in 113 of 160 cases, at the cost of the tracing: 2.6 s at 1.6M vertices "
                   "and 1 %; README, Accuracy)");
+  app::add_curvature_correction_option(cli, oracle.curvature_correction);
   const CLI::Option* subdivisions_option = cli.add_option(
       "--marching-subdivisions", oracle.subdivisions,
       "Coarse marching on the coarse mesh split 1:4 this many times (flat midpoint subdivision, the coarse metric "
@@ -424,7 +427,8 @@ int main(int argc, char** argv) {
     if (marching) {  // no coarse operators: the coarse mesh and P are all the marching reads
       run.coarse_solver = oracle.traced_lengths ? "coarse fast marching on traced lengths" : "coarse fast marching";
       if (oracle.traced_lengths) tracing = ice::trace_coarse_mesh(mesh, pde.coarse);
-      ice::FaceLengths lengths = app::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, tracing ? &*tracing : nullptr);
+      ice::FaceLengths lengths = app::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, oracle.curvature_correction,
+                                                        tracing ? &*tracing : nullptr);
       run.assemble = clock.lap();  // with the tracing of --coarse-lengths traced
       proxy_solver.emplace(pde.coarse.mesh.F, lengths, pde.coarse.P, oracle.subdivisions);
     } else {
@@ -470,6 +474,7 @@ int main(int argc, char** argv) {
     report["sources"] = file_sources;
     report["coarse_distances"] = fem::to_string(oracle.method);
     report["coarse_lengths"] = oracle.traced_lengths ? "traced" : "intrinsic";
+    if (marching) report["curvature_corrected"] = app::corrects_curvature(oracle.curvature_correction, pde.coarse);
     if (marching) report["marching_subdivisions"] = oracle.subdivisions;
     if (oracle.traced_lengths && tracing) report["coarse_lengths_traced_edges"] = {{"edges", tracing->edges.size()}, {"traced", tracing->traced}};
     report["max_distance"] = largest_finite(distance);

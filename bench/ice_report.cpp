@@ -761,6 +761,8 @@ int main(int argc, char** argv) {
                   "ICE's geodesics by coarse marching on the coarse mesh's intrinsic edge lengths, or on the lengths of "
                   "its edges traced on the input surface (ice::traced_edge_lengths; the tracing counts in the geodesic "
                   "row's factor time)");
+  app::CurvatureCorrection curvature_correction = app::CurvatureCorrection::automatic;
+  app::add_curvature_correction_option(cli, curvature_correction);
   int coarsen_threads = 1, coarsen_regions = 0;  // ICE coarsening's parallel phase (default: the serial order)
   app::add_coarsen_parallel_options(cli, coarsen_threads, coarsen_regions);
   std::string tolerances_text;
@@ -916,7 +918,7 @@ int main(int argc, char** argv) {
           std::optional<ice::FaceLengths> marching_lengths;
           app::Stopwatch trace_clock;
           if (traced_lengths)
-            marching_lengths = app::marching_lengths(mesh, coarse, true);
+            marching_lengths = app::marching_lengths(mesh, coarse, true, curvature_correction);
           const double trace_seconds = trace_clock.lap();
           Row r = base;
           r.method = m;
@@ -926,7 +928,9 @@ int main(int argc, char** argv) {
           r.target_reached = coarse.summary.target_reached;
           if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.stop_reason());
           ProxySolutions solved;
-          solve_on_proxy(fine, coarse, kind, prolongation, r, rows, tolerances, polished, geodesic,
+          fem::ProxyGeodesicOptions ice_geodesic = geodesic;
+          ice_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse);
+          solve_on_proxy(fine, coarse, kind, prolongation, r, rows, tolerances, polished, ice_geodesic,
                          viewed ? &solved : nullptr, marching_lengths ? &*marching_lengths : nullptr);
           rows.back().factor += trace_seconds;  // the geodesic row: its marching needs the tracing
           if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
@@ -966,7 +970,9 @@ int main(int argc, char** argv) {
             // (positions, or their intrinsic Delaunay triangulation; Galerkin operators with its
             // barycentric P make QEM less accurate).
             ProxySolutions solved;
-            solve_on_proxy(fine, coarse, qem_kind, qem_prolongation, r, rows, tolerances, polished, geodesic,
+            fem::ProxyGeodesicOptions qem_geodesic = geodesic;
+            qem_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse);
+            solve_on_proxy(fine, coarse, qem_kind, qem_prolongation, r, rows, tolerances, polished, qem_geodesic,
                            viewed ? &solved : nullptr);
             if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
           } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
@@ -1007,6 +1013,8 @@ int main(int argc, char** argv) {
                               {"geodesic_sources", "vertex 0 and two farthest-point picks (R^3)"},
                               {"geodesic_coarse_distances", fem::to_string(geodesic.method)},
                               {"geodesic_lengths", traced_lengths ? "traced" : "intrinsic"},
+                              {"curvature_correction", curvature_correction == app::CurvatureCorrection::automatic ? "auto"
+                                                       : curvature_correction == app::CurvatureCorrection::on ? "on" : "off"},
                               {"fine_reference", "intrinsic Delaunay triangulation of the input"},
                               {"geodesic_reference", exact_geodesics ? "exact polyhedral geodesics (CGAL)" : "fine heat method"},
                               {"fine_heat_method_geodesic_errors", fine_heat_method_errors},

@@ -1,4 +1,5 @@
 #include "fem/coarse_proxy.h"
+#include "fem/curvature_correction.h"
 
 #include "coarse_marching.h"
 #include "parallel_kernels.h"
@@ -506,8 +507,14 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGe
   if (options.method == CoarseDistanceMethod::heat_method) {
     require_barycentric(proxy);
     heat_ = std::make_unique<HeatGeodesicSolver>(proxy.coarse_heat_method_operators(options.time_factor));
-  } else
+  } else if (options.curvature_correction) {
+    prepare_marching(proxy.coarse_faces(),
+                     curvature_corrected_lengths(proxy.fine_faces(), proxy.fine_lengths(), proxy.coarse_faces(),
+                                                 proxy.coarse_lengths(), proxy.barycentric_prolongation()),
+                     options.subdivisions);
+  } else {
     prepare_marching(proxy.coarse_faces(), proxy.coarse_lengths(), options.subdivisions);
+  }
 }
 
 ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P,

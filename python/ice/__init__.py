@@ -142,7 +142,8 @@ def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace
 
 def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, method: str = "marching",
                       time_factor: float = 1.0, operators: str = "galerkin", fine: str = "intrinsic_delaunay",
-                      lengths: str = "intrinsic", subdivisions: int = 1, **coarsening):
+                      lengths: str = "intrinsic", subdivisions: int = 1, curvature_correction: bool | None = None,
+                      **coarsening):
     """Geodesic distance to `sources` through a coarse proxy (geodesic-coarse).
 
     method: "marching" (fast marching on the coarse mesh, the default; operators and fine are then
@@ -150,7 +151,9 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     solve_poisson, with the metric measured best for geodesics (use="geodesic") by default. lengths:
     "intrinsic" or, with marching on an ICE coarse space, "traced" (the coarse edges' lengths on the
     surface: geodesic-coarse --coarse-lengths traced). subdivisions: marching on the coarse mesh split
-    1:4 that many times (geodesic-coarse --marching-subdivisions). On a mesh of several components
+    1:4 that many times (geodesic-coarse --marching-subdivisions). curvature_correction: with marching,
+    edge lengths scaled for the curvature each coarse face flattens (None: for ICE coarse spaces, as
+    geodesic-coarse --curvature-correction auto). On a mesh of several components
     the distance is +inf on the components without a source. For many sources or pairs see
     ProxyGeodesicSolver and DistanceOracle.
     """
@@ -162,7 +165,8 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     if lengths != "intrinsic" and method != "marching":
         raise ValueError(f"lengths={lengths!r} is for method='marching'")
     if method == "marching":  # needs only the coarse mesh and P: no Proxy (fine mesh, operators) to build
-        return ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths=lengths, subdivisions=subdivisions).distance(sources)
+        return ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths=lengths, subdivisions=subdivisions,
+                                               curvature_correction=curvature_correction).distance(sources)
     proxy = Proxy(V, F, coarse, operators=operators, fine=fine)
     return ProxyGeodesicSolver(proxy, method=method, time_factor=time_factor).distance(sources)
 

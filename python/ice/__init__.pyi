@@ -153,11 +153,11 @@ class ProxyHeatSolver:
 class ProxyGeodesicSolver:
     """Geodesic distance through the proxy (coarse fast marching, or the coarse heat method)."""
     def __init__(self, proxy: Proxy, *, method: Literal["marching", "heat"] = "marching",
-                 time_factor: float = 1.0, subdivisions: int = 1) -> None: ...
+                 time_factor: float = 1.0, subdivisions: int = 1, curvature_correction: bool | None = None) -> None: ...
     @staticmethod
     def from_coarse(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
                     lengths: Literal["intrinsic", "traced"] = "intrinsic",
-                    subdivisions: int = 1) -> ProxyGeodesicSolver:
+                    subdivisions: int = 1, curvature_correction: bool | None = None) -> ProxyGeodesicSolver:
         """Coarse marching from a coarse space of (V, F) alone, without a Proxy."""
     def distance(self, sources: Indices) -> FloatArray: ...
     @property
@@ -245,7 +245,7 @@ def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: C
                       time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
                       lengths: Literal["intrinsic", "traced"] = "intrinsic", subdivisions: int = 1,
-                      **coarsening: Any) -> FloatArray:
+                      curvature_correction: bool | None = None, **coarsening: Any) -> FloatArray:
     """Geodesic distance through a coarse proxy in one call (coarse fast marching by default)."""
 def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: ArrayLike = 1.0, *,
                       coarse: CoarseSpace | None = None, operators: Literal["galerkin", "intrinsic"] = "galerkin",

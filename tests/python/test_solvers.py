@@ -149,8 +149,19 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
     heat = ice.geodesic_distance(V, F, [7], ratio=0.05, method="heat")
     assert np.abs(heat - read_ascii_ply_fields(tmp_path / "h.ply")["distance"]).max() <= 1e-12 * heat.max()
     coarse = ice.coarsen(V, F, ratio=0.05, use="geodesic")
-    bare = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([7, 100])
-    assert np.array_equal(bare, ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse)).distance([7, 100]))
+    bare = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, curvature_correction=False).distance([7, 100])
+    assert np.array_equal(bare, ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse), curvature_correction=False).distance([7, 100]))
+    # With the curvature correction (the default for ICE), the same up to the fine triangulation's
+    # vertex areas (the input's here, its intrinsic Delaunay triangulation's through a Proxy).
+    corrected = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([7, 100])
+    assert np.abs(corrected - ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse)).distance([7, 100])).max() <= 1e-4 * corrected.max()
+    assert np.abs(corrected - bare).max() > 1e-3 * corrected.max()
+    assert np.array_equal(corrected, ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, curvature_correction=True).distance([7, 100]))
+    qem = ice.coarsen(V, F, ratio=0.05, method="qem")  # not corrected by default (measured: README, Accuracy)
+    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, qem).distance([7]),
+                          ice.ProxyGeodesicSolver.from_coarse(V, F, qem, curvature_correction=False).distance([7]))
+    with pytest.raises(TypeError, match="curvature_correction"):
+        ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, curvature_correction="yes")
     with pytest.raises(ValueError, match="method"):
         ice.geodesic_distance(V, F, [7], coarse=coarse, method="dijkstra")
     # Traced lengths: the tool's --coarse-lengths traced, and refused where there is nothing to trace.
@@ -172,8 +183,8 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
     split = ice.geodesic_distance(V, F, [7], ratio=0.05, subdivisions=2)
     assert np.abs(split - read_ascii_ply_fields(tmp_path / "s.ply")["distance"]).max() <= 1e-12 * split.max()
     assert np.abs(split - d).max() > 1e-6 * d.max()
-    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, subdivisions=0).distance([7]),
-                          ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse), subdivisions=0).distance([7]))
+    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, subdivisions=0, curvature_correction=False).distance([7]),
+                          ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse), subdivisions=0, curvature_correction=False).distance([7]))
     with pytest.raises(ValueError, match="subdivisions"):
         ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, subdivisions=-1)
 

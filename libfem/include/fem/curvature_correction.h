@@ -1,0 +1,40 @@
+#pragma once
+/// \file curvature_correction.h
+/// Coarse edge lengths for geodesic distances that account for the curvature a coarse face flattens.
+///
+/// A coarse face is flat; the patch of surface it stands for is not. On a surface of constant
+/// Gaussian curvature K, the geodesic triangle with sides s has medians (√3/2)·s·(1 + K s²/24 + …),
+/// while a flat triangle with sides ℓ has (√3/2)·ℓ: with ℓ = s the flat face shortens every path that
+/// crosses a positively curved patch (a bump) and lengthens every path across a negatively curved
+/// one (a saddle: where limbs join a body, around handles and holes) — the coarse mesh's distances
+/// are then biased, and no finer marching removes that. Lengthening each edge by exp(K s²/24), K the
+/// curvature density around the edge, makes the flat medians match to second order.
+///
+/// Measured (README, Accuracy; 40 meshes at 5 % of the vertices, 3 sources each, mean error against
+/// exact polyhedral geodesics, coarse fast marching): ICE coarse meshes with their intrinsic lengths
+/// 0.90 % → 0.66 % (geometric means), with traced lengths and 2 subdivisions 0.60 % → 0.44 %.
+#include "fem/geometry.h"
+#include "fem/operators.h"
+
+namespace fem {
+
+/// The angle defect of each fine vertex (2π minus its corner angles; 0 on boundary vertices, whose
+/// curvature is geodesic curvature of the boundary, and on vertices no face uses): the Gaussian
+/// curvature it carries. Throws InvalidTriangle as corner_angles.
+Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count);
+
+/// `coarse_lengths` with each edge (u, w) scaled by exp(K_uw ℓ² / 24), K_uw = (κ_u + κ_w) / (A_u +
+/// A_w), where κ = Pᵀ (fine angle defects) and A = Pᵀ (fine vertex areas, a third of each face's)
+/// gather the fine curvature and area onto the coarse vertices through P. An edge keeps one length on
+/// both its sides (sides are taken as one edge when they join the same vertices with the same length,
+/// as the marching takes them); where the scaled lengths break a face's triangle inequality, that
+/// face's edges keep their lengths (and so do their other sides), until every face is valid, so the
+/// result is a valid intrinsic metric whenever `coarse_lengths` is.
+/// Preconditions (std::invalid_argument): fine F, L of one shape with vertices below P.rows(); coarse
+/// faces and lengths of one shape with vertices below P.cols(); P non-negative rows (a barycentric
+/// or any interpolating prolongation). The fine lengths must be valid (InvalidTriangle).
+FaceLengths curvature_corrected_lengths(const Faces& fine_faces, const FaceLengths& fine_lengths,
+                                        const Faces& coarse_faces, const FaceLengths& coarse_lengths,
+                                        const SparseMatrix& P);
+
+}  // namespace fem

@@ -1,0 +1,99 @@
+#include "fem/curvature_correction.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <tuple>
+#include <vector>
+
+#include "fem/topology.h"
+
+namespace fem {
+
+namespace {
+constexpr double kPi = 3.141592653589793238462643383279502884;
+}  // namespace
+
+Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {
+  if (L.rows() != F.rows() || (F.rows() > 0 && (F.minCoeff() < 0 || F.maxCoeff() >= vertex_count)))
+    throw std::invalid_argument("angle_defects: faces and lengths of different shapes, or a vertex out of range");
+  const Eigen::MatrixXd angles = corner_angles(L);
+  Eigen::VectorXd angle_sum = Eigen::VectorXd::Zero(vertex_count);
+  std::vector<char> used(static_cast<std::size_t>(vertex_count), 0);
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      angle_sum(F(f, k)) += angles(f, k);
+      used[static_cast<std::size_t>(F(f, k))] = 1;
+    }
+  Eigen::VectorXd defect(vertex_count);
+  for (Eigen::Index v = 0; v < vertex_count; ++v)
+    defect(v) = used[static_cast<std::size_t>(v)] ? 2 * kPi - angle_sum(v) : 0.0;
+  for (const Index v : boundary_vertices(F)) defect(v) = 0.0;
+  return defect;
+}
+
+FaceLengths curvature_corrected_lengths(const Faces& fine_faces, const FaceLengths& fine_lengths,
+                                        const Faces& coarse_faces, const FaceLengths& coarse_lengths,
+                                        const SparseMatrix& P) {
+  const char* who = "curvature_corrected_lengths: ";
+  if (coarse_lengths.rows() != coarse_faces.rows() || coarse_faces.cols() != 3 || coarse_lengths.cols() != 3)
+    throw std::invalid_argument(std::string(who) + "coarse faces and lengths of different shapes");
+  if (coarse_faces.rows() > 0 && (coarse_faces.minCoeff() < 0 || coarse_faces.maxCoeff() >= P.cols()))
+    throw std::invalid_argument(std::string(who) + "a coarse vertex beyond P's columns");
+  for (Eigen::Index k = 0; k < P.outerSize(); ++k)
+    for (SparseMatrix::InnerIterator it(P, k); it; ++it)
+      if (!(it.value() >= 0)) throw std::invalid_argument(std::string(who) + "P has a negative or non-finite weight");
+  const Eigen::VectorXd curvature = P.transpose() * angle_defects(fine_faces, fine_lengths, P.rows());
+  const Eigen::VectorXd area = P.transpose() * lumped_vertex_areas(fine_faces, fine_lengths, P.rows());
+
+  // One scale per edge: sides with the same ends and length are one edge (as the marching reads
+  // them), numbered in the order of their keys.
+  struct Side {
+    Index low, high;
+    double length;
+    Eigen::Index side;  // 3f + k
+  };
+  std::vector<Side> sides;
+  sides.reserve(static_cast<std::size_t>(3 * coarse_faces.rows()));
+  for (Eigen::Index f = 0; f < coarse_faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Index u = coarse_faces(f, k), w = coarse_faces(f, (k + 1) % 3);
+      sides.push_back({std::min(u, w), std::max(u, w), coarse_lengths(f, k), 3 * f + k});
+    }
+  const auto key = [](const Side& s) { return std::tuple(s.low, s.high, s.length); };
+  std::sort(sides.begin(), sides.end(), [&](const Side& p, const Side& q) { return key(p) < key(q); });
+  std::vector<Eigen::Index> edge_of(sides.size());
+  std::vector<double> scale;
+  for (std::size_t i = 0; i < sides.size(); ++i) {
+    if (i == 0 || key(sides[i]) != key(sides[i - 1])) {
+      const Side& s = sides[i];
+      const double mass = area(s.low) + area(s.high);
+      const double density = mass > 0 ? (curvature(s.low) + curvature(s.high)) / mass : 0.0;
+      // exp rather than 1 + x: the same to second order, and positive where a strongly negatively
+      // curved patch (a handle's saddle) would make 1 + x vanish.
+      scale.push_back(std::exp(density * s.length * s.length / 24));
+    }
+    edge_of[static_cast<std::size_t>(sides[i].side)] = static_cast<Eigen::Index>(scale.size()) - 1;
+  }
+  // Scale, then give back their lengths to the edges of faces the scaling made invalid, until none
+  // is (each round only removes scales, and the given lengths are valid: it ends).
+  FaceLengths corrected(coarse_lengths.rows(), 3);
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (Eigen::Index f = 0; f < coarse_faces.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        corrected(f, k) = coarse_lengths(f, k) * scale[static_cast<std::size_t>(edge_of[static_cast<std::size_t>(3 * f + k)])];
+    for (Eigen::Index f = 0; f < coarse_faces.rows(); ++f) {
+      const double a = corrected(f, 0), b = corrected(f, 1), c = corrected(f, 2);
+      const double slack = 1e-9 * (a + b + c);
+      if (a + b - c > slack && b + c - a > slack && c + a - b > slack) continue;
+      for (int k = 0; k < 3; ++k) {
+        double& edge_scale = scale[static_cast<std::size_t>(edge_of[static_cast<std::size_t>(3 * f + k)])];
+        if (edge_scale != 1.0) edge_scale = 1.0, changed = true;
+      }
+    }
+  }
+  return corrected;
+}
+
+}  // namespace fem
