@@ -25,6 +25,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     VectorHeatSolver,
     coarsen,
     cotan_laplacian,
+    curvature_corrected_lengths,
     face_lengths,
     hierarchy,
     intrinsic_delaunay,
@@ -41,7 +42,7 @@ import numpy as np
 __all__ = [
     "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
-    "face_lengths", "geodesic_distance", "heat_flow", "hierarchy", "intrinsic_delaunay", "load_coarse_mesh",
+    "curvature_corrected_lengths", "face_lengths", "geodesic_distance", "heat_flow", "hierarchy", "intrinsic_delaunay", "load_coarse_mesh",
     "load_mesh", "loop_subdivide", "mass_matrix", "save_mesh", "solve_poisson", "transport_vectors", "validate",
     "VectorHeatSolver",
 ]

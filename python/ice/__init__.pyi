@@ -150,6 +150,9 @@ class ProxyHeatSolver:
     @property
     def times(self) -> dict[str, float]: ...
 
+def curvature_corrected_lengths(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
+                                lengths: ArrayLike | None = None) -> FloatArray:
+    """Coarse edge lengths scaled for the curvature each coarse face flattens (what marching uses for ICE)."""
 class ProxyGeodesicSolver:
     """Geodesic distance through the proxy (coarse fast marching, or the coarse heat method)."""
     def __init__(self, proxy: Proxy, *, method: Literal["marching", "heat"] = "marching",
@@ -195,7 +198,8 @@ class MultigridSolver:
 class DistanceOracle:
     """All-pairs geodesic distances of the fine vertices from a coarse space."""
     def __init__(self, coarse: CoarseSpace, *, method: Literal["marching", "heat"] = "marching",
-                 heat_time_factor: float = 1.0, threads: int = 0, subdivisions: int = 1) -> None: ...
+                 heat_time_factor: float = 1.0, threads: int = 0, subdivisions: int = 1,
+                 lengths: ArrayLike | None = None) -> None: ...
     def distance(self, u: int, v: int) -> float: ...
     def distances(self, pairs: ArrayLike) -> FloatArray: ...
     def distances_from(self, source: int) -> FloatArray: ...

@@ -968,6 +968,18 @@ ProxyPoissonSolver, per step.)doc")
       .def_property_readonly("times", [](PyHeatSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last integrate()'s stages.");
 
+  m.def("curvature_corrected_lengths", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
+                                          const py::object& lengths) {
+          const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "curvature_corrected_lengths");
+          const ice::FaceLengths L =
+              lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
+          py::gil_scoped_release release;
+          return fem::curvature_corrected_lengths(mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F),
+                                                  coarse.space.mesh.F, L, coarse.space.P);
+        }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = py::none(),
+        "The coarse edge lengths (m×3) scaled by exp(K l²/24) for the Gaussian curvature K each coarse face flattens, "
+        "gathered from (V, F) through the coarse space's P (fem::curvature_corrected_lengths): what coarse marching "
+        "runs on for ICE coarse spaces by default. lengths: the lengths to correct (default: the coarse mesh's own).");
   py::class_<PyGeodesicSolver>(m, "ProxyGeodesicSolver", R"doc(Geodesic distance through the coarse proxy (geodesic-coarse).
 
 ProxyGeodesicSolver(proxy, method="marching", time_factor=1.0, subdivisions=1, curvature_correction=None): method "marching" (fast
@@ -1233,26 +1245,31 @@ the coarsest factorisation; `constrained`: indices (each once) whose values solv
   // ---- the distance oracle
   py::class_<fem::DistanceOracle>(m, "DistanceOracle", R"doc(All-pairs geodesic distances of the fine vertices from the coarse mesh (geodesic-coarse --pairs).
 
-DistanceOracle(coarse, method="marching"|"heat", heat_time_factor=1.0, threads=0, subdivisions=1):
+DistanceOracle(coarse, method="marching"|"heat", heat_time_factor=1.0, threads=0, subdivisions=1, lengths=None):
 precomputes the coarse all-pairs distances (n_c² floats; marching on the coarse mesh split 1:4
 `subdivisions` times); each query then costs a few operations. Needs the coarse
 space's map (coarsen(..., keep_map=True), the default); coarsen with use="geodesic" for the metric
-measured best for distances (what geodesic-coarse does).)doc")
+measured best for distances (what geodesic-coarse does). lengths: the coarse edge lengths to march on
+(m×3, one row per coarse face; default: the coarse mesh's own), e.g.
+ice.curvature_corrected_lengths(V, F, coarse), what geodesic-coarse's oracle modes use for ICE.)doc")
       .def(py::init([](const PyCoarseSpace& coarse, const std::string& method, double heat_time_factor, int threads,
-                       int subdivisions) {
+                       int subdivisions, const py::object& lengths) {
              if (coarse.map.empty())
                throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
                                      "QEM with extrinsic geometry)");
+             const ice::FaceLengths L =
+                 lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
              fem::DistanceOracleOptions options;
              options.method = coarse_distance_method(method);
              options.heat_time_factor = heat_time_factor;
              options.threads = threads;
              options.subdivisions = subdivisions;
              py::gil_scoped_release release;
-             return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, coarse.space.mesh.L, coarse.map, options);
+             return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, L, coarse.map, options);
            }),
            py::arg("coarse"), py::kw_only(), py::arg("method") = "marching", py::arg("heat_time_factor") = 1.0,
-           py::arg("threads") = 0, py::arg("subdivisions") = fem::DistanceOracleOptions{}.subdivisions)
+           py::arg("threads") = 0, py::arg("subdivisions") = fem::DistanceOracleOptions{}.subdivisions,
+           py::arg("lengths") = py::none())
       .def("distance", [](const fem::DistanceOracle& o, long long u, long long v) {
              const Eigen::Index n = o.fine_size();
              if (u < 0 || u >= n || v < 0 || v >= n)

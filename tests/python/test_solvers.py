@@ -309,6 +309,17 @@ def test_distance_oracle(spot):
     assert np.abs(plain.distances(pairs) - d).max() > 1e-6 * d.max()
     with pytest.raises(ValueError, match="subdivisions"):
         ice.DistanceOracle(coarse, subdivisions=-1)
+    # On curvature-corrected lengths (geodesic-coarse's oracle modes for ICE): each edge scaled by
+    # exp(K l²/24), nearer the fine distances here, and the same as a proxy marching on them.
+    lengths = ice.curvature_corrected_lengths(V, F, coarse)
+    assert lengths.shape == coarse.lengths.shape
+    assert np.all(lengths[coarse.lengths > 0] > 0) and not np.array_equal(lengths, coarse.lengths)
+    corrected = ice.DistanceOracle(coarse, lengths=lengths)
+    error = lambda o: np.mean(np.abs(o.distances_from(11)[far] - fine[far]) / fine[far])
+    assert error(corrected) < error(oracle)
+    assert np.array_equal(ice.curvature_corrected_lengths(V, F, coarse, lengths=coarse.lengths), lengths)
+    with pytest.raises(ValueError, match="lengths"):
+        ice.DistanceOracle(coarse, lengths=np.ones((2, 3)))
 
 
 def test_dirichlet_values_follow_the_order_of_fixed(spot, project_mesh):
