@@ -6,7 +6,8 @@
 //
 // For K random source vertices: exact distances to every vertex (CGAL), fine heat-method distances
 // (one factorisation, blocked solve), and the oracle's at N coarse vertices (ICE, geodesic
-// defaults) with marching and with heat-method coarse distances. Prints one Markdown row per mesh
+// defaults) with marching (on the coarse lengths and on the curvature-corrected ones,
+// fem/curvature_correction.h) and with heat-method coarse distances. Prints one Markdown row per mesh
 // and oracle: mean and 95th-percentile of |d − d_ref| / d_ref over all pairs, far pairs and near
 // pairs (sharing a coarse vertex), against exact and against the fine heat method; and the fine
 // heat method's own error against exact. A benchmark tool: CGAL is not a dependency of the library.
@@ -17,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "fem/curvature_correction.h"
 #include "fem/distance_oracle.h"
 #include "fem/problems.h"
 #include "ice/coarse_space.h"
@@ -78,16 +80,22 @@ int main(int argc, char** argv) {
       for (ice::Index v = 0; v < n; ++v)
         if (v != sources[s] && exact(v, s) > 0) heat_vs_exact.push_back(std::abs(heat(v, s) - exact(v, s)) / exact(v, s));
 
-    for (const fem::CoarseDistanceMethod method : {fem::CoarseDistanceMethod::marching, fem::CoarseDistanceMethod::heat_method}) {
+    // Marching on the coarse mesh's own lengths and on the curvature-corrected ones (geodesic-coarse's
+    // default for ICE), and the heat method.
+    const ice::FaceLengths corrected = fem::curvature_corrected_lengths(
+        mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F, space.mesh.L, space.P);
+    for (const int variant : {0, 1, 2}) {
+      const fem::CoarseDistanceMethod method = variant < 2 ? fem::CoarseDistanceMethod::marching : fem::CoarseDistanceMethod::heat_method;
       fem::DistanceOracleOptions oracle_options;
       oracle_options.method = method;
       oracle_options.subdivisions = method == fem::CoarseDistanceMethod::marching ? subdivisions : 0;
-      const fem::DistanceOracle oracle(space.mesh.F, space.mesh.L, map, oracle_options);
+      const fem::DistanceOracle oracle(space.mesh.F, variant == 1 ? corrected : space.mesh.L, map, oracle_options);
       const fem::PairErrors vs_exact = fem::relative_pair_errors(oracle, sources, exact);
       const fem::PairErrors vs_heat = fem::relative_pair_errors(oracle, sources, heat);
       const std::string name = path.substr(path.find_last_of('/') + 1);
       std::printf("| %s | %d | %ld | %s | %s | %s | %s | %s | %s | %s | %s | %.3f s |\n", name.c_str(), n,
-                  static_cast<long>(oracle.coarse_size()), fem::to_string(method), summary(vs_exact.all()).c_str(),
+                  static_cast<long>(oracle.coarse_size()), variant == 1 ? "marching, curvature-corrected" : fem::to_string(method),
+                  summary(vs_exact.all()).c_str(),
                   summary(vs_exact.far).c_str(), summary(vs_exact.near).c_str(), summary(vs_heat.all()).c_str(),
                   summary(vs_heat.far).c_str(), summary(vs_heat.near).c_str(), summary(heat_vs_exact).c_str(),
                   oracle.times().coarse_distances);

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -12,7 +14,10 @@
 #include "fem/errors.h"
 #include "fem/problems.h"
 #include "fem/topology.h"
+#include "ice/coarse_space.h"
 #include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+#include "test_support.h"
 
 namespace {
 
@@ -274,4 +279,32 @@ TEST_CASE("several components: zero-mean Poisson and heat-method geodesics equal
   CHECK(std::isfinite(fem::relative_l2_error(approx, d, d_both.mass)));
   approx[ns] = 1.0;
   CHECK(std::isinf(fem::distance_errors(approx, d).max_relative));
+}
+
+TEST_CASE("boundary_vertices: the ends of the sides no other face shares, Δ-complexes too", "[fem][topology]") {
+  // Against counting sides by their end vertices (one side: a boundary edge; loop sides of a
+  // Δ-complex count once per face side, as the intrinsic Delaunay triangulation makes them).
+  const auto by_side_count = [](const ice::Faces& F) {
+    std::map<std::pair<int, int>, int> count;
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) ++count[std::minmax(F(f, k), F(f, (k + 1) % 3))];
+    std::set<int> ends;
+    for (const auto& [side, faces] : count)
+      if (faces == 1) ends.insert({side.first, side.second});
+    return std::vector<int>(ends.begin(), ends.end());
+  };
+  const ice::TriangleMesh holes = ice::load_mesh(ice_test::project_mesh("elephant-with-holes.off"));
+  const ice::TriangleMesh disk = ice::make_flat_disk(5);
+  for (const ice::Faces& F : {holes.F, disk.F, ice::fine_mesh(holes, ice::FineGeometry::intrinsic_delaunay).F,
+                              ice::Faces(ice::make_icosphere(1).F)}) {
+    CHECK(fem::boundary_vertices(F) == by_side_count(F));
+  }
+  CHECK(fem::boundary_vertices(ice::make_icosphere(1).F).empty());
+  CHECK(!fem::boundary_vertices(disk.F).empty());
+  // A loop side on the boundary: the face (0, 0, 1), its loop side 0 → 0 glued to nothing and its
+  // sides 0 → 1 and 1 → 0 to each other (a cone).
+  ice::Faces loop(1, 3);
+  loop << 0, 0, 1;
+  CHECK(fem::boundary_vertices(loop) == std::vector<int>{0});
+  CHECK(by_side_count(loop) == std::vector<int>{0});
 }
