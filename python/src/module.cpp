@@ -991,7 +991,7 @@ subdivisions: marching on the coarse mesh split 1:4 that many times (the coarse 
 2 measured: 2 is the most accurate, at ~8x the cost per source of 0). For the most accurate distances
 coarsen with use="geodesic". curvature_correction: march on edge lengths scaled by exp(K l²/24) for the
 Gaussian curvature K each coarse face flattens (geodesic-coarse --curvature-correction); None = for ICE
-coarse spaces, not QEM's (measured: 0.71x ICE's error against exact geodesics over 40 meshes at 5 %, 1.14x
+coarse spaces, not QEM's (measured: 0.71x ICE's error against exact geodesics over 40 meshes x 1-10 %, 1.14x
 QEM's).)doc")
       .def(py::init([](std::shared_ptr<PyProxy> proxy, const std::string& method, double time_factor, int subdivisions,
                        const py::object& curvature_correction) {
