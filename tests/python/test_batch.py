@@ -285,7 +285,14 @@ def test_stalled_worker_does_not_hang_the_batch(dataset, tmp_path):
     assert len(records) == len(MESHES) + 5
     stalled = [r for r in records if r.get("error_kind") == "stalled"]
     assert stalled and all("stall" in r["error"] and r["input"] in r["error"] for r in stalled), stdout + stderr
-    assert sum(r["status"] == "ok" for r in records) + len(stalled) == len(MESHES) + 3
+    # Every good mesh is done or stalled; the two bad files are refused, or stalled when the stall came
+    # before their turn (under load: seen once beside a CPU-bound job).
+    bad = {"broken.obj", "truncated.off"}
+    good_stalled = [r for r in stalled if pathlib.Path(r["input"]).name not in bad]
+    assert sum(r["status"] == "ok" for r in records) + len(good_stalled) == len(MESHES) + 3
+    for r in records:
+        if pathlib.Path(r["input"]).name in bad:
+            assert r["error_kind"] in ("defective", "unreadable", "stalled"), r
     again = batch.run(str(dataset), out, options())
     assert again.skipped == len(MESHES) + 5 - len(stalled)
     assert sum(r["status"] == "ok" for r in again.records) == len(MESHES) + 3
