@@ -231,9 +231,15 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   return p;
 }
 
-bool corrects_curvature(CurvatureCorrection correction, const ice::CoarseSpace& space) {
+bool corrects_curvature(CurvatureCorrection correction, ice::CoarseningMethod method) {
   return correction == CurvatureCorrection::on ||
-         (correction == CurvatureCorrection::automatic && space.summary.method == ice::CoarseningMethod::ice);
+         (correction == CurvatureCorrection::automatic && method == ice::CoarseningMethod::ice);
+}
+
+ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space,
+                                            const ice::FaceLengths& lengths) {
+  return fem::curvature_corrected_lengths(mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F,
+                                          lengths, space.P);
 }
 
 ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
@@ -241,9 +247,8 @@ ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::Coar
   ice::FaceLengths lengths = !traced ? space.mesh.L
                              : tracing ? ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, *tracing)
                                        : ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, ice::trace_coarse_mesh(mesh, space));
-  if (!corrects_curvature(correction, space)) return lengths;
-  return fem::curvature_corrected_lengths(mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F,
-                                          lengths, space.P);
+  return corrects_curvature(correction, space.summary.method) ? curvature_corrected_lengths(mesh, space, lengths)
+                                                             : lengths;
 }
 
 void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction) {

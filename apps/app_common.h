@@ -135,8 +135,12 @@ enum class CurvatureCorrection { automatic, on, off };
 /// (fem::curvature_corrected_lengths with the input mesh and space.P) as `correction` says.
 ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
                                   CurvatureCorrection correction, const ice::CoarseTracing* tracing = nullptr);
-/// Whether `correction` corrects marching on `space` (automatic: an ICE space).
-bool corrects_curvature(CurvatureCorrection correction, const ice::CoarseSpace& space);
+/// Whether `correction` corrects marching on a coarse space made by `method` (automatic: ICE's).
+bool corrects_curvature(CurvatureCorrection correction, ice::CoarseningMethod method);
+/// `lengths` (of space's coarse faces) curvature-corrected with the input `mesh`: its angle defects and
+/// vertex areas gathered through space.P (fem::curvature_corrected_lengths).
+ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space,
+                                            const ice::FaceLengths& lengths);
 /// --curvature-correction auto|on|off, for the tools that march on the coarse mesh.
 void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction);
 

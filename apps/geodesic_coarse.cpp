@@ -261,7 +261,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
   report["coarse"] = app::coarsen_json(space.summary);
   report["coarse_lengths"] = request.traced_lengths ? "traced" : "intrinsic";
-  report["curvature_corrected"] = app::corrects_curvature(request.curvature_correction, space);
+  report["curvature_corrected"] = app::corrects_curvature(request.curvature_correction, space.summary.method);
   if (request.method == fem::CoarseDistanceMethod::marching) report["marching_subdivisions"] = request.subdivisions;
   report["oracle"] = {{"coarse_distances", fem::to_string(request.method)},
                       {"coarse_vertices", oracle.coarse_size()},
@@ -474,7 +474,7 @@ int main(int argc, char** argv) {
     report["sources"] = file_sources;
     report["coarse_distances"] = fem::to_string(oracle.method);
     report["coarse_lengths"] = oracle.traced_lengths ? "traced" : "intrinsic";
-    if (marching) report["curvature_corrected"] = app::corrects_curvature(oracle.curvature_correction, pde.coarse);
+    if (marching) report["curvature_corrected"] = app::corrects_curvature(oracle.curvature_correction, pde.coarse.summary.method);
     if (marching) report["marching_subdivisions"] = oracle.subdivisions;
     if (oracle.traced_lengths && tracing) report["coarse_lengths_traced_edges"] = {{"edges", tracing->edges.size()}, {"traced", tracing->traced}};
     report["max_distance"] = largest_finite(distance);

@@ -929,7 +929,7 @@ int main(int argc, char** argv) {
           if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.stop_reason());
           ProxySolutions solved;
           fem::ProxyGeodesicOptions ice_geodesic = geodesic;
-          ice_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse);
+          ice_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse.summary.method);
           solve_on_proxy(fine, coarse, kind, prolongation, r, rows, tolerances, polished, ice_geodesic,
                          viewed ? &solved : nullptr, marching_lengths ? &*marching_lengths : nullptr);
           rows.back().factor += trace_seconds;  // the geodesic row: its marching needs the tracing
@@ -971,7 +971,7 @@ int main(int argc, char** argv) {
             // barycentric P make QEM less accurate).
             ProxySolutions solved;
             fem::ProxyGeodesicOptions qem_geodesic = geodesic;
-            qem_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse);
+            qem_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse.summary.method);
             solve_on_proxy(fine, coarse, qem_kind, qem_prolongation, r, rows, tolerances, polished, qem_geodesic,
                            viewed ? &solved : nullptr);
             if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);

@@ -507,13 +507,13 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGe
   if (options.method == CoarseDistanceMethod::heat_method) {
     require_barycentric(proxy);
     heat_ = std::make_unique<HeatGeodesicSolver>(proxy.coarse_heat_method_operators(options.time_factor));
-  } else if (options.curvature_correction) {
-    prepare_marching(proxy.coarse_faces(),
-                     curvature_corrected_lengths(proxy.fine_faces(), proxy.fine_lengths(), proxy.coarse_faces(),
-                                                 proxy.coarse_lengths(), proxy.barycentric_prolongation()),
-                     options.subdivisions);
   } else {
-    prepare_marching(proxy.coarse_faces(), proxy.coarse_lengths(), options.subdivisions);
+    prepare_marching(proxy.coarse_faces(),
+                     options.curvature_correction
+                         ? curvature_corrected_lengths(proxy.fine_faces(), proxy.fine_lengths(), proxy.coarse_faces(),
+                                                       proxy.coarse_lengths(), proxy.barycentric_prolongation())
+                         : proxy.coarse_lengths(),
+                     options.subdivisions);
   }
 }
 

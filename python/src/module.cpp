@@ -27,7 +27,6 @@
 #include "app_common.h"
 #include "arrays.h"
 #include "fem/coarse_proxy.h"
-#include "fem/curvature_correction.h"
 #include "fem/distance_oracle.h"
 #include "fem/multigrid.h"
 #include "fem/operators.h"
@@ -461,12 +460,15 @@ struct PyProxy {
   ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< of its coarse space
 };
 
-/// curvature_correction=None|True|False of the geodesic solvers: None = for ICE coarse spaces only,
-/// as geodesic-coarse --curvature-correction auto (measured: README, Accuracy).
+/// curvature_correction=None|True|False of the geodesic solvers on a coarse space made by `method`:
+/// None is geodesic-coarse's --curvature-correction auto (ICE's coarse spaces only, as measured).
 bool curvature_correction_argument(const py::object& value, ice::CoarseningMethod method) {
-  if (value.is_none()) return method == ice::CoarseningMethod::ice;
-  if (!py::isinstance<py::bool_>(value)) throw py::type_error("curvature_correction must be None, True or False");
-  return value.cast<bool>();
+  if (!value.is_none() && !py::isinstance<py::bool_>(value))
+    throw py::type_error("curvature_correction must be None, True or False");
+  const app::CurvatureCorrection correction = value.is_none()   ? app::CurvatureCorrection::automatic
+                                              : value.cast<bool>() ? app::CurvatureCorrection::on
+                                                                   : app::CurvatureCorrection::off;
+  return app::corrects_curvature(correction, method);
 }
 
 /// The mesh (V, F), checked to be the one `coarse` was made from (vertex count and faces), with P.
@@ -974,8 +976,7 @@ ProxyPoissonSolver, per step.)doc")
           const ice::FaceLengths L =
               lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
           py::gil_scoped_release release;
-          return fem::curvature_corrected_lengths(mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F),
-                                                  coarse.space.mesh.F, L, coarse.space.P);
+          return app::curvature_corrected_lengths(mesh, coarse.space, L);
         }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = py::none(),
         "The coarse edge lengths (m×3) scaled by exp(K l²/24) for the Gaussian curvature K each coarse face flattens, "
         "gathered from (V, F) through the coarse space's P (fem::curvature_corrected_lengths): what coarse marching "
@@ -1025,9 +1026,7 @@ QEM's).)doc")
                      ? ice::traced_edge_lengths(mesh.V, mesh.F, coarse.space.mesh, *coarse.tracing)
                      : ice::traced_edge_lengths(mesh.V, mesh.F, coarse.space.mesh,
                                                 ice::trace_coarse_mesh(mesh.F, coarse.space.mesh, coarse.map, coarse.space.inserted, mesh.V, 0));
-             if (corrected)
-               L = fem::curvature_corrected_lengths(mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F),
-                                                    coarse.space.mesh.F, L, coarse.space.P);
+             if (corrected) L = app::curvature_corrected_lengths(mesh, coarse.space, L);
              solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, L, coarse.space.P, subdivisions);
              return solver;
            }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = "intrinsic",
