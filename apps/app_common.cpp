@@ -216,9 +216,8 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
   // An output file draws the coarse mesh on the surface (write_result_fields): ICE's map is kept for it.
   // Kept for the tracing only (the outputs' drawing, traced lengths): with the history it draws from.
-  const bool keep = keep_method_state ||
-                    ((!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice);
-  p.coarse = coarsen_for_pde(mesh, options, opt, run, keep, keep);
+  const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice;
+  p.coarse = coarsen_for_pde(mesh, options, opt, run, keep_method_state || drawn, drawn);
   run.coarsen = clock.lap();
   // The fine discretisation: the reference's, and the Galerkin operators' and M f's
   run.fine_built = need_fine || assemble_proxy;
@@ -242,13 +241,14 @@ ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, cons
                                           lengths, space.P);
 }
 
-ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                  CurvatureCorrection correction, const ice::CoarseTracing* tracing) {
-  ice::FaceLengths lengths = !traced ? space.mesh.L
-                             : tracing ? ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, *tracing)
-                                       : ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, ice::trace_coarse_mesh(mesh, space));
-  return corrects_curvature(correction, space.summary.method) ? curvature_corrected_lengths(mesh, space, lengths)
-                                                             : lengths;
+ice::SurfaceEdgeLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
+                                         CurvatureCorrection correction) {
+  ice::SurfaceEdgeLengths result;
+  if (traced) result = ice::surface_edge_lengths(mesh, space.mesh, ice::fine_to_coarse_map(space), space.inserted);
+  else result.lengths = space.mesh.L;
+  if (corrects_curvature(correction, space.summary.method))
+    result.lengths = curvature_corrected_lengths(mesh, space, result.lengths);
+  return result;
 }
 
 void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction) {

@@ -116,8 +116,8 @@ struct PdeProxy {
   ice::FineMesh fine;
   std::unique_ptr<fem::CoarseProxy> proxy;
 };
-/// Builds them in that order (coarsen_for_pde, keeping the method's state and its history, for the
-/// tracing, for outputs that draw the coarse mesh or when asked; ice::fine_mesh of --fine-idt unless !need_fine,
+/// Builds them in that order (coarsen_for_pde, keeping the method's state and its history for
+/// outputs that draw the coarse mesh, the state alone when `keep_method_state` asks; ice::fine_mesh of --fine-idt unless !need_fine,
 /// make_proxy of --operators unless !assemble_proxy: then proxy stays null; assembling needs the
 /// fine mesh), with run.coarsen, run.fine_mesh, run.fine_built and run.idt_flips recorded; the
 /// proxy's assembly is left running on `clock`, for the caller's assemble phase.
@@ -130,11 +130,13 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
 enum class CurvatureCorrection { automatic, on, off };
 
 /// The coarse edge lengths coarse marching runs on: the coarse mesh's own, or (`traced`) those of its
-/// edges traced on the input surface (ice::traced_edge_lengths; `tracing` if the caller has traced
-/// already, else traced here: an ICE space built with keep_method_state); then curvature-corrected
-/// (fem::curvature_corrected_lengths with the input mesh and space.P) as `correction` says.
-ice::FaceLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                  CurvatureCorrection correction, const ice::CoarseTracing* tracing = nullptr);
+/// edges traced on the input surface by the walk over the map (ice::traced_edge_lengths of the map:
+/// an ICE space built with keep_method_state; its history, if recorded for drawing, is not used, so
+/// the distances do not depend on what else is written); then curvature-corrected
+/// (fem::curvature_corrected_lengths with the input mesh and space.P) as `correction` says. The
+/// counts are the walk's (zero for the intrinsic lengths).
+ice::SurfaceEdgeLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
+                                         CurvatureCorrection correction);
 /// Whether `correction` corrects marching on a coarse space made by `method` (automatic: ICE's).
 bool corrects_curvature(CurvatureCorrection correction, ice::CoarseningMethod method);
 /// `lengths` (of space's coarse faces) curvature-corrected with the input `mesh`: its angle defects and

@@ -29,6 +29,7 @@
 #include <limits>
 #include <optional>
 #include <random>
+#include <utility>
 
 #include "app_common.h"
 #include "fem/coarse_proxy.h"
@@ -159,13 +160,13 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   run.load = clock.lap();
 
   // ---- coarsen (keeping the map), then the oracle
-  const ice::CoarseSpace space = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true, request.traced_lengths);
+  const ice::CoarseSpace space = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true);
   const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
   run.coarsen = clock.lap();
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
   oracle_options.subdivisions = request.subdivisions;
-  const fem::DistanceOracle oracle(space.mesh.F, app::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction), map,
+  const fem::DistanceOracle oracle(space.mesh.F, app::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction).lengths, map,
                                    oracle_options);
   const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced
 
@@ -345,9 +346,10 @@ int main(int argc, char** argv) {
                   "prolonged with P); in the oracle modes, for all coarse pairs");
   app::add_choice(cli, "--coarse-lengths", oracle.traced_lengths, {{"intrinsic", false}, {"traced", true}},
                   "Coarse marching on the coarse mesh's intrinsic edge lengths (the default) or on the lengths of its "
-                  "edges traced on the input surface (ICE only: more accurate, 0.95x the error over 40 meshes x 1-10 % "
-                  "in geometric mean, better in 113 of 160 cases, at the cost of the tracing: 2.6 s at 1.6M vertices "
-                  "and 1 %; README, Accuracy)");
+                  "edges traced on the input surface by a walk over the fine-to-coarse map (ICE only: more accurate, "
+                  "0.78x the error against exact geodesics over 40 meshes x 1-10 % in geometric mean with 2 "
+                  "subdivisions, better in 129 of 160 cases, at the cost of the tracing: 2.7 s at 1.6M vertices and "
+                  "1 %; README, Accuracy)");
   app::add_curvature_correction_option(cli, oracle.curvature_correction);
   const CLI::Option* subdivisions_option = cli.add_option(
       "--marching-subdivisions", oracle.subdivisions,
@@ -421,16 +423,16 @@ int main(int argc, char** argv) {
     const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/!marching,
                                                    /*need_fine=*/!marching || run.has_reference,
                                                    /*keep_method_state=*/oracle.traced_lengths);
-    std::optional<ice::CoarseTracing> tracing;  // traced once, for the marching lengths and the outputs
     const ice::FineMesh& fine = pde.fine;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
+    std::optional<std::pair<ice::Index, ice::Index>> traced_counts;  // --coarse-lengths traced: edges, traced
     if (marching) {  // no coarse operators: the coarse mesh and P are all the marching reads
       run.coarse_solver = oracle.traced_lengths ? "coarse fast marching on traced lengths" : "coarse fast marching";
-      if (oracle.traced_lengths) tracing = ice::trace_coarse_mesh(mesh, pde.coarse);
-      ice::FaceLengths lengths = app::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, oracle.curvature_correction,
-                                                        tracing ? &*tracing : nullptr);
+      const ice::SurfaceEdgeLengths lengths =
+          app::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, oracle.curvature_correction);
+      if (oracle.traced_lengths) traced_counts = {lengths.edges, lengths.traced};
       run.assemble = clock.lap();  // with the tracing of --coarse-lengths traced
-      proxy_solver.emplace(pde.coarse.mesh.F, lengths, pde.coarse.P, oracle.subdivisions);
+      proxy_solver.emplace(pde.coarse.mesh.F, lengths.lengths, pde.coarse.P, oracle.subdivisions);
     } else {
       fem::HeatMethodOperators coarse_ops = pde.proxy->coarse_heat_method_operators();  // lumped mass for Galerkin
       run.assemble = clock.lap();
@@ -463,7 +465,7 @@ int main(int argc, char** argv) {
     }
 
     // ---- outputs
-    if (!tracing) tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
+    const std::optional<ice::CoarseTracing> tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
     const ice::CoarseTracing* traced = tracing && (!opt.output.empty() || !opt.html.empty()) ? &*tracing : nullptr;
     app::write_result_fields(opt, mesh, "distance", distance, reference, {}, traced);
     app::write_result_page(opt, mesh, "geodesic-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "geodesic",
@@ -476,7 +478,7 @@ int main(int argc, char** argv) {
     report["coarse_lengths"] = oracle.traced_lengths ? "traced" : "intrinsic";
     if (marching) report["curvature_corrected"] = app::corrects_curvature(oracle.curvature_correction, pde.coarse.summary.method);
     if (marching) report["marching_subdivisions"] = oracle.subdivisions;
-    if (oracle.traced_lengths && tracing) report["coarse_lengths_traced_edges"] = {{"edges", tracing->edges.size()}, {"traced", tracing->traced}};
+    if (traced_counts) report["coarse_lengths_traced_edges"] = {{"edges", traced_counts->first}, {"traced", traced_counts->second}};
     report["max_distance"] = largest_finite(distance);
     // Several components: the vertices of those without a source are not reached.
     const Eigen::Index unreached = (distance.array() == std::numeric_limits<double>::infinity()).count();

@@ -912,13 +912,13 @@ int main(int argc, char** argv) {
           options.coarsen.normalize_curvature = m == "ice" ? false : normalize_curvature;
           options.coarsen.threads = coarsen_threads;
           options.coarsen.regions = coarsen_regions;
-          options.keep_method_state = viewed || traced_lengths;  // the page and traced lengths trace the coarse edges
-          options.record_history = options.keep_method_state;    // exactly
+          options.keep_method_state = viewed || traced_lengths;  // the page and traced lengths trace the coarse edges:
+          options.record_history = viewed;                       // the page exactly, the lengths by the walk
           const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
           std::optional<ice::FaceLengths> marching_lengths;
           app::Stopwatch trace_clock;
           if (traced_lengths)
-            marching_lengths = app::marching_lengths(mesh, coarse, true, curvature_correction);
+            marching_lengths = app::marching_lengths(mesh, coarse, true, curvature_correction).lengths;
           const double trace_seconds = trace_clock.lap();
           Row r = base;
           r.method = m;

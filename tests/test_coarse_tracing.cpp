@@ -364,19 +364,31 @@ TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric close
   const ice::FaceLengths walk_lengths = ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, measured);
   CHECK((ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, unmeasured) - walk_lengths).cwiseAbs().maxCoeff() <=
         1e-12 * L.maxCoeff());
+  // surface_edge_lengths: the walk's lengths in one call, with its counts; no history needed.
+  const ice::SurfaceEdgeLengths surface = ice::surface_edge_lengths(sphere, space.mesh, map, space.inserted);
+  CHECK(surface.lengths == walk_lengths);
+  CHECK(surface.edges == static_cast<Index>(measured.edges.size()));
+  CHECK(surface.traced == measured.traced);
+  CHECK(surface.traced > surface.edges * 9 / 10);
+  const ice::TriangleMesh other = ice::make_icosphere(4);
+  CHECK_THROWS_AS(ice::surface_edge_lengths(other, space.mesh, map, space.inserted), std::invalid_argument);
   const double radius = sphere.V.row(0).norm();
   double intrinsic_error = 0, traced_error = 0;
-  const fem::ProxyGeodesicSolver on_intrinsic(space.mesh.F, space.mesh.L, space.P), on_traced(space.mesh.F, L, space.P);
+  double walk_error = 0;
+  const fem::ProxyGeodesicSolver on_intrinsic(space.mesh.F, space.mesh.L, space.P), on_traced(space.mesh.F, L, space.P),
+      on_walk(space.mesh.F, surface.lengths, space.P);
   for (const Index source : {0, 1000, 5000}) {
-    const Eigen::VectorXd a = on_intrinsic.distance({source}), b = on_traced.distance({source});
+    const Eigen::VectorXd a = on_intrinsic.distance({source}), b = on_traced.distance({source}), c = on_walk.distance({source});
     for (Eigen::Index v = 0; v < sphere.V.rows(); ++v) {
       const double exact = radius * std::acos(std::clamp(sphere.V.row(v).dot(sphere.V.row(source)) / (radius * radius), -1.0, 1.0));
       intrinsic_error += std::abs(a(v) - exact);
       traced_error += std::abs(b(v) - exact);
+      walk_error += std::abs(c(v) - exact);
     }
   }
-  INFO("mean absolute errors: intrinsic " << intrinsic_error << ", traced " << traced_error);
+  INFO("mean absolute errors: intrinsic " << intrinsic_error << ", traced " << traced_error << ", walk " << walk_error);
   CHECK(traced_error < 0.95 * intrinsic_error);  // measured 0.87
+  CHECK(walk_error < 0.95 * intrinsic_error);
 
   CHECK_THROWS_AS(ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, ice::CoarseTracing{}), std::invalid_argument);
 }

@@ -1131,4 +1131,13 @@ FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const Compac
   return L;
 }
 
+SurfaceEdgeLengths surface_edge_lengths(const TriangleMesh& mesh, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
+                                        const std::vector<InputSurfacePoint>& inserted, int threads) {
+  if (mesh.V.rows() != static_cast<Index>(map.size()))
+    throw std::invalid_argument("surface_edge_lengths: " + std::to_string(mesh.V.rows()) + " input positions for a map of " +
+                                std::to_string(map.size()) + " points");
+  const CoarseTracing tracing = trace_coarse_mesh(mesh.F, coarse, map, inserted, mesh.V, threads);
+  return {traced_edge_lengths(mesh.V, mesh.F, coarse, tracing), static_cast<Index>(tracing.edges.size()), tracing.traced};
+}
+
 }  // namespace ice

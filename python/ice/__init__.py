@@ -160,8 +160,6 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     """
     if method not in ("marching", "heat"):
         raise ValueError(f"method must be 'marching' or 'heat', not {method!r}")
-    if lengths == "traced" and coarse is None and method == "marching" and coarsening.get("method", "ice") == "ice":
-        coarsening.setdefault("trace", True)  # traced exactly, as geodesic-coarse does
     coarse = _coarse_for(V, F, coarse, coarsening, "geodesic")
     if lengths != "intrinsic" and method != "marching":
         raise ValueError(f"lengths={lengths!r} is for method='marching'")

@@ -1013,19 +1013,16 @@ QEM's).)doc")
                                     int subdivisions, const py::object& curvature_correction) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
              const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
-             if (traced && !coarse.tracing && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
-               throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True) "
-                                     "or traced (coarsen with trace=True)");
+             if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
+               throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
              const bool corrected = curvature_correction_argument(curvature_correction, coarse.space.summary.method);
              auto solver = std::make_unique<PyGeodesicSolver>();
              py::gil_scoped_release release;
-             // The exact tracing of coarsen(..., trace=True), else the walk over the map.
+             // The walk over the map, as the tools (not coarsen(..., trace=True)'s exact tracing: the same
+             // distances whether or not the space was traced for drawing).
              ice::FaceLengths L =
-                 !traced ? coarse.space.mesh.L
-                 : coarse.tracing
-                     ? ice::traced_edge_lengths(mesh.V, mesh.F, coarse.space.mesh, *coarse.tracing)
-                     : ice::traced_edge_lengths(mesh.V, mesh.F, coarse.space.mesh,
-                                                ice::trace_coarse_mesh(mesh.F, coarse.space.mesh, coarse.map, coarse.space.inserted, mesh.V, 0));
+                 traced ? ice::surface_edge_lengths(mesh, coarse.space.mesh, coarse.map, coarse.space.inserted).lengths
+                        : coarse.space.mesh.L;
              if (corrected) L = app::curvature_corrected_lengths(mesh, coarse.space, L);
              solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, L, coarse.space.P, subdivisions);
              return solver;

@@ -205,9 +205,14 @@ def test_traced_coarse_edges(project_mesh):
     assert ice.coarsen(V, F, ratio=0.05).traced_edges is None
     with pytest.raises(ValueError, match="trace"):
         ice.coarsen(V, F, ratio=0.05, method="qem", trace=True)
-    # Traced lengths from the exact tracing: the coarse space's own (no walk over the map).
+    # Traced lengths come from the walk over the map whether or not the space was traced for
+    # drawing: the same coarsening untraced gives the same distances.
     d = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="traced").distance([0])
     assert np.isfinite(d).all() and d[0] == pytest.approx(0, abs=1e-12)
+    untraced = ice.coarsen(V, F, ratio=0.05)
+    assert np.array_equal(untraced.lengths, coarse.lengths)
+    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, untraced, lengths="traced").distance([0]), d)
+    assert not np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([0]), d)
 
 
 def test_heat_flow_conserves_mass_and_matches_scipy(spot):

@@ -159,4 +159,25 @@ enum class TracedLengthMeasure {
 FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const CompactMesh& coarse, const CoarseTracing& tracing,
                                 TracedLengthMeasure measure = TracedLengthMeasure::shortest_in_strip);
 
+/// What surface_edge_lengths measured: the lengths, and how many edges the walk traced.
+struct SurfaceEdgeLengths {
+  FaceLengths lengths;          ///< per coarse face side, as CompactMesh::L
+  Index edges = 0, traced = 0;  ///< coarse edges, and those traced (the rest keep their intrinsic lengths)
+};
+
+/// The coarse edges' lengths on the input surface, for coarse marching: traced_edge_lengths
+/// (shortest in strip) of the walk over the map (trace_coarse_mesh(mesh.F, coarse, map, inserted,
+/// mesh.V, threads)), so it needs the fine-to-coarse map, not the coarsening's history. Why the walk
+/// and not the exact pull-back: as accurate for geodesics, and cheaper. Measured (ice-report, 40
+/// meshes × 1, 2, 5, 10 %, ICE area weight 0.98, coarse marching with 2 subdivisions and the
+/// curvature correction, against exact polyhedral geodesics): geometric-mean error 0.514 % from the
+/// walk, 0.524 % from the exact trace, 0.657 % on the intrinsic lengths (the walk better than the
+/// exact trace in 66 cases, equal in 37; cow 0.60–0.70×, elephant-with-holes 0.61–0.69×, dragon_fat
+/// at 1 % 1.71×, femur 1.16×); at 1,584,194 vertices to 1 % on 2 threads (geodesic-coarse
+/// --coarse-lengths traced) the tracing took 2.7 s instead of 6.8 s and the run peaked at 1.0 GiB
+/// instead of 2.4 GiB (no history). Edges the walk does not trace (~1 %) keep their intrinsic
+/// lengths. Preconditions as trace_coarse_mesh's, with mesh.V given (std::invalid_argument).
+SurfaceEdgeLengths surface_edge_lengths(const TriangleMesh& mesh, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
+                                        const std::vector<InputSurfacePoint>& inserted = {}, int threads = 0);
+
 }  // namespace ice
