@@ -348,7 +348,7 @@ int main(int argc, char** argv) {
                   "Coarse marching on the coarse mesh's intrinsic edge lengths (the default) or on the lengths of its "
                   "edges traced on the input surface by a walk over the fine-to-coarse map (ICE only: more accurate, "
                   "0.78x the error against exact geodesics over 40 meshes x 1-10 % in geometric mean with 2 "
-                  "subdivisions, better in 129 of 160 cases, at the cost of the tracing: 2.7 s at 1.6M vertices and "
+                  "subdivisions, better in 129 of 160 cases, at the cost of the tracing: 2.4 s at 1.6M vertices and "
                   "1 %; README, Accuracy)");
   app::add_curvature_correction_option(cli, oracle.curvature_correction);
   const CLI::Option* subdivisions_option = cli.add_option(

@@ -14,6 +14,12 @@
 //  - BM_OracleSamples/<Loop levels>/<coarse vertices>: 1,000 farthest-point samples, then their
 //    1,000 x 1,000 matrix (counters sampling_s, matrix_s).
 //  - BM_FineHeatSolve/<Loop levels>: one heat-method solve on the fine mesh (assemble, factor, solve).
+//  - BM_TracedLengths/<Loop levels>/<coarse vertices>/<way>: the coarse edges' lengths on the input
+//    surface (geodesic-coarse --coarse-lengths traced): way 0 the walk over the map
+//    (ice::surface_edge_lengths, what the tools use), 1 the exact tracing through the coarsening's
+//    recorded history (ice::trace_coarse_mesh, then ice::traced_edge_lengths); both on the default
+//    threads. The coarsening is not timed; counter triangulation_MB: the coarsening's state the way
+//    needs kept (with the history for way 1).
 // spot_subdiv (24,755 vertices) is level 0; level 3 is 1,584,194 vertices.
 #include <chrono>
 #include <random>
@@ -28,6 +34,7 @@ inline int omp_get_thread_num() { return 0; }
 #include "fem/distance_oracle.h"
 #include "fem/problems.h"
 #include "ice/coarse_space.h"
+#include "ice/coarse_tracing.h"
 
 namespace {
 
@@ -175,5 +182,42 @@ void BM_FineHeatSolve(benchmark::State& state) {
   state.counters["vertices"] = n;
 }
 BENCHMARK(BM_FineHeatSolve)->Arg(0)->Arg(3)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+
+void BM_TracedLengths(benchmark::State& state) {
+  const int levels = static_cast<int>(state.range(0));
+  const bool exact = state.range(2) == 1;
+  const ice::TriangleMesh& mesh = ice_bench::subdivided_mesh("spot_subdiv.obj", levels);
+  ice::CoarseSpaceOptions options;
+  options.coarsen = ice::recommended_coarsen_options(ice::ProxyUse::geodesic);
+  options.coarsen.target_vertices = static_cast<ice::Index>(state.range(1));
+  options.coarsen.threads = 2;
+  options.keep_method_state = true;
+  options.record_history = exact;
+  const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+  ice::Index edges = 0, traced = 0;
+  for (auto _ : state) {
+    if (exact) {
+      const ice::CoarseTracing tracing = ice::trace_coarse_mesh(mesh, space);
+      benchmark::DoNotOptimize(ice::traced_edge_lengths(mesh.V, mesh.F, space.mesh, tracing).sum());
+      edges = static_cast<ice::Index>(tracing.edges.size());
+      traced = tracing.traced;
+    } else {
+      const ice::SurfaceEdgeLengths lengths = ice::surface_edge_lengths(mesh, space.mesh, map, space.inserted);
+      benchmark::DoNotOptimize(lengths.lengths.sum());
+      edges = lengths.edges;
+      traced = lengths.traced;
+    }
+  }
+  state.counters["vertices"] = static_cast<double>(mesh.V.rows());
+  state.counters["edges"] = static_cast<double>(edges);
+  state.counters["traced"] = static_cast<double>(traced);
+  state.counters["triangulation_MB"] = static_cast<double>(space.triangulation->memory_bytes()) / 1e6;
+}
+BENCHMARK(BM_TracedLengths)
+    ->ArgsProduct({{0}, {1000}, {0, 1}})
+    ->ArgsProduct({{3}, {15842}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace

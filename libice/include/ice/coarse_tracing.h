@@ -173,10 +173,11 @@ struct SurfaceEdgeLengths {
 /// curvature correction, against exact polyhedral geodesics): geometric-mean error 0.514 % from the
 /// walk, 0.524 % from the exact trace, 0.657 % on the intrinsic lengths (the walk better than the
 /// exact trace in 66 cases, equal in 37; cow 0.60–0.70×, elephant-with-holes 0.61–0.69×, dragon_fat
-/// at 1 % 1.71×, femur 1.16×); at 1,584,194 vertices to 1 % on 2 threads (geodesic-coarse
-/// --coarse-lengths traced) the tracing took 2.7 s instead of 6.8 s and the run peaked at 1.0 GiB
-/// instead of 2.4 GiB (no history). Edges the walk does not trace (~1 %) keep their intrinsic
-/// lengths. Preconditions as trace_coarse_mesh's, with mesh.V given (std::invalid_argument).
+/// at 1 % 1.71×, femur 1.16×). Cost (ice_bench BM_TracedLengths, medians of 3 interleaved runs): at
+/// 1,584,194 vertices to 15,842 (1 %) 2.38 s against 4.18 s, and 0.37 GB of coarsening state kept
+/// for it against 1.31 GB with the history; at 24,755 vertices to 1,000, 68 ms against 61 ms (the
+/// walk's layouts cost more than the pull-back on small meshes). Edges the walk does not trace
+/// (~1 %; none in those two) keep their intrinsic lengths. Preconditions as trace_coarse_mesh's, with mesh.V given (std::invalid_argument).
 SurfaceEdgeLengths surface_edge_lengths(const TriangleMesh& mesh, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
                                         const std::vector<InputSurfacePoint>& inserted = {}, int threads = 0);
 
