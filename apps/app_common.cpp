@@ -242,10 +242,12 @@ ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, cons
 }
 
 ice::SurfaceEdgeLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                         CurvatureCorrection correction) {
+                                         CurvatureCorrection correction, const std::vector<ice::CoarsePoint>* map) {
   ice::SurfaceEdgeLengths result;
-  if (traced) result = ice::surface_edge_lengths(mesh, space.mesh, ice::fine_to_coarse_map(space), space.inserted);
-  else result.lengths = space.mesh.L;
+  if (traced)
+    result = ice::surface_edge_lengths(mesh, space.mesh, map ? *map : ice::fine_to_coarse_map(space), space.inserted);
+  else
+    result.lengths = space.mesh.L;
   if (corrects_curvature(correction, space.summary.method))
     result.lengths = curvature_corrected_lengths(mesh, space, result.lengths);
   return result;

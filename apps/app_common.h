@@ -130,13 +130,14 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
 enum class CurvatureCorrection { automatic, on, off };
 
 /// The coarse edge lengths coarse marching runs on: the coarse mesh's own, or (`traced`) those of its
-/// edges traced on the input surface by the walk over the map (ice::traced_edge_lengths of the map:
-/// an ICE space built with keep_method_state; its history, if recorded for drawing, is not used, so
-/// the distances do not depend on what else is written); then curvature-corrected
-/// (fem::curvature_corrected_lengths with the input mesh and space.P) as `correction` says. The
-/// counts are the walk's (zero for the intrinsic lengths).
+/// edges traced on the input surface by the walk over the fine-to-coarse map (ice::surface_edge_lengths
+/// of `map`, or of ice::fine_to_coarse_map(space) when null: an ICE space built with
+/// keep_method_state; its history, if recorded for drawing, is not used, so the distances do not
+/// depend on what else is written); then curvature-corrected (fem::curvature_corrected_lengths with
+/// the input mesh and space.P) as `correction` says. The counts are the walk's (zero for the
+/// intrinsic lengths). The tools and the Python bindings all take their marching lengths from here.
 ice::SurfaceEdgeLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                         CurvatureCorrection correction);
+                                         CurvatureCorrection correction, const std::vector<ice::CoarsePoint>* map = nullptr);
 /// Whether `correction` corrects marching on a coarse space made by `method` (automatic: ICE's).
 bool corrects_curvature(CurvatureCorrection correction, ice::CoarseningMethod method);
 /// `lengths` (of space's coarse faces) curvature-corrected with the input `mesh`: its angle defects and

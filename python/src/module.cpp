@@ -462,13 +462,16 @@ struct PyProxy {
 
 /// curvature_correction=None|True|False of the geodesic solvers on a coarse space made by `method`:
 /// None is geodesic-coarse's --curvature-correction auto (ICE's coarse spaces only, as measured).
-bool curvature_correction_argument(const py::object& value, ice::CoarseningMethod method) {
+app::CurvatureCorrection curvature_correction_choice(const py::object& value) {
   if (!value.is_none() && !py::isinstance<py::bool_>(value))
     throw py::type_error("curvature_correction must be None, True or False");
-  const app::CurvatureCorrection correction = value.is_none()   ? app::CurvatureCorrection::automatic
-                                              : value.cast<bool>() ? app::CurvatureCorrection::on
-                                                                   : app::CurvatureCorrection::off;
-  return app::corrects_curvature(correction, method);
+  return value.is_none() ? app::CurvatureCorrection::automatic
+         : value.cast<bool>() ? app::CurvatureCorrection::on
+                              : app::CurvatureCorrection::off;
+}
+
+bool curvature_correction_argument(const py::object& value, ice::CoarseningMethod method) {
+  return app::corrects_curvature(curvature_correction_choice(value), method);
 }
 
 /// The mesh (V, F), checked to be the one `coarse` was made from (vertex count and faces), with P.
@@ -481,6 +484,17 @@ ice::TriangleMesh require_coarse_space_of(const py::object& V, const py::object&
     throw py::value_error("the coarse space was made from another mesh (" + std::to_string(coarse.space.P.rows()) +
                           " vertices, other faces): build the " + what + " on the (V, F) that was coarsened");
   return mesh;
+}
+
+/// Coarse marching's lengths of `coarse` (made from `mesh`) as the tools take them
+/// (app::marching_lengths with the space's kept map): traced by the walk over the map or intrinsic,
+/// then corrected as `correction` says for the space's method.
+ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const PyCoarseSpace& coarse, bool traced,
+                                           app::CurvatureCorrection correction) {
+  if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
+    throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
+  py::gil_scoped_release release;
+  return app::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map).lengths;
 }
 
 // The `fine=` argument of Proxy and VectorHeatSolver: the fine mesh's discretisation.
@@ -1013,17 +1027,10 @@ QEM's).)doc")
                                     int subdivisions, const py::object& curvature_correction) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
              const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
-             if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
-               throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
-             const bool corrected = curvature_correction_argument(curvature_correction, coarse.space.summary.method);
+             const app::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
              auto solver = std::make_unique<PyGeodesicSolver>();
+             ice::FaceLengths L = marching_lengths_argument(mesh, coarse, traced, correction);
              py::gil_scoped_release release;
-             // The walk over the map, as the tools (not coarsen(..., trace=True)'s exact tracing: the same
-             // distances whether or not the space was traced for drawing).
-             ice::FaceLengths L =
-                 traced ? ice::surface_edge_lengths(mesh, coarse.space.mesh, coarse.map, coarse.space.inserted).lengths
-                        : coarse.space.mesh.L;
-             if (corrected) L = app::curvature_corrected_lengths(mesh, coarse.space, L);
              solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, L, coarse.space.P, subdivisions);
              return solver;
            }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = "intrinsic",
@@ -1247,7 +1254,8 @@ precomputes the coarse all-pairs distances (n_c² floats; marching on the coarse
 space's map (coarsen(..., keep_map=True), the default); coarsen with use="geodesic" for the metric
 measured best for distances (what geodesic-coarse does). lengths: the coarse edge lengths to march on
 (m×3, one row per coarse face; default: the coarse mesh's own), e.g.
-ice.curvature_corrected_lengths(V, F, coarse), what geodesic-coarse's oracle modes use for ICE.)doc")
+ice.curvature_corrected_lengths(V, F, coarse). DistanceOracle.from_mesh(V, F, coarse) makes the oracle
+of geodesic-coarse's oracle modes (curvature-corrected for ICE; traced lengths on request).)doc")
       .def(py::init([](const PyCoarseSpace& coarse, const std::string& method, double heat_time_factor, int threads,
                        int subdivisions, const py::object& lengths) {
              if (coarse.map.empty())
@@ -1266,6 +1274,37 @@ ice.curvature_corrected_lengths(V, F, coarse), what geodesic-coarse's oracle mod
            py::arg("coarse"), py::kw_only(), py::arg("method") = "marching", py::arg("heat_time_factor") = 1.0,
            py::arg("threads") = 0, py::arg("subdivisions") = fem::DistanceOracleOptions{}.subdivisions,
            py::arg("lengths") = py::none())
+      .def_static("from_mesh", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse, const std::string& method,
+                                  double heat_time_factor, int threads, int subdivisions, const std::string& lengths,
+                                  const py::object& curvature_correction) {
+             const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "DistanceOracle.from_mesh");
+             if (coarse.map.empty())
+               throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
+                                     "QEM with extrinsic geometry)");
+             fem::DistanceOracleOptions options;
+             options.method = coarse_distance_method(method);
+             const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
+             const app::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
+             const bool marching = options.method == fem::CoarseDistanceMethod::marching;
+             if (!marching && (traced || correction == app::CurvatureCorrection::on))
+               throw py::value_error("lengths='traced' and curvature_correction=True are for method='marching'");
+             const ice::FaceLengths L =
+                 marching ? marching_lengths_argument(mesh, coarse, traced, correction) : coarse.space.mesh.L;
+             options.heat_time_factor = heat_time_factor;
+             options.threads = threads;
+             options.subdivisions = subdivisions;
+             py::gil_scoped_release release;
+             return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, L, coarse.map, options);
+           },
+           py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("method") = "marching",
+           py::arg("heat_time_factor") = 1.0, py::arg("threads") = 0,
+           py::arg("subdivisions") = fem::DistanceOracleOptions{}.subdivisions, py::arg("lengths") = "intrinsic",
+           py::arg("curvature_correction") = py::none(),
+           "The oracle of geodesic-coarse's oracle modes (--pairs, --sample, --all-pairs) from the coarse space of "
+           "(V, F): with marching, on the coarse lengths the tool marches on — curvature-corrected for ICE coarse "
+           "spaces (curvature_correction=None, as --curvature-correction auto), traced on the surface with "
+           "lengths='traced' (--coarse-lengths traced). The constructor marches on the coarse mesh's own lengths "
+           "(or those it is given).")
       .def("distance", [](const fem::DistanceOracle& o, long long u, long long v) {
              const Eigen::Index n = o.fine_size();
              if (u < 0 || u >= n || v < 0 || v >= n)

@@ -326,6 +326,35 @@ def test_distance_oracle(spot):
     with pytest.raises(ValueError, match="lengths"):
         ice.DistanceOracle(coarse, lengths=np.ones((2, 3)))
 
+def test_distance_oracle_from_mesh(project_mesh, tmp_path, tool):
+    # DistanceOracle.from_mesh: the oracle of geodesic-coarse's oracle modes. Its default marches on
+    # curvature-corrected lengths for ICE (the constructor on the coarse mesh's own), not for QEM.
+    path = project_mesh("spot.obj")
+    V, F = ice.load_mesh(path)
+    coarse = ice.coarsen(V, F, ratio=0.05, use="geodesic")
+    pairs = np.random.default_rng(5).integers(0, V.shape[0], size=(300, 2))
+    corrected = ice.DistanceOracle(coarse, lengths=ice.curvature_corrected_lengths(V, F, coarse))
+    assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, coarse).distances(pairs), corrected.distances(pairs))
+    assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, coarse, curvature_correction=False).distances(pairs),
+                          ice.DistanceOracle(coarse).distances(pairs))
+    qem = ice.coarsen(V, F, ratio=0.05, method="qem")
+    assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, qem).distances(pairs), ice.DistanceOracle(qem).distances(pairs))
+    # Traced lengths: the same pairs as geodesic-coarse --pairs --coarse-lengths traced (to its 9 digits).
+    np.savetxt(tmp_path / "pairs.txt", pairs, fmt="%d")
+    tool("geodesic-coarse", path, "--ratio", "0.05", "--pairs", tmp_path / "pairs.txt", "--pairs-out",
+         tmp_path / "out.csv", "--coarse-lengths", "traced", "-q")
+    written = np.loadtxt(tmp_path / "out.csv", delimiter=",", skiprows=1)
+    traced = ice.DistanceOracle.from_mesh(V, F, coarse, lengths="traced").distances(pairs)
+    assert np.array_equal(written[:, :2].astype(int), pairs)
+    assert np.abs(traced - written[:, 2]).max() <= 1e-8 * traced.max()
+    assert np.abs(traced - corrected.distances(pairs)).max() > 1e-6 * traced.max()
+    with pytest.raises(ValueError, match="traced"):
+        ice.DistanceOracle.from_mesh(V, F, qem, lengths="traced")
+    with pytest.raises(ValueError, match="marching"):
+        ice.DistanceOracle.from_mesh(V, F, coarse, method="heat", lengths="traced")
+    with pytest.raises(ValueError, match="another mesh"):
+        ice.DistanceOracle.from_mesh(V[:-1], F[:10], coarse)
+
 
 def test_dirichlet_values_follow_the_order_of_fixed(spot, project_mesh):
     """Values belong to the vertices in the caller's order, for ICE and QEM, plain and polished."""
