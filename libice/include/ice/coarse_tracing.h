@@ -176,8 +176,11 @@ struct SurfaceEdgeLengths {
 /// at 1 % 1.71×, femur 1.16×). Cost (ice_bench BM_TracedLengths, medians of 3 interleaved runs): at
 /// 1,584,194 vertices to 15,842 (1 %) 2.38 s against 4.18 s, and 0.37 GB of coarsening state kept
 /// for it against 1.31 GB with the history; at 24,755 vertices to 1,000, 68 ms against 61 ms (the
-/// walk's layouts cost more than the pull-back on small meshes). Edges the walk does not trace
-/// (~1 %; none in those two) keep their intrinsic lengths. Preconditions as trace_coarse_mesh's, with mesh.V given (std::invalid_argument).
+/// walk's layouts cost more than the pull-back on small meshes). Edges the walk does not trace keep
+/// their intrinsic lengths: 1.3 % of them over CGAL's demo meshes and the shared ones at 5 % (167
+/// meshes; none in the two above), but up to half on some (cheese 1,137 of 2,088, elephant-with-holes
+/// 128 of 864; below 90 % traced on 21 of the 167) — on those two the geodesics were still nearer
+/// exact with the walk than with the exact trace (figures above), which is what decided. Preconditions as trace_coarse_mesh's, with mesh.V given (std::invalid_argument).
 SurfaceEdgeLengths surface_edge_lengths(const TriangleMesh& mesh, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
                                         const std::vector<InputSurfacePoint>& inserted = {}, int threads = 0);
 
