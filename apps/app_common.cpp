@@ -214,8 +214,8 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
                          PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine, bool keep_method_state) {
   PdeProxy p;
   // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
-  // An output file draws the coarse mesh on the surface (write_result_fields): ICE's map is kept for it.
-  // Kept for the tracing only (the outputs' drawing, traced lengths): with the history it draws from.
+  // An output file draws the coarse mesh on the surface (write_result_fields) exactly: ICE's state is
+  // kept with its history for it. Traced lengths (keep_method_state) need the state alone (the walk).
   const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice;
   p.coarse = coarsen_for_pde(mesh, options, opt, run, keep_method_state || drawn, drawn);
   run.coarsen = clock.lap();

@@ -116,11 +116,12 @@ struct PdeProxy {
   ice::FineMesh fine;
   std::unique_ptr<fem::CoarseProxy> proxy;
 };
-/// Builds them in that order (coarsen_for_pde, keeping the method's state and its history for
-/// outputs that draw the coarse mesh, the state alone when `keep_method_state` asks; ice::fine_mesh of --fine-idt unless !need_fine,
-/// make_proxy of --operators unless !assemble_proxy: then proxy stays null; assembling needs the
-/// fine mesh), with run.coarsen, run.fine_mesh, run.fine_built and run.idt_flips recorded; the
-/// proxy's assembly is left running on `clock`, for the caller's assemble phase.
+/// Builds them in that order (coarsen_for_pde, keeping the method's state and its history for outputs
+/// that draw the coarse mesh, the state alone when `keep_method_state` asks; ice::fine_mesh of
+/// --fine-idt unless !need_fine, make_proxy of --operators unless !assemble_proxy: then proxy stays
+/// null; assembling needs the fine mesh), with run.coarsen, run.fine_mesh, run.fine_built and
+/// run.idt_flips recorded; the proxy's assembly is left running on `clock`, for the caller's assemble
+/// phase.
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                          PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
                          bool keep_method_state = false);

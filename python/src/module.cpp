@@ -497,6 +497,26 @@ ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const 
   return app::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map).lengths;
 }
 
+/// The oracle and the vector proxy need the coarse space's fine-to-coarse map.
+void require_map(const PyCoarseSpace& coarse) {
+  if (coarse.map.empty())
+    throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
+                          "QEM with extrinsic geometry)");
+}
+
+/// The distance oracle of `coarse` on lengths L (both DistanceOracle entry points).
+std::unique_ptr<fem::DistanceOracle> make_oracle(const PyCoarseSpace& coarse, const ice::FaceLengths& L,
+                                                 fem::CoarseDistanceMethod method, double heat_time_factor, int threads,
+                                                 int subdivisions) {
+  fem::DistanceOracleOptions options;
+  options.method = method;
+  options.heat_time_factor = heat_time_factor;
+  options.threads = threads;
+  options.subdivisions = subdivisions;
+  py::gil_scoped_release release;
+  return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, L, coarse.map, options);
+}
+
 // The `fine=` argument of Proxy and VectorHeatSolver: the fine mesh's discretisation.
 ice::FineGeometry fine_geometry_argument(const std::string& fine) {
   return choice<ice::FineGeometry>(
@@ -560,8 +580,7 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   auto result = std::make_unique<PyVectorHeat>();
   const PyCoarseSpace* coarse = coarse_object.is_none() ? nullptr : &coarse_object.cast<const PyCoarseSpace&>();
   const ice::TriangleMesh mesh = coarse ? require_coarse_space_of(V, F, *coarse, "VectorHeatSolver") : mesh_argument(V, F);
-  if (coarse && coarse->map.empty())
-    throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or QEM with extrinsic geometry)");
+  if (coarse) require_map(*coarse);
   const auto kind = choice<fem::VectorOperatorKind>(
       operators, "operators", {{"galerkin", fem::VectorOperatorKind::galerkin}, {"intrinsic", fem::VectorOperatorKind::intrinsic}});
   const double time_factor = time_factor_object.is_none() ? (coarse ? fem::kVectorProxyTimeFactor : 1.0)
@@ -1258,18 +1277,10 @@ ice.curvature_corrected_lengths(V, F, coarse). DistanceOracle.from_mesh(V, F, co
 of geodesic-coarse's oracle modes (curvature-corrected for ICE; traced lengths on request).)doc")
       .def(py::init([](const PyCoarseSpace& coarse, const std::string& method, double heat_time_factor, int threads,
                        int subdivisions, const py::object& lengths) {
-             if (coarse.map.empty())
-               throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
-                                     "QEM with extrinsic geometry)");
+             require_map(coarse);
              const ice::FaceLengths L =
                  lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
-             fem::DistanceOracleOptions options;
-             options.method = coarse_distance_method(method);
-             options.heat_time_factor = heat_time_factor;
-             options.threads = threads;
-             options.subdivisions = subdivisions;
-             py::gil_scoped_release release;
-             return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, L, coarse.map, options);
+             return make_oracle(coarse, L, coarse_distance_method(method), heat_time_factor, threads, subdivisions);
            }),
            py::arg("coarse"), py::kw_only(), py::arg("method") = "marching", py::arg("heat_time_factor") = 1.0,
            py::arg("threads") = 0, py::arg("subdivisions") = fem::DistanceOracleOptions{}.subdivisions,
@@ -1278,23 +1289,16 @@ of geodesic-coarse's oracle modes (curvature-corrected for ICE; traced lengths o
                                   double heat_time_factor, int threads, int subdivisions, const std::string& lengths,
                                   const py::object& curvature_correction) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "DistanceOracle.from_mesh");
-             if (coarse.map.empty())
-               throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
-                                     "QEM with extrinsic geometry)");
-             fem::DistanceOracleOptions options;
-             options.method = coarse_distance_method(method);
+             require_map(coarse);
+             const fem::CoarseDistanceMethod distances = coarse_distance_method(method);
              const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
              const app::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
-             const bool marching = options.method == fem::CoarseDistanceMethod::marching;
+             const bool marching = distances == fem::CoarseDistanceMethod::marching;
              if (!marching && (traced || correction == app::CurvatureCorrection::on))
                throw py::value_error("lengths='traced' and curvature_correction=True are for method='marching'");
              const ice::FaceLengths L =
                  marching ? marching_lengths_argument(mesh, coarse, traced, correction) : coarse.space.mesh.L;
-             options.heat_time_factor = heat_time_factor;
-             options.threads = threads;
-             options.subdivisions = subdivisions;
-             py::gil_scoped_release release;
-             return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, L, coarse.map, options);
+             return make_oracle(coarse, L, distances, heat_time_factor, threads, subdivisions);
            },
            py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("method") = "marching",
            py::arg("heat_time_factor") = 1.0, py::arg("threads") = 0,

@@ -28,20 +28,20 @@ Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index
 /// `coarse_lengths` with each edge (u, w) scaled by exp(K_uw ℓ² / 24), K_uw = (κ_u + κ_w) / (A_u +
 /// A_w), where κ = Pᵀ (fine angle defects) and A = Pᵀ (fine vertex areas, a third of each face's)
 /// gather the fine curvature and area onto the coarse vertices through P. The curvature of fine
-/// vertices that are coarse vertices counts too (so even P = I changes the lengths): leaving it out,
-/// as the cone angles already hold it, was measured worse (40 meshes × 1–10 % against exact
-/// geodesics, intrinsic lengths: 0.82 % against 0.77 %; traced lengths alike). The expansion is of
-/// second order in Kℓ²; on inputs of a few vertices coarsened to 3 (CGAL's beam, pyramid,
-/// tetrahedron: 8, 5, 4 vertices) each face spans too much curvature for it and the distances get
-/// worse (beam: 5 % → 99 % mean error; turn it off there), while large corrections on real meshes
-/// help (cheese, genus 133: most edges change by more than 10 %, its oracle error against exact
-/// geodesics 9.9 % → 3.7 %). An edge keeps one length on both its sides (sides are taken as one edge when they join the same vertices with the same length,
-/// as the marching takes them); where the scaled lengths break a face's triangle inequality, that
-/// face's edges keep their lengths (and so do their other sides), until every face is valid, so the
-/// result is a valid intrinsic metric whenever `coarse_lengths` is.
-/// Preconditions (std::invalid_argument): fine F, L of one shape with vertices below P.rows(); coarse
-/// faces and lengths of one shape with vertices below P.cols(); P non-negative rows (a barycentric
-/// or any interpolating prolongation). The fine lengths must be valid (InvalidTriangle).
+/// vertices that are coarse vertices counts too (so even P = I changes the lengths): leaving it out, as
+/// the cone angles already hold it, was measured worse (40 meshes × 1–10 % against exact geodesics,
+/// intrinsic lengths: 0.82 % against 0.77 %; traced lengths alike). The expansion is of second order in
+/// Kℓ²; on inputs of a few vertices coarsened to 3 (CGAL's beam, pyramid, tetrahedron: 8, 5, 4
+/// vertices) each face spans too much curvature for it and the distances get worse (beam: 5 % → 99 %
+/// mean error; turn it off there), while large corrections on real meshes help (cheese, genus 133: most
+/// edges change by more than 10 %, its oracle error against exact geodesics 9.9 % → 3.7 %). An edge
+/// keeps one length on both its sides (sides are taken as one edge when they join the same vertices
+/// with the same length, as the marching takes them); where the scaled lengths break a face's triangle
+/// inequality, that face's edges keep their lengths (and so do their other sides), until every face is
+/// valid, so the result is a valid intrinsic metric whenever `coarse_lengths` is. Preconditions
+/// (std::invalid_argument): fine F, L of one shape with vertices below P.rows(); coarse faces and
+/// lengths of one shape with vertices below P.cols(); P non-negative rows (a barycentric or any
+/// interpolating prolongation). The fine lengths must be valid (InvalidTriangle).
 FaceLengths curvature_corrected_lengths(const Faces& fine_faces, const FaceLengths& fine_lengths,
                                         const Faces& coarse_faces, const FaceLengths& coarse_lengths,
                                         const SparseMatrix& P);

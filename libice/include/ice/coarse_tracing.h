@@ -165,22 +165,23 @@ struct SurfaceEdgeLengths {
   Index edges = 0, traced = 0;  ///< coarse edges, and those traced (the rest keep their intrinsic lengths)
 };
 
-/// The coarse edges' lengths on the input surface, for coarse marching: traced_edge_lengths
-/// (shortest in strip) of the walk over the map (trace_coarse_mesh(mesh.F, coarse, map, inserted,
-/// mesh.V, threads)), so it needs the fine-to-coarse map, not the coarsening's history. Why the walk
-/// and not the exact pull-back: as accurate for geodesics, and cheaper. Measured (ice-report, 40
-/// meshes × 1, 2, 5, 10 %, ICE area weight 0.98, coarse marching with 2 subdivisions and the
-/// curvature correction, against exact polyhedral geodesics): geometric-mean error 0.514 % from the
-/// walk, 0.524 % from the exact trace, 0.657 % on the intrinsic lengths (the walk better than the
-/// exact trace in 66 cases, equal in 37; cow 0.60–0.70×, elephant-with-holes 0.61–0.69×, dragon_fat
-/// at 1 % 1.71×, femur 1.16×). Cost (ice_bench BM_TracedLengths, medians of 3 interleaved runs): at
-/// 1,584,194 vertices to 15,842 (1 %) 2.38 s against 4.18 s, and 0.37 GB of coarsening state kept
-/// for it against 1.31 GB with the history; at 24,755 vertices to 1,000, 68 ms against 61 ms (the
-/// walk's layouts cost more than the pull-back on small meshes). Edges the walk does not trace keep
-/// their intrinsic lengths: 1.3 % of them over CGAL's demo meshes and the shared ones at 5 % (167
-/// meshes; none in the two above), but up to half on some (cheese 1,137 of 2,088, elephant-with-holes
-/// 128 of 864; below 90 % traced on 21 of the 167) — on those two the geodesics were still nearer
-/// exact with the walk than with the exact trace (figures above), which is what decided. Preconditions as trace_coarse_mesh's, with mesh.V given (std::invalid_argument).
+/// The coarse edges' lengths on the input surface, for coarse marching: traced_edge_lengths (shortest
+/// in strip) of the walk over the map (trace_coarse_mesh(mesh.F, coarse, map, inserted, mesh.V,
+/// threads)), so it needs the fine-to-coarse map, not the coarsening's history. Why the walk and not
+/// the exact pull-back: as accurate for geodesics, and cheaper. Measured (ice-report, 40 meshes × 1, 2,
+/// 5, 10 %, ICE area weight 0.98, coarse marching with 2 subdivisions and the curvature correction,
+/// against exact polyhedral geodesics): geometric-mean error 0.514 % from the walk, 0.524 % from the
+/// exact trace, 0.657 % on the intrinsic lengths (the walk better than the exact trace in 66 cases,
+/// equal in 37; cow 0.60–0.70×, elephant-with-holes 0.61–0.69×, dragon_fat at 1 % 1.71×, femur 1.16×).
+/// Cost (ice_bench BM_TracedLengths, medians of 3 interleaved runs): at 1,584,194 vertices to 15,842
+/// (1 %) 2.38 s against 4.18 s, and 0.37 GB of coarsening state kept for it against 1.31 GB with the
+/// history; at 24,755 vertices to 1,000, 68 ms against 61 ms (the walk's layouts cost more than the
+/// pull-back on small meshes). Edges the walk does not trace keep their intrinsic lengths: 1.3 % of
+/// them over CGAL's demo meshes and the shared ones at 5 % (167 meshes; none in the two above), but up
+/// to half on some (cheese 1,137 of 2,088, elephant-with-holes 128 of 864; below 90 % traced on 21 of
+/// the 167) — on those two the geodesics were still nearer exact with the walk than with the exact
+/// trace (figures above), which is what decided. Preconditions as trace_coarse_mesh's, with mesh.V
+/// given (std::invalid_argument).
 SurfaceEdgeLengths surface_edge_lengths(const TriangleMesh& mesh, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
                                         const std::vector<InputSurfacePoint>& inserted = {}, int threads = 0);
 
