@@ -360,6 +360,56 @@ TEST_CASE("coarse marching on the subdivided coarse mesh: the same metric, neare
   }
 }
 
+TEST_CASE("coarse marching from a point off-centre on an edge or in a face is the straight-line distance",
+          "[fem][coarse_proxy]") {
+  // A source between coarse vertices seeds its corners at their planar distances. The near corner's
+  // turn comes first; the far one's seed must already count for the faces across the source's edge,
+  // or the vertices beyond it, reached along edges only, take their turn too early with distances
+  // too long, and so does everything behind them (CGAL's holes at 100 coarse vertices, from a
+  // source on a coarse edge: 2.6x the distance oracle's error). With subdivisions the kite's obtuse
+  // pieces need the marching's reopening too. A flat kite: the long side ab (4) between the corners
+  // c (the face above) and w (below), near it.
+  ice::TriangleMesh coarse;
+  coarse.V.resize(4, 3);
+  coarse.V << 0, 0, 0,   // a
+      4, 0, 0,           // b
+      2, 1.5, 0,         // c
+      1, -0.5, 0;        // w
+  coarse.F.resize(2, 3);
+  coarse.F << 0, 1, 2, 1, 0, 3;
+  const ice::FaceLengths lengths = ice::face_lengths_from_positions(coarse.V, coarse.F);
+  // Fine points: the coarse vertices, then on ab at 0.85 / 0.15 and 0.3 / 0.7, inside abc at
+  // (0.75, 0.2, 0.05) and inside baw at (0.1, 0.6, 0.3).
+  const std::vector<std::pair<int, std::array<double, 3>>> points{
+      {0, {0.85, 0.15, 0.0}}, {0, {0.3, 0.7, 0.0}}, {0, {0.75, 0.2, 0.05}}, {1, {0.1, 0.6, 0.3}}};
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (int v = 0; v < 4; ++v) triplets.emplace_back(v, v, 1.0);
+  Eigen::MatrixXd where(4 + static_cast<Eigen::Index>(points.size()), 3);
+  where.topRows(4) = coarse.V;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const auto row = 4 + static_cast<Eigen::Index>(k);
+    const auto& [face, w] = points[k];
+    where.row(row).setZero();
+    for (int corner = 0; corner < 3; ++corner) {
+      const double weight = w[static_cast<std::size_t>(corner)];
+      where.row(row) += weight * coarse.V.row(coarse.F(face, corner));
+      if (weight > 0) triplets.emplace_back(row, coarse.F(face, corner), weight);
+    }
+  }
+  fem::SparseMatrix P(where.rows(), 4);
+  P.setFromTriplets(triplets.begin(), triplets.end());
+  for (int subdivisions = 0; subdivisions <= 2; ++subdivisions) {
+    const fem::ProxyGeodesicSolver solver(coarse.F, lengths, P, subdivisions);
+    for (Eigen::Index source = 4; source < where.rows(); ++source) {
+      INFO("subdivisions " << subdivisions << ", source " << source - 4);
+      const Eigen::VectorXd exact = (where.rowwise() - where.row(source)).rowwise().norm();
+      const Eigen::VectorXd d = solver.distance({static_cast<int>(source)});
+      INFO("distances " << d.transpose() << "\nexact " << exact.transpose());
+      CHECK(fem::max_abs_error(d, exact) <= 1e-5 * exact.maxCoeff());  // float layouts
+    }
+  }
+}
+
 TEST_CASE("smoothed prolongation: one damped Jacobi step of P, a better Galerkin coarse space", "[fem][coarse_proxy]") {
   const auto [coarse, fine, coarse_lengths, fine_lengths, P] = nested_spheres(2);
   const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine_lengths);

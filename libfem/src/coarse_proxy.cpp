@@ -629,7 +629,7 @@ Eigen::VectorXd ProxyGeodesicSolver::marching_distance(const std::vector<Index>&
     }
   }
   if (times) times->restriction = seconds_since(mark);
-  detail::CoarseMarcher marcher(*marching_);
+  detail::CoarseMarcher marcher(*marching_, /*reopen=*/true);  // (see there: one run, so worth it)
   std::vector<double> squared(nc, kInfinity);  // squared distance from the nearest source
   std::vector<Index> nearest(nc, -1);          // which source (its number in `sources`)
   if (!seeds.empty()) {
