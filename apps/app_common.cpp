@@ -262,6 +262,20 @@ void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correct
              "QEM 1.14x (README, Accuracy)");
 }
 
+bool traces_lengths(CoarseLengths choice, ice::CoarseningMethod method) {
+  return choice == CoarseLengths::traced || (choice == CoarseLengths::automatic && method == ice::CoarseningMethod::ice);
+}
+
+void add_coarse_lengths_option(CLI::App& cli, const std::string& name, CoarseLengths& choice) {
+  add_choice(cli, name, choice,
+             {{"auto", CoarseLengths::automatic}, {"intrinsic", CoarseLengths::intrinsic}, {"traced", CoarseLengths::traced}},
+             "Coarse marching on the lengths of the coarse edges traced on the input surface by a walk over the "
+             "fine-to-coarse map ('traced', ICE only), or on the coarse mesh's own edge lengths ('intrinsic'); 'auto' "
+             "(the default): traced for ICE coarse meshes, QEM's own. Against exact geodesics over 40 meshes x 1-10 % "
+             "(1 subdivision): traced 0.81x the error of intrinsic (better in 3 of 4 cases), at 1.3x the whole run's "
+             "time (the tracing: 2.4 s at 1.6M vertices and 1 %; README, Accuracy)");
+}
+
 std::optional<ice::CoarseTracing> trace_for_outputs(const PdeOptions& opt, const ice::TriangleMesh& mesh,
                                                     const ice::CoarseSpace& space) {
   if ((opt.output.empty() && opt.html.empty()) || !space.triangulation) return std::nullopt;

@@ -148,6 +148,17 @@ ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, cons
 /// --curvature-correction auto|on|off, for the tools that march on the coarse mesh.
 void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction);
 
+/// Which coarse edge lengths coarse marching runs on: `automatic` traces ICE's coarse edges on the
+/// input surface (marching_lengths' `traced`) and keeps QEM's own lengths — the default since it
+/// was measured (README, Accuracy: against exact geodesics over 40 meshes x 1-10 %, 0.81x the
+/// error of the intrinsic lengths and ICE/QEM-iDT's median at 5 % 0.75 against 0.94, at 1.3x the
+/// whole run's time); `intrinsic` and `traced` ask for one (traced: ICE only).
+enum class CoarseLengths { automatic, intrinsic, traced };
+/// Whether marching traces the coarse edges of a space made by `method` under `choice`.
+bool traces_lengths(CoarseLengths choice, ice::CoarseningMethod method);
+/// The coarse-lengths option (`name`: --coarse-lengths, ice-report's --geodesic-lengths) auto|intrinsic|traced.
+void add_coarse_lengths_option(CLI::App& cli, const std::string& name, CoarseLengths& choice);
+
 /// The coarse mesh traced on the input (ice/coarse_tracing.h) when an output draws it: --output or
 /// --html, and an ICE space built with keep_method_state (build_pde_proxy keeps it for them). Traced
 /// once per run, for both.

@@ -62,7 +62,8 @@ struct OracleRequest {
   std::string matrix_path;     ///< --matrix (.npy or .mtx)
   std::string pairs_output;    ///< --pairs-out (.csv)
   fem::CoarseDistanceMethod method = fem::CoarseDistanceMethod::marching;
-  bool traced_lengths = false;  ///< --coarse-lengths traced: marching on the coarse edges' lengths on the surface
+  app::CoarseLengths lengths = app::CoarseLengths::automatic;  ///< --coarse-lengths
+  bool traced_lengths = false;  ///< what `lengths` resolves to: marching on the coarse edges' lengths on the surface
   int subdivisions = fem::ProxyGeodesicOptions{}.subdivisions;  ///< --marching-subdivisions (coarse marching)
   app::CurvatureCorrection curvature_correction = app::CurvatureCorrection::automatic;  ///< --curvature-correction
   int check_sources = 16;
@@ -344,12 +345,7 @@ int main(int argc, char** argv) {
                   "accurate, measured; with --source from the sources' points, the squared distance interpolated to "
                   "the input vertices) or the heat method on the coarse operators (with --source: its distance "
                   "prolonged with P); in the oracle modes, for all coarse pairs");
-  app::add_choice(cli, "--coarse-lengths", oracle.traced_lengths, {{"intrinsic", false}, {"traced", true}},
-                  "Coarse marching on the coarse mesh's intrinsic edge lengths (the default) or on the lengths of its "
-                  "edges traced on the input surface by a walk over the fine-to-coarse map (ICE only: more accurate, "
-                  "0.78x the error against exact geodesics over 40 meshes x 1-10 % in geometric mean with 2 "
-                  "subdivisions, better in 129 of 160 cases, at the cost of the tracing: 2.4 s at 1.6M vertices and "
-                  "1 %; README, Accuracy)");
+  app::add_coarse_lengths_option(cli, "--coarse-lengths", oracle.lengths);
   app::add_curvature_correction_option(cli, oracle.curvature_correction);
   const CLI::Option* subdivisions_option = cli.add_option(
       "--marching-subdivisions", oracle.subdivisions,
@@ -386,9 +382,12 @@ int main(int argc, char** argv) {
       throw app::AppError(app::kUsage, "--pairs-out goes with --pairs");
     if (subdivisions_option->count() > 0 && oracle.method != fem::CoarseDistanceMethod::marching)
       throw app::AppError(app::kUsage, "--marching-subdivisions goes with coarse marching, not --coarse-distances heat");
-    if (oracle.traced_lengths && oracle.method != fem::CoarseDistanceMethod::marching)
+    const bool traced_asked = oracle.lengths == app::CoarseLengths::traced;
+    if (traced_asked && oracle.method != fem::CoarseDistanceMethod::marching)
       throw app::AppError(app::kUsage, "--coarse-lengths traced is for coarse marching, not --coarse-distances heat");
-    if (oracle.traced_lengths && opt.target.method != ice::CoarseningMethod::ice)
+    oracle.traced_lengths =
+        oracle.method == fem::CoarseDistanceMethod::marching && app::traces_lengths(oracle.lengths, opt.target.method);
+    if (traced_asked && opt.target.method != ice::CoarseningMethod::ice)
       throw app::AppError(app::kUsage, "--coarse-lengths traced needs ICE's coarse mesh (QEM's edges are straight segments: "
                                        "nothing to trace)");
     if (oracle.active() && (!opt.output.empty() || !opt.html.empty()))

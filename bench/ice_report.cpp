@@ -756,11 +756,9 @@ int main(int argc, char** argv) {
                   "What geodesic errors are measured against: the fine heat method (t = h^2) or exact polyhedral "
                   "geodesics (CGAL's Surface_mesh_shortest_path; only in builds with libcgal-dev). With 'exact' the "
                   "fine heat method's own error is reported per mesh too");
-  bool traced_lengths = false;
-  app::add_choice(cli, "--geodesic-lengths", traced_lengths, {{"intrinsic", false}, {"traced", true}},
-                  "ICE's geodesics by coarse marching on the coarse mesh's intrinsic edge lengths, or on the lengths of "
-                  "its edges traced on the input surface (ice::traced_edge_lengths; the tracing counts in the geodesic "
-                  "row's factor time)");
+  app::CoarseLengths lengths_choice = app::CoarseLengths::automatic;
+  app::add_coarse_lengths_option(cli, "--geodesic-lengths", lengths_choice);  // (the tracing counts in the
+                                                                              // geodesic row's factor time)
   app::CurvatureCorrection curvature_correction = app::CurvatureCorrection::automatic;
   app::add_curvature_correction_option(cli, curvature_correction);
   int coarsen_threads = 1, coarsen_regions = 0;  // ICE coarsening's parallel phase (default: the serial order)
@@ -813,8 +811,10 @@ int main(int argc, char** argv) {
     if (exact_geodesics)
       throw app::AppError(app::kUsage, "--geodesic-reference exact: this ice-report was built without CGAL (libcgal-dev)");
 #endif
-    if (traced_lengths && !heat_geodesics.empty())
+    if (lengths_choice == app::CoarseLengths::traced && !heat_geodesics.empty())
       throw app::AppError(app::kUsage, "--geodesic-lengths traced: the lengths are for coarse marching, not with --coarse-distances heat");
+    // ICE's geodesics march on traced lengths unless asked otherwise (QEM's keep their own).
+    const bool traced_lengths = heat_geodesics.empty() && app::traces_lengths(lengths_choice, ice::CoarseningMethod::ice);
     const fem::ProlongationKind prolongation = app::resolve_prolongation(prolongation_choice, kind, heat_geodesics);
     // QEM: Galerkin operators of its smoothed P, or the operators of its own geometry with its P as given.
     const fem::ProlongationKind qem_prolongation =

@@ -329,26 +329,34 @@ elseif(CASE STREQUAL "geodesic_spot")
   file(SIZE "${WORK}/d.ply" size)
   # 2930 vertices × 6 doubles + 5856 faces × 13 bytes after the header
   check(${size} GREATER 210000 "d.ply size")
-  # Curvature-corrected lengths (the default for ICE): closer to the surface's distances than the
-  # coarse mesh's own lengths (sources 0,1500: mean 1.31 % -> 1.06 %); QEM's are not corrected.
-  json(corrected_mean "${r}" error mean_rel)
+  # The defaults for ICE (--coarse-lengths auto, --curvature-correction auto): the coarse edges'
+  # lengths traced on the surface, curvature-corrected; QEM's own lengths, uncorrected.
+  json(lengths "${r}" coarse_lengths)
+  check_text("${lengths}" traced "coarse_lengths")
+  json(traced_edges "${r}" coarse_lengths_traced_edges traced)
+  check(${traced_edges} GREATER 400 "coarse_lengths_traced_edges.traced (435 edges at 147 coarse vertices)")
   json(corrected "${r}" curvature_corrected)
   check_text("${corrected}" ON "curvature_corrected")
-  run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --curvature-correction off --report "${WORK}/p.json" -q)
-  json(intrinsic_mean "${WORK}/p.json" error mean_rel)
-  check(${corrected_mean} LESS ${intrinsic_mean} "error.mean_rel with curvature-corrected lengths")
   run(0 geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --method qem --no-reference --report "${WORK}/q.json" -q)
   json(qem_corrected "${WORK}/q.json" curvature_corrected)
   check_text("${qem_corrected}" OFF "curvature_corrected (QEM)")
-  # --coarse-lengths traced: the same coarse mesh, marching on its edges' lengths on the surface,
-  # which is closer to the surface's metric than its own (both uncorrected: 1.31 % -> 1.07 %); the
-  # refusals (QEM has nothing to trace; the lengths are for marching).
+  json(qem_lengths "${WORK}/q.json" coarse_lengths)
+  check_text("${qem_lengths}" intrinsic "coarse_lengths (QEM)")
+  # On the coarse mesh's own lengths (--coarse-lengths intrinsic) the curvature correction brings the
+  # distances closer to the surface's (sources 0,1500: mean 1.31 % -> 1.06 % against the fine heat
+  # method) ...
+  run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths intrinsic --report "${WORK}/c.json" -q)
+  json(lengths "${WORK}/c.json" coarse_lengths)
+  check_text("${lengths}" intrinsic "coarse_lengths")
+  json(corrected_mean "${WORK}/c.json" error mean_rel)
+  run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths intrinsic --curvature-correction off
+      --report "${WORK}/p.json" -q)
+  json(intrinsic_mean "${WORK}/p.json" error mean_rel)
+  check(${corrected_mean} LESS ${intrinsic_mean} "error.mean_rel with curvature-corrected lengths")
+  # ... and so do the traced lengths (both uncorrected: 1.31 % -> 0.99 %); the refusals (QEM has
+  # nothing to trace; the lengths are for marching).
   run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths traced --curvature-correction off
       --report "${WORK}/t.json" -q)
-  json(lengths "${WORK}/t.json" coarse_lengths)
-  check_text("${lengths}" traced "coarse_lengths")
-  json(traced_edges "${WORK}/t.json" coarse_lengths_traced_edges traced)
-  check(${traced_edges} GREATER 400 "coarse_lengths_traced_edges.traced (435 edges at 147 coarse vertices)")
   json(traced_mean "${WORK}/t.json" error mean_rel)
   check(${traced_mean} LESS ${intrinsic_mean} "error.mean_rel with traced lengths")
   expect_error(4 "needs ICE" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --coarse-lengths traced --method qem)

@@ -143,15 +143,16 @@ def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace
 
 def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, method: str = "marching",
                       time_factor: float = 1.0, operators: str = "galerkin", fine: str = "intrinsic_delaunay",
-                      lengths: str = "intrinsic", subdivisions: int = 1, curvature_correction: bool | None = None,
+                      lengths: str = "auto", subdivisions: int = 1, curvature_correction: bool | None = None,
                       **coarsening):
     """Geodesic distance to `sources` through a coarse proxy (geodesic-coarse).
 
     method: "marching" (fast marching on the coarse mesh, the default; operators and fine are then
     unused) or "heat" (the coarse heat method, t = (time_factor · mean coarse edge length)²). coarse / coarsening options as for
-    solve_poisson, with the metric measured best for geodesics (use="geodesic") by default. lengths:
-    "intrinsic" or, with marching on an ICE coarse space, "traced" (the coarse edges' lengths on the
-    surface: geodesic-coarse --coarse-lengths traced). subdivisions: marching on the coarse mesh split
+    solve_poisson, with the metric measured best for geodesics (use="geodesic") by default. lengths
+    (marching): "traced" (the coarse edges' lengths on the surface; an ICE coarse space), "intrinsic"
+    (the coarse mesh's own), or "auto" (the default, as geodesic-coarse --coarse-lengths auto: traced
+    for an ICE coarse space that has its fine-to-coarse map, intrinsic otherwise). subdivisions: marching on the coarse mesh split
     1:4 that many times (geodesic-coarse --marching-subdivisions). curvature_correction: with marching,
     edge lengths scaled for the curvature each coarse face flattens (None: for ICE coarse spaces, as
     geodesic-coarse --curvature-correction auto). On a mesh of several components
@@ -161,7 +162,7 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     if method not in ("marching", "heat"):
         raise ValueError(f"method must be 'marching' or 'heat', not {method!r}")
     coarse = _coarse_for(V, F, coarse, coarsening, "geodesic")
-    if lengths != "intrinsic" and method != "marching":
+    if lengths == "traced" and method != "marching":
         raise ValueError(f"lengths={lengths!r} is for method='marching'")
     if method == "marching":  # needs only the coarse mesh and P: no Proxy (fine mesh, operators) to build
         return ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths=lengths, subdivisions=subdivisions,

@@ -159,7 +159,7 @@ class ProxyGeodesicSolver:
                  time_factor: float = 1.0, subdivisions: int = 1, curvature_correction: bool | None = None) -> None: ...
     @staticmethod
     def from_coarse(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
-                    lengths: Literal["intrinsic", "traced"] = "intrinsic",
+                    lengths: Literal["auto", "intrinsic", "traced"] = "auto",
                     subdivisions: int = 1, curvature_correction: bool | None = None) -> ProxyGeodesicSolver:
         """Coarse marching from a coarse space of (V, F) alone, without a Proxy."""
     def distance(self, sources: Indices) -> FloatArray: ...
@@ -203,7 +203,7 @@ class DistanceOracle:
     @staticmethod
     def from_mesh(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *, method: Literal["marching", "heat"] = "marching",
                   heat_time_factor: float = 1.0, threads: int = 0, subdivisions: int = 1,
-                  lengths: Literal["intrinsic", "traced"] = "intrinsic",
+                  lengths: Literal["auto", "intrinsic", "traced"] = "auto",
                   curvature_correction: bool | None = None) -> DistanceOracle:
         """The oracle of geodesic-coarse's oracle modes: corrected for ICE coarse spaces, traced on request."""
     def distance(self, u: int, v: int) -> float: ...
@@ -254,7 +254,7 @@ def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: C
                       method: Literal["marching", "heat"] = "marching",
                       time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
-                      lengths: Literal["intrinsic", "traced"] = "intrinsic", subdivisions: int = 1,
+                      lengths: Literal["auto", "intrinsic", "traced"] = "auto", subdivisions: int = 1,
                       curvature_correction: bool | None = None, **coarsening: Any) -> FloatArray:
     """Geodesic distance through a coarse proxy in one call (coarse fast marching by default)."""
 def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: ArrayLike = 1.0, *,

@@ -497,6 +497,19 @@ ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const 
   return app::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map).lengths;
 }
 
+/// lengths="auto"|"intrinsic"|"traced" of the marching entry points: whether to march on traced lengths
+/// (auto, the tools' --coarse-lengths auto: an ICE coarse space that has its map; intrinsic otherwise).
+/// `marching`: false for the coarse heat method, which takes neither (traced asked then: ValueError).
+bool traced_lengths_argument(const std::string& lengths, const PyCoarseSpace& coarse, bool marching = true) {
+  const auto asked = choice<app::CoarseLengths>(lengths, "lengths", {{"auto", app::CoarseLengths::automatic},
+                                                                      {"intrinsic", app::CoarseLengths::intrinsic},
+                                                                      {"traced", app::CoarseLengths::traced}});
+  if (asked == app::CoarseLengths::traced && !marching) throw py::value_error("lengths='traced' is for method='marching'");
+  if (asked == app::CoarseLengths::automatic)
+    return marching && !coarse.map.empty() && app::traces_lengths(asked, coarse.space.summary.method);
+  return asked == app::CoarseLengths::traced;
+}
+
 /// The oracle and the vector proxy need the coarse space's fine-to-coarse map.
 void require_map(const PyCoarseSpace& coarse) {
   if (coarse.map.empty())
@@ -1045,22 +1058,23 @@ QEM's).)doc")
       .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse, const std::string& lengths,
                                     int subdivisions, const py::object& curvature_correction) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
-             const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
+             const bool traced = traced_lengths_argument(lengths, coarse);
              const app::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
              auto solver = std::make_unique<PyGeodesicSolver>();
              ice::FaceLengths L = marching_lengths_argument(mesh, coarse, traced, correction);
              py::gil_scoped_release release;
              solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, L, coarse.space.P, subdivisions);
              return solver;
-           }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = "intrinsic",
+           }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = "auto",
            py::arg("subdivisions") = fem::ProxyGeodesicOptions{}.subdivisions, py::arg("curvature_correction") = py::none(),
            "Coarse marching from a coarse space of (V, F) alone: no Proxy (no fine intrinsic Delaunay mesh, no operators), "
            "which the marching does not need. The same distances as ProxyGeodesicSolver(Proxy(V, F, coarse)) (with the "
            "curvature correction, up to the vertex areas of the fine triangulation: the input's here, its intrinsic "
            "Delaunay triangulation's there). "
-           "lengths='traced' (ICE): march on the coarse edges' lengths traced on the surface (geodesic-coarse "
-           "--coarse-lengths traced: more accurate on most meshes, at the cost of the tracing). subdivisions as for "
-           "the constructor, and curvature_correction.")
+           "lengths: 'traced' (ICE) marches on the coarse edges' lengths traced on the surface (more accurate on "
+           "most meshes, at the cost of the tracing), 'intrinsic' on the coarse mesh's own; 'auto' (the default, as "
+           "geodesic-coarse --coarse-lengths auto): traced for an ICE coarse space that has its fine-to-coarse map. "
+           "subdivisions as for the constructor, and curvature_correction.")
       .def("distance", [](PyGeodesicSolver& s, const py::object& sources) {
              const std::vector<ice::Index> fine_sources = index_argument(sources, s.solver->fine_size(), "sources");
              if (fine_sources.empty()) throw py::value_error("sources is empty");
@@ -1291,24 +1305,24 @@ of geodesic-coarse's oracle modes (curvature-corrected for ICE; traced lengths o
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "DistanceOracle.from_mesh");
              require_map(coarse);
              const fem::CoarseDistanceMethod distances = coarse_distance_method(method);
-             const bool traced = choice<bool>(lengths, "lengths", {{"intrinsic", false}, {"traced", true}});
-             const app::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
              const bool marching = distances == fem::CoarseDistanceMethod::marching;
-             if (!marching && (traced || correction == app::CurvatureCorrection::on))
-               throw py::value_error("lengths='traced' and curvature_correction=True are for method='marching'");
+             const bool traced = traced_lengths_argument(lengths, coarse, marching);
+             const app::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
+             if (!marching && correction == app::CurvatureCorrection::on)
+               throw py::value_error("curvature_correction=True is for method='marching'");
              const ice::FaceLengths L =
                  marching ? marching_lengths_argument(mesh, coarse, traced, correction) : coarse.space.mesh.L;
              return make_oracle(coarse, L, distances, heat_time_factor, threads, subdivisions);
            },
            py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("method") = "marching",
            py::arg("heat_time_factor") = 1.0, py::arg("threads") = 0,
-           py::arg("subdivisions") = fem::DistanceOracleOptions{}.subdivisions, py::arg("lengths") = "intrinsic",
+           py::arg("subdivisions") = fem::DistanceOracleOptions{}.subdivisions, py::arg("lengths") = "auto",
            py::arg("curvature_correction") = py::none(),
            "The oracle of geodesic-coarse's oracle modes (--pairs, --sample, --all-pairs) from the coarse space of "
            "(V, F): with marching, on the coarse lengths the tool marches on — curvature-corrected for ICE coarse "
-           "spaces (curvature_correction=None, as --curvature-correction auto), traced on the surface with "
-           "lengths='traced' (--coarse-lengths traced). The constructor marches on the coarse mesh's own lengths "
-           "(or those it is given).")
+           "spaces (curvature_correction=None, as --curvature-correction auto), and for them traced on the surface "
+           "(lengths='auto', as --coarse-lengths auto; 'intrinsic' or 'traced' to choose). The constructor marches on "
+           "the coarse mesh's own lengths (or those it is given).")
       .def("distance", [](const fem::DistanceOracle& o, long long u, long long v) {
              const Eigen::Index n = o.fine_size();
              if (u < 0 || u >= n || v < 0 || v >= n)

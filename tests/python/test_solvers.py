@@ -149,14 +149,15 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
     heat = ice.geodesic_distance(V, F, [7], ratio=0.05, method="heat")
     assert np.abs(heat - read_ascii_ply_fields(tmp_path / "h.ply")["distance"]).max() <= 1e-12 * heat.max()
     coarse = ice.coarsen(V, F, ratio=0.05, use="geodesic")
-    bare = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, curvature_correction=False).distance([7, 100])
+    bare = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="intrinsic", curvature_correction=False).distance([7, 100])
     assert np.array_equal(bare, ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse), curvature_correction=False).distance([7, 100]))
     # With the curvature correction (the default for ICE), the same up to the fine triangulation's
     # vertex areas (the input's here, its intrinsic Delaunay triangulation's through a Proxy).
-    corrected = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([7, 100])
+    corrected = ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="intrinsic").distance([7, 100])
     assert np.abs(corrected - ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse)).distance([7, 100])).max() <= 1e-4 * corrected.max()
     assert np.abs(corrected - bare).max() > 1e-3 * corrected.max()
-    assert np.array_equal(corrected, ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, curvature_correction=True).distance([7, 100]))
+    assert np.array_equal(corrected, ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="intrinsic",
+                                                                          curvature_correction=True).distance([7, 100]))
     qem = ice.coarsen(V, F, ratio=0.05, method="qem")  # not corrected by default (measured: README, Accuracy)
     assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, qem).distance([7]),
                           ice.ProxyGeodesicSolver.from_coarse(V, F, qem, curvature_correction=False).distance([7]))
@@ -164,12 +165,21 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
         ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, curvature_correction="yes")
     with pytest.raises(ValueError, match="method"):
         ice.geodesic_distance(V, F, [7], coarse=coarse, method="dijkstra")
-    # Traced lengths: the tool's --coarse-lengths traced, and refused where there is nothing to trace.
+    # Traced lengths (the default for ICE, lengths="auto"), the tool's --coarse-lengths traced; the
+    # coarse mesh's own lengths on request (--coarse-lengths intrinsic); refused where there is
+    # nothing to trace.
     tool("geodesic-coarse", path, "--ratio", "0.05", "--source", "7", "--no-reference", "--ascii", "-q",
          "--coarse-lengths", "traced", "-o", tmp_path / "t.ply")
     traced = ice.geodesic_distance(V, F, [7], ratio=0.05, lengths="traced")
     assert np.abs(traced - read_ascii_ply_fields(tmp_path / "t.ply")["distance"]).max() <= 1e-12 * traced.max()
-    assert np.abs(traced - d).max() > 1e-6 * d.max()  # another metric: other distances
+    assert np.array_equal(traced, d)
+    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([7]),
+                          ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="traced").distance([7]))
+    tool("geodesic-coarse", path, "--ratio", "0.05", "--source", "7", "--no-reference", "--ascii", "-q",
+         "--coarse-lengths", "intrinsic", "-o", tmp_path / "i.ply")
+    intrinsic = ice.geodesic_distance(V, F, [7], ratio=0.05, lengths="intrinsic")
+    assert np.abs(intrinsic - read_ascii_ply_fields(tmp_path / "i.ply")["distance"]).max() <= 1e-12 * intrinsic.max()
+    assert np.abs(traced - intrinsic).max() > 1e-6 * d.max()  # another metric: other distances
     with pytest.raises(ValueError, match="traced"):
         ice.ProxyGeodesicSolver.from_coarse(V, F, ice.coarsen(V, F, ratio=0.05, method="qem"), lengths="traced")
     with pytest.raises(ValueError, match="marching"):
@@ -183,7 +193,8 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
     split = ice.geodesic_distance(V, F, [7], ratio=0.05, subdivisions=2)
     assert np.abs(split - read_ascii_ply_fields(tmp_path / "s.ply")["distance"]).max() <= 1e-12 * split.max()
     assert np.abs(split - d).max() > 1e-6 * d.max()
-    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, subdivisions=0, curvature_correction=False).distance([7]),
+    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="intrinsic", subdivisions=0,
+                                                              curvature_correction=False).distance([7]),
                           ice.ProxyGeodesicSolver(ice.Proxy(V, F, coarse), subdivisions=0, curvature_correction=False).distance([7]))
     with pytest.raises(ValueError, match="subdivisions"):
         ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, subdivisions=-1)
@@ -212,7 +223,7 @@ def test_traced_coarse_edges(project_mesh):
     untraced = ice.coarsen(V, F, ratio=0.05)
     assert np.array_equal(untraced.lengths, coarse.lengths)
     assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, untraced, lengths="traced").distance([0]), d)
-    assert not np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([0]), d)
+    assert not np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="intrinsic").distance([0]), d)
 
 
 def test_heat_flow_conserves_mass_and_matches_scipy(spot):
@@ -328,14 +339,17 @@ def test_distance_oracle(spot):
 
 def test_distance_oracle_from_mesh(project_mesh, tmp_path, tool):
     # DistanceOracle.from_mesh: the oracle of geodesic-coarse's oracle modes. Its default marches on
-    # curvature-corrected lengths for ICE (the constructor on the coarse mesh's own), not for QEM.
+    # traced, curvature-corrected lengths for ICE (the constructor on the coarse mesh's own), on
+    # QEM's own.
     path = project_mesh("spot.obj")
     V, F = ice.load_mesh(path)
     coarse = ice.coarsen(V, F, ratio=0.05, use="geodesic")
     pairs = np.random.default_rng(5).integers(0, V.shape[0], size=(300, 2))
     corrected = ice.DistanceOracle(coarse, lengths=ice.curvature_corrected_lengths(V, F, coarse))
-    assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, coarse).distances(pairs), corrected.distances(pairs))
-    assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, coarse, curvature_correction=False).distances(pairs),
+    assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, coarse, lengths="intrinsic").distances(pairs),
+                          corrected.distances(pairs))
+    assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, coarse, lengths="intrinsic",
+                                                       curvature_correction=False).distances(pairs),
                           ice.DistanceOracle(coarse).distances(pairs))
     qem = ice.coarsen(V, F, ratio=0.05, method="qem")
     assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, qem).distances(pairs), ice.DistanceOracle(qem).distances(pairs))
@@ -345,6 +359,7 @@ def test_distance_oracle_from_mesh(project_mesh, tmp_path, tool):
          tmp_path / "out.csv", "--coarse-lengths", "traced", "-q")
     written = np.loadtxt(tmp_path / "out.csv", delimiter=",", skiprows=1)
     traced = ice.DistanceOracle.from_mesh(V, F, coarse, lengths="traced").distances(pairs)
+    assert np.array_equal(ice.DistanceOracle.from_mesh(V, F, coarse).distances(pairs), traced)
     assert np.array_equal(written[:, :2].astype(int), pairs)
     assert np.abs(traced - written[:, 2]).max() <= 1e-8 * traced.max()
     assert np.abs(traced - corrected.distances(pairs)).max() > 1e-6 * traced.max()
