@@ -219,8 +219,12 @@ class CoarseMarcher {
   /// How far below 0 the squared height of the virtual source may fall and still be read as 0:
   /// the layout's floats carry relative errors of ~1e-7 into sx² and da².
   static constexpr double kOnLineTolerance = 1e-5;
+  /// How much nearer a face must find a done vertex to reopen it: above the floats' round-off, so
+  /// that equal values reached through two faces do not reopen each other.
   static constexpr double kReopenGain = 1e-6;
-  // The value of v through its face from corners a, b at distances da, db (|v a| = to_a, |v b| = to_b).
+  // The value of v through the interior of its face from corners a, b at distances da, db: the
+  // distance from their virtual source, or +∞ where the straight line from it does not cross ab
+  // (v is then reached along edges, by the corners' own edge relaxations).
   static double value_through(double da, double db, const MarchingMesh::Layout& layout) {
     if (!(da < kInfinity && db < kInfinity) || !(layout.vy > 0)) return kInfinity;
     const double base = layout.base, vx = layout.vx, vy = layout.vy;
