@@ -244,8 +244,10 @@ ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, cons
 ice::SurfaceEdgeLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
                                          CurvatureCorrection correction, const std::vector<ice::CoarsePoint>* map) {
   ice::SurfaceEdgeLengths result;
-  if (traced)
-    result = ice::surface_edge_lengths(mesh, space.mesh, map ? *map : ice::fine_to_coarse_map(space), space.inserted);
+  if (traced && map)  // (not `map ? *map : ice::fine_to_coarse_map(space)`: that copies the given map)
+    result = ice::surface_edge_lengths(mesh, space.mesh, *map, space.inserted);
+  else if (traced)
+    result = ice::surface_edge_lengths(mesh, space.mesh, ice::fine_to_coarse_map(space), space.inserted);
   else
     result.lengths = space.mesh.L;
   if (corrects_curvature(correction, space.summary.method))
@@ -262,8 +264,9 @@ void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correct
              "QEM 1.14x (README, Accuracy)");
 }
 
-bool traces_lengths(CoarseLengths choice, ice::CoarseningMethod method) {
-  return choice == CoarseLengths::traced || (choice == CoarseLengths::automatic && method == ice::CoarseningMethod::ice);
+bool traces_lengths(CoarseLengths choice, ice::CoarseningMethod method, bool marching) {
+  return marching &&
+         (choice == CoarseLengths::traced || (choice == CoarseLengths::automatic && method == ice::CoarseningMethod::ice));
 }
 
 void add_coarse_lengths_option(CLI::App& cli, const std::string& name, CoarseLengths& choice) {

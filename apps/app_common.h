@@ -154,8 +154,10 @@ void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correct
 /// error of the intrinsic lengths and ICE/QEM-iDT's median at 5 % 0.75 against 0.94, at 1.3x the
 /// whole run's time); `intrinsic` and `traced` ask for one (traced: ICE only).
 enum class CoarseLengths { automatic, intrinsic, traced };
-/// Whether marching traces the coarse edges of a space made by `method` under `choice`.
-bool traces_lengths(CoarseLengths choice, ice::CoarseningMethod method);
+/// Whether the coarse distances trace the coarse edges of a space made by `method` under `choice`:
+/// never unless `marching` (the coarse heat method takes no lengths; asking for `traced` there is the
+/// caller's usage error, in its own words).
+bool traces_lengths(CoarseLengths choice, ice::CoarseningMethod method, bool marching);
 /// The coarse-lengths option (`name`: --coarse-lengths, ice-report's --geodesic-lengths) auto|intrinsic|traced.
 void add_coarse_lengths_option(CLI::App& cli, const std::string& name, CoarseLengths& choice);
 

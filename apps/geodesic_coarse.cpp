@@ -385,8 +385,8 @@ int main(int argc, char** argv) {
     const bool traced_asked = oracle.lengths == app::CoarseLengths::traced;
     if (traced_asked && oracle.method != fem::CoarseDistanceMethod::marching)
       throw app::AppError(app::kUsage, "--coarse-lengths traced is for coarse marching, not --coarse-distances heat");
-    oracle.traced_lengths =
-        oracle.method == fem::CoarseDistanceMethod::marching && app::traces_lengths(oracle.lengths, opt.target.method);
+    oracle.traced_lengths = app::traces_lengths(oracle.lengths, opt.target.method,
+                                                oracle.method == fem::CoarseDistanceMethod::marching);
     if (traced_asked && opt.target.method != ice::CoarseningMethod::ice)
       throw app::AppError(app::kUsage, "--coarse-lengths traced needs ICE's coarse mesh (QEM's edges are straight segments: "
                                        "nothing to trace)");

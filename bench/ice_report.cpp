@@ -814,7 +814,7 @@ int main(int argc, char** argv) {
     if (lengths_choice == app::CoarseLengths::traced && !heat_geodesics.empty())
       throw app::AppError(app::kUsage, "--geodesic-lengths traced: the lengths are for coarse marching, not with --coarse-distances heat");
     // ICE's geodesics march on traced lengths unless asked otherwise (QEM's keep their own).
-    const bool traced_lengths = heat_geodesics.empty() && app::traces_lengths(lengths_choice, ice::CoarseningMethod::ice);
+    const bool traced_lengths = app::traces_lengths(lengths_choice, ice::CoarseningMethod::ice, heat_geodesics.empty());
     const fem::ProlongationKind prolongation = app::resolve_prolongation(prolongation_choice, kind, heat_geodesics);
     // QEM: Galerkin operators of its smoothed P, or the operators of its own geometry with its P as given.
     const fem::ProlongationKind qem_prolongation =

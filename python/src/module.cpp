@@ -505,9 +505,9 @@ bool traced_lengths_argument(const std::string& lengths, const PyCoarseSpace& co
                                                                       {"intrinsic", app::CoarseLengths::intrinsic},
                                                                       {"traced", app::CoarseLengths::traced}});
   if (asked == app::CoarseLengths::traced && !marching) throw py::value_error("lengths='traced' is for method='marching'");
-  if (asked == app::CoarseLengths::automatic)
-    return marching && !coarse.map.empty() && app::traces_lengths(asked, coarse.space.summary.method);
-  return asked == app::CoarseLengths::traced;
+  // auto needs the map to trace with (a space read from a file has none: its own lengths then).
+  return (asked != app::CoarseLengths::automatic || !coarse.map.empty()) &&
+         app::traces_lengths(asked, coarse.space.summary.method, marching);
 }
 
 /// The oracle and the vector proxy need the coarse space's fine-to-coarse map.

@@ -21,10 +21,10 @@
 ///    marching (the default): fast marching with exact planar updates on the coarse intrinsic mesh
 ///    from the sources' points (each source seeds the corners of its coarse face at their planar
 ///    distances from it; a vertex that a later face finds nearer, behind an obtuse face, is
-///    reopened — which the distance oracle's all-pairs marching does not do), carried to the fine vertices by interpolating the *squared* distance as
-///    the distance oracle does (fem/distance_oracle.h): d(y)² = Σ_j μ_j d(q_j)² − Σ_{j<k} μ_j μ_k
-///    |q_j q_k|² over P's row of y, exact inside the source's face and wherever one virtual source
-///    reaches y's face; heat_method: a fine source vertex becomes the coarse source weights Pᵀ e_s,
+///    reopened — which the distance oracle's all-pairs marching does not do), carried to the fine
+///    vertices by interpolating the *squared* distance as the distance oracle does
+///    (fem/distance_oracle.h): d(y)² = Σ_j μ_j d(q_j)² − Σ_{j<k} μ_j μ_k |q_j q_k|² over P's row of
+///    y, exact inside the source's face and wherever one virtual source reaches y's face; heat_method: a fine source vertex becomes the coarse source weights Pᵀ e_s,
 ///    the coarse heat method solves, and the distance is prolonged with P and shifted so that it
 ///    vanishes (on average) at the fine sources.
 #include <memory>
