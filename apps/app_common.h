@@ -14,6 +14,7 @@
 
 #include "command_line.h"
 #include "fem/coarse_proxy.h"
+#include "fem/curvature_correction.h"
 #include "fem/vector_fields.h"
 #include "ice/coarse_space.h"
 #include "ice/coarse_tracing.h"
@@ -137,14 +138,17 @@ enum class CurvatureCorrection { automatic, on, off };
 /// depend on what else is written); then curvature-corrected (fem::curvature_corrected_lengths with
 /// the input mesh and space.P) as `correction` says. The counts are the walk's (zero for the
 /// intrinsic lengths). The tools and the Python bindings all take their marching lengths from here.
+/// `divisor`: the correction's strength for the marching that reads them (fem::kProxyCorrectionDivisor
+/// for fem::ProxyGeodesicSolver, fem::kOracleCorrectionDivisor for fem::DistanceOracle).
 ice::SurfaceEdgeLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                         CurvatureCorrection correction, const std::vector<ice::CoarsePoint>* map = nullptr);
+                                         CurvatureCorrection correction, const std::vector<ice::CoarsePoint>* map = nullptr,
+                                         double divisor = fem::kProxyCorrectionDivisor);
 /// Whether `correction` corrects marching on a coarse space made by `method` (automatic: ICE's).
 bool corrects_curvature(CurvatureCorrection correction, ice::CoarseningMethod method);
 /// `lengths` (of space's coarse faces) curvature-corrected with the input `mesh`: its angle defects and
 /// vertex areas gathered through space.P (fem::curvature_corrected_lengths).
 ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space,
-                                            const ice::FaceLengths& lengths);
+                                            const ice::FaceLengths& lengths, double divisor = fem::kProxyCorrectionDivisor);
 /// --curvature-correction auto|on|off, for the tools that march on the coarse mesh.
 void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction);
 

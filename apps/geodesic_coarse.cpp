@@ -167,8 +167,11 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
   oracle_options.subdivisions = request.subdivisions;
-  const fem::DistanceOracle oracle(space.mesh.F, app::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction, &map).lengths, map,
-                                   oracle_options);
+  const fem::DistanceOracle oracle(space.mesh.F,
+                                   app::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction, &map,
+                                                         fem::kOracleCorrectionDivisor)
+                                       .lengths,
+                                   map, oracle_options);
   const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced
 
   // ---- the queries

@@ -83,7 +83,8 @@ int main(int argc, char** argv) {
     // Marching on the coarse mesh's own lengths and on the curvature-corrected ones (geodesic-coarse's
     // default for ICE), and the heat method.
     const ice::FaceLengths corrected = fem::curvature_corrected_lengths(
-        mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F, space.mesh.L, space.P);
+        mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F, space.mesh.L, space.P,
+        fem::kOracleCorrectionDivisor);
     for (const int variant : {0, 1, 2}) {
       const fem::CoarseDistanceMethod method = variant < 2 ? fem::CoarseDistanceMethod::marching : fem::CoarseDistanceMethod::heat_method;
       fem::DistanceOracleOptions oracle_options;

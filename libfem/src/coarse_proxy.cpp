@@ -541,7 +541,7 @@ void ProxyGeodesicSolver::prepare_marching(const Faces& coarse_faces, const Face
     SubdividedCoarseMesh finer = subdivide_for_marching(Fc, Lc, P_rows_, twin);
     Fc = std::move(finer.F), Lc = std::move(finer.L), P_rows_ = std::move(finer.P), twin = std::move(finer.twin);
   }
-  marching_ = std::make_unique<detail::MarchingMesh>(Fc, Lc, P_rows_.cols());
+  marching_ = std::make_unique<detail::MarchingMesh>(Fc, Lc, P_rows_.cols(), twin);
   const Eigen::Index n = P_rows_.rows();
   spread_.resize(static_cast<std::size_t>(n));
   const int* outer = P_rows_.outerIndexPtr();
@@ -629,7 +629,7 @@ Eigen::VectorXd ProxyGeodesicSolver::marching_distance(const std::vector<Index>&
     }
   }
   if (times) times->restriction = seconds_since(mark);
-  detail::CoarseMarcher marcher(*marching_, /*reopen=*/true);  // (see there: one run, so worth it)
+  detail::CoarseMarcher marcher(*marching_, /*reopen=*/true, /*track_sources=*/true);  // (see there: one run, so worth it)
   std::vector<double> squared(nc, kInfinity);  // squared distance from the nearest source
   std::vector<Index> nearest(nc, -1);          // which source (its number in `sources`)
   if (!seeds.empty()) {

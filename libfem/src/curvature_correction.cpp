@@ -34,8 +34,9 @@ Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index
 
 FaceLengths curvature_corrected_lengths(const Faces& fine_faces, const FaceLengths& fine_lengths,
                                         const Faces& coarse_faces, const FaceLengths& coarse_lengths,
-                                        const SparseMatrix& P) {
+                                        const SparseMatrix& P, double divisor) {
   const char* who = "curvature_corrected_lengths: ";
+  if (!(divisor > 0) || !std::isfinite(divisor)) throw std::invalid_argument(std::string(who) + "the divisor must be positive");
   if (coarse_lengths.rows() != coarse_faces.rows() || coarse_faces.cols() != 3 || coarse_lengths.cols() != 3)
     throw std::invalid_argument(std::string(who) + "coarse faces and lengths of different shapes");
   if (coarse_faces.rows() > 0 && (coarse_faces.minCoeff() < 0 || coarse_faces.maxCoeff() >= P.cols()))
@@ -71,7 +72,7 @@ FaceLengths curvature_corrected_lengths(const Faces& fine_faces, const FaceLengt
       const double density = mass > 0 ? (curvature(s.low) + curvature(s.high)) / mass : 0.0;
       // exp rather than 1 + x: the same to second order, and positive where a strongly negatively
       // curved patch (a handle's saddle) would make 1 + x vanish.
-      scale.push_back(std::exp(density * s.length * s.length / 24));
+      scale.push_back(std::exp(density * s.length * s.length / divisor));
     }
     edge_of[static_cast<std::size_t>(sides[i].side)] = static_cast<Eigen::Index>(scale.size()) - 1;
   }

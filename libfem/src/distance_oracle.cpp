@@ -59,7 +59,7 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
     detail::SubdividedMesh finer{coarse_faces, coarse_lengths, coarse_size_, {}, {}};
     for (int level = 0; level < options.subdivisions; ++level)  // the gluing carried from level to level
       finer = detail::subdivide_midpoints(finer.F, finer.L, finer.vertex_count, finer.twin);
-    const detail::MarchingMesh marching_mesh(finer.F, finer.L, finer.vertex_count);
+    const detail::MarchingMesh marching_mesh(finer.F, finer.L, finer.vertex_count, finer.twin);
 #pragma omp parallel num_threads(threads())
     {
       detail::CoarseMarcher marcher(marching_mesh);

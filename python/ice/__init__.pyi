@@ -151,7 +151,7 @@ class ProxyHeatSolver:
     def times(self) -> dict[str, float]: ...
 
 def curvature_corrected_lengths(V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
-                                lengths: ArrayLike | None = None) -> FloatArray:
+                                lengths: ArrayLike | None = None, divisor: float = 48.0) -> FloatArray:
     """Coarse edge lengths scaled for the curvature each coarse face flattens (what marching uses for ICE)."""
 class ProxyGeodesicSolver:
     """Geodesic distance through the proxy (coarse fast marching, or the coarse heat method)."""

@@ -490,11 +490,11 @@ ice::TriangleMesh require_coarse_space_of(const py::object& V, const py::object&
 /// (app::marching_lengths with the space's kept map): traced by the walk over the map or intrinsic,
 /// then corrected as `correction` says for the space's method.
 ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const PyCoarseSpace& coarse, bool traced,
-                                           app::CurvatureCorrection correction) {
+                                           app::CurvatureCorrection correction, double divisor = fem::kProxyCorrectionDivisor) {
   if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
     throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
   py::gil_scoped_release release;
-  return app::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map).lengths;
+  return app::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map, divisor).lengths;
 }
 
 /// lengths="auto"|"intrinsic"|"traced" of the marching entry points: whether to march on traced lengths
@@ -1017,16 +1017,19 @@ ProxyPoissonSolver, per step.)doc")
                              "Seconds of the last integrate()'s stages.");
 
   m.def("curvature_corrected_lengths", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
-                                          const py::object& lengths) {
+                                          const py::object& lengths, double divisor) {
           const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "curvature_corrected_lengths");
           const ice::FaceLengths L =
               lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
           py::gil_scoped_release release;
-          return app::curvature_corrected_lengths(mesh, coarse.space, L);
+          if (!(divisor > 0) || !std::isfinite(divisor)) throw py::value_error("divisor must be positive");
+          return app::curvature_corrected_lengths(mesh, coarse.space, L, divisor);
         }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = py::none(),
-        "The coarse edge lengths (m×3) scaled by exp(K l²/24) for the Gaussian curvature K each coarse face flattens, "
+        py::arg("divisor") = fem::kProxyCorrectionDivisor,
+        "The coarse edge lengths (m×3) scaled by exp(K l²/divisor) for the Gaussian curvature K each coarse face flattens, "
         "gathered from (V, F) through the coarse space's P (fem::curvature_corrected_lengths): what coarse marching "
-        "runs on for ICE coarse spaces by default. lengths: the lengths to correct (default: the coarse mesh's own).");
+        "runs on for ICE coarse spaces by default. lengths: the lengths to correct (default: the coarse mesh's own); "
+        "divisor: 48 (the default) is what ProxyGeodesicSolver's marching takes, 24 what DistanceOracle's takes.");
   py::class_<PyGeodesicSolver>(m, "ProxyGeodesicSolver", R"doc(Geodesic distance through the coarse proxy (geodesic-coarse).
 
 ProxyGeodesicSolver(proxy, method="marching", time_factor=1.0, subdivisions=1, curvature_correction=None): method "marching" (fast
@@ -1036,9 +1039,9 @@ coarse operators, heat time t = (time_factor · mean coarse edge length)²). On 
 components the distance is +inf on the components without a source.
 subdivisions: marching on the coarse mesh split 1:4 that many times (the coarse metric unchanged; 0, 1 or
 2 measured: 2 is the most accurate, at ~8x the cost per source of 0). For the most accurate distances
-coarsen with use="geodesic". curvature_correction: march on edge lengths scaled by exp(K l²/24) for the
+coarsen with use="geodesic". curvature_correction: march on edge lengths scaled by exp(K l²/48) for the
 Gaussian curvature K each coarse face flattens (geodesic-coarse --curvature-correction); None = for ICE
-coarse spaces, not QEM's (measured: 0.71x ICE's error against exact geodesics over 40 meshes x 1-10 %, 1.14x
+coarse spaces, not QEM's (measured: 0.79x ICE's error against exact geodesics over 40 meshes x 1-10 %, 1.19x
 QEM's).)doc")
       .def(py::init([](std::shared_ptr<PyProxy> proxy, const std::string& method, double time_factor, int subdivisions,
                        const py::object& curvature_correction) {
@@ -1311,7 +1314,8 @@ of geodesic-coarse's oracle modes (curvature-corrected for ICE; traced lengths o
              if (!marching && correction == app::CurvatureCorrection::on)
                throw py::value_error("curvature_correction=True is for method='marching'");
              const ice::FaceLengths L =
-                 marching ? marching_lengths_argument(mesh, coarse, traced, correction) : coarse.space.mesh.L;
+                 marching ? marching_lengths_argument(mesh, coarse, traced, correction, fem::kOracleCorrectionDivisor)
+                          : coarse.space.mesh.L;
              return make_oracle(coarse, L, distances, heat_time_factor, threads, subdivisions);
            },
            py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("method") = "marching",

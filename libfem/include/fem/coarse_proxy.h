@@ -309,11 +309,12 @@ struct ProxyGeodesicOptions {
   /// setup 0.13 / 0.46 / 1.06 s and 12 / 25-37 / 100 ms per solve for 0 / 1 / 2.
   int subdivisions = 1;
   /// marching only: march on curvature_corrected_lengths (fem/curvature_correction.h) of the coarse
-  /// lengths — each edge lengthened by exp(K ℓ²/24) for the Gaussian curvature K its faces flatten,
-  /// gathered from the fine mesh through P. Measured against exact polyhedral geodesics (CGAL) on
-  /// 40 meshes × 1–10 % (README, Accuracy): ICE coarse meshes 1.08 % → 0.77 % (geometric means),
-  /// better on 36 of 40 at 5 %; QEM-iDT meshes are not helped (1.14×: its chords' shortness already
-  /// offsets the flat faces' bias), which is why the tools apply it to ICE coarse meshes only.
+  /// lengths — each edge lengthened by exp(K ℓ²/48) (fem::kProxyCorrectionDivisor) for the Gaussian
+  /// curvature K its faces flatten, gathered from the fine mesh through P. Measured against exact
+  /// polyhedral geodesics (CGAL) on 40 meshes × 1–10 % (README, Accuracy; traced lengths, 1
+  /// subdivision): ICE coarse meshes 0.579 % → 0.458 % (geometric means); QEM-iDT meshes are not
+  /// helped (0.906 % → 1.077 %: its chords' shortness already offsets the flat faces' bias), which is
+  /// why the tools apply it to ICE coarse meshes only.
   bool curvature_correction = true;
 };
 
