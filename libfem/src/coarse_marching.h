@@ -2,7 +2,8 @@
 /// \file coarse_marching.h
 /// Fast marching with exact planar updates on an intrinsic mesh (private to libfem): the coarse
 /// distances of the distance oracle and of the geodesic proxy (see fem/distance_oracle.h for the
-/// update). A MarchingMesh is what the marching reads around each vertex, laid out once,
+/// update), the proxy's also with tracked virtual sources (CoarseMarcher's track_sources). A
+/// MarchingMesh is what the marching reads around each vertex, with each vertex's chart, laid out once,
 /// contiguously, in the order it is read, and shared (read-only) by any number of CoarseMarchers,
 /// which hold the per-run front and values (one per thread).
 #include <algorithm>
