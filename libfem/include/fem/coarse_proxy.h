@@ -304,9 +304,10 @@ struct ProxyGeodesicOptions {
   /// coarse metric unchanged) before marching, and P's rows carried into the sub-triangles: the
   /// marching's planar updates then follow the coarse metric's geodesics more closely, and the
   /// distance is interpolated over smaller pieces. Measured against exact polyhedral geodesics
-  /// (CGAL) on 40 meshes × 1, 2, 5, 10 % (README, Accuracy): geometric-mean error 0.92x (ICE) and
-  /// 0.82x (QEM-iDT) of no subdivision with 1, 0.82x and 0.73x with 2; at 1.6M vertices and 1 %,
-  /// setup 0.13 / 0.46 / 1.06 s and 12 / 25-37 / 100 ms per solve for 0 / 1 / 2.
+  /// (CGAL) on 40 meshes × 1, 2, 5, 10 % (README, Accuracy; traced lengths, tracked sources):
+  /// geometric-mean error 0.627 / 0.458 / 0.392 % (ICE) and 1.098 / 0.906 / 0.839 % (QEM-iDT) for
+  /// 0 / 1 / 2; at 1.6M vertices and 1 %, 89 ms per solve with 1 and 0.32 s with 2 (setup 0.46 /
+  /// 1.06 s for 1 / 2, measured before the tracking).
   int subdivisions = 1;
   /// marching only: march on curvature_corrected_lengths (fem/curvature_correction.h) of the coarse
   /// lengths — each edge lengthened by exp(K ℓ²/48) (fem::kProxyCorrectionDivisor) for the Gaussian
