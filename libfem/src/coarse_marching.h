@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "fem/operators.h"
+#include "ice/triangle_geometry.h"
 
 namespace fem::detail {
 
@@ -91,23 +92,29 @@ class MarchingMesh {
   /// edges of unknown gluing, a non-manifold vertex) has none.
   MarchingMesh(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count, const std::vector<Index>& twin = {})
       : vertex_count_(vertex_count) {
-    const std::vector<double> chart = corner_charts(F, L, complete_gluing(F, L, twin));
+    // Per corner 3f + k: its angle (between its sides k and k + 2; the lengths as given, a face off
+    // the triangle inequality by round-off is flat), and the chart angle of its first edge.
+    std::vector<double> angle(static_cast<std::size_t>(3 * F.rows()));
+    for (Eigen::Index f = 0; f < F.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        angle[static_cast<std::size_t>(3 * f + k)] = ice::angle_opposite(L(f, k), L(f, (k + 2) % 3), L(f, (k + 1) % 3));
+    const std::vector<double> chart = corner_charts(F, angle, complete_gluing(F, L, twin));
     // The chart angle of the edge from corner k of face f to its next (first) or previous (second)
     // corner: a corner spans [chart, chart + angle] from its first edge to its second.
     const auto to_first = [&](Eigen::Index f, int k) { return chart[static_cast<std::size_t>(3 * f + k)]; };
-    const auto to_second = [&](Eigen::Index f, int k) { return to_first(f, k) + corner_angle(L, f, k); };
+    const auto to_second = [&](Eigen::Index f, int k) { return to_first(f, k) + angle[static_cast<std::size_t>(3 * f + k)]; };
     // Each charted vertex's spokes (its edges, by chart angle): the first edge of each corner, and on
     // the boundary the last corner's second edge.
     {
+      const auto spoke = [](double direction, double length) {
+        return Spoke{static_cast<float>(direction), static_cast<float>(length), static_cast<float>(std::cos(direction)),
+                     static_cast<float>(std::sin(direction))};
+      };
       std::vector<std::pair<Index, Spoke>> spokes;
       for (Eigen::Index f = 0; f < F.rows(); ++f)
         for (int k = 0; k < 3; ++k) {
           if (std::isnan(to_first(f, k))) continue;
           const auto v = static_cast<std::size_t>(F(f, k));
-          const auto spoke = [](double angle, double length) {
-            return Spoke{static_cast<float>(angle), static_cast<float>(length), static_cast<float>(std::cos(angle)),
-                         static_cast<float>(std::sin(angle))};
-          };
           spokes.push_back({F(f, k), spoke(to_first(f, k), L(f, k))});
           if (boundary_[v] && std::abs(to_second(f, k) - angle_sum_[v]) < 1e-9 * (1 + angle_sum_[v]))
             spokes.push_back({F(f, k), spoke(angle_sum_[v], L(f, (k + 2) % 3))});
@@ -139,7 +146,6 @@ class MarchingMesh {
     struct Relation {
       Index u, w, x;
       double to_w, to_x, across;  // |u w|, |u x|, |w x|
-      double back;                // the chart angle at w of its edge to u
       Charts charts;
     };
     std::vector<Relation> relations;
@@ -153,9 +159,9 @@ class MarchingMesh {
         // w = first, x = second: at u the base edge (to x) is u's second edge and w lies back from
         // it; at x (corner k2, whose first edge goes to u) w lies onward; at w (corner k1, whose
         // second edge goes to u) x lies back.
-        relations.push_back({u, first, second, to_first_length, to_second_length, across, to_second(f, k1),
+        relations.push_back({u, first, second, to_first_length, to_second_length, across,
                              charts(to_second(f, k), to_first(f, k2), to_second(f, k1), -1, 1, -1)});
-        relations.push_back({u, second, first, to_second_length, to_first_length, across, to_first(f, k2),
+        relations.push_back({u, second, first, to_second_length, to_first_length, across,
                              charts(to_first(f, k), to_second(f, k1), to_first(f, k2), 1, -1, 1)});
       }
     std::sort(relations.begin(), relations.end(), [](const Relation& p, const Relation& q) {
@@ -182,7 +188,7 @@ class MarchingMesh {
           face_charts_.push_back(r.charts);
         }
       }
-      neighbour_back_.push_back(neighbour.parallel ? kNoDirection : static_cast<float>(relations[i].back));
+      neighbour_back_.push_back(neighbour.parallel ? kNoDirection : relations[i].charts.w_to_u);
       neighbours_.push_back(neighbour);
       ++neighbour_start_[static_cast<std::size_t>(relations[i].u) + 1];
       i = j;
@@ -244,16 +250,11 @@ class MarchingMesh {
   };
   /// A face entry's charts (kept apart: the plain marching does not read them).
   const Charts& charts_of(const FaceEntry& face) const { return face_charts_[static_cast<std::size_t>(&face - faces_.data())]; }
-  /// The angle at corner k of face f (between its sides k and k + 2), by the law of cosines, clamped
-  /// (the marching takes lengths as given; a face violating the triangle inequality by round-off is flat).
-  static double corner_angle(const FaceLengths& L, Eigen::Index f, int k) {
-    const double a = L(f, k), b = L(f, (k + 2) % 3), opposite = L(f, (k + 1) % 3);
-    return std::acos(std::clamp((a * a + b * b - opposite * opposite) / (2 * a * b), -1.0, 1.0));
-  }
   /// Per corner 3f + k: the chart angle of its first edge (to corner k + 1), walking each vertex's
   /// fan from its first corner (on the boundary, the one whose first edge is a boundary side);
-  /// NaN for the corners of a vertex that is not one fan. Fills angle_sum_ and boundary_.
-  std::vector<double> corner_charts(const Faces& F, const FaceLengths& L, const std::vector<Index>& twin);
+  /// NaN for the corners of a vertex that is not one fan (`angle`: per corner). Fills angle_sum_ and
+  /// boundary_.
+  std::vector<double> corner_charts(const Faces& F, const std::vector<double>& angle, const std::vector<Index>& twin);
 
   Eigen::Index vertex_count_;
   std::vector<Index> neighbour_start_;  ///< CSR of neighbours_ by vertex
@@ -273,13 +274,14 @@ class MarchingMesh {
   std::vector<Spoke> spokes_;
 };
 
-inline std::vector<double> MarchingMesh::corner_charts(const Faces& F, const FaceLengths& L, const std::vector<Index>& twin) {
+inline std::vector<double> MarchingMesh::corner_charts(const Faces& F, const std::vector<double>& angle,
+                                                      const std::vector<Index>& twin) {
   const auto n = static_cast<std::size_t>(vertex_count_);
   const std::size_t sides = static_cast<std::size_t>(3 * F.rows());
   std::vector<double> chart(sides, std::numeric_limits<double>::quiet_NaN());
   angle_sum_.assign(n, std::numeric_limits<double>::quiet_NaN());
   boundary_.assign(n, 0);
-  constexpr Index kNone = -1, kUnknown = -2;
+  constexpr Index kNone = -1, kUnknown = kUnknownTwin;
   // The corners around a vertex, onward: corner k of f is followed by the corner of the same vertex
   // across f's side k + 2 (from its second corner to it); back: across its side k.
   const auto onward = [&](Index corner) -> Index {
@@ -296,10 +298,9 @@ inline std::vector<double> MarchingMesh::corner_charts(const Faces& F, const Fac
   std::vector<Index> corner_count(n, 0);
   for (Eigen::Index f = 0; f < F.rows(); ++f)
     for (int k = 0; k < 3; ++k) ++corner_count[static_cast<std::size_t>(F(f, k))];
-  std::vector<char> visited(sides, 0);
   for (std::size_t c0 = 0; c0 < sides; ++c0) {
     const auto v = static_cast<std::size_t>(F(static_cast<Eigen::Index>(c0 / 3), static_cast<int>(c0 % 3)));
-    if (visited[c0] || !std::isnan(angle_sum_[v]) || corner_count[v] < 0) continue;
+    if (!std::isnan(angle_sum_[v]) || corner_count[v] < 0) continue;  // its fan done (or found not one)
     // Back to the fan's first corner (or round to c0), then onward, summing the corner angles.
     Index first = static_cast<Index>(c0);
     bool known = true, open = false;
@@ -315,13 +316,10 @@ inline std::vector<double> MarchingMesh::corner_charts(const Faces& F, const Fac
       c = previous;
     }
     Index visited_count = 0;
-    double angle = 0;
+    double sum = 0;
     for (Index c = first; known && visited_count <= corner_count[v];) {
-      visited[static_cast<std::size_t>(c)] = 1;
-      chart[static_cast<std::size_t>(c)] = angle;
-      const Eigen::Index f = c / 3;
-      const int k = c % 3;
-      angle += corner_angle(L, f, k);
+      chart[static_cast<std::size_t>(c)] = sum;
+      sum += angle[static_cast<std::size_t>(c)];
       ++visited_count;
       const Index next = onward(c);
       if (next == kUnknown) known = false;
@@ -329,7 +327,7 @@ inline std::vector<double> MarchingMesh::corner_charts(const Faces& F, const Fac
       c = next;
     }
     if (known && visited_count == corner_count[v]) {
-      angle_sum_[v] = angle;
+      angle_sum_[v] = sum;
       boundary_[v] = open ? 1 : 0;
     } else {
       corner_count[v] = -1;  // not one fan: no chart
@@ -371,12 +369,13 @@ class CoarseMarcher {
   /// many faces instead of one planar update per face, whose errors add up along the front —
   /// towards too long on the coarse meshes of curved surfaces, whose every vertex is a cone (the
   /// planar update from two corners reached around a cone from two sides is not a distance from
-  /// one source). Measured: a proxy geodesic of ICE coarse meshes (traced lengths, 1 subdivision)
-  /// against exact geodesics, 40 meshes × 1–10 %: 0.546 % → 0.502 % (geometric mean), at 5 % and
-  /// 10 % 0.532 → 0.386 % and 0.321 → 0.230 % (medians); on armadillo at 5 % the coarse vertices'
-  /// bias +0.72 % → +0.45 % of the largest distance. It costs 2–3× a run (1.58M vertices at 1 %:
-  /// 89 ms a solve); the oracle's all-pairs marching (`oracle-accuracy --coarse 200`, 6 meshes:
-  /// 0–16 % less error) would take 3.9× as long and does without.
+  /// one source). Measured: a proxy geodesic of ICE coarse meshes (traced lengths, 1 subdivision,
+  /// with the curvature correction's divisor measured for it, fem::kProxyCorrectionDivisor) against
+  /// exact geodesics, 40 meshes × 1–10 %: 0.546 % → 0.458 % (geometric mean), at 5 % and 10 % 0.532
+  /// → 0.451 % and 0.321 → 0.221 % (medians); marching on armadillo_43k's own mesh 0.345 % → 0.045 %.
+  /// It costs 2–3× a run (1.58M vertices at 1 %: 89 ms a solve); the oracle's all-pairs marching
+  /// (`oracle-accuracy --coarse 200`, 6 meshes: 0–22 % less error) would take 3.9× as long and does
+  /// without.
   CoarseMarcher(const MarchingMesh& mesh, bool reopen = false, bool track_sources = false)
       : mesh_(mesh), reopen_(reopen), track_(track_sources) {}
 
@@ -464,13 +463,8 @@ class CoarseMarcher {
         }
         if (through.value < limit || (!closed && along < distance[w])) {
           distance[w] = std::min(through.value, along);
-          if constexpr (kTrack) {
-            pending_[w] = through.value <= along ? through : Candidate{};
-            if (through.value > along) {
-              pending_[w].offset = value;
-              pending_[w].edge = &neighbour;  // u itself, along the edge
-            }
-          }
+          if constexpr (kTrack)  // through the face, or from u itself along the edge
+            pending_[w] = through.value <= along ? through : Candidate{along, value, {}, {}, nullptr, &neighbour};
           source[w] = from;
           accepted_[w] = kOpen;  // a seed beaten, or a done vertex reopened
           lower(neighbour.w, distance);
@@ -480,7 +474,6 @@ class CoarseMarcher {
   }
 
   static constexpr double kInfinity = std::numeric_limits<double>::infinity();
-  static constexpr double kPi = 3.14159265358979323846;
   /// Angles of the charts and layouts are floats: directions this close (radians) are taken as one.
   static constexpr double kAngleTolerance = 1e-6;
   /// How far below 0 the squared height of the virtual source may fall and still be read as 0:
@@ -507,10 +500,8 @@ class CoarseMarcher {
     double bound_radius[2] = {0, 0};
     Turn bound_turn[2];
   };
-  struct Point {
-    double x = 0, y = 0;
-  };
-  static double cross(Point o, Point p, Point q) { return (p.x - o.x) * (q.y - o.y) - (p.y - o.y) * (q.x - o.x); }
+  using Point = ice::Vec2;
+  static double cross(Point o, Point p, Point q) { return ice::orient2d(o, p, q); }
   static double dot(Point o, Point p, Point q) { return (p.x - o.x) * (q.x - o.x) + (p.y - o.y) * (q.y - o.y); }
   /// A value of w through one face (the virtual source and its wedge's bound points in the face's
   /// layout: u at the origin, x at (base, 0), w above), or along an edge (`edge`, from the vertex at
@@ -525,14 +516,16 @@ class CoarseMarcher {
   static void consider(Candidate& best, const Candidate& candidate) {
     if (candidate.value < best.value) best = candidate;
   }
-  // The straight line from s, s.y <= 0, to w = (vx, vy) must cross the base between u and x:
-  // 0 <= sx + (−sy)(vx − sx)/(vy − sy) <= base; then its length, else +∞.
+  // Where the straight line from s, s.y <= 0, to w = (vx, vy) crosses the base's line (y = 0),
+  // times vy − sy (> 0): sx (vy − sy) + (−sy)(vx − sx). (Scaled: no division in the hot loop.)
+  static double crossing_times_rise(Point s, const MarchingMesh::Layout& layout) {
+    return s.x * (layout.vy - s.y) - s.y * (layout.vx - s.x);
+  }
+  // The length of that line where it crosses the base between u and x, else +∞.
   static double through_base(Point s, const MarchingMesh::Layout& layout) {
-    const double base = layout.base, vx = layout.vx, vy = layout.vy;
-    const double rise = vy - s.y;  // > 0
-    const double crossing_times_rise = s.x * rise - s.y * (vx - s.x);
-    if (crossing_times_rise < 0 || crossing_times_rise > base * rise) return kInfinity;
-    const double dx = vx - s.x;
+    const double at = crossing_times_rise(s, layout), rise = layout.vy - s.y;
+    if (at < 0 || at > layout.base * rise) return kInfinity;
+    const double dx = layout.vx - s.x;
     return std::sqrt(dx * dx + rise * rise);
   }
   // The turn sense·(base − angle) at vertex c, reduced to [0, its angle sum) (no wrap on the
@@ -569,7 +562,7 @@ class CoarseMarcher {
     const auto c = static_cast<std::size_t>(corner);
     Turn to_source;
     const double turn = away(c, sense, base_angle, base_turn, known.angle, known.direction, to_source);
-    if (!(turn > 0 && turn < kPi)) return out;
+    if (!(turn > 0 && turn < ice::kPi)) return out;
     const Point here{at_x ? face.layout.base : 0.0, 0.0}, other{at_x ? 0.0 : face.layout.base, 0.0};
     // A point at `radius` from the corner, turned by `t` (cos, sin) away from w from the base edge.
     const auto lay = [&](double radius, Turn t) {
@@ -579,9 +572,8 @@ class CoarseMarcher {
     const Point s = out.source, w{face.layout.vx, face.layout.vy};
     // The line to w must cross the base, or pass beyond its other end (then it bends there, below);
     // one passing beyond the corner is the corner's path along its edge.
-    const double rise = w.y - s.y;  // > 0
-    const double crossing = (s.x * rise - s.y * (w.x - s.x)) / rise;
-    if (at_x ? crossing > face.layout.base : crossing < 0) return out;
+    const double crossing_at = crossing_times_rise(s, face.layout) / (w.y - s.y);
+    if (at_x ? crossing_at > face.layout.base : crossing_at < 0) return out;
     const double length = std::sqrt(dot(s, w, w));
     if (!(known.offset + length < limit)) return out;  // (no better than what w has: not worth checking)
     // In the wedge: w not on the far side of either bound line (the side away from the other bound).
@@ -601,7 +593,7 @@ class CoarseMarcher {
     const double orientation = wedge >= 0 ? 1.0 : -1.0;
     if (orientation * cross(s, bounds[0], w) < -slack) bent = true, bend = bounds[0];
     else if (orientation * cross(s, w, bounds[1]) < -slack) bent = true, bend = bounds[1];
-    if (at_x ? crossing < 0 : crossing > face.layout.base) {
+    if (at_x ? crossing_at < 0 : crossing_at > face.layout.base) {
       if (!bent || cross(s, bend, other) * cross(s, w, other) > 0) bend = other;  // (the outer of the two)
       bent = true;
     }

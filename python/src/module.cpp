@@ -1022,7 +1022,6 @@ ProxyPoissonSolver, per step.)doc")
           const ice::FaceLengths L =
               lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
           py::gil_scoped_release release;
-          if (!(divisor > 0) || !std::isfinite(divisor)) throw py::value_error("divisor must be positive");
           return app::curvature_corrected_lengths(mesh, coarse.space, L, divisor);
         }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = py::none(),
         py::arg("divisor") = fem::kProxyCorrectionDivisor,
