@@ -188,6 +188,14 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::Coars
   return fem::VectorHeatProxy(fine.mesh, fine.frames, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
 }
 
+fem::VectorSweepProxy make_vector_sweep(const ice::TriangleMesh& mesh, const TangentMesh& fine, const ice::CoarseSpace& coarse,
+                                        const std::vector<ice::CoarsePoint>& map) {
+  if (!fine.operators) throw std::logic_error("make_vector_sweep: the sweep needs the fine operators (tangent_mesh with_operators)");
+  const bool traced = traces_lengths(CoarseLengths::automatic, coarse.summary.method, true);
+  const ice::SurfaceEdgeLengths lengths = marching_lengths(mesh, coarse, traced, CurvatureCorrection::automatic, &map);
+  return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(coarse.mesh.F, lengths.lengths, coarse.P));
+}
+
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                                  PdeRun& run, bool keep_method_state, bool record_history) {
   ice::CoarseSpaceOptions space_options;

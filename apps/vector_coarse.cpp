@@ -25,6 +25,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <optional>
 
 #include "app_common.h"
 #include "fem/vector_fields.h"
@@ -80,6 +81,7 @@ int main(int argc, char** argv) {
   app::PdeOptions opt;
   std::string sources_text, angles_text, directions_text, magnitudes_text;
   double time_factor = fem::kVectorProxyTimeFactor;
+  app::VectorSolver solver = app::VectorSolver::sweep;
   cli.add_option("--source,-s", sources_text, "Source vertex or vertices, 0-based indices in the input file, comma separated")
       ->required();
   cli.add_option("--vector", angles_text,
@@ -88,9 +90,15 @@ int main(int argc, char** argv) {
   cli.add_option("--direction", directions_text,
                  "Instead of --vector: one 3D direction per source (x,y,z, comma separated), projected into the surface");
   cli.add_option("--magnitude", magnitudes_text, "One length per source (default 1 each)");
+  app::add_choice(cli, "--vector-solver", solver, {{"sweep", app::VectorSolver::sweep}, {"diffusion", app::VectorSolver::diffusion}},
+                  "How the field is found through the coarse mesh: 'sweep' (the default) takes the geodesic distance by "
+                  "coarse marching and carries the vectors along it on the fine mesh (fem::VectorSweepProxy: the vector heat "
+                  "method's short-time limit, no fine factorisation); 'diffusion' diffuses them on the coarse mesh and "
+                  "prolongs them (fem::VectorHeatProxy; --operators, --time-factor). Median angle error against the fine "
+                  "method over 27 shared meshes at 5 %: 2.0 against 4.5 degrees (README, Tangent vector fields)");
   cli.add_option("--time-factor", time_factor,
-                 "Coarse diffusion time t = (F h_c)^2, h_c the coarse mean edge length (README, Vector fields: "
-                 "measured over the shared meshes)")
+                 "--vector-solver diffusion: coarse diffusion time t = (F h_c)^2, h_c the coarse mean edge length (README, "
+                 "Vector fields: measured over the shared meshes)")
       ->check(app::positive_number())
       ->capture_default_str();
   opt.add_to(cli, "vector_x/y/z (prolonged field), reference_x/y/z, angle_error (degrees) and magnitude_error");
@@ -122,7 +130,10 @@ int main(int argc, char** argv) {
 
     const fem::VectorOperatorKind kind = opt.operators == fem::CoarseOperatorKind::galerkin ? fem::VectorOperatorKind::galerkin
                                                                                             : fem::VectorOperatorKind::intrinsic;
-    app::PdeRun run = app::PdeRun::start(kTool, opt, kind == fem::VectorOperatorKind::galerkin);
+    const bool sweep = solver == app::VectorSolver::sweep;
+    const bool galerkin = !sweep && kind == fem::VectorOperatorKind::galerkin;
+    app::PdeRun run = app::PdeRun::start(kTool, opt, galerkin);
+    if (sweep) run.coarse_solver = "sweep along the coarse marching distance";
 
     // ---- load
     app::Stopwatch clock;
@@ -144,11 +155,11 @@ int main(int argc, char** argv) {
 
     // ---- the input triangles' frames (the fields' and the sources'), the fine operators in them
     const app::TangentMesh fine =
-        app::tangent_mesh(mesh, opt.fine_geometry(), kind == fem::VectorOperatorKind::galerkin || run.has_reference);
+        app::tangent_mesh(mesh, opt.fine_geometry(), sweep || galerkin || run.has_reference);
     const fem::TangentFrames& fine_frames = fine.frames;
     run.fine_built = fine.operators.has_value();
     run.idt_flips = fine.flips;
-    run.proxy_uses_fine_mesh = kind == fem::VectorOperatorKind::galerkin;
+    run.proxy_uses_fine_mesh = sweep || galerkin;
     run.fine_mesh = clock.lap();
     std::vector<fem::Complex> vectors;
     for (std::size_t s = 0; s < count; ++s) {
@@ -166,11 +177,21 @@ int main(int argc, char** argv) {
       vectors.push_back(magnitudes[s] * z);
     }
     run.assemble = clock.lap();
-    const fem::VectorHeatProxy proxy = app::make_vector_proxy(fine, coarse, ice::fine_to_coarse_map(coarse), kind, time_factor);
+    // One of the two proxies: the sweep's marching distance, or the diffusion's vector prolongation
+    // and coarse factorisations.
+    const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(coarse);
+    std::optional<fem::VectorSweepProxy> sweep_proxy;
+    std::optional<fem::VectorHeatProxy> diffusion_proxy;
+    if (sweep)
+      sweep_proxy.emplace(app::make_vector_sweep(mesh, fine, coarse, map));
+    else
+      diffusion_proxy.emplace(app::make_vector_proxy(fine, coarse, map, kind, time_factor));
     run.factor = clock.lap();
-    warn_if_frames_fit_poorly(proxy.prolongation_stats());
-    const Eigen::VectorXcd field = proxy.interpolate(sources, vectors);
-    run.solve = clock.lap();  // restriction, coarse solves, prolongation and combination in one call
+    if (diffusion_proxy) warn_if_frames_fit_poorly(diffusion_proxy->prolongation_stats());
+    fem::DistanceSweepStats sweep_stats;
+    const Eigen::VectorXcd field =
+        sweep ? sweep_proxy->interpolate(sources, vectors, &sweep_stats) : diffusion_proxy->interpolate(sources, vectors);
+    run.solve = clock.lap();  // the distance or the coarse solves, and the fine combination, in one call
 
     // ---- reference
     nlohmann::json error_json;
@@ -215,22 +236,33 @@ int main(int argc, char** argv) {
       ice::write_ply_with_fields(opt.output, mesh, fields, {opt.force, !opt.ascii});
     }
     run.write = clock.lap();
-    const fem::VectorProlongationStats& stats = proxy.prolongation_stats();
     nlohmann::json report = run.report();
     report["sources"] = file_sources;
-    report["time_factor"] = time_factor;
-    report["vector_prolongation"] = {{"fitted", stats.fitted},
-                                     {"from_corner_chart", stats.from_corner},
-                                     {"unmatched", stats.unmatched},
-                                     {"median_fit_residual", stats.median_fit_residual},
-                                     {"poor_fits", stats.poor_fits}};
+    report["vector_solver"] = sweep ? "sweep" : "diffusion";
+    if (sweep) {
+      report["sweep"] = {{"passes", sweep_stats.passes}, {"last_change", sweep_stats.last_change}};
+    } else {
+      const fem::VectorProlongationStats& stats = diffusion_proxy->prolongation_stats();
+      report["time_factor"] = time_factor;
+      report["vector_prolongation"] = {{"fitted", stats.fitted},
+                                       {"from_corner_chart", stats.from_corner},
+                                       {"unmatched", stats.unmatched},
+                                       {"median_fit_residual", stats.median_fit_residual},
+                                       {"poor_fits", stats.poor_fits}};
+    }
     if (run.has_reference) report["error"] = error_json;
     if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
 
     run.print_summary(std::cout);
-    std::cout << "  sources: " << sources_text << "; vector prolongation: " << stats.fitted << " frames fitted, "
-              << stats.from_corner << " from a corner's chart, " << stats.unmatched << " unmatched, " << stats.poor_fits
-              << " poor fits\n";
+    if (sweep) {
+      std::cout << "  sources: " << sources_text << "; sweep along the coarse marching distance: " << sweep_stats.passes
+                << " passes after the first\n";
+    } else {
+      const fem::VectorProlongationStats& stats = diffusion_proxy->prolongation_stats();
+      std::cout << "  sources: " << sources_text << "; vector prolongation: " << stats.fitted << " frames fitted, "
+                << stats.from_corner << " from a corner's chart, " << stats.unmatched << " unmatched, " << stats.poor_fits
+                << " poor fits\n";
+    }
     if (run.has_reference)
       std::cout << "  angle error vs fine: median " << app::fixed(error_json["angle"]["median_deg"], 2) << " deg, mean "
                 << app::fixed(error_json["angle"]["mean_deg"], 2) << ", p95 " << app::fixed(error_json["angle"]["p95_deg"], 2)

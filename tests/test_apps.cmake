@@ -469,12 +469,19 @@ elseif(CASE STREQUAL "vector_spot")
   run(0 vector-coarse "${mesh}" --source 0 --vector 30 --vertices 500 --report "${WORK}/r.json" --output "${WORK}/v.ply" -q)
   set(r "${WORK}/r.json")
   require_keys("${r}" ${PDE_KEYS} timings_s.reference error.angle.median_deg error.angle.p95_deg error.magnitude_rel.max
-               vector_prolongation.fitted vector_prolongation.unmatched time_factor)
+               vector_solver sweep.passes sweep.last_change)
+  json(solver "${r}" vector_solver)
+  check_text("${solver}" "sweep" "vector_solver (the default)")
+  # Measured: median 2.1 deg (coarse diffusion: 4.3). A wrong transport or distance gives tens of degrees.
+  json(median "${r}" error angle median_deg)
+  check(${median} LESS 5 "error.angle.median_deg")
+  run(0 vector-coarse "${mesh}" --source 0 --vector 30 --vertices 500 --vector-solver diffusion --report "${WORK}/diffusion.json" -q)
+  require_keys("${WORK}/diffusion.json" vector_solver vector_prolongation.fitted vector_prolongation.unmatched time_factor)
   # Measured: median 4.3 deg, p95 24 deg (sources 7 and 1500: 2.6 and 12.3 deg median). A wrong frame
   # relation or restriction gives tens of degrees.
-  json(median "${r}" error angle median_deg)
-  check(${median} LESS 9 "error.angle.median_deg")
-  json(unmatched "${r}" vector_prolongation unmatched)
+  json(median "${WORK}/diffusion.json" error angle median_deg)
+  check(${median} LESS 9 "--vector-solver diffusion: error.angle.median_deg")
+  json(unmatched "${WORK}/diffusion.json" vector_prolongation unmatched)
   check(${unmatched} EQUAL 0 "vector_prolongation.unmatched")
   # One source: every magnitude is the source's.
   json(magnitude "${r}" error magnitude_rel max)
@@ -496,12 +503,14 @@ elseif(CASE STREQUAL "vector_spot")
   json(median "${WORK}/two.json" error angle median_deg)
   check(${median} LESS 9 "two sources: error.angle.median_deg")
   # A coarse mesh too coarse for the surface: elephant-with-holes (106 holes) at 5 %, 47 % of the fine
-  # frames fit it poorly (median error 65°): the tool says so; spot above does not warn.
+  # frames fit it poorly (median error 65° by coarse diffusion): the tool says so; spot above does not warn.
   if(RUN_ERR MATCHES "fit the coarse mesh poorly")
     fail("vector-coarse warned on spot: ${RUN_ERR}")
   endif()
   project_mesh(holes elephant-with-holes.off)
-  expect_error(0 "fit the coarse mesh poorly" vector-coarse "${holes}" --repair --source 0 --vector 0 --ratio 0.05 --no-reference -q)
+  expect_error(0 "fit the coarse mesh poorly" vector-coarse "${holes}" --repair --source 0 --vector 0 --ratio 0.05 --no-reference
+               --vector-solver diffusion -q)
+  expect_error(4 "vector-solver" vector-coarse "${mesh}" --source 0 --vector 1 --vertices 500 --vector-solver exact)
   expect_error(4 "2 angles for 1 sources" vector-coarse "${mesh}" --source 0 --vector 1,2 --vertices 500)
   expect_error(4 "exactly one of --vector" vector-coarse "${mesh}" --source 0 --vertices 500)
   expect_error(4 "normal to the surface" vector-coarse "${mesh}" --source 0 --direction 0,0,0 --vertices 500)

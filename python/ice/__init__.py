@@ -171,20 +171,20 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     return ProxyGeodesicSolver(proxy, method=method, time_factor=time_factor).distance(sources)
 
 
-def transport_vectors(V, F, sources, vectors=1.0, *, coarse: CoarseSpace | None = None, operators: str = "galerkin",
-                      time_factor: float | None = None, fine: str = "intrinsic_delaunay", ambient: bool = False,
-                      **coarsening):
+def transport_vectors(V, F, sources, vectors=1.0, *, coarse: CoarseSpace | None = None, solver: str = "sweep",
+                      operators: str = "galerkin", time_factor: float | None = None, fine: str = "intrinsic_delaunay",
+                      ambient: bool = False, **coarsening):
     """Tangent vectors carried from `sources` to every vertex through a coarse proxy, in one call (vector-coarse).
 
     vectors: one complex number per source, in its tangent frame (see VectorHeatSolver; default 1, the
     direction of the source's reference edge); one source is parallel-transported along shortest
     geodesics, several give the smooth field through them. coarse / coarsening options as for
-    solve_poisson; fine as for VectorHeatSolver. Returns the complex field (one tangent vector per vertex), or with ambient=True its
+    solve_poisson; solver, operators, time_factor and fine as for VectorHeatSolver. Returns the complex field (one tangent vector per vertex), or with ambient=True its
     n×3 vectors in the planes of the input triangles. For many calls build VectorHeatSolver once.
     """
     coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
-    solver = VectorHeatSolver(V, F, coarse, operators=operators, time_factor=time_factor, fine=fine)
+    heat = VectorHeatSolver(V, F, coarse, operators=operators, time_factor=time_factor, fine=fine, solver=solver)
     indices = np.atleast_1d(np.asarray(sources))
     values = np.broadcast_to(np.asarray(vectors, dtype=complex), indices.shape)
-    field = solver.interpolate(indices, np.ascontiguousarray(values))
-    return solver.to_ambient(field) if ambient else field
+    field = heat.interpolate(indices, np.ascontiguousarray(values))
+    return heat.to_ambient(field) if ambient else field

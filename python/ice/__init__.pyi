@@ -224,7 +224,8 @@ class VectorHeatSolver:
     """The vector heat method on the input mesh (its intrinsic Delaunay triangulation by default), or through a coarse space (vector-coarse)."""
     def __init__(self, V: ArrayLike, F: ArrayLike, coarse: CoarseSpace | None = None, *,
                  operators: Literal["galerkin", "intrinsic"] = "galerkin", time_factor: float | None = None,
-                 fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay") -> None: ...
+                 fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
+                 solver: Literal["sweep", "diffusion"] = "sweep") -> None: ...
     def interpolate(self, sources: Indices, vectors: ArrayLike) -> ComplexArray: ...
     def transport(self, source: int, vector: complex = 1) -> ComplexArray: ...
     def to_ambient(self, field: ArrayLike) -> FloatArray: ...
@@ -258,7 +259,8 @@ def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: C
                       curvature_correction: bool | None = None, **coarsening: Any) -> FloatArray:
     """Geodesic distance through a coarse proxy in one call (coarse fast marching by default)."""
 def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: ArrayLike = 1.0, *,
-                      coarse: CoarseSpace | None = None, operators: Literal["galerkin", "intrinsic"] = "galerkin",
+                      coarse: CoarseSpace | None = None, solver: Literal["sweep", "diffusion"] = "sweep",
+                      operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       time_factor: float | None = None, fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
                       ambient: bool = False, **coarsening: Any) -> ComplexArray | FloatArray:
     """Tangent vectors carried from sources to every vertex through a coarse proxy in one call."""

@@ -561,14 +561,16 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
 // ---- tangent vector fields -------------------------------------------------------------------------
 
 // The vector heat method on the input triangles (vector-coarse's fine mesh), alone or through a
-// coarse space: one of fine_solver / proxy is set.
+// coarse space (by the sweep or by coarse diffusion): one of fine_solver / sweep / proxy is set.
 struct PyVectorHeat {
   ice::Positions V;
   app::TangentMesh fine;
   std::unique_ptr<fem::VectorHeatSolver> fine_solver;
+  std::unique_ptr<fem::VectorSweepProxy> sweep;
   std::unique_ptr<fem::VectorHeatProxy> proxy;
   Eigen::Index size() const { return V.rows(); }
   Eigen::VectorXcd interpolate(const std::vector<ice::Index>& vertices, const std::vector<fem::Complex>& vectors) const {
+    if (sweep) return sweep->interpolate(vertices, vectors);
     return proxy ? proxy->interpolate(vertices, vectors) : fine_solver->interpolate(vertices, vectors);
   }
 };
@@ -589,7 +591,7 @@ std::vector<fem::Complex> complex_argument(const py::handle& values, std::size_t
 
 std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::object& F, const py::object& coarse_object,
                                                const std::string& operators, const py::object& time_factor_object,
-                                               const std::string& fine) {
+                                               const std::string& fine, const std::string& solver_name) {
   auto result = std::make_unique<PyVectorHeat>();
   const PyCoarseSpace* coarse = coarse_object.is_none() ? nullptr : &coarse_object.cast<const PyCoarseSpace&>();
   const ice::TriangleMesh mesh = coarse ? require_coarse_space_of(V, F, *coarse, "VectorHeatSolver") : mesh_argument(V, F);
@@ -599,13 +601,20 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   const double time_factor = time_factor_object.is_none() ? (coarse ? fem::kVectorProxyTimeFactor : 1.0)
                                                           : number_option(time_factor_object, "time_factor");
   if (!(time_factor > 0) || !std::isfinite(time_factor)) throw py::value_error("time_factor must be > 0");
+  const auto solver = choice<app::VectorSolver>(solver_name, "solver",
+                                                {{"sweep", app::VectorSolver::sweep}, {"diffusion", app::VectorSolver::diffusion}});
+  const bool sweep = coarse && solver == app::VectorSolver::sweep;
   const ice::FineGeometry geometry = fine_geometry_argument(fine);
   result->V = mesh.V;
   py::gil_scoped_release release;
   require_clean(mesh);
-  // Through a coarse space the fine operators' time step is not used (Galerkin products only).
-  result->fine = app::tangent_mesh(mesh, geometry, !coarse || kind == fem::VectorOperatorKind::galerkin, coarse ? 1.0 : time_factor);
-  if (coarse)
+  // Through a coarse space the fine operators' time step is the sweep's (t = h²), unused by diffusion
+  // (Galerkin products only).
+  result->fine = app::tangent_mesh(mesh, geometry, !coarse || sweep || kind == fem::VectorOperatorKind::galerkin,
+                                   coarse ? 1.0 : time_factor);
+  if (sweep)
+    result->sweep = std::make_unique<fem::VectorSweepProxy>(app::make_vector_sweep(mesh, result->fine, coarse->space, coarse->map));
+  else if (coarse)
     result->proxy = std::make_unique<fem::VectorHeatProxy>(app::make_vector_proxy(result->fine, coarse->space, coarse->map, kind, time_factor));
   else
     result->fine_solver = std::make_unique<fem::VectorHeatSolver>(*result->fine.operators);
@@ -1090,21 +1099,26 @@ QEM's).)doc")
   // ---- tangent vector fields
   py::class_<PyVectorHeat>(m, "VectorHeatSolver", R"doc(The vector heat method (Sharp, Soliman, Crane 2019) on the input triangles, or through a coarse space (vector-coarse).
 
-VectorHeatSolver(V, F, coarse=None, operators="galerkin", time_factor=None, fine="intrinsic_delaunay"):
+VectorHeatSolver(V, F, coarse=None, operators="galerkin", time_factor=None, fine="intrinsic_delaunay", solver="sweep"):
 without `coarse`, on (V, F) itself with heat time t = (time_factor · mean edge length)², time_factor 1
 by default, discretised on the intrinsic Delaunay triangulation of (V, F) (fine="input": on its
 triangles as they are, whose obtuse angles can send far directions anywhere) — fields are given per
 vertex in the frames of the input triangles either way; with a
-coarse space of (V, F) (ice.coarsen, keep_map=True), through it: the sources restricted by the vector
-prolongation P_vec (complex, fitted from the fine-to-coarse map) and by P, the three diffusions solved
-on the coarse mesh with Galerkin ("galerkin", the default: from the fine operators of `fine`) or the
-coarse mesh's own ("intrinsic") operators, t = (time_factor · mean coarse edge length)² with time_factor 0.5 by default, prolonged back.
+coarse space of (V, F) (ice.coarsen, keep_map=True), through it, as vector-coarse's --vector-solver:
+solver="sweep" (the default) takes the distance to the sources by coarse marching and carries the
+vectors along it on the fine mesh (the method's short-time limit, fem::VectorSweepProxy; no fine
+factorisation); solver="diffusion" restricts the sources by the vector prolongation P_vec (complex,
+fitted from the fine-to-coarse map) and by P, solves the three diffusions on the coarse mesh with
+Galerkin ("galerkin", the default: from the fine operators of `fine`) or the coarse mesh's own
+("intrinsic") operators, t = (time_factor · mean coarse edge length)² with time_factor 0.5 by default,
+and prolongs them back (operators and time_factor are the diffusion's).
 
 Tangent vectors are complex numbers in each vertex's frame: the angle counter-clockwise from the
 vertex's reference edge (at an interior vertex scaled by 2π over its angle sum), the modulus the
 length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions into such numbers.)doc")
       .def(py::init(&make_vector_heat), py::arg("V"), py::arg("F"), py::arg("coarse") = py::none(), py::kw_only(),
-           py::arg("operators") = "galerkin", py::arg("time_factor") = py::none(), py::arg("fine") = "intrinsic_delaunay")
+           py::arg("operators") = "galerkin", py::arg("time_factor") = py::none(), py::arg("fine") = "intrinsic_delaunay",
+           py::arg("solver") = "sweep")
       .def("interpolate", [](const PyVectorHeat& s, const py::object& sources, const py::object& vectors) {
              const std::vector<ice::Index> vertices = index_argument(sources, s.size(), "sources");
              if (vertices.empty()) throw py::value_error("sources is empty");
@@ -1153,7 +1167,7 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
              std::vector<int> indptr(P.outerIndexPtr(), P.outerIndexPtr() + P.outerSize() + 1);
              return sparse.attr("csc_matrix")(py::make_tuple(py::array(py::cast(data)), py::array(py::cast(indices)), py::array(py::cast(indptr))),
                                               py::make_tuple(P.rows(), P.cols()));
-           }, "P_vec (scipy.sparse.csc_matrix, complex, fine × coarse), None without a coarse space.")
+           }, "P_vec (scipy.sparse.csc_matrix, complex, fine × coarse), None without a coarse space or with solver=\"sweep\".")
       .def_property_readonly("prolongation_stats", [](const PyVectorHeat& s) -> py::object {
              if (!s.proxy) return py::none();
              const fem::VectorProlongationStats& st = s.proxy->prolongation_stats();
@@ -1164,7 +1178,7 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
              d["median_fit_residual"] = st.median_fit_residual;
              d["poor_fits"] = st.poor_fits;
              return std::move(d);
-           }, "How P_vec's frames were fitted (vector-coarse's report keys), None without a coarse space.")
+           }, "How P_vec's frames were fitted (vector-coarse's report keys), None without a coarse space or with solver=\"sweep\".")
       .def_property_readonly("size", &PyVectorHeat::size, "Vertices of (V, F).");
 
   // ---- multigrid

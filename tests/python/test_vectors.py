@@ -61,7 +61,7 @@ def test_the_proxy_approaches_the_fine_transport(spot):
     V, F, coarse = spot
     reference = ice.VectorHeatSolver(V, F).transport(0, 1j)
     for operators, bound in (("galerkin", 8.0), ("intrinsic", 12.0)):
-        proxy = ice.VectorHeatSolver(V, F, coarse, operators=operators)
+        proxy = ice.VectorHeatSolver(V, F, coarse, operators=operators, solver="diffusion")
         field = proxy.transport(0, 1j)
         assert field.dtype == np.complex128 and field.shape == (V.shape[0],)
         assert np.median(angles_degrees(field, reference)) < bound, operators
@@ -72,6 +72,21 @@ def test_the_proxy_approaches_the_fine_transport(spot):
         assert scipy.sparse.issparse(P_vec) and P_vec.shape == P.shape
         assert abs(abs(P_vec) - P).max() < 1e-12
     assert ice.VectorHeatSolver(V, F).prolongation_stats is None
+
+
+def test_the_sweep_is_the_default_and_closer_to_the_fine_transport(spot):
+    V, F, coarse = spot
+    reference = ice.VectorHeatSolver(V, F).transport(0, 1j)
+    sweep = ice.VectorHeatSolver(V, F, coarse)
+    field = sweep.transport(0, 1j)
+    assert np.array_equal(field, ice.VectorHeatSolver(V, F, coarse, solver="sweep").transport(0, 1j))
+    diffusion = ice.VectorHeatSolver(V, F, coarse, solver="diffusion").transport(0, 1j)
+    # Measured on spot at 500 coarse vertices: 2.1 against 4.3 degrees median.
+    assert np.median(angles_degrees(field, reference)) < np.median(angles_degrees(diffusion, reference))
+    assert np.abs(np.abs(field) - 1).max() < 1e-9  # one source: its magnitude everywhere
+    assert sweep.vector_prolongation is None and sweep.prolongation_stats is None
+    with pytest.raises(ValueError, match="solver"):
+        ice.VectorHeatSolver(V, F, coarse, solver="exact")
 
 
 def test_interpolation_keeps_the_prescribed_vectors(spot):
