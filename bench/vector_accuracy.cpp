@@ -12,9 +12,10 @@
 // uncertain by up to the angle excess of the saddles crossed (stderr: per source, how many paths
 // cross none, and the fine method's error on those). Prints one Markdown row per mesh: median angle
 // errors (degrees; median over vertices, then over the sources) of the fine method and of the proxy
-// at R of the vertices (vector-coarse's pipeline), each with the fine operators of the input triangles
-// and of their intrinsic Delaunay triangulation, against exact transport and the proxy against its
-// own fine method (what vector-coarse reports). A benchmark tool: CGAL is not a dependency of the
+// at R of the vertices (vector-coarse's pipelines: coarse diffusion, --vector-solver diffusion, and the
+// sweep, the default), each with the fine operators of the input triangles and of their intrinsic
+// Delaunay triangulation, against exact transport and the proxies against their own fine method
+// (what vector-coarse reports). A benchmark tool: CGAL is not a dependency of the
 // libraries.
 #include <algorithm>
 #include <cmath>
@@ -55,8 +56,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: vector-accuracy [--ratio R] [--time-factor F] [--repair] mesh...\n");
     return 4;
   }
-  std::printf("| mesh | vertices | coarse | fine vs exact: input / iDT | proxy vs exact: input / iDT | proxy vs its fine: input / iDT "
-              "| vertices compared |\n|---|---|---|---|---|---|---|\n");
+  std::printf("| mesh | vertices | coarse | fine vs exact: input / iDT | diffusion vs exact: input / iDT | diffusion vs its fine: "
+              "input / iDT | sweep vs exact: input / iDT | sweep vs its fine: input / iDT | vertices compared |\n"
+              "|---|---|---|---|---|---|---|---|---|\n");
   for (const std::string& path : meshes) {
     ice::TriangleMesh mesh;
     try {
@@ -77,14 +79,17 @@ int main(int argc, char** argv) {
       app::TangentMesh fine;
       fem::VectorHeatSolver solver;
       fem::VectorHeatProxy proxy;
-      std::vector<double> fine_errors, proxy_errors, proxy_vs_fine;  // per source
+      fem::VectorSweepProxy sweep;
+      std::vector<double> fine_errors, proxy_errors, proxy_vs_fine, sweep_errors, sweep_vs_fine;  // per source
     };
     std::vector<std::unique_ptr<Discretisation>> runs;
     for (const ice::FineGeometry geometry : {ice::FineGeometry::input, ice::FineGeometry::intrinsic_delaunay}) {
       app::TangentMesh fine = app::tangent_mesh(mesh, geometry, true);
       fem::VectorHeatSolver solver(*fine.operators);
       fem::VectorHeatProxy proxy = app::make_vector_proxy(fine, space, map, fem::VectorOperatorKind::galerkin, time_factor);
-      runs.push_back(std::make_unique<Discretisation>(Discretisation{std::move(fine), std::move(solver), std::move(proxy), {}, {}, {}}));
+      fem::VectorSweepProxy sweep = app::make_vector_sweep(mesh, fine, space, map);
+      runs.push_back(std::make_unique<Discretisation>(
+          Discretisation{std::move(fine), std::move(solver), std::move(proxy), std::move(sweep), {}, {}, {}, {}, {}}));
     }
     const ice::CompactMesh& input = runs.front()->fine.mesh;  // the same triangles and frames in both
     const fem::TangentFrames& frames = runs.front()->fine.frames;
@@ -95,12 +100,14 @@ int main(int argc, char** argv) {
     long long compared = 0;
     for (const ice::Index source : {ice::Index{0}, static_cast<ice::Index>(n / 3), static_cast<ice::Index>(2 * n / 3)}) {
       const fem::Complex z(1, 0);
-      std::vector<Eigen::VectorXcd> fine_fields, proxy_fields;
+      std::vector<Eigen::VectorXcd> fine_fields, proxy_fields, sweep_fields;
       for (const auto& run : runs) {
         fine_fields.push_back(run->solver.interpolate({source}, {z}));
         proxy_fields.push_back(run->proxy.interpolate({source}, {z}));
+        sweep_fields.push_back(run->sweep.interpolate({source}, {z}));
       }
-      std::vector<std::vector<double>> fine_here(runs.size()), proxy_here(runs.size()), between_here(runs.size());
+      std::vector<std::vector<double>> fine_here(runs.size()), proxy_here(runs.size()), between_here(runs.size()),
+          sweep_here(runs.size()), sweep_between_here(runs.size());
       std::vector<double> direct_here;  // the Delaunay fine method on paths that cross no vertex
       ice_bench::for_each_exact_path(mesh, source, [&](ice::Index v, const ice_bench::ExactPath& path) {
         // The vector's angle with the path, carried from the source: kept along each straight piece;
@@ -115,6 +122,8 @@ int main(int argc, char** argv) {
           fine_here[r].push_back(fem::angle_between_degrees(fine_fields[r](v), exact));
           proxy_here[r].push_back(fem::angle_between_degrees(proxy_fields[r](v), exact));
           between_here[r].push_back(fem::angle_between_degrees(proxy_fields[r](v), fine_fields[r](v)));
+          sweep_here[r].push_back(fem::angle_between_degrees(sweep_fields[r](v), exact));
+          sweep_between_here[r].push_back(fem::angle_between_degrees(sweep_fields[r](v), fine_fields[r](v)));
         }
         if (path.through.empty()) direct_here.push_back(fine_here.back().back());
       });
@@ -123,16 +132,20 @@ int main(int argc, char** argv) {
         runs[r]->fine_errors.push_back(median(fine_here[r]));
         runs[r]->proxy_errors.push_back(median(proxy_here[r]));
         runs[r]->proxy_vs_fine.push_back(median(between_here[r]));
+        runs[r]->sweep_errors.push_back(median(sweep_here[r]));
+        runs[r]->sweep_vs_fine.push_back(median(sweep_between_here[r]));
       }
       std::fprintf(stderr, "%s, source %lld: %zu of %zu paths cross no vertex; fine method (Delaunay) vs exact on them %.2f\n",
                    path.c_str(), static_cast<long long>(source), direct_here.size(), fine_here.back().size(), median(direct_here));
     }
     const std::string name = path.substr(path.find_last_of('/') + 1);
     const Discretisation &on_input = *runs.front(), &on_delaunay = *runs.back();
-    std::printf("| %s | %lld | %lld | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %lld |\n", name.c_str(),
-                static_cast<long long>(n), static_cast<long long>(space.mesh.num_vertices()), median(on_input.fine_errors),
-                median(on_delaunay.fine_errors), median(on_input.proxy_errors), median(on_delaunay.proxy_errors),
-                median(on_input.proxy_vs_fine), median(on_delaunay.proxy_vs_fine), compared);
+    std::printf("| %s | %lld | %lld | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %lld |\n",
+                name.c_str(), static_cast<long long>(n), static_cast<long long>(space.mesh.num_vertices()),
+                median(on_input.fine_errors), median(on_delaunay.fine_errors), median(on_input.proxy_errors),
+                median(on_delaunay.proxy_errors), median(on_input.proxy_vs_fine), median(on_delaunay.proxy_vs_fine),
+                median(on_input.sweep_errors), median(on_delaunay.sweep_errors), median(on_input.sweep_vs_fine),
+                median(on_delaunay.sweep_vs_fine), compared);
     std::fflush(stdout);
   }
   return 0;
