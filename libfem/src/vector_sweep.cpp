@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -40,16 +39,19 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
   const VectorSources sources = vector_sources(n, vertices, vectors);
   const double tau = options.time_factor * std::sqrt(operators.time_step);
 
-  // Column i of L∇ lists i's neighbours j with L∇(j, i) = conj(L∇(i, j)) = −w_ij conj(r_ij). Each
-  // nonzero gets its weight in i's mean, w_ij exp(−(d_j − d_min)/τ) (d_min over i's neighbours, so
-  // the largest is w_ij), 0 on the diagonal, for negative or zero w and for unreached neighbours.
+  // Column i of L∇ lists i's neighbours j with L∇(j, i) = conj(L∇(i, j)) = −w_ij conj(r_ij).
   const Index* outer = C.outerIndexPtr();
   const Index* inner = C.innerIndexPtr();
   const Complex* value = C.valuePtr();
-  std::vector<double> weight(static_cast<std::size_t>(C.nonZeros()), 0.0);
   const auto reached = [&](Index v) { return std::isfinite(distance(v)); };
-  for (Index i = 0; i < n; ++i) {
-    if (!reached(i)) continue;
+  // r_ij Z_j: the transport carries j's vector into i's frame (|L∇(j, i)| = w_ij).
+  const auto transported = [&](Index k, const Complex& z) { return -std::conj(value[k]) / std::abs(value[k]) * z; };
+  // The weights of i's mean, per nonzero of its column: w_ij exp(−(d_j − d_min)/τ) (d_min over its
+  // neighbours, so the largest is w_ij); 0 on the diagonal, for negative or zero w and for unreached
+  // neighbours.
+  std::vector<double> weight;
+  const auto weigh = [&](Index i) {
+    weight.assign(static_cast<std::size_t>(outer[i + 1] - outer[i]), 0.0);
     double nearest = std::numeric_limits<double>::infinity();
     for (Index k = outer[i]; k < outer[i + 1]; ++k)
       if (inner[k] != i && reached(inner[k])) nearest = std::min(nearest, distance(inner[k]));
@@ -57,11 +59,9 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
       const Index j = inner[k];
       if (j == i || !reached(j)) continue;
       const double w = -entry(L, j, i);
-      if (w > 0 && value[k] != Complex(0)) weight[static_cast<std::size_t>(k)] = w * std::exp(-(distance(j) - nearest) / tau);
+      if (w > 0 && value[k] != Complex(0)) weight[static_cast<std::size_t>(k - outer[i])] = w * std::exp(-(distance(j) - nearest) / tau);
     }
-  }
-  // r_ij Z_j: the transport carries j's vector into i's frame (|L∇(j, i)| = w_ij).
-  const auto transported = [&](Index k, const Complex& z) { return -std::conj(value[k]) / std::abs(value[k]) * z; };
+  };
 
   // The unknowns: the reached vertices that are not sources, numbered in order of distance, so that
   // a row's entries left of the diagonal are its neighbours nearer the sources.
@@ -101,10 +101,11 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
   row_weight.reserve(static_cast<std::size_t>(C.nonZeros()));
   for (std::size_t p = 0; p < unknowns; ++p) {
     const Index i = order[p];
+    weigh(i);
     double total = 0;
-    for (Index k = outer[i]; k < outer[i + 1]; ++k) total += weight[static_cast<std::size_t>(k)];
+    for (const double w : weight) total += w;
     for (Index k = outer[i]; k < outer[i + 1] && total > 0; ++k) {
-      const double w = weight[static_cast<std::size_t>(k)] / total;
+      const double w = weight[static_cast<std::size_t>(k - outer[i])] / total;
       if (w == 0) continue;
       const Index j = inner[k];
       if (fixed[static_cast<std::size_t>(j)]) {
