@@ -5,22 +5,11 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "fem/vector_fields.h"
 
 namespace fem {
-
-namespace {
-
-// L(row, column), read by walking the column (its row indices are sorted).
-double entry(const SparseMatrix& L, Index row, Index column) {
-  const Index* begin = L.innerIndexPtr() + L.outerIndexPtr()[column];
-  const Index* end = L.innerIndexPtr() + L.outerIndexPtr()[column + 1];
-  const Index* at = std::lower_bound(begin, end, row);
-  return at != end && *at == row ? L.valuePtr()[at - L.innerIndexPtr()] : 0.0;
-}
-
-}  // namespace
 
 Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators, const Eigen::VectorXd& distance,
                                             const std::vector<Index>& vertices, const std::vector<Complex>& vectors,
@@ -49,16 +38,20 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
   // The weights of i's mean, per nonzero of its column: w_ij exp(−(d_j − d_min)/τ) (d_min over its
   // neighbours, so the largest is w_ij); 0 on the diagonal, for negative or zero w and for unreached
   // neighbours.
+  // w_ij = −L(j, i) is read by walking column i of L beside column i of L∇ (both sorted by row).
   std::vector<double> weight;
   const auto weigh = [&](Index i) {
     weight.assign(static_cast<std::size_t>(outer[i + 1] - outer[i]), 0.0);
     double nearest = std::numeric_limits<double>::infinity();
     for (Index k = outer[i]; k < outer[i + 1]; ++k)
       if (inner[k] != i && reached(inner[k])) nearest = std::min(nearest, distance(inner[k]));
+    Index l = L.outerIndexPtr()[i];
+    const Index l_end = L.outerIndexPtr()[i + 1];
     for (Index k = outer[i]; k < outer[i + 1]; ++k) {
       const Index j = inner[k];
-      if (j == i || !reached(j)) continue;
-      const double w = -entry(L, j, i);
+      while (l < l_end && L.innerIndexPtr()[l] < j) ++l;
+      if (j == i || !reached(j) || l == l_end || L.innerIndexPtr()[l] != j) continue;
+      const double w = -L.valuePtr()[l];
       if (w > 0 && value[k] != Complex(0)) weight[static_cast<std::size_t>(k - outer[i])] = w * std::exp(-(distance(j) - nearest) / tau);
     }
   };
@@ -123,41 +116,39 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
 
   Eigen::VectorXcd direction = Eigen::VectorXcd::Zero(static_cast<Eigen::Index>(unknowns));
   Eigen::VectorXd magnitude = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(unknowns), sources.max_magnitude);
-  // The first sweep: each row from its sources and its neighbours nearer them (q < p), renormalised
-  // over those — the means' heavy terms, so the passes start near the solution.
-  for (std::size_t p = 0; p < unknowns; ++p) {
+  // Row p's mean, into direction(p) and magnitude(p); returns how far they moved. `upwind_only`: over
+  // its sources and its neighbours nearer them (q < p) alone, renormalised over those — the first
+  // sweep, the means' heavy terms, so that the passes start near the solution.
+  const auto update = [&](std::size_t p, auto upwind_only) {
     Complex sum = rhs(static_cast<Eigen::Index>(p));
     double sum_magnitude = magnitude_rhs(static_cast<Eigen::Index>(p)), total = source_weight[p];
     for (std::size_t e = row_start[p]; e < row_start[p + 1]; ++e) {
-      const std::size_t q = static_cast<std::size_t>(column[e]);
-      if (q >= p) continue;
-      sum += coefficient[e] * direction(static_cast<Eigen::Index>(q));
-      sum_magnitude += row_weight[e] * magnitude(static_cast<Eigen::Index>(q));
-      total += row_weight[e];
+      const Index q = column[e];
+      if constexpr (decltype(upwind_only)::value)
+        if (static_cast<std::size_t>(q) >= p) continue;
+      sum += coefficient[e] * direction(q);
+      if (!one_magnitude) sum_magnitude += row_weight[e] * magnitude(q);
+      if constexpr (decltype(upwind_only)::value) total += row_weight[e];
     }
-    if (total > 0) {
-      direction(static_cast<Eigen::Index>(p)) = sum / total;
-      if (!one_magnitude) magnitude(static_cast<Eigen::Index>(p)) = sum_magnitude / total;
+    if constexpr (decltype(upwind_only)::value) {
+      if (total == 0) return 0.0;
+      sum /= total;
+      sum_magnitude /= total;
     }
-  }
+    double change = std::abs(sum - direction(static_cast<Eigen::Index>(p)));
+    direction(static_cast<Eigen::Index>(p)) = sum;
+    if (!one_magnitude) {
+      change = std::max(change, std::abs(sum_magnitude - magnitude(static_cast<Eigen::Index>(p))) / sources.max_magnitude);
+      magnitude(static_cast<Eigen::Index>(p)) = sum_magnitude;
+    }
+    return change;
+  };
+  for (std::size_t p = 0; p < unknowns; ++p) update(p, std::true_type{});
   // Gauss–Seidel passes in the same order.
   DistanceSweepStats done;
   while (done.passes < options.max_passes) {
     double change = 0;
-    for (std::size_t p = 0; p < unknowns; ++p) {
-      Complex sum = rhs(static_cast<Eigen::Index>(p));
-      double sum_magnitude = magnitude_rhs(static_cast<Eigen::Index>(p));
-      for (std::size_t e = row_start[p]; e < row_start[p + 1]; ++e) {
-        sum += coefficient[e] * direction(column[e]);
-        if (!one_magnitude) sum_magnitude += row_weight[e] * magnitude(column[e]);
-      }
-      change = std::max(change, std::abs(sum - direction(static_cast<Eigen::Index>(p))));
-      direction(static_cast<Eigen::Index>(p)) = sum;
-      if (!one_magnitude) {
-        change = std::max(change, std::abs(sum_magnitude - magnitude(static_cast<Eigen::Index>(p))) / sources.max_magnitude);
-        magnitude(static_cast<Eigen::Index>(p)) = sum_magnitude;
-      }
-    }
+    for (std::size_t p = 0; p < unknowns; ++p) change = std::max(change, update(p, std::false_type{}));
     ++done.passes;
     done.last_change = change;
     if (change <= options.tolerance) break;
