@@ -189,11 +189,11 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::Coars
 }
 
 fem::VectorSweepProxy make_vector_sweep(const ice::TriangleMesh& mesh, const TangentMesh& fine, const ice::CoarseSpace& coarse,
-                                        const std::vector<ice::CoarsePoint>& map) {
+                                        const std::vector<ice::CoarsePoint>& map, const fem::DistanceSweepOptions& options) {
   if (!fine.operators) throw std::logic_error("make_vector_sweep: the sweep needs the fine operators (tangent_mesh with_operators)");
   const bool traced = traces_lengths(CoarseLengths::automatic, coarse.summary.method, true);
   const ice::SurfaceEdgeLengths lengths = marching_lengths(mesh, coarse, traced, CurvatureCorrection::automatic, &map);
-  return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(coarse.mesh.F, lengths.lengths, coarse.P));
+  return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(coarse.mesh.F, lengths.lengths, coarse.P), options);
 }
 
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,

@@ -113,7 +113,7 @@ enum class VectorSolver { sweep, diffusion };
 /// lengths for ICE, curvature-corrected, 1 subdivision) and fine.operators (which must have been
 /// built: std::logic_error otherwise).
 fem::VectorSweepProxy make_vector_sweep(const ice::TriangleMesh& mesh, const TangentMesh& fine, const ice::CoarseSpace& coarse,
-                                        const std::vector<ice::CoarsePoint>& map);
+                                        const std::vector<ice::CoarsePoint>& map, const fem::DistanceSweepOptions& options = {});
 
 /// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
 /// target was missed and records the summary in `run`. `keep_method_state`: keep what

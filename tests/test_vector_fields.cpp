@@ -76,15 +76,6 @@ std::pair<double, double> sphere_field_error(const ice::TriangleMesh& mesh, cons
   return {median(errors), *std::max_element(errors.begin(), errors.end())};
 }
 
-// Great-circle distance on the unit sphere from `source` to every vertex.
-Eigen::VectorXd sphere_distance(const ice::TriangleMesh& mesh, Index source) {
-  const Eigen::Vector3d p = mesh.V.row(source).transpose().normalized();
-  Eigen::VectorXd d(mesh.V.rows());
-  for (Eigen::Index i = 0; i < d.size(); ++i)
-    d(i) = std::acos(std::clamp(p.dot(mesh.V.row(i).transpose().normalized()), -1.0, 1.0));
-  return d;
-}
-
 // A unit tangent vector at `source` of the unit icosphere `mesh`: in 3D and in the source's frame.
 std::pair<Eigen::Vector3d, fem::Complex> sphere_start(const ice::TriangleMesh& mesh, const ice::CompactMesh& fine,
                                                       const fem::TangentFrames& frames, Index source) {
@@ -471,7 +462,7 @@ TEST_CASE("vector heat operators on a second triangulation: the same operators i
   }
 }
 
-TEST_CASE("vector field from a distance: a flat disk's field is parallel, the sources' vectors kept", "[fem][vectors]") {
+TEST_CASE("vector field from a distance: a flat disk's field is parallel, two lengths stay in their range", "[fem][vectors]") {
   const ice::TriangleMesh disk = ice::make_flat_disk(10, 1.0, 0.2, 3);
   const ice::CompactMesh fine = glued(disk);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
@@ -499,8 +490,7 @@ TEST_CASE("vector field from a distance: a flat disk's field is parallel, the so
       CHECK(drawn.row(i).norm() >= 1 - 1e-9);
       CHECK(drawn.row(i).norm() <= 3 + 1e-9);
     }
-    CHECK(std::abs(two(source) - start) < 1e-12);
-    CHECK(std::abs(two(other) - there) < 1e-12);
+    CHECK(std::abs(two(source)) < std::abs(two(other)));  // each source's own length dominates there
   }
   SECTION("unreached vertices get no vector; bad arguments are refused") {
     Eigen::VectorXd part = distance;
@@ -512,32 +502,89 @@ TEST_CASE("vector field from a distance: a flat disk's field is parallel, the so
     CHECK_THROWS_AS(fem::vector_field_from_distance(operators, distance, {source, other}, {start}), std::invalid_argument);
     CHECK_THROWS_AS(fem::vector_field_from_distance(operators, distance, {static_cast<Index>(disk.V.rows())}, {start}),
                     std::invalid_argument);
+    CHECK_THROWS_AS(fem::vector_field_from_distance(operators, part, {other}, {start}), std::invalid_argument);  // unreached source
     fem::DistanceSweepOptions bad;
-    bad.time_factor = 0;
+    bad.max_passes = -1;
     CHECK_THROWS_AS(fem::vector_field_from_distance(operators, distance, {source}, {start}, bad), std::invalid_argument);
   }
 }
 
-TEST_CASE("vector field from a distance: transport on a sphere converges to the exact transport", "[fem][vectors]") {
-  // The great-circle distance (the smooth sphere's) and the fine operators: the sweep's own error.
+TEST_CASE("vector field from a distance: the passes converge to the fine method's field, whatever the distance", "[fem][vectors]") {
+  // A curved surface, two sources of different lengths (so the scalar diffusions are swept too), and
+  // a distance that is only roughly the geodesic one (straight-line, through the torus's hole): the
+  // passes are Gauss–Seidel on the fine method's own systems, so they converge to its field; the
+  // distance only orders and scales them.
+  const ice::TriangleMesh torus = ice::make_torus(48, 16, 1.0, 0.35);
+  const ice::CompactMesh fine = glued(torus);
+  const fem::TangentFrames frames = fem::tangent_frames(fine);
+  const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
+  const std::vector<Index> sources = {0, static_cast<Index>(torus.V.rows() / 2 + 5)};
+  const std::vector<fem::Complex> vectors = {std::polar(1.0, 0.3), std::polar(2.0, -1.1)};
+  Eigen::VectorXd distance(torus.V.rows());
+  for (Eigen::Index i = 0; i < distance.size(); ++i)
+    distance(i) = std::min((torus.V.row(i) - torus.V.row(sources[0])).norm(), (torus.V.row(i) - torus.V.row(sources[1])).norm());
+  const Eigen::VectorXcd reference = fem::VectorHeatSolver(operators).interpolate(sources, vectors);
   std::vector<double> medians;
-  for (const int subdivisions : {3, 4, 5}) {
-    const ice::TriangleMesh mesh = ice::make_icosphere(subdivisions);
-    const ice::CompactMesh fine = glued(mesh);
-    const fem::TangentFrames frames = fem::tangent_frames(fine);
-    const Index source = 0;
-    const auto [start, z0] = sphere_start(mesh, fine, frames, source);
-    const Eigen::VectorXcd field = fem::vector_field_from_distance(fem::vector_heat_operators(fine, frames),
-                                                                   sphere_distance(mesh, source), {source}, {z0});
-    const auto [median_error, max_error] = sphere_field_error(mesh, fine, frames, source, start, field);
-    INFO(mesh.V.rows() << " vertices: median " << median_error << ", max " << max_error << " deg");
-    CHECK(max_error < 30);
-    medians.push_back(median_error);
+  for (const int passes : {0, 5, 40}) {
+    fem::DistanceSweepOptions options;
+    options.max_passes = passes;
+    options.tolerance = 0;
+    medians.push_back(median(angle_errors(fem::vector_field_from_distance(operators, distance, sources, vectors, options), reference)));
   }
-  INFO("medians " << medians[0] << " / " << medians[1] << " / " << medians[2] << " deg");
-  CHECK(medians[2] < 0.75 * medians[1]);
-  CHECK(medians[1] < 0.75 * medians[0]);
-  CHECK(medians[2] < 0.1);  // 0.17 / 0.05 / 0.03° at 642 / 2,562 / 10,242 vertices
+  INFO("median angle error after 0 / 5 / 40 passes: " << medians[0] << " / " << medians[1] << " / " << medians[2] << " deg");
+  CHECK(medians[1] < 0.5 * medians[0]);
+  CHECK(medians[2] < 0.5 * medians[1]);
+  fem::DistanceSweepOptions converged;
+  converged.tolerance = 1e-12;
+  converged.max_passes = 5000;
+  fem::DistanceSweepStats stats;
+  const Eigen::VectorXcd field = fem::vector_field_from_distance(operators, distance, sources, vectors, converged, &stats);
+  INFO(stats.passes << " passes, last change " << stats.last_change);
+  CHECK(stats.last_change <= 1e-12);
+  CHECK((field - reference).cwiseAbs().maxCoeff() < 1e-8 * reference.cwiseAbs().maxCoeff());
+  for (Eigen::Index i = 0; i < field.size(); ++i) CHECK(std::abs(std::abs(field(i)) - std::abs(reference(i))) < 1e-8);
+}
+
+TEST_CASE("vector field from a distance: a field where the fine solve's kernel underflows", "[fem][vectors]") {
+  // A flat strip 1,500 unit squares long: the kernel of M + tL (t = h²) falls by ~e per edge, below
+  // the smallest double long before the far end, where the fine method's field is then zero. Scaled
+  // by the distance's decay, the sweep's values stay of order one along the whole strip.
+  const int cells = 1500;
+  ice::TriangleMesh strip;
+  strip.V.resize(2 * (cells + 1), 3);
+  strip.F.resize(2 * cells, 3);
+  for (int i = 0; i <= cells; ++i) {
+    strip.V.row(2 * i) = Eigen::RowVector3d(i, 0, 0);
+    strip.V.row(2 * i + 1) = Eigen::RowVector3d(i, 1, 0);
+  }
+  for (int i = 0; i < cells; ++i) {
+    strip.F.row(2 * i) = Eigen::RowVector3i(2 * i, 2 * i + 2, 2 * i + 3);
+    strip.F.row(2 * i + 1) = Eigen::RowVector3i(2 * i, 2 * i + 3, 2 * i + 1);
+  }
+  const ice::CompactMesh fine = glued(strip);
+  const fem::TangentFrames frames = fem::tangent_frames(fine);
+  const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
+  Eigen::VectorXd distance(strip.V.rows());
+  for (Eigen::Index i = 0; i < distance.size(); ++i) distance(i) = strip.V.row(i).norm();
+  const fem::Complex start = std::polar(1.0, 0.4);
+  const Eigen::VectorXcd field = fem::vector_field_from_distance(operators, distance, {0}, {start});
+  const Eigen::MatrixXd ambient = fem::tangent_to_ambient(fine, frames, strip.V, field);
+  for (Eigen::Index i = 0; i < ambient.rows(); ++i) CHECK((ambient.row(i) - ambient.row(0)).norm() < 1e-9);
+  const Eigen::VectorXcd direct = fem::VectorHeatSolver(operators).interpolate({0}, {start});
+  Index lost = 0;
+  for (Eigen::Index i = 0; i < direct.size(); ++i) lost += direct(i) == fem::Complex(0);
+  INFO(lost << " of " << direct.size() << " vertices without a field from the fine solve");
+  CHECK(lost > 0);  // the regime is real: the far end underflows there
+  for (Eigen::Index i = 0; i < direct.size(); ++i) CHECK(std::isfinite(std::abs(direct(i))));
+}
+
+TEST_CASE("vector heat field: a subnormal direction keeps its angle, a vanished one gives zero", "[fem][vectors]") {
+  fem::VectorHeatParts parts{Eigen::VectorXcd(3), Eigen::VectorXd::Constant(3, 2.0), Eigen::VectorXd::Constant(3, 1.0)};
+  parts.directions << fem::Complex(3e-320, 4e-320), fem::Complex(0.6, 0.8), fem::Complex(0);
+  const Eigen::VectorXcd field = fem::vector_heat_field(parts, 2.0, 2.0);
+  CHECK(std::abs(field(0) - fem::Complex(1.2, 1.6)) < 1e-3);  // 3:4 survives in subnormals to ~1e-4
+  CHECK(std::abs(field(1) - fem::Complex(1.2, 1.6)) < 1e-15);
+  CHECK(field(2) == fem::Complex(0));
 }
 
 TEST_CASE("vector sweep through the coarse proxy approaches the fine field", "[fem][vectors]") {
@@ -554,7 +601,7 @@ TEST_CASE("vector sweep through the coarse proxy approaches the fine field", "[f
   const Eigen::VectorXcd field = sweep.interpolate({17}, {fem::Complex(0, 1)}, &stats);
   const std::vector<double> errors = angle_errors(field, reference);
   INFO("median angle error " << median(errors) << " deg after " << stats.passes << " passes");
-  CHECK(median(errors) < 0.3);  // 0.08° (coarse diffusion: 0.8°)
+  CHECK(median(errors) < 0.05);  // 0.0006° after 50 passes (coarse diffusion: 0.8°)
   CHECK((field.cwiseAbs().array() - 1.0).abs().maxCoeff() < 1e-12);  // one source: its magnitude
   CHECK_THROWS_AS(fem::VectorSweepProxy(fem::vector_heat_operators(glued(ice::make_icosphere(1)), fem::tangent_frames(glued(ice::make_icosphere(1)))),
                                         fem::ProxyGeodesicSolver(space.mesh.F, space.mesh.L, space.P)),

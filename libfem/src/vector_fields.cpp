@@ -382,7 +382,10 @@ Eigen::VectorXcd vector_heat_field(const VectorHeatParts& parts, double min_magn
     const double magnitude = parts.indicator(i) != 0
                                  ? std::clamp(parts.magnitudes(i) / parts.indicator(i), min_magnitude, max_magnitude)
                                  : 0.0;
-    field(i) = length > 0 ? parts.directions(i) * (magnitude / length) : Complex(0);
+    // Y/|Y| before the magnitude: far from the sources Y can be subnormal, and magnitude/|Y| would
+    // overflow to ∞ (spot Loop ×3, 1.6M vertices: 7,639 infinite vectors).
+    const Complex direction = length > 0 ? parts.directions(i) / length : Complex(0);
+    field(i) = std::isfinite(direction.real()) && std::isfinite(direction.imag()) ? direction * magnitude : Complex(0);
   }
   return field;
 }

@@ -5,7 +5,8 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
-#include <type_traits>
+#include <tuple>
+#include <utility>
 
 #include "fem/vector_fields.h"
 
@@ -16,157 +17,211 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
                                             const DistanceSweepOptions& options, DistanceSweepStats* stats) {
   const ComplexSparseMatrix& C = operators.connection;
   const SparseMatrix& L = operators.laplacian;
+  const SparseMatrix& M = operators.mass;
   const Eigen::Index n = C.rows();
-  if (C.cols() != n || L.rows() != n || L.cols() != n || distance.size() != n)
+  if (C.cols() != n || L.rows() != n || L.cols() != n || M.rows() != n || M.cols() != n || distance.size() != n)
     throw std::invalid_argument("vector_field_from_distance: L∇ is " + std::to_string(C.rows()) + " x " + std::to_string(C.cols()) +
-                                ", L " + std::to_string(L.rows()) + " x " + std::to_string(L.cols()) + ", the distance has " +
+                                ", L " + std::to_string(L.rows()) + " x " + std::to_string(L.cols()) + ", M " +
+                                std::to_string(M.rows()) + " x " + std::to_string(M.cols()) + ", the distance has " +
                                 std::to_string(distance.size()) + " values");
-  if (!(operators.time_step > 0) || !(options.time_factor > 0) || !(options.tolerance >= 0) || options.max_passes < 0)
-    throw std::invalid_argument("vector_field_from_distance: the time step, time factor and tolerance must be positive");
+  if (!(operators.time_step > 0) || !(options.tolerance >= 0) || options.max_passes < 0)
+    throw std::invalid_argument("vector_field_from_distance: the time step must be positive, the tolerance and passes not negative");
   if (!C.isCompressed() || !L.isCompressed())
     throw std::invalid_argument("vector_field_from_distance: the operators must be compressed sparse matrices");
   const VectorSources sources = vector_sources(n, vertices, vectors);
-  const double tau = options.time_factor * std::sqrt(operators.time_step);
+  const double t = operators.time_step;
+  const double tau = std::sqrt(t);
+  const auto reached = [&](Index v) { return std::isfinite(distance(v)); };
+  double nearest_source = std::numeric_limits<double>::infinity();
+  for (const Index v : vertices) {
+    if (!reached(v))
+      throw std::invalid_argument("vector_field_from_distance: source vertex " + std::to_string(v) + " has no finite distance");
+    nearest_source = std::min(nearest_source, distance(v));
+  }
 
-  // Column i of L∇ lists i's neighbours j with L∇(j, i) = conj(L∇(i, j)) = −w_ij conj(r_ij).
+  // The unknowns: the reached vertices in order of distance, sources included (their rows carry
+  // the right-hand sides), so that a row's entries left of the diagonal are its neighbours nearer
+  // the sources.
+  std::vector<Index> order;
+  order.reserve(static_cast<std::size_t>(n));
+  for (Index v = 0; v < n; ++v)
+    if (reached(v)) order.push_back(v);
+  std::sort(order.begin(), order.end(), [&](Index a, Index b) { return distance(a) < distance(b) || (distance(a) == distance(b) && a < b); });
+  std::vector<Index> position(static_cast<std::size_t>(n), -1);
+  for (std::size_t p = 0; p < order.size(); ++p) position[static_cast<std::size_t>(order[p])] = static_cast<Index>(p);
+
+  // Each vertex's value is kept as exp(−e_i) times a value of order one, e_i the log of the kernel's
+  // decay, so that the far field stays in floating range (the direct solve's underflows: see the
+  // header). The first pass finds e: each vertex from
+  // its neighbours nearer the sources, e_i from the scalar kernel φ (positive, where Y can cancel),
+  // counting each neighbour farther away (not reached yet) as the vertex itself times the decay the
+  // distance predicts, so that the first pass starts near the solution instead of losing a factor at
+  // every step away from the sources.
+  // Column i of L∇ lists i's neighbours j with L∇(j, i) = conj(L∇(i, j)); L's column is walked beside
+  // it (both sorted by row). `visit(i, f)` calls f(j, L∇(i, j), L(i, j)) for each reached neighbour
+  // and returns the diagonals of M + tL∇ and M + tL at i.
   const Index* outer = C.outerIndexPtr();
   const Index* inner = C.innerIndexPtr();
   const Complex* value = C.valuePtr();
-  const auto reached = [&](Index v) { return std::isfinite(distance(v)); };
-  // r_ij Z_j: the transport carries j's vector into i's frame (|L∇(j, i)| = w_ij).
-  const auto transported = [&](Index k, const Complex& z) { return -std::conj(value[k]) / std::abs(value[k]) * z; };
-  // The weights of i's mean, per nonzero of its column: w_ij exp(−(d_j − d_min)/τ) (d_min over its
-  // neighbours, so the largest is w_ij); 0 on the diagonal, for negative or zero w and for unreached
-  // neighbours.
-  // w_ij = −L(j, i) is read by walking column i of L beside column i of L∇ (both sorted by row).
-  std::vector<double> weight;
-  const auto weigh = [&](Index i) {
-    weight.assign(static_cast<std::size_t>(outer[i + 1] - outer[i]), 0.0);
-    double nearest = std::numeric_limits<double>::infinity();
-    for (Index k = outer[i]; k < outer[i + 1]; ++k)
-      if (inner[k] != i && reached(inner[k])) nearest = std::min(nearest, distance(inner[k]));
+  const Eigen::VectorXd lumped_mass = M.diagonal();
+  const auto visit = [&](Index i, auto&& neighbour) {
+    double vector_diagonal = 0, laplacian_diagonal = 0;
     Index l = L.outerIndexPtr()[i];
     const Index l_end = L.outerIndexPtr()[i + 1];
     for (Index k = outer[i]; k < outer[i + 1]; ++k) {
       const Index j = inner[k];
       while (l < l_end && L.innerIndexPtr()[l] < j) ++l;
-      if (j == i || !reached(j) || l == l_end || L.innerIndexPtr()[l] != j) continue;
-      const double w = -L.valuePtr()[l];
-      if (w > 0 && value[k] != Complex(0)) weight[static_cast<std::size_t>(k - outer[i])] = w * std::exp(-(distance(j) - nearest) / tau);
+      const double laplacian_entry = l < l_end && L.innerIndexPtr()[l] == j ? L.valuePtr()[l] : 0.0;
+      if (j == i) {
+        vector_diagonal = value[k].real();
+        laplacian_diagonal = laplacian_entry;
+      } else if (reached(j)) {
+        neighbour(j, std::conj(value[k]), laplacian_entry);
+      }
     }
+    const double vector_row = lumped_mass(i) + t * vector_diagonal, scalar_row = lumped_mass(i) + t * laplacian_diagonal;
+    if (!(vector_row > 0) || !(scalar_row > 0))
+      throw std::invalid_argument("vector_field_from_distance: M + tL∇ or M + tL has a non-positive diagonal at vertex " + std::to_string(i));
+    return std::pair<double, double>(vector_row, scalar_row);
   };
-
-  // The unknowns: the reached vertices that are not sources, numbered in order of distance, so that
-  // a row's entries left of the diagonal are its neighbours nearer the sources.
-  std::vector<Index> order;
-  order.reserve(static_cast<std::size_t>(n));
-  std::vector<char> fixed(static_cast<std::size_t>(n), 0);
-  for (Index v = 0; v < n; ++v) {
-    if (sources.indicator(v) != 0) fixed[static_cast<std::size_t>(v)] = 1;
-    else if (reached(v)) order.push_back(v);
-  }
-  std::sort(order.begin(), order.end(), [&](Index a, Index b) { return distance(a) < distance(b) || (distance(a) == distance(b) && a < b); });
-  std::vector<Index> position(static_cast<std::size_t>(n), -1);
-  for (std::size_t p = 0; p < order.size(); ++p) position[static_cast<std::size_t>(order[p])] = static_cast<Index>(p);
-
-  Eigen::VectorXcd source_direction = Eigen::VectorXcd::Zero(n);
-  Eigen::VectorXd source_magnitude = Eigen::VectorXd::Zero(n);
-  for (Index v = 0; v < n; ++v) {
-    if (!fixed[static_cast<std::size_t>(v)]) continue;
-    const double length = std::abs(sources.vectors(v));
-    source_direction(v) = length > 0 ? sources.vectors(v) / length : Complex(0);  // opposite vectors at one vertex cancel
-    source_magnitude(v) = sources.magnitudes(v) / sources.indicator(v);
-  }
-  // Row p of the means, Z_p = b_p + Σ_q a_pq Z_q over unknown neighbours q (a_pq = w_pq r_pq, the
-  // weights of a row summing to 1 with its sources'), stored by rows in distance order, and the same
-  // for m with the weights alone when the sources' magnitudes differ (else m is their magnitude).
   const bool one_magnitude = sources.min_magnitude == sources.max_magnitude;
   const std::size_t unknowns = order.size();
+  const Eigen::Index size = static_cast<Eigen::Index>(unknowns);
+  Eigen::VectorXd log_scale(size);  // e per row
+  Eigen::VectorXcd directions = Eigen::VectorXcd::Zero(size);
+  Eigen::VectorXd magnitudes = Eigen::VectorXd::Zero(size), indicator = Eigen::VectorXd::Zero(size);
+  constexpr double kLargestExponent = 200;  // ratios between neighbours beyond e^±200 are clamped
+  const auto ratio = [&](double exponent) { return std::exp(std::clamp(exponent, -kLargestExponent, kLargestExponent)); };
+  for (std::size_t p = 0; p < unknowns; ++p) {
+    const Index i = order[p];
+    const Eigen::Index row = static_cast<Eigen::Index>(p);
+    // The terms factor exp(−least), least the smallest e among the nearer neighbours (and 0, the
+    // sources' scale, on a source's row).
+    double least = sources.indicator(i) != 0 ? 0.0 : std::numeric_limits<double>::infinity();
+    visit(i, [&](Index j, Complex, double) {
+      const Index q = position[static_cast<std::size_t>(j)];
+      if (q < static_cast<Index>(p)) least = std::min(least, log_scale(q));
+    });
+    Complex sum = 0;
+    double sum_magnitude = 0, sum_indicator = 0, farther = 0, scalar_farther = 0;
+    if (std::isfinite(least)) {
+      sum = sources.vectors(i) * std::exp(least);
+      sum_magnitude = sources.magnitudes(i) * std::exp(least);
+      sum_indicator = sources.indicator(i) * std::exp(least);
+    }
+    const auto [vector_row, scalar_row] = visit(i, [&](Index j, Complex connection, double laplacian) {
+      const Index q = position[static_cast<std::size_t>(j)];
+      if (q < static_cast<Index>(p)) {
+        const double decay = ratio(-(log_scale(q) - least));
+        sum -= t * connection * decay * directions(q);
+        sum_magnitude -= t * laplacian * decay * magnitudes(q);
+        sum_indicator -= t * laplacian * decay * indicator(q);
+      } else {
+        const double decay = std::exp(-(distance(j) - distance(i)) / tau);  // ≤ 1: j is no nearer
+        farther += t * std::abs(connection) * decay;
+        scalar_farther += std::max(-t * laplacian * decay, 0.0);
+      }
+    });
+    // With positive weights the first diagonals stay ≥ M_i; otherwise the passes' are kept.
+    sum /= vector_row - farther > 0 ? vector_row - farther : vector_row;
+    const double first_scalar = scalar_row - scalar_farther > 0 ? scalar_row - scalar_farther : scalar_row;
+    sum_magnitude /= first_scalar;
+    sum_indicator /= first_scalar;
+    if (std::isfinite(least) && sum_indicator > 0 && std::isfinite(sum_indicator)) {
+      log_scale(row) = least - std::log(sum_indicator);
+      directions(row) = sum / sum_indicator;
+      magnitudes(row) = sum_magnitude / sum_indicator;
+      indicator(row) = 1;
+    } else {  // no nearer neighbour, or a kernel not positive here: the distance's decay; the passes fill it
+      log_scale(row) = (distance(i) - nearest_source) / tau;
+    }
+  }
+
+  // Row p of the scaled systems, Ŷ_i = exp(e_i) Y_i: Ŷ_i = (exp(e_i) Y₀_i − t Σ_j L∇(i, j) exp(e_i − e_j) Ŷ_j)
+  // / (M_i + t L∇(i, i)), the same with L for the scalars. Stored by rows in distance order: per
+  // entry the neighbour's row, −t L∇(i, j) exp(e_i − e_j) and −t L(i, j) exp(e_i − e_j).
   std::vector<std::size_t> row_start(unknowns + 1, 0);
   std::vector<Index> column;
   std::vector<Complex> coefficient;
-  std::vector<double> row_weight;  // per entry, for m and for the first sweep's partial sums
-  std::vector<double> source_weight(unknowns, 0.0);  // the sources' share of each row
-  Eigen::VectorXcd rhs = Eigen::VectorXcd::Zero(static_cast<Eigen::Index>(unknowns));
-  Eigen::VectorXd magnitude_rhs = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(unknowns));
+  std::vector<double> scalar_coefficient;
+  Eigen::VectorXd diagonal(size), scalar_diagonal(size);
+  Eigen::VectorXcd rhs(size);
+  Eigen::VectorXd magnitude_rhs(size), indicator_rhs(size);
   column.reserve(static_cast<std::size_t>(C.nonZeros()));
   coefficient.reserve(static_cast<std::size_t>(C.nonZeros()));
-  row_weight.reserve(static_cast<std::size_t>(C.nonZeros()));
+  scalar_coefficient.reserve(static_cast<std::size_t>(C.nonZeros()));
   for (std::size_t p = 0; p < unknowns; ++p) {
     const Index i = order[p];
-    weigh(i);
-    double total = 0;
-    for (const double w : weight) total += w;
-    for (Index k = outer[i]; k < outer[i + 1] && total > 0; ++k) {
-      const double w = weight[static_cast<std::size_t>(k - outer[i])] / total;
-      if (w == 0) continue;
-      const Index j = inner[k];
-      if (fixed[static_cast<std::size_t>(j)]) {
-        rhs(static_cast<Eigen::Index>(p)) += w * transported(k, source_direction(j));
-        magnitude_rhs(static_cast<Eigen::Index>(p)) += w * source_magnitude(j);
-        source_weight[p] += w;
-      } else {
-        column.push_back(position[static_cast<std::size_t>(j)]);
-        coefficient.push_back(w * transported(k, Complex(1)));
-        row_weight.push_back(w);
-      }
-    }
+    const Eigen::Index row = static_cast<Eigen::Index>(p);
+    std::tie(diagonal(row), scalar_diagonal(row)) = visit(i, [&](Index j, Complex connection, double laplacian) {
+      const Index q = position[static_cast<std::size_t>(j)];
+      const double decay = ratio(log_scale(row) - log_scale(q));
+      column.push_back(q);
+      coefficient.push_back(-t * connection * decay);
+      scalar_coefficient.push_back(-t * laplacian * decay);
+    });
     row_start[p + 1] = column.size();
+    const double source_scale = sources.indicator(i) != 0 ? ratio(log_scale(row)) : 0.0;
+    rhs(row) = sources.vectors(i) * source_scale;
+    magnitude_rhs(row) = sources.magnitudes(i) * source_scale;
+    indicator_rhs(row) = sources.indicator(i) * source_scale;
   }
 
-  Eigen::VectorXcd direction = Eigen::VectorXcd::Zero(static_cast<Eigen::Index>(unknowns));
-  Eigen::VectorXd magnitude = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(unknowns), sources.max_magnitude);
-  // Row p's mean, into direction(p) and magnitude(p); returns how far they moved. `upwind_only`: over
-  // its sources and its neighbours nearer them (q < p) alone, renormalised over those — the first
-  // sweep, the means' heavy terms, so that the passes start near the solution.
-  const auto update = [&](std::size_t p, auto upwind_only) {
-    Complex sum = rhs(static_cast<Eigen::Index>(p));
-    double sum_magnitude = magnitude_rhs(static_cast<Eigen::Index>(p)), total = source_weight[p];
+  Eigen::VectorXd direction_length = directions.cwiseAbs();
+  // Row p's update; returns how far it moved relative to the size of the terms it sums (not to the
+  // result, which cancels to zero where vectors from two sides meet).
+  const auto update = [&](std::size_t p) {
+    const Eigen::Index row = static_cast<Eigen::Index>(p);
+    Complex sum = rhs(row);
+    double size = std::abs(rhs(row)), sum_magnitude = magnitude_rhs(row), sum_indicator = indicator_rhs(row);
     for (std::size_t e = row_start[p]; e < row_start[p + 1]; ++e) {
-      const Index q = column[e];
-      if constexpr (decltype(upwind_only)::value)
-        if (static_cast<std::size_t>(q) >= p) continue;
-      sum += coefficient[e] * direction(q);
-      if (!one_magnitude) sum_magnitude += row_weight[e] * magnitude(q);
-      if constexpr (decltype(upwind_only)::value) total += row_weight[e];
+      const Eigen::Index q = column[e];
+      sum += coefficient[e] * directions(q);
+      size += std::abs(scalar_coefficient[e]) * direction_length(q);
+      if (!one_magnitude) {
+        sum_magnitude += scalar_coefficient[e] * magnitudes(q);
+        sum_indicator += scalar_coefficient[e] * indicator(q);
+      }
     }
-    if constexpr (decltype(upwind_only)::value) {
-      if (total == 0) return 0.0;
-      sum /= total;
-      sum_magnitude /= total;
-    }
-    double change = std::abs(sum - direction(static_cast<Eigen::Index>(p)));
-    direction(static_cast<Eigen::Index>(p)) = sum;
+    sum /= diagonal(row);
+    size /= diagonal(row);
+    double change = size > 0 ? std::abs(sum - directions(row)) / size : 0.0;
+    directions(row) = sum;
+    direction_length(row) = std::abs(sum);
     if (!one_magnitude) {
-      change = std::max(change, std::abs(sum_magnitude - magnitude(static_cast<Eigen::Index>(p))) / sources.max_magnitude);
-      magnitude(static_cast<Eigen::Index>(p)) = sum_magnitude;
+      sum_magnitude /= scalar_diagonal(row);
+      sum_indicator /= scalar_diagonal(row);
+      if (sum_indicator != 0) {
+        change = std::max(change, std::abs(sum_indicator - indicator(row)) / std::abs(sum_indicator));
+        if (sum_magnitude != 0) change = std::max(change, std::abs(sum_magnitude - magnitudes(row)) / std::abs(sum_magnitude));
+      }
+      magnitudes(row) = sum_magnitude;
+      indicator(row) = sum_indicator;
     }
     return change;
   };
-  for (std::size_t p = 0; p < unknowns; ++p) update(p, std::true_type{});
   // Gauss–Seidel passes in the same order.
   DistanceSweepStats done;
   while (done.passes < options.max_passes) {
     double change = 0;
-    for (std::size_t p = 0; p < unknowns; ++p) change = std::max(change, update(p, std::false_type{}));
+    for (std::size_t p = 0; p < unknowns; ++p) change = std::max(change, update(p));
     ++done.passes;
     done.last_change = change;
     if (change <= options.tolerance) break;
   }
   if (stats) *stats = done;
 
-  Eigen::VectorXcd field = Eigen::VectorXcd::Zero(n);
-  for (Index v = 0; v < n; ++v) {
-    if (fixed[static_cast<std::size_t>(v)]) {
-      field(v) = source_direction(v) * source_magnitude(v);
-      continue;
-    }
-    const Index p = position[static_cast<std::size_t>(v)];
-    if (p < 0) continue;
-    const double length = std::abs(direction(p));
-    if (length > 0) field(v) = direction(p) * (magnitude(p) / length);
+  // The field as the fine method combines it (the common scale s cancels in Y/|Y| and u/φ).
+  VectorHeatParts parts{Eigen::VectorXcd::Zero(n), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n)};
+  for (std::size_t p = 0; p < unknowns; ++p) {
+    const Index v = order[p];
+    const Eigen::Index row = static_cast<Eigen::Index>(p);
+    parts.directions(v) = directions(row);
+    // One magnitude: u/φ is that magnitude wherever φ ≠ 0, so the scalars are not solved.
+    parts.magnitudes(v) = one_magnitude ? sources.max_magnitude : magnitudes(row);
+    parts.indicator(v) = one_magnitude ? 1.0 : indicator(row);
   }
-  return field;
+  return vector_heat_field(parts, sources.min_magnitude, sources.max_magnitude);
 }
 
 VectorSweepProxy::VectorSweepProxy(VectorHeatOperators fine_operators, ProxyGeodesicSolver distances, DistanceSweepOptions options)

@@ -81,8 +81,13 @@ def test_the_sweep_is_the_default_and_closer_to_the_fine_transport(spot):
     field = sweep.transport(0, 1j)
     assert np.array_equal(field, ice.VectorHeatSolver(V, F, coarse, solver="sweep").transport(0, 1j))
     diffusion = ice.VectorHeatSolver(V, F, coarse, solver="diffusion").transport(0, 1j)
-    # Measured on spot at 500 coarse vertices: 2.1 against 4.3 degrees median.
+    # Measured on spot at 500 coarse vertices: 0.0004 against 4.3 degrees median; 3.2 after the first
+    # pass alone.
     assert np.median(angles_degrees(field, reference)) < np.median(angles_degrees(diffusion, reference))
+    first = ice.VectorHeatSolver(V, F, coarse, sweep_passes=0).transport(0, 1j)
+    assert np.median(angles_degrees(field, reference)) < np.median(angles_degrees(first, reference))
+    with pytest.raises(ValueError, match="sweep_passes"):
+        ice.VectorHeatSolver(V, F, coarse, sweep_passes=-1)
     assert np.abs(np.abs(field) - 1).max() < 1e-9  # one source: its magnitude everywhere
     assert sweep.vector_prolongation is None and sweep.prolongation_stats is None
     with pytest.raises(ValueError, match="solver"):

@@ -128,7 +128,10 @@ struct VectorHeatParts {
 };
 /// The field Y/|Y|·u/φ, the magnitude u/φ clamped to the sources' magnitudes [min, max] (u/φ is
 /// their mean weighted by the diffused indicator; with one magnitude it is that magnitude exactly).
-/// Zero where Y or φ vanishes (a component no source reaches). The clamp matters where cotan
+/// Zero where Y or φ vanishes (a component no source reaches). Y is normalised before it is scaled:
+/// far from the sources on a large mesh the direct solve's Y is subnormal, where |u/φ|/|Y| overflowed
+/// (spot Loop ×3, 1,584,194 vertices: 7,639 infinite vectors), and it keeps what precision is left
+/// instead (zero where none is: tested). The clamp matters where cotan
 /// weights are negative (a non-Delaunay mesh, such as the input triangles): there u and φ can both
 /// turn negative far from the sources (on lion-head 52 of 8,356 vertices, bs_rest 1,122 of 19,985,
 /// camelhead 107 of 11,381 with one source), where requiring φ > 0 would leave zero vectors.
@@ -240,48 +243,50 @@ class VectorHeatProxy {
 
 /// Options of vector_field_from_distance.
 struct DistanceSweepOptions {
-  /// Length scale of the kernel ratios: τ = time_factor·√t, t the operators' time step (t = h² for
-  /// the fine method's own). 1 is the backward-Euler kernel's own decay. Measured (27 shared and
-  /// project meshes at 5 %, median over meshes of the median angle error against the fine method):
-  /// with 15 passes 2.07° at 0.7 and 2.04° at 1 (24 CGAL meshes: 5.33° and 4.90°); in an earlier
-  /// variant that renormalised Z at every step, 6 passes: 4.59 / 3.22 / 2.42 / 2.79 / 3.86 / 4.86° at
-  /// 0.35 / 0.5 / 0.7 / 1 / 1.5 / 2.5.
-  double time_factor = 1.0;
-  /// Gauss–Seidel passes stop when no vertex's unnormalised direction (|Z| ≤ 1) moves by more than
-  /// this, or after max_passes. Measured (27 shared and project meshes at 5 %, median over meshes of
-  /// the median angle error against the fine method): 4.61° after the first sweep alone, 2.81 / 2.32
-  /// / 2.03 / 1.82° after 5 / 10 / 20 / 40 passes, 1.43° converged (1e-7); 1e-3 with at most 50
-  /// passes gives 1.42°. A pass costs ~90 ms at 1.6M vertices (one visit of L∇'s nonzeros).
+  /// Gauss–Seidel passes after the first stop when no vertex's value moves by more than this
+  /// relative to the size of the terms its row sums (not to the value, which cancels where vectors
+  /// from two sides meet), or after max_passes. Measured (README, Tangent vector fields; through the
+  /// coarse marching distance at 5 %, median over meshes of the median angle error against the fine
+  /// method) after 0 / 5 / 10 / 20 / 50 / 100 passes: 27 shared and project meshes 4.20 / 2.52 / 1.86 /
+  /// 0.85 / 0.14 / 0.00°, 24 CGAL meshes 6.16 / 3.00 / 1.93 / 1.06 / 0.07 / 0.00°. A pass costs ~0.13 s
+  /// at 1.6M vertices (one visit of L∇'s nonzeros; L's too with sources of several magnitudes).
   double tolerance = 1e-3;
   int max_passes = 50;
 };
 /// What a sweep did.
 struct DistanceSweepStats {
-  int passes = 0;             ///< passes after the first sweep
-  double last_change = 0;     ///< the largest move in the last pass
+  int passes = 0;             ///< passes after the first
+  double last_change = 0;     ///< the largest relative move in the last pass
 };
 
-/// The vector heat method's field from a distance to its sources, without diffusing vectors: the
-/// method's short-time limit in ground-state form. With k the scalar heat kernel of (M + tL) and
-/// Y = kZ, row i of (M + tL∇)Y = Y₀ away from the sources says Z_i = Σ_j w_ij k_j r_ij Z_j / Σ_j w_ij k_j
-/// (w the cotan weights, r_ij the connection's transport from j to i, the sums over i's neighbours):
-/// Z is a weighted mean of its neighbours' transported values, equal to the sources' unit vectors at
-/// the sources. The backward-Euler kernel decays as exp(−d/√t) with the geodesic distance d
-/// (Varadhan), so the weights only need `distance`: k_j/k_i = exp(−(d_j − d_i)/τ). The means are
-/// solved by one sweep in order of distance (each vertex from its neighbours already reached), then
-/// Gauss–Seidel passes in the same order until no vertex moves by options.tolerance; the field is
-/// Z/|Z| times the magnitude m, the same weighted mean of the sources' magnitudes (their magnitude
-/// for one source). One source: parallel transport along the distance's descent; several: each
-/// vertex blends the sources whose distance is within a few τ of the nearest's.
-/// `operators` gives L (its off-diagonal weights; negative ones are left out of the means), L∇ (its
-/// transports) and t; `distance` is per vertex to the nearest source (+∞ or NaN: not reached; the
-/// field is zero there). One magnitude and direction per source as VectorHeatSolver::interpolate
-/// (a vertex given twice: its vectors add). Throws std::invalid_argument on sizes or sources out of
-/// range (as vector_sources).
+/// The vector heat method's field, solved on the fine mesh without a factorisation: Gauss–Seidel on
+/// its systems (M + tL∇)Y = Y₀ and, for sources of several magnitudes, (M + tL)u = u₀ and
+/// (M + tL)φ = φ₀, in order of `distance` to the sources (so that a vertex is updated after its
+/// neighbours nearer them, the direction the kernel flows), combined as VectorHeatSolver does
+/// (vector_heat_field). The passes converge to VectorHeatSolver::interpolate's field for any
+/// distance (the systems are Hermitian positive definite); the distance makes them fast:
+/// - each value is kept as exp(−e_i) times a value of order one, e_i the log of the kernel's decay,
+///   found by the first pass (each vertex from its nearer neighbours, through the scalar kernel φ,
+///   which unlike Y does not cancel): the far field stays in floating range where the direct
+///   solve's underflows (spot Loop ×3, 1,584,194 vertices: 7,639 subnormal vectors from
+///   VectorHeatSolver; a flat strip 1,500 edges long: 1,254 of its 3,002 vertices get none, tested);
+/// - the first pass counts each neighbour farther away (not reached yet) as the vertex itself times
+///   the decay exp(−(d_j − d_i)/√t) the distance predicts (Varadhan: the backward-Euler kernel
+///   decays as exp(−d/√t)), so that it starts near the solution instead of losing a factor at every
+///   step away from the sources.
+/// Gauss–Seidel is slow where edges are much shorter than √t (t = h², h the mean edge length: the
+/// kernel then spans many edges, as in a CAD part's dense fillets); over-relaxation (ω = 1.3–1.4)
+/// converged there in a third of the passes but diverged at ω = 1.5 on two shared meshes, so it is
+/// not used.
+/// `operators` gives M (lumped), L, L∇ and t; `distance` is per vertex to the nearest source (+∞ or
+/// NaN: not reached, the field is zero there; each source's must be finite). One magnitude and
+/// direction per source as VectorHeatSolver::interpolate (a vertex given twice: its vectors add).
+/// Throws std::invalid_argument on sizes, sources out of range or unreached (as vector_sources), a
+/// non-positive diagonal of M + tL∇ or M + tL.
 /// Measured (README, Tangent vector fields), through the coarse proxy's marching distance at 5 %,
 /// median over meshes of the median angle error against the fine method, against coarse diffusion
-/// (VectorHeatProxy): 27 shared and project meshes 1.42° (4.48°), 20 within 5° (15); the 24 CGAL
-/// meshes of the accuracy protocol 4.06° (8.87°), 16 within 5° (6).
+/// (VectorHeatProxy): 27 shared and project meshes 0.14° (4.48°), 27 within 5° (15); the 24 CGAL
+/// meshes of the accuracy protocol 0.07° (8.87°), 22 within 5° (6).
 Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators, const Eigen::VectorXd& distance,
                                             const std::vector<Index>& vertices, const std::vector<Complex>& vectors,
                                             const DistanceSweepOptions& options = {}, DistanceSweepStats* stats = nullptr);
@@ -289,7 +294,7 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
 /// The vector heat method through a coarse proxy's geodesic distance: the distance to the nearest
 /// source by `distances` (fem::ProxyGeodesicSolver; marching on the coarse mesh), then
 /// vector_field_from_distance on the fine operators. No fine factorisation and no vector
-/// prolongation: the fine work is a sort and a few passes over L∇'s nonzeros per call.
+/// prolongation: the fine work is a sort and the passes over L∇'s nonzeros per call.
 class VectorSweepProxy {
  public:
   /// `fine_operators`: L, L∇ and t of the fine mesh (e.g. vector_heat_operators(fine, frames, delaunay)),
