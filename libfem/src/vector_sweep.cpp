@@ -92,6 +92,7 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
   Eigen::VectorXd magnitudes = Eigen::VectorXd::Zero(size), indicator = Eigen::VectorXd::Zero(size);
   constexpr double kLargestExponent = 200;  // ratios between neighbours beyond e^±200 are clamped
   const auto ratio = [&](double exponent) { return std::exp(std::clamp(exponent, -kLargestExponent, kLargestExponent)); };
+  std::vector<std::size_t> unscaled;
   for (std::size_t p = 0; p < unknowns; ++p) {
     const Index i = order[p];
     const Eigen::Index row = static_cast<Eigen::Index>(p);
@@ -100,11 +101,11 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
     double least = sources.indicator(i) != 0 ? 0.0 : std::numeric_limits<double>::infinity();
     visit(i, [&](Index j, Complex, double) {
       const Index q = position[static_cast<std::size_t>(j)];
-      if (q < static_cast<Index>(p)) least = std::min(least, log_scale(q));
+      if (q < static_cast<Index>(p) && !std::isnan(log_scale(q))) least = std::min(least, log_scale(q));
     });
     Complex sum = 0;
     double sum_magnitude = 0, sum_indicator = 0, farther = 0, scalar_farther = 0;
-    if (std::isfinite(least)) {
+    if (sources.indicator(i) != 0) {  // least ≤ 0 here; elsewhere exp(least) can overflow (e > 709)
       sum = sources.vectors(i) * std::exp(least);
       sum_magnitude = sources.magnitudes(i) * std::exp(least);
       sum_indicator = sources.indicator(i) * std::exp(least);
@@ -112,6 +113,7 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
     const auto [vector_row, scalar_row] = visit(i, [&](Index j, Complex connection, double laplacian) {
       const Index q = position[static_cast<std::size_t>(j)];
       if (q < static_cast<Index>(p)) {
+        if (std::isnan(log_scale(q))) return;  // not scaled yet, and zero: the passes fill it
         const double decay = ratio(-(log_scale(q) - least));
         sum -= t * connection * decay * directions(q);
         sum_magnitude -= t * laplacian * decay * magnitudes(q);
@@ -132,10 +134,27 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
       directions(row) = sum / sum_indicator;
       magnitudes(row) = sum_magnitude / sum_indicator;
       indicator(row) = 1;
-    } else {  // no nearer neighbour, or a kernel not positive here: the distance's decay; the passes fill it
-      log_scale(row) = (distance(i) - nearest_source) / tau;
+    } else {  // no nearer neighbour, or a kernel not positive here: scaled below; the passes fill it
+      log_scale(row) = std::numeric_limits<double>::quiet_NaN();
+      unscaled.push_back(p);
     }
   }
+  // A vertex the first pass could not scale (a local minimum of the distance among its neighbours,
+  // as a distance prolonged from a coarse mesh has on noisy scans) takes its neighbours' level: its
+  // kernel is of their order, while the distance's own decay can have drifted from the kernel's by
+  // more than the ratios' clamp over a long mesh.
+  for (const bool last_round : {false, true})
+    for (const std::size_t p : unscaled) {
+      const Eigen::Index row = static_cast<Eigen::Index>(p);
+      if (!std::isnan(log_scale(row))) continue;
+      double level = std::numeric_limits<double>::infinity();
+      visit(order[p], [&](Index j, Complex, double) {
+        const double e = log_scale(position[static_cast<std::size_t>(j)]);
+        if (!std::isnan(e)) level = std::min(level, e);
+      });
+      if (std::isfinite(level)) log_scale(row) = level;
+      else if (last_round) log_scale(row) = (distance(order[p]) - nearest_source) / tau;  // no scaled neighbour
+    }
 
   // Row p of the scaled systems, Ŷ_i = exp(e_i) Y_i: Ŷ_i = (exp(e_i) Y₀_i − t Σ_j L∇(i, j) exp(e_i − e_j) Ŷ_j)
   // / (M_i + t L∇(i, i)), the same with L for the scalars. Stored by rows in distance order: per
