@@ -574,6 +574,13 @@ TEST_CASE("vector field from a distance: a field where the fine solve's kernel u
   const Eigen::VectorXcd field = fem::vector_field_from_distance(operators, distance, {0}, {start});
   const Eigen::MatrixXd ambient = fem::tangent_to_ambient(fine, frames, strip.V, field);
   for (Eigen::Index i = 0; i < ambient.rows(); ++i) CHECK((ambient.row(i) - ambient.row(0)).norm() < 1e-9);
+  // The first pass alone reaches the far end too (its scale e passes 709 there, where exp(e)
+  // overflows: it must never be formed).
+  fem::DistanceSweepOptions first_only;
+  first_only.max_passes = 0;
+  const Eigen::MatrixXd first = fem::tangent_to_ambient(fine, frames, strip.V,
+                                                        fem::vector_field_from_distance(operators, distance, {0}, {start}, first_only));
+  for (Eigen::Index i = 0; i < first.rows(); ++i) CHECK((first.row(i) - ambient.row(0)).norm() < 1e-9);
   const Eigen::VectorXcd direct = fem::VectorHeatSolver(operators).interpolate({0}, {start});
   Index lost = 0;
   for (Eigen::Index i = 0; i < direct.size(); ++i) lost += direct(i) == fem::Complex(0);
