@@ -274,10 +274,10 @@ struct DistanceSweepStats {
 ///   the decay exp(−(d_j − d_i)/√t) the distance predicts (Varadhan: the backward-Euler kernel
 ///   decays as exp(−d/√t)), so that it starts near the solution instead of losing a factor at every
 ///   step away from the sources.
-/// Gauss–Seidel is slow where edges are much shorter than √t (t = h², h the mean edge length: the
-/// kernel then spans many edges, as in a CAD part's dense fillets); over-relaxation (ω = 1.3–1.4)
-/// converged there in a third of the passes but diverged at ω = 1.5 on two shared meshes, so it is
-/// not used.
+/// The passes converge slowly in the far field of meshes with many holes or handles (CGAL's cheese
+/// 24° at 50 passes, the dragon_vrip_bin scan 9.2°; the error grows with the distance, not where
+/// edges are short; README); over-relaxation (ω = 1.3–1.4) halved the passes there but diverged at ω = 1.5 on two
+/// shared meshes, so it is not used.
 /// `operators` gives M (lumped), L, L∇ and t; `distance` is per vertex to the nearest source (+∞ or
 /// NaN: not reached, the field is zero there; each source's must be finite). One magnitude and
 /// direction per source as VectorHeatSolver::interpolate (a vertex given twice: its vectors add).
