@@ -262,5 +262,5 @@ def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: Arr
                       coarse: CoarseSpace | None = None, solver: Literal["sweep", "diffusion"] = "sweep",
                       operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       time_factor: float | None = None, fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
-                      ambient: bool = False, **coarsening: Any) -> ComplexArray | FloatArray:
+                      sweep_passes: int = 50, ambient: bool = False, **coarsening: Any) -> ComplexArray | FloatArray:
     """Tangent vectors carried from sources to every vertex through a coarse proxy in one call."""

@@ -123,6 +123,9 @@ def test_one_call_equals_the_solver_and_the_tool(tmp_path, tool, project_mesh):
     field = ice.transport_vectors(V, F, 0, np.exp(1j * np.radians(30)), n=500)
     coarse = ice.coarsen(V, F, n=500)
     assert np.array_equal(field, ice.VectorHeatSolver(V, F, coarse).transport(0, np.exp(1j * np.radians(30))))
+    first = ice.transport_vectors(V, F, 0, np.exp(1j * np.radians(30)), n=500, sweep_passes=0)
+    assert np.array_equal(first, ice.VectorHeatSolver(V, F, coarse, sweep_passes=0).transport(0, np.exp(1j * np.radians(30))))
+    assert not np.array_equal(first, field)
     out = tmp_path / "v.ply"
     tool("vector-coarse", path, "--source", "0", "--vector", "30", "--vertices", "500", "--no-reference", "--ascii", "-q",
          "-o", out)
