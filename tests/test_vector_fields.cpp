@@ -512,9 +512,8 @@ TEST_CASE("vector field from a distance: a flat disk's field is parallel, two le
 TEST_CASE("vector field from a distance: the passes converge to the fine method's field, whatever the distance", "[fem][vectors]") {
   // A curved surface, two sources of different lengths (so the scalar diffusions are swept too), and
   // a distance that is only roughly the geodesic one (straight-line, through the torus's hole, with
-  // dips): the
-  // passes are Gauss–Seidel on the fine method's own systems, so they converge to its field; the
-  // distance only orders and scales them.
+  // dips): the passes are Gauss–Seidel on the fine method's own systems, so they converge to its
+  // field; the distance only orders and scales them.
   const ice::TriangleMesh torus = ice::make_torus(48, 16, 1.0, 0.35);
   const ice::CompactMesh fine = glued(torus);
   const fem::TangentFrames frames = fem::tangent_frames(fine);

@@ -52,11 +52,10 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
 
   // Each vertex's value is kept as exp(−e_i) times a value of order one, e_i the log of the kernel's
   // decay, so that the far field stays in floating range (the direct solve's underflows: see the
-  // header). The first pass finds e: each vertex from
-  // its neighbours nearer the sources, e_i from the scalar kernel φ (positive, where Y can cancel),
-  // counting each neighbour farther away (not reached yet) as the vertex itself times the decay the
-  // distance predicts, so that the first pass starts near the solution instead of losing a factor at
-  // every step away from the sources.
+  // header). The first pass finds e: each vertex from its neighbours nearer the sources, e_i from the
+  // scalar kernel φ (positive, where Y can cancel), counting each neighbour farther away (not reached
+  // yet) as the vertex itself times the decay the distance predicts, so that the first pass starts
+  // near the solution instead of losing a factor at every step away from the sources.
   // Column i of L∇ lists i's neighbours j with L∇(j, i) = conj(L∇(i, j)); L's column is walked beside
   // it (both sorted by row). `visit(i, f)` calls f(j, L∇(i, j), L(i, j)) for each reached neighbour
   // and returns the diagonals of M + tL∇ and M + tL at i.
@@ -196,6 +195,7 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
     for (std::size_t e = row_start[p]; e < row_start[p + 1]; ++e) {
       const Eigen::Index q = column[e];
       sum += coefficient[e] * directions(q);
+      // |L(i, j)| = |L∇(i, j)| (one cotan weight): the real coefficient's size, no square root here.
       size += std::abs(scalar_coefficient[e]) * direction_length(q);
       if (!one_magnitude) {
         sum_magnitude += scalar_coefficient[e] * magnitudes(q);

@@ -131,7 +131,7 @@ struct VectorHeatParts {
 /// Zero where Y or φ vanishes (a component no source reaches). Y is normalised before it is scaled:
 /// far from the sources on a large mesh the direct solve's Y is subnormal, where |u/φ|/|Y| overflowed
 /// (spot Loop ×3, 1,584,194 vertices: 7,639 infinite vectors), and it keeps what precision is left
-/// instead (zero where none is: tested). The clamp matters where cotan
+/// instead (tested); a Y that is not finite gives zero. The clamp matters where cotan
 /// weights are negative (a non-Delaunay mesh, such as the input triangles): there u and φ can both
 /// turn negative far from the sources (on lion-head 52 of 8,356 vertices, bs_rest 1,122 of 19,985,
 /// camelhead 107 of 11,381 with one source), where requiring φ > 0 would leave zero vectors.
@@ -276,8 +276,8 @@ struct DistanceSweepStats {
 ///   step away from the sources.
 /// The passes converge slowly in the far field of meshes with many holes or handles (CGAL's cheese
 /// 24° at 50 passes, the dragon_vrip_bin scan 9.2°; the error grows with the distance, not where
-/// edges are short; README); over-relaxation (ω = 1.3–1.4) halved the passes there but diverged at ω = 1.5 on two
-/// shared meshes, so it is not used.
+/// edges are short; README); over-relaxation (ω = 1.3–1.4) halved the passes there but diverged at
+/// ω = 1.5 on two shared meshes, so it is not used.
 /// `operators` gives M (lumped), L, L∇ and t; `distance` is per vertex to the nearest source (+∞ or
 /// NaN: not reached, the field is zero there; each source's must be finite). One magnitude and
 /// direction per source as VectorHeatSolver::interpolate (a vertex given twice: its vectors add).
