@@ -12,6 +12,13 @@
 
 namespace ice_bench {
 
+/// The largest mesh (in vertices) the accuracy tools compute exact geodesics on unless told
+/// otherwise: the memory of CGAL's sequence trees grows faster than the mesh (vector-accuracy on
+/// dragon_vrip_bin, 437,645 vertices, was killed at 24 GB after 5 minutes). A larger mesh is
+/// skipped with a message (`--max-vertices N` in vector-accuracy and oracle-accuracy,
+/// `--exact-max-vertices N` in ice-report).
+inline constexpr long long kDefaultExactMaxVertices = 100000;
+
 /// Distances along the surface of (mesh.V, mesh.F) from each of `sources` (vertex indices) to every
 /// vertex: column s holds the distances from sources[s] (CGAL's Surface_mesh_shortest_path, the
 /// Xin–Wang exact algorithm). +∞ where a vertex is not reachable (another component).

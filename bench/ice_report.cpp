@@ -38,9 +38,7 @@
 #include <stdexcept>
 
 #include "app_common.h"
-#ifdef ICE_REPORT_EXACT_GEODESICS
-#include "exact_geodesics.h"
-#endif
+#include "exact_geodesics.h"  // (its functions are built only with CGAL: ICE_REPORT_EXACT_GEODESICS)
 #include "fem/blas_info.h"
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
@@ -756,6 +754,12 @@ int main(int argc, char** argv) {
                   "What geodesic errors are measured against: the fine heat method (t = h^2) or exact polyhedral "
                   "geodesics (CGAL's Surface_mesh_shortest_path; only in builds with libcgal-dev). With 'exact' the "
                   "fine heat method's own error is reported per mesh too");
+  long long exact_max_vertices = ice_bench::kDefaultExactMaxVertices;
+  cli.add_option("--exact-max-vertices", exact_max_vertices,
+                 "With --geodesic-reference exact: skip meshes of more vertices (the exact geodesics' memory grows "
+                 "faster than the mesh)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app::CoarseLengths lengths_choice = app::CoarseLengths::automatic;
   app::add_coarse_lengths_option(cli, "--geodesic-lengths", lengths_choice);  // (the tracing counts in the
                                                                               // geodesic row's factor time)
@@ -880,9 +884,14 @@ int main(int argc, char** argv) {
         skip("not connected (" + std::to_string(loaded.report.components.size()) + " components)");
         continue;
       }
-      used_meshes.push_back(name);
       const ice::TriangleMesh& mesh = loaded.mesh;
       const long long n = mesh.V.rows();
+      if (exact_geodesics && n > exact_max_vertices) {
+        skip(app::thousands(n) + " vertices, above --exact-max-vertices " + app::thousands(exact_max_vertices) +
+             " (the exact geodesics' memory grows faster than the mesh)");
+        continue;
+      }
+      used_meshes.push_back(name);
       const double diagonal = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
       const Fine fine = fine_reference(mesh, exact_geodesics);
       if (exact_geodesics) fine_heat_method_errors[name] = fine.heat_method_error;

@@ -2,7 +2,10 @@
 // geodesics (CGAL's Surface_mesh_shortest_path, Debian's libcgal-dev) and against the fine heat
 // method, per mesh:
 //
-//   oracle-accuracy [--coarse N] [--sources K] [--subdivisions S] mesh...
+//   oracle-accuracy [--coarse N] [--sources K] [--subdivisions S] [--max-vertices N] mesh...
+//
+// Meshes of more than N vertices (default 100,000, ice_bench::kDefaultExactMaxVertices) are skipped
+// with a message: the exact geodesics' memory grows faster than the mesh.
 //
 // For K random source vertices: exact distances to every vertex (CGAL), fine heat-method distances
 // (one factorisation, blocked solve), and the oracle's at N coarse vertices (ICE, geodesic
@@ -42,16 +45,18 @@ std::string summary(std::vector<double> e) {
 
 int main(int argc, char** argv) {
   int coarse = 1000, source_count = 4, subdivisions = 0;
+  long long max_vertices = ice_bench::kDefaultExactMaxVertices;
   std::vector<std::string> meshes;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--coarse" && i + 1 < argc) coarse = std::atoi(argv[++i]);
     else if (arg == "--subdivisions" && i + 1 < argc) subdivisions = std::atoi(argv[++i]);
     else if (arg == "--sources" && i + 1 < argc) source_count = std::atoi(argv[++i]);
+    else if (arg == "--max-vertices" && i + 1 < argc) max_vertices = std::atoll(argv[++i]);
     else meshes.push_back(arg);
   }
-  if (meshes.empty() || coarse < 10 || source_count < 1 || subdivisions < 0) {
-    std::fprintf(stderr, "usage: oracle-accuracy [--coarse N] [--sources K] [--subdivisions S] mesh...\n");
+  if (meshes.empty() || coarse < 10 || source_count < 1 || subdivisions < 0 || max_vertices < 1) {
+    std::fprintf(stderr, "usage: oracle-accuracy [--coarse N] [--sources K] [--subdivisions S] [--max-vertices N] mesh...\n");
     return 4;
   }
   std::printf("| mesh | vertices | coarse | oracle | vs exact: all (mean / p95) | far | near | vs fine heat: all | far | near "
@@ -59,6 +64,11 @@ int main(int argc, char** argv) {
   for (const std::string& path : meshes) {
     const ice::TriangleMesh mesh = ice::load_mesh(path);
     const auto n = static_cast<ice::Index>(mesh.V.rows());
+    if (n > max_vertices) {
+      std::fprintf(stderr, "oracle-accuracy: skipping %s: %d vertices, above --max-vertices %lld (the exact geodesics' memory grows faster than the mesh)\n",
+                   path.c_str(), n, max_vertices);
+      continue;
+    }
     ice::CoarseSpaceOptions options;
     options.coarsen = ice::recommended_coarsen_options(ice::ProxyUse::geodesic);
     options.coarsen.target_vertices = std::min<ice::Index>(coarse, n / 5);

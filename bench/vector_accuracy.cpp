@@ -46,7 +46,7 @@ double median(std::vector<double> values) {
 
 int main(int argc, char** argv) {
   double ratio = 0.05, time_factor = fem::kVectorProxyTimeFactor;
-  long long max_vertices = 100000;
+  long long max_vertices = ice_bench::kDefaultExactMaxVertices;
   ice::LoadOptions load;
   std::vector<std::string> meshes;
   for (int i = 1; i < argc; ++i) {
