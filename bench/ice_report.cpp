@@ -754,6 +754,11 @@ int main(int argc, char** argv) {
                   "What geodesic errors are measured against: the fine heat method (t = h^2) or exact polyhedral "
                   "geodesics (CGAL's Surface_mesh_shortest_path; only in builds with libcgal-dev). With 'exact' the "
                   "fine heat method's own error is reported per mesh too");
+  bool equal_sizes = true;
+  cli.add_flag("--equal-sizes,!--no-equal-sizes", equal_sizes,
+               "Where a method stops above the target size (it cannot coarsen further without changing the "
+               "topology), coarsen the others to the size it reached, so that methods are compared at equal vertex "
+               "counts (default on)");
   long long exact_max_vertices = ice_bench::kDefaultExactMaxVertices;
   cli.add_option("--exact-max-vertices", exact_max_vertices,
                  "With --geodesic-reference exact: skip meshes of more vertices (the exact geodesics' memory grows "
@@ -912,18 +917,51 @@ int main(int argc, char** argv) {
         std::ostringstream progress;
         progress << kTool << ": [" << step << "/" << steps << "] " << name << ' ' << num(100 * budget, 3) << "% -> "
                  << target << ':';
-        // ICE variants.
-        for (const std::string m : {"ice", "ice_area"}) {
-          if (std::find(methods.begin(), methods.end(), m) == methods.end()) continue;
+        // Coarse sizes first: where a method stops above the target (it cannot go lower without
+        // changing the topology: many holes or handles), the others are coarsened to the size it
+        // reached (--equal-sizes), so that every comparison is at equal vertex counts.
+        const auto build_ice = [&](const std::string& m, long long size) {
           ice::CoarseSpaceOptions options;
-          options.coarsen.target_vertices = static_cast<ice::Index>(target);
+          options.coarsen.target_vertices = static_cast<ice::Index>(size);
           options.coarsen.area_weight = m == "ice" ? 0.0 : area_weight;
           options.coarsen.normalize_curvature = m == "ice" ? false : normalize_curvature;
           options.coarsen.threads = coarsen_threads;
           options.coarsen.regions = coarsen_regions;
           options.keep_method_state = viewed || traced_lengths;  // the page and traced lengths trace the coarse edges:
           options.record_history = viewed;                       // the page exactly, the lengths by the walk
-          const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
+          return ice::build_coarse_space(mesh, options);
+        };
+        const auto decimate = [&](long long size) {
+          ice::QemOptions options;
+          options.target_vertices = static_cast<ice::Index>(size);
+          return ice::qem_coarsen(mesh, options);
+        };
+        const bool wants_qem = std::find(methods.begin(), methods.end(), "qem_ext") != methods.end() ||
+                               std::find(methods.begin(), methods.end(), "qem_idt") != methods.end();
+        std::map<std::string, ice::CoarseSpace> ice_spaces;
+        for (const std::string m : {"ice", "ice_area"})
+          if (std::find(methods.begin(), methods.end(), m) != methods.end()) ice_spaces.emplace(m, build_ice(m, target));
+        std::optional<ice::QemResult> decimated;
+        if (wants_qem) decimated = decimate(target);
+        long long equal_size = target;
+        if (equal_sizes) {  // (a method that reached the target is not run again)
+          for (const auto& [m, space] : ice_spaces) equal_size = std::max<long long>(equal_size, space.summary.coarse_vertices);
+          if (decimated) equal_size = std::max<long long>(equal_size, static_cast<long long>(decimated->to_input.size()));
+          if (equal_size > target) {
+            for (auto& [m, space] : ice_spaces)
+              if (space.summary.coarse_vertices < equal_size) space = build_ice(m, equal_size);
+            if (decimated && static_cast<long long>(decimated->to_input.size()) < equal_size) decimated = decimate(equal_size);
+          }
+        }
+        const std::string equal_note =
+            equal_size > target ? "size raised to " + std::to_string(equal_size) + " (--equal-sizes)" : std::string();
+        const auto add_note = [](Row& r, const std::string& note) {
+          if (!note.empty()) r.note += (r.note.empty() ? "" : "; ") + note;
+        };
+        // ICE variants.
+        for (const std::string m : {"ice", "ice_area"}) {
+          if (std::find(methods.begin(), methods.end(), m) == methods.end()) continue;
+          const ice::CoarseSpace& coarse = ice_spaces.at(m);
           std::optional<ice::FaceLengths> marching_lengths;
           app::Stopwatch trace_clock;
           if (traced_lengths)
@@ -936,6 +974,7 @@ int main(int argc, char** argv) {
           r.coarse_faces = coarse.summary.coarse_faces;
           r.target_reached = coarse.summary.target_reached;
           if (!r.target_reached) r.note = std::string("stopped: ") + ice::to_string(coarse.summary.stop_reason());
+          add_note(r, equal_note);
           ProxySolutions solved;
           fem::ProxyGeodesicOptions ice_geodesic = geodesic;
           ice_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse.summary.method);
@@ -947,14 +986,8 @@ int main(int argc, char** argv) {
                    << pct(rows[rows.size() - 2].error) << ' ' << pct(rows.back().error) << ')';
         }
         // QEM: one decimation, its two coarse geometries.
-        std::optional<ice::QemResult> decimated;
         for (const std::string m : {"qem_ext", "qem_idt"}) {
           if (std::find(methods.begin(), methods.end(), m) == methods.end()) continue;
-          if (!decimated) {
-            ice::QemOptions options;
-            options.target_vertices = static_cast<ice::Index>(target);
-            decimated = ice::qem_coarsen(mesh, options);
-          }
           Row r = base;
           r.method = m;
           ice::CoarseSpace coarse;
@@ -970,6 +1003,7 @@ int main(int argc, char** argv) {
           r.target_reached = coarse.summary.target_reached;
           r.qem_max_distance = qem.max_distance / diagonal;
           if (!r.target_reached) r.note = "QEM stopped early";
+          add_note(r, equal_note);
           if (qem.guard_relaxed) r.note += std::string(r.note.empty() ? "" : "; ") + "normal guard relaxed";
           r.coarsen = qem.decimate_seconds + qem.map_seconds + coarse.summary.seconds;
           r.coarse_n = coarse.summary.coarse_vertices;
@@ -1010,6 +1044,7 @@ int main(int argc, char** argv) {
                               {"repair", repair},
                               {"budgets", budgets},
                               {"min_vertices", min_vertices},
+                              {"equal_sizes", equal_sizes},
                               {"methods", methods},
                               {"area_weight", area_weight},
                               {"normalize_curvature", normalize_curvature},
