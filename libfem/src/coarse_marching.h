@@ -373,6 +373,9 @@ class CoarseMarcher {
   /// with the curvature correction's divisor measured for it, fem::kProxyCorrectionDivisor) against
   /// exact geodesics, 40 meshes × 1–10 %: 0.546 % → 0.458 % (geometric mean), at 5 % and 10 % 0.532
   /// → 0.451 % and 0.321 → 0.221 % (medians); marching on armadillo_43k's own mesh 0.345 % → 0.045 %.
+  /// A planar update from two done corners counts only where the point it places agrees with the
+  /// direction of either corner's virtual source (kPlanarCheck): behind a saddle it would otherwise
+  /// be a shortcut (README, Accuracy: 40 meshes, 2026-11-29).
   /// It costs 2–3× a run (1.58M vertices at 1 %: 89 ms a solve); the oracle's all-pairs marching
   /// (`oracle-accuracy --coarse 200`, 6 meshes: 0–22 % less error) would take 3.9× as long and does
   /// without.
@@ -454,7 +457,11 @@ class CoarseMarcher {
           }
           if (accepted_[x] != kOpen && source[x] == from) {
             Point placed;
-            const double planar = from_values(value, distance[x], face.layout, placed);
+            double planar = from_values(value, distance[x], face.layout, placed);
+            if constexpr (kTrack)
+              if (planar < through.value && accepted_[x] == kAccepted &&
+                  !agrees(*from_u, u, false, face, placed) && !agrees(virtual_[x], face.x, true, face, placed))
+                planar = kInfinity;
             if (planar < through.value) {
               through.value = planar;
               if constexpr (kTrack) through = Candidate{planar, 0, placed, {Point{0, 0}, Point{face.layout.base, 0}}, &face, nullptr};
@@ -479,6 +486,17 @@ class CoarseMarcher {
   /// How far below 0 the squared height of the virtual source may fall and still be read as 0:
   /// the layout's floats carry relative errors of ~1e-7 into sx² and da².
   static constexpr double kOnLineTolerance = 1e-5;
+  // With tracked sources, a planar update from two done corners counts only if the point it places
+  // lies, within this angle (radians) seen from u or from x, in the direction of that corner's own
+  // virtual source: values that came around a saddle from its two sides place a point that is no
+  // source, and the line from it passes through the saddle's excess angle — a shortcut (CGAL's
+  // mannequin-devil at 130 coarse vertices: 23 % of the largest distance too short with 2
+  // subdivisions). On a flat mesh both corners' sources are the point itself. Measured there
+  // (against marching on the fine mesh, 0 / 1 / 2 / 3 subdivisions, mean error): without the check
+  // 1.63 / 2.36 / 4.99 / 0.81 %, with 0.2 rad 1.53 / 1.05 / 0.86 / 0.80 %, 0.05 rad 1.47 / 0.87 /
+  // 0.86 / 0.81 %, 0.01 rad 1.52 / 0.94 / 0.94 / 0.87 %; over the accuracy protocol's 40 meshes see
+  // the README (Accuracy).
+  static constexpr double kPlanarCheck = 0.05;
   /// How much nearer a face must find a done vertex to reopen it: above the floats' round-off, so
   /// that equal values reached through two faces do not reopen each other.
   static constexpr double kReopenGain = 1e-6;
@@ -544,6 +562,22 @@ class CoarseMarcher {
       out = rotate(out, Turn{full.cos, -full.sin});
     }
     return turn;
+  }
+  // Whether the direction from a corner (u, or x when `at_x`) to the point `placed` of the face's
+  // layout is that of the corner's own virtual source (within kPlanarCheck radians); true where the
+  // corner has no chart or source to compare with.
+  bool agrees(const VirtualSource& known, Index corner, bool at_x, const MarchingMesh::FaceEntry& face, Point placed) const {
+    const MarchingMesh::Charts& charts = mesh_.charts_of(face);
+    const double base_angle = at_x ? charts.x_to_u : charts.u_to_x;
+    if (!(known.radius > 0) || std::isnan(base_angle)) return true;
+    const int sense = at_x ? charts.x_sense : charts.u_sense;
+    const Turn base_turn{at_x ? charts.x_cos : charts.u_cos, at_x ? charts.x_sin : charts.u_sin};
+    Turn to_source;
+    const double turn = away(static_cast<std::size_t>(corner), sense, base_angle, base_turn, known.angle, known.direction, to_source);
+    // The placed point's turn away from w from the base edge, seen from the corner.
+    const double dx = at_x ? face.layout.base - placed.x : placed.x, dy = -placed.y;
+    const double placed_turn = std::atan2(dy, dx);
+    return std::abs(placed_turn - turn) <= kPlanarCheck;
   }
   // w's value from the virtual source of one corner of its face (u, or x when `at_x`): the source
   // laid out in the face through the corner's chart — it must lie on the far side of the base
