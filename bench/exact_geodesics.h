@@ -3,7 +3,9 @@
 /// errors against the truth rather than against the fine heat method (whose own error, 0.6-8 % on
 /// the shared meshes, is of the size of the proxy errors being compared). Built only where CGAL
 /// (Debian's libcgal-dev) is found: a benchmark dependency, not one of the libraries.
+#include <cstdio>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -18,6 +20,15 @@ namespace ice_bench {
 /// skipped with a message (`--max-vertices N` in vector-accuracy and oracle-accuracy,
 /// `--exact-max-vertices N` in ice-report).
 inline constexpr long long kDefaultExactMaxVertices = 100000;
+
+/// True, after saying so on stderr (prefixed by `tool`), when a mesh of n vertices is above
+/// max_vertices (a tool's `--max-vertices N`) and is to be skipped.
+inline bool skip_for_exact_geodesics(const char* tool, const std::string& path, long long n, long long max_vertices) {
+  if (n <= max_vertices) return false;
+  std::fprintf(stderr, "%s: skipping %s: %lld vertices, above --max-vertices %lld (the exact geodesics' memory grows faster than the mesh)\n",
+               tool, path.c_str(), n, max_vertices);
+  return true;
+}
 
 /// Distances along the surface of (mesh.V, mesh.F) from each of `sources` (vertex indices) to every
 /// vertex: column s holds the distances from sources[s] (CGAL's Surface_mesh_shortest_path, the

@@ -936,13 +936,12 @@ int main(int argc, char** argv) {
           options.target_vertices = static_cast<ice::Index>(size);
           return ice::qem_coarsen(mesh, options);
         };
-        const bool wants_qem = std::find(methods.begin(), methods.end(), "qem_ext") != methods.end() ||
-                               std::find(methods.begin(), methods.end(), "qem_idt") != methods.end();
-        std::map<std::string, ice::CoarseSpace> ice_spaces;
+        const auto wanted = [&](const std::string& m) { return std::find(methods.begin(), methods.end(), m) != methods.end(); };
+        std::map<std::string, ice::CoarseSpace> ice_spaces;  // (in the order ice, ice_area)
         for (const std::string m : {"ice", "ice_area"})
-          if (std::find(methods.begin(), methods.end(), m) != methods.end()) ice_spaces.emplace(m, build_ice(m, target));
+          if (wanted(m)) ice_spaces.emplace(m, build_ice(m, target));
         std::optional<ice::QemResult> decimated;
-        if (wants_qem) decimated = decimate(target);
+        if (wanted("qem_ext") || wanted("qem_idt")) decimated = decimate(target);
         long long equal_size = target;
         if (equal_sizes) {  // (a method that reached the target is not run again)
           for (const auto& [m, space] : ice_spaces) equal_size = std::max<long long>(equal_size, space.summary.coarse_vertices);
@@ -959,9 +958,7 @@ int main(int argc, char** argv) {
           if (!note.empty()) r.note += (r.note.empty() ? "" : "; ") + note;
         };
         // ICE variants.
-        for (const std::string m : {"ice", "ice_area"}) {
-          if (std::find(methods.begin(), methods.end(), m) == methods.end()) continue;
-          const ice::CoarseSpace& coarse = ice_spaces.at(m);
+        for (const auto& [m, coarse] : ice_spaces) {
           std::optional<ice::FaceLengths> marching_lengths;
           app::Stopwatch trace_clock;
           if (traced_lengths)
@@ -987,7 +984,7 @@ int main(int argc, char** argv) {
         }
         // QEM: one decimation, its two coarse geometries.
         for (const std::string m : {"qem_ext", "qem_idt"}) {
-          if (std::find(methods.begin(), methods.end(), m) == methods.end()) continue;
+          if (!wanted(m)) continue;
           Row r = base;
           r.method = m;
           ice::CoarseSpace coarse;
@@ -1004,7 +1001,7 @@ int main(int argc, char** argv) {
           r.qem_max_distance = qem.max_distance / diagonal;
           if (!r.target_reached) r.note = "QEM stopped early";
           add_note(r, equal_note);
-          if (qem.guard_relaxed) r.note += std::string(r.note.empty() ? "" : "; ") + "normal guard relaxed";
+          if (qem.guard_relaxed) add_note(r, "normal guard relaxed");
           r.coarsen = qem.decimate_seconds + qem.map_seconds + coarse.summary.seconds;
           r.coarse_n = coarse.summary.coarse_vertices;
           r.coarse_faces = coarse.summary.coarse_faces;

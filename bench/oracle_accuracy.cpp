@@ -64,11 +64,7 @@ int main(int argc, char** argv) {
   for (const std::string& path : meshes) {
     const ice::TriangleMesh mesh = ice::load_mesh(path);
     const auto n = static_cast<ice::Index>(mesh.V.rows());
-    if (n > max_vertices) {
-      std::fprintf(stderr, "oracle-accuracy: skipping %s: %d vertices, above --max-vertices %lld (the exact geodesics' memory grows faster than the mesh)\n",
-                   path.c_str(), n, max_vertices);
-      continue;
-    }
+    if (ice_bench::skip_for_exact_geodesics("oracle-accuracy", path, n, max_vertices)) continue;
     ice::CoarseSpaceOptions options;
     options.coarsen = ice::recommended_coarsen_options(ice::ProxyUse::geodesic);
     options.coarsen.target_vertices = std::min<ice::Index>(coarse, n / 5);

@@ -73,11 +73,7 @@ int main(int argc, char** argv) {
       continue;
     }
     const auto n = static_cast<ice::Index>(mesh.V.rows());
-    if (n > max_vertices) {
-      std::fprintf(stderr, "vector-accuracy: skipping %s: %d vertices, above --max-vertices %lld (the exact geodesics' memory grows faster than the mesh)\n",
-                   path.c_str(), n, max_vertices);
-      continue;
-    }
+    if (ice_bench::skip_for_exact_geodesics("vector-accuracy", path, n, max_vertices)) continue;
     ice::CoarseSpaceOptions options;
     options.coarsen.target_ratio = ratio;
     options.keep_method_state = true;

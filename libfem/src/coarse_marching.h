@@ -563,17 +563,27 @@ class CoarseMarcher {
     }
     return turn;
   }
+  // A corner's chart read along its face's base edge (u's towards x, or x's towards u when `at_x`):
+  // the edge's chart angle (NaN where the corner has no chart), the sense in which turns away from
+  // w count, and the angle's cos and sin.
+  struct BaseFrame {
+    double angle;
+    int sense;
+    Turn turn;
+  };
+  BaseFrame base_frame(const MarchingMesh::FaceEntry& face, bool at_x) const {
+    const MarchingMesh::Charts& charts = mesh_.charts_of(face);
+    return at_x ? BaseFrame{charts.x_to_u, charts.x_sense, Turn{charts.x_cos, charts.x_sin}}
+                : BaseFrame{charts.u_to_x, charts.u_sense, Turn{charts.u_cos, charts.u_sin}};
+  }
   // Whether the direction from a corner (u, or x when `at_x`) to the point `placed` of the face's
   // layout is that of the corner's own virtual source (within kPlanarCheck radians); true where the
   // corner has no chart or source to compare with.
   bool agrees(const VirtualSource& known, Index corner, bool at_x, const MarchingMesh::FaceEntry& face, Point placed) const {
-    const MarchingMesh::Charts& charts = mesh_.charts_of(face);
-    const double base_angle = at_x ? charts.x_to_u : charts.u_to_x;
-    if (!(known.radius > 0) || std::isnan(base_angle)) return true;
-    const int sense = at_x ? charts.x_sense : charts.u_sense;
-    const Turn base_turn{at_x ? charts.x_cos : charts.u_cos, at_x ? charts.x_sin : charts.u_sin};
+    const BaseFrame base = base_frame(face, at_x);
+    if (!(known.radius > 0) || std::isnan(base.angle)) return true;
     Turn to_source;
-    const double turn = away(static_cast<std::size_t>(corner), sense, base_angle, base_turn, known.angle, known.direction, to_source);
+    const double turn = away(static_cast<std::size_t>(corner), base.sense, base.angle, base.turn, known.angle, known.direction, to_source);
     // The placed point's turn away from w from the base edge, seen from the corner.
     const double dx = at_x ? face.layout.base - placed.x : placed.x, dy = -placed.y;
     const double placed_turn = std::atan2(dy, dx);
@@ -588,11 +598,8 @@ class CoarseMarcher {
   Candidate from_tracked(const VirtualSource& known, Index corner, bool at_x, const MarchingMesh::FaceEntry& face,
                          double limit) const {
     Candidate out;
-    const MarchingMesh::Charts& charts = mesh_.charts_of(face);
-    const double base_angle = at_x ? charts.x_to_u : charts.u_to_x;
+    const auto [base_angle, sense, base_turn] = base_frame(face, at_x);
     if (!(known.radius > 0) || std::isnan(base_angle) || !(face.layout.vy > 0)) return out;
-    const int sense = at_x ? charts.x_sense : charts.u_sense;
-    const Turn base_turn{at_x ? charts.x_cos : charts.u_cos, at_x ? charts.x_sin : charts.u_sin};
     const auto c = static_cast<std::size_t>(corner);
     Turn to_source;
     const double turn = away(c, sense, base_angle, base_turn, known.angle, known.direction, to_source);
