@@ -770,6 +770,11 @@ int main(int argc, char** argv) {
                                                                               // geodesic row's factor time)
   app::CurvatureCorrection curvature_correction = app::CurvatureCorrection::automatic;
   app::add_curvature_correction_option(cli, curvature_correction);
+  cli.add_option("--curvature-divisor", geodesic.curvature_divisor,
+                 "The curvature correction's divisor d in exp(K l^2/d) for the coarse marching "
+                 "(fem::kProxyCorrectionDivisor: measured, see README, Accuracy)")
+      ->check(app::positive_number())
+      ->capture_default_str();
   int coarsen_threads = 1, coarsen_regions = 0;  // ICE coarsening's parallel phase (default: the serial order)
   app::add_coarsen_parallel_options(cli, coarsen_threads, coarsen_regions);
   std::string tolerances_text;
@@ -962,7 +967,7 @@ int main(int argc, char** argv) {
           std::optional<ice::FaceLengths> marching_lengths;
           app::Stopwatch trace_clock;
           if (traced_lengths)
-            marching_lengths = app::marching_lengths(mesh, coarse, true, curvature_correction).lengths;
+            marching_lengths = app::marching_lengths(mesh, coarse, true, curvature_correction, nullptr, geodesic.curvature_divisor).lengths;
           const double trace_seconds = trace_clock.lap();
           Row r = base;
           r.method = m;
@@ -1056,6 +1061,7 @@ int main(int argc, char** argv) {
                               {"geodesic_lengths", traced_lengths ? "traced" : "intrinsic"},
                               {"curvature_correction", curvature_correction == app::CurvatureCorrection::automatic ? "auto"
                                                        : curvature_correction == app::CurvatureCorrection::on ? "on" : "off"},
+                              {"curvature_divisor", geodesic.curvature_divisor},
                               {"fine_reference", "intrinsic Delaunay triangulation of the input"},
                               {"geodesic_reference", exact_geodesics ? "exact polyhedral geodesics (CGAL)" : "fine heat method"},
                               {"fine_heat_method_geodesic_errors", fine_heat_method_errors},

@@ -511,7 +511,8 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGe
     prepare_marching(proxy.coarse_faces(),
                      options.curvature_correction
                          ? curvature_corrected_lengths(proxy.fine_faces(), proxy.fine_lengths(), proxy.coarse_faces(),
-                                                       proxy.coarse_lengths(), proxy.barycentric_prolongation())
+                                                       proxy.coarse_lengths(), proxy.barycentric_prolongation(),
+                                                       options.curvature_divisor)
                          : proxy.coarse_lengths(),
                      options.subdivisions);
   }

@@ -31,6 +31,7 @@
 #include <mutex>
 #include <vector>
 
+#include "fem/curvature_correction.h"
 #include "fem/distance_oracle.h"
 #include "fem/operators.h"
 #include "fem/problems.h"
@@ -317,6 +318,9 @@ struct ProxyGeodesicOptions {
   /// helped (0.906 % → 1.077 %: its chords' shortness already offsets the flat faces' bias), which is
   /// why the tools apply it to ICE coarse meshes only.
   bool curvature_correction = true;
+  /// marching only, with curvature_correction: the divisor d of exp(K ℓ²/d) (see
+  /// fem::kProxyCorrectionDivisor for how it was measured). Precondition: d > 0.
+  double curvature_divisor = kProxyCorrectionDivisor;
 };
 
 /// Geodesic distance from fine source vertices through the coarse space (see the file comment).
