@@ -49,17 +49,23 @@ int main(int argc, char** argv) {
   long long max_vertices = ice_bench::kDefaultExactMaxVertices;
   ice::LoadOptions load;
   std::vector<std::string> meshes;
+  bool help = false, bad_option = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--ratio" && i + 1 < argc) ratio = std::atof(argv[++i]);
     else if (arg == "--time-factor" && i + 1 < argc) time_factor = std::atof(argv[++i]);
     else if (arg == "--repair") load.repair = true;  // the safe repairs (ice-info --repair)
     else if (arg == "--max-vertices" && i + 1 < argc) max_vertices = std::atoll(argv[++i]);
-    else meshes.push_back(arg);
+    else if (arg.rfind('-', 0) == 0) {  // --help, or an option it does not know (not a mesh path)
+      help = arg == "--help" || arg == "-h";
+      bad_option = !help;
+      break;
+    } else meshes.push_back(arg);
   }
-  if (meshes.empty() || !(ratio > 0 && ratio <= 1) || !(time_factor > 0) || max_vertices < 1) {
-    std::fprintf(stderr, "usage: vector-accuracy [--ratio R] [--time-factor F] [--repair] [--max-vertices N] mesh...\n");
-    return 4;
+  if (help || bad_option || meshes.empty() || !(ratio > 0 && ratio <= 1) || !(time_factor > 0) || max_vertices < 1) {
+    std::fprintf(help ? stdout : stderr,
+                 "usage: vector-accuracy [--ratio R] [--time-factor F] [--repair] [--max-vertices N] mesh...\n");
+    return help ? 0 : 4;
   }
   std::printf("| mesh | vertices | coarse | fine vs exact: input / iDT | diffusion vs exact: input / iDT | diffusion vs its fine: "
               "input / iDT | sweep vs exact: input / iDT | sweep vs its fine: input / iDT | vertices compared |\n"

@@ -966,6 +966,22 @@ elseif(CASE STREQUAL "report_curvature_divisor")
   endforeach()
   expect_error(4 "curvature-divisor" ice-report ${_common} --curvature-divisor 0 -o "${WORK}/zero")
 
+elseif(CASE STREQUAL "accuracy_tools_usage")
+  # oracle-accuracy and vector-accuracy: --help prints the usage (exit 0), an option they do not know
+  # is a usage error (4), not a mesh path, and a file they cannot read is skipped with its reason.
+  file(MAKE_DIRECTORY "${WORK}")
+  foreach(_tool oracle-accuracy vector-accuracy)
+    run(0 ${_tool} --help)
+    if(NOT RUN_OUT MATCHES "usage: ${_tool}")
+      fail("${_tool} --help: no usage on stdout")
+    endif()
+    expect_error(4 "usage: ${_tool}" ${_tool} --no-such-option "${MESH_DIR}/spot.obj")
+    run(0 ${_tool} "${WORK}/missing.off")
+    if(NOT RUN_ERR MATCHES "skipping .*missing.off")
+      fail("${_tool}: an unreadable file was not skipped with its reason")
+    endif()
+  endforeach()
+
 else()
   fail("unknown CASE")
 endif()
