@@ -343,20 +343,24 @@ elseif(CASE STREQUAL "geodesic_spot")
   json(qem_lengths "${WORK}/q.json" coarse_lengths)
   check_text("${qem_lengths}" intrinsic "coarse_lengths (QEM)")
   # On the coarse mesh's own lengths (--coarse-lengths intrinsic) the curvature correction brings the
-  # distances closer to the surface's (sources 0,1500: mean 1.31 % -> 1.06 % against the fine heat
-  # method) ...
-  run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths intrinsic --report "${WORK}/c.json" -q)
+  # distances closer to the surface's (sources 0,1500, area weight 0.98: mean 1.06 % -> 0.95 % against
+  # the fine heat method) ... These comparisons keep the metric they were written for: at the geodesic
+  # default since 2026-11-29 (0.9) every variant is nearer the fine heat method (0.82-0.94 %) and the
+  # correction's effect on this one mesh is within 0.01 % of it, a reference itself ~1 % from exact
+  # geodesics; the effects are measured against exact geodesics over 40 meshes (README, Accuracy).
+  set(_metric --area-weight 0.98)
+  run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths intrinsic ${_metric} --report "${WORK}/c.json" -q)
   json(lengths "${WORK}/c.json" coarse_lengths)
   check_text("${lengths}" intrinsic "coarse_lengths")
   json(corrected_mean "${WORK}/c.json" error mean_rel)
   run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths intrinsic --curvature-correction off
-      --report "${WORK}/p.json" -q)
+      ${_metric} --report "${WORK}/p.json" -q)
   json(intrinsic_mean "${WORK}/p.json" error mean_rel)
   check(${corrected_mean} LESS ${intrinsic_mean} "error.mean_rel with curvature-corrected lengths")
-  # ... and so do the traced lengths (both uncorrected: 1.31 % -> 0.99 %); the refusals (QEM has
+  # ... and so do the traced lengths (both uncorrected: 1.06 % -> 0.96 %); the refusals (QEM has
   # nothing to trace; the lengths are for marching).
   run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths traced --curvature-correction off
-      --report "${WORK}/t.json" -q)
+      ${_metric} --report "${WORK}/t.json" -q)
   json(traced_mean "${WORK}/t.json" error mean_rel)
   check(${traced_mean} LESS ${intrinsic_mean} "error.mean_rel with traced lengths")
   expect_error(4 "needs ICE" geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --coarse-lengths traced --method qem)

@@ -25,7 +25,7 @@ const char* to_string(ProxyUse use) { return use == ProxyUse::geodesic ? "geodes
 CoarsenOptions recommended_coarsen_options(ProxyUse use) {
   CoarsenOptions options;
   if (use == ProxyUse::geodesic) {
-    options.area_weight = 0.98;
+    options.area_weight = 0.9;
     options.normalize_curvature = false;
   } else {
     options.area_weight = 0.5;
