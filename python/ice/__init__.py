@@ -173,18 +173,18 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
 
 def transport_vectors(V, F, sources, vectors=1.0, *, coarse: CoarseSpace | None = None, solver: str = "sweep",
                       operators: str = "galerkin", time_factor: float | None = None, fine: str = "intrinsic_delaunay",
-                      sweep_passes: int = 50, ambient: bool = False, **coarsening):
+                      sweep_passes: int = 50, sweep_coarse_interval: int = 2, ambient: bool = False, **coarsening):
     """Tangent vectors carried from `sources` to every vertex through a coarse proxy, in one call (vector-coarse).
 
     vectors: one complex number per source, in its tangent frame (see VectorHeatSolver; default 1, the
     direction of the source's reference edge); one source is parallel-transported along shortest
     geodesics, several give the smooth field through them. coarse / coarsening options as for
-    solve_poisson; solver, operators, time_factor, fine and sweep_passes as for VectorHeatSolver. Returns the complex field (one tangent vector per vertex), or with ambient=True its
+    solve_poisson; solver, operators, time_factor, fine, sweep_passes and sweep_coarse_interval as for VectorHeatSolver. Returns the complex field (one tangent vector per vertex), or with ambient=True its
     n×3 vectors in the planes of the input triangles. For many calls build VectorHeatSolver once.
     """
     coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
     heat = VectorHeatSolver(V, F, coarse, operators=operators, time_factor=time_factor, fine=fine, solver=solver,
-                            sweep_passes=sweep_passes)
+                            sweep_passes=sweep_passes, sweep_coarse_interval=sweep_coarse_interval)
     indices = np.atleast_1d(np.asarray(sources))
     values = np.broadcast_to(np.asarray(vectors, dtype=complex), indices.shape)
     field = heat.interpolate(indices, np.ascontiguousarray(values))

@@ -225,7 +225,8 @@ class VectorHeatSolver:
     def __init__(self, V: ArrayLike, F: ArrayLike, coarse: CoarseSpace | None = None, *,
                  operators: Literal["galerkin", "intrinsic"] = "galerkin", time_factor: float | None = None,
                  fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
-                 solver: Literal["sweep", "diffusion"] = "sweep", sweep_passes: int = 50) -> None: ...
+                 solver: Literal["sweep", "diffusion"] = "sweep", sweep_passes: int = 50,
+                 sweep_coarse_interval: int = 2) -> None: ...
     def interpolate(self, sources: Indices, vectors: ArrayLike) -> ComplexArray: ...
     def transport(self, source: int, vector: complex = 1) -> ComplexArray: ...
     def to_ambient(self, field: ArrayLike) -> FloatArray: ...
@@ -262,5 +263,6 @@ def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: Arr
                       coarse: CoarseSpace | None = None, solver: Literal["sweep", "diffusion"] = "sweep",
                       operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       time_factor: float | None = None, fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
-                      sweep_passes: int = 50, ambient: bool = False, **coarsening: Any) -> ComplexArray | FloatArray:
+                      sweep_passes: int = 50, sweep_coarse_interval: int = 2, ambient: bool = False,
+                      **coarsening: Any) -> ComplexArray | FloatArray:
     """Tangent vectors carried from sources to every vertex through a coarse proxy in one call."""

@@ -591,9 +591,11 @@ std::vector<fem::Complex> complex_argument(const py::handle& values, std::size_t
 
 std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::object& F, const py::object& coarse_object,
                                                const std::string& operators, const py::object& time_factor_object,
-                                               const std::string& fine, const std::string& solver_name, int sweep_passes) {
+                                               const std::string& fine, const std::string& solver_name, int sweep_passes,
+                                               int sweep_coarse_interval) {
   auto result = std::make_unique<PyVectorHeat>();
   if (sweep_passes < 0) throw py::value_error("sweep_passes must be >= 0");
+  if (sweep_coarse_interval < 0) throw py::value_error("sweep_coarse_interval must be >= 0");
   const PyCoarseSpace* coarse = coarse_object.is_none() ? nullptr : &coarse_object.cast<const PyCoarseSpace&>();
   const ice::TriangleMesh mesh = coarse ? require_coarse_space_of(V, F, *coarse, "VectorHeatSolver") : mesh_argument(V, F);
   if (coarse) require_map(*coarse);
@@ -615,6 +617,7 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
                                    coarse ? 1.0 : time_factor);
   fem::DistanceSweepOptions sweep_options;
   sweep_options.max_passes = sweep_passes;
+  sweep_options.coarse_correction_interval = sweep_coarse_interval;
   if (sweep)
     result->sweep = std::make_unique<fem::VectorSweepProxy>(app::make_vector_sweep(mesh, result->fine, coarse->space, coarse->map, sweep_options));
   else if (coarse)
@@ -1103,7 +1106,7 @@ QEM's).)doc")
   py::class_<PyVectorHeat>(m, "VectorHeatSolver", R"doc(The vector heat method (Sharp, Soliman, Crane 2019) on the input triangles, or through a coarse space (vector-coarse).
 
 VectorHeatSolver(V, F, coarse=None, operators="galerkin", time_factor=None, fine="intrinsic_delaunay", solver="sweep",
-sweep_passes=50):
+sweep_passes=50, sweep_coarse_interval=2):
 without `coarse`, on (V, F) itself with heat time t = (time_factor · mean edge length)², time_factor 1
 by default, discretised on the intrinsic Delaunay triangulation of (V, F) (fine="input": on its
 triangles as they are, whose obtuse angles can send far directions anywhere) — fields are given per
@@ -1112,7 +1115,9 @@ coarse space of (V, F) (ice.coarsen, keep_map=True), through it, as vector-coars
 solver="sweep" (the default) takes the distance to the sources by coarse marching and solves the
 fine method's systems by Gauss-Seidel passes in order of it, scaled by the kernel's decay along it
 (fem::VectorSweepProxy; no fine factorisation; at most sweep_passes passes after the first, which
-converge to the fine method's field); solver="diffusion" restricts the sources by the vector prolongation P_vec (complex,
+converge to the fine method's field, with a Galerkin coarse-grid correction of relative errors on the
+marching's coarse space before every sweep_coarse_interval-th pass, 0 for none);
+solver="diffusion" restricts the sources by the vector prolongation P_vec (complex,
 fitted from the fine-to-coarse map) and by P, solves the three diffusions on the coarse mesh with
 Galerkin ("galerkin", the default: from the fine operators of `fine`) or the coarse mesh's own
 ("intrinsic") operators, t = (time_factor · mean coarse edge length)² with time_factor 0.5 by default,
@@ -1123,7 +1128,8 @@ vertex's reference edge (at an interior vertex scaled by 2π over its angle sum)
 length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions into such numbers.)doc")
       .def(py::init(&make_vector_heat), py::arg("V"), py::arg("F"), py::arg("coarse") = py::none(), py::kw_only(),
            py::arg("operators") = "galerkin", py::arg("time_factor") = py::none(), py::arg("fine") = "intrinsic_delaunay",
-           py::arg("solver") = "sweep", py::arg("sweep_passes") = fem::DistanceSweepOptions{}.max_passes)
+           py::arg("solver") = "sweep", py::arg("sweep_passes") = fem::DistanceSweepOptions{}.max_passes,
+           py::arg("sweep_coarse_interval") = fem::DistanceSweepOptions{}.coarse_correction_interval)
       .def("interpolate", [](const PyVectorHeat& s, const py::object& sources, const py::object& vectors) {
              const std::vector<ice::Index> vertices = index_argument(sources, s.size(), "sources");
              if (vertices.empty()) throw py::value_error("sources is empty");

@@ -88,6 +88,12 @@ def test_the_sweep_is_the_default_and_closer_to_the_fine_transport(spot):
     assert np.median(angles_degrees(field, reference)) < np.median(angles_degrees(first, reference))
     with pytest.raises(ValueError, match="sweep_passes"):
         ice.VectorHeatSolver(V, F, coarse, sweep_passes=-1)
+    # The coarse-grid correction (the default, before every second pass) against the passes alone, 10 each.
+    corrected = ice.VectorHeatSolver(V, F, coarse, sweep_passes=10).transport(0, 1j)
+    plain = ice.VectorHeatSolver(V, F, coarse, sweep_passes=10, sweep_coarse_interval=0).transport(0, 1j)
+    assert np.median(angles_degrees(corrected, reference)) < 0.5 * np.median(angles_degrees(plain, reference))
+    with pytest.raises(ValueError, match="sweep_coarse_interval"):
+        ice.VectorHeatSolver(V, F, coarse, sweep_coarse_interval=-1)
     assert np.abs(np.abs(field) - 1).max() < 1e-9  # one source: its magnitude everywhere
     assert sweep.vector_prolongation is None and sweep.prolongation_stats is None
     with pytest.raises(ValueError, match="solver"):

@@ -351,6 +351,8 @@ class ProxyGeodesicSolver {
   ~ProxyGeodesicSolver();
   CoarseDistanceMethod method() const { return heat_ ? CoarseDistanceMethod::heat_method : CoarseDistanceMethod::marching; }
   Eigen::Index fine_size() const { return P_rows_.rows(); }
+  /// P (n_fine × n_coarse), by rows.
+  const Eigen::SparseMatrix<double, Eigen::RowMajor, int>& prolongation() const { return P_rows_; }
   /// Distance to the nearest of `fine_sources` (non-empty, in range; repeats count once): with
   /// marching 0 at every source, with the heat method 0 on average over them.
   Eigen::VectorXd distance(const std::vector<Index>& fine_sources, ProxyPhaseTimes* times = nullptr) const;

@@ -247,17 +247,30 @@ struct DistanceSweepOptions {
   /// relative to the size of the terms its row sums (not to the value, which cancels where vectors
   /// from two sides meet), or after max_passes. Measured (README, Tangent vector fields; through the
   /// coarse marching distance at 5 %, median over meshes of the median angle error against the fine
-  /// method) after 0 / 5 / 10 / 20 / 50 / 100 passes: 27 shared and project meshes 4.20 / 2.52 / 1.86 /
+  /// method) after 0 / 5 / 10 / 20 / 50 / 100 passes alone: 27 shared and project meshes 4.20 / 2.52 / 1.86 /
   /// 0.85 / 0.14 / 0.00°, 24 CGAL meshes 6.16 / 3.00 / 1.93 / 1.06 / 0.07 / 0.00°. A pass costs ~0.13 s
   /// at 1.6M vertices (one visit of L∇'s nonzeros; L's too with sources of several magnitudes).
   double tolerance = 1e-3;
   int max_passes = 50;
+  /// With a coarse space (VectorSweepProxy: the marching's P), a Galerkin coarse-grid correction of
+  /// relative errors before every this many passes (0: none). Measured at 5 % (README, Tangent
+  /// vector fields; every pass / every second / none): the dragon_vrip_bin scan 0.10° / 0.14° /
+  /// 12.75° after 50 passes (source 0), CGAL's cheese 1.70° / 2.29° / 22.1° (median of three
+  /// sources); 25 shared and project meshes and 24 CGAL meshes all within 0.01° but cheese (none:
+  /// up to 1.97° and 22.1°). Cost per solve against none, geometric mean over those meshes' 147
+  /// solves: 2.0× / 1.6× (a correction is a visit of the rows and one coarse solve; its matrix is
+  /// factorised once per call), so every second pass.
+  int coarse_correction_interval = 2;
 };
 /// What a sweep did.
 struct DistanceSweepStats {
   int passes = 0;             ///< passes after the first
   double last_change = 0;     ///< the largest relative move in the last pass
+  int coarse_corrections = 0; ///< coarse-grid corrections done
 };
+/// A coarse space for the sweep's coarse-grid correction: P (n_fine × n_coarse, rows of
+/// barycentric weights), by rows.
+using SweepCoarseSpace = Eigen::SparseMatrix<double, Eigen::RowMajor, Index>;
 
 /// The vector heat method's field, solved on the fine mesh without a factorisation: Gauss–Seidel on
 /// its systems (M + tL∇)Y = Y₀ and, for sources of several magnitudes, (M + tL)u = u₀ and
@@ -274,10 +287,13 @@ struct DistanceSweepStats {
 ///   the decay exp(−(d_j − d_i)/√t) the distance predicts (Varadhan: the backward-Euler kernel
 ///   decays as exp(−d/√t)), so that it starts near the solution instead of losing a factor at every
 ///   step away from the sources.
-/// The passes converge slowly in the far field of meshes with many holes or handles (CGAL's cheese
-/// 24° at 50 passes, the dragon_vrip_bin scan 9.2°; the error grows with the distance, not where
-/// edges are short; README); over-relaxation (ω = 1.3–1.4) halved the passes there but diverged at
-/// ω = 1.5 on two shared meshes, so it is not used.
+/// Alone, the passes converge slowly where a relative error spread over a region satisfies the rows
+/// there (CGAL's cheese 22° at 50 passes, the dragon_vrip_bin scan 9.1°; over-relaxation diverged
+/// at ω = 1.5 on two shared meshes); given `coarse_space` (n × n_c, rows of barycentric weights:
+/// VectorSweepProxy passes the marching's P), a Galerkin coarse-grid correction of such relative
+/// errors before every options.coarse_correction_interval-th pass removes them (1.70° and 0.057°,
+/// README). Rows whose scale is more than e^600 below the sources' are left to the passes (their
+/// residuals would underflow). Throws std::invalid_argument for a coarse space of the wrong size.
 /// `operators` gives M (lumped), L, L∇ and t; `distance` is per vertex to the nearest source (+∞ or
 /// NaN: not reached, the field is zero there; each source's must be finite). One magnitude and
 /// direction per source as VectorHeatSolver::interpolate (a vertex given twice: its vectors add).
@@ -285,11 +301,13 @@ struct DistanceSweepStats {
 /// non-positive diagonal of M + tL∇ or M + tL.
 /// Measured (README, Tangent vector fields), through the coarse proxy's marching distance at 5 %,
 /// median over meshes of the median angle error against the fine method, against coarse diffusion
-/// (VectorHeatProxy): 27 shared and project meshes 0.14° (4.48°), 27 within 5° (15); the 24 CGAL
-/// meshes of the accuracy protocol 0.07° (8.87°), 22 within 5° (6).
+/// (VectorHeatProxy), with the coarse corrections every second pass: 25 shared and project meshes
+/// 0.000° (4.48° over 27), all within 5° (the passes alone: 0.161°); the 24 CGAL meshes of the accuracy
+/// protocol 0.000° (8.87°), 24 within 5° (6; the passes alone 22).
 Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators, const Eigen::VectorXd& distance,
                                             const std::vector<Index>& vertices, const std::vector<Complex>& vectors,
-                                            const DistanceSweepOptions& options = {}, DistanceSweepStats* stats = nullptr);
+                                            const DistanceSweepOptions& options = {}, DistanceSweepStats* stats = nullptr,
+                                            const SweepCoarseSpace* coarse_space = nullptr);
 
 /// The vector heat method through a coarse proxy's geodesic distance: the distance to the nearest
 /// source by `distances` (fem::ProxyGeodesicSolver; marching on the coarse mesh), then
