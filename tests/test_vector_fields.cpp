@@ -605,6 +605,31 @@ TEST_CASE("vector field from a distance: a coarse-grid correction converges wher
   CHECK_THROWS_AS(fem::vector_field_from_distance(operators, distance, sources, vectors, {}, nullptr, &wrong), std::invalid_argument);
 }
 
+TEST_CASE("vector field from a distance: a large coarse system goes to the supernodal factorisation", "[fem][vectors]") {
+  // 51,200 vertices, each its own coarse vertex: past the size from which CHOLMOD factorises the
+  // coarse system instead of Eigen's simplicial LDLᵀ; two corrections are the direct solve again.
+  const ice::TriangleMesh torus = ice::make_torus(320, 160, 1.0, 0.35);
+  const ice::CompactMesh fine = glued(torus);
+  const fem::TangentFrames frames = fem::tangent_frames(fine);
+  const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
+  Eigen::VectorXd distance(torus.V.rows());
+  for (Eigen::Index i = 0; i < distance.size(); ++i) distance(i) = (torus.V.row(i) - torus.V.row(0)).norm();
+  const Eigen::VectorXcd reference = fem::VectorHeatSolver(operators).interpolate({0}, {fem::Complex(0, 1)});
+  fem::SweepCoarseSpace identity(torus.V.rows(), torus.V.rows());
+  identity.setIdentity();
+  fem::DistanceSweepOptions options;
+  options.max_passes = 2;
+  options.tolerance = 0;
+  options.coarse_correction_interval = 1;
+  fem::DistanceSweepStats stats;
+  const Eigen::VectorXcd field =
+      fem::vector_field_from_distance(operators, distance, {0}, {fem::Complex(0, 1)}, options, &stats, &identity);
+  CHECK(stats.coarse_corrections == 2);
+  const std::vector<double> errors = angle_errors(field, reference);
+  INFO("largest angle error " << *std::max_element(errors.begin(), errors.end()) << " deg");
+  CHECK(*std::max_element(errors.begin(), errors.end()) < 1e-6);
+}
+
 TEST_CASE("vector field from a distance: a field where the fine solve's kernel underflows", "[fem][vectors]") {
   // A flat strip 1,500 unit squares long: the kernel of M + tL (t = h²) falls by ~e per edge, below
   // the smallest double long before the far end, where the fine method's field is then zero. Scaled

@@ -9,8 +9,11 @@
 #include <tuple>
 #include <utility>
 
+#include <type_traits>
+
 #include <Eigen/SparseCholesky>
 
+#include "fem/cholesky.h"
 #include "fem/vector_fields.h"
 
 namespace fem {
@@ -20,6 +23,8 @@ namespace {
 // correction: its residuals and corrections are unscaled by exp(∓(e − least)), which must stay in
 // floating range (exp(−708) is the least normal double).
 constexpr double kCoarseWindow = 600;
+// Coarse systems of at least this many unknowns are factorised by CHOLMOD (see CoarseCorrection).
+constexpr Eigen::Index kSupernodalFrom = 50'000;
 
 // A Galerkin coarse-grid correction of one of the sweep's systems A x = b (A Hermitian positive
 // definite, x kept scaled: x̂_p = exp(s_p) x_p, s_p = e_p − least). Why: a relative error that is
@@ -77,19 +82,32 @@ class CoarseCorrection {
     for (Eigen::Index c = 0; c < coarse_matrix.outerSize(); ++c)
       for (typename Sparse::InnerIterator it(coarse_matrix, c); it; ++it)
         if (it.row() == c) it.valueRef() *= 1 + 1e-8;
-    // Eigen's simplicial factorisation rather than CHOLMOD: a correction is one small solve per
-    // pass, where CHOLMOD's supernodal solve spent most of its time in the BLAS threads' waits
-    // (face_scan: 27 ms a correction).
-    solver_.compute(coarse_matrix);
+    // Small coarse systems by Eigen's simplicial factorisation: a correction is one solve per pass,
+    // where CHOLMOD's supernodal solve spent most of its time in the BLAS threads' waits (face_scan,
+    // ~5,000 unknowns: 27 ms a correction against ~5 ms); large ones by CHOLMOD, whose supernodes
+    // factorise them several times faster (spot Loop ×3 at 5 %, 316,000 unknowns: 42 s a solve
+    // against 120 s; dragon_vrip_bin's 84,393 take as long either way, 9.5–9.8 s).
+    if (coarse_matrix.rows() < kSupernodalFrom) {
+      simplicial_.emplace();
+      simplicial_->compute(coarse_matrix);
+      usable_ = simplicial_->info() == Eigen::Success;
+    } else {
+      try {
+        supernodal_.emplace(coarse_matrix);
+        usable_ = true;
+      } catch (const NotPositiveDefinite&) {
+        usable_ = false;
+      }
+    }
   }
   // False if the Galerkin matrix could not be factorised (not seen on the 63 meshes measured; the
   // passes then go on alone, and DistanceSweepStats::coarse_corrections says so).
-  bool usable() const { return solver_.info() == Eigen::Success; }
+  bool usable() const { return usable_; }
 
   // x̂ += the correction for the scaled residual r̂ = b̂ − Â x̂.
   void apply(const Vector& scaled_residual, Vector& x) const {
     const Vector coarse_residual = basis_.adjoint() * scaled_residual.cwiseProduct(unscale_);
-    const Vector correction = basis_ * Vector(solver_.solve(coarse_residual));
+    const Vector correction = basis_ * Vector(simplicial_ ? Vector(simplicial_->solve(coarse_residual)) : Vector(supernodal_->solve(coarse_residual)));
     x += correction.cwiseProduct(rescale_);
   }
 
@@ -97,7 +115,9 @@ class CoarseCorrection {
   Sparse basis_;
   // exp(∓s_p) within the window, 0 beyond it (those rows are left to the passes).
   Vector unscale_, rescale_;
-  Eigen::SimplicialLDLT<Sparse, Eigen::Lower, Eigen::AMDOrdering<Index>> solver_;
+  std::optional<Eigen::SimplicialLDLT<Sparse, Eigen::Lower, Eigen::AMDOrdering<Index>>> simplicial_;
+  std::optional<std::conditional_t<std::is_same_v<Scalar, Complex>, ComplexCholeskySolver, CholeskySolver>> supernodal_;
+  bool usable_ = false;
 };
 
 }  // namespace
