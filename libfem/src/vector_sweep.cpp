@@ -95,7 +95,7 @@ class CoarseCorrection {
       try {
         supernodal_.emplace(coarse_matrix);
         usable_ = true;
-      } catch (const NotPositiveDefinite&) {
+      } catch (const std::runtime_error&) {  // NotPositiveDefinite, or CHOLMOD out of memory
         usable_ = false;
       }
     }
@@ -107,8 +107,9 @@ class CoarseCorrection {
   // x̂ += the correction for the scaled residual r̂ = b̂ − Â x̂.
   void apply(const Vector& scaled_residual, Vector& x) const {
     const Vector coarse_residual = basis_.adjoint() * scaled_residual.cwiseProduct(unscale_);
-    const Vector correction = basis_ * Vector(simplicial_ ? Vector(simplicial_->solve(coarse_residual)) : Vector(supernodal_->solve(coarse_residual)));
-    x += correction.cwiseProduct(rescale_);
+    const Vector coarse_correction =
+        simplicial_ ? Vector(simplicial_->solve(coarse_residual)) : Vector(supernodal_->solve(coarse_residual));
+    x += (basis_ * coarse_correction).cwiseProduct(rescale_);
   }
 
  private:

@@ -351,7 +351,8 @@ class ProxyGeodesicSolver {
   ~ProxyGeodesicSolver();
   CoarseDistanceMethod method() const { return heat_ ? CoarseDistanceMethod::heat_method : CoarseDistanceMethod::marching; }
   Eigen::Index fine_size() const { return P_rows_.rows(); }
-  /// P (n_fine × n_coarse), by rows.
+  /// The P the distance is prolonged by (n_fine × n_coarse, by rows): with marching that of the
+  /// coarse mesh subdivided `subdivisions` times, with the heat method the proxy's.
   const Eigen::SparseMatrix<double, Eigen::RowMajor, int>& prolongation() const { return P_rows_; }
   /// Distance to the nearest of `fine_sources` (non-empty, in range; repeats count once): with
   /// marching 0 at every source, with the heat method 0 on average over them.

@@ -291,8 +291,8 @@ using SweepCoarseSpace = Eigen::SparseMatrix<double, Eigen::RowMajor, Index>;
 /// there (CGAL's cheese 22° at 50 passes, the dragon_vrip_bin scan 9.1°; over-relaxation diverged
 /// at ω = 1.5 on two shared meshes); given `coarse_space` (n × n_c, rows of barycentric weights:
 /// VectorSweepProxy passes the marching's P), a Galerkin coarse-grid correction of such relative
-/// errors before every options.coarse_correction_interval-th pass removes them (1.70° and 0.057°,
-/// README). Rows whose scale is more than e^600 below the sources' are left to the passes (their
+/// errors before every options.coarse_correction_interval-th pass removes them (at the default,
+/// every second pass: 2.29° and 0.065°, README). Rows whose scale is more than e^600 below the sources' are left to the passes (their
 /// residuals would underflow). Throws std::invalid_argument for a coarse space of the wrong size.
 /// `operators` gives M (lumped), L, L∇ and t; `distance` is per vertex to the nearest source (+∞ or
 /// NaN: not reached, the field is zero there; each source's must be finite). One magnitude and
@@ -311,8 +311,10 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
 
 /// The vector heat method through a coarse proxy's geodesic distance: the distance to the nearest
 /// source by `distances` (fem::ProxyGeodesicSolver; marching on the coarse mesh), then
-/// vector_field_from_distance on the fine operators. No fine factorisation and no vector
-/// prolongation: the fine work is a sort and the passes over L∇'s nonzeros per call.
+/// vector_field_from_distance on the fine operators, with the coarse-grid corrections on the
+/// marching's coarse space (its P: the coarse mesh subdivided for marching). No fine factorisation
+/// and no vector prolongation: per call a sort, the passes over L∇'s nonzeros and, with the
+/// corrections, one factorisation of their Galerkin matrix (of the size of that coarse space).
 class VectorSweepProxy {
  public:
   /// `fine_operators`: L, L∇ and t of the fine mesh (e.g. vector_heat_operators(fine, frames, delaunay)),
