@@ -23,6 +23,9 @@ namespace {
 // correction: its residuals and corrections are unscaled by exp(∓(e − least)), which must stay in
 // floating range (exp(−708) is the least normal double).
 constexpr double kCoarseWindow = 600;
+// Scale ratios between neighbouring rows (and a coarse basis entry's within its patch) beyond
+// e^±200 are clamped.
+constexpr double kLargestExponent = 200;
 // Coarse systems of at least this many unknowns are factorised by CHOLMOD (see CoarseCorrection).
 constexpr Eigen::Index kSupernodalFrom = 50'000;
 
@@ -67,7 +70,7 @@ class CoarseCorrection {
         for (SweepCoarseSpace::InnerIterator it(P, order[static_cast<std::size_t>(p)]); it; ++it) {
           const std::size_t c = static_cast<std::size_t>(it.col());
           if (it.value() == 0) continue;
-          const double exponent = std::clamp(shift_sum[c] / weight[c] - shift(p), -200.0, 200.0);
+          const double exponent = std::clamp(shift_sum[c] / weight[c] - shift(p), -kLargestExponent, kLargestExponent);
           entries.emplace_back(static_cast<Index>(p), column[c], it.value() * std::exp(exponent) * shape(p));
         }
     unscale_ = Vector::Zero(rows);
@@ -205,7 +208,6 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
   Eigen::VectorXd log_scale(size);  // e per row
   Eigen::VectorXcd directions = Eigen::VectorXcd::Zero(size);
   Eigen::VectorXd magnitudes = Eigen::VectorXd::Zero(size), indicator = Eigen::VectorXd::Zero(size);
-  constexpr double kLargestExponent = 200;  // ratios between neighbours beyond e^±200 are clamped
   const auto ratio = [&](double exponent) { return std::exp(std::clamp(exponent, -kLargestExponent, kLargestExponent)); };
   std::vector<std::size_t> unscaled;
   for (std::size_t p = 0; p < unknowns; ++p) {
