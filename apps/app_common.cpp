@@ -151,51 +151,6 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
                    std::to_string(result.next_cost) + " > --max-error");
 }
 
-fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind,
-                            fem::ProlongationKind prolongation) {
-  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped,
-                          prolongation);
-}
-
-TangentMesh tangent_mesh(const ice::TriangleMesh& mesh, ice::FineGeometry geometry, bool with_operators,
-                         double time_factor) {
-  TangentMesh out;
-  out.mesh.F = mesh.F;
-  out.mesh.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  out.mesh.twin = ice::glue_by_vertex_pairs(mesh.F);
-  out.frames = fem::tangent_frames(out.mesh);
-  if (!with_operators) return out;
-  if (geometry == ice::FineGeometry::input) {
-    out.operators = fem::vector_heat_operators(out.mesh, out.frames, time_factor);
-  } else {
-    ice::FineMesh delaunay = ice::fine_mesh(mesh, geometry);
-    out.flips = delaunay.flips;
-    out.operators = fem::vector_heat_operators(
-        out.mesh, out.frames, ice::CompactMesh{std::move(delaunay.F), std::move(delaunay.L), std::move(delaunay.twin), {}, {}},
-        time_factor);
-  }
-  return out;
-}
-
-fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::CoarseSpace& coarse,
-                                       const std::vector<ice::CoarsePoint>& map, fem::VectorOperatorKind kind,
-                                       double time_factor) {
-  const fem::TangentFrames coarse_frames = fem::tangent_frames(coarse.mesh);
-  if (fine.operators)
-    return fem::VectorHeatProxy(fine.mesh, fine.frames, *fine.operators, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
-  if (kind == fem::VectorOperatorKind::galerkin)
-    throw std::logic_error("make_vector_proxy: Galerkin operators need the fine operators (tangent_mesh with_operators)");
-  return fem::VectorHeatProxy(fine.mesh, fine.frames, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
-}
-
-fem::VectorSweepProxy make_vector_sweep(const ice::TriangleMesh& mesh, const TangentMesh& fine, const ice::CoarseSpace& coarse,
-                                        const std::vector<ice::CoarsePoint>& map, const fem::DistanceSweepOptions& options) {
-  if (!fine.operators) throw std::logic_error("make_vector_sweep: the sweep needs the fine operators (tangent_mesh with_operators)");
-  const bool traced = traces_lengths(CoarseLengths::automatic, coarse.summary.method, true);
-  const ice::SurfaceEdgeLengths lengths = marching_lengths(mesh, coarse, traced, CurvatureCorrection::automatic, &map);
-  return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(coarse.mesh.F, lengths.lengths, coarse.P), options);
-}
-
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                                  PdeRun& run, bool keep_method_state, bool record_history) {
   ice::CoarseSpaceOptions space_options;
@@ -234,39 +189,13 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
     run.idt_flips = p.fine.flips;
   }
   run.fine_mesh = clock.lap();
-  if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(p.fine, p.coarse, opt.operators, opt.prolongation));
+  if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(ice::proxy::make_proxy(p.fine, p.coarse, opt.operators, opt.prolongation));
   return p;
 }
 
-bool corrects_curvature(CurvatureCorrection correction, ice::CoarseningMethod method) {
-  return correction == CurvatureCorrection::on ||
-         (correction == CurvatureCorrection::automatic && method == ice::CoarseningMethod::ice);
-}
-
-ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space,
-                                            const ice::FaceLengths& lengths, double divisor) {
-  return fem::curvature_corrected_lengths(mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F,
-                                          lengths, space.P, divisor);
-}
-
-ice::SurfaceEdgeLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                         CurvatureCorrection correction, const std::vector<ice::CoarsePoint>* map,
-                                         double divisor) {
-  ice::SurfaceEdgeLengths result;
-  if (traced && map)  // (not `map ? *map : ice::fine_to_coarse_map(space)`: that copies the given map)
-    result = ice::surface_edge_lengths(mesh, space.mesh, *map, space.inserted);
-  else if (traced)
-    result = ice::surface_edge_lengths(mesh, space.mesh, ice::fine_to_coarse_map(space), space.inserted);
-  else
-    result.lengths = space.mesh.L;
-  if (corrects_curvature(correction, space.summary.method))
-    result.lengths = curvature_corrected_lengths(mesh, space, result.lengths, divisor);
-  return result;
-}
-
-void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction) {
+void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrection& correction) {
   add_choice(cli, "--curvature-correction", correction,
-             {{"auto", CurvatureCorrection::automatic}, {"on", CurvatureCorrection::on}, {"off", CurvatureCorrection::off}},
+             choice_names<ice::proxy::CurvatureCorrection>(),
              "Coarse marching on edge lengths scaled by exp(K l^2/d) for the Gaussian curvature K each coarse face "
              "flattens (fem::curvature_corrected_lengths; d = 48 for single sources, 24 for the oracle's all pairs, "
              "as measured for each marching): 'auto' (the default) for ICE coarse meshes, not QEM's. Against exact "
@@ -274,14 +203,9 @@ void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correct
              "(README, Accuracy)");
 }
 
-bool traces_lengths(CoarseLengths choice, ice::CoarseningMethod method, bool marching) {
-  return marching &&
-         (choice == CoarseLengths::traced || (choice == CoarseLengths::automatic && method == ice::CoarseningMethod::ice));
-}
-
-void add_coarse_lengths_option(CLI::App& cli, const std::string& name, CoarseLengths& choice) {
+void add_coarse_lengths_option(CLI::App& cli, const std::string& name, ice::proxy::CoarseLengths& choice) {
   add_choice(cli, name, choice,
-             {{"auto", CoarseLengths::automatic}, {"intrinsic", CoarseLengths::intrinsic}, {"traced", CoarseLengths::traced}},
+             choice_names<ice::proxy::CoarseLengths>(),
              "Coarse marching on the lengths of the coarse edges traced on the input surface by a walk over the "
              "fine-to-coarse map ('traced', ICE only), or on the coarse mesh's own edge lengths ('intrinsic'); 'auto' "
              "(the default): traced for ICE coarse meshes, QEM's own. Against exact geodesics over 40 meshes x 1-10 % "

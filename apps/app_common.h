@@ -2,7 +2,8 @@
 /// \file app_common.h
 /// What the ICE tools (ice-info, ice-coarsen, geodesic-coarse, poisson-coarse) and ice-report share
 /// beyond the command line (command_line.h) and the reports (reports.h), both included here: loading
-/// the input and its side files, the coarsening with a progress bar, the coarse proxy, the demo source.
+/// the input and its side files, the coarsening with a progress bar, the outputs, the demo source. The
+/// recipes themselves (coarse proxy, marching lengths, vector proxies) are ICE::proxy's (ice/proxy/setup.h).
 #include <array>
 #include <memory>
 #include <optional>
@@ -22,6 +23,7 @@
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
+#include "ice/proxy/setup.h"
 #include "reports.h"
 
 namespace app {
@@ -74,48 +76,6 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
 
 // ---- the coarse proxy of the PDE tools ----------------------------------------------------------------
 
-/// The coarse proxy of the PDE tools: the fine discretisation, the coarse space and its P (smoothed
-/// or not), with coarse operators of `kind`, lumped mass.
-fem::CoarseProxy make_proxy(const ice::FineMesh& fine, const ice::CoarseSpace& coarse, fem::CoarseOperatorKind kind,
-                            fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric);
-
-/// The fine mesh of the vector heat method (vector-coarse, the Python package): the input triangles
-/// with their own edge lengths, glued by vertex pairs, and their tangent frames, in which every field
-/// is given (one vector per input vertex, drawn on the input triangles); and the method's fine
-/// operators in those frames, discretised on the input triangles or (FineGeometry::intrinsic_delaunay,
-/// the default) on their intrinsic Delaunay triangulation (fem::vector_heat_operators with a second
-/// triangulation), with t = (time_factor · the input's mean edge length)². The operators are only
-/// built when asked (`with_operators`): a fine reference or Galerkin coarse operators need them, an
-/// intrinsic proxy alone does not.
-struct TangentMesh {
-  ice::CompactMesh mesh;
-  fem::TangentFrames frames;
-  std::optional<fem::VectorHeatOperators> operators;
-  ice::Index flips = 0;  ///< intrinsic Delaunay flips
-};
-TangentMesh tangent_mesh(const ice::TriangleMesh& mesh, ice::FineGeometry geometry, bool with_operators,
-                         double time_factor = 1.0);
-
-/// The vector proxy through `coarse`, a coarse space of the mesh `fine` was made from, and its
-/// fine-to-coarse map (ice::fine_to_coarse_map: ICE, or QEM with extrinsic geometry): the coarse
-/// mesh's frames, P_vec fitted from the map, the coarse operators of `kind` (Galerkin ones from
-/// fine.operators, which must then have been built: std::logic_error otherwise).
-fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const ice::CoarseSpace& coarse,
-                                       const std::vector<ice::CoarsePoint>& map, fem::VectorOperatorKind kind,
-                                       double time_factor = fem::kVectorProxyTimeFactor);
-
-/// How the vector tools find a field through the coarse mesh: `sweep` (the default) takes the coarse
-/// marching distance and the fine connection (fem::VectorSweepProxy), `diffusion` diffuses vectors on
-/// the coarse mesh (fem::VectorHeatProxy). Measured (README, Tangent vector fields; 27 shared and
-/// project meshes at 5 %, median angle error against the fine method): 0.000° (with the sweep's
-/// coarse-grid corrections; 25 meshes, largest 0.00°) against 4.48°.
-enum class VectorSolver { sweep, diffusion };
-/// The sweep proxy of `mesh` through `coarse`: coarse marching as geodesic-coarse's default (traced
-/// lengths for ICE, curvature-corrected, 1 subdivision) and fine.operators (which must have been
-/// built: std::logic_error otherwise).
-fem::VectorSweepProxy make_vector_sweep(const ice::TriangleMesh& mesh, const TangentMesh& fine, const ice::CoarseSpace& coarse,
-                                        const std::vector<ice::CoarsePoint>& map, const fem::DistanceSweepOptions& options = {});
-
 /// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
 /// target was missed and records the summary in `run`. `keep_method_state`: keep what
 /// ice::fine_to_coarse_map needs (CoarseSpaceOptions::keep_method_state); `record_history`: and
@@ -139,43 +99,11 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
                          PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
                          bool keep_method_state = false);
 
-/// Whether coarse marching runs on curvature-corrected lengths (fem/curvature_correction.h): `automatic`
-/// for ICE coarse meshes and not for QEM's, as measured (README, Accuracy).
-enum class CurvatureCorrection { automatic, on, off };
-
-/// The coarse edge lengths coarse marching runs on: the coarse mesh's own, or (`traced`) those of its
-/// edges traced on the input surface by the walk over the fine-to-coarse map (ice::surface_edge_lengths
-/// of `map`, or of ice::fine_to_coarse_map(space) when null: an ICE space built with
-/// keep_method_state; its history, if recorded for drawing, is not used, so the distances do not
-/// depend on what else is written); then curvature-corrected (fem::curvature_corrected_lengths with
-/// the input mesh and space.P) as `correction` says. The counts are the walk's (zero for the
-/// intrinsic lengths). The tools and the Python bindings all take their marching lengths from here.
-/// `divisor`: the correction's strength for the marching that reads them (fem::kProxyCorrectionDivisor
-/// for fem::ProxyGeodesicSolver, fem::kOracleCorrectionDivisor for fem::DistanceOracle).
-ice::SurfaceEdgeLengths marching_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space, bool traced,
-                                         CurvatureCorrection correction, const std::vector<ice::CoarsePoint>* map = nullptr,
-                                         double divisor = fem::kProxyCorrectionDivisor);
-/// Whether `correction` corrects marching on a coarse space made by `method` (automatic: ICE's).
-bool corrects_curvature(CurvatureCorrection correction, ice::CoarseningMethod method);
-/// `lengths` (of space's coarse faces) curvature-corrected with the input `mesh`: its angle defects and
-/// vertex areas gathered through space.P (fem::curvature_corrected_lengths).
-ice::FaceLengths curvature_corrected_lengths(const ice::TriangleMesh& mesh, const ice::CoarseSpace& space,
-                                            const ice::FaceLengths& lengths, double divisor = fem::kProxyCorrectionDivisor);
 /// --curvature-correction auto|on|off, for the tools that march on the coarse mesh.
-void add_curvature_correction_option(CLI::App& cli, CurvatureCorrection& correction);
+void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrection& correction);
 
-/// Which coarse edge lengths coarse marching runs on: `automatic` traces ICE's coarse edges on the
-/// input surface (marching_lengths' `traced`) and keeps QEM's own lengths — the default since it
-/// was measured (README, Accuracy: against exact geodesics over 40 meshes x 1-10 %, 0.81x the
-/// error of the intrinsic lengths and ICE/QEM-iDT's median at 5 % 0.75 against 0.94, at 1.3x the
-/// whole run's time); `intrinsic` and `traced` ask for one (traced: ICE only).
-enum class CoarseLengths { automatic, intrinsic, traced };
-/// Whether the coarse distances trace the coarse edges of a space made by `method` under `choice`:
-/// never unless `marching` (the coarse heat method takes no lengths; asking for `traced` there is the
-/// caller's usage error, in its own words).
-bool traces_lengths(CoarseLengths choice, ice::CoarseningMethod method, bool marching);
 /// The coarse-lengths option (`name`: --coarse-lengths, ice-report's --geodesic-lengths) auto|intrinsic|traced.
-void add_coarse_lengths_option(CLI::App& cli, const std::string& name, CoarseLengths& choice);
+void add_coarse_lengths_option(CLI::App& cli, const std::string& name, ice::proxy::CoarseLengths& choice);
 
 /// The coarse mesh traced on the input (ice/coarse_tracing.h) when an output draws it: --output or
 /// --html, and an ICE space built with keep_method_state (build_pde_proxy keeps it for them). Traced

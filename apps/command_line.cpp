@@ -20,27 +20,6 @@
 #include "reports.h"
 
 namespace app {
-namespace {
-
-// The command-line names of the method choices; CLI11 parses them straight into the enums.
-const std::map<std::string, ice::CoarseningMethod> kMethodNames{{"ice", ice::CoarseningMethod::ice},
-                                                                {"qem", ice::CoarseningMethod::qem}};
-const std::map<std::string, ice::QemGeometry> kQemGeometryNames{{"extrinsic", ice::QemGeometry::extrinsic},
-                                                                {"idt", ice::QemGeometry::intrinsic_delaunay}};
-const std::map<std::string, fem::CoarseOperatorKind> kOperatorNames{{"intrinsic", fem::CoarseOperatorKind::intrinsic},
-                                                                    {"galerkin", fem::CoarseOperatorKind::galerkin}};
-const std::map<std::string, ProlongationChoice> kProlongationChoices{{"auto", ProlongationChoice::automatic},
-                                                                     {"barycentric", ProlongationChoice::barycentric},
-                                                                     {"smoothed", ProlongationChoice::smoothed}};
-
-template <class Enum>
-std::string name_of(const std::map<std::string, Enum>& names, Enum value) {
-  for (const auto& [name, entry] : names)
-    if (entry == value) return name;
-  return "?";
-}
-
-}  // namespace
 
 namespace fs = std::filesystem;
 
@@ -205,23 +184,20 @@ void TargetOptions::use_defaults_for(ice::ProxyUse use) {
 
 void add_coarsen_parallel_options(CLI::App& cli, int& threads, int& regions) {
   cli.add_option("--coarsen-threads", threads,
-                 "ICE coarsening threads: 1 = the exact serial greedy order; k > 1 = 4k regions coarsened in parallel, "
-                 "then a serial pass over the whole mesh (meshes of 20,000+ vertices; deterministic for a given k, "
-                 "not identical to the serial result); 0 = one per hardware thread")
+                 "ICE coarsening threads (1: the exact serial order; 0: all cores; k > 1: 4k regions in parallel, then "
+                 "a serial pass)")
       ->check(integer_between(0, 64))
       ->capture_default_str();
   cli.add_option("--coarsen-regions", regions,
-                 "Regions of ICE's parallel phase: R >= 2 runs it with R regions on --coarsen-threads threads, one "
-                 "included, with a result that depends on R only (the same for any thread count: reproducible across "
-                 "machines); 1 = the serial greedy order; 0 = 4 x --coarsen-threads")
+                 "Regions of ICE's parallel phase (R >= 2: the result depends on R only; 1: serial; 0: 4 x threads)")
       ->check(integer_between(0, 254))
       ->capture_default_str();
 }
 
 void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
-  vertices_option = cli.add_option("--vertices,-n", vertices, "Coarsen down to N vertices (1 <= N <= input vertices)")
+  vertices_option = cli.add_option("--vertices,-n", vertices, "Coarsen down to N vertices")
                        ->check(integer_between(1, std::numeric_limits<int>::max()));
-  ratio_option = cli.add_option("--ratio,-r", ratio, "Coarsen down to ceil(R * input vertices), 0 < R <= 1 (e.g. 0.05)")
+  ratio_option = cli.add_option("--ratio,-r", ratio, "Coarsen down to ceil(R * input vertices), e.g. 0.05")
                      ->check(CLI::Validator(
                          [](std::string& text) -> std::string {
                            double value = 0;
@@ -230,33 +206,29 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
                          },
                          "in (0, 1]"));
   cli.add_option("--min-vertices", min_vertices,
-                 "With --ratio: keep at least M vertices (at most all of them), e.g. --ratio 0.05 --min-vertices 1000");
+                 "With --ratio: keep at least M vertices (at most all of them)");
   if (with_max_error)
     cli.add_option("--max-error,-e", max_error,
-                   "Remove vertices while the cheapest removal costs at most E (ICE error metric); "
-                   "alone it coarsens as far as possible under E, with --vertices/--ratio it stops at whichever comes first");
+                   "Remove vertices while the cheapest costs at most E (ICE metric); with --vertices/--ratio: whichever "
+                   "stops first");
   cli.add_option("--area-weight,-w", area_weight,
-                 "Weight w in [0,1] of the area term of the ICE error metric (0: curvature only, the ICE paper's "
-                 "metric; more weight spreads vertices more evenly). The default is the measured best for this "
-                 "tool's problem (README, Accuracy)")
+                 "Area term's weight in the ICE error metric (0: curvature only); the default was measured best for "
+                 "this tool")
       ->check(number_between(0, 1))
       ->capture_default_str();
   cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
-               "Divide the metric's curvature masses by the mesh's total absolute curvature, so that the area "
-               "weight is the area term's share on every mesh")
+               "Divide the curvature masses by the mesh's total absolute curvature")
       ->capture_default_str();
-  add_choice(cli, "--method", method, kMethodNames,
-             "Coarsening method: 'ice' (intrinsic coarsening) or 'qem' (the extrinsic QEM baseline: OpenMesh "
-             "Decimater with quadrics, input vertices mapped by closest-point projection)");
+  add_choice(cli, "--method", method, choice_names<ice::CoarseningMethod>(),
+             "Coarsening method: 'ice', or 'qem' (the extrinsic QEM baseline)");
   add_coarsen_parallel_options(cli, threads, regions);
   cli.add_option("--refine-angle", refine_angle,
-                 "Intrinsic Delaunay refinement of the ICE coarse mesh after coarsening: insert vertices (tracked on the "
-                 "input surface) until every angle is at least DEG degrees, in (0, 30] (e.g. 25); 0 = none. Corners "
-                 "at vertices with an angle sum below 60 degrees are left as they are")
+                 "Refine the ICE coarse mesh (intrinsic Delaunay) until every angle is at least DEG degrees (0: no "
+                 "refinement)")
       ->check(number_between(0, 30))
       ->capture_default_str();
   cli.add_option("--refine-budget", refine_budget,
-                 "With --refine-angle: stop once the coarse vertices reach R times their count after coarsening (R >= 1)")
+                 "With --refine-angle: stop at R times the coarse vertices after coarsening")
       ->check(number_between(1, 1e6))
       ->capture_default_str();
 }
@@ -293,21 +265,14 @@ void TargetOptions::apply(ice::CoarsenOptions& options, long long n) const {
     throw AppError(kUsage, "--refine-angle refines ICE's intrinsic coarse mesh; it does not apply to --method qem");
   options.target_vertices = has_vertices ? static_cast<ice::Index>(vertices) : 0;
   options.target_ratio = has_ratio ? ratio : 0;
-  if (has_ratio && min_vertices > 0) {  // the same rounding as ice::coarsen, then the floor
-    const long long by_ratio = static_cast<long long>(std::ceil(ratio * static_cast<double>(n)));
-    options.target_vertices = static_cast<ice::Index>(std::min(n, std::max(by_ratio, min_vertices)));
-  }
+  if (has_ratio && min_vertices > 0)
+    options.target_vertices = ice::proxy::target_vertices(static_cast<ice::Index>(n), ratio, static_cast<ice::Index>(min_vertices));
   options.max_error = max_error;
   options.area_weight = area_weight;
   options.normalize_curvature = normalize_curvature;
   options.threads = threads;
   options.regions = regions;
 }
-
-std::string cli_name(ice::CoarseningMethod method) { return name_of(kMethodNames, method); }
-std::string cli_name(ice::QemGeometry geometry) { return name_of(kQemGeometryNames, geometry); }
-std::string cli_name(fem::CoarseOperatorKind kind) { return name_of(kOperatorNames, kind); }
-std::string cli_name(fem::ProlongationKind kind) { return fem::to_string(kind); }
 
 
 void check_output(const std::string& path, bool overwrite, const std::string& option) {
@@ -322,58 +287,44 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 }
 
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
-  add_choice(cli, "--operators", operators, kOperatorNames,
-             "Coarse operators: 'intrinsic' (cotan Laplacian and mass from the coarse edge lengths) or "
-             "'galerkin' (P^T L P and P^T M P from the fine operators)");
+  add_choice(cli, "--operators", operators, choice_names<fem::CoarseOperatorKind>(),
+             "Coarse operators: 'intrinsic' (from the coarse lengths) or 'galerkin' (P^T L P, P^T M P)");
 }
 
-void add_prolongation_option(CLI::App& cli, ProlongationChoice& choice, const std::string& name,
+void add_prolongation_option(CLI::App& cli, ice::proxy::Prolongation& choice, const std::string& name,
                              const std::string& description) {
-  add_choice(cli, name, choice, kProlongationChoices,
+  add_choice(cli, name, choice, choice_names<ice::proxy::Prolongation>(),
              description.empty()
-                 ? "How coarse values reach the fine vertices: 'barycentric' (from the corners of each fine vertex's "
-                   "coarse face), 'smoothed' (that P after one damped Jacobi step on the fine Laplacian: about half "
-                   "the Poisson and heat error at 5 % of the vertices; needs Galerkin operators and no Dirichlet "
-                   "vertices) or 'auto' (smoothed where allowed, else barycentric)"
+                 ? "Prolongation: 'barycentric', 'smoothed' (one damped Jacobi step; Galerkin, no Dirichlet) or 'auto' "
+                   "(smoothed if allowed)"
                  : description);
 }
 
-fem::ProlongationKind resolve_prolongation(ProlongationChoice choice, fem::CoarseOperatorKind operators,
+fem::ProlongationKind resolve_prolongation(ice::proxy::Prolongation choice, fem::CoarseOperatorKind operators,
                                            const std::string& needs_barycentric, const std::string& option) {
-  const bool galerkin = operators == fem::CoarseOperatorKind::galerkin;
-  if (choice == ProlongationChoice::smoothed) {
-    if (!galerkin) throw AppError(kUsage, option + " smoothed needs --operators galerkin");
-    if (!needs_barycentric.empty())
-      throw AppError(kUsage, needs_barycentric + " needs " + option + " barycentric or auto (a smoothed prolongation "
-                                                 "does not serve it)");
-    return fem::ProlongationKind::smoothed;
+  try {
+    return ice::proxy::resolve_prolongation(choice, operators, !needs_barycentric.empty());
+  } catch (const std::invalid_argument&) {  // the policy's refusal, in the command line's words
+    if (operators != fem::CoarseOperatorKind::galerkin) throw AppError(kUsage, option + " smoothed needs --operators galerkin");
+    throw AppError(kUsage, needs_barycentric + " needs " + option + " barycentric or auto (a smoothed prolongation "
+                                               "does not serve it)");
   }
-  if (choice == ProlongationChoice::automatic && galerkin && needs_barycentric.empty())
-    return fem::ProlongationKind::smoothed;
-  return fem::ProlongationKind::barycentric;
 }
 
 void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   cli.add_option("mesh", mesh, "Input mesh (.obj, .off, .ply, .stl)")->required();
   target.add_to(cli, false);
   add_operators_option(cli, operators);
-  add_choice(cli, "--qem-operators", qem_geometry, kQemGeometryNames,
-             "With --method qem: coarse geometry from the QEM mesh's positions ('extrinsic') or from its "
-             "intrinsic Delaunay triangulation ('idt', same vertices, so the same P)");
+  add_choice(cli, "--qem-operators", qem_geometry, choice_names<ice::QemGeometry>(),
+             "With --method qem: coarse geometry of its positions ('extrinsic') or intrinsic Delaunay ('idt')");
   cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
-               "Fine reference (and fine operators of the proxy) on the intrinsic Delaunay triangulation of the "
-               "input (default), or on the input triangles as they are (--no-fine-idt)")
+               "Fine operators on the input's intrinsic Delaunay triangulation, or on its triangles (--no-fine-idt)")
       ->capture_default_str();
   cli.add_option("--output,-o", output,
-                 "Write the input mesh with the per-vertex fields " + field_names +
-                     " (and, with ICE, 'patch': the coarse face of each vertex) as PLY, or as binary glTF when the "
-                     "name ends in .glb: coloured by the error (viridis), the coarse edges traced on the surface "
-                     "drawn as lines");
+                 "Write the input mesh with the fields " + field_names + " (ICE: + 'patch') as PLY, or glTF (.glb)");
   cli.add_flag("--ascii", ascii, "With --output: ASCII PLY instead of binary little endian");
   cli.add_option("--html", html,
-                 "Write an interactive 3D page (PAGE.html and PAGE_files/, opens from disk, offline): the input mesh "
-                 "coloured by the result, the reference, the error or the patches, with the coarse edges traced on "
-                 "the surface");
+                 "Write an interactive 3D page (PAGE.html + PAGE_files/) of the results and the coarse edges");
   cli.add_flag("--no-reference", no_reference, "Skip the fine reference solve (no errors, no speed-up)");
   cli.add_option("--report", report, "Write a JSON report (sizes, timings per phase, errors, memory, BLAS)");
   cli.add_flag("--quiet,-q", quiet, "No progress bar");
@@ -383,17 +334,14 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
 
 void PdeOptions::add_polish_options(CLI::App& cli) {
   cli.add_option("--polish", polish.iterations,
-                 "Polish the prolonged solution with at most N conjugate-gradient iterations on the fine system, "
-                 "preconditioned by a two-level cycle (fine Gauss-Seidel sweeps + the Galerkin coarse operator); "
-                 "no fine factorisation. 0: the plain proxy")
+                 "Polish with at most N fine CG iterations preconditioned by a two-level cycle (0: the plain proxy)")
       ->check(non_negative_integer())
       ->capture_default_str();
   cli.add_option("--tolerance", polish.tolerance,
-                 "Polish until the estimated relative error against the fine solution (mass norm, from the fine "
-                 "residual) is at most T, e.g. 1e-3; with --polish N at most N iterations")
+                 "Polish until the estimated relative error is at most T, e.g. 1e-3 (--polish N: at most N iterations)")
       ->check(positive_number());
   cli.add_option("--polish-sweeps", polish.cycle.smoothing_steps,
-                 "Symmetric Gauss-Seidel sweeps before and after each coarse correction while polishing")
+                 "Gauss-Seidel sweeps before and after each coarse correction while polishing")
       ->check(integer_between(1, 100))
       ->capture_default_str();
 }

@@ -16,6 +16,7 @@
 #include "fem/coarse_proxy.h"
 #include "ice/coarse_space.h"
 #include "ice/coarsen.h"
+#include "ice/proxy/policies.h"
 
 namespace app {
 
@@ -123,12 +124,17 @@ CLI::Option* add_choice(CLI::App& cli, const std::string& name, Enum& value, con
       ->default_str(default_name);
 }
 
-/// The command-line spelling of each method choice (--method, --qem-operators, --operators); the
-/// options parse these names straight into the enums.
-std::string cli_name(ice::CoarseningMethod method);
-std::string cli_name(ice::QemGeometry geometry);
-std::string cli_name(fem::CoarseOperatorKind kind);
-std::string cli_name(fem::ProlongationKind kind);
+/// The choices of an enum as the options parse them: its spellings and aliases (ice::proxy::spellings).
+template <class Enum>
+std::map<std::string, Enum> choice_names() {
+  const auto& table = ice::proxy::spellings<Enum>();
+  return std::map<std::string, Enum>(table.begin(), table.end());
+}
+/// The command-line spelling of a choice (ice::proxy::spelling).
+template <class Enum>
+std::string cli_name(Enum value) {
+  return ice::proxy::spelling(value);
+}
 
 /// Throws AppError(kNotWritten) if `path` exists and !overwrite (the tools call it for every output
 /// before doing any work), or if its directory does not exist (ice::check_writable's policy).
@@ -136,16 +142,13 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 
 /// Adds --operators intrinsic|galerkin.
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators);
-/// --prolongation as given: auto (the default: smoothed wherever the problem allows it), or one kind.
-enum class ProlongationChoice { automatic, barycentric, smoothed };
 /// Adds the option `name` (auto|barycentric|smoothed; empty `description`: --prolongation's help).
-void add_prolongation_option(CLI::App& cli, ProlongationChoice& choice, const std::string& name = "--prolongation",
+void add_prolongation_option(CLI::App& cli, ice::proxy::Prolongation& choice, const std::string& name = "--prolongation",
                              const std::string& description = "");
-/// The prolongation a proxy with `operators` solves with: auto is smoothed with Galerkin operators
-/// unless `needs_barycentric` names what rules it out (e.g. "--fix"; empty: nothing), else
-/// barycentric. Throws AppError(kUsage), naming `option`, for an explicit smoothed choice that
-/// cannot be honoured.
-fem::ProlongationKind resolve_prolongation(ProlongationChoice choice, fem::CoarseOperatorKind operators,
+/// ice::proxy::resolve_prolongation for a problem where `needs_barycentric` names what rules out a
+/// smoothed P (e.g. "--fix"; empty: nothing). Throws AppError(kUsage), naming `option`, for an
+/// explicit smoothed choice that cannot be honoured.
+fem::ProlongationKind resolve_prolongation(ice::proxy::Prolongation choice, fem::CoarseOperatorKind operators,
                                            const std::string& needs_barycentric = "",
                                            const std::string& option = "--prolongation");
 

@@ -62,10 +62,10 @@ struct OracleRequest {
   std::string matrix_path;     ///< --matrix (.npy or .mtx)
   std::string pairs_output;    ///< --pairs-out (.csv)
   fem::CoarseDistanceMethod method = fem::CoarseDistanceMethod::marching;
-  app::CoarseLengths lengths = app::CoarseLengths::automatic;  ///< --coarse-lengths
+  ice::proxy::CoarseLengths lengths = ice::proxy::CoarseLengths::automatic;  ///< --coarse-lengths
   bool traced_lengths = false;  ///< what `lengths` resolves to: marching on the coarse edges' lengths on the surface
   int subdivisions = fem::ProxyGeodesicOptions{}.subdivisions;  ///< --marching-subdivisions (coarse marching)
-  app::CurvatureCorrection curvature_correction = app::CurvatureCorrection::automatic;  ///< --curvature-correction
+  ice::proxy::CurvatureCorrection curvature_correction = ice::proxy::CurvatureCorrection::automatic;  ///< --curvature-correction
   int check_sources = 16;
   bool active() const { return all_pairs || !pairs_path.empty() || sample_count > 0; }
   std::string mode() const { return all_pairs ? "all_pairs" : !pairs_path.empty() ? "pairs" : "sample"; }
@@ -168,7 +168,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   oracle_options.method = request.method;
   oracle_options.subdivisions = request.subdivisions;
   const fem::DistanceOracle oracle(space.mesh.F,
-                                   app::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction, &map,
+                                   ice::proxy::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction, &map,
                                                          fem::kOracleCorrectionDivisor)
                                        .lengths,
                                    map, oracle_options);
@@ -264,9 +264,9 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   report["method"] = app::cli_name(space.summary.method);
   if (!space.summary.qem) report["metric"] = {{"area_weight", opt.target.area_weight}, {"normalize_curvature", opt.target.normalize_curvature}};
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
-  report["coarse"] = app::coarsen_json(space.summary);
+  report["coarse"] = ice::proxy::coarsen_json(space.summary);
   report["coarse_lengths"] = request.traced_lengths ? "traced" : "intrinsic";
-  report["curvature_corrected"] = app::corrects_curvature(request.curvature_correction, space.summary.method);
+  report["curvature_corrected"] = ice::proxy::corrects_curvature(request.curvature_correction, space.summary.method);
   if (request.method == fem::CoarseDistanceMethod::marching) report["marching_subdivisions"] = request.subdivisions;
   report["oracle"] = {{"coarse_distances", fem::to_string(request.method)},
                       {"coarse_vertices", oracle.coarse_size()},
@@ -313,57 +313,48 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
 int main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
-      "geodesic-coarse: geodesic distance from source vertices by the heat method, solved on a small ICE "
-      "coarse proxy of the mesh and carried back to every input vertex; by default also solved on the "
-      "fine mesh to report the error and the speed-up.\n\n"
+      "geodesic-coarse: geodesic distance from source vertices (or between any vertices: the distance oracle) "
+      "through a small\nICE coarse proxy, carried back to every vertex; by default compared with the fine heat "
+      "method.\n\n"
       "Examples:\n  geodesic-coarse spot.obj --source 0 --ratio 0.05\n"
       "  geodesic-coarse bunny.off --source 10,250 --vertices 1000 --operators galerkin -o dist.ply --report r.json\n\n"
-      "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written, "
+      "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written,\n"
       "4 bad command line (e.g. source out of range), 5 computation failed."};
   app::PdeOptions opt;
   std::string sources_text;
   OracleRequest oracle;
   cli.add_option("--source,-s", sources_text,
-                 "Source vertex or vertices, 0-based indices in the input file, comma separated (e.g. 0,1500); "
-                 "the distance is to the nearest of them");
+                 "Source vertices, 0-based, comma separated (e.g. 0,1500); the distance is to the nearest");
   cli.add_flag("--all-pairs", oracle.all_pairs,
-               "Distance oracle: precompute all coarse pairs so that every pair of input vertices is answerable; "
-               "with --matrix write the full n x n matrix (.npy)");
+               "Distance oracle: all coarse pairs, every vertex pair answerable (--matrix: the n x n matrix)");
   cli.add_option("--pairs", oracle.pairs_path,
-                 "Distance oracle: answer the pairs in FILE (two 0-based vertex indices per pair, whitespace or "
-                 "commas, '#' comments); --pairs-out writes them");
+                 "Distance oracle: answer the vertex pairs in FILE (two 0-based indices each, '#' comments)");
   cli.add_option("--sample", oracle.sample_count,
                  "Distance oracle: K farthest-point samples and their K x K distance matrix (--matrix)")
       ->check(app::integer_between(1, 1LL << 31));
   const CLI::Option* first_sample_option =
       cli.add_option("--first-sample", oracle.first_sample,
-                     "With --sample: the first sample's vertex (default: the mesh's first vertex)");
+                     "With --sample: the first sample's vertex (default: vertex 0)");
   cli.add_option("--matrix", oracle.matrix_path,
-                 "With --all-pairs or --sample: write the distance matrix (.npy float32, or .mtx Matrix Market; "
-                 "--all-pairs: .npy only)");
+                 "With --all-pairs or --sample: write the distance matrix (.npy float32; .mtx with --sample)");
   cli.add_option("--pairs-out", oracle.pairs_output, "With --pairs: write u,v,distance per pair (.csv)");
   app::add_choice(cli, "--coarse-distances", oracle.method,
                   {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}},
-                  "Coarse distances: fast marching with exact planar updates on the coarse mesh (the default: more "
-                  "accurate, measured; with --source from the sources' points, the squared distance interpolated to "
-                  "the input vertices) or the heat method on the coarse operators (with --source: its distance "
-                  "prolonged with P); in the oracle modes, for all coarse pairs");
+                  "Coarse distances: 'marching' (exact planar updates; more accurate) or 'heat' (the coarse heat "
+                  "method)");
   app::add_coarse_lengths_option(cli, "--coarse-lengths", oracle.lengths);
   app::add_curvature_correction_option(cli, oracle.curvature_correction);
   const CLI::Option* subdivisions_option = cli.add_option(
       "--marching-subdivisions", oracle.subdivisions,
-      "Coarse marching on the coarse mesh split 1:4 this many times (flat midpoint subdivision, the coarse metric "
-      "unchanged): nearer exact geodesics, measured 0.92x the error with 1 and 0.82x with 2 against none (--source, "
-      "ICE, 40 meshes), at 2-3x and 8x the cost per source; in the oracle modes for the coarse pairs (about 3x and "
-      "20x their time; README, Accuracy)")
+      "Split the coarse mesh 1:4 this many times for marching: nearer exact geodesics, at more cost")
       ->check(CLI::Range(0, fem::kMaxMarchingSubdivisions))
       ->capture_default_str();
   cli.add_option("--check-sources", oracle.check_sources,
-                 "Distance oracle: random sources of the fine heat-method reference (errors, speed-up)")
+                 "Distance oracle: random sources of the fine heat-method reference")
       ->check(app::integer_between(1, 100000))
       ->capture_default_str();
   opt.target.use_defaults_for(ice::ProxyUse::geodesic);  // the metric measured best for geodesics
-  opt.add_to(cli, "'distance' (prolonged), 'reference' and 'error' (= distance - reference)");
+  opt.add_to(cli, "'distance', 'reference', 'error'");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&]() -> int {
@@ -385,10 +376,10 @@ int main(int argc, char** argv) {
       throw app::AppError(app::kUsage, "--pairs-out goes with --pairs");
     if (subdivisions_option->count() > 0 && oracle.method != fem::CoarseDistanceMethod::marching)
       throw app::AppError(app::kUsage, "--marching-subdivisions goes with coarse marching, not --coarse-distances heat");
-    const bool traced_asked = oracle.lengths == app::CoarseLengths::traced;
+    const bool traced_asked = oracle.lengths == ice::proxy::CoarseLengths::traced;
     if (traced_asked && oracle.method != fem::CoarseDistanceMethod::marching)
       throw app::AppError(app::kUsage, "--coarse-lengths traced is for coarse marching, not --coarse-distances heat");
-    oracle.traced_lengths = app::traces_lengths(oracle.lengths, opt.target.method,
+    oracle.traced_lengths = ice::proxy::traces_lengths(oracle.lengths, opt.target.method,
                                                 oracle.method == fem::CoarseDistanceMethod::marching);
     if (traced_asked && opt.target.method != ice::CoarseningMethod::ice)
       throw app::AppError(app::kUsage, "--coarse-lengths traced needs ICE's coarse mesh (QEM's edges are straight segments: "
@@ -431,7 +422,7 @@ int main(int argc, char** argv) {
     if (marching) {  // no coarse operators: the coarse mesh and P are all the marching reads
       run.coarse_solver = oracle.traced_lengths ? "coarse fast marching on traced lengths" : "coarse fast marching";
       const ice::SurfaceEdgeLengths lengths =
-          app::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, oracle.curvature_correction);
+          ice::proxy::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, oracle.curvature_correction);
       if (oracle.traced_lengths) traced_counts = {lengths.edges, lengths.traced};
       run.assemble = clock.lap();  // with the tracing of --coarse-lengths traced
       proxy_solver.emplace(pde.coarse.mesh.F, lengths.lengths, pde.coarse.P, oracle.subdivisions);
@@ -478,7 +469,7 @@ int main(int argc, char** argv) {
     report["sources"] = file_sources;
     report["coarse_distances"] = fem::to_string(oracle.method);
     report["coarse_lengths"] = oracle.traced_lengths ? "traced" : "intrinsic";
-    if (marching) report["curvature_corrected"] = app::corrects_curvature(oracle.curvature_correction, pde.coarse.summary.method);
+    if (marching) report["curvature_corrected"] = ice::proxy::corrects_curvature(oracle.curvature_correction, pde.coarse.summary.method);
     if (marching) report["marching_subdivisions"] = oracle.subdivisions;
     if (traced_counts) report["coarse_lengths_traced_edges"] = {{"edges", traced_counts->first}, {"traced", traced_counts->second}};
     report["max_distance"] = largest_finite(distance);

@@ -196,9 +196,9 @@ std::vector<ice::Index> read_lock_file(const std::string& path, const ice::LoadR
 int main(int argc, char** argv) {
   CLI::App cli{
       "ice-coarsen: simplify a triangle mesh intrinsically (ICE). Vertices are removed from an intrinsic "
-      "triangulation of the input, cheapest first by the intrinsic curvature error, so the coarse mesh keeps "
-      "the input surface's metric and every input vertex keeps a location on it. Writes OUTDIR/coarse.ilm "
-      "(coarse faces + edge lengths), prolongation.mtx (input x coarse matrix), map.csv (where each input "
+      "triangulation of the input,\ncheapest first by the intrinsic curvature error, so the coarse mesh keeps "
+      "the input surface's metric and every input\nvertex keeps a location on it. Writes OUTDIR/coarse.ilm "
+      "(coarse faces + edge lengths), prolongation.mtx (input x coarse\nmatrix), map.csv (where each input "
       "vertex lies) and preview.obj (an extrinsic preview).\n\n"
       "Examples:\n  ice-coarsen spot.obj --vertices 500 -o spot_500\n"
       "  ice-coarsen bunny.off --ratio 0.05 --keep-boundary -o out --report out/report.json\n\n"
@@ -298,8 +298,8 @@ int main(int argc, char** argv) {
                            {"coarsen_regions", options.regions},
                            {"keep_boundary", keep_boundary},
                            {"locked_vertices", options.locked_vertices.size()}};
-      report["coarse"] = app::coarsen_json(summary);
-      if (qem) report["qem"] = app::qem_json(*summary.qem, summary.target_reached);
+      report["coarse"] = ice::proxy::coarsen_json(summary);
+      if (qem) report["qem"] = ice::proxy::qem_json(*summary.qem, summary.target_reached);
       report["timings_s"] = {{"load", t_load}, {"coarsen", t_coarsen}, {"write", t_write}};
       if (validate) report["timings_s"]["validate"] = t_validate;
       if (tracing) {

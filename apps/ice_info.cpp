@@ -196,10 +196,10 @@ int run(const std::string& input, const std::string& output, bool json, bool rep
     j["exact_coordinates"] = file.exact_coordinates;
     j["reader_notes"] = file.notes;
     j["read_and_validate_seconds"] = read_seconds;
-    j["report"] = app::validation_json(input_report);
+    j["report"] = ice::proxy::validation_json(input_report);
     if (repair) {
       j["repairs"] = repaired.log.summary();
-      j["repaired_report"] = app::validation_json(repaired.report);
+      j["repaired_report"] = ice::proxy::validation_json(repaired.report);
     }
     j["clean"] = clean;
     std::cout << j.dump(2) << '\n';

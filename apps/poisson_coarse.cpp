@@ -125,7 +125,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     if (!r.converged)
       app::warn(kTool, "multigrid stopped after " + std::to_string(r.iterations) + " iterations at relative residual " +
                            std::to_string(r.relative_residual) + " (tolerance " + std::to_string(mg.options.tolerance) + ")");
-    solver_json.update(app::multigrid_json(multigrid));
+    solver_json.update(ice::proxy::multigrid_json(multigrid));
     solver_json.update({{"hierarchy", {{"ratio", mg.ratio}, {"coarsest_vertices", mg.coarsest}, {"levels", hierarchy.num_levels()},
                                        {"grid_complexity", hierarchy.grid_complexity()}, {"stop_reason", hierarchy.stop_reason},
                                        {"coarsen_seconds", hierarchy.coarsen_seconds}}}});
@@ -181,31 +181,25 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
 int main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
-      "poisson-coarse: solve the Poisson equation -Laplace(u) = f on a mesh through a small ICE coarse proxy "
-      "and carry the solution back to every input vertex; by default also solve on the fine mesh to report the "
-      "error and the speed-up.\n"
-      "Without --rhs the source is a demo: three Gaussian bumps (+1, -1, +1) at the vertices with the largest "
-      "x, y and z, width 0.1 x bounding-box diagonal, minus its mean. Without --fix the problem is zero-mean "
-      "Neumann (natural boundary conditions on a boundary, solution with zero mean).\n\n"
+      "poisson-coarse: solve -Laplace(u) = f on a mesh through a small ICE coarse proxy, the solution carried back to "
+      "every\nvertex; by default also solved on the fine mesh for the error and the speed-up. Without --rhs the source "
+      "is a demo\n(three Gaussian bumps); without --fix the problem is zero-mean Neumann.\n\n"
       "Examples:\n  poisson-coarse spot.obj --ratio 0.05\n"
       "  poisson-coarse lion-head.off --vertices 800 --fix 0=1 --fix 4000=0 -o u.ply --report r.json\n\n"
-      "Exit status: 0 ok, 1 unreadable input (mesh or --rhs file), 2 defective or disconnected mesh, 3 output "
-      "not written, 4 bad command line, 5 computation failed."};
+      "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written, 4 bad command "
+      "line,\n5 computation failed."};
   app::PdeOptions opt;
   std::string rhs_path, solver = "proxy";
   std::vector<std::string> fixes;
   cli.add_option("--rhs", rhs_path,
-                 "Source f: text file with one number per vertex of the input file, in vertex order (whitespace, "
-                 "commas or newlines between them; '#' comments)");
+                 "Source f: text file of one number per input vertex ('#' comments)");
   cli.add_option("--fix", fixes,
-                 "Dirichlet condition V=value at vertex V (0-based index in the input file); repeat the option or "
-                 "separate with commas")
+                 "Dirichlet condition V=value at vertex V (0-based); repeat or separate with commas")
       ->delimiter(',')
       ->allow_extra_args(false);
   MultigridCli mg;
   cli.add_option("--solver", solver,
-                 "proxy: coarse solve + prolongation (approximate); multigrid: exact fine solve by Galerkin multigrid "
-                 "on an ICE hierarchy (to --mg-tolerance); direct: exact fine solve by CHOLMOD")
+                 "proxy (coarse solve, approximate), multigrid (exact, Galerkin multigrid) or direct (exact, CHOLMOD)")
       ->check(CLI::IsMember({"proxy", "multigrid", "direct"}))
       ->capture_default_str();
   cli.add_option("--mg-tolerance", mg.options.tolerance, "multigrid: relative residual to reach")->check(app::positive_number())->capture_default_str();
@@ -218,16 +212,13 @@ int main(int argc, char** argv) {
   app::add_choice(cli, "--mg-cycle", mg.options.mode, kCycleNames, "multigrid: pcg (V-cycle preconditioned CG) or vcycle");
   fem::CholeskyOrdering cholmod_ordering = fem::CholeskyOrdering::automatic;
   app::add_choice(cli, "--cholmod-ordering", cholmod_ordering, kOrderingNames,
-                  "fill-reducing ordering of the exact fine solves by CHOLMOD (--solver direct and the reference): "
-                  "automatic (CHOLMOD's default strategy), amd, metis or nested_dissection; on large meshes amd is "
-                  "usually fastest (1.6M vertices: ~30 % less than automatic)");
+                  "CHOLMOD's fill-reducing ordering of exact fine solves (amd is usually fastest on large meshes)");
   cli.add_option("--mg-threads", mg.options.threads,
-                 "multigrid: threads for Gauss-Seidel sweeps, products, transfers and CG vector operations on "
-                 "levels of 50,000+ unknowns (0: OMP_NUM_THREADS or all cores)")
+                 "multigrid: threads on levels of 50,000+ unknowns (0: OMP_NUM_THREADS or all cores)")
       ->check(app::non_negative_integer())->capture_default_str();
-  opt.add_to(cli, "'solution' (prolonged), 'reference' and 'error' (= solution - reference)");
+  opt.add_to(cli, "'solution', 'reference', 'error'");
   opt.add_polish_options(cli);
-  app::ProlongationChoice prolongation = app::ProlongationChoice::automatic;
+  ice::proxy::Prolongation prolongation = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(cli, prolongation);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 

@@ -13,6 +13,7 @@
 #include "fem/multigrid.h"
 #include "ice/coarse_space.h"
 #include "ice/mesh_validation.h"
+#include "ice/proxy/report.h"
 
 namespace app {
 
@@ -81,29 +82,9 @@ std::string percent(const nlohmann::json& fraction);
 
 // ---- JSON reports ---------------------------------------------------------------------------------
 
-/// A mesh validation report (ice/mesh_validation.h) as ice-info --json writes it and the Python
-/// package returns it: sizes, topology, bounding box, edge lengths, each defect's count and first
-/// offenders, the components.
-nlohmann::json validation_json(const ice::ValidationReport& report);
-
-/// The "polish" object of the PDE tools' reports: the options (iteration limit, tolerance, smoother)
-/// and what polishing did (iterations, estimated errors, whether the tolerance was reached, seconds).
-nlohmann::json polish_json(const fem::PolishOptions& options, const fem::PolishReport& report);
-
-/// A multigrid solver's last solve and set-up as poisson-coarse --solver multigrid reports them
-/// (iterations, convergence, residuals, options, levels, operator complexity, seconds).
-nlohmann::json multigrid_json(const fem::MultigridSolver& solver);
-
-/// The "coarse" object of the JSON reports: vertices, faces, stop_reason, removed (ICE removals or
-/// QEM collapses), and for ICE its removal details (failed removals by status, costs).
-nlohmann::json coarsen_json(const ice::CoarseSpaceSummary& summary);
-
 /// One line on the refinement of a coarse space ("+132 vertices (114 boundary midpoints) in 0.005 s,
 /// smallest angle 0.69° -> 3.75°, ..."), or "" without refinement.
 std::string refinement_line(const ice::CoarseSpaceSummary& summary);
-
-/// The "qem" object of the JSON reports (mapping, guard, distances, times, geometry of the coarse mesh).
-nlohmann::json qem_json(const ice::QemOutcome& qem, bool target_reached);
 
 /// Writes `report` (pretty-printed) to `path`. Throws AppError(kNotWritten) on failure or when it
 /// exists and !overwrite.

@@ -73,52 +73,43 @@ void warn_if_frames_fit_poorly(const fem::VectorProlongationStats& stats) {
 int main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
-      "Tangent vector fields through an ICE coarse mesh: the vector heat method (parallel transport of a vector "
-      "from a source, or the smooth field through several prescribed vectors) solved on the coarse proxy and "
-      "carried back by the vector prolongation, compared with the fine solution.\n\n"
+      "vector-coarse: tangent vector fields by the vector heat method (parallel transport from a source, or the "
+      "smooth field\nthrough several vectors) through an ICE coarse mesh, compared with the fine solution.\n\n"
       "Examples:\n"
       "  vector-coarse data/default/bear.off --source 0 --vector 30 -o field.ply\n"
       "  vector-coarse bunny.off --source 10,250 --direction 1,0,0,0,1,0 --ratio 0.02 --report r.json\n\n"
-      "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written, "
+      "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written,\n"
       "4 bad command line (e.g. source out of range), 5 computation failed."};
   app::PdeOptions opt;
   std::string sources_text, angles_text, directions_text, magnitudes_text;
   double time_factor = fem::kVectorProxyTimeFactor;
-  app::VectorSolver solver = app::VectorSolver::sweep;
+  ice::proxy::VectorSolver solver = ice::proxy::VectorSolver::sweep;
   fem::DistanceSweepOptions sweep_options;
-  cli.add_option("--source,-s", sources_text, "Source vertex or vertices, 0-based indices in the input file, comma separated")
+  cli.add_option("--source,-s", sources_text, "Source vertices, 0-based, comma separated")
       ->required();
   cli.add_option("--vector", angles_text,
-                 "One angle per source, in degrees, counter-clockwise in the source's tangent frame from its reference "
-                 "edge (its first face's outgoing edge in the file; on the boundary the boundary edge it starts along)");
+                 "One angle per source, degrees counter-clockwise from its reference edge (its first face's outgoing "
+                 "edge)");
   cli.add_option("--direction", directions_text,
-                 "Instead of --vector: one 3D direction per source (x,y,z, comma separated), projected into the surface");
+                 "Instead of --vector: one x,y,z direction per source, projected into the surface");
   cli.add_option("--magnitude", magnitudes_text, "One length per source (default 1 each)");
-  app::add_choice(cli, "--vector-solver", solver, {{"sweep", app::VectorSolver::sweep}, {"diffusion", app::VectorSolver::diffusion}},
-                  "How the field is found through the coarse mesh: 'sweep' (the default) takes the geodesic distance by "
-                  "coarse marching and solves the fine vector heat method's systems by Gauss-Seidel passes in order of that "
-                  "distance, scaled by the kernel's decay along it (fem::VectorSweepProxy: no fine factorisation; it converges "
-                  "to the fine method's field); 'diffusion' diffuses the vectors on the coarse mesh and prolongs them "
-                  "(fem::VectorHeatProxy; --operators, --time-factor). Median angle error against the fine method over 25 "
-                  "shared and project meshes at 5 %: 0.000 (largest 0.00) against 4.5 degrees (README, Tangent vector fields)");
+  app::add_choice(cli, "--vector-solver", solver, {{"sweep", ice::proxy::VectorSolver::sweep}, {"diffusion", ice::proxy::VectorSolver::diffusion}},
+                  "'sweep': Gauss-Seidel on the fine systems in coarse-marching distance order; 'diffusion': coarse "
+                  "diffusion");
   cli.add_option("--sweep-passes", sweep_options.max_passes,
-                 "--vector-solver sweep: at most this many Gauss-Seidel passes after the first (fewer when no value moves by "
-                 "1e-3 of its terms; the fine solution as they grow, README: with the coarse corrections 0.000 degrees at 50 "
-                 "over 25 meshes, 0.161 without; a pass ~0.13 s at 1.6M vertices)")
+                 "sweep: at most N Gauss-Seidel passes after the first (stops when no value moves by 1e-3 of its "
+                 "terms)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cli.add_option("--sweep-coarse-interval", sweep_options.coarse_correction_interval,
-                 "--vector-solver sweep: a coarse-grid correction of relative errors (Galerkin, on the marching's coarse "
-                 "space) before every N-th pass; 0: passes only (README: at 5 %, 50 passes, the dragon_vrip_bin scan "
-                 "12.75 -> 0.14 degrees, CGAL's cheese 22.1 -> 2.29, 1.6x the time per solve)")
+                 "sweep: a Galerkin coarse-grid correction before every N-th pass (0: passes only)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cli.add_option("--time-factor", time_factor,
-                 "--vector-solver diffusion: coarse diffusion time t = (F h_c)^2, h_c the coarse mean edge length (README, "
-                 "Vector fields: measured over the shared meshes)")
+                 "diffusion: coarse time t = (F h_c)^2, h_c the coarse mean edge length (default measured best)")
       ->check(app::positive_number())
       ->capture_default_str();
-  opt.add_to(cli, "vector_x/y/z (prolonged field), reference_x/y/z, angle_error (degrees) and magnitude_error");
+  opt.add_to(cli, "vector_x/y/z, reference_x/y/z, angle_error, magnitude_error");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&]() -> int {
@@ -147,7 +138,7 @@ int main(int argc, char** argv) {
 
     const fem::VectorOperatorKind kind = opt.operators == fem::CoarseOperatorKind::galerkin ? fem::VectorOperatorKind::galerkin
                                                                                             : fem::VectorOperatorKind::intrinsic;
-    const bool sweep = solver == app::VectorSolver::sweep;
+    const bool sweep = solver == ice::proxy::VectorSolver::sweep;
     const bool galerkin = !sweep && kind == fem::VectorOperatorKind::galerkin;
     app::PdeRun run = app::PdeRun::start(kTool, opt, galerkin);
     if (sweep) run.coarse_solver = "fine Gauss-Seidel ordered and scaled by the coarse marching distance";
@@ -171,8 +162,8 @@ int main(int argc, char** argv) {
     run.coarsen = clock.lap();
 
     // ---- the input triangles' frames (the fields' and the sources'), the fine operators in them
-    const app::TangentMesh fine =
-        app::tangent_mesh(mesh, opt.fine_geometry(), sweep || galerkin || run.has_reference);
+    const ice::proxy::TangentMesh fine =
+        ice::proxy::tangent_mesh(mesh, opt.fine_geometry(), sweep || galerkin || run.has_reference);
     const fem::TangentFrames& fine_frames = fine.frames;
     run.fine_built = fine.operators.has_value();
     run.idt_flips = fine.flips;
@@ -200,9 +191,9 @@ int main(int argc, char** argv) {
     std::optional<fem::VectorSweepProxy> sweep_proxy;
     std::optional<fem::VectorHeatProxy> diffusion_proxy;
     if (sweep)
-      sweep_proxy.emplace(app::make_vector_sweep(mesh, fine, coarse, map, sweep_options));
+      sweep_proxy.emplace(ice::proxy::make_vector_sweep(mesh, fine, coarse, map, sweep_options));
     else
-      diffusion_proxy.emplace(app::make_vector_proxy(fine, coarse, map, kind, time_factor));
+      diffusion_proxy.emplace(ice::proxy::make_vector_proxy(fine, coarse, map, kind, time_factor));
     run.factor = clock.lap();
     if (diffusion_proxy) warn_if_frames_fit_poorly(diffusion_proxy->prolongation_stats());
     fem::DistanceSweepStats sweep_stats;

@@ -865,7 +865,7 @@ elseif(CASE STREQUAL "errors")
   check(${_median} LESS 20 "vector-coarse, three components: median angle error on the source's")
 
 elseif(CASE STREQUAL "report_skips")
-  # ice-report (registered from bench/CMakeLists.txt: BIN_DIR is ice-report's): a defective mesh
+  # ice-report (registered from tools/CMakeLists.txt: BIN_DIR is ice-report's): a defective mesh
   # among good ones is skipped with its defect named, in results.json too; the report goes on.
   project_mesh(mesh spot.obj)
   file(WRITE "${WORK}/nullface.off" "OFF\n5 3 0\n0 0 0\n1 -1 0\n1 0 0\n2 0 0\n2 1 0\n3 0 1 2\n3 0 2 3\n3 0 3 4\n")

@@ -37,13 +37,16 @@ from ._ice import (  # noqa: F401  (the package's API)
 )
 from . import _ice
 
+import os
+
 import numpy as np
 
 __all__ = [
     "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
     "curvature_corrected_lengths", "face_lengths", "geodesic_distance", "heat_flow", "hierarchy", "intrinsic_delaunay", "load_coarse_mesh",
-    "load_mesh", "loop_subdivide", "mass_matrix", "save_mesh", "solve_poisson", "transport_vectors", "validate",
+    "load_mesh", "loop_subdivide", "mass_matrix", "read_mesh", "save_mesh", "solve_poisson", "transport_vectors",
+    "validate",
     "VectorHeatSolver",
 ]
 __version__ = "0.1.0"
@@ -87,6 +90,58 @@ def load_mesh(path, repair: bool = False, weld: bool = False) -> LoadedMesh:
     return LoadedMesh(_ice._load_mesh(str(path), repair, weld))
 
 
+# The extensions ICE's own reader takes (libice/src/mesh_io.cpp: read_mesh_file); read_mesh hands the rest to meshio.
+_ICE_FORMATS = (".obj", ".off", ".ply", ".stl")
+
+
+def read_mesh(path, *, skip_cells=(), **kw):
+    """Reads a triangle mesh as ``(V, F)``: n×3 float64 positions and m×3 int32 vertex indices.
+
+    OBJ, OFF, PLY and STL are read by ICE's own reader, ice.load_mesh (validated under ICE's loading
+    policy; keywords: repair, weld). Any other format is read by meshio when it is installed (Debian:
+    python3-meshio), e.g. .vtu, .vtk, .msh (Gmsh), .mesh (Medit), .xdmf; keywords go to meshio.read
+    (e.g. file_format="gmsh"). Such a file must hold triangles only: other cells raise ValueError
+    naming the file and the cell types, unless their types are listed in skip_cells (e.g.
+    skip_cells={"line", "vertex"} drops the boundary curves and points of a Gmsh surface mesh); 2D
+    points get z = 0. Meshes read by meshio are not validated here: the calls that take (V, F)
+    validate them where they enter (ice.validate(V, F) reports on them first).
+    """
+    name = os.fspath(path)
+    if os.path.splitext(name)[1].lower() in _ICE_FORMATS:
+        loaded = load_mesh(name, **kw)
+        return (np.ascontiguousarray(loaded.V, dtype=np.float64), np.ascontiguousarray(loaded.F, dtype=np.int32))
+    try:
+        import meshio
+    except ImportError:
+        raise ValueError(f"{name}: not a format ICE reads ({', '.join(_ICE_FORMATS)}) and meshio, which reads "
+                         "many more, is not installed (Debian: apt-get install python3-meshio)") from None
+    mesh = meshio.read(name, **kw)
+    skip = {skip_cells} if isinstance(skip_cells, str) else set(skip_cells)
+    triangles, refused = [], {}
+    for block in mesh.cells:
+        if block.type == "triangle":
+            triangles.append(np.asarray(block.data))
+        elif block.type not in skip:
+            refused[block.type] = refused.get(block.type, 0) + len(block.data)
+    if refused:
+        listed = ", ".join(f"{count} {kind}" for kind, count in refused.items())
+        raise ValueError(f"{name}: ICE reads triangle meshes only, and this file has other cells ({listed}); "
+                         f"skip_cells={sorted(refused)!r} drops them, if they only mark boundaries or points")
+    if not triangles or not sum(len(t) for t in triangles):
+        kinds = sorted({block.type for block in mesh.cells}) or ["none"]
+        raise ValueError(f"{name}: no triangles in this file (its cells: {', '.join(kinds)})")
+    points = np.asarray(mesh.points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise ValueError(f"{name}: points of shape {points.shape}; need 2D or 3D positions")
+    if points.shape[1] == 2:
+        points = np.column_stack([points, np.zeros(len(points))])
+    faces = np.concatenate(triangles).astype(np.int64, copy=False)
+    bad = faces[(faces < 0) | (faces >= len(points))]
+    if bad.size:
+        raise ValueError(f"{name}: a triangle refers to vertex {int(bad[0])}, but the file has {len(points)} points")
+    return np.ascontiguousarray(points), np.ascontiguousarray(faces, dtype=np.int32)
+
+
 def _coarse_for(V, F, coarse, coarsening, use, locked=None):
     if coarse is not None:
         if coarsening:
@@ -102,10 +157,9 @@ def _coarse_for(V, F, coarse, coarsening, use, locked=None):
 
 
 def _resolve_prolongation(prolongation: str, operators: str, dirichlet: bool) -> str:
-    """"auto": the smoothed P where it serves (Galerkin operators, no Dirichlet vertices), as the tools."""
-    if prolongation != "auto":
-        return prolongation
-    return "smoothed" if operators == "galerkin" and not dirichlet else "barycentric"
+    """The policy of the recipe floor (ice::proxy::resolve_prolongation): "auto" is the smoothed P
+    where it serves (Galerkin operators, no Dirichlet vertices), as the tools."""
+    return _ice._resolve_prolongation(prolongation, operators, dirichlet)
 
 
 def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, values=None,

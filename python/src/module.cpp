@@ -1,7 +1,7 @@
 // ice._ice: the Python bindings of libice and libfem. Every function converts and checks its
 // arguments (arrays.h), releases the GIL, calls the library's pipeline (ice::build_coarse_space,
 // ice::fine_mesh, fem::CoarseProxy and the proxy solvers, fem::MultigridSolver, fem::DistanceOracle)
-// and converts the results back; reports are the tools' JSON objects (apps/reports.h) as dicts, so a
+// and converts the results back; reports are the tools' JSON objects (ice/proxy/report.h) as dicts, so a
 // script and a tool report the same keys. The package's __init__.py re-exports everything with the
 // documentation; nothing here computes anything the C++ tools do not.
 #include <algorithm>
@@ -24,7 +24,10 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
-#include "app_common.h"
+#include "ice/proxy/geodesics.h"
+#include "ice/proxy/policies.h"
+#include "ice/proxy/report.h"
+#include "ice/proxy/setup.h"
 #include "arrays.h"
 #include "fem/coarse_proxy.h"
 #include "fem/distance_oracle.h"
@@ -39,7 +42,6 @@
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "ice/refinement.h"
-#include "reports.h"
 
 namespace py = pybind11;
 using namespace ice_python;
@@ -61,11 +63,18 @@ Enum choice(const std::string& value, const char* name, std::initializer_list<st
   }
   throw py::value_error(std::string(name) + " must be one of " + names + ", got '" + value + "'");
 }
+/// The same for an enum of the recipe floor, by its spellings (ice/proxy/policies.h).
+template <class Enum>
+Enum choice(const std::string& value, const char* name) {
+  for (const auto& [spelling, entry] : ice::proxy::spellings<Enum>())
+    if (value == spelling) return entry;
+  throw py::value_error(std::string(name) + " must be one of " + ice::proxy::choices<Enum>() + ", got '" + value + "'");
+}
 
 /// "marching" or "heat": the coarse distances of ProxyGeodesicSolver and DistanceOracle.
 fem::CoarseDistanceMethod coarse_distance_method(const std::string& method) {
   return choice<fem::CoarseDistanceMethod>(
-      method, "method", {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}});
+      method, "method");
 }
 
 // Python numbers for keyword options, refused with the option's name when of another type (a
@@ -219,8 +228,8 @@ py::dict load_mesh(const std::filesystem::path& file_path, bool repair, bool wel
   py::dict result;
   result["V"] = py::cast(std::move(loaded.mesh.V));
   result["F"] = py::cast(std::move(loaded.mesh.F));
-  result["report"] = json_to_python(app::validation_json(loaded.report));
-  result["input_report"] = json_to_python(app::validation_json(loaded.input_report));
+  result["report"] = json_to_python(ice::proxy::validation_json(loaded.report));
+  result["input_report"] = json_to_python(ice::proxy::validation_json(loaded.input_report));
   result["repairs"] = loaded.repairs.summary();
   result["source_vertex"] = to_numpy(std::move(loaded.source_vertex));
   result["source_face"] = to_numpy(std::move(loaded.source_face));
@@ -236,7 +245,7 @@ py::object validate(const py::object& V, const py::object& F) {
     report = ice::validate_mesh(mesh);
     if (report.clean()) clean_meshes().add(mesh_fingerprint(mesh));
   }
-  return json_to_python(app::validation_json(report));
+  return json_to_python(ice::proxy::validation_json(report));
 }
 
 void save_mesh(const std::filesystem::path& path, const py::object& V, const py::object& F, bool overwrite, bool binary) {
@@ -301,13 +310,11 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
   const ice::TriangleMesh mesh = mesh_argument(V, F);
   const auto vertex_count = static_cast<long long>(mesh.V.rows());
   ice::CoarseSpaceOptions options;
-  options.method = choice<ice::CoarseningMethod>(method, "method",
-                                                 {{"ice", ice::CoarseningMethod::ice}, {"qem", ice::CoarseningMethod::qem}});
+  options.method = choice<ice::CoarseningMethod>(method, "method");
   options.coarsen = ice::recommended_coarsen_options(
-      choice<ice::ProxyUse>(use, "use", {{"poisson_heat", ice::ProxyUse::poisson_heat}, {"geodesic", ice::ProxyUse::geodesic}}));
+      choice<ice::ProxyUse>(use, "use"));
   options.qem_geometry = choice<ice::QemGeometry>(
-      qem_geometry, "qem_geometry",
-      {{"extrinsic", ice::QemGeometry::extrinsic}, {"intrinsic_delaunay", ice::QemGeometry::intrinsic_delaunay}});
+      qem_geometry, "qem_geometry");
   ice::CoarsenOptions& c = options.coarsen;
   if (!n.is_none() && !ratio.is_none()) throw py::value_error("give n or ratio, not both");
   if (n.is_none() && ratio.is_none() && max_error.is_none())
@@ -426,12 +433,12 @@ py::object coarse_map(const PyCoarseSpace& space) {
 py::object coarse_summary(const PyCoarseSpace& space) {
   if (!space.has_space) return py::none();
   const ice::CoarseSpaceSummary& s = space.space.summary;
-  nlohmann::json summary = app::coarsen_json(s);
+  nlohmann::json summary = ice::proxy::coarsen_json(s);
   summary["method"] = ice::to_string(s.method);
   summary["input_vertices"] = s.input_vertices;
   summary["target_reached"] = s.target_reached;
   summary["seconds"] = s.seconds;
-  if (s.qem) summary["qem"] = app::qem_json(*s.qem, s.target_reached);
+  if (s.qem) summary["qem"] = ice::proxy::qem_json(*s.qem, s.target_reached);
   return json_to_python(summary);
 }
 
@@ -462,16 +469,16 @@ struct PyProxy {
 
 /// curvature_correction=None|True|False of the geodesic solvers on a coarse space made by `method`:
 /// None is geodesic-coarse's --curvature-correction auto (ICE's coarse spaces only, as measured).
-app::CurvatureCorrection curvature_correction_choice(const py::object& value) {
+ice::proxy::CurvatureCorrection curvature_correction_choice(const py::object& value) {
   if (!value.is_none() && !py::isinstance<py::bool_>(value))
     throw py::type_error("curvature_correction must be None, True or False");
-  return value.is_none() ? app::CurvatureCorrection::automatic
-         : value.cast<bool>() ? app::CurvatureCorrection::on
-                              : app::CurvatureCorrection::off;
+  return value.is_none() ? ice::proxy::CurvatureCorrection::automatic
+         : value.cast<bool>() ? ice::proxy::CurvatureCorrection::on
+                              : ice::proxy::CurvatureCorrection::off;
 }
 
 bool curvature_correction_argument(const py::object& value, ice::CoarseningMethod method) {
-  return app::corrects_curvature(curvature_correction_choice(value), method);
+  return ice::proxy::corrects_curvature(curvature_correction_choice(value), method);
 }
 
 /// The mesh (V, F), checked to be the one `coarse` was made from (vertex count and faces), with P.
@@ -487,27 +494,25 @@ ice::TriangleMesh require_coarse_space_of(const py::object& V, const py::object&
 }
 
 /// Coarse marching's lengths of `coarse` (made from `mesh`) as the tools take them
-/// (app::marching_lengths with the space's kept map): traced by the walk over the map or intrinsic,
+/// (ice::proxy::marching_lengths with the space's kept map): traced by the walk over the map or intrinsic,
 /// then corrected as `correction` says for the space's method.
 ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const PyCoarseSpace& coarse, bool traced,
-                                           app::CurvatureCorrection correction, double divisor = fem::kProxyCorrectionDivisor) {
+                                           ice::proxy::CurvatureCorrection correction, double divisor = fem::kProxyCorrectionDivisor) {
   if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
     throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
   py::gil_scoped_release release;
-  return app::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map, divisor).lengths;
+  return ice::proxy::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map, divisor).lengths;
 }
 
 /// lengths="auto"|"intrinsic"|"traced" of the marching entry points: whether to march on traced lengths
 /// (auto, the tools' --coarse-lengths auto: an ICE coarse space that has its map; intrinsic otherwise).
 /// `marching`: false for the coarse heat method, which takes neither (traced asked then: ValueError).
 bool traced_lengths_argument(const std::string& lengths, const PyCoarseSpace& coarse, bool marching = true) {
-  const auto asked = choice<app::CoarseLengths>(lengths, "lengths", {{"auto", app::CoarseLengths::automatic},
-                                                                      {"intrinsic", app::CoarseLengths::intrinsic},
-                                                                      {"traced", app::CoarseLengths::traced}});
-  if (asked == app::CoarseLengths::traced && !marching) throw py::value_error("lengths='traced' is for method='marching'");
+  const auto asked = choice<ice::proxy::CoarseLengths>(lengths, "lengths");
+  if (asked == ice::proxy::CoarseLengths::traced && !marching) throw py::value_error("lengths='traced' is for method='marching'");
   // auto needs the map to trace with (a space read from a file has none: its own lengths then).
-  return (asked != app::CoarseLengths::automatic || !coarse.map.empty()) &&
-         app::traces_lengths(asked, coarse.space.summary.method, marching);
+  return (asked != ice::proxy::CoarseLengths::automatic || !coarse.map.empty()) &&
+         ice::proxy::traces_lengths(asked, coarse.space.summary.method, marching);
 }
 
 /// The oracle and the vector proxy need the coarse space's fine-to-coarse map.
@@ -533,18 +538,17 @@ std::unique_ptr<fem::DistanceOracle> make_oracle(const PyCoarseSpace& coarse, co
 // The `fine=` argument of Proxy and VectorHeatSolver: the fine mesh's discretisation.
 ice::FineGeometry fine_geometry_argument(const std::string& fine) {
   return choice<ice::FineGeometry>(
-      fine, "fine", {{"intrinsic_delaunay", ice::FineGeometry::intrinsic_delaunay}, {"input", ice::FineGeometry::input}});
+      fine, "fine");
 }
 
 std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
                                     const std::string& operators, const std::string& fine, const std::string& prolongation) {
   const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "Proxy");
   const auto kind = choice<fem::CoarseOperatorKind>(
-      operators, "operators", {{"galerkin", fem::CoarseOperatorKind::galerkin}, {"intrinsic", fem::CoarseOperatorKind::intrinsic}});
+      operators, "operators");
   const ice::FineGeometry geometry = fine_geometry_argument(fine);
   const auto smoothing = choice<fem::ProlongationKind>(
-      prolongation, "prolongation",
-      {{"barycentric", fem::ProlongationKind::barycentric}, {"smoothed", fem::ProlongationKind::smoothed}});
+      prolongation, "prolongation");
   if (smoothing == fem::ProlongationKind::smoothed && kind != fem::CoarseOperatorKind::galerkin)
     throw py::value_error("prolongation='smoothed' needs operators='galerkin'");
   auto result = std::make_shared<PyProxy>();
@@ -564,7 +568,7 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
 // coarse space (by the sweep or by coarse diffusion): one of fine_solver / sweep / proxy is set.
 struct PyVectorHeat {
   ice::Positions V;
-  app::TangentMesh fine;
+  ice::proxy::TangentMesh fine;
   std::unique_ptr<fem::VectorHeatSolver> fine_solver;
   std::unique_ptr<fem::VectorSweepProxy> sweep;
   std::unique_ptr<fem::VectorHeatProxy> proxy;
@@ -600,28 +604,27 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   const ice::TriangleMesh mesh = coarse ? require_coarse_space_of(V, F, *coarse, "VectorHeatSolver") : mesh_argument(V, F);
   if (coarse) require_map(*coarse);
   const auto kind = choice<fem::VectorOperatorKind>(
-      operators, "operators", {{"galerkin", fem::VectorOperatorKind::galerkin}, {"intrinsic", fem::VectorOperatorKind::intrinsic}});
+      operators, "operators");
   const double time_factor = time_factor_object.is_none() ? (coarse ? fem::kVectorProxyTimeFactor : 1.0)
                                                           : number_option(time_factor_object, "time_factor");
   if (!(time_factor > 0) || !std::isfinite(time_factor)) throw py::value_error("time_factor must be > 0");
-  const auto solver = choice<app::VectorSolver>(solver_name, "solver",
-                                                {{"sweep", app::VectorSolver::sweep}, {"diffusion", app::VectorSolver::diffusion}});
-  const bool sweep = coarse && solver == app::VectorSolver::sweep;
+  const auto solver = choice<ice::proxy::VectorSolver>(solver_name, "solver");
+  const bool sweep = coarse && solver == ice::proxy::VectorSolver::sweep;
   const ice::FineGeometry geometry = fine_geometry_argument(fine);
   result->V = mesh.V;
   py::gil_scoped_release release;
   require_clean(mesh);
   // Through a coarse space the fine operators' time step is the sweep's (t = h²), unused by diffusion
   // (Galerkin products only).
-  result->fine = app::tangent_mesh(mesh, geometry, !coarse || sweep || kind == fem::VectorOperatorKind::galerkin,
+  result->fine = ice::proxy::tangent_mesh(mesh, geometry, !coarse || sweep || kind == fem::VectorOperatorKind::galerkin,
                                    coarse ? 1.0 : time_factor);
   fem::DistanceSweepOptions sweep_options;
   sweep_options.max_passes = sweep_passes;
   sweep_options.coarse_correction_interval = sweep_coarse_interval;
   if (sweep)
-    result->sweep = std::make_unique<fem::VectorSweepProxy>(app::make_vector_sweep(mesh, result->fine, coarse->space, coarse->map, sweep_options));
+    result->sweep = std::make_unique<fem::VectorSweepProxy>(ice::proxy::make_vector_sweep(mesh, result->fine, coarse->space, coarse->map, sweep_options));
   else if (coarse)
-    result->proxy = std::make_unique<fem::VectorHeatProxy>(app::make_vector_proxy(result->fine, coarse->space, coarse->map, kind, time_factor));
+    result->proxy = std::make_unique<fem::VectorHeatProxy>(ice::proxy::make_vector_proxy(result->fine, coarse->space, coarse->map, kind, time_factor));
   else
     result->fine_solver = std::make_unique<fem::VectorHeatSolver>(*result->fine.operators);
   return result;
@@ -732,6 +735,19 @@ PYBIND11_MODULE(_ice, m) {
     }
   });
 
+  m.def(
+      "_resolve_prolongation",
+      [](const std::string& prolongation, const std::string& operators, bool dirichlet) {
+        try {
+          return ice::proxy::spelling(ice::proxy::resolve_prolongation(
+              choice<ice::proxy::Prolongation>(prolongation, "prolongation"),
+              choice<fem::CoarseOperatorKind>(operators, "operators"), dirichlet));
+        } catch (const std::invalid_argument& e) {
+          throw py::value_error(e.what());
+        }
+      },
+      py::arg("prolongation"), py::arg("operators"), py::arg("dirichlet"),
+      "The prolongation 'auto' means for these operators (ice::proxy::resolve_prolongation).");
   m.def("_load_mesh", &load_mesh, py::arg("path"), py::arg("repair") = false, py::arg("weld") = false,
         "The dict behind ice.load_mesh (use that).");
   m.def("validate", &validate, py::arg("V"), py::arg("F"),
@@ -992,7 +1008,7 @@ error `tolerance` (poisson-coarse --polish/--tolerance). Factors once; solve() a
              return s.solver->solve(view(rhs), fixed_values, &s.last_times, &s.last_polish);
            }, py::arg("f"), py::arg("values") = py::none(),
            "u for the nodal source f (n,); values: the Dirichlet values, aligned with `fixed` (default zeros).")
-      .def_property_readonly("polish_report", [](PyPoissonSolver& s) { return json_to_python(locked(s.mutex, [&] { return app::polish_json(s.polish, s.last_polish); })); },
+      .def_property_readonly("polish_report", [](PyPoissonSolver& s) { return json_to_python(locked(s.mutex, [&] { return ice::proxy::polish_json(s.polish, s.last_polish); })); },
                              "What polishing did in the last solve (iterations, estimated errors, seconds).")
       .def_property_readonly("times", [](PyPoissonSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last solve's stages (restriction, coarse_solve, prolongation).")
@@ -1026,7 +1042,7 @@ ProxyPoissonSolver, per step.)doc")
              const std::lock_guard<std::mutex> lock(s.mutex);
              return s.solver->integrate(view(initial), steps, &s.last_times, &s.last_polish);
            }, py::arg("u0"), py::arg("steps") = 1, "The state after `steps` steps of time_step from nodal values u0.")
-      .def_property_readonly("polish_report", [](PyHeatSolver& s) { return json_to_python(locked(s.mutex, [&] { return app::polish_json(s.polish, s.last_polish); })); },
+      .def_property_readonly("polish_report", [](PyHeatSolver& s) { return json_to_python(locked(s.mutex, [&] { return ice::proxy::polish_json(s.polish, s.last_polish); })); },
                              "What polishing did in the last integrate().")
       .def_property_readonly("times", [](PyHeatSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last integrate()'s stages.");
@@ -1037,7 +1053,7 @@ ProxyPoissonSolver, per step.)doc")
           const ice::FaceLengths L =
               lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
           py::gil_scoped_release release;
-          return app::curvature_corrected_lengths(mesh, coarse.space, L, divisor);
+          return ice::proxy::curvature_corrected_lengths(mesh, coarse.space, L, divisor);
         }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = py::none(),
         py::arg("divisor") = fem::kProxyCorrectionDivisor,
         "The coarse edge lengths (m×3) scaled by exp(K l²/divisor) for the Gaussian curvature K each coarse face flattens, "
@@ -1076,7 +1092,7 @@ QEM's).)doc")
                                     int subdivisions, const py::object& curvature_correction) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
              const bool traced = traced_lengths_argument(lengths, coarse);
-             const app::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
+             const ice::proxy::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
              auto solver = std::make_unique<PyGeodesicSolver>();
              ice::FaceLengths L = marching_lengths_argument(mesh, coarse, traced, correction);
              py::gil_scoped_release release;
@@ -1294,7 +1310,7 @@ the coarsest factorisation; `constrained`: indices (each once) whose values solv
              {
                py::gil_scoped_release release;
                const std::lock_guard<std::mutex> lock(m.mutex);
-               report = app::multigrid_json(m.solver);
+               report = ice::proxy::multigrid_json(m.solver);
              }
              return json_to_python(report);
            }, "The last solve and the set-up, as poisson-coarse --solver multigrid reports them: converged, iterations, "
@@ -1334,8 +1350,8 @@ of geodesic-coarse's oracle modes (curvature-corrected for ICE; traced lengths o
              const fem::CoarseDistanceMethod distances = coarse_distance_method(method);
              const bool marching = distances == fem::CoarseDistanceMethod::marching;
              const bool traced = traced_lengths_argument(lengths, coarse, marching);
-             const app::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
-             if (!marching && correction == app::CurvatureCorrection::on)
+             const ice::proxy::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
+             if (!marching && correction == ice::proxy::CurvatureCorrection::on)
                throw py::value_error("curvature_correction=True is for method='marching'");
              const ice::FaceLengths L =
                  marching ? marching_lengths_argument(mesh, coarse, traced, correction, fem::kOracleCorrectionDivisor)

@@ -1,7 +1,9 @@
-// Uses one trivial entry point of each installed library: if this links and runs, the package
-// config, the exported targets and their transitive dependencies (Eigen, OpenMesh, CHOLMOD) work.
+// Uses one entry point of each installed library: if this links and runs, the package config, the
+// exported targets and their transitive dependencies (Eigen, OpenMesh, CHOLMOD, nlohmann-json) work.
 #include <fem/blas_info.h>
 #include <ice/mesh.h>
+#include <ice/mesh_generators.h>
+#include <ice/proxy/geodesics.h>
 
 #include <cmath>
 #include <cstdio>
@@ -21,8 +23,16 @@ int main() {
       return 1;
     }
   }
+  // The recipe floor in one call: geodesic distances on a sphere through a 5 % coarse proxy.
+  const ice::TriangleMesh sphere = ice::make_icosphere(3);
+  const Eigen::VectorXd d = ice::proxy::geodesic_distance(sphere, {0});
+  if (d(0) != 0 || !(d.maxCoeff() > 2.5 && d.maxCoeff() < 3.5)) {
+    std::fprintf(stderr, "ice::proxy::geodesic_distance: %g at the source, %g at most (expected 0 and near pi)\n", d(0),
+                 d.maxCoeff());
+    return 1;
+  }
   const std::string blas = fem::blas_library();
-  std::printf("ICE package consumer OK: face lengths 3 4 5; BLAS %s%s\n",
+  std::printf("ICE package consumer OK: face lengths 3 4 5, geodesics on a sphere; BLAS %s%s\n",
               blas.empty() ? "(none loaded)" : blas.c_str(), fem::blas_is_openblas() ? " (OpenBLAS)" : "");
   return 0;
 }

@@ -72,8 +72,9 @@ class CholeskySolver {
   /// Eigen expressions passed as b are not ambiguous.)
   Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B) const;
 
-  /// Relative pivot threshold used by factorize() (default 1e-12; singular closed-surface
-  /// Laplacians up to 655k vertices measured 1e-15..3e-14, a pivot this small means κ(A) ≳ 1e12).
+  /// Relative pivot threshold used by factorize() (default 1e-12: a pivot this small means
+  /// κ(A) ≳ 1e12, and it sits above the pivots of singular closed-surface Laplacians;
+  /// docs/measurements.md, "CHOLMOD: orderings and pivots").
   double pivot_tolerance() const { return pivot_tolerance_; }
   void set_pivot_tolerance(double tolerance) { pivot_tolerance_ = tolerance; }
 

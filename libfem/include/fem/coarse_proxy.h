@@ -52,11 +52,10 @@ enum class ProlongationKind {
   /// weights per row).
   barycentric,
   /// P smoothed by one damped Jacobi step on the fine Laplacian (smoothed_prolongation; Galerkin
-  /// operators only). The coarse space it spans holds smooth functions much better: Poisson through
-  /// ICE coarse spaces of 40 meshes (the project's, the shared set's and CGAL's demo meshes) had a
-  /// median 0.54x the error of the barycentric P at 5 % of the vertices and 0.41x at 10 % (smaller
-  /// in 160 of 160 cases, heat alike), at 3.7-4.6 weights per row instead of at most 3 (README,
-  /// Accuracy). Dirichlet problems and the coarse heat method need the
+  /// operators only). The coarse space it spans holds smooth functions much better: Poisson and heat
+  /// through ICE coarse spaces had a clearly smaller error than with the barycentric P in every
+  /// measured case, at a few more weights per row (docs/measurements.md, "Smoothed prolongation").
+  /// Dirichlet problems and the coarse heat method need the
   /// barycentric P (ProxyPoissonSolver and ProxyGeodesicSolver throw std::invalid_argument), and
   /// coarse fast marching reads the barycentric one whatever this is.
   smoothed,
@@ -64,9 +63,9 @@ enum class ProlongationKind {
 const char* to_string(ProlongationKind kind);
 
 /// The damping ω of smoothed_prolongation: 4/(3ρ) for ρ(D⁻¹L) = 2, the bound of the spectral radius
-/// when no cotan weight is negative (an intrinsic Delaunay mesh; measured ρ 1.87-1.95 by power
-/// iteration). The same error as ω from the measured ρ within 1 % (spot_subdiv, camelhead, fandisk at
-/// 1 and 5 %), and 4-25 % lower than ω from the row-sum bound where weights are negative (bs_rest).
+/// when no cotan weight is negative (an intrinsic Delaunay mesh). Chosen because it gave the same
+/// error as ω from each mesh's own spectral radius, and a lower one than ω from the row-sum bound
+/// where weights are negative (docs/measurements.md, "Smoothed prolongation").
 constexpr double kProlongationSmoothingWeight = 2.0 / 3.0;
 
 /// P − ω D⁻¹ L P, D = diag(L): one damped Jacobi step of each column of P (the smoothing of
@@ -130,10 +129,10 @@ class CoarseProxy {
   /// boundary vertices from Fc.
   /// Why lumped: the heat method's mass only enters its heat step, and with the consistent Galerkin
   /// mass Pᵀ M P (not diagonal) the heat solution oscillates where it is small, so the normalised
-  /// gradients there point the wrong way. Measured on spot (source 7 / 1500, 150 to 1,000 coarse
-  /// vertices): mean error 1.4–9.5 % and erratic in the coarse size without lumping (9.5 % at 300
-  /// vertices, 4.7 % at 1,000), 0.6–5.4 % with it, decreasing with the size. For intrinsic operators
-  /// the mass is already of mass_kind (lumped by default).
+  /// gradients there point the wrong way: without lumping the error was larger and erratic in the
+  /// coarse size, with it smaller and decreasing with the size (docs/measurements.md, "Lumped
+  /// Galerkin mass for the coarse heat method"). For intrinsic operators the mass is already of
+  /// mass_kind (lumped by default).
   HeatMethodOperators coarse_heat_method_operators(double time_factor = 1.0) const;
 
  private:
@@ -188,13 +187,12 @@ struct PolishOptions {
   int max_iterations = 1000;
   /// Stop when safety × the estimate <= tolerance (after at least
   /// MultigridOptions::error_min_iterations, 3 by default). Why: the raw estimate (mass norm of the
-  /// preconditioned residual) underestimates where the two-level cycle is weak — true/raw up to 5.8
-  /// on ICE coarse spaces and up to 665 on QEM's (blade) — so it is divided by the smallest Ritz
-  /// value of BA (MultigridSolver::set_error_norm). Measured with `ice-report --tolerances
-  /// 1e-2,1e-3,1e-6` over 40 meshes × 1, 2, 5, 10 % × Poisson and heat (960 polished solves per
-  /// coarsening method): true / estimate 0.04–1.10 on ICE coarse spaces, every tolerance met (largest
-  /// true error / tolerance 0.49). On QEM's coarse spaces the cycle is much weaker on two meshes
-  /// (blade, camel) and the estimate is fooled there (true / estimate up to 62, 10 of 1,920 missed).
+  /// preconditioned residual) underestimates where the two-level cycle is weak (on ICE coarse spaces
+  /// a little, on QEM's much more), so it is divided by the smallest Ritz value of BA
+  /// (MultigridSolver::set_error_norm), and the safety factor covers what is left: with it every
+  /// tolerance was met on ICE coarse spaces in the accuracy runs; on QEM's coarse spaces the cycle is
+  /// much weaker on a few meshes and the estimate can be fooled there (docs/measurements.md,
+  /// "Polishing: the error estimate").
   double estimate_safety = 2;
   /// The two-level cycle (smoother, sweeps, threads); its `tolerance`, `max_iterations`,
   /// `error_tolerance` and `mode` are set from the fields above (PCG).
@@ -294,32 +292,28 @@ class ProxyHeatSolver {
 
 /// Options of ProxyGeodesicSolver.
 struct ProxyGeodesicOptions {
-  /// The coarse solver (see the file comment). Marching is the default because it is the more
-  /// accurate of the two for ICE and for QEM coarse meshes alike (40 meshes × 1–10 %: geometric
-  /// mean error ratio marching/heat 0.54 for ICE, better in 138 of 160 cases; README, Accuracy)
-  /// and needs no factorisation.
+  /// The coarse solver (see the file comment). Marching is the default because it was measured the
+  /// more accurate of the two for ICE and for QEM coarse meshes alike (docs/measurements.md, "Coarse
+  /// geodesic solver: marching or heat method") and needs no factorisation.
   CoarseDistanceMethod method = CoarseDistanceMethod::marching;
   /// heat_method only: t = (time_factor · h_c)², h_c the coarse mean edge length.
   double time_factor = 1.0;
   /// marching only: the coarse mesh is split 1:4 this many times (flat midpoint subdivision, the
   /// coarse metric unchanged) before marching, and P's rows carried into the sub-triangles: the
   /// marching's planar updates then follow the coarse metric's geodesics more closely, and the
-  /// distance is interpolated over smaller pieces. Measured against exact polyhedral geodesics
-  /// (CGAL) on 40 meshes × 1, 2, 5, 10 % (README, Accuracy; traced lengths, tracked sources):
-  /// geometric-mean error 0.627 / 0.458 / 0.392 % (ICE) and 1.098 / 0.906 / 0.839 % (QEM-iDT) for
-  /// 0 / 1 / 2; at 1.6M vertices and 1 %, 89 ms per solve with 1 and 0.32 s with 2 (setup 0.46 /
-  /// 1.06 s for 1 / 2, measured before the tracking).
+  /// distance is interpolated over smaller pieces. Each subdivision lowers the error against exact
+  /// polyhedral geodesics and multiplies the marching's cost; 1 is the default as the balance of the
+  /// two (docs/measurements.md, "Marching subdivisions").
   int subdivisions = 1;
   /// marching only: march on curvature_corrected_lengths (fem/curvature_correction.h) of the coarse
   /// lengths — each edge lengthened by exp(K ℓ²/48) (fem::kProxyCorrectionDivisor) for the Gaussian
-  /// curvature K its faces flatten, gathered from the fine mesh through P. Measured against exact
-  /// polyhedral geodesics (CGAL) on 40 meshes × 1–10 % (README, Accuracy; traced lengths, 1
-  /// subdivision): ICE coarse meshes 0.579 % → 0.458 % (geometric means); QEM-iDT meshes are not
-  /// helped (0.906 % → 1.077 %: its chords' shortness already offsets the flat faces' bias), which is
-  /// why the tools apply it to ICE coarse meshes only.
+  /// curvature K its faces flatten, gathered from the fine mesh through P. It lowers the error against
+  /// exact polyhedral geodesics on ICE coarse meshes; QEM-iDT meshes are not helped (its chords'
+  /// shortness already offsets the flat faces' bias), which is why the tools apply it to ICE coarse
+  /// meshes only (docs/measurements.md, "Curvature correction").
   bool curvature_correction = true;
   /// marching only, with curvature_correction: the divisor d of exp(K ℓ²/d) (see
-  /// fem::kProxyCorrectionDivisor for how it was measured). Precondition: d > 0.
+  /// fem::kProxyCorrectionDivisor for how it was chosen). Precondition: d > 0.
   double curvature_divisor = kProxyCorrectionDivisor;
 };
 
@@ -340,8 +334,8 @@ class ProxyGeodesicSolver {
   explicit ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGeodesicOptions& options = {});
   /// Marching without a CoarseProxy: it needs only the coarse mesh and P (n_fine × n_coarse, rows of
   /// non-negative weights summing to 1), not the fine or coarse operators a CoarseProxy assembles
-  /// (3.6 of the 14 s of a 1 % proxy at 1.6M vertices). Throws std::invalid_argument on a bad coarse
-  /// mesh or P.
+  /// (a sizeable part of a proxy's setup on large meshes; docs/measurements.md, "Coarse geodesic
+  /// solver: marching or heat method"). Throws std::invalid_argument on a bad coarse mesh or P.
   ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P,
                       int subdivisions = ProxyGeodesicOptions{}.subdivisions);
   /// The heat method with coarse operators assembled by the caller (to time assembly and

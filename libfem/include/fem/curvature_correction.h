@@ -10,13 +10,10 @@
 /// are then biased, and no finer marching removes that. Lengthening each edge by exp(K s²/24), K the
 /// curvature density around the edge, makes the flat medians match to second order.
 ///
-/// Measured (README, Accuracy; 40 meshes × 1, 2, 5, 10 % of the vertices × 3 sources, mean error
-/// against exact polyhedral geodesics, coarse fast marching, geometric means): ICE coarse meshes with
-/// their intrinsic lengths 1.08 % → 0.77 % (better on 36 of 40 at 5 %), with traced lengths and 2
-/// subdivisions 0.71 % → 0.52 %. QEM's coarse meshes are not helped (1.14× at 5 %): their chords,
-/// short on curved parts, already offset the bias. Since the proxy's marching tracks virtual sources
-/// (see kProxyCorrectionDivisor), measured again with traced lengths and 1 subdivision: ICE 0.579 %
-/// uncorrected, 0.458 % corrected; QEM-iDT 0.906 % uncorrected, 1.077 % corrected (still not helped).
+/// Against exact polyhedral geodesics (coarse fast marching) the correction lowers the error of ICE
+/// coarse meshes, with their intrinsic lengths and with traced lengths alike. QEM's coarse meshes are
+/// not helped: their chords, short on curved parts, already offset the bias (docs/measurements.md,
+/// "Curvature correction").
 #include "fem/geometry.h"
 #include "fem/operators.h"
 
@@ -29,13 +26,10 @@ Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index
 
 /// How strongly the lengths are corrected: each edge scaled by exp(K ℓ² / divisor). The expansion
 /// for medians of constant curvature gives 24; the marching that reads the lengths has its own
-/// bias, which the best divisor offsets, so each marching has its measured one (40 meshes × 1, 2, 5,
-/// 10 % × 3 sources against exact polyhedral geodesics, ICE coarse meshes with traced lengths and 1
-/// subdivision, geometric-mean error): the geodesic proxy's single-source marching, which tracks
-/// virtual sources and is nearly exact on the coarse metric, 0.503 % at 24, 0.458 % at 48, 0.462 % at
-/// 64, 0.470 % at 96 (ICE less accurate than QEM-iDT in 35, 29, 27, 31 of 160 cases); the distance
-/// oracle's plain all-pairs marching, biased long, is best at 24 (`oracle-accuracy --coarse 200` on
-/// spot, bear, holes, camel, elephant-with-holes, homer: 48 is 1–18 % worse on each).
+/// bias, which the best divisor offsets, so each marching has the divisor measured best for it
+/// against exact polyhedral geodesics (docs/measurements.md, "Curvature correction divisor"): 48
+/// for the geodesic proxy's single-source marching, which tracks virtual sources and is nearly
+/// exact on the coarse metric; 24 for the distance oracle's plain all-pairs marching, biased long.
 inline constexpr double kProxyCorrectionDivisor = 48;
 inline constexpr double kOracleCorrectionDivisor = 24;
 
@@ -43,12 +37,11 @@ inline constexpr double kOracleCorrectionDivisor = 24;
 /// A_w), where κ = Pᵀ (fine angle defects) and A = Pᵀ (fine vertex areas, a third of each face's)
 /// gather the fine curvature and area onto the coarse vertices through P. The curvature of fine
 /// vertices that are coarse vertices counts too (so even P = I changes the lengths): leaving it out, as
-/// the cone angles already hold it, was measured worse (40 meshes × 1–10 % against exact geodesics,
-/// intrinsic lengths: 0.82 % against 0.77 %; traced lengths alike). The expansion is of second order in
-/// Kℓ²; on inputs of a few vertices coarsened to 3 (CGAL's beam, pyramid, tetrahedron: 8, 5, 4
-/// vertices) each face spans too much curvature for it and the distances get worse (beam: 5 % → 99 %
-/// mean error; turn it off there), while large corrections on real meshes help (cheese, genus 133: most
-/// edges change by more than 10 %, its oracle error against exact geodesics 9.9 % → 3.7 %). An edge
+/// the cone angles already hold it, was measured worse (docs/measurements.md, "Curvature
+/// correction"). The expansion is of second order in Kℓ²; on inputs of a few vertices coarsened to 3
+/// (CGAL's beam, pyramid, tetrahedron) each face spans too much curvature for it and the distances
+/// get much worse (turn it off there), while large corrections on real meshes of high genus help
+/// (same section). An edge
 /// keeps one length on both its sides (sides are taken as one edge when they join the same vertices
 /// with the same length, as the marching takes them); where the scaled lengths break a face's triangle
 /// inequality, that face's edges keep their lengths (and so do their other sides), until every face is

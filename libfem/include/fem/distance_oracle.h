@@ -28,11 +28,9 @@
 ///    a vertex's value through a face is the distance from the virtual source consistent with its
 ///    two accepted corners (the two-circle construction in the flattened face), when the straight
 ///    line from it crosses the opposite edge; otherwise along an edge. In a flat-cone metric that is
-///    exact wherever one source image reaches the edge. Measured on spot_subdiv (24,755 vertices,
-///    1,000 coarse): coarse-vertex distances 0.75 % from fine heat-method distances between the
-///    same vertices (the heat method on the coarse mesh: 2.4 %; on its 1:4 and 1:16 flat
-///    subdivisions 1.4 % and 0.8 %: the coarse metric itself is that accurate); fine pairs 0.87 %
-///    (heat-method D: 2.3 %).
+///    exact wherever one source image reaches the edge. Nearer the fine heat-method distances than
+///    the heat method on the coarse mesh, for coarse vertices and fine pairs alike
+///    (docs/measurements.md, "Distance oracle").
 ///  - heat_method: the heat method on the coarse mesh (cotan operators from its lengths), all
 ///    sources in blocks of multi-right-hand-side solves (HeatGeodesicSolver::distances_from_each).
 ///
@@ -57,8 +55,8 @@ enum class CoarseDistanceMethod { marching, heat_method };
 const char* to_string(CoarseDistanceMethod method);
 
 /// Most 1:4 subdivisions of the coarse mesh the marching takes (DistanceOracleOptions, and
-/// fem::ProxyGeodesicOptions): each multiplies the faces by 4 for a shrinking gain (the gap to the
-/// 1:256 subdivision on a coarse icosphere: 2.6, 0.31, 0.14 % of the largest distance for 0, 1, 2).
+/// fem::ProxyGeodesicOptions): each multiplies the faces by 4 for a shrinking gain
+/// (docs/measurements.md, "Marching subdivisions").
 constexpr int kMaxMarchingSubdivisions = 4;
 
 struct DistanceOracleOptions {
@@ -69,10 +67,9 @@ struct DistanceOracleOptions {
   /// Threads of the precompute and of the many-query calls (0: OpenMP's default, all cores).
   int threads = 0;
   /// marching only: the coarse mesh split 1:4 this many times for the marching between coarse
-  /// vertices (as fem::ProxyGeodesicOptions::subdivisions; the queries are unchanged). Measured
-  /// (`oracle-accuracy --sources 4 --subdivisions S`, 11 meshes, 1,000 coarse vertices or n/5):
-  /// mean error against exact geodesics smaller with 1 on all 11 (spot 1.25 → 1.10 %, bob_tri 1.05 →
-  /// 0.85 %, bull 2.33 → 2.22 %); the coarse pairs on spot_subdiv took 0.10 / 0.29 / 2.1 s for 0 / 1 / 2.
+  /// vertices (as fem::ProxyGeodesicOptions::subdivisions; the queries are unchanged). The default 1
+  /// was more accurate than 0 against exact geodesics on every mesh measured, at a moderate cost in
+  /// precompute time (docs/measurements.md, "Marching subdivisions").
   int subdivisions = 1;
 };
 

@@ -27,7 +27,7 @@
 /// Mode `vcycle` iterates V-cycles (stationary); mode `pcg` runs conjugate gradients preconditioned
 /// by one V-cycle per iteration (the default and the faster one).
 ///
-/// Convergence is measured by the relative residual ‖b_F − A_FF x_F‖₂ / ‖b_F − A_FC x_C‖₂ (so a
+/// Convergence is judged by the relative residual ‖b_F − A_FF x_F‖₂ / ‖b_F − A_FC x_C‖₂ (so a
 /// zero initial guess starts at 1). In PCG mode the recorded residuals are those of the CG
 /// recurrence; the final relative_residual is recomputed from the returned x.
 #include <memory>
@@ -63,14 +63,15 @@ struct MultigridOptions {
   /// OMP_NUM_THREADS or all cores; 1: serial), and of the Gauss–Seidel sweeps when `reorder` is on:
   /// the rows are split into one contiguous range per thread, each swept exactly, the ranges
   /// coupled through the values at the start of the sweep (hybrid Gauss–Seidel; deterministic for a
-  /// given thread count, a slightly different smoother: iteration counts within ±1 measured).
+  /// given thread count, a slightly different smoother: iteration counts nearly unchanged;
+  /// docs/measurements.md, "Multigrid solver").
   /// Otherwise only the order of the CG dot products' sums depends on it (round-off).
   int threads = 0;
   /// Number the free unknowns by reverse Cuthill–McKee (fem/ordering.h) and each coarse level in
   /// the order of the fine unknowns it prolongs to. Neighbouring unknowns then sit close in memory
-  /// (1.66M unknowns in a Loop-subdivided mesh's order: solve_multiple on 10 right-hand sides took
-  /// 13.6 s before, 5.6 s after, serial sweeps both), and contiguous index ranges are compact regions, so the threaded
-  /// Gauss–Seidel's split cuts few couplings. Internal only: inputs and results keep the caller's
+  /// (much faster solves on meshes in a scattered order; docs/measurements.md, "Multigrid solver"),
+  /// and contiguous index ranges are compact regions, so the threaded Gauss–Seidel's split cuts few
+  /// couplings. Internal only: inputs and results keep the caller's
   /// order. Applies at the next setup().
   bool reorder = true;
   /// Gauss–Seidel sweeps and the V-cycle's residuals read the level operators' values rounded to
@@ -84,9 +85,9 @@ struct MultigridOptions {
   /// this; 0: the estimates, if an error norm is set, are only recorded. Either criterion stops.
   double error_tolerance = 0;
   /// In PCG mode the error criterion applies from this iteration on: the estimate's Lanczos
-  /// correction (set_error_norm) needs a few iterations to find the cycle's weakest eigenvalue.
-  /// Measured true/estimate on ICE coarse spaces (7 meshes, Poisson): up to 3.4 after 1
-  /// iteration, 2.0 after 2, at most 1.03 from 3 on.
+  /// correction (set_error_norm) needs a few iterations to find the cycle's weakest eigenvalue; the
+  /// default is where the estimate became reliable (docs/measurements.md, "Polishing: the error
+  /// estimate").
   int error_min_iterations = 3;
 };
 
@@ -132,8 +133,8 @@ class MultigridSolver {
 
   /// With options().reorder: number the fine unknowns by `order` (order[new] = old, a permutation
   /// of 0..n_0−1, checked by setup()) instead of by reverse Cuthill–McKee on A's graph, e.g.
-  /// ice::Hierarchy::fine_order, the same kind of order of the same mesh (0.19 s saved at 1.66M
-  /// unknowns). Empty: RCM again. Applies at the next setup().
+  /// ice::Hierarchy::fine_order, the same kind of order of the same mesh (saves the ordering's time;
+  /// docs/measurements.md, "Multigrid solver"). Empty: RCM again. Applies at the next setup().
   void set_locality_order(std::vector<Index> order) { locality_order_ = std::move(order); }
 
   /// Replaces the matrix by one with the same sparsity pattern and the same constrained set (e.g.
@@ -164,12 +165,12 @@ class MultigridSolver {
   /// computes anyway; an extra V-cycle per iteration in `vcycle` mode) and ‖v‖_w² = Σ w_i v_i² over
   /// all n_0 unknowns (constrained ones have no error). With `remove_weighted_mean`, both vectors
   /// lose their w-weighted mean first: for problems posed up to a constant (zero-mean Poisson with
-  /// one pinned unknown), whose error is measured after re-centring.
+  /// one pinned unknown), whose error counts after re-centring.
   /// Why it estimates the error: B r = B A (x* − x), so B r − (x* − x) = −(I − BA)(x* − x), and
   /// ‖I − BA‖_A is the V-cycle's convergence factor ρ: in the energy norm the estimate lies within
-  /// [1 − ρ, 1 + ρ] times the true error. In the w-norm no such bound holds in general; the
-  /// callers state measured ratios (fem/coarse_proxy.h). In PCG mode the estimate is divided by the
-  /// smallest eigenvalue of BA seen so far (the smallest Ritz value of CG's Lanczos tridiagonal): a
+  /// [1 − ρ, 1 + ρ] times the true error. In the w-norm no such bound holds in general (the ratios
+  /// observed are in docs/measurements.md, "Polishing: the error estimate"). In PCG mode the
+  /// estimate is divided by the smallest eigenvalue of BA seen so far (the smallest Ritz value of CG's Lanczos tridiagonal): a
   /// component of the error along an eigenvector with eigenvalue μ appears in Br shrunk by μ. The
   /// criterion `error_tolerance` then applies from iteration `error_min_iterations` on, and the reported
   /// history is rescaled with the final factor. Weights must be >= 0 and of size n_0.

@@ -77,8 +77,9 @@ struct PoissonMultigrid {
 class PoissonSolver {
  public:
   /// Without `multigrid`, CHOLMOD (exact) with the fill-reducing `ordering` (CHOLMOD's default
-  /// strategy, or one the caller measured to be faster: at 1.6M vertices AMD alone analyses and
-  /// factors ~30 % faster, see fem/cholesky.h); with it, Galerkin multigrid (see PoissonMultigrid).
+  /// strategy, or one the caller found faster: on large meshes AMD alone can analyse and factor
+  /// faster, see docs/measurements.md, "CHOLMOD: orderings and pivots"); with it, Galerkin multigrid
+  /// (see PoissonMultigrid).
   static PoissonSolver dirichlet(const SparseMatrix& laplacian, const SparseMatrix& mass,
                                  std::vector<Index> dirichlet_vertices, std::optional<PoissonMultigrid> multigrid = {},
                                  CholeskyOrdering ordering = CholeskyOrdering::automatic);

@@ -3,7 +3,7 @@
 /// Tangent vector fields on an intrinsic triangulation, and through a coarse proxy of it.
 ///
 /// Tangent spaces. Every vertex v has a frame in which a tangent vector is one complex number. Angles
-/// are measured counter-clockwise from v's *reference side* (at an interior vertex its lowest-numbered
+/// run counter-clockwise from v's *reference side* (at an interior vertex its lowest-numbered
 /// corner's outgoing side, 3f + k; at a boundary vertex the boundary side it starts along) and, at an
 /// interior vertex, scaled by 2π/Θ_v (Θ_v its angle sum), so that the full circle of directions around
 /// a cone point is the full circle of complex phases (the convention of libice's angular coordinates).
@@ -104,9 +104,9 @@ VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const Ta
 /// t = (time_factor·h)² with h `mesh`'s mean edge length (so that only the discretisation changes).
 /// Why: where an input triangle has an angle over 90° opposite an edge whose cotan weight is then
 /// negative, the heat method's short-time solutions lose the maximum principle, and far from the
-/// sources the vector heat method's directions can be anything (camel from CGAL's data, 12 % of
-/// its edges not Delaunay: 133° median from exact parallel transport on the input triangles, 7.4° on
-/// its intrinsic Delaunay triangulation; README, Tangent vector fields). Throws
+/// sources the vector heat method's directions can be anything; on the intrinsic Delaunay
+/// triangulation they follow parallel transport again (docs/measurements.md, "Vector heat method on
+/// the intrinsic Delaunay triangulation"). Throws
 /// std::invalid_argument when `delaunay` has another vertex count or a vertex no face uses.
 VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames,
                                           const ice::CompactMesh& delaunay, double time_factor = 1.0);
@@ -130,11 +130,11 @@ struct VectorHeatParts {
 /// their mean weighted by the diffused indicator; with one magnitude it is that magnitude exactly).
 /// Zero where Y or φ vanishes (a component no source reaches). Y is normalised before it is scaled:
 /// far from the sources on a large mesh the direct solve's Y is subnormal, where |u/φ|/|Y| overflowed
-/// (spot Loop ×3, 1,584,194 vertices: 7,639 infinite vectors), and it keeps what precision is left
-/// instead (tested); a Y that is not finite gives zero. The clamp matters where cotan
-/// weights are negative (a non-Delaunay mesh, such as the input triangles): there u and φ can both
-/// turn negative far from the sources (on lion-head 52 of 8,356 vertices, bs_rest 1,122 of 19,985,
-/// camelhead 107 of 11,381 with one source), where requiring φ > 0 would leave zero vectors.
+/// (infinite vectors), and it keeps what precision is left instead (tested); a Y that is not finite
+/// gives zero. The clamp matters where cotan weights are negative (a non-Delaunay mesh, such as the
+/// input triangles): there u and φ can both turn negative far from the sources, where requiring
+/// φ > 0 would leave zero vectors (observed cases: docs/measurements.md, "Vector heat field: underflow
+/// and negative kernels").
 Eigen::VectorXcd vector_heat_field(const VectorHeatParts& parts, double min_magnitude, double max_magnitude);
 
 /// The vector heat method (Sharp, Soliman, Crane 2019): diffuse the vectors for time t with the
@@ -201,12 +201,11 @@ enum class VectorOperatorKind {
   galerkin,   ///< P_vecᴴ L∇ P_vec, Pᵀ L P and the lumped Galerkin mass diag(Pᵀ M 1), from the fine operators
 };
 
-/// The coarse proxy's default time factor: t = (0.5·h_c)². Measured (27 shared meshes at 5 %, three
-/// sources each, median angle error against the fine solution at t = h²): a median over meshes of
-/// 6.8° at factor 1, 4.3° at 0.5 and 4.6° at 0.25 with Galerkin operators (8.5°, 5.4°, 5.5° with
-/// intrinsic ones). A larger t biases the field (transport averaged over more paths: the fine method
-/// itself moves by 5–9° from t = h² to t = h_c²); a smaller one resolves diffusion on the coarse
-/// faces worse.
+/// The coarse proxy's default time factor: t = (0.5·h_c)², the factor measured most accurate against
+/// the fine solution at t = h², with Galerkin and intrinsic operators alike (docs/measurements.md,
+/// "Vector proxy time factor"). A larger t biases the field (transport averaged over more paths: the
+/// fine method itself moves noticeably from t = h² to t = h_c²); a smaller one resolves diffusion on
+/// the coarse faces worse.
 inline constexpr double kVectorProxyTimeFactor = 0.5;
 
 /// The vector heat method through a coarse proxy: the sources are restricted (Y₀ by P_vecᴴ, u₀ and
@@ -245,21 +244,17 @@ class VectorHeatProxy {
 struct DistanceSweepOptions {
   /// Gauss–Seidel passes after the first stop when no vertex's value moves by more than this
   /// relative to the size of the terms its row sums (not to the value, which cancels where vectors
-  /// from two sides meet), or after max_passes. Measured (README, Tangent vector fields; through the
-  /// coarse marching distance at 5 %, median over meshes of the median angle error against the fine
-  /// method) after 0 / 5 / 10 / 20 / 50 / 100 passes alone: 27 shared and project meshes 4.20 / 2.52 / 1.86 /
-  /// 0.85 / 0.14 / 0.00°, 24 CGAL meshes 6.16 / 3.00 / 1.93 / 1.06 / 0.07 / 0.00°. A pass costs ~0.13 s
-  /// at 1.6M vertices (one visit of L∇'s nonzeros; L's too with sources of several magnitudes).
+  /// from two sides meet), or after max_passes. The angle error against the fine method falls with
+  /// the passes (docs/measurements.md, "Distance sweep: passes and coarse correction"); a pass is one
+  /// visit of L∇'s nonzeros (L's too with sources of several magnitudes).
   double tolerance = 1e-3;
   int max_passes = 50;
   /// With a coarse space (VectorSweepProxy: the marching's P), a Galerkin coarse-grid correction of
-  /// relative errors before every this many passes (0: none). Measured at 5 % (README, Tangent
-  /// vector fields; every pass / every second / none): the dragon_vrip_bin scan 0.10° / 0.14° /
-  /// 12.75° after 50 passes (source 0), CGAL's cheese 1.70° / 2.29° / 22.1° (median of three
-  /// sources); 25 shared and project meshes and 24 CGAL meshes all within 0.01° but cheese (none:
-  /// up to 1.97° and 22.1°). Cost per solve against none, geometric mean over those meshes' 147
-  /// solves: 2.0× / 1.6× (a correction is a visit of the rows and one coarse solve; its matrix is
-  /// factorised once per call), so every second pass.
+  /// relative errors before every this many passes (0: none). A correction before every pass or
+  /// every second pass removes the errors the passes alone leave on hard meshes; every second pass
+  /// is nearly as accurate for less time, hence the default (a correction is a visit of the rows and
+  /// one coarse solve; its matrix is factorised once per call). Docs/measurements.md, "Distance
+  /// sweep: passes and coarse correction".
   int coarse_correction_interval = 2;
 };
 /// What a sweep did.
@@ -281,29 +276,27 @@ using SweepCoarseSpace = Eigen::SparseMatrix<double, Eigen::RowMajor, Index>;
 /// - each value is kept as exp(−e_i) times a value of order one, e_i the log of the kernel's decay,
 ///   found by the first pass (each vertex from its nearer neighbours, through the scalar kernel φ,
 ///   which unlike Y does not cancel): the far field stays in floating range where the direct
-///   solve's underflows (spot Loop ×3, 1,584,194 vertices: 7,639 subnormal vectors from
-///   VectorHeatSolver; a flat strip 1,500 edges long: 1,254 of its 3,002 vertices get none, tested);
+///   solve's underflows (tested on a long flat strip; docs/measurements.md, "Vector heat field:
+///   underflow and negative kernels");
 /// - the first pass counts each neighbour farther away (not reached yet) as the vertex itself times
 ///   the decay exp(−(d_j − d_i)/√t) the distance predicts (Varadhan: the backward-Euler kernel
 ///   decays as exp(−d/√t)), so that it starts near the solution instead of losing a factor at every
 ///   step away from the sources.
 /// Alone, the passes converge slowly where a relative error spread over a region satisfies the rows
-/// there (CGAL's cheese 22° at 50 passes, the dragon_vrip_bin scan 9.1°; over-relaxation diverged
-/// at ω = 1.5 on two shared meshes); given `coarse_space` (n × n_c, rows of barycentric weights:
-/// VectorSweepProxy passes the marching's P), a Galerkin coarse-grid correction of such relative
-/// errors before every options.coarse_correction_interval-th pass removes them (at the default,
-/// every second pass: 2.29° and 0.065°, README). Rows whose scale is more than e^600 below the sources' are left to the passes (their
-/// residuals would underflow). Throws std::invalid_argument for a coarse space of the wrong size.
+/// there (over-relaxation diverged on some meshes); given `coarse_space` (n × n_c, rows of
+/// barycentric weights: VectorSweepProxy passes the marching's P), a Galerkin coarse-grid correction
+/// of such relative errors before every options.coarse_correction_interval-th pass removes them
+/// (docs/measurements.md, "Distance sweep: passes and coarse correction"). Rows whose scale is more
+/// than e^600 below the sources' are left to the passes (their residuals would underflow). Throws
+/// std::invalid_argument for a coarse space of the wrong size.
 /// `operators` gives M (lumped), L, L∇ and t; `distance` is per vertex to the nearest source (+∞ or
 /// NaN: not reached, the field is zero there; each source's must be finite). One magnitude and
 /// direction per source as VectorHeatSolver::interpolate (a vertex given twice: its vectors add).
 /// Throws std::invalid_argument on sizes, sources out of range or unreached (as vector_sources), a
 /// non-positive diagonal of M + tL∇ or M + tL.
-/// Measured (README, Tangent vector fields), through the coarse proxy's marching distance at 5 %,
-/// median over meshes of the median angle error against the fine method, against coarse diffusion
-/// (VectorHeatProxy), with the coarse corrections every second pass: 25 shared and project meshes
-/// 0.000° (4.48° over 27), all within 5° (the passes alone: 0.161°); the 24 CGAL meshes of the accuracy
-/// protocol 0.000° (8.87°), 24 within 5° (6; the passes alone 22).
+/// Through the coarse proxy's marching distance, with the coarse corrections, it was measured nearer
+/// the fine method than coarse diffusion (VectorHeatProxy) and than the passes alone
+/// (docs/measurements.md, "Distance sweep: passes and coarse correction").
 Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators, const Eigen::VectorXd& distance,
                                             const std::vector<Index>& vertices, const std::vector<Complex>& vectors,
                                             const DistanceSweepOptions& options = {}, DistanceSweepStats* stats = nullptr,

@@ -42,30 +42,25 @@ enum class QemGeometry {
 const char* to_string(CoarseningMethod method);
 const char* to_string(QemGeometry geometry);
 
-/// What a coarse space will serve; picks the ICE metric's measured defaults.
+/// What a coarse space will serve; picks the ICE metric's defaults for it (recommended_coarsen_options).
 enum class ProxyUse { poisson_heat, geodesic };
 const char* to_string(ProxyUse use);
 
 /// CoarsenOptions (defaults everywhere) with the ICE metric settings — area_weight,
-/// normalize_curvature — measured most accurate for `use`, as a PDE proxy with Galerkin coarse
-/// operators (the tools' default), against QEM with intrinsic Delaunay operators (the strongest
-/// baseline: better than QEM with extrinsic or Galerkin operators). Measured with ice-report over
-/// 40 meshes (its 16 default meshes and 24 of CGAL's demo meshes) × 1, 2, 5, 10 % × Poisson, heat,
-/// heat-method geodesics, for area weights 0–1 with and without normalisation (README, "Accuracy"):
-///  - poisson_heat: area weight 0.5 of normalised masses. Geometric-mean error ratio ICE/QEM 0.51
-///    (Poisson) and 0.46 (heat), median at 5 % 0.57 and 0.50, ICE worse in 14 % and 11 % of cases;
-///    normalisation makes the weight mean the same on every mesh (Σ|K| ranges 0.7–195 × 4π).
+/// normalize_curvature — that were the most accurate for `use` in the accuracy runs of ice-report,
+/// as a PDE proxy with Galerkin coarse operators (the tools' default), against QEM with intrinsic
+/// Delaunay operators (the strongest baseline: better than QEM with extrinsic or Galerkin
+/// operators), over area weights from 0 to 1 with and without normalisation (docs/measurements.md,
+/// "ICE metric defaults"):
+///  - poisson_heat: area weight 0.5 of normalised masses. Normalisation makes the weight mean the
+///    same on every mesh (the total absolute curvature varies widely between meshes).
 ///  - geodesic: area weight 0.9, curvature not normalised (geodesics want more curvature than
-///    Poisson: with normalisation the best weight sits at 0.1 and still loses, 6 % in the geometric
-///    mean). Measured with the geodesic pipeline of the tools (coarse fast marching on traced,
-///    curvature-corrected lengths, tracked sources, 1 subdivision; 2026-11-29) against exact
-///    polyhedral geodesics, ICE geometric-mean error for weights 0.7 / 0.8 / 0.9 / 0.95 / 0.98 /
-///    0.99: 0.397 / 0.402 / 0.389 / 0.400 / 0.407 / 0.420 %, cases less accurate than QEM-iDT 25 /
-///    24 / 22 / 25 / 26 / 33 of 160; 0.9 is the best on the 16 default meshes and on the 24 CGAL
-///    ones alike (0.335 against 0.355 %, 0.429 against 0.446 % at 0.98). (With the coarse heat
-///    method and the marching of before, 0.98 had been: ratio 0.88, median at 5 % 0.90.)
+///    Poisson: with normalisation the best weight is small and still loses to QEM). Chosen with
+///    the geodesic pipeline of the tools (coarse fast marching on traced, curvature-corrected
+///    lengths, tracked sources, 1 subdivision) against exact polyhedral geodesics; 0.9 was the best
+///    weight on the default meshes and on CGAL's alike.
 /// Curvature only (area weight 0, the ICE paper's metric and CoarsenOptions' own default) was never
-/// best: 0.80 / 0.83 / 1.00 for the three problems with intrinsic operators.
+/// best for any of the three problems (same section).
 CoarsenOptions recommended_coarsen_options(ProxyUse use = ProxyUse::poisson_heat);
 
 struct CoarseSpaceOptions {
@@ -73,7 +68,7 @@ struct CoarseSpaceOptions {
   /// Target (target_vertices / target_ratio), max_error, area_weight, locked_vertices, remove_boundary,
   /// threads and progress of ICE. QEM uses the target, locked_vertices and remove_boundary; it has no
   /// error bound of ICE's kind (a finite max_error with QEM throws std::invalid_argument).
-  /// Defaults: recommended_coarsen_options() (the measured metric for Poisson and heat).
+  /// Defaults: recommended_coarsen_options() (the metric chosen for Poisson and heat).
   CoarsenOptions coarsen = recommended_coarsen_options();
   /// With QEM only.
   QemGeometry qem_geometry = QemGeometry::extrinsic;
@@ -83,13 +78,14 @@ struct CoarseSpaceOptions {
   bool keep_method_state = false;
   /// ICE with keep_method_state: the triangulation also records its history of local operations
   /// (IntrinsicTriangulation::record_history), so that trace_coarse_mesh draws every coarse edge
-  /// exactly (ice/coarse_tracing.h). Costs memory in proportion to the removals (measured there).
+  /// exactly (ice/coarse_tracing.h). Costs memory in proportion to the removals
+  /// (docs/measurements.md, "Coarse tracing: the exact pull-back").
   bool record_history = false;
   /// ICE: coarsen in a copy of the mesh renumbered for memory locality (vertices in the Z-order of
   /// their positions, faces by their first vertex) and give the result back in the mesh's
   /// numbering. Same method, other tie-breaks and thread regions, so not bit-identical to a run
-  /// without it; at 1.58M vertices (Loop-subdivided spot) the triangulation builds about 2x faster
-  /// and coarsening runs ~15 % faster. Off: the coarsener works in the input's numbering.
+  /// without it; on large meshes the triangulation builds and the coarsening runs markedly faster
+  /// (docs/measurements.md, "Locality numbering"). Off: the coarsener works in the input's numbering.
   bool locality_numbering = true;
   /// ICE only: intrinsic Delaunay refinement of the coarse mesh after coarsening (ice/refinement.h),
   /// inserted vertices becoming coarse vertices of their own (P gains their columns; their places on
@@ -135,8 +131,8 @@ struct CoarseSpace {
   /// Where each inserted vertex lies on the input surface (a face of the input mesh and barycentric
   /// coordinates), in the order of those last coarse vertices. Empty without refinement. With
   /// record_history, each pulled back through the history (exact); else located by laying out the
-  /// input triangles around it by the map (ice::locate_inserted_vertices: ~1e-2 off in coordinates
-  /// on spot at 5 %, where the map bends input triangles).
+  /// input triangles around it by the map (ice::locate_inserted_vertices: approximate where the map
+  /// bends input triangles; docs/measurements.md, "Locating inserted vertices without the history").
   std::vector<InputSurfacePoint> inserted;
   Eigen::SparseMatrix<double> P;   ///< fine (input) vertices × coarse vertices
   CoarseSpaceSummary summary;
@@ -184,7 +180,7 @@ const char* to_string(FineGeometry geometry);
 struct FineMesh {
   /// In the input's vertex numbering. With FineGeometry::input the input's faces; with
   /// intrinsic_delaunay faces in an order of their own (the triangulation is built and flipped in
-  /// the locality numbering of build_coarse_space, about 2x faster at 1.6M vertices).
+  /// the locality numbering of build_coarse_space, for speed: docs/measurements.md, "Locality numbering").
   Faces F;
   FaceLengths L;
   /// With intrinsic_delaunay, how the faces' sides are glued (CompactMesh::twin): flips can join two

@@ -16,13 +16,11 @@
 /// straight segments piece by piece (ice/triangulation_history.h), so each coarse edge is pulled back
 /// through the recorded operations, last first, onto the input faces: the preimage of the edge under
 /// the fine-to-coarse map itself. Each input face is labelled by pushing its barycentre forward the
-/// same way. Measured (2026-11-28, `ice-coarsen MESH --ratio R --repair --trace`, the project's and
-/// the shared meshes at 5 % and 1 %): every edge traced, none crossing another (tests: the shared
-/// meshes and the project's, Δ-complex and refined coarse meshes; 142 CGAL demo meshes at 5 %).
-/// Cost: the history holds ~1 KB per removal while the coarse space lives, and the pull-back is
-/// serial (beside the push-forward on a second thread): at 1,584,194 vertices to 1 % on 2 threads,
-/// peak memory 2.1 GiB against 0.74 GiB without the history, coarsening as fast, tracing 7.1 s
-/// (the walk: 2.6 s).
+/// same way. Every edge is traced and none crosses another on the project's and the shared meshes
+/// (tests: the shared meshes and the project's, Δ-complex and refined coarse meshes; the runs are in
+/// docs/measurements.md, "Coarse tracing: the exact pull-back"). Cost: the history's memory grows
+/// with the removals and is held while the coarse space lives, and the pull-back is serial (beside
+/// the push-forward on a second thread); its memory and time against the walk are in the same section.
 ///
 /// **A walk over the map** (trace_coarse_mesh(F, coarse, map, ...), and the space overload without
 /// a history): the fine-to-coarse map places every input vertex in a coarse face, so every input
@@ -35,12 +33,11 @@
 /// the image whose shape is nearest the input triangle's). A boundary edge is the input's boundary
 /// chain between its ends. Limits: ICE's map is piecewise affine on the triangulations the
 /// coarsening went through, not on input triangles, so an input triangle large against the coarse
-/// faces is bent by it and its straight image can fold; the walk then fails (reported, never drawn):
-/// 1,529 of 152,932 edges (1.0 %) of the project's and the shared meshes at 5 % and 1 % (boxpart 67
-/// of 111 at 5 %, elephant-with-holes 98 of 877, dragon_vrip_bin 219 of 64,506). Where the metric is
-/// the input's (an intrinsic Delaunay retriangulation of it, or ICE on a flat mesh) the walk's
-/// polylines have the intrinsic lengths to round-off, with rare exceptions on CAD slivers (199 of
-/// 820,179 iDT edges of the shared meshes longer by > 1e-9).
+/// faces is bent by it and its straight image can fold; the walk then fails on such edges (reported,
+/// never drawn): a small share overall, more on meshes whose triangles are large against the coarse
+/// faces (docs/measurements.md, "Coarse tracing: the walk"). Where the metric is the input's (an
+/// intrinsic Delaunay retriangulation of it, or ICE on a flat mesh) the walk's polylines have the
+/// intrinsic lengths to round-off, with rare exceptions on CAD slivers (same section).
 ///
 /// Properties (tests/test_coarse_tracing.cpp): a traced edge runs from its tail to its head through
 /// segments inside single input faces that join end to end, its positions along the edge increase
@@ -122,8 +119,8 @@ CoarseTracing trace_coarse_mesh(const Faces& F, const CompactMesh& coarse, const
 
 /// An ICE coarse space traced on its input `mesh`: exactly, pulled back through the triangulation's
 /// history, when the space was built with record_history; else trace_coarse_mesh of mesh.F,
-/// space.mesh, its fine-to-coarse map, its inserted points and mesh.V (the walk). Length ratios
-/// measured either way. Precondition (std::invalid_argument): the space was built with
+/// space.mesh, its fine-to-coarse map, its inserted points and mesh.V (the walk). The length
+/// ratios are set either way. Precondition (std::invalid_argument): the space was built with
 /// keep_method_state by ICE (a QEM mesh is extrinsic: its edges are straight segments between its
 /// positions, nothing to trace).
 CoarseTracing trace_coarse_mesh(const TriangleMesh& mesh, const CoarseSpace& space, int threads = 0);
@@ -150,7 +147,7 @@ enum class TracedLengthMeasure {
                       ///< strip holds one
 };
 
-/// The coarse mesh's edge lengths measured on the input surface: each traced edge's length by
+/// The coarse mesh's edge lengths on the input surface: each traced edge's length by
 /// `measure` (on both sides of the edge), where ICE's flattening has changed the metric. An
 /// edge that was not traced keeps its intrinsic length, and so do the three edges of a face whose
 /// traced lengths break the triangle inequality (and their other sides), so the result is a valid
@@ -159,7 +156,7 @@ enum class TracedLengthMeasure {
 FaceLengths traced_edge_lengths(const Positions& V, const Faces& F, const CompactMesh& coarse, const CoarseTracing& tracing,
                                 TracedLengthMeasure measure = TracedLengthMeasure::shortest_in_strip);
 
-/// What surface_edge_lengths measured: the lengths, and how many edges the walk traced.
+/// What surface_edge_lengths returns: the lengths, and how many edges the walk traced.
 struct SurfaceEdgeLengths {
   FaceLengths lengths;          ///< per coarse face side, as CompactMesh::L
   Index edges = 0, traced = 0;  ///< coarse edges, and those traced (the rest keep their intrinsic lengths)
@@ -168,20 +165,12 @@ struct SurfaceEdgeLengths {
 /// The coarse edges' lengths on the input surface, for coarse marching: traced_edge_lengths (shortest
 /// in strip) of the walk over the map (trace_coarse_mesh(mesh.F, coarse, map, inserted, mesh.V,
 /// threads)), so it needs the fine-to-coarse map, not the coarsening's history. Why the walk and not
-/// the exact pull-back: as accurate for geodesics, and cheaper. Measured (ice-report, 40 meshes × 1, 2,
-/// 5, 10 %, ICE area weight 0.98, coarse marching with 2 subdivisions and the curvature correction,
-/// against exact polyhedral geodesics): geometric-mean error 0.514 % from the walk, 0.524 % from the
-/// exact trace, 0.657 % on the intrinsic lengths (the walk better than the exact trace in 66 cases,
-/// equal in 37; cow 0.60–0.70×, elephant-with-holes 0.61–0.69×, dragon_fat at 1 % 1.71×, femur 1.16×).
-/// Cost (ice_bench BM_TracedLengths, medians of 3 interleaved runs): at 1,584,194 vertices to 15,842
-/// (1 %) 2.38 s against 4.18 s, and 0.37 GB of coarsening state kept for it against 1.31 GB with the
-/// history; at 24,755 vertices to 1,000, 68 ms against 61 ms (the walk's layouts cost more than the
-/// pull-back on small meshes). Edges the walk does not trace keep their intrinsic lengths: 1.3 % of
-/// them over CGAL's demo meshes and the shared ones at 5 % (167 meshes; none in the two above), but up
-/// to half on some (cheese 1,137 of 2,088, elephant-with-holes 128 of 864; below 90 % traced on 21 of
-/// the 167) — on those two the geodesics were still nearer exact with the walk than with the exact
-/// trace (figures above), which is what decided. Preconditions as trace_coarse_mesh's, with mesh.V
-/// given (std::invalid_argument).
+/// the exact pull-back: it was measured as accurate for geodesics against exact polyhedral geodesics,
+/// and cheaper in time and memory on large meshes (the pull-back is cheaper only on small ones);
+/// docs/measurements.md, "Traced lengths for coarse marching". Edges the walk does not trace keep
+/// their intrinsic lengths: few on most meshes, up to about half on some, where the geodesics were
+/// still nearer exact with the walk than with the exact trace (same section), which is what
+/// decided. Preconditions as trace_coarse_mesh's, with mesh.V given (std::invalid_argument).
 SurfaceEdgeLengths surface_edge_lengths(const TriangleMesh& mesh, const CompactMesh& coarse, const std::vector<CoarsePoint>& map,
                                         const std::vector<InputSurfacePoint>& inserted = {}, int threads = 0);
 

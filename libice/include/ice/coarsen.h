@@ -60,8 +60,8 @@ struct CoarsenOptions {
   /// property along the region seams). With 4+ regions that phase runs in three stages:
   /// the regions, then pairs of neighbouring regions across every other seam, then across the
   /// others, so the seams' vertices (which a region never removes) are coarsened in parallel too
-  /// instead of by the serial pass (dragon_vrip_bin, 437k vertices, to 5 %, 16 regions: serial
-  /// pass 69k → 32k removals, whole coarsening 1.2x faster on 1 and 2 threads). In that phase
+  /// instead of by the serial pass, which then has much less to do (docs/measurements.md,
+  /// "Parallel coarsening: seam stages"). In that phase
   /// `progress` is called once per round.
   /// The result is deterministic for a given region count (`regions`), but differs from the
   /// serial one.

@@ -34,24 +34,24 @@ enum class LevelCoarsening {
   /// remove_vertex + Delaunay repair). Levels stay uniform in density, which multigrid needs. No
   /// angular coordinate is read (except with SetOrder::exact_cost, whose costs come from the ICE
   /// metric), so the levels are coarsened without maintaining them
-  /// (IntrinsicTriangulation::maintain_frames(false); hierarchy 4.27–4.36 → 4.07–4.19 s at 1.66M
-  /// vertices and 10–20 % faster at 100k–320k, with the same PCG iteration counts).
+  /// (IntrinsicTriangulation::maintain_frames(false): faster hierarchies with the same PCG iteration
+  /// counts; docs/measurements.md, "Multigrid hierarchy: level coarsening").
   independent_sets,
   /// The same sets, removed through ice::coarsen in ICE-metric order (every other vertex locked): the
-  /// same removals up to order, measured 1.4x slower (8.9 s vs 6.3 s at 414k vertices); no anchors.
+  /// same removals up to order, measured slower (same section); no anchors.
   independent_sets_by_metric,
-  /// Plain greedy ICE coarsening: adaptive levels (flat regions get very coarse; measured two-level
-  /// V-cycle factors 0.5-0.9 on real meshes instead of 0.1-0.4).
+  /// Plain greedy ICE coarsening: adaptive levels (flat regions get very coarse), on which the
+  /// V-cycle converges much more slowly (same section).
   greedy,
 };
 
 /// Which vertex an independent-set pass takes first.
 enum class SetOrder {
-  /// Default: vertex order (memory-local; measured 1.35x faster hierarchies than flattest_first at
-  /// 414k vertices, PCG iterations within ±1).
+  /// Default: vertex order (memory-local; faster hierarchies than flattest_first with about the same
+  /// PCG iterations; docs/measurements.md, "Multigrid hierarchy: level coarsening").
   vertex_index,
   flattest_first,  ///< smallest |curvature| first
-  exact_cost,      ///< smallest exact ICE removal cost first (another ~1.6x slower, no better)
+  exact_cost,      ///< smallest exact ICE removal cost first (slower still, no better; same section)
 };
 
 struct HierarchyOptions {
@@ -72,16 +72,13 @@ struct HierarchyOptions {
   /// stays for the rest of the level, so the removed vertex is interpolated from the vertex it is tied
   /// to. Slivers and anisotropic sampling (scan rows, CAD strips) otherwise lose both ends of a
   /// strong link within one level, and the V-cycle cannot represent the error mode along it (smooth
-  /// across the link, invisible to the smoother). Measured with poisson-coarse --solver multigrid
-  /// on 64 meshes (the shared set and CGAL's demo meshes of 2k-45k vertices): 0.5 against 0 gave a
-  /// median PCG factor of 0.099 against 0.120, worst 0.214 against 0.363 (blade, cheese), 540
-  /// against 602 iterations in all; 40 meshes better, 3 worse by more than 0.005 (at most +0.022).
+  /// across the link, invisible to the smoother). The default 0.5 was measured against 0 with
+  /// poisson-coarse --solver multigrid: better PCG factors and fewer iterations on most meshes
+  /// (docs/measurements.md, "Multigrid hierarchy: strong-neighbour share").
   /// 0 disables it; isotropic vertices (six comparable links) never trigger it.
   /// The same share decides which boundary vertices the boundary walk may remove: one whose strongest
   /// link leaves its loop stays (its removal would interpolate it along the loop, not from the vertex
-  /// it is tied to), and does not count toward the loop's √r goal. Over 67 meshes: median 0.106 ->
-  /// 0.094, 575 -> 555 iterations in all, scan_test1_vcg 0.307 -> 0.150; worse by more than 0.005 on
-  /// elephant-with-holes only (0.214 -> 0.247; 106 holes on 2.8k vertices).
+  /// it is tied to), and does not count toward the loop's √r goal (measured in the same section).
   double strong_neighbour_share = 0.5;
   /// Whether boundary vertices may be removed.
   bool remove_boundary = true;

@@ -169,7 +169,8 @@ class IntrinsicTriangulation {
   /// ICE error metric (whose transports read them) refuses the triangulation; ice::coarsen resumes
   /// them itself. Resuming recomputes every live vertex's frame from the lengths (on the hardware's
   /// threads, at most 8, for 100,000+ vertex slots, as the builders do). For callers that read no
-  /// frame: the multigrid hierarchy's independent-set levels (measured in hierarchy.h).
+  /// frame: the multigrid hierarchy's independent-set levels (docs/measurements.md, "Multigrid
+  /// hierarchy: level coarsening").
   void maintain_frames(bool on);
   /// Records (true) every local operation from now on in history(), or stops and clears it (false):
   /// what pulls the current faces' curves back to the faces it had when recording started (call it

@@ -6,11 +6,11 @@
 ///
 /// Why: mesh coarsening follows its cost order, not memory order, so on a million-vertex mesh
 /// almost every removal reads half-edge and vertex records that are neither in the caches nor in
-/// the TLB. With 4 KiB pages each such read also walks the page table; 2 MiB pages cover the
-/// ~270 MB of a 1.15M-vertex triangulation with ~135 TLB entries. Measured (fertility Loop ×4,
-/// 1.15M → 10k vertices, three interleaved runs each): 19.8–20.8 s against 21.2–26.0 s with plain
-/// pages (median 1.07x), as fast as glibc's own huge-page mode for every allocation; peak RSS
-/// 518 MB vs 507 MB. Most Linux systems default to huge pages only where asked
+/// the TLB. With 4 KiB pages each such read also walks the page table; 2 MiB pages cover a
+/// million-vertex triangulation with a few hundred TLB entries at most. Measured faster than plain
+/// pages on a million-vertex coarsening, as fast as glibc's own huge-page mode for every allocation,
+/// at nearly the same peak memory (docs/measurements.md, "Huge pages for large arrays"). Most Linux
+/// systems default to huge pages only where asked
 /// (/sys/kernel/mm/transparent_hugepage/enabled = madvise), hence the request.
 #include <cstddef>
 #include <memory>
@@ -38,19 +38,17 @@ void deallocate_large(void* pointer) noexcept;
 /// Why: a solve pipeline allocates and frees arrays of tens to hundreds of MB one after another
 /// (each multigrid level's triangulation, numbering, sparse products). glibc maps every block above
 /// its mmap threshold (at most 32 MiB) afresh and unmaps it when freed, so each such array pays a
-/// page fault and the kernel's zeroing per page on first touch, every time. Measured at 1,657,090
-/// vertices (`poisson-coarse --solver multigrid`, fandisk Loop-subdivided 4 times, the previous
-/// version and this one alternated, three runs each): page faults were 15 % of the process's CPU
-/// samples; with this setting the hierarchy took 4.48–4.81 s instead of 5.12–5.19 s and setup +
-/// solve 6.25–6.87 s instead of 7.18–7.36 s, the fine operators' assembly 0.94–1.01 s instead of
-/// 1.19–1.20 s. Raising only the mmap threshold (to its 32 MiB cap) gained nothing: the churn is in
-/// the larger blocks.
+/// page fault and the kernel's zeroing per page on first touch, every time. On a million-vertex
+/// multigrid solve page faults took a large share of the CPU time, and this setting made the
+/// hierarchy, the setup and solve, and the fine operators' assembly measurably faster; raising only
+/// the mmap threshold (to its 32 MiB cap) gained nothing: the churn is in the larger blocks
+/// (docs/measurements.md, "Keeping freed memory for reuse").
 ///
 /// Cost: resident memory no longer shrinks when arrays are freed, and the heap's fragmentation
-/// counts (peak RSS 1,569 → 1,773–1,778 MB in those runs). Hence the policy: the solving tools
+/// counts (peak memory grows; same section). Hence the policy: the solving tools
 /// (poisson-coarse, geodesic-coarse, vector-coarse, ice-report) and the benchmarks call this at
-/// start (one process per job); ice-coarsen does not (at 1.58M vertices it would gain 5 % and pass
-/// 500 bytes per input vertex: 494 → 517); the libraries never call it themselves, since a
+/// start (one process per job); ice-coarsen does not (it would gain little and raise its memory per
+/// input vertex; same section); the libraries never call it themselves, since a
 /// long-lived process (Python, a server) would keep its largest heap for good. Call it before the
 /// first large allocation; blocks mapped earlier stay mapped.
 bool keep_freed_memory_for_reuse() noexcept;

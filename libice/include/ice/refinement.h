@@ -8,7 +8,7 @@
 /// exactly), so the prolongation of the refined mesh follows (ice/prolongation.h: inserted vertices
 /// get columns of their own).
 ///
-///   ice::RefinementOptions options;            // 25°, at most 1.5x the vertices
+///   ice::RefinementOptions options;            // defaults: 25°, at most 1.5 times the vertices
 ///   const ice::RefinementResult r = ice::refine_delaunay(T, options);
 ///
 /// Termination: every insertion is counted against `max_vertex_ratio`; faces whose smallest angle

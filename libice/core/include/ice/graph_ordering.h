@@ -78,7 +78,8 @@ std::vector<int> reverse_cuthill_mckee(int n, const Offset* offsets, const Neigh
     for (auto p = offsets[v]; p < offsets[v + 1]; ++p)
       if (static_cast<int>(adjacency[p]) != v) ++degree[static_cast<std::size_t>(v)];
   // Component roots are tried in increasing degree (then index): a counting sort on the degree
-  // (a comparison sort of all vertices took a third of the ordering's time at 1.66M vertices).
+  // (a comparison sort of all vertices took a large share of the ordering's time on large meshes;
+  // docs/measurements.md, "Graph ordering").
   int max_degree = 0;
   for (int v = 0; v < n; ++v) max_degree = std::max(max_degree, degree[static_cast<std::size_t>(v)]);
   std::vector<int> by_degree(static_cast<std::size_t>(n));
@@ -96,8 +97,8 @@ std::vector<int> reverse_cuthill_mckee(int n, const Offset* offsets, const Neigh
   for (int candidate : by_degree) {
     if (mark[static_cast<std::size_t>(candidate)] == 1) continue;
     // George–Liu: move the root to a low-degree vertex of the last level while the eccentricity
-    // grows. One move only: each probe is a full pass over the component, and on a 1.66M-vertex
-    // mesh three probes gave a 4 % narrower band (2,563 vs 2,677 rows) at 2.2x the time.
+    // grows. One move only: each probe is a full pass over the component, and more probes gave a
+    // barely narrower band for much more time (docs/measurements.md, "Graph ordering").
     int root = candidate, levels = 0;
     for (int attempt = 0; attempt < 1; ++attempt) {
       probe.clear();

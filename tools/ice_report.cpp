@@ -211,7 +211,7 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
                     const fem::ProxyGeodesicOptions& geodesic, ProxySolutions* kept = nullptr,
                     const ice::FaceLengths* marching_lengths = nullptr) {
   app::Stopwatch clock;
-  const fem::CoarseProxy proxy = app::make_proxy(fine.disc, coarse, kind, prolongation);
+  const fem::CoarseProxy proxy = ice::proxy::make_proxy(fine.disc, coarse, kind, prolongation);
   const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
   const auto record = [&](Row& r, int index, const fem::ProxyPhaseTimes& phases) {
     r.solve = phases.restriction + phases.coarse_solve;
@@ -695,9 +695,8 @@ void add_failed_method(app::ViewMesh& view, const std::string& method, const std
 int main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
-      "ice-report: ICE against the QEM baseline on the same meshes, coarse budgets and PDE problems (Poisson, "
-      "long-time heat, heat-method geodesics), all in one process; writes results.csv, results.json, summary.md and "
-      "SVG plots (gnuplot) into the output directory. Progress on stderr.\n\n"
+      "ice-report: ICE against the QEM baseline on the same meshes, budgets and problems (Poisson, heat, geodesics); "
+      "writes\nresults.csv, results.json, summary.md and SVG plots into the output directory.\n\n"
       "Examples:\n  ice-report -o report\n  ice-report --quick -o /tmp/r\n"
       "  ice-report --meshes spot.obj,/data/my.off --budgets 0.02,0.05 --methods ice,qem_idt -o r"};
   std::string outdir = "ice-report", meshes_text, budgets_text = "0.01,0.02,0.05,0.1", methods_text = "ice,ice_area,qem_ext,qem_idt";
@@ -708,91 +707,79 @@ int main(int argc, char** argv) {
   long long min_vertices = 100;
   double area_weight = ice::recommended_coarsen_options().area_weight;  // the pipeline's default metric
   bool quick = false, no_plots = false;
-  cli.add_option("--output,-o", outdir, "Output directory (created; existing report files in it are replaced)")
+  cli.add_option("--output,-o", outdir, "Output directory (created; report files in it are replaced)")
       ->capture_default_str();
   cli.add_option("--meshes", meshes_text,
-                 "Comma-separated meshes: names in --meshes-dir or paths (default: the clean meshes of both sets present)");
-  cli.add_option("--meshes-dir", meshes_dir, "Where mesh names are looked up (default: the project set data/default/, then the extended set $ICE_EXTENDED_MESHES or ../shared/data/meshes)");
-  cli.add_option("--budgets", budgets_text, "Comma-separated coarse budgets, fractions of the input vertices")->capture_default_str();
+                 "Comma-separated mesh names or paths (default: the clean meshes of the sets present)");
+  cli.add_option("--meshes-dir", meshes_dir, "Where mesh names are looked up (default: data/default/, then the extended set)");
+  cli.add_option("--budgets", budgets_text, "Comma-separated coarse budgets (fractions of the input vertices)")->capture_default_str();
   cli.add_option("--min-vertices", min_vertices, "Floor of every coarse size (at most the input size)")->capture_default_str();
-  cli.add_option("--methods", methods_text, "Comma-separated subset of ice, ice_area, qem_ext, qem_idt")->capture_default_str();
+  cli.add_option("--methods", methods_text, "Comma-separated subset of the methods")->capture_default_str();
   cli.add_option("--area-weight", area_weight, "ICE area weight of the ice_area method")->capture_default_str();
   cli.add_option("--operators", operators,
-                 "Coarse operators of the ICE methods: galerkin (PᵀLP, PᵀMP) or intrinsic (from the coarse mesh); QEM always "
-                 "uses the operators of its own geometry, its most accurate configuration")
+                 "Coarse operators of the ICE methods: galerkin or intrinsic (QEM's: see --qem-prolongation)")
       ->check(CLI::IsMember({"intrinsic", "galerkin"}))
       ->capture_default_str();
-  app::ProlongationChoice prolongation_choice = app::ProlongationChoice::automatic;
+  ice::proxy::Prolongation prolongation_choice = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(cli, prolongation_choice);
-  app::ProlongationChoice qem_choice = app::ProlongationChoice::automatic;
+  ice::proxy::Prolongation qem_choice = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(
       cli, qem_choice, "--qem-prolongation",
-      "QEM's proxy: 'smoothed' = Galerkin operators of its smoothed P (its most accurate configuration for Poisson "
-      "and heat: 0.78x and 0.70x the error of the next, geometric means over 40 meshes), 'barycentric' = the "
-      "intrinsic operators of its own geometry with its P as given (the most accurate before the smoothed P), "
-      "'auto' = smoothed unless --coarse-distances heat");
+      "QEM's proxy: 'smoothed' (Galerkin; its most accurate), 'barycentric' (its own geometry's operators) or "
+      "'auto'");
   bool normalize_curvature = ice::recommended_coarsen_options().normalize_curvature;
   cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
-               "ice_area: curvature masses divided by the total absolute curvature (ice::CoarsenOptions)")
+               "ice_area: curvature masses divided by the total absolute curvature")
       ->capture_default_str();
   fem::ProxyGeodesicOptions geodesic;
   app::add_choice(cli, "--coarse-distances", geodesic.method,
                   {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}},
-                  "Geodesics through the proxy: fast marching on the coarse mesh (the default of geodesic-coarse) or "
-                  "the coarse heat method (the fine reference is the heat method either way)");
+                  "Geodesics through the proxy: coarse fast marching or the coarse heat method");
   cli.add_option("--time-factor", geodesic.time_factor,
-                 "With --coarse-distances heat: time step t = (factor x coarse mean edge length)^2 (the fine reference "
-                 "keeps t = h^2)")
+                 "With --coarse-distances heat: t = (F x coarse mean edge length)^2")
       ->check(app::positive_number())
       ->capture_default_str();
   cli.add_option("--marching-subdivisions", geodesic.subdivisions,
-                 "Coarse marching on the coarse mesh split 1:4 this many times (fem::ProxyGeodesicOptions::subdivisions)")
+                 "Coarse marching on the coarse mesh split 1:4 this many times")
       ->check(CLI::Range(0, fem::kMaxMarchingSubdivisions))
       ->capture_default_str();
   bool exact_geodesics = false;
   app::add_choice(cli, "--geodesic-reference", exact_geodesics, {{"heat", false}, {"exact", true}},
-                  "What geodesic errors are measured against: the fine heat method (t = h^2) or exact polyhedral "
-                  "geodesics (CGAL's Surface_mesh_shortest_path; only in builds with libcgal-dev). With 'exact' the "
-                  "fine heat method's own error is reported per mesh too");
+                  "Geodesic errors against the fine heat method or exact polyhedral geodesics (CGAL builds only)");
   bool equal_sizes = true;
   cli.add_flag("--equal-sizes,!--no-equal-sizes", equal_sizes,
-               "Where a method stops above the target size (it cannot coarsen further without changing the "
-               "topology), coarsen the others to the size it reached, so that methods are compared at equal vertex "
-               "counts (default on)");
+               "Compare methods at equal sizes: coarsen the others to where one stopped above the target (default on)");
   long long exact_max_vertices = ice_bench::kDefaultExactMaxVertices;
   cli.add_option("--exact-max-vertices", exact_max_vertices,
-                 "With --geodesic-reference exact: skip meshes of more vertices (the exact geodesics' memory grows "
-                 "faster than the mesh)")
+                 "With --geodesic-reference exact: skip meshes of more vertices")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  app::CoarseLengths lengths_choice = app::CoarseLengths::automatic;
+  ice::proxy::CoarseLengths lengths_choice = ice::proxy::CoarseLengths::automatic;
   app::add_coarse_lengths_option(cli, "--geodesic-lengths", lengths_choice);  // (the tracing counts in the
                                                                               // geodesic row's factor time)
-  app::CurvatureCorrection curvature_correction = app::CurvatureCorrection::automatic;
+  ice::proxy::CurvatureCorrection curvature_correction = ice::proxy::CurvatureCorrection::automatic;
   app::add_curvature_correction_option(cli, curvature_correction);
   cli.add_option("--curvature-divisor", geodesic.curvature_divisor,
-                 "The curvature correction's divisor d in exp(K l^2/d) for the coarse marching "
-                 "(fem::kProxyCorrectionDivisor: measured, see README, Accuracy)")
+                 "Divisor d of the curvature correction exp(K l^2/d) (default: the one measured best)")
       ->check(app::positive_number())
       ->capture_default_str();
   int coarsen_threads = 1, coarsen_regions = 0;  // ICE coarsening's parallel phase (default: the serial order)
   app::add_coarsen_parallel_options(cli, coarsen_threads, coarsen_regions);
   std::string tolerances_text;
   cli.add_option("--tolerances", tolerances_text,
-                 "Comma-separated error tolerances, e.g. 1e-2,1e-3,1e-6: also polish the Poisson and heat proxies to "
-                 "each (fem::PolishOptions) and report true errors, iterations and cost (polish.csv, summary.md)");
+                 "Comma-separated tolerances, e.g. 1e-2,1e-3: also polish the Poisson and heat proxies to each "
+                 "(polish.csv)");
   bool repair = false;
   cli.add_flag("--repair", repair,
-               "Apply the safe mesh repairs to every input (see ice-info --repair); without it a defective mesh is "
-               "skipped with its defect named");
-  cli.add_flag("--quick", quick, "Small subset for CI: spot and elephant (project set), budgets 5% and 10%");
+               "Apply the safe mesh repairs to every input (else a defective mesh is skipped)");
+  cli.add_flag("--quick", quick, "Small subset for CI: spot and elephant, budgets 5% and 10%");
   cli.add_flag("--no-plots", no_plots, "Do not run gnuplot");
   bool no_html = false, force = false;
   double view_budget = 0;
   cli.add_flag("--no-html", no_html, "Do not write report.html (the interactive 3D page)");
   cli.add_option("--view-budget", view_budget,
-                 "The budget the 3D page shows (one of --budgets; default: the one nearest 5%)");
-  cli.add_flag("--force", force, "Replace an existing report.html (its other files are always replaced)");
+                 "The budget the 3D page shows (default: the one nearest 5%)");
+  cli.add_flag("--force", force, "Replace an existing report.html");
   cli.add_option("--plot-script", plot_script, "The gnuplot script that draws the plots")->capture_default_str();
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
@@ -825,10 +812,10 @@ int main(int argc, char** argv) {
     if (exact_geodesics)
       throw app::AppError(app::kUsage, "--geodesic-reference exact: this ice-report was built without CGAL (libcgal-dev)");
 #endif
-    if (lengths_choice == app::CoarseLengths::traced && !heat_geodesics.empty())
+    if (lengths_choice == ice::proxy::CoarseLengths::traced && !heat_geodesics.empty())
       throw app::AppError(app::kUsage, "--geodesic-lengths traced: the lengths are for coarse marching, not with --coarse-distances heat");
     // ICE's geodesics march on traced lengths unless asked otherwise (QEM's keep their own).
-    const bool traced_lengths = app::traces_lengths(lengths_choice, ice::CoarseningMethod::ice, heat_geodesics.empty());
+    const bool traced_lengths = ice::proxy::traces_lengths(lengths_choice, ice::CoarseningMethod::ice, heat_geodesics.empty());
     const fem::ProlongationKind prolongation = app::resolve_prolongation(prolongation_choice, kind, heat_geodesics);
     // QEM: Galerkin operators of its smoothed P, or the operators of its own geometry with its P as given.
     const fem::ProlongationKind qem_prolongation =
@@ -967,7 +954,7 @@ int main(int argc, char** argv) {
           std::optional<ice::FaceLengths> marching_lengths;
           app::Stopwatch trace_clock;
           if (traced_lengths)
-            marching_lengths = app::marching_lengths(mesh, coarse, true, curvature_correction, nullptr, geodesic.curvature_divisor).lengths;
+            marching_lengths = ice::proxy::marching_lengths(mesh, coarse, true, curvature_correction, nullptr, geodesic.curvature_divisor).lengths;
           const double trace_seconds = trace_clock.lap();
           Row r = base;
           r.method = m;
@@ -979,7 +966,7 @@ int main(int argc, char** argv) {
           add_note(r, equal_note);
           ProxySolutions solved;
           fem::ProxyGeodesicOptions ice_geodesic = geodesic;
-          ice_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse.summary.method);
+          ice_geodesic.curvature_correction = ice::proxy::corrects_curvature(curvature_correction, coarse.summary.method);
           solve_on_proxy(fine, coarse, kind, prolongation, r, rows, tolerances, polished, ice_geodesic,
                          viewed ? &solved : nullptr, marching_lengths ? &*marching_lengths : nullptr);
           rows.back().factor += trace_seconds;  // the geodesic row: its marching needs the tracing
@@ -1016,7 +1003,7 @@ int main(int argc, char** argv) {
             // barycentric P make QEM less accurate).
             ProxySolutions solved;
             fem::ProxyGeodesicOptions qem_geodesic = geodesic;
-            qem_geodesic.curvature_correction = app::corrects_curvature(curvature_correction, coarse.summary.method);
+            qem_geodesic.curvature_correction = ice::proxy::corrects_curvature(curvature_correction, coarse.summary.method);
             solve_on_proxy(fine, coarse, qem_kind, qem_prolongation, r, rows, tolerances, polished, qem_geodesic,
                            viewed ? &solved : nullptr);
             if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
@@ -1059,8 +1046,8 @@ int main(int argc, char** argv) {
                               {"geodesic_sources", "vertex 0 and two farthest-point picks (R^3)"},
                               {"geodesic_coarse_distances", fem::to_string(geodesic.method)},
                               {"geodesic_lengths", traced_lengths ? "traced" : "intrinsic"},
-                              {"curvature_correction", curvature_correction == app::CurvatureCorrection::automatic ? "auto"
-                                                       : curvature_correction == app::CurvatureCorrection::on ? "on" : "off"},
+                              {"curvature_correction", curvature_correction == ice::proxy::CurvatureCorrection::automatic ? "auto"
+                                                       : curvature_correction == ice::proxy::CurvatureCorrection::on ? "on" : "off"},
                               {"curvature_divisor", geodesic.curvature_divisor},
                               {"fine_reference", "intrinsic Delaunay triangulation of the input"},
                               {"geodesic_reference", exact_geodesics ? "exact polyhedral geodesics (CGAL)" : "fine heat method"},

@@ -88,7 +88,7 @@ int main(int argc, char** argv) {
     // vector-coarse's pipeline with the fine operators of the input triangles, then of their
     // intrinsic Delaunay triangulation (both in the input triangles' frames).
     struct Discretisation {
-      app::TangentMesh fine;
+      ice::proxy::TangentMesh fine;
       fem::VectorHeatSolver solver;
       fem::VectorHeatProxy proxy;
       fem::VectorSweepProxy sweep;
@@ -96,10 +96,10 @@ int main(int argc, char** argv) {
     };
     std::vector<std::unique_ptr<Discretisation>> runs;
     for (const ice::FineGeometry geometry : {ice::FineGeometry::input, ice::FineGeometry::intrinsic_delaunay}) {
-      app::TangentMesh fine = app::tangent_mesh(mesh, geometry, true);
+      ice::proxy::TangentMesh fine = ice::proxy::tangent_mesh(mesh, geometry, true);
       fem::VectorHeatSolver solver(*fine.operators);
-      fem::VectorHeatProxy proxy = app::make_vector_proxy(fine, space, map, fem::VectorOperatorKind::galerkin, time_factor);
-      fem::VectorSweepProxy sweep = app::make_vector_sweep(mesh, fine, space, map);
+      fem::VectorHeatProxy proxy = ice::proxy::make_vector_proxy(fine, space, map, fem::VectorOperatorKind::galerkin, time_factor);
+      fem::VectorSweepProxy sweep = ice::proxy::make_vector_sweep(mesh, fine, space, map);
       runs.push_back(std::make_unique<Discretisation>(
           Discretisation{std::move(fine), std::move(solver), std::move(proxy), std::move(sweep), {}, {}, {}, {}, {}}));
     }

@@ -1,0 +1,82 @@
+#include "ice/proxy/geodesics.h"
+
+#include <stdexcept>
+#include <utility>
+
+namespace ice::proxy {
+
+namespace {
+
+/// The coarse space of a marching recipe: `coarse` if given, else coarsened keeping the method's
+/// state when the lengths are to be traced (the walk reads it).
+CoarseSpace marching_space(const TriangleMesh& mesh, std::optional<CoarseSpace> coarse, CoarseSpaceOptions coarsening,
+                           CoarseLengths lengths, bool marching) {
+  if (coarse) return std::move(*coarse);
+  coarsening.keep_method_state = coarsening.keep_method_state || traces_lengths(lengths, coarsening.method, marching);
+  return build_coarse_space(mesh, coarsening);
+}
+
+/// Whether to trace: as traces_lengths says, except that `automatic` falls back to the coarse mesh's
+/// own lengths when there is nothing to trace with (a given space without map or method state).
+bool trace(CoarseLengths choice, const CoarseSpace& space, const std::vector<CoarsePoint>* map, bool marching) {
+  const bool can_trace = map != nullptr || space.triangulation.has_value();
+  if (choice == CoarseLengths::traced && space.summary.method != CoarseningMethod::ice)
+    throw std::invalid_argument("traced coarse lengths need an ICE coarse space (QEM's edges are straight: nothing to trace)");
+  return (choice != CoarseLengths::automatic || can_trace) && traces_lengths(choice, space.summary.method, marching);
+}
+
+}  // namespace
+
+GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options, std::optional<CoarseSpace> coarse,
+                               const std::vector<CoarsePoint>* map)
+    : options_(std::move(options)) {
+  const bool marching = options_.method == fem::CoarseDistanceMethod::marching;
+  if (options_.lengths == CoarseLengths::traced && !marching)
+    throw std::invalid_argument("traced coarse lengths are for coarse marching, not the heat method");
+  if (marching) {
+    setup_.coarse = marching_space(mesh, std::move(coarse), options_.coarsening, options_.lengths, true);
+    traced_ = trace(options_.lengths, setup_.coarse, map, true);
+    lengths_ = marching_lengths(mesh, setup_.coarse, traced_, options_.curvature_correction, map,
+                                curvature_divisor(MarchingUse::single_source));
+    solver_ = std::make_unique<fem::ProxyGeodesicSolver>(setup_.coarse.mesh.F, lengths_.lengths, setup_.coarse.P,
+                                                         options_.subdivisions);
+  } else {
+    setup_ = build_proxy_setup(mesh, std::move(coarse), options_.coarsening, {}, options_.fine, options_.operators,
+                               Prolongation::barycentric, false);
+    fem::ProxyGeodesicOptions heat;
+    heat.method = fem::CoarseDistanceMethod::heat_method;
+    heat.time_factor = options_.time_factor;
+    solver_ = std::make_unique<fem::ProxyGeodesicSolver>(*setup_.proxy, heat);
+  }
+}
+
+Eigen::VectorXd GeodesicSolver::distance(const std::vector<Index>& sources, fem::ProxyPhaseTimes* times) const {
+  return solver_->distance(sources, times);
+}
+
+Eigen::VectorXd geodesic_distance(const TriangleMesh& mesh, const std::vector<Index>& sources, const GeodesicOptions& options) {
+  return GeodesicSolver(mesh, options).distance(sources);
+}
+
+fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOptions& options, std::optional<CoarseSpace> coarse,
+                                    const std::vector<CoarsePoint>* map) {
+  const bool marching = options.oracle.method == fem::CoarseDistanceMethod::marching;
+  CoarseSpaceOptions coarsening = options.coarsening;
+  coarsening.keep_method_state = true;  // the oracle's fine points are the fine-to-coarse map
+  const CoarseSpace space = marching_space(mesh, std::move(coarse), std::move(coarsening), options.lengths, marching);
+  std::vector<CoarsePoint> own_map;
+  if (!map) {
+    own_map = fine_to_coarse_map(space);
+    map = &own_map;
+  }
+  const bool traced = trace(options.lengths, space, map, marching);
+  if (options.lengths == CoarseLengths::traced && !marching)
+    throw std::invalid_argument("traced coarse lengths are for coarse marching, not the heat method");
+  return fem::DistanceOracle(space.mesh.F,
+                             marching_lengths(mesh, space, traced, options.curvature_correction, map,
+                                              curvature_divisor(MarchingUse::all_pairs))
+                                 .lengths,
+                             *map, options.oracle);
+}
+
+}  // namespace ice::proxy
