@@ -45,6 +45,7 @@ as_root() {
 # writes the binary glTF files of ice/scalar_field_io.h. chromium runs the browser test of the 3D page
 # (--html; headless, software WebGL); Node.js and npm install the page's three.js and the test's
 # playwright-core (step 4) and are installed from Debian only when the machine has none.
+# doxygen builds the API reference of the public headers (docs/Doxyfile.in: target doc, test api_docs).
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev
@@ -53,6 +54,8 @@ PACKAGES=(
   libcgal-demo libhypre-dev xz-utils chromium
   pybind11-dev python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
   python3-dask python3-distributed python3-tqdm python3-psutil
+  python3-pip python3-wheel python3-build python3-venv python3-meshio
+  doxygen
 )
 
 is_installed() {

@@ -1,6 +1,6 @@
 """Type stubs of the ice package (the extension module ice._ice and the helpers of __init__.py)."""
 from os import PathLike
-from typing import Any, Callable, Iterator, Literal, Sequence, overload
+from typing import Any, Callable, Iterable, Iterator, Literal, Sequence, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -35,6 +35,8 @@ class LoadedMesh:
 
 def load_mesh(path: Path, repair: bool = False, weld: bool = False) -> LoadedMesh:
     """Reads and validates an OBJ, OFF, PLY or STL mesh under ICE's loading policy."""
+def read_mesh(path: Path, *, skip_cells: str | Iterable[str] = (), **kw: Any) -> tuple[FloatArray, IndexArray]:
+    """(V, F) of a triangle mesh: OBJ/OFF/PLY/STL by ice.load_mesh, other formats by meshio (triangles only)."""
 def validate(V: ArrayLike, F: ArrayLike) -> dict[str, Any]:
     """The validation report of (V, F) (ice-info --json keys); report["clean"]: accepted by the solvers."""
 def save_mesh(path: Path, V: ArrayLike, F: ArrayLike, *, overwrite: bool = False, binary: bool = False) -> None:
@@ -89,7 +91,7 @@ class CoarseSpace:
         """Writes the coarse mesh as .ilm (exact round trip with load_coarse_mesh)."""
 
 def coarsen(V: ArrayLike, F: ArrayLike, *, n: int | None = None, ratio: float | None = None,
-            max_error: float | None = None, method: Literal["ice", "qem"] = "ice",
+            min_vertices: int | None = None, max_error: float | None = None, method: Literal["ice", "qem"] = "ice",
             use: Literal["poisson_heat", "geodesic"] = "poisson_heat", area_weight: float | None = None,
             normalize_curvature: bool | None = None, locked: Indices | None = None, remove_boundary: bool = True,
             threads: int = 1, regions: int = 0, qem_geometry: Literal["extrinsic", "intrinsic_delaunay"] = "extrinsic",

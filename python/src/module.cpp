@@ -300,7 +300,7 @@ struct ProgressBridge {
 };
 
 std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F, const py::object& n,
-                                       const py::object& ratio, const py::object& max_error, const std::string& method,
+                                       const py::object& ratio, const py::object& min_vertices, const py::object& max_error, const std::string& method,
                                        const std::string& use, const py::object& area_weight,
                                        const py::object& normalize_curvature, const py::object& locked,
                                        bool remove_boundary, const py::object& threads, const py::object& regions,
@@ -330,6 +330,13 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     c.target_ratio = number_option(ratio, "ratio");
     if (!(c.target_ratio > 0 && c.target_ratio <= 1))
       throw py::value_error("ratio = " + std::to_string(c.target_ratio) + " is out of range: it must be in (0, 1], e.g. 0.05");
+  }
+  if (!min_vertices.is_none()) {  // the tools' --min-vertices: the same rounding (ice::proxy::target_vertices)
+    const auto floor = integer_option(min_vertices, "min_vertices");
+    if (ratio.is_none()) throw py::value_error("min_vertices goes with ratio");
+    if (floor < 1) throw py::value_error("min_vertices must be >= 1");
+    c.target_vertices = ice::proxy::target_vertices(static_cast<ice::Index>(vertex_count), c.target_ratio,
+                                                    static_cast<ice::Index>(std::min<long long>(floor, vertex_count)));
   }
   if (!max_error.is_none()) {
     c.max_error = number_option(max_error, "max_error");
@@ -902,7 +909,7 @@ ice.load_coarse_mesh reads it back). An existing file is replaced only with over
       });
 
   m.def("coarsen", &coarsen, py::arg("V"), py::arg("F"), py::kw_only(), py::arg("n") = py::none(),
-        py::arg("ratio") = py::none(), py::arg("max_error") = py::none(), py::arg("method") = "ice",
+        py::arg("ratio") = py::none(), py::arg("min_vertices") = py::none(), py::arg("max_error") = py::none(), py::arg("method") = "ice",
         py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(), py::arg("normalize_curvature") = py::none(),
         py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1,
         py::arg("regions") = 0, py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
@@ -910,8 +917,9 @@ ice.load_coarse_mesh reads it back). An existing file is replaced only with over
         R"doc(Coarsens the mesh (V, F) (clean, oriented, manifold; several components, boundaries and any genus
 are fine) and returns its ice.CoarseSpace: the intrinsic coarse mesh, P, the fine-to-coarse map.
 
-Target: exactly one of n (vertices), ratio (of the input vertices, e.g. 0.05), or max_error (the ICE
-error metric; may be combined with n or ratio, whichever stops first).
+Target: exactly one of n (vertices), ratio (of the input vertices, e.g. 0.05; with min_vertices, at
+least that many, as the tools' --min-vertices), or max_error (the ICE error metric; may be combined
+with n or ratio, whichever stops first).
 method: "ice" (intrinsic vertex removals) or "qem" (the QEM baseline; qem_geometry "extrinsic" or
 "intrinsic_delaunay"). use: "poisson_heat" or "geodesic" picks the measured metric defaults
 (area_weight, normalize_curvature), which the two arguments override. locked: vertices never
