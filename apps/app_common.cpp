@@ -196,21 +196,15 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
 void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrection& correction) {
   add_choice(cli, "--curvature-correction", correction,
              choice_names<ice::proxy::CurvatureCorrection>(),
-             "Coarse marching on edge lengths scaled by exp(K l^2/d) for the Gaussian curvature K each coarse face "
-             "flattens (fem::curvature_corrected_lengths; d = 48 for single sources, 24 for the oracle's all pairs, "
-             "as measured for each marching): 'auto' (the default) for ICE coarse meshes, not QEM's. Against exact "
-             "geodesics over 40 meshes x 1-10 % (traced lengths, 1 subdivision): ICE 0.79x the error; QEM 1.19x "
-             "(README, Accuracy)");
+             "Coarse marching on lengths scaled by exp(K l^2/d), K the curvature each coarse face flattens "
+             "('auto': for ICE coarse meshes)");
 }
 
 void add_coarse_lengths_option(CLI::App& cli, const std::string& name, ice::proxy::CoarseLengths& choice) {
   add_choice(cli, name, choice,
              choice_names<ice::proxy::CoarseLengths>(),
-             "Coarse marching on the lengths of the coarse edges traced on the input surface by a walk over the "
-             "fine-to-coarse map ('traced', ICE only), or on the coarse mesh's own edge lengths ('intrinsic'); 'auto' "
-             "(the default): traced for ICE coarse meshes, QEM's own. Against exact geodesics over 40 meshes x 1-10 % "
-             "(1 subdivision): traced 0.81x the error of intrinsic (better in 3 of 4 cases), at 1.3x the whole run's "
-             "time (the tracing: 2.4 s at 1.6M vertices and 1 %; README, Accuracy)");
+             "Marching on coarse edge lengths traced on the surface ('traced', ICE only) or the coarse mesh's "
+             "own ('intrinsic', QEM's default)");
 }
 
 std::optional<ice::CoarseTracing> trace_for_outputs(const PdeOptions& opt, const ice::TriangleMesh& mesh,

@@ -184,12 +184,11 @@ void TargetOptions::use_defaults_for(ice::ProxyUse use) {
 
 void add_coarsen_parallel_options(CLI::App& cli, int& threads, int& regions) {
   cli.add_option("--coarsen-threads", threads,
-                 "ICE coarsening threads (1: the exact serial order; 0: all cores; k > 1: 4k regions in parallel, then "
-                 "a serial pass)")
+                 "ICE coarsening threads (0: all cores; k > 1: 4k regions in parallel, then a serial pass)")
       ->check(integer_between(0, 64))
       ->capture_default_str();
   cli.add_option("--coarsen-regions", regions,
-                 "Regions of ICE's parallel phase (R >= 2: the result depends on R only; 1: serial; 0: 4 x threads)")
+                 "Regions of the parallel phase (R >= 2: result depends on R only; 1: serial; 0: 4 x threads)")
       ->check(integer_between(0, 254))
       ->capture_default_str();
 }
@@ -206,29 +205,27 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
                          },
                          "in (0, 1]"));
   cli.add_option("--min-vertices", min_vertices,
-                 "With --ratio: keep at least M vertices (at most all of them)");
+                 "With --ratio: keep at least M vertices");
   if (with_max_error)
     cli.add_option("--max-error,-e", max_error,
                    "Remove vertices while the cheapest costs at most E (ICE metric); with --vertices/--ratio: whichever "
                    "stops first");
   cli.add_option("--area-weight,-w", area_weight,
-                 "Area term's weight in the ICE error metric (0: curvature only); the default was measured best for "
-                 "this tool")
+                 "Area term's weight in the ICE metric (0: curvature only); default: measured best for this tool")
       ->check(number_between(0, 1))
       ->capture_default_str();
   cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
-               "Divide the curvature masses by the mesh's total absolute curvature")
+               "Divide curvature masses by the total absolute curvature")
       ->capture_default_str();
   add_choice(cli, "--method", method, choice_names<ice::CoarseningMethod>(),
              "Coarsening method: 'ice', or 'qem' (the extrinsic QEM baseline)");
   add_coarsen_parallel_options(cli, threads, regions);
   cli.add_option("--refine-angle", refine_angle,
-                 "Refine the ICE coarse mesh (intrinsic Delaunay) until every angle is at least DEG degrees (0: no "
-                 "refinement)")
+                 "Refine the ICE coarse mesh until every angle is at least DEG degrees (0: none)")
       ->check(number_between(0, 30))
       ->capture_default_str();
   cli.add_option("--refine-budget", refine_budget,
-                 "With --refine-angle: stop at R times the coarse vertices after coarsening")
+                 "With --refine-angle: at most R times the coarse vertices")
       ->check(number_between(1, 1e6))
       ->capture_default_str();
 }
@@ -288,15 +285,15 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
   add_choice(cli, "--operators", operators, choice_names<fem::CoarseOperatorKind>(),
-             "Coarse operators: 'intrinsic' (from the coarse lengths) or 'galerkin' (P^T L P, P^T M P)");
+             "Coarse operators: 'intrinsic' (from coarse lengths) or 'galerkin' (P^T L P, P^T M P)");
 }
 
 void add_prolongation_option(CLI::App& cli, ice::proxy::Prolongation& choice, const std::string& name,
                              const std::string& description) {
   add_choice(cli, name, choice, choice_names<ice::proxy::Prolongation>(),
              description.empty()
-                 ? "Prolongation: 'barycentric', 'smoothed' (one damped Jacobi step; Galerkin, no Dirichlet) or 'auto' "
-                   "(smoothed if allowed)"
+                 ? "Prolongation: 'barycentric', 'smoothed' (damped Jacobi; Galerkin, no Dirichlet) or 'auto' (smoothed "
+                   "if allowed)"
                  : description);
 }
 
@@ -316,17 +313,17 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   target.add_to(cli, false);
   add_operators_option(cli, operators);
   add_choice(cli, "--qem-operators", qem_geometry, choice_names<ice::QemGeometry>(),
-             "With --method qem: coarse geometry of its positions ('extrinsic') or intrinsic Delaunay ('idt')");
+             "With --method qem: coarse geometry 'extrinsic' (its positions) or 'idt' (intrinsic Delaunay)");
   cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
-               "Fine operators on the input's intrinsic Delaunay triangulation, or on its triangles (--no-fine-idt)")
+               "Fine operators on the input's intrinsic Delaunay triangulation (or its triangles: --no-fine-idt)")
       ->capture_default_str();
   cli.add_option("--output,-o", output,
-                 "Write the input mesh with the fields " + field_names + " (ICE: + 'patch') as PLY, or glTF (.glb)");
-  cli.add_flag("--ascii", ascii, "With --output: ASCII PLY instead of binary little endian");
+                 "Write the mesh with the fields " + field_names + " (ICE: + 'patch') as PLY or glTF (.glb)");
+  cli.add_flag("--ascii", ascii, "With --output: ASCII PLY instead of binary");
   cli.add_option("--html", html,
-                 "Write an interactive 3D page (PAGE.html + PAGE_files/) of the results and the coarse edges");
+                 "Write an interactive 3D page (PAGE.html + PAGE_files/) of the results");
   cli.add_flag("--no-reference", no_reference, "Skip the fine reference solve (no errors, no speed-up)");
-  cli.add_option("--report", report, "Write a JSON report (sizes, timings per phase, errors, memory, BLAS)");
+  cli.add_option("--report", report, "Write a JSON report (sizes, timings, errors, memory, BLAS)");
   cli.add_flag("--quiet,-q", quiet, "No progress bar");
   cli.add_flag("--force", force, "Overwrite existing output files");
   cli.add_flag("--repair", repair, "Apply the safe mesh repairs first (see ice-info --repair)");
@@ -334,14 +331,14 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
 
 void PdeOptions::add_polish_options(CLI::App& cli) {
   cli.add_option("--polish", polish.iterations,
-                 "Polish with at most N fine CG iterations preconditioned by a two-level cycle (0: the plain proxy)")
+                 "Polish with at most N fine two-level-preconditioned CG iterations (0: the plain proxy)")
       ->check(non_negative_integer())
       ->capture_default_str();
   cli.add_option("--tolerance", polish.tolerance,
-                 "Polish until the estimated relative error is at most T, e.g. 1e-3 (--polish N: at most N iterations)")
+                 "Polish until the estimated relative error is at most T, e.g. 1e-3")
       ->check(positive_number());
   cli.add_option("--polish-sweeps", polish.cycle.smoothing_steps,
-                 "Gauss-Seidel sweeps before and after each coarse correction while polishing")
+                 "Polishing: Gauss-Seidel sweeps around each coarse correction")
       ->check(integer_between(1, 100))
       ->capture_default_str();
 }

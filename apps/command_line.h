@@ -159,7 +159,8 @@ struct PdeOptions {
   std::string mesh;
   TargetOptions target;
   /// Galerkin by default: more accurate than intrinsic for ICE on every problem and area weight
-  /// measured (README, Accuracy), e.g. 0.89x the intrinsic error (geometric mean) at the defaults.
+  /// measured (docs/measurements.md, "ICE metric defaults"), e.g. 0.89x the intrinsic error
+  /// (geometric mean) at the defaults.
   fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
   /// The prolongation the proxy solves with (fem::ProlongationKind): resolved by poisson-coarse from
   /// its --prolongation (resolve_prolongation); the other tools keep the barycentric P (geodesics by

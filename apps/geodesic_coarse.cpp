@@ -313,9 +313,8 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
 int main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
-      "geodesic-coarse: geodesic distance from source vertices (or between any vertices: the distance oracle) "
-      "through a small\nICE coarse proxy, carried back to every vertex; by default compared with the fine heat "
-      "method.\n\n"
+      "geodesic-coarse: geodesic distance from sources (or between any vertices: the oracle modes) through a small "
+      "ICE\ncoarse proxy, carried back to every vertex and (by default) compared with the fine heat method.\n\n"
       "Examples:\n  geodesic-coarse spot.obj --source 0 --ratio 0.05\n"
       "  geodesic-coarse bunny.off --source 10,250 --vertices 1000 --operators galerkin -o dist.ply --report r.json\n\n"
       "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written,\n"
@@ -324,33 +323,32 @@ int main(int argc, char** argv) {
   std::string sources_text;
   OracleRequest oracle;
   cli.add_option("--source,-s", sources_text,
-                 "Source vertices, 0-based, comma separated (e.g. 0,1500); the distance is to the nearest");
+                 "Source vertices, 0-based, comma separated (e.g. 0,1500)");
   cli.add_flag("--all-pairs", oracle.all_pairs,
-               "Distance oracle: all coarse pairs, every vertex pair answerable (--matrix: the n x n matrix)");
+               "Oracle: precompute all coarse pairs (--matrix: the n x n matrix)");
   cli.add_option("--pairs", oracle.pairs_path,
-                 "Distance oracle: answer the vertex pairs in FILE (two 0-based indices each, '#' comments)");
+                 "Oracle: answer the vertex pairs in FILE (two 0-based indices each)");
   cli.add_option("--sample", oracle.sample_count,
-                 "Distance oracle: K farthest-point samples and their K x K distance matrix (--matrix)")
+                 "Oracle: K farthest-point samples and their distance matrix (--matrix)")
       ->check(app::integer_between(1, 1LL << 31));
   const CLI::Option* first_sample_option =
       cli.add_option("--first-sample", oracle.first_sample,
-                     "With --sample: the first sample's vertex (default: vertex 0)");
+                     "With --sample: the first sample (default: vertex 0)");
   cli.add_option("--matrix", oracle.matrix_path,
-                 "With --all-pairs or --sample: write the distance matrix (.npy float32; .mtx with --sample)");
+                 "With --all-pairs or --sample: write the distance matrix (.npy; .mtx with --sample)");
   cli.add_option("--pairs-out", oracle.pairs_output, "With --pairs: write u,v,distance per pair (.csv)");
   app::add_choice(cli, "--coarse-distances", oracle.method,
                   {{"marching", fem::CoarseDistanceMethod::marching}, {"heat", fem::CoarseDistanceMethod::heat_method}},
-                  "Coarse distances: 'marching' (exact planar updates; more accurate) or 'heat' (the coarse heat "
-                  "method)");
+                  "Coarse distances: 'marching' (more accurate) or 'heat' (the coarse heat method)");
   app::add_coarse_lengths_option(cli, "--coarse-lengths", oracle.lengths);
   app::add_curvature_correction_option(cli, oracle.curvature_correction);
   const CLI::Option* subdivisions_option = cli.add_option(
       "--marching-subdivisions", oracle.subdivisions,
-      "Split the coarse mesh 1:4 this many times for marching: nearer exact geodesics, at more cost")
+      "Split the coarse mesh 1:4 this many times for marching (more accurate, slower)")
       ->check(CLI::Range(0, fem::kMaxMarchingSubdivisions))
       ->capture_default_str();
   cli.add_option("--check-sources", oracle.check_sources,
-                 "Distance oracle: random sources of the fine heat-method reference")
+                 "Oracle: random sources of the fine heat-method reference")
       ->check(app::integer_between(1, 100000))
       ->capture_default_str();
   opt.target.use_defaults_for(ice::ProxyUse::geodesic);  // the metric measured best for geodesics

@@ -181,9 +181,8 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
 int main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
-      "poisson-coarse: solve -Laplace(u) = f on a mesh through a small ICE coarse proxy, the solution carried back to "
-      "every\nvertex; by default also solved on the fine mesh for the error and the speed-up. Without --rhs the source "
-      "is a demo\n(three Gaussian bumps); without --fix the problem is zero-mean Neumann.\n\n"
+      "poisson-coarse: solve -Laplace(u) = f through a small ICE coarse proxy, carried back to every vertex and (by "
+      "default)\ncompared with the fine solve. Without --rhs: a demo source; without --fix: zero-mean Neumann.\n\n"
       "Examples:\n  poisson-coarse spot.obj --ratio 0.05\n"
       "  poisson-coarse lion-head.off --vertices 800 --fix 0=1 --fix 4000=0 -o u.ply --report r.json\n\n"
       "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written, 4 bad command "
@@ -194,12 +193,12 @@ int main(int argc, char** argv) {
   cli.add_option("--rhs", rhs_path,
                  "Source f: text file of one number per input vertex ('#' comments)");
   cli.add_option("--fix", fixes,
-                 "Dirichlet condition V=value at vertex V (0-based); repeat or separate with commas")
+                 "Dirichlet condition V=value at vertex V (0-based); repeat or comma-separate")
       ->delimiter(',')
       ->allow_extra_args(false);
   MultigridCli mg;
   cli.add_option("--solver", solver,
-                 "proxy (coarse solve, approximate), multigrid (exact, Galerkin multigrid) or direct (exact, CHOLMOD)")
+                 "proxy (approximate coarse solve), multigrid (exact, Galerkin) or direct (exact, CHOLMOD)")
       ->check(CLI::IsMember({"proxy", "multigrid", "direct"}))
       ->capture_default_str();
   cli.add_option("--mg-tolerance", mg.options.tolerance, "multigrid: relative residual to reach")->check(app::positive_number())->capture_default_str();
@@ -212,9 +211,9 @@ int main(int argc, char** argv) {
   app::add_choice(cli, "--mg-cycle", mg.options.mode, kCycleNames, "multigrid: pcg (V-cycle preconditioned CG) or vcycle");
   fem::CholeskyOrdering cholmod_ordering = fem::CholeskyOrdering::automatic;
   app::add_choice(cli, "--cholmod-ordering", cholmod_ordering, kOrderingNames,
-                  "CHOLMOD's fill-reducing ordering of exact fine solves (amd is usually fastest on large meshes)");
+                  "CHOLMOD ordering of exact fine solves (amd: usually fastest on large meshes)");
   cli.add_option("--mg-threads", mg.options.threads,
-                 "multigrid: threads on levels of 50,000+ unknowns (0: OMP_NUM_THREADS or all cores)")
+                 "multigrid: threads on levels of 50,000+ unknowns (0: all cores)")
       ->check(app::non_negative_integer())->capture_default_str();
   opt.add_to(cli, "'solution', 'reference', 'error'");
   opt.add_polish_options(cli);

@@ -109,7 +109,7 @@ int main(int argc, char** argv) {
                  "diffusion: coarse time t = (F h_c)^2, h_c the coarse mean edge length (default measured best)")
       ->check(app::positive_number())
       ->capture_default_str();
-  opt.add_to(cli, "vector_x/y/z, reference_x/y/z, angle_error, magnitude_error");
+  opt.add_to(cli, "vector_*, reference_*, angle_error, magnitude_error");
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&]() -> int {
@@ -118,6 +118,10 @@ int main(int argc, char** argv) {
       throw AppError(app::kUsage, "give the vectors by exactly one of --vector (angles) and --direction (3D)");
     if (opt.target.method == ice::CoarseningMethod::qem && opt.qem_geometry == ice::QemGeometry::intrinsic_delaunay)
       throw AppError(app::kUsage, "--qem-operators idt has no fine-to-coarse map onto its coarse mesh; use extrinsic");
+    // The field is written as PLY vertex properties; no page draws vector fields yet: refuse rather
+    // than write nothing (--html) or a PLY under a .glb name.
+    if (!opt.html.empty()) throw AppError(app::kUsage, "--html: vector-coarse draws no page; write the field with -o FILE.ply");
+    if (opt.output_is_gltf()) throw AppError(app::kUsage, "--output " + opt.output + ": vector-coarse writes PLY; use a .ply name");
     opt.check_outputs();
     const std::vector<long long> file_sources = app::parse_index_list(sources_text, "--source");
     const std::size_t count = file_sources.size();

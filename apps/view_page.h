@@ -58,7 +58,7 @@ struct ViewMesh {
 
 /// Display meshes above this many vertices are an ICE coarsening of the input: with base64 float32
 /// buffers the page of a 1.66M-vertex input is then ready in 5 s in headless Chromium with software
-/// WebGL (README, "The 3D page").
+/// WebGL (docs/measurements.md, "The 3D page and the output files").
 constexpr long long kDisplayVertices = 200000;
 
 /// The display mesh of an input: the input itself up to `max_vertices`, else an ICE coarsening to

@@ -68,7 +68,7 @@ install_packages() {
     return
   fi
   command -v dpkg-query >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1 ||
-    die "this is not a Debian-like system (no dpkg-query/apt-get); install the packages listed in README.md by hand and rerun with ICE_SETUP_SKIP_APT=1"
+    die "this is not a Debian-like system (no dpkg-query/apt-get); install the packages listed in docs/design.md (Dependencies) by hand and rerun with ICE_SETUP_SKIP_APT=1"
   local missing=() p
   for p in "${PACKAGES[@]}"; do
     is_installed "$p" || missing+=("$p")

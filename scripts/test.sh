@@ -98,7 +98,7 @@ if [[ -z "$ONLY" || "$ONLY" == asan ]]; then
   # Debug keeps assertions (no NDEBUG) and Eigen's bounds checks; -O1 instead of -O0 because
   # Eigen-heavy code under ASan at -O0 is several times slower and the CI budget is 90 minutes.
   config "asan" build/asan -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-g -O1" \
-    -DICE_SANITIZE=ON -DICE_BUILD_APPS=ON -DICE_BUILD_BENCH=OFF
+    -DICE_SANITIZE=ON -DICE_BUILD_APPS=ON -DICE_BUILD_BENCH=OFF -DICE_BUILD_ACCURACY_TOOLS=OFF -DICE_BUILD_DOCS=OFF
 fi
 
 TOTAL=$((SECONDS - T_START))

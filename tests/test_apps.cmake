@@ -18,7 +18,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   endif()
   set(_ice_app_cases
     coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot refine_spot poisson_spot poisson_fix_rhs_spot
-    ply_ascii errors view_page)
+    ply_ascii errors view_page help)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
       COMMAND ${CMAKE_COMMAND}
@@ -66,6 +66,26 @@ function(run expected tool)
   endif()
   set(RUN_OUT "${_out}" PARENT_SCOPE)
   set(RUN_ERR "${_err}" PARENT_SCOPE)
+endfunction()
+
+# check_help(tool): `tool --help` exits 0 with at most 5,000 characters and lines of at most 160 (each
+# option one or two lines; the details and figures live in docs/).
+function(check_help tool)
+  run(0 ${tool} --help)
+  string(LENGTH "${RUN_OUT}" _length)
+  if(_length GREATER 5000)
+    fail("${tool} --help has ${_length} characters (at most 5,000)")
+  endif()
+  string(REPLACE ";" "," _text "${RUN_OUT}")  # (a ';' in the text would split a line as a list)
+  string(REPLACE "[" "(" _text "${_text}")
+  string(REPLACE "]" ")" _text "${_text}")
+  string(REPLACE "\n" ";" _lines "${_text}")
+  foreach(_line IN LISTS _lines)
+    string(LENGTH "${_line}" _line_length)
+    if(_line_length GREATER 160)
+      fail("${tool} --help has a line of ${_line_length} characters (at most 160): ${_line}")
+    endif()
+  endforeach()
 endfunction()
 
 # expect_error(<code> <message regex> <tool> args...): the tool must fail with that status and say so.
@@ -347,7 +367,8 @@ elseif(CASE STREQUAL "geodesic_spot")
   # the fine heat method) ... These comparisons keep the metric they were written for: at the geodesic
   # default since 2026-11-29 (0.9) every variant is nearer the fine heat method (0.82-0.94 %) and the
   # correction's effect on this one mesh is within 0.01 % of it, a reference itself ~1 % from exact
-  # geodesics; the effects are measured against exact geodesics over 40 meshes (README, Accuracy).
+  # geodesics; the effects are measured against exact geodesics over 40 meshes (docs/measurements.md,
+  # "Curvature correction").
   set(_metric --area-weight 0.98)
   run(0 geodesic-coarse "${mesh}" --source 0,1500 --ratio 0.05 --coarse-lengths intrinsic ${_metric} --report "${WORK}/c.json" -q)
   json(lengths "${WORK}/c.json" coarse_lengths)
@@ -539,6 +560,9 @@ elseif(CASE STREQUAL "vector_spot")
                --vector-solver diffusion -q)
   expect_error(4 "vector-solver" vector-coarse "${mesh}" --source 0 --vector 1 --vertices 500 --vector-solver exact)
   expect_error(4 "2 angles for 1 sources" vector-coarse "${mesh}" --source 0 --vector 1,2 --vertices 500)
+  # No page and no glTF for vector fields: refused, not silently skipped or written as PLY under a .glb name.
+  expect_error(4 "draws no page" vector-coarse "${mesh}" --source 0 --vector 1 --vertices 500 --html "${WORK}/v.html")
+  expect_error(4 "writes PLY" vector-coarse "${mesh}" --source 0 --vector 1 --vertices 500 -o "${WORK}/v.glb")
   expect_error(4 "exactly one of --vector" vector-coarse "${mesh}" --source 0 --vertices 500)
   expect_error(4 "normal to the surface" vector-coarse "${mesh}" --source 0 --direction 0,0,0 --vertices 500)
   expect_error(4 "out of range" vector-coarse "${mesh}" --source 99999 --vector 1 --vertices 500)
@@ -988,11 +1012,18 @@ elseif(CASE STREQUAL "report_curvature_divisor")
   endforeach()
   expect_error(4 "curvature-divisor" ice-report ${_common} --curvature-divisor 0 -o "${WORK}/zero")
 
+elseif(CASE STREQUAL "help")
+  foreach(_tool ice-info ice-coarsen poisson-coarse geodesic-coarse vector-coarse)
+    check_help(${_tool})
+  endforeach()
+
 elseif(CASE STREQUAL "accuracy_tools_usage")
   # oracle-accuracy and vector-accuracy: --help prints the usage (exit 0), an option they do not know
   # is a usage error (4), not a mesh path, and a file they cannot read is skipped with its reason.
   file(MAKE_DIRECTORY "${WORK}")
+  check_help(ice-report)
   foreach(_tool oracle-accuracy vector-accuracy)
+    check_help(${_tool})
     run(0 ${_tool} --help)
     if(NOT RUN_OUT MATCHES "usage: ${_tool}")
       fail("${_tool} --help: no usage on stdout")

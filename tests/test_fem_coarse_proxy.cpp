@@ -644,7 +644,8 @@ TEST_CASE("coarse marching with tracked sources: exact on cones, convex and sadd
   // 2π) every path to its shadow runs through it, and the lines that pass it on the wrong side are
   // not paths (taken, they would be too short). The plain marching is exact here too (one cone:
   // its planar updates' corners are consistent); where it is not, on coarse meshes whose every
-  // vertex is a cone, the accuracy protocol measures the difference (README, Accuracy).
+  // vertex is a cone, the accuracy protocol measures the difference (docs/measurements.md, "Tracked
+  // virtual sources; the planar check").
   for (const double angle : {1.5 * 3.141592653589793, 2.6 * 3.141592653589793}) {
     const Cone cone = polar_cone(angle, 10, 7);
     const auto n = static_cast<Eigen::Index>(cone.radius.size());

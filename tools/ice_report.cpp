@@ -710,9 +710,9 @@ int main(int argc, char** argv) {
   cli.add_option("--output,-o", outdir, "Output directory (created; report files in it are replaced)")
       ->capture_default_str();
   cli.add_option("--meshes", meshes_text,
-                 "Comma-separated mesh names or paths (default: the clean meshes of the sets present)");
+                 "Comma-separated mesh names or paths (default: the clean meshes of both sets)");
   cli.add_option("--meshes-dir", meshes_dir, "Where mesh names are looked up (default: data/default/, then the extended set)");
-  cli.add_option("--budgets", budgets_text, "Comma-separated coarse budgets (fractions of the input vertices)")->capture_default_str();
+  cli.add_option("--budgets", budgets_text, "Comma-separated coarse budgets (fractions of the vertices)")->capture_default_str();
   cli.add_option("--min-vertices", min_vertices, "Floor of every coarse size (at most the input size)")->capture_default_str();
   cli.add_option("--methods", methods_text, "Comma-separated subset of the methods")->capture_default_str();
   cli.add_option("--area-weight", area_weight, "ICE area weight of the ice_area method")->capture_default_str();
@@ -725,8 +725,7 @@ int main(int argc, char** argv) {
   ice::proxy::Prolongation qem_choice = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(
       cli, qem_choice, "--qem-prolongation",
-      "QEM's proxy: 'smoothed' (Galerkin; its most accurate), 'barycentric' (its own geometry's operators) or "
-      "'auto'");
+      "QEM's proxy: 'smoothed' (Galerkin, its most accurate), 'barycentric' (its own operators) or 'auto'");
   bool normalize_curvature = ice::recommended_coarsen_options().normalize_curvature;
   cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
                "ice_area: curvature masses divided by the total absolute curvature")
@@ -745,10 +744,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bool exact_geodesics = false;
   app::add_choice(cli, "--geodesic-reference", exact_geodesics, {{"heat", false}, {"exact", true}},
-                  "Geodesic errors against the fine heat method or exact polyhedral geodesics (CGAL builds only)");
+                  "Geodesic errors against the fine heat method or exact geodesics (CGAL builds)");
   bool equal_sizes = true;
   cli.add_flag("--equal-sizes,!--no-equal-sizes", equal_sizes,
-               "Compare methods at equal sizes: coarsen the others to where one stopped above the target (default on)");
+               "Compare methods at equal vertex counts where one stops above the target (default on)");
   long long exact_max_vertices = ice_bench::kDefaultExactMaxVertices;
   cli.add_option("--exact-max-vertices", exact_max_vertices,
                  "With --geodesic-reference exact: skip meshes of more vertices")
@@ -760,25 +759,24 @@ int main(int argc, char** argv) {
   ice::proxy::CurvatureCorrection curvature_correction = ice::proxy::CurvatureCorrection::automatic;
   app::add_curvature_correction_option(cli, curvature_correction);
   cli.add_option("--curvature-divisor", geodesic.curvature_divisor,
-                 "Divisor d of the curvature correction exp(K l^2/d) (default: the one measured best)")
+                 "Divisor d of the curvature correction exp(K l^2/d) (default: measured best)")
       ->check(app::positive_number())
       ->capture_default_str();
   int coarsen_threads = 1, coarsen_regions = 0;  // ICE coarsening's parallel phase (default: the serial order)
   app::add_coarsen_parallel_options(cli, coarsen_threads, coarsen_regions);
   std::string tolerances_text;
   cli.add_option("--tolerances", tolerances_text,
-                 "Comma-separated tolerances, e.g. 1e-2,1e-3: also polish the Poisson and heat proxies to each "
-                 "(polish.csv)");
+                 "Also polish the Poisson and heat proxies to these tolerances, e.g. 1e-2,1e-3 (polish.csv)");
   bool repair = false;
   cli.add_flag("--repair", repair,
-               "Apply the safe mesh repairs to every input (else a defective mesh is skipped)");
+               "Apply the safe mesh repairs (else defective meshes are skipped)");
   cli.add_flag("--quick", quick, "Small subset for CI: spot and elephant, budgets 5% and 10%");
   cli.add_flag("--no-plots", no_plots, "Do not run gnuplot");
   bool no_html = false, force = false;
   double view_budget = 0;
-  cli.add_flag("--no-html", no_html, "Do not write report.html (the interactive 3D page)");
+  cli.add_flag("--no-html", no_html, "Do not write report.html (the 3D page)");
   cli.add_option("--view-budget", view_budget,
-                 "The budget the 3D page shows (default: the one nearest 5%)");
+                 "The budget the 3D page shows (default: nearest 5%)");
   cli.add_flag("--force", force, "Replace an existing report.html");
   cli.add_option("--plot-script", plot_script, "The gnuplot script that draws the plots")->capture_default_str();
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
@@ -902,8 +900,8 @@ int main(int argc, char** argv) {
       for (double budget : budgets) {
         ++step;
         const bool viewed = view && budget == view_budget;
-        const long long target =
-            std::min(n, std::max(static_cast<long long>(std::ceil(budget * static_cast<double>(n))), min_vertices));
+        const long long target = ice::proxy::target_vertices(static_cast<ice::Index>(n), budget,
+                                                             static_cast<ice::Index>(std::min(min_vertices, n)));
         Row base;
         base.mesh = name, base.n = n, base.budget = budget, base.target = target;
         std::ostringstream progress;

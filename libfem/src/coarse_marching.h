@@ -375,7 +375,8 @@ class CoarseMarcher {
   /// → 0.451 % and 0.321 → 0.221 % (medians); marching on armadillo_43k's own mesh 0.345 % → 0.045 %.
   /// A planar update from two done corners counts only where the point it places agrees with the
   /// direction of either corner's virtual source (kPlanarCheck): behind a saddle it would otherwise
-  /// be a shortcut (README, Accuracy: 40 meshes, 2026-11-29).
+  /// be a shortcut (docs/measurements.md, "Tracked virtual sources; the planar check": 40 meshes,
+  /// 2026-11-29).
   /// It costs 2–3× a run (1.58M vertices at 1 %: 89 ms a solve); the oracle's all-pairs marching
   /// (`oracle-accuracy --coarse 200`, 6 meshes: 0–22 % less error) would take 3.9× as long and does
   /// without.
@@ -495,7 +496,7 @@ class CoarseMarcher {
   // (against marching on the fine mesh, 0 / 1 / 2 / 3 subdivisions, mean error): without the check
   // 1.63 / 2.36 / 4.99 / 0.81 %, with 0.2 rad 1.53 / 1.05 / 0.86 / 0.80 %, 0.05 rad 1.47 / 0.87 /
   // 0.86 / 0.81 %, 0.01 rad 1.52 / 0.94 / 0.94 / 0.87 %; over the accuracy protocol's 40 meshes see
-  // the README (Accuracy).
+  // docs/measurements.md, "Tracked virtual sources; the planar check".
   static constexpr double kPlanarCheck = 0.05;
   /// How much nearer a face must find a done vertex to reopen it: above the floats' round-off, so
   /// that equal values reached through two faces do not reopen each other.

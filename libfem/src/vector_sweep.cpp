@@ -38,9 +38,10 @@ constexpr Eigen::Index kSupernodalFrom = 50'000;
 // included) times exp(s̄_c − s_p), s̄_c the P-weighted mean of s over the column, so that every
 // basis entry is of order one. The coarse matrix BᴴAB is Hermitian positive definite (a Galerkin
 // product of A), so the correction never increases A's energy norm of the error, unlike the
-// Petrov–Galerkin correction in the scaled variables that diverged on cow (README); and its
-// unknowns are relative, so that the far field is not lost in the near field's round-off, as it was
-// with a basis that ignores the solution's decay.
+// Petrov–Galerkin correction in the scaled variables that diverged on cow (docs/measurements.md,
+// "Distance sweep: passes and coarse correction"); and its unknowns are relative, so that the far
+// field is not lost in the near field's round-off, as it was with a basis that ignores the
+// solution's decay.
 template <class Scalar>
 class CoarseCorrection {
  public:

@@ -162,7 +162,7 @@ def test_geodesic_equals_the_geodesic_coarse_tool(tmp_path, tool, project_mesh):
     assert np.abs(corrected - bare).max() > 1e-3 * corrected.max()
     assert np.array_equal(corrected, ice.ProxyGeodesicSolver.from_coarse(V, F, coarse, lengths="intrinsic",
                                                                           curvature_correction=True).distance([7, 100]))
-    qem = ice.coarsen(V, F, ratio=0.05, method="qem")  # not corrected by default (measured: README, Accuracy)
+    qem = ice.coarsen(V, F, ratio=0.05, method="qem")  # not corrected by default (docs/measurements.md, "Curvature correction")
     assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, qem).distance([7]),
                           ice.ProxyGeodesicSolver.from_coarse(V, F, qem, curvature_correction=False).distance([7]))
     with pytest.raises(TypeError, match="curvature_correction"):
