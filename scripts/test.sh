@@ -97,7 +97,10 @@ fi
 if [[ -z "$ONLY" || "$ONLY" == asan ]]; then
   # Debug keeps assertions (no NDEBUG) and Eigen's bounds checks; -O1 instead of -O0 because
   # Eigen-heavy code under ASan at -O0 is several times slower and the CI budget is 90 minutes.
-  config "asan" build/asan -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-g -O1" \
+  # -g1: line tables only, all a sanitizer's stack trace reads (file:line per frame); full debug
+  # information of the template-heavy code was a third of this build's time (docs/measurements.md,
+  # "The test command's time"). Build with -g yourself to debug in gdb.
+  config "asan" build/asan -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-g1 -O1" \
     -DICE_SANITIZE=ON -DICE_BUILD_APPS=ON -DICE_BUILD_BENCH=OFF -DICE_BUILD_ACCURACY_TOOLS=OFF -DICE_BUILD_DOCS=OFF
 fi
 
