@@ -130,11 +130,6 @@ std::map<std::string, Enum> choice_names() {
   const auto& table = ice::proxy::spellings<Enum>();
   return std::map<std::string, Enum>(table.begin(), table.end());
 }
-/// The command-line spelling of a choice (ice::proxy::spelling).
-template <class Enum>
-std::string cli_name(Enum value) {
-  return ice::proxy::spelling(value);
-}
 
 /// Throws AppError(kNotWritten) if `path` exists and !overwrite (the tools call it for every output
 /// before doing any work), or if its directory does not exist (ice::check_writable's policy).

@@ -261,7 +261,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
     timings["reference"] = {{"assemble", run.ref_assemble}, {"factor", run.ref_factor}, {"solve", run.ref_solve}};
   }
 
-  report["method"] = app::cli_name(space.summary.method);
+  report["method"] = ice::proxy::spelling(space.summary.method);
   if (!space.summary.qem) report["metric"] = {{"area_weight", opt.target.area_weight}, {"normalize_curvature", opt.target.normalize_curvature}};
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
   report["coarse"] = ice::proxy::coarsen_json(space.summary);
@@ -280,7 +280,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   outputs.complete = true;
 
   std::cout << kTool << ": " << app::thousands(n) << " vertices -> " << app::thousands(oracle.coarse_size())
-            << " coarse vertices (" << app::cli_name(space.summary.method) << "); distance oracle ("
+            << " coarse vertices (" << ice::proxy::spelling(space.summary.method) << "); distance oracle ("
             << fem::to_string(request.method) << ") in " << app::fixed(oracle_seconds, 3) << " s, "
             << app::fixed(static_cast<double>(oracle.memory_bytes()) / (1 << 20), 1) << " MiB; coarsening "
             << app::fixed(run.coarsen, 3) << " s\n";

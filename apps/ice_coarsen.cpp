@@ -288,7 +288,7 @@ int main(int argc, char** argv) {
     if (!report_path.empty()) {
       nlohmann::json report = app::report_header(kTool, input);
       report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
-      report["options"] = {{"method", app::cli_name(target.method)},
+      report["options"] = {{"method", ice::proxy::spelling(target.method)},
                            {"target_vertices", options.target_vertices},
                            {"target_ratio", options.target_ratio},
                            {"max_error", std::isfinite(options.max_error) ? nlohmann::json(options.max_error) : nlohmann::json(nullptr)},

@@ -144,9 +144,9 @@ double PdeRun::reference_total() const { return ref_assemble + ref_factor + ref_
 
 nlohmann::json PdeRun::report() const {
   nlohmann::json r = report_header(tool, mesh_path);
-  r["method"] = cli_name(coarsening.method);
-  r["operators"] = cli_name(operators);
-  r["prolongation"] = cli_name(prolongation);
+  r["method"] = ice::proxy::spelling(coarsening.method);
+  r["operators"] = ice::proxy::spelling(operators);
+  r["prolongation"] = ice::proxy::spelling(prolongation);
   if (!coarsening.qem) r["metric"] = {{"area_weight", area_weight}, {"normalize_curvature", normalize_curvature}};
   if (coarsening.qem) r["qem"] = ice::proxy::qem_json(*coarsening.qem, coarsening.target_reached);
   r["input"] = {{"vertices", fine_vertices}, {"faces", fine_faces}};
@@ -181,9 +181,9 @@ void PdeRun::print_summary(std::ostream& out) const {
   const bool qem = coarsening.qem.has_value();
   out << tool << ": " << mesh_path << ": " << thousands(fine_vertices) << " vertices -> " << thousands(coarse_vertices)
       << " coarse vertices (" << percent(double(coarse_vertices) / double(std::max(1LL, fine_vertices))) << "), "
-      << (qem ? "QEM (" + cli_name(coarsening.qem->geometry) + " mesh)"
+      << (qem ? "QEM (" + ice::proxy::spelling(coarsening.qem->geometry) + " mesh)"
               : "ICE (area weight " + fixed(area_weight, 2) + (normalize_curvature ? ", normalised curvature)" : ")"))
-      << ", " << (coarse_solver.empty() ? cli_name(operators) + " coarse operators" : coarse_solver) << '\n';
+      << ", " << (coarse_solver.empty() ? ice::proxy::spelling(operators) + " coarse operators" : coarse_solver) << '\n';
   const auto row = [&](const std::string& name, double seconds, const std::string& note = "") {
     out << "  " << std::left << std::setw(16) << name << std::right << std::setw(10) << fixed(seconds, 4) << " s"
         << (note.empty() ? "" : "   " + note) << '\n';

@@ -1036,7 +1036,7 @@ int main(int argc, char** argv) {
                               {"area_weight", area_weight},
                               {"normalize_curvature", normalize_curvature},
                               {"operators", operators},
-                              {"prolongation", app::cli_name(prolongation)},
+                              {"prolongation", ice::proxy::spelling(prolongation)},
                               {"qem_operators", qem_prolongation == fem::ProlongationKind::smoothed
                                                     ? "galerkin, smoothed prolongation"
                                                     : "its own geometry's"},

@@ -7,6 +7,12 @@ namespace ice::proxy {
 
 namespace {
 
+/// Refuses, before any coarsening, lengths the coarse distances cannot use.
+void require_marching_for_traced(CoarseLengths lengths, bool marching) {
+  if (lengths == CoarseLengths::traced && !marching)
+    throw std::invalid_argument("traced coarse lengths are for coarse marching, not the heat method");
+}
+
 /// The coarse space of a marching recipe: `coarse` if given, else coarsened keeping the method's
 /// state when the lengths are to be traced (the walk reads it).
 CoarseSpace marching_space(const TriangleMesh& mesh, std::optional<CoarseSpace> coarse, CoarseSpaceOptions coarsening,
@@ -31,8 +37,7 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
                                const std::vector<CoarsePoint>* map)
     : options_(std::move(options)) {
   const bool marching = options_.method == fem::CoarseDistanceMethod::marching;
-  if (options_.lengths == CoarseLengths::traced && !marching)
-    throw std::invalid_argument("traced coarse lengths are for coarse marching, not the heat method");
+  require_marching_for_traced(options_.lengths, marching);
   if (marching) {
     setup_.coarse = marching_space(mesh, std::move(coarse), options_.coarsening, options_.lengths, true);
     traced_ = trace(options_.lengths, setup_.coarse, map, true);
@@ -61,6 +66,7 @@ Eigen::VectorXd geodesic_distance(const TriangleMesh& mesh, const std::vector<In
 fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOptions& options, std::optional<CoarseSpace> coarse,
                                     const std::vector<CoarsePoint>* map) {
   const bool marching = options.oracle.method == fem::CoarseDistanceMethod::marching;
+  require_marching_for_traced(options.lengths, marching);
   CoarseSpaceOptions coarsening = options.coarsening;
   coarsening.keep_method_state = true;  // the oracle's fine points are the fine-to-coarse map
   const CoarseSpace space = marching_space(mesh, std::move(coarse), std::move(coarsening), options.lengths, marching);
@@ -70,8 +76,6 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
     map = &own_map;
   }
   const bool traced = trace(options.lengths, space, map, marching);
-  if (options.lengths == CoarseLengths::traced && !marching)
-    throw std::invalid_argument("traced coarse lengths are for coarse marching, not the heat method");
   return fem::DistanceOracle(space.mesh.F,
                              marching_lengths(mesh, space, traced, options.curvature_correction, map,
                                               curvature_divisor(MarchingUse::all_pairs))

@@ -156,12 +156,6 @@ def _coarse_for(V, F, coarse, coarsening, use, locked=None):
     return coarsen(V, F, **coarsening)
 
 
-def _resolve_prolongation(prolongation: str, operators: str, dirichlet: bool) -> str:
-    """The policy of the recipe floor (ice::proxy::resolve_prolongation): "auto" is the smoothed P
-    where it serves (Galerkin operators, no Dirichlet vertices), as the tools."""
-    return _ice._resolve_prolongation(prolongation, operators, dirichlet)
-
-
 def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, values=None,
                   operators: str = "galerkin", fine: str = "intrinsic_delaunay", polish: int = 0,
                   tolerance: float = 0.0, prolongation: str = "auto", **coarsening):
@@ -176,7 +170,7 @@ def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, val
     vertices, as poisson-coarse).
     """
     coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", fixed)
-    prolongation = _resolve_prolongation(prolongation, operators, fixed is not None and len(fixed) > 0)
+    prolongation = _ice._resolve_prolongation(prolongation, operators, fixed is not None and len(fixed) > 0)
     proxy = Proxy(V, F, coarse, operators=operators, fine=fine, prolongation=prolongation)
     return ProxyPoissonSolver(proxy, fixed=fixed, polish=polish, tolerance=tolerance).solve(f, values)
 
@@ -190,7 +184,7 @@ def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace
     """
     coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
     proxy = Proxy(V, F, coarse, operators=operators, fine=fine,
-                  prolongation=_resolve_prolongation(prolongation, operators, False))
+                  prolongation=_ice._resolve_prolongation(prolongation, operators, False))
     solver = ProxyHeatSolver(proxy, time_step, restriction=restriction, polish=polish, tolerance=tolerance)
     return solver.integrate(u0, steps)
 

@@ -24,7 +24,6 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
-#include "ice/proxy/geodesics.h"
 #include "ice/proxy/policies.h"
 #include "ice/proxy/report.h"
 #include "ice/proxy/setup.h"
@@ -563,9 +562,7 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
   py::gil_scoped_release release;
   require_clean(mesh);
   result->fine = ice::fine_mesh(mesh, geometry);
-  result->proxy = std::make_unique<fem::CoarseProxy>(result->fine.F, result->fine.L, coarse.space.mesh.F,
-                                                     coarse.space.mesh.L, coarse.space.P, kind, fem::MassKind::lumped,
-                                                     smoothing);
+  result->proxy = std::make_unique<fem::CoarseProxy>(ice::proxy::make_proxy(result->fine, coarse.space, kind, smoothing));
   return result;
 }
 

@@ -28,7 +28,8 @@ class HeatSolver {
   /// step τ > 0. Throws std::invalid_argument on bad options or τ.
   HeatSolver(const TriangleMesh& mesh, double time_step, HeatOptions options = {}, std::optional<CoarseSpace> coarse = {});
 
-  /// The field after `steps` >= 1 backward-Euler steps from u0 (one value per vertex).
+  /// The field after `steps` backward-Euler steps from u0 (one value per vertex); fem::ProxyHeatSolver's
+  /// contract: steps >= 1 with L2 projection, >= 0 with injection (std::invalid_argument otherwise).
   Eigen::VectorXd integrate(const Eigen::Ref<const Eigen::VectorXd>& u0, int steps = 1,
                             fem::ProxyPhaseTimes* times = nullptr, fem::PolishReport* polish_report = nullptr) const;
 
