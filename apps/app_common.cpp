@@ -151,8 +151,9 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
                    std::to_string(result.next_cost) + " > --max-error");
 }
 
-ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run, bool keep_method_state, bool record_history) {
+namespace {
+ice::CoarseSpaceOptions pde_space_options(const ice::CoarsenOptions& options, const PdeOptions& opt, bool keep_method_state,
+                                          bool record_history) {
   ice::CoarseSpaceOptions space_options;
   space_options.keep_method_state = keep_method_state;
   space_options.record_history = record_history;
@@ -160,6 +161,13 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
   space_options.qem_geometry = opt.qem_geometry;
   space_options.coarsen = options;
   space_options.refinement = opt.target.refinement();
+  return space_options;
+}
+}  // namespace
+
+ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                                 PdeRun& run, bool keep_method_state, bool record_history) {
+  const ice::CoarseSpaceOptions space_options = pde_space_options(options, opt, keep_method_state, record_history);
   ice::CoarseSpace space;
   try {
     space = build_coarse_space_with_progress(mesh, space_options, !opt.quiet);
@@ -174,12 +182,46 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
 }
 
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                         PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine, bool keep_method_state) {
+                         PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine, bool keep_method_state,
+                         const ice::proxy::Store& store) {
   PdeProxy p;
   // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
   // An output file draws the coarse mesh on the surface (write_result_fields) exactly: ICE's state is
   // kept with its history for it. Traced lengths (keep_method_state) need the state alone (the walk).
   const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice;
+  // The store holds coarse spaces without the method's state: a run that draws or walks the coarse
+  // mesh sets up from scratch.
+  const bool stored = store.enabled() && assemble_proxy && !drawn && !keep_method_state;
+  std::optional<ice::proxy::StoreKey> key;
+  if (stored) {
+    key = ice::proxy::proxy_setup_key(mesh, pde_space_options(options, opt, false, false), opt.fine_geometry(), opt.operators,
+                                      opt.prolongation);
+    run.cache_json = nlohmann::json();
+    if (std::optional<ice::proxy::ProxySetup> setup =
+            ice::proxy::load_proxy_setup(store, *key, mesh, run.cache, [&mesh, geometry = opt.fine_geometry()](ice::Faces& F, ice::FaceLengths& L) {
+              ice::FineMesh fine = ice::fine_mesh(mesh, geometry);  // the tool's mesh outlives its proxy
+              F = std::move(fine.F);
+              L = std::move(fine.L);
+            })) {
+      p.coarse = std::move(setup->coarse);
+      p.proxy = std::move(setup->proxy);
+      run.cache = setup->cache;
+      run.cache_json = ice::proxy::cache_json(run.cache, store);
+      run.coarsening = p.coarse.summary;
+      clock.lap();
+      run.coarsen = 0;  // the load is run.cache.load_seconds
+      run.fine_built = need_fine;
+      if (need_fine) {
+        p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
+        run.idt_flips = p.fine.flips;
+      }
+      run.fine_mesh = clock.lap();
+      return p;
+    }
+    if (run.cache.status == ice::proxy::CacheStatus::rebuilt)
+      warn(run.tool, "the stored setup was damaged and is rebuilt: " + run.cache.damage);
+    clock.lap();  // the failed load is run.cache.load_seconds
+  }
   p.coarse = coarsen_for_pde(mesh, options, opt, run, keep_method_state || drawn, drawn);
   run.coarsen = clock.lap();
   // The fine discretisation: the reference's, and the Galerkin operators' and M f's
@@ -190,6 +232,20 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
   }
   run.fine_mesh = clock.lap();
   if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(ice::proxy::make_proxy(p.fine, p.coarse, opt.operators, opt.prolongation));
+  if (key) {
+    const double assemble = clock.lap();  // the caller's assemble phase, kept apart from the save
+    ice::proxy::ProxySetup setup;
+    setup.coarse = std::move(p.coarse);
+    setup.proxy = std::move(p.proxy);
+    setup.cache = run.cache;
+    ice::proxy::save_proxy_setup(store, *key, setup);
+    p.coarse = std::move(setup.coarse);
+    p.proxy = std::move(setup.proxy);
+    run.cache = setup.cache;
+    run.cache_json = ice::proxy::cache_json(run.cache, store);
+    clock.lap();
+    clock.rewind(assemble);  // the assembly goes back to the caller's next lap
+  }
   return p;
 }
 

@@ -94,10 +94,12 @@ struct PdeProxy {
 /// --fine-idt unless !need_fine, make_proxy of --operators unless !assemble_proxy: then proxy stays
 /// null; assembling needs the fine mesh), with run.coarsen, run.fine_mesh, run.fine_built and
 /// run.idt_flips recorded; the proxy's assembly is left running on `clock`, for the caller's assemble
-/// phase.
+/// phase. With an enabled `store` (and a proxy to assemble, and no output drawing the coarse mesh)
+/// the coarse space and proxy are loaded from it when stored, else saved there once built
+/// (ice::proxy::load_proxy_setup / save_proxy_setup; run.cache says which).
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                          PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
-                         bool keep_method_state = false);
+                         bool keep_method_state = false, const ice::proxy::Store& store = {});
 
 /// --curvature-correction auto|on|off, for the tools that march on the coarse mesh.
 void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrection& correction);

@@ -188,7 +188,7 @@ void add_coarsen_parallel_options(CLI::App& cli, int& threads, int& regions) {
       ->check(integer_between(0, 64))
       ->capture_default_str();
   cli.add_option("--coarsen-regions", regions,
-                 "Regions of the parallel phase (R >= 2: result depends on R only; 1: serial; 0: 4 x threads)")
+                 "Regions of the parallel phase (0: 4 x threads; 1: serial)")
       ->check(integer_between(0, 254))
       ->capture_default_str();
 }
@@ -211,7 +211,7 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
                    "Remove vertices while the cheapest costs at most E (ICE metric); with --vertices/--ratio: whichever "
                    "stops first");
   cli.add_option("--area-weight,-w", area_weight,
-                 "Area term's weight in the ICE metric (0: curvature only); default: measured best for this tool")
+                 "Area term's weight in the ICE metric (0: curvature only)")
       ->check(number_between(0, 1))
       ->capture_default_str();
   cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
@@ -315,7 +315,7 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   add_choice(cli, "--qem-operators", qem_geometry, choice_names<ice::QemGeometry>(),
              "With --method qem: coarse geometry 'extrinsic' (its positions) or 'idt' (intrinsic Delaunay)");
   cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
-               "Fine operators on the input's intrinsic Delaunay triangulation (or its triangles: --no-fine-idt)")
+               "Fine operators on the input's intrinsic Delaunay triangulation (else its triangles)")
       ->capture_default_str();
   cli.add_option("--output,-o", output,
                  "Write the mesh with the fields " + field_names + " (ICE: + 'patch') as PLY or glTF (.glb)");
@@ -329,9 +329,27 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   cli.add_flag("--repair", repair, "Apply the safe mesh repairs first (see ice-info --repair)");
 }
 
+void PdeOptions::add_cache_options(CLI::App& cli) {
+  auto* dir = cli.add_option("--cache", cache_directory,
+                             "Store of set-up proxies (default: $ICE_CACHE or ~/.cache/ice)");
+  cli.add_flag("--no-cache", no_cache, "Set up from scratch, store nothing")->excludes(dir);
+}
+
+ice::proxy::Store PdeOptions::store() const {
+  if (no_cache) return {};
+  ice::proxy::StoreOptions options;
+  try {
+    options = ice::proxy::default_store_options();
+  } catch (const std::invalid_argument& e) {
+    throw AppError(kUsage, e.what());
+  }
+  if (!cache_directory.empty()) options.directory = cache_directory;
+  return ice::proxy::Store(options);
+}
+
 void PdeOptions::add_polish_options(CLI::App& cli) {
   cli.add_option("--polish", polish.iterations,
-                 "Polish with at most N fine two-level-preconditioned CG iterations (0: the plain proxy)")
+                 "At most N fine two-level-preconditioned CG iterations (0: none)")
       ->check(non_negative_integer())
       ->capture_default_str();
   cli.add_option("--tolerance", polish.tolerance,

@@ -17,6 +17,7 @@
 #include "ice/coarse_space.h"
 #include "ice/coarsen.h"
 #include "ice/proxy/policies.h"
+#include "ice/proxy/store.h"
 
 namespace app {
 
@@ -187,6 +188,14 @@ struct PdeOptions {
   bool output_is_gltf() const;
   /// The fine discretisation chosen by --fine-idt / --no-fine-idt.
   ice::FineGeometry fine_geometry() const;
+  /// The store of set-up proxies (ice/proxy/store.h): --cache DIR, or the default
+  /// (ice::proxy::default_store_options: $ICE_CACHE, the XDG cache folder); off with --no-cache.
+  std::string cache_directory;
+  bool no_cache = false;
+  /// --cache and --no-cache, for the tools that set up a proxy through the store.
+  void add_cache_options(CLI::App& cli);
+  /// The store those options name; throws AppError(kUsage) on a malformed $ICE_CACHE_MAX_MB.
+  ice::proxy::Store store() const;
 };
 
 }  // namespace app

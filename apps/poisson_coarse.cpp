@@ -207,8 +207,8 @@ int main(int argc, char** argv) {
       ->check(app::integer_between(1, std::numeric_limits<int>::max()))
       ->capture_default_str();
   app::add_choice(cli, "--mg-smoother", mg.options.smoother, kSmootherNames,
-                  "multigrid: sgs (symmetric Gauss-Seidel), gs or chebyshev");
-  app::add_choice(cli, "--mg-cycle", mg.options.mode, kCycleNames, "multigrid: pcg (V-cycle preconditioned CG) or vcycle");
+                  "multigrid smoother");
+  app::add_choice(cli, "--mg-cycle", mg.options.mode, kCycleNames, "multigrid: V-cycle preconditioned CG, or plain V-cycles");
   fem::CholeskyOrdering cholmod_ordering = fem::CholeskyOrdering::automatic;
   app::add_choice(cli, "--cholmod-ordering", cholmod_ordering, kOrderingNames,
                   "CHOLMOD ordering of exact fine solves (amd: usually fastest on large meshes)");
@@ -217,6 +217,7 @@ int main(int argc, char** argv) {
       ->check(app::non_negative_integer())->capture_default_str();
   opt.add_to(cli, "'solution', 'reference', 'error'");
   opt.add_polish_options(cli);
+  opt.add_cache_options(cli);
   ice::proxy::Prolongation prolongation = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(cli, prolongation);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
@@ -296,7 +297,8 @@ int main(int argc, char** argv) {
 
     // ---- coarsen, fine discretisation, then the proxy (fem::ProxyPoissonSolver: restrict, coarse
     // solve, prolong, each timed)
-    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock);
+    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, true, run.has_reference, false,
+                                                   opt.store());
     const ice::FineMesh& fine = pde.fine;
     const fem::CoarseProxy& proxy = *pde.proxy;
     const bool dirichlet = !fixed_vertices.empty();

@@ -136,7 +136,16 @@ PdeRun PdeRun::start(const std::string& tool, const PdeOptions& opt, bool proxy_
   return run;
 }
 
-double PdeRun::proxy_total() const { return coarsen + assemble + factor + polish_setup + per_solve(); }
+double PdeRun::proxy_total() const {
+  return cache.load_seconds + cache.save_seconds + coarsen + assemble + factor + polish_setup + per_solve();
+}
+
+long long PdeRun::break_even_solves() const {
+  const double setup = proxy_total() - per_solve(), reference_setup = ref_assemble + ref_factor;
+  if (setup <= reference_setup) return 1;
+  if (per_solve() >= ref_solve) return -1;
+  return static_cast<long long>(std::ceil((setup - reference_setup) / (ref_solve - per_solve())));
+}
 
 double PdeRun::per_solve() const { return solve + prolong + polish; }
 
@@ -156,7 +165,9 @@ nlohmann::json PdeRun::report() const {
                     {"used_by_proxy", proxy_uses_fine_mesh}};
   nlohmann::json t = {{"load", load},       {"coarsen", coarsen}, {"fine_mesh", fine_mesh}, {"assemble", assemble},
                       {"factor", factor},   {"solve", solve},     {"prolong", prolong},     {"proxy_total", proxy_total()},
-                      {"per_solve", per_solve()}, {"write", write}};
+                      {"per_solve", per_solve()}, {"write", write},
+                      {"cache_load", cache.load_seconds}, {"cache_save", cache.save_seconds}};
+  r["cache"] = cache_json.is_null() ? nlohmann::json{{"status", "off"}} : cache_json;
   if (polish_options.enabled()) {
     t["polish_setup"] = polish_setup;
     t["polish"] = polish;
@@ -167,7 +178,8 @@ nlohmann::json PdeRun::report() const {
     t["reference_phases"] = {{"assemble", ref_assemble}, {"factor", ref_factor}, {"solve", ref_solve}};
     r["speedup"] = {{"total", reference_total() / std::max(proxy_total(), 1e-12)},
                     {"per_solve", ref_solve / std::max(per_solve(), 1e-12)},
-                    {"per_solve_vs_factor_and_solve", (ref_factor + ref_solve) / std::max(per_solve(), 1e-12)}};
+                    {"per_solve_vs_factor_and_solve", (ref_factor + ref_solve) / std::max(per_solve(), 1e-12)},
+                    {"break_even_solves", break_even_solves() > 0 ? nlohmann::json(break_even_solves()) : nlohmann::json()}};
   }
   r["timings_s"] = t;
   r["removals_per_second"] = coarsening.removed() / std::max(coarsen, 1e-9);
@@ -189,6 +201,11 @@ void PdeRun::print_summary(std::ostream& out) const {
         << (note.empty() ? "" : "   " + note) << '\n';
   };
   row("load", load);
+  if (cache.status == ice::proxy::CacheStatus::hit)
+    row("cache load", cache.load_seconds, "coarse space and proxy from the store (nothing coarsened or assembled)");
+  if (cache.status == ice::proxy::CacheStatus::rebuilt)
+    out << "  cache           damaged entry removed and rebuilt: " << cache.damage << '\n';
+  if (cache.status != ice::proxy::CacheStatus::hit)
   row("coarsen", coarsen, thousands(coarsening.removed()) + (qem ? " collapses, " : " removals, ") +
                               thousands(static_cast<long long>(coarsening.removed() / std::max(coarsen, 1e-9))) + "/s");
   if (coarsening.refinement) out << "  refine          " << refinement_line(coarsening) << '\n';
@@ -199,6 +216,8 @@ void PdeRun::print_summary(std::ostream& out) const {
   else
     row("fine mesh", 0, "not built (neither the proxy nor a reference needs it)");
   row("assemble", assemble);
+  if (cache.status == ice::proxy::CacheStatus::miss || cache.status == ice::proxy::CacheStatus::rebuilt)
+    row("cache save", cache.save_seconds, cache.save_error.empty() ? "stored for the next run" : "NOT stored: " + cache.save_error);
   row("factor", factor);
   row("solve", solve);
   row("prolong", prolong);
@@ -211,7 +230,8 @@ void PdeRun::print_summary(std::ostream& out) const {
             (polish_options.tolerance > 0 ? (p.reached_tolerance ? " (tolerance reached)" : " (tolerance NOT reached)") : ""));
   }
   row("proxy total", proxy_total(),
-      std::string(polish_options.enabled() ? "coarsen+assemble+factor+solve+prolong+polish" : "coarsen+assemble+factor+solve+prolong") +
+      std::string(cache.status == ice::proxy::CacheStatus::off ? "" : "cache+") +
+          std::string(polish_options.enabled() ? "coarsen+assemble+factor+solve+prolong+polish" : "coarsen+assemble+factor+solve+prolong") +
           "; per solve " + fixed(per_solve(), 4) + " s");
   if (has_reference) {
     row("fine reference", reference_total(),
@@ -220,6 +240,10 @@ void PdeRun::print_summary(std::ostream& out) const {
         << fixed(ref_solve / std::max(per_solve(), 1e-12), 1) << "x per solve (fine solve "
         << fixed(ref_solve, 4) << " s vs " << (polish_options.enabled() ? "coarse solve+prolong+polish " : "coarse solve+prolong ")
         << fixed(per_solve(), 4) << " s)\n";
+    const long long solves = break_even_solves();
+    out << "  break-even: " << (solves > 0 ? "ICE is ahead from " + thousands(solves) + (solves == 1 ? " solve" : " solves")
+                                            : std::string("never (a proxy solve is no faster than the fine one)"))
+        << (cache.status == ice::proxy::CacheStatus::hit ? " (setup from the store)" : cache.status == ice::proxy::CacheStatus::off ? "" : " (cold setup; a second run loads it from the store)") << '\n';
   }
 }
 

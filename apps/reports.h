@@ -31,6 +31,10 @@ class Stopwatch {
     start_ = now;
     return s;
   }
+  /// Moves the start back by `seconds`: the next lap() counts them too.
+  void rewind(double seconds) {
+    start_ -= std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
+  }
 
  private:
   std::chrono::steady_clock::time_point start_;
@@ -117,14 +121,22 @@ struct PdeRun {
   fem::PolishOptions polish_options;
   fem::PolishReport polish_report;
   double polish_setup = 0, polish = 0;
+  /// The store of set-up proxies: where the setup came from, and the store's directory (report only).
+  ice::proxy::CacheReport cache;
+  nlohmann::json cache_json;
 
   /// A run of `tool` with the shared PDE options (mesh, operators, fine mesh, reference).
   static PdeRun start(const std::string& tool, const PdeOptions& opt, bool proxy_uses_fine_mesh);
-  /// coarsen + assemble + factor + solve + prolong (+ polish setup and iterations). The fine mesh (intrinsic Delaunay or input
+  /// cache load and save + coarsen + assemble + factor + solve + prolong (+ polish setup and
+  /// iterations). The fine mesh (intrinsic Delaunay or input
   /// lengths) is a choice of fine discretisation shared by both sides: timed apart, in neither total.
   double proxy_total() const;
   /// reference assemble + factor + solve.
   double reference_total() const;
+  /// The number of solves after which this run's route (its setup, then per_solve() a solve) has
+  /// cost less than the reference's (assemble and factor, then its solve a solve): 1 when the
+  /// setup already costs less, -1 when never (a proxy solve no faster than the fine one).
+  long long break_even_solves() const;
   /// solve + prolong (+ the polishing iterations).
   double per_solve() const;
   /// tool, mesh, method, operators, input, coarse, fine_mesh, timings_s (incl. reference and

@@ -18,7 +18,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   endif()
   set(_ice_app_cases
     coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot refine_spot poisson_spot poisson_fix_rhs_spot
-    ply_ascii errors view_page help)
+    poisson_cache ply_ascii errors view_page help)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
       COMMAND ${CMAKE_COMMAND}
@@ -28,7 +28,9 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
         -DWORK=${CMAKE_CURRENT_BINARY_DIR}/app_tests/${_case}
         -DSOURCE_DIR=${PROJECT_SOURCE_DIR}
         -P ${CMAKE_CURRENT_LIST_FILE})
-    set_tests_properties(app_${_case} PROPERTIES LABELS apps TIMEOUT 600)
+    # Each case its own store of set-up proxies (the tools use one by default), never the user's.
+    set_tests_properties(app_${_case} PROPERTIES LABELS apps TIMEOUT 600
+      ENVIRONMENT "ICE_CACHE=${CMAKE_CURRENT_BINARY_DIR}/app_tests/${_case}/store")
   endforeach()
   return()
 endif()
@@ -645,6 +647,32 @@ elseif(CASE STREQUAL "poisson_spot")
   run(0 poisson-coarse "${mesh}" --ratio 0.05 --operators galerkin --report "${WORK}/g.json" -q)
   json(rel_l2 "${WORK}/g.json" error rel_l2)
   check(${rel_l2} LESS 0.08 "error.rel_l2 (galerkin)")
+
+elseif(CASE STREQUAL "poisson_cache")
+  # The store of set-up proxies: a first run sets up and stores, a second loads it and gives the same
+  # solution; --no-cache neither reads nor writes; the break-even count is reported.
+  project_mesh(mesh spot.obj)
+  file(REMOVE_RECURSE "${WORK}/store")
+  foreach(_run cold warm)
+    run(0 poisson-coarse "${mesh}" --ratio 0.05 --cache "${WORK}/store" --report "${WORK}/${_run}.json" -q)
+  endforeach()
+  json(cold "${WORK}/cold.json" cache status)
+  json(warm "${WORK}/warm.json" cache status)
+  check_text("${cold}/${warm}" "miss/hit" "cache.status of the cold and warm runs")
+  json(cold_error "${WORK}/cold.json" error max_abs)
+  json(warm_error "${WORK}/warm.json" error max_abs)
+  check_text("${warm_error}" "${cold_error}" "error.max_abs warm (the same solution to the last bit)")
+  require_keys("${WORK}/warm.json" timings_s.cache_load timings_s.cache_save cache.keys speedup.break_even_solves)
+  if(NOT RUN_OUT MATCHES "cache load")
+    fail("the warm run's summary does not show the cache load:\n${RUN_OUT}")
+  endif()
+  file(GLOB entries "${WORK}/store/proxy-*.ice")
+  list(LENGTH entries count)
+  check(${count} EQUAL 1 "store entries")
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --no-cache --report "${WORK}/off.json" -q)
+  json(off "${WORK}/off.json" cache status)
+  check_text("${off}" "off" "cache.status with --no-cache")
+  expect_error(4 "excludes" poisson-coarse "${mesh}" --cache "${WORK}/store" --no-cache)
 
 elseif(CASE STREQUAL "poisson_fix_rhs_spot")
   project_mesh(mesh spot.obj)

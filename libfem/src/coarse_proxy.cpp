@@ -78,15 +78,7 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
   lazy_->L = L;
   lazy_->n = n_fine;
 
-  // A coarse vertex sitting on a fine vertex shows up as a row of the given P equal to e_j.
-  coarse_to_fine_.assign(static_cast<std::size_t>(n_coarse), -1);
-  fine_to_coarse_.assign(static_cast<std::size_t>(n_fine), -1);
-  for (Eigen::Index j = 0; j < P_.outerSize(); ++j)
-    for (SparseMatrix::InnerIterator it(P_, j); it; ++it)
-      if (std::abs(it.value() - 1.0) < 1e-12) {
-        coarse_to_fine_[static_cast<std::size_t>(j)] = static_cast<int>(it.row());
-        fine_to_coarse_[static_cast<std::size_t>(it.row())] = static_cast<int>(j);
-      }
+  index_coinciding_vertices(P_);  // the given P (smoothed below)
   if (prolongation == ProlongationKind::smoothed) {
     barycentric_ = std::move(P_);
     P_ = smoothed_prolongation(barycentric_, fine_laplacian());
@@ -99,7 +91,62 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
     coarse_laplacian_ = galerkin(P_, fine_laplacian());
     coarse_mass_ = galerkin(P_, fine_mass_);
   }
-  coarse_mass_factor_.compute(coarse_mass_);
+}
+
+CoarseProxy::CoarseProxy(CoarseProxyArrays a, FineMeshSource fine_mesh)
+    : kind_(a.kind), mass_kind_(a.mass_kind), prolongation_kind_(a.prolongation_kind),
+      coarse_faces_(std::move(a.coarse_faces)), coarse_lengths_(std::move(a.coarse_lengths)) {
+  // Eigen 3.4's SparseMatrix has no move constructor (std::move copies): swap the arrays in.
+  P_.swap(a.P);
+  barycentric_.swap(a.barycentric);
+  fine_mass_.swap(a.fine_mass);
+  coarse_laplacian_.swap(a.coarse_laplacian);
+  coarse_mass_.swap(a.coarse_mass);
+  const std::string who = "CoarseProxy (restored)";
+  const bool smoothed = prolongation_kind_ == ProlongationKind::smoothed;
+  if (smoothed && kind_ != CoarseOperatorKind::galerkin)
+    throw std::invalid_argument(who + ": a smoothed prolongation needs Galerkin coarse operators");
+  if (!fine_mesh) throw std::invalid_argument(who + ": no source of the fine mesh");
+  const Eigen::Index n_fine = P_.rows(), n_coarse = P_.cols();
+  if (smoothed != (barycentric_.size() > 0) || (smoothed && (barycentric_.rows() != n_fine || barycentric_.cols() != n_coarse)))
+    throw std::invalid_argument(who + ": the barycentric P must be given exactly when P is smoothed, of P's shape");
+  if (fine_mass_.rows() != n_fine || fine_mass_.cols() != n_fine || coarse_laplacian_.rows() != n_coarse ||
+      coarse_laplacian_.cols() != n_coarse || coarse_mass_.rows() != n_coarse || coarse_mass_.cols() != n_coarse)
+    throw std::invalid_argument(who + ": operator shapes disagree with P (" + std::to_string(n_fine) + " x " +
+                                std::to_string(n_coarse) + ")");
+  if (coarse_faces_.cols() != 3 || coarse_lengths_.rows() != coarse_faces_.rows() || coarse_lengths_.cols() != 3 ||
+      (coarse_faces_.size() > 0 && coarse_faces_.minCoeff() < 0))
+    throw std::invalid_argument(who + ": the coarse faces and lengths disagree");
+  fine_mass_.makeCompressed();
+  for (Eigen::Index i = 0; i < fine_mass_.outerSize(); ++i) {
+    const auto begin = fine_mass_.outerIndexPtr()[i], end = fine_mass_.outerIndexPtr()[i + 1];
+    if (end - begin != 1 || fine_mass_.innerIndexPtr()[begin] != i || !(fine_mass_.valuePtr()[begin] >= 0) ||
+        !std::isfinite(fine_mass_.valuePtr()[begin]))
+      throw std::invalid_argument(who + ": the fine mass is not a non-negative diagonal (column " + std::to_string(i) + ")");
+  }
+  P_.makeCompressed();
+  require_prolongation(barycentric_prolongation(), coarse_faces_, who);
+  lazy_ = std::make_unique<LazyFineOperators>();
+  lazy_->n = n_fine;
+  lazy_->source = std::move(fine_mesh);
+  index_coinciding_vertices(barycentric_prolongation());
+}
+
+CoarseProxyArrays CoarseProxy::arrays() const {
+  return {kind_, mass_kind_, prolongation_kind_, P_, barycentric_, fine_mass_, coarse_laplacian_, coarse_mass_,
+          coarse_faces_, coarse_lengths_};
+}
+
+// A coarse vertex sitting on a fine vertex shows up as a row of the given P equal to e_j.
+void CoarseProxy::index_coinciding_vertices(const SparseMatrix& P) {
+  coarse_to_fine_.assign(static_cast<std::size_t>(P.cols()), -1);
+  fine_to_coarse_.assign(static_cast<std::size_t>(P.rows()), -1);
+  for (Eigen::Index j = 0; j < P.outerSize(); ++j)
+    for (SparseMatrix::InnerIterator it(P, j); it; ++it)
+      if (std::abs(it.value() - 1.0) < 1e-12) {
+        coarse_to_fine_[static_cast<std::size_t>(j)] = static_cast<int>(it.row());
+        fine_to_coarse_[static_cast<std::size_t>(it.row())] = static_cast<int>(j);
+      }
 }
 
 int CoarseProxy::coarse_vertex_of(int fine_vertex) const {
@@ -108,8 +155,19 @@ int CoarseProxy::coarse_vertex_of(int fine_vertex) const {
   return fine_to_coarse_[static_cast<std::size_t>(fine_vertex)];
 }
 
-const CoarseProxy::LazyFineOperators& CoarseProxy::fine_operators() const {
+const CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
   LazyFineOperators& lazy = *lazy_;
+  std::call_once(lazy.mesh_once, [&lazy] {
+    if (!lazy.source) return;
+    lazy.source(lazy.F, lazy.L);
+    if (lazy.F.size() > 0 && (lazy.F.maxCoeff() >= lazy.n || lazy.F.minCoeff() < 0 || lazy.L.rows() != lazy.F.rows()))
+      throw std::invalid_argument("CoarseProxy (restored): the fine mesh given does not fit P's rows");
+  });
+  return lazy;
+}
+
+const CoarseProxy::LazyFineOperators& CoarseProxy::fine_operators() const {
+  LazyFineOperators& lazy = const_cast<LazyFineOperators&>(fine_mesh_of_lazy());
   std::call_once(lazy.once, [&lazy] {
     lazy.laplacian = cotan_laplacian(lazy.F, lazy.L, lazy.n);
     lazy.gradient = gradient(lazy.F, lazy.L, lazy.n);
@@ -127,8 +185,11 @@ Eigen::VectorXd CoarseProxy::restrict_weighted(const Eigen::Ref<const Eigen::Vec
 
 Eigen::VectorXd CoarseProxy::restrict_values(const Eigen::Ref<const Eigen::VectorXd>& u, RestrictionKind kind) const {
   if (u.size() != fine_size()) throw std::invalid_argument("CoarseProxy::restrict_values: wrong size");
-  if (kind == RestrictionKind::l2_projection)
-    return coarse_mass_factor_.solve(Eigen::VectorXd(P_.transpose() * (fine_mass_ * u)));
+  if (kind == RestrictionKind::l2_projection) {
+    LazyFineOperators& lazy = *lazy_;  // the factor is made on first use: Poisson never needs it
+    std::call_once(lazy.mass_factor_once, [&] { lazy.coarse_mass_factor.compute(coarse_mass_); });
+    return lazy.coarse_mass_factor.solve(Eigen::VectorXd(P_.transpose() * (fine_mass_ * u)));
+  }
   Eigen::VectorXd coarse(coarse_size());
   for (Eigen::Index j = 0; j < coarse_size(); ++j) {
     const int fine = coarse_to_fine_[static_cast<std::size_t>(j)];

@@ -14,6 +14,22 @@
 
 namespace ice {
 
+CoarseSpace::CoarseSpace(CoarseSpace&& other) noexcept { *this = std::move(other); }
+
+CoarseSpace& CoarseSpace::operator=(CoarseSpace&& other) noexcept {
+  if (this == &other) return *this;
+  mesh = std::move(other.mesh);
+  inserted = std::move(other.inserted);
+  P.swap(other.P);
+  other.P.resize(0, 0);
+  summary = std::move(other.summary);
+  triangulation = std::move(other.triangulation);
+  triangulation_order = std::move(other.triangulation_order);
+  triangulation_face_order = std::move(other.triangulation_face_order);
+  qem_result = std::move(other.qem_result);
+  return *this;
+}
+
 const char* to_string(CoarseningMethod method) { return method == CoarseningMethod::qem ? "qem" : "ice"; }
 
 const char* to_string(QemGeometry geometry) {

@@ -10,7 +10,7 @@ HeatSolver::HeatSolver(const TriangleMesh& mesh, double time_step, HeatOptions o
     : time_step_(time_step) {
   if (!(time_step > 0) || !std::isfinite(time_step)) throw std::invalid_argument("the time step must be > 0 and finite");
   setup_ = build_proxy_setup(mesh, std::move(coarse), std::move(options.coarsening), {}, options.fine, options.operators,
-                             options.prolongation, false);
+                             options.prolongation, false, Store(options.store), {}, options.polish.enabled());
   solver_ = std::make_unique<fem::ProxyHeatSolver>(*setup_.proxy, time_step, options.restriction, options.polish);
 }
 

@@ -14,7 +14,8 @@ PoissonSolver::PoissonSolver(const TriangleMesh& mesh, PoissonOptions options, s
       throw std::invalid_argument("fixed vertex " + std::to_string(v) + " is out of range: the mesh has " +
                                   std::to_string(n) + " vertices");
   setup_ = build_proxy_setup(mesh, std::move(coarse), options_.coarsening, options_.fixed_vertices, options_.fine,
-                             options_.operators, options_.prolongation, !options_.fixed_vertices.empty());
+                             options_.operators, options_.prolongation, !options_.fixed_vertices.empty(), Store(options_.store), {},
+                             options_.polish.enabled());
   solver_ = std::make_unique<fem::ProxyPoissonSolver>(*setup_.proxy, options_.fixed_vertices, options_.polish);
 }
 

@@ -93,6 +93,14 @@ const Spellings<ProxyUse>& spellings<ProxyUse>() {
   return names;
 }
 template <>
+const Spellings<CacheStatus>& spellings<CacheStatus>() {
+  static const Spellings<CacheStatus> names{{"off", CacheStatus::off},
+                                            {"miss", CacheStatus::miss},
+                                            {"hit", CacheStatus::hit},
+                                            {"rebuilt", CacheStatus::rebuilt}};
+  return names;
+}
+template <>
 const Spellings<fem::CoarseOperatorKind>& spellings<fem::CoarseOperatorKind>() {
   static const Spellings<fem::CoarseOperatorKind> names{{"intrinsic", fem::CoarseOperatorKind::intrinsic},
                                                         {"galerkin", fem::CoarseOperatorKind::galerkin}};

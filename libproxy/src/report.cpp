@@ -144,4 +144,12 @@ nlohmann::json qem_json(const QemOutcome& qem, bool target_reached) {
           {"idt_flips", qem.intrinsic_delaunay_flips}};
 }
 
+nlohmann::json cache_json(const CacheReport& cache, const Store& store) {
+  nlohmann::json j = {{"status", spelling(cache.status)}, {"keys", cache.keys}};
+  j["directory"] = store.enabled() ? nlohmann::json(store.options().directory.string()) : nlohmann::json();
+  if (!cache.damage.empty()) j["damage"] = cache.damage;
+  if (!cache.save_error.empty()) j["save_error"] = cache.save_error;
+  return j;
+}
+
 }  // namespace ice::proxy

@@ -15,18 +15,27 @@ fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem
 
 ProxySetup build_proxy_setup(const TriangleMesh& mesh, std::optional<CoarseSpace> coarse, CoarseSpaceOptions coarsening,
                              const std::vector<Index>& locked, FineGeometry geometry, fem::CoarseOperatorKind kind,
-                             Prolongation prolongation, bool dirichlet) {
+                             Prolongation prolongation, bool dirichlet, const Store& store, const CoarseSpaceBuilder& builder,
+                             bool fine_operators) {
   const fem::ProlongationKind resolved = resolve_prolongation(prolongation, kind, dirichlet);  // before any work
   ProxySetup setup;
+  std::optional<StoreKey> key;
   if (coarse) {
     setup.coarse = std::move(*coarse);
   } else {
     std::vector<Index>& kept = coarsening.coarsen.locked_vertices;
     kept.insert(kept.end(), locked.begin(), locked.end());
-    setup.coarse = build_coarse_space(mesh, coarsening);
+    if (store.enabled() && !coarsening.keep_method_state && !coarsening.record_history) {
+      key = proxy_setup_key(mesh, coarsening, geometry, kind, resolved);
+      if (std::optional<ProxySetup> stored = load_proxy_setup(store, *key, mesh, setup.cache,
+                                                              fine_operators ? fine_mesh_source(mesh, geometry) : nullptr))
+        return std::move(*stored);
+    }
+    setup.coarse = builder ? builder(mesh, coarsening) : build_coarse_space(mesh, coarsening);
   }
   setup.fine = fine_mesh(mesh, geometry);
   setup.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(setup.fine, setup.coarse, kind, resolved));
+  if (key) save_proxy_setup(store, *key, setup);
   return setup;
 }
 

@@ -27,6 +27,7 @@
 ///    y, exact inside the source's face and wherever one virtual source reaches y's face; heat_method: a fine source vertex becomes the coarse source weights Pᵀ e_s,
 ///    the coarse heat method solves, and the distance is prolonged with P and shifted so that it
 ///    vanishes (on average) at the fine sources.
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -75,6 +76,20 @@ constexpr double kProlongationSmoothingWeight = 2.0 / 3.0;
 SparseMatrix smoothed_prolongation(const SparseMatrix& P, const SparseMatrix& laplacian,
                                    double omega = kProlongationSmoothingWeight);
 
+/// What a CoarseProxy is made of once assembled: enough to build it back without the fine mesh or
+/// any assembly (CoarseProxy::arrays, and the restoring constructor), which is how a proxy is
+/// stored for reuse (ice/proxy/store.h).
+struct CoarseProxyArrays {
+  CoarseOperatorKind kind = CoarseOperatorKind::galerkin;
+  MassKind mass_kind = MassKind::lumped;
+  ProlongationKind prolongation_kind = ProlongationKind::barycentric;
+  SparseMatrix P;            ///< the prolongation solved with (n_fine × n_coarse)
+  SparseMatrix barycentric;  ///< P as given when P is its smoothing; empty otherwise
+  SparseMatrix fine_mass, coarse_laplacian, coarse_mass;
+  Faces coarse_faces;
+  FaceLengths coarse_lengths;
+};
+
 /// Fine and coarse operators linked by P. The constructor assembles the fine mass and the coarse
 /// operators; the fine Laplacian and gradient are assembled there too for Galerkin operators, and
 /// only on first use (fine_laplacian(), Galerkin heat-method operators) for intrinsic ones, which do
@@ -91,6 +106,18 @@ class CoarseProxy {
               CoarseOperatorKind kind, MassKind mass_kind = MassKind::lumped,
               ProlongationKind prolongation = ProlongationKind::barycentric);
 
+  /// The fine mesh (F, L) of a restored proxy, made on first use of the fine operators.
+  using FineMeshSource = std::function<void(Faces& F, FaceLengths& L)>;
+  /// A proxy built back from the arrays of one (arrays()): no assembly; the fine Laplacian and
+  /// gradient, which only polishing, fine_laplacian() and the Galerkin heat method use, are
+  /// assembled on first use from the fine mesh `fine_mesh` gives then.
+  /// Throws std::invalid_argument when the arrays are not those of a proxy: shapes that disagree, a
+  /// coarse face naming a vertex beyond P's columns, a row of the barycentric P not summing to 1,
+  /// a fine mass that is not diagonal with positive entries, or a smoothed P without Galerkin operators.
+  CoarseProxy(CoarseProxyArrays arrays, FineMeshSource fine_mesh);
+  /// A copy of the arrays this proxy is made of.
+  CoarseProxyArrays arrays() const;
+
   CoarseOperatorKind kind() const { return kind_; }
   ProlongationKind prolongation_kind() const { return prolongation_kind_; }
   /// The prolongation the proxy solves with (smoothed or as given).
@@ -106,8 +133,8 @@ class CoarseProxy {
   const SparseMatrix& coarse_mass() const { return coarse_mass_; }
   /// The coarse mesh as given (Fc, Lc).
   /// The fine mesh the proxy was built on.
-  const Faces& fine_faces() const { return lazy_->F; }
-  const FaceLengths& fine_lengths() const { return lazy_->L; }
+  const Faces& fine_faces() const { return fine_mesh_of_lazy().F; }
+  const FaceLengths& fine_lengths() const { return fine_mesh_of_lazy().L; }
   const Faces& coarse_faces() const { return coarse_faces_; }
   const FaceLengths& coarse_lengths() const { return coarse_lengths_; }
   Eigen::Index fine_size() const { return P_.rows(); }
@@ -142,22 +169,27 @@ class CoarseProxy {
   SparseMatrix P_;
   SparseMatrix barycentric_;  ///< P as given, kept only when P_ is its smoothing
   SparseMatrix fine_mass_, coarse_laplacian_, coarse_mass_;
-  // Fine Laplacian and gradient, assembled on first use (see the class comment).
+  // Fine Laplacian and gradient, assembled on first use (see the class comment), and the coarse
+  // mass's factor (for restrict_values' L² projection).
   struct LazyFineOperators {
     Faces F;
     FaceLengths L;
     Eigen::Index n = 0;
-    std::once_flag once;
+    FineMeshSource source;  ///< a restored proxy's: fills F and L on first use
+    std::once_flag mesh_once, once;
+    std::once_flag mass_factor_once;
+    CholeskySolver coarse_mass_factor;  ///< for the L² projection, on its first use
     SparseMatrix laplacian, gradient;
     Eigen::VectorXd face_areas;
   };
   std::unique_ptr<LazyFineOperators> lazy_;
   const LazyFineOperators& fine_operators() const;
+  const LazyFineOperators& fine_mesh_of_lazy() const;
+  void index_coinciding_vertices(const SparseMatrix& barycentric);
   Faces coarse_faces_;
   FaceLengths coarse_lengths_;
   std::vector<Index> coarse_to_fine_;  ///< fine vertex coinciding with each coarse vertex, or -1
   std::vector<Index> fine_to_coarse_;  ///< coarse vertex each fine vertex coincides with, or -1
-  CholeskySolver coarse_mass_factor_;  ///< for the L² projection
 };
 
 /// Seconds spent in each stage of one proxy solve, for callers that report phases (the tools, the

@@ -146,6 +146,13 @@ struct CoarseSpace {
   std::vector<Index> triangulation_face_order;
   /// With keep_method_state and QEM: its result (the QEM mesh, the map; its P is moved into P above).
   std::optional<QemResult> qem_result;
+
+  CoarseSpace() = default;
+  CoarseSpace(const CoarseSpace&) = default;
+  CoarseSpace& operator=(const CoarseSpace&) = default;
+  /// Moves hand P over: Eigen 3.4's SparseMatrix has no move operations (std::move would copy it).
+  CoarseSpace(CoarseSpace&& other) noexcept;
+  CoarseSpace& operator=(CoarseSpace&& other) noexcept;
 };
 
 /// Coarsens `mesh` (clean, oriented, manifold: e.g. from ice::load_mesh) by options.method.

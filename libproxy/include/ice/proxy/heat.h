@@ -20,6 +20,9 @@ struct HeatOptions {
   /// How the initial values reach the coarse mesh.
   fem::RestrictionKind restriction = fem::RestrictionKind::l2_projection;
   fem::PolishOptions polish;
+  /// Where the set-up proxy is looked up and saved (store.h); off by default in the library (the
+  /// tools and the Python package use default_store_options()). A given coarse space bypasses it.
+  StoreOptions store;
 };
 
 class HeatSolver {
@@ -37,6 +40,8 @@ class HeatSolver {
   const CoarseSpace& coarse_space() const { return setup_.coarse; }
   const FineMesh& fine_mesh() const { return setup_.fine; }
   const fem::CoarseProxy& proxy() const { return *setup_.proxy; }
+  /// Where the setup came from (the store's status and times).
+  const CacheReport& cache() const { return setup_.cache; }
 
  private:
   double time_step_;

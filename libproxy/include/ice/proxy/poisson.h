@@ -23,6 +23,9 @@ struct PoissonOptions {
   std::vector<Index> fixed_vertices;
   /// Polishing towards the fine solution (none by default).
   fem::PolishOptions polish;
+  /// Where the set-up proxy is looked up and saved (store.h); off by default in the library (the
+  /// tools and the Python package use default_store_options()). A given coarse space bypasses it.
+  StoreOptions store;
 };
 
 /// A Poisson problem set up once: the coarse space, the fine discretisation, the proxy and its
@@ -44,6 +47,8 @@ class PoissonSolver {
   const CoarseSpace& coarse_space() const { return setup_.coarse; }
   const FineMesh& fine_mesh() const { return setup_.fine; }
   const fem::CoarseProxy& proxy() const { return *setup_.proxy; }
+  /// Where the setup came from (the store's status and times).
+  const CacheReport& cache() const { return setup_.cache; }
   const fem::ProxyPoissonSolver& proxy_solver() const { return *solver_; }
 
  private:

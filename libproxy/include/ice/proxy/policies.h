@@ -16,6 +16,7 @@
 #include "fem/coarse_proxy.h"
 #include "fem/vector_fields.h"
 #include "ice/coarse_space.h"
+#include "ice/proxy/store.h"
 
 namespace ice::proxy {
 
@@ -89,6 +90,7 @@ template <> const Spellings<fem::CoarseOperatorKind>& spellings<fem::CoarseOpera
 template <> const Spellings<fem::VectorOperatorKind>& spellings<fem::VectorOperatorKind>();
 template <> const Spellings<fem::CoarseDistanceMethod>& spellings<fem::CoarseDistanceMethod>();
 template <> const Spellings<fem::ProlongationKind>& spellings<fem::ProlongationKind>();
+template <> const Spellings<CacheStatus>& spellings<CacheStatus>();
 
 /// The spelling of `value` (its first name in spellings<Enum>()).
 template <class Enum>

@@ -9,6 +9,7 @@
 #include "fem/multigrid.h"
 #include "ice/coarse_space.h"
 #include "ice/mesh_validation.h"
+#include "ice/proxy/store.h"
 
 namespace ice::proxy {
 
@@ -30,5 +31,9 @@ nlohmann::json polish_json(const fem::PolishOptions& options, const fem::PolishR
 /// A multigrid solver's last solve and set-up (iterations, convergence, residuals, options, levels,
 /// operator complexity, seconds).
 nlohmann::json multigrid_json(const fem::MultigridSolver& solver);
+
+/// The "cache" object: status (off, miss, hit, rebuilt), the store's directory, the entries' keys,
+/// the damage found and any error writing an entry. Its times go to "timings_s" (cache_load, cache_save).
+nlohmann::json cache_json(const CacheReport& cache, const Store& store);
 
 }  // namespace ice::proxy

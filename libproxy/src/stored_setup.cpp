@@ -1,0 +1,289 @@
+#include "ice/proxy/setup.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <type_traits>
+#include <utility>
+
+namespace ice::proxy {
+
+namespace {
+
+constexpr const char* kKind = "proxy";
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Every field of a CoarseSpaceSummary, in one order for both directions: `field` is called with a
+// reference to each (doubles, Index, bool, enums) and the presence flags of its optional parts.
+template <class Field>
+void visit_summary(CoarseSpaceSummary& s, Field&& field) {
+  field(s.method);
+  field(s.input_vertices);
+  field(s.coarse_vertices);
+  field(s.coarse_faces);
+  field(s.target_reached);
+  field(s.seconds);
+  field(s.triangulation_seconds);
+  field(s.prolongation_seconds);
+  field(s.refinement_seconds);
+  bool has_ice = s.ice.has_value(), has_qem = s.qem.has_value(), has_refinement = s.refinement.has_value();
+  field(has_ice);
+  field(has_qem);
+  field(has_refinement);
+  if (has_ice) {
+    if (!s.ice) s.ice.emplace();
+    CoarsenResult& r = *s.ice;
+    field(r.stop_reason);
+    field(r.input_vertices);
+    field(r.output_vertices);
+    field(r.output_faces);
+    field(r.removed);
+    field(r.failed_removals);
+    for (Index& count : r.failures_by_status) field(count);
+    field(r.last_cost);
+    field(r.max_cost);
+    field(r.next_cost);
+    field(r.parallel_removed);
+    field(r.cost_evaluations);
+    field(r.seconds);
+    field(r.setup_seconds);
+    field(r.parallel_seconds);
+    field(r.serial_seconds);
+  }
+  if (has_qem) {
+    if (!s.qem) s.qem.emplace();
+    QemOutcome& q = *s.qem;
+    field(q.collapses);
+    field(q.guard_relaxed);
+    field(q.max_distance);
+    field(q.mean_distance);
+    field(q.decimate_seconds);
+    field(q.map_seconds);
+    field(q.geometry);
+    field(q.intrinsic_delaunay_flips);
+  }
+  if (has_refinement) {
+    if (!s.refinement) s.refinement.emplace();
+    RefinementResult& r = *s.refinement;
+    field(r.inserted);
+    field(r.boundary_splits);
+    field(r.flips);
+    field(r.min_angle_before);
+    field(r.min_angle_after);
+    field(r.faces_below_bound);
+    field(r.sharp_vertex_faces);
+    field(r.tiny_faces);
+    field(r.bound_reached);
+    field(r.budget_exhausted);
+  }
+}
+
+// Doubles hold every field exactly (counts are below 2^53).
+std::vector<double> summary_values(CoarseSpaceSummary summary) {
+  std::vector<double> values;
+  visit_summary(summary, [&values](auto& f) { values.push_back(static_cast<double>(f)); });
+  return values;
+}
+
+CoarseSpaceSummary summary_from(const std::vector<double>& values, const std::string& path) {
+  CoarseSpaceSummary summary;
+  std::size_t next = 0;
+  visit_summary(summary, [&](auto& f) {
+    if (next >= values.size()) throw std::runtime_error(path + ": the coarse space summary is cut off");
+    using T = std::remove_reference_t<decltype(f)>;
+    const double v = values[next++];
+    if constexpr (!std::is_floating_point_v<T>)
+      if (!(v == std::floor(v) && std::abs(v) < 2147483648.0))
+        throw std::runtime_error(path + ": the coarse space summary has a count that is not an integer");
+    f = static_cast<T>(v);
+  });
+  if (next != values.size()) throw std::runtime_error(path + ": the coarse space summary has extra values");
+  return summary;
+}
+
+std::vector<std::int32_t> as_ints(const std::vector<Index>& v) { return std::vector<std::int32_t>(v.begin(), v.end()); }
+
+void require(bool ok, const std::string& path, const std::string& what) {
+  if (!ok) throw std::runtime_error(path + ": " + what);
+}
+
+}  // namespace
+
+StoreKey proxy_setup_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening, FineGeometry geometry,
+                         fem::CoarseOperatorKind kind, fem::ProlongationKind prolongation) {
+  KeyHasher h(kKind);
+  h.add_matrix(mesh.V).add_matrix(mesh.F);
+  const CoarsenOptions& c = coarsening.coarsen;
+  h.add(to_string(coarsening.method)).add(static_cast<std::int64_t>(c.target_vertices)).add(c.target_ratio);
+  h.add(c.max_error).add(c.area_weight).add(c.normalize_curvature).add(c.remove_boundary);
+  std::vector<Index> locked = c.locked_vertices;  // a set: order and repeats do not change the result
+  std::sort(locked.begin(), locked.end());
+  locked.erase(std::unique(locked.begin(), locked.end()), locked.end());
+  h.add_bytes(locked.data(), locked.size() * sizeof(Index));
+  // The coarsening's result depends on its region count (ice::CoarsenOptions::regions), which a
+  // thread count of 0 resolves on this machine: key on the regions it runs with.
+  const int threads = std::min(c.threads > 0 ? c.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
+  const int regions = c.regions > 0 ? c.regions : threads > 1 ? std::min(4 * threads, 254) : 1;
+  h.add(regions).add(static_cast<std::int64_t>(c.parallel_min_vertices));
+  h.add(to_string(coarsening.qem_geometry)).add(coarsening.locality_numbering);
+  h.add(coarsening.refinement.has_value());
+  if (coarsening.refinement) h.add(coarsening.refinement->min_angle_degrees).add(coarsening.refinement->max_vertex_ratio);
+  h.add(to_string(geometry)).add(static_cast<int>(kind)).add(fem::to_string(prolongation));
+  h.add(static_cast<int>(fem::MassKind::lumped)).add(fem::kProlongationSmoothingWeight);
+  return h.finish();
+}
+
+void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup) {
+  const auto start = std::chrono::steady_clock::now();
+  const CoarseSpace& coarse = setup.coarse;
+  const fem::CoarseProxyArrays proxy = setup.proxy->arrays();
+  EntryWriter w;
+  w.put_int("input_vertices", coarse.P.rows());
+  w.put_matrix("coarse.F", coarse.mesh.F);
+  w.put_matrix("coarse.L", coarse.mesh.L);
+  const std::vector<std::int32_t> twin = as_ints(coarse.mesh.twin), to_input = as_ints(coarse.mesh.to_input),
+                                  from_input = as_ints(coarse.mesh.from_input);
+  w.put("coarse.twin", twin.data(), twin.size());
+  w.put("coarse.to_input", to_input.data(), to_input.size());
+  w.put("coarse.from_input", from_input.data(), from_input.size());
+  std::vector<std::int32_t> inserted_faces;
+  std::vector<double> inserted_bary;
+  for (const InputSurfacePoint& p : coarse.inserted) {
+    inserted_faces.push_back(p.face);
+    inserted_bary.insert(inserted_bary.end(), p.bary.begin(), p.bary.end());
+  }
+  w.put("coarse.inserted.face", inserted_faces.data(), inserted_faces.size());
+  w.put("coarse.inserted.bary", inserted_bary.data(), inserted_bary.size());
+  Eigen::SparseMatrix<double> P = coarse.P;
+  P.makeCompressed();
+  w.put_sparse("coarse.P", P);
+  const std::vector<double> summary = summary_values(coarse.summary);
+  w.put("coarse.summary", summary.data(), summary.size());
+  w.put_int("proxy.kind", static_cast<int>(proxy.kind));
+  w.put_int("proxy.mass_kind", static_cast<int>(proxy.mass_kind));
+  w.put_int("proxy.prolongation", static_cast<int>(proxy.prolongation_kind));
+  // P itself is the coarse space's (the proxy's barycentric one); only its smoothing is stored apart.
+  if (proxy.prolongation_kind == fem::ProlongationKind::smoothed) w.put_sparse("proxy.P", proxy.P);
+  const Eigen::VectorXd mass = proxy.fine_mass.diagonal();
+  w.put("proxy.fine_mass", mass.data(), static_cast<std::size_t>(mass.size()));
+  w.put_sparse("proxy.coarse_laplacian", proxy.coarse_laplacian);
+  w.put_sparse("proxy.coarse_mass", proxy.coarse_mass);
+  std::string error;
+  if (!store.save(kKind, key, w, &error)) setup.cache.save_error = error;
+  if (setup.cache.status == CacheStatus::off) setup.cache.status = CacheStatus::miss;
+  setup.cache.save_seconds = seconds_since(start);
+  setup.cache.keys.push_back(key.hex());
+}
+
+fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry) {
+  return [input = std::make_shared<const TriangleMesh>(mesh), geometry](Faces& F, FaceLengths& L) {
+    FineMesh fine = fine_mesh(*input, geometry);
+    F = std::move(fine.F);
+    L = std::move(fine.L);
+  };
+}
+
+std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& key, const TriangleMesh& mesh,
+                                           CacheReport& cache, fem::CoarseProxy::FineMeshSource fine_mesh) {
+  const auto start = std::chrono::steady_clock::now();
+  std::string damage;
+  const auto damaged = [&](const std::string& what) {
+    cache.status = CacheStatus::rebuilt;
+    cache.damage = what;
+    cache.load_seconds = seconds_since(start);
+    return std::nullopt;
+  };
+  std::optional<EntryReader> entry = store.load(kKind, key, &damage);
+  if (!entry) {
+    if (!damage.empty()) return damaged(damage);
+    cache.status = CacheStatus::miss;
+    cache.load_seconds = seconds_since(start);
+    return std::nullopt;
+  }
+  const std::string path = entry->path().string();
+  ProxySetup setup;
+  try {
+    const auto n = static_cast<Index>(mesh.V.rows());
+    require(entry->integer("input_vertices") == n, path, "made for a mesh of another vertex count");
+    CoarseSpace& c = setup.coarse;
+    const std::vector<std::int32_t> to_input = entry->ints("coarse.to_input");
+    const auto nc = static_cast<Index>(to_input.size());
+    c.mesh.F = entry->int_matrix("coarse.F", 0, nc - 1);
+    c.mesh.L = entry->double_matrix("coarse.L");
+    require(c.mesh.F.cols() == 3 && c.mesh.L.rows() == c.mesh.F.rows() && c.mesh.L.cols() == 3, path,
+            "coarse faces and lengths disagree");
+    for (Eigen::Index f = 0; f < c.mesh.L.rows(); ++f) {
+      const double a = c.mesh.L(f, 0), b = c.mesh.L(f, 1), d = c.mesh.L(f, 2);
+      require(a > 0 && b > 0 && d > 0 && a <= b + d && b <= a + d && d <= a + b, path,
+              "coarse face " + std::to_string(f) + " breaks the triangle inequality");
+    }
+    const std::vector<std::int32_t> twin = entry->ints("coarse.twin"), from_input = entry->ints("coarse.from_input");
+    const auto sides = static_cast<std::int32_t>(3 * c.mesh.F.rows());
+    require(twin.empty() || static_cast<Index>(twin.size()) == sides, path, "coarse gluing of the wrong size");
+    for (std::int32_t t : twin) require(t >= kInvalid && t < sides, path, "coarse gluing out of range");
+    for (std::int32_t v : to_input) require(v >= kInvalid && v < n, path, "coarse vertex map out of range");
+    require(static_cast<Index>(from_input.size()) == n, path, "input vertex map of the wrong size");
+    for (std::int32_t v : from_input) require(v >= kInvalid && v < nc, path, "input vertex map out of range");
+    c.mesh.twin.assign(twin.begin(), twin.end());
+    c.mesh.to_input.assign(to_input.begin(), to_input.end());
+    c.mesh.from_input.assign(from_input.begin(), from_input.end());
+    const std::vector<std::int32_t> inserted_faces = entry->ints("coarse.inserted.face");
+    const std::vector<double> inserted_bary = entry->doubles("coarse.inserted.bary");
+    require(inserted_bary.size() == 3 * inserted_faces.size(), path, "inserted vertices disagree");
+    for (std::size_t i = 0; i < inserted_faces.size(); ++i) {
+      require(inserted_faces[i] >= 0 && inserted_faces[i] < mesh.F.rows(), path, "inserted vertex in no input face");
+      c.inserted.push_back({inserted_faces[i], {inserted_bary[3 * i], inserted_bary[3 * i + 1], inserted_bary[3 * i + 2]}});
+    }
+    c.P = entry->sparse("coarse.P");
+    require(c.P.rows() == n && c.P.cols() == nc, path, "P of the wrong shape");
+    c.summary = summary_from(entry->doubles("coarse.summary"), path);
+
+    for (const char* name : {"proxy.kind", "proxy.prolongation"})
+      require(entry->integer(name) == 0 || entry->integer(name) == 1, path, std::string(name) + " is not a known value");
+    require(entry->integer("proxy.mass_kind") == static_cast<int>(fem::MassKind::lumped), path, "the fine mass is not lumped");
+    fem::CoarseProxyArrays a;
+    a.kind = static_cast<fem::CoarseOperatorKind>(entry->integer("proxy.kind"));
+    a.mass_kind = static_cast<fem::MassKind>(entry->integer("proxy.mass_kind"));
+    a.prolongation_kind = static_cast<fem::ProlongationKind>(entry->integer("proxy.prolongation"));
+    if (a.prolongation_kind == fem::ProlongationKind::smoothed) {
+      a.P = entry->sparse("proxy.P");
+      a.barycentric = c.P;
+    } else {
+      a.P = c.P;
+    }
+    const std::vector<double> mass = entry->doubles("proxy.fine_mass");
+    require(static_cast<Index>(mass.size()) == n, path, "fine mass of the wrong size");
+    a.fine_mass = Eigen::SparseMatrix<double>(n, n);
+    a.fine_mass.reserve(Eigen::VectorXi::Constant(n, 1));
+    for (Index i = 0; i < n; ++i) a.fine_mass.insert(i, i) = mass[static_cast<std::size_t>(i)];
+    a.fine_mass.makeCompressed();
+    a.coarse_laplacian = entry->sparse("proxy.coarse_laplacian");
+    a.coarse_mass = entry->sparse("proxy.coarse_mass");
+    a.coarse_faces = c.mesh.F;
+    a.coarse_lengths = c.mesh.L;
+    // The fine mesh is made again only if something asks for the fine operators (polishing, the
+    // Galerkin heat method): the proxy's own operators are all here.
+    if (!fine_mesh)
+      fine_mesh = [](Faces&, FaceLengths&) {
+        throw std::logic_error("this coarse proxy was loaded from a store without a source of its fine mesh: its fine "
+                               "operators (polishing, the Galerkin heat method) are not available");
+      };
+    setup.proxy = std::make_unique<fem::CoarseProxy>(std::move(a), std::move(fine_mesh));
+  } catch (const std::exception& e) {  // runtime_error from the entry, invalid_argument from the proxy's checks
+    store.discard(kKind, key);
+    return damaged(e.what());
+  }
+  setup.cache.status = CacheStatus::hit;
+  setup.cache.load_seconds = seconds_since(start);
+  setup.cache.keys.push_back(key.hex());
+  return setup;
+}
+
+}  // namespace ice::proxy

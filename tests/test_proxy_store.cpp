@@ -1,0 +1,275 @@
+// The store of set-up proxies (ice/proxy/store.h): a warm solver gives the cold one's results to the
+// last bit; every kind of damage is detected, never used, and rebuilt to the same results; two
+// writers of one entry both succeed; the size bound evicts the least recently used entry.
+#include <catch2/catch.hpp>
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <thread>
+#include <vector>
+
+#include "ice/mesh_generators.h"
+#include "ice/proxy/heat.h"
+#include "ice/proxy/poisson.h"
+#include "ice/proxy/store.h"
+
+namespace fs = std::filesystem;
+using ice::proxy::CacheStatus;
+
+namespace {
+
+const ice::TriangleMesh& sphere() {
+  static const ice::TriangleMesh mesh = ice::make_icosphere(4);  // 2,562 vertices
+  return mesh;
+}
+
+// A fresh, empty store directory for one test case.
+fs::path fresh_store(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("ice-store-test-" + name + "-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  return dir;
+}
+
+ice::proxy::PoissonOptions options_with(const fs::path& dir) {
+  ice::proxy::PoissonOptions options;
+  options.coarsening.coarsen.target_vertices = 300;
+  options.store.directory = dir;
+  return options;
+}
+
+Eigen::VectorXd source(const ice::TriangleMesh& mesh) {
+  Eigen::VectorXd f(mesh.V.rows());
+  for (Eigen::Index v = 0; v < f.size(); ++v) f(v) = mesh.V(v, 0) * mesh.V(v, 1) + mesh.V(v, 2);
+  return f;
+}
+
+std::vector<fs::path> entries(const fs::path& dir) {
+  std::vector<fs::path> out;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().extension() == ".ice") out.push_back(e.path());
+  return out;
+}
+
+std::vector<char> read_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::vector<char>(std::istreambuf_iterator<char>(in), {});
+}
+
+void write_bytes(const fs::path& path, const std::vector<char>& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+}  // namespace
+
+TEST_CASE("store: a warm Poisson solver equals the cold one and the one without a store, bit for bit", "[proxy][store]") {
+  const fs::path dir = fresh_store("warm");
+  const ice::TriangleMesh& mesh = sphere();
+  const Eigen::VectorXd f = source(mesh);
+  ice::proxy::PoissonOptions off = options_with({});
+  const ice::proxy::PoissonSolver plain(mesh, off);
+  CHECK(plain.cache().status == CacheStatus::off);
+  const ice::proxy::PoissonSolver cold(mesh, options_with(dir));
+  CHECK(cold.cache().status == CacheStatus::miss);
+  CHECK(cold.cache().save_error.empty());
+  REQUIRE(entries(dir).size() == 1);
+  // An entry stays below 200 bytes per input vertex (the coarse space, the smoothed P, the masses).
+  CHECK(fs::file_size(entries(dir)[0]) < 200 * static_cast<std::uintmax_t>(mesh.V.rows()));
+  const ice::proxy::PoissonSolver warm(mesh, options_with(dir));
+  CHECK(warm.cache().status == CacheStatus::hit);
+  CHECK(warm.cache().keys == cold.cache().keys);
+  const Eigen::VectorXd u = plain.solve(f);
+  CHECK(cold.solve(f) == u);
+  CHECK(warm.solve(f) == u);
+  CHECK(warm.coarse_space().P.isApprox(cold.coarse_space().P, 0.0));
+  CHECK(warm.coarse_space().mesh.F == cold.coarse_space().mesh.F);
+  CHECK(warm.coarse_space().mesh.L == cold.coarse_space().mesh.L);
+  CHECK(warm.coarse_space().summary.coarse_vertices == cold.coarse_space().summary.coarse_vertices);
+  CHECK(warm.coarse_space().summary.ice->removed == cold.coarse_space().summary.ice->removed);
+
+  SECTION("other options and another mesh of the same size miss") {
+    ice::proxy::PoissonOptions other = options_with(dir);
+    other.coarsening.coarsen.target_vertices = 301;
+    CHECK(ice::proxy::PoissonSolver(mesh, other).cache().status == CacheStatus::miss);
+    ice::TriangleMesh moved = mesh;
+    moved.V(7, 0) += 1e-9;  // same counts, other positions
+    CHECK(ice::proxy::PoissonSolver(moved, options_with(dir)).cache().status == CacheStatus::miss);
+    CHECK(entries(dir).size() == 3);
+  }
+  SECTION("polishing from a warm proxy makes its fine operators and equals the cold polish") {
+    ice::proxy::PoissonOptions polished = options_with(dir);
+    polished.polish.iterations = 3;
+    const ice::proxy::PoissonSolver warm_polished(mesh, polished);
+    CHECK(warm_polished.cache().status == CacheStatus::hit);
+    polished.store = {};
+    CHECK(warm_polished.solve(f) == ice::proxy::PoissonSolver(mesh, polished).solve(f));
+  }
+  SECTION("a heat solver with the same setup options shares the entry and its results") {
+    ice::proxy::HeatOptions heat;
+    heat.coarsening.coarsen.target_vertices = 300;
+    heat.store.directory = dir;
+    const ice::proxy::HeatSolver warm_heat(mesh, 1e-3, heat);
+    CHECK(warm_heat.cache().status == CacheStatus::hit);
+    heat.store = {};
+    CHECK(warm_heat.integrate(f, 3) == ice::proxy::HeatSolver(mesh, 1e-3, heat).integrate(f, 3));
+  }
+  fs::remove_all(dir);
+}
+
+TEST_CASE("store: damaged entries are reported, never used, and rebuilt to the same results", "[proxy][store]") {
+  const fs::path dir = fresh_store("damage");
+  const ice::TriangleMesh& mesh = sphere();
+  const Eigen::VectorXd f = source(mesh);
+  const Eigen::VectorXd u = ice::proxy::PoissonSolver(mesh, options_with({})).solve(f);
+  REQUIRE(ice::proxy::PoissonSolver(mesh, options_with(dir)).cache().status == CacheStatus::miss);
+  const fs::path entry = entries(dir).at(0);
+  const std::vector<char> good = read_bytes(entry);
+
+  struct Damage {
+    std::string name, expected;
+    std::vector<char> bytes;
+  };
+  std::vector<Damage> damages;
+  damages.push_back({"truncated", "truncated", std::vector<char>(good.begin(), good.begin() + good.size() / 2)});
+  damages.push_back({"empty", "truncated", {}});
+  std::vector<char> flipped = good;
+  flipped[flipped.size() - 100] ^= 0x10;
+  damages.push_back({"flipped payload byte", "checksum", flipped});
+  std::vector<char> version = good;
+  version[8] = static_cast<char>(version[8] + 1);  // the format version follows the 8-byte magic
+  damages.push_back({"other format version", "format version", version});
+  std::vector<char> key = good;
+  key[40] ^= 0x01;  // a byte of the key: an entry made for another mesh or other options
+  damages.push_back({"other key", "another key", key});
+  std::vector<char> magic = good;
+  magic[0] = 'X';
+  damages.push_back({"not an entry", "not an ICE store entry", magic});
+
+  for (const Damage& d : damages) {
+    INFO(d.name);
+    write_bytes(entry, d.bytes);
+    const ice::proxy::PoissonSolver rebuilt(mesh, options_with(dir));
+    CHECK(rebuilt.cache().status == CacheStatus::rebuilt);
+    CHECK(rebuilt.cache().damage.find(d.expected) != std::string::npos);
+    CHECK(rebuilt.solve(f) == u);
+    // The rebuilt entry is whole again (of the same size: only the timings it records differ), and
+    // the next run hits it.
+    CHECK(read_bytes(entry).size() == good.size());
+    CHECK(ice::proxy::PoissonSolver(mesh, options_with(dir)).cache().status == CacheStatus::hit);
+  }
+
+  SECTION("another mesh's entry under this key fails the content checks") {
+    ice::TriangleMesh other = ice::make_icosphere(3);  // 642 vertices
+    ice::proxy::PoissonOptions other_options = options_with(dir);
+    other_options.coarsening.coarsen.target_vertices = 100;
+    const ice::proxy::PoissonSolver made(other, other_options);
+    const fs::path other_entry = dir / ("proxy-" + made.cache().keys.at(0) + ".ice");
+    std::vector<char> moved = read_bytes(other_entry);
+    std::copy(good.begin() + 32, good.begin() + 48, moved.begin() + 32);  // this mesh's key in its header...
+    write_bytes(entry, moved);
+    const ice::proxy::PoissonSolver rebuilt(mesh, options_with(dir));
+    CHECK(rebuilt.cache().status == CacheStatus::rebuilt);  // ...but its arrays do not fit this mesh
+    CHECK(rebuilt.solve(f) == u);
+  }
+
+  SECTION("verify finds a damaged entry and removes it on request") {
+    write_bytes(entry, flipped);
+    const ice::proxy::Store store({dir, ice::proxy::kDefaultStoreBytes});
+    REQUIRE(store.list().size() == 1);
+    const auto damaged = store.verify(false);
+    REQUIRE(damaged.size() == 1);
+    CHECK(damaged[0].second.find("checksum") != std::string::npos);
+    CHECK(fs::exists(entry));
+    CHECK(store.verify(true).size() == 1);
+    CHECK(!fs::exists(entry));
+    CHECK(store.verify(false).empty());
+  }
+  fs::remove_all(dir);
+}
+
+TEST_CASE("store: two writers of one entry both succeed with identical results", "[proxy][store]") {
+  const fs::path dir = fresh_store("race");
+  const ice::TriangleMesh& mesh = sphere();
+  const Eigen::VectorXd f = source(mesh);
+  Eigen::VectorXd a, b;
+  CacheStatus sa{}, sb{};
+  std::thread first([&] {
+    const ice::proxy::PoissonSolver s(mesh, options_with(dir));
+    sa = s.cache().status;
+    a = s.solve(f);
+  });
+  std::thread second([&] {
+    const ice::proxy::PoissonSolver s(mesh, options_with(dir));
+    sb = s.cache().status;
+    b = s.solve(f);
+  });
+  first.join();
+  second.join();
+  CHECK(a == b);
+  CHECK(sa != CacheStatus::rebuilt);
+  CHECK(sb != CacheStatus::rebuilt);
+  // One entry and no temporary file left; it is whole.
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file() ? 1 : 0;
+  CHECK(files == 1);
+  const ice::proxy::PoissonSolver warm(mesh, options_with(dir));
+  CHECK(warm.cache().status == CacheStatus::hit);
+  CHECK(warm.solve(f) == a);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("store: the size bound evicts the least recently used entries; clear empties it", "[proxy][store]") {
+  const fs::path dir = fresh_store("evict");
+  const ice::TriangleMesh& mesh = sphere();
+  ice::proxy::PoissonOptions options = options_with(dir);
+  const ice::proxy::PoissonSolver first(mesh, options);
+  const std::uintmax_t one = fs::file_size(entries(dir).at(0));
+  options.store.max_bytes = one + one / 2;  // room for one entry, not two
+  options.coarsening.coarsen.target_vertices = 310;
+  const ice::proxy::PoissonSolver second(mesh, options);
+  REQUIRE(entries(dir).size() == 1);
+  CHECK(entries(dir)[0].filename().string().find(second.cache().keys.at(0)) != std::string::npos);
+  // The key of the evicted entry misses now; the kept one hits.
+  options.coarsening.coarsen.target_vertices = 300;
+  options.store.max_bytes = ice::proxy::kDefaultStoreBytes;
+  CHECK(ice::proxy::PoissonSolver(mesh, options).cache().status == CacheStatus::miss);
+  const ice::proxy::Store store({dir, ice::proxy::kDefaultStoreBytes});
+  CHECK(store.list().size() == 2);
+  CHECK(store.clear() > 0);
+  CHECK(store.list().empty());
+  fs::remove_all(dir);
+}
+
+TEST_CASE("store: keys separate inputs and options; the default directory follows the environment", "[proxy][store]") {
+  const auto key = [](const std::string& kind, auto... values) {
+    ice::proxy::KeyHasher h(kind);
+    (h.add(values), ...);
+    return h.finish();
+  };
+  CHECK(key("proxy", std::string("ab"), std::string("c")).hex() != key("proxy", std::string("a"), std::string("bc")).hex());
+  CHECK(key("proxy", 1.0).hex() != key("proxy", std::int64_t{1}).hex());
+  CHECK(key("proxy", 0.0).hex() == key("proxy", -0.0).hex());
+  CHECK(key("proxy", 1.0).hex() != key("other", 1.0).hex());
+  CHECK(key("proxy", 1.0).hex().size() == 32);
+
+  const std::string saved = std::getenv("ICE_CACHE") ? std::getenv("ICE_CACHE") : "";
+  const bool had = std::getenv("ICE_CACHE") != nullptr;
+  ::setenv("ICE_CACHE", "/some/where", 1);
+  CHECK(ice::proxy::default_store_options().directory == fs::path("/some/where"));
+  ::setenv("ICE_CACHE", "", 1);
+  CHECK(ice::proxy::default_store_options().directory.empty());
+  ::setenv("ICE_CACHE_MAX_MB", "12", 1);
+  CHECK(ice::proxy::default_store_options().max_bytes == std::uint64_t{12} << 20);
+  ::setenv("ICE_CACHE_MAX_MB", "lots", 1);
+  CHECK_THROWS_AS(ice::proxy::default_store_options(), std::invalid_argument);
+  ::unsetenv("ICE_CACHE_MAX_MB");
+  if (had)
+    ::setenv("ICE_CACHE", saved.c_str(), 1);
+  else
+    ::unsetenv("ICE_CACHE");
+}
