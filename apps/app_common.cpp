@@ -211,6 +211,7 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
       clock.lap();
       run.coarsen = 0;  // the load is run.cache.load_seconds
       run.fine_built = need_fine;
+      run.proxy_uses_fine_mesh = false;  // only the reference's, now
       if (need_fine) {
         p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
         run.idt_flips = p.fine.flips;
