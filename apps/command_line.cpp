@@ -26,6 +26,8 @@ namespace fs = std::filesystem;
 // ---- exit codes and errors ------------------------------------------------------------------------
 
 int parse_command_line(CLI::App& cli, int argc, char** argv) {
+  // The usage line names the tool, not the path it was run by (which --help's length would vary with).
+  if (cli.get_name().empty() && argc > 0) cli.name(std::filesystem::path(argv[0]).filename().string());
   try {
     cli.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -292,8 +294,7 @@ void add_prolongation_option(CLI::App& cli, ice::proxy::Prolongation& choice, co
                              const std::string& description) {
   add_choice(cli, name, choice, choice_names<ice::proxy::Prolongation>(),
              description.empty()
-                 ? "Prolongation: 'barycentric', 'smoothed' (damped Jacobi; Galerkin, no Dirichlet) or 'auto' (smoothed "
-                   "if allowed)"
+                 ? "Prolongation: 'barycentric', 'smoothed' (Galerkin, no Dirichlet) or 'auto' (smoothed if allowed)"
                  : description);
 }
 
@@ -313,7 +314,7 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   target.add_to(cli, false);
   add_operators_option(cli, operators);
   add_choice(cli, "--qem-operators", qem_geometry, choice_names<ice::QemGeometry>(),
-             "With --method qem: coarse geometry 'extrinsic' (its positions) or 'idt' (intrinsic Delaunay)");
+             "QEM coarse geometry: 'extrinsic' (its positions) or 'idt' (intrinsic Delaunay)");
   cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
                "Fine operators on the input's intrinsic Delaunay triangulation (else its triangles)")
       ->capture_default_str();
@@ -361,7 +362,6 @@ void PdeOptions::add_polish_options(CLI::App& cli) {
       ->capture_default_str();
 }
 
-namespace {
 std::string lower_extension(const std::string& path) {
   std::string extension = fs::path(path).extension().string();
   for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -373,7 +373,6 @@ bool same_file(const std::string& a, const std::string& b) {
   const fs::path x = fs::weakly_canonical(a, ec_a), y = fs::weakly_canonical(b, ec_b);
   return ec_a || ec_b ? fs::path(a) == fs::path(b) : x == y;
 }
-}  // namespace
 
 bool PdeOptions::output_is_gltf() const { return lower_extension(output) == ".glb"; }
 

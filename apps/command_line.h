@@ -135,6 +135,10 @@ std::map<std::string, Enum> choice_names() {
 /// Throws AppError(kNotWritten) if `path` exists and !overwrite (the tools call it for every output
 /// before doing any work), or if its directory does not exist (ice::check_writable's policy).
 void check_output(const std::string& path, bool overwrite, const std::string& option);
+/// The extension of `path` in lower case, with its dot (".npy").
+std::string lower_extension(const std::string& path);
+/// Whether two paths name one file (also when written differently: ./a and a).
+bool same_file(const std::string& a, const std::string& b);
 
 /// Adds --operators intrinsic|galerkin.
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators);

@@ -47,6 +47,24 @@ nlohmann::json solution_error_json(const Eigen::VectorXd& solution, const Eigen:
           {"max_abs_reference", scale}};
 }
 
+/// The "error" object of several sources: that of the column of largest relative L2 error (its
+/// index in "worst_column"), and the number of columns.
+nlohmann::json block_error_json(const Eigen::MatrixXd& solutions, const Eigen::MatrixXd& references, const fem::SparseMatrix& M) {
+  nlohmann::json worst;
+  double worst_error = -1;
+  for (Eigen::Index j = 0; j < solutions.cols(); ++j) {
+    nlohmann::json e = solution_error_json(solutions.col(j), references.col(j), M);
+    const double error = e["rel_l2"].is_number() ? e["rel_l2"].get<double>() : 0.0;
+    if (error > worst_error) {
+      worst_error = error;
+      worst = e;
+      worst["worst_column"] = j;
+    }
+  }
+  worst["columns"] = solutions.cols();
+  return worst;
+}
+
 const std::string kTool = "poisson-coarse";
 
 // Options of --solver multigrid: the hierarchy's, and the solver's (tolerance, threads, cycle,
@@ -82,7 +100,7 @@ fem::PoissonSolver fine_poisson_solver(const fem::SparseMatrix& L, const fem::Sp
 app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& mg, const app::PdeOptions& opt,
                        const ice::TriangleMesh& mesh, Eigen::VectorXd f, std::string rhs_name,
                        const std::vector<int>& fixed_vertices, const Eigen::VectorXd& fixed_values, double load_seconds,
-                       fem::CholeskyOrdering ordering) {
+                       fem::CholeskyOrdering ordering, const Eigen::MatrixXd& block, const std::string& solutions_path) {
   const long long n = mesh.V.rows();
   const bool dirichlet = !fixed_vertices.empty();
   app::Stopwatch clock;
@@ -95,6 +113,19 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   nlohmann::json solver_json = {{"kind", solver}};
   nlohmann::json timings;
   Eigen::VectorXd u;
+  // Several sources (--rhs FILE.npy): one block solve (CHOLMOD: one call; multigrid: per column),
+  // the Dirichlet values of --fix for each.
+  const Eigen::Index sources = std::max<Eigen::Index>(1, block.cols());
+  const Eigen::MatrixXd weighted_block = block.cols() > 1 ? (M * block).eval() : Eigen::MatrixXd();
+  const Eigen::MatrixXd fixed_block =
+      block.cols() > 1 && dirichlet ? fixed_values.replicate(1, block.cols()).eval() : Eigen::MatrixXd();
+  Eigen::MatrixXd U;
+  const auto solve_all = [&](const fem::PoissonSolver& poisson) {
+    if (block.cols() > 1)
+      U = poisson.solve_multiple_weighted(weighted_block, fixed_block);
+    else
+      u = poisson.solve(f, fixed_values);
+  };
   double setup_seconds = 0, solve_seconds = 0;
   const auto make_solver = [&](std::optional<fem::PoissonMultigrid> multigrid) {
     return fine_poisson_solver(L, M, fixed_vertices, std::move(multigrid), ordering);
@@ -102,7 +133,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   if (solver == "direct") {
     const fem::PoissonSolver direct = make_solver(std::nullopt);
     setup_seconds = clock.lap();
-    u = direct.solve(f, fixed_values);
+    solve_all(direct);
     solve_seconds = clock.lap();
     solver_json["method"] = "CHOLMOD supernodal Cholesky (analyse + factor in setup)";
     solver_json["ordering"] = fem::to_string(ordering);
@@ -118,7 +149,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     const fem::PoissonSolver poisson = make_solver(std::move(cycle_setup));
     const double numeric_setup = clock.lap();
     setup_seconds = hierarchy_seconds + numeric_setup;
-    u = poisson.solve(f, fixed_values);
+    solve_all(poisson);
     solve_seconds = clock.lap();
     const fem::MultigridSolver& multigrid = *poisson.multigrid();
     const fem::MultigridReport& r = multigrid.report();
@@ -143,10 +174,17 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   if (has_reference) {
     const fem::PoissonSolver direct = make_solver(std::nullopt);
     timings["reference_setup"] = clock.lap();
-    reference = direct.solve(f, fixed_values);
-    timings["reference_solve"] = clock.lap();
-    error_json = solution_error_json(u, reference, M);
+    if (block.cols() > 1) {
+      const Eigen::MatrixXd references = direct.solve_multiple_weighted(weighted_block, fixed_block);
+      timings["reference_solve"] = clock.lap();
+      error_json = block_error_json(U, references, M);
+    } else {
+      reference = direct.solve(f, fixed_values);
+      timings["reference_solve"] = clock.lap();
+      error_json = solution_error_json(u, reference, M);
+    }
   }
+  if (!solutions_path.empty()) ice::write_npy_matrix(solutions_path, block.cols() > 1 ? U : Eigen::MatrixXd(u), opt.force);
   app::write_result_fields(opt, mesh, "solution", u, reference, {{"rhs", f}});
   nlohmann::json report = app::report_header(kTool, opt.mesh);
   report["solver"] = solver_json;
@@ -154,6 +192,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   report["fine_mesh"] = {{"kind", opt.fine_idt ? "intrinsic Delaunay" : "input"}, {"flips", fine.flips}};
   report["timings_s"] = timings;
   report["rhs"] = rhs_name;
+  report["sources"] = sources;
   report["boundary_conditions"] = dirichlet ? "dirichlet" : "zero-mean neumann";
   report["fixed_vertices"] = fixed_vertices.size();
   if (has_reference) report["error"] = error_json;
@@ -191,14 +230,16 @@ int main(int argc, char** argv) {
   std::string rhs_path, solver = "proxy";
   std::vector<std::string> fixes;
   cli.add_option("--rhs", rhs_path,
-                 "Source f: text file of one number per input vertex ('#' comments)");
+                 "Source f: one number per input vertex (text), or .npy (n x k: k sources)");
+  std::string solutions_path;
+  cli.add_option("--solutions", solutions_path, "Write the solutions as .npy (float64, n x k: one column per source)");
   cli.add_option("--fix", fixes,
                  "Dirichlet condition V=value at vertex V (0-based); repeat or comma-separate")
       ->delimiter(',')
       ->allow_extra_args(false);
   MultigridCli mg;
   cli.add_option("--solver", solver,
-                 "proxy (approximate coarse solve), multigrid (exact, Galerkin) or direct (exact, CHOLMOD)")
+                 "proxy (coarse solve), or exact: multigrid or direct (CHOLMOD)")
       ->check(CLI::IsMember({"proxy", "multigrid", "direct"}))
       ->capture_default_str();
   cli.add_option("--mg-tolerance", mg.options.tolerance, "multigrid: relative residual to reach")->check(app::positive_number())->capture_default_str();
@@ -211,7 +252,7 @@ int main(int argc, char** argv) {
   app::add_choice(cli, "--mg-cycle", mg.options.mode, kCycleNames, "multigrid: V-cycle preconditioned CG, or plain V-cycles");
   fem::CholeskyOrdering cholmod_ordering = fem::CholeskyOrdering::automatic;
   app::add_choice(cli, "--cholmod-ordering", cholmod_ordering, kOrderingNames,
-                  "CHOLMOD ordering of exact fine solves (amd: usually fastest on large meshes)");
+                  "CHOLMOD ordering of exact fine solves");
   cli.add_option("--mg-threads", mg.options.threads,
                  "multigrid: threads on levels of 50,000+ unknowns (0: all cores)")
       ->check(app::non_negative_integer())->capture_default_str();
@@ -225,6 +266,14 @@ int main(int argc, char** argv) {
   return app::run_tool(kTool, [&] {
     opt.has_coarse_space = solver == "proxy";
     opt.check_outputs();
+    if (!solutions_path.empty()) {
+      if (app::lower_extension(solutions_path) != ".npy") throw app::AppError(app::kUsage, "--solutions " + solutions_path + ": use a .npy file name");
+      app::check_output(solutions_path, opt.force, "--solutions");
+      if ((!opt.report.empty() && app::same_file(solutions_path, opt.report)) ||
+          (!opt.output.empty() && app::same_file(solutions_path, opt.output)))
+        throw app::AppError(app::kUsage, "--solutions names the same file as --output or --report");
+    }
+    const bool rhs_npy = !rhs_path.empty() && app::lower_extension(rhs_path) == ".npy";
     if (solver != "proxy" && opt.polish.enabled())
       throw app::AppError(app::kUsage, "--polish and --tolerance polish the proxy's solution: use them with --solver proxy");
     if (opt.polish.tolerance > 0 && opt.target.method == ice::CoarseningMethod::qem)
@@ -277,7 +326,29 @@ int main(int argc, char** argv) {
     app::require_fixed_in_every_component(loaded, fixed_vertices, opt.mesh);
     Eigen::VectorXd f;
     std::string rhs_name = "demo (three Gaussian bumps, zero mean)";
-    if (!rhs_path.empty()) {
+    Eigen::MatrixXd block;  // --rhs FILE.npy with several columns: one source per column
+    if (rhs_npy) {
+      const Eigen::MatrixXd values = ice::read_npy_matrix(rhs_path);
+      const auto expected = static_cast<Eigen::Index>(loaded.input_report.n_vertices);
+      if (values.rows() != expected || values.cols() < 1)
+        throw app::AppError(app::kUnreadable, rhs_path + ": has " + std::to_string(values.rows()) + " rows and " +
+                                                  std::to_string(values.cols()) + " columns, the mesh has " +
+                                                  std::to_string(expected) + " vertices (one row per vertex of the input file expected)");
+      block.resize(n, values.cols());
+      for (Eigen::Index i = 0; i < n; ++i) block.row(i) = values.row(loaded.source_vertex[i]);
+      if (block.cols() == 1) {  // one source: the single solve
+        f = block.col(0);
+        block.resize(0, 0);
+      }
+      rhs_name = rhs_path;
+      if (block.cols() > 1) {
+        rhs_name += " (" + std::to_string(values.cols()) + " columns)";
+        if (!opt.output.empty() || !opt.html.empty())
+          throw app::AppError(app::kUsage, "--output and --html draw one solution: with several sources write them with --solutions");
+        if (opt.polish.enabled())
+          throw app::AppError(app::kUsage, "--polish and --tolerance polish one solution at a time: give one source per run");
+      }
+    } else if (!rhs_path.empty()) {
       const std::vector<double> values = app::read_number_file(rhs_path);
       const std::size_t expected = loaded.input_report.n_vertices;
       if (values.size() != expected)
@@ -293,7 +364,7 @@ int main(int argc, char** argv) {
     run.load = clock.lap();
     if (solver != "proxy")
       return solve_on_fine_mesh(solver, mg, opt, mesh, f, rhs_name, fixed_vertices, fixed_values, run.load,
-                                cholmod_ordering);
+                                cholmod_ordering, block, solutions_path);
 
     // ---- coarsen, fine discretisation, then the proxy (fem::ProxyPoissonSolver: restrict, coarse
     // solve, prolong, each timed)
@@ -312,16 +383,30 @@ int main(int argc, char** argv) {
     run.polish_setup = proxy_solver.polish_setup_seconds();
     run.factor = clock.lap() - run.polish_setup;
     fem::ProxyPhaseTimes phases;
-    const Eigen::VectorXd solution = proxy_solver.solve(f, fixed_values, &phases, &run.polish_report);
+    Eigen::VectorXd solution;
+    Eigen::MatrixXd solutions;  // several sources: one column each
+    // The Dirichlet values of --fix hold for every source.
+    const Eigen::MatrixXd fixed_block = block.cols() > 1 && dirichlet ? fixed_values.replicate(1, block.cols()).eval() : Eigen::MatrixXd();
+    if (block.cols() > 1) {
+      solutions = proxy_solver.solve_block(block, fixed_block, &phases);
+      run.solves = block.cols();
+    } else {
+      solution = proxy_solver.solve(f, fixed_values, &phases, &run.polish_report);
+    }
     run.solve = phases.restriction + phases.coarse_solve;
     run.prolong = phases.prolongation;
     run.polish = run.polish_report.seconds;
     // Zero-mean Neumann solves -Laplace(u) = f - mean(f) (the solver made f compatible the same
     // way): the reference, the error and the written rhs use that f.
-    if (!dirichlet) f = app::remove_mean(f, proxy.fine_mass());
+    if (!dirichlet) {
+      if (block.cols() > 1)
+        for (Eigen::Index j = 0; j < block.cols(); ++j) block.col(j) = app::remove_mean(block.col(j), proxy.fine_mass());
+      else
+        f = app::remove_mean(f, proxy.fine_mass());
+    }
     clock.lap();
 
-    // ---- reference
+    // ---- reference (several sources: CHOLMOD's block solve, one call for all columns)
     nlohmann::json error_json;
     Eigen::VectorXd reference;
     if (run.has_reference) {
@@ -330,11 +415,19 @@ int main(int argc, char** argv) {
       run.ref_assemble = clock.lap();
       const fem::PoissonSolver fine_solver = fine_poisson_solver(L, M, fixed_vertices, std::nullopt, cholmod_ordering);
       run.ref_factor = clock.lap();
-      reference = fine_solver.solve(f, fixed_values);
-      run.ref_solve = clock.lap();
-      error_json = solution_error_json(solution, reference, M);
+      if (block.cols() > 1) {
+        const Eigen::MatrixXd references = fine_solver.solve_multiple_weighted(M * block, fixed_block);
+        run.ref_solve = clock.lap();
+        error_json = block_error_json(solutions, references, M);
+      } else {
+        reference = fine_solver.solve(f, fixed_values);
+        run.ref_solve = clock.lap();
+        error_json = solution_error_json(solution, reference, M);
+      }
       clock.lap();
     }
+    if (!solutions_path.empty())
+      ice::write_npy_matrix(solutions_path, block.cols() > 1 ? solutions : Eigen::MatrixXd(solution), opt.force);
 
     // ---- outputs
     const std::optional<ice::CoarseTracing> tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
@@ -350,6 +443,7 @@ int main(int argc, char** argv) {
     report["timings_s"]["setup"] = run.coarsen + run.assemble + run.factor + run.polish_setup;
     report["timings_s"]["solve"] = run.per_solve();
     report["rhs"] = rhs_name;
+    report["sources"] = run.solves;
     report["boundary_conditions"] = dirichlet ? "dirichlet" : "zero-mean neumann";
     report["fixed_vertices"] = fixed_vertices.size();
     if (run.has_reference) report["error"] = error_json;
@@ -360,9 +454,11 @@ int main(int argc, char** argv) {
               << (dirichlet ? std::to_string(fixed_vertices.size()) + " Dirichlet vertices" : std::string("zero-mean Neumann"))
               << '\n';
     if (run.has_reference)
-      std::cout << "  error vs fine: relative L2 " << app::relative_error(error_json["rel_l2"]) << ", max abs "
+      std::cout << "  error vs fine" << (run.solves > 1 ? " (worst of " + std::to_string(run.solves) + " sources)" : std::string())
+                << ": relative L2 " << app::relative_error(error_json["rel_l2"]) << ", max abs "
                 << static_cast<double>(error_json["max_abs"]) << " (" << app::percent(error_json["max_rel"])
                 << " of max |u| " << static_cast<double>(error_json["max_abs_reference"]) << ")\n";
+    if (!solutions_path.empty()) std::cout << "  wrote " << solutions_path << " (" << app::thousands(n) << " x " << run.solves << ")\n";
     if (run.has_reference && error_json["rel_l2"].is_null())
       std::cout << "  note: the fine solution is zero (a constant f is zero once its mean is removed), so relative "
                    "errors are undefined\n";

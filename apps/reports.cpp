@@ -137,17 +137,17 @@ PdeRun PdeRun::start(const std::string& tool, const PdeOptions& opt, bool proxy_
 }
 
 double PdeRun::proxy_total() const {
-  return cache.load_seconds + cache.save_seconds + coarsen + assemble + factor + polish_setup + per_solve();
+  return cache.load_seconds + cache.save_seconds + coarsen + assemble + factor + polish_setup + solve + prolong + polish;
 }
 
 long long PdeRun::break_even_solves() const {
-  const double setup = proxy_total() - per_solve(), reference_setup = ref_assemble + ref_factor;
+  const double setup = proxy_total() - (solve + prolong + polish), reference_setup = ref_assemble + ref_factor;
   if (setup <= reference_setup) return 1;
-  if (per_solve() >= ref_solve) return -1;
-  return static_cast<long long>(std::ceil((setup - reference_setup) / (ref_solve - per_solve())));
+  if (per_solve() >= reference_per_solve()) return -1;
+  return static_cast<long long>(std::ceil((setup - reference_setup) / (reference_per_solve() - per_solve())));
 }
 
-double PdeRun::per_solve() const { return solve + prolong + polish; }
+double PdeRun::per_solve() const { return (solve + prolong + polish) / static_cast<double>(solves); }
 
 double PdeRun::reference_total() const { return ref_assemble + ref_factor + ref_solve; }
 
@@ -177,8 +177,8 @@ nlohmann::json PdeRun::report() const {
     t["reference"] = reference_total();
     t["reference_phases"] = {{"assemble", ref_assemble}, {"factor", ref_factor}, {"solve", ref_solve}};
     r["speedup"] = {{"total", reference_total() / std::max(proxy_total(), 1e-12)},
-                    {"per_solve", ref_solve / std::max(per_solve(), 1e-12)},
-                    {"per_solve_vs_factor_and_solve", (ref_factor + ref_solve) / std::max(per_solve(), 1e-12)},
+                    {"per_solve", reference_per_solve() / std::max(per_solve(), 1e-12)},
+                    {"per_solve_vs_factor_and_solve", (ref_factor + reference_per_solve()) / std::max(per_solve(), 1e-12)},
                     {"break_even_solves", break_even_solves() > 0 ? nlohmann::json(break_even_solves()) : nlohmann::json()}};
   }
   r["timings_s"] = t;
@@ -232,17 +232,17 @@ void PdeRun::print_summary(std::ostream& out) const {
   row("proxy total", proxy_total(),
       std::string(cache.status == ice::proxy::CacheStatus::off ? "" : "cache+") +
           std::string(polish_options.enabled() ? "coarsen+assemble+factor+solve+prolong+polish" : "coarsen+assemble+factor+solve+prolong") +
-          "; per solve " + fixed(per_solve(), 4) + " s");
+          "; per " + unit + " " + fixed(per_solve(), 4) + " s");
   if (has_reference) {
     row("fine reference", reference_total(),
         "assemble " + fixed(ref_assemble, 4) + " + factor " + fixed(ref_factor, 4) + " + solve " + fixed(ref_solve, 4));
     out << "  speed-up: " << fixed(reference_total() / std::max(proxy_total(), 1e-12), 2) << "x end to end, "
-        << fixed(ref_solve / std::max(per_solve(), 1e-12), 1) << "x per solve (fine solve "
-        << fixed(ref_solve, 4) << " s vs " << (polish_options.enabled() ? "coarse solve+prolong+polish " : "coarse solve+prolong ")
+        << fixed(reference_per_solve() / std::max(per_solve(), 1e-12), 1) << "x per " << unit << " (fine " << unit << " "
+        << fixed(reference_per_solve(), 4) << " s vs " << (polish_options.enabled() ? "coarse solve+prolong+polish " : "coarse solve+prolong ")
         << fixed(per_solve(), 4) << " s)\n";
     const long long solves = break_even_solves();
-    out << "  break-even: " << (solves > 0 ? "ICE is ahead from " + thousands(solves) + (solves == 1 ? " solve" : " solves")
-                                            : std::string("never (a proxy solve is no faster than the fine one)"))
+    out << "  break-even: " << (solves > 0 ? "ICE is ahead from " + thousands(solves) + " " + unit + (solves == 1 ? "" : "s")
+                                            : "never (a proxy " + unit + " is no faster than the fine one)")
         << (cache.status == ice::proxy::CacheStatus::hit ? " (setup from the store)" : cache.status == ice::proxy::CacheStatus::off ? "" : " (cold setup; a second run loads it from the store)") << '\n';
   }
 }

@@ -114,6 +114,9 @@ struct PdeRun {
   long long idt_flips = 0;
   bool proxy_uses_fine_mesh = false;  ///< the proxy needed the fine discretisation (Galerkin, M f)
   bool has_reference = false;
+  /// Solves made (sources of a block): solve, prolong, polish and ref_solve are their totals.
+  long long solves = 1;
+  std::string unit = "solve";  ///< what one of them is called in the summary ("step" for heat flow)
   double load = 0, coarsen = 0, fine_mesh = 0, assemble = 0, factor = 0, solve = 0, prolong = 0, write = 0;
   double ref_assemble = 0, ref_factor = 0, ref_solve = 0;
   /// Polishing (fem::PolishOptions), when asked for: its setup (fine Laplacian, two-level cycle) and
@@ -137,8 +140,10 @@ struct PdeRun {
   /// cost less than the reference's (assemble and factor, then its solve a solve): 1 when the
   /// setup already costs less, -1 when never (a proxy solve no faster than the fine one).
   long long break_even_solves() const;
-  /// solve + prolong (+ the polishing iterations).
+  /// (solve + prolong (+ the polishing iterations)) / solves.
   double per_solve() const;
+  /// ref_solve / solves.
+  double reference_per_solve() const { return ref_solve / static_cast<double>(solves); }
   /// tool, mesh, method, operators, input, coarse, fine_mesh, timings_s (incl. reference and
   /// proxy_total), speedup (when there is a reference), peak_rss_mb, blas.
   nlohmann::json report() const;

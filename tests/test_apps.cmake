@@ -18,7 +18,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   endif()
   set(_ice_app_cases
     coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot refine_spot poisson_spot poisson_fix_rhs_spot
-    poisson_cache ply_ascii errors view_page help)
+    poisson_cache heat_block_spot ply_ascii errors view_page help)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
       COMMAND ${CMAKE_COMMAND}
@@ -690,6 +690,56 @@ elseif(CASE STREQUAL "poisson_cache")
   file(GLOB entries "${WORK}/store/*.ice")
   check_text("${entries}" "" "entries after ice-cache clear")
 
+elseif(CASE STREQUAL "heat_block_spot")
+  # heat-coarse: 20 steps stepped on the coarse mesh, 4 states prolonged and compared with the fine
+  # steps; a second run loads the setup from the store. Its states (2930 x 4) are then the sources of
+  # a block Poisson solve, through the proxy and exactly.
+  project_mesh(mesh spot.obj)
+  file(REMOVE_RECURSE "${WORK}/store")
+  file(REMOVE "${WORK}/u.npy" "${WORK}/U.npy" "${WORK}/E.npy")
+  run(0 heat-coarse "${mesh}" --ratio 0.05 --steps 20 --output-every 5 --solutions "${WORK}/u.npy"
+      --cache "${WORK}/store" --report "${WORK}/h.json" -q)
+  set(r "${WORK}/h.json")
+  require_keys("${r}" heat.time_step heat.output_steps error.rel_l2 error.outputs timings_s.per_step cache.status
+               speedup.break_even_solves)
+  file(READ "${r}" _text)
+  string(JSON outputs LENGTH "${_text}" heat output_steps)
+  check(${outputs} EQUAL 4 "heat.output_steps (20 steps, every 5)")
+  string(JSON last GET "${_text}" heat output_steps 3)
+  check(${last} EQUAL 20 "the last output step")
+  json(rel_l2 "${r}" error rel_l2)
+  check(${rel_l2} LESS 0.05 "heat error.rel_l2 (worst output step)")
+  file(READ "${WORK}/u.npy" header OFFSET 10 LIMIT 100)
+  if(NOT header MATCHES "'descr': '<f8'" OR NOT header MATCHES "'shape': \\(2930, 4\\)")
+    fail("u.npy header: ${header}")
+  endif()
+  run(0 heat-coarse "${mesh}" --ratio 0.05 --steps 20 --output-every 5 --cache "${WORK}/store" --report "${WORK}/h2.json" -q)
+  json(status "${WORK}/h2.json" cache status)
+  check_text("${status}" "hit" "heat-coarse's second run: cache.status")
+  json(rel_l2_warm "${WORK}/h2.json" error rel_l2)
+  check_text("${rel_l2_warm}" "${rel_l2}" "heat error.rel_l2 warm (the same states)")
+  expect_error(4 "not both" heat-coarse "${mesh}" --ratio 0.05 --u0 "${WORK}/u.npy" --source 0)
+  expect_error(1 "4 columns, one expected" heat-coarse "${mesh}" --ratio 0.05 --u0 "${WORK}/u.npy")
+
+  run(0 poisson-coarse "${mesh}" --ratio 0.05 --rhs "${WORK}/u.npy" --solutions "${WORK}/U.npy" --cache "${WORK}/store"
+      --report "${WORK}/p.json" -q)
+  json(sources "${WORK}/p.json" sources)
+  check(${sources} EQUAL 4 "poisson sources")
+  json(columns "${WORK}/p.json" error columns)
+  check(${columns} EQUAL 4 "poisson error.columns")
+  json(rel_l2 "${WORK}/p.json" error rel_l2)
+  check(${rel_l2} LESS 0.08 "block Poisson error.rel_l2 (worst column)")
+  file(READ "${WORK}/U.npy" header OFFSET 10 LIMIT 100)
+  if(NOT header MATCHES "'shape': \\(2930, 4\\)")
+    fail("U.npy header: ${header}")
+  endif()
+  run(0 poisson-coarse "${mesh}" --rhs "${WORK}/u.npy" --solver direct --solutions "${WORK}/E.npy" --report "${WORK}/d.json" -q)
+  json(sources "${WORK}/d.json" sources)
+  check(${sources} EQUAL 4 "poisson --solver direct sources")
+  expect_error(4 "draw one solution" poisson-coarse "${mesh}" --ratio 0.05 --rhs "${WORK}/u.npy" -o "${WORK}/x.ply")
+  file(WRITE "${WORK}/bad.npy" "not numpy")
+  expect_error(1 "not a NumPy" poisson-coarse "${mesh}" --ratio 0.05 --rhs "${WORK}/bad.npy")
+
 elseif(CASE STREQUAL "poisson_fix_rhs_spot")
   project_mesh(mesh spot.obj)
   # A right-hand side file: f = 1 at every vertex, with a comment, commas and one value per line.
@@ -1057,7 +1107,7 @@ elseif(CASE STREQUAL "report_curvature_divisor")
   expect_error(4 "curvature-divisor" ice-report ${_common} --curvature-divisor 0 -o "${WORK}/zero")
 
 elseif(CASE STREQUAL "help")
-  foreach(_tool ice-info ice-coarsen poisson-coarse geodesic-coarse vector-coarse ice-cache)
+  foreach(_tool ice-info ice-coarsen poisson-coarse heat-coarse geodesic-coarse vector-coarse ice-cache)
     check_help(${_tool})
   endforeach()
 

@@ -487,6 +487,66 @@ Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::Ref<const Eigen::VectorXd
   return polished;
 }
 
+Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::MatrixXd>& F,
+                                                const Eigen::MatrixXd& dirichlet_values, ProxyPhaseTimes* times) const {
+  using namespace detail;
+  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const SparseMatrix& P = proxy_->prolongation();
+  const Eigen::Index n = P.rows(), m = P.cols(), k = F.cols();
+  if (F.rows() != n) throw std::invalid_argument("ProxyPoissonSolver::solve_block: wrong number of rows");
+  if (dirichlet_values.size() != 0 &&
+      (dirichlet_values.rows() != static_cast<Eigen::Index>(dirichlet_vertices_.size()) || dirichlet_values.cols() != k))
+    throw std::invalid_argument("ProxyPoissonSolver::solve_block: one row of values per Dirichlet vertex, one column per source expected");
+  Eigen::MatrixXd U(n, k);
+  if (fine_) {  // polishing iterates per column
+    for (Eigen::Index j = 0; j < k; ++j)
+      U.col(j) = solve(Eigen::VectorXd(F.col(j)),
+                       dirichlet_values.size() == 0 ? Eigen::VectorXd() : Eigen::VectorXd(dirichlet_values.col(j)), nullptr, nullptr);
+    return U;
+  }
+  if (times) *times = ProxyPhaseTimes();
+  Clock::time_point mark = Clock::now();
+  const int threads = default_threads();
+  // Columns go through the fine-size passes in chunks: one pass over the matrices per chunk, with
+  // fine-size buffers of a chunk's width only.
+  const Eigen::Index chunk = std::min<Eigen::Index>(std::max<Eigen::Index>(k, 1), 32);
+  RowMatrix source(n, chunk), weighted(n, chunk), coarse_rhs(m, k), coarse_chunk(m, chunk), u_rows(n, chunk);
+  // Each column as solve() makes it: compatible (zero-mean), the same dot products on an aligned copy.
+  const auto column_source = [&](Eigen::Index j) {
+    Eigen::VectorXd f = F.col(j);
+    if (is_zero_mean() && fine_components_.count() > 1) remove_component_means(fine_components_, fine_mass_of_one_, f);
+    else if (is_zero_mean()) f = (f.array() - fine_mass_of_one_.dot(f) / total_mass_).matrix();
+    return f;
+  };
+  for (Eigen::Index first = 0; first < k; first += chunk) {
+    const Eigen::Index width = std::min(chunk, k - first);
+    for (Eigen::Index c = 0; c < width; ++c) source.col(c) = column_source(first + c);
+    if (width < chunk) source.rightCols(chunk - width).setZero();
+    gather_product_rows(proxy_->fine_mass(), source.data(), weighted.data(), chunk, threads, n);
+    gather_product_rows(P, weighted.data(), coarse_chunk.data(), chunk, threads, n);
+    coarse_rhs.middleCols(first, width) = coarse_chunk.leftCols(width);
+  }
+  if (times) times->restriction = seconds_since(mark);
+  const RowMatrix coarse_u = coarse_.solve_multiple_weighted(Eigen::MatrixXd(coarse_rhs), dirichlet_values);
+  if (times) times->coarse_solve = seconds_since(mark);
+  for (Eigen::Index first = 0; first < k; first += chunk) {
+    const Eigen::Index width = std::min(chunk, k - first);
+    coarse_chunk.leftCols(width) = coarse_u.middleCols(first, width);
+    if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
+    gather_product_rows(P_rows_, coarse_chunk.data(), u_rows.data(), chunk, threads, n);
+    for (Eigen::Index c = 0; c < width; ++c) {
+      Eigen::VectorXd u = u_rows.col(c);
+      if (is_zero_mean() && fine_components_.count() > 1)
+        remove_component_means(fine_components_, fine_mass_of_one_, u);
+      else if (is_zero_mean())
+        add_constant(-fine_mass_of_one_.dot(u) / total_mass_, u, threads);
+      U.col(first + c) = u;
+    }
+  }
+  if (times) times->prolongation = seconds_since(mark);
+  return U;
+}
+
 ProxyHeatSolver::ProxyHeatSolver(const CoarseProxy& proxy, double time_step, RestrictionKind restriction,
                                  PolishOptions polish)
     : proxy_(&proxy),
@@ -504,6 +564,41 @@ ProxyHeatSolver::ProxyHeatSolver(const CoarseProxy& proxy, double time_step, Res
 }
 
 ProxyHeatSolver::~ProxyHeatSolver() = default;
+
+Eigen::MatrixXd ProxyHeatSolver::trajectory(const Eigen::Ref<const Eigen::VectorXd>& fine_u0, int steps, int every,
+                                            std::vector<int>* output_steps, ProxyPhaseTimes* times) const {
+  if (steps < 1 || every < 1) throw std::invalid_argument("ProxyHeatSolver::trajectory: steps and every must be >= 1");
+  if (fine_) throw std::invalid_argument("ProxyHeatSolver::trajectory: polishing needs every fine step (use integrate)");
+  if (fine_u0.size() != proxy_->fine_size()) throw std::invalid_argument("ProxyHeatSolver::trajectory: wrong size");
+  std::vector<int> listed;
+  for (int k = every; k <= steps; k += every) listed.push_back(k);
+  if (listed.empty() || listed.back() != steps) listed.push_back(steps);
+  if (times) *times = ProxyPhaseTimes();
+  Clock::time_point mark = Clock::now();
+  // The coarse states of the listed steps, stepped as integrate() steps them.
+  std::vector<Eigen::VectorXd> states;
+  Eigen::VectorXd u;
+  int done = 0;
+  if (restriction_ == RestrictionKind::l2_projection) {
+    const Eigen::VectorXd rhs = proxy_->restrict_weighted(proxy_->fine_mass() * fine_u0);
+    if (times) times->restriction = seconds_since(mark);
+    u = coarse_.solve_weighted(rhs);
+    done = 1;
+  } else {
+    u = proxy_->restrict_values(fine_u0, RestrictionKind::injection);
+    if (times) times->restriction = seconds_since(mark);
+  }
+  for (const int target : listed) {
+    for (; done < target; ++done) u = coarse_.step(u);
+    states.push_back(u);
+  }
+  if (times) times->coarse_solve = seconds_since(mark);
+  Eigen::MatrixXd out(proxy_->fine_size(), static_cast<Eigen::Index>(states.size()));
+  for (std::size_t j = 0; j < states.size(); ++j) out.col(static_cast<Eigen::Index>(j)) = proxy_->prolong(states[j]);
+  if (times) times->prolongation = seconds_since(mark);
+  if (output_steps) *output_steps = listed;
+  return out;
+}
 
 Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::Ref<const Eigen::VectorXd>& fine_u0, int steps, ProxyPhaseTimes* times,
                                            PolishReport* polish_report) const {

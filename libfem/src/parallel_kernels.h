@@ -48,6 +48,28 @@ void gather_product(const Matrix& M, const double* in, double* out, bool accumul
   }
 }
 
+// gather_product for k vectors at once, stored row by row (entry c of vector r at in[r·k + c]): one
+// pass over M for all of them. Each output entry is the same ordered sum as gather_product's, so
+// column c of the result equals gather_product of column c to the last bit.
+template <class Matrix>
+void gather_product_rows(const Matrix& M, const double* in, double* out, Eigen::Index k, int threads,
+                         Eigen::Index work_size) {
+  const auto* start = M.outerIndexPtr();
+  const auto* inner = M.innerIndexPtr();
+  const double* value = M.valuePtr();
+  const Eigen::Index n = M.outerSize();
+#pragma omp parallel for schedule(static) num_threads(active_threads(work_size * k, threads))
+  for (Eigen::Index o = 0; o < n; ++o) {
+    double* y = out + o * k;
+    for (Eigen::Index c = 0; c < k; ++c) y[c] = 0;
+    for (auto p = start[o]; p < start[o + 1]; ++p) {
+      const double w = value[p];
+      const double* x = in + static_cast<Eigen::Index>(inner[p]) * k;
+      for (Eigen::Index c = 0; c < k; ++c) y[c] += w * x[c];
+    }
+  }
+}
+
 // Vector kernels.
 inline double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int threads) {
   const Eigen::Index n = a.size();

@@ -95,12 +95,17 @@ Eigen::VectorXd ConstrainedSolver::solve(const Eigen::VectorXd& b, const Eigen::
   return full_rows(free_solution, values, free_);
 }
 
-Eigen::MatrixXd ConstrainedSolver::solve_multiple(const Eigen::MatrixXd& B) const {
+Eigen::MatrixXd ConstrainedSolver::solve_multiple(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values) const {
   if (B.rows() != size_) throw std::invalid_argument("ConstrainedSolver::solve_multiple: rhs has the wrong size");
-  const Eigen::MatrixXd free_rhs = free_rows(B, free_, factor_.rows());
+  const auto constrained_count = static_cast<Eigen::Index>(constrained_.size());
+  const Eigen::MatrixXd values = constrained_values.size() == 0 ? Eigen::MatrixXd::Zero(constrained_count, B.cols()).eval()
+                                                                : constrained_values;
+  if (values.rows() != constrained_count || values.cols() != B.cols())
+    throw std::invalid_argument("ConstrainedSolver::solve_multiple: one row of values per constrained index, one column per rhs expected");
+  Eigen::MatrixXd free_rhs = free_rows(B, free_, factor_.rows());
+  if (constrained_count > 0) free_rhs -= free_constrained_coupling_ * values;
   const Eigen::MatrixXd free_solution = free_rhs.rows() > 0 ? factor_.solve_multiple(free_rhs) : free_rhs;
-  return full_rows(free_solution, Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(constrained_.size()), B.cols()).eval(),
-                   free_);
+  return full_rows(free_solution, values, free_);
 }
 
 // ---- PoissonSolver ----------------------------------------------------------------------------------
@@ -180,6 +185,29 @@ Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Ei
   Eigen::VectorXd u = solve_constrained(compatible, Eigen::VectorXd(), guess);
   remove_component_means(components_, mass_of_one_, u);
   return u;
+}
+
+Eigen::MatrixXd PoissonSolver::solve_multiple_weighted(const Eigen::MatrixXd& B, const Eigen::MatrixXd& dirichlet_values) const {
+  if (multigrid_) {  // iterative: one solve per column
+    Eigen::MatrixXd X(B.rows(), B.cols());
+    for (Eigen::Index j = 0; j < B.cols(); ++j)
+      X.col(j) = solve_weighted(B.col(j), dirichlet_values.size() == 0 ? Eigen::VectorXd() : Eigen::VectorXd(dirichlet_values.col(j)));
+    return X;
+  }
+  if (!zero_mean_) return direct_->solve_multiple(B, dirichlet_values);
+  Eigen::MatrixXd compatible(B.rows(), B.cols());
+  for (Eigen::Index j = 0; j < B.cols(); ++j) {  // column by column, as solve_weighted does
+    Eigen::VectorXd b = B.col(j);
+    make_compatible(components_, mass_of_one_, b);
+    compatible.col(j) = b;
+  }
+  Eigen::MatrixXd X = direct_->solve_multiple(compatible);
+  for (Eigen::Index j = 0; j < X.cols(); ++j) {
+    Eigen::VectorXd u = X.col(j);
+    remove_component_means(components_, mass_of_one_, u);
+    X.col(j) = u;
+  }
+  return X;
 }
 
 // ---- HeatSolver -------------------------------------------------------------------------------------

@@ -476,4 +476,107 @@ void write_dense_matrix(const std::string& path, const Eigen::MatrixXf& matrix, 
   finish_output(out, path);
 }
 
+// ---- float64 .npy ------------------------------------------------------------------------------------
+
+Eigen::MatrixXd read_npy_matrix(const std::string& path) {
+  const auto fail = [&](const std::string& message) { throw MeshError(MeshError::Kind::Unreadable, path, message); };
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("cannot be opened");
+  char magic[8] = {};
+  in.read(magic, 8);
+  if (!in || std::memcmp(magic, "\x93NUMPY", 6) != 0) fail("not a NumPy .npy file (no \\x93NUMPY magic)");
+  const int major = static_cast<unsigned char>(magic[6]);
+  if (major < 1 || major > 3) fail("unknown .npy format version " + std::to_string(major));
+  std::uint32_t header_length = 0;
+  unsigned char length_bytes[4] = {};
+  in.read(reinterpret_cast<char*>(length_bytes), major == 1 ? 2 : 4);
+  if (!in) fail("truncated header");
+  header_length = length_bytes[0] | (length_bytes[1] << 8) | (major == 1 ? 0u : (length_bytes[2] << 16) | (std::uint32_t(length_bytes[3]) << 24));
+  if (header_length > (1u << 20)) fail("header too long");
+  std::string header(header_length, '\0');
+  in.read(header.data(), header_length);
+  if (!in) fail("truncated header");
+  // The header is a Python dict literal: 'descr', 'fortran_order', 'shape'.
+  const auto value_of = [&](const std::string& key) {
+    const std::size_t at = header.find("'" + key + "'");
+    if (at == std::string::npos) fail("header without '" + key + "'");
+    const std::size_t colon = header.find(':', at);
+    if (colon == std::string::npos) fail("malformed header");
+    return header.substr(colon + 1);
+  };
+  const std::string descr = value_of("descr");
+  const bool f8 = descr.find("'<f8'") == 0 || descr.find(" '<f8'") == 0;
+  const bool f4 = descr.find("'<f4'") == 0 || descr.find(" '<f4'") == 0;
+  if (!f8 && !f4) fail("values of type " + descr.substr(0, descr.find(',')) + "; float64 or float32 ('<f8', '<f4') expected");
+  const std::string order = value_of("fortran_order");
+  const bool fortran = order.find("True") < order.find(',');
+  const std::string shape_text = value_of("shape");
+  const std::size_t open = shape_text.find('('), close = shape_text.find(')');
+  if (open == std::string::npos || close == std::string::npos || close < open) fail("malformed shape");
+  std::vector<long long> shape;
+  std::string dims = shape_text.substr(open + 1, close - open - 1);
+  for (std::size_t pos = 0; pos < dims.size();) {
+    while (pos < dims.size() && (dims[pos] == ' ' || dims[pos] == ',')) ++pos;
+    if (pos >= dims.size()) break;
+    std::size_t used = 0;
+    long long d = -1;
+    try {
+      d = std::stoll(dims.substr(pos), &used);
+    } catch (const std::exception&) {
+      fail("malformed shape");
+    }
+    if (d < 0) fail("negative dimension");
+    shape.push_back(d);
+    pos += used;
+  }
+  if (shape.empty() || shape.size() > 2) fail(std::to_string(shape.size()) + " dimensions; a vector or a matrix expected");
+  const long long rows = shape[0], cols = shape.size() == 2 ? shape[1] : 1;
+  if (rows > (1LL << 40) / std::max(1LL, cols)) fail("shape too large");
+  const std::size_t count = static_cast<std::size_t>(rows * cols), width = f8 ? 8 : 4;
+  std::vector<char> raw(count * width);
+  in.read(raw.data(), static_cast<std::streamsize>(raw.size()));
+  if (!in) fail("truncated data: " + std::to_string(rows) + " x " + std::to_string(cols) + " values declared");
+  Eigen::MatrixXd m(rows, cols);
+  for (long long r = 0; r < rows; ++r)
+    for (long long c = 0; c < cols; ++c) {
+      const std::size_t k = static_cast<std::size_t>(fortran ? c * rows + r : r * cols + c);
+      double v;
+      if (f8) {
+        std::memcpy(&v, raw.data() + 8 * k, 8);
+      } else {
+        float f;
+        std::memcpy(&f, raw.data() + 4 * k, 4);
+        v = f;
+      }
+      if (!std::isfinite(v)) fail("value at row " + std::to_string(r) + ", column " + std::to_string(c) + " is not finite");
+      m(r, c) = v;
+    }
+  return m;
+}
+
+void write_npy_matrix(const std::string& path, const Eigen::MatrixXd& matrix, bool overwrite) {
+  require_writable(path, overwrite);
+  const auto fail = [&](const std::string& message) {
+    std::error_code ec;
+    fs::remove(path, ec);
+    throw MeshError(MeshError::Kind::Unwritable, path, message);
+  };
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "cannot create the file");
+  std::string header = "{'descr': '<f8', 'fortran_order': False, 'shape': (" + std::to_string(matrix.rows()) + ", " +
+                       std::to_string(matrix.cols()) + "), }";
+  const std::size_t unpadded = 10 + header.size() + 1;
+  header.append((64 - unpadded % 64) % 64, ' ');
+  header.push_back('\n');
+  const auto length = static_cast<std::uint16_t>(header.size());
+  out.write("\x93NUMPY\x01\x00", 8);
+  const char length_bytes[2] = {static_cast<char>(length & 0xff), static_cast<char>(length >> 8)};
+  out.write(length_bytes, 2);
+  out.write(header.data(), static_cast<std::streamsize>(header.size()));
+  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = matrix;
+  out.write(reinterpret_cast<const char*>(rows.data()), static_cast<std::streamsize>(rows.size() * sizeof(double)));
+  out.close();
+  if (!out) fail("write failed (disk full?)");
+}
+
 }  // namespace ice

@@ -19,6 +19,11 @@ Eigen::VectorXd HeatSolver::integrate(const Eigen::Ref<const Eigen::VectorXd>& u
   return solver_->integrate(u0, steps, times, polish_report);
 }
 
+Eigen::MatrixXd HeatSolver::steps(const Eigen::Ref<const Eigen::VectorXd>& u0, int steps, int every,
+                                  std::vector<int>* output_steps, fem::ProxyPhaseTimes* times) const {
+  return solver_->trajectory(u0, steps, every, output_steps, times);
+}
+
 Eigen::VectorXd heat_flow(const TriangleMesh& mesh, const Eigen::Ref<const Eigen::VectorXd>& u0, double time_step, int steps,
                           const HeatOptions& options) {
   return HeatSolver(mesh, time_step, options).integrate(u0, steps);

@@ -24,6 +24,11 @@ Eigen::VectorXd PoissonSolver::solve(const Eigen::Ref<const Eigen::VectorXd>& f,
   return solver_->solve(f, fixed_values, times, polish_report);
 }
 
+Eigen::MatrixXd PoissonSolver::solve_block(const Eigen::Ref<const Eigen::MatrixXd>& F, const Eigen::MatrixXd& fixed_values,
+                                           fem::ProxyPhaseTimes* times) const {
+  return solver_->solve_block(F, fixed_values, times);
+}
+
 Eigen::VectorXd solve_poisson(const TriangleMesh& mesh, const Eigen::Ref<const Eigen::VectorXd>& f,
                               const PoissonOptions& options, const Eigen::VectorXd& fixed_values) {
   return PoissonSolver(mesh, options).solve(f, fixed_values);

@@ -33,6 +33,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     loop_subdivide,
     mass_matrix,
     save_mesh,
+    setup_proxy,
     validate,
 )
 from . import _ice
@@ -45,7 +46,7 @@ __all__ = [
     "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
     "curvature_corrected_lengths", "face_lengths", "geodesic_distance", "heat_flow", "hierarchy", "intrinsic_delaunay", "load_coarse_mesh",
-    "load_mesh", "loop_subdivide", "mass_matrix", "read_mesh", "save_mesh", "solve_poisson", "transport_vectors",
+    "load_mesh", "loop_subdivide", "mass_matrix", "read_mesh", "save_mesh", "setup_proxy", "solve_poisson", "transport_vectors",
     "validate",
     "VectorHeatSolver",
 ]
@@ -156,9 +157,18 @@ def _coarse_for(V, F, coarse, coarsening, use, locked=None):
     return coarsen(V, F, **coarsening)
 
 
+def _stored_proxy(V, F, coarsening, use, operators, fine, prolongation, fixed, cache):
+    """(coarse, proxy) through the store of set-up proxies (ice.setup_proxy)."""
+    if not {"n", "ratio", "max_error"} & coarsening.keys():
+        coarsening["ratio"] = 0.05
+    coarsening.setdefault("use", use)
+    return setup_proxy(V, F, operators=operators, fine=fine, prolongation=prolongation, fixed=fixed, cache=cache,
+                       **coarsening)
+
+
 def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, values=None,
                   operators: str = "galerkin", fine: str = "intrinsic_delaunay", polish: int = 0,
-                  tolerance: float = 0.0, prolongation: str = "auto", **coarsening):
+                  tolerance: float = 0.0, prolongation: str = "auto", cache=None, **coarsening):
     """Poisson −Δu = f on (V, F) through a coarse proxy, in one call (poisson-coarse).
 
     coarse: a CoarseSpace of this mesh, or coarsening options for ice.coarsen (default ratio=0.05);
@@ -167,26 +177,37 @@ def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, val
     values there (values, default zeros; every component needs one). For many right-hand
     sides build Proxy and ProxyPoissonSolver once instead. prolongation: "barycentric", "smoothed"
     (see Proxy; not with fixed vertices) or "auto" (smoothed with Galerkin operators and no fixed
-    vertices, as poisson-coarse).
+    vertices, as poisson-coarse). f of shape (n, k): k sources solved as one block. cache: without a
+    given coarse space the setup goes through the store of set-up proxies (ice.setup_proxy): None the
+    default store ($ICE_CACHE, else ~/.cache/ice), a directory, or False for none.
     """
-    coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", fixed)
-    prolongation = _ice._resolve_prolongation(prolongation, operators, fixed is not None and len(fixed) > 0)
-    proxy = Proxy(V, F, coarse, operators=operators, fine=fine, prolongation=prolongation)
+    if coarse is None and cache is not False:
+        _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", operators, fine, prolongation, fixed, cache)
+    else:
+        coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", fixed)
+        prolongation = _ice._resolve_prolongation(prolongation, operators, fixed is not None and len(fixed) > 0)
+        proxy = Proxy(V, F, coarse, operators=operators, fine=fine, prolongation=prolongation)
     return ProxyPoissonSolver(proxy, fixed=fixed, polish=polish, tolerance=tolerance).solve(f, values)
 
 
 def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace | None = None,
               restriction: str = "l2", operators: str = "galerkin", fine: str = "intrinsic_delaunay",
-              polish: int = 0, tolerance: float = 0.0, prolongation: str = "auto", **coarsening):
+              polish: int = 0, tolerance: float = 0.0, prolongation: str = "auto", every: int | None = None,
+              cache=None, **coarsening):
     """Backward-Euler heat flow from u0 for `steps` steps of `time_step` through a coarse proxy.
 
-    coarse / coarsening options and prolongation as for solve_poisson.
+    coarse / coarsening options, prolongation and cache as for solve_poisson. every: None gives the
+    last state; an integer M gives (states, step_counts), the states after every M-th step (and the
+    last) stepped on the coarse mesh with only those prolonged (ProxyHeatSolver.steps).
     """
-    coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
-    proxy = Proxy(V, F, coarse, operators=operators, fine=fine,
-                  prolongation=_ice._resolve_prolongation(prolongation, operators, False))
+    if coarse is None and cache is not False:
+        _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", operators, fine, prolongation, None, cache)
+    else:
+        coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
+        proxy = Proxy(V, F, coarse, operators=operators, fine=fine,
+                      prolongation=_ice._resolve_prolongation(prolongation, operators, False))
     solver = ProxyHeatSolver(proxy, time_step, restriction=restriction, polish=polish, tolerance=tolerance)
-    return solver.integrate(u0, steps)
+    return solver.integrate(u0, steps) if every is None else solver.steps(u0, steps, every)
 
 
 def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, method: str = "marching",

@@ -121,6 +121,8 @@ class Proxy:
     @property
     def fine_flips(self) -> int: ...
     @property
+    def cache(self) -> dict[str, Any]: ...
+    @property
     def fine_laplacian(self) -> scipy.sparse.csc_matrix: ...
     @property
     def fine_mass(self) -> scipy.sparse.csc_matrix: ...
@@ -147,6 +149,7 @@ class ProxyHeatSolver:
     def __init__(self, proxy: Proxy, time_step: float, *, restriction: Literal["l2", "injection"] = "l2",
                  polish: int = 0, tolerance: float = 0.0) -> None: ...
     def integrate(self, u0: ArrayLike, steps: int = 1) -> FloatArray: ...
+    def steps(self, u0: ArrayLike, steps: int, every: int = 1) -> tuple[FloatArray, list[int]]: ...
     @property
     def polish_report(self) -> dict[str, Any]: ...
     @property
@@ -245,15 +248,21 @@ def solve_poisson(V: ArrayLike, F: ArrayLike, f: ArrayLike, *, coarse: CoarseSpa
                   operators: Literal["galerkin", "intrinsic"] = "galerkin",
                   fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
                   tolerance: float = 0.0, prolongation: Literal["auto", "barycentric", "smoothed"] = "auto",
-                  **coarsening: Any) -> FloatArray:
-    """Poisson −Δu = f through a coarse proxy in one call."""
+                  cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> FloatArray:
+    """Poisson −Δu = f through a coarse proxy in one call (f of shape (n, k): k sources as a block)."""
 def heat_flow(V: ArrayLike, F: ArrayLike, u0: ArrayLike, time_step: float, steps: int = 1, *,
               coarse: CoarseSpace | None = None, restriction: Literal["l2", "injection"] = "l2",
               operators: Literal["galerkin", "intrinsic"] = "galerkin",
               fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
               tolerance: float = 0.0, prolongation: Literal["auto", "barycentric", "smoothed"] = "auto",
-              **coarsening: Any) -> FloatArray:
-    """Backward-Euler heat flow through a coarse proxy in one call."""
+              every: int | None = None, cache: str | PathLike[str] | Literal[False] | None = None,
+              **coarsening: Any) -> FloatArray | tuple[FloatArray, list[int]]:
+    """Backward-Euler heat flow through a coarse proxy in one call (every=M: the states every M steps)."""
+def setup_proxy(V: ArrayLike, F: ArrayLike, *, operators: Literal["galerkin", "intrinsic"] = "galerkin",
+                fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
+                prolongation: Literal["auto", "barycentric", "smoothed"] = "auto", fixed: Indices | None = None,
+                cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> tuple[CoarseSpace, Proxy]:
+    """Coarsens and builds the Proxy in one step, through the store of set-up proxies."""
 def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: CoarseSpace | None = None,
                       method: Literal["marching", "heat"] = "marching",
                       time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",

@@ -298,15 +298,14 @@ struct ProgressBridge {
   }
 };
 
-std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F, const py::object& n,
-                                       const py::object& ratio, const py::object& min_vertices, const py::object& max_error, const std::string& method,
-                                       const std::string& use, const py::object& area_weight,
-                                       const py::object& normalize_curvature, const py::object& locked,
-                                       bool remove_boundary, const py::object& threads, const py::object& regions,
-                                       const std::string& qem_geometry,
-                                       const py::object& refine_angle, double refine_budget, bool keep_map,
-                                       bool locality_numbering, bool trace, const py::object& progress) {
-  const ice::TriangleMesh mesh = mesh_argument(V, F);
+// The coarsening options of ice.coarsen's keyword arguments (checked) for `mesh`.
+ice::CoarseSpaceOptions coarse_space_options(const ice::TriangleMesh& mesh, const py::object& n, const py::object& ratio,
+                                             const py::object& min_vertices, const py::object& max_error,
+                                             const std::string& method, const std::string& use, const py::object& area_weight,
+                                             const py::object& normalize_curvature, const py::object& locked,
+                                             bool remove_boundary, const py::object& threads, const py::object& regions,
+                                             const std::string& qem_geometry, const py::object& refine_angle,
+                                             double refine_budget, bool locality_numbering) {
   const auto vertex_count = static_cast<long long>(mesh.V.rows());
   ice::CoarseSpaceOptions options;
   options.method = choice<ice::CoarseningMethod>(method, "method");
@@ -362,11 +361,27 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     refinement.max_vertex_ratio = refine_budget;
     options.refinement = refinement;
   }
+  options.locality_numbering = locality_numbering;
+  return options;
+}
+
+std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F, const py::object& n,
+                                       const py::object& ratio, const py::object& min_vertices, const py::object& max_error, const std::string& method,
+                                       const std::string& use, const py::object& area_weight,
+                                       const py::object& normalize_curvature, const py::object& locked,
+                                       bool remove_boundary, const py::object& threads, const py::object& regions,
+                                       const std::string& qem_geometry,
+                                       const py::object& refine_angle, double refine_budget, bool keep_map,
+                                       bool locality_numbering, bool trace, const py::object& progress) {
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  ice::CoarseSpaceOptions options =
+      coarse_space_options(mesh, n, ratio, min_vertices, max_error, method, use, area_weight, normalize_curvature, locked,
+                           remove_boundary, threads, regions, qem_geometry, refine_angle, refine_budget, locality_numbering);
+  ice::CoarsenOptions& c = options.coarsen;
   if (trace && options.method != ice::CoarseningMethod::ice)
     throw py::value_error("trace=True draws ICE's intrinsic coarse edges on the surface; a QEM mesh has straight edges (method='ice')");
   options.keep_method_state = keep_map || trace;
   options.record_history = trace;  // exact tracing (ice/coarse_tracing.h), made below before the history is freed
-  options.locality_numbering = locality_numbering;
   ProgressBridge bridge{progress, nullptr};
   c.progress = [&bridge](const ice::CoarsenProgress& state) { return bridge(state); };
 
@@ -468,9 +483,10 @@ void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& f
 // ---- the proxy and its solvers -------------------------------------------------------------------
 
 struct PyProxy {
-  ice::FineMesh fine;
+  ice::FineMesh fine;  ///< empty when the proxy came from the store (proxy->fine_faces() makes it)
   std::unique_ptr<fem::CoarseProxy> proxy;
   ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< of its coarse space
+  nlohmann::json cache = {{"status", "off"}};  ///< ice::proxy::cache_json of setup_proxy
 };
 
 /// curvature_correction=None|True|False of the geodesic solvers on a coarse space made by `method`:
@@ -564,6 +580,69 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
   result->fine = ice::fine_mesh(mesh, geometry);
   result->proxy = std::make_unique<fem::CoarseProxy>(ice::proxy::make_proxy(result->fine, coarse.space, kind, smoothing));
   return result;
+}
+
+// The store of ice.setup_proxy's cache argument: None the default one ($ICE_CACHE, XDG), False none,
+// a path that directory.
+ice::proxy::Store store_argument(const py::object& cache) {
+  if (py::isinstance<py::bool_>(cache)) {
+    if (cache.cast<bool>()) throw py::value_error("cache must be None (the default store), False (none) or a directory");
+    return {};
+  }
+  ice::proxy::StoreOptions options;
+  try {
+    options = ice::proxy::default_store_options();
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(e.what());
+  }
+  if (!cache.is_none()) options.directory = py::str(py::module_::import("os").attr("fspath")(cache)).cast<std::string>();
+  return ice::proxy::Store(options);
+}
+
+py::tuple setup_proxy(const py::object& V, const py::object& F, const std::string& operators, const std::string& fine,
+                      const std::string& prolongation, const py::object& fixed, const py::object& cache,
+                      const py::object& n, const py::object& ratio, const py::object& min_vertices,
+                      const py::object& max_error, const std::string& method, const std::string& use,
+                      const py::object& area_weight, const py::object& normalize_curvature, const py::object& locked,
+                      bool remove_boundary, const py::object& threads, const py::object& regions,
+                      const std::string& qem_geometry, const py::object& refine_angle, double refine_budget,
+                      bool locality_numbering) {
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  ice::CoarseSpaceOptions options =
+      coarse_space_options(mesh, n, ratio, min_vertices, max_error, method, use, area_weight, normalize_curvature, locked,
+                           remove_boundary, threads, regions, qem_geometry, refine_angle, refine_budget, locality_numbering);
+  std::vector<ice::Index> dirichlet;
+  if (!fixed.is_none()) dirichlet = index_argument(fixed, mesh.V.rows(), "fixed");
+  const auto kind = choice<fem::CoarseOperatorKind>(operators, "operators");
+  const ice::FineGeometry geometry = fine_geometry_argument(fine);
+  const auto choice_of_p = choice<ice::proxy::Prolongation>(prolongation, "prolongation");
+  const ice::proxy::Store store = store_argument(cache);
+  auto coarse = std::make_shared<PyCoarseSpace>();
+  auto proxy = std::make_shared<PyProxy>();
+  {
+    py::gil_scoped_release release;
+    require_clean(mesh);
+    ice::proxy::ProxySetup setup;
+    try {
+      setup = ice::proxy::build_proxy_setup(mesh, std::nullopt, options, dirichlet, geometry, kind, choice_of_p,
+                                            !dirichlet.empty(), store, {}, /*fine_operators=*/true);
+    } catch (const std::invalid_argument& e) {
+      py::gil_scoped_acquire acquire;
+      throw py::value_error(e.what());
+    }
+    coarse->space = std::move(setup.coarse);
+    coarse->positions = ice::coarse_vertex_positions(mesh, coarse->space);
+    coarse->input_vertices = static_cast<ice::Index>(mesh.V.rows());
+    coarse->has_space = true;
+    coarse->faces_fingerprint = faces_fingerprint(mesh.F);
+    proxy->fine = std::move(setup.fine);
+    proxy->proxy = std::move(setup.proxy);
+    proxy->method = coarse->space.summary.method;
+    proxy->cache = ice::proxy::cache_json(setup.cache, store);
+    proxy->cache["load_seconds"] = setup.cache.load_seconds;
+    proxy->cache["save_seconds"] = setup.cache.save_seconds;
+  }
+  return py::make_tuple(coarse, proxy);
 }
 
 // ---- tangent vector fields -------------------------------------------------------------------------
@@ -932,6 +1011,21 @@ Ctrl-C stops and is raised. keep_map: keep the fine-to-coarse map (CoarseSpace.m
 also trace every coarse edge on the input surface exactly (ice-coarsen --trace: the coarsening's history recorded
 while it runs, ~1 KB per removal until this call returns): CoarseSpace.traced_edges, and the lengths of
 ProxyGeodesicSolver.from_coarse(..., lengths='traced'). Raises ice.MeshError naming each defect of a refused mesh.)doc");
+  m.def("setup_proxy", &setup_proxy, py::arg("V"), py::arg("F"), py::kw_only(), py::arg("operators") = "galerkin",
+        py::arg("fine") = "intrinsic_delaunay", py::arg("prolongation") = "auto", py::arg("fixed") = py::none(),
+        py::arg("cache") = py::none(), py::arg("n") = py::none(), py::arg("ratio") = py::none(),
+        py::arg("min_vertices") = py::none(), py::arg("max_error") = py::none(), py::arg("method") = "ice",
+        py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(), py::arg("normalize_curvature") = py::none(),
+        py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1, py::arg("regions") = 0,
+        py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
+        py::arg("locality_numbering") = true,
+        R"doc(Coarsens (V, F) and builds its Proxy in one step, through the store of set-up proxies: (CoarseSpace, Proxy).
+
+The coarsening arguments are ice.coarsen's (the coarse space keeps no fine-to-coarse map); operators, fine and
+prolongation ("auto": smoothed with Galerkin operators and no fixed vertices) are Proxy's; fixed vertices are
+locked. cache: None (the default store: $ICE_CACHE, else ~/.cache/ice), False (none) or a directory. A setup
+stored there for the same mesh and options is loaded instead of built (the same arrays to the last bit);
+Proxy.cache says which ('hit', 'miss', 'rebuilt' after a damaged entry, 'off').)doc");
   m.def("load_coarse_mesh", &load_coarse_mesh, py::arg("path"),
         R"doc(Reads an .ilm coarse mesh (CoarseSpace.save, ice-coarsen): faces, lengths, gluing, vertex map; its
 P, map and summary are None. Raises ice.MeshError naming the file, line and defect.)doc");
@@ -955,8 +1049,10 @@ and poisson-coarse pick the smoothed one where it serves: prolongation="auto").)
       }, "The P the proxy solves with (smoothed or as given; scipy.sparse, read-only view)")
       .def_property_readonly("fine_size", [](const PyProxy& p) { return p.proxy->fine_size(); }, "Fine vertices.")
       .def_property_readonly("coarse_size", [](const PyProxy& p) { return p.proxy->coarse_size(); }, "Coarse vertices.")
-      .def_property_readonly("fine_faces", [](const PyProxy& p) { return p.fine.F; }, "Faces of the fine discretisation (the input's, or its intrinsic Delaunay triangulation's).")
-      .def_property_readonly("fine_lengths", [](const PyProxy& p) { return p.fine.L; }, "Edge lengths of the fine discretisation.")
+      .def_property_readonly("fine_faces", [](const PyProxy& p) { return p.proxy->fine_faces(); }, "Faces of the fine discretisation (the input's, or its intrinsic Delaunay triangulation's).")
+      .def_property_readonly("fine_lengths", [](const PyProxy& p) { return p.proxy->fine_lengths(); }, "Edge lengths of the fine discretisation.")
+      .def_property_readonly("cache", [](const PyProxy& p) { return json_to_python(p.cache); },
+                             "Where ice.setup_proxy got this proxy: status ('miss', 'hit', 'rebuilt', 'off'), keys, directory, seconds.")
       .def_property_readonly("fine_flips", [](const PyProxy& p) { return p.fine.flips; }, "Intrinsic Delaunay flips made on the fine mesh.")
       .def_property_readonly("fine_laplacian", [](const py::object& self) {
         return operator_view(self.cast<PyProxy&>().proxy->fine_laplacian(), self);
@@ -1000,19 +1096,41 @@ error `tolerance` (poisson-coarse --polish/--tolerance). Factors once; solve() a
            }),
            py::arg("proxy"), py::kw_only(), py::arg("fixed") = py::none(), py::arg("polish") = 0,
            py::arg("tolerance") = 0.0)
-      .def("solve", [](PyPoissonSolver& s, const py::object& f, const py::object& values) {
+      .def("solve", [](PyPoissonSolver& s, const py::object& f, const py::object& values) -> py::object {
              const Eigen::Index n = s.proxy->proxy->fine_size();
+             if (py::array::ensure(f) && py::array::ensure(f).ndim() == 2) {  // (n, k): k sources as one block
+               const Eigen::MatrixXd F = matrix_argument(f, n, "f");
+               Eigen::MatrixXd fixed_values;
+               if (!values.is_none()) {
+                 if (s.solver->is_zero_mean()) throw py::value_error("values are given but the solver has no fixed vertices");
+                 fixed_values = matrix_argument(values, s.fixed_count, "values");
+                 if (fixed_values.cols() != F.cols()) throw py::value_error("values must have one column per column of f");
+               }
+               Eigen::MatrixXd U;
+               {
+                 py::gil_scoped_release release;
+                 const std::lock_guard<std::mutex> lock(s.mutex);
+                 U = s.solver->solve_block(F, fixed_values, &s.last_times);
+               }
+               return py::cast(std::move(U));
+             }
              const auto rhs = vector_values(f, n, "f");  // read in place
              Eigen::VectorXd fixed_values;
              if (!values.is_none()) {
                if (s.solver->is_zero_mean()) throw py::value_error("values are given but the solver has no fixed vertices");
                fixed_values = vector_argument(values, s.fixed_count, "values");
              }
-             py::gil_scoped_release release;
-             const std::lock_guard<std::mutex> lock(s.mutex);
-             return s.solver->solve(view(rhs), fixed_values, &s.last_times, &s.last_polish);
+             Eigen::VectorXd u;
+             {
+               py::gil_scoped_release release;
+               const std::lock_guard<std::mutex> lock(s.mutex);
+               u = s.solver->solve(view(rhs), fixed_values, &s.last_times, &s.last_polish);
+             }
+             return py::cast(std::move(u));
            }, py::arg("f"), py::arg("values") = py::none(),
-           "u for the nodal source f (n,); values: the Dirichlet values, aligned with `fixed` (default zeros).")
+           "u for the nodal source f (n,); values: the Dirichlet values, aligned with `fixed` (default zeros).\n"
+           "f of shape (n, k): k sources solved as one block (one pass over P, one coarse block solve; each column\n"
+           "equal to its own solve within round-off), values then (len(fixed), k).")
       .def_property_readonly("polish_report", [](PyPoissonSolver& s) { return json_to_python(locked(s.mutex, [&] { return ice::proxy::polish_json(s.polish, s.last_polish); })); },
                              "What polishing did in the last solve (iterations, estimated errors, seconds).")
       .def_property_readonly("times", [](PyPoissonSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
@@ -1047,6 +1165,22 @@ ProxyPoissonSolver, per step.)doc")
              const std::lock_guard<std::mutex> lock(s.mutex);
              return s.solver->integrate(view(initial), steps, &s.last_times, &s.last_polish);
            }, py::arg("u0"), py::arg("steps") = 1, "The state after `steps` steps of time_step from nodal values u0.")
+      .def("steps", [](PyHeatSolver& s, const py::object& u0, int steps, int every) {
+             const auto initial = vector_values(u0, s.proxy->proxy->fine_size(), "u0");
+             if (steps < 1 || every < 1) throw py::value_error("steps and every must be >= 1");
+             if (s.solver->is_polishing()) throw py::value_error("steps() prolongs only some states; polishing needs every fine step (use integrate)");
+             std::vector<int> listed;
+             Eigen::MatrixXd states;
+             {
+               py::gil_scoped_release release;
+               const std::lock_guard<std::mutex> lock(s.mutex);
+               states = s.solver->trajectory(view(initial), steps, every, &listed, &s.last_times);
+             }
+             return py::make_tuple(std::move(states), listed);
+           }, py::arg("u0"), py::arg("steps"), py::arg("every") = 1,
+           "(states, step_counts): the states after every `every`-th step up to `steps` (and after `steps`), one column\n"
+           "each, u0 restricted once and stepped on the coarse mesh, only those states prolonged; column j equals\n"
+           "integrate(u0, step_counts[j]) to the last bit.")
       .def_property_readonly("polish_report", [](PyHeatSolver& s) { return json_to_python(locked(s.mutex, [&] { return ice::proxy::polish_json(s.polish, s.last_polish); })); },
                              "What polishing did in the last integrate().")
       .def_property_readonly("times", [](PyHeatSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },

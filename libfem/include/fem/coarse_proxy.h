@@ -275,6 +275,14 @@ class ProxyPoissonSolver {
   /// a numpy array) is read in place.
   Eigen::VectorXd solve(const Eigen::Ref<const Eigen::VectorXd>& f, const Eigen::VectorXd& dirichlet_values = {},
                         ProxyPhaseTimes* times = nullptr, PolishReport* polish_report = nullptr) const;
+  /// solve() for every column of F (n_fine × k) at once: the fine-size passes (M, Pᵀ, P) go over
+  /// the matrices once for a block of columns, and the k coarse solves are one CHOLMOD call. Column
+  /// j of `dirichlet_values` (one row per Dirichlet vertex; empty: zeros) is column j's values.
+  /// Restriction and prolongation are the single solve's sums exactly; the block coarse solve
+  /// agrees with the single one within round-off (its dense kernels order sums their own way).
+  /// Polishing is per column: with polishing, each column goes through solve().
+  Eigen::MatrixXd solve_block(const Eigen::Ref<const Eigen::MatrixXd>& F, const Eigen::MatrixXd& dirichlet_values = {},
+                              ProxyPhaseTimes* times = nullptr) const;
   bool is_zero_mean() const { return dirichlet_vertices_.empty(); }
   bool is_polishing() const { return fine_ != nullptr; }
   /// Seconds of the polishing setup in the constructor (0 without polishing).
@@ -310,6 +318,13 @@ class ProxyHeatSolver {
   /// when polishing. `polish_report`: iterations summed over the steps, estimates of the last step.
   Eigen::VectorXd integrate(const Eigen::Ref<const Eigen::VectorXd>& fine_u0, int steps, ProxyPhaseTimes* times = nullptr,
                             PolishReport* polish_report = nullptr) const;
+  /// The states after `every`, 2·every, … steps up to `steps` (and after `steps` itself when it is
+  /// not a multiple), one column each, their step counts in `output_steps`: u₀ restricted once,
+  /// every step taken on the coarse mesh, only those states prolonged. Column j equals
+  /// integrate(u0, output_steps[j]) to the last bit. Preconditions: steps >= 1, every >= 1, no
+  /// polishing (which needs every fine step: std::invalid_argument).
+  Eigen::MatrixXd trajectory(const Eigen::Ref<const Eigen::VectorXd>& fine_u0, int steps, int every,
+                             std::vector<int>* output_steps = nullptr, ProxyPhaseTimes* times = nullptr) const;
   bool is_polishing() const { return fine_ != nullptr; }
   double polish_setup_seconds() const { return polish_setup_seconds_; }
 

@@ -32,9 +32,10 @@ class ConstrainedSolver {
   /// Full-length solution; x(constrained[i]) = constrained_values(i). An empty `constrained_values`
   /// means all zeros.
   Eigen::VectorXd solve(const Eigen::VectorXd& b, const Eigen::VectorXd& constrained_values = {}) const;
-  /// The same for every column of B with zero constrained values, in one CHOLMOD call (blocked
-  /// right-hand sides: dense kernels instead of one triangular sweep per column).
-  Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B) const;
+  /// The same for every column of B, in one CHOLMOD call (blocked right-hand sides: dense kernels
+  /// instead of one triangular sweep per column); column j of `constrained_values` (one row per
+  /// constrained index; empty: zeros) is column j's constrained values.
+  Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values = {}) const;
 
   const std::vector<Index>& constrained() const { return constrained_; }
   Eigen::Index size() const { return size_; }
@@ -96,6 +97,11 @@ class PoissonSolver {
   /// mode) with multigrid; CHOLMOD ignores it.
   Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b, const Eigen::VectorXd& dirichlet_values,
                                  const Eigen::VectorXd& initial_guess) const;
+  /// solve_weighted for every column of B (mass-weighted right-hand sides) at once: one CHOLMOD
+  /// call for all columns (each column equal to its own solve within round-off of the block
+  /// kernels), or one multigrid solve per column. Column j of `dirichlet_values` (one row per
+  /// Dirichlet vertex; empty: zeros) is column j's values.
+  Eigen::MatrixXd solve_multiple_weighted(const Eigen::MatrixXd& B, const Eigen::MatrixXd& dirichlet_values = {}) const;
 
   bool is_zero_mean() const { return zero_mean_; }
   const SparseMatrix& mass() const { return mass_; }

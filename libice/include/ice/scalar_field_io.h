@@ -108,6 +108,17 @@ class NpyMatrixWriter {
   bool closed_ = false;
 };
 
+/// Reads a NumPy `.npy` file of float64 or float32 values ('<f8' or '<f4'; C or Fortran order;
+/// format 1.0 to 3.0), 1-D (one column) or 2-D, into a double matrix of its shape. Throws MeshError
+/// (Unreadable) naming the file and what is wrong: not an .npy file, another type (integers,
+/// big-endian, objects), more than two dimensions, a truncated payload, a value that is not finite.
+Eigen::MatrixXd read_npy_matrix(const std::string& path);
+
+/// Writes `matrix` as a float64 NumPy `.npy` file (format 1.0, '<f8', C order: numpy.load gives the
+/// matrix's rows × cols). Never replaces an existing file unless `overwrite`; a failed write leaves
+/// no file. Throws MeshError (Unwritable).
+void write_npy_matrix(const std::string& path, const Eigen::MatrixXd& matrix, bool overwrite);
+
 /// Writes `matrix` by the extension of `path`: `.npy` (float32, NpyMatrixWriter) or `.mtx` (Matrix
 /// Market "array real general", column-major as the format prescribes, 9 significant digits: float
 /// precision round-trips). Throws MeshError (Unwritable) on another extension, an existing file

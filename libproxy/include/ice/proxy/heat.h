@@ -4,6 +4,7 @@
 /// HeatSolver set up once (one factorisation for a time step) and integrated from many initial
 /// fields. What Python's ice.heat_flow computes, with the same defaults.
 #include <optional>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -35,6 +36,13 @@ class HeatSolver {
   /// contract: steps >= 1 with L2 projection, >= 0 with injection (std::invalid_argument otherwise).
   Eigen::VectorXd integrate(const Eigen::Ref<const Eigen::VectorXd>& u0, int steps = 1,
                             fem::ProxyPhaseTimes* times = nullptr, fem::PolishReport* polish_report = nullptr) const;
+
+  /// The field after every `every`-th step up to `steps` (and after `steps`), one column each,
+  /// their step counts in `output_steps`: restricted once, stepped on the coarse mesh, only those
+  /// states prolonged (fem::ProxyHeatSolver::trajectory; column j equals integrate(u0,
+  /// output_steps[j]) to the last bit). Not with polishing (std::invalid_argument).
+  Eigen::MatrixXd steps(const Eigen::Ref<const Eigen::VectorXd>& u0, int steps, int every = 1,
+                        std::vector<int>* output_steps = nullptr, fem::ProxyPhaseTimes* times = nullptr) const;
 
   double time_step() const { return time_step_; }
   const CoarseSpace& coarse_space() const { return setup_.coarse; }

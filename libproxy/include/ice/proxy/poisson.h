@@ -43,6 +43,13 @@ class PoissonSolver {
   Eigen::VectorXd solve(const Eigen::Ref<const Eigen::VectorXd>& f, const Eigen::VectorXd& fixed_values = {},
                         fem::ProxyPhaseTimes* times = nullptr, fem::PolishReport* polish_report = nullptr) const;
 
+  /// solve() for every column of F (one row per vertex, one column per source) at once
+  /// (fem::ProxyPoissonSolver::solve_block: one pass over the fine-size matrices per block of
+  /// columns, one CHOLMOD call for the coarse solves); column j of `fixed_values` (one row per fixed
+  /// vertex; empty: zeros) is column j's values. Each column agrees with its solve() within round-off.
+  Eigen::MatrixXd solve_block(const Eigen::Ref<const Eigen::MatrixXd>& F, const Eigen::MatrixXd& fixed_values = {},
+                              fem::ProxyPhaseTimes* times = nullptr) const;
+
   const PoissonOptions& options() const { return options_; }
   const CoarseSpace& coarse_space() const { return setup_.coarse; }
   const FineMesh& fine_mesh() const { return setup_.fine; }

@@ -1,0 +1,95 @@
+"""Set up once, solve many times from Python: the store of set-up proxies, block sources, heat steps."""
+import numpy as np
+import pytest
+
+import ice
+
+
+@pytest.fixture(scope="module")
+def spot(project_mesh):
+    V, F = ice.load_mesh(project_mesh("spot.obj"))
+    return V, F
+
+
+def sources(V, k):
+    return np.stack([np.cos((j + 1) * V[:, 0]) + j * V[:, 1] * V[:, 2] for j in range(k)], axis=1)
+
+
+def test_setup_proxy_store_cold_warm_off(spot, tmp_path):
+    V, F = spot
+    f = sources(V, 1)[:, 0]
+    coarse, cold = ice.setup_proxy(V, F, ratio=0.05, cache=tmp_path)
+    assert cold.cache["status"] == "miss" and len(cold.cache["keys"]) == 1
+    assert len(list(tmp_path.glob("proxy-*.ice"))) == 1
+    coarse_warm, warm = ice.setup_proxy(V, F, ratio=0.05, cache=tmp_path)
+    assert warm.cache["status"] == "hit" and warm.cache["keys"] == cold.cache["keys"]
+    assert np.array_equal(coarse_warm.faces, coarse.faces) and np.array_equal(coarse_warm.lengths, coarse.lengths)
+    assert coarse_warm.summary["removed"] == coarse.summary["removed"]
+    u_cold = ice.ProxyPoissonSolver(cold).solve(f)
+    u_warm = ice.ProxyPoissonSolver(warm).solve(f)
+    assert np.array_equal(u_cold, u_warm)
+    # The one-call through the store equals the one without it (and the classic Proxy route), bit for bit.
+    u_off = ice.solve_poisson(V, F, f, cache=False)
+    assert np.array_equal(ice.solve_poisson(V, F, f, cache=tmp_path), u_off)
+    assert np.array_equal(ice.solve_poisson(V, F, f, cache=tmp_path), u_off)
+    assert np.array_equal(u_warm, u_off)
+    # The fine mesh of a stored proxy is made on demand.
+    assert warm.fine_faces.shape == cold.fine_faces.shape
+    _, off = ice.setup_proxy(V, F, ratio=0.05, cache=False)
+    assert off.cache["status"] == "off"
+    with pytest.raises(ValueError, match="cache must be"):
+        ice.setup_proxy(V, F, ratio=0.05, cache=True)
+
+
+def test_damaged_entry_is_rebuilt(spot, tmp_path):
+    V, F = spot
+    _, cold = ice.setup_proxy(V, F, ratio=0.05, cache=tmp_path)
+    entry = next(tmp_path.glob("proxy-*.ice"))
+    data = bytearray(entry.read_bytes())
+    data[-50] ^= 0xFF
+    entry.write_bytes(bytes(data))
+    _, again = ice.setup_proxy(V, F, ratio=0.05, cache=tmp_path)
+    assert again.cache["status"] == "rebuilt" and "checksum" in again.cache["damage"]
+    f = sources(V, 1)[:, 0]
+    assert np.array_equal(ice.ProxyPoissonSolver(again).solve(f), ice.ProxyPoissonSolver(cold).solve(f))
+    _, warm = ice.setup_proxy(V, F, ratio=0.05, cache=tmp_path)
+    assert warm.cache["status"] == "hit"
+
+
+def test_block_poisson_matches_single_solves(spot, tmp_path):
+    V, F = spot
+    S = sources(V, 7)
+    _, proxy = ice.setup_proxy(V, F, ratio=0.05, cache=tmp_path)
+    solver = ice.ProxyPoissonSolver(proxy)
+    U = solver.solve(S)
+    assert U.shape == S.shape
+    for j in range(S.shape[1]):
+        u = solver.solve(np.ascontiguousarray(S[:, j]))
+        assert np.linalg.norm(U[:, j] - u) <= 1e-12 * np.linalg.norm(u)
+    # Dirichlet values per column
+    fixed = [0, 1000]
+    _, dproxy = ice.setup_proxy(V, F, ratio=0.05, fixed=fixed, cache=tmp_path)
+    dsolver = ice.ProxyPoissonSolver(dproxy, fixed=fixed)
+    values = np.vstack([np.arange(7.0), -np.ones(7)])
+    W = dsolver.solve(S, values)
+    assert np.array_equal(W[fixed, :], values)
+    with pytest.raises(ValueError, match="one column per column"):
+        dsolver.solve(S, values[:, :3])
+    # the one-call takes the block too
+    assert np.allclose(ice.solve_poisson(V, F, S, cache=tmp_path), U, rtol=0, atol=1e-12 * np.abs(U).max())
+
+
+def test_heat_steps_on_the_coarse_level(spot, tmp_path):
+    V, F = spot
+    u0 = sources(V, 2)[:, 1]
+    _, proxy = ice.setup_proxy(V, F, ratio=0.05, cache=tmp_path)
+    heat = ice.ProxyHeatSolver(proxy, 1e-3)
+    states, counts = heat.steps(u0, 12, 5)
+    assert counts == [5, 10, 12] and states.shape == (V.shape[0], 3)
+    for j, k in enumerate(counts):
+        assert np.array_equal(states[:, j], heat.integrate(u0, k))
+    states2, counts2 = ice.heat_flow(V, F, u0, 1e-3, 12, every=5, cache=tmp_path)
+    assert counts2 == counts and np.array_equal(states2, states)
+    assert np.array_equal(ice.heat_flow(V, F, u0, 1e-3, 12, cache=tmp_path), states[:, -1])
+    with pytest.raises(ValueError, match="every"):
+        heat.steps(u0, 12, 0)
