@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
       const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
       const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
       run.ref_assemble = clock.lap();
-      const fem::HeatSolver fine_heat(L, M, time_step);
+      const fem::HeatSolver fine_heat(L, M, time_step, ice::proxy::kFineReferenceOrdering);
       run.ref_factor = clock.lap();
       std::vector<Eigen::VectorXd> fine_states;
       Eigen::VectorXd u = u0;
@@ -175,7 +175,10 @@ int main(int argc, char** argv) {
     report["heat"] = {{"time_step", time_step}, {"steps", steps}, {"output_every", every}, {"output_steps", output_steps},
                       {"initial_field", u0_name}, {"restriction", "l2_projection"}};
     report["timings_s"]["per_step"] = run.per_solve();
-    if (run.has_reference) report["error"] = error_json;
+    if (run.has_reference) {
+      report["error"] = error_json;
+      report["reference_ordering"] = fem::to_string(ice::proxy::kFineReferenceOrdering);
+    }
     if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
 
     run.print_summary(std::cout);

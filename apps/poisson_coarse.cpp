@@ -250,7 +250,7 @@ int main(int argc, char** argv) {
   app::add_choice(cli, "--mg-smoother", mg.options.smoother, kSmootherNames,
                   "multigrid smoother");
   app::add_choice(cli, "--mg-cycle", mg.options.mode, kCycleNames, "multigrid: V-cycle preconditioned CG, or plain V-cycles");
-  fem::CholeskyOrdering cholmod_ordering = fem::CholeskyOrdering::automatic;
+  fem::CholeskyOrdering cholmod_ordering = ice::proxy::kFineReferenceOrdering;
   app::add_choice(cli, "--cholmod-ordering", cholmod_ordering, kOrderingNames,
                   "CHOLMOD ordering of exact fine solves");
   cli.add_option("--mg-threads", mg.options.threads,

@@ -507,40 +507,79 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
   if (times) *times = ProxyPhaseTimes();
   Clock::time_point mark = Clock::now();
   const int threads = default_threads();
-  // Columns go through the fine-size passes in chunks: one pass over the matrices per chunk, with
-  // fine-size buffers of a chunk's width only.
-  const Eigen::Index chunk = std::min<Eigen::Index>(std::max<Eigen::Index>(k, 1), 32);
-  RowMatrix source(n, chunk), weighted(n, chunk), coarse_rhs(m, k), coarse_chunk(m, chunk), u_rows(n, chunk);
-  // Each column as solve() makes it: compatible (zero-mean), the same dot products on an aligned copy.
-  const auto column_source = [&](Eigen::Index j) {
-    Eigen::VectorXd f = F.col(j);
-    if (is_zero_mean() && fine_components_.count() > 1) remove_component_means(fine_components_, fine_mass_of_one_, f);
-    else if (is_zero_mean()) f = (f.array() - fine_mass_of_one_.dot(f) / total_mass_).matrix();
-    return f;
+  const Eigen::VectorXd& mass = fine_mass_of_one_;  // M is lumped: M f is mass ∘ f
+  const bool components = is_zero_mean() && fine_components_.count() > 1;
+  const std::size_t labels = static_cast<std::size_t>(std::max<Index>(fine_components_.count(), 1));
+  const auto label_of = [&](Eigen::Index i) {
+    return components ? static_cast<std::size_t>(fine_components_.label[static_cast<std::size_t>(i)]) : std::size_t{0};
   };
+  // The mass-weighted means the zero-mean problem removes (per component on several), of `width`
+  // columns: means[label · chunk + c]. From F's columns (contiguous), or from a row-major block in
+  // one pass over its rows.
+  std::vector<double> means, totals;
+  const auto finish_means = [&]() {
+    for (std::size_t l = 0; l < labels; ++l)
+      for (std::size_t c = 0; c < means.size() / labels; ++c)
+        means[l * (means.size() / labels) + c] = totals[l] != 0 ? means[l * (means.size() / labels) + c] / totals[l] : 0.0;
+  };
+  const auto column_means = [&](Eigen::Index first, Eigen::Index width, Eigen::Index stride) {
+    means.assign(labels * static_cast<std::size_t>(stride), 0.0);
+    totals.assign(labels, 0.0);
+    for (Eigen::Index i = 0; i < n; ++i) totals[label_of(i)] += mass[i];
+    for (Eigen::Index c = 0; c < width; ++c) {
+      const double* f = F.col(first + c).data();
+      for (Eigen::Index i = 0; i < n; ++i) means[label_of(i) * static_cast<std::size_t>(stride) + static_cast<std::size_t>(c)] += mass[i] * f[i];
+    }
+    finish_means();
+  };
+  const auto row_means = [&](const double* X, Eigen::Index stride) {
+    means.assign(labels * static_cast<std::size_t>(stride), 0.0);
+    totals.assign(labels, 0.0);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const std::size_t l = label_of(i);
+      totals[l] += mass[i];
+      double* acc = means.data() + l * static_cast<std::size_t>(stride);
+      const double* x = X + i * stride;
+      for (Eigen::Index c = 0; c < stride; ++c) acc[c] += mass[i] * x[c];
+    }
+    finish_means();
+  };
+  // Columns go through the fine-size passes in chunks of at most 32: fine-size buffers of a chunk's
+  // width, rows of the chunk's values contiguous (one pass over P reads or writes each fine row once).
+  const Eigen::Index chunk = std::min<Eigen::Index>(std::max<Eigen::Index>(k, 1), 32);
+  RowMatrix weighted(n, chunk), coarse_chunk(m, chunk), u_rows(n, chunk);
+  RowMatrix coarse_rhs(m, k);
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
-    for (Eigen::Index c = 0; c < width; ++c) source.col(c) = column_source(first + c);
-    if (width < chunk) source.rightCols(chunk - width).setZero();
-    gather_product_rows(proxy_->fine_mass(), source.data(), weighted.data(), chunk, threads, n);
-    gather_product_rows(P, weighted.data(), coarse_chunk.data(), chunk, threads, n);
+    if (is_zero_mean()) column_means(first, width, chunk);
+    // weighted = M · (f − its mean), row by row
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double* mean = is_zero_mean() ? means.data() + label_of(i) * static_cast<std::size_t>(chunk) : nullptr;
+      double* w = weighted.data() + i * chunk;
+      for (Eigen::Index c = 0; c < chunk; ++c) w[c] = c < width ? mass[i] * (F(i, first + c) - (mean ? mean[c] : 0.0)) : 0.0;
+    }
+    scatter_transpose_rows(P_rows_, weighted.data(), coarse_chunk.data(), chunk, threads);
     coarse_rhs.middleCols(first, width) = coarse_chunk.leftCols(width);
   }
   if (times) times->restriction = seconds_since(mark);
   const RowMatrix coarse_u = coarse_.solve_multiple_weighted(Eigen::MatrixXd(coarse_rhs), dirichlet_values);
   if (times) times->coarse_solve = seconds_since(mark);
+  constexpr Eigen::Index kTransposeRows = 64;  // rows per tile of the row-major → column-major copy
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
     coarse_chunk.leftCols(width) = coarse_u.middleCols(first, width);
     if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
     gather_product_rows(P_rows_, coarse_chunk.data(), u_rows.data(), chunk, threads, n);
-    for (Eigen::Index c = 0; c < width; ++c) {
-      Eigen::VectorXd u = u_rows.col(c);
-      if (is_zero_mean() && fine_components_.count() > 1)
-        remove_component_means(fine_components_, fine_mass_of_one_, u);
-      else if (is_zero_mean())
-        add_constant(-fine_mass_of_one_.dot(u) / total_mass_, u, threads);
-      U.col(first + c) = u;
+    if (is_zero_mean()) row_means(u_rows.data(), chunk);
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+    for (Eigen::Index tile = 0; tile < (n + kTransposeRows - 1) / kTransposeRows; ++tile) {
+      const Eigen::Index begin = tile * kTransposeRows, end = std::min(n, begin + kTransposeRows);
+      for (Eigen::Index c = 0; c < width; ++c) {
+        double* out = U.col(first + c).data();
+        for (Eigen::Index i = begin; i < end; ++i)
+          out[i] = u_rows(i, c) - (is_zero_mean() ? means[label_of(i) * static_cast<std::size_t>(chunk) + static_cast<std::size_t>(c)] : 0.0);
+      }
     }
   }
   if (times) times->prolongation = seconds_since(mark);

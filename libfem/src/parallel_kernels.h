@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <algorithm>
+#include <vector>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -67,6 +68,40 @@ void gather_product_rows(const Matrix& M, const double* in, double* out, Eigen::
       const double* x = in + static_cast<Eigen::Index>(inner[p]) * k;
       for (Eigen::Index c = 0; c < k; ++c) y[c] += w * x[c];
     }
+  }
+}
+
+// out = Mᵀ in for k vectors stored row by row (in: M.outerSize() rows, out: M.innerSize() rows, k
+// values each) and a row-major M (a compressed row-major P: out = Pᵀ in). Reads `in` once, in
+// order, and scatters into `out`, which is small when M is tall (a prolongation). Rows are cut into
+// `kScatterBlocks` fixed blocks, each accumulated into its own copy of `out` on any thread, and the
+// copies added in block order: the result does not depend on the thread count.
+constexpr int kScatterBlocks = 8;
+template <class RowMajorMatrix>
+void scatter_transpose_rows(const RowMajorMatrix& M, const double* in, double* out, Eigen::Index k, int threads) {
+  const auto* start = M.outerIndexPtr();
+  const auto* inner = M.innerIndexPtr();
+  const double* value = M.valuePtr();
+  const Eigen::Index n = M.outerSize(), m = M.innerSize();
+  const Eigen::Index blocks = n >= kParallelRows ? kScatterBlocks : 1;
+  std::vector<double> partial(static_cast<std::size_t>((blocks - 1) * m * k), 0.0);
+#pragma omp parallel for schedule(static, 1) num_threads(active_threads(n, threads))
+  for (Eigen::Index b = 0; b < blocks; ++b) {
+    double* acc = b == 0 ? out : partial.data() + (b - 1) * m * k;
+    if (b == 0) std::fill(out, out + m * k, 0.0);
+    const Eigen::Index first = n * b / blocks, last = n * (b + 1) / blocks;
+    for (Eigen::Index r = first; r < last; ++r) {
+      const double* x = in + r * k;
+      for (auto p = start[r]; p < start[r + 1]; ++p) {
+        double* y = acc + static_cast<Eigen::Index>(inner[p]) * k;
+        const double w = value[p];
+        for (Eigen::Index c = 0; c < k; ++c) y[c] += w * x[c];
+      }
+    }
+  }
+  for (Eigen::Index b = 1; b < blocks; ++b) {
+    const double* acc = partial.data() + (b - 1) * m * k;
+    for (Eigen::Index i = 0; i < m * k; ++i) out[i] += acc[i];
   }
 }
 

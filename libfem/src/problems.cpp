@@ -212,10 +212,11 @@ Eigen::MatrixXd PoissonSolver::solve_multiple_weighted(const Eigen::MatrixXd& B,
 
 // ---- HeatSolver -------------------------------------------------------------------------------------
 
-HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step)
+HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, CholeskyOrdering ordering)
     : mass_(mass), time_step_(time_step) {
   require_square(mass, laplacian.rows(), "HeatSolver: mass and Laplacian");
   if (!(time_step > 0)) throw std::invalid_argument("HeatSolver: time step must be positive");
+  factor_.set_ordering(ordering);
   factor_.compute(SparseMatrix(mass + time_step * laplacian));
 }
 

@@ -276,11 +276,12 @@ class ProxyPoissonSolver {
   Eigen::VectorXd solve(const Eigen::Ref<const Eigen::VectorXd>& f, const Eigen::VectorXd& dirichlet_values = {},
                         ProxyPhaseTimes* times = nullptr, PolishReport* polish_report = nullptr) const;
   /// solve() for every column of F (n_fine × k) at once: the fine-size passes (M, Pᵀ, P) go over
-  /// the matrices once for a block of columns, and the k coarse solves are one CHOLMOD call. Column
+  /// the matrices once for a block of up to 32 columns, reading and writing each fine row once (Pᵀ
+  /// as a scatter into the small coarse block), and the k coarse solves are one CHOLMOD call. Column
   /// j of `dirichlet_values` (one row per Dirichlet vertex; empty: zeros) is column j's values.
-  /// Restriction and prolongation are the single solve's sums exactly; the block coarse solve
-  /// agrees with the single one within round-off (its dense kernels order sums their own way).
-  /// Polishing is per column: with polishing, each column goes through solve().
+  /// Each column agrees with its solve() within round-off (the block kernels order their sums
+  /// their own way); the result does not depend on the thread count. Polishing is per column: with
+  /// polishing, each column goes through solve().
   Eigen::MatrixXd solve_block(const Eigen::Ref<const Eigen::MatrixXd>& F, const Eigen::MatrixXd& dirichlet_values = {},
                               ProxyPhaseTimes* times = nullptr) const;
   bool is_zero_mean() const { return dirichlet_vertices_.empty(); }

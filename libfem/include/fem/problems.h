@@ -128,7 +128,9 @@ class PoissonSolver {
 /// Preconditions: τ > 0; M + τL positive definite (true for a valid mesh and a positive mass).
 class HeatSolver {
  public:
-  HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step);
+  /// `ordering`: the fill-reducing ordering of M + τL's factorisation (fem/cholesky.h).
+  HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step,
+             CholeskyOrdering ordering = CholeskyOrdering::automatic);
 
   /// One implicit step from nodal values u.
   Eigen::VectorXd step(const Eigen::VectorXd& u) const;

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "fem/cholesky.h"
 #include "fem/coarse_proxy.h"
 #include "fem/vector_fields.h"
 #include "ice/coarse_space.h"
@@ -71,6 +72,12 @@ Index target_vertices(Index n, double ratio, Index min_vertices = 0);
 /// The coarse space options of a recipe for `use`: ice::recommended_coarsen_options(use) with
 /// `ratio` of the input's vertices as the target, by ICE.
 CoarseSpaceOptions default_coarsening(ProxyUse use, double ratio = 0.05);
+
+/// The fill-reducing ordering of the fine solves the tools compare the proxy with (their reference):
+/// AMD alone, the fastest measured here — as fast as CHOLMOD's default strategy up to 396k vertices
+/// and faster at 1.6M, where that strategy also tries METIS — while the BLAS thread count made no
+/// measurable difference at any size (docs/measurements.md, "The fine reference").
+constexpr fem::CholeskyOrdering kFineReferenceOrdering = fem::CholeskyOrdering::amd;
 
 /// The names of an enum's values, in one table per enum; the first name of a value is its spelling,
 /// later ones are accepted aliases.
