@@ -84,8 +84,8 @@ int main(int argc, char** argv) {
       const auto damaged = store.verify(remove_damaged);
       for (const auto& [entry, what] : damaged)
         std::cout << "  damaged" << (remove_damaged ? " (removed): " : ": ") << what << '\n';
-      std::cout << options.directory.string() << ": " << entries.size() - damaged.size() << " of " << entries.size()
-                << " entries whole\n";
+      const std::size_t checked = std::max(entries.size(), damaged.size());  // the store may change meanwhile
+      std::cout << options.directory.string() << ": " << checked - damaged.size() << " of " << checked << " entries whole\n";
       if (!damaged.empty()) return static_cast<int>(app::kFailed);
     } else if (*clear) {
       const std::uint64_t freed = store.clear();

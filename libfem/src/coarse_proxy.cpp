@@ -498,7 +498,8 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
       (dirichlet_values.rows() != static_cast<Eigen::Index>(dirichlet_vertices_.size()) || dirichlet_values.cols() != k))
     throw std::invalid_argument("ProxyPoissonSolver::solve_block: one row of values per Dirichlet vertex, one column per source expected");
   Eigen::MatrixXd U(n, k);
-  if (fine_) {  // polishing iterates per column
+  // Polishing iterates per column; the block kernels read the mass as a diagonal (lumped).
+  if (fine_ || proxy_->mass_kind() != MassKind::lumped) {
     for (Eigen::Index j = 0; j < k; ++j)
       U.col(j) = solve(Eigen::VectorXd(F.col(j)),
                        dirichlet_values.size() == 0 ? Eigen::VectorXd() : Eigen::VectorXd(dirichlet_values.col(j)), nullptr, nullptr);
@@ -610,7 +611,7 @@ Eigen::MatrixXd ProxyHeatSolver::trajectory(const Eigen::Ref<const Eigen::Vector
   if (fine_) throw std::invalid_argument("ProxyHeatSolver::trajectory: polishing needs every fine step (use integrate)");
   if (fine_u0.size() != proxy_->fine_size()) throw std::invalid_argument("ProxyHeatSolver::trajectory: wrong size");
   std::vector<int> listed;
-  for (int k = every; k <= steps; k += every) listed.push_back(k);
+  for (long long k = every; k <= steps; k += every) listed.push_back(static_cast<int>(k));
   if (listed.empty() || listed.back() != steps) listed.push_back(steps);
   if (times) *times = ProxyPhaseTimes();
   Clock::time_point mark = Clock::now();

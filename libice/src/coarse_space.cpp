@@ -26,7 +26,10 @@ CoarseSpace& CoarseSpace::operator=(CoarseSpace&& other) noexcept {
   triangulation = std::move(other.triangulation);
   triangulation_order = std::move(other.triangulation_order);
   triangulation_face_order = std::move(other.triangulation_face_order);
+  Eigen::SparseMatrix<double> qem_P;  // handed over as P is (a moved QemResult would copy it)
+  if (other.qem_result) qem_P.swap(other.qem_result->P);
   qem_result = std::move(other.qem_result);
+  if (qem_result) qem_result->P.swap(qem_P);
   return *this;
 }
 

@@ -533,6 +533,13 @@ Eigen::MatrixXd read_npy_matrix(const std::string& path) {
   const long long rows = shape[0], cols = shape.size() == 2 ? shape[1] : 1;
   if (rows > (1LL << 40) / std::max(1LL, cols)) fail("shape too large");
   const std::size_t count = static_cast<std::size_t>(rows * cols), width = f8 ? 8 : 4;
+  // The declared size against the file's before allocating anything of it.
+  const std::streamoff data_start = in.tellg();
+  in.seekg(0, std::ios::end);
+  const std::streamoff available = in.tellg() - data_start;
+  in.seekg(data_start);
+  if (!in || available < 0 || static_cast<std::uint64_t>(available) < count * width)
+    fail("truncated data: " + std::to_string(rows) + " x " + std::to_string(cols) + " values declared");
   std::vector<char> raw(count * width);
   in.read(raw.data(), static_cast<std::streamsize>(raw.size()));
   if (!in) fail("truncated data: " + std::to_string(rows) + " x " + std::to_string(cols) + " values declared");

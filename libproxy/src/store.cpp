@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <system_error>
@@ -132,7 +133,8 @@ StoreOptions default_store_options() {
   if (const char* max_mb = std::getenv("ICE_CACHE_MAX_MB"); max_mb && *max_mb) {
     char* end = nullptr;
     const unsigned long long mb = std::strtoull(max_mb, &end, 10);
-    if (*end != '\0' || mb == 0 || max_mb[0] == '-')
+    if (!std::isdigit(static_cast<unsigned char>(max_mb[0])) || *end != '\0' || mb == 0 ||
+        mb > (std::numeric_limits<std::uint64_t>::max() >> 20))
       throw std::invalid_argument(std::string("ICE_CACHE_MAX_MB='") + max_mb + "': expected a positive number of megabytes");
     options.max_bytes = static_cast<std::uint64_t>(mb) << 20;
   }
@@ -277,7 +279,8 @@ std::int64_t EntryReader::integer(const std::string& name) const {
 namespace {
 std::pair<Eigen::Index, Eigen::Index> shape_of(const EntryReader& r, const std::string& name, std::uint64_t count) {
   const std::int64_t rows = r.integer(name + ".rows"), cols = r.integer(name + ".cols");
-  if (rows < 0 || cols < 0 || static_cast<std::uint64_t>(rows) * static_cast<std::uint64_t>(cols) != count)
+  if (rows < 0 || cols < 0 || (cols != 0 && static_cast<std::uint64_t>(rows) > count / static_cast<std::uint64_t>(cols)) ||
+      static_cast<std::uint64_t>(rows) * static_cast<std::uint64_t>(cols) != count)
     throw std::runtime_error(r.path().string() + ": '" + name + "' has a shape that does not fit its data");
   return {rows, cols};
 }
@@ -316,9 +319,11 @@ Eigen::SparseMatrix<double> EntryReader::sparse(const std::string& name) const {
   const auto* o = reinterpret_cast<const std::int32_t*>(outer.data);
   const auto* in = reinterpret_cast<const std::int32_t*>(inner.data);
   const auto* v = reinterpret_cast<const double*>(values.data);
-  if (o[0] != 0 || static_cast<std::uint64_t>(o[cols]) != inner.count) throw bad("column pointers do not span the entries");
+  if (o[0] != 0 || o[cols] < 0 || static_cast<std::uint64_t>(o[cols]) != inner.count)
+    throw bad("column pointers do not span the entries");
+  for (std::int64_t j = 0; j < cols; ++j)  // every pointer in range before any entry is read
+    if (o[j + 1] < o[j] || o[j + 1] > o[cols]) throw bad("column pointers decrease or run past the entries");
   for (std::int64_t j = 0; j < cols; ++j) {
-    if (o[j + 1] < o[j]) throw bad("column pointers decrease");
     for (std::int32_t k = o[j]; k < o[j + 1]; ++k)
       if (in[k] < 0 || in[k] >= rows || (k > o[j] && in[k] <= in[k - 1]) || !std::isfinite(v[k]))
         throw bad("column " + std::to_string(j) + " has a row index out of range or out of order, or a value not finite");
@@ -344,24 +349,45 @@ fs::path Store::entry_path(const std::string& kind, const StoreKey& key) const {
 
 namespace {
 
-// Maps and checks the file at `path` as entry `kind`/`key` (key null: the one its name says).
-// Throws std::runtime_error describing the damage; returns false when there is no such file.
-bool map_entry(const fs::path& path, const std::string& kind, const StoreKey& key, void*& map, std::size_t& bytes) {
+// The file could not be read just now (permissions, descriptors, memory): not evidence that the
+// entry is damaged, so it is left in place.
+struct Unreadable : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Which file a path named when it was checked: a damaged entry is removed only if the path still
+// names that file (another process may have renamed a fresh entry into place since).
+struct FileIdentity {
+  dev_t device = 0;
+  ino_t inode = 0;
+};
+
+// Maps and checks the file at `path` as entry `kind`/`key`. Throws Unreadable when it cannot be
+// read now, std::runtime_error describing the damage otherwise; returns false when there is no
+// such file.
+bool map_entry(const fs::path& path, const std::string& kind, const StoreKey& key, void*& map, std::size_t& bytes,
+               FileIdentity* identity = nullptr) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
-    if (errno == ENOENT) return false;
-    throw std::runtime_error(path.string() + ": cannot be opened (" + std::strerror(errno) + ")");
+    const int error = errno;
+    if (error == ENOENT) return false;
+    throw Unreadable(path.string() + ": cannot be opened (" + std::strerror(error) + ")");
   }
   const File file(fd);
   struct stat st {};
-  if (::fstat(fd, &st) != 0) throw std::runtime_error(path.string() + ": cannot be read");
+  if (::fstat(fd, &st) != 0) {
+    const int error = errno;
+    throw Unreadable(path.string() + ": cannot be read (" + std::strerror(error) + ")");
+  }
+  if (identity) *identity = {st.st_dev, st.st_ino};
   bytes = static_cast<std::size_t>(st.st_size);
   if (bytes < kHeaderBytes) throw std::runtime_error(path.string() + ": truncated (" + std::to_string(bytes) + " bytes)");
   // Populated at once: the whole payload is read (checksum, copies), and page by page faults cost more.
   map = ::mmap(nullptr, bytes, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
   if (map == MAP_FAILED) {
+    const int error = errno;
     map = nullptr;
-    throw std::runtime_error(path.string() + ": cannot be mapped (" + std::strerror(errno) + ")");
+    throw Unreadable(path.string() + ": cannot be mapped (" + std::strerror(error) + ")");
   }
   Header h{};
   std::memcpy(&h, map, sizeof h);
@@ -386,40 +412,57 @@ bool map_entry(const fs::path& path, const std::string& kind, const StoreKey& ke
   return true;
 }
 
+// Removes the damaged entry at `path` if it is still the file that was checked.
+void remove_if_same(const fs::path& path, const FileIdentity& checked) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && st.st_dev == checked.device && st.st_ino == checked.inode) {
+    std::error_code ec;
+    fs::remove(path, ec);
+  }
+}
+
 }  // namespace
+
+void EntryReader::parse() {
+  const auto* p = static_cast<const unsigned char*>(map_) + kHeaderBytes;
+  const auto* end = static_cast<const unsigned char*>(map_) + map_bytes_;
+  const fs::path& path = path_;
+  arrays_.clear();
+  while (p < end) {
+    RecordHead r{};
+    if (static_cast<std::size_t>(end - p) < sizeof r) throw std::runtime_error(path.string() + ": a record is cut off");
+    std::memcpy(&r, p, sizeof r);
+    p += sizeof r;
+    const std::size_t elem = element_bytes(r.type);
+    if (elem == 0 || r.name_bytes == 0 || r.name_bytes > 256 || r.count > (std::uint64_t{1} << 40))
+      throw std::runtime_error(path.string() + ": a record head is malformed");
+    const std::size_t name_span = padded(r.name_bytes), data_span = padded(r.count * elem);
+    if (static_cast<std::size_t>(end - p) < name_span + data_span)
+      throw std::runtime_error(path.string() + ": a record runs past the end");
+    EntryReader::Array a;
+    a.name.assign(reinterpret_cast<const char*>(p), r.name_bytes);
+    a.type = r.type;
+    a.count = r.count;
+    a.data = p + name_span;
+    arrays_.push_back(std::move(a));
+    p += name_span + data_span;
+  }
+}
 
 std::optional<EntryReader> Store::load(const std::string& kind, const StoreKey& key, std::string* damage) const {
   if (!enabled()) return std::nullopt;
   const fs::path path = entry_path(kind, key);
   EntryReader reader;
   reader.path_ = path;
+  FileIdentity identity;
   try {
-    if (!map_entry(path, kind, key, reader.map_, reader.map_bytes_)) return std::nullopt;
-    const auto* p = static_cast<const unsigned char*>(reader.map_) + kHeaderBytes;
-    const auto* end = static_cast<const unsigned char*>(reader.map_) + reader.map_bytes_;
-    while (p < end) {
-      RecordHead r{};
-      if (static_cast<std::size_t>(end - p) < sizeof r) throw std::runtime_error(path.string() + ": a record is cut off");
-      std::memcpy(&r, p, sizeof r);
-      p += sizeof r;
-      const std::size_t elem = element_bytes(r.type);
-      if (elem == 0 || r.name_bytes == 0 || r.name_bytes > 256 || r.count > (std::uint64_t{1} << 40))
-        throw std::runtime_error(path.string() + ": a record head is malformed");
-      const std::size_t name_span = padded(r.name_bytes), data_span = padded(r.count * elem);
-      if (static_cast<std::size_t>(end - p) < name_span + data_span)
-        throw std::runtime_error(path.string() + ": a record runs past the end");
-      EntryReader::Array a;
-      a.name.assign(reinterpret_cast<const char*>(p), r.name_bytes);
-      a.type = r.type;
-      a.count = r.count;
-      a.data = p + name_span;
-      reader.arrays_.push_back(std::move(a));
-      p += name_span + data_span;
-    }
+    if (!map_entry(path, kind, key, reader.map_, reader.map_bytes_, &identity)) return std::nullopt;
+    reader.parse();
+  } catch (const Unreadable&) {
+    return std::nullopt;  // left in place: a miss now, perhaps a hit later
   } catch (const std::runtime_error& e) {
     if (damage) *damage = e.what();
-    std::error_code ec;
-    fs::remove(path, ec);
+    remove_if_same(path, identity);
     return std::nullopt;
   }
   std::error_code ec;
@@ -460,14 +503,21 @@ bool Store::save(const std::string& kind, const StoreKey& key, const EntryWriter
     h.key_high = key.high;
     h.key_low = key.low;
     XXH3_state_t* state = XXH3_createState();
+    if (!state) {
+      fs::remove(temp, ec);
+      return fail("out of memory for the checksum state");
+    }
     XXH3_64bits_reset(state);
+    int error = 0;  // errno of the first failed call
     ok = write_all(fd, &h, sizeof h);
+    if (!ok) error = errno;
     static const char zeros[8] = {};
     const auto emit = [&](const void* data, std::size_t bytes) {
       if (!ok) return;
       XXH3_64bits_update(state, data, bytes);
       h.payload_bytes += bytes;
       ok = write_all(fd, data, bytes);
+      if (!ok) error = errno;
     };
     for (const EntryWriter::Record& r : entry.records()) {
       RecordHead head{};
@@ -483,13 +533,13 @@ bool Store::save(const std::string& kind, const StoreKey& key, const EntryWriter
     }
     h.checksum = XXH3_64bits_digest(state);
     XXH3_freeState(state);
-    if (ok) ok = ::pwrite(fd, &h, sizeof h, 0) == static_cast<ssize_t>(sizeof h);
-    if (ok) ok = ::close(file.release()) == 0;  // reports a deferred write error
-  }
-  if (!ok) {
-    const std::string why = std::strerror(errno);
-    fs::remove(temp, ec);
-    return fail(temp.string() + ": cannot be written (" + why + ")");
+    if (ok && !(ok = ::pwrite(fd, &h, sizeof h, 0) == static_cast<ssize_t>(sizeof h))) error = errno ? errno : EIO;
+    if (ok && !(ok = ::close(file.release()) == 0)) error = errno;  // reports a deferred write error
+    if (!ok) {
+      const std::string why = std::strerror(error);
+      fs::remove(temp, ec);
+      return fail(temp.string() + ": cannot be written (" + why + ")");
+    }
   }
   fs::rename(temp, path, ec);
   if (ec) {
@@ -523,25 +573,40 @@ std::vector<StoreEntryInfo> Store::list() const {
 std::vector<std::pair<StoreEntryInfo, std::string>> Store::verify(bool remove_damaged) const {
   std::vector<std::pair<StoreEntryInfo, std::string>> damaged;
   for (const StoreEntryInfo& info : list()) {
-    void* map = nullptr;
-    std::size_t bytes = 0;
+    EntryReader reader;
+    reader.path_ = info.path;
+    FileIdentity identity;
     try {
       require_kind(info.kind);
-      if (map_entry(info.path, info.kind, key_from_hex(info.key), map, bytes)) ::munmap(map, bytes);
+      if (map_entry(info.path, info.kind, key_from_hex(info.key), reader.map_, reader.map_bytes_, &identity)) reader.parse();
+    } catch (const Unreadable& e) {
+      damaged.emplace_back(info, std::string(e.what()) + " (left in place)");
     } catch (const std::exception& e) {
       damaged.emplace_back(info, e.what());
-      std::error_code ec;
-      if (remove_damaged) fs::remove(info.path, ec);
+      if (remove_damaged) remove_if_same(info.path, identity);
     }
   }
   return damaged;
 }
 
 std::uint64_t Store::evict(std::uint64_t max_bytes, const fs::path& keep) const {
+  std::uint64_t total = 0, freed = 0;
+  // Temporary files of writers that died before renaming (a killed process): removed after an hour
+  // (no save takes that long), counted until then.
+  std::error_code ec;
+  if (enabled() && fs::is_directory(options_.directory, ec))
+    for (const fs::directory_entry& e : fs::directory_iterator(options_.directory, ec)) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind(kTempPrefix, 0) != 0 || name.find(kSuffix) == std::string::npos) continue;
+      std::error_code ec_file;
+      const std::uintmax_t bytes = e.file_size(ec_file);
+      const auto age = fs::file_time_type::clock::now() - e.last_write_time(ec_file);
+      if (ec_file) continue;
+      if (age > std::chrono::hours(1) && fs::remove(e.path(), ec_file)) freed += bytes;
+      else total += bytes;
+    }
   std::vector<StoreEntryInfo> entries = list();
-  std::uint64_t total = 0;
   for (const StoreEntryInfo& e : entries) total += e.bytes;
-  std::uint64_t freed = 0;
   for (auto it = entries.rbegin(); it != entries.rend() && total > max_bytes; ++it) {
     if (it->path == keep) continue;
     std::error_code ec;

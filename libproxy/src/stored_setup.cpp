@@ -231,12 +231,29 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
     for (std::int32_t v : to_input) require(v >= kInvalid && v < n, path, "coarse vertex map out of range");
     require(static_cast<Index>(from_input.size()) == n, path, "input vertex map of the wrong size");
     for (std::int32_t v : from_input) require(v >= kInvalid && v < nc, path, "input vertex map out of range");
+    for (std::size_t side = 0; side < twin.size(); ++side)  // the gluing pairs sides both ways
+      require(twin[side] == kInvalid || twin[static_cast<std::size_t>(twin[side])] == static_cast<std::int32_t>(side), path,
+              "coarse gluing is not symmetric");
+    Index inserted_count = 0;
+    for (std::size_t v = 0; v < to_input.size(); ++v) {
+      if (to_input[v] == kInvalid) {
+        ++inserted_count;
+        continue;
+      }
+      require(from_input[static_cast<std::size_t>(to_input[v])] == static_cast<std::int32_t>(v), path,
+              "coarse and input vertex maps disagree");
+    }
+    for (std::size_t i = 0; i < from_input.size(); ++i)
+      require(from_input[i] == kInvalid || to_input[static_cast<std::size_t>(from_input[i])] == static_cast<std::int32_t>(i), path,
+              "input and coarse vertex maps disagree");
     c.mesh.twin.assign(twin.begin(), twin.end());
     c.mesh.to_input.assign(to_input.begin(), to_input.end());
     c.mesh.from_input.assign(from_input.begin(), from_input.end());
     const std::vector<std::int32_t> inserted_faces = entry->ints("coarse.inserted.face");
     const std::vector<double> inserted_bary = entry->doubles("coarse.inserted.bary");
-    require(inserted_bary.size() == 3 * inserted_faces.size(), path, "inserted vertices disagree");
+    require(inserted_bary.size() == 3 * inserted_faces.size() && static_cast<Index>(inserted_faces.size()) == inserted_count, path,
+            "inserted vertices disagree");
+    for (double b : inserted_bary) require(std::isfinite(b), path, "an inserted vertex's place is not finite");
     for (std::size_t i = 0; i < inserted_faces.size(); ++i) {
       require(inserted_faces[i] >= 0 && inserted_faces[i] < mesh.F.rows(), path, "inserted vertex in no input face");
       c.inserted.push_back({inserted_faces[i], {inserted_bary[3 * i], inserted_bary[3 * i + 1], inserted_bary[3 * i + 2]}});
@@ -254,6 +271,9 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
     a.prolongation_kind = static_cast<fem::ProlongationKind>(entry->integer("proxy.prolongation"));
     if (a.prolongation_kind == fem::ProlongationKind::smoothed) {
       a.P = entry->sparse("proxy.P");
+      const Eigen::VectorXd row_sums = a.P * Eigen::VectorXd::Ones(a.P.cols());
+      for (Eigen::Index i = 0; i < row_sums.size(); ++i)
+        require(std::abs(row_sums(i) - 1.0) <= 1e-10, path, "a row of the smoothed P does not sum to 1");
       a.barycentric = c.P;
     } else {
       a.P = c.P;

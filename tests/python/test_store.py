@@ -93,3 +93,29 @@ def test_heat_steps_on_the_coarse_level(spot, tmp_path):
     assert np.array_equal(ice.heat_flow(V, F, u0, 1e-3, 12, cache=tmp_path), states[:, -1])
     with pytest.raises(ValueError, match="every"):
         heat.steps(u0, 12, 0)
+
+
+def test_two_processes_fill_one_entry(spot, tmp_path, project_mesh):
+    """Two processes set up the same proxy into one store at once: both succeed, with identical
+    solutions, and the store holds one whole entry."""
+    import subprocess
+    import sys
+    import textwrap
+    script = textwrap.dedent(f"""
+        import sys, numpy as np, ice
+        V, F = ice.load_mesh({str(project_mesh("spot.obj"))!r})
+        _, proxy = ice.setup_proxy(V, F, ratio=0.05, cache={str(tmp_path / "store")!r})
+        u = ice.ProxyPoissonSolver(proxy).solve(np.cos(3 * V[:, 0]))
+        np.save(sys.argv[1], u)
+        print(proxy.cache["status"])
+    """)
+    runs = [subprocess.Popen([sys.executable, "-c", script, str(tmp_path / f"u{i}.npy")], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True) for i in range(2)]
+    results = [run.communicate(timeout=300) for run in runs]
+    for run, (out, err) in zip(runs, results):
+        assert run.returncode == 0, err
+        assert out.strip() in ("miss", "hit")
+    assert np.array_equal(np.load(tmp_path / "u0.npy"), np.load(tmp_path / "u1.npy"))
+    assert [p.name for p in (tmp_path / "store").iterdir()] == [next((tmp_path / "store").glob("proxy-*.ice")).name]
+    _, warm = ice.setup_proxy(*spot, ratio=0.05, cache=tmp_path / "store")
+    assert warm.cache["status"] == "hit"

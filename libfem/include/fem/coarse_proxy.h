@@ -119,6 +119,7 @@ class CoarseProxy {
   CoarseProxyArrays arrays() const;
 
   CoarseOperatorKind kind() const { return kind_; }
+  MassKind mass_kind() const { return mass_kind_; }
   ProlongationKind prolongation_kind() const { return prolongation_kind_; }
   /// The prolongation the proxy solves with (smoothed or as given).
   const SparseMatrix& prolongation() const { return P_; }

@@ -145,6 +145,8 @@ class EntryReader {
     std::uint64_t count = 0;
   };
   const Array& find(const std::string& name, std::uint8_t type) const;
+  /// Splits the mapped payload into its arrays; throws std::runtime_error on a malformed record.
+  void parse();
   std::filesystem::path path_;
   void* map_ = nullptr;
   std::size_t map_bytes_ = 0;
@@ -169,9 +171,11 @@ class Store {
   const StoreOptions& options() const { return options_; }
   std::filesystem::path entry_path(const std::string& kind, const StoreKey& key) const;
 
-  /// The entry, checked; std::nullopt when there is none. A damaged entry (unreadable, truncated,
-  /// another format version, another key, a checksum that does not match, arrays that do not parse)
-  /// is removed and described in `damage`, and std::nullopt returned. A hit refreshes the entry's
+  /// The entry, checked; std::nullopt when there is none. A damaged entry (truncated, another
+  /// format version, another key, a checksum that does not match, records that do not parse) is
+  /// removed (unless another process has renamed a new entry into its place meanwhile) and
+  /// described in `damage`, and std::nullopt returned; an entry that cannot be read now (no
+  /// permission, no memory) is left in place and std::nullopt returned. A hit refreshes the entry's
   /// modification time (least recently used eviction).
   std::optional<EntryReader> load(const std::string& kind, const StoreKey& key, std::string* damage = nullptr) const;
   /// Removes the entry `kind`/`key` after a consumer found its contents inconsistent.
@@ -183,11 +187,13 @@ class Store {
 
   /// The entries, most recently used first (temporary files of writers are not entries).
   std::vector<StoreEntryInfo> list() const;
-  /// Reads and checks every entry (header, key, checksum, array structure); returns the damaged
-  /// ones with what is wrong and removes them when `remove_damaged`.
+  /// Reads and checks every entry (header, key, checksum, record structure); returns the damaged
+  /// ones with what is wrong and removes them when `remove_damaged` (an entry that cannot be read
+  /// now, for want of permission or memory, is reported and left in place).
   std::vector<std::pair<StoreEntryInfo, std::string>> verify(bool remove_damaged) const;
-  /// Removes least recently used entries until at most max_bytes remain; returns the bytes freed.
-  /// `keep` (an entry's path) is never removed.
+  /// Removes least recently used entries until at most max_bytes remain (counting the temporary
+  /// files of writers, which are removed once an hour old); returns the bytes freed. `keep` (an
+  /// entry's path) is never removed.
   std::uint64_t evict(std::uint64_t max_bytes, const std::filesystem::path& keep = {}) const;
   /// Removes every entry and leftover temporary file; returns the bytes freed.
   std::uint64_t clear() const;
