@@ -336,17 +336,15 @@ void PdeOptions::add_cache_options(CLI::App& cli) {
   cli.add_flag("--no-cache", no_cache, "Set up from scratch, store nothing")->excludes(dir);
 }
 
-ice::proxy::Store PdeOptions::store() const {
-  if (no_cache) return {};
-  ice::proxy::StoreOptions options;
+ice::proxy::Store store_at(const std::string& directory) {
   try {
-    options = ice::proxy::default_store_options();
+    return ice::proxy::Store(ice::proxy::default_store_options(directory));
   } catch (const std::invalid_argument& e) {
     throw AppError(kUsage, e.what());
   }
-  if (!cache_directory.empty()) options.directory = cache_directory;
-  return ice::proxy::Store(options);
 }
+
+ice::proxy::Store PdeOptions::store() const { return no_cache ? ice::proxy::Store() : store_at(cache_directory); }
 
 void PdeOptions::add_polish_options(CLI::App& cli) {
   cli.add_option("--polish", polish.iterations,
@@ -389,6 +387,12 @@ void PdeOptions::check_outputs() const {
   if (!report.empty()) check_output(report, force, "--report");
   if (!output.empty() && !report.empty() && same_file(output, report))
     throw AppError(kUsage, "--output and --report name the same file");
+  if (!solutions.empty()) {
+    if (lower_extension(solutions) != ".npy") throw AppError(kUsage, "--solutions " + solutions + ": use a .npy file name");
+    check_output(solutions, force, "--solutions");
+    if ((!report.empty() && same_file(solutions, report)) || (!output.empty() && same_file(solutions, output)))
+      throw AppError(kUsage, "--solutions names the same file as --output or --report");
+  }
   if (!html.empty()) {
     if (!has_coarse_space) throw AppError(kUsage, "--html draws the coarse mesh: it needs --solver proxy");
     if (lower_extension(html) != ".html") throw AppError(kUsage, "--html " + html + ": the page's name must end in .html");

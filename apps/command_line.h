@@ -135,6 +135,10 @@ std::map<std::string, Enum> choice_names() {
 /// Throws AppError(kNotWritten) if `path` exists and !overwrite (the tools call it for every output
 /// before doing any work), or if its directory does not exist (ice::check_writable's policy).
 void check_output(const std::string& path, bool overwrite, const std::string& option);
+/// The store of set-up proxies in `directory`, or the default one (ice::proxy::default_store_options:
+/// $ICE_CACHE, the XDG cache folder) when it is empty; throws AppError(kUsage) on a malformed
+/// $ICE_CACHE_MAX_MB.
+ice::proxy::Store store_at(const std::string& directory);
 /// The extension of `path` in lower case, with its dot (".npy").
 std::string lower_extension(const std::string& path);
 /// Whether two paths name one file (also when written differently: ./a and a).
@@ -170,6 +174,8 @@ struct PdeOptions {
   bool fine_idt = true;
   std::string output;  ///< PLY or binary glTF (.glb)
   std::string html;    ///< the interactive 3D page (app/view_page.h)
+  /// --solutions FILE.npy of the tools that write several solutions or states (added by each tool).
+  std::string solutions;
   /// False when the run has no coarse space (poisson-coarse --solver direct|multigrid): no coarse
   /// edges or page to draw.
   bool has_coarse_space = true;
@@ -183,7 +189,8 @@ struct PdeOptions {
   fem::PolishOptions polish;
   /// --polish N, --tolerance T and --polish-sweeps K, for the tools that polish.
   void add_polish_options(CLI::App& cli);
-  /// Refuses existing outputs (without --force) and bad extensions before any work.
+  /// Refuses existing outputs (without --force), bad extensions and outputs naming one file before
+  /// any work.
   void check_outputs() const;
   /// Where a PLY --output's companion file of ICE's traced coarse edges goes (NAME_coarse_edges.ply
   /// beside NAME.ply); empty when there is none (no output, glTF output, or QEM).

@@ -14,6 +14,7 @@
 #include "app_common.h"
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
+#include "fem/geometry.h"
 #include "fem/problems.h"
 #include "ice/scalar_field_io.h"
 
@@ -34,7 +35,7 @@ int main(int argc, char** argv) {
       "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written, 4 bad command "
       "line,\n5 computation failed."};
   app::PdeOptions opt;
-  std::string u0_path, solutions_path;
+  std::string u0_path;
   std::vector<long long> sources;
   double time_step = 0;
   int steps = 100, every = 0;
@@ -44,7 +45,7 @@ int main(int argc, char** argv) {
   cli.add_option("--steps", steps, "Backward-Euler steps")->check(app::integer_between(1, 100000000))->capture_default_str();
   cli.add_option("--output-every", every, "Prolong and compare every M-th step (default: the last step only)")
       ->check(app::integer_between(1, 100000000));
-  cli.add_option("--solutions", solutions_path, "Write the states as .npy (float64, n x outputs)");
+  cli.add_option("--solutions", opt.solutions, "Write the states as .npy (float64, n x outputs)");
   opt.add_to(cli, "'solution' (the last state), 'reference', 'error'");
   opt.add_cache_options(cli);
   ice::proxy::Prolongation prolongation = ice::proxy::Prolongation::automatic;
@@ -54,14 +55,6 @@ int main(int argc, char** argv) {
   return app::run_tool(kTool, [&] {
     opt.check_outputs();
     if (!u0_path.empty() && !sources.empty()) throw app::AppError(app::kUsage, "give --u0 or --source, not both");
-    if (!solutions_path.empty()) {
-      if (app::lower_extension(solutions_path) != ".npy")
-        throw app::AppError(app::kUsage, "--solutions " + solutions_path + ": use a .npy file name");
-      app::check_output(solutions_path, opt.force, "--solutions");
-      if ((!opt.report.empty() && app::same_file(solutions_path, opt.report)) ||
-          (!opt.output.empty() && app::same_file(solutions_path, opt.output)))
-        throw app::AppError(app::kUsage, "--solutions names the same file as --output or --report");
-    }
     if (every == 0) every = steps;
     opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, "");
     app::PdeRun run = app::PdeRun::start(kTool, opt, /*proxy_uses_fine_mesh=*/true);
@@ -97,8 +90,7 @@ int main(int argc, char** argv) {
       u0 = app::demo_poisson_rhs(mesh);
     }
     if (time_step == 0) {
-      const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-      const double h = lengths.size() > 0 ? lengths.mean() : 1.0;
+      const double h = fem::mean_edge_length(ice::face_lengths_from_positions(mesh.V, mesh.F));
       time_step = h * h;
     }
     ice::CoarsenOptions coarsen_options;
@@ -162,7 +154,7 @@ int main(int argc, char** argv) {
       reference = fine_states.back();
       clock.lap();
     }
-    if (!solutions_path.empty()) ice::write_npy_matrix(solutions_path, states, opt.force);
+    if (!opt.solutions.empty()) ice::write_npy_matrix(opt.solutions, states, opt.force);
     const Eigen::VectorXd last = states.col(states.cols() - 1);
     const std::optional<ice::CoarseTracing> tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
     const ice::CoarseTracing* traced = tracing ? &*tracing : nullptr;
@@ -187,8 +179,8 @@ int main(int argc, char** argv) {
     if (run.has_reference)
       std::cout << "  error vs fine steps: relative L2 " << app::relative_error(error_json["rel_l2"]) << " at worst (step "
                 << error_json["worst_step"].get<int>() << "), max abs " << static_cast<double>(error_json["max_abs"]) << '\n';
-    if (!solutions_path.empty())
-      std::cout << "  wrote " << solutions_path << " (" << app::thousands(n) << " x " << states.cols() << ")\n";
+    if (!opt.solutions.empty())
+      std::cout << "  wrote " << opt.solutions << " (" << app::thousands(n) << " x " << states.cols() << ")\n";
     app::print_written(std::cout, opt, traced);
     return app::kOk;
   });

@@ -59,16 +59,9 @@ int main(int argc, char** argv) {
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&] {
-    ice::proxy::StoreOptions options;
-    try {
-      options = ice::proxy::default_store_options();
-    } catch (const std::invalid_argument& e) {
-      throw app::AppError(app::kUsage, e.what());
-    }
-    if (!directory.empty()) options.directory = directory;
-    if (options.directory.empty())
-      throw app::AppError(app::kUsage, "no store: $ICE_CACHE is empty and no --cache was given");
-    const ice::proxy::Store store(options);
+    const ice::proxy::Store store = app::store_at(directory);
+    const ice::proxy::StoreOptions& options = store.options();
+    if (!store.enabled()) throw app::AppError(app::kUsage, "no store: $ICE_CACHE is empty and no --cache was given");
     const std::vector<ice::proxy::StoreEntryInfo> entries = store.list();
     std::uint64_t total = 0;
     for (const auto& e : entries) total += e.bytes;

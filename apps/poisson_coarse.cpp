@@ -100,7 +100,7 @@ fem::PoissonSolver fine_poisson_solver(const fem::SparseMatrix& L, const fem::Sp
 app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& mg, const app::PdeOptions& opt,
                        const ice::TriangleMesh& mesh, Eigen::VectorXd f, std::string rhs_name,
                        const std::vector<int>& fixed_vertices, const Eigen::VectorXd& fixed_values, double load_seconds,
-                       fem::CholeskyOrdering ordering, const Eigen::MatrixXd& block, const std::string& solutions_path) {
+                       fem::CholeskyOrdering ordering, const Eigen::MatrixXd& block) {
   const long long n = mesh.V.rows();
   const bool dirichlet = !fixed_vertices.empty();
   app::Stopwatch clock;
@@ -184,7 +184,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
       error_json = solution_error_json(u, reference, M);
     }
   }
-  if (!solutions_path.empty()) ice::write_npy_matrix(solutions_path, block.cols() > 1 ? U : Eigen::MatrixXd(u), opt.force);
+  if (!opt.solutions.empty()) ice::write_npy_matrix(opt.solutions, block.cols() > 1 ? U : Eigen::MatrixXd(u), opt.force);
   app::write_result_fields(opt, mesh, "solution", u, reference, {{"rhs", f}});
   nlohmann::json report = app::report_header(kTool, opt.mesh);
   report["solver"] = solver_json;
@@ -231,8 +231,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> fixes;
   cli.add_option("--rhs", rhs_path,
                  "Source f: one number per input vertex (text), or .npy (n x k: k sources)");
-  std::string solutions_path;
-  cli.add_option("--solutions", solutions_path, "Write the solutions as .npy (float64, n x k: one column per source)");
+  cli.add_option("--solutions", opt.solutions, "Write the solutions as .npy (float64, n x k: one column per source)");
   cli.add_option("--fix", fixes,
                  "Dirichlet condition V=value at vertex V (0-based); repeat or comma-separate")
       ->delimiter(',')
@@ -266,13 +265,6 @@ int main(int argc, char** argv) {
   return app::run_tool(kTool, [&] {
     opt.has_coarse_space = solver == "proxy";
     opt.check_outputs();
-    if (!solutions_path.empty()) {
-      if (app::lower_extension(solutions_path) != ".npy") throw app::AppError(app::kUsage, "--solutions " + solutions_path + ": use a .npy file name");
-      app::check_output(solutions_path, opt.force, "--solutions");
-      if ((!opt.report.empty() && app::same_file(solutions_path, opt.report)) ||
-          (!opt.output.empty() && app::same_file(solutions_path, opt.output)))
-        throw app::AppError(app::kUsage, "--solutions names the same file as --output or --report");
-    }
     const bool rhs_npy = !rhs_path.empty() && app::lower_extension(rhs_path) == ".npy";
     if (solver != "proxy" && opt.polish.enabled())
       throw app::AppError(app::kUsage, "--polish and --tolerance polish the proxy's solution: use them with --solver proxy");
@@ -364,7 +356,7 @@ int main(int argc, char** argv) {
     run.load = clock.lap();
     if (solver != "proxy")
       return solve_on_fine_mesh(solver, mg, opt, mesh, f, rhs_name, fixed_vertices, fixed_values, run.load,
-                                cholmod_ordering, block, solutions_path);
+                                cholmod_ordering, block);
 
     // ---- coarsen, fine discretisation, then the proxy (fem::ProxyPoissonSolver: restrict, coarse
     // solve, prolong, each timed)
@@ -426,8 +418,8 @@ int main(int argc, char** argv) {
       }
       clock.lap();
     }
-    if (!solutions_path.empty())
-      ice::write_npy_matrix(solutions_path, block.cols() > 1 ? solutions : Eigen::MatrixXd(solution), opt.force);
+    if (!opt.solutions.empty())
+      ice::write_npy_matrix(opt.solutions, block.cols() > 1 ? solutions : Eigen::MatrixXd(solution), opt.force);
 
     // ---- outputs
     const std::optional<ice::CoarseTracing> tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
@@ -458,7 +450,7 @@ int main(int argc, char** argv) {
                 << ": relative L2 " << app::relative_error(error_json["rel_l2"]) << ", max abs "
                 << static_cast<double>(error_json["max_abs"]) << " (" << app::percent(error_json["max_rel"])
                 << " of max |u| " << static_cast<double>(error_json["max_abs_reference"]) << ")\n";
-    if (!solutions_path.empty()) std::cout << "  wrote " << solutions_path << " (" << app::thousands(n) << " x " << run.solves << ")\n";
+    if (!opt.solutions.empty()) std::cout << "  wrote " << opt.solutions << " (" << app::thousands(n) << " x " << run.solves << ")\n";
     if (run.has_reference && error_json["rel_l2"].is_null())
       std::cout << "  note: the fine solution is zero (a constant f is zero once its mean is removed), so relative "
                    "errors are undefined\n";

@@ -46,18 +46,4 @@ bool blas_is_openblas() {
   return has_config;
 }
 
-int blas_threads() {
-  using Getter = int (*)();
-  const auto get = reinterpret_cast<Getter>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
-  return get ? get() : 0;
-}
-
-bool set_blas_threads(int threads) {
-  using Setter = void (*)(int);
-  const auto set = reinterpret_cast<Setter>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-  if (!set || threads < 1) return false;
-  set(threads);
-  return true;
-}
-
 }  // namespace fem

@@ -155,7 +155,7 @@ int CoarseProxy::coarse_vertex_of(int fine_vertex) const {
   return fine_to_coarse_[static_cast<std::size_t>(fine_vertex)];
 }
 
-const CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
+CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
   LazyFineOperators& lazy = *lazy_;
   std::call_once(lazy.mesh_once, [&lazy] {
     if (!lazy.source) return;
@@ -167,7 +167,7 @@ const CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
 }
 
 const CoarseProxy::LazyFineOperators& CoarseProxy::fine_operators() const {
-  LazyFineOperators& lazy = const_cast<LazyFineOperators&>(fine_mesh_of_lazy());
+  LazyFineOperators& lazy = fine_mesh_of_lazy();
   std::call_once(lazy.once, [&lazy] {
     lazy.laplacian = cotan_laplacian(lazy.F, lazy.L, lazy.n);
     lazy.gradient = gradient(lazy.F, lazy.L, lazy.n);
@@ -514,49 +514,45 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
   const auto label_of = [&](Eigen::Index i) {
     return components ? static_cast<std::size_t>(fine_components_.label[static_cast<std::size_t>(i)]) : std::size_t{0};
   };
-  // The mass-weighted means the zero-mean problem removes (per component on several), of `width`
-  // columns: means[label · chunk + c]. From F's columns (contiguous), or from a row-major block in
-  // one pass over its rows.
-  std::vector<double> means, totals;
-  const auto finish_means = [&]() {
-    for (std::size_t l = 0; l < labels; ++l)
-      for (std::size_t c = 0; c < means.size() / labels; ++c)
-        means[l * (means.size() / labels) + c] = totals[l] != 0 ? means[l * (means.size() / labels) + c] / totals[l] : 0.0;
-  };
-  const auto column_means = [&](Eigen::Index first, Eigen::Index width, Eigen::Index stride) {
-    means.assign(labels * static_cast<std::size_t>(stride), 0.0);
-    totals.assign(labels, 0.0);
-    for (Eigen::Index i = 0; i < n; ++i) totals[label_of(i)] += mass[i];
-    for (Eigen::Index c = 0; c < width; ++c) {
-      const double* f = F.col(first + c).data();
-      for (Eigen::Index i = 0; i < n; ++i) means[label_of(i) * static_cast<std::size_t>(stride) + static_cast<std::size_t>(c)] += mass[i] * f[i];
-    }
-    finish_means();
-  };
-  const auto row_means = [&](const double* X, Eigen::Index stride) {
-    means.assign(labels * static_cast<std::size_t>(stride), 0.0);
-    totals.assign(labels, 0.0);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const std::size_t l = label_of(i);
-      totals[l] += mass[i];
-      double* acc = means.data() + l * static_cast<std::size_t>(stride);
-      const double* x = X + i * stride;
-      for (Eigen::Index c = 0; c < stride; ++c) acc[c] += mass[i] * x[c];
-    }
-    finish_means();
-  };
   // Columns go through the fine-size passes in chunks of at most 32: fine-size buffers of a chunk's
   // width, rows of the chunk's values contiguous (one pass over P reads or writes each fine row once).
   const Eigen::Index chunk = std::min<Eigen::Index>(std::max<Eigen::Index>(k, 1), 32);
+  const auto stride = static_cast<std::size_t>(chunk);
+  // The mass-weighted means the zero-mean problem removes (per component on several) of a chunk's
+  // columns, means[label · chunk + c]: from F's columns (contiguous), or from a row-major block in
+  // one pass over its rows; the masses they divide by are the same for every chunk.
+  std::vector<double> totals(labels, 0.0), means(labels * stride);
+  for (Eigen::Index i = 0; i < n; ++i) totals[label_of(i)] += mass[i];
+  const auto divide_means = [&] {
+    for (std::size_t l = 0; l < labels; ++l)
+      for (std::size_t c = 0; c < stride; ++c) means[l * stride + c] = totals[l] != 0 ? means[l * stride + c] / totals[l] : 0.0;
+  };
+  const auto column_means = [&](Eigen::Index first, Eigen::Index width) {
+    std::fill(means.begin(), means.end(), 0.0);
+    for (Eigen::Index c = 0; c < width; ++c) {
+      const double* f = F.col(first + c).data();
+      for (Eigen::Index i = 0; i < n; ++i) means[label_of(i) * stride + static_cast<std::size_t>(c)] += mass[i] * f[i];
+    }
+    divide_means();
+  };
+  const auto row_means = [&](const double* X) {
+    std::fill(means.begin(), means.end(), 0.0);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      double* acc = means.data() + label_of(i) * stride;
+      const double* x = X + i * chunk;
+      for (Eigen::Index c = 0; c < chunk; ++c) acc[c] += mass[i] * x[c];
+    }
+    divide_means();
+  };
   RowMatrix weighted(n, chunk), coarse_chunk(m, chunk), u_rows(n, chunk);
   RowMatrix coarse_rhs(m, k);
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
-    if (is_zero_mean()) column_means(first, width, chunk);
+    if (is_zero_mean()) column_means(first, width);
     // weighted = M · (f − its mean), row by row
 #pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
     for (Eigen::Index i = 0; i < n; ++i) {
-      const double* mean = is_zero_mean() ? means.data() + label_of(i) * static_cast<std::size_t>(chunk) : nullptr;
+      const double* mean = is_zero_mean() ? means.data() + label_of(i) * stride : nullptr;
       double* w = weighted.data() + i * chunk;
       for (Eigen::Index c = 0; c < chunk; ++c) w[c] = c < width ? mass[i] * (F(i, first + c) - (mean ? mean[c] : 0.0)) : 0.0;
     }
@@ -572,14 +568,14 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
     coarse_chunk.leftCols(width) = coarse_u.middleCols(first, width);
     if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
     gather_product_rows(P_rows_, coarse_chunk.data(), u_rows.data(), chunk, threads, n);
-    if (is_zero_mean()) row_means(u_rows.data(), chunk);
+    if (is_zero_mean()) row_means(u_rows.data());
 #pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
     for (Eigen::Index tile = 0; tile < (n + kTransposeRows - 1) / kTransposeRows; ++tile) {
       const Eigen::Index begin = tile * kTransposeRows, end = std::min(n, begin + kTransposeRows);
       for (Eigen::Index c = 0; c < width; ++c) {
         double* out = U.col(first + c).data();
         for (Eigen::Index i = begin; i < end; ++i)
-          out[i] = u_rows(i, c) - (is_zero_mean() ? means[label_of(i) * static_cast<std::size_t>(chunk) + static_cast<std::size_t>(c)] : 0.0);
+          out[i] = u_rows(i, c) - (is_zero_mean() ? means[label_of(i) * stride + static_cast<std::size_t>(c)] : 0.0);
       }
     }
   }

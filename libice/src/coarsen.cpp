@@ -389,6 +389,11 @@ void coarsen_whole(GreedyContext& context, CoarsenResult& result) {
 
 }  // namespace
 
+int coarsening_regions(const CoarsenOptions& options) {
+  const int threads = detail::requested_threads(options.threads);
+  return options.regions > 0 ? options.regions : threads > 1 ? std::min(4 * threads, 254) : 1;
+}
+
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   if (T.num_vertex_slots() != T.num_input_vertices())
@@ -414,7 +419,7 @@ CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) 
   const Index intermediate = target + std::max<Index>(target, (live - target) / 32);
   RegionPartition partition;
   // More regions than threads: a thread that finishes its region early in a round takes another.
-  partition.parts = options.regions > 0 ? options.regions : threads > 1 ? std::min(4 * threads, 254) : 1;
+  partition.parts = coarsening_regions(options);
   const bool parallel = partition.parts > 1 && live >= options.parallel_min_vertices && intermediate < live / 2;
   // The partition (a breadth-first pass) runs on a second thread while the metric is set up.
   std::optional<IntrinsicErrorMetric> metric_storage;

@@ -410,24 +410,31 @@ void write_gltf_with_fields(const std::string& path, const TriangleMesh& mesh, c
 
 // ---- dense matrices --------------------------------------------------------------------------------
 
+namespace {
+// A .npy header of a C-order rows × cols matrix of `descr` ('<f4', '<f8'): magic, version 1.0, header
+// length (little-endian uint16), then the dictionary padded with spaces and a newline so that the
+// data starts on a multiple of 64 bytes.
+void write_npy_header(std::ostream& out, const char* descr, Eigen::Index rows, Eigen::Index cols) {
+  std::string header = std::string("{'descr': '") + descr + "', 'fortran_order': False, 'shape': (" + std::to_string(rows) +
+                       ", " + std::to_string(cols) + "), }";
+  const std::size_t unpadded = 10 + header.size() + 1;
+  header.append((64 - unpadded % 64) % 64, ' ');
+  header.push_back('\n');
+  const auto length = static_cast<std::uint16_t>(header.size());
+  out.write("\x93NUMPY\x01\x00", 8);
+  const char length_bytes[2] = {static_cast<char>(length & 0xff), static_cast<char>(length >> 8)};
+  out.write(length_bytes, 2);
+  out.write(header.data(), static_cast<std::streamsize>(header.size()));
+}
+}  // namespace
+
 NpyMatrixWriter::NpyMatrixWriter(const std::string& path, Eigen::Index rows, Eigen::Index cols, bool overwrite)
     : path_(path), rows_(rows), cols_(cols) {
   if (rows < 0 || cols < 0) throw MeshError(MeshError::Kind::Unwritable, path, "negative matrix size");
   require_writable(path, overwrite);
   out_.open(path, std::ios::binary);
   if (!out_) throw MeshError(MeshError::Kind::Unwritable, path, "cannot create the file");
-  // Magic, version 1.0, header length (little-endian uint16), then the header dictionary padded
-  // with spaces and a newline so that the data starts on a multiple of 64 bytes.
-  std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(rows) + ", " +
-                       std::to_string(cols) + "), }";
-  const std::size_t unpadded = 10 + header.size() + 1;
-  header.append((64 - unpadded % 64) % 64, ' ');
-  header.push_back('\n');
-  const auto length = static_cast<std::uint16_t>(header.size());
-  out_.write("\x93NUMPY\x01\x00", 8);
-  const char length_bytes[2] = {static_cast<char>(length & 0xff), static_cast<char>(length >> 8)};
-  out_.write(length_bytes, 2);
-  out_.write(header.data(), static_cast<std::streamsize>(header.size()));
+  write_npy_header(out_, "<f4", rows, cols);
 }
 
 NpyMatrixWriter::~NpyMatrixWriter() {
@@ -570,16 +577,7 @@ void write_npy_matrix(const std::string& path, const Eigen::MatrixXd& matrix, bo
   };
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) throw MeshError(MeshError::Kind::Unwritable, path, "cannot create the file");
-  std::string header = "{'descr': '<f8', 'fortran_order': False, 'shape': (" + std::to_string(matrix.rows()) + ", " +
-                       std::to_string(matrix.cols()) + "), }";
-  const std::size_t unpadded = 10 + header.size() + 1;
-  header.append((64 - unpadded % 64) % 64, ' ');
-  header.push_back('\n');
-  const auto length = static_cast<std::uint16_t>(header.size());
-  out.write("\x93NUMPY\x01\x00", 8);
-  const char length_bytes[2] = {static_cast<char>(length & 0xff), static_cast<char>(length >> 8)};
-  out.write(length_bytes, 2);
-  out.write(header.data(), static_cast<std::streamsize>(header.size()));
+  write_npy_header(out, "<f8", matrix.rows(), matrix.cols());
   const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = matrix;
   out.write(reinterpret_cast<const char*>(rows.data()), static_cast<std::streamsize>(rows.size() * sizeof(double)));
   out.close();

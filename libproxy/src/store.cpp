@@ -148,6 +148,12 @@ StoreOptions default_store_options() {
   return options;
 }
 
+StoreOptions default_store_options(const fs::path& directory) {
+  StoreOptions options = default_store_options();
+  if (!directory.empty()) options.directory = directory;
+  return options;
+}
+
 // ---- keys --------------------------------------------------------------------------------------
 
 std::string StoreKey::hex() const {

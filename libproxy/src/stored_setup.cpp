@@ -6,7 +6,6 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <type_traits>
 #include <utility>
 
@@ -108,7 +107,7 @@ CoarseSpaceSummary summary_from(const std::vector<double>& values, const std::st
   return summary;
 }
 
-std::vector<std::int32_t> as_ints(const std::vector<Index>& v) { return std::vector<std::int32_t>(v.begin(), v.end()); }
+static_assert(std::is_same_v<Index, std::int32_t>, "vertex maps and gluing are stored as int32 arrays as they are");
 
 void require(bool ok, const std::string& path, const std::string& what) {
   if (!ok) throw std::runtime_error(path + ": " + what);
@@ -127,11 +126,9 @@ StoreKey proxy_setup_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coa
   std::sort(locked.begin(), locked.end());
   locked.erase(std::unique(locked.begin(), locked.end()), locked.end());
   h.add_bytes(locked.data(), locked.size() * sizeof(Index));
-  // The coarsening's result depends on its region count (ice::CoarsenOptions::regions), which a
-  // thread count of 0 resolves on this machine: key on the regions it runs with.
-  const int threads = std::min(c.threads > 0 ? c.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
-  const int regions = c.regions > 0 ? c.regions : threads > 1 ? std::min(4 * threads, 254) : 1;
-  h.add(regions).add(static_cast<std::int64_t>(c.parallel_min_vertices));
+  // The coarsening's result depends on its region count, which a thread count of 0 resolves on
+  // this machine: key on the regions it runs with.
+  h.add(coarsening_regions(c)).add(static_cast<std::int64_t>(c.parallel_min_vertices));
   h.add(to_string(coarsening.qem_geometry)).add(coarsening.locality_numbering);
   h.add(coarsening.refinement.has_value());
   if (coarsening.refinement) h.add(coarsening.refinement->min_angle_degrees).add(coarsening.refinement->max_vertex_ratio);
@@ -148,8 +145,7 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
   w.put_int("input_vertices", coarse.P.rows());
   w.put_matrix("coarse.F", coarse.mesh.F);
   w.put_matrix("coarse.L", coarse.mesh.L);
-  const std::vector<std::int32_t> twin = as_ints(coarse.mesh.twin), to_input = as_ints(coarse.mesh.to_input),
-                                  from_input = as_ints(coarse.mesh.from_input);
+  const std::vector<Index>&twin = coarse.mesh.twin, &to_input = coarse.mesh.to_input, &from_input = coarse.mesh.from_input;
   w.put("coarse.twin", twin.data(), twin.size());
   w.put("coarse.to_input", to_input.data(), to_input.size());
   w.put("coarse.from_input", from_input.data(), from_input.size());
@@ -213,7 +209,7 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
     const auto n = static_cast<Index>(mesh.V.rows());
     require(entry->integer("input_vertices") == n, path, "made for a mesh of another vertex count");
     CoarseSpace& c = setup.coarse;
-    const std::vector<std::int32_t> to_input = entry->ints("coarse.to_input");
+    std::vector<std::int32_t> to_input = entry->ints("coarse.to_input");
     const auto nc = static_cast<Index>(to_input.size());
     c.mesh.F = entry->int_matrix("coarse.F", 0, nc - 1);
     c.mesh.L = entry->double_matrix("coarse.L");
@@ -224,7 +220,7 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
       require(a > 0 && b > 0 && d > 0 && a <= b + d && b <= a + d && d <= a + b, path,
               "coarse face " + std::to_string(f) + " breaks the triangle inequality");
     }
-    const std::vector<std::int32_t> twin = entry->ints("coarse.twin"), from_input = entry->ints("coarse.from_input");
+    std::vector<std::int32_t> twin = entry->ints("coarse.twin"), from_input = entry->ints("coarse.from_input");
     const auto sides = static_cast<std::int32_t>(3 * c.mesh.F.rows());
     require(twin.empty() || static_cast<Index>(twin.size()) == sides, path, "coarse gluing of the wrong size");
     for (std::int32_t t : twin) require(t >= kInvalid && t < sides, path, "coarse gluing out of range");
@@ -246,9 +242,9 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
     for (std::size_t i = 0; i < from_input.size(); ++i)
       require(from_input[i] == kInvalid || to_input[static_cast<std::size_t>(from_input[i])] == static_cast<std::int32_t>(i), path,
               "input and coarse vertex maps disagree");
-    c.mesh.twin.assign(twin.begin(), twin.end());
-    c.mesh.to_input.assign(to_input.begin(), to_input.end());
-    c.mesh.from_input.assign(from_input.begin(), from_input.end());
+    c.mesh.twin = std::move(twin);
+    c.mesh.to_input = std::move(to_input);
+    c.mesh.from_input = std::move(from_input);
     const std::vector<std::int32_t> inserted_faces = entry->ints("coarse.inserted.face");
     const std::vector<double> inserted_bary = entry->doubles("coarse.inserted.bary");
     require(inserted_bary.size() == 3 * inserted_faces.size() && static_cast<Index>(inserted_faces.size()) == inserted_count, path,

@@ -143,14 +143,20 @@ def read_mesh(path, *, skip_cells=(), **kw):
     return np.ascontiguousarray(points), np.ascontiguousarray(faces, dtype=np.int32)
 
 
+def _with_defaults(coarsening, use):
+    """The one-calls' coarsening options: 5 % of the vertices and the metric of `use` unless given."""
+    if not {"n", "ratio", "max_error"} & coarsening.keys():
+        coarsening["ratio"] = 0.05
+    coarsening.setdefault("use", use)
+    return coarsening
+
+
 def _coarse_for(V, F, coarse, coarsening, use, locked=None):
     if coarse is not None:
         if coarsening:
             raise ValueError(f"give coarse or coarsening options ({', '.join(sorted(coarsening))}), not both")
         return coarse
-    if not {"n", "ratio", "max_error"} & coarsening.keys():
-        coarsening["ratio"] = 0.05
-    coarsening.setdefault("use", use)
+    _with_defaults(coarsening, use)
     if locked is not None:  # the fixed vertices must stay: locked besides the caller's own
         own = coarsening.get("locked")
         coarsening["locked"] = locked if own is None else np.union1d(np.asarray(own), np.asarray(locked))
@@ -159,11 +165,8 @@ def _coarse_for(V, F, coarse, coarsening, use, locked=None):
 
 def _stored_proxy(V, F, coarsening, use, operators, fine, prolongation, fixed, cache):
     """(coarse, proxy) through the store of set-up proxies (ice.setup_proxy)."""
-    if not {"n", "ratio", "max_error"} & coarsening.keys():
-        coarsening["ratio"] = 0.05
-    coarsening.setdefault("use", use)
     return setup_proxy(V, F, operators=operators, fine=fine, prolongation=prolongation, fixed=fixed, cache=cache,
-                       **coarsening)
+                       **_with_defaults(coarsening, use))
 
 
 def solve_poisson(V, F, f, *, coarse: CoarseSpace | None = None, fixed=None, values=None,

@@ -589,14 +589,13 @@ ice::proxy::Store store_argument(const py::object& cache) {
     if (cache.cast<bool>()) throw py::value_error("cache must be None (the default store), False (none) or a directory");
     return {};
   }
-  ice::proxy::StoreOptions options;
+  const std::string directory =
+      cache.is_none() ? std::string() : py::str(py::module_::import("os").attr("fspath")(cache)).cast<std::string>();
   try {
-    options = ice::proxy::default_store_options();
+    return ice::proxy::Store(ice::proxy::default_store_options(directory));
   } catch (const std::invalid_argument& e) {
     throw py::value_error(e.what());
   }
-  if (!cache.is_none()) options.directory = py::str(py::module_::import("os").attr("fspath")(cache)).cast<std::string>();
-  return ice::proxy::Store(options);
 }
 
 py::tuple setup_proxy(const py::object& V, const py::object& F, const std::string& operators, const std::string& fine,

@@ -22,14 +22,4 @@ std::string lapack_library();
 /// True when the loaded BLAS is OpenBLAS (it exports `openblas_get_config`, or its path names it).
 bool blas_is_openblas();
 
-/// The threads the loaded BLAS uses (OpenBLAS's openblas_get_num_threads), or 0 when it cannot say
-/// (another BLAS).
-int blas_threads();
-/// Asks the loaded BLAS to use `threads` threads (OpenBLAS's openblas_set_num_threads); returns
-/// false, changing nothing, when it cannot (another BLAS). Why: CHOLMOD's supernodal factorisation
-/// of a small matrix pays the BLAS threads' start-up and synchronisation for little work, so the
-/// fastest fine solver of a small mesh runs its BLAS on one thread (docs/measurements.md, "The
-/// fine reference").
-bool set_blas_threads(int threads);
-
 }  // namespace fem

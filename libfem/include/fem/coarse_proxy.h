@@ -185,7 +185,8 @@ class CoarseProxy {
   };
   std::unique_ptr<LazyFineOperators> lazy_;
   const LazyFineOperators& fine_operators() const;
-  const LazyFineOperators& fine_mesh_of_lazy() const;
+  /// The lazy state with F and L made (a restored proxy's from its source).
+  LazyFineOperators& fine_mesh_of_lazy() const;
   void index_coinciding_vertices(const SparseMatrix& barycentric);
   Faces coarse_faces_;
   FaceLengths coarse_lengths_;

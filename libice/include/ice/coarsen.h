@@ -111,5 +111,10 @@ struct CoarsenResult {
 /// bit-identical output.
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options);
 
+/// The regions coarsen() cuts the mesh into for its parallel phase under `options` (`regions`, or
+/// 4 per thread with `threads` resolved on this machine, at most 254; 1: serial). Its result depends
+/// on this count, never on the thread count itself.
+int coarsening_regions(const CoarsenOptions& options);
+
 
 }  // namespace ice

@@ -50,6 +50,8 @@ struct StoreOptions {
 /// $ICE_CACHE_MAX_MB megabytes when set (a positive integer), else kDefaultStoreBytes.
 /// Throws std::invalid_argument on a malformed $ICE_CACHE_MAX_MB.
 StoreOptions default_store_options();
+/// The same in `directory` instead when it is not empty (a --cache or cache= argument).
+StoreOptions default_store_options(const std::filesystem::path& directory);
 
 /// A 128-bit content key.
 struct StoreKey {
