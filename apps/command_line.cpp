@@ -407,3 +407,25 @@ ice::FineGeometry PdeOptions::fine_geometry() const {
 }
 
 }  // namespace app
+
+namespace app {
+
+void MultigridCli::add_to(CLI::App& cli) {
+  static const std::map<std::string, fem::MultigridSmoother> smoothers{
+      {"sgs", fem::MultigridSmoother::symmetric_gauss_seidel},
+      {"gs", fem::MultigridSmoother::gauss_seidel},
+      {"chebyshev", fem::MultigridSmoother::chebyshev}};
+  static const std::map<std::string, fem::MultigridMode> cycles{{"pcg", fem::MultigridMode::pcg},
+                                                                {"vcycle", fem::MultigridMode::vcycle}};
+  cli.add_option("--mg-tolerance", options.tolerance, "multigrid: relative residual to reach")->check(positive_number())->capture_default_str();
+  cli.add_option("--mg-ratio", hierarchy.ratio, "multigrid: vertex fraction kept per level")->check(number_between(0.01, 0.9))->capture_default_str();
+  cli.add_option("--mg-coarsest", hierarchy.coarsest_vertices, "multigrid: vertices of the coarsest level (CHOLMOD)")
+      ->check(integer_between(1, std::numeric_limits<int>::max()))
+      ->capture_default_str();
+  add_choice(cli, "--mg-smoother", options.smoother, smoothers, "multigrid smoother");
+  add_choice(cli, "--mg-cycle", options.mode, cycles, "multigrid: V-cycle preconditioned CG, or plain V-cycles");
+  cli.add_option("--mg-threads", options.threads, "multigrid: threads on levels of 50,000+ unknowns (0: all cores)")
+      ->check(non_negative_integer())->capture_default_str();
+}
+
+}  // namespace app

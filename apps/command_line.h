@@ -14,6 +14,8 @@
 #include <CLI/CLI.hpp>
 
 #include "fem/coarse_proxy.h"
+#include "fem/multigrid.h"
+#include "ice/hierarchy.h"
 #include "ice/coarse_space.h"
 #include "ice/coarsen.h"
 #include "ice/proxy/policies.h"
@@ -159,6 +161,14 @@ fem::ProlongationKind resolve_prolongation(ice::proxy::Prolongation choice, fem:
 // ---- the command line both PDE tools share (geodesic-coarse, poisson-coarse) ---------------------------
 
 /// The command-line options both PDE tools share.
+/// The exact route's options (--mg-*): the hierarchy's and the solver's, straight into
+/// ice::HierarchyOptions and fem::MultigridOptions.
+struct MultigridCli {
+  ice::HierarchyOptions hierarchy;
+  fem::MultigridOptions options;
+  void add_to(CLI::App& cli);
+};
+
 struct PdeOptions {
   std::string mesh;
   TargetOptions target;

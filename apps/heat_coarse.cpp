@@ -5,6 +5,8 @@
 //
 // Discretisation: (M + τL) u_{k+1} = M u_k with the cotan Laplacian L and the lumped mass M; the
 // proxy's coarse system is (M_c + τL_c), u₀ reaches it by L² projection (fem::ProxyHeatSolver).
+// --solver multigrid takes the exact route instead: every step on the fine mesh by Galerkin
+// multigrid on an ICE hierarchy (from the store when it holds it), iterated from the last state.
 //
 // Exit codes: see app_common.h.
 #include <algorithm>
@@ -16,11 +18,126 @@
 #include "fem/errors.h"
 #include "fem/geometry.h"
 #include "fem/problems.h"
+#include "ice/proxy/multigrid.h"
+#include "ice/proxy/report.h"
 #include "ice/scalar_field_io.h"
 
 namespace {
 
 const std::string kTool = "heat-coarse";
+
+// The errors of the written states against the fine ones (relative L2 in the mass norm, max abs):
+// the worst, where, and each.
+nlohmann::json state_errors(const Eigen::MatrixXd& states, const Eigen::MatrixXd& fine_states, const fem::SparseMatrix& M,
+                            const std::vector<int>& output_steps) {
+  double worst = 0, worst_max_abs = 0;
+  int worst_step = output_steps.front();
+  nlohmann::json per_output = nlohmann::json::array();
+  for (Eigen::Index j = 0; j < states.cols(); ++j) {
+    const Eigen::VectorXd state = states.col(j), fine_state = fine_states.col(j);
+    const double rel = fem::relative_l2_error(state, fine_state, M);
+    const double max_abs = fem::max_abs_error(state, fine_state);
+    const int step = output_steps[static_cast<std::size_t>(j)];
+    per_output.push_back({{"step", step}, {"rel_l2", rel}, {"max_abs", max_abs}});
+    if (rel >= worst) {
+      worst = rel;
+      worst_step = step;
+    }
+    worst_max_abs = std::max(worst_max_abs, max_abs);
+  }
+  return {{"rel_l2", worst}, {"worst_step", worst_step}, {"max_abs", worst_max_abs}, {"outputs", per_output}};
+}
+
+struct HeatProblem {
+  Eigen::VectorXd u0;
+  std::string u0_name;
+  double time_step = 0;
+  int steps = 0, every = 0;
+  nlohmann::json json() const {
+    return {{"time_step", time_step}, {"steps", steps}, {"output_every", every}, {"initial_field", u0_name}};
+  }
+};
+
+// --solver multigrid: the steps on the fine mesh by multigrid, compared with CHOLMOD's; writes the
+// outputs and the report itself.
+app::ExitCode step_on_fine_mesh(const app::MultigridCli& mg, const app::PdeOptions& opt, const ice::TriangleMesh& mesh,
+                                const HeatProblem& heat, double load_seconds) {
+  const long long n = mesh.V.rows();
+  app::Stopwatch clock;
+  const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
+  const double fine_mesh_seconds = clock.lap();
+  const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
+  const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+  const double assemble_seconds = clock.lap();
+  const ice::proxy::Store store = opt.store();
+  const ice::proxy::MultigridHierarchy hierarchy = ice::proxy::multigrid_hierarchy(mesh, mg.hierarchy, store);
+  if (hierarchy.cache.status == ice::proxy::CacheStatus::rebuilt)
+    app::warn(kTool, "the stored hierarchy was damaged and is rebuilt: " + hierarchy.cache.damage);
+  const double hierarchy_seconds = clock.lap();
+  const fem::HeatSolver solver(L, M, heat.time_step, hierarchy.poisson_multigrid(mg.options));
+  const double numeric_setup = clock.lap();
+  std::vector<int> output_steps, iterations;
+  const Eigen::MatrixXd states = solver.trajectory(heat.u0, heat.steps, heat.every, &output_steps, &iterations);
+  const double steps_seconds = clock.lap();
+  const fem::MultigridSolver& multigrid = *solver.multigrid();
+  const int most = *std::max_element(iterations.begin(), iterations.end());
+  double sum = 0;
+  for (int i : iterations) sum += i;
+  const double setup_seconds = hierarchy_seconds + numeric_setup;
+  nlohmann::json timings = {{"load", load_seconds}, {"fine_mesh", fine_mesh_seconds}, {"assemble", assemble_seconds},
+                            {"hierarchy", hierarchy_seconds}, {"galerkin_and_coarse_factor", numeric_setup},
+                            {"setup", setup_seconds}, {"steps", steps_seconds}, {"per_step", steps_seconds / heat.steps},
+                            {"total", assemble_seconds + setup_seconds + steps_seconds},
+                            {"cache_load", hierarchy.cache.load_seconds}, {"cache_save", hierarchy.cache.save_seconds}};
+  nlohmann::json solver_json = {{"kind", "multigrid"}};
+  solver_json.update(ice::proxy::multigrid_json(multigrid));
+  solver_json["iterations_per_step"] = {{"mean", sum / static_cast<double>(iterations.size())}, {"max", most}};
+  solver_json["hierarchy"] = {{"ratio", mg.hierarchy.ratio}, {"coarsest_vertices", mg.hierarchy.coarsest_vertices},
+                              {"levels", hierarchy.num_levels()}, {"grid_complexity", hierarchy.grid_complexity()},
+                              {"stop_reason", hierarchy.stop_reason}};
+
+  nlohmann::json error_json;
+  Eigen::VectorXd reference;
+  if (!opt.no_reference) {
+    const fem::HeatSolver direct(L, M, heat.time_step, ice::proxy::kFineReferenceOrdering);
+    timings["reference_setup"] = clock.lap();
+    const Eigen::MatrixXd fine_states = direct.trajectory(heat.u0, heat.steps, heat.every);
+    timings["reference_steps"] = clock.lap();
+    error_json = state_errors(states, fine_states, M, output_steps);
+    reference = fine_states.col(fine_states.cols() - 1);
+  }
+  if (!opt.solutions.empty()) ice::write_npy_matrix(opt.solutions, states, opt.force);
+  const Eigen::VectorXd last = states.col(states.cols() - 1);
+  app::write_result_fields(opt, mesh, "solution", last, reference, {{"u0", heat.u0}});
+  nlohmann::json report = app::report_header(kTool, opt.mesh);
+  report["solver"] = solver_json;
+  report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
+  report["fine_mesh"] = {{"kind", opt.fine_idt ? "intrinsic Delaunay" : "input"}, {"flips", fine.flips}};
+  report["heat"] = heat.json();
+  report["heat"]["output_steps"] = output_steps;
+  report["timings_s"] = timings;
+  report["cache"] = ice::proxy::cache_json(hierarchy.cache, store);
+  if (!opt.no_reference) {
+    report["error"] = error_json;
+    report["reference_ordering"] = fem::to_string(ice::proxy::kFineReferenceOrdering);
+  }
+  report["peak_rss_mb"] = app::peak_rss_mb();
+  if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
+
+  std::cout << kTool << ": " << opt.mesh << ": " << app::thousands(n) << " vertices, --solver multigrid ("
+            << hierarchy.num_levels() << " levels, hierarchy " << ice::proxy::spelling(hierarchy.cache.status) << ")\n";
+  std::cout << "  setup " << app::fixed(setup_seconds, 4) << " s, " << heat.steps << " steps " << app::fixed(steps_seconds, 4)
+            << " s (" << app::fixed(sum / static_cast<double>(iterations.size()), 2) << " iterations a step, at most " << most
+            << ")\n";
+  if (!opt.no_reference)
+    std::cout << "  vs CHOLMOD steps: relative L2 " << app::relative_error(error_json["rel_l2"]) << " at worst, max abs "
+              << static_cast<double>(error_json["max_abs"]) << " (CHOLMOD setup " << app::fixed(timings["reference_setup"], 4)
+              << " s, steps " << app::fixed(timings["reference_steps"], 4) << " s)\n";
+  if (!opt.solutions.empty())
+    std::cout << "  wrote " << opt.solutions << " (" << app::thousands(n) << " x " << states.cols() << ")\n";
+  app::print_written(std::cout, opt, nullptr);
+  return app::kOk;
+}
 
 }  // namespace
 
@@ -47,6 +164,12 @@ int main(int argc, char** argv) {
       ->check(app::integer_between(1, 100000000));
   cli.add_option("--solutions", opt.solutions, "Write the states as .npy (float64, n x outputs)");
   opt.add_to(cli, "'solution' (the last state), 'reference', 'error'");
+  std::string solver = "proxy";
+  cli.add_option("--solver", solver, "proxy (steps on the coarse level), or exact: multigrid (fine steps)")
+      ->check(CLI::IsMember({"proxy", "multigrid"}))
+      ->capture_default_str();
+  app::MultigridCli mg;
+  mg.add_to(cli);
   opt.add_cache_options(cli);
   ice::proxy::Prolongation prolongation = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(cli, prolongation);
@@ -93,6 +216,8 @@ int main(int argc, char** argv) {
       const double h = fem::mean_edge_length(ice::face_lengths_from_positions(mesh.V, mesh.F));
       time_step = h * h;
     }
+    if (solver == "multigrid")
+      return step_on_fine_mesh(mg, opt, mesh, HeatProblem{u0, u0_name, time_step, steps, every}, clock.lap());
     ice::CoarsenOptions coarsen_options;
     opt.target.apply(coarsen_options, n);
     run.fine_vertices = n;
@@ -125,33 +250,10 @@ int main(int argc, char** argv) {
       run.ref_assemble = clock.lap();
       const fem::HeatSolver fine_heat(L, M, time_step, ice::proxy::kFineReferenceOrdering);
       run.ref_factor = clock.lap();
-      std::vector<Eigen::VectorXd> fine_states;
-      Eigen::VectorXd u = u0;
-      std::size_t next = 0;
-      for (int k = 1; k <= steps; ++k) {
-        u = fine_heat.step(u);
-        if (next < output_steps.size() && output_steps[next] == k) {
-          fine_states.push_back(u);
-          ++next;
-        }
-      }
+      const Eigen::MatrixXd fine_states = fine_heat.trajectory(u0, steps, every);
       run.ref_solve = clock.lap();
-      double worst = 0, worst_max_abs = 0;
-      int worst_step = output_steps.front();
-      nlohmann::json per_output = nlohmann::json::array();
-      for (std::size_t j = 0; j < fine_states.size(); ++j) {
-        const Eigen::VectorXd state = states.col(static_cast<Eigen::Index>(j));
-        const double rel = fem::relative_l2_error(state, fine_states[j], M);
-        const double max_abs = fem::max_abs_error(state, fine_states[j]);
-        per_output.push_back({{"step", output_steps[j]}, {"rel_l2", rel}, {"max_abs", max_abs}});
-        if (rel >= worst) {
-          worst = rel;
-          worst_step = output_steps[j];
-        }
-        worst_max_abs = std::max(worst_max_abs, max_abs);
-      }
-      error_json = {{"rel_l2", worst}, {"worst_step", worst_step}, {"max_abs", worst_max_abs}, {"outputs", per_output}};
-      reference = fine_states.back();
+      error_json = state_errors(states, fine_states, M, output_steps);
+      reference = fine_states.col(fine_states.cols() - 1);
       clock.lap();
     }
     if (!opt.solutions.empty()) ice::write_npy_matrix(opt.solutions, states, opt.force);
@@ -164,8 +266,9 @@ int main(int argc, char** argv) {
     run.write = clock.lap();
 
     nlohmann::json report = run.report();
-    report["heat"] = {{"time_step", time_step}, {"steps", steps}, {"output_every", every}, {"output_steps", output_steps},
-                      {"initial_field", u0_name}, {"restriction", "l2_projection"}};
+    report["heat"] = HeatProblem{u0, u0_name, time_step, steps, every}.json();
+    report["heat"]["output_steps"] = output_steps;
+    report["heat"]["restriction"] = "l2_projection";
     report["timings_s"]["per_step"] = run.per_solve();
     if (run.has_reference) {
       report["error"] = error_json;

@@ -28,6 +28,7 @@
 #include "fem/multigrid.h"
 #include "fem/problems.h"
 #include "ice/hierarchy.h"
+#include "ice/proxy/multigrid.h"
 #include "ice/large_array.h"
 #include "ice/scalar_field_io.h"
 
@@ -67,19 +68,6 @@ nlohmann::json block_error_json(const Eigen::MatrixXd& solutions, const Eigen::M
 
 const std::string kTool = "poisson-coarse";
 
-// Options of --solver multigrid: the hierarchy's, and the solver's (tolerance, threads, cycle,
-// smoother) straight into fem::MultigridOptions.
-struct MultigridCli {
-  double ratio = 0.25;
-  long long coarsest = 500;
-  fem::MultigridOptions options;
-};
-const std::map<std::string, fem::MultigridSmoother> kSmootherNames{
-    {"sgs", fem::MultigridSmoother::symmetric_gauss_seidel},
-    {"gs", fem::MultigridSmoother::gauss_seidel},
-    {"chebyshev", fem::MultigridSmoother::chebyshev}};
-const std::map<std::string, fem::MultigridMode> kCycleNames{{"pcg", fem::MultigridMode::pcg},
-                                                            {"vcycle", fem::MultigridMode::vcycle}};
 const std::map<std::string, fem::CholeskyOrdering> kOrderingNames{
     {"automatic", fem::CholeskyOrdering::automatic},
     {"amd", fem::CholeskyOrdering::amd},
@@ -97,7 +85,7 @@ fem::PoissonSolver fine_poisson_solver(const fem::SparseMatrix& L, const fem::Sp
 // --solver multigrid|direct: the fine problem solved exactly (to --mg-tolerance for multigrid) on
 // the fine mesh by fem::PoissonSolver (CHOLMOD, or multigrid on an ICE hierarchy); writes the
 // outputs and the report itself.
-app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& mg, const app::PdeOptions& opt,
+app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::MultigridCli& mg, const app::PdeOptions& opt,
                        const ice::TriangleMesh& mesh, Eigen::VectorXd f, std::string rhs_name,
                        const std::vector<int>& fixed_vertices, const Eigen::VectorXd& fixed_values, double load_seconds,
                        fem::CholeskyOrdering ordering, const Eigen::MatrixXd& block) {
@@ -112,14 +100,16 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   const double assemble_seconds = clock.lap();
   nlohmann::json solver_json = {{"kind", solver}};
   nlohmann::json timings;
+  nlohmann::json cache = {{"status", "off"}};  // the multigrid hierarchy's store
   Eigen::VectorXd u;
-  // Several sources (--rhs FILE.npy): one block solve (CHOLMOD: one call; multigrid: per column),
+  // Several sources (--rhs FILE.npy): one block solve (CHOLMOD: one call; multigrid: block V-cycles),
   // the Dirichlet values of --fix for each.
   const Eigen::Index sources = std::max<Eigen::Index>(1, block.cols());
   const Eigen::MatrixXd weighted_block = block.cols() > 1 ? (M * block).eval() : Eigen::MatrixXd();
   const Eigen::MatrixXd fixed_block =
       block.cols() > 1 && dirichlet ? fixed_values.replicate(1, block.cols()).eval() : Eigen::MatrixXd();
   Eigen::MatrixXd U;
+  clock.lap();  // weighting the sources is the problem's, neither route's setup
   const auto solve_all = [&](const fem::PoissonSolver& poisson) {
     if (block.cols() > 1)
       U = poisson.solve_multiple_weighted(weighted_block, fixed_block);
@@ -139,14 +129,10 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
     solver_json["ordering"] = fem::to_string(ordering);
     timings = {{"setup", setup_seconds}, {"solve", solve_seconds}};
   } else {
-    ice::HierarchyOptions ho;
-    ho.ratio = mg.ratio;
-    ho.coarsest_vertices = static_cast<ice::Index>(mg.coarsest);
-    ice::Hierarchy hierarchy = ice::build_hierarchy(mesh, ho);
+    const ice::proxy::Store store = opt.store();
+    const ice::proxy::MultigridHierarchy hierarchy = ice::proxy::multigrid_hierarchy(mesh, mg.hierarchy, store);
     const double hierarchy_seconds = clock.lap();
-    // The hierarchy's locality order of the fine vertices, not a second ordering of the same mesh.
-    fem::PoissonMultigrid cycle_setup{std::move(hierarchy.prolongations), mg.options, false, std::move(hierarchy.fine_order)};
-    const fem::PoissonSolver poisson = make_solver(std::move(cycle_setup));
+    const fem::PoissonSolver poisson = make_solver(hierarchy.poisson_multigrid(mg.options));
     const double numeric_setup = clock.lap();
     setup_seconds = hierarchy_seconds + numeric_setup;
     solve_all(poisson);
@@ -157,11 +143,15 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
       app::warn(kTool, "multigrid stopped after " + std::to_string(r.iterations) + " iterations at relative residual " +
                            std::to_string(r.relative_residual) + " (tolerance " + std::to_string(mg.options.tolerance) + ")");
     solver_json.update(ice::proxy::multigrid_json(multigrid));
-    solver_json.update({{"hierarchy", {{"ratio", mg.ratio}, {"coarsest_vertices", mg.coarsest}, {"levels", hierarchy.num_levels()},
+    solver_json.update({{"hierarchy", {{"ratio", mg.hierarchy.ratio}, {"coarsest_vertices", mg.hierarchy.coarsest_vertices}, {"levels", hierarchy.num_levels()},
                                        {"grid_complexity", hierarchy.grid_complexity()}, {"stop_reason", hierarchy.stop_reason},
                                        {"coarsen_seconds", hierarchy.coarsen_seconds}}}});
+    cache = ice::proxy::cache_json(hierarchy.cache, store);
+    if (hierarchy.cache.status == ice::proxy::CacheStatus::rebuilt)
+      app::warn(kTool, "the stored hierarchy was damaged and is rebuilt: " + hierarchy.cache.damage);
     timings = {{"setup", setup_seconds}, {"hierarchy", hierarchy_seconds}, {"galerkin_and_coarse_factor", numeric_setup},
-               {"solve", solve_seconds}};
+               {"solve", solve_seconds}, {"cache_load", hierarchy.cache.load_seconds},
+               {"cache_save", hierarchy.cache.save_seconds}};
   }
   timings["load"] = load_seconds;
   timings["fine_mesh"] = fine_mesh_seconds;
@@ -191,6 +181,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const MultigridCli& 
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
   report["fine_mesh"] = {{"kind", opt.fine_idt ? "intrinsic Delaunay" : "input"}, {"flips", fine.flips}};
   report["timings_s"] = timings;
+  report["cache"] = cache;
   report["rhs"] = rhs_name;
   report["sources"] = sources;
   report["boundary_conditions"] = dirichlet ? "dirichlet" : "zero-mean neumann";
@@ -236,25 +227,15 @@ int main(int argc, char** argv) {
                  "Dirichlet condition V=value at vertex V (0-based); repeat or comma-separate")
       ->delimiter(',')
       ->allow_extra_args(false);
-  MultigridCli mg;
+  app::MultigridCli mg;
   cli.add_option("--solver", solver,
                  "proxy (coarse solve), or exact: multigrid or direct (CHOLMOD)")
       ->check(CLI::IsMember({"proxy", "multigrid", "direct"}))
       ->capture_default_str();
-  cli.add_option("--mg-tolerance", mg.options.tolerance, "multigrid: relative residual to reach")->check(app::positive_number())->capture_default_str();
-  cli.add_option("--mg-ratio", mg.ratio, "multigrid: vertex fraction kept per level")->check(app::number_between(0.01, 0.9))->capture_default_str();
-  cli.add_option("--mg-coarsest", mg.coarsest, "multigrid: vertices of the coarsest level (CHOLMOD)")
-      ->check(app::integer_between(1, std::numeric_limits<int>::max()))
-      ->capture_default_str();
-  app::add_choice(cli, "--mg-smoother", mg.options.smoother, kSmootherNames,
-                  "multigrid smoother");
-  app::add_choice(cli, "--mg-cycle", mg.options.mode, kCycleNames, "multigrid: V-cycle preconditioned CG, or plain V-cycles");
+  mg.add_to(cli);
   fem::CholeskyOrdering cholmod_ordering = ice::proxy::kFineReferenceOrdering;
   app::add_choice(cli, "--cholmod-ordering", cholmod_ordering, kOrderingNames,
                   "CHOLMOD ordering of exact fine solves");
-  cli.add_option("--mg-threads", mg.options.threads,
-                 "multigrid: threads on levels of 50,000+ unknowns (0: all cores)")
-      ->check(app::non_negative_integer())->capture_default_str();
   opt.add_to(cli, "'solution', 'reference', 'error'");
   opt.add_polish_options(cli);
   opt.add_cache_options(cli);

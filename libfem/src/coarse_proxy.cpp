@@ -606,9 +606,7 @@ Eigen::MatrixXd ProxyHeatSolver::trajectory(const Eigen::Ref<const Eigen::Vector
   if (steps < 1 || every < 1) throw std::invalid_argument("ProxyHeatSolver::trajectory: steps and every must be >= 1");
   if (fine_) throw std::invalid_argument("ProxyHeatSolver::trajectory: polishing needs every fine step (use integrate)");
   if (fine_u0.size() != proxy_->fine_size()) throw std::invalid_argument("ProxyHeatSolver::trajectory: wrong size");
-  std::vector<int> listed;
-  for (long long k = every; k <= steps; k += every) listed.push_back(static_cast<int>(k));
-  if (listed.empty() || listed.back() != steps) listed.push_back(steps);
+  const std::vector<int> listed = fem::output_steps(steps, every);
   if (times) *times = ProxyPhaseTimes();
   Clock::time_point mark = Clock::now();
   // The coarse states of the listed steps, stepped as integrate() steps them.

@@ -188,20 +188,19 @@ Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Ei
 }
 
 Eigen::MatrixXd PoissonSolver::solve_multiple_weighted(const Eigen::MatrixXd& B, const Eigen::MatrixXd& dirichlet_values) const {
-  if (multigrid_) {  // iterative: one solve per column
-    Eigen::MatrixXd X(B.rows(), B.cols());
-    for (Eigen::Index j = 0; j < B.cols(); ++j)
-      X.col(j) = solve_weighted(B.col(j), dirichlet_values.size() == 0 ? Eigen::VectorXd() : Eigen::VectorXd(dirichlet_values.col(j)));
-    return X;
-  }
-  if (!zero_mean_) return direct_->solve_multiple(B, dirichlet_values);
+  const auto solve_block = [&](const Eigen::MatrixXd& rhs, const Eigen::MatrixXd& values) {
+    if (direct_) return direct_->solve_multiple(rhs, values);
+    if (rhs.rows() != multigrid_->size()) throw std::invalid_argument("PoissonSolver::solve_multiple: rhs has the wrong size");
+    return multigrid_->solve_multiple(rhs, values);  // block V-cycles: the levels streamed once for all columns
+  };
+  if (!zero_mean_) return solve_block(B, dirichlet_values);
   Eigen::MatrixXd compatible(B.rows(), B.cols());
   for (Eigen::Index j = 0; j < B.cols(); ++j) {  // column by column, as solve_weighted does
     Eigen::VectorXd b = B.col(j);
     make_compatible(components_, mass_of_one_, b);
     compatible.col(j) = b;
   }
-  Eigen::MatrixXd X = direct_->solve_multiple(compatible);
+  Eigen::MatrixXd X = solve_block(compatible, Eigen::MatrixXd());
   for (Eigen::Index j = 0; j < X.cols(); ++j) {
     Eigen::VectorXd u = X.col(j);
     remove_component_means(components_, mass_of_one_, u);
@@ -212,6 +211,14 @@ Eigen::MatrixXd PoissonSolver::solve_multiple_weighted(const Eigen::MatrixXd& B,
 
 // ---- HeatSolver -------------------------------------------------------------------------------------
 
+std::vector<int> output_steps(int steps, int every) {
+  if (steps < 1 || every < 1) throw std::invalid_argument("output_steps: steps and every must be >= 1");
+  std::vector<int> listed;
+  for (long long k = every; k <= steps; k += every) listed.push_back(static_cast<int>(k));
+  if (listed.empty() || listed.back() != steps) listed.push_back(steps);
+  return listed;
+}
+
 HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, CholeskyOrdering ordering)
     : mass_(mass), time_step_(time_step) {
   require_square(mass, laplacian.rows(), "HeatSolver: mass and Laplacian");
@@ -220,17 +227,57 @@ HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, 
   factor_.compute(SparseMatrix(mass + time_step * laplacian));
 }
 
-Eigen::VectorXd HeatSolver::solve_weighted(const Eigen::VectorXd& b) const { return factor_.solve(b); }
+HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, PoissonMultigrid multigrid)
+    : mass_(mass), time_step_(time_step) {
+  require_square(mass, laplacian.rows(), "HeatSolver: mass and Laplacian");
+  if (!(time_step > 0)) throw std::invalid_argument("HeatSolver: time step must be positive");
+  multigrid_ = std::make_unique<MultigridSolver>(std::move(multigrid.prolongations), multigrid.options);
+  multigrid_->set_locality_order(std::move(multigrid.locality_order));
+  multigrid_->setup(SparseMatrix(mass + time_step * laplacian));
+}
 
-Eigen::MatrixXd HeatSolver::solve_multiple_weighted(const Eigen::MatrixXd& B) const { return factor_.solve_multiple(B); }
+HeatSolver::~HeatSolver() = default;
+HeatSolver::HeatSolver(HeatSolver&&) noexcept = default;
+HeatSolver& HeatSolver::operator=(HeatSolver&&) noexcept = default;
 
-Eigen::VectorXd HeatSolver::step(const Eigen::VectorXd& u) const { return factor_.solve(Eigen::VectorXd(mass_ * u)); }
+Eigen::VectorXd HeatSolver::solve_weighted(const Eigen::VectorXd& b) const {
+  return multigrid_ ? multigrid_->solve(b) : factor_.solve(b);
+}
+
+Eigen::MatrixXd HeatSolver::solve_multiple_weighted(const Eigen::MatrixXd& B) const {
+  return multigrid_ ? multigrid_->solve_multiple(B) : factor_.solve_multiple(B);
+}
+
+Eigen::VectorXd HeatSolver::step(const Eigen::VectorXd& u) const {
+  const Eigen::VectorXd b = mass_ * u;
+  // The previous state is within O(τ) of the next one: a far better start than 0.
+  return multigrid_ ? multigrid_->solve(b, Eigen::VectorXd(), u) : factor_.solve(b);
+}
 
 Eigen::VectorXd HeatSolver::integrate(const Eigen::VectorXd& u0, int steps) const {
   if (steps < 0) throw std::invalid_argument("HeatSolver::integrate: negative number of steps");
   Eigen::VectorXd u = u0;
   for (int k = 0; k < steps; ++k) u = step(u);
   return u;
+}
+
+Eigen::MatrixXd HeatSolver::trajectory(const Eigen::VectorXd& u0, int steps, int every, std::vector<int>* steps_written,
+                                       std::vector<int>* iterations) const {
+  const std::vector<int> listed = output_steps(steps, every);
+  if (u0.size() != mass_.rows()) throw std::invalid_argument("HeatSolver::trajectory: initial state of the wrong size");
+  Eigen::MatrixXd out(u0.size(), static_cast<Eigen::Index>(listed.size()));
+  if (iterations) iterations->clear();
+  Eigen::VectorXd u = u0;
+  int done = 0;
+  for (std::size_t j = 0; j < listed.size(); ++j) {
+    for (; done < listed[j]; ++done) {
+      u = step(u);
+      if (iterations && multigrid_) iterations->push_back(multigrid_->report().iterations);
+    }
+    out.col(static_cast<Eigen::Index>(j)) = u;
+  }
+  if (steps_written) *steps_written = listed;
+  return out;
 }
 
 // ---- Heat method ------------------------------------------------------------------------------------

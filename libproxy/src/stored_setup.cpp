@@ -9,15 +9,16 @@
 #include <type_traits>
 #include <utility>
 
+#include "entry_checks.h"
+
 namespace ice::proxy {
 
 namespace {
 
-constexpr const char* kKind = "proxy";
+using detail::require;
+using detail::seconds_since;
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+constexpr const char* kKind = "proxy";
 
 // Every field of a CoarseSpaceSummary, in one order for both directions: `field` is called with a
 // reference to each (doubles, Index, bool, enums) and the presence flags of its optional parts.
@@ -108,10 +109,6 @@ CoarseSpaceSummary summary_from(const std::vector<double>& values, const std::st
 }
 
 static_assert(std::is_same_v<Index, std::int32_t>, "vertex maps and gluing are stored as int32 arrays as they are");
-
-void require(bool ok, const std::string& path, const std::string& what) {
-  if (!ok) throw std::runtime_error(path + ": " + what);
-}
 
 }  // namespace
 

@@ -174,16 +174,16 @@ class ProxyGeodesicSolver:
 @overload
 def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
               max_levels: int = 20, threads: int = 0,
-              return_order: Literal[False] = False) -> list[scipy.sparse.csr_matrix]:
+              return_order: Literal[False] = False, cache: str | PathLike[str] | Literal[False] | None = None) -> list[scipy.sparse.csr_matrix]:
     """Prolongations of an ICE multigrid hierarchy of (V, F)."""
 @overload
 def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
               max_levels: int = 20, threads: int = 0,
-              return_order: Literal[True]) -> tuple[list[scipy.sparse.csr_matrix], IndexArray]:
+              return_order: Literal[True], cache: str | PathLike[str] | Literal[False] | None = None) -> tuple[list[scipy.sparse.csr_matrix], IndexArray]:
     """Prolongations and the breadth-first numbering the hierarchy coarsened in."""
 @overload
 def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
-              max_levels: int = 20, threads: int = 0, return_order: bool = False
+              max_levels: int = 20, threads: int = 0, return_order: bool = False, cache: str | PathLike[str] | Literal[False] | None = None
               ) -> list[scipy.sparse.csr_matrix] | tuple[list[scipy.sparse.csr_matrix], IndexArray]: ...
 
 class MultigridSolver:

@@ -37,6 +37,7 @@
 #include "ice/coarse_space.h"
 #include "ice/coarse_tracing.h"
 #include "ice/hierarchy.h"
+#include "ice/proxy/multigrid.h"
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
@@ -1350,7 +1351,7 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
   m.def(
       "hierarchy",
       [](const py::object& V, const py::object& F, double ratio, const py::object& coarsest, const py::object& max_levels,
-         const py::object& threads, bool return_order) -> py::object {
+         const py::object& threads, bool return_order, const py::object& cache) -> py::object {
         const ice::TriangleMesh mesh = mesh_argument(V, F);
         if (!(ratio > 0 && ratio < 1)) throw py::value_error("ratio must be in (0, 1)");
         ice::HierarchyOptions options;
@@ -1358,11 +1359,12 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
         options.coarsest_vertices = bounded_integer(coarsest, "coarsest", 1, std::numeric_limits<int>::max());
         options.max_levels = bounded_integer(max_levels, "max_levels", 1, 1000);
         options.threads = bounded_integer(threads, "threads", 0, 64);
-        ice::Hierarchy hierarchy;
+        const ice::proxy::Store store = store_argument(cache);
+        ice::proxy::MultigridHierarchy hierarchy;
         {
           py::gil_scoped_release release;
           require_clean(mesh);
-          hierarchy = ice::build_hierarchy(mesh, options);
+          hierarchy = ice::proxy::multigrid_hierarchy(mesh, options, store);
         }
         py::list prolongations;
         for (auto& P : hierarchy.prolongations) {
@@ -1373,10 +1375,12 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
         return py::make_tuple(prolongations, to_numpy(std::move(hierarchy.fine_order)));
       },
       py::arg("V"), py::arg("F"), py::kw_only(), py::arg("ratio") = 0.25, py::arg("coarsest") = 500,
-      py::arg("max_levels") = 20, py::arg("threads") = 0, py::arg("return_order") = false,
+      py::arg("max_levels") = 20, py::arg("threads") = 0, py::arg("return_order") = false, py::arg("cache") = py::none(),
       R"doc(The prolongations of an ICE multigrid hierarchy of (V, F) (scipy.sparse.csr_matrix, n_k × n_{k+1}, rows
 summing to 1): each level keeps about `ratio` of the previous one's vertices, down to about `coarsest`.
 Pass them to MultigridSolver; one hierarchy serves every operator on the mesh's vertices.
+cache: None (the default store: $ICE_CACHE, else ~/.cache/ice), False (none) or a directory: a hierarchy
+made before with the same mesh and options is loaded from there (checked; the same arrays to the bit).
 threads: for the large levels' removals (0: one per core; the result does not depend on it).
 return_order=True returns (prolongations, order) instead: the breadth-first numbering the hierarchy
 coarsened in (order[new] = old vertex), which MultigridSolver(..., locality_order=order) reuses

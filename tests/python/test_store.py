@@ -119,3 +119,24 @@ def test_two_processes_fill_one_entry(spot, tmp_path, project_mesh):
     assert [p.name for p in (tmp_path / "store").iterdir()] == [next((tmp_path / "store").glob("proxy-*.ice")).name]
     _, warm = ice.setup_proxy(*spot, ratio=0.05, cache=tmp_path / "store")
     assert warm.cache["status"] == "hit"
+
+
+def test_hierarchy_from_the_store(spot, tmp_path):
+    V, F = spot
+    plain, order = ice.hierarchy(V, F, coarsest=200, return_order=True, cache=False)
+    assert not list(tmp_path.glob("hierarchy-*.ice"))
+    cold, cold_order = ice.hierarchy(V, F, coarsest=200, return_order=True, cache=tmp_path)
+    assert len(list(tmp_path.glob("hierarchy-*.ice"))) == 1
+    warm, warm_order = ice.hierarchy(V, F, coarsest=200, return_order=True, cache=tmp_path)
+    assert np.array_equal(order, cold_order) and np.array_equal(order, warm_order)
+    assert len(plain) == len(warm) >= 2
+    for a, b in zip(plain, warm):
+        assert a.shape == b.shape and (a != b).nnz == 0
+    # A damaged entry is rebuilt to the same prolongations.
+    entry = next(tmp_path.glob("hierarchy-*.ice"))
+    data = bytearray(entry.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    entry.write_bytes(bytes(data))
+    again = ice.hierarchy(V, F, coarsest=200, cache=tmp_path)
+    for a, b in zip(plain, again):
+        assert (a != b).nnz == 0

@@ -99,7 +99,8 @@ class PoissonSolver {
                                  const Eigen::VectorXd& initial_guess) const;
   /// solve_weighted for every column of B (mass-weighted right-hand sides) at once: one CHOLMOD
   /// call for all columns (each column equal to its own solve within round-off of the block
-  /// kernels), or one multigrid solve per column. Column j of `dirichlet_values` (one row per
+  /// kernels), or one block multigrid solve (MultigridSolver::solve_multiple: each column equal to
+  /// its own solve within round-off). Column j of `dirichlet_values` (one row per
   /// Dirichlet vertex; empty: zeros) is column j's values.
   Eigen::MatrixXd solve_multiple_weighted(const Eigen::MatrixXd& B, const Eigen::MatrixXd& dirichlet_values = {}) const;
 
@@ -123,31 +124,54 @@ class PoissonSolver {
   std::unique_ptr<MultigridSolver> multigrid_;  ///< multigrid (its solve records a report: not const)
 };
 
+/// The step counts a trajectory of `steps` steps writes out: every, 2·every, … up to steps, and
+/// steps itself when it is not a multiple. Preconditions: steps >= 1, every >= 1
+/// (std::invalid_argument otherwise).
+std::vector<int> output_steps(int steps, int every);
+
 /// Heat flow ∂u/∂t = Δu with natural (Neumann) boundary conditions by backward Euler:
-/// (M + τL) u_{k+1} = M u_k. The matrix M + τL is factored once.
+/// (M + τL) u_{k+1} = M u_k. The matrix M + τL is factored once, or (with a multigrid setup) its
+/// Galerkin levels are built once and each step iterates from the previous state.
 /// Preconditions: τ > 0; M + τL positive definite (true for a valid mesh and a positive mass).
 class HeatSolver {
  public:
   /// `ordering`: the fill-reducing ordering of M + τL's factorisation (fem/cholesky.h).
   HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step,
              CholeskyOrdering ordering = CholeskyOrdering::automatic);
+  /// M + τL solved by Galerkin multigrid on `multigrid`'s prolongations (a hierarchy of the same
+  /// mesh; the struct is the one PoissonSolver takes) to multigrid.options.tolerance (relative
+  /// residual ‖b − Ax‖/‖b‖); step() starts from the state it steps from, solve_weighted() from 0.
+  /// The solver's report() describes the last solve.
+  HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, PoissonMultigrid multigrid);
+  ~HeatSolver();
+  HeatSolver(HeatSolver&&) noexcept;
+  HeatSolver& operator=(HeatSolver&&) noexcept;
 
   /// One implicit step from nodal values u.
   Eigen::VectorXd step(const Eigen::VectorXd& u) const;
   /// `steps` implicit steps from u0 (steps >= 0), i.e. the state at time steps·τ.
   Eigen::VectorXd integrate(const Eigen::VectorXd& u0, int steps) const;
+  /// The states after the steps output_steps(steps, every) lists, one column each (their step
+  /// counts in `steps_written`); column j equals integrate(u0, that count) to the last bit. With
+  /// multigrid, `iterations` (if given) receives each step's iteration count.
+  Eigen::MatrixXd trajectory(const Eigen::VectorXd& u0, int steps, int every, std::vector<int>* steps_written = nullptr,
+                             std::vector<int>* iterations = nullptr) const;
   /// (M + τL)⁻¹ b for a mass-weighted right-hand side b.
   Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b) const;
-  /// The same for every column of B, in one CHOLMOD call.
+  /// The same for every column of B, in one CHOLMOD call (or one block multigrid solve).
   Eigen::MatrixXd solve_multiple_weighted(const Eigen::MatrixXd& B) const;
 
   double time_step() const { return time_step_; }
   const SparseMatrix& mass() const { return mass_; }
+  /// The multigrid solver, or null with CHOLMOD. A multigrid-backed HeatSolver must not solve on
+  /// two threads at once.
+  const MultigridSolver* multigrid() const { return multigrid_.get(); }
 
  private:
   SparseMatrix mass_;
   double time_step_;
   CholeskySolver factor_;
+  std::unique_ptr<MultigridSolver> multigrid_;  ///< its solve records a report: not const
 };
 
 /// Everything the heat method needs on one function space with n unknowns. Gradients are evaluated

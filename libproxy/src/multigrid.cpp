@@ -1,0 +1,158 @@
+#include "ice/proxy/multigrid.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <optional>
+#include <string>
+#include <utility>
+
+#include "entry_checks.h"
+#include "ice/coarsen.h"
+
+namespace ice::proxy {
+
+namespace {
+
+using detail::require;
+using detail::seconds_since;
+
+constexpr const char* kKind = "hierarchy";
+
+void save(const Store& store, const StoreKey& key, MultigridHierarchy& h) {
+  const auto start = std::chrono::steady_clock::now();
+  EntryWriter w;
+  w.put_int("levels", h.num_levels());
+  for (std::size_t k = 0; k < h.prolongations.size(); ++k) {
+    h.prolongations[k].makeCompressed();
+    w.put_sparse("P" + std::to_string(k), h.prolongations[k]);
+  }
+  w.put("fine_order", h.fine_order.data(), h.fine_order.size());
+  w.put_text("stop_reason", h.stop_reason);
+  const double seconds[] = {h.build_seconds, h.coarsen_seconds};
+  w.put("seconds", seconds, 2);
+  std::string error;
+  if (!store.save(kKind, key, w, &error)) h.cache.save_error = error;
+  if (h.cache.status == CacheStatus::off) h.cache.status = CacheStatus::miss;
+  h.cache.save_seconds = seconds_since(start);
+  h.cache.keys.push_back(key.hex());
+}
+
+// The stored hierarchy, checked; nullopt on a miss or a damaged entry (then removed, and `cache` says so).
+std::optional<MultigridHierarchy> load(const Store& store, const StoreKey& key, Index n, CacheReport& cache) {
+  const auto start = std::chrono::steady_clock::now();
+  std::string damage;
+  std::optional<EntryReader> entry = store.load(kKind, key, &damage);
+  if (!entry) {
+    cache.status = damage.empty() ? CacheStatus::miss : CacheStatus::rebuilt;
+    cache.damage = damage;
+    cache.load_seconds = seconds_since(start);
+    return std::nullopt;
+  }
+  const std::string path = entry->path().string();
+  MultigridHierarchy h;
+  h.fine_vertices = n;
+  try {
+    const std::int64_t levels = entry->integer("levels");
+    require(levels >= 1 && levels <= 1000, path, "a level count out of range");
+    Index rows = n;
+    for (std::int64_t k = 0; k + 1 < levels; ++k) {
+      Eigen::SparseMatrix<double> P = entry->sparse("P" + std::to_string(k));
+      require(P.rows() == rows && P.cols() > 0 && P.cols() <= rows, path, "P" + std::to_string(k) + " of the wrong shape");
+      // Interpolation: every fine value a convex combination of coarse ones.
+      Eigen::VectorXd row_sums = Eigen::VectorXd::Zero(P.rows());
+      for (Eigen::Index c = 0; c < P.outerSize(); ++c)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(P, c); it; ++it) {
+          require(it.value() >= 0, path, "P" + std::to_string(k) + " has a negative weight");
+          row_sums(it.row()) += it.value();
+        }
+      for (Eigen::Index i = 0; i < row_sums.size(); ++i)
+        require(std::abs(row_sums(i) - 1.0) <= 1e-10, path, "a row of P" + std::to_string(k) + " does not sum to 1");
+      rows = static_cast<Index>(P.cols());
+      h.prolongations.push_back(std::move(P));
+    }
+    h.fine_order = entry->ints("fine_order");
+    if (!h.fine_order.empty()) {
+      require(static_cast<Index>(h.fine_order.size()) == n, path, "the fine order has the wrong size");
+      std::vector<char> seen(static_cast<std::size_t>(n), 0);
+      for (Index v : h.fine_order) {
+        require(v >= 0 && v < n && !seen[static_cast<std::size_t>(v)], path, "the fine order is not a permutation");
+        seen[static_cast<std::size_t>(v)] = 1;
+      }
+    }
+    h.stop_reason = entry->text("stop_reason");
+    const std::vector<double> seconds = entry->doubles("seconds");
+    require(seconds.size() == 2, path, "build times of the wrong size");
+    h.build_seconds = seconds[0];
+    h.coarsen_seconds = seconds[1];
+  } catch (const std::exception& e) {
+    store.discard(kKind, key);
+    cache.status = CacheStatus::rebuilt;
+    cache.damage = e.what();
+    cache.load_seconds = seconds_since(start);
+    return std::nullopt;
+  }
+  h.cache.status = CacheStatus::hit;
+  h.cache.load_seconds = seconds_since(start);
+  h.cache.keys.push_back(key.hex());
+  return h;
+}
+
+}  // namespace
+
+Index MultigridHierarchy::level_vertices(int k) const {
+  if (k < 0 || k >= num_levels()) throw std::out_of_range("MultigridHierarchy::level_vertices: no such level");
+  if (k == 0) return fine_vertices;
+  return static_cast<Index>(prolongations[static_cast<std::size_t>(k - 1)].cols());
+}
+
+double MultigridHierarchy::grid_complexity() const {
+  const Index n0 = level_vertices(0);
+  if (n0 == 0) return 1;
+  double sum = 0;
+  for (int k = 0; k < num_levels(); ++k) sum += static_cast<double>(level_vertices(k));
+  return sum / static_cast<double>(n0);
+}
+
+fem::PoissonMultigrid MultigridHierarchy::poisson_multigrid(const fem::MultigridOptions& options) const {
+  return fem::PoissonMultigrid{prolongations, options, false, fine_order};
+}
+
+StoreKey multigrid_hierarchy_key(const TriangleMesh& mesh, const HierarchyOptions& o) {
+  KeyHasher h(kKind);
+  h.add_matrix(mesh.V).add_matrix(mesh.F);
+  h.add(o.ratio).add(static_cast<std::int64_t>(o.coarsest_vertices)).add(o.max_levels).add(o.area_weight);
+  h.add(static_cast<int>(o.coarsening)).add(static_cast<int>(o.set_order)).add(o.strong_neighbour_share);
+  h.add(o.remove_boundary).add(o.reorder);
+  std::vector<Index> locked = o.locked_vertices;  // a set: order and repeats do not change the result
+  std::sort(locked.begin(), locked.end());
+  locked.erase(std::unique(locked.begin(), locked.end()), locked.end());
+  h.add_bytes(locked.data(), locked.size() * sizeof(Index));
+  // Independent-set levels are the same for every thread count; greedy levels run ice::coarsen,
+  // whose result depends on the region count its default thread count resolves to here.
+  h.add(o.coarsening == LevelCoarsening::greedy ? coarsening_regions(CoarsenOptions{}) : 0);
+  return h.finish();
+}
+
+MultigridHierarchy multigrid_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options, const Store& store) {
+  std::optional<StoreKey> key;
+  CacheReport cache;
+  if (store.enabled()) {
+    key = multigrid_hierarchy_key(mesh, options);
+    if (std::optional<MultigridHierarchy> stored = load(store, *key, static_cast<Index>(mesh.V.rows()), cache))
+      return std::move(*stored);
+  }
+  Hierarchy built = build_hierarchy(mesh, options);
+  MultigridHierarchy h;
+  h.fine_vertices = static_cast<Index>(mesh.V.rows());
+  h.prolongations = std::move(built.prolongations);
+  h.fine_order = std::move(built.fine_order);
+  h.stop_reason = std::move(built.stop_reason);
+  h.build_seconds = built.seconds;
+  h.coarsen_seconds = built.coarsen_seconds;
+  h.cache = std::move(cache);
+  if (key) save(store, *key, h);
+  return h;
+}
+
+}  // namespace ice::proxy
