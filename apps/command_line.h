@@ -160,7 +160,6 @@ fem::ProlongationKind resolve_prolongation(ice::proxy::Prolongation choice, fem:
 
 // ---- the command line both PDE tools share (geodesic-coarse, poisson-coarse) ---------------------------
 
-/// The command-line options both PDE tools share.
 /// The exact route's options (--mg-*): the hierarchy's and the solver's, straight into
 /// ice::HierarchyOptions and fem::MultigridOptions.
 struct MultigridCli {
@@ -169,6 +168,7 @@ struct MultigridCli {
   void add_to(CLI::App& cli);
 };
 
+/// The command-line options the PDE tools share.
 struct PdeOptions {
   std::string mesh;
   TargetOptions target;

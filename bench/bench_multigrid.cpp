@@ -18,6 +18,9 @@
 //               block10_s (the same 10 in one supernodal solve with a 10-column right-hand side),
 //               block_total10_s = analyze + factor + block10_s, peak_mb
 //   boomeramg:  setup_s, solve_s, iterations, factor, cold_s, solve10_s, total10_s, peak_mb
+//   amgcl:      (with -DICE_AMGCL_DIR, per tolerance: 1e-8 and 1e-4) the same counters
+// and, for 100 right-hand sides (set up once, solve many): BM_MultigridBlock100 (ICE, the hierarchy from
+// a store, block V-cycles), BM_MultigridCholmodBlock100 (AMD, one block solve), BM_MultigridAMGCL100.
 // Run: ice_bench --benchmark_filter=Multigrid (a few minutes; the 1.6M hierarchy dominates).
 #include <benchmark/benchmark.h>
 
@@ -26,6 +29,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <thread>
 #include <fstream>
 #include <map>
@@ -38,6 +42,17 @@
 #include "ice/hierarchy.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
+#include "ice/proxy/multigrid.h"
+
+#ifdef ICE_HAVE_AMGCL
+#include <amgcl/adapter/crs_tuple.hpp>
+#include <amgcl/amg.hpp>
+#include <amgcl/backend/builtin.hpp>
+#include <amgcl/coarsening/smoothed_aggregation.hpp>
+#include <amgcl/make_solver.hpp>
+#include <amgcl/relaxation/spai0.hpp>
+#include <amgcl/solver/cg.hpp>
+#endif
 
 #ifdef ICE_HAVE_HYPRE
 #include <HYPRE.h>
@@ -112,6 +127,21 @@ const Problem& problem(int levels) {
   return cache.emplace(levels, std::move(p)).first->second;
 }
 
+// 100 more right-hand sides of the same kind, for the many-sources benchmarks (made on first use).
+const Eigen::MatrixXd& hundred_sources(int levels) {
+  static std::map<int, Eigen::MatrixXd> cache;
+  auto it = cache.find(levels);
+  if (it != cache.end()) return it->second;
+  const Problem& p = problem(levels);
+  const Eigen::Index n = p.mesh.V.rows();
+  Eigen::MatrixXd F(n, 100);
+  for (int j = 0; j < 100; ++j)
+    for (Eigen::Index i = 0; i < n; ++i)
+      F(i, j) = std::sin((j + 1) * 0.013 * p.mesh.V(i, 0)) + std::cos(0.07 * p.mesh.V(i, 1) + 0.3 * j) +
+                0.3 * std::sin(17.0 * static_cast<double>(i) + j);
+  return cache.emplace(levels, p.M * F).first->second;
+}
+
 void BM_MultigridICE(benchmark::State& state) {
   if (!ice_bench::has_mesh(state, "fandisk.obj")) return;
   const Problem& p = problem(static_cast<int>(state.range(0)));
@@ -170,6 +200,78 @@ void BM_MultigridICE(benchmark::State& state) {
     if (!first.converged) state.SkipWithError("multigrid did not converge");
   }
 }
+
+// Set up once, solve many: 100 right-hand sides by block V-cycles, the hierarchy loaded from a store
+// (ice::proxy::multigrid_hierarchy; made and saved before the timing), against CHOLMOD-AMD's block
+// solve (analyse + factor + one 100-column solve). Counters: load_s (the stored hierarchy),
+// numeric_setup_s, block100_s, warm100_s = all three; cholmod: analyze_s, factor_s, block100_s, total100_s.
+void BM_MultigridBlock100(benchmark::State& state) {
+  if (!ice_bench::has_mesh(state, "fandisk.obj")) return;
+  const int levels = static_cast<int>(state.range(0));
+  const Problem& p = problem(levels);
+  const Eigen::MatrixXd& B = hundred_sources(levels);
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "ice-bench-hierarchy-store";
+  const ice::proxy::Store store({dir, ice::proxy::kDefaultStoreBytes});
+  ice::proxy::multigrid_hierarchy(p.mesh, {}, store);  // cold: made and saved, untimed
+  for (auto _ : state) {
+    PeakMemory memory;
+    auto t = Clock::now();
+    const ice::proxy::MultigridHierarchy H = ice::proxy::multigrid_hierarchy(p.mesh, {}, store);
+    const double load = since(t);
+    if (H.cache.status != ice::proxy::CacheStatus::hit) state.SkipWithError("the stored hierarchy was not found");
+    t = Clock::now();
+    fem::MultigridSolver solver(H.prolongations, fem::MultigridOptions{});
+    solver.set_locality_order(H.fine_order);
+    solver.setup(p.A);
+    const double numeric = since(t);
+    t = Clock::now();
+    const Eigen::MatrixXd X = solver.solve_multiple(B);
+    const double block = since(t);
+    double iterations = 0;
+    for (const auto& r : solver.reports()) {
+      iterations += r.iterations;
+      if (!r.converged) state.SkipWithError("multigrid (block) did not converge");
+    }
+    benchmark::DoNotOptimize(X.data());
+    state.counters["vertices"] = static_cast<double>(p.A.rows());
+    state.counters["load_s"] = load;
+    state.counters["numeric_setup_s"] = numeric;
+    state.counters["block100_s"] = block;
+    state.counters["iterations_mean"] = iterations / 100.0;
+    state.counters["warm100_s"] = load + numeric + block;
+    state.counters["peak_mb"] = memory.stop();
+  }
+}
+BENCHMARK(BM_MultigridBlock100)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
+void BM_MultigridCholmodBlock100(benchmark::State& state) {
+  if (!ice_bench::has_mesh(state, "fandisk.obj")) return;
+  const int levels = static_cast<int>(state.range(0));
+  const Problem& p = problem(levels);
+  const Eigen::MatrixXd& B = hundred_sources(levels);
+  for (auto _ : state) {
+    PeakMemory memory;
+    fem::CholeskySolver chol;
+    chol.set_ordering(fem::CholeskyOrdering::amd);
+    auto t = Clock::now();
+    chol.analyze(p.A);
+    const double analyze = since(t);
+    t = Clock::now();
+    chol.factorize(p.A);
+    const double factor = since(t);
+    t = Clock::now();
+    const Eigen::MatrixXd X = chol.solve_multiple(B);
+    const double block = since(t);
+    benchmark::DoNotOptimize(X.data());
+    state.counters["vertices"] = static_cast<double>(p.A.rows());
+    state.counters["analyze_s"] = analyze;
+    state.counters["factor_s"] = factor;
+    state.counters["block100_s"] = block;
+    state.counters["total100_s"] = analyze + factor + block;
+    state.counters["peak_mb"] = memory.stop();
+  }
+}
+BENCHMARK(BM_MultigridCholmodBlock100)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 
 // Second argument: the fill-reducing ordering (fem::CholeskyOrdering: 0 CHOLMOD's default strategy,
 // 1 AMD only, 2 METIS only, 3 CHOLMOD's nested dissection): a careful user picks the fastest.
@@ -325,6 +427,103 @@ void BM_MultigridBoomerAMG(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_MultigridBoomerAMG)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+#endif
+
+#ifdef ICE_HAVE_AMGCL
+// AMGCL's smoothed aggregation with SPAI(0) smoothing preconditioning CG, its builtin OpenMP
+// backend in double precision (its default setup, what its tutorials use for Poisson problems).
+// Second argument: the tolerance's exponent (8: ‖b − Ax‖ ≤ 1e-8 ‖b‖, as the others; 4: about the
+// proxy's accuracy).
+void BM_MultigridAMGCL(benchmark::State& state) {
+  if (!ice_bench::has_mesh(state, "fandisk.obj")) return;
+  const Problem& p = problem(static_cast<int>(state.range(0)));
+  const double tolerance = std::pow(10.0, -static_cast<double>(state.range(1)));
+  state.SetLabel("tol 1e-" + std::to_string(state.range(1)));
+  using Backend = amgcl::backend::builtin<double>;
+  using Solver = amgcl::make_solver<amgcl::amg<Backend, amgcl::coarsening::smoothed_aggregation, amgcl::relaxation::spai0>,
+                                    amgcl::solver::cg<Backend>>;
+  for (auto _ : state) {
+    PeakMemory memory;
+    auto t = Clock::now();
+    // A is symmetric: its column-major arrays are its row-major ones.
+    const ptrdiff_t n = p.A.rows();
+    std::vector<ptrdiff_t> ptr(p.A.outerIndexPtr(), p.A.outerIndexPtr() + n + 1);
+    std::vector<ptrdiff_t> col(p.A.innerIndexPtr(), p.A.innerIndexPtr() + p.A.nonZeros());
+    std::vector<double> val(p.A.valuePtr(), p.A.valuePtr() + p.A.nonZeros());
+    const double convert = since(t);
+    t = Clock::now();
+    Solver::params prm;
+    prm.solver.tol = tolerance;
+    prm.solver.maxiter = 500;
+    Solver solve(std::tie(n, ptr, col, val), prm);
+    const double setup = since(t);
+    std::vector<double> b(p.B.col(0).data(), p.B.col(0).data() + n), x(static_cast<std::size_t>(n), 0.0);
+    t = Clock::now();
+    auto [iterations, residual] = solve(b, x);
+    const double solve1 = since(t);
+    t = Clock::now();
+    for (int j = 1; j <= 10; ++j) {
+      b.assign(p.B.col(j).data(), p.B.col(j).data() + n);
+      std::fill(x.begin(), x.end(), 0.0);
+      solve(b, x);
+    }
+    const double solve10 = since(t);
+    benchmark::DoNotOptimize(x.data());
+    state.counters["vertices"] = static_cast<double>(n);
+    state.counters["convert_s"] = convert;
+    state.counters["setup_s"] = setup;
+    state.counters["solve_s"] = solve1;
+    state.counters["iterations"] = static_cast<double>(iterations);
+    state.counters["factor"] = iterations > 0 ? std::pow(residual, 1.0 / static_cast<double>(iterations)) : 0.0;
+    state.counters["rel_residual"] = residual;
+    state.counters["cold_s"] = setup + solve1;
+    state.counters["solve10_s"] = solve10;
+    state.counters["total10_s"] = setup + solve10;
+    state.counters["peak_mb"] = memory.stop();
+  }
+}
+BENCHMARK(BM_MultigridAMGCL)->ArgsProduct({{2, 3, 4}, {8, 4}})->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
+// The 100 right-hand sides of BM_MultigridBlock100 one after another (AMGCL has no block solve for
+// a scalar system): setup_s, solve100_s, total100_s. Second argument as above.
+void BM_MultigridAMGCL100(benchmark::State& state) {
+  if (!ice_bench::has_mesh(state, "fandisk.obj")) return;
+  const int levels = static_cast<int>(state.range(0));
+  const Problem& p = problem(levels);
+  const Eigen::MatrixXd& B = hundred_sources(levels);
+  state.SetLabel("tol 1e-" + std::to_string(state.range(1)));
+  using Backend = amgcl::backend::builtin<double>;
+  using Solver = amgcl::make_solver<amgcl::amg<Backend, amgcl::coarsening::smoothed_aggregation, amgcl::relaxation::spai0>,
+                                    amgcl::solver::cg<Backend>>;
+  for (auto _ : state) {
+    const ptrdiff_t n = p.A.rows();
+    std::vector<ptrdiff_t> ptr(p.A.outerIndexPtr(), p.A.outerIndexPtr() + n + 1);
+    std::vector<ptrdiff_t> col(p.A.innerIndexPtr(), p.A.innerIndexPtr() + p.A.nonZeros());
+    std::vector<double> val(p.A.valuePtr(), p.A.valuePtr() + p.A.nonZeros());
+    auto t = Clock::now();
+    Solver::params prm;
+    prm.solver.tol = std::pow(10.0, -static_cast<double>(state.range(1)));
+    prm.solver.maxiter = 500;
+    Solver solve(std::tie(n, ptr, col, val), prm);
+    const double setup = since(t);
+    std::vector<double> b(static_cast<std::size_t>(n)), x(static_cast<std::size_t>(n));
+    double iterations = 0;
+    t = Clock::now();
+    for (int j = 0; j < 100; ++j) {
+      b.assign(B.col(j).data(), B.col(j).data() + n);
+      std::fill(x.begin(), x.end(), 0.0);
+      iterations += static_cast<double>(std::get<0>(solve(b, x)));
+    }
+    const double solve100 = since(t);
+    benchmark::DoNotOptimize(x.data());
+    state.counters["vertices"] = static_cast<double>(n);
+    state.counters["setup_s"] = setup;
+    state.counters["solve100_s"] = solve100;
+    state.counters["iterations_mean"] = iterations / 100.0;
+    state.counters["total100_s"] = setup + solve100;
+  }
+}
+BENCHMARK(BM_MultigridAMGCL100)->ArgsProduct({{3, 4}, {8}})->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 #endif
 
 BENCHMARK(BM_MultigridICE)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();

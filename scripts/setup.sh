@@ -48,7 +48,7 @@ as_root() {
 # doxygen builds the API reference of the public headers (docs/Doxyfile.in: target doc, test api_docs).
 PACKAGES=(
   build-essential cmake pkg-config
-  libeigen3-dev libsuitesparse-dev libxxhash-dev
+  libeigen3-dev libsuitesparse-dev libxxhash-dev libspectra-dev
   libopenblas-dev libopenblas0-pthread libopenblas-pthread-dev
   libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox libtinygltf-dev
   libcgal-demo libhypre-dev xz-utils chromium

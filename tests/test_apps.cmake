@@ -18,7 +18,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   endif()
   set(_ice_app_cases
     coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot refine_spot poisson_spot poisson_fix_rhs_spot
-    poisson_cache heat_block_spot ply_ascii errors view_page help)
+    poisson_cache heat_block_spot heat_multigrid_spot spectral_spot ply_ascii errors view_page help)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
       COMMAND ${CMAKE_COMMAND}
@@ -1106,8 +1106,76 @@ elseif(CASE STREQUAL "report_curvature_divisor")
   endforeach()
   expect_error(4 "curvature-divisor" ice-report ${_common} --curvature-divisor 0 -o "${WORK}/zero")
 
+elseif(CASE STREQUAL "heat_multigrid_spot")
+  # The exact route of heat-coarse: multigrid steps on the fine mesh follow CHOLMOD's, the hierarchy
+  # is stored by the first run and loaded by the second (the same states); block multigrid Poisson
+  # on those states equals CHOLMOD's.
+  project_mesh(mesh spot.obj)
+  file(REMOVE_RECURSE "${WORK}/store")
+  foreach(_run cold warm)
+    run(0 heat-coarse "${mesh}" --solver multigrid --mg-coarsest 100 --steps 12 --output-every 4 --solutions "${WORK}/${_run}.npy"
+        --cache "${WORK}/store" --report "${WORK}/${_run}.json" -q --force)
+  endforeach()
+  require_keys("${WORK}/cold.json" solver.iterations_per_step.mean solver.iterations_per_step.max solver.hierarchy.levels
+               timings_s.hierarchy timings_s.steps timings_s.cache_load error.rel_l2 heat.output_steps)
+  json(cold "${WORK}/cold.json" cache status)
+  json(warm "${WORK}/warm.json" cache status)
+  check_text("${cold}/${warm}" "miss/hit" "cache.status of the hierarchy, cold and warm")
+  json(rel_l2 "${WORK}/cold.json" error rel_l2)
+  check(${rel_l2} LESS 1e-6 "multigrid heat steps vs CHOLMOD's (error.rel_l2)")
+  json(rel_l2_warm "${WORK}/warm.json" error rel_l2)
+  check_text("${rel_l2_warm}" "${rel_l2}" "the warm run's error (the same states)")
+  file(READ "${WORK}/cold.npy" cold_bytes HEX)
+  file(READ "${WORK}/warm.npy" warm_bytes HEX)
+  if(NOT cold_bytes STREQUAL warm_bytes)
+    fail("the warm run's states differ from the cold run's")
+  endif()
+  run(0 poisson-coarse "${mesh}" --solver multigrid --mg-coarsest 100 --rhs "${WORK}/cold.npy" --cache "${WORK}/store"
+      --report "${WORK}/p.json" -q)
+  json(status "${WORK}/p.json" cache status)
+  check_text("${status}" "hit" "poisson-coarse --solver multigrid finds heat-coarse's hierarchy")
+  json(rel_l2 "${WORK}/p.json" error rel_l2)
+  check(${rel_l2} LESS 1e-6 "block multigrid Poisson vs CHOLMOD (error.rel_l2)")
+
+elseif(CASE STREQUAL "spectral_spot")
+  # spectral-coarse: 20 eigenpairs through the proxy against the fine eigensolver; the vectors are
+  # written n x k; a second run loads the setup from the store and gives the same basis; bad k is a
+  # usage error.
+  project_mesh(mesh spot.obj)
+  file(REMOVE_RECURSE "${WORK}/store")
+  file(REMOVE "${WORK}/e.npy" "${WORK}/e2.npy" "${WORK}/hks.npy")
+  run(0 spectral-coarse "${mesh}" -k 20 --ratio 0.1 --solutions "${WORK}/e.npy" --hks 0.001,0.01 --descriptors "${WORK}/hks.npy"
+      --cache "${WORK}/store" --report "${WORK}/s.json" -q)
+  set(r "${WORK}/s.json")
+  require_keys("${r}" eigen.values error.eigenvalue_rel_median error.eigenvalue_rel_max error.angle_deg_median
+               residual.max timings_s.proxy_total timings_s.reference cache.status)
+  json(median "${r}" error eigenvalue_rel_median)
+  check(${median} LESS 0.05 "median relative eigenvalue error of 20 pairs at 10 %")
+  json(zero "${r}" error zero_modes)
+  check(${zero} EQUAL 1 "zero modes of a connected mesh")
+  file(READ "${WORK}/e.npy" header OFFSET 10 LIMIT 100)
+  if(NOT header MATCHES "'shape': \\(2930, 20\\)")
+    fail("e.npy header: ${header}")
+  endif()
+  file(READ "${WORK}/hks.npy" header OFFSET 10 LIMIT 100)
+  if(NOT header MATCHES "'shape': \\(2930, 2\\)")
+    fail("hks.npy header: ${header}")
+  endif()
+  run(0 spectral-coarse "${mesh}" -k 20 --ratio 0.1 --solutions "${WORK}/e2.npy" --no-reference --cache "${WORK}/store"
+      --report "${WORK}/s2.json" -q)
+  json(status "${WORK}/s2.json" cache status)
+  check_text("${status}" "hit" "spectral-coarse's second run: cache.status")
+  file(READ "${WORK}/e.npy" first HEX)
+  file(READ "${WORK}/e2.npy" second HEX)
+  if(NOT first STREQUAL second)
+    fail("the warm run's eigenvectors differ from the cold run's")
+  endif()
+  expect_error(4 "coarse target is" spectral-coarse "${mesh}" -k 200 --vertices 100)
+  expect_error(4 "the mesh has" spectral-coarse "${mesh}" -k 5000 --ratio 0.1)
+  expect_error(4 "go together" spectral-coarse "${mesh}" -k 5 --ratio 0.1 --hks 0.1)
+
 elseif(CASE STREQUAL "help")
-  foreach(_tool ice-info ice-coarsen poisson-coarse heat-coarse geodesic-coarse vector-coarse ice-cache)
+  foreach(_tool ice-info ice-coarsen poisson-coarse heat-coarse geodesic-coarse vector-coarse spectral-coarse ice-cache)
     check_help(${_tool})
   endforeach()
 

@@ -27,14 +27,17 @@ from ._ice import (  # noqa: F401  (the package's API)
     cotan_laplacian,
     curvature_corrected_lengths,
     face_lengths,
+    heat_kernel_signature,
     hierarchy,
     intrinsic_delaunay,
     load_coarse_mesh,
     loop_subdivide,
     mass_matrix,
+    proxy_eigenbasis,
     save_mesh,
     setup_proxy,
     validate,
+    wave_kernel_signature,
 )
 from . import _ice
 
@@ -45,9 +48,9 @@ import numpy as np
 __all__ = [
     "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
-    "curvature_corrected_lengths", "face_lengths", "geodesic_distance", "heat_flow", "hierarchy", "intrinsic_delaunay", "load_coarse_mesh",
-    "load_mesh", "loop_subdivide", "mass_matrix", "read_mesh", "save_mesh", "setup_proxy", "solve_poisson", "transport_vectors",
-    "validate",
+    "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
+    "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_mesh", "loop_subdivide", "mass_matrix", "proxy_eigenbasis",
+    "read_mesh", "save_mesh", "setup_proxy", "solve_poisson", "transport_vectors", "validate", "wave_kernel_signature",
     "VectorHeatSolver",
 ]
 __version__ = "0.1.0"
@@ -211,6 +214,24 @@ def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace
                       prolongation=_ice._resolve_prolongation(prolongation, operators, False))
     solver = ProxyHeatSolver(proxy, time_step, restriction=restriction, polish=polish, tolerance=tolerance)
     return solver.integrate(u0, steps) if every is None else solver.steps(u0, steps, every)
+
+
+def eigenbasis(V, F, k: int, *, coarse: CoarseSpace | None = None, fine: str = "intrinsic_delaunay",
+               prolongation: str = "auto", tolerance: float = 1e-10, cache=None, **coarsening):
+    """(values, vectors): the k smallest Laplace–Beltrami eigenpairs of (V, F) through a coarse proxy
+    (spectral-coarse): L φ = λ M φ with the cotan L and lumped M (Neumann boundary), solved on the coarse
+    Galerkin pencil and prolonged. values increasing; vectors (n × k) M-orthonormal on the input mesh.
+
+    coarse / coarsening options (default ratio=0.05), prolongation and cache as for solve_poisson; k must
+    be below the coarse vertex count (ValueError otherwise).
+    """
+    if coarse is None and cache is not False:
+        _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", "galerkin", fine, prolongation, None, cache)
+    else:
+        coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
+        proxy = Proxy(V, F, coarse, operators="galerkin", fine=fine,
+                      prolongation=_ice._resolve_prolongation(prolongation, "galerkin", False))
+    return proxy_eigenbasis(proxy, k, tolerance=tolerance)
 
 
 def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, method: str = "marching",

@@ -277,3 +277,12 @@ def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: Arr
                       sweep_passes: int = 50, sweep_coarse_interval: int = 2, ambient: bool = False,
                       **coarsening: Any) -> ComplexArray | FloatArray:
     """Tangent vectors carried from sources to every vertex through a coarse proxy in one call."""
+
+def eigenbasis(V: ArrayLike, F: ArrayLike, k: int, *, coarse: CoarseSpace | None = None,
+               fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
+               prolongation: Literal["auto", "barycentric", "smoothed"] = "auto", tolerance: float = 1e-10,
+               cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> tuple[FloatArray, FloatArray]:
+    """The k smallest Laplace–Beltrami eigenpairs through a coarse proxy: (values, vectors (n × k))."""
+def proxy_eigenbasis(proxy: Proxy, k: int, *, tolerance: float = 1e-10) -> tuple[FloatArray, FloatArray]: ...
+def heat_kernel_signature(values: ArrayLike, vectors: ArrayLike, times: ArrayLike) -> FloatArray: ...
+def wave_kernel_signature(values: ArrayLike, vectors: ArrayLike, energies: ArrayLike, sigma: float) -> FloatArray: ...

@@ -37,6 +37,7 @@
 #include "ice/coarse_space.h"
 #include "ice/coarse_tracing.h"
 #include "ice/hierarchy.h"
+#include "ice/proxy/eigen.h"
 #include "ice/proxy/multigrid.h"
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_generators.h"
@@ -1185,6 +1186,51 @@ ProxyPoissonSolver, per step.)doc")
                              "What polishing did in the last integrate().")
       .def_property_readonly("times", [](PyHeatSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last integrate()'s stages.");
+
+  m.def("proxy_eigenbasis", [](std::shared_ptr<PyProxy> proxy, int k, double tolerance) {
+        if (!(tolerance > 0)) throw py::value_error("tolerance must be > 0");
+        fem::EigenOptions options;
+        options.tolerance = tolerance;
+        ice::proxy::Eigenbasis basis;
+        {
+          py::gil_scoped_release release;
+          basis = ice::proxy::proxy_eigenbasis(*proxy->proxy, k, options);
+        }
+        return py::make_tuple(std::move(basis.values), std::move(basis.vectors));
+      },
+      py::arg("proxy"), py::arg("k"), py::kw_only(), py::arg("tolerance") = 1e-10,
+      R"doc((values, vectors): the k smallest eigenpairs of L φ = λ M φ through a Galerkin Proxy (spectral-coarse):
+the coarse pencil's, prolonged; values increasing, vectors (n × k) M-orthonormal with the fine lumped mass.
+ValueError unless 1 <= k < the coarse vertex count and the proxy's operators are Galerkin.)doc");
+  // A one-dimensional array of any length, or a two-dimensional one of any row count.
+  const auto any_vector = [](const py::object& object, const char* name) {
+    const py::array a = py::array::ensure(object);
+    if (!a || a.ndim() != 1) throw py::value_error(std::string(name) + " must be a one-dimensional array");
+    return vector_argument(object, a.shape(0), name);
+  };
+  const auto basis_argument = [any_vector](const py::object& values, const py::object& vectors) {
+    ice::proxy::Eigenbasis basis;
+    basis.values = any_vector(values, "values");
+    const py::array a = py::array::ensure(vectors);
+    if (!a || a.ndim() != 2) throw py::value_error("vectors must be a two-dimensional array (n, k)");
+    basis.vectors = matrix_argument(vectors, a.shape(0), "vectors");
+    if (basis.vectors.cols() != basis.values.size()) throw py::value_error("vectors need one column per value");
+    return basis;
+  };
+  m.def("heat_kernel_signature", [basis_argument, any_vector](const py::object& values, const py::object& vectors, const py::object& times) {
+        const ice::proxy::Eigenbasis basis = basis_argument(values, vectors);
+        return ice::proxy::heat_kernel_signature(basis, any_vector(times, "times"));
+      },
+      py::arg("values"), py::arg("vectors"), py::arg("times"),
+      "HKS(x, t) = sum_i exp(-lambda_i t) phi_i(x)^2: one row per vertex, one column per time (> 0).");
+  m.def("wave_kernel_signature", [basis_argument, any_vector](const py::object& values, const py::object& vectors,
+                                                               const py::object& energies, double sigma) {
+        const ice::proxy::Eigenbasis basis = basis_argument(values, vectors);
+        return ice::proxy::wave_kernel_signature(basis, any_vector(energies, "energies"), sigma);
+      },
+      py::arg("values"), py::arg("vectors"), py::arg("energies"), py::arg("sigma"),
+      "WKS(x, e): the squared eigenfunctions weighted by exp(-(e - log lambda)^2 / (2 sigma^2)), normalised per e\n"
+      "(zero modes left out); one row per vertex, one column per log-energy e.");
 
   m.def("curvature_corrected_lengths", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
                                           const py::object& lengths, double divisor) {

@@ -152,13 +152,16 @@ class MultigridSolver {
                         const Eigen::VectorXd& initial_guess);
 
   /// Solves for every column of B at once (k right-hand sides, constrained_values: one column per
-  /// right-hand side, or empty for zeros): k conjugate-gradient (or V-cycle) iterations run in
-  /// lockstep and every V-cycle smooths, restricts and prolongs the k vectors together, so the
-  /// operators are streamed from memory once per sweep for all of them. Column j stops when it
-  /// reaches the tolerance. Results equal k calls of solve() up to round-off; reports() holds one
-  /// report per column (report() then holds the slowest column's).
+  /// right-hand side, or empty for zeros): in chunks of kBlockColumns columns, whose
+  /// conjugate-gradient (or V-cycle) iterations run in lockstep, every V-cycle smoothing,
+  /// restricting and prolonging the chunk's vectors together, so the operators are streamed from
+  /// memory once per sweep for all of them. Column j stops when it reaches the tolerance. Results
+  /// equal k calls of solve() up to round-off; reports() holds one report per column (report() then
+  /// holds the slowest column's).
   Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values = {});
   const std::vector<MultigridReport>& reports() const { return reports_; }
+  /// The widest chunk of columns solve_multiple() iterates together.
+  static constexpr Eigen::Index kBlockColumns = 8;
 
   /// Makes solve() estimate the relative error of its iterates against the exact solution x*:
   /// ‖B r‖_w / ‖x + B r‖_w (the error over the estimated solution), with r = b − A x, B one V-cycle (the preconditioned residual, which PCG
@@ -207,6 +210,7 @@ class MultigridSolver {
   void vcycle(std::size_t k);
   void smooth(std::size_t k, bool pre);
   void chebyshev(std::size_t k);
+  Eigen::MatrixXd solve_block_columns(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values);
   void apply_vcycle_block(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& R,
                           Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& Z);
 

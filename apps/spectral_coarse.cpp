@@ -1,0 +1,187 @@
+// spectral-coarse: the k smallest Laplace–Beltrami eigenpairs of a mesh (L φ = λ M φ, cotan L,
+// lumped M, Neumann boundary) through an ICE coarse proxy: the coarse Galerkin pencil (PᵀLP, PᵀMP)
+// solved by shift-invert Lanczos and its eigenvectors prolonged (ice::proxy::proxy_eigenbasis);
+// by default compared with the same eigensolver on the fine mesh (eigenvalue errors, angles to the
+// fine eigenspaces, residuals on the fine mesh).
+//
+// Exit codes: see app_common.h.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+
+#include "app_common.h"
+#include "fem/eigen.h"
+#include "fem/errors.h"
+#include "ice/proxy/eigen.h"
+#include "ice/scalar_field_io.h"
+
+namespace {
+
+const std::string kTool = "spectral-coarse";
+
+double median(Eigen::VectorXd v) {
+  if (v.size() == 0) return 0;
+  std::sort(v.data(), v.data() + v.size());
+  const Eigen::Index m = v.size() / 2;
+  return v.size() % 2 ? v(m) : 0.5 * (v(m - 1) + v(m));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
+  CLI::App cli{
+      "spectral-coarse: the k smallest Laplace-Beltrami eigenpairs (cotan L, lumped M, Neumann boundary) through a\n"
+      "small ICE coarse proxy, compared by default with the same eigensolver on the fine mesh.\n\n"
+      "Examples:\n  spectral-coarse spot.obj -k 50 --ratio 0.05 --solutions eigs.npy --report r.json\n"
+      "  spectral-coarse bunny.off -k 20 --vertices 2000 --show 3 --html page.html\n"
+      "  spectral-coarse bunny.off -k 100 --ratio 0.05 --hks 0.001,0.01,0.1 --descriptors hks.npy\n\n"
+      "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written, 4 bad command "
+      "line,\n5 computation failed."};
+  app::PdeOptions opt;
+  int k = 0, show = -1;
+  std::string hks_text, descriptors;
+  cli.add_option("-k,--eigenpairs", k, "Number of eigenpairs (smallest eigenvalues first)")->required()->check(app::integer_between(1, 100000));
+  cli.add_option("--solutions", opt.solutions, "Write the eigenvectors as .npy (float64, n x k, M-orthonormal)");
+  cli.add_option("--show", show, "Eigenfunction drawn by -o/--html (0-based; default 1, the first non-constant)")
+      ->check(app::non_negative_integer());
+  cli.add_option("--hks", hks_text, "Heat kernel signature at these times (comma-separated), written by --descriptors");
+  cli.add_option("--descriptors", descriptors, "Write the --hks descriptors as .npy (float64, n x times)");
+  opt.add_to(cli, "'eigenfunction' (the --show one), 'reference', 'error'");
+  opt.add_cache_options(cli);
+  ice::proxy::Prolongation prolongation = ice::proxy::Prolongation::automatic;
+  app::add_prolongation_option(cli, prolongation);
+  if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
+
+  return app::run_tool(kTool, [&] {
+    opt.check_outputs();
+    if (hks_text.empty() != descriptors.empty()) throw app::AppError(app::kUsage, "--hks and --descriptors go together");
+    if (!descriptors.empty()) app::check_output(descriptors, opt.force, "--descriptors");
+    if (opt.operators != fem::CoarseOperatorKind::galerkin)
+      throw app::AppError(app::kUsage, "the eigenbasis needs Galerkin coarse operators (--operators galerkin)");
+    Eigen::VectorXd hks_times;
+    if (!hks_text.empty()) {
+      const std::vector<double> times = app::parse_number_list(hks_text, "--hks");
+      hks_times = Eigen::Map<const Eigen::VectorXd>(times.data(), static_cast<Eigen::Index>(times.size()));
+      if (hks_times.size() == 0 || !(hks_times.minCoeff() > 0)) throw app::AppError(app::kUsage, "--hks: times must be > 0");
+    }
+    if (show < 0) show = std::min(1, k - 1);
+    if (show >= k) throw app::AppError(app::kUsage, "--show " + std::to_string(show) + ": there are " + std::to_string(k) + " eigenfunctions");
+    opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, "");
+    app::PdeRun run = app::PdeRun::start(kTool, opt, /*proxy_uses_fine_mesh=*/true);
+
+    // ---- load
+    app::Stopwatch clock;
+    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+    const ice::TriangleMesh& mesh = loaded.mesh;
+    const long long n = mesh.V.rows();
+    if (k >= n)
+      throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the mesh has " + std::to_string(n) + " vertices (k < vertices)");
+    ice::CoarsenOptions coarsen_options;
+    opt.target.apply(coarsen_options, n);
+    if (coarsen_options.target_vertices > 0 && k >= coarsen_options.target_vertices)
+      throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the coarse target is " +
+                                           std::to_string(coarsen_options.target_vertices) +
+                                           " vertices (k < coarse vertices: raise --vertices or --ratio)");
+    run.fine_vertices = n;
+    run.fine_faces = mesh.F.rows();
+    run.load = clock.lap();
+
+    // ---- the proxy (from the store when it holds this setup), the coarse eigenproblem, prolongation
+    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, true, run.has_reference, false,
+                                                   opt.store());
+    const fem::CoarseProxy& proxy = *pde.proxy;
+    run.assemble = clock.lap();
+    const Eigen::Index coarse = proxy.coarse_laplacian().rows();
+    if (k >= coarse)
+      throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the coarse space has " + std::to_string(coarse) +
+                                           " vertices (k < coarse vertices: raise --vertices or --ratio)");
+    const ice::proxy::Eigenbasis basis = ice::proxy::proxy_eigenbasis(proxy, k);
+    // One eigenbasis is one "solve": the coarse factorisation and the Lanczos iteration, as the
+    // reference's is its fine factorisation and iteration (both factor L − σM for their own σ).
+    run.solve = basis.eigensolve_seconds;
+    run.prolong = basis.prolong_seconds;
+    run.unit = "eigenbasis";
+    clock.lap();
+
+    // ---- reference: the same eigensolver on the fine mesh
+    nlohmann::json error_json, residual_json, reference_json;
+    Eigen::VectorXd reference_field;
+    const Eigen::VectorXd mass = proxy.fine_mass().diagonal();
+    if (run.has_reference) {
+      const ice::FineMesh& fine = pde.fine;
+      const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
+      const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+      run.ref_assemble = clock.lap();
+      const fem::Eigenpairs ref = fem::smallest_eigenpairs(L, M, k);
+      run.ref_solve = clock.lap();
+      // Relative eigenvalue errors over the pairs whose reference eigenvalue is not a zero mode.
+      const double floor = 1e-8 * ref.values.cwiseAbs().maxCoeff();
+      std::vector<double> relative;
+      nlohmann::json per_pair = nlohmann::json::array();
+      const Eigen::VectorXd angles = fem::eigenspace_angles(basis.vectors, ref.vectors, ref.values, M);
+      const Eigen::VectorXd residuals = fem::eigen_residuals(L, M, basis.values, basis.vectors);
+      for (int j = 0; j < k; ++j) {
+        const double rel = ref.values(j) > floor ? std::abs(basis.values(j) - ref.values(j)) / ref.values(j) : 0.0;
+        if (ref.values(j) > floor) relative.push_back(rel);
+        per_pair.push_back({{"value", basis.values(j)}, {"reference", ref.values(j)}, {"rel", rel},
+                            {"angle_deg", angles(j) * 180 / M_PI}, {"residual", residuals(j)}});
+      }
+      const Eigen::VectorXd rel_vector = Eigen::Map<const Eigen::VectorXd>(relative.data(), static_cast<Eigen::Index>(relative.size()));
+      const Eigen::VectorXd degrees = angles * (180 / M_PI);
+      error_json = {{"eigenvalue_rel_median", median(rel_vector)},
+                    {"eigenvalue_rel_max", rel_vector.size() ? rel_vector.maxCoeff() : 0.0},
+                    {"angle_deg_median", median(degrees)},
+                    {"angle_deg_max", degrees.maxCoeff()},
+                    {"zero_modes", k - static_cast<int>(relative.size())},
+                    {"pairs", per_pair}};
+      residual_json = {{"max", residuals.maxCoeff()}, {"median", median(residuals)}};
+      reference_json = {{"method", "shift-invert Lanczos (Spectra) on a CHOLMOD factorisation"},
+                        {"ordering", fem::to_string(fem::EigenOptions{}.ordering)}, {"restarts", ref.restarts},
+                        {"solves", ref.operations}, {"factor_seconds", ref.factor_seconds}};
+      reference_field = ref.vectors.col(show);
+      if (reference_field.dot(M * basis.vectors.col(show)) < 0) reference_field = -reference_field;  // eigenvectors' sign is free
+      clock.lap();
+    }
+    const Eigen::VectorXd shown = basis.vectors.col(show);
+    if (!opt.solutions.empty()) ice::write_npy_matrix(opt.solutions, basis.vectors, opt.force);
+    if (!descriptors.empty()) ice::write_npy_matrix(descriptors, ice::proxy::heat_kernel_signature(basis, hks_times), opt.force);
+    const std::optional<ice::CoarseTracing> tracing = app::trace_for_outputs(opt, mesh, pde.coarse);
+    const ice::CoarseTracing* traced = tracing ? &*tracing : nullptr;
+    app::write_result_fields(opt, mesh, "eigenfunction", shown, reference_field, {}, traced);
+    app::write_result_page(opt, mesh, "spectral-coarse: " + std::filesystem::path(opt.mesh).filename().string(),
+                           "eigenfunction " + std::to_string(show), "eigenfunction", shown, reference_field, pde.coarse,
+                           traced, nlohmann::json());
+    run.write = clock.lap();
+
+    nlohmann::json report = run.report();
+    std::vector<double> values(basis.values.data(), basis.values.data() + k);
+    report["eigen"] = {{"k", k}, {"values", values}, {"restarts", basis.restarts}, {"shown", show},
+                       {"boundary", "neumann"}};
+    if (!hks_text.empty())
+      report["eigen"]["hks_times"] = std::vector<double>(hks_times.data(), hks_times.data() + hks_times.size());
+    if (run.has_reference) {
+      report["error"] = error_json;
+      report["residual"] = residual_json;
+      report["reference"] = reference_json;
+    }
+    if (!opt.report.empty()) app::write_json_file(opt.report, report, opt.force);
+
+    run.print_summary(std::cout);
+    std::cout << "  problem: the " << k << " smallest eigenpairs; lambda_1.." << std::min(k, 4) << " =";
+    for (int j = 0; j < std::min(k, 4); ++j) std::cout << ' ' << basis.values(j);
+    std::cout << '\n';
+    if (run.has_reference)
+      std::cout << "  vs fine eigenpairs: eigenvalue error median " << app::relative_error(error_json["eigenvalue_rel_median"])
+                << ", max " << app::relative_error(error_json["eigenvalue_rel_max"]) << "; angle to the fine eigenspace median "
+                << app::fixed(error_json["angle_deg_median"], 2) << " deg, max " << app::fixed(error_json["angle_deg_max"], 2)
+                << " deg\n";
+    if (!opt.solutions.empty())
+      std::cout << "  wrote " << opt.solutions << " (" << app::thousands(n) << " x " << k << ")\n";
+    if (!descriptors.empty())
+      std::cout << "  wrote " << descriptors << " (" << app::thousands(n) << " x " << hks_times.size() << ")\n";
+    app::print_written(std::cout, opt, traced);
+    return app::kOk;
+  });
+}

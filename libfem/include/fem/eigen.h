@@ -1,0 +1,63 @@
+#pragma once
+/// \file eigen.h
+/// The k smallest eigenpairs of the generalised symmetric problem L φ = λ M φ (L symmetric positive
+/// semidefinite, M symmetric positive definite): the Laplace–Beltrami eigenbasis of a mesh (cotan L,
+/// lumped or consistent M), or of a coarse proxy (its Galerkin pair PᵀLP, PᵀMP).
+///
+/// Method: implicitly restarted Lanczos in shift-invert mode (Spectra's SymGEigsShiftSolver) with
+/// (L − σM)⁻¹ applied by a CHOLMOD factorisation, σ < 0 so that L − σM is positive definite even
+/// with L's null space (constants, one per connected component): the eigenvalues nearest σ, i.e.
+/// the smallest, converge first.
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fem/cholesky.h"
+#include "fem/operators.h"
+
+namespace fem {
+
+struct EigenOptions {
+  /// Spectra's convergence tolerance: a Ritz value θ of the shifted-inverted problem is accepted when
+  /// its residual estimate is at most tolerance·|θ| (> 0).
+  double tolerance = 1e-10;
+  /// Upper bound on Lanczos restarts (>= 1).
+  int max_restarts = 1000;
+  /// Lanczos basis size; 0: min(n, max(2k + 1, k + 20)). Must exceed k and be at most n.
+  Eigen::Index basis_size = 0;
+  /// The fill-reducing ordering of L − σM's factorisation.
+  CholeskyOrdering ordering = CholeskyOrdering::amd;
+};
+
+struct Eigenpairs {
+  Eigen::VectorXd values;   ///< k eigenvalues, increasing
+  Eigen::MatrixXd vectors;  ///< n × k, M-orthonormal (φᵢᵀ M φⱼ = δᵢⱼ), column j for values(j)
+  double shift = 0;         ///< the σ used
+  int restarts = 0;         ///< Lanczos restarts used
+  long long operations = 0; ///< solves with L − σM
+  double factor_seconds = 0, solve_seconds = 0;
+};
+
+/// The k smallest eigenpairs of L φ = λ M φ. Preconditions: L and M square, of one size n, symmetric;
+/// 1 <= k < n (std::invalid_argument otherwise, naming the sizes). Throws std::runtime_error when
+/// the iteration does not converge within options.max_restarts, NotPositiveDefinite when L − σM is
+/// not positive definite (M not positive definite, L not semidefinite).
+/// Postconditions: values increasing; a mesh of c connected components has c eigenvalues ≈ 0 (to
+/// round-off); vectors M-orthonormal to round-off.
+Eigenpairs smallest_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int k, const EigenOptions& options = {});
+
+/// The relative residual of each pair, ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂); a zero mode (|λ| below 1e-6 times
+/// the largest |λ| given) is judged against that largest |λ| instead (the scale of the basis it
+/// was converged in) rather than dividing by ~0.
+Eigen::VectorXd eigen_residuals(const SparseMatrix& L, const SparseMatrix& M, const Eigen::VectorXd& values,
+                                const Eigen::MatrixXd& vectors);
+
+/// For each column j of `approximate` (n × k), the angle in radians between it and the span of the
+/// columns of `reference` (M-orthonormal, increasing eigenvalues `reference_values`) whose
+/// eigenvalues lie within `cluster` (relative) of reference_values(j): the eigenspace it
+/// approximates, which a repeated or nearly repeated eigenvalue makes wider than one vector. In the
+/// M inner product. Preconditions: same row counts, approximate.cols() <= reference.cols().
+Eigen::VectorXd eigenspace_angles(const Eigen::MatrixXd& approximate, const Eigen::MatrixXd& reference,
+                                  const Eigen::VectorXd& reference_values, const SparseMatrix& M, double cluster = 1e-2);
+
+}  // namespace fem

@@ -1,0 +1,88 @@
+#include "ice/proxy/eigen.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace ice::proxy {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+}  // namespace
+
+EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, std::optional<CoarseSpace> coarse)
+    : options_(std::move(options)) {
+  // Galerkin operators: the prolonged vectors are then M-orthonormal with Rayleigh quotients λ (eigen.h).
+  setup_ = build_proxy_setup(mesh, std::move(coarse), options_.coarsening, {}, options_.fine, fem::CoarseOperatorKind::galerkin,
+                             options_.prolongation, false, Store(options_.store));
+}
+
+Eigenbasis EigenSolver::compute(int k) const { return proxy_eigenbasis(*setup_.proxy, k, options_.eigen); }
+
+Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options) {
+  if (proxy.kind() != fem::CoarseOperatorKind::galerkin)
+    throw std::invalid_argument("eigenbasis: the proxy's coarse operators must be Galerkin (PᵀLP, PᵀMP)");
+  const Eigen::Index coarse = proxy.coarse_laplacian().rows();
+  if (k < 1 || k >= coarse)
+    throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs, the coarse space has " +
+                                std::to_string(coarse) + " vertices (1 <= k < coarse vertices: ask for more coarse vertices)");
+  auto start = Clock::now();
+  const fem::Eigenpairs pairs = fem::smallest_eigenpairs(proxy.coarse_laplacian(), proxy.coarse_mass(), k, options);
+  Eigenbasis basis;
+  basis.eigensolve_seconds = since(start);
+  start = Clock::now();
+  basis.values = pairs.values;
+  basis.vectors = proxy.prolongation() * pairs.vectors;
+  basis.prolong_seconds = since(start);
+  basis.restarts = pairs.restarts;
+  return basis;
+}
+
+Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options) {
+  return EigenSolver(mesh, options).compute(k);
+}
+
+Eigen::MatrixXd heat_kernel_signature(const Eigenbasis& basis, const Eigen::VectorXd& times) {
+  const Eigen::MatrixXd squares = basis.vectors.array().square();
+  Eigen::MatrixXd weights(basis.values.size(), times.size());
+  for (Eigen::Index t = 0; t < times.size(); ++t) {
+    if (!(times(t) > 0)) throw std::invalid_argument("heat_kernel_signature: times must be > 0");
+    weights.col(t) = (-times(t) * basis.values.cwiseMax(0.0).array()).exp().matrix();
+  }
+  return squares * weights;
+}
+
+Eigen::MatrixXd wave_kernel_signature(const Eigenbasis& basis, const Eigen::VectorXd& energies, double wks_sigma) {
+  if (!(wks_sigma > 0)) throw std::invalid_argument("wave_kernel_signature: sigma must be > 0");
+  const double floor = 1e-8 * (basis.values.size() > 0 ? basis.values.cwiseAbs().maxCoeff() : 0.0);
+  const Eigen::MatrixXd squares = basis.vectors.array().square();
+  Eigen::MatrixXd weights = Eigen::MatrixXd::Zero(basis.values.size(), energies.size());
+  for (Eigen::Index e = 0; e < energies.size(); ++e) {
+    double total = 0;
+    for (Eigen::Index i = 0; i < basis.values.size(); ++i) {
+      if (!(basis.values(i) > floor)) continue;  // the zero modes carry no energy
+      const double d = energies(e) - std::log(basis.values(i));
+      weights(i, e) = std::exp(-d * d / (2 * wks_sigma * wks_sigma));
+      total += weights(i, e);
+    }
+    if (total > 0) weights.col(e) /= total;
+  }
+  return squares * weights;
+}
+
+double reconstruction_error(const Eigenbasis& basis, const Eigen::VectorXd& mass, const Eigen::VectorXd& f) {
+  if (mass.size() != basis.vectors.rows() || f.size() != basis.vectors.rows())
+    throw std::invalid_argument("reconstruction_error: the mass and f need one entry per vertex");
+  const Eigen::VectorXd Mf = mass.cwiseProduct(f);
+  const double norm2 = f.dot(Mf);
+  if (!(norm2 > 0)) return 0;
+  const Eigen::VectorXd residual = f - basis.vectors * (basis.vectors.transpose() * Mf);
+  return std::sqrt(residual.dot(mass.cwiseProduct(residual)) / norm2);
+}
+
+}  // namespace ice::proxy

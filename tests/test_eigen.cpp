@@ -1,0 +1,112 @@
+// The Laplace–Beltrami eigenbasis (fem/eigen.h, ice/proxy/eigen.h): on the unit sphere the
+// eigenvalues approach l(l + 1) with multiplicity 2l + 1; a mesh of c components has c zero
+// eigenvalues; the proxy's eigenvalues are upper bounds of the fine ones (Galerkin: Rayleigh
+// quotients), its vectors M-orthonormal on the input mesh and close to the fine eigenspaces;
+// descriptors keep their sums.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "fem/eigen.h"
+#include "fem/operators.h"
+#include "ice/mesh_generators.h"
+#include "ice/proxy/eigen.h"
+
+namespace {
+
+const ice::TriangleMesh& sphere() {
+  static const ice::TriangleMesh mesh = ice::make_icosphere(4);  // 2,562 vertices
+  return mesh;
+}
+
+struct Pencil {
+  fem::SparseMatrix L, M;
+};
+
+Pencil pencil(const ice::TriangleMesh& mesh) {
+  const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
+  return {fem::cotan_laplacian(fine.F, fine.L, mesh.V.rows()),
+          fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, mesh.V.rows())};
+}
+
+double orthonormality_defect(const Eigen::MatrixXd& V, const fem::SparseMatrix& M) {
+  return (V.transpose() * (M * V) - Eigen::MatrixXd::Identity(V.cols(), V.cols())).cwiseAbs().maxCoeff();
+}
+
+}  // namespace
+
+TEST_CASE("eigenpairs of the unit sphere: l(l+1) with multiplicity 2l+1, M-orthonormal, small residuals", "[eigen]") {
+  const Pencil p = pencil(sphere());
+  const fem::Eigenpairs e = fem::smallest_eigenpairs(p.L, p.M, 16);
+  REQUIRE(e.values.size() == 16);
+  CHECK(std::abs(e.values(0)) < 1e-8);
+  for (int j = 1; j < 16; ++j) {
+    CHECK(e.values(j) >= e.values(j - 1));
+    const int l = j < 4 ? 1 : j < 9 ? 2 : 3;  // 3 pairs of l = 1, 5 of l = 2, 7 of l = 3
+    CHECK(e.values(j) == Approx(l * (l + 1)).epsilon(0.01));
+  }
+  CHECK(orthonormality_defect(e.vectors, p.M) < 1e-8);
+  CHECK(fem::eigen_residuals(p.L, p.M, e.values, e.vectors).maxCoeff() < 1e-6);
+  // The reference's own angles to itself are zero, clusters included.
+  CHECK(fem::eigenspace_angles(e.vectors, e.vectors, e.values, p.M).maxCoeff() < 1e-6);
+}
+
+TEST_CASE("eigenpairs: one zero eigenvalue per component; bad k is refused", "[eigen]") {
+  ice::TriangleMesh two = sphere();
+  const ice::TriangleMesh other = ice::make_icosphere(3, 0.5);
+  const auto n = two.V.rows();
+  two.V.conservativeResize(n + other.V.rows(), 3);
+  two.V.bottomRows(other.V.rows()) = other.V.rowwise() + Eigen::RowVector3d(3, 0, 0);
+  two.F.conservativeResize(two.F.rows() + other.F.rows(), 3);
+  two.F.bottomRows(other.F.rows()) = other.F.array() + static_cast<int>(n);
+  const Pencil p = pencil(two);
+  const fem::Eigenpairs e = fem::smallest_eigenpairs(p.L, p.M, 4);
+  CHECK(std::abs(e.values(0)) < 1e-8);
+  CHECK(std::abs(e.values(1)) < 1e-8);
+  CHECK(e.values(2) == Approx(2.0).epsilon(0.01));  // the unit sphere's first nonzero one
+  CHECK_THROWS_AS(fem::smallest_eigenpairs(p.L, p.M, 0), std::invalid_argument);
+  CHECK_THROWS_AS(fem::smallest_eigenpairs(p.L, p.M, static_cast<int>(p.L.rows())), std::invalid_argument);
+}
+
+TEST_CASE("proxy eigenbasis: upper bounds, M-orthonormal on the input mesh, near the fine eigenspaces", "[eigen][proxy]") {
+  const ice::TriangleMesh& mesh = sphere();
+  const Pencil p = pencil(mesh);
+  const int k = 16;
+  const fem::Eigenpairs fine = fem::smallest_eigenpairs(p.L, p.M, k + 8);
+  ice::proxy::EigenbasisOptions options;
+  options.coarsening.coarsen.target_vertices = 500;
+  const ice::proxy::EigenSolver solver(mesh, options);
+  const ice::proxy::Eigenbasis basis = solver.compute(k);
+  REQUIRE(basis.vectors.rows() == mesh.V.rows());
+  REQUIRE(basis.vectors.cols() == k);
+  CHECK(orthonormality_defect(basis.vectors, p.M) < 1e-9);
+  // Rayleigh quotients on the input mesh equal the coarse eigenvalues (Galerkin operators).
+  for (int j = 0; j < k; ++j) {
+    const Eigen::VectorXd phi = basis.vectors.col(j);
+    CHECK(phi.dot(p.L * phi) == Approx(basis.values(j)).margin(1e-9).epsilon(1e-9));
+    CHECK(basis.values(j) >= fine.values(j) - 1e-9);  // Courant–Fischer
+    if (j > 0) CHECK(basis.values(j) <= fine.values(j) * 1.05);
+  }
+  const Eigen::VectorXd angles = fem::eigenspace_angles(basis.vectors, fine.vectors, fine.values, p.M);
+  CHECK(angles.maxCoeff() < 0.2);
+  CHECK_THROWS_AS(solver.compute(0), std::invalid_argument);
+  CHECK_THROWS_AS(solver.compute(static_cast<int>(solver.proxy().coarse_laplacian().rows())), std::invalid_argument);
+
+  SECTION("descriptors keep their sums; an eigenfunction is reconstructed exactly") {
+    const Eigen::VectorXd mass = p.M.diagonal();
+    Eigen::VectorXd times(3);
+    times << 0.01, 0.1, 1.0;
+    const Eigen::MatrixXd hks = ice::proxy::heat_kernel_signature(basis, times);
+    for (Eigen::Index t = 0; t < times.size(); ++t)
+      CHECK(mass.dot(hks.col(t)) == Approx((-times(t) * basis.values.cwiseMax(0.0).array()).exp().sum()).epsilon(1e-9));
+    Eigen::VectorXd energies(2);
+    energies << std::log(2.0), std::log(6.0);
+    const Eigen::MatrixXd wks = ice::proxy::wave_kernel_signature(basis, energies, 0.5);
+    for (Eigen::Index e = 0; e < energies.size(); ++e) CHECK(mass.dot(wks.col(e)) == Approx(1.0).epsilon(1e-9));
+    CHECK(ice::proxy::reconstruction_error(basis, mass, basis.vectors.col(5)) < 1e-9);
+    CHECK(ice::proxy::reconstruction_error(basis, mass, Eigen::VectorXd::Ones(mass.size())) < 1e-6);
+    Eigen::VectorXd rough(mass.size());
+    for (Eigen::Index v = 0; v < rough.size(); ++v) rough(v) = (v % 2 == 0) ? 1.0 : -1.0;
+    CHECK(ice::proxy::reconstruction_error(basis, mass, rough) > 0.5);
+  }
+}
