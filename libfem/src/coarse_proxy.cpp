@@ -204,6 +204,39 @@ Eigen::VectorXd CoarseProxy::prolong(const Eigen::VectorXd& coarse_values) const
   return P_ * coarse_values;
 }
 
+Eigen::MatrixXd CoarseProxy::prolong_block(const Eigen::MatrixXd& coarse_values) const {
+  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  if (coarse_values.rows() != coarse_size()) throw std::invalid_argument("CoarseProxy::prolong_block: wrong number of rows");
+  const Eigen::Index n = fine_size(), k = coarse_values.cols();
+  Eigen::MatrixXd out(n, k);
+  if (k == 0) return out;
+  // P·X column by column streams P once per column and writes scattered rows; gathered per fine row
+  // for a row-major chunk of columns it streams P once per chunk, then the chunk is copied out in
+  // tiles of rows (both measured in docs/measurements.md, "The eigenbasis").
+  const Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows = P_;
+  const int threads = detail::default_threads();
+  // Chunks of 8 columns: P is small beside the fine rows, so more passes over it cost little, and
+  // the fine-size row buffer (n × chunk) stays a fraction of the output.
+  const Eigen::Index chunk = std::min<Eigen::Index>(k, 8);
+  constexpr Eigen::Index kTransposeRows = 64;
+  RowMatrix coarse_chunk(coarse_size(), chunk), rows(n, chunk);
+  for (Eigen::Index first = 0; first < k; first += chunk) {
+    const Eigen::Index width = std::min(chunk, k - first);
+    coarse_chunk.leftCols(width) = coarse_values.middleCols(first, width);
+    if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
+    detail::gather_product_rows(P_rows, coarse_chunk.data(), rows.data(), chunk, threads, n);
+#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
+    for (Eigen::Index tile = 0; tile < (n + kTransposeRows - 1) / kTransposeRows; ++tile) {
+      const Eigen::Index begin = tile * kTransposeRows, end = std::min(n, begin + kTransposeRows);
+      for (Eigen::Index c = 0; c < width; ++c) {
+        double* o = out.col(first + c).data();
+        for (Eigen::Index i = begin; i < end; ++i) o[i] = rows(i, c);
+      }
+    }
+  }
+  return out;
+}
+
 HeatMethodOperators CoarseProxy::coarse_heat_method_operators(double time_factor) const {
   if (kind_ == CoarseOperatorKind::intrinsic)
     return heat_method_operators(coarse_faces_, coarse_lengths_, mass_kind_, time_factor, coarse_size());

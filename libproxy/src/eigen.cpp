@@ -37,7 +37,7 @@ Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::Eig
   basis.eigensolve_seconds = since(start);
   start = Clock::now();
   basis.values = pairs.values;
-  basis.vectors = proxy.prolongation() * pairs.vectors;
+  basis.vectors = proxy.prolong_block(pairs.vectors);
   basis.prolong_seconds = since(start);
   basis.restarts = pairs.restarts;
   return basis;

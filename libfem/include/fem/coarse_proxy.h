@@ -148,6 +148,9 @@ class CoarseProxy {
   Eigen::VectorXd restrict_values(const Eigen::Ref<const Eigen::VectorXd>& u, RestrictionKind kind) const;
   /// P u_c.
   Eigen::VectorXd prolong(const Eigen::VectorXd& coarse_values) const;
+  /// P U_c for every column of U_c (coarse size × k) in passes over a row-major P, each for a chunk
+  /// of columns; each column equals prolong() of it up to the order of its sums (round-off).
+  Eigen::MatrixXd prolong_block(const Eigen::MatrixXd& coarse_values) const;
   /// The coarse vertex that fine vertex v is (P's row v equal to e_j), or -1.
   int coarse_vertex_of(int fine_vertex) const;
 
