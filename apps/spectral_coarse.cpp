@@ -1,5 +1,5 @@
 // spectral-coarse: the k smallest Laplace–Beltrami eigenpairs of a mesh (L φ = λ M φ, cotan L,
-// lumped M, Neumann boundary) through an ICE coarse proxy: the coarse Galerkin pencil (PᵀLP, PᵀMP)
+// lumped M, Neumann boundary or --boundary dirichlet) through an ICE coarse proxy: the coarse Galerkin pencil (PᵀLP, PᵀMP)
 // solved by shift-invert Lanczos and its eigenvectors prolonged (ice::proxy::proxy_eigenbasis);
 // by default compared with the same eigensolver on the fine mesh (eigenvalue errors, angles to the
 // fine eigenspaces, residuals on the fine mesh).
@@ -13,6 +13,7 @@
 #include "app_common.h"
 #include "fem/eigen.h"
 #include "fem/errors.h"
+#include "fem/topology.h"
 #include "ice/proxy/eigen.h"
 #include "ice/scalar_field_io.h"
 
@@ -32,7 +33,7 @@ double median(Eigen::VectorXd v) {
 int main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
-      "spectral-coarse: the k smallest Laplace-Beltrami eigenpairs (cotan L, lumped M, Neumann boundary) through a\n"
+      "spectral-coarse: the k smallest Laplace-Beltrami eigenpairs (cotan L, lumped M; Neumann or Dirichlet) through a\n"
       "small ICE coarse proxy, compared by default with the same eigensolver on the fine mesh.\n\n"
       "Examples:\n  spectral-coarse spot.obj -k 50 --ratio 0.05 --solutions eigs.npy --report r.json\n"
       "  spectral-coarse bunny.off -k 20 --vertices 2000 --show 3 --html page.html\n"
@@ -41,10 +42,13 @@ int main(int argc, char** argv) {
       "line,\n5 computation failed."};
   app::PdeOptions opt;
   int k = 0, show = -1;
-  std::string hks_text, descriptors;
+  std::string hks_text, descriptors, boundary = "neumann";
   cli.add_option("-k,--eigenpairs", k, "Number of eigenpairs (smallest eigenvalues first)")->required()->check(app::integer_between(1, 100000));
+  cli.add_option("--boundary", boundary, "Boundary condition on meshes with a boundary: neumann, or dirichlet (phi = 0)")
+      ->check(CLI::IsMember({"neumann", "dirichlet"}))
+      ->capture_default_str();
   cli.add_option("--solutions", opt.solutions, "Write the eigenvectors as .npy (float64, n x k, M-orthonormal)");
-  cli.add_option("--show", show, "Eigenfunction drawn by -o/--html (0-based; default 1, the first non-constant)")
+  cli.add_option("--show", show, "Eigenfunction drawn by -o/--html (0-based; default: the first non-constant)")
       ->check(app::non_negative_integer());
   cli.add_option("--hks", hks_text, "Heat kernel signature at these times (comma-separated), written by --descriptors");
   cli.add_option("--descriptors", descriptors, "Write the --hks descriptors as .npy (float64, n x times)");
@@ -66,9 +70,12 @@ int main(int argc, char** argv) {
       hks_times = Eigen::Map<const Eigen::VectorXd>(times.data(), static_cast<Eigen::Index>(times.size()));
       if (hks_times.size() == 0 || !(hks_times.minCoeff() > 0)) throw app::AppError(app::kUsage, "--hks: times must be > 0");
     }
-    if (show < 0) show = std::min(1, k - 1);
+    const bool dirichlet = boundary == "dirichlet";
+    if (show < 0) show = dirichlet ? 0 : std::min(1, k - 1);  // the first non-constant eigenfunction
     if (show >= k) throw app::AppError(app::kUsage, "--show " + std::to_string(show) + ": there are " + std::to_string(k) + " eigenfunctions");
-    opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, "");
+    if (dirichlet && prolongation == ice::proxy::Prolongation::smoothed)
+      throw app::AppError(app::kUsage, "--boundary dirichlet needs --prolongation barycentric or auto (a smoothed "
+                                       "prolongation does not vanish on the boundary)");
     app::PdeRun run = app::PdeRun::start(kTool, opt, /*proxy_uses_fine_mesh=*/true);
 
     // ---- load
@@ -78,8 +85,15 @@ int main(int argc, char** argv) {
     const long long n = mesh.V.rows();
     if (k >= n)
       throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the mesh has " + std::to_string(n) + " vertices (k < vertices)");
+    // Dirichlet: φ = 0 on the boundary, whose vertices the coarsening keeps (so coarse functions
+    // vanishing there vanish on the whole fine boundary).
+    const std::vector<ice::Index> fixed = dirichlet ? fem::boundary_vertices(mesh.F) : std::vector<ice::Index>();
+    if (dirichlet && fixed.empty()) app::warn(kTool, "--boundary dirichlet: the mesh has no boundary (no vertex is fixed)");
+    opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, fixed.empty() ? "" : "--boundary dirichlet");
+    run.prolongation = opt.prolongation;
     ice::CoarsenOptions coarsen_options;
     opt.target.apply(coarsen_options, n);
+    coarsen_options.locked_vertices = fixed;
     if (coarsen_options.target_vertices > 0 && k >= coarsen_options.target_vertices)
       throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the coarse target is " +
                                            std::to_string(coarsen_options.target_vertices) +
@@ -93,11 +107,12 @@ int main(int argc, char** argv) {
                                                    opt.store());
     const fem::CoarseProxy& proxy = *pde.proxy;
     run.assemble = clock.lap();
-    const Eigen::Index coarse = proxy.coarse_laplacian().rows();
+    const Eigen::Index coarse = proxy.coarse_laplacian().rows() - static_cast<Eigen::Index>(fixed.size());
     if (k >= coarse)
       throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the coarse space has " + std::to_string(coarse) +
-                                           " vertices (k < coarse vertices: raise --vertices or --ratio)");
-    const ice::proxy::Eigenbasis basis = ice::proxy::proxy_eigenbasis(proxy, k);
+                                           (dirichlet ? " vertices off the boundary" : " vertices") +
+                                           " (k < coarse vertices: raise --vertices or --ratio)");
+    const ice::proxy::Eigenbasis basis = ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed);
     // One eigenbasis is one "solve": the coarse factorisation and the Lanczos iteration, as the
     // reference's is its fine factorisation and iteration (both factor L − σM for their own σ).
     run.solve = basis.eigensolve_seconds;
@@ -114,14 +129,14 @@ int main(int argc, char** argv) {
       const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
       const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
       run.ref_assemble = clock.lap();
-      const fem::Eigenpairs ref = fem::smallest_eigenpairs(L, M, k);
+      const fem::Eigenpairs ref = fem::smallest_eigenpairs_dirichlet(L, M, fixed, k);
       run.ref_solve = clock.lap();
       // Relative eigenvalue errors over the pairs whose reference eigenvalue is not a zero mode.
       const double floor = 1e-8 * ref.values.cwiseAbs().maxCoeff();
       std::vector<double> relative;
       nlohmann::json per_pair = nlohmann::json::array();
       const Eigen::VectorXd angles = fem::eigenspace_angles(basis.vectors, ref.vectors, ref.values, M);
-      const Eigen::VectorXd residuals = fem::eigen_residuals(L, M, basis.values, basis.vectors);
+      const Eigen::VectorXd residuals = fem::eigen_residuals(L, M, basis.values, basis.vectors, fixed);
       for (int j = 0; j < k; ++j) {
         const double rel = ref.values(j) > floor ? std::abs(basis.values(j) - ref.values(j)) / ref.values(j) : 0.0;
         if (ref.values(j) > floor) relative.push_back(rel);
@@ -158,7 +173,7 @@ int main(int argc, char** argv) {
     nlohmann::json report = run.report();
     std::vector<double> values(basis.values.data(), basis.values.data() + k);
     report["eigen"] = {{"k", k}, {"values", values}, {"restarts", basis.restarts}, {"shown", show},
-                       {"boundary", "neumann"}};
+                       {"boundary", boundary}, {"dirichlet_vertices", fixed.size()}};
     if (!hks_text.empty())
       report["eigen"]["hks_times"] = std::vector<double>(hks_times.data(), hks_times.data() + hks_times.size());
     if (run.has_reference) {

@@ -1173,6 +1173,18 @@ elseif(CASE STREQUAL "spectral_spot")
   expect_error(4 "coarse target is" spectral-coarse "${mesh}" -k 200 --vertices 100)
   expect_error(4 "the mesh has" spectral-coarse "${mesh}" -k 5000 --ratio 0.1)
   expect_error(4 "go together" spectral-coarse "${mesh}" -k 5 --ratio 0.1 --hks 0.1)
+  # Dirichlet conditions on an open surface: no zero mode, the eigenvalues close to the fine Dirichlet
+  # ones; a coarse space that is all boundary leaves no free vertex (a usage error naming it).
+  project_mesh(open lion-head.off)
+  run(0 spectral-coarse "${open}" -k 8 --ratio 0.05 --boundary dirichlet --no-cache --report "${WORK}/d.json" -q)
+  json(boundary "${WORK}/d.json" eigen boundary)
+  check_text("${boundary}" "dirichlet" "eigen.boundary")
+  json(zero "${WORK}/d.json" error zero_modes)
+  check(${zero} EQUAL 0 "zero modes under Dirichlet conditions")
+  json(median "${WORK}/d.json" error eigenvalue_rel_median)
+  check(${median} LESS 0.05 "Dirichlet eigenvalue error (median)")
+  project_mesh(holes elephant-with-holes.off)
+  expect_error(4 "vertices off the boundary" spectral-coarse "${holes}" -k 8 --ratio 0.2 --boundary dirichlet --no-cache)
 
 elseif(CASE STREQUAL "help")
   foreach(_tool ice-info ice-coarsen poisson-coarse heat-coarse geodesic-coarse vector-coarse spectral-coarse ice-cache)

@@ -9,6 +9,7 @@
 
 #include "fem/eigen.h"
 #include "fem/operators.h"
+#include "fem/topology.h"
 #include "ice/mesh_generators.h"
 #include "ice/proxy/eigen.h"
 
@@ -108,5 +109,30 @@ TEST_CASE("proxy eigenbasis: upper bounds, M-orthonormal on the input mesh, near
     Eigen::VectorXd rough(mass.size());
     for (Eigen::Index v = 0; v < rough.size(); ++v) rough(v) = (v % 2 == 0) ? 1.0 : -1.0;
     CHECK(ice::proxy::reconstruction_error(basis, mass, rough) > 0.5);
+  }
+}
+
+TEST_CASE("Dirichlet eigenpairs of the unit disk: Bessel zeros squared; the proxy's vanish on the boundary", "[eigen][proxy]") {
+  const ice::TriangleMesh disk = ice::make_flat_disk(24);  // 1,801 vertices
+  const Pencil p = pencil(disk);
+  const std::vector<fem::Index> boundary = fem::boundary_vertices(disk.F);
+  REQUIRE(!boundary.empty());
+  const fem::Eigenpairs fine = fem::smallest_eigenpairs_dirichlet(p.L, p.M, boundary, 6);
+  // j_{0,1}², j_{1,1}² (twice), j_{2,1}² (twice), j_{0,2}²
+  const double expected[] = {5.7832, 14.6820, 14.6820, 26.3746, 26.3746, 30.4713};
+  for (int j = 0; j < 6; ++j) CHECK(fine.values(j) == Approx(expected[j]).epsilon(0.02));
+  for (fem::Index v : boundary) CHECK(fine.vectors.row(v).isZero(0.0));
+  CHECK(fem::eigen_residuals(p.L, p.M, fine.values, fine.vectors, boundary).maxCoeff() < 1e-6);
+
+  ice::proxy::EigenbasisOptions options;
+  options.boundary = ice::proxy::EigenBoundary::dirichlet;
+  options.coarsening.coarsen.target_vertices = 500;
+  const ice::proxy::EigenSolver solver(disk, options);
+  const ice::proxy::Eigenbasis basis = solver.compute(6);
+  CHECK(orthonormality_defect(basis.vectors, p.M) < 1e-9);
+  for (fem::Index v : boundary) CHECK(basis.vectors.row(v).isZero(0.0));
+  for (int j = 0; j < 6; ++j) {
+    CHECK(basis.values(j) >= fine.values(j) - 1e-9);  // the coarse functions are a subspace of the fine Dirichlet ones
+    CHECK(basis.values(j) <= fine.values(j) * 1.05);
   }
 }

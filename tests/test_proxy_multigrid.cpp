@@ -168,9 +168,12 @@ TEST_CASE("multigrid Poisson: a block of sources equals the solves one by one", 
     const Eigen::MatrixXd U = mg.solve_multiple_weighted(B);
     REQUIRE(mg.multigrid()->reports().size() == static_cast<std::size_t>(F.cols()));
     for (const fem::MultigridReport& r : mg.multigrid()->reports()) CHECK(r.converged);
+    const std::vector<fem::MultigridReport> block = mg.multigrid()->reports();
     for (Eigen::Index j = 0; j < F.cols(); ++j) {
       const Eigen::VectorXd single = mg.solve_weighted(B.col(j));
-      CHECK((U.col(j) - single).norm() <= 1e-12 * single.norm());
+      // The same iterations, so the answers differ only by the block kernels' order of sums.
+      REQUIRE(mg.multigrid()->report().iterations == block[static_cast<std::size_t>(j)].iterations);
+      CHECK((U.col(j) - single).norm() <= 1e-10 * single.norm());
       CHECK(fem::relative_l2_error(U.col(j), direct.solve_weighted(B.col(j)), s.M) < 1e-6);
     }
   }
@@ -180,9 +183,11 @@ TEST_CASE("multigrid Poisson: a block of sources equals the solves one by one", 
     Eigen::MatrixXd values(3, F.cols());
     for (Eigen::Index j = 0; j < F.cols(); ++j) values.col(j) << 1.0 * j, -1.0, 0.5;
     const Eigen::MatrixXd U = mg.solve_multiple_weighted(B, values);
+    const std::vector<fem::MultigridReport> block = mg.multigrid()->reports();
     for (Eigen::Index j = 0; j < F.cols(); ++j) {
       const Eigen::VectorXd single = mg.solve_weighted(B.col(j), values.col(j));
-      CHECK((U.col(j) - single).norm() <= 1e-12 * single.norm());
+      REQUIRE(mg.multigrid()->report().iterations == block[static_cast<std::size_t>(j)].iterations);
+      CHECK((U.col(j) - single).norm() <= 1e-10 * single.norm());
       for (int c = 0; c < 3; ++c) CHECK(U(fixed[static_cast<std::size_t>(c)], j) == values(c, j));
     }
   }
@@ -200,19 +205,22 @@ TEST_CASE("multigrid heat steps follow CHOLMOD's; a trajectory's columns equal i
   REQUIRE(mg.multigrid() != nullptr);
   CHECK(direct.multigrid() == nullptr);
   const Eigen::VectorXd u0 = sources(mesh, 1).col(0);
-  std::vector<int> written, iterations;
-  const Eigen::MatrixXd states = mg.trajectory(u0, 7, 3, &written, &iterations);
+  std::vector<int> written;
+  std::vector<fem::MultigridReport> steps;
+  const Eigen::MatrixXd states = mg.trajectory(u0, 7, 3, &written, &steps);
   CHECK(written == std::vector<int>{3, 6, 7});
-  CHECK(iterations.size() == 7);
+  REQUIRE(steps.size() == 7);
+  for (const fem::MultigridReport& r : steps) CHECK(r.converged);
   const Eigen::MatrixXd reference = direct.trajectory(u0, 7, 3);
   REQUIRE(reference.cols() == 3);
   for (Eigen::Index j = 0; j < 3; ++j) {
     CHECK(fem::relative_l2_error(states.col(j), reference.col(j), s.M) < 1e-8);
     CHECK(reference.col(j) == direct.integrate(u0, written[static_cast<std::size_t>(j)]));
   }
-  // Each step starts from the previous state, within O(τ) of the next: no more iterations than from 0.
-  mg.solve_weighted(s.M * states.col(2));
-  CHECK(iterations.back() <= mg.multigrid()->report().iterations);
+  // Each step starts from the previous state, within O(τ) of the next: step 7 (from u₆) takes no
+  // more iterations than its system M u₆ solved from 0.
+  mg.solve_weighted(s.M * states.col(1));
+  CHECK(steps.back().iterations <= mg.multigrid()->report().iterations);
   CHECK(fem::output_steps(10, 5) == std::vector<int>{5, 10});
   CHECK(fem::output_steps(1, 5) == std::vector<int>{1});
   CHECK_THROWS_AS(fem::output_steps(0, 1), std::invalid_argument);

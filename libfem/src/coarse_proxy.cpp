@@ -218,21 +218,13 @@ Eigen::MatrixXd CoarseProxy::prolong_block(const Eigen::MatrixXd& coarse_values)
   // Chunks of 8 columns: P is small beside the fine rows, so more passes over it cost little, and
   // the fine-size row buffer (n × chunk) stays a fraction of the output.
   const Eigen::Index chunk = std::min<Eigen::Index>(k, 8);
-  constexpr Eigen::Index kTransposeRows = 64;
   RowMatrix coarse_chunk(coarse_size(), chunk), rows(n, chunk);
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
     coarse_chunk.leftCols(width) = coarse_values.middleCols(first, width);
     if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
     detail::gather_product_rows(P_rows, coarse_chunk.data(), rows.data(), chunk, threads, n);
-#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
-    for (Eigen::Index tile = 0; tile < (n + kTransposeRows - 1) / kTransposeRows; ++tile) {
-      const Eigen::Index begin = tile * kTransposeRows, end = std::min(n, begin + kTransposeRows);
-      for (Eigen::Index c = 0; c < width; ++c) {
-        double* o = out.col(first + c).data();
-        for (Eigen::Index i = begin; i < end; ++i) o[i] = rows(i, c);
-      }
-    }
+    detail::copy_rows_to_columns(n, width, out, first, threads, [&](Eigen::Index i, Eigen::Index c) { return rows(i, c); });
   }
   return out;
 }
@@ -389,27 +381,29 @@ void require_barycentric(const CoarseProxy& proxy) {
         "(coarse marching reads it from any proxy)");
 }
 
-// The coarse vertices of fine Dirichlet vertices (each must be one).
+}  // namespace
+
 std::vector<Index> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::vector<Index>& fine_vertices) {
   if (!fine_vertices.empty() && proxy.prolongation_kind() == ProlongationKind::smoothed)
     throw std::invalid_argument(
-        "ProxyPoissonSolver: Dirichlet vertices need the barycentric prolongation (a smoothed P does not "
-        "take the prescribed values at them)");
+        "Dirichlet vertices need the barycentric prolongation (a smoothed P does not take the prescribed "
+        "values at them)");
   std::vector<Index> sorted = fine_vertices;
   std::sort(sorted.begin(), sorted.end());
   const auto repeat = std::adjacent_find(sorted.begin(), sorted.end());
   if (repeat != sorted.end())
-    throw std::invalid_argument("ProxyPoissonSolver: Dirichlet vertex " + std::to_string(*repeat) + " given twice");
+    throw std::invalid_argument("Dirichlet vertex " + std::to_string(*repeat) + " given twice");
   std::vector<Index> coarse;
   for (int v : fine_vertices) {
     const int j = proxy.coarse_vertex_of(v);
     if (j < 0)
-      throw std::invalid_argument("ProxyPoissonSolver: Dirichlet vertex " + std::to_string(v) +
-                                  " is not a coarse vertex (lock it when coarsening)");
+      throw std::invalid_argument("Dirichlet vertex " + std::to_string(v) + " is not a coarse vertex (lock it when coarsening)");
     coarse.push_back(j);
   }
   return coarse;
 }
+
+namespace {
 
 // The two-level PCG of polishing (see PolishOptions): P as the one prolongation, the residual
 // criterion out of the way (round-off), the iteration and error-estimate limits from the options.
@@ -595,22 +589,15 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
   if (times) times->restriction = seconds_since(mark);
   const RowMatrix coarse_u = coarse_.solve_multiple_weighted(Eigen::MatrixXd(coarse_rhs), dirichlet_values);
   if (times) times->coarse_solve = seconds_since(mark);
-  constexpr Eigen::Index kTransposeRows = 64;  // rows per tile of the row-major → column-major copy
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
     coarse_chunk.leftCols(width) = coarse_u.middleCols(first, width);
     if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
     gather_product_rows(P_rows_, coarse_chunk.data(), u_rows.data(), chunk, threads, n);
     if (is_zero_mean()) row_means(u_rows.data());
-#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
-    for (Eigen::Index tile = 0; tile < (n + kTransposeRows - 1) / kTransposeRows; ++tile) {
-      const Eigen::Index begin = tile * kTransposeRows, end = std::min(n, begin + kTransposeRows);
-      for (Eigen::Index c = 0; c < width; ++c) {
-        double* out = U.col(first + c).data();
-        for (Eigen::Index i = begin; i < end; ++i)
-          out[i] = u_rows(i, c) - (is_zero_mean() ? means[label_of(i) * stride + static_cast<std::size_t>(c)] : 0.0);
-      }
-    }
+    copy_rows_to_columns(n, width, U, first, threads, [&](Eigen::Index i, Eigen::Index c) {
+      return u_rows(i, c) - (is_zero_mean() ? means[label_of(i) * stride + static_cast<std::size_t>(c)] : 0.0);
+    });
   }
   if (times) times->prolongation = seconds_since(mark);
   return U;

@@ -103,17 +103,65 @@ Eigenpairs smallest_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int
   return out;
 }
 
+Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
+                                         int k, const EigenOptions& options) {
+  if (fixed.empty()) return smallest_eigenpairs(L, M, k, options);
+  const Eigen::Index n = L.rows();
+  std::vector<Index> free_index(static_cast<std::size_t>(n), 0);
+  for (Index v : fixed) {
+    if (v < 0 || v >= n)
+      throw std::invalid_argument("smallest_eigenpairs_dirichlet: fixed index " + std::to_string(v) + " is out of range");
+    free_index[static_cast<std::size_t>(v)] = -1;
+  }
+  std::vector<Index> free;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (free_index[static_cast<std::size_t>(i)] == 0) {
+      free_index[static_cast<std::size_t>(i)] = static_cast<Index>(free.size());
+      free.push_back(static_cast<Index>(i));
+    }
+  const auto nf = static_cast<Eigen::Index>(free.size());
+  if (k >= nf)
+    throw std::invalid_argument("smallest_eigenpairs_dirichlet: asked for " + std::to_string(k) + " eigenpairs, " +
+                                std::to_string(nf) + " unknowns are free (k < free unknowns)");
+  // The free rows and columns of a symmetric matrix.
+  const auto restrict_to_free = [&](const SparseMatrix& A) {
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(static_cast<std::size_t>(A.nonZeros()));
+    for (Eigen::Index c = 0; c < A.outerSize(); ++c) {
+      const Index fc = free_index[static_cast<std::size_t>(c)];
+      if (fc < 0) continue;
+      for (SparseMatrix::InnerIterator it(A, c); it; ++it) {
+        const Index fr = free_index[static_cast<std::size_t>(it.row())];
+        if (fr >= 0) entries.emplace_back(fr, fc, it.value());
+      }
+    }
+    SparseMatrix out(nf, nf);
+    out.setFromTriplets(entries.begin(), entries.end());
+    return out;
+  };
+  Eigenpairs pairs = smallest_eigenpairs(restrict_to_free(L), restrict_to_free(M), k, options);
+  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(n, k);
+  for (Eigen::Index i = 0; i < nf; ++i) full.row(free[static_cast<std::size_t>(i)]) = pairs.vectors.row(i);
+  pairs.vectors = std::move(full);
+  return pairs;
+}
+
 Eigen::VectorXd eigen_residuals(const SparseMatrix& L, const SparseMatrix& M, const Eigen::VectorXd& values,
-                                const Eigen::MatrixXd& vectors) {
+                                const Eigen::MatrixXd& vectors, const std::vector<Index>& fixed) {
   if (vectors.cols() != values.size() || vectors.rows() != L.rows() || M.rows() != L.rows())
     throw std::invalid_argument("eigen_residuals: sizes disagree");
+  Eigen::VectorXd keep = Eigen::VectorXd::Ones(L.rows());
+  for (Index v : fixed) {
+    if (v < 0 || v >= L.rows()) throw std::invalid_argument("eigen_residuals: fixed index out of range");
+    keep(v) = 0;
+  }
   const double largest = values.size() > 0 ? values.cwiseAbs().maxCoeff() : 0.0;
   Eigen::VectorXd out(values.size());
   for (Eigen::Index j = 0; j < values.size(); ++j) {
     const Eigen::VectorXd Mphi = M * vectors.col(j);
     const double scale = std::abs(values(j)) < 1e-6 * largest ? largest : std::abs(values(j));
-    const double denominator = scale * Mphi.norm();
-    out(j) = denominator > 0 ? (L * vectors.col(j) - values(j) * Mphi).norm() / denominator : 0.0;
+    const double denominator = scale * Mphi.cwiseProduct(keep).norm();
+    out(j) = denominator > 0 ? (L * vectors.col(j) - values(j) * Mphi).cwiseProduct(keep).norm() / denominator : 0.0;
   }
   return out;
 }
@@ -123,6 +171,7 @@ Eigen::VectorXd eigenspace_angles(const Eigen::MatrixXd& approximate, const Eige
   if (approximate.rows() != reference.rows() || approximate.cols() > reference.cols() ||
       reference_values.size() != reference.cols() || M.rows() != reference.rows())
     throw std::invalid_argument("eigenspace_angles: sizes disagree");
+  if (approximate.cols() == 0) return Eigen::VectorXd();
   const Eigen::MatrixXd MA = M * approximate;
   const Eigen::MatrixXd coefficients = reference.transpose() * MA;  // reference is M-orthonormal
   const double scale = reference_values.cwiseAbs().maxCoeff();

@@ -223,6 +223,20 @@ const SweepSplit* level_split(LevelData& L, int threads) {
   return &L.split;
 }
 
+// The column a block solve's report() stands for: a column that did not converge if any (the
+// largest residual among those), else the one of most iterations.
+std::size_t worst_report(const std::vector<MultigridReport>& reports) {
+  std::size_t worst = 0;
+  const auto worse = [](const MultigridReport& a, const MultigridReport& b) {
+    if (a.converged != b.converged) return !a.converged;
+    if (!a.converged) return a.relative_residual > b.relative_residual;
+    return a.iterations > b.iterations;
+  };
+  for (std::size_t c = 1; c < reports.size(); ++c)
+    if (worse(reports[c], reports[worst])) worst = c;
+  return worst;
+}
+
 // Block kernels: X, B, R are n × k row-major.
 void residual_block(const SparseMatrix& A, const Block& B, const Block& X, Block& R, int threads) {
   residual_rows(A, {A.valuePtr(), nullptr}, B.data(), X.data(), R.data(), X.cols(), threads);
@@ -859,6 +873,7 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
       (constrained_values.rows() != static_cast<Eigen::Index>(constrained_.size()) || constrained_values.cols() != k))
     throw std::invalid_argument("MultigridSolver::solve_multiple: constrained values must be |C| x k");
   if (k <= kBlockColumns) return solve_block_columns(Bfull, constrained_values);
+  const auto start = Clock::now();
   // Wider blocks in chunks: a sweep's memory traffic is the matrix's (once per chunk) plus every
   // column's vectors, so past a few columns the vectors dominate and wider chunks only cost memory
   // and cache (docs/measurements.md, "Block V-cycles": 4, 8, 16 and 100 columns at 1.66M).
@@ -873,10 +888,9 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
     all.insert(all.end(), reports_.begin(), reports_.end());
   }
   reports_ = std::move(all);
-  std::size_t slowest = 0;
-  for (std::size_t c = 0; c < reports_.size(); ++c)
-    if (reports_[c].iterations > reports_[slowest].iterations) slowest = c;
-  report_ = reports_[slowest];
+  const double seconds = since(start);
+  for (MultigridReport& r : reports_) r.seconds = seconds;  // the whole block's, as for one chunk
+  report_ = reports_[worst_report(reports_)];
   return out;
 }
 
@@ -981,7 +995,6 @@ Eigen::MatrixXd MultigridSolver::solve_block_columns(const Eigen::MatrixXd& Bful
     out.row(constrained_[c]) = constrained_values.size() ? Eigen::RowVectorXd(constrained_values.row(static_cast<Eigen::Index>(c)))
                                                           : Eigen::RowVectorXd::Zero(k);
   const double seconds = since(start);
-  std::size_t slowest = 0;
   for (Eigen::Index c = 0; c < k; ++c) {
     MultigridReport& rep = reports_[static_cast<std::size_t>(c)];
     rep.relative_residual = nf > 0 ? R.col(c).norm() / scale(c) : 0.0;
@@ -990,9 +1003,8 @@ Eigen::MatrixXd MultigridSolver::solve_block_columns(const Eigen::MatrixXd& Bful
     if (rep.iterations > 0 && rep.residuals.front() > 0 && rep.residuals.back() > 0)
       rep.convergence_factor = std::pow(rep.residuals.back() / rep.residuals.front(), 1.0 / rep.iterations);
     rep.seconds = seconds;
-    if (rep.iterations > reports_[slowest].iterations) slowest = static_cast<std::size_t>(c);
   }
-  if (k > 0) report_ = reports_[slowest];
+  if (k > 0) report_ = reports_[worst_report(reports_)];
   return out;
 }
 

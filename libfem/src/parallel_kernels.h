@@ -105,6 +105,22 @@ void scatter_transpose_rows(const RowMajorMatrix& M, const double* in, double* o
   }
 }
 
+// out.col(first + c)(i) = value(i, c) for rows i < n and c < width: a row-major block copied out into
+// columns of a column-major matrix in tiles of rows, so that both sides stay in cache; threaded.
+template <class Value>
+void copy_rows_to_columns(Eigen::Index n, Eigen::Index width, Eigen::MatrixXd& out, Eigen::Index first, int threads,
+                          Value value) {
+  constexpr Eigen::Index kTileRows = 64;
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+  for (Eigen::Index tile = 0; tile < (n + kTileRows - 1) / kTileRows; ++tile) {
+    const Eigen::Index begin = tile * kTileRows, end = std::min(n, begin + kTileRows);
+    for (Eigen::Index c = 0; c < width; ++c) {
+      double* o = out.col(first + c).data();
+      for (Eigen::Index i = begin; i < end; ++i) o[i] = value(i, c);
+    }
+  }
+}
+
 // Vector kernels.
 inline double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int threads) {
   const Eigen::Index n = a.size();

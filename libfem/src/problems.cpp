@@ -122,6 +122,7 @@ PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& 
     multigrid_->setup(laplacian, std::move(constrained));
     // In the mass norm, the norm the errors are reported in (after re-centring in zero-mean mode).
     if (multigrid->estimate_error) multigrid_->set_error_norm(mass_of_one_, zero_mean);
+    estimates_error_ = multigrid->estimate_error;
   } else {
     direct_ = std::make_unique<ConstrainedSolver>(laplacian, std::move(constrained), ordering);
   }
@@ -190,6 +191,13 @@ Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Ei
 Eigen::MatrixXd PoissonSolver::solve_multiple_weighted(const Eigen::MatrixXd& B, const Eigen::MatrixXd& dirichlet_values) const {
   const auto solve_block = [&](const Eigen::MatrixXd& rhs, const Eigen::MatrixXd& values) {
     if (direct_) return direct_->solve_multiple(rhs, values);
+    if (estimates_error_) {  // the error estimate (and its stopping rule) is per solve(): column by column
+      Eigen::MatrixXd X(rhs.rows(), rhs.cols());
+      for (Eigen::Index j = 0; j < rhs.cols(); ++j)
+        X.col(j) = solve_constrained(rhs.col(j), values.size() == 0 ? Eigen::VectorXd() : Eigen::VectorXd(values.col(j)),
+                                     Eigen::VectorXd());
+      return X;
+    }
     if (rhs.rows() != multigrid_->size()) throw std::invalid_argument("PoissonSolver::solve_multiple: rhs has the wrong size");
     return multigrid_->solve_multiple(rhs, values);  // block V-cycles: the levels streamed once for all columns
   };
@@ -262,17 +270,17 @@ Eigen::VectorXd HeatSolver::integrate(const Eigen::VectorXd& u0, int steps) cons
 }
 
 Eigen::MatrixXd HeatSolver::trajectory(const Eigen::VectorXd& u0, int steps, int every, std::vector<int>* steps_written,
-                                       std::vector<int>* iterations) const {
+                                       std::vector<MultigridReport>* step_reports) const {
   const std::vector<int> listed = output_steps(steps, every);
   if (u0.size() != mass_.rows()) throw std::invalid_argument("HeatSolver::trajectory: initial state of the wrong size");
   Eigen::MatrixXd out(u0.size(), static_cast<Eigen::Index>(listed.size()));
-  if (iterations) iterations->clear();
+  if (step_reports) step_reports->clear();
   Eigen::VectorXd u = u0;
   int done = 0;
   for (std::size_t j = 0; j < listed.size(); ++j) {
     for (; done < listed[j]; ++done) {
       u = step(u);
-      if (iterations && multigrid_) iterations->push_back(multigrid_->report().iterations);
+      if (step_reports && multigrid_) step_reports->push_back(multigrid_->report());
     }
     out.col(static_cast<Eigen::Index>(j)) = u;
   }

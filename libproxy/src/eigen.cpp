@@ -1,5 +1,9 @@
 #include "ice/proxy/eigen.h"
 
+#include "entry_checks.h"
+#include "fem/topology.h"
+
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -11,34 +15,42 @@ namespace ice::proxy {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using detail::seconds_since;
 
 }  // namespace
 
 EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, std::optional<CoarseSpace> coarse)
     : options_(std::move(options)) {
   // Galerkin operators: the prolonged vectors are then M-orthonormal with Rayleigh quotients λ (eigen.h).
-  setup_ = build_proxy_setup(mesh, std::move(coarse), options_.coarsening, {}, options_.fine, fem::CoarseOperatorKind::galerkin,
-                             options_.prolongation, false, Store(options_.store));
+  // Dirichlet: the boundary vertices stay coarse vertices (locked), so the coarse functions that
+  // vanish there vanish on the whole fine boundary.
+  const bool dirichlet = options_.boundary == EigenBoundary::dirichlet;
+  if (dirichlet) dirichlet_ = fem::boundary_vertices(mesh.F);
+  setup_ = build_proxy_setup(mesh, std::move(coarse), options_.coarsening, dirichlet_, options_.fine,
+                             fem::CoarseOperatorKind::galerkin, options_.prolongation, !dirichlet_.empty(), Store(options_.store));
 }
 
-Eigenbasis EigenSolver::compute(int k) const { return proxy_eigenbasis(*setup_.proxy, k, options_.eigen); }
+Eigenbasis EigenSolver::compute(int k) const { return proxy_eigenbasis(*setup_.proxy, k, options_.eigen, dirichlet_); }
 
-Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options) {
+Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options,
+                            const std::vector<Index>& dirichlet_vertices) {
   if (proxy.kind() != fem::CoarseOperatorKind::galerkin)
     throw std::invalid_argument("eigenbasis: the proxy's coarse operators must be Galerkin (PᵀLP, PᵀMP)");
-  const Eigen::Index coarse = proxy.coarse_laplacian().rows();
+  std::vector<Index> coarse_fixed = fem::coarse_dirichlet_vertices(proxy, dirichlet_vertices);
+  const Eigen::Index coarse = proxy.coarse_laplacian().rows() - static_cast<Eigen::Index>(coarse_fixed.size());
   if (k < 1 || k >= coarse)
     throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs, the coarse space has " +
-                                std::to_string(coarse) + " vertices (1 <= k < coarse vertices: ask for more coarse vertices)");
+                                std::to_string(coarse) + (coarse_fixed.empty() ? "" : " free") +
+                                " vertices (1 <= k < coarse vertices: ask for more coarse vertices)");
   auto start = Clock::now();
-  const fem::Eigenpairs pairs = fem::smallest_eigenpairs(proxy.coarse_laplacian(), proxy.coarse_mass(), k, options);
+  const fem::Eigenpairs pairs =
+      fem::smallest_eigenpairs_dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed, k, options);
   Eigenbasis basis;
-  basis.eigensolve_seconds = since(start);
+  basis.eigensolve_seconds = seconds_since(start);
   start = Clock::now();
   basis.values = pairs.values;
   basis.vectors = proxy.prolong_block(pairs.vectors);
-  basis.prolong_seconds = since(start);
+  basis.prolong_seconds = seconds_since(start);
   basis.restarts = pairs.restarts;
   return basis;
 }

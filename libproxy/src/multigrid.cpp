@@ -68,6 +68,12 @@ std::optional<MultigridHierarchy> load(const Store& store, const StoreKey& key, 
         }
       for (Eigen::Index i = 0; i < row_sums.size(); ++i)
         require(std::abs(row_sums(i) - 1.0) <= 1e-10, path, "a row of P" + std::to_string(k) + " does not sum to 1");
+      // Every coarse vertex interpolates somewhere (else its Galerkin level would be singular).
+      for (Eigen::Index c = 0; c < P.outerSize(); ++c) {
+        double largest = 0;
+        for (Eigen::SparseMatrix<double>::InnerIterator it(P, c); it; ++it) largest = std::max(largest, it.value());
+        require(largest > 0, path, "column " + std::to_string(c) + " of P" + std::to_string(k) + " is empty");
+      }
       rows = static_cast<Index>(P.cols());
       h.prolongations.push_back(std::move(P));
     }

@@ -23,6 +23,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     ProxyHeatSolver,
     ProxyPoissonSolver,
     VectorHeatSolver,
+    boundary_vertices,
     coarsen,
     cotan_laplacian,
     curvature_corrected_lengths,
@@ -34,6 +35,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     loop_subdivide,
     mass_matrix,
     proxy_eigenbasis,
+    reconstruction_error,
     save_mesh,
     setup_proxy,
     validate,
@@ -48,9 +50,9 @@ import numpy as np
 __all__ = [
     "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
-    "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
+    "boundary_vertices", "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
     "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_mesh", "loop_subdivide", "mass_matrix", "proxy_eigenbasis",
-    "read_mesh", "save_mesh", "setup_proxy", "solve_poisson", "transport_vectors", "validate", "wave_kernel_signature",
+    "read_mesh", "reconstruction_error", "save_mesh", "setup_proxy", "solve_poisson", "transport_vectors", "validate", "wave_kernel_signature",
     "VectorHeatSolver",
 ]
 __version__ = "0.1.0"
@@ -216,22 +218,29 @@ def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace
     return solver.integrate(u0, steps) if every is None else solver.steps(u0, steps, every)
 
 
-def eigenbasis(V, F, k: int, *, coarse: CoarseSpace | None = None, fine: str = "intrinsic_delaunay",
-               prolongation: str = "auto", tolerance: float = 1e-10, cache=None, **coarsening):
+def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace | None = None,
+               fine: str = "intrinsic_delaunay", prolongation: str = "auto", tolerance: float = 1e-10, cache=None,
+               **coarsening):
     """(values, vectors): the k smallest Laplace–Beltrami eigenpairs of (V, F) through a coarse proxy
-    (spectral-coarse): L φ = λ M φ with the cotan L and lumped M (Neumann boundary), solved on the coarse
-    Galerkin pencil and prolonged. values increasing; vectors (n × k) M-orthonormal on the input mesh.
+    (spectral-coarse): L φ = λ M φ with the cotan L and lumped M, solved on the coarse Galerkin pencil
+    and prolonged. values increasing; vectors (n × k) M-orthonormal on the input mesh.
 
-    coarse / coarsening options (default ratio=0.05), prolongation and cache as for solve_poisson; k must
-    be below the coarse vertex count (ValueError otherwise).
+    boundary: "neumann", or "dirichlet" (φ = 0 on the mesh's boundary, whose vertices the coarsening then
+    keeps). coarse / coarsening options (default ratio=0.05), prolongation and cache as for solve_poisson;
+    k must be below the coarse vertex count (ValueError otherwise).
     """
+    if boundary not in ("neumann", "dirichlet"):
+        raise ValueError(f"boundary must be 'neumann' or 'dirichlet', not {boundary!r}")
+    fixed = boundary_vertices(F) if boundary == "dirichlet" else None
+    if fixed is not None and len(fixed) == 0:
+        fixed = None  # a closed mesh: the same as Neumann
     if coarse is None and cache is not False:
-        _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", "galerkin", fine, prolongation, None, cache)
+        _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", "galerkin", fine, prolongation, fixed, cache)
     else:
-        coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
+        coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", fixed)
         proxy = Proxy(V, F, coarse, operators="galerkin", fine=fine,
-                      prolongation=_ice._resolve_prolongation(prolongation, "galerkin", False))
-    return proxy_eigenbasis(proxy, k, tolerance=tolerance)
+                      prolongation=_ice._resolve_prolongation(prolongation, "galerkin", fixed is not None))
+    return proxy_eigenbasis(proxy, k, tolerance=tolerance, dirichlet=fixed)
 
 
 def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, method: str = "marching",

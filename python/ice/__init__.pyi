@@ -278,11 +278,16 @@ def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: Arr
                       **coarsening: Any) -> ComplexArray | FloatArray:
     """Tangent vectors carried from sources to every vertex through a coarse proxy in one call."""
 
-def eigenbasis(V: ArrayLike, F: ArrayLike, k: int, *, coarse: CoarseSpace | None = None,
+def boundary_vertices(F: ArrayLike) -> IndexArray:
+    """The vertices on a boundary edge, sorted."""
+def eigenbasis(V: ArrayLike, F: ArrayLike, k: int, *, boundary: Literal["neumann", "dirichlet"] = "neumann",
+               coarse: CoarseSpace | None = None,
                fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
                prolongation: Literal["auto", "barycentric", "smoothed"] = "auto", tolerance: float = 1e-10,
                cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> tuple[FloatArray, FloatArray]:
     """The k smallest Laplace–Beltrami eigenpairs through a coarse proxy: (values, vectors (n × k))."""
-def proxy_eigenbasis(proxy: Proxy, k: int, *, tolerance: float = 1e-10) -> tuple[FloatArray, FloatArray]: ...
+def proxy_eigenbasis(proxy: Proxy, k: int, *, tolerance: float = 1e-10,
+                     dirichlet: Indices | None = None) -> tuple[FloatArray, FloatArray]: ...
 def heat_kernel_signature(values: ArrayLike, vectors: ArrayLike, times: ArrayLike) -> FloatArray: ...
 def wave_kernel_signature(values: ArrayLike, vectors: ArrayLike, energies: ArrayLike, sigma: float) -> FloatArray: ...
+def reconstruction_error(values: ArrayLike, vectors: ArrayLike, mass: ArrayLike, f: ArrayLike) -> float: ...

@@ -6,7 +6,10 @@
 INPUT is a directory (searched recursively for .obj .off .ply .stl), a glob pattern ('scans/**/*.ply',
 quoted), or a text file listing mesh paths (one a line, '#' comments). For each mesh the output tree
 mirrors the input: OUT/<relative path>.ilm (the coarse intrinsic mesh), <...>.npz (P as CSR arrays
-and the fine-to-coarse map: ``ice.batch.load_result`` reads both back) and <...>.json (a one-line
+and the fine-to-coarse map; with --features eigs:K also the K smallest Laplace-Beltrami eigenpairs
+through the coarse proxy, 'eigenvalues' and 'eigenvectors' (n x K, one row per vertex of the loaded
+mesh), and with hks:T1:T2:... 'hks' (n x times) and 'hks_times': ``ice.batch.load_result`` reads
+them back) and <...>.json (a one-line
 record: sizes, stop reason, seconds, the options' hash, or the error). OUT/records.jsonl gathers the
 records and OUT/summary.csv one line per mesh; a summary is printed at the end.
 
@@ -166,6 +169,48 @@ def canonical_options(coarsen: dict) -> dict:
     return options
 
 
+def parse_features(text: str | None) -> dict:
+    """--features "eigs:K[,hks:T1:T2:...]" as BatchOptions.features; ValueError naming what is wrong."""
+    features: dict = {}
+    for item in (text or "").split(","):
+        if not item.strip():
+            continue
+        name, _, rest = item.strip().partition(":")
+        if name == "eigs":
+            try:
+                features["eigs"] = int(rest)
+            except ValueError:
+                raise ValueError(f"--features: 'eigs:{rest}': K must be an integer") from None
+        elif name == "hks":
+            try:
+                features["hks"] = [float(t) for t in rest.split(":") if t]
+            except ValueError:
+                raise ValueError(f"--features: 'hks:{rest}': the times must be numbers") from None
+        else:
+            raise ValueError(f"--features: unknown feature '{name}' (known: eigs:K, hks:T1:T2:...)")
+    return check_features(features)
+
+
+def check_features(features: dict) -> dict:
+    """BatchOptions.features checked: eigs K >= 1; hks times > 0, and only with eigs."""
+    unknown = set(features) - {"eigs", "hks"}
+    if unknown:
+        raise ValueError(f"unknown features {sorted(unknown)} (known: eigs, hks)")
+    if "eigs" in features and not (isinstance(features["eigs"], int) and features["eigs"] >= 1):
+        raise ValueError("features: eigs must be an integer K >= 1")
+    if "hks" in features:
+        if "eigs" not in features:
+            raise ValueError("features: hks is computed from the eigenbasis: give eigs:K too")
+        if not features["hks"] or not all(t > 0 for t in features["hks"]):
+            raise ValueError("features: hks needs one or more times > 0")
+    return features
+
+
+def batch_digest(coarsen: dict, repair: bool, features: dict | None) -> str:
+    """The options hash of a batch's records: coarsening options, repair and (when asked) features."""
+    return options_hash({**coarsen, "repair": repair, **({"features": features} if features else {})})
+
+
 def options_hash(options: dict) -> str:
     """What a record is valid for: the coarsening options, repair, and the package version."""
     from . import __version__
@@ -243,9 +288,11 @@ def _scheduling_policy() -> str:
 
 
 def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool, timeout: float | None,
-                 input_size: int, input_mtime_ns: int, threads: int = 1, yielding: bool = False) -> dict:
+                 input_size: int, input_mtime_ns: int, threads: int = 1, yielding: bool = False,
+                 features: dict | None = None) -> dict:
     """Coarsens one mesh file on `threads` threads and writes its outputs and record; returns the
-    record. Never raises for a problem of the mesh: that becomes an error record. Runs in a worker
+    record; with `features` (BatchOptions.features) the eigenbasis and descriptors go into the .npz.
+    Never raises for a problem of the mesh: that becomes an error record. Runs in a worker
     process. `yielding`: run at the lowest priority (a thread of its own under the idle scheduling
     policy, or at nice YIELDING_NICE; the mesh's threads inherit it), so that on shared cores the
     batch's largest meshes go first."""
@@ -256,7 +303,7 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
             _yield_cores()
             try:
                 outcome.append(coarsen_file(path, relative, out, options, repair, timeout, input_size,
-                                            input_mtime_ns, threads))
+                                            input_mtime_ns, threads, False, features))
             except BaseException as error:  # re-raised on the task's own thread, as without yielding
                 outcome.append(error)
         worker = threading.Thread(target=low_priority, name=f"ice-batch {relative}")
@@ -268,7 +315,7 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
     import ice
     started = time.perf_counter()
     paths = output_paths(pathlib.Path(out), relative)
-    record = {"input": path, "output": relative, "hash": options_hash({**options, "repair": repair}),
+    record = {"input": path, "output": relative, "hash": batch_digest(options, repair, features),
               "input_size": input_size, "input_mtime_ns": input_mtime_ns, "threads": threads}
     if _PER_THREAD_PRIORITY:
         record["nice"] = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())  # the priority it ran at
@@ -296,6 +343,17 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
                   "to_input": coarse.to_input, "source_vertex": loaded.source_vertex}
         if face is not None:
             arrays.update(map_face=face, map_bary=bary, map_coarse_vertex=coarse_vertex)
+        if features and "eigs" in features:
+            # As spectral-coarse: the Galerkin proxy of this coarse space, its pencil's eigenpairs prolonged.
+            eigen_started = time.perf_counter()
+            proxy = ice.Proxy(loaded.V, loaded.F, coarse, operators="galerkin",
+                              prolongation=ice._ice._resolve_prolongation("auto", "galerkin", False))
+            values, vectors = ice.proxy_eigenbasis(proxy, features["eigs"])
+            arrays.update(eigenvalues=values, eigenvectors=vectors)
+            if "hks" in features:
+                times = np.asarray(features["hks"], dtype=float)
+                arrays.update(hks=ice.heat_kernel_signature(values, vectors, times), hks_times=times)
+            record["eigen_seconds"] = time.perf_counter() - eigen_started
 
         def write_npz(temporary):
             with open(temporary, "wb") as file:
@@ -345,6 +403,10 @@ def load_result(out: str | os.PathLike, relative: str) -> dict:
 class BatchOptions:
     coarsen: dict
     repair: bool = False
+    # Spectral features written beside each coarse space (parse_features): {"eigs": K} the K smallest
+    # Laplace–Beltrami eigenpairs through the mesh's Galerkin proxy (ice.proxy_eigenbasis), and
+    # {"hks": [t, ...]} the heat kernel signature at those times from them. Empty: none.
+    features: dict = field(default_factory=dict)
     workers: int = 2
     scheduler: str | None = None
     memory_limit: str | None = "auto"
@@ -471,7 +533,8 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
     jobs, _ = manifest(source)
     out = pathlib.Path(out)
     _check_outputs(jobs, out, options.force)
-    digest = options_hash({**options.coarsen, "repair": options.repair})
+    features = check_features(dict(options.features))
+    digest = batch_digest(options.coarsen, options.repair, features)
     result = BatchResult()
     records: dict[str, dict] = {}
     todo = []
@@ -514,7 +577,7 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
                                    [str(out)] * count, [options.coarsen] * count, [options.repair] * count,
                                    [options.timeout] * count, [job.size for job in todo],
                                    [job.mtime_ns for job in todo], [threads] * count,
-                                   [rank >= yield_from for rank in range(count)], pure=False,
+                                   [rank >= yield_from for rank in range(count)], [features] * count, pure=False,
                                    key=[f"ice-{job.relative}-{digest}" for job in todo])
             futures = dict(zip(submitted, todo))
             bar = _progress_bar(len(todo), options.progress, log)
@@ -675,6 +738,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--keep-boundary", action="store_true", help="never remove boundary vertices")
     parser.add_argument("--refine-angle", type=float, help="intrinsic Delaunay refinement to this smallest angle")
     parser.add_argument("--repair", action="store_true", help="apply the safe mesh repairs before coarsening")
+    parser.add_argument("--features", help="also write eigs:K (the K smallest Laplace-Beltrami eigenpairs through the "
+                                           "coarse proxy) and hks:T1:T2:... (heat kernel signatures) into each .npz")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
                         help="worker processes of the local Dask cluster (default: 2, or the cores if fewer)")
     parser.add_argument("--scheduler", help="address of a running Dask scheduler (tcp://HOST:PORT) instead")
@@ -717,7 +782,13 @@ def main(argv=None) -> int:
     if args.workers < 1:
         print("ice-batch: --workers must be >= 1", file=sys.stderr)
         return 4
-    options = BatchOptions(coarsen=coarsen, repair=args.repair, workers=args.workers, scheduler=args.scheduler,
+    try:
+        features = parse_features(args.features)
+    except ValueError as error:
+        print(f"ice-batch: {error}", file=sys.stderr)
+        return 4
+    options = BatchOptions(coarsen=coarsen, repair=args.repair, features=features, workers=args.workers,
+                           scheduler=args.scheduler,
                            mesh_threads=args.mesh_threads, start_method=args.start_method,
                            memory_limit=args.memory_limit, timeout=args.timeout,
                            stall_timeout=args.stall_timeout, force=args.force,

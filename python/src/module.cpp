@@ -37,6 +37,7 @@
 #include "ice/coarse_space.h"
 #include "ice/coarse_tracing.h"
 #include "ice/hierarchy.h"
+#include "fem/topology.h"
 #include "ice/proxy/eigen.h"
 #include "ice/proxy/multigrid.h"
 #include "ice/intrinsic_mesh_io.h"
@@ -1187,21 +1188,29 @@ ProxyPoissonSolver, per step.)doc")
       .def_property_readonly("times", [](PyHeatSolver& s) { return times_dict(locked(s.mutex, [&] { return s.last_times; })); },
                              "Seconds of the last integrate()'s stages.");
 
-  m.def("proxy_eigenbasis", [](std::shared_ptr<PyProxy> proxy, int k, double tolerance) {
+  m.def("boundary_vertices", [](const py::object& F) {
+        const ice::Faces faces = faces_argument(F);
+        return to_numpy(fem::boundary_vertices(faces));
+      },
+      py::arg("F"), "The vertices on a boundary edge (an edge of one face), sorted (int32).");
+  m.def("proxy_eigenbasis", [](std::shared_ptr<PyProxy> proxy, int k, double tolerance, const py::object& dirichlet) {
         if (!(tolerance > 0)) throw py::value_error("tolerance must be > 0");
         fem::EigenOptions options;
         options.tolerance = tolerance;
+        std::vector<ice::Index> fixed;
+        if (!dirichlet.is_none()) fixed = index_argument(dirichlet, proxy->proxy->fine_size(), "dirichlet");
         ice::proxy::Eigenbasis basis;
         {
           py::gil_scoped_release release;
-          basis = ice::proxy::proxy_eigenbasis(*proxy->proxy, k, options);
+          basis = ice::proxy::proxy_eigenbasis(*proxy->proxy, k, options, fixed);
         }
         return py::make_tuple(std::move(basis.values), std::move(basis.vectors));
       },
-      py::arg("proxy"), py::arg("k"), py::kw_only(), py::arg("tolerance") = 1e-10,
+      py::arg("proxy"), py::arg("k"), py::kw_only(), py::arg("tolerance") = 1e-10, py::arg("dirichlet") = py::none(),
       R"doc((values, vectors): the k smallest eigenpairs of L φ = λ M φ through a Galerkin Proxy (spectral-coarse):
 the coarse pencil's, prolonged; values increasing, vectors (n × k) M-orthonormal with the fine lumped mass.
-ValueError unless 1 <= k < the coarse vertex count and the proxy's operators are Galerkin.)doc");
+dirichlet: input vertices where φ = 0 (each a coarse vertex: locked when coarsening; the proxy's P
+barycentric). ValueError unless 1 <= k < the free coarse vertex count and the operators are Galerkin.)doc");
   // A one-dimensional array of any length, or a two-dimensional one of any row count.
   const auto any_vector = [](const py::object& object, const char* name) {
     const py::array a = py::array::ensure(object);
@@ -1231,6 +1240,16 @@ ValueError unless 1 <= k < the coarse vertex count and the proxy's operators are
       py::arg("values"), py::arg("vectors"), py::arg("energies"), py::arg("sigma"),
       "WKS(x, e): the squared eigenfunctions weighted by exp(-(e - log lambda)^2 / (2 sigma^2)), normalised per e\n"
       "(zero modes left out); one row per vertex, one column per log-energy e.");
+
+  m.def("reconstruction_error", [basis_argument, any_vector](const py::object& values, const py::object& vectors,
+                                                              const py::object& mass, const py::object& f) {
+        const ice::proxy::Eigenbasis basis = basis_argument(values, vectors);
+        const Eigen::Index n = basis.vectors.rows();
+        return ice::proxy::reconstruction_error(basis, vector_argument(mass, n, "mass"), vector_argument(f, n, "f"));
+      },
+      py::arg("values"), py::arg("vectors"), py::arg("mass"), py::arg("f"),
+      "||f - Phi Phi^T M f||_M / ||f||_M: how much of f the M-orthonormal basis misses (mass: the lumped mass's\n"
+      "diagonal, one entry per vertex; 0 for f = 0).");
 
   m.def("curvature_corrected_lengths", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
                                           const py::object& lengths, double divisor) {

@@ -296,3 +296,37 @@ def test_stalled_worker_does_not_hang_the_batch(dataset, tmp_path):
     again = batch.run(str(dataset), out, options())
     assert again.skipped == len(MESHES) + 5 - len(stalled)
     assert sum(r["status"] == "ok" for r in again.records) == len(MESHES) + 3
+
+
+def test_spectral_features(project_mesh, tmp_path):
+    """--features eigs:K,hks:...: the eigenbasis through each mesh's coarse proxy beside its coarse space
+    (M-orthonormal on the input mesh, one zero mode); the features are part of the options hash."""
+    root = tmp_path / "in"
+    root.mkdir()
+    for name in ("spot.obj", "bear.off"):
+        shutil.copy(project_mesh(name), root / name)
+    out = tmp_path / "out"
+    features = batch.parse_features("eigs:8,hks:0.01:0.1")
+    assert features == {"eigs": 8, "hks": [0.01, 0.1]}
+    result = batch.run(str(root), out, batch.BatchOptions(coarsen={"ratio": 0.05}, features=features, workers=2,
+                                                          progress=False))
+    assert all(r["status"] == "ok" for r in result.records)
+    loaded = batch.load_result(out, "spot.obj")
+    values, vectors = loaded["eigenvalues"], loaded["eigenvectors"]
+    V, F = ice.load_mesh(project_mesh("spot.obj"))
+    assert vectors.shape == (len(V), 8) and loaded["hks"].shape == (len(V), 2)
+    Fi, lengths, _ = ice.intrinsic_delaunay(V, F)
+    M = ice.mass_matrix(F=Fi, lengths=lengths, n=len(V))
+    assert np.abs(vectors.T @ (M @ vectors) - np.eye(8)).max() < 1e-8
+    assert abs(values[0]) < 1e-8 and np.all(np.diff(values) >= 0) and values[1] > 1e-3
+    np.testing.assert_allclose(loaded["hks"], ice.heat_kernel_signature(values, vectors, [0.01, 0.1]), rtol=1e-12)
+    # Other features redo every mesh; the same skip them.
+    assert batch.run(str(root), out, batch.BatchOptions(coarsen={"ratio": 0.05}, features=features, workers=2,
+                                                        progress=False)).skipped == 2
+    again = batch.run(str(root), out, batch.BatchOptions(coarsen={"ratio": 0.05}, features={"eigs": 4}, workers=2,
+                                                         progress=False))
+    assert again.skipped == 0
+    with pytest.raises(ValueError, match="give eigs"):
+        batch.parse_features("hks:0.1")
+    with pytest.raises(ValueError, match="unknown feature"):
+        batch.parse_features("wks:1")

@@ -38,5 +38,21 @@ def test_eigenbasis_against_the_fine_pencil(spot, tmp_path):
     np.testing.assert_allclose(mass @ hks, np.exp(-np.outer(np.maximum(values, 0), times)).sum(axis=0), rtol=1e-9)
     wks = ice.wave_kernel_signature(values, vectors, np.log(values[2:4]), 0.3)
     np.testing.assert_allclose(mass @ wks, 1.0, rtol=1e-9)
+    assert ice.reconstruction_error(values, vectors, mass, vectors[:, 3]) < 1e-9
+    assert ice.reconstruction_error(values, vectors, mass, np.cos(40 * V[:, 0])) > 0.1
     with pytest.raises(ValueError, match="coarse space has"):
         ice.eigenbasis(V, F, 10_000, ratio=0.1, cache=False)
+
+
+def test_dirichlet_eigenbasis_vanishes_on_the_boundary(project_mesh):
+    V, F = ice.load_mesh(project_mesh("lion-head.off"))  # an open surface: 36 boundary vertices
+    boundary = ice.boundary_vertices(F)
+    assert len(boundary) > 0
+    values, vectors = ice.eigenbasis(V, F, 6, boundary="dirichlet", ratio=0.05, cache=False)
+    assert np.all(vectors[boundary] == 0)
+    assert values[0] > 0  # no constant mode under Dirichlet conditions
+    Fi, lengths, _ = ice.intrinsic_delaunay(V, F)
+    M = ice.mass_matrix(F=Fi, lengths=lengths, n=len(V))
+    assert np.abs(vectors.T @ (M @ vectors) - np.eye(6)).max() < 1e-8
+    with pytest.raises(ValueError, match="boundary must be"):
+        ice.eigenbasis(V, F, 6, boundary="robin")

@@ -197,6 +197,11 @@ class CoarseProxy {
   std::vector<Index> fine_to_coarse_;  ///< coarse vertex each fine vertex coincides with, or -1
 };
 
+/// The coarse vertices of fine Dirichlet vertices, in their order. Throws std::invalid_argument when
+/// one is not a coarse vertex (lock it when coarsening), is given twice, or when the proxy's P is
+/// smoothed (which does not take prescribed values at them).
+std::vector<Index> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::vector<Index>& fine_vertices);
+
 /// Seconds spent in each stage of one proxy solve, for callers that report phases (the tools, the
 /// report, benchmarks). Factorisations happen in the solvers' constructors; time those around them.
 struct ProxyPhaseTimes {

@@ -46,11 +46,19 @@ struct Eigenpairs {
 /// round-off); vectors M-orthonormal to round-off.
 Eigenpairs smallest_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int k, const EigenOptions& options = {});
 
+/// The k smallest eigenpairs with φ = 0 at the `fixed` indices (Dirichlet conditions): those of the
+/// pencil restricted to the other indices, the vectors extended by zeros (full length n). `fixed`
+/// may hold repeats; an empty list is smallest_eigenpairs. Preconditions as there, with k below the
+/// count of free indices (std::invalid_argument naming it).
+Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
+                                         int k, const EigenOptions& options = {});
+
 /// The relative residual of each pair, ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂); a zero mode (|λ| below 1e-6 times
 /// the largest |λ| given) is judged against that largest |λ| instead (the scale of the basis it
-/// was converged in) rather than dividing by ~0.
+/// was converged in) rather than dividing by ~0. Rows at the `fixed` (Dirichlet) indices, where the
+/// vectors are prescribed to be 0, are left out of both norms.
 Eigen::VectorXd eigen_residuals(const SparseMatrix& L, const SparseMatrix& M, const Eigen::VectorXd& values,
-                                const Eigen::MatrixXd& vectors);
+                                const Eigen::MatrixXd& vectors, const std::vector<Index>& fixed = {});
 
 /// For each column j of `approximate` (n × k), the angle in radians between it and the span of the
 /// columns of `reference` (M-orthonormal, increasing eigenvalues `reference_values`) whose

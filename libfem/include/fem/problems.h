@@ -100,7 +100,7 @@ class PoissonSolver {
   /// solve_weighted for every column of B (mass-weighted right-hand sides) at once: one CHOLMOD
   /// call for all columns (each column equal to its own solve within round-off of the block
   /// kernels), or one block multigrid solve (MultigridSolver::solve_multiple: each column equal to
-  /// its own solve within round-off). Column j of `dirichlet_values` (one row per
+  /// its own solve within round-off; column by column when the multigrid estimates errors). Column j of `dirichlet_values` (one row per
   /// Dirichlet vertex; empty: zeros) is column j's values.
   Eigen::MatrixXd solve_multiple_weighted(const Eigen::MatrixXd& B, const Eigen::MatrixXd& dirichlet_values = {}) const;
 
@@ -122,6 +122,7 @@ class PoissonSolver {
   ComponentLabels components_;  ///< zero-mean mode: L's components (first[] are the pinned vertices)
   std::unique_ptr<ConstrainedSolver> direct_;   ///< CHOLMOD, or
   std::unique_ptr<MultigridSolver> multigrid_;  ///< multigrid (its solve records a report: not const)
+  bool estimates_error_ = false;  ///< multigrid with an error norm: blocks go column by column
 };
 
 /// The step counts a trajectory of `steps` steps writes out: every, 2·every, … up to steps, and
@@ -141,7 +142,7 @@ class HeatSolver {
   /// M + τL solved by Galerkin multigrid on `multigrid`'s prolongations (a hierarchy of the same
   /// mesh; the struct is the one PoissonSolver takes) to multigrid.options.tolerance (relative
   /// residual ‖b − Ax‖/‖b‖); step() starts from the state it steps from, solve_weighted() from 0.
-  /// The solver's report() describes the last solve.
+  /// The solver's report() describes the last solve. multigrid.estimate_error is not used.
   HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, PoissonMultigrid multigrid);
   ~HeatSolver();
   HeatSolver(HeatSolver&&) noexcept;
@@ -153,9 +154,9 @@ class HeatSolver {
   Eigen::VectorXd integrate(const Eigen::VectorXd& u0, int steps) const;
   /// The states after the steps output_steps(steps, every) lists, one column each (their step
   /// counts in `steps_written`); column j equals integrate(u0, that count) to the last bit. With
-  /// multigrid, `iterations` (if given) receives each step's iteration count.
+  /// multigrid, `step_reports` (if given) receives each step's report (iterations, convergence).
   Eigen::MatrixXd trajectory(const Eigen::VectorXd& u0, int steps, int every, std::vector<int>* steps_written = nullptr,
-                             std::vector<int>* iterations = nullptr) const;
+                             std::vector<MultigridReport>* step_reports = nullptr) const;
   /// (M + τL)⁻¹ b for a mass-weighted right-hand side b.
   Eigen::VectorXd solve_weighted(const Eigen::VectorXd& b) const;
   /// The same for every column of B, in one CHOLMOD call (or one block multigrid solve).

@@ -9,6 +9,7 @@
 /// φᵢᵀ L φⱼ = λᵢ δᵢⱼ exactly, so the φ are M-orthonormal on the input mesh and each λ is the Rayleigh
 /// quotient of its φ: an upper bound of the fine eigenvalue of the same index (Courant–Fischer).
 #include <optional>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -17,11 +18,18 @@
 
 namespace ice::proxy {
 
+/// The boundary condition of the eigenproblem on meshes with a boundary.
+enum class EigenBoundary {
+  neumann,    ///< natural (zero normal derivative): the default; constants are eigenfunctions
+  dirichlet,  ///< φ = 0 on the boundary: the boundary vertices are kept by the coarsening
+};
+
 struct EigenbasisOptions {
   /// How the coarse space is made when none is given (as PoissonOptions::coarsening).
   CoarseSpaceOptions coarsening = default_coarsening(ProxyUse::poisson_heat);
   FineGeometry fine = FineGeometry::intrinsic_delaunay;
   Prolongation prolongation = Prolongation::automatic;
+  EigenBoundary boundary = EigenBoundary::neumann;
   /// The coarse eigensolve's (fem::smallest_eigenpairs).
   fem::EigenOptions eigen;
   /// Where the set-up proxy is looked up and saved (store.h); off by default in the library.
@@ -40,8 +48,10 @@ struct Eigenbasis {
 
 class EigenSolver {
  public:
-  /// Coarsens `mesh` (clean, oriented, manifold: e.g. from ice::load_mesh) by options.coarsening, or
-  /// uses `coarse` (a coarse space of `mesh`), and sets up the Galerkin proxy. Throws
+  /// Coarsens `mesh` (clean, oriented, manifold: e.g. from ice::load_mesh) by options.coarsening
+  /// (with the boundary vertices locked under EigenBoundary::dirichlet), or uses `coarse` (a coarse
+  /// space of `mesh`; under Dirichlet conditions every boundary vertex must be one of its vertices,
+  /// else compute() throws std::invalid_argument), and sets up the Galerkin proxy. Throws
   /// std::invalid_argument on bad options.
   explicit EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options = {}, std::optional<CoarseSpace> coarse = {});
   /// The k smallest eigenpairs through the proxy. Throws std::invalid_argument unless
@@ -53,16 +63,23 @@ class EigenSolver {
   const fem::CoarseProxy& proxy() const { return *setup_.proxy; }
   /// Where the setup came from (the store's status and times).
   const CacheReport& cache() const { return setup_.cache; }
+  /// The Dirichlet vertices (the mesh's boundary with EigenBoundary::dirichlet), else empty.
+  const std::vector<Index>& dirichlet_vertices() const { return dirichlet_; }
 
  private:
   EigenbasisOptions options_;
+  std::vector<Index> dirichlet_;
   ProxySetup setup_;
 };
 
 /// The k smallest eigenpairs through a set-up Galerkin proxy (what EigenSolver::compute runs): the
-/// coarse pencil's by fem::smallest_eigenpairs, prolonged by the proxy's P. Throws
-/// std::invalid_argument unless the proxy's operators are Galerkin and 1 <= k < its coarse size.
-Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options = {});
+/// coarse pencil's by fem::smallest_eigenpairs, prolonged by the proxy's P. With
+/// `dirichlet_vertices` (input vertices, each a coarse vertex: locked by the coarsening, and the
+/// proxy's P barycentric) the coarse pencil is restricted to the other coarse vertices, so the
+/// prolonged vectors vanish there. Throws std::invalid_argument unless the proxy's operators are
+/// Galerkin and 1 <= k < its free coarse size, or when a Dirichlet vertex is not a coarse vertex.
+Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options = {},
+                            const std::vector<Index>& dirichlet_vertices = {});
 
 /// EigenSolver(mesh, options).compute(k).
 Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options = {});
