@@ -7,9 +7,7 @@
 #include <malloc.h>
 #endif
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
+#include "ice/huge_pages.h"
 
 namespace ice::detail {
 
@@ -18,11 +16,9 @@ void* allocate_large(std::size_t bytes) {
   const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;  // aligned_alloc needs a multiple
   void* pointer = std::aligned_alloc(kHugePage, rounded);
   if (pointer == nullptr) throw std::bad_alloc();
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
   // Before the first touch, so that the page faults allocate huge pages directly. Advice only: a
   // refusal (no THP support, or disabled) leaves ordinary pages.
-  (void)madvise(pointer, rounded, MADV_HUGEPAGE);
-#endif
+  advise_huge_pages(pointer, rounded);
   return pointer;
 }
 
