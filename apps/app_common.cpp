@@ -181,6 +181,14 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
   return space;
 }
 
+ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const ice::TriangleMesh& mesh, const MultigridCli& mg,
+                                                const ice::proxy::Store& store) {
+  ice::proxy::MultigridHierarchy hierarchy = ice::proxy::multigrid_hierarchy(mesh, mg.hierarchy, store);
+  if (hierarchy.cache.status == ice::proxy::CacheStatus::rebuilt)
+    warn(tool, "the stored hierarchy was damaged and is rebuilt: " + hierarchy.cache.damage);
+  return hierarchy;
+}
+
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                          PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine, bool keep_method_state,
                          const ice::proxy::Store& store) {

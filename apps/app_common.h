@@ -23,6 +23,7 @@
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
+#include "ice/proxy/multigrid.h"
 #include "ice/proxy/setup.h"
 #include "reports.h"
 
@@ -97,6 +98,11 @@ struct PdeProxy {
 /// phase. With an enabled `store` (and a proxy to assemble, and no output drawing the coarse mesh)
 /// the coarse space and proxy are loaded from it when stored, else saved there once built
 /// (ice::proxy::load_proxy_setup / save_proxy_setup; run.cache says which).
+/// The multigrid hierarchy of `mesh` for the --mg-* options through `store` (ice::proxy::
+/// multigrid_hierarchy), warning as `tool` when a damaged stored entry had to be rebuilt.
+ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const ice::TriangleMesh& mesh, const MultigridCli& mg,
+                                                const ice::proxy::Store& store);
+
 PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                          PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
                          bool keep_method_state = false, const ice::proxy::Store& store = {});

@@ -18,7 +18,6 @@
 #include "fem/errors.h"
 #include "fem/geometry.h"
 #include "fem/problems.h"
-#include "ice/proxy/multigrid.h"
 #include "ice/proxy/report.h"
 #include "ice/scalar_field_io.h"
 
@@ -70,9 +69,7 @@ app::ExitCode step_on_fine_mesh(const app::MultigridCli& mg, const app::PdeOptio
   const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
   const double assemble_seconds = clock.lap();
   const ice::proxy::Store store = opt.store();
-  const ice::proxy::MultigridHierarchy hierarchy = ice::proxy::multigrid_hierarchy(mesh, mg.hierarchy, store);
-  if (hierarchy.cache.status == ice::proxy::CacheStatus::rebuilt)
-    app::warn(kTool, "the stored hierarchy was damaged and is rebuilt: " + hierarchy.cache.damage);
+  const ice::proxy::MultigridHierarchy hierarchy = app::stored_hierarchy(kTool, mesh, mg, store);
   const double hierarchy_seconds = clock.lap();
   const fem::HeatSolver solver(L, M, heat.time_step, hierarchy.poisson_multigrid(mg.options));
   const double numeric_setup = clock.lap();
@@ -104,9 +101,7 @@ app::ExitCode step_on_fine_mesh(const app::MultigridCli& mg, const app::PdeOptio
   solver_json["iterations_per_step"] = {{"mean", sum / static_cast<double>(step_reports.size())}, {"max", most}};
   solver_json["steps_converged"] = unconverged == 0;
   solver_json["worst_relative_residual"] = worst_residual;
-  solver_json["hierarchy"] = {{"ratio", mg.hierarchy.ratio}, {"coarsest_vertices", mg.hierarchy.coarsest_vertices},
-                              {"levels", hierarchy.num_levels()}, {"grid_complexity", hierarchy.grid_complexity()},
-                              {"stop_reason", hierarchy.stop_reason}};
+  solver_json["hierarchy"] = ice::proxy::hierarchy_json(hierarchy, mg.hierarchy);
 
   nlohmann::json error_json;
   Eigen::VectorXd reference;

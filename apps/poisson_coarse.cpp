@@ -28,7 +28,6 @@
 #include "fem/multigrid.h"
 #include "fem/problems.h"
 #include "ice/hierarchy.h"
-#include "ice/proxy/multigrid.h"
 #include "ice/large_array.h"
 #include "ice/scalar_field_io.h"
 
@@ -130,7 +129,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
     timings = {{"setup", setup_seconds}, {"solve", solve_seconds}};
   } else {
     const ice::proxy::Store store = opt.store();
-    const ice::proxy::MultigridHierarchy hierarchy = ice::proxy::multigrid_hierarchy(mesh, mg.hierarchy, store);
+    const ice::proxy::MultigridHierarchy hierarchy = app::stored_hierarchy(kTool, mesh, mg, store);
     const double hierarchy_seconds = clock.lap();
     const fem::PoissonSolver poisson = make_solver(hierarchy.poisson_multigrid(mg.options));
     const double numeric_setup = clock.lap();
@@ -143,12 +142,8 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
       app::warn(kTool, "multigrid stopped after " + std::to_string(r.iterations) + " iterations at relative residual " +
                            std::to_string(r.relative_residual) + " (tolerance " + std::to_string(mg.options.tolerance) + ")");
     solver_json.update(ice::proxy::multigrid_json(multigrid));
-    solver_json.update({{"hierarchy", {{"ratio", mg.hierarchy.ratio}, {"coarsest_vertices", mg.hierarchy.coarsest_vertices}, {"levels", hierarchy.num_levels()},
-                                       {"grid_complexity", hierarchy.grid_complexity()}, {"stop_reason", hierarchy.stop_reason},
-                                       {"coarsen_seconds", hierarchy.coarsen_seconds}}}});
+    solver_json["hierarchy"] = ice::proxy::hierarchy_json(hierarchy, mg.hierarchy);
     cache = ice::proxy::cache_json(hierarchy.cache, store);
-    if (hierarchy.cache.status == ice::proxy::CacheStatus::rebuilt)
-      app::warn(kTool, "the stored hierarchy was damaged and is rebuilt: " + hierarchy.cache.damage);
     timings = {{"setup", setup_seconds}, {"hierarchy", hierarchy_seconds}, {"galerkin_and_coarse_factor", numeric_setup},
                {"solve", solve_seconds}, {"cache_load", hierarchy.cache.load_seconds},
                {"cache_save", hierarchy.cache.save_seconds}};

@@ -432,30 +432,43 @@ BENCHMARK(BM_MultigridBoomerAMG)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(be
 #ifdef ICE_HAVE_AMGCL
 // AMGCL's smoothed aggregation with SPAI(0) smoothing preconditioning CG, its builtin OpenMP
 // backend in double precision (its default setup, what its tutorials use for Poisson problems).
+using AmgclBackend = amgcl::backend::builtin<double>;
+using AmgclSolver = amgcl::make_solver<amgcl::amg<AmgclBackend, amgcl::coarsening::smoothed_aggregation, amgcl::relaxation::spai0>,
+                                       amgcl::solver::cg<AmgclBackend>>;
+
+// A as AMGCL's CRS arrays (A is symmetric: its column-major arrays are its row-major ones).
+struct AmgclMatrix {
+  explicit AmgclMatrix(const fem::SparseMatrix& A)
+      : n(A.rows()), ptr(A.outerIndexPtr(), A.outerIndexPtr() + A.rows() + 1),
+        col(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros()), val(A.valuePtr(), A.valuePtr() + A.nonZeros()) {}
+  auto crs() { return std::tie(n, ptr, col, val); }
+  ptrdiff_t n;
+  std::vector<ptrdiff_t> ptr, col;
+  std::vector<double> val;
+};
+
+// CG to ‖b − Ax‖ ≤ 10^−exponent ‖b‖, at most 500 iterations.
+AmgclSolver::params amgcl_params(long exponent) {
+  AmgclSolver::params prm;
+  prm.solver.tol = std::pow(10.0, -static_cast<double>(exponent));
+  prm.solver.maxiter = 500;
+  return prm;
+}
+
 // Second argument: the tolerance's exponent (8: ‖b − Ax‖ ≤ 1e-8 ‖b‖, as the others; 4: about the
 // proxy's accuracy).
 void BM_MultigridAMGCL(benchmark::State& state) {
   if (!ice_bench::has_mesh(state, "fandisk.obj")) return;
   const Problem& p = problem(static_cast<int>(state.range(0)));
-  const double tolerance = std::pow(10.0, -static_cast<double>(state.range(1)));
   state.SetLabel("tol 1e-" + std::to_string(state.range(1)));
-  using Backend = amgcl::backend::builtin<double>;
-  using Solver = amgcl::make_solver<amgcl::amg<Backend, amgcl::coarsening::smoothed_aggregation, amgcl::relaxation::spai0>,
-                                    amgcl::solver::cg<Backend>>;
   for (auto _ : state) {
     PeakMemory memory;
     auto t = Clock::now();
-    // A is symmetric: its column-major arrays are its row-major ones.
-    const ptrdiff_t n = p.A.rows();
-    std::vector<ptrdiff_t> ptr(p.A.outerIndexPtr(), p.A.outerIndexPtr() + n + 1);
-    std::vector<ptrdiff_t> col(p.A.innerIndexPtr(), p.A.innerIndexPtr() + p.A.nonZeros());
-    std::vector<double> val(p.A.valuePtr(), p.A.valuePtr() + p.A.nonZeros());
+    AmgclMatrix A(p.A);
+    const ptrdiff_t n = A.n;
     const double convert = since(t);
     t = Clock::now();
-    Solver::params prm;
-    prm.solver.tol = tolerance;
-    prm.solver.maxiter = 500;
-    Solver solve(std::tie(n, ptr, col, val), prm);
+    AmgclSolver solve(A.crs(), amgcl_params(state.range(1)));
     const double setup = since(t);
     std::vector<double> b(p.B.col(0).data(), p.B.col(0).data() + n), x(static_cast<std::size_t>(n), 0.0);
     t = Clock::now();
@@ -492,19 +505,11 @@ void BM_MultigridAMGCL100(benchmark::State& state) {
   const Problem& p = problem(levels);
   const Eigen::MatrixXd& B = hundred_sources(levels);
   state.SetLabel("tol 1e-" + std::to_string(state.range(1)));
-  using Backend = amgcl::backend::builtin<double>;
-  using Solver = amgcl::make_solver<amgcl::amg<Backend, amgcl::coarsening::smoothed_aggregation, amgcl::relaxation::spai0>,
-                                    amgcl::solver::cg<Backend>>;
   for (auto _ : state) {
-    const ptrdiff_t n = p.A.rows();
-    std::vector<ptrdiff_t> ptr(p.A.outerIndexPtr(), p.A.outerIndexPtr() + n + 1);
-    std::vector<ptrdiff_t> col(p.A.innerIndexPtr(), p.A.innerIndexPtr() + p.A.nonZeros());
-    std::vector<double> val(p.A.valuePtr(), p.A.valuePtr() + p.A.nonZeros());
+    AmgclMatrix A(p.A);
+    const ptrdiff_t n = A.n;
     auto t = Clock::now();
-    Solver::params prm;
-    prm.solver.tol = std::pow(10.0, -static_cast<double>(state.range(1)));
-    prm.solver.maxiter = 500;
-    Solver solve(std::tie(n, ptr, col, val), prm);
+    AmgclSolver solve(A.crs(), amgcl_params(state.range(1)));
     const double setup = since(t);
     std::vector<double> b(static_cast<std::size_t>(n)), x(static_cast<std::size_t>(n));
     double iterations = 0;

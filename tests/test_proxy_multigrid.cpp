@@ -4,11 +4,7 @@
 // single-solve answer; heat steps by multigrid follow CHOLMOD's.
 #include <catch2/catch.hpp>
 
-#include <unistd.h>
-
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <vector>
 
 #include "fem/errors.h"
@@ -16,9 +12,13 @@
 #include "fem/problems.h"
 #include "ice/mesh_generators.h"
 #include "ice/proxy/multigrid.h"
+#include "test_support.h"
 
 namespace fs = std::filesystem;
 using ice::proxy::CacheStatus;
+using ice_test::fresh_store;
+using ice_test::read_bytes;
+using ice_test::write_bytes;
 
 namespace {
 
@@ -33,23 +33,7 @@ ice::HierarchyOptions small_levels() {
   return options;
 }
 
-fs::path fresh_store(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("ice-mg-store-test-" + name + "-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  return dir;
-}
-
 ice::proxy::Store store_in(const fs::path& dir) { return ice::proxy::Store({dir, ice::proxy::kDefaultStoreBytes}); }
-
-std::vector<char> read_bytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::vector<char>(std::istreambuf_iterator<char>(in), {});
-}
-
-void write_bytes(const fs::path& path, const std::vector<char>& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
 
 bool same_prolongations(const ice::proxy::MultigridHierarchy& a, const ice::proxy::MultigridHierarchy& b) {
   if (a.prolongations.size() != b.prolongations.size() || a.fine_order != b.fine_order) return false;
@@ -81,7 +65,7 @@ Eigen::MatrixXd sources(const ice::TriangleMesh& mesh, int k) {
 }  // namespace
 
 TEST_CASE("stored hierarchy: a warm load equals the build to the last bit; other options miss", "[proxy][store][multigrid]") {
-  const fs::path dir = fresh_store("warm");
+  const fs::path dir = fresh_store("hierarchy-warm");
   const ice::proxy::Store store = store_in(dir);
   const ice::TriangleMesh& mesh = sphere();
   const ice::proxy::MultigridHierarchy plain = ice::proxy::multigrid_hierarchy(mesh, small_levels());
@@ -122,7 +106,7 @@ TEST_CASE("stored hierarchy: a warm load equals the build to the last bit; other
 }
 
 TEST_CASE("stored hierarchy: damaged entries are reported, never used, and rebuilt", "[proxy][store][multigrid]") {
-  const fs::path dir = fresh_store("damage");
+  const fs::path dir = fresh_store("hierarchy-damage");
   const ice::proxy::Store store = store_in(dir);
   const ice::TriangleMesh& mesh = sphere();
   const ice::proxy::MultigridHierarchy plain = ice::proxy::multigrid_hierarchy(mesh, small_levels());

@@ -17,22 +17,19 @@
 #include "ice/proxy/heat.h"
 #include "ice/proxy/poisson.h"
 #include "ice/proxy/store.h"
+#include "test_support.h"
 
 namespace fs = std::filesystem;
 using ice::proxy::CacheStatus;
+using ice_test::fresh_store;
+using ice_test::read_bytes;
+using ice_test::write_bytes;
 
 namespace {
 
 const ice::TriangleMesh& sphere() {
   static const ice::TriangleMesh mesh = ice::make_icosphere(4);  // 2,562 vertices
   return mesh;
-}
-
-// A fresh, empty store directory for one test case.
-fs::path fresh_store(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("ice-store-test-" + name + "-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  return dir;
 }
 
 ice::proxy::PoissonOptions options_with(const fs::path& dir) {
@@ -53,16 +50,6 @@ std::vector<fs::path> entries(const fs::path& dir) {
   for (const auto& e : fs::directory_iterator(dir))
     if (e.path().extension() == ".ice") out.push_back(e.path());
   return out;
-}
-
-std::vector<char> read_bytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::vector<char>(std::istreambuf_iterator<char>(in), {});
-}
-
-void write_bytes(const fs::path& path, const std::vector<char>& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
 }  // namespace

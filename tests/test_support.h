@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,25 @@
 #include "mesh_sets.h"
 
 namespace ice_test {
+
+/// A fresh, empty directory for one test case's store (TMP/ice-store-test-NAME-PID, emptied if it
+/// exists); NAME must be unique across the suite, whose cases run in parallel processes.
+inline std::filesystem::path fresh_store(const std::string& name) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("ice-store-test-" + name + "-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+/// A file's bytes, and a file written with given bytes (replaced): for damaging store entries.
+inline std::vector<char> read_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::vector<char>(std::istreambuf_iterator<char>(in), {});
+}
+inline void write_bytes(const std::filesystem::path& path, const std::vector<char>& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
 
 /// Exit status of a test binary whose only outcome was a skip (ctest's SKIP_RETURN_CODE; main.cpp).
 constexpr int kSkipExitCode = 77;

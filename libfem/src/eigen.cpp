@@ -159,7 +159,7 @@ Eigen::VectorXd eigen_residuals(const SparseMatrix& L, const SparseMatrix& M, co
   Eigen::VectorXd out(values.size());
   for (Eigen::Index j = 0; j < values.size(); ++j) {
     const Eigen::VectorXd Mphi = M * vectors.col(j);
-    const double scale = std::abs(values(j)) < 1e-6 * largest ? largest : std::abs(values(j));
+    const double scale = is_zero_mode(values(j), largest) ? largest : std::abs(values(j));
     const double denominator = scale * Mphi.cwiseProduct(keep).norm();
     out(j) = denominator > 0 ? (L * vectors.col(j) - values(j) * Mphi).cwiseProduct(keep).norm() / denominator : 0.0;
   }

@@ -872,8 +872,21 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
   if (constrained_values.size() != 0 &&
       (constrained_values.rows() != static_cast<Eigen::Index>(constrained_.size()) || constrained_values.cols() != k))
     throw std::invalid_argument("MultigridSolver::solve_multiple: constrained values must be |C| x k");
-  if (k <= kBlockColumns) return solve_block_columns(Bfull, constrained_values);
   const auto start = Clock::now();
+  if (error_weights_.size() != 0) {
+    // The error estimate and its stopping rule belong to solve(): with an error norm, column by column.
+    Eigen::MatrixXd out(size_, k);
+    std::vector<MultigridReport> all;
+    for (Eigen::Index j = 0; j < k; ++j) {
+      out.col(j) = solve(Bfull.col(j), constrained_values.size() != 0 ? Eigen::VectorXd(constrained_values.col(j))
+                                                                      : Eigen::VectorXd());
+      all.push_back(report_);
+    }
+    reports_ = std::move(all);
+    if (k > 0) report_ = reports_[worst_report(reports_)];
+    return out;
+  }
+  if (k <= kBlockColumns) return solve_block_columns(Bfull, constrained_values);
   // Wider blocks in chunks: a sweep's memory traffic is the matrix's (once per chunk) plus every
   // column's vectors, so past a few columns the vectors dominate and wider chunks only cost memory
   // and cache (docs/measurements.md, "Block V-cycles": 4, 8, 16 and 100 columns at 1.66M).

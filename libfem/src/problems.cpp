@@ -122,7 +122,6 @@ PoissonSolver::PoissonSolver(const SparseMatrix& laplacian, const SparseMatrix& 
     multigrid_->setup(laplacian, std::move(constrained));
     // In the mass norm, the norm the errors are reported in (after re-centring in zero-mean mode).
     if (multigrid->estimate_error) multigrid_->set_error_norm(mass_of_one_, zero_mean);
-    estimates_error_ = multigrid->estimate_error;
   } else {
     direct_ = std::make_unique<ConstrainedSolver>(laplacian, std::move(constrained), ordering);
   }
@@ -191,13 +190,6 @@ Eigen::VectorXd PoissonSolver::solve_weighted(const Eigen::VectorXd& b, const Ei
 Eigen::MatrixXd PoissonSolver::solve_multiple_weighted(const Eigen::MatrixXd& B, const Eigen::MatrixXd& dirichlet_values) const {
   const auto solve_block = [&](const Eigen::MatrixXd& rhs, const Eigen::MatrixXd& values) {
     if (direct_) return direct_->solve_multiple(rhs, values);
-    if (estimates_error_) {  // the error estimate (and its stopping rule) is per solve(): column by column
-      Eigen::MatrixXd X(rhs.rows(), rhs.cols());
-      for (Eigen::Index j = 0; j < rhs.cols(); ++j)
-        X.col(j) = solve_constrained(rhs.col(j), values.size() == 0 ? Eigen::VectorXd() : Eigen::VectorXd(values.col(j)),
-                                     Eigen::VectorXd());
-      return X;
-    }
     if (rhs.rows() != multigrid_->size()) throw std::invalid_argument("PoissonSolver::solve_multiple: rhs has the wrong size");
     return multigrid_->solve_multiple(rhs, values);  // block V-cycles: the levels streamed once for all columns
   };
@@ -227,26 +219,31 @@ std::vector<int> output_steps(int steps, int every) {
   return listed;
 }
 
-HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, CholeskyOrdering ordering)
-    : mass_(mass), time_step_(time_step) {
+namespace {
+
+// M + τL after checking the sizes and τ (both HeatSolver constructors).
+SparseMatrix heat_matrix(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step) {
   require_square(mass, laplacian.rows(), "HeatSolver: mass and Laplacian");
   if (!(time_step > 0)) throw std::invalid_argument("HeatSolver: time step must be positive");
+  return SparseMatrix(mass + time_step * laplacian);
+}
+
+}  // namespace
+
+HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, CholeskyOrdering ordering)
+    : mass_(mass), time_step_(time_step) {
+  const SparseMatrix A = heat_matrix(laplacian, mass, time_step);
   factor_.set_ordering(ordering);
-  factor_.compute(SparseMatrix(mass + time_step * laplacian));
+  factor_.compute(A);
 }
 
 HeatSolver::HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, PoissonMultigrid multigrid)
     : mass_(mass), time_step_(time_step) {
-  require_square(mass, laplacian.rows(), "HeatSolver: mass and Laplacian");
-  if (!(time_step > 0)) throw std::invalid_argument("HeatSolver: time step must be positive");
+  const SparseMatrix A = heat_matrix(laplacian, mass, time_step);
   multigrid_ = std::make_unique<MultigridSolver>(std::move(multigrid.prolongations), multigrid.options);
   multigrid_->set_locality_order(std::move(multigrid.locality_order));
-  multigrid_->setup(SparseMatrix(mass + time_step * laplacian));
+  multigrid_->setup(A);
 }
-
-HeatSolver::~HeatSolver() = default;
-HeatSolver::HeatSolver(HeatSolver&&) noexcept = default;
-HeatSolver& HeatSolver::operator=(HeatSolver&&) noexcept = default;
 
 Eigen::VectorXd HeatSolver::solve_weighted(const Eigen::VectorXd& b) const {
   return multigrid_ ? multigrid_->solve(b) : factor_.solve(b);

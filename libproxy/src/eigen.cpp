@@ -71,13 +71,13 @@ Eigen::MatrixXd heat_kernel_signature(const Eigenbasis& basis, const Eigen::Vect
 
 Eigen::MatrixXd wave_kernel_signature(const Eigenbasis& basis, const Eigen::VectorXd& energies, double wks_sigma) {
   if (!(wks_sigma > 0)) throw std::invalid_argument("wave_kernel_signature: sigma must be > 0");
-  const double floor = 1e-8 * (basis.values.size() > 0 ? basis.values.cwiseAbs().maxCoeff() : 0.0);
+  const double largest = basis.values.size() > 0 ? basis.values.cwiseAbs().maxCoeff() : 0.0;
   const Eigen::MatrixXd squares = basis.vectors.array().square();
   Eigen::MatrixXd weights = Eigen::MatrixXd::Zero(basis.values.size(), energies.size());
   for (Eigen::Index e = 0; e < energies.size(); ++e) {
     double total = 0;
     for (Eigen::Index i = 0; i < basis.values.size(); ++i) {
-      if (!(basis.values(i) > floor)) continue;  // the zero modes carry no energy
+      if (!(basis.values(i) > 0) || fem::is_zero_mode(basis.values(i), largest)) continue;  // zero modes carry no energy
       const double d = energies(e) - std::log(basis.values(i));
       weights(i, e) = std::exp(-d * d / (2 * wks_sigma * wks_sigma));
       total += weights(i, e);

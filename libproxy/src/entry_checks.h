@@ -1,8 +1,12 @@
 #pragma once
 // What the readers of store entries share (stored_setup.cpp, multigrid.cpp).
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
+
+#include "ice/proxy/store.h"
 
 namespace ice::proxy::detail {
 
@@ -13,6 +17,51 @@ inline double seconds_since(std::chrono::steady_clock::time_point start) {
 /// Throws std::runtime_error "path: what" unless `ok`: the store then treats the entry as damaged.
 inline void require(bool ok, const std::string& path, const std::string& what) {
   if (!ok) throw std::runtime_error(path + ": " + what);
+}
+
+/// Writes `entry` as `kind`/`key` and records it in `cache`: the key, the time since `start` (when the
+/// writer began collecting the arrays), status miss unless already rebuilt, and any error (the run
+/// goes on without the entry).
+inline void save_entry(const Store& store, const std::string& kind, const StoreKey& key, const EntryWriter& entry,
+                       CacheReport& cache, std::chrono::steady_clock::time_point start) {
+  std::string error;
+  if (!store.save(kind, key, entry, &error)) cache.save_error = error;
+  if (cache.status == CacheStatus::off) cache.status = CacheStatus::miss;
+  cache.save_seconds = seconds_since(start);
+  cache.keys.push_back(key.hex());
+}
+
+/// The entry `kind`/`key` read by `parse(entry, path)` into a T (a value with a CacheReport `cache`),
+/// or std::nullopt: a miss, or a damaged entry — one the store rejects, or whose contents `parse`
+/// finds inconsistent (any exception), which is then removed. `cache` says which (miss, rebuilt with
+/// the damage) and what the attempt cost; on a hit the value's own `cache` says hit, its time and key.
+template <class T, class Parse>
+std::optional<T> load_entry(const Store& store, const std::string& kind, const StoreKey& key, CacheReport& cache,
+                            Parse&& parse) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto failed = [&](CacheStatus status, std::string damage) -> std::optional<T> {
+    cache.status = status;
+    cache.damage = std::move(damage);
+    cache.load_seconds = seconds_since(start);
+    return std::nullopt;
+  };
+  std::string damage;
+  std::optional<EntryReader> entry = store.load(kind, key, &damage);
+  if (!entry) {
+    const CacheStatus status = damage.empty() ? CacheStatus::miss : CacheStatus::rebuilt;
+    return failed(status, std::move(damage));
+  }
+  std::optional<T> value;
+  try {
+    value.emplace(parse(*entry, entry->path().string()));
+  } catch (const std::exception& e) {  // runtime_error from the entry's getters, others from the consumer's checks
+    store.discard(kind, key);
+    return failed(CacheStatus::rebuilt, e.what());
+  }
+  value->cache.status = CacheStatus::hit;
+  value->cache.load_seconds = seconds_since(start);
+  value->cache.keys.push_back(key.hex());
+  return value;
 }
 
 }  // namespace ice::proxy::detail

@@ -15,7 +15,6 @@ namespace ice::proxy {
 namespace {
 
 using detail::require;
-using detail::seconds_since;
 
 constexpr const char* kKind = "hierarchy";
 
@@ -31,53 +30,38 @@ void save(const Store& store, const StoreKey& key, MultigridHierarchy& h) {
   w.put_text("stop_reason", h.stop_reason);
   const double seconds[] = {h.build_seconds, h.coarsen_seconds};
   w.put("seconds", seconds, 2);
-  std::string error;
-  if (!store.save(kKind, key, w, &error)) h.cache.save_error = error;
-  if (h.cache.status == CacheStatus::off) h.cache.status = CacheStatus::miss;
-  h.cache.save_seconds = seconds_since(start);
-  h.cache.keys.push_back(key.hex());
+  detail::save_entry(store, kKind, key, w, h.cache, start);
 }
 
-// The stored hierarchy, checked; nullopt on a miss or a damaged entry (then removed, and `cache` says so).
+// The stored hierarchy, checked (detail::load_entry: a miss or damage leaves std::nullopt and says so in `cache`).
 std::optional<MultigridHierarchy> load(const Store& store, const StoreKey& key, Index n, CacheReport& cache) {
-  const auto start = std::chrono::steady_clock::now();
-  std::string damage;
-  std::optional<EntryReader> entry = store.load(kKind, key, &damage);
-  if (!entry) {
-    cache.status = damage.empty() ? CacheStatus::miss : CacheStatus::rebuilt;
-    cache.damage = damage;
-    cache.load_seconds = seconds_since(start);
-    return std::nullopt;
-  }
-  const std::string path = entry->path().string();
-  MultigridHierarchy h;
-  h.fine_vertices = n;
-  try {
-    const std::int64_t levels = entry->integer("levels");
+  return detail::load_entry<MultigridHierarchy>(store, kKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
+    MultigridHierarchy h;
+    h.fine_vertices = n;
+    const std::int64_t levels = entry.integer("levels");
     require(levels >= 1 && levels <= 1000, path, "a level count out of range");
     Index rows = n;
     for (std::int64_t k = 0; k + 1 < levels; ++k) {
-      Eigen::SparseMatrix<double> P = entry->sparse("P" + std::to_string(k));
+      Eigen::SparseMatrix<double> P = entry.sparse("P" + std::to_string(k));
       require(P.rows() == rows && P.cols() > 0 && P.cols() <= rows, path, "P" + std::to_string(k) + " of the wrong shape");
-      // Interpolation: every fine value a convex combination of coarse ones.
+      // Interpolation: every fine value a convex combination of coarse ones, and every coarse vertex
+      // interpolating somewhere (else its Galerkin level would be singular).
       Eigen::VectorXd row_sums = Eigen::VectorXd::Zero(P.rows());
-      for (Eigen::Index c = 0; c < P.outerSize(); ++c)
+      for (Eigen::Index c = 0; c < P.outerSize(); ++c) {
+        double largest = 0;
         for (Eigen::SparseMatrix<double>::InnerIterator it(P, c); it; ++it) {
           require(it.value() >= 0, path, "P" + std::to_string(k) + " has a negative weight");
           row_sums(it.row()) += it.value();
+          largest = std::max(largest, it.value());
         }
-      for (Eigen::Index i = 0; i < row_sums.size(); ++i)
-        require(std::abs(row_sums(i) - 1.0) <= 1e-10, path, "a row of P" + std::to_string(k) + " does not sum to 1");
-      // Every coarse vertex interpolates somewhere (else its Galerkin level would be singular).
-      for (Eigen::Index c = 0; c < P.outerSize(); ++c) {
-        double largest = 0;
-        for (Eigen::SparseMatrix<double>::InnerIterator it(P, c); it; ++it) largest = std::max(largest, it.value());
         require(largest > 0, path, "column " + std::to_string(c) + " of P" + std::to_string(k) + " is empty");
       }
+      for (Eigen::Index i = 0; i < row_sums.size(); ++i)
+        require(std::abs(row_sums(i) - 1.0) <= 1e-10, path, "a row of P" + std::to_string(k) + " does not sum to 1");
       rows = static_cast<Index>(P.cols());
       h.prolongations.push_back(std::move(P));
     }
-    h.fine_order = entry->ints("fine_order");
+    h.fine_order = entry.ints("fine_order");
     if (!h.fine_order.empty()) {
       require(static_cast<Index>(h.fine_order.size()) == n, path, "the fine order has the wrong size");
       std::vector<char> seen(static_cast<std::size_t>(n), 0);
@@ -86,22 +70,13 @@ std::optional<MultigridHierarchy> load(const Store& store, const StoreKey& key, 
         seen[static_cast<std::size_t>(v)] = 1;
       }
     }
-    h.stop_reason = entry->text("stop_reason");
-    const std::vector<double> seconds = entry->doubles("seconds");
+    h.stop_reason = entry.text("stop_reason");
+    const std::vector<double> seconds = entry.doubles("seconds");
     require(seconds.size() == 2, path, "build times of the wrong size");
     h.build_seconds = seconds[0];
     h.coarsen_seconds = seconds[1];
-  } catch (const std::exception& e) {
-    store.discard(kKind, key);
-    cache.status = CacheStatus::rebuilt;
-    cache.damage = e.what();
-    cache.load_seconds = seconds_since(start);
-    return std::nullopt;
-  }
-  h.cache.status = CacheStatus::hit;
-  h.cache.load_seconds = seconds_since(start);
-  h.cache.keys.push_back(key.hex());
-  return h;
+    return h;
+  });
 }
 
 }  // namespace

@@ -144,6 +144,15 @@ nlohmann::json qem_json(const QemOutcome& qem, bool target_reached) {
           {"idt_flips", qem.intrinsic_delaunay_flips}};
 }
 
+nlohmann::json hierarchy_json(const MultigridHierarchy& hierarchy, const HierarchyOptions& options) {
+  return {{"ratio", options.ratio},
+          {"coarsest_vertices", options.coarsest_vertices},
+          {"levels", hierarchy.num_levels()},
+          {"grid_complexity", hierarchy.grid_complexity()},
+          {"stop_reason", hierarchy.stop_reason},
+          {"coarsen_seconds", hierarchy.coarsen_seconds}};
+}
+
 nlohmann::json cache_json(const CacheReport& cache, const Store& store) {
   nlohmann::json j = {{"status", spelling(cache.status)}, {"keys", cache.keys}};
   j["directory"] = store.enabled() ? nlohmann::json(store.options().directory.string()) : nlohmann::json();

@@ -16,7 +16,6 @@ namespace ice::proxy {
 namespace {
 
 using detail::require;
-using detail::seconds_since;
 
 constexpr const char* kKind = "proxy";
 
@@ -168,11 +167,7 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
   w.put("proxy.fine_mass", mass.data(), static_cast<std::size_t>(mass.size()));
   w.put_sparse("proxy.coarse_laplacian", proxy.coarse_laplacian);
   w.put_sparse("proxy.coarse_mass", proxy.coarse_mass);
-  std::string error;
-  if (!store.save(kKind, key, w, &error)) setup.cache.save_error = error;
-  if (setup.cache.status == CacheStatus::off) setup.cache.status = CacheStatus::miss;
-  setup.cache.save_seconds = seconds_since(start);
-  setup.cache.keys.push_back(key.hex());
+  detail::save_entry(store, kKind, key, w, setup.cache, start);
 }
 
 fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry) {
@@ -185,31 +180,15 @@ fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, Fine
 
 std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& key, const TriangleMesh& mesh,
                                            CacheReport& cache, fem::CoarseProxy::FineMeshSource fine_mesh) {
-  const auto start = std::chrono::steady_clock::now();
-  std::string damage;
-  const auto damaged = [&](const std::string& what) {
-    cache.status = CacheStatus::rebuilt;
-    cache.damage = what;
-    cache.load_seconds = seconds_since(start);
-    return std::nullopt;
-  };
-  std::optional<EntryReader> entry = store.load(kKind, key, &damage);
-  if (!entry) {
-    if (!damage.empty()) return damaged(damage);
-    cache.status = CacheStatus::miss;
-    cache.load_seconds = seconds_since(start);
-    return std::nullopt;
-  }
-  const std::string path = entry->path().string();
-  ProxySetup setup;
-  try {
+  return detail::load_entry<ProxySetup>(store, kKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
+    ProxySetup setup;
     const auto n = static_cast<Index>(mesh.V.rows());
-    require(entry->integer("input_vertices") == n, path, "made for a mesh of another vertex count");
+    require(entry.integer("input_vertices") == n, path, "made for a mesh of another vertex count");
     CoarseSpace& c = setup.coarse;
-    std::vector<std::int32_t> to_input = entry->ints("coarse.to_input");
+    std::vector<std::int32_t> to_input = entry.ints("coarse.to_input");
     const auto nc = static_cast<Index>(to_input.size());
-    c.mesh.F = entry->int_matrix("coarse.F", 0, nc - 1);
-    c.mesh.L = entry->double_matrix("coarse.L");
+    c.mesh.F = entry.int_matrix("coarse.F", 0, nc - 1);
+    c.mesh.L = entry.double_matrix("coarse.L");
     require(c.mesh.F.cols() == 3 && c.mesh.L.rows() == c.mesh.F.rows() && c.mesh.L.cols() == 3, path,
             "coarse faces and lengths disagree");
     for (Eigen::Index f = 0; f < c.mesh.L.rows(); ++f) {
@@ -217,7 +196,7 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
       require(a > 0 && b > 0 && d > 0 && a <= b + d && b <= a + d && d <= a + b, path,
               "coarse face " + std::to_string(f) + " breaks the triangle inequality");
     }
-    std::vector<std::int32_t> twin = entry->ints("coarse.twin"), from_input = entry->ints("coarse.from_input");
+    std::vector<std::int32_t> twin = entry.ints("coarse.twin"), from_input = entry.ints("coarse.from_input");
     const auto sides = static_cast<std::int32_t>(3 * c.mesh.F.rows());
     require(twin.empty() || static_cast<Index>(twin.size()) == sides, path, "coarse gluing of the wrong size");
     for (std::int32_t t : twin) require(t >= kInvalid && t < sides, path, "coarse gluing out of range");
@@ -242,8 +221,8 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
     c.mesh.twin = std::move(twin);
     c.mesh.to_input = std::move(to_input);
     c.mesh.from_input = std::move(from_input);
-    const std::vector<std::int32_t> inserted_faces = entry->ints("coarse.inserted.face");
-    const std::vector<double> inserted_bary = entry->doubles("coarse.inserted.bary");
+    const std::vector<std::int32_t> inserted_faces = entry.ints("coarse.inserted.face");
+    const std::vector<double> inserted_bary = entry.doubles("coarse.inserted.bary");
     require(inserted_bary.size() == 3 * inserted_faces.size() && static_cast<Index>(inserted_faces.size()) == inserted_count, path,
             "inserted vertices disagree");
     for (double b : inserted_bary) require(std::isfinite(b), path, "an inserted vertex's place is not finite");
@@ -251,19 +230,19 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
       require(inserted_faces[i] >= 0 && inserted_faces[i] < mesh.F.rows(), path, "inserted vertex in no input face");
       c.inserted.push_back({inserted_faces[i], {inserted_bary[3 * i], inserted_bary[3 * i + 1], inserted_bary[3 * i + 2]}});
     }
-    c.P = entry->sparse("coarse.P");
+    c.P = entry.sparse("coarse.P");
     require(c.P.rows() == n && c.P.cols() == nc, path, "P of the wrong shape");
-    c.summary = summary_from(entry->doubles("coarse.summary"), path);
+    c.summary = summary_from(entry.doubles("coarse.summary"), path);
 
     for (const char* name : {"proxy.kind", "proxy.prolongation"})
-      require(entry->integer(name) == 0 || entry->integer(name) == 1, path, std::string(name) + " is not a known value");
-    require(entry->integer("proxy.mass_kind") == static_cast<int>(fem::MassKind::lumped), path, "the fine mass is not lumped");
+      require(entry.integer(name) == 0 || entry.integer(name) == 1, path, std::string(name) + " is not a known value");
+    require(entry.integer("proxy.mass_kind") == static_cast<int>(fem::MassKind::lumped), path, "the fine mass is not lumped");
     fem::CoarseProxyArrays a;
-    a.kind = static_cast<fem::CoarseOperatorKind>(entry->integer("proxy.kind"));
-    a.mass_kind = static_cast<fem::MassKind>(entry->integer("proxy.mass_kind"));
-    a.prolongation_kind = static_cast<fem::ProlongationKind>(entry->integer("proxy.prolongation"));
+    a.kind = static_cast<fem::CoarseOperatorKind>(entry.integer("proxy.kind"));
+    a.mass_kind = static_cast<fem::MassKind>(entry.integer("proxy.mass_kind"));
+    a.prolongation_kind = static_cast<fem::ProlongationKind>(entry.integer("proxy.prolongation"));
     if (a.prolongation_kind == fem::ProlongationKind::smoothed) {
-      a.P = entry->sparse("proxy.P");
+      a.P = entry.sparse("proxy.P");
       const Eigen::VectorXd row_sums = a.P * Eigen::VectorXd::Ones(a.P.cols());
       for (Eigen::Index i = 0; i < row_sums.size(); ++i)
         require(std::abs(row_sums(i) - 1.0) <= 1e-10, path, "a row of the smoothed P does not sum to 1");
@@ -271,14 +250,14 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
     } else {
       a.P = c.P;
     }
-    const std::vector<double> mass = entry->doubles("proxy.fine_mass");
+    const std::vector<double> mass = entry.doubles("proxy.fine_mass");
     require(static_cast<Index>(mass.size()) == n, path, "fine mass of the wrong size");
     a.fine_mass = Eigen::SparseMatrix<double>(n, n);
     a.fine_mass.reserve(Eigen::VectorXi::Constant(n, 1));
     for (Index i = 0; i < n; ++i) a.fine_mass.insert(i, i) = mass[static_cast<std::size_t>(i)];
     a.fine_mass.makeCompressed();
-    a.coarse_laplacian = entry->sparse("proxy.coarse_laplacian");
-    a.coarse_mass = entry->sparse("proxy.coarse_mass");
+    a.coarse_laplacian = entry.sparse("proxy.coarse_laplacian");
+    a.coarse_mass = entry.sparse("proxy.coarse_mass");
     a.coarse_faces = c.mesh.F;
     a.coarse_lengths = c.mesh.L;
     // The fine mesh is made again only if something asks for the fine operators (polishing, the
@@ -289,14 +268,8 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
                                "operators (polishing, the Galerkin heat method) are not available");
       };
     setup.proxy = std::make_unique<fem::CoarseProxy>(std::move(a), std::move(fine_mesh));
-  } catch (const std::exception& e) {  // runtime_error from the entry, invalid_argument from the proxy's checks
-    store.discard(kKind, key);
-    return damaged(e.what());
-  }
-  setup.cache.status = CacheStatus::hit;
-  setup.cache.load_seconds = seconds_since(start);
-  setup.cache.keys.push_back(key.hex());
-  return setup;
+    return setup;
+  });
 }
 
 }  // namespace ice::proxy

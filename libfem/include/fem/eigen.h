@@ -8,6 +8,7 @@
 /// (L − σM)⁻¹ applied by a CHOLMOD factorisation, σ < 0 so that L − σM is positive definite even
 /// with L's null space (constants, one per connected component): the eigenvalues nearest σ, i.e.
 /// the smallest, converge first.
+#include <cmath>
 #include <vector>
 
 #include <Eigen/Core>
@@ -53,8 +54,13 @@ Eigenpairs smallest_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int
 Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
                                          int k, const EigenOptions& options = {});
 
-/// The relative residual of each pair, ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂); a zero mode (|λ| below 1e-6 times
-/// the largest |λ| given) is judged against that largest |λ| instead (the scale of the basis it
+/// Whether the eigenvalue `lambda` of a basis whose largest |λ| is `largest` is a zero mode (a
+/// constant on a component, converged only to round-off): |λ| ≤ 1e-6 · largest. The one rule the
+/// residuals, the descriptors and the tools' error statistics use.
+inline bool is_zero_mode(double lambda, double largest) { return std::abs(lambda) <= 1e-6 * largest; }
+
+/// The relative residual of each pair, ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂); a zero mode (is_zero_mode) is
+/// judged against the largest |λ| given instead (the scale of the basis it
 /// was converged in) rather than dividing by ~0. Rows at the `fixed` (Dirichlet) indices, where the
 /// vectors are prescribed to be 0, are left out of both norms.
 Eigen::VectorXd eigen_residuals(const SparseMatrix& L, const SparseMatrix& M, const Eigen::VectorXd& values,

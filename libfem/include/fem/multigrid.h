@@ -158,7 +158,8 @@ class MultigridSolver {
   /// memory once per sweep for all of them. Column j stops when it reaches the tolerance. Results
   /// equal k calls of solve() up to round-off; reports() holds one report per column (report() then
   /// holds a column that did not converge, if any, else the one of most iterations; `seconds` is the
-  /// whole block's).
+  /// whole block's). With an error norm (set_error_norm) the columns go through solve() one by one,
+  /// each with its estimates and error criterion.
   Eigen::MatrixXd solve_multiple(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values = {});
   const std::vector<MultigridReport>& reports() const { return reports_; }
   /// The widest chunk of columns solve_multiple() iterates together.

@@ -100,7 +100,7 @@ class PoissonSolver {
   /// solve_weighted for every column of B (mass-weighted right-hand sides) at once: one CHOLMOD
   /// call for all columns (each column equal to its own solve within round-off of the block
   /// kernels), or one block multigrid solve (MultigridSolver::solve_multiple: each column equal to
-  /// its own solve within round-off; column by column when the multigrid estimates errors). Column j of `dirichlet_values` (one row per
+  /// its own solve within round-off). Column j of `dirichlet_values` (one row per
   /// Dirichlet vertex; empty: zeros) is column j's values.
   Eigen::MatrixXd solve_multiple_weighted(const Eigen::MatrixXd& B, const Eigen::MatrixXd& dirichlet_values = {}) const;
 
@@ -122,7 +122,6 @@ class PoissonSolver {
   ComponentLabels components_;  ///< zero-mean mode: L's components (first[] are the pinned vertices)
   std::unique_ptr<ConstrainedSolver> direct_;   ///< CHOLMOD, or
   std::unique_ptr<MultigridSolver> multigrid_;  ///< multigrid (its solve records a report: not const)
-  bool estimates_error_ = false;  ///< multigrid with an error norm: blocks go column by column
 };
 
 /// The step counts a trajectory of `steps` steps writes out: every, 2·every, … up to steps, and
@@ -144,9 +143,6 @@ class HeatSolver {
   /// residual ‖b − Ax‖/‖b‖); step() starts from the state it steps from, solve_weighted() from 0.
   /// The solver's report() describes the last solve. multigrid.estimate_error is not used.
   HeatSolver(const SparseMatrix& laplacian, const SparseMatrix& mass, double time_step, PoissonMultigrid multigrid);
-  ~HeatSolver();
-  HeatSolver(HeatSolver&&) noexcept;
-  HeatSolver& operator=(HeatSolver&&) noexcept;
 
   /// One implicit step from nodal values u.
   Eigen::VectorXd step(const Eigen::VectorXd& u) const;

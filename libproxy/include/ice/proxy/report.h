@@ -9,6 +9,7 @@
 #include "fem/multigrid.h"
 #include "ice/coarse_space.h"
 #include "ice/mesh_validation.h"
+#include "ice/proxy/multigrid.h"
 #include "ice/proxy/store.h"
 
 namespace ice::proxy {
@@ -31,6 +32,11 @@ nlohmann::json polish_json(const fem::PolishOptions& options, const fem::PolishR
 /// A multigrid solver's last solve and set-up (iterations, convergence, residuals, options, levels,
 /// operator complexity, seconds).
 nlohmann::json multigrid_json(const fem::MultigridSolver& solver);
+
+/// The "hierarchy" object of a multigrid route: the options it was built with (ratio,
+/// coarsest_vertices), levels, grid_complexity, stop_reason and coarsen_seconds (of the build that
+/// made it: the stored one's on a store hit).
+nlohmann::json hierarchy_json(const MultigridHierarchy& hierarchy, const HierarchyOptions& options);
 
 /// The "cache" object: status (off, miss, hit, rebuilt), the store's directory, the entries' keys,
 /// the damage found and any error writing an entry. Its times go to "timings_s" (cache_load, cache_save).
