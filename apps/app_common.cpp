@@ -119,7 +119,7 @@ void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::
 // ---- coarsening -------------------------------------------------------------------------------------
 
 ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
-                                                 bool show_progress) {
+                                                 bool show_progress, ice::FineMesh* fine_delaunay) {
   ProgressBar bar("coarsening", show_progress && stderr_is_terminal());  // QEM reports no progress: nothing drawn
   const auto start_vertices = static_cast<ice::Index>(mesh.V.rows());
   options.coarsen.progress_interval = 250;
@@ -130,7 +130,7 @@ ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh,
                                       thousands(static_cast<long long>(rate)) + " removals/s");
     return true;
   };
-  ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
+  ice::CoarseSpace space = ice::build_coarse_space(mesh, options, fine_delaunay);
   bar.finish();
   return space;
 }
@@ -166,11 +166,11 @@ ice::CoarseSpaceOptions pde_space_options(const ice::CoarsenOptions& options, co
 }  // namespace
 
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run, bool keep_method_state, bool record_history) {
+                                 PdeRun& run, bool keep_method_state, bool record_history, ice::FineMesh* fine_delaunay) {
   const ice::CoarseSpaceOptions space_options = pde_space_options(options, opt, keep_method_state, record_history);
   ice::CoarseSpace space;
   try {
-    space = build_coarse_space_with_progress(mesh, space_options, !opt.quiet);
+    space = build_coarse_space_with_progress(mesh, space_options, !opt.quiet, fine_delaunay);
   } catch (const std::runtime_error& e) {
     if (opt.qem_geometry == ice::QemGeometry::intrinsic_delaunay && opt.target.method == ice::CoarseningMethod::qem)
       throw AppError(kFailed, std::string("--qem-operators idt: ") + e.what());
@@ -231,15 +231,15 @@ PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOption
       warn(run.tool, "the stored setup was damaged and is rebuilt: " + run.cache.damage);
     clock.lap();  // the failed load is run.cache.load_seconds
   }
-  p.coarse = coarsen_for_pde(mesh, options, opt, run, keep_method_state || drawn, drawn);
-  run.coarsen = clock.lap();
-  // The fine discretisation: the reference's, and the Galerkin operators' and M f's
+  // The fine discretisation: the reference's, and the Galerkin operators' and M f's. Its intrinsic
+  // Delaunay mesh comes out of the coarsening (from the triangulation that starts it), timed apart.
   run.fine_built = need_fine || assemble_proxy;
-  if (run.fine_built) {
-    p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
-    run.idt_flips = p.fine.flips;
-  }
-  run.fine_mesh = clock.lap();
+  const bool fine_from_coarsening = run.fine_built && opt.fine_geometry() == ice::FineGeometry::intrinsic_delaunay;
+  p.coarse = coarsen_for_pde(mesh, options, opt, run, keep_method_state || drawn, drawn, fine_from_coarsening ? &p.fine : nullptr);
+  run.coarsen = clock.lap() - p.coarse.summary.fine_mesh_seconds;
+  if (run.fine_built && !fine_from_coarsening) p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
+  run.idt_flips = p.fine.flips;
+  run.fine_mesh = clock.lap() + p.coarse.summary.fine_mesh_seconds;
   if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(ice::proxy::make_proxy(p.fine, p.coarse, opt.operators, opt.prolongation));
   if (key) {
     const double assemble = clock.lap();  // the caller's assemble phase, kept apart from the save

@@ -69,7 +69,7 @@ void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::
 /// ice::build_coarse_space with a progress bar of the ICE removals on stderr (when `show_progress` and
 /// stderr is a terminal), cleared before it returns. Any progress callback in `options` is replaced.
 ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
-                                                 bool show_progress);
+                                                 bool show_progress, ice::FineMesh* fine_delaunay = nullptr);
 
 /// Prints a warning when the coarsening stopped before its vertex target (either method).
 void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,
@@ -80,9 +80,11 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
 /// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
 /// target was missed and records the summary in `run`. `keep_method_state`: keep what
 /// ice::fine_to_coarse_map needs (CoarseSpaceOptions::keep_method_state); `record_history`: and
-/// what ice::trace_coarse_mesh draws the coarse edges exactly from (CoarseSpaceOptions::record_history).
+/// what ice::trace_coarse_mesh draws the coarse edges exactly from (CoarseSpaceOptions::record_history);
+/// `fine_delaunay`: as ice::build_coarse_space's.
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run, bool keep_method_state = false, bool record_history = false);
+                                 PdeRun& run, bool keep_method_state = false, bool record_history = false,
+                                 ice::FineMesh* fine_delaunay = nullptr);
 
 /// What a PDE tool solves through: the coarse space, the fine discretisation and the coarse proxy.
 struct PdeProxy {

@@ -15,6 +15,8 @@
 #include <cstdlib>
 #include <map>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
@@ -196,5 +198,89 @@ BENCHMARK(BM_PolishedProxy)
     ->Unit(benchmark::kSecond)
     ->Iterations(1)
     ->UseRealTime();
+
+}  // namespace
+
+namespace {
+
+// Stream bandwidth of this machine on `threads` threads: a = b + s·c over arrays of 1 GiB each (beyond any cache),
+// the best of 3 passes (bytes: two reads and one write per element; write-allocate traffic not
+// counted, so the figure is what a kernel that streams its arrays once can reach).
+double stream_bandwidth(int threads) {
+  constexpr std::size_t kCount = std::size_t(128) << 20;
+  std::vector<double> a(kCount), b(kCount, 1.0), c(kCount, 2.0);
+  double best = 0;
+  for (int pass = 0; pass < 3; ++pass) {
+    const auto start = std::chrono::steady_clock::now();
+    std::vector<std::thread> team;
+    for (int t = 0; t < threads; ++t)
+      team.emplace_back([&, t] {
+        const std::size_t begin = kCount * t / threads, end = kCount * (t + 1) / threads;
+        for (std::size_t i = begin; i < end; ++i) a[i] = b[i] + 0.5 * c[i];
+      });
+    for (std::thread& thread : team) thread.join();
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    best = std::max(best, 3.0 * sizeof(double) * kCount / seconds);
+  }
+  benchmark::DoNotOptimize(a.data());
+  return best;
+}
+
+// The proxy's cold setup phase by phase (ICE to 1 %, Galerkin operators on the fine intrinsic
+// Delaunay mesh, as poisson-coarse and ice::proxy::PoissonSolver set up), each fine-size pass beside
+// its bandwidth bound: the bytes it must at least read and write (its inputs and outputs once) over
+// the measured stream bandwidth. The removals are the coarsener's own (BM_Coarsen, BM_RemovalsOnly).
+// Args: Loop subdivisions of spot_subdiv (2: 395,906 vertices; 3: 1,583,586), coarsening threads.
+//
+//   ice_bench --benchmark_filter=ProxySetupPhases
+void BM_ProxySetupPhases(benchmark::State& state) {
+  const TriangleMesh& m = spot_subdiv(static_cast<int>(state.range(0)));
+  const int threads = static_cast<int>(state.range(1));
+  const double bandwidth = stream_bandwidth(threads);
+  for (auto _ : state) {
+    auto t = std::chrono::steady_clock::now();
+    CoarseSpaceOptions options;
+    options.coarsen.target_ratio = 0.01;
+    options.coarsen.threads = threads;
+    FineMesh fine;
+    CoarseSpace space = build_coarse_space(m, options, &fine);
+    const double coarsen = seconds_since(t);
+    const double n = static_cast<double>(m.V.rows()), faces = static_cast<double>(fine.F.rows());
+    const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, m.V.rows());
+    const double laplacian = seconds_since(t);
+    const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, m.V.rows());
+    const double mass = seconds_since(t);
+    const auto [Lc, Mc] = fem::galerkin(space.P, L, M);
+    const double galerkin = seconds_since(t);
+    const fem::PoissonSolver coarse_solver = fem::PoissonSolver::zero_mean(Lc, Mc);  // as the proxy solver factors
+    const double factor = seconds_since(t);
+    benchmark::DoNotOptimize(&coarse_solver);
+    const CoarseSpaceSummary& summary = space.summary;
+    const double removals = summary.ice->seconds;
+    // Bytes each pass must move at least: faces (3 ints) and lengths (3 doubles) in; a matrix out
+    // or in as its column starts, row indices and values.
+    const auto matrix_bytes = [](const fem::SparseMatrix& A) { return 4.0 * (A.cols() + 1) + 12.0 * A.nonZeros(); };
+    const double mesh_bytes = faces * (12 + 24);
+    const double P_bytes = matrix_bytes(space.P);
+    state.counters["vertices"] = n;
+    state.counters["coarse_vertices"] = static_cast<double>(space.P.cols());
+    state.counters["stream_GBps"] = bandwidth / 1e9;
+    state.counters["triangulation_s"] = summary.triangulation_seconds;
+    state.counters["fine_idt_s"] = summary.fine_mesh_seconds;
+    state.counters["removals_s"] = removals;
+    state.counters["prolongation_s"] = summary.prolongation_seconds;
+    state.counters["laplacian_s"] = laplacian;
+    state.counters["laplacian_bound_s"] = (mesh_bytes + matrix_bytes(L)) / bandwidth;
+    state.counters["mass_s"] = mass;
+    state.counters["mass_bound_s"] = (mesh_bytes + 8 * n) / bandwidth;
+    // P read twice (its columns and a row-major copy), L and M's diagonal read once.
+    state.counters["galerkin_s"] = galerkin;
+    state.counters["galerkin_bound_s"] = (3 * P_bytes + matrix_bytes(L) + 8 * n) / bandwidth;
+    state.counters["coarse_factor_s"] = factor;
+    state.counters["non_removal_s"] = coarsen - removals + laplacian + mass + galerkin + factor;
+    state.counters["setup_s"] = coarsen + laplacian + mass + galerkin + factor;
+  }
+}
+BENCHMARK(BM_ProxySetupPhases)->Args({2, 2})->Args({3, 1})->Args({3, 2})->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace

@@ -281,6 +281,36 @@ TEST_CASE("fine_mesh: the input triangles or their intrinsic Delaunay triangulat
   CHECK(M_fine.sum() == Approx(M_by_hand.sum()).epsilon(1e-12));  // the same surface area
 }
 
+TEST_CASE("build_coarse_space hands out the fine intrinsic Delaunay mesh it starts from", "[coarse_space]") {
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));
+  const ice::FineMesh expected = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
+  const auto same_fine = [&](const ice::FineMesh& fine) {
+    CHECK(fine.geometry == ice::FineGeometry::intrinsic_delaunay);
+    CHECK(fine.flips == expected.flips);
+    CHECK(fine.F == expected.F);
+    CHECK(fine.L == expected.L);  // bit for bit
+    CHECK(fine.twin == expected.twin);
+  };
+  for (const bool locality : {true, false})
+    for (const auto method : {ice::CoarseningMethod::ice, ice::CoarseningMethod::qem}) {
+      INFO("locality numbering " << locality << ", method " << (method == ice::CoarseningMethod::ice ? "ice" : "qem"));
+      ice::CoarseSpaceOptions options;
+      options.method = method;
+      options.locality_numbering = locality;
+      options.coarsen.target_ratio = 0.05;
+      ice::FineMesh fine;
+      fine.flips = -1;
+      const ice::CoarseSpace with = ice::build_coarse_space(mesh, options, &fine);
+      same_fine(fine);
+      CHECK(with.summary.fine_mesh_seconds > 0);
+      const ice::CoarseSpace without = ice::build_coarse_space(mesh, options);
+      CHECK(without.summary.fine_mesh_seconds == 0);
+      CHECK(with.mesh.F == without.mesh.F);  // the coarsening itself is untouched
+      CHECK(with.mesh.L == without.mesh.L);
+      CHECK(fem::SparseMatrix(with.P - without.P).norm() == 0);
+    }
+}
+
 TEST_CASE("staged proxy solvers: Dirichlet values, zero mean, several sources, phase times", "[coarse_space][fem]") {
   const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));
   const Eigen::Index n = mesh.V.rows();

@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <limits>
@@ -15,6 +16,7 @@
 #include "fem/cholesky.h"
 #include "fem/geometry.h"
 #include "fem/operators.h"
+#include "ice/coarse_space.h"
 #include "ice/triangle_geometry.h"
 #include "ice/mesh_generators.h"
 #include "test_support.h"
@@ -293,6 +295,87 @@ TEST_CASE("operators: mass matrices, gradient and divergence", "[fem][operators]
   }
 }
 
+namespace {
+
+/// The cotangent Laplacian as Eigen assembles it from triplets (duplicates summed in triplet order).
+fem::SparseMatrix triplet_laplacian(const ice::Faces& F, const ice::FaceLengths& lengths, Eigen::Index n) {
+  const Eigen::MatrixXd cot = fem::corner_cotangents(lengths);
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int i = F(f, (k + 1) % 3), j = F(f, (k + 2) % 3);
+      const double w = 0.5 * cot(f, k);
+      triplets.emplace_back(i, j, -w);
+      triplets.emplace_back(j, i, -w);
+      triplets.emplace_back(i, i, w);
+      triplets.emplace_back(j, j, w);
+    }
+  fem::SparseMatrix L(n, n);
+  L.setFromTriplets(triplets.begin(), triplets.end());
+  return L;
+}
+
+/// Same shape, same stored entries in the same places, the same values to the last bit.
+bool identical(const fem::SparseMatrix& A, const fem::SparseMatrix& B) {
+  if (A.rows() != B.rows() || A.cols() != B.cols() || A.nonZeros() != B.nonZeros() || !A.isCompressed() ||
+      !B.isCompressed())
+    return false;
+  for (Eigen::Index c = 0; c <= A.outerSize(); ++c)
+    if (A.outerIndexPtr()[c] != B.outerIndexPtr()[c]) return false;
+  for (Eigen::Index e = 0; e < A.nonZeros(); ++e)
+    if (A.innerIndexPtr()[e] != B.innerIndexPtr()[e] ||
+        std::memcmp(A.valuePtr() + e, B.valuePtr() + e, sizeof(double)) != 0)
+      return false;
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("operators: the cotangent Laplacian equals Eigen's triplet assembly bit for bit", "[fem][operators]") {
+  SECTION("a mesh large enough for the threaded assembly, and an unused vertex") {
+    // 81,920 faces: above the threshold at which faces and columns are split among threads.
+    const ice::TriangleMesh mesh = ice::make_icosphere(6);
+    REQUIRE(mesh.F.rows() >= 50000);
+    const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
+    CHECK(identical(fem::cotan_laplacian(mesh.F, lengths), triplet_laplacian(mesh.F, lengths, mesh.V.rows())));
+    const Eigen::Index n = mesh.V.rows() + 1;
+    const fem::SparseMatrix with_unused = fem::cotan_laplacian(mesh.F, lengths, n);
+    CHECK(identical(with_unused, triplet_laplacian(mesh.F, lengths, n)));
+    CHECK(with_unused.col(n - 1).nonZeros() == 0);
+  }
+  SECTION("multiple edges: two triangles glued along all three sides (a Δ-complex sphere)") {
+    ice::Faces F(2, 3);
+    F << 0, 1, 2, 0, 2, 1;
+    ice::FaceLengths lengths(2, 3);
+    lengths << 1.0, 1.3, 0.9, 0.9, 1.3, 1.0;  // side k of each face joins its corners k and k+1
+    const fem::SparseMatrix L = fem::cotan_laplacian(F, lengths);
+    CHECK(identical(L, triplet_laplacian(F, lengths, 3)));
+    CHECK(L.nonZeros() == 9);
+    CHECK((Eigen::MatrixXd(L) * Eigen::Vector3d::Ones()).cwiseAbs().maxCoeff() < 1e-15);
+  }
+  SECTION("a face with a repeated vertex (a self-edge of a Δ-complex)") {
+    ice::Faces F(2, 3);
+    F << 0, 0, 1, 0, 1, 2;
+    ice::FaceLengths lengths(2, 3);
+    lengths << 1.0, 0.8, 0.8, 0.8, 1.1, 0.9;
+    CHECK(identical(fem::cotan_laplacian(F, lengths), triplet_laplacian(F, lengths, 3)));
+  }
+  SECTION("real meshes of the project set, and their intrinsic coarse meshes (Δ-complexes)") {
+    for (const std::string& path : ice_test::mesh_sweep({"spot_subdiv.obj", "elephant.off", "blobby_3cc.off"})) {
+      INFO("mesh " << path);
+      const ice::TriangleMesh mesh = load_plain(path);
+      const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
+      CHECK(identical(fem::cotan_laplacian(mesh.F, lengths, mesh.V.rows()),
+                      triplet_laplacian(mesh.F, lengths, mesh.V.rows())));
+      ice::CoarseSpaceOptions options;
+      options.coarsen.target_vertices = 24;
+      const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
+      const ice::CompactMesh& C = coarse.mesh;
+      CHECK(identical(fem::cotan_laplacian(C.F, C.L, C.num_vertices()), triplet_laplacian(C.F, C.L, C.num_vertices())));
+    }
+  }
+}
+
 TEST_CASE("operators: Galerkin products", "[fem][operators]") {
   const ice::TriangleMesh mesh = ice::make_icosphere(1);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
@@ -309,6 +392,28 @@ TEST_CASE("operators: Galerkin products", "[fem][operators]") {
   CHECK((coarse - expected).norm() < 1e-12 * expected.norm());
   CHECK((coarse - coarse.transpose()).norm() == 0.0);
   CHECK((coarse * Eigen::VectorXd::Ones(7)).cwiseAbs().maxCoeff() < 1e-12 * coarse.norm());
+  // Pᵀ L P and Pᵀ M P in one pass equal the two products apart, to the last bit.
+  const fem::SparseMatrix M = fem::mass_matrix(mesh.F, lengths);
+  const auto [coarse_L, coarse_M] = fem::galerkin(P, L, M);
+  CHECK(identical(coarse_L, fem::galerkin(P, L)));
+  CHECK(identical(coarse_M, fem::galerkin(P, M)));
+  CHECK_THROWS_AS(fem::galerkin(P, L, L), std::invalid_argument);  // not diagonal
+}
+
+TEST_CASE("operators: Galerkin products of an ICE coarse space, threaded and fused", "[fem][operators]") {
+  // 81,920 faces (above the size at which coarse columns split among threads), coarsened to 2%.
+  const ice::TriangleMesh mesh = ice::make_icosphere(6);
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_ratio = 0.02;
+  const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
+  const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
+  const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths), M = fem::mass_matrix(mesh.F, lengths);
+  const auto [coarse_L, coarse_M] = fem::galerkin(coarse.P, L, M);
+  CHECK(identical(coarse_L, fem::galerkin(coarse.P, L, 1)));  // the serial product
+  CHECK(identical(coarse_M, fem::galerkin(coarse.P, M, 1)));
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(coarse_L.rows());
+  CHECK((coarse_L * ones).cwiseAbs().maxCoeff() < 1e-12 * coarse_L.diagonal().maxCoeff());
+  CHECK(std::abs(ones.dot(coarse_M * ones) - M.sum()) < 1e-12 * M.sum());  // P·1 = 1 keeps the area
 }
 
 namespace {

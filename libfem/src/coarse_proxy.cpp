@@ -90,8 +90,7 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
     coarse_laplacian_ = cotan_laplacian(Fc, Lc, n_coarse);
     coarse_mass_ = mass_matrix(Fc, Lc, mass_kind, n_coarse);
   } else {
-    coarse_laplacian_ = galerkin(P_, fine_laplacian());
-    coarse_mass_ = galerkin(P_, fine_mass_);
+    std::tie(coarse_laplacian_, coarse_mass_) = galerkin(P_, fine_laplacian(), fine_mass_);
   }
 }
 
@@ -168,17 +167,22 @@ CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
   return lazy;
 }
 
+// The Laplacian and the gradient apart: a Galerkin proxy needs the Laplacian at once, only the heat
+// method the gradient.
 const CoarseProxy::LazyFineOperators& CoarseProxy::fine_operators() const {
   LazyFineOperators& lazy = fine_mesh_of_lazy();
-  std::call_once(lazy.once, [&lazy] {
-    lazy.laplacian = cotan_laplacian(lazy.F, lazy.L, lazy.n);
+  std::call_once(lazy.gradient_once, [&lazy] {
     lazy.gradient = gradient(lazy.F, lazy.L, lazy.n);
     lazy.face_areas = face_areas(lazy.L);
   });
   return lazy;
 }
 
-const SparseMatrix& CoarseProxy::fine_laplacian() const { return fine_operators().laplacian; }
+const SparseMatrix& CoarseProxy::fine_laplacian() const {
+  LazyFineOperators& lazy = fine_mesh_of_lazy();
+  std::call_once(lazy.laplacian_once, [&lazy] { lazy.laplacian = cotan_laplacian(lazy.F, lazy.L, lazy.n); });
+  return lazy.laplacian;
+}
 
 Eigen::VectorXd CoarseProxy::restrict_weighted(const Eigen::Ref<const Eigen::VectorXd>& b) const {
   if (b.size() != fine_size()) throw std::invalid_argument("CoarseProxy::restrict_weighted: wrong size");

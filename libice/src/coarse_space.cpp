@@ -158,7 +158,23 @@ void coarse_mesh_and_prolongation(const IntrinsicTriangulation& T, const std::ve
   C.from_input = std::move(from_input);
 }
 
-CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
+// The fine intrinsic Delaunay mesh of T (not yet coarsened; its input vertex t is the mesh's vertex
+// order[t], empty: t itself), faces named by input vertex.
+FineMesh fine_delaunay_mesh(IntrinsicTriangulation T, const std::vector<Index>& order) {
+  FineMesh fine;
+  fine.geometry = FineGeometry::intrinsic_delaunay;
+  fine.flips = T.flip_to_delaunay();
+  CompactMesh compact = T.compact();  // no vertex removed: compact indices are T's input indices
+  fine.F = std::move(compact.F);
+  fine.L = std::move(compact.L);
+  fine.twin = std::move(compact.twin);  // sides keep their faces: renaming vertices leaves it valid
+  if (!order.empty())
+    for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k) fine.F(f, k) = order[static_cast<std::size_t>(fine.F(f, k))];
+  return fine;
+}
+
+CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options, FineMesh* fine) {
   // The coarsener works in a numbering with memory locality; the result is given back in the
   // mesh's own.
   std::vector<Index> order;
@@ -167,8 +183,15 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   std::vector<Index> face_order;
   IntrinsicTriangulation T =
       triangulation_for_locality(mesh, options.locality_numbering, &order, record_history ? &face_order : nullptr);
+  double fine_mesh_seconds = 0;
+  if (fine) {
+    const auto fine_start = Clock::now();
+    // fine_mesh() builds this triangulation (in the locality numbering) again: a copy is cheaper.
+    *fine = options.locality_numbering ? fine_delaunay_mesh(T, order) : fine_mesh(mesh, FineGeometry::intrinsic_delaunay);
+    fine_mesh_seconds = seconds_since(fine_start);
+  }
   if (record_history) T.record_history(true);
-  const double triangulation_seconds = seconds_since(triangulation_start);
+  const double triangulation_seconds = seconds_since(triangulation_start) - fine_mesh_seconds;
   CoarsenOptions coarsen_options = options.coarsen;
   std::vector<Index> new_index(order.size());  // mesh vertex -> T's input vertex (empty: the same)
   for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
@@ -194,6 +217,7 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   coarse_mesh_and_prolongation(T, order, space);
   space.summary.prolongation_seconds = seconds_since(prolongation_start);
   space.summary.triangulation_seconds = triangulation_seconds;
+  space.summary.fine_mesh_seconds = fine_mesh_seconds;
   space.summary.target_reached = result.stop_reason == StopReason::TargetReached;
   space.summary.ice = result;
   if (options.keep_method_state) {
@@ -238,7 +262,7 @@ CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep
   return space;
 }
 
-CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options) {
+CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
   const auto start = Clock::now();
   CoarseSpace space;
   if (options.method == CoarseningMethod::qem) {
@@ -252,8 +276,13 @@ CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOption
     q.locked_vertices = options.coarsen.locked_vertices;
     q.remove_boundary = options.coarsen.remove_boundary;
     space = coarse_space_from_qem(qem_coarsen(mesh, q), options.qem_geometry, options.keep_method_state);
+    if (fine_delaunay) {
+      const auto fine_start = Clock::now();
+      *fine_delaunay = fine_mesh(mesh, FineGeometry::intrinsic_delaunay);
+      space.summary.fine_mesh_seconds = seconds_since(fine_start);
+    }
   } else {
-    space = ice_coarse_space(mesh, options);
+    space = ice_coarse_space(mesh, options, fine_delaunay);
   }
   space.summary.seconds = seconds_since(start);
   return space;
@@ -330,15 +359,7 @@ FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
   // Built and flipped in the locality numbering (as ICE coarsens), faces then named by input vertex.
   std::vector<Index> order;
   IntrinsicTriangulation T = triangulation_for_locality(mesh, true, &order);
-  fine.flips = T.flip_to_delaunay();
-  CompactMesh compact = T.compact();  // no vertex removed: compact indices are T's input indices
-  fine.F = std::move(compact.F);
-  fine.L = std::move(compact.L);
-  fine.twin = std::move(compact.twin);  // sides keep their faces: renaming vertices leaves it valid
-  if (!order.empty())
-    for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
-      for (int k = 0; k < 3; ++k) fine.F(f, k) = order[static_cast<std::size_t>(fine.F(f, k))];
-  return fine;
+  return fine_delaunay_mesh(std::move(T), order);
 }
 
 }  // namespace ice

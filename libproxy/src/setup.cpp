@@ -19,6 +19,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, std::optional<CoarseSpace
                              bool fine_operators) {
   const fem::ProlongationKind resolved = resolve_prolongation(prolongation, kind, dirichlet);  // before any work
   ProxySetup setup;
+  bool geometry_made = false;  // setup.fine
   std::optional<StoreKey> key;
   if (coarse) {
     setup.coarse = std::move(*coarse);
@@ -31,9 +32,16 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, std::optional<CoarseSpace
                                                               fine_operators ? fine_mesh_source(mesh, geometry) : nullptr))
         return std::move(*stored);
     }
-    setup.coarse = builder ? builder(mesh, coarsening) : build_coarse_space(mesh, coarsening);
+    if (builder) {
+      setup.coarse = builder(mesh, coarsening);
+    } else {
+      // The fine intrinsic Delaunay mesh from the triangulation the coarsening starts with.
+      const bool shared = geometry == FineGeometry::intrinsic_delaunay;
+      setup.coarse = build_coarse_space(mesh, coarsening, shared ? &setup.fine : nullptr);
+      if (shared) geometry_made = true;
+    }
   }
-  setup.fine = fine_mesh(mesh, geometry);
+  if (!geometry_made) setup.fine = fine_mesh(mesh, geometry);
   setup.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(setup.fine, setup.coarse, kind, resolved));
   if (key) save_proxy_setup(store, *key, setup);
   return setup;

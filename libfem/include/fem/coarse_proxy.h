@@ -180,13 +180,14 @@ class CoarseProxy {
     FaceLengths L;
     Eigen::Index n = 0;
     FineMeshSource source;  ///< a restored proxy's: fills F and L on first use
-    std::once_flag mesh_once, once;
+    std::once_flag mesh_once, laplacian_once, gradient_once;
     std::once_flag mass_factor_once;
     CholeskySolver coarse_mass_factor;  ///< for the L² projection, on its first use
     SparseMatrix laplacian, gradient;
     Eigen::VectorXd face_areas;
   };
   std::unique_ptr<LazyFineOperators> lazy_;
+  /// The lazy state with the gradient and face areas made (the Laplacian: fine_laplacian()).
   const LazyFineOperators& fine_operators() const;
   /// The lazy state with F and L made (a restored proxy's from its source).
   LazyFineOperators& fine_mesh_of_lazy() const;

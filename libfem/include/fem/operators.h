@@ -10,10 +10,11 @@
 ///    It is the stiffness matrix ∫∇φ_i·∇φ_j, so L = Gᵀ·diag(A)·G with G the gradient below.
 ///  - Per-face gradients live in each face's own 2D frame from fem::layout_triangle (corner 0 at the
 ///    origin, corner 1 on +x), so they need no embedding; rows 2f and 2f+1 are the x and y components.
-/// All assembly is linear in the number of faces (triplets, duplicates summed by Eigen).
+/// All assembly is linear in the number of faces, and its result does not depend on the thread count.
 #include <optional>
 
 #include <type_traits>
+#include <utility>
 
 #include <Eigen/SparseCore>
 
@@ -29,7 +30,9 @@ using VertexCount = std::optional<Eigen::Index>;
 /// Lumped (diagonal) or consistent (Galerkin P1) mass matrix.
 enum class MassKind { lumped, consistent };
 
-/// Cotangent Laplacian (n×n, symmetric positive semidefinite, rows sum to zero).
+/// Cotangent Laplacian (n×n, symmetric positive semidefinite, rows sum to zero), rows sorted, one
+/// entry per vertex pair joined by an edge (multiple edges summed in face order) and a diagonal
+/// entry for every vertex a face uses. On OpenMP's threads when faces name three distinct vertices.
 /// Throws InvalidTriangle on invalid or zero-area faces.
 SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, VertexCount vertex_count = std::nullopt);
 
@@ -62,5 +65,10 @@ SparseMatrix divergence(const Faces& F, const FaceLengths& L, VertexCount vertex
 /// the mean diagonal). A P whose columns all reach a fine vertex with weight 1 (every ICE or QEM
 /// coarsening without refinement) is untouched.
 SparseMatrix galerkin(const SparseMatrix& P, const SparseMatrix& A, int threads = 0);
+
+/// Pᵀ·A·P and Pᵀ·D·P for a diagonal D (a lumped mass; only diagonal entries stored, else
+/// std::invalid_argument) in one pass over P and A: each equal to galerkin() of it, bit for bit.
+std::pair<SparseMatrix, SparseMatrix> galerkin(const SparseMatrix& P, const SparseMatrix& A, const SparseMatrix& D,
+                                               int threads = 0);
 
 }  // namespace fem

@@ -29,6 +29,8 @@
 
 namespace ice {
 
+struct FineMesh;
+
 /// How the coarse mesh is made.
 enum class CoarseningMethod {
   ice,  ///< intrinsic vertex removals ordered by the ICE error metric (ice::coarsen)
@@ -114,6 +116,9 @@ struct CoarseSpaceSummary {
   /// ICE: where `seconds` went besides coarsen() (whose phases are in `ice`): numbering the mesh for
   /// locality and building its intrinsic triangulation, then the compact coarse mesh and P.
   double triangulation_seconds = 0, prolongation_seconds = 0;
+  /// When the call made the fine intrinsic Delaunay mesh too (build_coarse_space's `fine_delaunay`):
+  /// its time, included in `seconds`.
+  double fine_mesh_seconds = 0;
   std::optional<CoarsenResult> ice;  ///< method == ice: removals, stop reason, costs
   std::optional<QemOutcome> qem;     ///< method == qem
   std::optional<RefinementResult> refinement;  ///< when refinement was asked for
@@ -158,7 +163,12 @@ struct CoarseSpace {
 /// Coarsens `mesh` (clean, oriented, manifold: e.g. from ice::load_mesh) by options.method.
 /// Throws std::invalid_argument on bad options (those of ice::coarsen / ice::qem_coarsen) and
 /// std::runtime_error when a QEM mesh with QemGeometry::intrinsic_delaunay has a degenerate face.
-CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options);
+///
+/// With `fine_delaunay`, also fills it with fine_mesh(mesh, FineGeometry::intrinsic_delaunay) (the
+/// same arrays to the last bit): ICE flips a copy of the triangulation it starts from instead of
+/// building that triangulation again.
+CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options,
+                               FineMesh* fine_delaunay = nullptr);
 
 /// What build_coarse_space does with a QEM decimation already made (ice::qem_coarsen): the coarse
 /// space of `geometry`, for callers that compare both geometries of one decimation (ice-report).
