@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "fem/cholesky.h"
+#include "fem/coarse_proxy.h"
 #include "fem/geometry.h"
 #include "fem/operators.h"
 #include "ice/coarse_space.h"
@@ -414,6 +415,9 @@ TEST_CASE("operators: Galerkin products of an ICE coarse space, threaded and fus
   const Eigen::VectorXd ones = Eigen::VectorXd::Ones(coarse_L.rows());
   CHECK((coarse_L * ones).cwiseAbs().maxCoeff() < 1e-12 * coarse_L.diagonal().maxCoeff());
   CHECK(std::abs(ones.dot(coarse_M * ones) - M.sum()) < 1e-12 * M.sum());  // P·1 = 1 keeps the area
+  const fem::SparseMatrix smoothed = fem::smoothed_prolongation(coarse.P, L, 2.0 / 3.0);
+  CHECK((smoothed * Eigen::VectorXd::Ones(smoothed.cols()) - Eigen::VectorXd::Ones(smoothed.rows())).cwiseAbs().maxCoeff() <
+        1e-12);  // L·1 = 0: smoothing keeps P·1 = 1
 }
 
 namespace {
