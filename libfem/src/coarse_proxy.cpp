@@ -5,6 +5,7 @@
 
 #include "coarse_marching.h"
 #include "parallel_kernels.h"
+#include "sparse_columns.h"
 
 #include <algorithm>
 #include <array>
@@ -56,9 +57,96 @@ SparseMatrix smoothed_prolongation(const SparseMatrix& P, const SparseMatrix& la
   const Eigen::VectorXd diagonal = laplacian.diagonal();
   Eigen::VectorXd scale(diagonal.size());
   for (Eigen::Index i = 0; i < diagonal.size(); ++i) scale(i) = diagonal(i) != 0 ? omega / diagonal(i) : 0.0;
-  SparseMatrix smoothed = P - scale.asDiagonal() * (laplacian * P);
-  smoothed.prune(0.0);
-  smoothed.makeCompressed();
+  // P − diag(scale)·(L P) with its exact zeros dropped, row by row on the threads: row i of L P is
+  // Σ_k L_ik P_k over L's column i (L is symmetric), k increasing, which is the order in which
+  // Eigen's column-by-column sparse product sums each entry. So the result is that expression's in
+  // Eigen to the last bit, but each row reads only its neighbours' rows of P, with a small
+  // accumulator, where a column pass reads the whole fine mesh around each coarse vertex scattered
+  // over memory into a fine-sized one (memory-latency bound: docs/measurements.md, "Cold setup").
+  SparseMatrix P_copy, L_copy;
+  const SparseMatrix& Pc = detail::compressed(P, P_copy);
+  const SparseMatrix& Lc = detail::compressed(laplacian, L_copy);
+  const detail::RowMajorSparse P_rows = Pc;
+  const Eigen::Index n = Pc.rows(), nc = Pc.cols();
+  const int parts = detail::active_threads(n, detail::default_threads());
+  const auto first_row = [&](int part) { return static_cast<Eigen::Index>(static_cast<long long>(n) * part / parts); };
+  struct Rows {
+    std::vector<Index> count, columns;
+    std::vector<double> values;
+    std::vector<Index> per_column;  // entries of each coarse column in this part, then its first slot
+  };
+  std::vector<Rows> part(static_cast<std::size_t>(parts));
+#pragma omp parallel for schedule(static, 1) num_threads(parts)
+  for (int t = 0; t < parts; ++t) {
+    Rows& out = part[static_cast<std::size_t>(t)];
+    out.per_column.assign(static_cast<std::size_t>(nc), 0);
+    std::vector<std::pair<Index, double>> row;  // (coarse column, (L P)_iJ), in order of first touch
+    for (Eigen::Index i = first_row(t); i < first_row(t + 1); ++i) {
+      row.clear();
+      for (auto q = Lc.outerIndexPtr()[i]; q < Lc.outerIndexPtr()[i + 1]; ++q) {
+        const Index k = Lc.innerIndexPtr()[q];
+        const double x = Lc.valuePtr()[q];
+        for (auto r = P_rows.outerIndexPtr()[k]; r < P_rows.outerIndexPtr()[k + 1]; ++r) {
+          const Index J = P_rows.innerIndexPtr()[r];
+          const double term = x * P_rows.valuePtr()[r];
+          auto at = std::find_if(row.begin(), row.end(), [J](const auto& e) { return e.first == J; });
+          if (at == row.end())
+            row.emplace_back(J, term);
+          else
+            at->second += term;
+        }
+      }
+      for (auto r = P_rows.outerIndexPtr()[i]; r < P_rows.outerIndexPtr()[i + 1]; ++r) {
+        const Index J = P_rows.innerIndexPtr()[r];
+        if (std::none_of(row.begin(), row.end(), [J](const auto& e) { return e.first == J; })) row.emplace_back(J, 0.0);
+      }
+      std::sort(row.begin(), row.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+      Index kept = 0;
+      auto own = P_rows.outerIndexPtr()[i];  // P's row i, columns increasing: merged with `row`
+      for (const auto& [J, product] : row) {
+        double p = 0;
+        if (own < P_rows.outerIndexPtr()[i + 1] && P_rows.innerIndexPtr()[own] == J) p = P_rows.valuePtr()[own++];
+        const double value = p - scale(i) * product;
+        if (value != 0) {
+          out.columns.push_back(J);
+          out.values.push_back(value);
+          ++out.per_column[static_cast<std::size_t>(J)];
+          ++kept;
+        }
+      }
+      out.count.push_back(kept);
+    }
+  }
+  // Column-major: each part's entries of column J go after the earlier parts' (rows increasing).
+  SparseMatrix smoothed(n, nc);
+  Index* start = smoothed.outerIndexPtr();
+  start[0] = 0;
+  for (Eigen::Index J = 0; J < nc; ++J) {
+    Index at = start[J];
+    for (Rows& r : part) {
+      const Index c = r.per_column[static_cast<std::size_t>(J)];
+      r.per_column[static_cast<std::size_t>(J)] = at;
+      at += c;
+    }
+    start[J + 1] = at;
+  }
+  smoothed.resizeNonZeros(start[nc]);
+  Index* inner = smoothed.innerIndexPtr();
+  double* value = smoothed.valuePtr();
+#pragma omp parallel for schedule(static, 1) num_threads(parts)
+  for (int t = 0; t < parts; ++t) {
+    Rows& r = part[static_cast<std::size_t>(t)];
+    std::size_t e = 0;
+    Eigen::Index i = first_row(t);
+    for (const Index count : r.count) {
+      for (Index c = 0; c < count; ++c, ++e) {
+        const Index slot = r.per_column[static_cast<std::size_t>(r.columns[e])]++;
+        inner[slot] = static_cast<Index>(i);
+        value[slot] = r.values[e];
+      }
+      ++i;
+    }
+  }
   return smoothed;
 }
 

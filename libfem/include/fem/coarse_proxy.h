@@ -72,7 +72,8 @@ constexpr double kProlongationSmoothingWeight = 2.0 / 3.0;
 /// P − ω D⁻¹ L P, D = diag(L): one damped Jacobi step of each column of P (the smoothing of
 /// smoothed-aggregation multigrid). Rows of L that sum to 0 (a cotan Laplacian) keep the row sums of P;
 /// rows with a zero diagonal (vertices no face uses) are left as they are. Preconditions:
-/// L is n × n and P n × m (std::invalid_argument otherwise).
+/// L is n × n and P n × m (std::invalid_argument otherwise); L symmetric (not checked). Exact zeros
+/// are not stored; the result does not depend on the thread count.
 SparseMatrix smoothed_prolongation(const SparseMatrix& P, const SparseMatrix& laplacian,
                                    double omega = kProlongationSmoothingWeight);
 
