@@ -334,9 +334,10 @@ bool identical(const fem::SparseMatrix& A, const fem::SparseMatrix& B) {
 
 TEST_CASE("operators: the cotangent Laplacian equals Eigen's triplet assembly bit for bit", "[fem][operators]") {
   SECTION("a mesh large enough for the threaded assembly, and an unused vertex") {
-    // 81,920 faces: above the threshold at which faces and columns are split among threads.
-    const ice::TriangleMesh mesh = ice::make_icosphere(6);
-    REQUIRE(mesh.F.rows() >= 50000);
+    // 60,000 vertices: above the size (50,000 faces, 50,000 columns) at which faces and columns are
+    // split among threads.
+    const ice::TriangleMesh mesh = ice::make_torus(300, 200, 1.0, 0.3);
+    REQUIRE(mesh.V.rows() >= 50000);
     const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
     CHECK(identical(fem::cotan_laplacian(mesh.F, lengths), triplet_laplacian(mesh.F, lengths, mesh.V.rows())));
     const Eigen::Index n = mesh.V.rows() + 1;
@@ -401,9 +402,42 @@ TEST_CASE("operators: Galerkin products", "[fem][operators]") {
   CHECK_THROWS_AS(fem::galerkin(P, L, L), std::invalid_argument);  // not diagonal
 }
 
-TEST_CASE("operators: Galerkin products of an ICE coarse space, threaded and fused", "[fem][operators]") {
-  // 81,920 faces (above the size at which coarse columns split among threads), coarsened to 2%.
-  const ice::TriangleMesh mesh = ice::make_icosphere(6);
+TEST_CASE("operators: Galerkin products and the smoothed P split among threads", "[fem][operators]") {
+  // More than 50,000 fine vertices, the size at which these passes split among threads; a P whose
+  // rows reach three scattered coarse columns each (weights 0.6, 0.3, 0.1), as a coarse space of a
+  // mesh numbered without locality does.
+  const ice::TriangleMesh mesh = ice::make_torus(300, 200, 1.0, 0.3);
+  const Eigen::Index n = mesh.V.rows(), nc = n / 40;
+  REQUIRE(n >= 50000);
+  std::vector<Eigen::Triplet<double>> weights;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Index c = (i * 7919) % nc;
+    weights.emplace_back(i, c, 0.6);
+    weights.emplace_back(i, (c + 1) % nc, 0.3);
+    weights.emplace_back(i, (c + 17) % nc, 0.1);
+  }
+  fem::SparseMatrix P(n, nc);
+  P.setFromTriplets(weights.begin(), weights.end());
+  const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
+  const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths), M = fem::mass_matrix(mesh.F, lengths);
+  const auto [coarse_L, coarse_M] = fem::galerkin(P, L, M);
+  CHECK(identical(coarse_L, fem::galerkin(P, L, 1)));  // the serial products, apart
+  CHECK(identical(coarse_M, fem::galerkin(P, M, 1)));
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(nc);
+  CHECK((coarse_L * ones).cwiseAbs().maxCoeff() < 1e-12 * coarse_L.diagonal().maxCoeff());
+  CHECK(std::abs(ones.dot(coarse_M * ones) - M.sum()) < 1e-12 * M.sum());  // P·1 = 1 keeps the area
+  const double omega = 2.0 / 3.0;
+  const Eigen::VectorXd scale = (omega / L.diagonal().array()).matrix();
+  fem::SparseMatrix expected = P - scale.asDiagonal() * (L * P);
+  expected.prune(0.0);
+  expected.makeCompressed();
+  const fem::SparseMatrix smoothed = fem::smoothed_prolongation(P, L, omega);
+  CHECK(identical(smoothed, expected));
+  CHECK((smoothed * ones - Eigen::VectorXd::Ones(n)).cwiseAbs().maxCoeff() < 1e-12);  // L·1 = 0 keeps P·1 = 1
+}
+
+TEST_CASE("operators: Galerkin products of an ICE coarse space, fused", "[fem][operators]") {
+  const ice::TriangleMesh mesh = ice::make_icosphere(5);
   ice::CoarseSpaceOptions options;
   options.coarsen.target_ratio = 0.02;
   const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
@@ -415,7 +449,7 @@ TEST_CASE("operators: Galerkin products of an ICE coarse space, threaded and fus
   const Eigen::VectorXd ones = Eigen::VectorXd::Ones(coarse_L.rows());
   CHECK((coarse_L * ones).cwiseAbs().maxCoeff() < 1e-12 * coarse_L.diagonal().maxCoeff());
   CHECK(std::abs(ones.dot(coarse_M * ones) - M.sum()) < 1e-12 * M.sum());  // P·1 = 1 keeps the area
-  // The smoothed prolongation, threaded and row by row, equals Eigen's expression of it to the last bit.
+  // The smoothed prolongation, row by row, equals Eigen's expression of it to the last bit.
   const double omega = 2.0 / 3.0;
   const Eigen::VectorXd scale = (omega / L.diagonal().array()).matrix();
   fem::SparseMatrix expected = coarse.P - scale.asDiagonal() * (L * coarse.P);
@@ -425,6 +459,13 @@ TEST_CASE("operators: Galerkin products of an ICE coarse space, threaded and fus
   CHECK(identical(smoothed, expected));
   CHECK((smoothed * Eigen::VectorXd::Ones(smoothed.cols()) - Eigen::VectorXd::Ones(smoothed.rows())).cwiseAbs().maxCoeff() <
         1e-12);  // L·1 = 0: smoothing keeps P·1 = 1
+  // A Galerkin proxy keeps both products with a consistent (not diagonal) mass as with a lumped one.
+  for (const fem::MassKind mass : {fem::MassKind::lumped, fem::MassKind::consistent}) {
+    const fem::CoarseProxy proxy(mesh.F, lengths, coarse.mesh.F, coarse.mesh.L, coarse.P, fem::CoarseOperatorKind::galerkin,
+                                 mass);
+    CHECK(identical(proxy.coarse_laplacian(), coarse_L));
+    CHECK(identical(proxy.coarse_mass(), fem::galerkin(coarse.P, fem::mass_matrix(mesh.F, lengths, mass))));
+  }
 }
 
 namespace {

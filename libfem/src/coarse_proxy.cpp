@@ -177,8 +177,11 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
   if (kind == CoarseOperatorKind::intrinsic) {
     coarse_laplacian_ = cotan_laplacian(Fc, Lc, n_coarse);
     coarse_mass_ = mass_matrix(Fc, Lc, mass_kind, n_coarse);
-  } else {
+  } else if (mass_kind == MassKind::lumped) {  // a diagonal mass: both products in one pass
     std::tie(coarse_laplacian_, coarse_mass_) = galerkin(P_, fine_laplacian(), fine_mass_);
+  } else {
+    coarse_laplacian_ = galerkin(P_, fine_laplacian());
+    coarse_mass_ = galerkin(P_, fine_mass_);
   }
 }
 

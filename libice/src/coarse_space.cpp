@@ -284,7 +284,7 @@ CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOption
   } else {
     space = ice_coarse_space(mesh, options, fine_delaunay);
   }
-  space.summary.seconds = seconds_since(start);
+  space.summary.seconds = seconds_since(start) - space.summary.fine_mesh_seconds;
   return space;
 }
 

@@ -92,9 +92,9 @@ struct CoarseProxyArrays {
 };
 
 /// Fine and coarse operators linked by P. The constructor assembles the fine mass and the coarse
-/// operators; the fine Laplacian and gradient are assembled there too for Galerkin operators, and
-/// only on first use (fine_laplacian(), Galerkin heat-method operators) for intrinsic ones, which do
-/// not need them. The lazy assembly is thread-safe (std::call_once).
+/// operators; the fine Laplacian is assembled there too for Galerkin operators, and only on first
+/// use (fine_laplacian()) for intrinsic ones, which do not need it; the fine gradient only for the
+/// Galerkin heat-method operators. The lazy assembly is thread-safe (std::call_once).
 class CoarseProxy {
  public:
   /// P's shape gives the vertex counts (n_fine × n_coarse; vertices no face uses are fine). Throws

@@ -117,7 +117,7 @@ struct CoarseSpaceSummary {
   /// locality and building its intrinsic triangulation, then the compact coarse mesh and P.
   double triangulation_seconds = 0, prolongation_seconds = 0;
   /// When the call made the fine intrinsic Delaunay mesh too (build_coarse_space's `fine_delaunay`):
-  /// its time, included in `seconds`.
+  /// its time, which `seconds` leaves out (not stored with a coarse space: 0 once restored).
   double fine_mesh_seconds = 0;
   std::optional<CoarsenResult> ice;  ///< method == ice: removals, stop reason, costs
   std::optional<QemOutcome> qem;     ///< method == qem
