@@ -309,6 +309,20 @@ TEST_CASE("build_coarse_space hands out the fine intrinsic Delaunay mesh it star
       CHECK(with.mesh.L == without.mesh.L);
       CHECK(fem::SparseMatrix(with.P - without.P).norm() == 0);
     }
+  // With the method's state kept and its history recorded (the copy is taken before recording starts).
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_ratio = 0.05;
+  options.keep_method_state = true;
+  options.record_history = true;
+  ice::FineMesh fine;
+  const ice::CoarseSpace with = ice::build_coarse_space(mesh, options, &fine);
+  same_fine(fine);
+  const ice::CoarseSpace without = ice::build_coarse_space(mesh, options);
+  CHECK(with.mesh.F == without.mesh.F);
+  CHECK(fem::SparseMatrix(with.P - without.P).norm() == 0);
+  REQUIRE(with.triangulation.has_value());
+  CHECK(with.triangulation->history().num_records() > 0);  // the fine mesh's flips are not in it
+  CHECK(with.triangulation->history().num_records() == without.triangulation->history().num_records());
 }
 
 TEST_CASE("staged proxy solvers: Dirichlet values, zero mean, several sources, phase times", "[coarse_space][fem]") {
