@@ -184,10 +184,9 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   IntrinsicTriangulation T =
       triangulation_for_locality(mesh, options.locality_numbering, &order, record_history ? &face_order : nullptr);
   double fine_mesh_seconds = 0;
-  if (fine) {
+  if (fine) {  // fine_mesh() would build this triangulation again: a copy is cheaper
     const auto fine_start = Clock::now();
-    // fine_mesh() builds this triangulation (in the locality numbering) again: a copy is cheaper.
-    *fine = options.locality_numbering ? fine_delaunay_mesh(T, order) : fine_mesh(mesh, FineGeometry::intrinsic_delaunay);
+    *fine = fine_delaunay_mesh(T, order);
     fine_mesh_seconds = seconds_since(fine_start);
   }
   if (record_history) T.record_history(true);
@@ -265,6 +264,9 @@ CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep
 CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
   const auto start = Clock::now();
   CoarseSpace space;
+  // ICE in the locality numbering starts from the very triangulation fine_mesh() flips: it hands a
+  // copy over. Otherwise the fine mesh is made apart.
+  const bool shared = options.method == CoarseningMethod::ice && options.locality_numbering;
   if (options.method == CoarseningMethod::qem) {
     if (options.refinement)
       throw std::invalid_argument("build_coarse_space: refinement works on ICE's intrinsic coarse mesh, not on QEM's");
@@ -276,13 +278,13 @@ CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOption
     q.locked_vertices = options.coarsen.locked_vertices;
     q.remove_boundary = options.coarsen.remove_boundary;
     space = coarse_space_from_qem(qem_coarsen(mesh, q), options.qem_geometry, options.keep_method_state);
-    if (fine_delaunay) {
-      const auto fine_start = Clock::now();
-      *fine_delaunay = fine_mesh(mesh, FineGeometry::intrinsic_delaunay);
-      space.summary.fine_mesh_seconds = seconds_since(fine_start);
-    }
   } else {
-    space = ice_coarse_space(mesh, options, fine_delaunay);
+    space = ice_coarse_space(mesh, options, shared ? fine_delaunay : nullptr);
+  }
+  if (fine_delaunay && !shared) {
+    const auto fine_start = Clock::now();
+    *fine_delaunay = fine_mesh(mesh, FineGeometry::intrinsic_delaunay);
+    space.summary.fine_mesh_seconds = seconds_since(fine_start);
   }
   space.summary.seconds = seconds_since(start) - space.summary.fine_mesh_seconds;
   return space;
