@@ -165,9 +165,11 @@ ice::CoarseSpaceOptions pde_space_options(const ice::CoarsenOptions& options, co
 }
 }  // namespace
 
-ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run, bool keep_method_state, bool record_history, ice::FineMesh* fine_delaunay) {
-  const ice::CoarseSpaceOptions space_options = pde_space_options(options, opt, keep_method_state, record_history);
+namespace {
+// ice::build_coarse_space of `space_options` for a PDE tool: a progress bar, the --qem-operators idt
+// failure named, a warning if the target was missed, the summary recorded in `run`.
+ice::CoarseSpace coarsen_space_for_pde(const ice::TriangleMesh& mesh, const ice::CoarseSpaceOptions& space_options,
+                                       const PdeOptions& opt, PdeRun& run, ice::FineMesh* fine_delaunay) {
   ice::CoarseSpace space;
   try {
     space = build_coarse_space_with_progress(mesh, space_options, !opt.quiet, fine_delaunay);
@@ -176,9 +178,15 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
       throw AppError(kFailed, std::string("--qem-operators idt: ") + e.what());
     throw;
   }
-  warn_if_target_missed(run.tool, space.summary, options);
+  warn_if_target_missed(run.tool, space.summary, space_options.coarsen);
   run.coarsening = space.summary;
   return space;
+}
+}  // namespace
+
+ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                                 PdeRun& run, bool keep_method_state, bool record_history) {
+  return coarsen_space_for_pde(mesh, pde_space_options(options, opt, keep_method_state, record_history), opt, run, nullptr);
 }
 
 ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const ice::TriangleMesh& mesh, const MultigridCli& mg,
@@ -189,73 +197,47 @@ ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const i
   return hierarchy;
 }
 
-PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                         PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine, bool keep_method_state,
-                         const ice::proxy::Store& store) {
-  PdeProxy p;
-  // ICE; or QEM with --method qem: its mesh and closest-point P (ice/qem.h)
+ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                                       PdeRun& run, Stopwatch& clock, bool assemble_proxy, bool need_fine,
+                                       bool keep_method_state, const ice::proxy::Store& store) {
   // An output file draws the coarse mesh on the surface (write_result_fields) exactly: ICE's state is
   // kept with its history for it. Traced lengths (keep_method_state) need the state alone (the walk).
+  // The store holds coarse spaces without the method's state: such runs set up from scratch.
   const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice;
-  // The store holds coarse spaces without the method's state: a run that draws or walks the coarse
-  // mesh sets up from scratch.
-  const bool stored = store.enabled() && assemble_proxy && !drawn && !keep_method_state;
-  std::optional<ice::proxy::StoreKey> key;
-  if (stored) {
-    key = ice::proxy::proxy_setup_key(mesh, pde_space_options(options, opt, false, false), opt.fine_geometry(), opt.operators,
-                                      opt.prolongation);
-    run.cache_json = nlohmann::json();
-    if (std::optional<ice::proxy::ProxySetup> setup =
-            ice::proxy::load_proxy_setup(store, *key, mesh, run.cache, [&mesh, geometry = opt.fine_geometry()](ice::Faces& F, ice::FaceLengths& L) {
-              ice::FineMesh fine = ice::fine_mesh(mesh, geometry);  // the tool's mesh outlives its proxy
-              F = std::move(fine.F);
-              L = std::move(fine.L);
-            })) {
-      p.coarse = std::move(setup->coarse);
-      p.proxy = std::move(setup->proxy);
-      run.cache = setup->cache;
-      run.cache_json = ice::proxy::cache_json(run.cache, store);
-      run.coarsening = p.coarse.summary;
-      clock.lap();
-      run.coarsen = 0;  // the load is run.cache.load_seconds
-      run.fine_built = need_fine;
-      run.proxy_uses_fine_mesh = false;  // only the reference's, now
-      if (need_fine) {
-        p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
-        run.idt_flips = p.fine.flips;
-      }
-      run.fine_mesh = clock.lap();
-      return p;
-    }
-    if (run.cache.status == ice::proxy::CacheStatus::rebuilt)
-      warn(run.tool, "the stored setup was damaged and is rebuilt: " + run.cache.damage);
-    clock.lap();  // the failed load is run.cache.load_seconds
-  }
-  // The fine discretisation: the reference's, and the Galerkin operators' and M f's. Its intrinsic
-  // Delaunay mesh comes out of the coarsening (from the triangulation that starts it), timed apart.
-  run.fine_built = need_fine || assemble_proxy;
-  const bool fine_from_coarsening = run.fine_built && opt.fine_geometry() == ice::FineGeometry::intrinsic_delaunay;
-  p.coarse = coarsen_for_pde(mesh, options, opt, run, keep_method_state || drawn, drawn, fine_from_coarsening ? &p.fine : nullptr);
-  run.coarsen = clock.lap() - p.coarse.summary.fine_mesh_seconds;
-  if (run.fine_built && !fine_from_coarsening) p.fine = ice::fine_mesh(mesh, opt.fine_geometry());
-  run.idt_flips = p.fine.flips;
-  run.fine_mesh = clock.lap() + p.coarse.summary.fine_mesh_seconds;
-  if (assemble_proxy) p.proxy = std::make_unique<fem::CoarseProxy>(ice::proxy::make_proxy(p.fine, p.coarse, opt.operators, opt.prolongation));
-  if (key) {
-    const double assemble = clock.lap();  // the caller's assemble phase, kept apart from the save
-    ice::proxy::ProxySetup setup;
-    setup.coarse = std::move(p.coarse);
-    setup.proxy = std::move(p.proxy);
-    setup.cache = run.cache;
-    ice::proxy::save_proxy_setup(store, *key, setup);
-    p.coarse = std::move(setup.coarse);
-    p.proxy = std::move(setup.proxy);
-    run.cache = setup.cache;
-    run.cache_json = ice::proxy::cache_json(run.cache, store);
-    clock.lap();
-    clock.rewind(assemble);  // the assembly goes back to the caller's next lap
-  }
-  return p;
+  ice::proxy::ProxySetupOptions setup_options;
+  setup_options.coarsening = pde_space_options(options, opt, keep_method_state || drawn, drawn);
+  setup_options.fine = opt.fine_geometry();
+  setup_options.operators = opt.operators;
+  setup_options.prolongation = opt.prolongation == fem::ProlongationKind::smoothed ? ice::proxy::Prolongation::smoothed
+                                                                                   : ice::proxy::Prolongation::barycentric;
+  setup_options.assemble = assemble_proxy;
+  setup_options.need_fine_mesh = need_fine;
+  setup_options.fine_operators = true;
+  setup_options.restored_fine_mesh = [&mesh, geometry = opt.fine_geometry()](ice::Faces& F, ice::FaceLengths& L) {
+    ice::FineMesh fine = ice::fine_mesh(mesh, geometry);  // the tool's mesh outlives its proxy
+    F = std::move(fine.F);
+    L = std::move(fine.L);
+  };
+  setup_options.store = store;
+  setup_options.builder = [&opt, &run](const ice::TriangleMesh& m, const ice::CoarseSpaceOptions& space_options,
+                                       ice::FineMesh* fine_delaunay) {
+    return coarsen_space_for_pde(m, space_options, opt, run, fine_delaunay);
+  };
+  ice::proxy::ProxySetup setup = ice::proxy::build_proxy_setup(mesh, setup_options);
+  clock.lap();
+  clock.rewind(setup.times.assemble);  // the assembly goes to the caller's next lap (its assemble phase)
+  const bool hit = setup.cache.status == ice::proxy::CacheStatus::hit;
+  if (setup.cache.status == ice::proxy::CacheStatus::rebuilt)
+    warn(run.tool, "the stored setup was damaged and is rebuilt: " + setup.cache.damage);
+  run.cache = setup.cache;
+  if (setup.cache.status != ice::proxy::CacheStatus::off) run.cache_json = ice::proxy::cache_json(run.cache, store);
+  run.coarsening = setup.coarse.summary;
+  run.coarsen = setup.times.coarsen;  // a hit's load is run.cache.load_seconds
+  run.fine_mesh = setup.times.fine_mesh;
+  run.fine_built = need_fine || (assemble_proxy && !hit);
+  if (hit) run.proxy_uses_fine_mesh = false;  // only the reference's, now
+  run.idt_flips = setup.fine.flips;
+  return setup;
 }
 
 void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrection& correction) {

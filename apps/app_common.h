@@ -80,34 +80,26 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
 /// ice::build_coarse_space with the method, QEM geometry and progress bar of `opt`; warns if the
 /// target was missed and records the summary in `run`. `keep_method_state`: keep what
 /// ice::fine_to_coarse_map needs (CoarseSpaceOptions::keep_method_state); `record_history`: and
-/// what ice::trace_coarse_mesh draws the coarse edges exactly from (CoarseSpaceOptions::record_history);
-/// `fine_delaunay`: as ice::build_coarse_space's.
+/// what ice::trace_coarse_mesh draws the coarse edges exactly from (CoarseSpaceOptions::record_history).
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                                 PdeRun& run, bool keep_method_state = false, bool record_history = false,
-                                 ice::FineMesh* fine_delaunay = nullptr);
+                                 PdeRun& run, bool keep_method_state = false, bool record_history = false);
 
-/// What a PDE tool solves through: the coarse space, the fine discretisation and the coarse proxy.
-struct PdeProxy {
-  ice::CoarseSpace coarse;
-  ice::FineMesh fine;
-  std::unique_ptr<fem::CoarseProxy> proxy;
-};
-/// Builds them in that order (coarsen_for_pde, keeping the method's state and its history for outputs
-/// that draw the coarse mesh, the state alone when `keep_method_state` asks; ice::fine_mesh of
-/// --fine-idt unless !need_fine, make_proxy of --operators unless !assemble_proxy: then proxy stays
-/// null; assembling needs the fine mesh), with run.coarsen, run.fine_mesh, run.fine_built and
-/// run.idt_flips recorded; the proxy's assembly is left running on `clock`, for the caller's assemble
-/// phase. With an enabled `store` (and a proxy to assemble, and no output drawing the coarse mesh)
-/// the coarse space and proxy are loaded from it when stored, else saved there once built
-/// (ice::proxy::load_proxy_setup / save_proxy_setup; run.cache says which).
 /// The multigrid hierarchy of `mesh` for the --mg-* options through `store` (ice::proxy::
 /// multigrid_hierarchy), warning as `tool` when a damaged stored entry had to be rebuilt.
 ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const ice::TriangleMesh& mesh, const MultigridCli& mg,
                                                 const ice::proxy::Store& store);
 
-PdeProxy build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
-                         PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
-                         bool keep_method_state = false, const ice::proxy::Store& store = {});
+/// What a PDE tool solves through — the coarse space, the fine discretisation and the coarse proxy —
+/// by ice::proxy::build_proxy_setup with the method, QEM geometry, fine mesh, operators and prolongation
+/// of `opt`, a progress bar, and a warning when the target was missed or a stored entry was damaged.
+/// The method's state is kept with its history for outputs that draw the coarse mesh, the state
+/// alone when `keep_method_state` asks (both bypass the store). Without `assemble_proxy` the proxy
+/// stays null; `need_fine`: the fine mesh is made also when the proxy does not need it (a reference).
+/// Records run.coarsening, coarsen, fine_mesh, fine_built, idt_flips and the cache; the proxy's
+/// assembly is left running on `clock`, for the caller's assemble phase.
+ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                                       PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
+                                       bool keep_method_state = false, const ice::proxy::Store& store = {});
 
 /// --curvature-correction auto|on|off, for the tools that march on the coarse mesh.
 void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrection& correction);

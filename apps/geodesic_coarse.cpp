@@ -411,7 +411,7 @@ int main(int argc, char** argv) {
     // restrict + solve and prolong, the last two timed by the solver
     const bool marching = oracle.method == fem::CoarseDistanceMethod::marching;
     // The marching proxy reads only the coarse mesh and P: the fine mesh is built for a reference.
-    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/!marching,
+    const ice::proxy::ProxySetup pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/!marching,
                                                    /*need_fine=*/!marching || run.has_reference,
                                                    /*keep_method_state=*/oracle.traced_lengths);
     const ice::FineMesh& fine = pde.fine;

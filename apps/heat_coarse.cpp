@@ -233,7 +233,7 @@ int main(int argc, char** argv) {
     run.load = clock.lap();
 
     // ---- the proxy (from the store when it holds this setup), its factorisation, the steps
-    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, true, run.has_reference, false,
+    const ice::proxy::ProxySetup pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, true, run.has_reference, false,
                                                    opt.store());
     const fem::CoarseProxy& proxy = *pde.proxy;
     run.assemble = clock.lap();

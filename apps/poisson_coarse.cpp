@@ -336,7 +336,7 @@ int main(int argc, char** argv) {
 
     // ---- coarsen, fine discretisation, then the proxy (fem::ProxyPoissonSolver: restrict, coarse
     // solve, prolong, each timed)
-    const app::PdeProxy pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, true, run.has_reference, false,
+    const ice::proxy::ProxySetup pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, true, run.has_reference, false,
                                                    opt.store());
     const ice::FineMesh& fine = pde.fine;
     const fem::CoarseProxy& proxy = *pde.proxy;

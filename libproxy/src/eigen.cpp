@@ -26,8 +26,15 @@ EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, st
   // vanish there vanish on the whole fine boundary.
   const bool dirichlet = options_.boundary == EigenBoundary::dirichlet;
   if (dirichlet) dirichlet_ = fem::boundary_vertices(mesh.F);
-  setup_ = build_proxy_setup(mesh, std::move(coarse), options_.coarsening, dirichlet_, options_.fine,
-                             fem::CoarseOperatorKind::galerkin, options_.prolongation, !dirichlet_.empty(), Store(options_.store));
+  ProxySetupOptions setup;
+  setup.coarsening = options_.coarsening;
+  setup.locked = dirichlet_;
+  setup.fine = options_.fine;
+  setup.operators = fem::CoarseOperatorKind::galerkin;
+  setup.prolongation = options_.prolongation;
+  setup.dirichlet = !dirichlet_.empty();
+  setup.store = Store(options_.store);
+  setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
 }
 
 Eigenbasis EigenSolver::compute(int k) const { return proxy_eigenbasis(*setup_.proxy, k, options_.eigen, dirichlet_); }

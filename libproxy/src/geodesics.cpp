@@ -46,8 +46,12 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
     solver_ = std::make_unique<fem::ProxyGeodesicSolver>(setup_.coarse.mesh.F, lengths_.lengths, setup_.coarse.P,
                                                          options_.subdivisions);
   } else {
-    setup_ = build_proxy_setup(mesh, std::move(coarse), options_.coarsening, {}, options_.fine, options_.operators,
-                               Prolongation::barycentric, false);
+    ProxySetupOptions setup;
+    setup.coarsening = options_.coarsening;
+    setup.fine = options_.fine;
+    setup.operators = options_.operators;
+    setup.prolongation = Prolongation::barycentric;
+    setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
     fem::ProxyGeodesicOptions heat;
     heat.method = fem::CoarseDistanceMethod::heat_method;
     heat.time_factor = options_.time_factor;

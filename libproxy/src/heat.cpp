@@ -9,8 +9,14 @@ namespace ice::proxy {
 HeatSolver::HeatSolver(const TriangleMesh& mesh, double time_step, HeatOptions options, std::optional<CoarseSpace> coarse)
     : time_step_(time_step) {
   if (!(time_step > 0) || !std::isfinite(time_step)) throw std::invalid_argument("the time step must be > 0 and finite");
-  setup_ = build_proxy_setup(mesh, std::move(coarse), std::move(options.coarsening), {}, options.fine, options.operators,
-                             options.prolongation, false, Store(options.store), {}, options.polish.enabled());
+  ProxySetupOptions setup;
+  setup.coarsening = std::move(options.coarsening);
+  setup.fine = options.fine;
+  setup.operators = options.operators;
+  setup.prolongation = options.prolongation;
+  setup.fine_operators = options.polish.enabled();
+  setup.store = Store(options.store);
+  setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
   solver_ = std::make_unique<fem::ProxyHeatSolver>(*setup_.proxy, time_step, options.restriction, options.polish);
 }
 

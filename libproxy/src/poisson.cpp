@@ -13,9 +13,16 @@ PoissonSolver::PoissonSolver(const TriangleMesh& mesh, PoissonOptions options, s
     if (v < 0 || v >= n)
       throw std::invalid_argument("fixed vertex " + std::to_string(v) + " is out of range: the mesh has " +
                                   std::to_string(n) + " vertices");
-  setup_ = build_proxy_setup(mesh, std::move(coarse), options_.coarsening, options_.fixed_vertices, options_.fine,
-                             options_.operators, options_.prolongation, !options_.fixed_vertices.empty(), Store(options_.store), {},
-                             options_.polish.enabled());
+  ProxySetupOptions setup;
+  setup.coarsening = options_.coarsening;
+  setup.locked = options_.fixed_vertices;
+  setup.fine = options_.fine;
+  setup.operators = options_.operators;
+  setup.prolongation = options_.prolongation;
+  setup.dirichlet = !options_.fixed_vertices.empty();
+  setup.fine_operators = options_.polish.enabled();
+  setup.store = Store(options_.store);
+  setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
   solver_ = std::make_unique<fem::ProxyPoissonSolver>(*setup_.proxy, options_.fixed_vertices, options_.polish);
 }
 

@@ -1,8 +1,10 @@
 #include "ice/proxy/setup.h"
 
+#include <chrono>
 #include <stdexcept>
 #include <utility>
 
+#include "entry_checks.h"
 #include "fem/curvature_correction.h"
 #include "ice/prolongation.h"
 
@@ -13,37 +15,52 @@ fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem
   return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped, prolongation);
 }
 
-ProxySetup build_proxy_setup(const TriangleMesh& mesh, std::optional<CoarseSpace> coarse, CoarseSpaceOptions coarsening,
-                             const std::vector<Index>& locked, FineGeometry geometry, fem::CoarseOperatorKind kind,
-                             Prolongation prolongation, bool dirichlet, const Store& store, const CoarseSpaceBuilder& builder,
-                             bool fine_operators) {
-  const fem::ProlongationKind resolved = resolve_prolongation(prolongation, kind, dirichlet);  // before any work
+ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& options, std::optional<CoarseSpace> coarse) {
+  using Clock = std::chrono::steady_clock;
+  using detail::seconds_since;
+  const fem::ProlongationKind resolved = resolve_prolongation(options.prolongation, options.operators, options.dirichlet);
+  const bool needs_fine = options.assemble || options.need_fine_mesh;
   ProxySetup setup;
-  bool geometry_made = false;  // setup.fine
+  bool fine_made = false;  // setup.fine
   std::optional<StoreKey> key;
   if (coarse) {
     setup.coarse = std::move(*coarse);
   } else {
+    CoarseSpaceOptions coarsening = options.coarsening;
     std::vector<Index>& kept = coarsening.coarsen.locked_vertices;
-    kept.insert(kept.end(), locked.begin(), locked.end());
-    if (store.enabled() && !coarsening.keep_method_state && !coarsening.record_history) {
-      key = proxy_setup_key(mesh, coarsening, geometry, kind, resolved);
-      if (std::optional<ProxySetup> stored = load_proxy_setup(store, *key, mesh, setup.cache,
-                                                              fine_operators ? fine_mesh_source(mesh, geometry) : nullptr))
+    kept.insert(kept.end(), options.locked.begin(), options.locked.end());
+    if (options.assemble && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history) {
+      key = proxy_setup_key(mesh, coarsening, options.fine, options.operators, resolved);
+      fem::CoarseProxy::FineMeshSource source = options.restored_fine_mesh;
+      if (!source && options.fine_operators) source = fine_mesh_source(mesh, options.fine);
+      if (std::optional<ProxySetup> stored = load_proxy_setup(options.store, *key, mesh, setup.cache, std::move(source))) {
+        if (options.need_fine_mesh) {
+          const auto start = Clock::now();
+          stored->fine = fine_mesh(mesh, options.fine);
+          stored->times.fine_mesh = seconds_since(start);
+        }
         return std::move(*stored);
+      }
     }
-    if (builder) {
-      setup.coarse = builder(mesh, coarsening);
-    } else {
-      // The fine intrinsic Delaunay mesh from the triangulation the coarsening starts with.
-      const bool shared = geometry == FineGeometry::intrinsic_delaunay;
-      setup.coarse = build_coarse_space(mesh, coarsening, shared ? &setup.fine : nullptr);
-      if (shared) geometry_made = true;
-    }
+    // The fine intrinsic Delaunay mesh comes from the triangulation the coarsening starts with.
+    FineMesh* shared = needs_fine && options.fine == FineGeometry::intrinsic_delaunay ? &setup.fine : nullptr;
+    const auto start = Clock::now();
+    setup.coarse = options.builder ? options.builder(mesh, coarsening, shared) : build_coarse_space(mesh, coarsening, shared);
+    setup.times.coarsen = seconds_since(start) - setup.coarse.summary.fine_mesh_seconds;
+    setup.times.fine_mesh = setup.coarse.summary.fine_mesh_seconds;
+    fine_made = shared != nullptr;
   }
-  if (!geometry_made) setup.fine = fine_mesh(mesh, geometry);
-  setup.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(setup.fine, setup.coarse, kind, resolved));
-  if (key) save_proxy_setup(store, *key, setup);
+  if (needs_fine && !fine_made) {
+    const auto start = Clock::now();
+    setup.fine = fine_mesh(mesh, options.fine);
+    setup.times.fine_mesh += seconds_since(start);
+  }
+  if (options.assemble) {
+    const auto start = Clock::now();
+    setup.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(setup.fine, setup.coarse, options.operators, resolved));
+    setup.times.assemble = seconds_since(start);
+  }
+  if (key) save_proxy_setup(options.store, *key, setup);
   return setup;
 }
 

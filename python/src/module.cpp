@@ -626,8 +626,16 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
     require_clean(mesh);
     ice::proxy::ProxySetup setup;
     try {
-      setup = ice::proxy::build_proxy_setup(mesh, std::nullopt, options, dirichlet, geometry, kind, choice_of_p,
-                                            !dirichlet.empty(), store, {}, /*fine_operators=*/true);
+      ice::proxy::ProxySetupOptions setup_options;
+      setup_options.coarsening = std::move(options);
+      setup_options.locked = dirichlet;
+      setup_options.fine = geometry;
+      setup_options.operators = kind;
+      setup_options.prolongation = choice_of_p;
+      setup_options.dirichlet = !dirichlet.empty();
+      setup_options.fine_operators = true;
+      setup_options.store = store;
+      setup = ice::proxy::build_proxy_setup(mesh, setup_options);
     } catch (const std::invalid_argument& e) {
       py::gil_scoped_acquire acquire;
       throw py::value_error(e.what());

@@ -24,36 +24,66 @@ namespace ice::proxy {
 fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem::CoarseOperatorKind kind,
                             fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric);
 
+/// Wall times of build_proxy_setup's steps, in seconds (the store's load and save are in CacheReport).
+struct ProxySetupTimes {
+  double coarsen = 0;    ///< build_coarse_space, without the fine mesh it hands out
+  double fine_mesh = 0;  ///< the fine discretisation (also when the coarsening handed it out)
+  double assemble = 0;   ///< the coarse proxy's operators
+};
+
 /// A coarse space, the fine discretisation and the coarse proxy linking them: what the Poisson and
 /// heat recipes solve through. Movable; the proxy keeps its address when moved.
 struct ProxySetup {
   CoarseSpace coarse;
-  /// Empty when the setup came from a store (`cache.status` hit): the proxy needs none of it, and
-  /// proxy->fine_faces() / fine_lengths() make it on first use.
+  /// Empty when the setup came from a store (`cache.status` hit) unless ProxySetupOptions::
+  /// need_fine_mesh: the proxy needs none of it, and proxy->fine_faces() / fine_lengths() make it on
+  /// first use.
   FineMesh fine;
-  std::unique_ptr<fem::CoarseProxy> proxy;
+  std::unique_ptr<fem::CoarseProxy> proxy;  ///< null without ProxySetupOptions::assemble
   CacheReport cache;  ///< where the setup came from (status off without a store)
+  ProxySetupTimes times;
 };
 
-/// How build_proxy_setup makes a coarse space when it has to (the tools pass one that draws progress).
-using CoarseSpaceBuilder = std::function<CoarseSpace(const TriangleMesh&, const CoarseSpaceOptions&)>;
-/// Coarsens `mesh` by `coarsening` (with `locked` vertices kept besides its own) unless a coarse
-/// space is given, builds the fine discretisation of `geometry` and the proxy (operators `kind`,
-/// prolongation `prolongation` resolved for `dirichlet`). Throws std::invalid_argument on bad
-/// options (ice::build_coarse_space, resolve_prolongation, fem::CoarseProxy).
+/// How build_proxy_setup makes a coarse space when it has to (the tools pass one that draws
+/// progress): as ice::build_coarse_space(mesh, options, fine_delaunay).
+using CoarseSpaceBuilder = std::function<CoarseSpace(const TriangleMesh&, const CoarseSpaceOptions&, FineMesh* fine_delaunay)>;
+
+/// What build_proxy_setup makes and how.
+struct ProxySetupOptions {
+  CoarseSpaceOptions coarsening;  ///< how to coarsen when no coarse space is given
+  std::vector<Index> locked;      ///< kept as coarse vertices besides coarsening's own locked vertices
+  FineGeometry fine = FineGeometry::intrinsic_delaunay;
+  fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
+  Prolongation prolongation = Prolongation::automatic;
+  bool dirichlet = false;  ///< the problem has Dirichlet vertices (resolve_prolongation)
+  /// Assemble the proxy. Without it the setup is the coarse space (and the fine mesh when
+  /// need_fine_mesh) and the store is not used: it holds coarse spaces with their proxies.
+  bool assemble = true;
+  /// The caller needs ProxySetup::fine itself (a fine reference solve): it is made also on a store hit.
+  bool need_fine_mesh = false;
+  /// A proxy restored from the store can make its fine operators (polishing, the Galerkin heat
+  /// method): from restored_fine_mesh when given (whose referents must outlive the proxy), else from
+  /// a copy of the mesh kept by the proxy.
+  bool fine_operators = false;
+  fem::CoarseProxy::FineMeshSource restored_fine_mesh;
+  Store store;                 ///< off by default
+  CoarseSpaceBuilder builder;  ///< empty: ice::build_coarse_space
+};
+
+/// The coarse space of `mesh` (`coarse` when given, else coarsened by options.coarsening with
+/// options.locked kept), the fine discretisation of options.fine and the proxy (options.operators,
+/// prolongation resolved for options.dirichlet). Throws std::invalid_argument on bad options
+/// (ice::build_coarse_space, resolve_prolongation, fem::CoarseProxy).
 ///
-/// With an enabled `store` and no coarse space given, the setup is first looked up there under a key
-/// of the mesh's arrays and every option that changes it (proxy_setup_key); on a hit nothing is
-/// coarsened or assembled, and the results are those of the setup that was stored (the same arrays
-/// to the last bit). Otherwise it is built and saved. A damaged entry is reported in
-/// ProxySetup::cache (status rebuilt), removed and built again; an entry that cannot be written
-/// leaves the run as it is (save_error). A restored proxy can make its fine operators (polishing)
-/// only with `fine_operators` (it keeps a copy of the mesh for them). Options that keep the method's state (keep_method_state,
+/// With an enabled store, an assembled proxy and no coarse space given, the setup is first looked
+/// up there under a key of the mesh's arrays and every option that changes it (proxy_setup_key); on
+/// a hit nothing is coarsened or assembled, and the results are those of the setup that was stored
+/// (the same arrays to the last bit). Otherwise it is built and saved. A damaged entry is reported
+/// in ProxySetup::cache (status rebuilt), removed and built again; an entry that cannot be written
+/// leaves the run as it is (save_error). Options that keep the method's state (keep_method_state,
 /// record_history) bypass the store: the triangulation is not stored.
-ProxySetup build_proxy_setup(const TriangleMesh& mesh, std::optional<CoarseSpace> coarse, CoarseSpaceOptions coarsening,
-                             const std::vector<Index>& locked, FineGeometry geometry, fem::CoarseOperatorKind kind,
-                             Prolongation prolongation, bool dirichlet, const Store& store = {},
-                             const CoarseSpaceBuilder& builder = {}, bool fine_operators = false);
+ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& options,
+                             std::optional<CoarseSpace> coarse = std::nullopt);
 
 /// The key build_proxy_setup stores a setup under: the mesh's positions and faces, the coarsening
 /// options (with its locked vertices, and its thread count resolved to the regions the result
