@@ -46,6 +46,8 @@ as_root() {
 # (--html; headless, software WebGL); Node.js and npm install the page's three.js and the test's
 # playwright-core (step 4) and are installed from Debian only when the machine has none.
 # doxygen builds the API reference of the public headers (docs/Doxyfile.in: target doc, test api_docs).
+# clang, its sanitizer runtimes (libclang-rt-dev) and OpenMP (libomp-dev) build the test command's
+# sanitizer configuration (scripts/test.sh).
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev libxxhash-dev libspectra-dev
@@ -56,6 +58,7 @@ PACKAGES=(
   python3-dask python3-distributed python3-tqdm python3-psutil
   python3-pip python3-wheel python3-build python3-venv python3-meshio
   doxygen
+  clang libclang-rt-dev libomp-dev
 )
 
 is_installed() {

@@ -3,7 +3,9 @@
 // kSkipExitCode, which tests/CMakeLists.txt declares as SKIP_RETURN_CODE. A case that failed an
 // assertion exits non-zero as usual, whether or not it also skipped.
 #define CATCH_CONFIG_RUNNER
-#include "test_support.h"
+#include <catch2/catch.hpp>
+
+#include "test_skip.h"
 
 int main(int argc, char* argv[]) {
   const int failures = Catch::Session().run(argc, argv);

@@ -12,13 +12,11 @@
 #include "fem/topology.h"
 #include "ice/mesh_generators.h"
 #include "ice/proxy/eigen.h"
+#include "test_support.h"
 
 namespace {
 
-const ice::TriangleMesh& sphere() {
-  static const ice::TriangleMesh mesh = ice::make_icosphere(4);  // 2,562 vertices
-  return mesh;
-}
+using ice_test::unit_sphere;
 
 struct Pencil {
   fem::SparseMatrix L, M;
@@ -37,7 +35,7 @@ double orthonormality_defect(const Eigen::MatrixXd& V, const fem::SparseMatrix& 
 }  // namespace
 
 TEST_CASE("eigenpairs of the unit sphere: l(l+1) with multiplicity 2l+1, M-orthonormal, small residuals", "[eigen]") {
-  const Pencil p = pencil(sphere());
+  const Pencil p = pencil(unit_sphere());
   const fem::Eigenpairs e = fem::smallest_eigenpairs(p.L, p.M, 16);
   REQUIRE(e.values.size() == 16);
   CHECK(std::abs(e.values(0)) < 1e-8);
@@ -53,7 +51,7 @@ TEST_CASE("eigenpairs of the unit sphere: l(l+1) with multiplicity 2l+1, M-ortho
 }
 
 TEST_CASE("eigenpairs: one zero eigenvalue per component; bad k is refused", "[eigen]") {
-  ice::TriangleMesh two = sphere();
+  ice::TriangleMesh two = unit_sphere();
   const ice::TriangleMesh other = ice::make_icosphere(3, 0.5);
   const auto n = two.V.rows();
   two.V.conservativeResize(n + other.V.rows(), 3);
@@ -70,7 +68,7 @@ TEST_CASE("eigenpairs: one zero eigenvalue per component; bad k is refused", "[e
 }
 
 TEST_CASE("proxy eigenbasis: upper bounds, M-orthonormal on the input mesh, near the fine eigenspaces", "[eigen][proxy]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const Pencil p = pencil(mesh);
   const int k = 16;
   const fem::Eigenpairs fine = fem::smallest_eigenpairs(p.L, p.M, k + 8);

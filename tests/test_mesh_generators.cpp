@@ -11,6 +11,7 @@
 
 #include "ice/triangle_geometry.h"
 #include "ice/mesh_generators.h"
+#include "mesh_figures.h"
 
 namespace {
 
@@ -45,15 +46,7 @@ Census census(const ice::TriangleMesh& mesh) {
   return c;
 }
 
-double signed_volume(const ice::TriangleMesh& mesh) {
-  double volume = 0;
-  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
-    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)),
-                          c = mesh.V.row(mesh.F(f, 2));
-    volume += a.dot(b.cross(c)) / 6.0;
-  }
-  return volume;
-}
+using ice_test::signed_volume;
 
 /// Every vertex index is used by some face and lies in range.
 bool all_vertices_referenced(const ice::TriangleMesh& mesh) {

@@ -14,15 +14,13 @@
 #include "ice/proxy/heat.h"
 #include "ice/proxy/poisson.h"
 #include "ice/scalar_field_io.h"
+#include "test_support.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-const ice::TriangleMesh& sphere() {
-  static const ice::TriangleMesh mesh = ice::make_icosphere(4);  // 2,562 vertices
-  return mesh;
-}
+using ice_test::unit_sphere;
 
 // k smooth sources on the sphere: x, y z, x² − z, ...
 Eigen::MatrixXd sources(const ice::TriangleMesh& mesh, Eigen::Index k) {
@@ -35,14 +33,10 @@ Eigen::MatrixXd sources(const ice::TriangleMesh& mesh, Eigen::Index k) {
   return F;
 }
 
-double relative_difference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
-  return (a - b).norm() / std::max(b.norm(), 1e-300);
-}
-
 }  // namespace
 
 TEST_CASE("block Poisson: each column equals its single solve within round-off", "[proxy][block]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   ice::proxy::PoissonOptions options;
   options.coarsening.coarsen.target_vertices = 300;
   const Eigen::MatrixXd F = sources(mesh, 37);  // more than one chunk of 32 columns
@@ -81,7 +75,7 @@ TEST_CASE("block Poisson: each column equals its single solve within round-off",
 }
 
 TEST_CASE("fine block solves: CHOLMOD's block solve equals the single solves within round-off", "[fem][block]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const ice::FaceLengths L = ice::face_lengths_from_positions(mesh.V, mesh.F);
   const auto n = static_cast<fem::Index>(mesh.V.rows());
   const fem::SparseMatrix lap = fem::cotan_laplacian(mesh.F, L, n), M = fem::mass_matrix(mesh.F, L, fem::MassKind::lumped, n);
@@ -99,7 +93,7 @@ TEST_CASE("fine block solves: CHOLMOD's block solve equals the single solves wit
 }
 
 TEST_CASE("heat steps on the coarse level: the listed states equal the single integrations bit for bit", "[proxy][block]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   ice::proxy::HeatOptions options;
   options.coarsening.coarsen.target_vertices = 300;
   const Eigen::VectorXd u0 = sources(mesh, 2).col(1);

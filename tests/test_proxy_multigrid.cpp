@@ -22,10 +22,7 @@ using ice_test::write_bytes;
 
 namespace {
 
-const ice::TriangleMesh& sphere() {
-  static const ice::TriangleMesh mesh = ice::make_icosphere(4);  // 2,562 vertices
-  return mesh;
-}
+using ice_test::unit_sphere;
 
 ice::HierarchyOptions small_levels() {
   ice::HierarchyOptions options;
@@ -67,7 +64,7 @@ Eigen::MatrixXd sources(const ice::TriangleMesh& mesh, int k) {
 TEST_CASE("stored hierarchy: a warm load equals the build to the last bit; other options miss", "[proxy][store][multigrid]") {
   const fs::path dir = fresh_store("hierarchy-warm");
   const ice::proxy::Store store = store_in(dir);
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const ice::proxy::MultigridHierarchy plain = ice::proxy::multigrid_hierarchy(mesh, small_levels());
   CHECK(plain.cache.status == CacheStatus::off);
   REQUIRE(plain.num_levels() >= 3);
@@ -108,7 +105,7 @@ TEST_CASE("stored hierarchy: a warm load equals the build to the last bit; other
 TEST_CASE("stored hierarchy: damaged entries are reported, never used, and rebuilt", "[proxy][store][multigrid]") {
   const fs::path dir = fresh_store("hierarchy-damage");
   const ice::proxy::Store store = store_in(dir);
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const ice::proxy::MultigridHierarchy plain = ice::proxy::multigrid_hierarchy(mesh, small_levels());
   const ice::proxy::MultigridHierarchy cold = ice::proxy::multigrid_hierarchy(mesh, small_levels(), store);
   const fs::path entry = dir / ("hierarchy-" + cold.cache.keys.at(0) + ".ice");
@@ -140,7 +137,7 @@ TEST_CASE("stored hierarchy: damaged entries are reported, never used, and rebui
 }
 
 TEST_CASE("multigrid Poisson: a block of sources equals the solves one by one", "[multigrid][block]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const FineSystem s = fine_system(mesh);
   const ice::proxy::MultigridHierarchy h = ice::proxy::multigrid_hierarchy(mesh, small_levels());
   // More columns than one chunk of block V-cycles (fem::MultigridSolver::kBlockColumns).
@@ -178,7 +175,7 @@ TEST_CASE("multigrid Poisson: a block of sources equals the solves one by one", 
 }
 
 TEST_CASE("multigrid heat steps follow CHOLMOD's; a trajectory's columns equal integrate", "[multigrid][heat]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const FineSystem s = fine_system(mesh);
   const ice::proxy::MultigridHierarchy h = ice::proxy::multigrid_hierarchy(mesh, small_levels());
   fem::MultigridOptions options;

@@ -12,15 +12,14 @@
 #include "ice/proxy/heat.h"
 #include "ice/proxy/poisson.h"
 #include "ice/proxy/vectors.h"
+#include "ice/triangle_geometry.h"
+#include "test_support.h"
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ice::kPi;
 
-const ice::TriangleMesh& sphere() {
-  static const ice::TriangleMesh mesh = ice::make_icosphere(4);  // 2,562 vertices on the unit sphere
-  return mesh;
-}
+using ice_test::unit_sphere;
 
 /// Great-circle distances from vertex s of the unit sphere.
 Eigen::VectorXd great_circle(const ice::TriangleMesh& mesh, int s) {
@@ -70,7 +69,7 @@ TEST_CASE("proxy policies: prolongation, lengths, correction, targets, spellings
 }
 
 TEST_CASE("solve_poisson is the proxy pipeline and solves -Laplace(u) = z on the sphere", "[proxy]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const Eigen::VectorXd f = mesh.V.col(2);  // -Δz = 2z on the unit sphere: u = z / 2
   const Eigen::VectorXd u = ice::proxy::solve_poisson(mesh, f);
 
@@ -101,7 +100,7 @@ TEST_CASE("solve_poisson is the proxy pipeline and solves -Laplace(u) = z on the
 }
 
 TEST_CASE("heat_flow conserves the total heat and smooths towards its mean", "[proxy]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   Eigen::VectorXd u0 = Eigen::VectorXd::Zero(mesh.V.rows());
   u0(0) = 1.0;
   const ice::proxy::HeatSolver solver(mesh, 1e-2);
@@ -114,7 +113,7 @@ TEST_CASE("heat_flow conserves the total heat and smooths towards its mean", "[p
 }
 
 TEST_CASE("geodesic_distance marches on traced, corrected lengths and follows great circles", "[proxy]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const ice::proxy::GeodesicSolver solver(mesh);
   CHECK(solver.traced_lengths());  // an ICE coarse space: the measured default traces its edges
   const Eigen::VectorXd d = solver.distance({0});
@@ -143,7 +142,7 @@ TEST_CASE("geodesic_distance marches on traced, corrected lengths and follows gr
 }
 
 TEST_CASE("distance_oracle: symmetric, zero on the diagonal, near great circles", "[proxy]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const fem::DistanceOracle oracle = ice::proxy::distance_oracle(mesh);
   const Eigen::VectorXd exact = great_circle(mesh, 5);
   for (ice::Index v : {0, 17, 900, 2561}) {
@@ -154,7 +153,7 @@ TEST_CASE("distance_oracle: symmetric, zero on the diagonal, near great circles"
 }
 
 TEST_CASE("transport_vectors keeps a transported vector's length", "[proxy]") {
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const Eigen::VectorXcd field = ice::proxy::transport_vectors(mesh, {0}, {fem::Complex(1.0, 0.0)});
   REQUIRE(field.size() == mesh.V.rows());
   CHECK(std::abs(field(0) - fem::Complex(1.0, 0.0)) < 1e-9);

@@ -27,10 +27,7 @@ using ice_test::write_bytes;
 
 namespace {
 
-const ice::TriangleMesh& sphere() {
-  static const ice::TriangleMesh mesh = ice::make_icosphere(4);  // 2,562 vertices
-  return mesh;
-}
+using ice_test::unit_sphere;
 
 ice::proxy::PoissonOptions options_with(const fs::path& dir) {
   ice::proxy::PoissonOptions options;
@@ -56,7 +53,7 @@ std::vector<fs::path> entries(const fs::path& dir) {
 
 TEST_CASE("store: a warm Poisson solver equals the cold one and the one without a store, bit for bit", "[proxy][store]") {
   const fs::path dir = fresh_store("warm");
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const Eigen::VectorXd f = source(mesh);
   ice::proxy::PoissonOptions off = options_with({});
   const ice::proxy::PoissonSolver plain(mesh, off);
@@ -110,7 +107,7 @@ TEST_CASE("store: a warm Poisson solver equals the cold one and the one without 
 
 TEST_CASE("store: damaged entries are reported, never used, and rebuilt to the same results", "[proxy][store]") {
   const fs::path dir = fresh_store("damage");
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const Eigen::VectorXd f = source(mesh);
   const Eigen::VectorXd u = ice::proxy::PoissonSolver(mesh, options_with({})).solve(f);
   REQUIRE(ice::proxy::PoissonSolver(mesh, options_with(dir)).cache().status == CacheStatus::miss);
@@ -181,7 +178,7 @@ TEST_CASE("store: damaged entries are reported, never used, and rebuilt to the s
 
 TEST_CASE("store: two writers of one entry both succeed with identical results", "[proxy][store]") {
   const fs::path dir = fresh_store("race");
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   const Eigen::VectorXd f = source(mesh);
   Eigen::VectorXd a, b;
   CacheStatus sa{}, sb{};
@@ -212,7 +209,7 @@ TEST_CASE("store: two writers of one entry both succeed with identical results",
 
 TEST_CASE("store: the size bound evicts the least recently used entries; clear empties it", "[proxy][store]") {
   const fs::path dir = fresh_store("evict");
-  const ice::TriangleMesh& mesh = sphere();
+  const ice::TriangleMesh& mesh = unit_sphere();
   ice::proxy::PoissonOptions options = options_with(dir);
   const ice::proxy::PoissonSolver first(mesh, options);
   const std::uintmax_t one = fs::file_size(entries(dir).at(0));

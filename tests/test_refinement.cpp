@@ -17,12 +17,13 @@
 #include "ice/mesh_io.h"
 #include "ice/prolongation.h"
 #include "ice/refinement.h"
+#include "ice/triangle_geometry.h"
 #include "test_support.h"
 
 namespace {
 
 using ice::Index;
-constexpr double kPi = 3.141592653589793238462643383279502884;
+using ice::kPi;
 
 // On a flat mesh every vertex — input or inserted — has a place in the plane; every tracked point
 // must sit where its face's corners put it. Inserted vertices get their place from the corners of

@@ -14,7 +14,9 @@
 #include <unistd.h>
 
 #include "ice/intrinsic_mesh_io.h"
+#include "ice/mesh_generators.h"
 #include "mesh_sets.h"
+#include "test_skip.h"
 
 namespace ice_test {
 
@@ -37,13 +39,11 @@ inline void write_bytes(const std::filesystem::path& path, const std::vector<cha
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
-/// Exit status of a test binary whose only outcome was a skip (ctest's SKIP_RETURN_CODE; main.cpp).
-constexpr int kSkipExitCode = 77;
 
-/// Set when a test case skipped itself; main.cpp turns a clean run with a skip into kSkipExitCode.
-inline std::atomic<bool>& skipped() {
-  static std::atomic<bool> flag{false};
-  return flag;
+/// The unit icosphere of 2,562 vertices (ice::make_icosphere(4)), made once per process.
+inline const ice::TriangleMesh& unit_sphere() {
+  static const ice::TriangleMesh mesh = ice::make_icosphere(4);
+  return mesh;
 }
 
 /// Path of a mesh of the project set (data/default/, made by scripts/setup.sh). Every clone has it,

@@ -16,12 +16,13 @@
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
+#include "ice/triangle_geometry.h"
 #include "test_support.h"
 
 namespace {
 
 using ice::Index;
-constexpr double kPi = 3.141592653589793238462643383279502884;
+using ice::kPi;
 
 ice::CompactMesh glued(const ice::TriangleMesh& mesh) {
   ice::CompactMesh out;

@@ -350,7 +350,8 @@ HeatMethodOperators CoarseProxy::coarse_heat_method_operators(double time_factor
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point& mark) {
+// Seconds since `mark`, which moves to now (a lap of a stopwatch).
+double lap_seconds(Clock::time_point& mark) {
   const Clock::time_point now = Clock::now();
   const double s = std::chrono::duration<double>(now - mark).count();
   mark = now;
@@ -569,7 +570,7 @@ ProxyPoissonSolver::ProxyPoissonSolver(const CoarseProxy& proxy, std::vector<Ind
     fine_ = std::make_unique<PoissonSolver>(
         is_zero_mean() ? PoissonSolver::zero_mean(laplacian, proxy.fine_mass(), std::move(cycle))
                        : PoissonSolver::dirichlet(laplacian, proxy.fine_mass(), dirichlet_vertices_, std::move(cycle)));
-    polish_setup_seconds_ = seconds_since(mark);
+    polish_setup_seconds_ = lap_seconds(mark);
   }
 }
 
@@ -597,15 +598,15 @@ Eigen::VectorXd ProxyPoissonSolver::solve(const Eigen::Ref<const Eigen::VectorXd
   Eigen::VectorXd weighted(n), coarse_rhs(P.cols()), u(n);
   gather_product(fine_mass, source, weighted.data(), false, threads, n);
   gather_product(P, weighted.data(), coarse_rhs.data(), false, threads, n);
-  if (times) times->restriction = seconds_since(mark);
+  if (times) times->restriction = lap_seconds(mark);
   const Eigen::VectorXd coarse_u = coarse_.solve_weighted(coarse_rhs, dirichlet_values);
-  if (times) times->coarse_solve = seconds_since(mark);
+  if (times) times->coarse_solve = lap_seconds(mark);
   gather_product(P_rows_, coarse_u.data(), u.data(), false, threads, n);
   if (is_zero_mean() && fine_components_.count() > 1)
     remove_component_means(fine_components_, fine_mass_of_one_, u);
   else if (is_zero_mean())
     add_constant(-fine_mass_of_one_.dot(u) / total_mass_, u, threads);
-  if (times) times->prolongation = seconds_since(mark);
+  if (times) times->prolongation = lap_seconds(mark);
   if (polish_report) *polish_report = PolishReport();
   if (!fine_) return u;
   // weighted = M·source is the fine right-hand side (already compatible in zero-mean mode).
@@ -686,9 +687,9 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
     scatter_transpose_rows(P_rows_, weighted.data(), coarse_chunk.data(), chunk, threads);
     coarse_rhs.middleCols(first, width) = coarse_chunk.leftCols(width);
   }
-  if (times) times->restriction = seconds_since(mark);
+  if (times) times->restriction = lap_seconds(mark);
   const RowMatrix coarse_u = coarse_.solve_multiple_weighted(Eigen::MatrixXd(coarse_rhs), dirichlet_values);
-  if (times) times->coarse_solve = seconds_since(mark);
+  if (times) times->coarse_solve = lap_seconds(mark);
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
     coarse_chunk.leftCols(width) = coarse_u.middleCols(first, width);
@@ -699,7 +700,7 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
       return u_rows(i, c) - (is_zero_mean() ? means[label_of(i) * stride + static_cast<std::size_t>(c)] : 0.0);
     });
   }
-  if (times) times->prolongation = seconds_since(mark);
+  if (times) times->prolongation = lap_seconds(mark);
   return U;
 }
 
@@ -715,7 +716,7 @@ ProxyHeatSolver::ProxyHeatSolver(const CoarseProxy& proxy, double time_step, Res
     fine_ = std::make_unique<MultigridSolver>(std::move(cycle.prolongations), cycle.options);
     fine_->setup(SparseMatrix(proxy.fine_mass() + time_step * proxy.fine_laplacian()));
     fine_->set_error_norm(proxy.fine_mass() * Eigen::VectorXd::Ones(proxy.fine_size()), false);
-    polish_setup_seconds_ = seconds_since(mark);
+    polish_setup_seconds_ = lap_seconds(mark);
   }
 }
 
@@ -735,21 +736,21 @@ Eigen::MatrixXd ProxyHeatSolver::trajectory(const Eigen::Ref<const Eigen::Vector
   int done = 0;
   if (restriction_ == RestrictionKind::l2_projection) {
     const Eigen::VectorXd rhs = proxy_->restrict_weighted(proxy_->fine_mass() * fine_u0);
-    if (times) times->restriction = seconds_since(mark);
+    if (times) times->restriction = lap_seconds(mark);
     u = coarse_.solve_weighted(rhs);
     done = 1;
   } else {
     u = proxy_->restrict_values(fine_u0, RestrictionKind::injection);
-    if (times) times->restriction = seconds_since(mark);
+    if (times) times->restriction = lap_seconds(mark);
   }
   for (const int target : listed) {
     for (; done < target; ++done) u = coarse_.step(u);
     states.push_back(u);
   }
-  if (times) times->coarse_solve = seconds_since(mark);
+  if (times) times->coarse_solve = lap_seconds(mark);
   Eigen::MatrixXd out(proxy_->fine_size(), static_cast<Eigen::Index>(states.size()));
   for (std::size_t j = 0; j < states.size(); ++j) out.col(static_cast<Eigen::Index>(j)) = proxy_->prolong(states[j]);
-  if (times) times->prolongation = seconds_since(mark);
+  if (times) times->prolongation = lap_seconds(mark);
   if (output_steps) *output_steps = listed;
   return out;
 }
@@ -766,7 +767,7 @@ Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::Ref<const Eigen::VectorX
   if (restriction_ == RestrictionKind::l2_projection) {
     // Mc u_c0 = Pᵀ M u₀ defines the projection, and it is the first step's right-hand side.
     const Eigen::VectorXd rhs = proxy_->restrict_weighted(proxy_->fine_mass() * fine_u0);
-    if (times) times->restriction = seconds_since(mark);
+    if (times) times->restriction = lap_seconds(mark);
     u = coarse_.solve_weighted(rhs);
     for (int k = 1; k < steps; ++k) {
       if (fine_) coarse_states.push_back(u);
@@ -774,16 +775,16 @@ Eigen::VectorXd ProxyHeatSolver::integrate(const Eigen::Ref<const Eigen::VectorX
     }
   } else {
     u = proxy_->restrict_values(fine_u0, RestrictionKind::injection);
-    if (times) times->restriction = seconds_since(mark);
+    if (times) times->restriction = lap_seconds(mark);
     for (int k = 0; k < steps; ++k) {
       u = coarse_.step(u);
       if (fine_ && k + 1 < steps) coarse_states.push_back(u);
     }
   }
   if (fine_) coarse_states.push_back(u);
-  if (times) times->coarse_solve = seconds_since(mark);
+  if (times) times->coarse_solve = lap_seconds(mark);
   Eigen::VectorXd fine_u = proxy_->prolong(u);
-  if (times) times->prolongation = seconds_since(mark);
+  if (times) times->prolongation = lap_seconds(mark);
   if (polish_report) *polish_report = PolishReport();
   if (!fine_ || steps == 0) return fine_u;
 
@@ -899,16 +900,16 @@ Eigen::VectorXd ProxyGeodesicSolver::heat_distance(const std::vector<Index>& sou
   Eigen::VectorXd coarse_weights = Eigen::VectorXd::Zero(P_rows_.cols());
   for (int s : sources)
     for (decltype(P_rows_)::InnerIterator it(P_rows_, s); it; ++it) coarse_weights(it.col()) += it.value();
-  if (times) times->restriction = seconds_since(mark);
+  if (times) times->restriction = lap_seconds(mark);
   const Eigen::VectorXd coarse_phi = heat_->distance_from_weights(coarse_weights);
-  if (times) times->coarse_solve = seconds_since(mark);
+  if (times) times->coarse_solve = lap_seconds(mark);
   Eigen::VectorXd phi(n);
   detail::gather_product(P_rows_, coarse_phi.data(), phi.data(), false, detail::default_threads(), n);
   // Shift so that the sources' mean distance is zero.
   double sum = 0;
   for (int s : sources) sum += phi(s);
   detail::add_constant(-sum / static_cast<double>(sources.size()), phi, detail::default_threads());
-  if (times) times->prolongation = seconds_since(mark);
+  if (times) times->prolongation = lap_seconds(mark);
   return phi;
 }
 
@@ -939,7 +940,7 @@ Eigen::VectorXd ProxyGeodesicSolver::marching_distance(const std::vector<Index>&
       seeds.push_back({column[i], std::sqrt(std::max(0.0, squared)), static_cast<Index>(number)});
     }
   }
-  if (times) times->restriction = seconds_since(mark);
+  if (times) times->restriction = lap_seconds(mark);
   detail::CoarseMarcher marcher(*marching_, /*reopen=*/true, /*track_sources=*/true);  // (see there: one run, so worth it)
   std::vector<double> squared(nc, kInfinity);  // squared distance from the nearest source
   std::vector<Index> nearest(nc, -1);          // which source (its number in `sources`)
@@ -976,7 +977,7 @@ Eigen::VectorXd ProxyGeodesicSolver::marching_distance(const std::vector<Index>&
       }
     }
   }
-  if (times) times->coarse_solve = seconds_since(mark);
+  if (times) times->coarse_solve = lap_seconds(mark);
   // Fine values: the squared distance interpolated with V(y) subtracted — valid for the distance
   // from one source, so where y's coarse corners are nearest to different sources (near where two
   // sources' fronts meet), or V(y) is unknown, the distance is interpolated linearly. Zero weights
@@ -1001,7 +1002,7 @@ Eigen::VectorXd ProxyGeodesicSolver::marching_distance(const std::vector<Index>&
     }
   }
   for (Index x : sources) phi(x) = 0;
-  if (times) times->prolongation = seconds_since(mark);
+  if (times) times->prolongation = lap_seconds(mark);
   return phi;
 }
 

@@ -150,7 +150,7 @@ void IntrinsicErrorMetric::merge_channels(const IntrinsicTriangulation& T, Index
     const std::complex<double> direction = unit_complex(T.angular_coordinate(h ^ 1));
     edge_re = T.length(h) * direction.real(), edge_im = T.length(h) * direction.imag();
     bool off_centre = false;
-    for (int c = 0; c < kChannels; ++c) off_centre |= (from.centre[c].real() != 0) | (from.centre[c].imag() != 0);
+    for (int c = 0; c < kChannels; ++c) off_centre = off_centre || from.centre[c] != std::complex<double>(0.0, 0.0);
     if (off_centre) {
       const std::complex<double> rotation = unit_complex(T.angular_coordinate(h ^ 1) - T.angular_coordinate(h) + kPi);
       rotation_re = rotation.real(), rotation_im = rotation.imag();

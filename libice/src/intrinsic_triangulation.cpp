@@ -1105,7 +1105,7 @@ bool IntrinsicTriangulation::merge_star_along_diagonal(Index v, std::vector<Inde
     for (int b = a + 1; b < 4; ++b)
       if (face(spokes[a]) == face(spokes[b])) return false;
   // Choose the diagonal through v: the one whose two corners at v sum closest to π.
-    const double c0 = corner_angle(spokes[0]) + corner_angle(spokes[1]);
+  const double c0 = corner_angle(spokes[0]) + corner_angle(spokes[1]);
   const double c1 = corner_angle(spokes[1]) + corner_angle(spokes[2]);
   const int first = std::abs(c0 - kPi) <= std::abs(c1 - kPi) ? 0 : 1;
   if (std::abs((first == 0 ? c0 : c1) - kPi) > 1e-6) return false;
