@@ -105,8 +105,22 @@ if [[ -z "$ONLY" || "$ONLY" == asan ]]; then
   # GCC's and a third of the start-up time per test process (docs/measurements.md, "The test command's
   # time"); the release build stays GCC's, the compiler the product's figures are measured with.
   SANITIZER_COMPILERS=()
+  SANITIZER_CXX=c++
   if command -v clang++ >/dev/null 2>&1 && command -v clang >/dev/null 2>&1; then
     SANITIZER_COMPILERS=(-DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++)
+    SANITIZER_CXX=clang++
+  fi
+  # A folder configured with the other compiler is made afresh: CMake would drop its cache on the
+  # switch and could lose the options given with it.
+  if [[ -f build/asan/CMakeCache.txt ]]; then
+    cached_cxx="$(sed -n 's/^CMAKE_CXX_COMPILER:[A-Z]*=//p' build/asan/CMakeCache.txt)"
+    cached_is_clang=0; wanted_is_clang=0
+    [[ "$(basename "$cached_cxx")" == clang* ]] && cached_is_clang=1
+    [[ "$SANITIZER_CXX" == clang* ]] && wanted_is_clang=1
+    if [[ $cached_is_clang -ne $wanted_is_clang ]]; then
+      echo "test.sh: build/asan was configured with $cached_cxx: making it afresh with $SANITIZER_CXX"
+      rm -rf build/asan
+    fi
   fi
   config "asan" build/asan "${SANITIZER_COMPILERS[@]}" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-g1 -O1" \
     -DICE_SANITIZE=ON -DICE_BUILD_APPS=ON -DICE_BUILD_BENCH=OFF -DICE_BUILD_ACCURACY_TOOLS=OFF -DICE_BUILD_DOCS=OFF

@@ -57,10 +57,7 @@ Eigen::VectorXd extrinsic_vertex_areas(const ice::TriangleMesh& mesh) {
   return areas;
 }
 
-/// Relative Frobenius distance of two sparse matrices.
-double relative_difference(const fem::SparseMatrix& A, const fem::SparseMatrix& B) {
-  return fem::SparseMatrix(A - B).norm() / B.norm();
-}
+using ice_test::relative_difference;
 
 void require_intrinsic_matches_extrinsic(const ice::TriangleMesh& mesh, double tolerance) {
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);

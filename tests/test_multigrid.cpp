@@ -55,9 +55,7 @@ Eigen::VectorXd test_rhs(const Setup& s) {
   return s.M * f;
 }
 
-double relative_difference(const Eigen::VectorXd& x, const Eigen::VectorXd& reference) {
-  return (x - reference).norm() / reference.norm();
-}
+using ice_test::relative_difference;
 
 // Boundary vertices of a mesh (vertices of edges with one face).
 std::vector<int> boundary_vertices(const ice::Faces& F) {

@@ -20,10 +20,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using ice_test::relative_difference;
 using ice_test::unit_sphere;
 
 // k smooth sources on the sphere: x, y z, x² − z, ...
-Eigen::MatrixXd sources(const ice::TriangleMesh& mesh, Eigen::Index k) {
+Eigen::MatrixXd cosine_sources(const ice::TriangleMesh& mesh, Eigen::Index k) {
   Eigen::MatrixXd F(mesh.V.rows(), k);
   for (Eigen::Index v = 0; v < F.rows(); ++v)
     for (Eigen::Index j = 0; j < k; ++j) {
@@ -39,7 +40,7 @@ TEST_CASE("block Poisson: each column equals its single solve within round-off",
   const ice::TriangleMesh& mesh = unit_sphere();
   ice::proxy::PoissonOptions options;
   options.coarsening.coarsen.target_vertices = 300;
-  const Eigen::MatrixXd F = sources(mesh, 37);  // more than one chunk of 32 columns
+  const Eigen::MatrixXd F = cosine_sources(mesh, 37);  // more than one chunk of 32 columns
   SECTION("zero-mean Neumann, smoothed P") {
     const ice::proxy::PoissonSolver solver(mesh, options);
     const Eigen::MatrixXd U = solver.solve_block(F);
@@ -79,7 +80,7 @@ TEST_CASE("fine block solves: CHOLMOD's block solve equals the single solves wit
   const ice::FaceLengths L = ice::face_lengths_from_positions(mesh.V, mesh.F);
   const auto n = static_cast<fem::Index>(mesh.V.rows());
   const fem::SparseMatrix lap = fem::cotan_laplacian(mesh.F, L, n), M = fem::mass_matrix(mesh.F, L, fem::MassKind::lumped, n);
-  const Eigen::MatrixXd F = sources(mesh, 5);
+  const Eigen::MatrixXd F = cosine_sources(mesh, 5);
   const fem::PoissonSolver zero_mean = fem::PoissonSolver::zero_mean(lap, M);
   const Eigen::MatrixXd U = zero_mean.solve_multiple_weighted(M * F);
   const fem::PoissonSolver dirichlet = fem::PoissonSolver::dirichlet(lap, M, {3, 77});
@@ -96,7 +97,7 @@ TEST_CASE("heat steps on the coarse level: the listed states equal the single in
   const ice::TriangleMesh& mesh = unit_sphere();
   ice::proxy::HeatOptions options;
   options.coarsening.coarsen.target_vertices = 300;
-  const Eigen::VectorXd u0 = sources(mesh, 2).col(1);
+  const Eigen::VectorXd u0 = cosine_sources(mesh, 2).col(1);
   for (const auto restriction : {fem::RestrictionKind::l2_projection, fem::RestrictionKind::injection}) {
     options.restriction = restriction;
     const ice::proxy::HeatSolver heat(mesh, 2e-3, options);

@@ -51,7 +51,7 @@ FineSystem fine_system(const ice::TriangleMesh& mesh) {
 }
 
 // k smooth-ish sources of zero mean per column: products of coordinates.
-Eigen::MatrixXd sources(const ice::TriangleMesh& mesh, int k) {
+Eigen::MatrixXd product_sources(const ice::TriangleMesh& mesh, int k) {
   Eigen::MatrixXd F(mesh.V.rows(), k);
   for (int j = 0; j < k; ++j)
     for (Eigen::Index v = 0; v < F.rows(); ++v)
@@ -85,7 +85,7 @@ TEST_CASE("stored hierarchy: a warm load equals the build to the last bit; other
 
   // The same exact solve from either.
   const FineSystem s = fine_system(mesh);
-  const Eigen::VectorXd f = sources(mesh, 1).col(0);
+  const Eigen::VectorXd f = product_sources(mesh, 1).col(0);
   const fem::PoissonSolver a = fem::PoissonSolver::zero_mean(s.L, s.M, plain.poisson_multigrid({}));
   const fem::PoissonSolver b = fem::PoissonSolver::zero_mean(s.L, s.M, warm.poisson_multigrid({}));
   CHECK(a.solve(f) == b.solve(f));
@@ -141,7 +141,7 @@ TEST_CASE("multigrid Poisson: a block of sources equals the solves one by one", 
   const FineSystem s = fine_system(mesh);
   const ice::proxy::MultigridHierarchy h = ice::proxy::multigrid_hierarchy(mesh, small_levels());
   // More columns than one chunk of block V-cycles (fem::MultigridSolver::kBlockColumns).
-  const Eigen::MatrixXd F = sources(mesh, static_cast<int>(fem::MultigridSolver::kBlockColumns) + 3);
+  const Eigen::MatrixXd F = product_sources(mesh, static_cast<int>(fem::MultigridSolver::kBlockColumns) + 3);
   const Eigen::MatrixXd B = s.M * F;
   SECTION("zero mean") {
     const fem::PoissonSolver mg = fem::PoissonSolver::zero_mean(s.L, s.M, h.poisson_multigrid({}));
@@ -185,7 +185,7 @@ TEST_CASE("multigrid heat steps follow CHOLMOD's; a trajectory's columns equal i
   const fem::HeatSolver direct(s.L, s.M, tau);
   REQUIRE(mg.multigrid() != nullptr);
   CHECK(direct.multigrid() == nullptr);
-  const Eigen::VectorXd u0 = sources(mesh, 1).col(0);
+  const Eigen::VectorXd u0 = product_sources(mesh, 1).col(0);
   std::vector<int> written;
   std::vector<fem::MultigridReport> steps;
   const Eigen::MatrixXd states = mg.trajectory(u0, 7, 3, &written, &steps);

@@ -40,6 +40,12 @@ inline void write_bytes(const std::filesystem::path& path, const std::vector<cha
 }
 
 
+/// ‖result − reference‖ / ‖reference‖ (Frobenius for matrices, sparse ones too).
+template <class Result, class Reference>
+double relative_difference(const Result& result, const Reference& reference) {
+  return (result - reference).eval().norm() / reference.norm();
+}
+
 /// The unit icosphere of 2,562 vertices (ice::make_icosphere(4)), made once per process.
 inline const ice::TriangleMesh& unit_sphere() {
   static const ice::TriangleMesh mesh = ice::make_icosphere(4);

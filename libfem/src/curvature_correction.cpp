@@ -7,11 +7,12 @@
 #include <vector>
 
 #include "fem/topology.h"
+#include "ice/triangle_geometry.h"
 
 namespace fem {
 
 namespace {
-constexpr double kPi = 3.141592653589793238462643383279502884;
+using ice::kPi;
 }  // namespace
 
 Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {

@@ -10,6 +10,7 @@
 #include "coarse_marching.h"
 #include "fem/problems.h"
 #include "parallel_kernels.h"
+#include "ice/wall_time.h"
 
 namespace fem {
 
@@ -20,10 +21,7 @@ const char* to_string(CoarseDistanceMethod method) {
 namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+using ice::seconds_since;
 
 }  // namespace
 

@@ -1,4 +1,5 @@
 #include "fem/eigen.h"
+#include "ice/wall_time.h"
 
 #include <algorithm>
 #include <chrono>
@@ -15,7 +16,6 @@ namespace fem {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // (L − σM)⁻¹ by CHOLMOD, in the shape Spectra's shift-invert mode asks of its operator.
 class CholmodShiftInvert {
@@ -29,13 +29,13 @@ class CholmodShiftInvert {
   void set_shift(double sigma) {
     const auto start = Clock::now();
     factor_.compute(SparseMatrix(L_ - sigma * M_));
-    factor_seconds += since(start);
+    factor_seconds += ice::seconds_since(start);
   }
   void perform_op(const double* x_in, double* y_out) const {
     const auto start = Clock::now();
     const Eigen::Map<const Eigen::VectorXd> x(x_in, rows());
     Eigen::Map<Eigen::VectorXd>(y_out, rows()) = factor_.solve(x);
-    solve_seconds += since(start);
+    solve_seconds += ice::seconds_since(start);
     ++operations;
   }
   double factor_seconds = 0;

@@ -5,6 +5,7 @@
 #include "fem/ordering.h"
 #include "parallel_kernels.h"
 #include "sparse_columns.h"
+#include "ice/wall_time.h"
 
 #include <algorithm>
 #include <chrono>
@@ -20,7 +21,6 @@ namespace {
 
 using namespace detail;
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // y = A x for a symmetric compressed column-major A.
 void multiply(const SparseMatrix& A, const double* x, double* y, int threads) {
@@ -546,7 +546,7 @@ void MultigridSolver::setup(const SparseMatrix& A, std::vector<Index> constraine
   is_setup_ = false;
   build_operators(A, /*reuse_analysis=*/false);
   is_setup_ = true;
-  setup_seconds_ = since(start);
+  setup_seconds_ = ice::seconds_since(start);
 }
 
 void MultigridSolver::update_matrix(const SparseMatrix& A) {
@@ -555,7 +555,7 @@ void MultigridSolver::update_matrix(const SparseMatrix& A) {
     throw std::invalid_argument("MultigridSolver::update_matrix: A has the wrong size");
   const auto start = Clock::now();
   build_operators(A, /*reuse_analysis=*/true);
-  setup_seconds_ = since(start);
+  setup_seconds_ = ice::seconds_since(start);
 }
 
 void MultigridSolver::build_operators(const SparseMatrix& A, bool reuse_analysis) {
@@ -853,7 +853,7 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
   for (Eigen::Index i = 0; i < nf; ++i) out(free_[static_cast<std::size_t>(i)]) = x(i);
   for (std::size_t c = 0; c < constrained_.size(); ++c)
     out(constrained_[c]) = constrained_values.size() ? constrained_values(static_cast<Eigen::Index>(c)) : 0.0;
-  report_.seconds = since(start);
+  report_.seconds = ice::seconds_since(start);
   return out;
 }
 
@@ -901,7 +901,7 @@ Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, co
     all.insert(all.end(), reports_.begin(), reports_.end());
   }
   reports_ = std::move(all);
-  const double seconds = since(start);
+  const double seconds = ice::seconds_since(start);
   for (MultigridReport& r : reports_) r.seconds = seconds;  // the whole block's, as for one chunk
   report_ = reports_[worst_report(reports_)];
   return out;
@@ -1007,7 +1007,7 @@ Eigen::MatrixXd MultigridSolver::solve_block_columns(const Eigen::MatrixXd& Bful
   for (std::size_t c = 0; c < constrained_.size(); ++c)
     out.row(constrained_[c]) = constrained_values.size() ? Eigen::RowVectorXd(constrained_values.row(static_cast<Eigen::Index>(c)))
                                                           : Eigen::RowVectorXd::Zero(k);
-  const double seconds = since(start);
+  const double seconds = ice::seconds_since(start);
   for (Eigen::Index c = 0; c < k; ++c) {
     MultigridReport& rep = reports_[static_cast<std::size_t>(c)];
     rep.relative_residual = nf > 0 ? R.col(c).norm() / scale(c) : 0.0;

@@ -15,7 +15,7 @@
 namespace fem {
 namespace {
 
-constexpr double kPi = 3.141592653589793238462643383279502884;
+using ice::kPi;
 constexpr double kTwoPi = 2 * kPi;
 
 // Corners are numbered 3f + k; side 3f + k runs from corner k to corner k + 1 of face f.

@@ -11,6 +11,7 @@
 #include "ice/prolongation.h"
 #include "ice/qem.h"
 #include "locality_numbering.h"
+#include "ice/wall_time.h"
 
 namespace ice {
 
@@ -67,7 +68,6 @@ StopReason CoarseSpaceSummary::stop_reason() const {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 // The sizes every summary carries, from the finished space.
 void record_sizes(CoarseSpace& space, CoarseningMethod method, Index input_vertices) {

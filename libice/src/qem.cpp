@@ -10,6 +10,7 @@
 #include <string>
 
 #include "ice/triangle_geometry.h"
+#include "ice/wall_time.h"
 
 // OpenMesh's PropertyT<VectorT>::push_back value-initialises a VectorT whose constructor leaves it
 // uninitialised, which GCC reports (at the instantiation in this file) as -Wmaybe-uninitialized.
@@ -42,10 +43,6 @@ using ModAspectRatio = OpenMesh::Decimater::ModAspectRatioT<OmMesh>;
 // can be built from. At 1e6 a face's lengths still carry its shape (height/longest ≥ 1e-6, far above
 // what the strict triangle inequality in double precision needs).
 constexpr float kMaxCollapseAspectRatio = 1e6f;
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // Connected component of every vertex (union–find over face corners).
 std::vector<Index> vertex_components(Index n, const Faces& F) {

@@ -7,12 +7,11 @@
 #include <utility>
 
 #include "ice/proxy/store.h"
+#include "ice/wall_time.h"
 
 namespace ice::proxy::detail {
 
-inline double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+using ice::seconds_since;
 
 /// Throws std::runtime_error "path: what" unless `ok`: the store then treats the entry as damaged.
 inline void require(bool ok, const std::string& path, const std::string& what) {

@@ -16,7 +16,7 @@ namespace {
 
 using detail::require;
 
-constexpr const char* kKind = "hierarchy";
+constexpr const char* kHierarchyKind = "hierarchy";
 
 void save(const Store& store, const StoreKey& key, MultigridHierarchy& h) {
   const auto start = std::chrono::steady_clock::now();
@@ -30,12 +30,12 @@ void save(const Store& store, const StoreKey& key, MultigridHierarchy& h) {
   w.put_text("stop_reason", h.stop_reason);
   const double seconds[] = {h.build_seconds, h.coarsen_seconds};
   w.put("seconds", seconds, 2);
-  detail::save_entry(store, kKind, key, w, h.cache, start);
+  detail::save_entry(store, kHierarchyKind, key, w, h.cache, start);
 }
 
 // The stored hierarchy, checked (detail::load_entry: a miss or damage leaves std::nullopt and says so in `cache`).
 std::optional<MultigridHierarchy> load(const Store& store, const StoreKey& key, Index n, CacheReport& cache) {
-  return detail::load_entry<MultigridHierarchy>(store, kKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
+  return detail::load_entry<MultigridHierarchy>(store, kHierarchyKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
     MultigridHierarchy h;
     h.fine_vertices = n;
     const std::int64_t levels = entry.integer("levels");
@@ -100,7 +100,7 @@ fem::PoissonMultigrid MultigridHierarchy::poisson_multigrid(const fem::Multigrid
 }
 
 StoreKey multigrid_hierarchy_key(const TriangleMesh& mesh, const HierarchyOptions& o) {
-  KeyHasher h(kKind);
+  KeyHasher h(kHierarchyKind);
   h.add_matrix(mesh.V).add_matrix(mesh.F);
   h.add(o.ratio).add(static_cast<std::int64_t>(o.coarsest_vertices)).add(o.max_levels).add(o.area_weight);
   h.add(static_cast<int>(o.coarsening)).add(static_cast<int>(o.set_order)).add(o.strong_neighbour_share);

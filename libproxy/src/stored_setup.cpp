@@ -17,7 +17,7 @@ namespace {
 
 using detail::require;
 
-constexpr const char* kKind = "proxy";
+constexpr const char* kProxyKind = "proxy";
 
 // Every field of a CoarseSpaceSummary, in one order for both directions: `field` is called with a
 // reference to each (doubles, Index, bool, enums) and the presence flags of its optional parts.
@@ -113,7 +113,7 @@ static_assert(std::is_same_v<Index, std::int32_t>, "vertex maps and gluing are s
 
 StoreKey proxy_setup_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening, FineGeometry geometry,
                          fem::CoarseOperatorKind kind, fem::ProlongationKind prolongation) {
-  KeyHasher h(kKind);
+  KeyHasher h(kProxyKind);
   h.add_matrix(mesh.V).add_matrix(mesh.F);
   const CoarsenOptions& c = coarsening.coarsen;
   h.add(to_string(coarsening.method)).add(static_cast<std::int64_t>(c.target_vertices)).add(c.target_ratio);
@@ -167,7 +167,7 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
   w.put("proxy.fine_mass", mass.data(), static_cast<std::size_t>(mass.size()));
   w.put_sparse("proxy.coarse_laplacian", proxy.coarse_laplacian);
   w.put_sparse("proxy.coarse_mass", proxy.coarse_mass);
-  detail::save_entry(store, kKind, key, w, setup.cache, start);
+  detail::save_entry(store, kProxyKind, key, w, setup.cache, start);
 }
 
 fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry) {
@@ -180,7 +180,7 @@ fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, Fine
 
 std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& key, const TriangleMesh& mesh,
                                            CacheReport& cache, fem::CoarseProxy::FineMeshSource fine_mesh) {
-  return detail::load_entry<ProxySetup>(store, kKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
+  return detail::load_entry<ProxySetup>(store, kProxyKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
     ProxySetup setup;
     const auto n = static_cast<Index>(mesh.V.rows());
     require(entry.integer("input_vertices") == n, path, "made for a mesh of another vertex count");
