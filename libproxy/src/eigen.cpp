@@ -1,7 +1,7 @@
 #include "ice/proxy/eigen.h"
 
-#include "entry_checks.h"
 #include "fem/topology.h"
+#include "ice/wall_time.h"
 
 #include <algorithm>
 #include <chrono>
@@ -15,7 +15,6 @@ namespace ice::proxy {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-using detail::seconds_since;
 
 }  // namespace
 

@@ -11,8 +11,6 @@
 
 namespace ice::proxy::detail {
 
-using ice::seconds_since;
-
 /// Throws std::runtime_error "path: what" unless `ok`: the store then treats the entry as damaged.
 inline void require(bool ok, const std::string& path, const std::string& what) {
   if (!ok) throw std::runtime_error(path + ": " + what);

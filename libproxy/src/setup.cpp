@@ -4,9 +4,9 @@
 #include <stdexcept>
 #include <utility>
 
-#include "entry_checks.h"
 #include "fem/curvature_correction.h"
 #include "ice/prolongation.h"
+#include "ice/wall_time.h"
 
 namespace ice::proxy {
 
@@ -17,7 +17,6 @@ fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem
 
 ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& options, std::optional<CoarseSpace> coarse) {
   using Clock = std::chrono::steady_clock;
-  using detail::seconds_since;
   const fem::ProlongationKind resolved = resolve_prolongation(options.prolongation, options.operators, options.dirichlet);
   const bool needs_fine = options.assemble || options.need_fine_mesh;
   ProxySetup setup;
