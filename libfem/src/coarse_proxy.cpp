@@ -152,8 +152,8 @@ SparseMatrix smoothed_prolongation(const SparseMatrix& P, const SparseMatrix& la
 
 CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
                          CoarseOperatorKind kind, MassKind mass_kind, ProlongationKind prolongation)
-    : kind_(kind), mass_kind_(mass_kind), prolongation_kind_(prolongation), P_(std::move(P)), coarse_faces_(Fc),
-      coarse_lengths_(Lc) {
+    : kind_(kind), mass_kind_(mass_kind), prolongation_kind_(prolongation), coarse_faces_(Fc), coarse_lengths_(Lc) {
+  P_.swap(P);  // Eigen 3.4's SparseMatrix has no move constructor (std::move copies)
   if (prolongation == ProlongationKind::smoothed && kind != CoarseOperatorKind::galerkin)
     throw std::invalid_argument("CoarseProxy: a smoothed prolongation needs Galerkin coarse operators");
   P_.makeCompressed();  // the proxy solvers gather straight from its arrays
@@ -185,7 +185,7 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
   }
 }
 
-CoarseProxy::CoarseProxy(CoarseProxyArrays a, FineMeshSource fine_mesh)
+CoarseProxy::CoarseProxy(CoarseProxyArrays&& a, FineMeshSource fine_mesh)
     : kind_(a.kind), mass_kind_(a.mass_kind), prolongation_kind_(a.prolongation_kind),
       coarse_faces_(std::move(a.coarse_faces)), coarse_lengths_(std::move(a.coarse_lengths)) {
   // Eigen 3.4's SparseMatrix has no move constructor (std::move copies): swap the arrays in.

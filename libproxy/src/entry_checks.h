@@ -11,9 +11,12 @@
 
 namespace ice::proxy::detail {
 
-/// Throws std::runtime_error "path: what" unless `ok`: the store then treats the entry as damaged.
-inline void require(bool ok, const std::string& path, const std::string& what) {
-  if (!ok) throw std::runtime_error(path + ": " + what);
+/// Throws std::runtime_error "path: what": the store then treats the entry as damaged.
+[[noreturn]] inline void fail(const std::string& path, const std::string& what) { throw std::runtime_error(path + ": " + what); }
+/// fail(path, what) unless `ok`. The message is a plain string because checks run once per stored
+/// element: a composed message would be built on every call (fail() composes only on failure).
+inline void require(bool ok, const std::string& path, const char* what) {
+  if (!ok) fail(path, what);
 }
 
 /// Writes `entry` as `kind`/`key` and records it in `cache`: the key, the time since `start` (when the

@@ -9,6 +9,7 @@
 
 #include "entry_checks.h"
 #include "ice/coarsen.h"
+#include "ice/huge_pages.h"
 
 namespace ice::proxy {
 
@@ -41,25 +42,32 @@ std::optional<MultigridHierarchy> load(const Store& store, const StoreKey& key, 
     const std::int64_t levels = entry.integer("levels");
     require(levels >= 1 && levels <= 1000, path, "a level count out of range");
     Index rows = n;
+    h.prolongations.reserve(static_cast<std::size_t>(levels - 1));
+    // One buffer for every level's row sums, offered huge pages: faulting in a fresh 4 KiB-paged
+    // buffer per level took longer than the sums.
+    Eigen::VectorXd row_sum_buffer(n);
+    advise_huge_pages(row_sum_buffer.data(), sizeof(double) * static_cast<std::size_t>(n));
     for (std::int64_t k = 0; k + 1 < levels; ++k) {
       Eigen::SparseMatrix<double> P = entry.sparse("P" + std::to_string(k));
-      require(P.rows() == rows && P.cols() > 0 && P.cols() <= rows, path, "P" + std::to_string(k) + " of the wrong shape");
+      const std::string name = "P" + std::to_string(k);
+      if (!(P.rows() == rows && P.cols() > 0 && P.cols() <= rows)) detail::fail(path, name + " of the wrong shape");
       // Interpolation: every fine value a convex combination of coarse ones, and every coarse vertex
       // interpolating somewhere (else its Galerkin level would be singular).
-      Eigen::VectorXd row_sums = Eigen::VectorXd::Zero(P.rows());
+      auto row_sums = row_sum_buffer.head(P.rows());
+      row_sums.setZero();
       for (Eigen::Index c = 0; c < P.outerSize(); ++c) {
         double largest = 0;
         for (Eigen::SparseMatrix<double>::InnerIterator it(P, c); it; ++it) {
-          require(it.value() >= 0, path, "P" + std::to_string(k) + " has a negative weight");
+          if (!(it.value() >= 0)) detail::fail(path, name + " has a negative weight");
           row_sums(it.row()) += it.value();
           largest = std::max(largest, it.value());
         }
-        require(largest > 0, path, "column " + std::to_string(c) + " of P" + std::to_string(k) + " is empty");
+        if (!(largest > 0)) detail::fail(path, "column " + std::to_string(c) + " of " + name + " is empty");
       }
       for (Eigen::Index i = 0; i < row_sums.size(); ++i)
-        require(std::abs(row_sums(i) - 1.0) <= 1e-10, path, "a row of P" + std::to_string(k) + " does not sum to 1");
+        if (!(std::abs(row_sums(i) - 1.0) <= 1e-10)) detail::fail(path, "a row of " + name + " does not sum to 1");
       rows = static_cast<Index>(P.cols());
-      h.prolongations.push_back(std::move(P));
+      h.prolongations.emplace_back().swap(P);  // Eigen 3.4's sparse matrices have no move constructor: a push_back copies
     }
     h.fine_order = entry.ints("fine_order");
     if (!h.fine_order.empty()) {

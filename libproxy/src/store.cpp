@@ -22,6 +22,8 @@
 
 #include <xxhash.h>
 
+#include "ice/huge_pages.h"
+
 namespace ice::proxy {
 
 namespace fs = std::filesystem;
@@ -236,6 +238,16 @@ void EntryWriter::put_sparse(const std::string& name, const Eigen::SparseMatrix<
 
 // ---- reading -----------------------------------------------------------------------------------
 
+namespace {
+// Copies an array out of the mapped entry into a fresh buffer. Large buffers are offered huge pages
+// first: copying into fresh memory is otherwise mostly page faults (a hierarchy's tens of MB).
+void copy_out(void* to, const void* from, std::size_t bytes) {
+  if (bytes == 0) return;
+  if (bytes >= (std::size_t{1} << 22)) advise_huge_pages(to, bytes);
+  std::memcpy(to, from, bytes);
+}
+}  // namespace
+
 EntryReader::EntryReader(EntryReader&& other) noexcept
     : path_(std::move(other.path_)), map_(other.map_), map_bytes_(other.map_bytes_), arrays_(std::move(other.arrays_)) {
   other.map_ = nullptr;
@@ -258,14 +270,14 @@ const EntryReader::Array& EntryReader::find(const std::string& name, std::uint8_
 std::vector<std::int32_t> EntryReader::ints(const std::string& name) const {
   const Array& a = find(name, kInt32);
   std::vector<std::int32_t> out(a.count);
-  if (a.count) std::memcpy(out.data(), a.data, a.count * 4);
+  copy_out(out.data(), a.data, a.count * 4);
   return out;
 }
 
 std::vector<double> EntryReader::doubles(const std::string& name) const {
   const Array& a = find(name, kFloat64);
   std::vector<double> out(a.count);
-  if (a.count) std::memcpy(out.data(), a.data, a.count * 8);
+  copy_out(out.data(), a.data, a.count * 8);
   return out;
 }
 
@@ -296,7 +308,7 @@ Eigen::MatrixXi EntryReader::int_matrix(const std::string& name, std::int64_t mi
   const Array& a = find(name, kInt32);
   const auto [rows, cols] = shape_of(*this, name, a.count);
   Eigen::MatrixXi m(rows, cols);
-  if (a.count) std::memcpy(m.data(), a.data, a.count * 4);
+  copy_out(m.data(), a.data, a.count * 4);
   if (m.size() > 0 && (m.minCoeff() < min_entry || m.maxCoeff() > max_entry))
     throw std::runtime_error(path_.string() + ": '" + name + "' has entries out of range");
   return m;
@@ -306,7 +318,7 @@ Eigen::MatrixXd EntryReader::double_matrix(const std::string& name) const {
   const Array& a = find(name, kFloat64);
   const auto [rows, cols] = shape_of(*this, name, a.count);
   Eigen::MatrixXd m(rows, cols);
-  if (a.count) std::memcpy(m.data(), a.data, a.count * 8);
+  copy_out(m.data(), a.data, a.count * 8);
   if (!m.allFinite()) throw std::runtime_error(path_.string() + ": '" + name + "' has a value that is not finite");
   return m;
 }
@@ -336,11 +348,9 @@ Eigen::SparseMatrix<double> EntryReader::sparse(const std::string& name) const {
   }
   Eigen::SparseMatrix<double> m(rows, cols);
   m.resizeNonZeros(static_cast<Eigen::Index>(inner.count));
-  std::memcpy(m.outerIndexPtr(), o, outer.count * 4);
-  if (inner.count) {
-    std::memcpy(m.innerIndexPtr(), in, inner.count * 4);
-    std::memcpy(m.valuePtr(), v, values.count * 8);
-  }
+  copy_out(m.outerIndexPtr(), o, outer.count * 4);
+  copy_out(m.innerIndexPtr(), in, inner.count * 4);
+  copy_out(m.valuePtr(), v, values.count * 8);
   return m;
 }
 

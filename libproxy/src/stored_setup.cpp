@@ -4,12 +4,14 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <utility>
 
 #include "entry_checks.h"
+#include "ice/huge_pages.h"
 
 namespace ice::proxy {
 
@@ -107,6 +109,20 @@ CoarseSpaceSummary summary_from(const std::vector<double>& values, const std::st
   return summary;
 }
 
+// A copy of `m` in buffers offered huge pages before the copy touches them (copying a fine-size P
+// into fresh 4 KiB pages costs more in page faults than in the copy).
+Eigen::SparseMatrix<double> copy_of(const Eigen::SparseMatrix<double>& m) {
+  Eigen::SparseMatrix<double> copy(m.rows(), m.cols());
+  copy.resizeNonZeros(m.nonZeros());
+  const auto nnz = static_cast<std::size_t>(m.nonZeros());
+  advise_huge_pages(copy.innerIndexPtr(), sizeof(int) * nnz);
+  advise_huge_pages(copy.valuePtr(), sizeof(double) * nnz);
+  std::copy(m.outerIndexPtr(), m.outerIndexPtr() + m.outerSize() + 1, copy.outerIndexPtr());
+  std::copy(m.innerIndexPtr(), m.innerIndexPtr() + nnz, copy.innerIndexPtr());
+  std::copy(m.valuePtr(), m.valuePtr() + nnz, copy.valuePtr());
+  return copy;
+}
+
 static_assert(std::is_same_v<Index, std::int32_t>, "vertex maps and gluing are stored as int32 arrays as they are");
 
 }  // namespace
@@ -136,7 +152,7 @@ StoreKey proxy_setup_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coa
 void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup) {
   const auto start = std::chrono::steady_clock::now();
   const CoarseSpace& coarse = setup.coarse;
-  const fem::CoarseProxyArrays proxy = setup.proxy->arrays();
+  const fem::CoarseProxy& proxy = *setup.proxy;  // its arrays by reference: arrays() would copy them
   EntryWriter w;
   w.put_int("input_vertices", coarse.P.rows());
   w.put_matrix("coarse.F", coarse.mesh.F);
@@ -153,20 +169,23 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
   }
   w.put("coarse.inserted.face", inserted_faces.data(), inserted_faces.size());
   w.put("coarse.inserted.bary", inserted_bary.data(), inserted_bary.size());
-  Eigen::SparseMatrix<double> P = coarse.P;
-  P.makeCompressed();
-  w.put_sparse("coarse.P", P);
+  Eigen::SparseMatrix<double> compressed_P;  // a copy only when P is not compressed already
+  if (!coarse.P.isCompressed()) {
+    compressed_P = coarse.P;
+    compressed_P.makeCompressed();
+  }
+  w.put_sparse("coarse.P", coarse.P.isCompressed() ? coarse.P : compressed_P);
   const std::vector<double> summary = summary_values(coarse.summary);
   w.put("coarse.summary", summary.data(), summary.size());
-  w.put_int("proxy.kind", static_cast<int>(proxy.kind));
-  w.put_int("proxy.mass_kind", static_cast<int>(proxy.mass_kind));
-  w.put_int("proxy.prolongation", static_cast<int>(proxy.prolongation_kind));
+  w.put_int("proxy.kind", static_cast<int>(proxy.kind()));
+  w.put_int("proxy.mass_kind", static_cast<int>(proxy.mass_kind()));
+  w.put_int("proxy.prolongation", static_cast<int>(proxy.prolongation_kind()));
   // P itself is the coarse space's (the proxy's barycentric one); only its smoothing is stored apart.
-  if (proxy.prolongation_kind == fem::ProlongationKind::smoothed) w.put_sparse("proxy.P", proxy.P);
-  const Eigen::VectorXd mass = proxy.fine_mass.diagonal();
+  if (proxy.prolongation_kind() == fem::ProlongationKind::smoothed) w.put_sparse("proxy.P", proxy.prolongation());
+  const Eigen::VectorXd mass = proxy.fine_mass().diagonal();
   w.put("proxy.fine_mass", mass.data(), static_cast<std::size_t>(mass.size()));
-  w.put_sparse("proxy.coarse_laplacian", proxy.coarse_laplacian);
-  w.put_sparse("proxy.coarse_mass", proxy.coarse_mass);
+  w.put_sparse("proxy.coarse_laplacian", proxy.coarse_laplacian());
+  w.put_sparse("proxy.coarse_mass", proxy.coarse_mass());
   detail::save_entry(store, kProxyKind, key, w, setup.cache, start);
 }
 
@@ -193,8 +212,8 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
             "coarse faces and lengths disagree");
     for (Eigen::Index f = 0; f < c.mesh.L.rows(); ++f) {
       const double a = c.mesh.L(f, 0), b = c.mesh.L(f, 1), d = c.mesh.L(f, 2);
-      require(a > 0 && b > 0 && d > 0 && a <= b + d && b <= a + d && d <= a + b, path,
-              "coarse face " + std::to_string(f) + " breaks the triangle inequality");
+      if (!(a > 0 && b > 0 && d > 0 && a <= b + d && b <= a + d && d <= a + b))
+        detail::fail(path, "coarse face " + std::to_string(f) + " breaks the triangle inequality");
     }
     std::vector<std::int32_t> twin = entry.ints("coarse.twin"), from_input = entry.ints("coarse.from_input");
     const auto sides = static_cast<std::int32_t>(3 * c.mesh.F.rows());
@@ -230,34 +249,36 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
       require(inserted_faces[i] >= 0 && inserted_faces[i] < mesh.F.rows(), path, "inserted vertex in no input face");
       c.inserted.push_back({inserted_faces[i], {inserted_bary[3 * i], inserted_bary[3 * i + 1], inserted_bary[3 * i + 2]}});
     }
-    c.P = entry.sparse("coarse.P");
+    entry.sparse("coarse.P").swap(c.P);  // Eigen 3.4's sparse assignment from a temporary copies; a swap does not
     require(c.P.rows() == n && c.P.cols() == nc, path, "P of the wrong shape");
     c.summary = summary_from(entry.doubles("coarse.summary"), path);
 
     for (const char* name : {"proxy.kind", "proxy.prolongation"})
-      require(entry.integer(name) == 0 || entry.integer(name) == 1, path, std::string(name) + " is not a known value");
+      if (entry.integer(name) != 0 && entry.integer(name) != 1) detail::fail(path, std::string(name) + " is not a known value");
     require(entry.integer("proxy.mass_kind") == static_cast<int>(fem::MassKind::lumped), path, "the fine mass is not lumped");
     fem::CoarseProxyArrays a;
     a.kind = static_cast<fem::CoarseOperatorKind>(entry.integer("proxy.kind"));
     a.mass_kind = static_cast<fem::MassKind>(entry.integer("proxy.mass_kind"));
     a.prolongation_kind = static_cast<fem::ProlongationKind>(entry.integer("proxy.prolongation"));
     if (a.prolongation_kind == fem::ProlongationKind::smoothed) {
-      a.P = entry.sparse("proxy.P");
+      entry.sparse("proxy.P").swap(a.P);
       const Eigen::VectorXd row_sums = a.P * Eigen::VectorXd::Ones(a.P.cols());
       for (Eigen::Index i = 0; i < row_sums.size(); ++i)
         require(std::abs(row_sums(i) - 1.0) <= 1e-10, path, "a row of the smoothed P does not sum to 1");
-      a.barycentric = c.P;
+      copy_of(c.P).swap(a.barycentric);
     } else {
-      a.P = c.P;
+      copy_of(c.P).swap(a.P);
     }
     const std::vector<double> mass = entry.doubles("proxy.fine_mass");
     require(static_cast<Index>(mass.size()) == n, path, "fine mass of the wrong size");
-    a.fine_mass = Eigen::SparseMatrix<double>(n, n);
-    a.fine_mass.reserve(Eigen::VectorXi::Constant(n, 1));
-    for (Index i = 0; i < n; ++i) a.fine_mass.insert(i, i) = mass[static_cast<std::size_t>(i)];
-    a.fine_mass.makeCompressed();
-    a.coarse_laplacian = entry.sparse("proxy.coarse_laplacian");
-    a.coarse_mass = entry.sparse("proxy.coarse_mass");
+    a.fine_mass = Eigen::SparseMatrix<double>(n, n);  // diagonal: written as its compressed arrays
+    a.fine_mass.resizeNonZeros(n);
+    advise_huge_pages(a.fine_mass.valuePtr(), sizeof(double) * static_cast<std::size_t>(n));
+    std::iota(a.fine_mass.outerIndexPtr(), a.fine_mass.outerIndexPtr() + n + 1, 0);
+    std::iota(a.fine_mass.innerIndexPtr(), a.fine_mass.innerIndexPtr() + n, 0);
+    std::copy(mass.begin(), mass.end(), a.fine_mass.valuePtr());
+    entry.sparse("proxy.coarse_laplacian").swap(a.coarse_laplacian);
+    entry.sparse("proxy.coarse_mass").swap(a.coarse_mass);
     a.coarse_faces = c.mesh.F;
     a.coarse_lengths = c.mesh.L;
     // The fine mesh is made again only if something asks for the fine operators (polishing, the

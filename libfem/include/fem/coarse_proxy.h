@@ -115,7 +115,8 @@ class CoarseProxy {
   /// Throws std::invalid_argument when the arrays are not those of a proxy: shapes that disagree, a
   /// coarse face naming a vertex beyond P's columns, a row of the barycentric P not summing to 1,
   /// a fine mass that is not diagonal with positive entries, or a smoothed P without Galerkin operators.
-  CoarseProxy(CoarseProxyArrays arrays, FineMeshSource fine_mesh);
+  /// The arrays are taken, not copied (`arrays` is left empty).
+  CoarseProxy(CoarseProxyArrays&& arrays, FineMeshSource fine_mesh);
   /// A copy of the arrays this proxy is made of.
   CoarseProxyArrays arrays() const;
 
