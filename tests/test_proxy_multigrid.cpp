@@ -11,6 +11,7 @@
 #include "fem/operators.h"
 #include "fem/problems.h"
 #include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
 #include "ice/proxy/multigrid.h"
 #include "test_support.h"
 
@@ -205,4 +206,33 @@ TEST_CASE("multigrid heat steps follow CHOLMOD's; a trajectory's columns equal i
   CHECK(fem::output_steps(10, 5) == std::vector<int>{5, 10});
   CHECK(fem::output_steps(1, 5) == std::vector<int>{1});
   CHECK_THROWS_AS(fem::output_steps(0, 1), std::invalid_argument);
+}
+
+TEST_CASE("hierarchy files: an explicit save loads back bit for bit, for its own mesh only; a broken hierarchy is not saved",
+          "[proxy][store][multigrid]") {
+  const fs::path dir = fresh_store("hierarchy-file");
+  fs::create_directories(dir);
+  const fs::path file = dir / "sphere-levels.ice";
+  const ice::TriangleMesh& mesh = unit_sphere();
+  const ice::proxy::MultigridHierarchy made = ice::proxy::multigrid_hierarchy(mesh, small_levels());
+  ice::proxy::save_multigrid_hierarchy_file(file, mesh, made);
+  CHECK_THROWS_AS(ice::proxy::save_multigrid_hierarchy_file(file, mesh, made), ice::MeshError);
+  const ice::proxy::MultigridHierarchy loaded = ice::proxy::load_multigrid_hierarchy_file(file, mesh);
+  CHECK(same_prolongations(loaded, made));
+  CHECK(loaded.fine_order == made.fine_order);
+  CHECK(loaded.stop_reason == made.stop_reason);
+
+  ice::TriangleMesh moved = mesh;
+  moved.F.row(0) = moved.F.row(0).reverse().eval();
+  CHECK_THROWS_WITH(ice::proxy::load_multigrid_hierarchy_file(file, moved), Catch::Contains("another mesh"));
+  std::vector<char> flipped = read_bytes(file);
+  flipped[flipped.size() - 9] ^= 0x01;
+  write_bytes(file, flipped);
+  CHECK_THROWS_WITH(ice::proxy::load_multigrid_hierarchy_file(file, mesh), Catch::Contains("checksum"));
+
+  ice::proxy::MultigridHierarchy broken = made;  // a row of P0 no longer sums to 1
+  broken.prolongations[0].valuePtr()[0] *= 0.5;
+  CHECK_THROWS_WITH(ice::proxy::save_multigrid_hierarchy_file(dir / "broken.ice", mesh, broken), Catch::Contains("does not sum to 1"));
+  CHECK(!fs::exists(dir / "broken.ice"));
+  fs::remove_all(dir);
 }

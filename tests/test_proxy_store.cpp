@@ -14,7 +14,10 @@
 #include <vector>
 
 #include "ice/mesh_generators.h"
+#include "fem/coarse_proxy.h"
+#include "ice/mesh_io.h"
 #include "ice/proxy/heat.h"
+#include "ice/proxy/multigrid.h"
 #include "ice/proxy/poisson.h"
 #include "ice/proxy/store.h"
 #include "test_support.h"
@@ -256,4 +259,53 @@ TEST_CASE("store: keys separate inputs and options; the default directory follow
     ::setenv("ICE_CACHE", saved.c_str(), 1);
   else
     ::unsetenv("ICE_CACHE");
+}
+
+TEST_CASE("setup files: an explicit save loads back bit for bit, for its own mesh only, and damage is refused", "[proxy][store]") {
+  const fs::path dir = fresh_store("setup-file");
+  fs::create_directories(dir);
+  const fs::path file = dir / "sphere-setup.ice";
+  const ice::TriangleMesh& mesh = unit_sphere();
+  ice::proxy::ProxySetupOptions options;
+  options.coarsening.coarsen.target_vertices = 300;
+  options.prolongation = ice::proxy::Prolongation::smoothed;  // the largest entry: the smoothed P is saved too
+  const ice::proxy::ProxySetup made = ice::proxy::build_proxy_setup(mesh, options);
+  ice::proxy::save_proxy_setup_file(file, mesh, made);
+  CHECK(fs::file_size(file) < 200 * static_cast<std::uintmax_t>(mesh.V.rows()));
+  CHECK_THROWS_AS(ice::proxy::save_proxy_setup_file(file, mesh, made), ice::MeshError);  // not overwritten unasked
+  ice::proxy::save_proxy_setup_file(file, mesh, made, true);
+
+  const ice::proxy::ProxySetup loaded = ice::proxy::load_proxy_setup_file(file, mesh);
+  CHECK(loaded.cache.status == CacheStatus::off);
+  CHECK(loaded.fine_geometry == made.fine_geometry);
+  CHECK(loaded.coarse.P.isApprox(made.coarse.P, 0.0));
+  CHECK(loaded.coarse.mesh.F == made.coarse.mesh.F);
+  CHECK(loaded.coarse.mesh.L == made.coarse.mesh.L);
+  CHECK(loaded.coarse.mesh.twin == made.coarse.mesh.twin);
+  CHECK(loaded.proxy->prolongation_kind() == fem::ProlongationKind::smoothed);
+  const Eigen::VectorXd f = source(mesh);
+  const fem::ProxyPoissonSolver from_file(*loaded.proxy), original(*made.proxy);
+  CHECK(from_file.solve(f) == original.solve(f));
+  // Its fine operators come from the mesh in the saved geometry: the same fine Laplacian.
+  CHECK(loaded.proxy->fine_laplacian().isApprox(made.proxy->fine_laplacian(), 0.0));
+
+  SECTION("another mesh of the same size is refused") {
+    ice::TriangleMesh moved = mesh;
+    moved.V(0, 0) += 1e-9;
+    CHECK_THROWS_WITH(ice::proxy::load_proxy_setup_file(file, moved), Catch::Contains("another mesh"));
+  }
+  SECTION("a damaged file, a hierarchy file and a missing file are refused, naming the file") {
+    const std::vector<char> good = read_bytes(file);
+    std::vector<char> flipped = good;
+    flipped[flipped.size() / 2] ^= 0x10;
+    write_bytes(file, flipped);
+    CHECK_THROWS_WITH(ice::proxy::load_proxy_setup_file(file, mesh), Catch::Contains(file.string()) && Catch::Contains("checksum"));
+    write_bytes(file, std::vector<char>(good.begin(), good.begin() + good.size() / 2));
+    CHECK_THROWS_WITH(ice::proxy::load_proxy_setup_file(file, mesh), Catch::Contains("truncated"));
+    const ice::proxy::MultigridHierarchy h = ice::proxy::multigrid_hierarchy(mesh);
+    ice::proxy::save_multigrid_hierarchy_file(dir / "h.ice", mesh, h);
+    CHECK_THROWS_WITH(ice::proxy::load_proxy_setup_file(dir / "h.ice", mesh), Catch::Contains("kind 'hierarchy'"));
+    CHECK_THROWS_WITH(ice::proxy::load_proxy_setup_file(dir / "none.ice", mesh), Catch::Contains("no such file"));
+  }
+  fs::remove_all(dir);
 }

@@ -20,6 +20,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   const fem::ProlongationKind resolved = resolve_prolongation(options.prolongation, options.operators, options.dirichlet);
   const bool needs_fine = options.assemble || options.need_fine_mesh;
   ProxySetup setup;
+  setup.fine_geometry = options.fine;
   bool fine_made = false;  // setup.fine
   std::optional<StoreKey> key;
   if (coarse) {
@@ -33,6 +34,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
       fem::CoarseProxy::FineMeshSource source = options.restored_fine_mesh;
       if (!source && options.fine_operators) source = fine_mesh_source(mesh, options.fine);
       if (std::optional<ProxySetup> stored = load_proxy_setup(options.store, *key, mesh, setup.cache, std::move(source))) {
+        stored->fine_geometry = options.fine;
         if (options.need_fine_mesh) {
           const auto start = Clock::now();
           stored->fine = fine_mesh(mesh, options.fine);
@@ -56,7 +58,9 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   }
   if (options.assemble) {
     const auto start = Clock::now();
-    setup.proxy = std::make_unique<fem::CoarseProxy>(make_proxy(setup.fine, setup.coarse, options.operators, resolved));
+    // Built in place: a moved CoarseProxy would copy its sparse matrices (Eigen 3.4 has no sparse move).
+    setup.proxy = std::make_unique<fem::CoarseProxy>(setup.fine.F, setup.fine.L, setup.coarse.mesh.F, setup.coarse.mesh.L,
+                                                     setup.coarse.P, options.operators, fem::MassKind::lumped, resolved);
     setup.times.assemble = seconds_since(start);
   }
   if (key) save_proxy_setup(options.store, *key, setup);

@@ -381,8 +381,8 @@ struct FileIdentity {
 // Maps and checks the file at `path` as entry `kind`/`key`. Throws Unreadable when it cannot be
 // read now, std::runtime_error describing the damage otherwise; returns false when there is no
 // such file.
-bool map_entry(const fs::path& path, const std::string& kind, const StoreKey& key, void*& map, std::size_t& bytes,
-               FileIdentity* identity = nullptr) {
+bool map_entry(const fs::path& path, const std::string& kind, const StoreKey* key, void*& map, std::size_t& bytes,
+               FileIdentity* identity = nullptr, StoreKey* found = nullptr) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     const int error = errno;
@@ -419,7 +419,9 @@ bool map_entry(const fs::path& path, const std::string& kind, const StoreKey& ke
   char kind_text[kKindBytes + 1] = {};
   std::memcpy(kind_text, h.kind, kKindBytes);
   if (kind != kind_text) throw fail(std::string("an entry of kind '") + kind_text + "', not '" + kind + "'");
-  if (h.key_high != key.high || h.key_low != key.low) throw fail("an entry of another key (another mesh or other options)");
+  if (key && (h.key_high != key->high || h.key_low != key->low))
+    throw fail("an entry of another key (another mesh or other options)");
+  if (found) *found = StoreKey{h.key_high, h.key_low};
   if (h.payload_bytes != bytes - kHeaderBytes)
     throw fail("truncated or extended: " + std::to_string(bytes - kHeaderBytes) + " payload bytes, the header says " +
                std::to_string(h.payload_bytes));
@@ -472,7 +474,7 @@ std::optional<EntryReader> Store::load(const std::string& kind, const StoreKey& 
   reader.path_ = path;
   FileIdentity identity;
   try {
-    if (!map_entry(path, kind, key, reader.map_, reader.map_bytes_, &identity)) return std::nullopt;
+    if (!map_entry(path, kind, &key, reader.map_, reader.map_bytes_, &identity)) return std::nullopt;
     reader.parse();
   } catch (const Unreadable&) {
     return std::nullopt;  // left in place: a miss now, perhaps a hit later
@@ -492,20 +494,22 @@ void Store::discard(const std::string& kind, const StoreKey& key) const {
   fs::remove(entry_path(kind, key), ec);
 }
 
-bool Store::save(const std::string& kind, const StoreKey& key, const EntryWriter& entry, std::string* error) const {
-  if (!enabled()) return false;
-  const fs::path path = entry_path(kind, key);
+namespace {
+
+// Writes `entry` to a temporary file beside `path` and renames it over `path` (atomic on POSIX file
+// systems: a reader sees the old file or the whole new one). On failure returns false, leaves no
+// temporary file behind and says why in `error`.
+bool write_entry(const fs::path& path, const std::string& kind, const StoreKey& key, const EntryWriter& entry,
+                 std::string* error) {
   const auto fail = [&](const std::string& what) {
     if (error) *error = what;
     return false;
   };
   std::error_code ec;
-  fs::create_directories(options_.directory, ec);
-  if (ec) return fail(options_.directory.string() + ": cannot be created (" + ec.message() + ")");
   static std::atomic<unsigned> counter{0};
   std::random_device random;
-  const fs::path temp = options_.directory / (kTempPrefix + file_name(kind, key) + "." + std::to_string(::getpid()) + "." +
-                                              std::to_string(counter++) + "." + std::to_string(random()));
+  const fs::path temp = path.parent_path() / (kTempPrefix + path.filename().string() + "." + std::to_string(::getpid()) +
+                                              "." + std::to_string(counter++) + "." + std::to_string(random()));
   const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) return fail(temp.string() + ": cannot be created (" + std::strerror(errno) + ")");
   bool ok = true;
@@ -524,16 +528,16 @@ bool Store::save(const std::string& kind, const StoreKey& key, const EntryWriter
       return fail("out of memory for the checksum state");
     }
     XXH3_64bits_reset(state);
-    int error = 0;  // errno of the first failed call
+    int error_number = 0;  // errno of the first failed call
     ok = write_all(fd, &h, sizeof h);
-    if (!ok) error = errno;
+    if (!ok) error_number = errno;
     static const char zeros[8] = {};
     const auto emit = [&](const void* data, std::size_t bytes) {
       if (!ok) return;
       XXH3_64bits_update(state, data, bytes);
       h.payload_bytes += bytes;
       ok = write_all(fd, data, bytes);
-      if (!ok) error = errno;
+      if (!ok) error_number = errno;
     };
     for (const EntryWriter::Record& r : entry.records()) {
       RecordHead head{};
@@ -549,10 +553,10 @@ bool Store::save(const std::string& kind, const StoreKey& key, const EntryWriter
     }
     h.checksum = XXH3_64bits_digest(state);
     XXH3_freeState(state);
-    if (ok && !(ok = ::pwrite(fd, &h, sizeof h, 0) == static_cast<ssize_t>(sizeof h))) error = errno ? errno : EIO;
-    if (ok && !(ok = ::close(file.release()) == 0)) error = errno;  // reports a deferred write error
+    if (ok && !(ok = ::pwrite(fd, &h, sizeof h, 0) == static_cast<ssize_t>(sizeof h))) error_number = errno ? errno : EIO;
+    if (ok && !(ok = ::close(file.release()) == 0)) error_number = errno;  // reports a deferred write error
     if (!ok) {
-      const std::string why = std::strerror(error);
+      const std::string why = std::strerror(error_number);
       fs::remove(temp, ec);
       return fail(temp.string() + ": cannot be written (" + why + ")");
     }
@@ -560,10 +564,41 @@ bool Store::save(const std::string& kind, const StoreKey& key, const EntryWriter
   fs::rename(temp, path, ec);
   if (ec) {
     fs::remove(temp, ec);
-    return fail(path.string() + ": cannot be renamed into place");
+    return fail(path.string() + ": cannot be renamed into place (" + ec.message() + ")");
   }
+  return true;
+}
+
+}  // namespace
+
+bool Store::save(const std::string& kind, const StoreKey& key, const EntryWriter& entry, std::string* error) const {
+  if (!enabled()) return false;
+  const fs::path path = entry_path(kind, key);
+  std::error_code ec;
+  fs::create_directories(options_.directory, ec);
+  if (ec) {
+    if (error) *error = options_.directory.string() + ": cannot be created (" + ec.message() + ")";
+    return false;
+  }
+  if (!write_entry(path, kind, key, entry, error)) return false;
   evict(options_.max_bytes, path);
   return true;
+}
+
+void write_entry_file(const fs::path& path, const std::string& kind, const StoreKey& key, const EntryWriter& entry) {
+  require_kind(kind);
+  std::string error;
+  if (!write_entry(path, kind, key, entry, &error)) throw std::runtime_error(error);
+}
+
+EntryReader read_entry_file(const fs::path& path, const std::string& kind, StoreKey& key) {
+  require_kind(kind);
+  EntryReader reader;
+  reader.path_ = path;
+  if (!map_entry(path, kind, nullptr, reader.map_, reader.map_bytes_, nullptr, &key))
+    throw std::runtime_error(path.string() + ": no such file");
+  reader.parse();
+  return reader;
 }
 
 std::vector<StoreEntryInfo> Store::list() const {
@@ -594,7 +629,8 @@ std::vector<std::pair<StoreEntryInfo, std::string>> Store::verify(bool remove_da
     FileIdentity identity;
     try {
       require_kind(info.kind);
-      if (map_entry(info.path, info.kind, key_from_hex(info.key), reader.map_, reader.map_bytes_, &identity)) reader.parse();
+      const StoreKey key = key_from_hex(info.key);
+      if (map_entry(info.path, info.kind, &key, reader.map_, reader.map_bytes_, &identity)) reader.parse();
     } catch (const Unreadable& e) {
       damaged.emplace_back(info, std::string(e.what()) + " (left in place)");
     } catch (const std::exception& e) {

@@ -1,6 +1,7 @@
 #include "ice/proxy/setup.h"
 
 #include <algorithm>
+#include <filesystem>
 #include <chrono>
 #include <cmath>
 #include <memory>
@@ -12,6 +13,7 @@
 
 #include "entry_checks.h"
 #include "ice/huge_pages.h"
+#include "ice/mesh_io.h"
 
 namespace ice::proxy {
 
@@ -149,44 +151,60 @@ StoreKey proxy_setup_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coa
   return h.finish();
 }
 
+namespace {
+
+// A setup's entry: the writer points into the setup and into the buffers here, which must outlive it.
+struct SetupEntry {
+  EntryWriter writer;
+  std::vector<std::int32_t> inserted_faces;
+  std::vector<double> inserted_bary, summary;
+  Eigen::SparseMatrix<double> compressed_P;  // a copy only when the coarse space's P is not compressed
+  Eigen::VectorXd mass;
+
+  // The proxy's arrays are written by reference: arrays() would copy them.
+  SetupEntry(const CoarseSpace& coarse, const fem::CoarseProxy& proxy, FineGeometry geometry) {
+    EntryWriter& w = writer;
+    w.put_int("input_vertices", coarse.P.rows());
+    w.put_text("fine_geometry", to_string(geometry));
+    w.put_matrix("coarse.F", coarse.mesh.F);
+    w.put_matrix("coarse.L", coarse.mesh.L);
+    const std::vector<Index>&twin = coarse.mesh.twin, &to_input = coarse.mesh.to_input, &from_input = coarse.mesh.from_input;
+    w.put("coarse.twin", twin.data(), twin.size());
+    w.put("coarse.to_input", to_input.data(), to_input.size());
+    w.put("coarse.from_input", from_input.data(), from_input.size());
+    for (const InputSurfacePoint& p : coarse.inserted) {
+      inserted_faces.push_back(p.face);
+      inserted_bary.insert(inserted_bary.end(), p.bary.begin(), p.bary.end());
+    }
+    w.put("coarse.inserted.face", inserted_faces.data(), inserted_faces.size());
+    w.put("coarse.inserted.bary", inserted_bary.data(), inserted_bary.size());
+    if (!coarse.P.isCompressed()) {
+      compressed_P = coarse.P;
+      compressed_P.makeCompressed();
+    }
+    w.put_sparse("coarse.P", coarse.P.isCompressed() ? coarse.P : compressed_P);
+    summary = summary_values(coarse.summary);
+    w.put("coarse.summary", summary.data(), summary.size());
+    w.put_int("proxy.kind", static_cast<int>(proxy.kind()));
+    w.put_int("proxy.mass_kind", static_cast<int>(proxy.mass_kind()));
+    w.put_int("proxy.prolongation", static_cast<int>(proxy.prolongation_kind()));
+    // P itself is the coarse space's (the proxy's barycentric one); only its smoothing is stored apart.
+    if (proxy.prolongation_kind() == fem::ProlongationKind::smoothed) w.put_sparse("proxy.P", proxy.prolongation());
+    mass = proxy.fine_mass().diagonal();
+    w.put("proxy.fine_mass", mass.data(), static_cast<std::size_t>(mass.size()));
+    w.put_sparse("proxy.coarse_laplacian", proxy.coarse_laplacian());
+    w.put_sparse("proxy.coarse_mass", proxy.coarse_mass());
+  }
+  SetupEntry(const SetupEntry&) = delete;
+  SetupEntry& operator=(const SetupEntry&) = delete;
+};
+
+}  // namespace
+
 void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup) {
   const auto start = std::chrono::steady_clock::now();
-  const CoarseSpace& coarse = setup.coarse;
-  const fem::CoarseProxy& proxy = *setup.proxy;  // its arrays by reference: arrays() would copy them
-  EntryWriter w;
-  w.put_int("input_vertices", coarse.P.rows());
-  w.put_matrix("coarse.F", coarse.mesh.F);
-  w.put_matrix("coarse.L", coarse.mesh.L);
-  const std::vector<Index>&twin = coarse.mesh.twin, &to_input = coarse.mesh.to_input, &from_input = coarse.mesh.from_input;
-  w.put("coarse.twin", twin.data(), twin.size());
-  w.put("coarse.to_input", to_input.data(), to_input.size());
-  w.put("coarse.from_input", from_input.data(), from_input.size());
-  std::vector<std::int32_t> inserted_faces;
-  std::vector<double> inserted_bary;
-  for (const InputSurfacePoint& p : coarse.inserted) {
-    inserted_faces.push_back(p.face);
-    inserted_bary.insert(inserted_bary.end(), p.bary.begin(), p.bary.end());
-  }
-  w.put("coarse.inserted.face", inserted_faces.data(), inserted_faces.size());
-  w.put("coarse.inserted.bary", inserted_bary.data(), inserted_bary.size());
-  Eigen::SparseMatrix<double> compressed_P;  // a copy only when P is not compressed already
-  if (!coarse.P.isCompressed()) {
-    compressed_P = coarse.P;
-    compressed_P.makeCompressed();
-  }
-  w.put_sparse("coarse.P", coarse.P.isCompressed() ? coarse.P : compressed_P);
-  const std::vector<double> summary = summary_values(coarse.summary);
-  w.put("coarse.summary", summary.data(), summary.size());
-  w.put_int("proxy.kind", static_cast<int>(proxy.kind()));
-  w.put_int("proxy.mass_kind", static_cast<int>(proxy.mass_kind()));
-  w.put_int("proxy.prolongation", static_cast<int>(proxy.prolongation_kind()));
-  // P itself is the coarse space's (the proxy's barycentric one); only its smoothing is stored apart.
-  if (proxy.prolongation_kind() == fem::ProlongationKind::smoothed) w.put_sparse("proxy.P", proxy.prolongation());
-  const Eigen::VectorXd mass = proxy.fine_mass().diagonal();
-  w.put("proxy.fine_mass", mass.data(), static_cast<std::size_t>(mass.size()));
-  w.put_sparse("proxy.coarse_laplacian", proxy.coarse_laplacian());
-  w.put_sparse("proxy.coarse_mass", proxy.coarse_mass());
-  detail::save_entry(store, kProxyKind, key, w, setup.cache, start);
+  const SetupEntry entry(setup.coarse, *setup.proxy, setup.fine_geometry);
+  detail::save_entry(store, kProxyKind, key, entry.writer, setup.cache, start);
 }
 
 fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry) {
@@ -197,9 +215,12 @@ fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, Fine
   };
 }
 
-std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& key, const TriangleMesh& mesh,
-                                           CacheReport& cache, fem::CoarseProxy::FineMeshSource fine_mesh) {
-  return detail::load_entry<ProxySetup>(store, kProxyKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
+namespace {
+
+// The setup an entry holds, checked: throws std::runtime_error naming `path` when the entry is not
+// consistent, std::invalid_argument when the restored proxy finds its arrays inconsistent.
+ProxySetup setup_from_entry(const EntryReader& entry, const std::string& path, const TriangleMesh& mesh,
+                            fem::CoarseProxy::FineMeshSource fine_mesh) {
     ProxySetup setup;
     const auto n = static_cast<Index>(mesh.V.rows());
     require(entry.integer("input_vertices") == n, path, "made for a mesh of another vertex count");
@@ -290,7 +311,66 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
       };
     setup.proxy = std::make_unique<fem::CoarseProxy>(std::move(a), std::move(fine_mesh));
     return setup;
+}
+
+}  // namespace
+
+std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& key, const TriangleMesh& mesh,
+                                           CacheReport& cache, fem::CoarseProxy::FineMeshSource fine_mesh) {
+  return detail::load_entry<ProxySetup>(store, kProxyKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
+    return setup_from_entry(entry, path, mesh, std::move(fine_mesh));
   });
+}
+
+namespace {
+// An explicitly saved file is keyed by its mesh alone: what it holds (operators, prolongation,
+// coarsening) it says itself, and the key tells a file made for another mesh.
+StoreKey setup_file_key(const TriangleMesh& mesh) {
+  KeyHasher h(kProxyKind);
+  h.add("file").add_matrix(mesh.V).add_matrix(mesh.F);
+  return h.finish();
+}
+}  // namespace
+
+void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
+                           const fem::CoarseProxy& proxy, FineGeometry geometry, bool overwrite) {
+  if (coarse.P.rows() != mesh.V.rows() || proxy.fine_size() != mesh.V.rows() || !coarse.P.isApprox(proxy.barycentric_prolongation(), 0.0))
+    throw std::invalid_argument("save_proxy_setup_file: the coarse space and the proxy are not one setup of this mesh of " +
+                                std::to_string(mesh.V.rows()) + " vertices");
+  require_writable(path.string(), overwrite);
+  const SetupEntry entry(coarse, proxy, geometry);
+  write_entry_file(path, kProxyKind, setup_file_key(mesh), entry.writer);
+}
+
+void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const ProxySetup& setup,
+                           bool overwrite) {
+  if (!setup.proxy) throw std::invalid_argument("save_proxy_setup_file: the setup has no assembled proxy");
+  save_proxy_setup_file(path, mesh, setup.coarse, *setup.proxy, setup.fine_geometry, overwrite);
+}
+
+ProxySetup load_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh,
+                                 fem::CoarseProxy::FineMeshSource fine_mesh) {
+  const auto start = std::chrono::steady_clock::now();
+  StoreKey key;
+  const EntryReader entry = read_entry_file(path, kProxyKind, key);
+  if (!(key == setup_file_key(mesh)))
+    throw std::runtime_error(path.string() + ": a setup made for another mesh (other positions or faces)");
+  const std::string geometry_name = entry.text("fine_geometry");
+  FineGeometry geometry = FineGeometry::intrinsic_delaunay;
+  if (geometry_name == to_string(FineGeometry::input))
+    geometry = FineGeometry::input;
+  else if (geometry_name != to_string(FineGeometry::intrinsic_delaunay))
+    throw std::runtime_error(path.string() + ": an unknown fine geometry '" + geometry_name + "'");
+  if (!fine_mesh) fine_mesh = fine_mesh_source(mesh, geometry);
+  ProxySetup setup;
+  try {
+    setup = setup_from_entry(entry, path.string(), mesh, std::move(fine_mesh));  // (CoarseSpace moves hand P over)
+  } catch (const std::invalid_argument& e) {  // the restored proxy's own checks
+    throw std::runtime_error(path.string() + ": " + e.what());
+  }
+  setup.fine_geometry = geometry;
+  setup.cache.load_seconds = seconds_since(start);
+  return setup;
 }
 
 }  // namespace ice::proxy

@@ -186,6 +186,18 @@ def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int 
               max_levels: int = 20, threads: int = 0, return_order: bool = False, cache: str | PathLike[str] | Literal[False] | None = None
               ) -> list[scipy.sparse.csr_matrix] | tuple[list[scipy.sparse.csr_matrix], IndexArray]: ...
 
+def save_hierarchy(path: str | PathLike[str], V: ArrayLike, F: ArrayLike, prolongations: Sequence[Any], *,
+                   order: Indices | None = None, overwrite: bool = False) -> None:
+    """Writes a hierarchy of (V, F) to a checksummed file that load_hierarchy takes back for (V, F) only."""
+@overload
+def load_hierarchy(path: str | PathLike[str], V: ArrayLike, F: ArrayLike, *,
+                   return_order: Literal[False] = False) -> list[scipy.sparse.csr_matrix]:
+    """The hierarchy save_hierarchy wrote for (V, F), checked."""
+@overload
+def load_hierarchy(path: str | PathLike[str], V: ArrayLike, F: ArrayLike, *,
+                   return_order: Literal[True]) -> tuple[list[scipy.sparse.csr_matrix], IndexArray]:
+    """The hierarchy and its order."""
+
 class MultigridSolver:
     """Galerkin multigrid on given prolongations for SPD systems."""
     def __init__(self, prolongations: Sequence[scipy.sparse.spmatrix], *, tolerance: float = 1e-8,
@@ -263,6 +275,11 @@ def setup_proxy(V: ArrayLike, F: ArrayLike, *, operators: Literal["galerkin", "i
                 prolongation: Literal["auto", "barycentric", "smoothed"] = "auto", fixed: Indices | None = None,
                 cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> tuple[CoarseSpace, Proxy]:
     """Coarsens and builds the Proxy in one step, through the store of set-up proxies."""
+def save_setup(path: str | PathLike[str], V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, proxy: Proxy, *,
+               overwrite: bool = False) -> None:
+    """Writes a setup_proxy result of (V, F) to a checksummed file that load_setup takes back for (V, F) only."""
+def load_setup(path: str | PathLike[str], V: ArrayLike, F: ArrayLike) -> tuple[CoarseSpace, Proxy]:
+    """(coarse, proxy) as setup_proxy returned them when save_setup wrote the file, checked, bit for bit."""
 def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: CoarseSpace | None = None,
                       method: Literal["marching", "heat"] = "marching",
                       time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",

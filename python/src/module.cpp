@@ -487,6 +487,7 @@ void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& f
 
 struct PyProxy {
   ice::FineMesh fine;  ///< empty when the proxy came from the store (proxy->fine_faces() makes it)
+  ice::FineGeometry geometry = ice::FineGeometry::intrinsic_delaunay;  ///< of the fine mesh it was assembled on
   std::unique_ptr<fem::CoarseProxy> proxy;
   ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< of its coarse space
   nlohmann::json cache = {{"status", "off"}};  ///< ice::proxy::cache_json of setup_proxy
@@ -646,6 +647,7 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
     coarse->has_space = true;
     coarse->faces_fingerprint = faces_fingerprint(mesh.F);
     proxy->fine = std::move(setup.fine);
+    proxy->geometry = setup.fine_geometry;
     proxy->proxy = std::move(setup.proxy);
     proxy->method = coarse->space.summary.method;
     proxy->cache = ice::proxy::cache_json(setup.cache, store);
@@ -653,6 +655,52 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
     proxy->cache["save_seconds"] = setup.cache.save_seconds;
   }
   return py::make_tuple(coarse, proxy);
+}
+
+// ice.save_setup / ice.load_setup: a setup_proxy result in a file of the user's choosing.
+void save_setup(const py::object& path, const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
+                const PyProxy& proxy, bool overwrite) {
+  const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "setup");
+  const std::string file = py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
+  py::gil_scoped_release release;
+  try {
+    ice::proxy::save_proxy_setup_file(file, mesh, coarse.space, *proxy.proxy, proxy.geometry, overwrite);
+  } catch (const std::invalid_argument& e) {
+    py::gil_scoped_acquire acquire;
+    throw py::value_error(e.what());
+  }
+}
+
+py::tuple load_setup(const py::object& path, const py::object& V, const py::object& F) {
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  const std::string file = py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
+  auto coarse = std::make_shared<PyCoarseSpace>();
+  auto proxy = std::make_shared<PyProxy>();
+  {
+    py::gil_scoped_release release;
+    ice::proxy::ProxySetup setup = ice::proxy::load_proxy_setup_file(file, mesh);
+    coarse->space = std::move(setup.coarse);
+    coarse->positions = ice::coarse_vertex_positions(mesh, coarse->space);
+    coarse->input_vertices = static_cast<ice::Index>(mesh.V.rows());
+    coarse->has_space = true;
+    coarse->faces_fingerprint = faces_fingerprint(mesh.F);
+    proxy->geometry = setup.fine_geometry;
+    proxy->proxy = std::move(setup.proxy);
+    proxy->method = coarse->space.summary.method;
+    proxy->cache = {{"status", "off"}, {"file", file}, {"load_seconds", setup.cache.load_seconds}};
+  }
+  return py::make_tuple(coarse, proxy);
+}
+
+// The prolongations (CSR, as ice.hierarchy returns them) and, with return_order, the order.
+py::object hierarchy_to_python(ice::proxy::MultigridHierarchy& hierarchy, bool return_order) {
+  py::list prolongations;
+  for (auto& P : hierarchy.prolongations) {
+    Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = P;
+    prolongations.append(to_scipy(std::move(rows)));
+  }
+  if (!return_order) return std::move(prolongations);
+  return py::make_tuple(prolongations, to_numpy(std::move(hierarchy.fine_order)));
 }
 
 // ---- tangent vector fields -------------------------------------------------------------------------
@@ -1036,6 +1084,17 @@ prolongation ("auto": smoothed with Galerkin operators and no fixed vertices) ar
 locked. cache: None (the default store: $ICE_CACHE, else ~/.cache/ice), False (none) or a directory. A setup
 stored there for the same mesh and options is loaded instead of built (the same arrays to the last bit);
 Proxy.cache says which ('hit', 'miss', 'rebuilt' after a damaged entry, 'off').)doc");
+  m.def("save_setup", &save_setup, py::arg("path"), py::arg("V"), py::arg("F"), py::arg("coarse"), py::arg("proxy"),
+        py::kw_only(), py::arg("overwrite") = false,
+        R"doc(Writes a setup_proxy result (coarse space and proxy) of (V, F) to a file that ice.load_setup takes back
+for the same (V, F) only: binary, checksummed, written atomically, the store's format. An existing file is
+replaced only with overwrite=True (ice.MeshError, kind "unwritable", otherwise); ValueError when the coarse
+space and proxy are not one setup of (V, F).)doc");
+  m.def("load_setup", &load_setup, py::arg("path"), py::arg("V"), py::arg("F"),
+        R"doc((coarse, proxy) as ice.setup_proxy returned them when ice.save_setup wrote the file, checked (header,
+checksum, every array's structure, P's rows) and bit for bit the same; nothing is coarsened or assembled.
+Proxy.cache says {'status': 'off', 'file': path, 'load_seconds': ...}. Raises RuntimeError naming the file and
+the defect: no such file, not a setup, damaged, another format version, or made for another mesh.)doc");
   m.def("load_coarse_mesh", &load_coarse_mesh, py::arg("path"),
         R"doc(Reads an .ilm coarse mesh (CoarseSpace.save, ice-coarsen): faces, lengths, gluing, vertex map; its
 P, map and summary are None. Raises ice.MeshError naming the file, line and defect.)doc");
@@ -1439,13 +1498,7 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
           require_clean(mesh);
           hierarchy = ice::proxy::multigrid_hierarchy(mesh, options, store);
         }
-        py::list prolongations;
-        for (auto& P : hierarchy.prolongations) {
-          Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = P;
-          prolongations.append(to_scipy(std::move(rows)));
-        }
-        if (!return_order) return std::move(prolongations);
-        return py::make_tuple(prolongations, to_numpy(std::move(hierarchy.fine_order)));
+        return hierarchy_to_python(hierarchy, return_order);
       },
       py::arg("V"), py::arg("F"), py::kw_only(), py::arg("ratio") = 0.25, py::arg("coarsest") = 500,
       py::arg("max_levels") = 20, py::arg("threads") = 0, py::arg("return_order") = false, py::arg("cache") = py::none(),
@@ -1458,6 +1511,50 @@ threads: for the large levels' removals (0: one per core; the result does not de
 return_order=True returns (prolongations, order) instead: the breadth-first numbering the hierarchy
 coarsened in (order[new] = old vertex), which MultigridSolver(..., locality_order=order) reuses
 instead of ordering the matrix's graph again.)doc");
+
+  m.def(
+      "save_hierarchy",
+      [](const py::object& path, const py::object& V, const py::object& F, const py::sequence& prolongations,
+         const py::object& order, bool overwrite) {
+        const ice::TriangleMesh mesh = mesh_argument(V, F);
+        const std::string file = py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
+        ice::proxy::MultigridHierarchy hierarchy;
+        hierarchy.fine_vertices = static_cast<ice::Index>(mesh.V.rows());
+        hierarchy.prolongations.reserve(prolongations.size());
+        for (std::size_t k = 0; k < prolongations.size(); ++k)
+          sparse_argument(prolongations[k], "prolongations", false).swap(hierarchy.prolongations.emplace_back());
+        if (!order.is_none()) hierarchy.fine_order = index_argument(order, mesh.V.rows(), "order");
+        py::gil_scoped_release release;
+        try {
+          ice::proxy::save_multigrid_hierarchy_file(file, mesh, hierarchy, overwrite);
+        } catch (const std::invalid_argument& e) {
+          py::gil_scoped_acquire acquire;
+          throw py::value_error(e.what());
+        }
+      },
+      py::arg("path"), py::arg("V"), py::arg("F"), py::arg("prolongations"), py::kw_only(), py::arg("order") = py::none(),
+      py::arg("overwrite") = false,
+      R"doc(Writes a multigrid hierarchy of (V, F) (ice.hierarchy's prolongations, and its order when it was asked
+for) to a file that ice.load_hierarchy takes back for the same (V, F) only: binary, checksummed, written
+atomically. The hierarchy is checked first (shapes, non-negative weights, rows summing to 1, every coarse
+vertex used, the order a permutation): ValueError otherwise. An existing file is replaced only with
+overwrite=True (ice.MeshError, kind "unwritable", otherwise).)doc");
+  m.def(
+      "load_hierarchy",
+      [](const py::object& path, const py::object& V, const py::object& F, bool return_order) -> py::object {
+        const ice::TriangleMesh mesh = mesh_argument(V, F);
+        const std::string file = py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
+        ice::proxy::MultigridHierarchy hierarchy;
+        {
+          py::gil_scoped_release release;
+          hierarchy = ice::proxy::load_multigrid_hierarchy_file(file, mesh);
+        }
+        return hierarchy_to_python(hierarchy, return_order);
+      },
+      py::arg("path"), py::arg("V"), py::arg("F"), py::kw_only(), py::arg("return_order") = false,
+      R"doc(The hierarchy ice.save_hierarchy wrote for (V, F), as ice.hierarchy returns it (with return_order, the
+order too; an empty one if none was saved). Raises RuntimeError naming the file and the defect: no such
+file, not a hierarchy, damaged (checksum, size, structure), another format version, or made for another mesh.)doc");
 
   py::class_<PyMultigrid>(m, "MultigridSolver", R"doc(Galerkin multigrid on given prolongations (ice.hierarchy) for symmetric positive definite systems.
 

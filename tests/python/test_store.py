@@ -140,3 +140,61 @@ def test_hierarchy_from_the_store(spot, tmp_path):
     again = ice.hierarchy(V, F, coarsest=200, cache=tmp_path)
     for a, b in zip(plain, again):
         assert (a != b).nnz == 0
+
+
+def test_save_and_load_setup_explicitly(spot, tmp_path):
+    V, F = spot
+    f = sources(V, 1)[:, 0]
+    coarse, proxy = ice.setup_proxy(V, F, ratio=0.05, prolongation="smoothed", cache=False)
+    path = tmp_path / "spot-setup.ice"
+    ice.save_setup(path, V, F, coarse, proxy)
+    with pytest.raises(ice.MeshError, match="exists"):
+        ice.save_setup(path, V, F, coarse, proxy)
+    ice.save_setup(str(path), V, F, coarse, proxy, overwrite=True)
+    coarse2, proxy2 = ice.load_setup(path, V, F)
+    assert proxy2.cache["status"] == "off" and proxy2.cache["file"] == str(path)
+    assert np.array_equal(coarse2.faces, coarse.faces) and np.array_equal(coarse2.lengths, coarse.lengths)
+    assert (coarse2.P != coarse.P).nnz == 0
+    assert np.array_equal(ice.ProxyPoissonSolver(proxy2).solve(f), ice.ProxyPoissonSolver(proxy).solve(f))
+    # Polishing needs the fine operators: the loaded proxy makes them from (V, F) as saved.
+    assert np.array_equal(ice.ProxyPoissonSolver(proxy2, polish=1).solve(f), ice.ProxyPoissonSolver(proxy, polish=1).solve(f))
+    moved = V.copy()
+    moved[0, 0] += 1e-9
+    with pytest.raises(RuntimeError, match="another mesh"):
+        ice.load_setup(path, moved, F)
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0x20
+    path.write_bytes(bytes(data))
+    with pytest.raises(RuntimeError, match="checksum"):
+        ice.load_setup(path, V, F)
+    with pytest.raises(RuntimeError, match="no such file"):
+        ice.load_setup(tmp_path / "none.ice", V, F)
+    # A coarse space of another mesh is not saved with it.
+    Vs, Fs = ice.loop_subdivide(V, F, 1)
+    with pytest.raises(ValueError, match="another mesh"):
+        ice.save_setup(tmp_path / "other.ice", Vs, Fs, coarse, proxy)
+
+
+def test_save_and_load_hierarchy_explicitly(spot, tmp_path):
+    V, F = spot
+    levels, order = ice.hierarchy(V, F, cache=False, return_order=True)
+    path = tmp_path / "spot-levels.ice"
+    ice.save_hierarchy(path, V, F, levels, order=order)
+    loaded, loaded_order = ice.load_hierarchy(path, V, F, return_order=True)
+    assert len(loaded) == len(levels)
+    for P, Q in zip(loaded, levels):
+        assert P.shape == Q.shape and (P != Q).nnz == 0
+    assert np.array_equal(loaded_order, order)
+    A = ice.cotan_laplacian(V, F) + 1e-3 * ice.mass_matrix(V, F)
+    b = sources(V, 1)[:, 0]
+    solver = ice.MultigridSolver(loaded)
+    solver.setup(A)
+    x = solver.solve(b)
+    assert np.linalg.norm(A @ x - b) <= 1e-7 * np.linalg.norm(b)
+    with pytest.raises(RuntimeError, match="another mesh"):
+        ice.load_hierarchy(path, V, F[::-1])
+    broken = [P.copy() for P in levels]
+    broken[0].data[0] *= 0.5
+    with pytest.raises(ValueError, match="does not sum to 1"):
+        ice.save_hierarchy(tmp_path / "broken.ice", V, F, broken)
+    assert not (tmp_path / "broken.ice").exists()

@@ -4,6 +4,7 @@
 /// looked up in and saved to the store (store.h) as the coarse proxies are. fem::PoissonSolver and
 /// fem::MultigridSolver take what it holds; one hierarchy serves every operator on the mesh's
 /// vertices (Poisson, heat steps M + τL, any time step).
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,20 @@ struct MultigridHierarchy {
 /// and saved. Throws as ice::build_hierarchy (std::invalid_argument on bad options or mesh).
 MultigridHierarchy multigrid_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options = {},
                                        const Store& store = {});
+
+/// Writes `hierarchy` (checked first as a loaded one is) to the file `path` in the store's entry
+/// format, keyed by `mesh`'s arrays: load_multigrid_hierarchy_file takes it back for that mesh
+/// only. Atomic (a temporary file beside `path`, renamed); an existing file is replaced only when
+/// `overwrite`. Throws std::invalid_argument when the hierarchy is not one of `mesh` (its finest
+/// level's size, its prolongations' shapes, weights and rows, the order), ice::MeshError
+/// (unwritable) when `path` exists or its directory does not, std::runtime_error naming the file
+/// when it cannot be written.
+void save_multigrid_hierarchy_file(const std::filesystem::path& path, const TriangleMesh& mesh,
+                                   const MultigridHierarchy& hierarchy, bool overwrite = false);
+/// The hierarchy saved at `path` for `mesh`, checked as a stored one is; cache.status off,
+/// cache.load_seconds its time. Throws std::runtime_error naming the file and the defect: no such
+/// file, not a hierarchy, damaged, of another format version, or made for another mesh.
+MultigridHierarchy load_multigrid_hierarchy_file(const std::filesystem::path& path, const TriangleMesh& mesh);
 
 /// The key of the hierarchy of `mesh` by `options`: the mesh's positions and faces, every option
 /// (locked vertices as a set; the thread count only where the result depends on it) and the store's

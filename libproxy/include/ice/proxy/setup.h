@@ -5,6 +5,7 @@
 /// heat method. The one-call functions and solvers (poisson.h, heat.h, geodesics.h, vectors.h)
 /// compose them under the measured defaults of policies.h; the tools and the Python package call
 /// them directly when they time or report the steps one by one.
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -39,6 +40,9 @@ struct ProxySetup {
   /// need_fine_mesh: the proxy needs none of it, and proxy->fine_faces() / fine_lengths() make it on
   /// first use.
   FineMesh fine;
+  /// The fine discretisation the proxy was assembled on (what a restored proxy makes its fine
+  /// operators from).
+  FineGeometry fine_geometry = FineGeometry::intrinsic_delaunay;
   std::unique_ptr<fem::CoarseProxy> proxy;  ///< null without ProxySetupOptions::assemble
   CacheReport cache;  ///< where the setup came from (status off without a store)
   ProxySetupTimes times;
@@ -104,6 +108,26 @@ fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, Fine
 /// Saves the coarse space and proxy of `setup` under `key` (its method state and fine mesh are not
 /// stored); records the time and any error in setup.cache (status miss unless already rebuilt).
 void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup);
+
+/// Writes `setup` (its coarse space and assembled proxy, not its fine mesh) to the file `path` in
+/// the store's entry format, keyed by `mesh`'s arrays: load_proxy_setup_file takes it back for that
+/// mesh only. Atomic (a temporary file beside `path`, renamed). An existing file is replaced only
+/// when `overwrite`. Throws std::invalid_argument when the setup has no proxy or was not made for a
+/// mesh of `mesh`'s vertex count, ice::MeshError (unwritable) when `path` exists or its directory does
+/// not, std::runtime_error naming the file when it cannot be written.
+void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const ProxySetup& setup,
+                           bool overwrite = false);
+/// The same from its parts: a coarse space of `mesh`, the proxy assembled on it (its barycentric P
+/// the coarse space's: std::invalid_argument otherwise) and the fine geometry it was assembled on.
+void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
+                           const fem::CoarseProxy& proxy, FineGeometry geometry, bool overwrite = false);
+/// The setup saved at `path` for `mesh`, checked as a stored one is (header, checksum, every array's
+/// structure, P's rows); cache.status off, cache.load_seconds its time. Its proxy makes its fine
+/// operators when asked (polishing, the Galerkin heat method) from `fine_mesh`, else from a copy of
+/// `mesh` in the saved fine geometry. Throws std::runtime_error naming the file and the defect: no
+/// such file, not a setup, damaged, of another format version, or made for another mesh.
+ProxySetup load_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh,
+                                 fem::CoarseProxy::FineMeshSource fine_mesh = {});
 
 /// `lengths` (of space's coarse faces) curvature-corrected with the input `mesh`: its angle defects
 /// and vertex areas gathered through space.P (fem::curvature_corrected_lengths) with divisor `divisor`.

@@ -139,6 +139,7 @@ class EntryReader {
 
  private:
   friend class Store;
+  friend EntryReader read_entry_file(const std::filesystem::path&, const std::string&, StoreKey&);
   EntryReader() = default;
   struct Array {
     std::string name;
@@ -154,6 +155,18 @@ class EntryReader {
   std::size_t map_bytes_ = 0;
   std::vector<Array> arrays_;
 };
+
+/// An entry in a file of the caller's choosing rather than in a store (an explicit save of a setup
+/// or a hierarchy), in the same format. Written to a temporary file beside `path`, then renamed over
+/// it: an existing file at `path` is replaced (callers check first: ice::require_writable). Throws
+/// std::runtime_error naming the file when it cannot be written, leaving no partial file behind.
+void write_entry_file(const std::filesystem::path& path, const std::string& kind, const StoreKey& key,
+                      const EntryWriter& entry);
+/// The entry file at `path`, mapped and checked as the store checks its entries (magic, format
+/// version, kind, size, checksum, records); its key, which the caller compares, in `key`. Throws
+/// std::runtime_error naming the file and the defect, also when there is no such file or it
+/// cannot be read.
+EntryReader read_entry_file(const std::filesystem::path& path, const std::string& kind, StoreKey& key);
 
 /// One entry as the store lists it.
 struct StoreEntryInfo {
