@@ -311,20 +311,20 @@ Eigen::MatrixXd CoarseProxy::prolong_block(const Eigen::MatrixXd& coarse_values)
   // page faults of its first touch.
   ice::advise_huge_pages(out.data(), sizeof(double) * static_cast<std::size_t>(out.size()));
   // P·X column by column streams P once per column and writes scattered rows; gathered per fine row
-  // for a row-major chunk of columns it streams P once per chunk, then the chunk is copied out in
-  // tiles of rows (both measured in docs/measurements.md, "The eigenbasis").
+  // for a row-major chunk of columns it streams P once per chunk, a tile of rows at a time written out
+  // into the columns (measured in docs/measurements.md, "The eigenbasis" and "Block Poisson").
   const Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows = P_;
   const int threads = detail::default_threads();
   // Chunks of 8 columns: P is small beside the fine rows, so more passes over it cost little, and
   // the fine-size row buffer (n × chunk) stays a fraction of the output.
   const Eigen::Index chunk = std::min<Eigen::Index>(k, 8);
-  RowMatrix coarse_chunk(coarse_size(), chunk), rows(n, chunk);
+  RowMatrix coarse_chunk(coarse_size(), chunk);
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
     coarse_chunk.leftCols(width) = coarse_values.middleCols(first, width);
     if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
-    detail::gather_product_rows(P_rows, coarse_chunk.data(), rows.data(), chunk, threads, n);
-    detail::copy_rows_to_columns(n, width, out, first, threads, [&](Eigen::Index i, Eigen::Index c) { return rows(i, c); });
+    detail::gather_product_to_columns(P_rows, coarse_chunk.data(), chunk, width, out, first, threads,
+                                      [](Eigen::Index, Eigen::Index, double u) { return u; });
   }
   return out;
 }
@@ -647,58 +647,88 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
   const Eigen::Index chunk = std::min<Eigen::Index>(std::max<Eigen::Index>(k, 1), 32);
   const auto stride = static_cast<std::size_t>(chunk);
   // The mass-weighted means the zero-mean problem removes (per component on several) of a chunk's
-  // columns, means[label · chunk + c]: from F's columns (contiguous), or from a row-major block in
-  // one pass over its rows; the masses they divide by are the same for every chunk.
+  // columns, means[label · chunk + c]: of F's columns in one pass over their rows, of the solutions
+  // from the coarse values; the masses they divide by are the same for every chunk.
   std::vector<double> totals(labels, 0.0), means(labels * stride);
   for (Eigen::Index i = 0; i < n; ++i) totals[label_of(i)] += mass[i];
   const auto divide_means = [&] {
     for (std::size_t l = 0; l < labels; ++l)
       for (std::size_t c = 0; c < stride; ++c) means[l * stride + c] = totals[l] != 0 ? means[l * stride + c] / totals[l] : 0.0;
   };
+  // The sums run over a fixed number of row blocks, in parallel, and add the blocks' sums in order:
+  // the same result for any thread count (a fine-size serial pass per chunk cost as much as the
+  // parallel ones around it). Fewer blocks when many components make each block's sums large.
+  const std::size_t sums_size = labels * stride;
+  const auto row_blocks = static_cast<Eigen::Index>(
+      std::clamp<std::size_t>((std::size_t{1} << 22) / std::max<std::size_t>(sums_size, 1), 1, 64));
+  std::vector<double> block_sums(static_cast<std::size_t>(row_blocks) * sums_size);
+  const auto weighted_means = [&](Eigen::Index width, auto&& value) {  // value(i, c): column c at row i
+    std::fill(block_sums.begin(), block_sums.end(), 0.0);
+#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
+    for (Eigen::Index b = 0; b < row_blocks; ++b) {
+      double* sums = block_sums.data() + static_cast<std::size_t>(b) * sums_size;
+      for (Eigen::Index i = n * b / row_blocks; i < n * (b + 1) / row_blocks; ++i) {
+        double* acc = sums + label_of(i) * stride;
+        for (Eigen::Index c = 0; c < width; ++c) acc[c] += mass[i] * value(i, c);
+      }
+    }
+    std::fill(means.begin(), means.end(), 0.0);
+    for (Eigen::Index b = 0; b < row_blocks; ++b)
+      for (std::size_t e = 0; e < sums_size; ++e) means[e] += block_sums[static_cast<std::size_t>(b) * sums_size + e];
+    divide_means();
+  };
   const auto column_means = [&](Eigen::Index first, Eigen::Index width) {
-    std::fill(means.begin(), means.end(), 0.0);
-    for (Eigen::Index c = 0; c < width; ++c) {
-      const double* f = F.col(first + c).data();
-      for (Eigen::Index i = 0; i < n; ++i) means[label_of(i) * stride + static_cast<std::size_t>(c)] += mass[i] * f[i];
-    }
-    divide_means();
+    weighted_means(width, [&](Eigen::Index i, Eigen::Index c) { return F(i, first + c); });
   };
-  const auto row_means = [&](const double* X) {
-    std::fill(means.begin(), means.end(), 0.0);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      double* acc = means.data() + label_of(i) * stride;
-      const double* x = X + i * chunk;
-      for (Eigen::Index c = 0; c < chunk; ++c) acc[c] += mass[i] * x[c];
-    }
-    divide_means();
-  };
-  RowMatrix weighted(n, chunk), coarse_chunk(m, chunk), u_rows(n, chunk);
-  RowMatrix coarse_rhs(m, k);
+  RowMatrix coarse_chunk(m, chunk), coarse_rhs(m, k);
+  // The fresh n × k result (1.3 GB at 1.6M vertices and 100 sources): huge pages spare most of the
+  // page faults of its first touch, which otherwise cost more than the passes.
+  ice::advise_huge_pages(U.data(), sizeof(double) * static_cast<std::size_t>(U.size()));
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
     if (is_zero_mean()) column_means(first, width);
-    // weighted = M · (f − its mean), row by row
-#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const double* mean = is_zero_mean() ? means.data() + label_of(i) * stride : nullptr;
-      double* w = weighted.data() + i * chunk;
-      for (Eigen::Index c = 0; c < chunk; ++c) w[c] = c < width ? mass[i] * (F(i, first + c) - (mean ? mean[c] : 0.0)) : 0.0;
-    }
-    scatter_transpose_rows(P_rows_, weighted.data(), coarse_chunk.data(), chunk, threads);
+    // Pᵀ M (f − its mean), each fine row weighted as the scatter reads it.
+    scatter_transpose_row_source(
+        P_rows_,
+        [&](Eigen::Index i, double* w) {
+          const double* mean = is_zero_mean() ? means.data() + label_of(i) * stride : nullptr;
+          for (Eigen::Index c = 0; c < chunk; ++c) w[c] = c < width ? mass[i] * (F(i, first + c) - (mean ? mean[c] : 0.0)) : 0.0;
+          return static_cast<const double*>(w);
+        },
+        coarse_chunk.data(), chunk, threads);
     coarse_rhs.middleCols(first, width) = coarse_chunk.leftCols(width);
   }
   if (times) times->restriction = lap_seconds(mark);
   const RowMatrix coarse_u = coarse_.solve_multiple_weighted(Eigen::MatrixXd(coarse_rhs), dirichlet_values);
   if (times) times->coarse_solve = lap_seconds(mark);
+  // The prolonged solutions' mass-weighted means, from the coarse values: Σ_i m_i (P u)_i = (Pᵀ m)·u,
+  // with each coarse vertex in its fine rows' component (P does not couple components) — no fine-size
+  // pass over the prolonged block.
+  Eigen::VectorXd coarse_weight;
+  std::vector<std::size_t> coarse_label(static_cast<std::size_t>(m), 0);
+  if (is_zero_mean()) {
+    coarse_weight.resize(m);
+    scatter_transpose_rows(P_rows_, mass.data(), coarse_weight.data(), 1, threads);
+    if (components)
+      for (Eigen::Index i = 0; i < n; ++i)
+        for (auto p = P_rows_.outerIndexPtr()[i]; p < P_rows_.outerIndexPtr()[i + 1]; ++p)
+          coarse_label[static_cast<std::size_t>(P_rows_.innerIndexPtr()[p])] = label_of(i);
+  }
   for (Eigen::Index first = 0; first < k; first += chunk) {
     const Eigen::Index width = std::min(chunk, k - first);
     coarse_chunk.leftCols(width) = coarse_u.middleCols(first, width);
     if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
-    gather_product_rows(P_rows_, coarse_chunk.data(), u_rows.data(), chunk, threads, n);
-    if (is_zero_mean()) row_means(u_rows.data());
-    copy_rows_to_columns(n, width, U, first, threads, [&](Eigen::Index i, Eigen::Index c) {
-      return u_rows(i, c) - (is_zero_mean() ? means[label_of(i) * stride + static_cast<std::size_t>(c)] : 0.0);
-    });
+    if (is_zero_mean()) {
+      std::fill(means.begin(), means.end(), 0.0);
+      for (Eigen::Index j = 0; j < m; ++j)
+        for (Eigen::Index c = 0; c < width; ++c)
+          means[coarse_label[static_cast<std::size_t>(j)] * stride + static_cast<std::size_t>(c)] += coarse_weight(j) * coarse_chunk(j, c);
+      divide_means();
+    }
+    gather_product_to_columns(P_rows_, coarse_chunk.data(), chunk, width, U, first, threads,
+                              [&](Eigen::Index i, Eigen::Index c, double u) {
+                                return u - (is_zero_mean() ? means[label_of(i) * stride + static_cast<std::size_t>(c)] : 0.0);
+                              });
   }
   if (times) times->prolongation = lap_seconds(mark);
   return U;

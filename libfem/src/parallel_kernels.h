@@ -49,36 +49,16 @@ void gather_product(const Matrix& M, const double* in, double* out, bool accumul
   }
 }
 
-// gather_product for k vectors at once, stored row by row (entry c of vector r at in[r·k + c]): one
-// pass over M for all of them. Each output entry is the same ordered sum as gather_product's, so
-// column c of the result equals gather_product of column c to the last bit.
-template <class Matrix>
-void gather_product_rows(const Matrix& M, const double* in, double* out, Eigen::Index k, int threads,
-                         Eigen::Index work_size) {
-  const auto* start = M.outerIndexPtr();
-  const auto* inner = M.innerIndexPtr();
-  const double* value = M.valuePtr();
-  const Eigen::Index n = M.outerSize();
-#pragma omp parallel for schedule(static) num_threads(active_threads(work_size * k, threads))
-  for (Eigen::Index o = 0; o < n; ++o) {
-    double* y = out + o * k;
-    for (Eigen::Index c = 0; c < k; ++c) y[c] = 0;
-    for (auto p = start[o]; p < start[o + 1]; ++p) {
-      const double w = value[p];
-      const double* x = in + static_cast<Eigen::Index>(inner[p]) * k;
-      for (Eigen::Index c = 0; c < k; ++c) y[c] += w * x[c];
-    }
-  }
-}
-
 // out = Mᵀ in for k vectors stored row by row (in: M.outerSize() rows, out: M.innerSize() rows, k
-// values each) and a row-major M (a compressed row-major P: out = Pᵀ in). Reads `in` once, in
-// order, and scatters into `out`, which is small when M is tall (a prolongation). Rows are cut into
-// `kScatterBlocks` fixed blocks, each accumulated into its own copy of `out` on any thread, and the
-// copies added in block order: the result does not depend on the thread count.
+// values each) and a row-major M (a compressed row-major P: out = Pᵀ in), row r of `in` given by
+// row(r, scratch) — a pointer to its k values, which it may write into `scratch` (k doubles of the
+// calling thread), so that a fine-size row-major input need not be written and read back. Reads
+// the rows once, in order, and scatters into `out`, which is small when M is tall (a prolongation).
+// Rows are cut into `kScatterBlocks` fixed blocks, each accumulated into its own copy of `out` on
+// any thread, and the copies added in block order: the result does not depend on the thread count.
 constexpr int kScatterBlocks = 8;
-template <class RowMajorMatrix>
-void scatter_transpose_rows(const RowMajorMatrix& M, const double* in, double* out, Eigen::Index k, int threads) {
+template <class RowMajorMatrix, class Row>
+void scatter_transpose_row_source(const RowMajorMatrix& M, Row&& row, double* out, Eigen::Index k, int threads) {
   const auto* start = M.outerIndexPtr();
   const auto* inner = M.innerIndexPtr();
   const double* value = M.valuePtr();
@@ -89,9 +69,10 @@ void scatter_transpose_rows(const RowMajorMatrix& M, const double* in, double* o
   for (Eigen::Index b = 0; b < blocks; ++b) {
     double* acc = b == 0 ? out : partial.data() + (b - 1) * m * k;
     if (b == 0) std::fill(out, out + m * k, 0.0);
+    std::vector<double> scratch(static_cast<std::size_t>(k));
     const Eigen::Index first = n * b / blocks, last = n * (b + 1) / blocks;
     for (Eigen::Index r = first; r < last; ++r) {
-      const double* x = in + r * k;
+      const double* x = row(r, scratch.data());
       for (auto p = start[r]; p < start[r + 1]; ++p) {
         double* y = acc + static_cast<Eigen::Index>(inner[p]) * k;
         const double w = value[p];
@@ -105,21 +86,48 @@ void scatter_transpose_rows(const RowMajorMatrix& M, const double* in, double* o
   }
 }
 
-// out.col(first + c)(i) = value(i, c) for rows i < n and c < width: a row-major block copied out into
-// columns of a column-major matrix in tiles of rows, so that both sides stay in cache; threaded.
-template <class Value>
-void copy_rows_to_columns(Eigen::Index n, Eigen::Index width, Eigen::MatrixXd& out, Eigen::Index first, int threads,
-                          Value value) {
+// The same with the rows stored: in[r·k + c].
+template <class RowMajorMatrix>
+void scatter_transpose_rows(const RowMajorMatrix& M, const double* in, double* out, Eigen::Index k, int threads) {
+  scatter_transpose_row_source(M, [in, k](Eigen::Index r, double*) { return in + r * k; }, out, k, threads);
+}
+
+// out.col(first + c)(i) = finish(i, c, (M X)(i, c)) for rows i < M.outerSize() and c < width, X the
+// k-column row-major block `in` (entry c of row r at in[r·k + c]) and a row-major M: gathered a tile
+// of rows at a time into a small buffer, then written out into the columns — no fine-size row-major
+// result is written and read back. Each (M X)(i, c) is gather_product's ordered sum for column c, to
+// the bit.
+template <class RowMajorMatrix, class Finish>
+void gather_product_to_columns(const RowMajorMatrix& M, const double* in, Eigen::Index k, Eigen::Index width,
+                               Eigen::MatrixXd& out, Eigen::Index first, int threads, Finish finish) {
   constexpr Eigen::Index kTileRows = 64;
-#pragma omp parallel for schedule(static) num_threads(active_threads(n, threads))
-  for (Eigen::Index tile = 0; tile < (n + kTileRows - 1) / kTileRows; ++tile) {
-    const Eigen::Index begin = tile * kTileRows, end = std::min(n, begin + kTileRows);
-    for (Eigen::Index c = 0; c < width; ++c) {
-      double* o = out.col(first + c).data();
-      for (Eigen::Index i = begin; i < end; ++i) o[i] = value(i, c);
+  const auto* start = M.outerIndexPtr();
+  const auto* inner = M.innerIndexPtr();
+  const double* value = M.valuePtr();
+  const Eigen::Index n = M.outerSize();
+#pragma omp parallel num_threads(active_threads(n * k, threads))
+  {
+    std::vector<double> tile(static_cast<std::size_t>(kTileRows * k));
+#pragma omp for schedule(static)
+    for (Eigen::Index t = 0; t < (n + kTileRows - 1) / kTileRows; ++t) {
+      const Eigen::Index begin = t * kTileRows, end = std::min(n, begin + kTileRows);
+      for (Eigen::Index o = begin; o < end; ++o) {
+        double* y = tile.data() + (o - begin) * k;
+        for (Eigen::Index c = 0; c < k; ++c) y[c] = 0;
+        for (auto p = start[o]; p < start[o + 1]; ++p) {
+          const double w = value[p];
+          const double* x = in + static_cast<Eigen::Index>(inner[p]) * k;
+          for (Eigen::Index c = 0; c < k; ++c) y[c] += w * x[c];
+        }
+      }
+      for (Eigen::Index c = 0; c < width; ++c) {
+        double* o = out.col(first + c).data();
+        for (Eigen::Index i = begin; i < end; ++i) o[i] = finish(i, c, tile[static_cast<std::size_t>((i - begin) * k + c)]);
+      }
     }
   }
 }
+
 
 // Vector kernels.
 inline double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int threads) {
