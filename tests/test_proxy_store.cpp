@@ -289,6 +289,14 @@ TEST_CASE("setup files: an explicit save loads back bit for bit, for its own mes
   // Its fine operators come from the mesh in the saved geometry: the same fine Laplacian.
   CHECK(loaded.proxy->fine_laplacian().isApprox(made.proxy->fine_laplacian(), 0.0));
 
+  SECTION("a store's entry is not a setup file") {
+    ice::proxy::ProxySetupOptions stored = options;
+    stored.store = ice::proxy::Store({dir / "store", ice::proxy::kDefaultStoreBytes});
+    const ice::proxy::ProxySetup in_store = ice::proxy::build_proxy_setup(mesh, stored);
+    REQUIRE(in_store.cache.keys.size() == 1);
+    const fs::path entry = dir / "store" / ("proxy-" + in_store.cache.keys[0] + ".ice");
+    CHECK_THROWS_WITH(ice::proxy::load_proxy_setup_file(entry, mesh), Catch::Contains("an entry of a store"));
+  }
   SECTION("another mesh of the same size is refused") {
     ice::TriangleMesh moved = mesh;
     moved.V(0, 0) += 1e-9;

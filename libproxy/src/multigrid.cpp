@@ -189,7 +189,7 @@ MultigridHierarchy load_multigrid_hierarchy_file(const std::filesystem::path& pa
   StoreKey key;
   const EntryReader entry = read_entry_file(path, kHierarchyKind, key);
   if (!(key == hierarchy_file_key(mesh)))
-    throw std::runtime_error(path.string() + ": a hierarchy made for another mesh (other positions or faces)");
+    throw std::runtime_error(path.string() + ": a hierarchy made for another mesh (other positions or faces), or an entry of a store (which only the store reads: its key holds the options too)");
   MultigridHierarchy h = hierarchy_from_entry(entry, path.string(), static_cast<Index>(mesh.V.rows()));
   h.cache.load_seconds = seconds_since(start);
   return h;

@@ -354,7 +354,7 @@ ProxySetup load_proxy_setup_file(const std::filesystem::path& path, const Triang
   StoreKey key;
   const EntryReader entry = read_entry_file(path, kProxyKind, key);
   if (!(key == setup_file_key(mesh)))
-    throw std::runtime_error(path.string() + ": a setup made for another mesh (other positions or faces)");
+    throw std::runtime_error(path.string() + ": a setup made for another mesh (other positions or faces), or an entry of a store (which only the store reads: its key holds the options too)");
   const std::string geometry_name = entry.text("fine_geometry");
   FineGeometry geometry = FineGeometry::intrinsic_delaunay;
   if (geometry_name == to_string(FineGeometry::input))
