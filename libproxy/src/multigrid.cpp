@@ -22,7 +22,7 @@ using detail::require;
 
 constexpr const char* kHierarchyKind = "hierarchy";
 
-// A hierarchy's entry: the writer points into `h`, which must outlive it.
+// A hierarchy's entry: the writer points into `h` and `seconds`, which must outlive it.
 EntryWriter hierarchy_entry(const MultigridHierarchy& h, const double (&seconds)[2]) {
   EntryWriter w;
   w.put_int("levels", h.num_levels());

@@ -240,7 +240,8 @@ void EntryWriter::put_sparse(const std::string& name, const Eigen::SparseMatrix<
 
 namespace {
 // Copies an array out of the mapped entry into a fresh buffer. Large buffers are offered huge pages
-// first: copying into fresh memory is otherwise mostly page faults (a hierarchy's tens of MB).
+// first: copying into fresh memory is otherwise mostly page faults (a hierarchy's tens of MB). That
+// helps Eigen's buffers, which are not initialised; a std::vector's were zero-filled (touched) already.
 void copy_out(void* to, const void* from, std::size_t bytes) {
   if (bytes == 0) return;
   if (bytes >= (std::size_t{1} << 22)) advise_huge_pages(to, bytes);

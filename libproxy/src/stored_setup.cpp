@@ -334,7 +334,15 @@ StoreKey setup_file_key(const TriangleMesh& mesh) {
 
 void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
                            const fem::CoarseProxy& proxy, FineGeometry geometry, bool overwrite) {
-  if (coarse.P.rows() != mesh.V.rows() || proxy.fine_size() != mesh.V.rows() || !coarse.P.isApprox(proxy.barycentric_prolongation(), 0.0))
+  const Eigen::SparseMatrix<double>& P = proxy.barycentric_prolongation();
+  const auto nnz = static_cast<std::size_t>(P.nonZeros());
+  // The arrays compared, shapes first (an expression of matrices of other shapes reads out of bounds).
+  const bool same_P = coarse.P.rows() == P.rows() && coarse.P.cols() == P.cols() && coarse.P.isCompressed() &&
+                      P.isCompressed() && coarse.P.nonZeros() == P.nonZeros() &&
+                      std::equal(P.outerIndexPtr(), P.outerIndexPtr() + P.outerSize() + 1, coarse.P.outerIndexPtr()) &&
+                      std::equal(P.innerIndexPtr(), P.innerIndexPtr() + nnz, coarse.P.innerIndexPtr()) &&
+                      std::equal(P.valuePtr(), P.valuePtr() + nnz, coarse.P.valuePtr());
+  if (coarse.P.rows() != mesh.V.rows() || !same_P)
     throw std::invalid_argument("save_proxy_setup_file: the coarse space and the proxy are not one setup of this mesh of " +
                                 std::to_string(mesh.V.rows()) + " vertices");
   require_writable(path.string(), overwrite);

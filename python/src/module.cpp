@@ -579,10 +579,13 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
     throw py::value_error("prolongation='smoothed' needs operators='galerkin'");
   auto result = std::make_shared<PyProxy>();
   result->method = coarse.space.summary.method;
+  result->geometry = geometry;
   py::gil_scoped_release release;
   require_clean(mesh);
   result->fine = ice::fine_mesh(mesh, geometry);
-  result->proxy = std::make_unique<fem::CoarseProxy>(ice::proxy::make_proxy(result->fine, coarse.space, kind, smoothing));
+  // `new` initialised from the returned proxy itself: make_unique would move it, and a CoarseProxy's
+  // move copies its sparse matrices (Eigen 3.4 has no sparse move).
+  result->proxy.reset(new fem::CoarseProxy(ice::proxy::make_proxy(result->fine, coarse.space, kind, smoothing)));
   return result;
 }
 

@@ -198,3 +198,19 @@ def test_save_and_load_hierarchy_explicitly(spot, tmp_path):
     with pytest.raises(ValueError, match="does not sum to 1"):
         ice.save_hierarchy(tmp_path / "broken.ice", V, F, broken)
     assert not (tmp_path / "broken.ice").exists()
+
+
+def test_saved_proxy_keeps_its_fine_geometry_and_parts_must_match(spot, tmp_path):
+    V, F = spot
+    coarse = ice.coarsen(V, F, ratio=0.1)
+    proxy = ice.Proxy(V, F, coarse, fine="input")
+    ice.save_setup(tmp_path / "input.ice", V, F, coarse, proxy)
+    _, loaded = ice.load_setup(tmp_path / "input.ice", V, F)
+    # The loaded proxy makes its fine operators on the input triangles, as the saved one did.
+    assert np.array_equal(loaded.fine_faces, proxy.fine_faces)
+    assert (loaded.fine_laplacian != proxy.fine_laplacian).nnz == 0
+    # A coarse space and a proxy of two coarsenings of the mesh are not one setup.
+    other = ice.coarsen(V, F, ratio=0.05)
+    with pytest.raises(ValueError, match="not one setup"):
+        ice.save_setup(tmp_path / "mixed.ice", V, F, other, proxy)
+    assert not (tmp_path / "mixed.ice").exists()

@@ -53,8 +53,8 @@ MultigridHierarchy multigrid_hierarchy(const TriangleMesh& mesh, const Hierarchy
 /// only. Atomic (a temporary file beside `path`, renamed); an existing file is replaced only when
 /// `overwrite`. Throws std::invalid_argument when the hierarchy is not one of `mesh` (its finest
 /// level's size, its prolongations' shapes, weights and rows, the order), ice::MeshError
-/// (unwritable) when `path` exists or its directory does not, std::runtime_error naming the file
-/// when it cannot be written.
+/// (unwritable) when `path` exists and `overwrite` is false or its directory does not exist,
+/// std::runtime_error naming the file when it cannot be written.
 void save_multigrid_hierarchy_file(const std::filesystem::path& path, const TriangleMesh& mesh,
                                    const MultigridHierarchy& hierarchy, bool overwrite = false);
 /// The hierarchy saved at `path` for `mesh`, checked as a stored one is; cache.status off,

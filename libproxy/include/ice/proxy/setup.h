@@ -113,8 +113,8 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
 /// the store's entry format, keyed by `mesh`'s arrays: load_proxy_setup_file takes it back for that
 /// mesh only. Atomic (a temporary file beside `path`, renamed). An existing file is replaced only
 /// when `overwrite`. Throws std::invalid_argument when the setup has no proxy or was not made for a
-/// mesh of `mesh`'s vertex count, ice::MeshError (unwritable) when `path` exists or its directory does
-/// not, std::runtime_error naming the file when it cannot be written.
+/// mesh of `mesh`'s vertex count, ice::MeshError (unwritable) when `path` exists and `overwrite` is
+/// false or its directory does not exist, std::runtime_error naming the file when it cannot be written.
 void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const ProxySetup& setup,
                            bool overwrite = false);
 /// The same from its parts: a coarse space of `mesh`, the proxy assembled on it (its barycentric P

@@ -91,6 +91,12 @@ class KeyHasher {
 /// stay alive until Store::save returns.
 class EntryWriter {
  public:
+  EntryWriter() = default;
+  // Records point into the writer's own texts and integers: a copy would point into the original's.
+  EntryWriter(const EntryWriter&) = delete;
+  EntryWriter& operator=(const EntryWriter&) = delete;
+  EntryWriter(EntryWriter&&) = default;  // (a moved deque keeps its elements where they are)
+  EntryWriter& operator=(EntryWriter&&) = default;
   void put(const std::string& name, const std::int32_t* data, std::size_t count);
   void put(const std::string& name, const double* data, std::size_t count);
   void put_text(const std::string& name, std::string text);  ///< copied
