@@ -1,11 +1,12 @@
 #pragma once
-// What the readers of store entries share (stored_setup.cpp, multigrid.cpp).
+// What the readers and writers of store entries and entry files share (stored_setup.cpp, multigrid.cpp).
 #include <chrono>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
+#include "ice/mesh.h"
 #include "ice/proxy/store.h"
 #include "ice/wall_time.h"
 
@@ -17,6 +18,25 @@ namespace ice::proxy::detail {
 /// element: a composed message would be built on every call (fail() composes only on failure).
 inline void require(bool ok, const std::string& path, const char* what) {
   if (!ok) fail(path, what);
+}
+
+/// The key of an explicitly saved file of `kind` for `mesh`: the mesh's arrays alone (what the file
+/// holds it says itself), so a file made for another mesh, or a store's entry, has another key.
+inline StoreKey file_key(const std::string& kind, const TriangleMesh& mesh) {
+  KeyHasher h(kind);
+  h.add("file").add_matrix(mesh.V).add_matrix(mesh.F);
+  return h.finish();
+}
+
+/// The entry file at `path` of `kind`, checked (read_entry_file) and saved for `mesh`; throws
+/// std::runtime_error naming the file otherwise.
+inline EntryReader read_file_for(const std::filesystem::path& path, const std::string& kind, const TriangleMesh& mesh) {
+  StoreKey key;
+  EntryReader entry = read_entry_file(path, kind, key);
+  if (!(key == file_key(kind, mesh)))
+    throw std::runtime_error(path.string() + ": a " + kind + " made for another mesh (other positions or faces), or an entry of a "
+                             "store (which only the store reads: its key holds the options too)");
+  return entry;
 }
 
 /// Writes `entry` as `kind`/`key` and records it in `cache`: the key, the time since `start` (when the

@@ -113,13 +113,6 @@ std::optional<MultigridHierarchy> load(const Store& store, const StoreKey& key, 
   });
 }
 
-// An explicitly saved file is keyed by its mesh alone (see setup_file_key in stored_setup.cpp).
-StoreKey hierarchy_file_key(const TriangleMesh& mesh) {
-  KeyHasher h(kHierarchyKind);
-  h.add("file").add_matrix(mesh.V).add_matrix(mesh.F);
-  return h.finish();
-}
-
 }  // namespace
 
 Index MultigridHierarchy::level_vertices(int k) const {
@@ -168,28 +161,21 @@ void save_multigrid_hierarchy_file(const std::filesystem::path& path, const Tria
     throw std::invalid_argument(e.what());
   }
   require_writable(path.string(), overwrite);
-  std::vector<Eigen::SparseMatrix<double>> compressed;  // copies only of levels that are not compressed
-  MultigridHierarchy view;
-  const MultigridHierarchy* h = &hierarchy;
-  if (!std::all_of(hierarchy.prolongations.begin(), hierarchy.prolongations.end(),
-                   [](const Eigen::SparseMatrix<double>& P) { return P.isCompressed(); })) {
-    view.fine_vertices = hierarchy.fine_vertices;
-    view.prolongations = hierarchy.prolongations;
-    for (Eigen::SparseMatrix<double>& P : view.prolongations) P.makeCompressed();
-    view.fine_order = hierarchy.fine_order;
-    view.stop_reason = hierarchy.stop_reason;
-    h = &view;
+  const bool compressed = std::all_of(hierarchy.prolongations.begin(), hierarchy.prolongations.end(),
+                                      [](const Eigen::SparseMatrix<double>& P) { return P.isCompressed(); });
+  MultigridHierarchy copy;  // made only when some level is not compressed
+  if (!compressed) {
+    copy = hierarchy;
+    for (Eigen::SparseMatrix<double>& P : copy.prolongations) P.makeCompressed();
   }
   const double seconds[] = {hierarchy.build_seconds, hierarchy.coarsen_seconds};
-  write_entry_file(path, kHierarchyKind, hierarchy_file_key(mesh), hierarchy_entry(*h, seconds));
+  write_entry_file(path, kHierarchyKind, detail::file_key(kHierarchyKind, mesh),
+                   hierarchy_entry(compressed ? hierarchy : copy, seconds));
 }
 
 MultigridHierarchy load_multigrid_hierarchy_file(const std::filesystem::path& path, const TriangleMesh& mesh) {
   const auto start = std::chrono::steady_clock::now();
-  StoreKey key;
-  const EntryReader entry = read_entry_file(path, kHierarchyKind, key);
-  if (!(key == hierarchy_file_key(mesh)))
-    throw std::runtime_error(path.string() + ": a hierarchy made for another mesh (other positions or faces), or an entry of a store (which only the store reads: its key holds the options too)");
+  const EntryReader entry = detail::read_file_for(path, kHierarchyKind, mesh);
   MultigridHierarchy h = hierarchy_from_entry(entry, path.string(), static_cast<Index>(mesh.V.rows()));
   h.cache.load_seconds = seconds_since(start);
   return h;

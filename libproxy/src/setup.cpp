@@ -58,9 +58,9 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   }
   if (options.assemble) {
     const auto start = Clock::now();
-    // Built in place: a moved CoarseProxy would copy its sparse matrices (Eigen 3.4 has no sparse move).
-    setup.proxy = std::make_unique<fem::CoarseProxy>(setup.fine.F, setup.fine.L, setup.coarse.mesh.F, setup.coarse.mesh.L,
-                                                     setup.coarse.P, options.operators, fem::MassKind::lumped, resolved);
+    // `new` initialised from the returned proxy itself: make_unique would move it, and a CoarseProxy's
+    // move copies its sparse matrices (Eigen 3.4 has no sparse move).
+    setup.proxy.reset(new fem::CoarseProxy(make_proxy(setup.fine, setup.coarse, options.operators, resolved)));
     setup.times.assemble = seconds_since(start);
   }
   if (key) save_proxy_setup(options.store, *key, setup);

@@ -322,32 +322,17 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
   });
 }
 
-namespace {
-// An explicitly saved file is keyed by its mesh alone: what it holds (operators, prolongation,
-// coarsening) it says itself, and the key tells a file made for another mesh.
-StoreKey setup_file_key(const TriangleMesh& mesh) {
-  KeyHasher h(kProxyKind);
-  h.add("file").add_matrix(mesh.V).add_matrix(mesh.F);
-  return h.finish();
-}
-}  // namespace
-
 void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
                            const fem::CoarseProxy& proxy, FineGeometry geometry, bool overwrite) {
   const Eigen::SparseMatrix<double>& P = proxy.barycentric_prolongation();
-  const auto nnz = static_cast<std::size_t>(P.nonZeros());
-  // The arrays compared, shapes first (an expression of matrices of other shapes reads out of bounds).
-  const bool same_P = coarse.P.rows() == P.rows() && coarse.P.cols() == P.cols() && coarse.P.isCompressed() &&
-                      P.isCompressed() && coarse.P.nonZeros() == P.nonZeros() &&
-                      std::equal(P.outerIndexPtr(), P.outerIndexPtr() + P.outerSize() + 1, coarse.P.outerIndexPtr()) &&
-                      std::equal(P.innerIndexPtr(), P.innerIndexPtr() + nnz, coarse.P.innerIndexPtr()) &&
-                      std::equal(P.valuePtr(), P.valuePtr() + nnz, coarse.P.valuePtr());
+  // Shapes first: a sparse expression of matrices of other shapes reads out of bounds.
+  const bool same_P = coarse.P.rows() == P.rows() && coarse.P.cols() == P.cols() && coarse.P.isApprox(P, 0.0);
   if (coarse.P.rows() != mesh.V.rows() || !same_P)
     throw std::invalid_argument("save_proxy_setup_file: the coarse space and the proxy are not one setup of this mesh of " +
                                 std::to_string(mesh.V.rows()) + " vertices");
   require_writable(path.string(), overwrite);
   const SetupEntry entry(coarse, proxy, geometry);
-  write_entry_file(path, kProxyKind, setup_file_key(mesh), entry.writer);
+  write_entry_file(path, kProxyKind, detail::file_key(kProxyKind, mesh), entry.writer);
 }
 
 void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const ProxySetup& setup,
@@ -359,26 +344,17 @@ void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh
 ProxySetup load_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh,
                                  fem::CoarseProxy::FineMeshSource fine_mesh) {
   const auto start = std::chrono::steady_clock::now();
-  StoreKey key;
-  const EntryReader entry = read_entry_file(path, kProxyKind, key);
-  if (!(key == setup_file_key(mesh)))
-    throw std::runtime_error(path.string() + ": a setup made for another mesh (other positions or faces), or an entry of a store (which only the store reads: its key holds the options too)");
-  const std::string geometry_name = entry.text("fine_geometry");
-  FineGeometry geometry = FineGeometry::intrinsic_delaunay;
-  if (geometry_name == to_string(FineGeometry::input))
-    geometry = FineGeometry::input;
-  else if (geometry_name != to_string(FineGeometry::intrinsic_delaunay))
-    throw std::runtime_error(path.string() + ": an unknown fine geometry '" + geometry_name + "'");
-  if (!fine_mesh) fine_mesh = fine_mesh_source(mesh, geometry);
-  ProxySetup setup;
-  try {
-    setup = setup_from_entry(entry, path.string(), mesh, std::move(fine_mesh));  // (CoarseSpace moves hand P over)
-  } catch (const std::invalid_argument& e) {  // the restored proxy's own checks
+  const EntryReader entry = detail::read_file_for(path, kProxyKind, mesh);
+  try {  // invalid_argument: an unknown geometry, or the restored proxy's own checks
+    const FineGeometry geometry = parse<FineGeometry>(entry.text("fine_geometry"), "the fine geometry");
+    if (!fine_mesh) fine_mesh = fine_mesh_source(mesh, geometry);
+    ProxySetup setup = setup_from_entry(entry, path.string(), mesh, std::move(fine_mesh));
+    setup.fine_geometry = geometry;
+    setup.cache.load_seconds = seconds_since(start);
+    return setup;
+  } catch (const std::invalid_argument& e) {
     throw std::runtime_error(path.string() + ": " + e.what());
   }
-  setup.fine_geometry = geometry;
-  setup.cache.load_seconds = seconds_since(start);
-  return setup;
 }
 
 }  // namespace ice::proxy

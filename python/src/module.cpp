@@ -605,6 +605,20 @@ ice::proxy::Store store_argument(const py::object& cache) {
   }
 }
 
+// The coarse space and proxy of `setup` (of `mesh`) moved into the Python objects setup_proxy and
+// load_setup return (the proxy's cache report is the caller's).
+void take_setup(const ice::TriangleMesh& mesh, ice::proxy::ProxySetup& setup, PyCoarseSpace& coarse, PyProxy& proxy) {
+  coarse.space = std::move(setup.coarse);
+  coarse.positions = ice::coarse_vertex_positions(mesh, coarse.space);
+  coarse.input_vertices = static_cast<ice::Index>(mesh.V.rows());
+  coarse.has_space = true;
+  coarse.faces_fingerprint = faces_fingerprint(mesh.F);
+  proxy.fine = std::move(setup.fine);
+  proxy.geometry = setup.fine_geometry;
+  proxy.proxy = std::move(setup.proxy);
+  proxy.method = coarse.space.summary.method;
+}
+
 py::tuple setup_proxy(const py::object& V, const py::object& F, const std::string& operators, const std::string& fine,
                       const std::string& prolongation, const py::object& fixed, const py::object& cache,
                       const py::object& n, const py::object& ratio, const py::object& min_vertices,
@@ -644,15 +658,7 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
       py::gil_scoped_acquire acquire;
       throw py::value_error(e.what());
     }
-    coarse->space = std::move(setup.coarse);
-    coarse->positions = ice::coarse_vertex_positions(mesh, coarse->space);
-    coarse->input_vertices = static_cast<ice::Index>(mesh.V.rows());
-    coarse->has_space = true;
-    coarse->faces_fingerprint = faces_fingerprint(mesh.F);
-    proxy->fine = std::move(setup.fine);
-    proxy->geometry = setup.fine_geometry;
-    proxy->proxy = std::move(setup.proxy);
-    proxy->method = coarse->space.summary.method;
+    take_setup(mesh, setup, *coarse, *proxy);
     proxy->cache = ice::proxy::cache_json(setup.cache, store);
     proxy->cache["load_seconds"] = setup.cache.load_seconds;
     proxy->cache["save_seconds"] = setup.cache.save_seconds;
@@ -661,36 +667,27 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
 }
 
 // ice.save_setup / ice.load_setup: a setup_proxy result in a file of the user's choosing.
-void save_setup(const py::object& path, const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
+void save_setup(const std::filesystem::path& path, const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
                 const PyProxy& proxy, bool overwrite) {
   const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "setup");
-  const std::string file = py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
   py::gil_scoped_release release;
   try {
-    ice::proxy::save_proxy_setup_file(file, mesh, coarse.space, *proxy.proxy, proxy.geometry, overwrite);
+    ice::proxy::save_proxy_setup_file(path, mesh, coarse.space, *proxy.proxy, proxy.geometry, overwrite);
   } catch (const std::invalid_argument& e) {
     py::gil_scoped_acquire acquire;
     throw py::value_error(e.what());
   }
 }
 
-py::tuple load_setup(const py::object& path, const py::object& V, const py::object& F) {
+py::tuple load_setup(const std::filesystem::path& path, const py::object& V, const py::object& F) {
   const ice::TriangleMesh mesh = mesh_argument(V, F);
-  const std::string file = py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
   auto coarse = std::make_shared<PyCoarseSpace>();
   auto proxy = std::make_shared<PyProxy>();
   {
     py::gil_scoped_release release;
-    ice::proxy::ProxySetup setup = ice::proxy::load_proxy_setup_file(file, mesh);
-    coarse->space = std::move(setup.coarse);
-    coarse->positions = ice::coarse_vertex_positions(mesh, coarse->space);
-    coarse->input_vertices = static_cast<ice::Index>(mesh.V.rows());
-    coarse->has_space = true;
-    coarse->faces_fingerprint = faces_fingerprint(mesh.F);
-    proxy->geometry = setup.fine_geometry;
-    proxy->proxy = std::move(setup.proxy);
-    proxy->method = coarse->space.summary.method;
-    proxy->cache = {{"status", "off"}, {"file", file}, {"load_seconds", setup.cache.load_seconds}};
+    ice::proxy::ProxySetup setup = ice::proxy::load_proxy_setup_file(path, mesh);
+    take_setup(mesh, setup, *coarse, *proxy);
+    proxy->cache = {{"status", "off"}, {"file", path.string()}, {"load_seconds", setup.cache.load_seconds}};
   }
   return py::make_tuple(coarse, proxy);
 }
@@ -1517,10 +1514,9 @@ instead of ordering the matrix's graph again.)doc");
 
   m.def(
       "save_hierarchy",
-      [](const py::object& path, const py::object& V, const py::object& F, const py::sequence& prolongations,
+      [](const std::filesystem::path& path, const py::object& V, const py::object& F, const py::sequence& prolongations,
          const py::object& order, bool overwrite) {
         const ice::TriangleMesh mesh = mesh_argument(V, F);
-        const std::string file = py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
         ice::proxy::MultigridHierarchy hierarchy;
         hierarchy.fine_vertices = static_cast<ice::Index>(mesh.V.rows());
         hierarchy.prolongations.reserve(prolongations.size());
@@ -1529,7 +1525,7 @@ instead of ordering the matrix's graph again.)doc");
         if (!order.is_none()) hierarchy.fine_order = index_argument(order, mesh.V.rows(), "order");
         py::gil_scoped_release release;
         try {
-          ice::proxy::save_multigrid_hierarchy_file(file, mesh, hierarchy, overwrite);
+          ice::proxy::save_multigrid_hierarchy_file(path, mesh, hierarchy, overwrite);
         } catch (const std::invalid_argument& e) {
           py::gil_scoped_acquire acquire;
           throw py::value_error(e.what());
@@ -1544,13 +1540,12 @@ vertex used, the order a permutation): ValueError otherwise. An existing file is
 overwrite=True (ice.MeshError, kind "unwritable", otherwise).)doc");
   m.def(
       "load_hierarchy",
-      [](const py::object& path, const py::object& V, const py::object& F, bool return_order) -> py::object {
+      [](const std::filesystem::path& path, const py::object& V, const py::object& F, bool return_order) -> py::object {
         const ice::TriangleMesh mesh = mesh_argument(V, F);
-        const std::string file = py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
         ice::proxy::MultigridHierarchy hierarchy;
         {
           py::gil_scoped_release release;
-          hierarchy = ice::proxy::load_multigrid_hierarchy_file(file, mesh);
+          hierarchy = ice::proxy::load_multigrid_hierarchy_file(path, mesh);
         }
         return hierarchy_to_python(hierarchy, return_order);
       },
