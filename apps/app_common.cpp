@@ -213,10 +213,8 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   setup_options.assemble = assemble_proxy;
   setup_options.need_fine_mesh = need_fine;
   setup_options.fine_operators = true;
-  setup_options.restored_fine_mesh = [&mesh, geometry = opt.fine_geometry()](ice::Faces& F, ice::FaceLengths& L) {
-    ice::FineMesh fine = ice::fine_mesh(mesh, geometry);  // the tool's mesh outlives its proxy
-    F = std::move(fine.F);
-    L = std::move(fine.L);
+  setup_options.restored_fine_mesh = [&mesh, geometry = opt.fine_geometry()](ice::IntrinsicMesh& fine) {
+    fine = static_cast<ice::IntrinsicMesh&&>(ice::fine_mesh(mesh, geometry));  // the tool's mesh outlives its proxy
   };
   setup_options.store = store;
   setup_options.builder = [&opt, &run](const ice::TriangleMesh& m, const ice::CoarseSpaceOptions& space_options,

@@ -167,10 +167,9 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
   oracle_options.subdivisions = request.subdivisions;
-  const fem::DistanceOracle oracle(space.mesh.F,
-                                   ice::proxy::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction, &map,
+  const fem::DistanceOracle oracle(ice::with_lengths(space.mesh, ice::proxy::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction, &map,
                                                          fem::kOracleCorrectionDivisor)
-                                       .lengths,
+                                       .lengths),
                                    map, oracle_options);
   const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced
 
@@ -233,7 +232,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   if (!opt.no_reference) {
     const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
     run.fine_mesh = clock.lap();
-    fem::HeatMethodOperators fine_ops = fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n);
+    fem::HeatMethodOperators fine_ops = fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0);
     run.ref_assemble = clock.lap();
     const fem::HeatGeodesicSolver fine_solver(std::move(fine_ops));
     run.ref_factor = clock.lap();
@@ -423,7 +422,7 @@ int main(int argc, char** argv) {
           ice::proxy::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, oracle.curvature_correction);
       if (oracle.traced_lengths) traced_counts = {lengths.edges, lengths.traced};
       run.assemble = clock.lap();  // with the tracing of --coarse-lengths traced
-      proxy_solver.emplace(pde.coarse.mesh.F, lengths.lengths, pde.coarse.P, oracle.subdivisions);
+      proxy_solver.emplace(ice::with_lengths(pde.coarse.mesh, lengths.lengths), pde.coarse.P, oracle.subdivisions);
     } else {
       fem::HeatMethodOperators coarse_ops = pde.proxy->coarse_heat_method_operators();  // lumped mass for Galerkin
       run.assemble = clock.lap();
@@ -440,7 +439,7 @@ int main(int argc, char** argv) {
     nlohmann::json error_json;
     Eigen::VectorXd reference;
     if (run.has_reference) {
-      fem::HeatMethodOperators fine_ops = fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n);
+      fem::HeatMethodOperators fine_ops = fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0);
       run.ref_assemble = clock.lap();
       const fem::HeatGeodesicSolver fine_solver(std::move(fine_ops));
       run.ref_factor = clock.lap();

@@ -65,8 +65,8 @@ app::ExitCode step_on_fine_mesh(const app::MultigridCli& mg, const app::PdeOptio
   app::Stopwatch clock;
   const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
   const double fine_mesh_seconds = clock.lap();
-  const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
-  const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+  const fem::SparseMatrix L = fem::cotan_laplacian(fine);
+  const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
   const double assemble_seconds = clock.lap();
   const ice::proxy::Store store = opt.store();
   const ice::proxy::MultigridHierarchy hierarchy = app::stored_hierarchy(kTool, mesh, mg, store);
@@ -253,8 +253,8 @@ int main(int argc, char** argv) {
     Eigen::VectorXd reference;
     if (run.has_reference) {
       const ice::FineMesh& fine = pde.fine;
-      const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
-      const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+      const fem::SparseMatrix L = fem::cotan_laplacian(fine);
+      const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
       run.ref_assemble = clock.lap();
       const fem::HeatSolver fine_heat(L, M, time_step, ice::proxy::kFineReferenceOrdering);
       run.ref_factor = clock.lap();

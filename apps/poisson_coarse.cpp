@@ -93,8 +93,8 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
   app::Stopwatch clock;
   const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
   const double fine_mesh_seconds = clock.lap();
-  const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
-  const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+  const fem::SparseMatrix L = fem::cotan_laplacian(fine);
+  const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
   if (f.size() == 0) f = app::remove_mean(app::demo_poisson_rhs(mesh), M);
   const double assemble_seconds = clock.lap();
   nlohmann::json solver_json = {{"kind", solver}};
@@ -378,8 +378,8 @@ int main(int argc, char** argv) {
     nlohmann::json error_json;
     Eigen::VectorXd reference;
     if (run.has_reference) {
-      const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
-      const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+      const fem::SparseMatrix L = fem::cotan_laplacian(fine);
+      const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
       run.ref_assemble = clock.lap();
       const fem::PoissonSolver fine_solver = fine_poisson_solver(L, M, fixed_vertices, std::nullopt, cholmod_ordering);
       run.ref_factor = clock.lap();

@@ -125,8 +125,8 @@ int main(int argc, char** argv) {
     Eigen::VectorXd reference_field;
     if (run.has_reference) {
       const ice::FineMesh& fine = pde.fine;
-      const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
-      const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, n);
+      const fem::SparseMatrix L = fem::cotan_laplacian(fine);
+      const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
       run.ref_assemble = clock.lap();
       const fem::Eigenpairs ref = fem::smallest_eigenpairs_dirichlet(L, M, fixed, k);
       run.ref_solve = clock.lap();

@@ -38,8 +38,8 @@ void BM_Assemble(benchmark::State& state) {
   const TriangleMesh& m = spot(static_cast<int>(state.range(0)));
   const FaceLengths L = face_lengths_from_positions(m.V, m.F);
   for (auto _ : state) {
-    fem::SparseMatrix A = fem::cotan_laplacian(m.F, L);
-    fem::SparseMatrix M = fem::mass_matrix(m.F, L);
+    fem::SparseMatrix A = fem::cotan_laplacian(ice::intrinsic_mesh(m.F, L));
+    fem::SparseMatrix M = fem::mass_matrix(ice::intrinsic_mesh(m.F, L));
     benchmark::DoNotOptimize(A.nonZeros() + M.nonZeros());
   }
   set_size(state, m);
@@ -49,7 +49,7 @@ BENCHMARK(BM_Assemble)->DenseRange(0, 2)->Unit(benchmark::kMillisecond);
 void BM_Factor(benchmark::State& state) {
   const TriangleMesh& m = spot(static_cast<int>(state.range(0)));
   const FaceLengths L = face_lengths_from_positions(m.V, m.F);
-  const fem::SparseMatrix A = fem::cotan_laplacian(m.F, L), M = fem::mass_matrix(m.F, L);
+  const fem::SparseMatrix A = fem::cotan_laplacian(ice::intrinsic_mesh(m.F, L)), M = fem::mass_matrix(ice::intrinsic_mesh(m.F, L));
   for (auto _ : state) {
     fem::PoissonSolver solver = fem::PoissonSolver::zero_mean(A, M);
     benchmark::DoNotOptimize(&solver);
@@ -61,7 +61,7 @@ BENCHMARK(BM_Factor)->DenseRange(0, 2)->Unit(benchmark::kMillisecond);
 void BM_Solve(benchmark::State& state) {
   const TriangleMesh& m = spot(static_cast<int>(state.range(0)));
   const FaceLengths L = face_lengths_from_positions(m.V, m.F);
-  const fem::SparseMatrix A = fem::cotan_laplacian(m.F, L), M = fem::mass_matrix(m.F, L);
+  const fem::SparseMatrix A = fem::cotan_laplacian(ice::intrinsic_mesh(m.F, L)), M = fem::mass_matrix(ice::intrinsic_mesh(m.F, L));
   const fem::PoissonSolver solver = fem::PoissonSolver::zero_mean(A, M);
   const Eigen::VectorXd f = m.V.col(0).array().sin();
   for (auto _ : state) {

@@ -72,7 +72,7 @@ const fem::DistanceOracle& oracle_of(int levels, int coarse_vertices) {
   auto& slot = cache[{levels, coarse_vertices}];
   if (!slot) {
     const OracleInput& input = oracle_input(levels, coarse_vertices);
-    slot = std::make_unique<fem::DistanceOracle>(input.space.mesh.F, input.space.mesh.L, input.map);
+    slot = std::make_unique<fem::DistanceOracle>(ice::intrinsic_mesh(input.space.mesh.F, input.space.mesh.L), input.map);
   }
   return *slot;
 }
@@ -92,7 +92,7 @@ void BM_FineHeatAllPairs(benchmark::State& state) {
 #pragma omp parallel for num_threads(threads)
     for (int t = 0; t < threads; ++t)
       solvers[static_cast<std::size_t>(t)] = std::make_unique<fem::HeatGeodesicSolver>(
-          fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n));
+          fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0));
     setup_seconds = seconds_since(start);
     double checksum = 0;
     const ice::Index blocks = (sources + block - 1) / block;
@@ -126,7 +126,7 @@ void BM_DistanceOracle(benchmark::State& state) {
   options.method = state.range(2) == 0 ? fem::CoarseDistanceMethod::marching : fem::CoarseDistanceMethod::heat_method;
   std::size_t bytes = 0;
   for (auto _ : state) {
-    const fem::DistanceOracle oracle(input.space.mesh.F, input.space.mesh.L, input.map, options);
+    const fem::DistanceOracle oracle(ice::intrinsic_mesh(input.space.mesh.F, input.space.mesh.L), input.map, options);
     bytes = oracle.memory_bytes();
     benchmark::DoNotOptimize(oracle.coarse_distance(0, 1));
   }
@@ -176,7 +176,7 @@ void BM_FineHeatSolve(benchmark::State& state) {
   const auto n = static_cast<ice::Index>(mesh.V.rows());
   const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
   for (auto _ : state) {
-    const fem::HeatGeodesicSolver solver(fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n));
+    const fem::HeatGeodesicSolver solver(fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0));
     benchmark::DoNotOptimize(solver.distance({0}).sum());
   }
   state.counters["vertices"] = n;

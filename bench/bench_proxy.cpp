@@ -61,8 +61,8 @@ void BM_ProxyVsFine(benchmark::State& state) {
     auto t = std::chrono::steady_clock::now();
     // Fine one-shot.
     const FaceLengths L = face_lengths_from_positions(m.V, m.F);
-    const auto Lf = fem::cotan_laplacian(m.F, L, m.V.rows());
-    const auto Mf = fem::mass_matrix(m.F, L, fem::MassKind::lumped, m.V.rows());
+    const auto Lf = fem::cotan_laplacian(ice::intrinsic_mesh(m.F, L, m.V.rows()));
+    const auto Mf = fem::mass_matrix(ice::intrinsic_mesh(m.F, L, m.V.rows()), fem::MassKind::lumped);
     const double fine_assemble = seconds_since(t);
     const auto fine = fem::PoissonSolver::zero_mean(Lf, Mf, {}, ordering);
     const double fine_factor = seconds_since(t);
@@ -75,7 +75,7 @@ void BM_ProxyVsFine(benchmark::State& state) {
     CoarseSpace space = build_coarse_space(m, options);
     const CompactMesh& coarse = space.mesh;
     const double coarsen_time = seconds_since(t);
-    const fem::CoarseProxy proxy(m.F, L, coarse.F, coarse.L, std::move(space.P), fem::CoarseOperatorKind::intrinsic);
+    const fem::CoarseProxy proxy(ice::intrinsic_mesh(m.F, L), ice::intrinsic_mesh(coarse.F, coarse.L), std::move(space.P), {fem::CoarseOperatorKind::intrinsic});
     const double proxy_assemble = seconds_since(t);
     const fem::ProxyPoissonSolver solver(proxy);
     const double proxy_factor = seconds_since(t);
@@ -152,8 +152,8 @@ void BM_PolishedProxy(benchmark::State& state) {
   for (auto _ : state) {
     auto t = std::chrono::steady_clock::now();
     const FaceLengths L = face_lengths_from_positions(m.V, m.F);
-    const auto Lf = fem::cotan_laplacian(m.F, L, m.V.rows());
-    const auto Mf = fem::mass_matrix(m.F, L, fem::MassKind::lumped, m.V.rows());
+    const auto Lf = fem::cotan_laplacian(ice::intrinsic_mesh(m.F, L, m.V.rows()));
+    const auto Mf = fem::mass_matrix(ice::intrinsic_mesh(m.F, L, m.V.rows()), fem::MassKind::lumped);
     seconds_since(t);
     const auto fine = fem::PoissonSolver::zero_mean(Lf, Mf, {}, fem::CholeskyOrdering::amd);
     const double fine_factor = seconds_since(t);
@@ -163,7 +163,7 @@ void BM_PolishedProxy(benchmark::State& state) {
     options.coarsen.target_ratio = budget;
     CoarseSpace space = build_coarse_space(m, options);
     const double coarsen_time = seconds_since(t);
-    const fem::CoarseProxy proxy(m.F, L, space.mesh.F, space.mesh.L, std::move(space.P), kind);
+    const fem::CoarseProxy proxy(ice::intrinsic_mesh(m.F, L), ice::intrinsic_mesh(space.mesh.F, space.mesh.L), std::move(space.P), {kind});
     const double proxy_assemble = seconds_since(t);
     state.counters["vertices"] = static_cast<double>(m.V.rows());
     state.counters["coarse_vertices"] = static_cast<double>(proxy.coarse_size());
@@ -246,9 +246,9 @@ void BM_ProxySetupPhases(benchmark::State& state) {
     CoarseSpace space = build_coarse_space(m, options, &fine);
     const double coarsen = seconds_since(t);
     const double n = static_cast<double>(m.V.rows()), faces = static_cast<double>(fine.F.rows());
-    const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, m.V.rows());
+    const fem::SparseMatrix L = fem::cotan_laplacian(fine);
     const double laplacian = seconds_since(t);
-    const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, m.V.rows());
+    const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
     const double mass = seconds_since(t);
     // The default prolongation of a Galerkin proxy without Dirichlet vertices: P smoothed once.
     const fem::SparseMatrix smoothed = fem::smoothed_prolongation(space.P, L);

@@ -258,7 +258,7 @@ TEST_CASE("fine_mesh: the input triangles or their intrinsic Delaunay triangulat
   std::vector<char> on_boundary(static_cast<std::size_t>(mesh.V.rows()), 0);
   for (int v : fem::boundary_vertices(mesh.F)) on_boundary[static_cast<std::size_t>(v)] = 1;
   auto most_positive_interior_weight = [&](const ice::FineMesh& m) {
-    const fem::SparseMatrix L = fem::cotan_laplacian(m.F, m.L, mesh.V.rows());
+    const fem::SparseMatrix L = fem::cotan_laplacian(m);
     double most = -1;
     for (Eigen::Index j = 0; j < L.outerSize(); ++j)
       for (fem::SparseMatrix::InnerIterator it(L, j); it; ++it)
@@ -275,10 +275,10 @@ TEST_CASE("fine_mesh: the input triangles or their intrinsic Delaunay triangulat
   ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
   T.flip_to_delaunay();
   const ice::CompactMesh by_hand = T.compact();
-  const fem::SparseMatrix L_fine = fem::cotan_laplacian(idt.F, idt.L, mesh.V.rows());
-  const fem::SparseMatrix L_by_hand = fem::cotan_laplacian(by_hand.F, by_hand.L, mesh.V.rows());
+  const fem::SparseMatrix L_fine = fem::cotan_laplacian(idt);
+  const fem::SparseMatrix L_by_hand = fem::cotan_laplacian(by_hand);
   CHECK(fem::SparseMatrix(L_fine - L_by_hand).norm() <= 1e-9 * L_by_hand.norm());
-  const fem::SparseMatrix M_fine = fem::mass_matrix(idt.F, idt.L), M_by_hand = fem::mass_matrix(by_hand.F, by_hand.L);
+  const fem::SparseMatrix M_fine = fem::mass_matrix(idt), M_by_hand = fem::mass_matrix(by_hand);
   CHECK(M_fine.sum() == Approx(M_by_hand.sum()).epsilon(1e-12));  // the same surface area
 }
 
@@ -345,10 +345,10 @@ TEST_CASE("staged proxy solvers: Dirichlet values, zero mean, several sources, p
 
   for (fem::CoarseOperatorKind kind : {fem::CoarseOperatorKind::intrinsic, fem::CoarseOperatorKind::galerkin}) {
     INFO((kind == fem::CoarseOperatorKind::intrinsic ? "intrinsic" : "galerkin"));
-    const fem::CoarseProxy proxy(fine.F, fine.L, space.mesh.F, space.mesh.L, space.P, kind);
+    const fem::CoarseProxy proxy(ice::intrinsic_mesh(fine.F, fine.L), ice::intrinsic_mesh(space.mesh.F, space.mesh.L), space.P, {kind});
     const fem::SparseMatrix& M = proxy.fine_mass();
     const Eigen::VectorXd m1 = M * Eigen::VectorXd::Ones(n);
-    const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, n);
+    const fem::SparseMatrix L = fem::cotan_laplacian(fine);
 
     // Dirichlet: the prolonged solution takes the prescribed values exactly and is close to the fine one.
     const fem::ProxyPoissonSolver dirichlet(proxy, fixed);

@@ -375,8 +375,8 @@ TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric close
   const double radius = sphere.V.row(0).norm();
   double intrinsic_error = 0, traced_error = 0;
   double walk_error = 0;
-  const fem::ProxyGeodesicSolver on_intrinsic(space.mesh.F, space.mesh.L, space.P), on_traced(space.mesh.F, L, space.P),
-      on_walk(space.mesh.F, surface.lengths, space.P);
+  const fem::ProxyGeodesicSolver on_intrinsic(space.mesh, space.P), on_traced(ice::with_lengths(space.mesh, L), space.P),
+      on_walk(ice::with_lengths(space.mesh, surface.lengths), space.P);
   for (const Index source : {0, 1000, 5000}) {
     const Eigen::VectorXd a = on_intrinsic.distance({source}), b = on_traced.distance({source}), c = on_walk.distance({source});
     for (Eigen::Index v = 0; v < sphere.V.rows(); ++v) {

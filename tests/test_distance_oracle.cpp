@@ -77,7 +77,7 @@ TEST_CASE("distance oracle on a flat disk: Euclidean distances, exact inside a c
   // The boundary vertices kept, so that the coarse mesh covers exactly the disk (removing one
   // would cut a chord off, and the points beyond it land in the coarse face by projection).
   const OracleCase c = coarsened(ice::make_flat_disk(30, 1.0, 0.2), 300, false);
-  const fem::DistanceOracle oracle(c.space.mesh.F, c.space.mesh.L, c.map);
+  const fem::DistanceOracle oracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map);
   const auto euclidean = [&](int u, int v) { return (c.mesh.V.row(u) - c.mesh.V.row(v)).norm(); };
   // A convex flat domain: geodesics are straight; the marching and the squared-distance
   // interpolation are exact wherever the straight line crosses the faces it is flattened in.
@@ -102,7 +102,7 @@ TEST_CASE("distance oracle on a sphere: great-circle distances", "[fem][distance
   const auto great_circle = [&](int u, int v) {
     return std::acos(std::clamp(c.mesh.V.row(u).dot(c.mesh.V.row(v)), -1.0, 1.0));
   };
-  const fem::DistanceOracle marching(c.space.mesh.F, c.space.mesh.L, c.map);
+  const fem::DistanceOracle marching(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map);
   const RelativeErrors e = relative_errors(marching, great_circle, 20000, 0.1);
   INFO("marching: mean " << e.mean << ", max " << e.max);
   CHECK(e.mean < 0.015);  // measured 0.99 %; the inscribed polyhedron is itself ~0.2 % shorter
@@ -111,7 +111,7 @@ TEST_CASE("distance oracle on a sphere: great-circle distances", "[fem][distance
   fem::DistanceOracleOptions heat;
   heat.method = fem::CoarseDistanceMethod::heat_method;
   heat.heat_block_size = 64;  // several blocks
-  const fem::DistanceOracle heat_oracle(c.space.mesh.F, c.space.mesh.L, c.map, heat);
+  const fem::DistanceOracle heat_oracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map, heat);
   const RelativeErrors h = relative_errors(heat_oracle, great_circle, 20000, 0.1);
   INFO("heat method: mean " << h.mean);
   CHECK(h.mean < 0.03);
@@ -121,13 +121,13 @@ TEST_CASE("distance oracle on a sphere: great-circle distances", "[fem][distance
 TEST_CASE("distance oracle: within 1.5 % of the fine heat method on spot_subdiv at 1,000 coarse vertices",
           "[fem][distance_oracle]") {
   OracleCase c = coarsened(ice::load_mesh(ice_test::project_mesh("spot_subdiv.obj")), 1000);
-  const fem::DistanceOracle oracle(c.space.mesh.F, c.space.mesh.L, c.map);
+  const fem::DistanceOracle oracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map);
   // 4 n_c² for the coarse pairs, 16 bytes per fine vertex, the coarse faces and squared lengths.
   CHECK(oracle.memory_bytes() <= 4 * 1000 * 1000 + 16 * c.map.size() + 36 * static_cast<std::size_t>(c.space.mesh.F.rows()));
 
   const ice::FineMesh fine = ice::fine_mesh(c.mesh, ice::FineGeometry::intrinsic_delaunay);
   const fem::HeatGeodesicSolver fine_solver(
-      fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, c.mesh.V.rows()));
+      fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0));
   const std::vector<ice::Index> sources{11, 5000, 12345, 20000, 24000};
   const Eigen::MatrixXd reference = fine_solver.distances_from_each(sources);
   double far_sum = 0, near_sum = 0;
@@ -167,7 +167,7 @@ TEST_CASE("distance oracle: within 1.5 % of the fine heat method on spot_subdiv 
 TEST_CASE("distance oracle: symmetric, zero on the diagonal, one answer for every query kind",
           "[fem][distance_oracle]") {
   const OracleCase c = coarsened(ice::make_torus(40, 16, 2.0, 0.6), 120);
-  const fem::DistanceOracle oracle(c.space.mesh.F, c.space.mesh.L, c.map);
+  const fem::DistanceOracle oracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map);
   const auto n = static_cast<ice::Index>(c.mesh.V.rows());
   REQUIRE(oracle.fine_size() == n);
   std::vector<std::array<ice::Index, 2>> pairs;
@@ -219,7 +219,7 @@ TEST_CASE("distance oracle: symmetric, zero on the diagonal, one answer for ever
 TEST_CASE("blocked multi-source heat-method distances equal the one-source ones", "[fem][distance_oracle]") {
   ice::TriangleMesh disk = ice::make_flat_disk(12, 1.0, 0.1);  // with a boundary: both heat variants
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(disk.V, disk.F);
-  const fem::HeatGeodesicSolver solver(fem::heat_method_operators(disk.F, lengths));
+  const fem::HeatGeodesicSolver solver(fem::heat_method_operators(ice::intrinsic_mesh(disk.F, lengths)));
   const std::vector<ice::Index> sources{0, 5, 17, 100, 5};
   const Eigen::MatrixXd blocked = solver.distances_from_each(sources);
   REQUIRE(blocked.cols() == 5);
@@ -238,11 +238,11 @@ TEST_CASE("distance oracle: marching on the subdivided coarse mesh, as the proxy
   for (int subdivisions = 0; subdivisions < 3; ++subdivisions) {
     fem::DistanceOracleOptions options;
     options.subdivisions = subdivisions;
-    const fem::DistanceOracle oracle(c.space.mesh.F, c.space.mesh.L, c.map, options);
+    const fem::DistanceOracle oracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map, options);
     mean[static_cast<std::size_t>(subdivisions)] = relative_errors(oracle, great_circle, 20000, 0.1).mean;
     // Between coarse vertices: marching on the same subdivision, both ways averaged (the oracle
     // symmetrises), in floats.
-    fem::detail::SubdividedMesh finer{c.space.mesh.F, c.space.mesh.L, oracle.coarse_size(), {}, {}};
+    fem::detail::SubdividedMesh finer{{c.space.mesh.F, c.space.mesh.L, {}, static_cast<ice::Index>(oracle.coarse_size())}, {}};
     for (int level = 0; level < subdivisions; ++level)
       finer = fem::detail::subdivide_midpoints(finer.F, finer.L, finer.vertex_count, finer.twin);
     const fem::detail::MarchingMesh marching_mesh(finer.F, finer.L, finer.vertex_count);
@@ -252,7 +252,7 @@ TEST_CASE("distance oracle: marching on the subdivided coarse mesh, as the proxy
     // The proxy's marching (which reopens a vertex that a later face finds nearer, tracks virtual
     // sources and drops planar updates its corners' sources disagree with) from the same coarse
     // vertices: at least as near the great circles.
-    const fem::ProxyGeodesicSolver proxy(c.space.mesh.F, c.space.mesh.L, c.space.P, subdivisions);
+    const fem::ProxyGeodesicSolver proxy(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.space.P, subdivisions);
     const auto input = [&](ice::Index coarse_vertex) { return c.space.mesh.to_input[static_cast<std::size_t>(coarse_vertex)]; };
     double proxy_error = 0, plain_error = 0;
     for (const ice::Index a : {0, 50, 150}) {
@@ -274,7 +274,7 @@ TEST_CASE("distance oracle: marching on the subdivided coarse mesh, as the proxy
   CHECK(mean[2] < mean[1]);
   fem::DistanceOracleOptions negative;
   negative.subdivisions = -1;
-  CHECK_THROWS_AS(fem::DistanceOracle(c.space.mesh.F, c.space.mesh.L, c.map, negative), std::invalid_argument);
+  CHECK_THROWS_AS(fem::DistanceOracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map, negative), std::invalid_argument);
 }
 
 TEST_CASE("distance oracle refuses bad points and options", "[fem][distance_oracle]") {
@@ -282,14 +282,14 @@ TEST_CASE("distance oracle refuses bad points and options", "[fem][distance_orac
   std::vector<ice::CoarsePoint> map = c.map;
   fem::DistanceOracleOptions threads;
   threads.threads = -1;
-  CHECK_THROWS_AS(fem::DistanceOracle(c.space.mesh.F, c.space.mesh.L, map, threads), std::invalid_argument);
+  CHECK_THROWS_AS(fem::DistanceOracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), map, threads), std::invalid_argument);
   map[3].face = static_cast<ice::Index>(c.space.mesh.F.rows());
-  CHECK_THROWS_WITH(fem::DistanceOracle(c.space.mesh.F, c.space.mesh.L, map),
+  CHECK_THROWS_WITH(fem::DistanceOracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), map),
                     Catch::Contains("out of range") && Catch::Contains("fine vertex 3"));
   map = c.map;
   map[5].bary = {0.7, 0.7, -0.4};
-  CHECK_THROWS_AS(fem::DistanceOracle(c.space.mesh.F, c.space.mesh.L, map), std::invalid_argument);
-  const fem::DistanceOracle oracle(c.space.mesh.F, c.space.mesh.L, c.map);
+  CHECK_THROWS_AS(fem::DistanceOracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), map), std::invalid_argument);
+  const fem::DistanceOracle oracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map);
   CHECK_THROWS_AS(oracle.distances({{0, static_cast<ice::Index>(c.mesh.V.rows())}}), std::invalid_argument);
   CHECK_THROWS_AS(oracle.farthest_point_samples(0), std::invalid_argument);
   CHECK_THROWS_AS(oracle.distances_from(-1), std::invalid_argument);
@@ -301,7 +301,7 @@ TEST_CASE("distance oracle against exact polyhedral geodesics (CGAL) on spot", "
   using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
   using ShortestPaths = CGAL::Surface_mesh_shortest_path<CGAL::Surface_mesh_shortest_path_traits<Kernel, SurfaceMesh>>;
   const OracleCase c = coarsened(ice::load_mesh(ice_test::project_mesh("spot.obj")), 586);  // n / 5
-  const fem::DistanceOracle oracle(c.space.mesh.F, c.space.mesh.L, c.map);
+  const fem::DistanceOracle oracle(ice::intrinsic_mesh(c.space.mesh.F, c.space.mesh.L), c.map);
   const auto n = static_cast<ice::Index>(c.mesh.V.rows());
   SurfaceMesh surface;
   std::vector<SurfaceMesh::Vertex_index> handles;
@@ -349,7 +349,7 @@ TEST_CASE("distance oracle on a Δ-complex with a self-folded face, and on two c
   corners[0] = {0, 0, {0, 1, 0}};
   corners[1] = {1, 0, {0, 0, 1}};
   corners[2] = {2, 0, {1, 0, 0}};
-  const fem::DistanceOracle folded(F, L, corners);
+  const fem::DistanceOracle folded(ice::intrinsic_mesh(F, L), corners);
   CHECK(folded.coarse_distance(2, 1) == Approx(1.35).epsilon(1e-6));
   CHECK(folded.coarse_distance(2, 0) == Approx(1.0).epsilon(1e-6));
   CHECK(folded.coarse_distance(0, 1) == Approx(0.39).epsilon(1e-6));
@@ -365,7 +365,7 @@ TEST_CASE("distance oracle on a Δ-complex with a self-folded face, and on two c
     points[v].bary[v % 3] = 1;
   }
   points[6] = {ice::kInvalid, 1, {0.2, 0.3, 0.5}};
-  const fem::DistanceOracle apart(G, M, points);
+  const fem::DistanceOracle apart(ice::intrinsic_mesh(G, M), points);
   CHECK(apart.distance(0, 1) == Approx(1.0).epsilon(1e-6));
   CHECK(std::isinf(apart.distance(0, 4)));
   CHECK(std::isinf(apart.distance(1, 6)));

@@ -24,8 +24,8 @@ struct Pencil {
 
 Pencil pencil(const ice::TriangleMesh& mesh) {
   const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
-  return {fem::cotan_laplacian(fine.F, fine.L, mesh.V.rows()),
-          fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, mesh.V.rows())};
+  return {fem::cotan_laplacian(fine),
+          fem::mass_matrix(fine, fem::MassKind::lumped)};
 }
 
 double orthonormality_defect(const Eigen::MatrixXd& V, const fem::SparseMatrix& M) {

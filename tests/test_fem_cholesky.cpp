@@ -17,7 +17,7 @@ struct Operators {
 Operators sphere_operators(int level) {
   const ice::TriangleMesh mesh = ice::make_icosphere(level);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  return {fem::cotan_laplacian(mesh.F, lengths), fem::mass_matrix(mesh.F, lengths)};
+  return {fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths)), fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths))};
 }
 
 }  // namespace

@@ -146,17 +146,17 @@ TEST_CASE("coarse proxy with P = identity reproduces the fine solutions", "[fem]
   const ice::TriangleMesh mesh = ice::make_torus(24, 12, 2.0, 0.6);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
   const Eigen::Index n = mesh.V.rows();
-  const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths);
-  const fem::SparseMatrix M = fem::mass_matrix(mesh.F, lengths);
+  const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths));
+  const fem::SparseMatrix M = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths));
   const Eigen::VectorXd f = (mesh.V.col(0).array() * mesh.V.col(2).array() + mesh.V.col(1).array()).matrix();
 
   const Eigen::VectorXd poisson = fem::PoissonSolver::zero_mean(L, M).solve(f);
   const Eigen::VectorXd heat = fem::HeatSolver(L, M, 0.01).integrate(f, 5);
-  const Eigen::VectorXd distance = fem::HeatGeodesicSolver(fem::heat_method_operators(mesh.F, lengths)).distance({7});
+  const Eigen::VectorXd distance = fem::HeatGeodesicSolver(fem::heat_method_operators(ice::intrinsic_mesh(mesh.F, lengths))).distance({7});
 
   for (fem::CoarseOperatorKind kind : {fem::CoarseOperatorKind::intrinsic, fem::CoarseOperatorKind::galerkin}) {
     INFO((kind == fem::CoarseOperatorKind::intrinsic ? "intrinsic" : "galerkin"));
-    const fem::CoarseProxy proxy(mesh.F, lengths, mesh.F, lengths, identity(n), kind);
+    const fem::CoarseProxy proxy(ice::intrinsic_mesh(mesh.F, lengths), ice::intrinsic_mesh(mesh.F, lengths), identity(n), {kind});
     CHECK(fem::SparseMatrix(proxy.coarse_laplacian() - L).norm() <= 1e-14 * L.norm());
     CHECK(fem::relative_l2_error(fem::ProxyPoissonSolver(proxy).solve(f), poisson, M) < 1e-12);
     for (fem::RestrictionKind restriction : {fem::RestrictionKind::l2_projection, fem::RestrictionKind::injection})
@@ -169,8 +169,8 @@ TEST_CASE("coarse proxy with P = identity reproduces the fine solutions", "[fem]
 
 TEST_CASE("coarse proxy on nested icospheres", "[fem][coarse_proxy]") {
   const auto [coarse, fine, coarse_lengths, fine_lengths, P] = nested_spheres(3);
-  const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine_lengths);
-  const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine_lengths);
+  const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(fine.F, fine_lengths));
+  const fem::SparseMatrix M = fem::mass_matrix(ice::intrinsic_mesh(fine.F, fine_lengths));
 
   // Smooth data: f = z + xy (spherical harmonics of degree 1 and 2).
   const Eigen::ArrayXd x = fine.V.col(0), y = fine.V.col(1), z = fine.V.col(2);
@@ -179,12 +179,12 @@ TEST_CASE("coarse proxy on nested icospheres", "[fem][coarse_proxy]") {
   Eigen::Index source = 0;
   fine.V.col(2).maxCoeff(&source);
   const Eigen::VectorXd distance =
-      fem::HeatGeodesicSolver(fem::heat_method_operators(fine.F, fine_lengths)).distance({static_cast<int>(source)});
+      fem::HeatGeodesicSolver(fem::heat_method_operators(ice::intrinsic_mesh(fine.F, fine_lengths))).distance({static_cast<int>(source)});
 
   for (fem::CoarseOperatorKind kind : {fem::CoarseOperatorKind::intrinsic, fem::CoarseOperatorKind::galerkin}) {
     const bool galerkin = kind == fem::CoarseOperatorKind::galerkin;
     INFO((galerkin ? "galerkin" : "intrinsic"));
-    const fem::CoarseProxy proxy(fine.F, fine_lengths, coarse.F, coarse_lengths, P, kind);
+    const fem::CoarseProxy proxy(ice::intrinsic_mesh(fine.F, fine_lengths), ice::intrinsic_mesh(coarse.F, coarse_lengths), P, {kind});
     const Eigen::VectorXd u = fem::ProxyPoissonSolver(proxy).solve(f);
     const double poisson_error = fem::relative_l2_error(u, poisson, M);
     UNSCOPED_INFO((galerkin ? "galerkin" : "intrinsic") << " proxy Poisson relative L2 error " << poisson_error);
@@ -223,10 +223,10 @@ TEST_CASE("coarse proxy rejects a prolongation whose rows do not sum to 1", "[fe
   const ice::TriangleMesh mesh = ice::make_icosphere(1);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
   const fem::SparseMatrix P = 0.5 * identity(mesh.V.rows());
-  CHECK_THROWS_AS(fem::CoarseProxy(mesh.F, lengths, mesh.F, lengths, P, fem::CoarseOperatorKind::galerkin),
+  CHECK_THROWS_AS(fem::CoarseProxy(ice::intrinsic_mesh(mesh.F, lengths), ice::intrinsic_mesh(mesh.F, lengths), P, {fem::CoarseOperatorKind::galerkin}),
                   std::invalid_argument);
   const fem::SparseMatrix wrong_size = identity(mesh.V.rows() - 1);
-  CHECK_THROWS_AS(fem::CoarseProxy(mesh.F, lengths, mesh.F, lengths, wrong_size, fem::CoarseOperatorKind::intrinsic),
+  CHECK_THROWS_AS(fem::CoarseProxy(ice::intrinsic_mesh(mesh.F, lengths), ice::intrinsic_mesh(mesh.F, lengths), wrong_size, {fem::CoarseOperatorKind::intrinsic}),
                   std::invalid_argument);
 }
 
@@ -240,7 +240,7 @@ TEST_CASE("geodesics by coarse marching are the straight-line distance on a flat
   const auto [fine, P] = midpoint_split(coarse);
   const ice::FaceLengths coarse_lengths = ice::face_lengths_from_positions(coarse.V, coarse.F);
   const ice::FaceLengths fine_lengths = ice::face_lengths_from_positions(fine.V, fine.F);
-  const fem::CoarseProxy proxy(fine.F, fine_lengths, coarse.F, coarse_lengths, P, fem::CoarseOperatorKind::galerkin);
+  const fem::CoarseProxy proxy(ice::intrinsic_mesh(fine.F, fine_lengths), ice::intrinsic_mesh(coarse.F, coarse_lengths), P, {fem::CoarseOperatorKind::galerkin});
   const fem::ProxyGeodesicSolver marching(proxy);
   CHECK(marching.method() == fem::CoarseDistanceMethod::marching);
   fem::ProxyGeodesicOptions heat_options;
@@ -275,11 +275,11 @@ TEST_CASE("geodesics by coarse marching are the straight-line distance on a flat
   }
   CHECK(clear > fine.V.rows() / 2);
   // Without a CoarseProxy (no operators assembled): the same answer.
-  const fem::ProxyGeodesicSolver bare(coarse.F, coarse_lengths, P);
+  const fem::ProxyGeodesicSolver bare(ice::intrinsic_mesh(coarse.F, coarse_lengths), P);
   // (To round-off: the two take P through different paths, and which of two equal candidates a
   // vertex keeps its virtual source from can differ by the last bit.)
   CHECK((bare.distance({17, midpoint}) - marching.distance({17, midpoint})).cwiseAbs().maxCoeff() <= 1e-12);
-  CHECK_THROWS_AS(fem::ProxyGeodesicSolver(coarse.F, coarse_lengths, fem::SparseMatrix(0.5 * P)), std::invalid_argument);
+  CHECK_THROWS_AS(fem::ProxyGeodesicSolver(ice::intrinsic_mesh(coarse.F, coarse_lengths), fem::SparseMatrix(0.5 * P)), std::invalid_argument);
 
   // A row whose columns are not joined by an edge (as QEM's rows can be after intrinsic Delaunay
   // flips): the point (−1, 0), halfway between the vertices at (−2, 0) and (0, 0). As a source it
@@ -299,11 +299,11 @@ TEST_CASE("geodesics by coarse marching are the straight-line distance on a flat
   triplets.emplace_back(nc, right, 0.5);
   fem::SparseMatrix unlaid(nc + 1, nc);
   unlaid.setFromTriplets(triplets.begin(), triplets.end());
-  const fem::ProxyGeodesicSolver across(coarse.F, coarse_lengths, unlaid);
+  const fem::ProxyGeodesicSolver across(ice::intrinsic_mesh(coarse.F, coarse_lengths), unlaid);
   fem::SparseMatrix negative = unlaid;  // rows summing to 1, one with a negative weight: refused
   negative.coeffRef(nc, left) = 1.5;
   negative.coeffRef(nc, right) = -0.5;
-  CHECK_THROWS_AS(fem::ProxyGeodesicSolver(coarse.F, coarse_lengths, negative), std::invalid_argument);
+  CHECK_THROWS_AS(fem::ProxyGeodesicSolver(ice::intrinsic_mesh(coarse.F, coarse_lengths), negative), std::invalid_argument);
   const Eigen::VectorXd from_point = across.distance({static_cast<int>(nc)});
   const Eigen::VectorXd to_point = (coarse.V.rowwise() - Eigen::RowVector3d(-1, 0, 0)).rowwise().norm();
   CHECK(from_point(nc) == 0.0);
@@ -325,7 +325,7 @@ TEST_CASE("coarse marching on the subdivided coarse mesh: the same metric, neare
     const auto [fine, P] = midpoint_split(coarse);
     const ice::FaceLengths lengths = ice::face_lengths_from_positions(coarse.V, coarse.F);
     for (int subdivisions = 0; subdivisions < 3; ++subdivisions) {
-      const fem::ProxyGeodesicSolver solver(coarse.F, lengths, P, subdivisions);
+      const fem::ProxyGeodesicSolver solver(ice::intrinsic_mesh(coarse.F, lengths), P, subdivisions);
       for (int source : {0, 17, static_cast<int>(coarse.V.rows()) + 5}) {
         const Eigen::VectorXd exact = (fine.V.rowwise() - fine.V.row(source)).rowwise().norm();
         const Eigen::VectorXd d = solver.distance({source});
@@ -333,7 +333,7 @@ TEST_CASE("coarse marching on the subdivided coarse mesh: the same metric, neare
         CHECK(fem::max_abs_error(d, exact) <= 1e-6 * exact.maxCoeff());  // float layouts
       }
     }
-    CHECK_THROWS_AS(fem::ProxyGeodesicSolver(coarse.F, lengths, P, -1), std::invalid_argument);
+    CHECK_THROWS_AS(fem::ProxyGeodesicSolver(ice::intrinsic_mesh(coarse.F, lengths), P, -1), std::invalid_argument);
   }
   // Curved (a coarse icosphere's polyhedral metric, its curvature at the vertices): the marching's
   // planar updates miss the polyhedron's geodesics; on its 1:4 subdivisions (the same metric, flat
@@ -346,7 +346,7 @@ TEST_CASE("coarse marching on the subdivided coarse mesh: the same metric, neare
     const std::vector<int> sources{0, static_cast<int>(coarse.V.rows()) + 7};
     std::vector<Eigen::VectorXd> distances;
     for (int subdivisions = 0; subdivisions <= 4; ++subdivisions) {
-      const fem::ProxyGeodesicSolver solver(coarse.F, lengths, P, subdivisions);
+      const fem::ProxyGeodesicSolver solver(ice::intrinsic_mesh(coarse.F, lengths), P, subdivisions);
       Eigen::VectorXd d(2 * fine.V.rows());
       d << solver.distance({sources[0]}), solver.distance({sources[1]});
       distances.push_back(d);
@@ -401,7 +401,7 @@ TEST_CASE("coarse marching from a point off-centre on an edge or in a face is th
   fem::SparseMatrix P(where.rows(), 4);
   P.setFromTriplets(triplets.begin(), triplets.end());
   for (int subdivisions = 0; subdivisions <= 2; ++subdivisions) {
-    const fem::ProxyGeodesicSolver solver(coarse.F, lengths, P, subdivisions);
+    const fem::ProxyGeodesicSolver solver(ice::intrinsic_mesh(coarse.F, lengths), P, subdivisions);
     for (Eigen::Index source = 4; source < where.rows(); ++source) {
       INFO("subdivisions " << subdivisions << ", source " << source - 4);
       const Eigen::VectorXd exact = (where.rowwise() - where.row(source)).rowwise().norm();
@@ -414,8 +414,8 @@ TEST_CASE("coarse marching from a point off-centre on an edge or in a face is th
 
 TEST_CASE("smoothed prolongation: one damped Jacobi step of P, a better Galerkin coarse space", "[fem][coarse_proxy]") {
   const auto [coarse, fine, coarse_lengths, fine_lengths, P] = nested_spheres(2);
-  const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine_lengths);
-  const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine_lengths);
+  const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(fine.F, fine_lengths));
+  const fem::SparseMatrix M = fem::mass_matrix(ice::intrinsic_mesh(fine.F, fine_lengths));
 
   // The definition, entry by entry against dense arithmetic, and rows still summing to 1.
   const fem::SparseMatrix S = fem::smoothed_prolongation(P, L);
@@ -425,11 +425,10 @@ TEST_CASE("smoothed prolongation: one damped Jacobi step of P, a better Galerkin
   CHECK((Eigen::MatrixXd(S) - expected).cwiseAbs().maxCoeff() < 1e-12);
   CHECK((S * Eigen::VectorXd::Ones(S.cols()) - Eigen::VectorXd::Ones(S.rows())).cwiseAbs().maxCoeff() < 1e-12);
   CHECK(S.nonZeros() > P.nonZeros());  // each row reaches the coarse vertices of its neighbours
-  CHECK_THROWS_AS(fem::smoothed_prolongation(P, fem::cotan_laplacian(coarse.F, coarse_lengths)), std::invalid_argument);
+  CHECK_THROWS_AS(fem::smoothed_prolongation(P, fem::cotan_laplacian(ice::intrinsic_mesh(coarse.F, coarse_lengths))), std::invalid_argument);
 
-  const fem::CoarseProxy plain(fine.F, fine_lengths, coarse.F, coarse_lengths, P, fem::CoarseOperatorKind::galerkin);
-  const fem::CoarseProxy smoothed(fine.F, fine_lengths, coarse.F, coarse_lengths, P, fem::CoarseOperatorKind::galerkin,
-                                  fem::MassKind::lumped, fem::ProlongationKind::smoothed);
+  const fem::CoarseProxy plain(ice::intrinsic_mesh(fine.F, fine_lengths), ice::intrinsic_mesh(coarse.F, coarse_lengths), P, {fem::CoarseOperatorKind::galerkin});
+  const fem::CoarseProxy smoothed(ice::intrinsic_mesh(fine.F, fine_lengths), ice::intrinsic_mesh(coarse.F, coarse_lengths), P, {fem::CoarseOperatorKind::galerkin, fem::MassKind::lumped, fem::ProlongationKind::smoothed});
   CHECK(smoothed.prolongation_kind() == fem::ProlongationKind::smoothed);
   CHECK((Eigen::MatrixXd(smoothed.prolongation()) - Eigen::MatrixXd(S)).cwiseAbs().maxCoeff() == 0.0);
   CHECK((Eigen::MatrixXd(smoothed.barycentric_prolongation()) - dense_P).cwiseAbs().maxCoeff() == 0.0);
@@ -464,8 +463,7 @@ TEST_CASE("smoothed prolongation: one damped Jacobi step of P, a better Galerkin
                            fem::ProxyGeodesicSolver(plain).distance(sources)) == 0.0);
 
   // What a smoothed P cannot do: intrinsic coarse operators, Dirichlet vertices.
-  CHECK_THROWS_AS(fem::CoarseProxy(fine.F, fine_lengths, coarse.F, coarse_lengths, P, fem::CoarseOperatorKind::intrinsic,
-                                   fem::MassKind::lumped, fem::ProlongationKind::smoothed),
+  CHECK_THROWS_AS(fem::CoarseProxy(ice::intrinsic_mesh(fine.F, fine_lengths), ice::intrinsic_mesh(coarse.F, coarse_lengths), P, {fem::CoarseOperatorKind::intrinsic, fem::MassKind::lumped, fem::ProlongationKind::smoothed}),
                   std::invalid_argument);
   const int fixed = static_cast<int>(source);
   REQUIRE(plain.coarse_vertex_of(fixed) >= 0);
@@ -477,8 +475,7 @@ TEST_CASE("the coarse heat method refuses a smoothed prolongation", "[fem][coars
   // Its sources' weights would be negative, and its distances through the smoothed space were 6x
   // less accurate (2.4 % against 0.37 % mean error here); marching reads the barycentric P.
   const NestedSpheres s = nested_spheres(2);
-  const fem::CoarseProxy proxy(s.fine.F, s.fine_lengths, s.coarse.F, s.coarse_lengths, s.P, fem::CoarseOperatorKind::galerkin,
-                               fem::MassKind::lumped, fem::ProlongationKind::smoothed);
+  const fem::CoarseProxy proxy(ice::intrinsic_mesh(s.fine.F, s.fine_lengths), ice::intrinsic_mesh(s.coarse.F, s.coarse_lengths), s.P, {fem::CoarseOperatorKind::galerkin, fem::MassKind::lumped, fem::ProlongationKind::smoothed});
   fem::ProxyGeodesicOptions heat_method;
   heat_method.method = fem::CoarseDistanceMethod::heat_method;
   CHECK_THROWS_AS(fem::ProxyGeodesicSolver(proxy, heat_method), std::invalid_argument);
@@ -497,7 +494,7 @@ TEST_CASE("the marching's subdivision keeps each edge's midpoint apart, loop edg
   const double diagonal = std::sqrt(1.0 + 0.49);
   ice::FaceLengths L(2, 3);
   L << 1.0, 0.7, diagonal, diagonal, 1.0, 0.7;  // (0,0)->(1,0)->(1,.7) and (0,0)->(1,.7)->(0,.7)
-  fem::detail::SubdividedMesh mesh{F, L, 1, {}, {}};
+  fem::detail::SubdividedMesh mesh{{F, L, {}, 1}, {}};
   for (int level = 1; level <= 3; ++level) {
     mesh = fem::detail::subdivide_midpoints(mesh.F, mesh.L, mesh.vertex_count, mesh.twin);
     const Eigen::Index faces = mesh.F.rows(), edges = 3 * faces / 2;
@@ -527,10 +524,9 @@ TEST_CASE("curvature-corrected coarse lengths: unchanged where flat, exp(K l^2/d
     const ice::TriangleMesh disk = equilateral_hexagon(6);
     const auto [fine, P] = midpoint_split(disk);
     const ice::FaceLengths coarse_lengths = ice::face_lengths_from_positions(disk.V, disk.F);
-    const ice::FaceLengths corrected = fem::curvature_corrected_lengths(
-        fine.F, ice::face_lengths_from_positions(fine.V, fine.F), disk.F, coarse_lengths, P);
+    const ice::FaceLengths corrected = fem::curvature_corrected_lengths(ice::intrinsic_mesh(fine), ice::intrinsic_mesh(disk.F, coarse_lengths), P);
     CHECK((corrected - coarse_lengths).cwiseAbs().maxCoeff() < 1e-12);
-    CHECK(fem::angle_defects(fine.F, ice::face_lengths_from_positions(fine.V, fine.F), fine.V.rows()).cwiseAbs().maxCoeff() < 1e-12);
+    CHECK(fem::angle_defects(ice::intrinsic_mesh(fine)).cwiseAbs().maxCoeff() < 1e-12);
   }
   // A closed convex surface with P = identity: every edge lengthened by exp(K l²/divisor), K the two
   // ends' angle defects over their areas (the divisor the proxy's marching takes by default, or the
@@ -538,12 +534,12 @@ TEST_CASE("curvature-corrected coarse lengths: unchanged where flat, exp(K l^2/d
   {
     const ice::TriangleMesh sphere = ice::make_icosphere(2);
     const ice::FaceLengths L = ice::face_lengths_from_positions(sphere.V, sphere.F);
-    const Eigen::VectorXd defect = fem::angle_defects(sphere.F, L, sphere.V.rows());
+    const Eigen::VectorXd defect = fem::angle_defects(ice::intrinsic_mesh(sphere.F, L, sphere.V.rows()));
     CHECK(defect.sum() == Approx(4 * 3.141592653589793).epsilon(1e-12));
-    const Eigen::VectorXd area = fem::lumped_vertex_areas(sphere.F, L);
-    const ice::FaceLengths by_default = fem::curvature_corrected_lengths(sphere.F, L, sphere.F, L, identity(sphere.V.rows()));
+    const Eigen::VectorXd area = fem::lumped_vertex_areas(ice::intrinsic_mesh(sphere.F, L));
+    const ice::FaceLengths by_default = fem::curvature_corrected_lengths(ice::intrinsic_mesh(sphere.F, L), ice::intrinsic_mesh(sphere.F, L), identity(sphere.V.rows()));
     const ice::FaceLengths for_oracle =
-        fem::curvature_corrected_lengths(sphere.F, L, sphere.F, L, identity(sphere.V.rows()), fem::kOracleCorrectionDivisor);
+        fem::curvature_corrected_lengths(ice::intrinsic_mesh(sphere.F, L), ice::intrinsic_mesh(sphere.F, L), identity(sphere.V.rows()), fem::kOracleCorrectionDivisor);
     for (Eigen::Index f = 0; f < sphere.F.rows(); ++f)
       for (int k = 0; k < 3; ++k) {
         const int u = sphere.F(f, k), w = sphere.F(f, (k + 1) % 3);
@@ -552,11 +548,10 @@ TEST_CASE("curvature-corrected coarse lengths: unchanged where flat, exp(K l^2/d
         CHECK(for_oracle(f, k) == Approx(L(f, k) * std::exp(density * L(f, k) * L(f, k) / 24)).epsilon(1e-12));
         CHECK(by_default(f, k) > L(f, k));
       }
-    CHECK_THROWS_AS(fem::curvature_corrected_lengths(sphere.F, L, sphere.F, L, identity(sphere.V.rows()), 0.0),
+    CHECK_THROWS_AS(fem::curvature_corrected_lengths(ice::intrinsic_mesh(sphere.F, L), ice::intrinsic_mesh(sphere.F, L), identity(sphere.V.rows()), 0.0),
                     std::invalid_argument);
   }
-  CHECK_THROWS_AS(fem::curvature_corrected_lengths(ice::Faces(0, 3), ice::FaceLengths(0, 3), ice::Faces::Constant(1, 3, 5),
-                                                   ice::FaceLengths::Ones(1, 3), fem::SparseMatrix(3, 3)),
+  CHECK_THROWS_AS(fem::curvature_corrected_lengths(ice::intrinsic_mesh(ice::Faces(0, 3), ice::FaceLengths(0, 3)), ice::intrinsic_mesh(ice::Faces::Constant(1, 3, 5), ice::FaceLengths::Ones(1, 3)), fem::SparseMatrix(3, 3)),
                   std::invalid_argument);
 }
 
@@ -570,14 +565,14 @@ TEST_CASE("curvature-corrected lengths bring coarse marching nearer the sphere's
   for (Eigen::Index f = 0; f < arcs.rows(); ++f)
     for (int k = 0; k < 3; ++k) arcs(f, k) = 2 * std::asin(arcs(f, k) / 2);  // unit sphere: chord → arc
   const ice::TriangleMesh& fine = upper.fine;
-  const ice::FaceLengths corrected = fem::curvature_corrected_lengths(fine.F, upper.fine_lengths, lower.coarse.F, arcs, P);
+  const ice::FaceLengths corrected = fem::curvature_corrected_lengths(ice::intrinsic_mesh(fine.F, upper.fine_lengths), ice::intrinsic_mesh(lower.coarse.F, arcs), P);
   double error_plain = 0, error_corrected = 0;
   for (int source : {0, 5, 200}) {
     Eigen::VectorXd exact(fine.V.rows());
     for (Eigen::Index v = 0; v < fine.V.rows(); ++v)
       exact(v) = std::acos(std::clamp(fine.V.row(v).normalized().dot(fine.V.row(source).normalized()), -1.0, 1.0));
-    error_plain += fem::distance_errors(fem::ProxyGeodesicSolver(lower.coarse.F, arcs, P, 2).distance({source}), exact).mean_relative;
-    error_corrected += fem::distance_errors(fem::ProxyGeodesicSolver(lower.coarse.F, corrected, P, 2).distance({source}), exact).mean_relative;
+    error_plain += fem::distance_errors(fem::ProxyGeodesicSolver(ice::intrinsic_mesh(lower.coarse.F, arcs), P, 2).distance({source}), exact).mean_relative;
+    error_corrected += fem::distance_errors(fem::ProxyGeodesicSolver(ice::intrinsic_mesh(lower.coarse.F, corrected), P, 2).distance({source}), exact).mean_relative;
   }
   INFO("mean error, plain " << error_plain / 3 << ", corrected " << error_corrected / 3);
   CHECK(error_corrected < 0.75 * error_plain);

@@ -47,8 +47,8 @@ TEST_CASE("heat-method distances on a bad triangulation: intrinsic Delaunay repa
   // No vertex was removed: compact vertex ids are the input ids.
   REQUIRE(bad.to_input.size() == static_cast<std::size_t>(disk.V.rows()));
 
-  const auto L_bad = fem::cotan_laplacian(bad.F, bad.L, disk.V.rows());
-  const auto L_good = fem::cotan_laplacian(good.F, good.L, disk.V.rows());
+  const auto L_bad = fem::cotan_laplacian(bad);
+  const auto L_good = fem::cotan_laplacian(good);
   CHECK(negative_weights(L_bad) > 100);
   CHECK(negative_weights(L_good) == 0);
 
@@ -57,7 +57,7 @@ TEST_CASE("heat-method distances on a bad triangulation: intrinsic Delaunay repa
   Eigen::VectorXd exact(disk.V.rows());
   for (Eigen::Index v = 0; v < disk.V.rows(); ++v) exact(v) = (disk.V.row(v) - disk.V.row(centre)).head<2>().norm();
   const auto distance = [&](const CompactMesh& mesh) {
-    fem::HeatGeodesicSolver solver(fem::heat_method_operators(mesh.F, mesh.L, fem::MassKind::lumped, 1.0, disk.V.rows()));
+    fem::HeatGeodesicSolver solver(fem::heat_method_operators(mesh, fem::MassKind::lumped, 1.0));
     return solver.distance({centre});
   };
   const Eigen::VectorXd d_bad = distance(bad), d_good = distance(good);

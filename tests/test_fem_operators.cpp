@@ -61,13 +61,13 @@ using ice_test::relative_difference;
 
 void require_intrinsic_matches_extrinsic(const ice::TriangleMesh& mesh, double tolerance) {
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths, mesh.V.rows());
+  const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths, mesh.V.rows()));
   const fem::SparseMatrix reference = extrinsic_laplacian(mesh);
   CHECK(relative_difference(L, reference) < tolerance);
   // Entry-wise too, relative to the largest diagonal (Frobenius can hide a few bad entries).
   CHECK(fem::SparseMatrix(L - reference).coeffs().cwiseAbs().maxCoeff() <
         tolerance * reference.diagonal().cwiseAbs().maxCoeff());
-  const Eigen::VectorXd mass = fem::lumped_vertex_areas(mesh.F, lengths, mesh.V.rows());
+  const Eigen::VectorXd mass = fem::lumped_vertex_areas(ice::intrinsic_mesh(mesh.F, lengths, mesh.V.rows()));
   const Eigen::VectorXd mass_reference = extrinsic_vertex_areas(mesh);
   CHECK((mass - mass_reference).cwiseAbs().maxCoeff() < tolerance * mass_reference.maxCoeff());
   CHECK(((mass - mass_reference).cwiseAbs().array() <= tolerance * mass_reference.array()).all());
@@ -239,7 +239,7 @@ TEST_CASE("operators: L symmetric, rows sum to zero, positive semidefinite", "[f
   for (const ice::TriangleMesh& mesh : {sphere_like_test_mesh(), ice::make_flat_disk(5, 1.0, 0.2, 9),
                                         ice::make_genus2(1)}) {
     const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-    const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths);
+    const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths));
     const double scale = L.diagonal().maxCoeff();
     CHECK(fem::SparseMatrix(L - fem::SparseMatrix(L.transpose())).norm() <= 1e-14 * L.norm());
     CHECK((L * Eigen::VectorXd::Ones(L.cols())).cwiseAbs().maxCoeff() < 1e-13 * scale);
@@ -250,12 +250,45 @@ TEST_CASE("operators: L symmetric, rows sum to zero, positive semidefinite", "[f
   }
 }
 
+TEST_CASE("operators: the intrinsic mesh they take, and its checks", "[fem][operators]") {
+  const ice::TriangleMesh mesh = ice::make_icosphere(1);
+  const ice::IntrinsicMesh sphere = ice::intrinsic_mesh(mesh);
+  CHECK(sphere.F == mesh.F);
+  CHECK(sphere.L == ice::face_lengths_from_positions(mesh.V, mesh.F));
+  CHECK(sphere.twin.empty());
+  CHECK(sphere.num_vertices() == mesh.V.rows());
+  CHECK(ice::intrinsic_mesh(mesh.F, sphere.L).vertex_count == mesh.V.rows());  // the vertices F names
+  CHECK(ice::intrinsic_mesh(ice::Faces(0, 3), ice::FaceLengths(0, 3)).vertex_count == 0);
+  const ice::IntrinsicMesh doubled = ice::with_lengths(sphere, 2 * sphere.L);
+  CHECK(doubled.F == sphere.F);
+  CHECK(doubled.vertex_count == sphere.vertex_count);
+  CHECK(fem::mass_matrix(doubled).sum() == Approx(4 * fem::mass_matrix(sphere).sum()).epsilon(1e-12));
+  CHECK(fem::SparseMatrix(fem::cotan_laplacian(doubled) - fem::cotan_laplacian(sphere)).norm() < 1e-12);  // scale-free
+  // A vertex no face uses: its row and column are empty, its lumped area 0.
+  const ice::IntrinsicMesh wider = ice::intrinsic_mesh(mesh.F, sphere.L, sphere.vertex_count + 1);
+  CHECK(fem::cotan_laplacian(wider).rows() == sphere.vertex_count + 1);
+  CHECK(fem::lumped_vertex_areas(wider)(sphere.vertex_count) == 0);
+  // Broken invariants are refused, whichever operator reads them.
+  ice::IntrinsicMesh too_few = sphere;
+  too_few.vertex_count = sphere.vertex_count - 1;
+  ice::IntrinsicMesh short_lengths = sphere;
+  short_lengths.L.conservativeResize(sphere.L.rows() - 1, 3);
+  ice::IntrinsicMesh negative = sphere;
+  negative.F(0, 0) = -1;
+  for (const ice::IntrinsicMesh* bad : {&too_few, &short_lengths, &negative}) {
+    CHECK_THROWS_AS(fem::cotan_laplacian(*bad), std::invalid_argument);
+    CHECK_THROWS_AS(fem::mass_matrix(*bad), std::invalid_argument);
+    CHECK_THROWS_AS(fem::gradient(*bad), std::invalid_argument);
+    CHECK_THROWS_AS(fem::heat_method_operators(*bad), std::invalid_argument);
+  }
+}
+
 TEST_CASE("operators: mass matrices, gradient and divergence", "[fem][operators]") {
   const ice::TriangleMesh mesh = ice::make_torus(20, 10, 2.0, 0.7);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
   const Eigen::VectorXd areas = fem::face_areas(lengths);
-  const fem::SparseMatrix lumped = fem::mass_matrix(mesh.F, lengths, fem::MassKind::lumped);
-  const fem::SparseMatrix consistent = fem::mass_matrix(mesh.F, lengths, fem::MassKind::consistent);
+  const fem::SparseMatrix lumped = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths), fem::MassKind::lumped);
+  const fem::SparseMatrix consistent = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths), fem::MassKind::consistent);
   const Eigen::VectorXd ones = Eigen::VectorXd::Ones(mesh.V.rows());
   CHECK(lumped.nonZeros() == mesh.V.rows());
   CHECK(ones.dot(lumped * ones) == Approx(areas.sum()).epsilon(1e-13));
@@ -269,9 +302,9 @@ TEST_CASE("operators: mass matrices, gradient and divergence", "[fem][operators]
   }
   CHECK(x.dot(consistent * x) == Approx(exact).epsilon(1e-13));
 
-  const fem::SparseMatrix G = fem::gradient(mesh.F, lengths);
-  const fem::SparseMatrix D = fem::divergence(mesh.F, lengths);
-  const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths);
+  const fem::SparseMatrix G = fem::gradient(ice::intrinsic_mesh(mesh.F, lengths));
+  const fem::SparseMatrix D = fem::divergence(ice::intrinsic_mesh(mesh.F, lengths));
+  const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths));
   REQUIRE(G.rows() == 2 * mesh.F.rows());
   REQUIRE(D.cols() == 2 * mesh.F.rows());
   // Constants have zero gradient; L is the stiffness matrix Gᵀ A G; D G = −L.
@@ -336,9 +369,9 @@ TEST_CASE("operators: the cotangent Laplacian equals Eigen's triplet assembly bi
     const ice::TriangleMesh mesh = ice::make_torus(300, 200, 1.0, 0.3);
     REQUIRE(mesh.V.rows() >= 50000);
     const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-    CHECK(identical(fem::cotan_laplacian(mesh.F, lengths), triplet_laplacian(mesh.F, lengths, mesh.V.rows())));
+    CHECK(identical(fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths)), triplet_laplacian(mesh.F, lengths, mesh.V.rows())));
     const Eigen::Index n = mesh.V.rows() + 1;
-    const fem::SparseMatrix with_unused = fem::cotan_laplacian(mesh.F, lengths, n);
+    const fem::SparseMatrix with_unused = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths, n));
     CHECK(identical(with_unused, triplet_laplacian(mesh.F, lengths, n)));
     CHECK(with_unused.col(n - 1).nonZeros() == 0);
   }
@@ -347,7 +380,7 @@ TEST_CASE("operators: the cotangent Laplacian equals Eigen's triplet assembly bi
     F << 0, 1, 2, 0, 2, 1;
     ice::FaceLengths lengths(2, 3);
     lengths << 1.0, 1.3, 0.9, 0.9, 1.3, 1.0;  // side k of each face joins its corners k and k+1
-    const fem::SparseMatrix L = fem::cotan_laplacian(F, lengths);
+    const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(F, lengths));
     CHECK(identical(L, triplet_laplacian(F, lengths, 3)));
     CHECK(L.nonZeros() == 9);
     CHECK((Eigen::MatrixXd(L) * Eigen::Vector3d::Ones()).cwiseAbs().maxCoeff() < 1e-15);
@@ -357,20 +390,20 @@ TEST_CASE("operators: the cotangent Laplacian equals Eigen's triplet assembly bi
     F << 0, 0, 1, 0, 1, 2;
     ice::FaceLengths lengths(2, 3);
     lengths << 1.0, 0.8, 0.8, 0.8, 1.1, 0.9;
-    CHECK(identical(fem::cotan_laplacian(F, lengths), triplet_laplacian(F, lengths, 3)));
+    CHECK(identical(fem::cotan_laplacian(ice::intrinsic_mesh(F, lengths)), triplet_laplacian(F, lengths, 3)));
   }
   SECTION("real meshes of the project set, and their intrinsic coarse meshes (Δ-complexes)") {
     for (const std::string& path : ice_test::mesh_sweep({"spot_subdiv.obj", "elephant.off", "blobby_3cc.off"})) {
       INFO("mesh " << path);
       const ice::TriangleMesh mesh = load_plain(path);
       const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-      CHECK(identical(fem::cotan_laplacian(mesh.F, lengths, mesh.V.rows()),
+      CHECK(identical(fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths, mesh.V.rows())),
                       triplet_laplacian(mesh.F, lengths, mesh.V.rows())));
       ice::CoarseSpaceOptions options;
       options.coarsen.target_vertices = 24;
       const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
       const ice::CompactMesh& C = coarse.mesh;
-      CHECK(identical(fem::cotan_laplacian(C.F, C.L, C.num_vertices()), triplet_laplacian(C.F, C.L, C.num_vertices())));
+      CHECK(identical(fem::cotan_laplacian(C), triplet_laplacian(C.F, C.L, C.num_vertices())));
     }
   }
 }
@@ -378,7 +411,7 @@ TEST_CASE("operators: the cotangent Laplacian equals Eigen's triplet assembly bi
 TEST_CASE("operators: Galerkin products", "[fem][operators]") {
   const ice::TriangleMesh mesh = ice::make_icosphere(1);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths);
+  const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths));
   fem::SparseMatrix identity(L.rows(), L.rows());
   identity.setIdentity();
   CHECK(relative_difference(fem::galerkin(identity, L), L) < 1e-15);
@@ -392,7 +425,7 @@ TEST_CASE("operators: Galerkin products", "[fem][operators]") {
   CHECK((coarse - coarse.transpose()).norm() == 0.0);
   CHECK((coarse * Eigen::VectorXd::Ones(7)).cwiseAbs().maxCoeff() < 1e-12 * coarse.norm());
   // Pᵀ L P and Pᵀ M P in one pass equal the two products apart, to the last bit.
-  const fem::SparseMatrix M = fem::mass_matrix(mesh.F, lengths);
+  const fem::SparseMatrix M = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths));
   const auto [coarse_L, coarse_M] = fem::galerkin(P, L, M);
   CHECK(identical(coarse_L, fem::galerkin(P, L)));
   CHECK(identical(coarse_M, fem::galerkin(P, M)));
@@ -416,7 +449,7 @@ TEST_CASE("operators: Galerkin products and the smoothed P split among threads",
   fem::SparseMatrix P(n, nc);
   P.setFromTriplets(weights.begin(), weights.end());
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths), M = fem::mass_matrix(mesh.F, lengths);
+  const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths)), M = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths));
   const auto [coarse_L, coarse_M] = fem::galerkin(P, L, M);
   CHECK(identical(coarse_L, fem::galerkin(P, L, 1)));  // the serial products, apart
   CHECK(identical(coarse_M, fem::galerkin(P, M, 1)));
@@ -439,7 +472,7 @@ TEST_CASE("operators: Galerkin products of an ICE coarse space, fused", "[fem][o
   options.coarsen.target_ratio = 0.02;
   const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, options);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  const fem::SparseMatrix L = fem::cotan_laplacian(mesh.F, lengths), M = fem::mass_matrix(mesh.F, lengths);
+  const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths)), M = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths));
   const auto [coarse_L, coarse_M] = fem::galerkin(coarse.P, L, M);
   CHECK(identical(coarse_L, fem::galerkin(coarse.P, L, 1)));  // the serial product
   CHECK(identical(coarse_M, fem::galerkin(coarse.P, M, 1)));
@@ -458,10 +491,9 @@ TEST_CASE("operators: Galerkin products of an ICE coarse space, fused", "[fem][o
         1e-12);  // L·1 = 0: smoothing keeps P·1 = 1
   // A Galerkin proxy keeps both products with a consistent (not diagonal) mass as with a lumped one.
   for (const fem::MassKind mass : {fem::MassKind::lumped, fem::MassKind::consistent}) {
-    const fem::CoarseProxy proxy(mesh.F, lengths, coarse.mesh.F, coarse.mesh.L, coarse.P, fem::CoarseOperatorKind::galerkin,
-                                 mass);
+    const fem::CoarseProxy proxy(ice::intrinsic_mesh(mesh.F, lengths), ice::intrinsic_mesh(coarse.mesh.F, coarse.mesh.L), coarse.P, {fem::CoarseOperatorKind::galerkin, mass});
     CHECK(identical(proxy.coarse_laplacian(), coarse_L));
-    CHECK(identical(proxy.coarse_mass(), fem::galerkin(coarse.P, fem::mass_matrix(mesh.F, lengths, mass))));
+    CHECK(identical(proxy.coarse_mass(), fem::galerkin(coarse.P, fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths), mass))));
   }
 }
 
@@ -499,7 +531,7 @@ TEST_CASE("operators: sphere spectrum converges to l(l+1)/R²", "[fem][operators
     const ice::TriangleMesh mesh = ice::make_icosphere(level, radius);
     const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
     const Eigen::VectorXd values = smallest_generalized_eigenvalues(
-        fem::cotan_laplacian(mesh.F, lengths), fem::mass_matrix(mesh.F, lengths), 9);
+        fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths)), fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths)), 9);
     Eigen::VectorXd exact(9);
     exact << 0, 2, 2, 2, 6, 6, 6, 6, 6;
     exact /= radius * radius;

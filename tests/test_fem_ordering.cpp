@@ -29,7 +29,7 @@ ice::TriangleMesh scrambled(const ice::TriangleMesh& mesh, unsigned seed) {
 }
 
 fem::SparseMatrix laplacian(const ice::TriangleMesh& mesh) {
-  return fem::cotan_laplacian(mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), mesh.V.rows());
+  return fem::cotan_laplacian(ice::intrinsic_mesh(mesh));
 }
 
 bool is_permutation_of_range(std::vector<int> order, std::size_t n) {

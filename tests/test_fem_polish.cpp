@@ -40,7 +40,7 @@ struct PolishFixture {
       f(i) = std::sin(6 * (mesh.V(i, 0) - low(0)) / size(0)) + std::cos(5 * (mesh.V(i, 1) - low(1)) / size(1));
   }
   fem::CoarseProxy proxy(fem::CoarseOperatorKind kind = fem::CoarseOperatorKind::intrinsic) const {
-    return fem::CoarseProxy(fine.F, fine.L, space.mesh.F, space.mesh.L, space.P, kind);
+    return fem::CoarseProxy(ice::intrinsic_mesh(fine.F, fine.L), ice::intrinsic_mesh(space.mesh.F, space.mesh.L), space.P, {kind});
   }
 };
 

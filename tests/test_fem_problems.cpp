@@ -30,8 +30,8 @@ struct Discretisation {
 Discretisation discretise(ice::TriangleMesh mesh) {
   Discretisation d;
   d.lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  d.laplacian = fem::cotan_laplacian(mesh.F, d.lengths, mesh.V.rows());
-  d.mass = fem::mass_matrix(mesh.F, d.lengths, fem::MassKind::lumped, mesh.V.rows());
+  d.laplacian = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, d.lengths, mesh.V.rows()));
+  d.mass = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, d.lengths, mesh.V.rows()), fem::MassKind::lumped);
   d.mesh = std::move(mesh);
   return d;
 }
@@ -127,7 +127,7 @@ TEST_CASE("heat-method geodesics on spheres converge to R·θ", "[fem][problems]
   double previous_mean = INFINITY;
   for (int level = 2; level <= 5; ++level) {
     const Discretisation d = discretise(ice::make_icosphere(level, radius));
-    const fem::HeatGeodesicSolver solver(fem::heat_method_operators(d.mesh.F, d.lengths));
+    const fem::HeatGeodesicSolver solver(fem::heat_method_operators(ice::intrinsic_mesh(d.mesh.F, d.lengths)));
     REQUIRE(solver.operators().boundary_vertices.empty());
     const int source = highest_vertex(d.mesh);
     const Eigen::VectorXd phi = solver.distance({source});
@@ -152,7 +152,7 @@ TEST_CASE("heat-method geodesics stay finite where the heat solution is subnorma
   // gradient divided the face area by a subnormal norm: ∞, and ∞ · 0 made every distance NaN.
   const double major = 4.0, minor = 0.5;
   const Discretisation d = discretise(ice::make_torus(800, 8, major, minor));
-  fem::HeatMethodOperators ops = fem::heat_method_operators(d.mesh.F, d.lengths, fem::MassKind::lumped, 0.04);
+  fem::HeatMethodOperators ops = fem::heat_method_operators(ice::intrinsic_mesh(d.mesh.F, d.lengths), fem::MassKind::lumped, 0.04);
   const fem::HeatGeodesicSolver solver(std::move(ops));
   const Eigen::VectorXd phi = solver.distance({0});
   REQUIRE(phi.allFinite());
@@ -165,7 +165,7 @@ TEST_CASE("heat-method geodesics on a disk with boundary", "[fem][problems][geod
   double previous_mean = INFINITY;
   for (int rings : {8, 16, 32}) {
     const Discretisation d = discretise(ice::make_flat_disk(rings, 1.0, 0.2, 17));
-    const fem::HeatGeodesicSolver solver(fem::heat_method_operators(d.mesh.F, d.lengths));
+    const fem::HeatGeodesicSolver solver(fem::heat_method_operators(ice::intrinsic_mesh(d.mesh.F, d.lengths)));
     REQUIRE(solver.operators().boundary_vertices.size() == static_cast<std::size_t>(6 * rings));
     const Eigen::VectorXd phi = solver.distance({0});  // the centre vertex (jittered)
     const Eigen::VectorXd exact = (d.mesh.V.rowwise() - d.mesh.V.row(0)).rowwise().norm();
@@ -177,7 +177,7 @@ TEST_CASE("heat-method geodesics on a disk with boundary", "[fem][problems][geod
   CHECK(previous_mean < 0.02);
   // Two sources: the distance is the smaller of the two, both sources at 0.
   const Discretisation d = discretise(ice::make_flat_disk(16, 1.0, 0.0, 1));
-  const fem::HeatGeodesicSolver solver(fem::heat_method_operators(d.mesh.F, d.lengths));
+  const fem::HeatGeodesicSolver solver(fem::heat_method_operators(ice::intrinsic_mesh(d.mesh.F, d.lengths)));
   Eigen::Index left = 0, right = 0;
   d.mesh.V.col(0).minCoeff(&left);
   d.mesh.V.col(0).maxCoeff(&right);
@@ -251,9 +251,9 @@ TEST_CASE("several components: zero-mean Poisson and heat-method geodesics equal
   // Geodesics from a sphere vertex: the sphere's distances, +inf on the torus; and from one source
   // on each, each component's own.
   // (one time step for all: t = h² follows the mean edge length, which the union averages)
-  fem::HeatMethodOperators ops_both = fem::heat_method_operators(both.F, d_both.lengths);
-  fem::HeatMethodOperators ops_sphere = fem::heat_method_operators(sphere.F, d_sphere.lengths);
-  fem::HeatMethodOperators ops_torus = fem::heat_method_operators(torus.F, d_torus.lengths);
+  fem::HeatMethodOperators ops_both = fem::heat_method_operators(ice::intrinsic_mesh(both.F, d_both.lengths));
+  fem::HeatMethodOperators ops_sphere = fem::heat_method_operators(ice::intrinsic_mesh(sphere.F, d_sphere.lengths));
+  fem::HeatMethodOperators ops_torus = fem::heat_method_operators(ice::intrinsic_mesh(torus.F, d_torus.lengths));
   ops_sphere.time_step = ops_torus.time_step = ops_both.time_step;
   const fem::HeatGeodesicSolver geodesic_both(std::move(ops_both));
   const fem::HeatGeodesicSolver geodesic_sphere(std::move(ops_sphere));

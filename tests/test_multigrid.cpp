@@ -41,8 +41,8 @@ const Setup& mesh_setup(const std::string& name) {
   ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(s.mesh.V, s.mesh.F);
   T.flip_to_delaunay();
   const ice::CompactMesh idt = T.compact();
-  s.L = fem::cotan_laplacian(idt.F, idt.L, s.mesh.V.rows());
-  s.M = fem::mass_matrix(idt.F, idt.L, fem::MassKind::lumped, s.mesh.V.rows());
+  s.L = fem::cotan_laplacian(idt);
+  s.M = fem::mass_matrix(idt, fem::MassKind::lumped);
   return cache.emplace(name, std::move(s)).first->second;
 }
 
@@ -202,7 +202,7 @@ TEST_CASE("multigrid with Dirichlet vertices equals the eliminated CHOLMOD solve
 TEST_CASE("multigrid also converges on the raw extrinsic Laplacian (negative cotan weights)", "[multigrid][meshes]") {
   const Setup& s = mesh_setup("lion-head.off");
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(s.mesh.V, s.mesh.F);
-  const fem::SparseMatrix A = fem::cotan_laplacian(s.mesh.F, lengths) + shift(s) * s.M;
+  const fem::SparseMatrix A = fem::cotan_laplacian(ice::intrinsic_mesh(s.mesh.F, lengths)) + shift(s) * s.M;
   const Eigen::VectorXd b = test_rhs(s);
   fem::MultigridSolver solver(s.hierarchy.prolongations, {});
   solver.setup(A);
@@ -316,9 +316,15 @@ TEST_CASE("multigrid refuses bad input", "[multigrid]") {
     o.reorder = reorder;
     ice::Faces F = s.mesh.F;
     const ice::FaceLengths L = ice::face_lengths_from_positions(s.mesh.V, s.mesh.F);
-    CHECK_THROWS_AS(ice::build_hierarchy(F, ice::FaceLengths(L.topRows(L.rows() - 1)), o), std::invalid_argument);
+    CHECK_THROWS_AS(ice::build_hierarchy(ice::IntrinsicMesh{F, ice::FaceLengths(L.topRows(L.rows() - 1)), {}, static_cast<ice::Index>(s.mesh.V.rows())}, o), std::invalid_argument);
+    ice::IntrinsicMesh glued = ice::intrinsic_mesh(s.mesh);
+    CHECK_NOTHROW(ice::build_hierarchy(glued, o));
+    glued.twin = ice::glue_by_vertex_pairs(glued.F);  // a gluing given: not supported
+    CHECK_THROWS_AS(ice::build_hierarchy(glued, o), std::invalid_argument);
+    CHECK_THROWS_AS(ice::build_hierarchy(ice::intrinsic_mesh(F, L, static_cast<ice::Index>(s.mesh.V.rows()) + 1), o),
+                    std::invalid_argument);  // a vertex no face uses
     F(3, 1) = -2;
-    CHECK_THROWS_AS(ice::build_hierarchy(F, L, o), std::invalid_argument);
+    CHECK_THROWS_AS(ice::build_hierarchy(ice::intrinsic_mesh(F, L), o), std::invalid_argument);
   }
   // A locality order that is not a permutation of the unknowns.
   fem::MultigridSolver ordered(s.hierarchy.prolongations);
@@ -471,8 +477,8 @@ TEST_CASE("threaded multigrid solves equal serial ones on a 99k-vertex mesh", "[
   const ice::TriangleMesh mesh = ice::loop_subdivide(ice::load_mesh(ice_test::project_mesh("spot_subdiv.obj")), 1);
   REQUIRE(mesh.V.rows() >= 50000);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  const fem::SparseMatrix M = fem::mass_matrix(mesh.F, lengths);
-  const fem::SparseMatrix A = fem::cotan_laplacian(mesh.F, lengths) + (1.0 / M.sum()) * M;
+  const fem::SparseMatrix M = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths));
+  const fem::SparseMatrix A = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths)) + (1.0 / M.sum()) * M;
   Eigen::VectorXd f(mesh.V.rows());
   for (Eigen::Index i = 0; i < f.size(); ++i) f(i) = std::sin(3 * mesh.V(i, 0)) + 0.3 * std::sin(17.0 * static_cast<double>(i));
   const Eigen::VectorXd b = M * f;
@@ -682,8 +688,8 @@ TEST_CASE("extended set: multigrid on raw scans converges at most 0.2 per PCG it
     ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
     T.flip_to_delaunay();
     const ice::CompactMesh idt = T.compact();
-    const fem::SparseMatrix L = fem::cotan_laplacian(idt.F, idt.L, mesh.V.rows());
-    const fem::SparseMatrix M = fem::mass_matrix(idt.F, idt.L, fem::MassKind::lumped, mesh.V.rows());
+    const fem::SparseMatrix L = fem::cotan_laplacian(idt);
+    const fem::SparseMatrix M = fem::mass_matrix(idt, fem::MassKind::lumped);
     Eigen::VectorXd f(mesh.V.rows());
     for (Eigen::Index i = 0; i < f.size(); ++i) f(i) = std::sin(0.1 * mesh.V(i, 0)) + 0.3 * std::sin(17.0 * static_cast<double>(i));
     Eigen::VectorXd b = M * f;

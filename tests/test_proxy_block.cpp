@@ -79,7 +79,7 @@ TEST_CASE("fine block solves: CHOLMOD's block solve equals the single solves wit
   const ice::TriangleMesh& mesh = unit_sphere();
   const ice::FaceLengths L = ice::face_lengths_from_positions(mesh.V, mesh.F);
   const auto n = static_cast<fem::Index>(mesh.V.rows());
-  const fem::SparseMatrix lap = fem::cotan_laplacian(mesh.F, L, n), M = fem::mass_matrix(mesh.F, L, fem::MassKind::lumped, n);
+  const fem::SparseMatrix lap = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, L, n)), M = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, L, n), fem::MassKind::lumped);
   const Eigen::MatrixXd F = cosine_sources(mesh, 5);
   const fem::PoissonSolver zero_mean = fem::PoissonSolver::zero_mean(lap, M);
   const Eigen::MatrixXd U = zero_mean.solve_multiple_weighted(M * F);

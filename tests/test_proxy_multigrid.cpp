@@ -47,8 +47,8 @@ struct FineSystem {
 
 FineSystem fine_system(const ice::TriangleMesh& mesh) {
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(mesh.V, mesh.F);
-  return {fem::cotan_laplacian(mesh.F, lengths, mesh.V.rows()),
-          fem::mass_matrix(mesh.F, lengths, fem::MassKind::lumped, mesh.V.rows())};
+  return {fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, lengths, mesh.V.rows())),
+          fem::mass_matrix(ice::intrinsic_mesh(mesh.F, lengths, mesh.V.rows()), fem::MassKind::lumped)};
 }
 
 // k smooth-ish sources of zero mean per column: products of coordinates.

@@ -76,8 +76,7 @@ TEST_CASE("solve_poisson is the proxy pipeline and solves -Laplace(u) = z on the
   // The pipeline it stands for, step by step: the same numbers to the last bit.
   const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, ice::proxy::default_coarsening(ice::ProxyUse::poisson_heat));
   const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
-  const fem::CoarseProxy proxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, fem::CoarseOperatorKind::galerkin,
-                               fem::MassKind::lumped, fem::ProlongationKind::smoothed);
+  const fem::CoarseProxy proxy(ice::intrinsic_mesh(fine.F, fine.L), ice::intrinsic_mesh(coarse.mesh.F, coarse.mesh.L), coarse.P, {fem::CoarseOperatorKind::galerkin, fem::MassKind::lumped, fem::ProlongationKind::smoothed});
   CHECK(u == fem::ProxyPoissonSolver(proxy).solve(f));
   CHECK(coarse.mesh.num_vertices() == ice::proxy::target_vertices(static_cast<ice::Index>(mesh.V.rows()), 0.05));
 
@@ -130,7 +129,7 @@ TEST_CASE("geodesic_distance marches on traced, corrected lengths and follows gr
   const ice::CoarseSpace coarse = ice::build_coarse_space(mesh, coarsening);
   const ice::SurfaceEdgeLengths lengths =
       ice::proxy::marching_lengths(mesh, coarse, true, ice::proxy::CurvatureCorrection::automatic);
-  CHECK(d == fem::ProxyGeodesicSolver(coarse.mesh.F, lengths.lengths, coarse.P, 1).distance({0}));
+  CHECK(d == fem::ProxyGeodesicSolver(ice::intrinsic_mesh(coarse.mesh.F, lengths.lengths), coarse.P, 1).distance({0}));
 
   // The coarse heat method: near the same distances.
   ice::proxy::GeodesicOptions heat;

@@ -209,22 +209,22 @@ TEST_CASE("qem: extrinsic and intrinsic Delaunay coarse meshes share P; proxy so
   CHECK(ext.to_input == idt.to_input);
   CHECK(idt.F.maxCoeff() == nc - 1);
   // Same total area, every iDT cotan weight non-negative.
-  const double area_ext = fem::lumped_vertex_areas(ext.F, ext.L, nc).sum();
-  const double area_idt = fem::lumped_vertex_areas(idt.F, idt.L, nc).sum();
+  const double area_ext = fem::lumped_vertex_areas(ext).sum();
+  const double area_idt = fem::lumped_vertex_areas(idt).sum();
   CHECK(std::abs(area_ext - area_idt) < 1e-10 * area_ext);
-  const fem::SparseMatrix Lidt = fem::cotan_laplacian(idt.F, idt.L, nc);
+  const fem::SparseMatrix Lidt = fem::cotan_laplacian(idt);
   for (Eigen::Index j = 0; j < Lidt.outerSize(); ++j)
     for (fem::SparseMatrix::InnerIterator it(Lidt, j); it; ++it)
       if (it.row() != it.col()) CHECK(it.value() <= 1e-12);
 
   // Zero-mean Poisson through both proxies, against the fine solve.
   const FaceLengths L = face_lengths_from_positions(mesh.V, mesh.F);
-  const fem::SparseMatrix Lf = fem::cotan_laplacian(mesh.F, L, n);
-  const fem::SparseMatrix Mf = fem::mass_matrix(mesh.F, L, fem::MassKind::lumped, n);
+  const fem::SparseMatrix Lf = fem::cotan_laplacian(ice::intrinsic_mesh(mesh.F, L, n));
+  const fem::SparseMatrix Mf = fem::mass_matrix(ice::intrinsic_mesh(mesh.F, L, n), fem::MassKind::lumped);
   Eigen::VectorXd f = mesh.V.col(0).array().sin() + mesh.V.col(1).array();
   const Eigen::VectorXd reference = fem::PoissonSolver::zero_mean(Lf, Mf).solve(f);
   for (const CompactMesh* c : {&ext, &idt}) {
-    const fem::CoarseProxy proxy(mesh.F, L, c->F, c->L, r.P, fem::CoarseOperatorKind::intrinsic);
+    const fem::CoarseProxy proxy(ice::intrinsic_mesh(mesh.F, L), ice::intrinsic_mesh(c->F, c->L), r.P, {fem::CoarseOperatorKind::intrinsic});
     const Eigen::VectorXd u = fem::ProxyPoissonSolver(proxy).solve(f);
     const double error = fem::relative_l2_error(u, reference, Mf);
     INFO("QEM " << (c == &ext ? "extrinsic" : "iDT") << " Poisson relative L2 error " << error);
@@ -239,14 +239,14 @@ TEST_CASE("coarse proxy: Galerkin heat-method operators use the lumped Galerkin 
   const QemResult r = qem_coarsen(mesh, options);
   const CompactMesh c = qem_extrinsic_mesh(r);
   const FaceLengths L = face_lengths_from_positions(mesh.V, mesh.F);
-  const fem::CoarseProxy galerkin(mesh.F, L, c.F, c.L, r.P, fem::CoarseOperatorKind::galerkin);
+  const fem::CoarseProxy galerkin(ice::intrinsic_mesh(mesh.F, L), ice::intrinsic_mesh(c.F, c.L), r.P, {fem::CoarseOperatorKind::galerkin});
   const fem::HeatMethodOperators ops = galerkin.coarse_heat_method_operators();
   const Eigen::VectorXd row_sums = galerkin.coarse_mass() * Eigen::VectorXd::Ones(40);
   CHECK(ops.mass.nonZeros() == 40);
   CHECK((Eigen::VectorXd(ops.mass.diagonal()) - row_sums).cwiseAbs().maxCoeff() < 1e-14);
   CHECK(ops.gradient.rows() == 2 * mesh.F.rows());
   // The intrinsic proxy assembles the fine Laplacian only on request, and it is the same matrix.
-  const fem::CoarseProxy intrinsic(mesh.F, L, c.F, c.L, r.P, fem::CoarseOperatorKind::intrinsic);
+  const fem::CoarseProxy intrinsic(ice::intrinsic_mesh(mesh.F, L), ice::intrinsic_mesh(c.F, c.L), r.P, {fem::CoarseOperatorKind::intrinsic});
   CHECK((fem::SparseMatrix(intrinsic.fine_laplacian() - galerkin.fine_laplacian())).norm() < 1e-12);
 }
 

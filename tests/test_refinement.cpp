@@ -275,8 +275,8 @@ TEST_CASE("Galerkin operators of a refined coarse space stay positive definite",
   options.refinement = ice::RefinementOptions{};
   const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
   const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
-  const fem::SparseMatrix L = fem::cotan_laplacian(fine.F, fine.L, mesh.V.rows());
-  const fem::SparseMatrix M = fem::mass_matrix(fine.F, fine.L, fem::MassKind::lumped, mesh.V.rows());
+  const fem::SparseMatrix L = fem::cotan_laplacian(fine);
+  const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
   Index weak = 0;
   for (Eigen::Index c = 0; c < space.P.cols(); ++c) weak += space.P.col(c).sum() < 1 ? 1 : 0;
   INFO(weak << " of " << space.P.cols() << " coarse columns weigh less than one fine vertex");

@@ -24,10 +24,8 @@ namespace {
 using ice::Index;
 using ice::kPi;
 
-ice::CompactMesh glued(const ice::TriangleMesh& mesh) {
-  ice::CompactMesh out;
-  out.F = mesh.F;
-  out.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
+ice::IntrinsicMesh glued(const ice::TriangleMesh& mesh) {
+  ice::IntrinsicMesh out = ice::intrinsic_mesh(mesh);
   out.twin = ice::glue_by_vertex_pairs(mesh.F);
   return out;
 }
@@ -59,7 +57,7 @@ std::vector<double> angle_errors(const Eigen::VectorXcd& a, const Eigen::VectorX
 
 // Error (degrees) of a field on the unit icosphere against the exact transport of `start` from
 // `source` along great circles, over the vertices at most 150° from the source: median and max.
-std::pair<double, double> sphere_field_error(const ice::TriangleMesh& mesh, const ice::CompactMesh& fine,
+std::pair<double, double> sphere_field_error(const ice::TriangleMesh& mesh, const ice::IntrinsicMesh& fine,
                                              const fem::TangentFrames& frames, Index source, const Eigen::Vector3d& start,
                                              const Eigen::VectorXcd& field) {
   const Eigen::Vector3d p = mesh.V.row(source).transpose().normalized();
@@ -78,7 +76,7 @@ std::pair<double, double> sphere_field_error(const ice::TriangleMesh& mesh, cons
 }
 
 // A unit tangent vector at `source` of the unit icosphere `mesh`: in 3D and in the source's frame.
-std::pair<Eigen::Vector3d, fem::Complex> sphere_start(const ice::TriangleMesh& mesh, const ice::CompactMesh& fine,
+std::pair<Eigen::Vector3d, fem::Complex> sphere_start(const ice::TriangleMesh& mesh, const ice::IntrinsicMesh& fine,
                                                       const fem::TangentFrames& frames, Index source) {
   const Eigen::Vector3d p = mesh.V.row(source).transpose().normalized();
   Eigen::Vector3d start(1, 0.3, 0.2);
@@ -94,7 +92,7 @@ std::pair<Eigen::Vector3d, fem::Complex> sphere_start(const ice::TriangleMesh& m
 // vector heat method, compared with the exact transport (sphere_field_error).
 std::pair<double, double> sphere_transport_error(int subdivisions) {
   const ice::TriangleMesh mesh = ice::make_icosphere(subdivisions);
-  const ice::CompactMesh fine = glued(mesh);
+  const ice::IntrinsicMesh fine = glued(mesh);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const Index source = 0;
   const auto [start, z0] = sphere_start(mesh, fine, frames, source);
@@ -165,7 +163,7 @@ TEST_CASE("tangent frames: coordinates start at 0 and span the circle", "[fem][v
   const ice::TriangleMesh disk = ice::make_flat_disk(6, 1.0, 0.2);
   const ice::TriangleMesh sphere = ice::make_icosphere(2);
   for (const ice::TriangleMesh* mesh : {&disk, &sphere}) {
-    const ice::CompactMesh m = glued(*mesh);
+    const ice::IntrinsicMesh m = glued(*mesh);
     const fem::TangentFrames frames = fem::tangent_frames(m);
     const Eigen::MatrixXd angles = fem::corner_angles(m.L);
     for (Eigen::Index v = 0; v < mesh->V.rows(); ++v) {
@@ -183,7 +181,7 @@ TEST_CASE("tangent frames: coordinates start at 0 and span the circle", "[fem][v
 }
 
 TEST_CASE("tangent frames refuse a mesh without its gluing", "[fem][vectors]") {
-  ice::CompactMesh m = glued(ice::make_icosphere(1));
+  ice::IntrinsicMesh m = glued(ice::make_icosphere(1));
   m.twin.clear();
   CHECK_THROWS_AS(fem::tangent_frames(m), std::invalid_argument);
   m = glued(ice::make_icosphere(1));
@@ -195,10 +193,10 @@ TEST_CASE("connection Laplacian of a flat disk is the scalar Laplacian of each c
   // Written in the plane's own frame (z_v = e^{−iθ_v} w_v, θ_v the direction of v's reference side),
   // the connection Laplacian must be the real cotan Laplacian: D A Dᴴ = L.
   const ice::TriangleMesh disk = ice::make_flat_disk(8, 1.0, 0.25);
-  const ice::CompactMesh m = glued(disk);
+  const ice::IntrinsicMesh m = glued(disk);
   const fem::TangentFrames frames = fem::tangent_frames(m);
   const fem::ComplexSparseMatrix A = fem::connection_laplacian(m, frames);
-  const fem::SparseMatrix L = fem::cotan_laplacian(m.F, m.L);
+  const fem::SparseMatrix L = fem::cotan_laplacian(m);
   const Eigen::Index n = disk.V.rows();
   Eigen::VectorXcd D(n);
   for (Eigen::Index v = 0; v < n; ++v) {
@@ -232,7 +230,7 @@ TEST_CASE("holonomy around a cap of a sphere equals the enclosed curvature", "[f
   double previous_gap = INFINITY, previous_smooth_gap = INFINITY;
   for (int subdivisions : {3, 4, 5}) {
     const ice::TriangleMesh mesh = ice::make_icosphere(subdivisions);
-    const ice::CompactMesh m = glued(mesh);
+    const ice::IntrinsicMesh m = glued(mesh);
     const fem::TangentFrames frames = fem::tangent_frames(m);
     const Cap cap = sphere_cap(mesh, frames, 0.3);
     const double holonomy = loop_holonomy(fem::connection_laplacian(m, frames), cap.loop);
@@ -263,7 +261,7 @@ TEST_CASE("vector heat method: parallel transport on a sphere converges to the e
 
 TEST_CASE("vector heat method interpolates prescribed vectors", "[fem][vectors]") {
   const ice::TriangleMesh mesh = ice::make_icosphere(4);
-  const ice::CompactMesh m = glued(mesh);
+  const ice::IntrinsicMesh m = glued(mesh);
   const fem::TangentFrames frames = fem::tangent_frames(m);
   const fem::VectorHeatSolver solver(fem::vector_heat_operators(m, frames));
   const std::vector<Index> sources = {0, 5, 9};
@@ -284,7 +282,7 @@ TEST_CASE("vector heat method interpolates prescribed vectors", "[fem][vectors]"
 
 TEST_CASE("vector prolongation without coarsening is a change of frames", "[fem][vectors]") {
   const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("spot.obj"));
-  const ice::CompactMesh fine = glued(mesh);
+  const ice::IntrinsicMesh fine = glued(mesh);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const Eigen::Index n = mesh.V.rows();
   SECTION("the same mesh on both sides: the identity") {
@@ -323,7 +321,7 @@ TEST_CASE("vector prolongation without coarsening is a change of frames", "[fem]
 TEST_CASE("vector heat method through the coarse proxy approaches the fine field", "[fem][vectors]") {
   // A sphere coarsened to 5 %: the proxy's transport against the fine mesh's, both operator kinds.
   const ice::TriangleMesh mesh = ice::make_icosphere(5);
-  const ice::CompactMesh fine = glued(mesh);
+  const ice::IntrinsicMesh fine = glued(mesh);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   ice::CoarseSpaceOptions options;
   options.coarsen.target_ratio = 0.05;
@@ -358,7 +356,7 @@ TEST_CASE("vector prolongation finds each neighbour's image along the faces its 
   // the transport from vertex 0 came out reversed (median 168° at 20 %); the copy whose route the
   // segment from the vertex follows gives 0.15 % / 0.3 % poor fits and 8.6°.
   const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("dino.off"));
-  const ice::CompactMesh fine = glued(mesh);
+  const ice::IntrinsicMesh fine = glued(mesh);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const fem::VectorHeatSolver solver(fem::vector_heat_operators(fine, frames));
   const Eigen::VectorXcd reference = solver.interpolate({0}, {fem::Complex(1, 0)});
@@ -387,7 +385,7 @@ TEST_CASE("vector heat method: every vertex reached gets a vector, of the source
   // magnitude u and indicator φ both turn negative on 52 vertices. u/φ is still the sources'
   // weighted mean magnitude there; taking it only where φ > 0 left those vertices without a vector.
   const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("lion-head.off"));
-  const ice::CompactMesh fine = glued(mesh);
+  const ice::IntrinsicMesh fine = glued(mesh);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const fem::VectorHeatSolver solver(fem::vector_heat_operators(fine, frames));
   const fem::VectorSources one = fem::vector_sources(mesh.V.rows(), {0}, {fem::Complex(0, 1)});
@@ -416,7 +414,7 @@ TEST_CASE("vector heat method: every vertex reached gets a vector, of the source
 TEST_CASE("vector heat operators on a second triangulation: the same operators in the input's frames", "[fem][vectors]") {
   SECTION("a Delaunay input: no flip, the input's own operators") {
     const ice::TriangleMesh mesh = ice::make_icosphere(2);
-    const ice::CompactMesh fine = glued(mesh);
+    const ice::IntrinsicMesh fine = glued(mesh);
     const fem::TangentFrames frames = fem::tangent_frames(fine);
     ice::IntrinsicTriangulation delaunay = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
     REQUIRE(delaunay.flip_to_delaunay() == 0);
@@ -432,7 +430,7 @@ TEST_CASE("vector heat operators on a second triangulation: the same operators i
     // v's reference side. Any flat triangulation's connection Laplacian annihilates it, so the input's
     // frames must have been matched with the Delaunay triangulation's exactly.
     const ice::TriangleMesh disk = ice::make_flat_disk(10, 1.0, 0.3, 7);
-    const ice::CompactMesh fine = glued(disk);
+    const ice::IntrinsicMesh fine = glued(disk);
     const fem::TangentFrames frames = fem::tangent_frames(fine);
     ice::IntrinsicTriangulation delaunay = ice::IntrinsicTriangulation::from_mesh(disk.V, disk.F);
     REQUIRE(delaunay.flip_to_delaunay() > 0);  // the input triangles are not Delaunay
@@ -455,7 +453,7 @@ TEST_CASE("vector heat operators on a second triangulation: the same operators i
   }
   SECTION("another vertex count is refused") {
     const ice::TriangleMesh mesh = ice::make_icosphere(1);
-    const ice::CompactMesh fine = glued(mesh);
+    const ice::IntrinsicMesh fine = glued(mesh);
     const fem::TangentFrames frames = fem::tangent_frames(fine);
     ice::CompactMesh bigger = ice::IntrinsicTriangulation::from_mesh(mesh.V, mesh.F).compact();
     bigger.F(0, 0) = static_cast<Index>(mesh.V.rows());
@@ -465,7 +463,7 @@ TEST_CASE("vector heat operators on a second triangulation: the same operators i
 
 TEST_CASE("vector field from a distance: a flat disk's field is parallel, two lengths stay in their range", "[fem][vectors]") {
   const ice::TriangleMesh disk = ice::make_flat_disk(10, 1.0, 0.2, 3);
-  const ice::CompactMesh fine = glued(disk);
+  const ice::IntrinsicMesh fine = glued(disk);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
   const Index source = 0, other = static_cast<Index>(disk.V.rows() / 2);
@@ -516,7 +514,7 @@ TEST_CASE("vector field from a distance: the passes converge to the fine method'
   // dips): the passes are Gauss–Seidel on the fine method's own systems, so they converge to its
   // field; the distance only orders and scales them.
   const ice::TriangleMesh torus = ice::make_torus(48, 16, 1.0, 0.35);
-  const ice::CompactMesh fine = glued(torus);
+  const ice::IntrinsicMesh fine = glued(torus);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
   const std::vector<Index> sources = {0, static_cast<Index>(torus.V.rows() / 2 + 5)};
@@ -555,7 +553,7 @@ TEST_CASE("vector field from a distance: a coarse-grid correction converges wher
   // it out a vertex at a time. The Galerkin correction on a coarse space's relative errors removes
   // it. Two sources of different lengths, so that the scalar systems are corrected too.
   const ice::TriangleMesh torus = ice::make_torus(64, 24, 1.0, 0.35);
-  const ice::CompactMesh fine = glued(torus);
+  const ice::IntrinsicMesh fine = glued(torus);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames, 4.0);
   const std::vector<Index> sources = {0, static_cast<Index>(torus.V.rows() / 2 + 7)};
@@ -610,7 +608,7 @@ TEST_CASE("vector field from a distance: a large coarse system goes to the super
   // 51,200 vertices, each its own coarse vertex: past the size from which CHOLMOD factorises the
   // coarse system instead of Eigen's simplicial LDLᵀ; two corrections are the direct solve again.
   const ice::TriangleMesh torus = ice::make_torus(320, 160, 1.0, 0.35);
-  const ice::CompactMesh fine = glued(torus);
+  const ice::IntrinsicMesh fine = glued(torus);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
   Eigen::VectorXd distance(torus.V.rows());
@@ -647,7 +645,7 @@ TEST_CASE("vector field from a distance: a field where the fine solve's kernel u
     strip.F.row(2 * i) = Eigen::RowVector3i(2 * i, 2 * i + 2, 2 * i + 3);
     strip.F.row(2 * i + 1) = Eigen::RowVector3i(2 * i, 2 * i + 3, 2 * i + 1);
   }
-  const ice::CompactMesh fine = glued(strip);
+  const ice::IntrinsicMesh fine = glued(strip);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
   Eigen::VectorXd distance(strip.V.rows());
@@ -689,14 +687,14 @@ TEST_CASE("vector heat field: a subnormal direction keeps its angle, a vanished 
 
 TEST_CASE("vector sweep through the coarse proxy approaches the fine field", "[fem][vectors]") {
   const ice::TriangleMesh mesh = ice::make_icosphere(5);
-  const ice::CompactMesh fine = glued(mesh);
+  const ice::IntrinsicMesh fine = glued(mesh);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   ice::CoarseSpaceOptions options;
   options.coarsen.target_ratio = 0.05;
   const ice::CoarseSpace space = ice::build_coarse_space(mesh, options);
   const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
   const Eigen::VectorXcd reference = fem::VectorHeatSolver(operators).interpolate({17}, {fem::Complex(0, 1)});
-  const fem::VectorSweepProxy sweep(operators, fem::ProxyGeodesicSolver(space.mesh.F, space.mesh.L, space.P));
+  const fem::VectorSweepProxy sweep(operators, fem::ProxyGeodesicSolver(ice::intrinsic_mesh(space.mesh.F, space.mesh.L), space.P));
   fem::DistanceSweepStats stats;
   const Eigen::VectorXcd field = sweep.interpolate({17}, {fem::Complex(0, 1)}, &stats);
   const std::vector<double> errors = angle_errors(field, reference);
@@ -704,6 +702,6 @@ TEST_CASE("vector sweep through the coarse proxy approaches the fine field", "[f
   CHECK(median(errors) < 0.05);  // 3e-8° after 12 passes with the coarse corrections, 0.0006° after 50 without (coarse diffusion: 0.8°)
   CHECK((field.cwiseAbs().array() - 1.0).abs().maxCoeff() < 1e-12);  // one source: its magnitude
   CHECK_THROWS_AS(fem::VectorSweepProxy(fem::vector_heat_operators(glued(ice::make_icosphere(1)), fem::tangent_frames(glued(ice::make_icosphere(1)))),
-                                        fem::ProxyGeodesicSolver(space.mesh.F, space.mesh.L, space.P)),
+                                        fem::ProxyGeodesicSolver(ice::intrinsic_mesh(space.mesh.F, space.mesh.L), space.P)),
                   std::invalid_argument);
 }

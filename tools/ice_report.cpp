@@ -145,11 +145,10 @@ struct Fine {
 Fine fine_reference(const ice::TriangleMesh& mesh, bool exact_geodesics) {
   Fine r;
   r.mesh = mesh;
-  const Eigen::Index n = mesh.V.rows();
   r.disc = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
   app::Stopwatch clock;
-  const fem::SparseMatrix L = fem::cotan_laplacian(r.disc.F, r.disc.L, n);
-  r.M = fem::mass_matrix(r.disc.F, r.disc.L, fem::MassKind::lumped, n);
+  const fem::SparseMatrix L = fem::cotan_laplacian(r.disc);
+  r.M = fem::mass_matrix(r.disc, fem::MassKind::lumped);
   r.t_assemble[0] = r.t_assemble[1] = clock.lap();  // the same L and M for Poisson and heat
   r.demo = app::demo_poisson_rhs(mesh);
   r.f = app::remove_mean(r.demo, r.M);
@@ -164,7 +163,7 @@ Fine fine_reference(const ice::TriangleMesh& mesh, bool exact_geodesics) {
   r.t_factor[1] = clock.lap();
   r.heat = heat.step(r.f);
   r.t_solve[1] = clock.lap();
-  fem::HeatMethodOperators ops = fem::heat_method_operators(r.disc.F, r.disc.L, fem::MassKind::lumped, 1.0, n);
+  fem::HeatMethodOperators ops = fem::heat_method_operators(r.disc, fem::MassKind::lumped, 1.0);
   r.t_assemble[2] = clock.lap();
   const fem::HeatGeodesicSolver geodesic(std::move(ops));
   r.t_factor[2] = clock.lap();
@@ -288,7 +287,7 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
     // The heat method's assembly counts as its factorisation; marching on other lengths than the
     // coarse mesh's own (--geodesic-lengths traced) takes the mesh and the barycentric P directly.
     const fem::ProxyGeodesicSolver solver = marching_lengths
-                                                ? fem::ProxyGeodesicSolver(coarse.mesh.F, *marching_lengths, coarse.P, geodesic.subdivisions)
+                                                ? fem::ProxyGeodesicSolver(ice::with_lengths(coarse.mesh, *marching_lengths), coarse.P, geodesic.subdivisions)
                                                 : fem::ProxyGeodesicSolver(proxy, geodesic);
     r.factor = clock.lap();
     fem::ProxyPhaseTimes total;

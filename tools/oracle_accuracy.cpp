@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
 
     const Eigen::MatrixXd exact = ice_bench::exact_geodesic_distances(mesh, sources);
     const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
-    const fem::HeatGeodesicSolver fine_solver(fem::heat_method_operators(fine.F, fine.L, fem::MassKind::lumped, 1.0, n));
+    const fem::HeatGeodesicSolver fine_solver(fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0));
     const Eigen::MatrixXd heat = fine_solver.distances_from_each(sources);
     std::vector<double> heat_vs_exact;
     for (int s = 0; s < source_count; ++s)
@@ -100,15 +100,14 @@ int main(int argc, char** argv) {
 
     // Marching on the coarse mesh's own lengths and on the curvature-corrected ones (geodesic-coarse's
     // default for ICE), and the heat method.
-    const ice::FaceLengths corrected = fem::curvature_corrected_lengths(
-        mesh.F, ice::face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F, space.mesh.L, space.P,
-        fem::kOracleCorrectionDivisor);
+    const ice::FaceLengths corrected =
+        fem::curvature_corrected_lengths(ice::intrinsic_mesh(mesh), space.mesh, space.P, fem::kOracleCorrectionDivisor);
     for (const int variant : {0, 1, 2}) {
       const fem::CoarseDistanceMethod method = variant < 2 ? fem::CoarseDistanceMethod::marching : fem::CoarseDistanceMethod::heat_method;
       fem::DistanceOracleOptions oracle_options;
       oracle_options.method = method;
       oracle_options.subdivisions = method == fem::CoarseDistanceMethod::marching ? subdivisions : 0;
-      const fem::DistanceOracle oracle(space.mesh.F, variant == 1 ? corrected : space.mesh.L, map, oracle_options);
+      const fem::DistanceOracle oracle(ice::with_lengths(space.mesh, variant == 1 ? corrected : space.mesh.L), map, oracle_options);
       const fem::PairErrors vs_exact = fem::relative_pair_errors(oracle, sources, exact);
       const fem::PairErrors vs_heat = fem::relative_pair_errors(oracle, sources, heat);
       const std::string name = path.substr(path.find_last_of('/') + 1);

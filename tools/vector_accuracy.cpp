@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
       runs.push_back(std::make_unique<Discretisation>(
           Discretisation{std::move(fine), std::move(solver), std::move(proxy), std::move(sweep), {}, {}, {}, {}, {}}));
     }
-    const ice::CompactMesh& input = runs.front()->fine.mesh;  // the same triangles and frames in both
+    const ice::IntrinsicMesh& input = runs.front()->fine.mesh;  // the same triangles and frames in both
     const fem::TangentFrames& frames = runs.front()->fine.frames;
     const auto unit_tangent = [&](ice::Index v, const Eigen::Vector3d& direction) {
       const fem::Complex t = fem::ambient_to_tangent(input, frames, mesh.V, v, direction);

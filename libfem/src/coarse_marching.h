@@ -826,12 +826,10 @@ class CoarseMarcher {
 /// their halves stay of unknown gluing). Without the carried gluing, the two halves of a loop edge
 /// (two parallel edges of one length after one subdivision) would share one midpoint at the next:
 /// a vertex of angle sum 4π joining two places of the surface.
-struct SubdividedMesh {
-  Faces F;
-  FaceLengths L;
-  Eigen::Index vertex_count = 0;
+/// The subdivided mesh (its `twin`: per side of F the side glued to it, −1 on the boundary, or
+/// kUnknownTwin) and where each side of the mesh it came from got its midpoint.
+struct SubdividedMesh : ice::IntrinsicMesh {
   std::vector<Index> side_midpoint;  ///< per side 3f + k of the input mesh
-  std::vector<Index> twin;           ///< per side of F: the side glued to it, −1 on the boundary, or kUnknownTwin
 };
 
 inline SubdividedMesh subdivide_midpoints(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count,

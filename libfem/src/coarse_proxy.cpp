@@ -150,23 +150,25 @@ SparseMatrix smoothed_prolongation(const SparseMatrix& P, const SparseMatrix& la
   return smoothed;
 }
 
-CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
-                         CoarseOperatorKind kind, MassKind mass_kind, ProlongationKind prolongation)
-    : kind_(kind), mass_kind_(mass_kind), prolongation_kind_(prolongation), coarse_faces_(Fc), coarse_lengths_(Lc) {
+CoarseProxy::CoarseProxy(ice::IntrinsicMesh fine, ice::IntrinsicMesh coarse, SparseMatrix P, const CoarseProxyOptions& options)
+    : kind_(options.kind), mass_kind_(options.mass_kind), prolongation_kind_(options.prolongation), coarse_(std::move(coarse)) {
+  const CoarseOperatorKind kind = options.kind;
+  const MassKind mass_kind = options.mass_kind;
+  const ProlongationKind prolongation = options.prolongation;
+  coarse_.twin.clear();
   P_.swap(P);  // Eigen 3.4's SparseMatrix has no move constructor (std::move copies)
   if (prolongation == ProlongationKind::smoothed && kind != CoarseOperatorKind::galerkin)
     throw std::invalid_argument("CoarseProxy: a smoothed prolongation needs Galerkin coarse operators");
   P_.makeCompressed();  // the proxy solvers gather straight from its arrays
-  const Eigen::Index n_fine = P_.rows(), n_coarse = P_.cols();
-  if (F.size() > 0 && F.maxCoeff() >= n_fine)
-    throw std::invalid_argument("CoarseProxy: P must be n_fine × n_coarse (the fine faces name vertices beyond it)");
-  require_prolongation(P_, Fc, "CoarseProxy");
-  fine_mass_ = mass_matrix(F, L, mass_kind, n_fine);
+  if (checked_vertex_count(fine) != P_.rows() || checked_vertex_count(coarse_) != P_.cols())
+    throw std::invalid_argument("CoarseProxy: P must be n_fine × n_coarse (" + std::to_string(fine.vertex_count) + " × " +
+                                std::to_string(coarse_.vertex_count) + "), not " + std::to_string(P_.rows()) + " × " +
+                                std::to_string(P_.cols()));
+  require_prolongation(P_, coarse_.F, "CoarseProxy");
+  fine_mass_ = mass_matrix(fine, mass_kind);
   fine_mass_.makeCompressed();
   lazy_ = std::make_unique<LazyFineOperators>();
-  lazy_->F = F;
-  lazy_->L = L;
-  lazy_->n = n_fine;
+  lazy_->mesh = std::move(fine);
 
   index_coinciding_vertices(P_);  // the given P (smoothed below)
   if (prolongation == ProlongationKind::smoothed) {
@@ -175,8 +177,8 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
   }
 
   if (kind == CoarseOperatorKind::intrinsic) {
-    coarse_laplacian_ = cotan_laplacian(Fc, Lc, n_coarse);
-    coarse_mass_ = mass_matrix(Fc, Lc, mass_kind, n_coarse);
+    coarse_laplacian_ = cotan_laplacian(coarse_);
+    coarse_mass_ = mass_matrix(coarse_, mass_kind);
   } else if (mass_kind == MassKind::lumped) {  // a diagonal mass: both products in one pass
     std::tie(coarse_laplacian_, coarse_mass_) = galerkin(P_, fine_laplacian(), fine_mass_);
   } else {
@@ -186,8 +188,7 @@ CoarseProxy::CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, 
 }
 
 CoarseProxy::CoarseProxy(CoarseProxyArrays&& a, FineMeshSource fine_mesh)
-    : kind_(a.kind), mass_kind_(a.mass_kind), prolongation_kind_(a.prolongation_kind),
-      coarse_faces_(std::move(a.coarse_faces)), coarse_lengths_(std::move(a.coarse_lengths)) {
+    : kind_(a.kind), mass_kind_(a.mass_kind), prolongation_kind_(a.prolongation_kind), coarse_(std::move(a.coarse)) {
   // Eigen 3.4's SparseMatrix has no move constructor (std::move copies): swap the arrays in.
   P_.swap(a.P);
   barycentric_.swap(a.barycentric);
@@ -206,8 +207,10 @@ CoarseProxy::CoarseProxy(CoarseProxyArrays&& a, FineMeshSource fine_mesh)
       coarse_laplacian_.cols() != n_coarse || coarse_mass_.rows() != n_coarse || coarse_mass_.cols() != n_coarse)
     throw std::invalid_argument(who + ": operator shapes disagree with P (" + std::to_string(n_fine) + " x " +
                                 std::to_string(n_coarse) + ")");
-  if (coarse_faces_.cols() != 3 || coarse_lengths_.rows() != coarse_faces_.rows() || coarse_lengths_.cols() != 3 ||
-      (coarse_faces_.size() > 0 && coarse_faces_.minCoeff() < 0))
+  coarse_.twin.clear();
+  coarse_.vertex_count = static_cast<Index>(n_coarse);
+  if (coarse_.F.cols() != 3 || coarse_.L.rows() != coarse_.F.rows() || coarse_.L.cols() != 3 ||
+      (coarse_.F.size() > 0 && coarse_.F.minCoeff() < 0))
     throw std::invalid_argument(who + ": the coarse faces and lengths disagree");
   fine_mass_.makeCompressed();
   for (Eigen::Index i = 0; i < fine_mass_.outerSize(); ++i) {
@@ -217,16 +220,16 @@ CoarseProxy::CoarseProxy(CoarseProxyArrays&& a, FineMeshSource fine_mesh)
       throw std::invalid_argument(who + ": the fine mass is not a non-negative diagonal (column " + std::to_string(i) + ")");
   }
   P_.makeCompressed();
-  require_prolongation(barycentric_prolongation(), coarse_faces_, who);
+  require_prolongation(barycentric_prolongation(), coarse_.F, who);
   lazy_ = std::make_unique<LazyFineOperators>();
-  lazy_->n = n_fine;
+  lazy_->mesh.vertex_count = static_cast<Index>(n_fine);
   lazy_->source = std::move(fine_mesh);
   index_coinciding_vertices(barycentric_prolongation());
 }
 
 CoarseProxyArrays CoarseProxy::arrays() const {
   return {kind_, mass_kind_, prolongation_kind_, P_, barycentric_, fine_mass_, coarse_laplacian_, coarse_mass_,
-          coarse_faces_, coarse_lengths_};
+          coarse_};
 }
 
 // A coarse vertex sitting on a fine vertex shows up as a row of the given P equal to e_j.
@@ -251,9 +254,15 @@ CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
   LazyFineOperators& lazy = *lazy_;
   std::call_once(lazy.mesh_once, [&lazy] {
     if (!lazy.source) return;
-    lazy.source(lazy.F, lazy.L);
-    if (lazy.F.size() > 0 && (lazy.F.maxCoeff() >= lazy.n || lazy.F.minCoeff() < 0 || lazy.L.rows() != lazy.F.rows()))
-      throw std::invalid_argument("CoarseProxy (restored): the fine mesh given does not fit P's rows");
+    const Index n = lazy.mesh.vertex_count;
+    lazy.source(lazy.mesh);
+    bool fits = lazy.mesh.vertex_count == n;
+    try {
+      fits = fits && checked_vertex_count(lazy.mesh) == n;
+    } catch (const std::invalid_argument&) {
+      fits = false;
+    }
+    if (!fits) throw std::invalid_argument("CoarseProxy (restored): the fine mesh given does not fit P's rows");
   });
   return lazy;
 }
@@ -263,15 +272,15 @@ CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
 const CoarseProxy::LazyFineOperators& CoarseProxy::fine_operators() const {
   LazyFineOperators& lazy = fine_mesh_of_lazy();
   std::call_once(lazy.gradient_once, [&lazy] {
-    lazy.gradient = gradient(lazy.F, lazy.L, lazy.n);
-    lazy.face_areas = face_areas(lazy.L);
+    lazy.gradient = gradient(lazy.mesh);
+    lazy.face_areas = face_areas(lazy.mesh.L);
   });
   return lazy;
 }
 
 const SparseMatrix& CoarseProxy::fine_laplacian() const {
   LazyFineOperators& lazy = fine_mesh_of_lazy();
-  std::call_once(lazy.laplacian_once, [&lazy] { lazy.laplacian = cotan_laplacian(lazy.F, lazy.L, lazy.n); });
+  std::call_once(lazy.laplacian_once, [&lazy] { lazy.laplacian = cotan_laplacian(lazy.mesh); });
   return lazy.laplacian;
 }
 
@@ -331,7 +340,7 @@ Eigen::MatrixXd CoarseProxy::prolong_block(const Eigen::MatrixXd& coarse_values)
 
 HeatMethodOperators CoarseProxy::coarse_heat_method_operators(double time_factor) const {
   if (kind_ == CoarseOperatorKind::intrinsic)
-    return heat_method_operators(coarse_faces_, coarse_lengths_, mass_kind_, time_factor, coarse_size());
+    return heat_method_operators(coarse_, mass_kind_, time_factor);
   if (!(time_factor > 0)) throw std::invalid_argument("coarse_heat_method_operators: time_factor must be positive");
   HeatMethodOperators ops;
   const LazyFineOperators& fine = fine_operators();
@@ -339,8 +348,8 @@ HeatMethodOperators CoarseProxy::coarse_heat_method_operators(double time_factor
   ops.mass = lumped(coarse_mass_);  // see the header: the heat step needs a diagonal mass
   ops.gradient = fine.gradient * P_;  // gradients of prolonged coarse functions, on the fine faces
   ops.face_areas = fine.face_areas;
-  ops.boundary_vertices = boundary_vertices(coarse_faces_);
-  const double h = mean_edge_length(coarse_lengths_);
+  ops.boundary_vertices = boundary_vertices(coarse_.F);
+  const double h = mean_edge_length(coarse_.L);
   ops.time_step = time_factor * time_factor * h * h;
   return ops;
 }
@@ -363,11 +372,9 @@ double lap_seconds(Clock::time_point& mark) {
 // with them) or one edge's ends is re-expressed in the sub-triangle holding its point; other rows
 // (interpolated linearly by the marching, see prepare_marching) keep their columns, which stay
 // vertices.
-struct SubdividedCoarseMesh {
-  Faces F;
-  FaceLengths L;
+/// The subdivided mesh (its gluing for the next subdivision: detail::SubdividedMesh) and P onto it.
+struct SubdividedCoarseMesh : ice::IntrinsicMesh {
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P;
-  std::vector<Index> twin;  ///< the sides' gluing, for the next subdivision (detail::SubdividedMesh)
 };
 
 SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& Lc,
@@ -379,6 +386,7 @@ SubdividedCoarseMesh subdivide_for_marching(const Faces& Fc, const FaceLengths& 
   out.L = std::move(mesh.L);
   out.twin = std::move(mesh.twin);
   const Index count = static_cast<Index>(mesh.vertex_count);
+  out.vertex_count = count;
   // Vertex pairs and the midpoint of their one edge, ice::kInvalid where sides with several midpoints
   // join the pair (parallel edges: which one a row's weights refer to is unknown).
   struct Edge {
@@ -846,26 +854,25 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGe
     require_barycentric(proxy);
     heat_ = std::make_unique<HeatGeodesicSolver>(proxy.coarse_heat_method_operators(options.time_factor));
   } else {
-    prepare_marching(proxy.coarse_faces(),
+    const ice::IntrinsicMesh& coarse = proxy.coarse_mesh();
+    prepare_marching(coarse.F,
                      options.curvature_correction
-                         ? curvature_corrected_lengths(proxy.fine_faces(), proxy.fine_lengths(), proxy.coarse_faces(),
-                                                       proxy.coarse_lengths(), proxy.barycentric_prolongation(),
+                         ? curvature_corrected_lengths(proxy.fine_mesh(), coarse, proxy.barycentric_prolongation(),
                                                        options.curvature_divisor)
-                         : proxy.coarse_lengths(),
+                         : coarse.L,
                      options.subdivisions);
   }
 }
 
-ProxyGeodesicSolver::ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P,
-                                         int subdivisions)
+ProxyGeodesicSolver::ProxyGeodesicSolver(const ice::IntrinsicMesh& coarse, SparseMatrix P, int subdivisions)
     : P_rows_(std::move(P)) {
   P_rows_.prune(0.0);
   P_rows_.makeCompressed();
-  require_prolongation(P_rows_, coarse_faces, "ProxyGeodesicSolver");
+  require_prolongation(P_rows_, coarse.F, "ProxyGeodesicSolver");
   for (Eigen::Index k = 0; k < P_rows_.nonZeros(); ++k)
     if (!(P_rows_.valuePtr()[k] > 0))
       throw std::invalid_argument("ProxyGeodesicSolver: P has a negative or non-finite weight (rows are barycentric coordinates)");
-  prepare_marching(coarse_faces, coarse_lengths, subdivisions);
+  prepare_marching(coarse.F, coarse.L, subdivisions);
 }
 
 void ProxyGeodesicSolver::prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths, int subdivisions) {

@@ -15,9 +15,10 @@ namespace {
 using ice::kPi;
 }  // namespace
 
-Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count) {
-  if (L.rows() != F.rows() || (F.rows() > 0 && (F.minCoeff() < 0 || F.maxCoeff() >= vertex_count)))
-    throw std::invalid_argument("angle_defects: faces and lengths of different shapes, or a vertex out of range");
+Eigen::VectorXd angle_defects(const ice::IntrinsicMesh& mesh) {
+  const Faces& F = mesh.F;
+  const FaceLengths& L = mesh.L;
+  const Eigen::Index vertex_count = checked_vertex_count(mesh);
   const Eigen::MatrixXd angles = corner_angles(L);
   Eigen::VectorXd angle_sum = Eigen::VectorXd::Zero(vertex_count);
   std::vector<char> used(static_cast<std::size_t>(vertex_count), 0);
@@ -33,10 +34,13 @@ Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index
   return defect;
 }
 
-FaceLengths curvature_corrected_lengths(const Faces& fine_faces, const FaceLengths& fine_lengths,
-                                        const Faces& coarse_faces, const FaceLengths& coarse_lengths,
+FaceLengths curvature_corrected_lengths(const ice::IntrinsicMesh& fine, const ice::IntrinsicMesh& coarse,
                                         const SparseMatrix& P, double divisor) {
   const char* who = "curvature_corrected_lengths: ";
+  const Faces& coarse_faces = coarse.F;
+  const FaceLengths& coarse_lengths = coarse.L;
+  if (checked_vertex_count(fine) != P.rows())
+    throw std::invalid_argument(std::string(who) + "the fine mesh's vertex count is not P's row count");
   if (!(divisor > 0) || !std::isfinite(divisor)) throw std::invalid_argument(std::string(who) + "the divisor must be positive");
   if (coarse_lengths.rows() != coarse_faces.rows() || coarse_faces.cols() != 3 || coarse_lengths.cols() != 3)
     throw std::invalid_argument(std::string(who) + "coarse faces and lengths of different shapes");
@@ -45,8 +49,8 @@ FaceLengths curvature_corrected_lengths(const Faces& fine_faces, const FaceLengt
   for (Eigen::Index k = 0; k < P.outerSize(); ++k)
     for (SparseMatrix::InnerIterator it(P, k); it; ++it)
       if (!(it.value() >= 0)) throw std::invalid_argument(std::string(who) + "P has a negative or non-finite weight");
-  const Eigen::VectorXd curvature = P.transpose() * angle_defects(fine_faces, fine_lengths, P.rows());
-  const Eigen::VectorXd area = P.transpose() * lumped_vertex_areas(fine_faces, fine_lengths, P.rows());
+  const Eigen::VectorXd curvature = P.transpose() * angle_defects(fine);
+  const Eigen::VectorXd area = P.transpose() * lumped_vertex_areas(fine);
 
   // One scale per edge: sides with the same ends and length are one edge (as the marching reads
   // them), numbered in the order of their keys.

@@ -25,15 +25,17 @@ using ice::seconds_since;
 
 }  // namespace
 
-DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coarse_lengths,
-                               const std::vector<ice::CoarsePoint>& fine_points, const DistanceOracleOptions& options)
+DistanceOracle::DistanceOracle(const ice::IntrinsicMesh& coarse, const std::vector<ice::CoarsePoint>& fine_points,
+                               const DistanceOracleOptions& options)
     : options_(options) {
+  const Faces& coarse_faces = coarse.F;
+  const FaceLengths& coarse_lengths = coarse.L;
   detail::check_marching_mesh(coarse_faces, coarse_lengths, "DistanceOracle");
   if (options.threads < 0 || options.heat_block_size < 1 || !(options.heat_time_factor > 0) || options.subdivisions < 0 ||
       options.subdivisions > kMaxMarchingSubdivisions)
     throw std::invalid_argument("DistanceOracle: threads must be >= 0, heat_block_size >= 1, heat_time_factor > 0, "
                                 "subdivisions in [0, " + std::to_string(kMaxMarchingSubdivisions) + "]");
-  coarse_size_ = coarse_faces.maxCoeff() + 1;
+  coarse_size_ = checked_vertex_count(coarse);
   faces_ = coarse_faces;
   squared_lengths_ = coarse_lengths.array().square();
   const std::size_t nc = static_cast<std::size_t>(coarse_size_);
@@ -54,7 +56,7 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
   start = std::chrono::steady_clock::now();
   std::vector<float> distances(nc * nc);
   if (options.method == CoarseDistanceMethod::marching) {
-    detail::SubdividedMesh finer{coarse_faces, coarse_lengths, coarse_size_, {}, {}};
+    detail::SubdividedMesh finer{{coarse_faces, coarse_lengths, {}, static_cast<Index>(coarse_size_)}, {}};
     for (int level = 0; level < options.subdivisions; ++level)  // the gluing carried from level to level
       finer = detail::subdivide_midpoints(finer.F, finer.L, finer.vertex_count, finer.twin);
     const detail::MarchingMesh marching_mesh(finer.F, finer.L, finer.vertex_count, finer.twin);
@@ -71,7 +73,7 @@ DistanceOracle::DistanceOracle(const Faces& coarse_faces, const FaceLengths& coa
     }
   } else {
     const HeatGeodesicSolver solver(
-        heat_method_operators(coarse_faces, coarse_lengths, MassKind::lumped, options.heat_time_factor, coarse_size_));
+        heat_method_operators(coarse, MassKind::lumped, options.heat_time_factor));
     for (Eigen::Index first = 0; first < coarse_size_; first += options.heat_block_size) {
       const Eigen::Index count = std::min<Eigen::Index>(options.heat_block_size, coarse_size_ - first);
       std::vector<Index> sources(static_cast<std::size_t>(count));

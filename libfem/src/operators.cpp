@@ -14,15 +14,19 @@ namespace {
 
 using Triplets = std::vector<Eigen::Triplet<double>>;
 
-Eigen::Index resolve_vertex_count(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
-  if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
+}  // namespace
+
+Eigen::Index checked_vertex_count(const ice::IntrinsicMesh& mesh) {
+  const Faces& F = mesh.F;
+  if (F.cols() != 3 || mesh.L.cols() != 3 || F.rows() != mesh.L.rows())
     throw std::invalid_argument("fem: F and L must both be m×3 with the same m");
-  const Eigen::Index needed = F.size() == 0 ? 0 : Eigen::Index(F.maxCoeff()) + 1;
   if (F.size() > 0 && F.minCoeff() < 0) throw std::invalid_argument("fem: negative vertex index in F");
-  if (!vertex_count) return needed;
-  if (*vertex_count < needed) throw std::invalid_argument("fem: vertex_count smaller than max index + 1");
-  return *vertex_count;
+  const Eigen::Index needed = F.size() == 0 ? 0 : Eigen::Index(F.maxCoeff()) + 1;
+  if (mesh.vertex_count < needed) throw std::invalid_argument("fem: vertex_count smaller than max index + 1");
+  return mesh.vertex_count;
 }
+
+namespace {
 
 SparseMatrix from_triplets(Eigen::Index rows, Eigen::Index cols, const Triplets& triplets) {
   SparseMatrix matrix(rows, cols);
@@ -140,8 +144,10 @@ SparseMatrix cotan_laplacian_distinct(const Faces& F, const Eigen::MatrixXd& cot
 
 }  // namespace
 
-SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
-  const Eigen::Index n = resolve_vertex_count(F, L, vertex_count);
+SparseMatrix cotan_laplacian(const ice::IntrinsicMesh& mesh) {
+  const Eigen::Index n = checked_vertex_count(mesh);
+  const Faces& F = mesh.F;
+  const FaceLengths& L = mesh.L;
   const Eigen::MatrixXd cot = corner_cotangents(L);
   bool distinct = true;
   for (Eigen::Index f = 0; f < F.rows() && distinct; ++f)
@@ -162,8 +168,10 @@ SparseMatrix cotan_laplacian(const Faces& F, const FaceLengths& L, VertexCount v
   return from_triplets(n, n, triplets);
 }
 
-Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
-  const Eigen::Index n = resolve_vertex_count(F, L, vertex_count);
+Eigen::VectorXd lumped_vertex_areas(const ice::IntrinsicMesh& mesh) {
+  const Eigen::Index n = checked_vertex_count(mesh);
+  const Faces& F = mesh.F;
+  const FaceLengths& L = mesh.L;
   const Eigen::VectorXd areas = face_areas(L);
   Eigen::VectorXd vertex_areas = Eigen::VectorXd::Zero(n);
   for (Eigen::Index f = 0; f < F.rows(); ++f)
@@ -171,10 +179,12 @@ Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, Vertex
   return vertex_areas;
 }
 
-SparseMatrix mass_matrix(const Faces& F, const FaceLengths& L, MassKind kind, VertexCount vertex_count) {
-  const Eigen::Index n = resolve_vertex_count(F, L, vertex_count);
+SparseMatrix mass_matrix(const ice::IntrinsicMesh& mesh, MassKind kind) {
+  const Eigen::Index n = checked_vertex_count(mesh);
+  const Faces& F = mesh.F;
+  const FaceLengths& L = mesh.L;
   if (kind == MassKind::lumped) {
-    const Eigen::VectorXd vertex_areas = lumped_vertex_areas(F, L, n);
+    const Eigen::VectorXd vertex_areas = lumped_vertex_areas(mesh);
     SparseMatrix mass(n, n);
     mass.reserve(Eigen::VectorXi::Ones(n));
     for (Eigen::Index v = 0; v < n; ++v) mass.insert(v, v) = vertex_areas(v);
@@ -190,8 +200,10 @@ SparseMatrix mass_matrix(const Faces& F, const FaceLengths& L, MassKind kind, Ve
   return from_triplets(n, n, triplets);
 }
 
-SparseMatrix gradient(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
-  const Eigen::Index n = resolve_vertex_count(F, L, vertex_count);
+SparseMatrix gradient(const ice::IntrinsicMesh& mesh) {
+  const Eigen::Index n = checked_vertex_count(mesh);
+  const Faces& F = mesh.F;
+  const FaceLengths& L = mesh.L;
   validate_lengths(L);
   Triplets triplets;
   triplets.reserve(static_cast<std::size_t>(6 * F.rows()));
@@ -209,9 +221,9 @@ SparseMatrix gradient(const Faces& F, const FaceLengths& L, VertexCount vertex_c
   return from_triplets(2 * F.rows(), n, triplets);
 }
 
-SparseMatrix divergence(const Faces& F, const FaceLengths& L, VertexCount vertex_count) {
-  const SparseMatrix G = gradient(F, L, vertex_count);
-  const Eigen::VectorXd areas = face_areas(L);
+SparseMatrix divergence(const ice::IntrinsicMesh& mesh) {
+  const SparseMatrix G = gradient(mesh);
+  const Eigen::VectorXd areas = face_areas(mesh.L);
   Eigen::VectorXd weights(2 * areas.size());
   for (Eigen::Index f = 0; f < areas.size(); ++f) weights(2 * f) = weights(2 * f + 1) = areas(f);
   return SparseMatrix(-(G.transpose() * weights.asDiagonal()));

@@ -287,17 +287,15 @@ Eigen::MatrixXd HeatSolver::trajectory(const Eigen::VectorXd& u0, int steps, int
 
 // ---- Heat method ------------------------------------------------------------------------------------
 
-HeatMethodOperators heat_method_operators(const Faces& F, const FaceLengths& L, MassKind mass_kind,
-                                          double time_factor, VertexCount vertex_count) {
+HeatMethodOperators heat_method_operators(const ice::IntrinsicMesh& mesh, MassKind mass_kind, double time_factor) {
   if (!(time_factor > 0)) throw std::invalid_argument("heat_method_operators: time_factor must be positive");
   HeatMethodOperators ops;
-  ops.laplacian = cotan_laplacian(F, L, vertex_count);
-  const Eigen::Index n = ops.laplacian.rows();
-  ops.mass = mass_matrix(F, L, mass_kind, n);
-  ops.gradient = gradient(F, L, n);
-  ops.face_areas = face_areas(L);
-  ops.boundary_vertices = boundary_vertices(F);
-  const double h = mean_edge_length(L);
+  ops.laplacian = cotan_laplacian(mesh);
+  ops.mass = mass_matrix(mesh, mass_kind);
+  ops.gradient = gradient(mesh);
+  ops.face_areas = face_areas(mesh.L);
+  ops.boundary_vertices = boundary_vertices(mesh.F);
+  const double h = mean_edge_length(mesh.L);
   ops.time_step = time_factor * time_factor * h * h;
   return ops;
 }

@@ -45,12 +45,7 @@ Index previous_cw_corner(const std::vector<Index>& twin, Index corner) {
   return side_of(across / 3, across % 3 + 1);
 }
 
-Eigen::Index vertex_count_of(const ice::CompactMesh& mesh) {
-  if (!mesh.to_input.empty()) return mesh.num_vertices();
-  return mesh.F.size() == 0 ? 0 : mesh.F.maxCoeff() + 1;
-}
-
-void check_gluing(const ice::CompactMesh& mesh) {
+void check_gluing(const ice::IntrinsicMesh& mesh) {
   const std::size_t sides = static_cast<std::size_t>(3 * mesh.F.rows());
   if (mesh.twin.size() != sides)
     throw std::invalid_argument("tangent frames: the mesh needs its gluing (twin of size 3 x faces; got " +
@@ -93,7 +88,7 @@ struct Fans {
       fn(corners[static_cast<std::size_t>(c)]);
   }
 };
-Fans vertex_fans(const ice::CompactMesh& mesh, const TangentFrames& frames) {
+Fans vertex_fans(const ice::IntrinsicMesh& mesh, const TangentFrames& frames) {
   const std::size_t n = frames.reference_corner.size();
   Fans fans;
   fans.start.assign(n + 1, 0);
@@ -124,11 +119,11 @@ CornerBasis corner_basis(const Faces& F, const Eigen::MatrixXd& V, Index f, int 
 
 }  // namespace
 
-TangentFrames tangent_frames(const ice::CompactMesh& mesh) {
+TangentFrames tangent_frames(const ice::IntrinsicMesh& mesh) {
   check_gluing(mesh);
   const Faces& F = mesh.F;
   const Eigen::Index m = F.rows();
-  const Eigen::Index n = vertex_count_of(mesh);
+  const Eigen::Index n = checked_vertex_count(mesh);
   const Eigen::MatrixXd angles = corner_angles(mesh.L);  // validates the lengths
   TangentFrames frames;
   frames.side_coordinate.resize(m, 3);
@@ -185,7 +180,7 @@ TangentFrames tangent_frames(const ice::CompactMesh& mesh) {
   return frames;
 }
 
-ComplexSparseMatrix connection_laplacian(const ice::CompactMesh& mesh, const TangentFrames& frames) {
+ComplexSparseMatrix connection_laplacian(const ice::IntrinsicMesh& mesh, const TangentFrames& frames) {
   const Eigen::MatrixXd cot = corner_cotangents(mesh.L);
   const Eigen::Index n = static_cast<Eigen::Index>(frames.reference_corner.size());
   std::vector<Eigen::Triplet<Complex, Index>> triplets;
@@ -208,7 +203,7 @@ ComplexSparseMatrix connection_laplacian(const ice::CompactMesh& mesh, const Tan
   return A;
 }
 
-Eigen::MatrixXd tangent_to_ambient(const ice::CompactMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V,
+Eigen::MatrixXd tangent_to_ambient(const ice::IntrinsicMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V,
                                    const Eigen::VectorXcd& field) {
   const Eigen::Index n = static_cast<Eigen::Index>(frames.reference_corner.size());
   if (field.size() != n || V.rows() < n || V.cols() != 3)
@@ -243,7 +238,7 @@ Eigen::MatrixXd tangent_to_ambient(const ice::CompactMesh& mesh, const TangentFr
   return out;
 }
 
-Complex ambient_to_tangent(const ice::CompactMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V, Index v,
+Complex ambient_to_tangent(const ice::IntrinsicMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V, Index v,
                            const Eigen::Vector3d& direction) {
   if (v < 0 || static_cast<std::size_t>(v) >= frames.reference_corner.size() ||
       frames.reference_corner[static_cast<std::size_t>(v)] == ice::kInvalid)
@@ -297,29 +292,28 @@ Eigen::VectorXcd ComplexCholeskySolver::solve(const Eigen::VectorXcd& b) const {
   return out;
 }
 
-VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames, double time_factor) {
+VectorHeatOperators vector_heat_operators(const ice::IntrinsicMesh& mesh, const TangentFrames& frames, double time_factor) {
   if (!(time_factor > 0)) throw std::invalid_argument("vector_heat_operators: the time factor must be positive");
   const Eigen::Index n = static_cast<Eigen::Index>(frames.reference_corner.size());
   VectorHeatOperators ops;
-  ops.laplacian = cotan_laplacian(mesh.F, mesh.L, n);
-  ops.mass = mass_matrix(mesh.F, mesh.L, MassKind::lumped, n);
+  if (checked_vertex_count(mesh) != n) throw std::invalid_argument("vector_heat_operators: the frames are not the mesh's");
+  ops.laplacian = cotan_laplacian(mesh);
+  ops.mass = mass_matrix(mesh, MassKind::lumped);
   ops.connection = connection_laplacian(mesh, frames);
   const double h = time_factor * mean_edge_length(mesh.L);
   ops.time_step = h * h;
   return ops;
 }
 
-VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames,
-                                          const ice::CompactMesh& delaunay, double time_factor) {
+VectorHeatOperators vector_heat_operators(const ice::IntrinsicMesh& mesh, const TangentFrames& frames,
+                                          const ice::IntrinsicMesh& delaunay, double time_factor) {
   if (!(time_factor > 0)) throw std::invalid_argument("vector_heat_operators: the time factor must be positive");
   const auto n = static_cast<Index>(frames.reference_corner.size());
   if (delaunay.F.rows() == 0 || delaunay.F.maxCoeff() >= n || delaunay.F.minCoeff() < 0)
     throw std::invalid_argument("vector_heat_operators: the second triangulation's vertices are not the mesh's");
   // Every vertex is its own coarse vertex, at one of its corners.
-  ice::CompactMesh same = delaunay;
-  same.to_input.resize(static_cast<std::size_t>(n));
-  for (Index v = 0; v < n; ++v) same.to_input[static_cast<std::size_t>(v)] = v;
-  same.from_input = same.to_input;
+  ice::IntrinsicMesh same = delaunay;
+  same.vertex_count = n;
   std::vector<ice::CoarsePoint> own(static_cast<std::size_t>(n));
   for (Eigen::Index f = 0; f < same.F.rows(); ++f)
     for (int k = 0; k < 3; ++k) {
@@ -429,7 +423,7 @@ namespace {
 // copy, or the nearest copy if no segment follows its route.
 class UnfoldedPatch {
  public:
-  UnfoldedPatch(const ice::CompactMesh& mesh, int depth) : mesh_(mesh), depth_(depth) {}
+  UnfoldedPatch(const ice::IntrinsicMesh& mesh, int depth) : mesh_(mesh), depth_(depth) {}
   void build(Index root) {
     for (const Placement& p : placements_) first_[static_cast<std::size_t>(p.face)] = -1;
     placements_.clear();
@@ -528,7 +522,7 @@ class UnfoldedPatch {
     return std::min(side_a, side_b) <= slack && std::max(side_a, side_b) >= -slack && std::min(side_p, side_q) <= slack &&
            std::max(side_p, side_q) >= -slack;
   }
-  const ice::CompactMesh& mesh_;
+  const ice::IntrinsicMesh& mesh_;
   int depth_;
   std::vector<Index> first_;  // per face: its latest placement, or -1
   std::vector<Placement> placements_;
@@ -539,7 +533,7 @@ class UnfoldedPatch {
 // the vertex's own frame (angles scaled as its frame scales them).
 class PolarChart {
  public:
-  PolarChart(const ice::CompactMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& angles, const Fans& fans)
+  PolarChart(const ice::IntrinsicMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& angles, const Fans& fans)
       : mesh_(mesh), frames_(frames), angles_(angles), fans_(fans) {}
   void build(Index vertex) {
     vertex_ = vertex;
@@ -584,7 +578,7 @@ class PolarChart {
   }
 
  private:
-  const ice::CompactMesh& mesh_;
+  const ice::IntrinsicMesh& mesh_;
   const TangentFrames& frames_;
   const Eigen::MatrixXd& angles_;
   const Fans& fans_;
@@ -620,8 +614,8 @@ bool fit_rotation(const std::vector<std::pair<Index, Complex>>& ring, const std:
 
 }  // namespace
 
-ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
-                                        const ice::CompactMesh& coarse, const TangentFrames& coarse_frames,
+ComplexSparseMatrix vector_prolongation(const ice::IntrinsicMesh& fine, const TangentFrames& fine_frames,
+                                        const ice::IntrinsicMesh& coarse, const TangentFrames& coarse_frames,
                                         const std::vector<ice::CoarsePoint>& map, VectorProlongationStats* stats) {
   const Eigen::Index n_fine = static_cast<Eigen::Index>(fine_frames.reference_corner.size());
   const Eigen::Index n_coarse = static_cast<Eigen::Index>(coarse_frames.reference_corner.size());
@@ -731,16 +725,16 @@ ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const Tang
 }
 
 // The fine operators only serve the Galerkin products.
-VectorHeatProxy::VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
-                                 const ice::CompactMesh& coarse, const TangentFrames& coarse_frames,
+VectorHeatProxy::VectorHeatProxy(const ice::IntrinsicMesh& fine, const TangentFrames& fine_frames,
+                                 const ice::IntrinsicMesh& coarse, const TangentFrames& coarse_frames,
                                  const std::vector<ice::CoarsePoint>& map, SparseMatrix P, VectorOperatorKind kind,
                                  double time_factor)
     : VectorHeatProxy(fine, fine_frames,
                       kind == VectorOperatorKind::galerkin ? vector_heat_operators(fine, fine_frames) : VectorHeatOperators{},
                       coarse, coarse_frames, map, std::move(P), kind, time_factor) {}
 
-VectorHeatProxy::VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
-                                 const VectorHeatOperators& fine_operators, const ice::CompactMesh& coarse,
+VectorHeatProxy::VectorHeatProxy(const ice::IntrinsicMesh& fine, const TangentFrames& fine_frames,
+                                 const VectorHeatOperators& fine_operators, const ice::IntrinsicMesh& coarse,
                                  const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map,
                                  SparseMatrix P, VectorOperatorKind kind, double time_factor)
     : P_(std::move(P)) {

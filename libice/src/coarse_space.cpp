@@ -149,6 +149,7 @@ void coarse_mesh_and_prolongation(const IntrinsicTriangulation& T, const std::ve
   for (Eigen::Index f = 0; f < C.F.rows(); ++f)
     for (int k = 0; k < 3; ++k) C.F(f, k) = renumbered[static_cast<std::size_t>(C.F(f, k))];
   C.to_input = std::move(to_input);
+  C.vertex_count = coarse;
   // P with the final coarse columns, T's input vertex t in row order[t].
   for (Index& c : C.from_input)
     if (c != kInvalid) c = renumbered[static_cast<std::size_t>(c)];
@@ -168,6 +169,7 @@ FineMesh fine_delaunay_mesh(IntrinsicTriangulation T, const std::vector<Index>& 
   fine.F = std::move(compact.F);
   fine.L = std::move(compact.L);
   fine.twin = std::move(compact.twin);  // sides keep their faces: renaming vertices leaves it valid
+  fine.vertex_count = compact.vertex_count;
   if (!order.empty())
     for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
       for (int k = 0; k < 3; ++k) fine.F(f, k) = order[static_cast<std::size_t>(fine.F(f, k))];
@@ -356,6 +358,7 @@ FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
   if (geometry == FineGeometry::input) {
     fine.F = mesh.F;
     fine.L = face_lengths_from_positions(mesh.V, mesh.F);
+    fine.vertex_count = static_cast<Index>(mesh.V.rows());
     return fine;
   }
   // Built and flipped in the locality numbering (as ICE coarsens), faces then named by input vertex.

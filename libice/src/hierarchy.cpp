@@ -375,13 +375,26 @@ void breadth_first_numbering(const Faces& F, const FaceLengths& L, std::vector<I
   for (Eigen::Index row = 0; row < L.rows(); ++row) L_out.row(row) = L.row(faces.face_order[static_cast<std::size_t>(row)]);
 }
 
+Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const HierarchyOptions& options);
+
 }  // namespace
 
 Hierarchy build_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options) {
-  return build_hierarchy(mesh.F, face_lengths_from_positions(mesh.V, mesh.F), options);
+  return hierarchy_of(mesh.F, face_lengths_from_positions(mesh.V, mesh.F), options);
 }
 
-Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyOptions& options) {
+Hierarchy build_hierarchy(const IntrinsicMesh& mesh, const HierarchyOptions& options) {
+  if (!mesh.twin.empty())
+    throw std::invalid_argument("build_hierarchy: the mesh must be glued by vertex pairs (its twin empty)");
+  if (mesh.vertex_count != (mesh.F.size() == 0 ? 0 : mesh.F.maxCoeff() + 1))
+    throw std::invalid_argument("build_hierarchy: every vertex must be used by a face (vertex_count = max index + 1)");
+  return hierarchy_of(mesh.F, mesh.L, options);
+}
+
+namespace {
+
+// The hierarchy of the intrinsic mesh (F, L) (the two public forms' common part).
+Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const HierarchyOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   if (!(options.ratio > 0 && options.ratio < 1))
     throw std::invalid_argument("build_hierarchy: ratio must be in (0, 1)");
@@ -412,8 +425,13 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
     if (v < 0 || v >= n0) throw std::invalid_argument("build_hierarchy: locked vertex out of range");
 
   Hierarchy H;
-  H.levels.push_back({F, L, std::vector<Index>(static_cast<std::size_t>(n0))});
-  std::iota(H.levels[0].to_fine.begin(), H.levels[0].to_fine.end(), 0);
+  HierarchyLevel input;
+  input.F = F;
+  input.L = L;
+  input.vertex_count = n0;
+  input.to_fine.resize(static_cast<std::size_t>(n0));
+  std::iota(input.to_fine.begin(), input.to_fine.end(), 0);
+  H.levels.push_back(std::move(input));
   std::vector<Index> t_to_fine = options.reorder ? fine_order : H.levels[0].to_fine;
 
   H.stop_reason = "max_levels reached";
@@ -470,6 +488,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
       level.to_fine[i] = t_to_fine[static_cast<std::size_t>(C.to_input[i])];
     level.F = std::move(C.F);
     level.L = std::move(C.L);
+    level.vertex_count = C.vertex_count;
     H.prolongations.push_back(std::move(P));
     H.coarsening.push_back(result);
     H.levels.push_back(std::move(level));
@@ -481,5 +500,7 @@ Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyO
   H.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return H;
 }
+
+}  // namespace
 
 }  // namespace ice

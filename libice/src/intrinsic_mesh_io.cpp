@@ -151,6 +151,7 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
                           ", side " + std::to_string(c) + " " + defect);
   }
   file.to_input.resize(static_cast<std::size_t>(n));
+  file.vertex_count = static_cast<Index>(n);
   for (Index v = 0; v < n; ++v) {
     if (!reader.next(words)) reader.fail(MeshError::Kind::Unreadable, "file ends after " + std::to_string(v) + " of " + std::to_string(n) + " vertex lines");
     long long id = 0;

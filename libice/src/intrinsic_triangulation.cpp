@@ -1528,6 +1528,7 @@ CompactMesh IntrinsicTriangulation::compact(const CompactNumbers& numbers, int t
   const std::vector<Index>& compact_of = numbers.vertex;
   out.from_input.assign(compact_of.begin(), compact_of.begin() + num_input_vertices());
   out.to_input.resize(static_cast<std::size_t>(numbers.vertices));
+  out.vertex_count = numbers.vertices;
   detail::run_ranges(threads, num_vertex_slots(), [&](Index begin, Index end) {
     for (Index v = begin; v < end; ++v)
       if (compact_of[v] != kInvalid) out.to_input[static_cast<std::size_t>(compact_of[v])] = v < num_input_vertices() ? v : kInvalid;

@@ -375,6 +375,7 @@ CompactMesh qem_extrinsic_mesh(const QemResult& result) {
   m.L = face_lengths_from_positions(result.coarse.V, result.coarse.F);
   m.twin = glue_by_vertex_pairs(m.F);  // a manifold mesh: its vertex pairs name its edges
   m.to_input = result.to_input;
+  m.vertex_count = static_cast<Index>(m.to_input.size());
   m.from_input = result.from_input;
   return m;
 }
@@ -389,6 +390,7 @@ CompactMesh qem_intrinsic_delaunay_mesh(const QemResult& result, int* flips) {
   m.L = std::move(c.L);
   m.twin = std::move(c.twin);  // flips can make multi-edges: keep the gluing
   m.to_input = result.to_input;
+  m.vertex_count = static_cast<Index>(m.to_input.size());
   m.from_input = result.from_input;
   return m;
 }

@@ -43,7 +43,7 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
     traced_ = trace(options_.lengths, setup_.coarse, map, true);
     lengths_ = marching_lengths(mesh, setup_.coarse, traced_, options_.curvature_correction, map,
                                 curvature_divisor(MarchingUse::single_source));
-    solver_ = std::make_unique<fem::ProxyGeodesicSolver>(setup_.coarse.mesh.F, lengths_.lengths, setup_.coarse.P,
+    solver_ = std::make_unique<fem::ProxyGeodesicSolver>(with_lengths(setup_.coarse.mesh, lengths_.lengths), setup_.coarse.P,
                                                          options_.subdivisions);
   } else {
     ProxySetupOptions setup;
@@ -80,10 +80,9 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
     map = &own_map;
   }
   const bool traced = trace(options.lengths, space, map, marching);
-  return fem::DistanceOracle(space.mesh.F,
-                             marching_lengths(mesh, space, traced, options.curvature_correction, map,
-                                              curvature_divisor(MarchingUse::all_pairs))
-                                 .lengths,
+  return fem::DistanceOracle(with_lengths(space.mesh, marching_lengths(mesh, space, traced, options.curvature_correction,
+                                                                      map, curvature_divisor(MarchingUse::all_pairs))
+                                                         .lengths),
                              *map, options.oracle);
 }
 

@@ -12,7 +12,7 @@ namespace ice::proxy {
 
 fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem::CoarseOperatorKind kind,
                             fem::ProlongationKind prolongation) {
-  return fem::CoarseProxy(fine.F, fine.L, coarse.mesh.F, coarse.mesh.L, coarse.P, kind, fem::MassKind::lumped, prolongation);
+  return fem::CoarseProxy(fine, coarse.mesh, coarse.P, {kind, fem::MassKind::lumped, prolongation});
 }
 
 ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& options, std::optional<CoarseSpace> coarse) {
@@ -69,8 +69,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
 
 FaceLengths curvature_corrected_lengths(const TriangleMesh& mesh, const CoarseSpace& space, const FaceLengths& lengths,
                                         double divisor) {
-  return fem::curvature_corrected_lengths(mesh.F, face_lengths_from_positions(mesh.V, mesh.F), space.mesh.F, lengths,
-                                          space.P, divisor);
+  return fem::curvature_corrected_lengths(intrinsic_mesh(mesh), with_lengths(space.mesh, lengths), space.P, divisor);
 }
 
 SurfaceEdgeLengths marching_lengths(const TriangleMesh& mesh, const CoarseSpace& space, bool traced,
@@ -92,6 +91,7 @@ TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool w
   out.mesh.F = mesh.F;
   out.mesh.L = face_lengths_from_positions(mesh.V, mesh.F);
   out.mesh.twin = glue_by_vertex_pairs(mesh.F);
+  out.mesh.vertex_count = static_cast<Index>(mesh.V.rows());
   out.frames = fem::tangent_frames(out.mesh);
   if (!with_operators) return out;
   if (geometry == FineGeometry::input) {
@@ -99,9 +99,7 @@ TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool w
   } else {
     FineMesh delaunay = fine_mesh(mesh, geometry);
     out.flips = delaunay.flips;
-    out.operators = fem::vector_heat_operators(
-        out.mesh, out.frames, CompactMesh{std::move(delaunay.F), std::move(delaunay.L), std::move(delaunay.twin), {}, {}},
-        time_factor);
+    out.operators = fem::vector_heat_operators(out.mesh, out.frames, delaunay, time_factor);
   }
   return out;
 }
@@ -122,7 +120,7 @@ fem::VectorSweepProxy make_vector_sweep(const TriangleMesh& mesh, const TangentM
   if (!fine.operators) throw std::logic_error("make_vector_sweep: the sweep needs the fine operators (tangent_mesh with_operators)");
   const bool traced = traces_lengths(CoarseLengths::automatic, coarse.summary.method, true);
   const SurfaceEdgeLengths lengths = marching_lengths(mesh, coarse, traced, CurvatureCorrection::automatic, &map);
-  return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(coarse.mesh.F, lengths.lengths, coarse.P), options);
+  return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(with_lengths(coarse.mesh, lengths.lengths), coarse.P), options);
 }
 
 }  // namespace ice::proxy

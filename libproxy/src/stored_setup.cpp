@@ -208,10 +208,8 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
 }
 
 fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry) {
-  return [input = std::make_shared<const TriangleMesh>(mesh), geometry](Faces& F, FaceLengths& L) {
-    FineMesh fine = fine_mesh(*input, geometry);
-    F = std::move(fine.F);
-    L = std::move(fine.L);
+  return [input = std::make_shared<const TriangleMesh>(mesh), geometry](IntrinsicMesh& fine) {
+    fine = static_cast<IntrinsicMesh&&>(fine_mesh(*input, geometry));
   };
 }
 
@@ -260,6 +258,7 @@ ProxySetup setup_from_entry(const EntryReader& entry, const std::string& path, c
               "input and coarse vertex maps disagree");
     c.mesh.twin = std::move(twin);
     c.mesh.to_input = std::move(to_input);
+    c.mesh.vertex_count = static_cast<Index>(c.mesh.to_input.size());
     c.mesh.from_input = std::move(from_input);
     const std::vector<std::int32_t> inserted_faces = entry.ints("coarse.inserted.face");
     const std::vector<double> inserted_bary = entry.doubles("coarse.inserted.bary");
@@ -300,12 +299,11 @@ ProxySetup setup_from_entry(const EntryReader& entry, const std::string& path, c
     std::copy(mass.begin(), mass.end(), a.fine_mass.valuePtr());
     entry.sparse("proxy.coarse_laplacian").swap(a.coarse_laplacian);
     entry.sparse("proxy.coarse_mass").swap(a.coarse_mass);
-    a.coarse_faces = c.mesh.F;
-    a.coarse_lengths = c.mesh.L;
+    a.coarse = IntrinsicMesh{c.mesh.F, c.mesh.L, {}, c.mesh.vertex_count};
     // The fine mesh is made again only if something asks for the fine operators (polishing, the
     // Galerkin heat method): the proxy's own operators are all here.
     if (!fine_mesh)
-      fine_mesh = [](Faces&, FaceLengths&) {
+      fine_mesh = [](IntrinsicMesh&) {
         throw std::logic_error("this coarse proxy was loaded from a store without a source of its fine mesh: its fine "
                                "operators (polishing, the Galerkin heat method) are not available");
       };

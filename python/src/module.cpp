@@ -116,21 +116,16 @@ ice::TriangleMesh mesh_argument(const py::handle& V, const py::handle& F) {
 }
 
 // The fine discretisation of an operator call: (V, F), or (F, lengths) for an intrinsic mesh.
-struct Discretisation {
-  ice::Faces F;
-  ice::FaceLengths L;
-  Eigen::Index n = 0;
-};
-Discretisation discretisation_argument(const py::object& V, const py::object& F, const py::object& lengths,
-                                       const py::object& n) {
-  Discretisation d;
+ice::IntrinsicMesh discretisation_argument(const py::object& V, const py::object& F, const py::object& lengths,
+                                           const py::object& n) {
+  ice::IntrinsicMesh d;
   if (!V.is_none() && !lengths.is_none()) throw py::value_error("give V or lengths, not both");
   if (V.is_none() && lengths.is_none()) throw py::value_error("give V (positions) or lengths (per-face edge lengths)");
   if (!V.is_none()) {
     const ice::TriangleMesh mesh = mesh_argument(V, F);
     d.F = mesh.F;
     d.L = ice::face_lengths_from_positions(mesh.V, mesh.F);
-    d.n = mesh.V.rows();
+    d.vertex_count = static_cast<ice::Index>(mesh.V.rows());
     for (Eigen::Index f = 0; f < d.F.rows(); ++f)
       for (int k = 0; k < 3; ++k)
         if (!(d.L(f, k) < d.L(f, (k + 1) % 3) + d.L(f, (k + 2) % 3)))
@@ -138,14 +133,15 @@ Discretisation discretisation_argument(const py::object& V, const py::object& F,
   } else {
     d.F = faces_argument(F, "F");
     d.L = lengths_argument(lengths, d.F.rows(), "lengths");
-    d.n = d.F.maxCoeff() + 1;
+    d.vertex_count = d.F.maxCoeff() + 1;
   }
   if (!n.is_none()) {
     const auto count = integer_option(n, "n");
-    if (count < d.n)
+    if (count < d.vertex_count)
       throw py::value_error("n = " + std::to_string(count) + " is smaller than the vertex count F uses (" +
-                            std::to_string(d.n) + ")");
-    d.n = static_cast<Eigen::Index>(count);
+                            std::to_string(d.vertex_count) + ")");
+    if (count > std::numeric_limits<ice::Index>::max()) throw py::value_error("n = " + std::to_string(count) + " is too large");
+    d.vertex_count = static_cast<ice::Index>(count);
   }
   return d;
 }
@@ -558,7 +554,7 @@ std::unique_ptr<fem::DistanceOracle> make_oracle(const PyCoarseSpace& coarse, co
   options.threads = threads;
   options.subdivisions = subdivisions;
   py::gil_scoped_release release;
-  return std::make_unique<fem::DistanceOracle>(coarse.space.mesh.F, L, coarse.map, options);
+  return std::make_unique<fem::DistanceOracle>(ice::with_lengths(coarse.space.mesh, L), coarse.map, options);
 }
 
 // The `fine=` argument of Proxy and VectorHeatSolver: the fine mesh's discretisation.
@@ -944,11 +940,11 @@ vertices first. How the benchmarks make large inputs from real meshes.)doc");
   m.def(
       "cotan_laplacian",
       [](const py::object& V, const py::object& F, const py::object& lengths, const py::object& n) {
-        const Discretisation d = discretisation_argument(V, F, lengths, n);
+        const ice::IntrinsicMesh d = discretisation_argument(V, F, lengths, n);
         Eigen::SparseMatrix<double> L;
         {
           py::gil_scoped_release release;
-          L = fem::cotan_laplacian(d.F, d.L, d.n);
+          L = fem::cotan_laplacian(d);
         }
         return to_scipy(std::move(L));
       },
@@ -960,13 +956,13 @@ cotan_laplacian(F=F, lengths=L); n: vertex count when vertices beyond max(F) exi
   m.def(
       "mass_matrix",
       [](const py::object& V, const py::object& F, const py::object& lengths, const py::object& n, const std::string& kind) {
-        const Discretisation d = discretisation_argument(V, F, lengths, n);
+        const ice::IntrinsicMesh d = discretisation_argument(V, F, lengths, n);
         const auto mass_kind =
             choice<fem::MassKind>(kind, "kind", {{"lumped", fem::MassKind::lumped}, {"consistent", fem::MassKind::consistent}});
         Eigen::SparseMatrix<double> M;
         {
           py::gil_scoped_release release;
-          M = fem::mass_matrix(d.F, d.L, mass_kind, d.n);
+          M = fem::mass_matrix(d, mass_kind);
         }
         return to_scipy(std::move(M));
       },
@@ -1118,8 +1114,8 @@ and poisson-coarse pick the smoothed one where it serves: prolongation="auto").)
       }, "The P the proxy solves with (smoothed or as given; scipy.sparse, read-only view)")
       .def_property_readonly("fine_size", [](const PyProxy& p) { return p.proxy->fine_size(); }, "Fine vertices.")
       .def_property_readonly("coarse_size", [](const PyProxy& p) { return p.proxy->coarse_size(); }, "Coarse vertices.")
-      .def_property_readonly("fine_faces", [](const PyProxy& p) { return p.proxy->fine_faces(); }, "Faces of the fine discretisation (the input's, or its intrinsic Delaunay triangulation's).")
-      .def_property_readonly("fine_lengths", [](const PyProxy& p) { return p.proxy->fine_lengths(); }, "Edge lengths of the fine discretisation.")
+      .def_property_readonly("fine_faces", [](const PyProxy& p) { return p.proxy->fine_mesh().F; }, "Faces of the fine discretisation (the input's, or its intrinsic Delaunay triangulation's).")
+      .def_property_readonly("fine_lengths", [](const PyProxy& p) { return p.proxy->fine_mesh().L; }, "Edge lengths of the fine discretisation.")
       .def_property_readonly("cache", [](const PyProxy& p) { return json_to_python(p.cache); },
                              "Where ice.setup_proxy got this proxy: status ('miss', 'hit', 'rebuilt', 'off'), keys, directory, seconds.")
       .def_property_readonly("fine_flips", [](const PyProxy& p) { return p.fine.flips; }, "Intrinsic Delaunay flips made on the fine mesh.")
@@ -1367,7 +1363,7 @@ QEM's).)doc")
              auto solver = std::make_unique<PyGeodesicSolver>();
              ice::FaceLengths L = marching_lengths_argument(mesh, coarse, traced, correction);
              py::gil_scoped_release release;
-             solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(coarse.space.mesh.F, L, coarse.space.P, subdivisions);
+             solver->solver = std::make_unique<fem::ProxyGeodesicSolver>(ice::with_lengths(coarse.space.mesh, L), coarse.space.P, subdivisions);
              return solver;
            }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = "auto",
            py::arg("subdivisions") = fem::ProxyGeodesicOptions{}.subdivisions, py::arg("curvature_correction") = py::none(),

@@ -87,8 +87,14 @@ struct CoarseProxyArrays {
   SparseMatrix P;            ///< the prolongation solved with (n_fine × n_coarse)
   SparseMatrix barycentric;  ///< P as given when P is its smoothing; empty otherwise
   SparseMatrix fine_mass, coarse_laplacian, coarse_mass;
-  Faces coarse_faces;
-  FaceLengths coarse_lengths;
+  ice::IntrinsicMesh coarse;  ///< the coarse mesh (no gluing: CoarseProxy::coarse_mesh)
+};
+
+/// How a CoarseProxy is assembled.
+struct CoarseProxyOptions {
+  CoarseOperatorKind kind = CoarseOperatorKind::galerkin;
+  MassKind mass_kind = MassKind::lumped;
+  ProlongationKind prolongation = ProlongationKind::barycentric;
 };
 
 /// Fine and coarse operators linked by P. The constructor assembles the fine mass and the coarse
@@ -97,18 +103,18 @@ struct CoarseProxyArrays {
 /// Galerkin heat-method operators. The lazy assembly is thread-safe (std::call_once).
 class CoarseProxy {
  public:
-  /// P's shape gives the vertex counts (n_fine × n_coarse; vertices no face uses are fine). Throws
-  /// std::invalid_argument if F or Fc names a vertex beyond them or a row of P does not sum to 1
+  /// The proxy of `fine` through `coarse` and P (n_fine × n_coarse: the meshes' vertex counts;
+  /// vertices no face uses are fine). Throws std::invalid_argument if the vertex counts are not P's
+  /// shape, a mesh breaks fem::checked_vertex_count's invariants, or a row of P does not sum to 1
   /// within 1e-10.
   /// With ProlongationKind::smoothed (Galerkin operators only: std::invalid_argument otherwise) the
   /// proxy restricts, prolongs and builds its coarse operators with smoothed_prolongation(P, fine
   /// Laplacian); P itself stays available as barycentric_prolongation().
-  CoarseProxy(const Faces& F, const FaceLengths& L, const Faces& Fc, const FaceLengths& Lc, SparseMatrix P,
-              CoarseOperatorKind kind, MassKind mass_kind = MassKind::lumped,
-              ProlongationKind prolongation = ProlongationKind::barycentric);
+  CoarseProxy(ice::IntrinsicMesh fine, ice::IntrinsicMesh coarse, SparseMatrix P, const CoarseProxyOptions& options = {});
 
-  /// The fine mesh (F, L) of a restored proxy, made on first use of the fine operators.
-  using FineMeshSource = std::function<void(Faces& F, FaceLengths& L)>;
+  /// Fills the fine mesh of a restored proxy (its vertex count: P's rows), on first use of the fine
+  /// operators.
+  using FineMeshSource = std::function<void(ice::IntrinsicMesh& fine)>;
   /// A proxy built back from the arrays of one (arrays()): no assembly; the fine Laplacian and
   /// gradient, which only polishing, fine_laplacian() and the Galerkin heat method use, are
   /// assembled on first use from the fine mesh `fine_mesh` gives then.
@@ -134,12 +140,11 @@ class CoarseProxy {
   const SparseMatrix& fine_mass() const { return fine_mass_; }
   const SparseMatrix& coarse_laplacian() const { return coarse_laplacian_; }
   const SparseMatrix& coarse_mass() const { return coarse_mass_; }
-  /// The coarse mesh as given (Fc, Lc).
-  /// The fine mesh the proxy was built on.
-  const Faces& fine_faces() const { return fine_mesh_of_lazy().F; }
-  const FaceLengths& fine_lengths() const { return fine_mesh_of_lazy().L; }
-  const Faces& coarse_faces() const { return coarse_faces_; }
-  const FaceLengths& coarse_lengths() const { return coarse_lengths_; }
+  /// The fine mesh the proxy was built on (a restored proxy's: made by its source on first call).
+  const ice::IntrinsicMesh& fine_mesh() const { return fine_mesh_of_lazy().mesh; }
+  /// The coarse mesh's faces and lengths as given; its gluing is not kept (nothing here reads it,
+  /// and a stored proxy holds none): `twin` is empty.
+  const ice::IntrinsicMesh& coarse_mesh() const { return coarse_; }
   Eigen::Index fine_size() const { return P_.rows(); }
   Eigen::Index coarse_size() const { return P_.cols(); }
 
@@ -178,10 +183,8 @@ class CoarseProxy {
   // Fine Laplacian and gradient, assembled on first use (see the class comment), and the coarse
   // mass's factor (for restrict_values' L² projection).
   struct LazyFineOperators {
-    Faces F;
-    FaceLengths L;
-    Eigen::Index n = 0;
-    FineMeshSource source;  ///< a restored proxy's: fills F and L on first use
+    ice::IntrinsicMesh mesh;
+    FineMeshSource source;  ///< a restored proxy's: fills `mesh` on first use
     std::once_flag mesh_once, laplacian_once, gradient_once;
     std::once_flag mass_factor_once;
     CholeskySolver coarse_mass_factor;  ///< for the L² projection, on its first use
@@ -191,11 +194,10 @@ class CoarseProxy {
   std::unique_ptr<LazyFineOperators> lazy_;
   /// The lazy state with the gradient and face areas made (the Laplacian: fine_laplacian()).
   const LazyFineOperators& fine_operators() const;
-  /// The lazy state with F and L made (a restored proxy's from its source).
+  /// The lazy state with its mesh made (a restored proxy's from its source).
   LazyFineOperators& fine_mesh_of_lazy() const;
   void index_coinciding_vertices(const SparseMatrix& barycentric);
-  Faces coarse_faces_;
-  FaceLengths coarse_lengths_;
+  ice::IntrinsicMesh coarse_;
   std::vector<Index> coarse_to_fine_;  ///< fine vertex coinciding with each coarse vertex, or -1
   std::vector<Index> fine_to_coarse_;  ///< coarse vertex each fine vertex coincides with, or -1
 };
@@ -397,7 +399,8 @@ class ProxyGeodesicSolver {
   /// non-negative weights summing to 1), not the fine or coarse operators a CoarseProxy assembles
   /// (a sizeable part of a proxy's setup on large meshes; docs/measurements.md, "Coarse geodesic
   /// solver: marching or heat method"). Throws std::invalid_argument on a bad coarse mesh or P.
-  ProxyGeodesicSolver(const Faces& coarse_faces, const FaceLengths& coarse_lengths, SparseMatrix P,
+  /// Level 0 of the marching pairs sides by their ends and lengths: `coarse.twin` is not read.
+  ProxyGeodesicSolver(const ice::IntrinsicMesh& coarse, SparseMatrix P,
                       int subdivisions = ProxyGeodesicOptions{}.subdivisions);
   /// The heat method with coarse operators assembled by the caller (to time assembly and
   /// factorisation apart).

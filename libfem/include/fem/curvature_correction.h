@@ -22,7 +22,7 @@ namespace fem {
 /// The angle defect of each fine vertex (2π minus its corner angles; 0 on boundary vertices, whose
 /// curvature is geodesic curvature of the boundary, and on vertices no face uses): the Gaussian
 /// curvature it carries. Throws InvalidTriangle as corner_angles.
-Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index vertex_count);
+Eigen::VectorXd angle_defects(const ice::IntrinsicMesh& mesh);
 
 /// How strongly the lengths are corrected: each edge scaled by exp(K ℓ² / divisor). The expansion
 /// for medians of constant curvature gives 24; the marching that reads the lengths has its own
@@ -33,7 +33,7 @@ Eigen::VectorXd angle_defects(const Faces& F, const FaceLengths& L, Eigen::Index
 inline constexpr double kProxyCorrectionDivisor = 48;
 inline constexpr double kOracleCorrectionDivisor = 24;
 
-/// `coarse_lengths` with each edge (u, w) scaled by exp(K_uw ℓ² / divisor), K_uw = (κ_u + κ_w) / (A_u +
+/// `coarse`'s lengths with each edge (u, w) scaled by exp(K_uw ℓ² / divisor), K_uw = (κ_u + κ_w) / (A_u +
 /// A_w), where κ = Pᵀ (fine angle defects) and A = Pᵀ (fine vertex areas, a third of each face's)
 /// gather the fine curvature and area onto the coarse vertices through P. The curvature of fine
 /// vertices that are coarse vertices counts too (so even P = I changes the lengths): leaving it out, as
@@ -45,12 +45,11 @@ inline constexpr double kOracleCorrectionDivisor = 24;
 /// keeps one length on both its sides (sides are taken as one edge when they join the same vertices
 /// with the same length, as the marching takes them); where the scaled lengths break a face's triangle
 /// inequality, that face's edges keep their lengths (and so do their other sides), until every face is
-/// valid, so the result is a valid intrinsic metric whenever `coarse_lengths` is. Preconditions
-/// (std::invalid_argument): fine F, L of one shape with vertices below P.rows(); coarse faces and
-/// lengths of one shape with vertices below P.cols(); P non-negative rows (a barycentric or any
-/// interpolating prolongation), divisor > 0. The fine lengths must be valid (InvalidTriangle).
-FaceLengths curvature_corrected_lengths(const Faces& fine_faces, const FaceLengths& fine_lengths,
-                                        const Faces& coarse_faces, const FaceLengths& coarse_lengths,
+/// valid, so the result is a valid intrinsic metric whenever `coarse`'s is. Preconditions
+/// (std::invalid_argument): `fine` a valid mesh (checked_vertex_count) of P.rows() vertices; coarse
+/// faces and lengths of one shape with vertices below P.cols(); P non-negative rows (a barycentric or
+/// any interpolating prolongation), divisor > 0. The fine lengths must be valid (InvalidTriangle).
+FaceLengths curvature_corrected_lengths(const ice::IntrinsicMesh& fine, const ice::IntrinsicMesh& coarse,
                                         const SparseMatrix& P, double divisor = kProxyCorrectionDivisor);
 
 }  // namespace fem

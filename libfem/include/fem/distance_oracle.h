@@ -84,8 +84,9 @@ class DistanceOracle {
   /// Precomputes the coarse distances (see the file comment). `fine_points`: where each fine vertex
   /// lies on the coarse mesh (ice::fine_to_coarse_map). Throws std::invalid_argument on a face out
   /// of range, bad barycentric coordinates, a non-positive length or bad options.
-  DistanceOracle(const Faces& coarse_faces, const FaceLengths& coarse_lengths,
-                 const std::vector<ice::CoarsePoint>& fine_points, const DistanceOracleOptions& options = {});
+  /// Level 0 of the marching pairs sides by their ends and lengths: `coarse.twin` is not read.
+  DistanceOracle(const ice::IntrinsicMesh& coarse, const std::vector<ice::CoarsePoint>& fine_points,
+                 const DistanceOracleOptions& options = {});
 
   Eigen::Index fine_size() const { return static_cast<Eigen::Index>(points_.size()); }
   Eigen::Index coarse_size() const { return coarse_size_; }

@@ -184,11 +184,10 @@ struct HeatMethodOperators {
 };
 
 /// The heat method's operators on an intrinsic mesh: cotan Laplacian, mass of `mass_kind`, per-face
-/// gradient, face areas, boundary vertices from F, and t = (time_factor·h)², h the mean edge length
-/// (time_factor = 1 is the paper's t = h²).
-HeatMethodOperators heat_method_operators(const Faces& F, const FaceLengths& L,
-                                          MassKind mass_kind = MassKind::lumped, double time_factor = 1.0,
-                                          VertexCount vertex_count = std::nullopt);
+/// gradient, face areas, boundary vertices from F (by vertex pairs), and t = (time_factor·h)², h the
+/// mean edge length (time_factor = 1 is the paper's t = h²).
+HeatMethodOperators heat_method_operators(const ice::IntrinsicMesh& mesh, MassKind mass_kind = MassKind::lumped,
+                                          double time_factor = 1.0);
 
 /// Geodesic distance by the heat method (Crane, Weischedel, Wardetzky 2013):
 ///  1. heat: (M + tL) u = δ, with δ the source indicator (or weights);

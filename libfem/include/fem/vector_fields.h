@@ -19,7 +19,7 @@
 /// semidefinite on any triangulation (per face it is a triangle's cotan matrix in a unitary change of
 /// basis), and on a flat mesh unitarily similar to the scalar cotan Laplacian of each component.
 ///
-/// Meshes are ice::CompactMesh values with their gluing (`twin`, never empty here: a Δ-complex cannot
+/// Meshes are ice::IntrinsicMesh values with their gluing (`twin`, never empty here: a Δ-complex cannot
 /// be glued by vertex pairs in general; ice::glue_by_vertex_pairs makes it for an ordinary mesh).
 #include <complex>
 #include <memory>
@@ -55,19 +55,19 @@ struct TangentFrames {
 
 /// Frames of `mesh` (F, L and twin; vertex count mesh.num_vertices() when to_input is set, else
 /// F.maxCoeff() + 1). Throws InvalidTriangle for invalid lengths, std::invalid_argument as above.
-TangentFrames tangent_frames(const ice::CompactMesh& mesh);
+TangentFrames tangent_frames(const ice::IntrinsicMesh& mesh);
 
 /// The connection Laplacian (n×n, Hermitian positive semidefinite; see the file comment).
-ComplexSparseMatrix connection_laplacian(const ice::CompactMesh& mesh, const TangentFrames& frames);
+ComplexSparseMatrix connection_laplacian(const ice::IntrinsicMesh& mesh, const TangentFrames& frames);
 
 /// Tangent vectors as 3D vectors on an extrinsic mesh with the same faces as `mesh` (positions V):
 /// each vector is drawn in the plane of the face whose corner contains its direction.
-Eigen::MatrixXd tangent_to_ambient(const ice::CompactMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V,
+Eigen::MatrixXd tangent_to_ambient(const ice::IntrinsicMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V,
                                    const Eigen::VectorXcd& field);
 /// The tangent vector at v of a 3D direction (projected into the plane of the corner it points into;
 /// the corner is the one whose face plane makes the projection's angle fall inside it, else the
 /// closest). Length: that of the projection.
-Complex ambient_to_tangent(const ice::CompactMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V, Index v,
+Complex ambient_to_tangent(const ice::IntrinsicMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V, Index v,
                            const Eigen::Vector3d& direction);
 
 /// Solves A x = b for a Hermitian positive definite complex A through CHOLMOD, as the real symmetric
@@ -93,7 +93,7 @@ struct VectorHeatOperators {
   double time_step = 0;
 };
 /// The operators of `mesh` with t = (time_factor·h)², h the mean edge length (the heat method's).
-VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames,
+VectorHeatOperators vector_heat_operators(const ice::IntrinsicMesh& mesh, const TangentFrames& frames,
                                           double time_factor = 1.0);
 /// The operators of `mesh` (an input's triangles, with `frames`) discretised on `delaunay`, another
 /// triangulation of the same surface and vertices — its intrinsic Delaunay triangulation, faces in
@@ -108,8 +108,8 @@ VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const Ta
 /// triangulation they follow parallel transport again (docs/measurements.md, "Vector heat method on
 /// the intrinsic Delaunay triangulation"). Throws
 /// std::invalid_argument when `delaunay` has another vertex count or a vertex no face uses.
-VectorHeatOperators vector_heat_operators(const ice::CompactMesh& mesh, const TangentFrames& frames,
-                                          const ice::CompactMesh& delaunay, double time_factor = 1.0);
+VectorHeatOperators vector_heat_operators(const ice::IntrinsicMesh& mesh, const TangentFrames& frames,
+                                          const ice::IntrinsicMesh& delaunay, double time_factor = 1.0);
 
 /// Right-hand sides of the vector heat method for vectors prescribed at vertices: Y₀ (the vectors),
 /// u₀ (their lengths) and φ₀ (the sources' indicator), each summed where a vertex repeats.
@@ -190,8 +190,8 @@ inline constexpr double kPoorFitResidual = 0.5;
 /// add); with no coarsening (every vertex survives, same frames) P_vec is the identity up to round-off.
 /// `map` holds one CoarsePoint per fine vertex (ice::fine_to_coarse_map). Throws std::invalid_argument
 /// on size mismatches or a map face out of range.
-ComplexSparseMatrix vector_prolongation(const ice::CompactMesh& fine, const TangentFrames& fine_frames,
-                                        const ice::CompactMesh& coarse, const TangentFrames& coarse_frames,
+ComplexSparseMatrix vector_prolongation(const ice::IntrinsicMesh& fine, const TangentFrames& fine_frames,
+                                        const ice::IntrinsicMesh& coarse, const TangentFrames& coarse_frames,
                                         const std::vector<ice::CoarsePoint>& map,
                                         VectorProlongationStats* stats = nullptr);
 
@@ -217,14 +217,14 @@ class VectorHeatProxy {
  public:
   /// `P` is the scalar prolongation (fine × coarse, rows summing to 1), `map` the fine-to-coarse map it
   /// comes from. Throws std::invalid_argument on inconsistent sizes.
-  VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames, const ice::CompactMesh& coarse,
+  VectorHeatProxy(const ice::IntrinsicMesh& fine, const TangentFrames& fine_frames, const ice::IntrinsicMesh& coarse,
                   const TangentFrames& coarse_frames, const std::vector<ice::CoarsePoint>& map, SparseMatrix P,
                   VectorOperatorKind kind, double time_factor = kVectorProxyTimeFactor);
   /// The same with the fine operators given, in `fine`'s frames, for the Galerkin coarse operators
   /// (e.g. vector_heat_operators(fine, fine_frames, delaunay): the input's intrinsic Delaunay
   /// discretisation) instead of those of `fine`'s own triangles.
-  VectorHeatProxy(const ice::CompactMesh& fine, const TangentFrames& fine_frames, const VectorHeatOperators& fine_operators,
-                  const ice::CompactMesh& coarse, const TangentFrames& coarse_frames,
+  VectorHeatProxy(const ice::IntrinsicMesh& fine, const TangentFrames& fine_frames, const VectorHeatOperators& fine_operators,
+                  const ice::IntrinsicMesh& coarse, const TangentFrames& coarse_frames,
                   const std::vector<ice::CoarsePoint>& map, SparseMatrix P, VectorOperatorKind kind,
                   double time_factor = kVectorProxyTimeFactor);
   /// The fine field interpolating `vectors` at fine `vertices` (in the fine frames).

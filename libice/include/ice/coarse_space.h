@@ -194,15 +194,12 @@ enum class FineGeometry {
 };
 const char* to_string(FineGeometry geometry);
 
-struct FineMesh {
-  /// In the input's vertex numbering. With FineGeometry::input the input's faces; with
-  /// intrinsic_delaunay faces in an order of their own (the triangulation is built and flipped in
-  /// the locality numbering of build_coarse_space, for speed: docs/measurements.md, "Locality numbering").
-  Faces F;
-  FaceLengths L;
-  /// With intrinsic_delaunay, how the faces' sides are glued (CompactMesh::twin): flips can join two
-  /// vertices by two edges, which vertex pairs cannot tell apart. Empty for the input triangles.
-  std::vector<Index> twin;
+/// The fine intrinsic mesh, in the input's vertex numbering (vertex_count: the input's). With
+/// FineGeometry::input the input's faces, glued by vertex pairs (`twin` empty); with
+/// intrinsic_delaunay faces in an order of their own (the triangulation is built and flipped in the
+/// locality numbering of build_coarse_space, for speed: docs/measurements.md, "Locality numbering")
+/// and their gluing (flips can join two vertices by two edges, which vertex pairs cannot tell apart).
+struct FineMesh : IntrinsicMesh {
   FineGeometry geometry = FineGeometry::intrinsic_delaunay;
   Index flips = 0;  ///< intrinsic Delaunay flips made
 };

@@ -97,12 +97,10 @@ struct HierarchyOptions {
   std::vector<Index> locked_vertices;
 };
 
-/// One level: a compact intrinsic mesh and where its vertices come from.
-struct HierarchyLevel {
-  Faces F;                    ///< faces in this level's vertex indices
-  FaceLengths L;              ///< per-face lengths (ice/mesh.h convention)
+/// One level: an intrinsic mesh (glued by vertex pairs: `twin` empty) and where its vertices come
+/// from (vertex_count == to_fine.size()).
+struct HierarchyLevel : IntrinsicMesh {
   std::vector<Index> to_fine; ///< level vertex -> level-0 vertex (the same surface point)
-  Index num_vertices() const { return static_cast<Index>(to_fine.size()); }
 };
 
 struct Hierarchy {
@@ -129,10 +127,11 @@ struct Hierarchy {
   Eigen::SparseMatrix<double> prolongation_to_fine(int k) const;
 };
 
-/// Builds the hierarchy of an intrinsic mesh (F, L); its vertices are 0..F.maxCoeff() (every one used).
-/// Preconditions as for IntrinsicTriangulation::from_lengths (std::invalid_argument otherwise);
-/// options checked (std::invalid_argument).
-Hierarchy build_hierarchy(const Faces& F, const FaceLengths& L, const HierarchyOptions& options = {});
+/// Builds the hierarchy of an intrinsic mesh glued by vertex pairs (`twin` empty) whose every vertex
+/// is used (vertex_count = F.maxCoeff() + 1). Preconditions as for
+/// IntrinsicTriangulation::from_lengths, and those two (std::invalid_argument otherwise); options
+/// checked (std::invalid_argument).
+Hierarchy build_hierarchy(const IntrinsicMesh& mesh, const HierarchyOptions& options = {});
 
 /// Same for an extrinsic mesh (lengths from positions).
 Hierarchy build_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options = {});

@@ -37,12 +37,10 @@
 
 namespace ice {
 
-/// The content of an .ilm file.
-struct IntrinsicMeshFile {
+/// The content of an .ilm file: its intrinsic mesh (`twin` empty for version 1; vertex_count ==
+/// to_input.size()) and its map to the input.
+struct IntrinsicMeshFile : IntrinsicMesh {
   int version = 2;            ///< the file's format version (1 or 2)
-  Faces F;                    ///< faces in 0-based vertex ids
-  FaceLengths L;              ///< per-face edge lengths
-  std::vector<Index> twin;    ///< the gluing (CompactMesh::twin convention); empty for version 1
   std::vector<Index> to_input;  ///< vertex -> input-mesh vertex (kInvalid: inserted by refinement)
   Index input_vertices = 0;   ///< vertex count of the input mesh
 };

@@ -11,6 +11,7 @@
 ///    corner k is therefore opposite the edge stored in column (k+1)%3.
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -48,22 +49,51 @@ inline FaceLengths face_lengths_from_positions(const Positions& V, const Faces& 
   return lengths;
 }
 
-/// An intrinsic mesh as a value: faces, per-face edge lengths, how the faces are glued, and the map
-/// to the input's vertices. What ICE exports from a (possibly heavily modified) triangulation
-/// (`IntrinsicTriangulation::compact`), writes as `.ilm`, and what libfem's operators take.
-struct CompactMesh {
-  Faces F;                          ///< faces in compact vertex indices
-  FaceLengths L;                    ///< per-face edge lengths (ice/mesh.h convention)
+/// An intrinsic triangle mesh as a value: ICE's one vocabulary for it. Faces, per-face edge lengths
+/// (the `FaceLengths` convention), how the faces are glued, and the vertex count. What libfem's
+/// operators take; CompactMesh, FineMesh, HierarchyLevel and IntrinsicMeshFile are one, with their
+/// maps beside it.
+/// Invariants (code that takes one checks those it relies on: std::invalid_argument): L has F's
+/// rows; every index of F lies in [0, vertex_count); `twin` is empty or has 3·F.rows() entries.
+struct IntrinsicMesh {
+  Faces F;        ///< faces (ice/mesh.h convention)
+  FaceLengths L;  ///< per-face edge lengths
   /// How the faces are glued: twin[3f + k] is the side 3g + d that runs along face f's side k (from
   /// corner k to k+1) the other way, or kInvalid on the boundary. Vertex pairs cannot say this in a
   /// Δ-complex (self-edges, two edges between one pair of vertices). Empty: glue by vertex pairs.
   std::vector<Index> twin;
+  /// Vertices 0 .. vertex_count − 1, also those no face uses (which F alone cannot count).
+  Index vertex_count = 0;
+
+  Index num_vertices() const { return vertex_count; }
+};
+
+/// The intrinsic mesh of an extrinsic one: its faces, their edge lengths from the positions, glued by
+/// vertex pairs, one vertex per row of V.
+inline IntrinsicMesh intrinsic_mesh(const TriangleMesh& mesh) {
+  return IntrinsicMesh{mesh.F, face_lengths_from_positions(mesh.V, mesh.F), {}, static_cast<Index>(mesh.V.rows())};
+}
+
+/// The intrinsic mesh of faces F and lengths L (of F's shape), glued by vertex pairs, with
+/// `vertex_count` vertices, or (−1) the vertices F names: max index + 1.
+inline IntrinsicMesh intrinsic_mesh(Faces F, FaceLengths L, Index vertex_count = -1) {
+  if (vertex_count < 0) vertex_count = F.size() == 0 ? 0 : F.maxCoeff() + 1;
+  return IntrinsicMesh{std::move(F), std::move(L), {}, vertex_count};
+}
+
+/// The same faces, gluing and vertices with other lengths (e.g. traced or curvature-corrected ones).
+inline IntrinsicMesh with_lengths(const IntrinsicMesh& mesh, FaceLengths lengths) {
+  return IntrinsicMesh{mesh.F, std::move(lengths), mesh.twin, mesh.vertex_count};
+}
+
+/// An intrinsic mesh exported from a (possibly heavily modified) triangulation
+/// (`IntrinsicTriangulation::compact`), written as `.ilm`, with its map to the input's vertices
+/// (vertex_count == to_input.size()).
+struct CompactMesh : IntrinsicMesh {
   /// compact vertex -> input vertex, or kInvalid for a vertex inserted by refinement (not an input
   /// vertex; such vertices follow the input ones)
   std::vector<Index> to_input;
   std::vector<Index> from_input;    ///< input vertex -> compact vertex, or kInvalid if removed
-  /// Vertices of the mesh (also those no face uses, which F alone cannot count).
-  Index num_vertices() const { return static_cast<Index>(to_input.size()); }
 };
 
 /// Where one input vertex lies on a coarse mesh (ice/coarse_space.h, fine_to_coarse_map): the coarse

@@ -149,7 +149,7 @@ SurfaceEdgeLengths marching_lengths(const TriangleMesh& mesh, const CoarseSpace&
 /// (FineGeometry::intrinsic_delaunay) on their intrinsic Delaunay triangulation, with
 /// t = (time_factor · the input's mean edge length)². The operators are built only when asked.
 struct TangentMesh {
-  CompactMesh mesh;
+  IntrinsicMesh mesh;
   fem::TangentFrames frames;
   std::optional<fem::VectorHeatOperators> operators;
   Index flips = 0;  ///< intrinsic Delaunay flips
