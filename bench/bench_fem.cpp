@@ -36,10 +36,10 @@ void set_size(benchmark::State& state, const TriangleMesh& m) {
 
 void BM_Assemble(benchmark::State& state) {
   const TriangleMesh& m = spot(static_cast<int>(state.range(0)));
-  const FaceLengths L = face_lengths_from_positions(m.V, m.F);
+  const ice::IntrinsicMesh mesh = ice::intrinsic_mesh(m);
   for (auto _ : state) {
-    fem::SparseMatrix A = fem::cotan_laplacian(ice::intrinsic_mesh(m.F, L));
-    fem::SparseMatrix M = fem::mass_matrix(ice::intrinsic_mesh(m.F, L));
+    fem::SparseMatrix A = fem::cotan_laplacian(mesh);
+    fem::SparseMatrix M = fem::mass_matrix(mesh);
     benchmark::DoNotOptimize(A.nonZeros() + M.nonZeros());
   }
   set_size(state, m);
@@ -48,8 +48,8 @@ BENCHMARK(BM_Assemble)->DenseRange(0, 2)->Unit(benchmark::kMillisecond);
 
 void BM_Factor(benchmark::State& state) {
   const TriangleMesh& m = spot(static_cast<int>(state.range(0)));
-  const FaceLengths L = face_lengths_from_positions(m.V, m.F);
-  const fem::SparseMatrix A = fem::cotan_laplacian(ice::intrinsic_mesh(m.F, L)), M = fem::mass_matrix(ice::intrinsic_mesh(m.F, L));
+  const ice::IntrinsicMesh mesh = ice::intrinsic_mesh(m);
+  const fem::SparseMatrix A = fem::cotan_laplacian(mesh), M = fem::mass_matrix(mesh);
   for (auto _ : state) {
     fem::PoissonSolver solver = fem::PoissonSolver::zero_mean(A, M);
     benchmark::DoNotOptimize(&solver);
@@ -60,8 +60,8 @@ BENCHMARK(BM_Factor)->DenseRange(0, 2)->Unit(benchmark::kMillisecond);
 
 void BM_Solve(benchmark::State& state) {
   const TriangleMesh& m = spot(static_cast<int>(state.range(0)));
-  const FaceLengths L = face_lengths_from_positions(m.V, m.F);
-  const fem::SparseMatrix A = fem::cotan_laplacian(ice::intrinsic_mesh(m.F, L)), M = fem::mass_matrix(ice::intrinsic_mesh(m.F, L));
+  const ice::IntrinsicMesh mesh = ice::intrinsic_mesh(m);
+  const fem::SparseMatrix A = fem::cotan_laplacian(mesh), M = fem::mass_matrix(mesh);
   const fem::PoissonSolver solver = fem::PoissonSolver::zero_mean(A, M);
   const Eigen::VectorXd f = m.V.col(0).array().sin();
   for (auto _ : state) {

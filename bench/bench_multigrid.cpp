@@ -113,8 +113,9 @@ const Problem& problem(int levels) {
   Problem p;
   p.mesh = ice::loop_subdivide(ice::load_mesh(ice_bench::mesh_path("fandisk.obj")), levels);
   const ice::FaceLengths lengths = ice::face_lengths_from_positions(p.mesh.V, p.mesh.F);
-  p.M = fem::mass_matrix(ice::intrinsic_mesh(p.mesh.F, lengths));
-  p.A = fem::cotan_laplacian(ice::intrinsic_mesh(p.mesh.F, lengths)) + (1.0 / p.M.sum()) * p.M;
+  const ice::IntrinsicMesh intrinsic = ice::intrinsic_mesh(p.mesh.F, lengths);
+  p.M = fem::mass_matrix(intrinsic);
+  p.A = fem::cotan_laplacian(intrinsic) + (1.0 / p.M.sum()) * p.M;
   const Eigen::Index n = p.mesh.V.rows();
   p.B.resize(n, 11);
   for (int j = 0; j < 11; ++j) {

@@ -72,7 +72,7 @@ const fem::DistanceOracle& oracle_of(int levels, int coarse_vertices) {
   auto& slot = cache[{levels, coarse_vertices}];
   if (!slot) {
     const OracleInput& input = oracle_input(levels, coarse_vertices);
-    slot = std::make_unique<fem::DistanceOracle>(ice::intrinsic_mesh(input.space.mesh.F, input.space.mesh.L), input.map);
+    slot = std::make_unique<fem::DistanceOracle>(input.space.mesh, input.map);
   }
   return *slot;
 }
@@ -126,7 +126,7 @@ void BM_DistanceOracle(benchmark::State& state) {
   options.method = state.range(2) == 0 ? fem::CoarseDistanceMethod::marching : fem::CoarseDistanceMethod::heat_method;
   std::size_t bytes = 0;
   for (auto _ : state) {
-    const fem::DistanceOracle oracle(ice::intrinsic_mesh(input.space.mesh.F, input.space.mesh.L), input.map, options);
+    const fem::DistanceOracle oracle(input.space.mesh, input.map, options);
     bytes = oracle.memory_bytes();
     benchmark::DoNotOptimize(oracle.coarse_distance(0, 1));
   }

@@ -78,7 +78,7 @@ int main(int argc, char** argv) {
 
       start = std::chrono::steady_clock::now();
       const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
-      const fem::CoarseProxy proxy(ice::intrinsic_mesh(fine.F, fine.L), ice::intrinsic_mesh(coarse.mesh.F, coarse.mesh.L), coarse.P, {fem::CoarseOperatorKind::galerkin, fem::MassKind::lumped});
+      const fem::CoarseProxy proxy(fine, coarse.mesh, coarse.P, {fem::CoarseOperatorKind::galerkin, fem::MassKind::lumped});
       const double proxy_seconds = seconds_since(start);
 
       start = std::chrono::steady_clock::now();

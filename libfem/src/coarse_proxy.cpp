@@ -169,6 +169,7 @@ CoarseProxy::CoarseProxy(ice::IntrinsicMesh fine, ice::IntrinsicMesh coarse, Spa
   fine_mass_.makeCompressed();
   lazy_ = std::make_unique<LazyFineOperators>();
   lazy_->mesh = std::move(fine);
+  lazy_->mesh.twin = {};  // nothing here reads the gluing (fine_mesh()): not held for the proxy's life
 
   index_coinciding_vertices(P_);  // the given P (smoothed below)
   if (prolongation == ProlongationKind::smoothed) {
@@ -256,6 +257,7 @@ CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
     if (!lazy.source) return;
     const Index n = lazy.mesh.vertex_count;
     lazy.source(lazy.mesh);
+    lazy.mesh.twin = {};
     bool fits = lazy.mesh.vertex_count == n;
     try {
       fits = fits && checked_vertex_count(lazy.mesh) == n;
@@ -869,6 +871,8 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const ice::IntrinsicMesh& coarse, Spars
   P_rows_.prune(0.0);
   P_rows_.makeCompressed();
   require_prolongation(P_rows_, coarse.F, "ProxyGeodesicSolver");
+  if (checked_vertex_count(coarse) != P_rows_.cols())
+    throw std::invalid_argument("ProxyGeodesicSolver: the coarse mesh's vertex count is not P's column count");
   for (Eigen::Index k = 0; k < P_rows_.nonZeros(); ++k)
     if (!(P_rows_.valuePtr()[k] > 0))
       throw std::invalid_argument("ProxyGeodesicSolver: P has a negative or non-finite weight (rows are barycentric coordinates)");

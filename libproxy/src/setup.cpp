@@ -12,7 +12,9 @@ namespace ice::proxy {
 
 fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem::CoarseOperatorKind kind,
                             fem::ProlongationKind prolongation) {
-  return fem::CoarseProxy(fine, coarse.mesh, coarse.P, {kind, fem::MassKind::lumped, prolongation});
+  // The faces and lengths only: the proxy keeps no gluing, so none is copied.
+  return fem::CoarseProxy(IntrinsicMesh{fine.F, fine.L, {}, fine.vertex_count}, coarse.mesh, coarse.P,
+                          {kind, fem::MassKind::lumped, prolongation});
 }
 
 ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& options, std::optional<CoarseSpace> coarse) {

@@ -426,6 +426,7 @@ std::shared_ptr<PyCoarseSpace> load_coarse_mesh(const std::filesystem::path& fil
   mesh.L = std::move(file.L);
   mesh.twin = std::move(file.twin);
   mesh.to_input = std::move(file.to_input);
+  mesh.vertex_count = file.vertex_count;
   mesh.from_input.assign(static_cast<std::size_t>(file.input_vertices), ice::kInvalid);
   for (std::size_t c = 0; c < mesh.to_input.size(); ++c)
     if (mesh.to_input[c] != ice::kInvalid) mesh.from_input[static_cast<std::size_t>(mesh.to_input[c])] = static_cast<ice::Index>(c);
@@ -482,7 +483,7 @@ void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& f
 // ---- the proxy and its solvers -------------------------------------------------------------------
 
 struct PyProxy {
-  ice::FineMesh fine;  ///< empty when the proxy came from the store (proxy->fine_faces() makes it)
+  ice::FineMesh fine;  ///< empty when the proxy came from the store (proxy->fine_mesh() makes it)
   ice::FineGeometry geometry = ice::FineGeometry::intrinsic_delaunay;  ///< of the fine mesh it was assembled on
   std::unique_ptr<fem::CoarseProxy> proxy;
   ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< of its coarse space

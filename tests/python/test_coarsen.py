@@ -112,6 +112,7 @@ def test_save_and_load_round_trip(tmp_path, project_mesh):
     for name in ("faces", "lengths", "twin", "to_input", "from_input"):
         assert np.array_equal(getattr(back, name), getattr(coarse, name)), name
     assert back.P is None and back.map is None and back.summary is None and back.input_vertices == V.shape[0]
+    assert back.n_vertices == coarse.n_vertices and f"{coarse.n_vertices} vertices" in repr(back)
     with pytest.raises(ice.MeshError) as error:
         coarse.save(path)
     assert error.value.kind == "unwritable"

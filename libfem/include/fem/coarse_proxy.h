@@ -3,7 +3,7 @@
 /// Solving a fine-mesh PDE through a small coarse proxy: restrict the data, solve on the coarse
 /// mesh, prolong the solution with P.
 ///
-/// Inputs: the fine intrinsic mesh (F, L), the coarse one (Fc, Lc), and a prolongation P
+/// Inputs: the fine intrinsic mesh (F, L), the coarse one (Fc, Lc) (ice::IntrinsicMesh values), and a prolongation P
 /// (n_fine × n_coarse, every row sums to 1, typically the barycentric coordinates of each fine vertex
 /// in a coarse face). Coarse operators come in two flavours:
 ///  - intrinsic: cotan Laplacian and mass assembled from the coarse lengths Lc;
@@ -140,7 +140,8 @@ class CoarseProxy {
   const SparseMatrix& fine_mass() const { return fine_mass_; }
   const SparseMatrix& coarse_laplacian() const { return coarse_laplacian_; }
   const SparseMatrix& coarse_mass() const { return coarse_mass_; }
-  /// The fine mesh the proxy was built on (a restored proxy's: made by its source on first call).
+  /// The fine mesh the proxy was built on (a restored proxy's: made by its source on first call),
+  /// without its gluing (`twin` empty: nothing here reads it).
   const ice::IntrinsicMesh& fine_mesh() const { return fine_mesh_of_lazy().mesh; }
   /// The coarse mesh's faces and lengths as given; its gluing is not kept (nothing here reads it,
   /// and a stored proxy holds none): `twin` is empty.

@@ -83,7 +83,8 @@ class DistanceOracle {
  public:
   /// Precomputes the coarse distances (see the file comment). `fine_points`: where each fine vertex
   /// lies on the coarse mesh (ice::fine_to_coarse_map). Throws std::invalid_argument on a face out
-  /// of range, bad barycentric coordinates, a non-positive length or bad options.
+  /// of range, bad barycentric coordinates, a non-positive length, a mesh failing
+  /// fem::checked_vertex_count, or bad options.
   /// Level 0 of the marching pairs sides by their ends and lengths: `coarse.twin` is not read.
   DistanceOracle(const ice::IntrinsicMesh& coarse, const std::vector<ice::CoarsePoint>& fine_points,
                  const DistanceOracleOptions& options = {});

@@ -53,8 +53,8 @@ struct TangentFrames {
   std::vector<Index> reference_corner;
 };
 
-/// Frames of `mesh` (F, L and twin; vertex count mesh.num_vertices() when to_input is set, else
-/// F.maxCoeff() + 1). Throws InvalidTriangle for invalid lengths, std::invalid_argument as above.
+/// Frames of `mesh` (F, L, twin and its vertex count, checked as fem::checked_vertex_count does).
+/// Throws InvalidTriangle for invalid lengths, std::invalid_argument as above.
 TangentFrames tangent_frames(const ice::IntrinsicMesh& mesh);
 
 /// The connection Laplacian (n×n, Hermitian positive semidefinite; see the file comment).
