@@ -21,12 +21,7 @@ namespace {
 
 const std::string kTool = "spectral-coarse";
 
-double median(Eigen::VectorXd v) {
-  if (v.size() == 0) return 0;
-  std::sort(v.data(), v.data() + v.size());
-  const Eigen::Index m = v.size() / 2;
-  return v.size() % 2 ? v(m) : 0.5 * (v(m - 1) + v(m));
-}
+using ice::proxy::median;
 
 }  // namespace
 
@@ -130,26 +125,18 @@ int main(int argc, char** argv) {
       run.ref_assemble = clock.lap();
       const fem::Eigenpairs ref = fem::smallest_eigenpairs_dirichlet(L, M, fixed, k);
       run.ref_solve = clock.lap();
-      // Relative eigenvalue errors over the pairs whose reference eigenvalue is not a zero mode.
-      const double largest = ref.values.cwiseAbs().maxCoeff();
-      std::vector<double> relative;
-      nlohmann::json per_pair = nlohmann::json::array();
-      const Eigen::VectorXd angles = fem::eigenspace_angles(basis.vectors, ref.vectors, ref.values, M);
+      const ice::proxy::EigenbasisErrors errors = ice::proxy::eigenbasis_errors(basis.values, basis.vectors, ref, M);
       const Eigen::VectorXd residuals = fem::eigen_residuals(L, M, basis.values, basis.vectors, fixed);
-      for (int j = 0; j < k; ++j) {
-        const bool zero = fem::is_zero_mode(ref.values(j), largest);
-        const double rel = zero ? 0.0 : std::abs(basis.values(j) - ref.values(j)) / ref.values(j);
-        if (!zero) relative.push_back(rel);
-        per_pair.push_back({{"value", basis.values(j)}, {"reference", ref.values(j)}, {"rel", rel},
-                            {"angle_deg", angles(j) * 180 / M_PI}, {"residual", residuals(j)}});
-      }
-      const Eigen::VectorXd rel_vector = Eigen::Map<const Eigen::VectorXd>(relative.data(), static_cast<Eigen::Index>(relative.size()));
-      const Eigen::VectorXd degrees = angles * (180 / M_PI);
-      error_json = {{"eigenvalue_rel_median", median(rel_vector)},
-                    {"eigenvalue_rel_max", rel_vector.size() ? rel_vector.maxCoeff() : 0.0},
+      nlohmann::json per_pair = nlohmann::json::array();
+      for (int j = 0; j < k; ++j)
+        per_pair.push_back({{"value", basis.values(j)}, {"reference", ref.values(j)}, {"rel", errors.relative(j)},
+                            {"angle_deg", errors.angles(j) * 180 / M_PI}, {"residual", residuals(j)}});
+      const Eigen::VectorXd degrees = errors.angles * (180 / M_PI);
+      error_json = {{"eigenvalue_rel_median", errors.relative_median},
+                    {"eigenvalue_rel_max", errors.relative_max},
                     {"angle_deg_median", median(degrees)},
                     {"angle_deg_max", degrees.maxCoeff()},
-                    {"zero_modes", k - static_cast<int>(relative.size())},
+                    {"zero_modes", errors.zero_modes},
                     {"pairs", per_pair}};
       residual_json = {{"max", residuals.maxCoeff()}, {"median", median(residuals)}};
       reference_json = {{"method", "shift-invert Lanczos (Spectra) on a CHOLMOD factorisation"},

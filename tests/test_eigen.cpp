@@ -91,6 +91,26 @@ TEST_CASE("proxy eigenbasis: upper bounds, M-orthonormal on the input mesh, near
   CHECK_THROWS_AS(solver.compute(0), std::invalid_argument);
   CHECK_THROWS_AS(solver.compute(static_cast<int>(solver.proxy().coarse_laplacian().rows())), std::invalid_argument);
 
+  SECTION("the comparison with the fine eigenpairs, and with themselves") {
+    const ice::proxy::EigenbasisErrors errors = ice::proxy::eigenbasis_errors(basis.values, basis.vectors, fine, p.M);
+    CHECK(errors.zero_modes == 1);  // the sphere's constants
+    CHECK(errors.relative(0) == 0);
+    for (int j = 1; j < k; ++j) CHECK(errors.relative(j) == Approx((basis.values(j) - fine.values(j)) / fine.values(j)));
+    CHECK(errors.relative_max == Approx(errors.relative.maxCoeff()));
+    CHECK(errors.relative_median > 0);
+    CHECK(errors.relative_median <= errors.relative_max);
+    CHECK(errors.angle_max == Approx(angles.maxCoeff()));
+    fem::Eigenpairs itself;
+    itself.values = basis.values;
+    itself.vectors = basis.vectors;
+    const ice::proxy::EigenbasisErrors none = ice::proxy::eigenbasis_errors(basis.values, basis.vectors, itself, p.M);
+    CHECK(none.relative_max == 0);
+    CHECK(none.angle_max < 1e-6);
+    CHECK_THROWS_AS(ice::proxy::eigenbasis_errors(fine.values, fine.vectors, itself, p.M), std::invalid_argument);  // k + 8 > k
+    CHECK(ice::proxy::median(Eigen::Vector4d(4, 1, 3, 2)) == 2.5);
+    CHECK(ice::proxy::median(Eigen::VectorXd()) == 0);
+  }
+
   SECTION("descriptors keep their sums; an eigenfunction is reconstructed exactly") {
     const Eigen::VectorXd mass = p.M.diagonal();
     Eigen::VectorXd times(3);

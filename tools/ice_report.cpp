@@ -42,8 +42,10 @@
 #include "fem/blas_info.h"
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
+#include "fem/eigen.h"
 #include "fem/problems.h"
 #include "ice/large_array.h"
+#include "ice/proxy/eigen.h"
 #include "ice/qem.h"
 #include "mesh_sets.h"
 #include "view_page.h"
@@ -94,6 +96,18 @@ struct PolishRow {
   double per_solve() const { return proxy_solve + polish; }
 };
 
+// The first K eigenpairs through one proxy (--eigen-pairs) against the fine mesh's.
+struct EigenRow {
+  std::string mesh, method;
+  long long n = 0, coarse_n = 0;
+  double budget = 0;
+  int pairs = 0, zero_modes = 0;
+  double relative_median = std::numeric_limits<double>::quiet_NaN(), relative_max = relative_median;
+  double angle_median_deg = relative_median, angle_max_deg = relative_median;
+  double seconds = 0, fine_seconds = 0;  ///< the proxy's eigensolve + prolongation; the fine eigensolve
+  std::string note;
+};
+
 // The demo source of poisson-coarse: three Gaussian bumps (+1, −1, +1) at the vertices with the
 // largest x, y, z, σ = 0.1 × bounding-box diagonal, minus its mass-weighted mean.
 std::vector<int> spread_sources(const ice::Positions& V, int count) {
@@ -140,9 +154,12 @@ struct Fine {
   /// averaged over the sources); NaN otherwise.
   double heat_method_error = std::numeric_limits<double>::quiet_NaN();
   double t_assemble[3] = {0, 0, 0}, t_factor[3] = {0, 0, 0}, t_solve[3] = {0, 0, 0};
+  /// The first --eigen-pairs eigenpairs of (L, M) (none when off or the mesh is too small), and their time.
+  std::optional<fem::Eigenpairs> eigen;
+  double t_eigen = 0;
 };
 
-Fine fine_reference(const ice::TriangleMesh& mesh, bool exact_geodesics) {
+Fine fine_reference(const ice::TriangleMesh& mesh, bool exact_geodesics, int eigen_pairs) {
   Fine r;
   r.mesh = mesh;
   r.disc = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
@@ -183,6 +200,11 @@ Fine fine_reference(const ice::TriangleMesh& mesh, bool exact_geodesics) {
 #else
   if (exact_geodesics) throw std::logic_error("exact geodesics: not built with CGAL");
 #endif
+  if (eigen_pairs > 0 && eigen_pairs < L.rows()) {
+    clock.lap();
+    r.eigen = fem::smallest_eigenpairs(L, r.M, eigen_pairs);
+    r.t_eigen = clock.lap();
+  }
   return r;
 }
 
@@ -208,10 +230,30 @@ void solve_on_proxy(const Fine& fine, const ice::CoarseSpace& coarse, fem::Coars
                     fem::ProlongationKind prolongation, Row base, std::vector<Row>& rows,
                     const std::vector<double>& tolerances, std::vector<PolishRow>& polished,
                     const fem::ProxyGeodesicOptions& geodesic, ProxySolutions* kept = nullptr,
-                    const ice::FaceLengths* marching_lengths = nullptr) {
+                    const ice::FaceLengths* marching_lengths = nullptr, std::vector<EigenRow>* eigen_rows = nullptr) {
   app::Stopwatch clock;
   const fem::CoarseProxy proxy = ice::proxy::make_proxy(fine.disc, coarse, kind, prolongation);
   const double t_proxy = clock.lap();  // counted in the assembly of every problem (each needs it)
+  if (eigen_rows && fine.eigen) {  // the eigenbasis of the Galerkin pencil (PᵀLP, PᵀMP), prolonged
+    EigenRow e;
+    e.mesh = base.mesh, e.method = base.method, e.n = base.n, e.budget = base.budget, e.coarse_n = base.coarse_n;
+    e.pairs = static_cast<int>(fine.eigen->values.size());
+    e.fine_seconds = fine.t_eigen;
+    if (kind != fem::CoarseOperatorKind::galerkin) {
+      e.note = "needs Galerkin operators";
+    } else if (e.pairs >= proxy.coarse_size()) {
+      e.note = "the coarse space has " + std::to_string(proxy.coarse_size()) + " vertices";
+    } else {
+      const ice::proxy::Eigenbasis basis = ice::proxy::proxy_eigenbasis(proxy, e.pairs);
+      const ice::proxy::EigenbasisErrors errors = ice::proxy::eigenbasis_errors(basis.values, basis.vectors, *fine.eigen, fine.M);
+      e.zero_modes = errors.zero_modes;
+      e.relative_median = errors.relative_median, e.relative_max = errors.relative_max;
+      e.angle_median_deg = errors.angle_median * 180 / M_PI, e.angle_max_deg = errors.angle_max * 180 / M_PI;
+      e.seconds = basis.eigensolve_seconds + basis.prolong_seconds;
+    }
+    eigen_rows->push_back(e);
+    clock.lap();
+  }
   const auto record = [&](Row& r, int index, const fem::ProxyPhaseTimes& phases) {
     r.solve = phases.restriction + phases.coarse_solve;
     r.prolong = phases.prolongation;
@@ -354,6 +396,75 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
 }
 
+void write_eigen_csv(const std::string& path, const std::vector<EigenRow>& rows) {
+  std::ofstream out(path);
+  out << "mesh,n,budget,method,coarse_n,pairs,zero_modes,eigenvalue_rel_median,eigenvalue_rel_max,angle_deg_median,"
+         "angle_deg_max,proxy_s,fine_s,note\n";
+  out << std::setprecision(9);
+  for (const EigenRow& r : rows)
+    out << r.mesh << ',' << r.n << ',' << r.budget << ',' << r.method << ',' << r.coarse_n << ',' << r.pairs << ','
+        << r.zero_modes << ',' << r.relative_median << ',' << r.relative_max << ',' << r.angle_median_deg << ','
+        << r.angle_max_deg << ',' << r.seconds << ',' << r.fine_seconds << ',' << r.note << '\n';
+  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
+}
+
+nlohmann::json eigen_json(const EigenRow& r) {
+  const auto value = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+  return {{"mesh", r.mesh}, {"n", r.n}, {"budget", r.budget}, {"method", r.method}, {"coarse_n", r.coarse_n},
+          {"pairs", r.pairs}, {"zero_modes", r.zero_modes},
+          {"error", {{"eigenvalue_rel_median", value(r.relative_median)}, {"eigenvalue_rel_max", value(r.relative_max)},
+                     {"angle_deg_median", value(r.angle_median_deg)}, {"angle_deg_max", value(r.angle_max_deg)}}},
+          {"time_s", {{"proxy", r.seconds}, {"fine", r.fine_seconds}}}, {"note", r.note}};
+}
+
+// The eigenbasis per method: medians over meshes and budgets, and per mesh and budget each method's
+// median eigenvalue error (median angle), with each ICE method's over QEM's (qem_ext) where both ran.
+void write_eigen_summary(std::ostream& out, const std::vector<EigenRow>& rows, const std::vector<std::string>& methods) {
+  if (rows.empty()) return;
+  out << "\n## Eigenbasis (--eigen-pairs): the first " << rows.front().pairs
+      << " eigenpairs through the Galerkin proxies against the fine mesh's\n\n"
+         "Relative eigenvalue error (zero modes left out) and angle to the fine eigenspace, medians over the pairs; "
+         "per mesh and budget, then the medians of those over meshes and budgets.\n\n| mesh | budget |";
+  for (const auto& m : methods) out << ' ' << m << " |";
+  const auto has = [&](const std::string& m) { return std::find(methods.begin(), methods.end(), m) != methods.end(); };
+  std::vector<std::string> over_qem;  // ICE methods given a ratio column
+  for (const std::string m : {"ice", "ice_area"})
+    if (has(m) && has("qem_ext")) over_qem.push_back(m);
+  for (const auto& m : over_qem) out << ' ' << m << " / qem_ext |";
+  out << "\n|---|---:|";
+  for (std::size_t i = 0; i < methods.size() + over_qem.size(); ++i) out << "---:|";
+  out << '\n';
+  std::map<std::pair<std::string, double>, std::map<std::string, const EigenRow*>> by_key;
+  for (const EigenRow& r : rows) by_key[{r.mesh, r.budget}][r.method] = &r;
+  std::map<std::string, std::vector<double>> errors, angles, ratios;
+  for (const auto& [key, by_method] : by_key) {
+    out << "| " << key.first << " | " << num(100 * key.second, 3) << "% |";
+    for (const auto& m : methods) {
+      const auto it = by_method.find(m);
+      if (it == by_method.end() || !std::isfinite(it->second->relative_median)) {
+        out << " " << (it == by_method.end() ? "–" : it->second->note) << " |";
+        continue;
+      }
+      out << ' ' << pct(it->second->relative_median) << " (" << num(it->second->angle_median_deg, 3) << "°) |";
+      errors[m].push_back(it->second->relative_median);
+      angles[m].push_back(it->second->angle_median_deg);
+    }
+    for (const auto& m : over_qem) {
+      const auto ice = by_method.find(m), qem = by_method.find("qem_ext");
+      double x = std::numeric_limits<double>::quiet_NaN();
+      if (ice != by_method.end() && qem != by_method.end() && qem->second->relative_median > 0)
+        x = ice->second->relative_median / qem->second->relative_median;
+      if (std::isfinite(x)) ratios[m].push_back(x);
+      out << ' ' << num(x, 3) << " |";
+    }
+    out << '\n';
+  }
+  out << "| **median** | |";
+  for (const auto& m : methods) out << ' ' << pct(median(errors[m])) << " (" << num(median(angles[m]), 3) << "°) |";
+  for (const auto& m : over_qem) out << ' ' << num(median(ratios[m]), 3) << " |";
+  out << '\n';
+}
+
 void write_polish_csv(const std::string& path, const std::vector<PolishRow>& rows) {
   std::ofstream out(path);
   out << "mesh,n,budget,method,problem,coarse_n,tolerance,iterations,reached,plain_error,error,estimated_error,"
@@ -415,7 +526,7 @@ void write_summary(const std::string& path, const std::vector<Row>& rows, const 
                    const std::vector<double>& budgets, const std::vector<std::string>& meshes, const std::string& command,
                    double total_seconds, const std::string& operators, double area_weight, bool normalize_curvature,
                    const std::vector<PolishRow>& polished, const nlohmann::json& skipped,
-                   const std::map<std::string, double>& fine_heat_method_errors) {
+                   const std::map<std::string, double>& fine_heat_method_errors, const std::vector<EigenRow>& eigen) {
   std::map<Key, std::map<std::string, const Row*>> by_key;
   for (const Row& r : rows) by_key[{r.mesh, r.problem, r.budget}][r.method] = &r;
   const auto has = [&](const std::string& m) { return std::find(methods.begin(), methods.end(), m) != methods.end(); };
@@ -557,6 +668,7 @@ void write_summary(const std::string& path, const std::vector<Row>& rows, const 
     out << losses << " of " << cases << " comparisons (mesh × budget × problem × QEM variant):\n\n" << list.str();
   }
   write_polish_summary(out, polished, methods);
+  write_eigen_summary(out, eigen, methods);
   std::vector<std::string> notes;
   for (const Row& r : rows)
     if (!r.note.empty() && r.problem == "poisson") notes.push_back(r.mesh + " " + num(100 * r.budget, 3) + "% " + r.method + ": " + r.note);
@@ -766,6 +878,11 @@ int main(int argc, char** argv) {
   std::string tolerances_text;
   cli.add_option("--tolerances", tolerances_text,
                  "Also polish the Poisson and heat proxies to these tolerances, e.g. 1e-2,1e-3 (polish.csv)");
+  int eigen_pairs = 20;
+  cli.add_option("--eigen-pairs", eigen_pairs,
+                 "Also compare the first K Laplace-Beltrami eigenpairs through the Galerkin proxies (eigen.csv; 0: off)")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   bool repair = false;
   cli.add_flag("--repair", repair,
                "Apply the safe mesh repairs (else defective meshes are skipped)");
@@ -852,6 +969,7 @@ int main(int argc, char** argv) {
 
     std::vector<Row> rows;
     std::vector<PolishRow> polished;
+    std::vector<EigenRow> eigen_rows;  // --eigen-pairs: one per mesh, budget and method
     std::vector<app::ViewMesh> views;  // the 3D page: one per mesh
     std::vector<std::string> used_meshes;
     std::map<std::string, double> fine_heat_method_errors;  // --geodesic-reference exact: mesh -> error
@@ -887,7 +1005,7 @@ int main(int argc, char** argv) {
       }
       used_meshes.push_back(name);
       const double diagonal = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
-      const Fine fine = fine_reference(mesh, exact_geodesics);
+      const Fine fine = fine_reference(mesh, exact_geodesics, eigen_pairs);
       if (exact_geodesics) fine_heat_method_errors[name] = fine.heat_method_error;
       std::cerr << kTool << ": " << name << " (" << app::thousands(n) << " vertices): fine reference "
                 << app::fixed(mesh_clock.seconds(), 2) << " s\n";
@@ -965,7 +1083,7 @@ int main(int argc, char** argv) {
           fem::ProxyGeodesicOptions ice_geodesic = geodesic;
           ice_geodesic.curvature_correction = ice::proxy::corrects_curvature(curvature_correction, coarse.summary.method);
           solve_on_proxy(fine, coarse, kind, prolongation, r, rows, tolerances, polished, ice_geodesic,
-                         viewed ? &solved : nullptr, marching_lengths ? &*marching_lengths : nullptr);
+                         viewed ? &solved : nullptr, marching_lengths ? &*marching_lengths : nullptr, &eigen_rows);
           rows.back().factor += trace_seconds;  // the geodesic row: its marching needs the tracing
           if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
           progress << ' ' << m << ' ' << app::fixed(r.coarsen, 2) << " s (" << pct(rows[rows.size() - 3].error) << ' '
@@ -1002,7 +1120,7 @@ int main(int argc, char** argv) {
             fem::ProxyGeodesicOptions qem_geodesic = geodesic;
             qem_geodesic.curvature_correction = ice::proxy::corrects_curvature(curvature_correction, coarse.summary.method);
             solve_on_proxy(fine, coarse, qem_kind, qem_prolongation, r, rows, tolerances, polished, qem_geodesic,
-                           viewed ? &solved : nullptr);
+                           viewed ? &solved : nullptr, nullptr, &eigen_rows);
             if (viewed) add_view_method(*view, m, mesh, coarse, fine, solved, rows);
           } catch (const std::exception& e) {  // e.g. a degenerate QEM face breaks the cotan assembly
             record_failure(r, e.what(), rows);
@@ -1023,6 +1141,7 @@ int main(int argc, char** argv) {
     const double total_seconds = total_clock.seconds();
     write_csv(outdir + "/results.csv", rows);
     if (!tolerances.empty()) write_polish_csv(outdir + "/polish.csv", polished);
+    if (eigen_pairs > 0) write_eigen_csv(outdir + "/eigen.csv", eigen_rows);
     nlohmann::json results = {{"tool", kTool},
                               {"command", command},
                               {"meshes", used_meshes},
@@ -1049,17 +1168,21 @@ int main(int argc, char** argv) {
                               {"fine_reference", "intrinsic Delaunay triangulation of the input"},
                               {"geodesic_reference", exact_geodesics ? "exact polyhedral geodesics (CGAL)" : "fine heat method"},
                               {"fine_heat_method_geodesic_errors", fine_heat_method_errors},
+                              {"eigen_pairs", eigen_pairs},
+                              {"eigen_reference", "shift-invert Lanczos (Spectra) on a CHOLMOD factorisation, fine L and lumped M"},
+                              {"eigen", nlohmann::json::array()},
                               {"blas", fem::blas_library()},
                               {"total_seconds", total_seconds},
                               {"rows", nlohmann::json::array()}};
     for (const Row& r : rows) results["rows"].push_back(row_json(r));
+    for (const EigenRow& e : eigen_rows) results["eigen"].push_back(eigen_json(e));
     {
       std::ofstream out(outdir + "/results.json");
       out << results.dump(1) << '\n';
       if (!out) throw app::AppError(app::kNotWritten, outdir + "/results.json: cannot be written");
     }
     write_summary(outdir + "/summary.md", rows, methods, budgets, used_meshes, command, total_seconds, operators,
-                  area_weight, normalize_curvature, polished, skipped, fine_heat_method_errors);
+                  area_weight, normalize_curvature, polished, skipped, fine_heat_method_errors, eigen_rows);
     write_plot_data(outdir, rows, methods, budgets);
     std::string plots = "no plots (--no-plots)";
     if (!no_plots) {

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace ice::proxy {
 
@@ -91,6 +92,43 @@ Eigen::MatrixXd wave_kernel_signature(const Eigenbasis& basis, const Eigen::Vect
     if (total > 0) weights.col(e) /= total;
   }
   return squares * weights;
+}
+
+double median(Eigen::VectorXd v) {
+  if (v.size() == 0) return 0;
+  std::sort(v.data(), v.data() + v.size());
+  const Eigen::Index m = v.size() / 2;
+  return v.size() % 2 ? v(m) : 0.5 * (v(m - 1) + v(m));
+}
+
+EigenbasisErrors eigenbasis_errors(const Eigen::VectorXd& values, const Eigen::MatrixXd& vectors,
+                                   const fem::Eigenpairs& reference, const fem::SparseMatrix& M) {
+  const Eigen::Index k = values.size();
+  if (vectors.cols() != k || reference.values.size() < k || reference.vectors.cols() != reference.values.size() ||
+      reference.vectors.rows() != vectors.rows() || M.rows() != vectors.rows() || M.cols() != vectors.rows())
+    throw std::invalid_argument("eigenbasis_errors: " + std::to_string(k) + " values, " + std::to_string(vectors.cols()) +
+                                " vectors of " + std::to_string(vectors.rows()) + " rows against " +
+                                std::to_string(reference.values.size()) + " reference pairs of " +
+                                std::to_string(reference.vectors.rows()) + " rows");
+  EigenbasisErrors errors;
+  errors.angles = fem::eigenspace_angles(vectors, reference.vectors, reference.values, M);
+  errors.relative = Eigen::VectorXd::Zero(k);
+  const double largest = reference.values.head(k).cwiseAbs().maxCoeff();
+  std::vector<double> relative;
+  for (Eigen::Index j = 0; j < k; ++j) {
+    if (fem::is_zero_mode(reference.values(j), largest)) {
+      ++errors.zero_modes;
+      continue;
+    }
+    errors.relative(j) = std::abs(values(j) - reference.values(j)) / reference.values(j);
+    relative.push_back(errors.relative(j));
+  }
+  const Eigen::VectorXd nonzero = Eigen::Map<const Eigen::VectorXd>(relative.data(), static_cast<Eigen::Index>(relative.size()));
+  errors.relative_median = median(nonzero);
+  errors.relative_max = nonzero.size() ? nonzero.maxCoeff() : 0.0;
+  errors.angle_median = median(errors.angles);
+  errors.angle_max = k ? errors.angles.maxCoeff() : 0.0;
+  return errors;
 }
 
 double reconstruction_error(const Eigenbasis& basis, const Eigen::VectorXd& mass, const Eigen::VectorXd& f) {

@@ -84,6 +84,31 @@ Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::Eig
 /// EigenSolver(mesh, options).compute(k).
 Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options = {});
 
+/// How an eigenbasis compares with a reference one of the same pencil (e.g. the fine mesh's, by
+/// fem::smallest_eigenpairs): what spectral-coarse and ice-report report.
+struct EigenbasisErrors {
+  /// |λ − λ_ref| / λ_ref per pair; 0 where the reference value is a zero mode (fem::is_zero_mode:
+  /// a constant per component), which the statistics below leave out.
+  Eigen::VectorXd relative;
+  /// Per pair, the angle (radians, M inner product) to the reference eigenspace of its value
+  /// (fem::eigenspace_angles, which widens it over nearly repeated values).
+  Eigen::VectorXd angles;
+  int zero_modes = 0;
+  /// Over the pairs that are not zero modes (0 when there are none): median and largest relative
+  /// error; over all pairs: median and largest angle. A median of an even count is the mean of the
+  /// two middle values.
+  double relative_median = 0, relative_max = 0, angle_median = 0, angle_max = 0;
+};
+
+/// `values` and `vectors` (k pairs, one column per value, M-orthonormal) against `reference` (at
+/// least k pairs, increasing). Throws std::invalid_argument when the counts or row counts disagree
+/// or M is not square of the vectors' row count.
+EigenbasisErrors eigenbasis_errors(const Eigen::VectorXd& values, const Eigen::MatrixXd& vectors,
+                                   const fem::Eigenpairs& reference, const fem::SparseMatrix& M);
+
+/// The median of `v` (0 when empty; the mean of the two middle values of an even count).
+double median(Eigen::VectorXd v);
+
 /// Spectral descriptors of a basis (values λ, M-orthonormal vectors Φ), one row per vertex, one
 /// column per time or energy:
 /// - heat kernel signature HKS(x, t) = Σᵢ exp(−λᵢ t) φᵢ(x)²;
