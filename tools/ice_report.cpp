@@ -380,32 +380,42 @@ nlohmann::json row_json(const Row& r) {
           {"note", r.note}};
 }
 
-void write_csv(const std::string& path, const std::vector<Row>& rows) {
+// A CSV file: the header line, then one line per row written by write_row (9 significant digits).
+template <class Item, class WriteRow>
+void write_table(const std::string& path, const char* header, const std::vector<Item>& rows, WriteRow&& write_row) {
   std::ofstream out(path);
-  out << "mesh,n,budget,target,method,problem,coarse_n,coarse_faces,target_reached,coarsen_s,assemble_s,factor_s,"
-         "solve_s,prolong_s,proxy_total_s,fine_assemble_s,fine_factor_s,fine_solve_s,fine_total_s,speedup_total,"
-         "speedup_per_solve,error,error_max_rel,error_rel_l2,qem_max_distance_rel,note\n";
-  out << std::setprecision(9);
-  for (const Row& r : rows)
+  out << header << '\n' << std::setprecision(9);
+  for (const Item& r : rows) {
+    write_row(out, r);
+    out << '\n';
+  }
+  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
+}
+
+void write_csv(const std::string& path, const std::vector<Row>& rows) {
+  write_table(path,
+              "mesh,n,budget,target,method,problem,coarse_n,coarse_faces,target_reached,coarsen_s,assemble_s,factor_s,"
+              "solve_s,prolong_s,proxy_total_s,fine_assemble_s,fine_factor_s,fine_solve_s,fine_total_s,speedup_total,"
+              "speedup_per_solve,error,error_max_rel,error_rel_l2,qem_max_distance_rel,note",
+              rows, [](std::ostream& out, const Row& r) {
     out << r.mesh << ',' << r.n << ',' << r.budget << ',' << r.target << ',' << r.method << ',' << r.problem << ','
         << r.coarse_n << ',' << r.coarse_faces << ',' << (r.target_reached ? 1 : 0) << ',' << r.coarsen << ','
         << r.assemble << ',' << r.factor << ',' << r.solve << ',' << r.prolong << ',' << r.proxy_total() << ','
         << r.fine_assemble << ',' << r.fine_factor << ',' << r.fine_solve << ',' << r.fine_total() << ','
         << r.speedup_total() << ',' << r.speedup_solve() << ',' << r.error << ',' << r.error_max << ',' << r.error_l2
-        << ',' << (r.qem_max_distance >= 0 ? num(r.qem_max_distance, 6) : "") << ',' << r.note << '\n';
-  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
+        << ',' << (r.qem_max_distance >= 0 ? num(r.qem_max_distance, 6) : "") << ',' << r.note;
+  });
 }
 
 void write_eigen_csv(const std::string& path, const std::vector<EigenRow>& rows) {
-  std::ofstream out(path);
-  out << "mesh,n,budget,method,coarse_n,pairs,zero_modes,eigenvalue_rel_median,eigenvalue_rel_max,angle_deg_median,"
-         "angle_deg_max,proxy_s,fine_s,note\n";
-  out << std::setprecision(9);
-  for (const EigenRow& r : rows)
+  write_table(path,
+              "mesh,n,budget,method,coarse_n,pairs,zero_modes,eigenvalue_rel_median,eigenvalue_rel_max,angle_deg_median,"
+              "angle_deg_max,proxy_s,fine_s,note",
+              rows, [](std::ostream& out, const EigenRow& r) {
     out << r.mesh << ',' << r.n << ',' << r.budget << ',' << r.method << ',' << r.coarse_n << ',' << r.pairs << ','
         << r.zero_modes << ',' << r.relative_median << ',' << r.relative_max << ',' << r.angle_median_deg << ','
-        << r.angle_max_deg << ',' << r.seconds << ',' << r.fine_seconds << ',' << r.note << '\n';
-  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
+        << r.angle_max_deg << ',' << r.seconds << ',' << r.fine_seconds << ',' << r.note;
+  });
 }
 
 nlohmann::json eigen_json(const EigenRow& r) {
@@ -466,16 +476,15 @@ void write_eigen_summary(std::ostream& out, const std::vector<EigenRow>& rows, c
 }
 
 void write_polish_csv(const std::string& path, const std::vector<PolishRow>& rows) {
-  std::ofstream out(path);
-  out << "mesh,n,budget,method,problem,coarse_n,tolerance,iterations,reached,plain_error,error,estimated_error,"
-         "polish_setup_s,polish_s,proxy_solve_s,per_solve_s,fine_factor_s,fine_solve_s\n";
-  out << std::setprecision(9);
-  for (const PolishRow& r : rows)
+  write_table(path,
+              "mesh,n,budget,method,problem,coarse_n,tolerance,iterations,reached,plain_error,error,estimated_error,"
+              "polish_setup_s,polish_s,proxy_solve_s,per_solve_s,fine_factor_s,fine_solve_s",
+              rows, [](std::ostream& out, const PolishRow& r) {
     out << r.mesh << ',' << r.n << ',' << r.budget << ',' << r.method << ',' << r.problem << ',' << r.coarse_n << ','
         << r.tolerance << ',' << r.iterations << ',' << (r.reached ? 1 : 0) << ',' << r.plain_error << ',' << r.error
         << ',' << r.estimated_error << ',' << r.setup << ',' << r.polish << ',' << r.proxy_solve << ',' << r.per_solve()
-        << ',' << r.fine_factor << ',' << r.fine_solve << '\n';
-  if (!out) throw app::AppError(app::kNotWritten, path + ": cannot be written");
+        << ',' << r.fine_factor << ',' << r.fine_solve;
+  });
 }
 
 // Polishing per problem, method and tolerance: is the tolerance met (true error <= T), how many

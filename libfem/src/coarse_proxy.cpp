@@ -255,16 +255,14 @@ CoarseProxy::LazyFineOperators& CoarseProxy::fine_mesh_of_lazy() const {
   LazyFineOperators& lazy = *lazy_;
   std::call_once(lazy.mesh_once, [&lazy] {
     if (!lazy.source) return;
-    const Index n = lazy.mesh.vertex_count;
+    const Index n = lazy.mesh.vertex_count;  // P's rows
     lazy.source(lazy.mesh);
     lazy.mesh.twin = {};
-    bool fits = lazy.mesh.vertex_count == n;
     try {
-      fits = fits && checked_vertex_count(lazy.mesh) == n;
-    } catch (const std::invalid_argument&) {
-      fits = false;
+      if (checked_vertex_count(lazy.mesh) == n) return;
+    } catch (const std::invalid_argument&) {  // (reported as the mesh not fitting, below)
     }
-    if (!fits) throw std::invalid_argument("CoarseProxy (restored): the fine mesh given does not fit P's rows");
+    throw std::invalid_argument("CoarseProxy (restored): the fine mesh given does not fit P's rows");
   });
   return lazy;
 }
