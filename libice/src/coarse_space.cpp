@@ -77,17 +77,37 @@ void record_sizes(CoarseSpace& space, CoarseningMethod method, Index input_verti
   space.summary.coarse_faces = static_cast<Index>(space.mesh.F.rows());
 }
 
-// The triangulation of `mesh` built in its locality numbering (detail::locality_numbering), whose
-// order[new] = input vertex lands in *order; in the input's own numbering (*order empty) when
-// `renumber` is false or the mesh cannot be renumbered (its defects are then reported as usual).
-IntrinsicTriangulation triangulation_for_locality(const TriangleMesh& mesh, bool renumber, std::vector<Index>* order,
-                                                  std::vector<Index>* face_order = nullptr) {
+// `twin` (a gluing of faces) with face face_order[i] moved to row i (corners keep their order).
+std::vector<Index> twin_in_face_order(const std::vector<Index>& twin, const std::vector<Index>& face_order) {
+  std::vector<Index> new_face(face_order.size());
+  for (std::size_t i = 0; i < face_order.size(); ++i) new_face[static_cast<std::size_t>(face_order[i])] = static_cast<Index>(i);
+  std::vector<Index> glued(twin.size(), kInvalid);
+  for (std::size_t i = 0; i < face_order.size(); ++i)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const Index t = twin[3 * static_cast<std::size_t>(face_order[i]) + k];
+      if (t != kInvalid) glued[3 * i + k] = 3 * new_face[static_cast<std::size_t>(t / 3)] + t % 3;
+    }
+  return glued;
+}
+
+// The triangulation of `mesh`, its faces glued by `twin` (null: by vertex pairs), built in its
+// locality numbering (detail::locality_numbering), whose order[new] = input vertex lands in *order;
+// in the input's own numbering (*order empty) when `renumber` is false or the mesh cannot be
+// renumbered (its defects are then reported as usual).
+IntrinsicTriangulation triangulation_for_locality(const TriangleMesh& mesh, const std::vector<Index>* twin, bool renumber,
+                                                  std::vector<Index>* order, std::vector<Index>* face_order = nullptr) {
   order->clear();
   if (face_order) face_order->clear();
-  if (!renumber) return IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  const auto as_given = [&] {
+    return twin ? IntrinsicTriangulation::from_glued_faces(mesh.F, face_lengths_from_positions(mesh.V, mesh.F), *twin)
+                : IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
+  };
+  if (!renumber) return as_given();
   detail::LocalityNumbering local = detail::locality_numbering(mesh);
-  if (local.order.empty()) return IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-  IntrinsicTriangulation T = IntrinsicTriangulation::from_lengths(local.F, local.face_lengths(mesh.V));
+  if (local.order.empty()) return as_given();
+  IntrinsicTriangulation T = twin ? IntrinsicTriangulation::from_glued_faces(local.F, local.face_lengths(mesh.V),
+                                                                               twin_in_face_order(*twin, local.face_order))
+                                  : IntrinsicTriangulation::from_lengths(local.F, local.face_lengths(mesh.V));
   *order = std::move(local.order);
   if (face_order) *face_order = std::move(local.face_order);
   return T;  // the renumbered faces are freed here, before the caller's work on T
@@ -176,7 +196,8 @@ FineMesh fine_delaunay_mesh(IntrinsicTriangulation T, const std::vector<Index>& 
   return fine;
 }
 
-CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options, FineMesh* fine) {
+CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const std::vector<Index>* twin, const CoarseSpaceOptions& options,
+                             FineMesh* fine) {
   // The coarsener works in a numbering with memory locality; the result is given back in the
   // mesh's own.
   std::vector<Index> order;
@@ -184,7 +205,7 @@ CoarseSpace ice_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions&
   const bool record_history = options.keep_method_state && options.record_history;
   std::vector<Index> face_order;
   IntrinsicTriangulation T =
-      triangulation_for_locality(mesh, options.locality_numbering, &order, record_history ? &face_order : nullptr);
+      triangulation_for_locality(mesh, twin, options.locality_numbering, &order, record_history ? &face_order : nullptr);
   double fine_mesh_seconds = 0;
   if (fine) {  // fine_mesh() would build this triangulation again: a copy is cheaper
     const auto fine_start = Clock::now();
@@ -281,7 +302,7 @@ CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOption
     q.remove_boundary = options.coarsen.remove_boundary;
     space = coarse_space_from_qem(qem_coarsen(mesh, q), options.qem_geometry, options.keep_method_state);
   } else {
-    space = ice_coarse_space(mesh, options, shared ? fine_delaunay : nullptr);
+    space = ice_coarse_space(mesh, nullptr, options, shared ? fine_delaunay : nullptr);
   }
   if (fine_delaunay && !shared) {
     const auto fine_start = Clock::now();
@@ -363,8 +384,82 @@ FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
   }
   // Built and flipped in the locality numbering (as ICE coarsens), faces then named by input vertex.
   std::vector<Index> order;
-  IntrinsicTriangulation T = triangulation_for_locality(mesh, true, &order);
+  IntrinsicTriangulation T = triangulation_for_locality(mesh, nullptr, true, &order);
   return fine_delaunay_mesh(std::move(T), order);
+}
+
+namespace {
+
+// Names the corners of a fine mesh of the cover by their input vertices.
+FineMesh on_input_vertices(const TuftedCover& cover, FineMesh fine) {
+  for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) fine.F(f, k) = cover.to_input[static_cast<std::size_t>(fine.F(f, k))];
+  fine.vertex_count = cover.input_vertex_count;
+  return fine;
+}
+
+}  // namespace
+
+CoarseSpace build_coarse_space(const TuftedCover& cover, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
+  const auto start = Clock::now();
+  if (options.method != CoarseningMethod::ice)
+    throw std::invalid_argument("build_coarse_space: a tufted cover is coarsened by ICE only (QEM decimates an extrinsic "
+                                "surface; the cover's front and back sheets coincide in space)");
+  if (options.refinement) throw std::invalid_argument("build_coarse_space: no refinement on a tufted cover");
+  // Locked input vertices: every copy of each.
+  CoarseSpaceOptions cover_options = options;
+  std::vector<Index>& locked = cover_options.coarsen.locked_vertices;
+  if (!options.coarsen.locked_vertices.empty()) {
+    std::vector<char> is_locked(static_cast<std::size_t>(cover.input_vertex_count), 0);
+    for (Index v : options.coarsen.locked_vertices)
+      if (v >= 0 && v < cover.input_vertex_count) is_locked[static_cast<std::size_t>(v)] = 1;
+    locked.clear();
+    for (std::size_t c = 0; c < cover.to_input.size(); ++c)
+      if (is_locked[static_cast<std::size_t>(cover.to_input[c])]) locked.push_back(static_cast<Index>(c));
+  }
+  // A vertex target counts input vertices; the cover has more (copies): the same ratio of its own.
+  if (options.coarsen.target_vertices > 0 && cover.input_vertex_count > 0)
+    cover_options.coarsen.target_vertices = static_cast<Index>(std::llround(
+        static_cast<double>(options.coarsen.target_vertices) * static_cast<double>(cover.to_input.size()) /
+        static_cast<double>(cover.input_vertex_count)));
+  FineMesh cover_fine;
+  const bool shared = fine_delaunay && options.locality_numbering;
+  CoarseSpace space = ice_coarse_space(cover.mesh, &cover.twin, cover_options, shared ? &cover_fine : nullptr);
+  const auto map_start = Clock::now();
+  space.P = cover_to_input(cover, cover_vertex_areas(cover)) * space.P;
+  space.P.makeCompressed();
+  std::vector<Index> copies(static_cast<std::size_t>(cover.input_vertex_count), 0);
+  for (Index v : cover.to_input) ++copies[static_cast<std::size_t>(v)];
+  CompactMesh& C = space.mesh;
+  for (Index& v : C.to_input)
+    if (v != kInvalid) v = cover.to_input[static_cast<std::size_t>(v)];
+  std::vector<Index> from_input(static_cast<std::size_t>(cover.input_vertex_count), kInvalid);
+  for (std::size_t c = 0; c < C.to_input.size(); ++c) {
+    const Index v = C.to_input[c];
+    if (v != kInvalid && copies[static_cast<std::size_t>(v)] == 1) from_input[static_cast<std::size_t>(v)] = static_cast<Index>(c);
+  }
+  C.from_input = std::move(from_input);
+  space.summary.input_vertices = cover.input_vertex_count;
+  space.summary.prolongation_seconds += seconds_since(map_start);
+  if (fine_delaunay) {
+    const auto fine_start = Clock::now();
+    *fine_delaunay = on_input_vertices(cover, shared ? std::move(cover_fine) : fine_mesh(cover, FineGeometry::intrinsic_delaunay));
+    space.summary.fine_mesh_seconds += seconds_since(fine_start);
+  }
+  space.summary.seconds = seconds_since(start) - space.summary.fine_mesh_seconds;
+  return space;
+}
+
+FineMesh fine_mesh(const TuftedCover& cover, FineGeometry geometry) {
+  FineMesh fine;
+  fine.geometry = geometry;
+  if (geometry == FineGeometry::input) {
+    static_cast<IntrinsicMesh&>(fine) = cover.intrinsic_mesh();
+    return on_input_vertices(cover, std::move(fine));
+  }
+  std::vector<Index> order;
+  IntrinsicTriangulation T = triangulation_for_locality(cover.mesh, &cover.twin, true, &order);
+  return on_input_vertices(cover, fine_delaunay_mesh(std::move(T), order));
 }
 
 }  // namespace ice

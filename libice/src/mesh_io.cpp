@@ -978,10 +978,22 @@ LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& opt
   result.file = read_mesh_file(path);
   result.input_report = validate_mesh(result.file.soup);
 
+  const auto acceptable = [&](const ValidationReport& report) {
+    return report.clean() || (options.keep_nonmanifold && report.clean_but_for_sheets());
+  };
+  // Defects that only the tufted cover takes (the repairs split non-manifold vertices between
+  // manifold edges and re-orient orientable surfaces): the message says so.
+  const auto cover_hint = [&](const ValidationReport& report) {
+    const bool sheets = !report.non_manifold_edges.empty() || report.non_orientable_components > 0;
+    return sheets && report.clean_but_for_sheets() && !options.keep_nonmanifold
+               ? std::string("; such a mesh can be solved on its tufted cover (the tools' --nonmanifold tufted)")
+               : std::string();
+  };
   if (!options.repair) {
-    if (!result.input_report.clean())
+    if (!acceptable(result.input_report))
       throw MeshError(MeshError::Kind::Defective, path,
-                      "refused: " + describe_defects(result.input_report) + " (load with repair to fix what is safe)");
+                      "refused: " + describe_defects(result.input_report) + " (load with repair to fix what is safe)" +
+                          cover_hint(result.input_report));
     result.mesh = to_triangle_mesh(result.file.soup);
     result.source_vertex.resize(static_cast<std::size_t>(result.mesh.V.rows()));
     std::iota(result.source_vertex.begin(), result.source_vertex.end(), 0);
@@ -995,12 +1007,12 @@ LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& opt
   repair_options.weld_duplicate_positions = options.weld_duplicate_positions;
   RepairResult repaired = repair_mesh(result.file.soup, repair_options);
   result.repairs = repaired.log;
-  if (!repaired.report.clean()) {
+  if (!acceptable(repaired.report)) {
     std::string done;
     for (const auto& line : repaired.log.summary()) done += (done.empty() ? "" : ", ") + line;
     throw MeshError(MeshError::Kind::Defective, path,
                     "refused even after repair: " + describe_defects(repaired.report) +
-                        (done.empty() ? std::string() : " (repairs done: " + done + ")"));
+                        (done.empty() ? std::string() : " (repairs done: " + done + ")") + cover_hint(repaired.report));
   }
   if (repaired.soup.polygons.empty()) throw MeshError(MeshError::Kind::Defective, path, "no faces left after repair");
   result.mesh = to_triangle_mesh(repaired.soup);

@@ -129,6 +129,11 @@ std::vector<std::string> ValidationReport::defects() const {
   return lines;
 }
 
+bool ValidationReport::clean_but_for_sheets() const {
+  return non_triangle_faces.empty() && out_of_range_faces.empty() && repeated_index_faces.empty() &&
+         non_finite_vertices.empty() && unreferenced_vertices.empty() && duplicate_faces.empty() && zero_area_faces.empty();
+}
+
 ValidationReport validate_mesh(const TriangleMesh& mesh) { return validate_mesh(to_polygon_soup(mesh)); }
 
 namespace {

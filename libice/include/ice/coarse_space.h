@@ -26,6 +26,7 @@
 #include "ice/mesh.h"
 #include "ice/qem.h"
 #include "ice/refinement.h"
+#include "ice/tufted_cover.h"
 
 namespace ice {
 
@@ -204,5 +205,26 @@ struct FineMesh : IntrinsicMesh {
   Index flips = 0;  ///< intrinsic Delaunay flips made
 };
 FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry);
+
+// ---- meshes that are not oriented manifolds: through their tufted cover (ice/tufted_cover.h) ----
+
+/// The coarse space of a mesh through its tufted cover `cover` (tufted_cover(mesh)), on the mesh's
+/// own vertices: ICE coarsens the cover (a closed, oriented Δ-complex), then P = W·P_cover with
+/// W = cover_to_input(cover, cover_vertex_areas(cover)), so that an input vertex's value is the
+/// area-weighted mean of its copies' (rows sum to 1). mesh.to_input names the input vertex of each
+/// coarse vertex (several coarse vertices can be copies of one input vertex); mesh.from_input an
+/// input vertex's coarse vertex when it has a single copy and that copy survived, else kInvalid.
+/// The method's state (keep_method_state) is that of the cover (its vertices are the cover's).
+/// With `fine_delaunay`: the fine mesh of fine_mesh(cover, FineGeometry::intrinsic_delaunay).
+/// Throws std::invalid_argument for QEM (it decimates an extrinsic surface; the cover's sheets
+/// coincide in space) and for refinement, and on bad options as build_coarse_space.
+CoarseSpace build_coarse_space(const TuftedCover& cover, const CoarseSpaceOptions& options, FineMesh* fine_delaunay = nullptr);
+
+/// The fine discretisation of a mesh through its cover, on the mesh's own vertices: the cover's
+/// triangles (FineGeometry::input) or their intrinsic Delaunay triangulation, each corner named by
+/// its input vertex, with the cover's gluing (a vertex then has one fan per copy). Its cotan
+/// Laplacian and lumped mass are twice the mesh's own on an oriented manifold; on any other mesh,
+/// with intrinsic_delaunay, (twice) the robust Laplacian of Sharp & Crane.
+FineMesh fine_mesh(const TuftedCover& cover, FineGeometry geometry);
 
 }  // namespace ice

@@ -23,6 +23,8 @@
 ///    re-orient orientable components, weld exactly coincident vertices if asked) and the result is
 ///    validated again. Still refused after repair: non-finite coordinates, out-of-range indices,
 ///    non-manifold or non-orientable surfaces (including non-manifoldness created by dropping faces).
+///  - With `LoadOptions::keep_nonmanifold`, non-manifold edges and vertices, inconsistent orientation
+///    and non-orientable components are kept (the tufted cover's input); the other defects as above.
 ///  - Accepted as they are: several connected components (ICE coarsens all components together, each
 ///    keeping its own topology), boundaries, any genus, coincident vertex positions (information only).
 ///  - Unreadable input (missing, unreadable, empty, unknown format, truncated or unparsable records):
@@ -80,6 +82,10 @@ MeshFile read_mesh_file(const std::string& path);
 struct LoadOptions {
   bool repair = false;                    ///< Apply the safe repairs of mesh_repair.h.
   bool weld_duplicate_positions = false;  ///< With repair: also weld exactly coincident vertices.
+  /// Accept a mesh (after the repairs, when asked) whose only defects are non-manifold edges or
+  /// vertices, inconsistent orientation or non-orientable components: what the tufted cover
+  /// (ice/tufted_cover.h) solves on. LoadResult::report still lists them.
+  bool keep_nonmanifold = false;
 };
 
 /// Everything `load_mesh_with_report` learned about a file.

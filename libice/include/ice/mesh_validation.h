@@ -208,6 +208,9 @@ struct ValidationReport {
   bool orientable() const { return non_orientable_components == 0; }
   /// True if the mesh satisfies every precondition of ICE (no entry in `defects()`).
   bool clean() const { return defects().empty(); }
+  /// True if every defect (if any) is one the tufted cover resolves (ice/tufted_cover.h): non-manifold
+  /// edges or vertices, inconsistent orientation, non-orientable components.
+  bool clean_but_for_sheets() const;
   /// One line per defect kind: "<count> <what> (first: ...)". Empty for a clean mesh.
   std::vector<std::string> defects() const;
 };

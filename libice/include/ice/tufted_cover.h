@@ -1,0 +1,60 @@
+#pragma once
+/// \file tufted_cover.h
+/// The tufted cover of a triangle mesh that is not an oriented manifold (Sharp & Crane, "A Laplacian
+/// for Nonmanifold Triangle Meshes", SGP 2020): every face doubled into a front and a back sheet, the
+/// sheets around each edge glued in the order of their faces about the edge, so that the result is a
+/// closed, oriented, edge-manifold intrinsic triangulation (a Δ-complex) on which ICE coarsens as on
+/// any other. Its cotan Laplacian, summed over each input vertex's copies, is twice the input's: the
+/// cover sees every face from both sides.
+#include <vector>
+
+#include <Eigen/SparseCore>
+
+#include "ice/mesh.h"
+
+namespace ice {
+
+/// The cover of an input mesh of n vertices and m faces.
+struct TuftedCover {
+  /// Cover vertices at their input vertex's position; faces f < m the input's (front sheets, same
+  /// corner order), faces m + f their back sheets (corners 0, 2, 1 of face f).
+  TriangleMesh mesh;
+  /// How the sheets are glued (IntrinsicMesh::twin convention). Closed: no side is kInvalid. Two
+  /// cover vertices can be joined by several edges, so vertex pairs cannot say this.
+  std::vector<Index> twin;
+  /// Cover vertex → input vertex. An input vertex has one copy per fan of sheets around it: one on an
+  /// edge-manifold open sheet (front and back meet at its boundary), two on a closed sheet (its
+  /// inside and its outside), more where sheets only touch at the vertex. Copies of one input vertex
+  /// are numbered consecutively, in increasing input order.
+  std::vector<Index> to_input;
+  Index input_vertex_count = 0;
+
+  /// The cover as ICE's intrinsic mesh: its faces, their edge lengths from the positions, its gluing.
+  IntrinsicMesh intrinsic_mesh() const;
+};
+
+/// Whether `mesh` needs the cover to be coarsened: it has a non-manifold edge (more than two faces),
+/// an edge whose two faces run along it in the same direction (inconsistent orientation, which
+/// includes every non-orientable surface) or a non-manifold vertex (several fans of faces).
+/// Preconditions: indices in range.
+bool needs_tufted_cover(const TriangleMesh& mesh);
+
+/// The tufted cover of `mesh`. Around an edge shared by d faces the sheets are glued in the order of
+/// the faces' angle about the edge (ties by face index): the sheet of each face that looks into a
+/// wedge between two consecutive faces is glued to the other face's sheet that looks into the same
+/// wedge (a face alone on its edge: its front to its back). On an edge-manifold, consistently
+/// oriented part this is two mirror copies of it joined along its boundary.
+/// Preconditions (std::invalid_argument otherwise): every index in range, every vertex used, no face
+/// repeating a vertex, every face non-degenerate (ice::is_degenerate_triangle false): what
+/// load_mesh's safe repairs leave of a non-manifold file.
+TuftedCover tufted_cover(const TriangleMesh& mesh);
+
+/// The n × (cover vertices) matrix that takes a field on the cover to the input vertices: each input
+/// vertex gets the average of its copies' values weighted by `copy_mass` (their areas; all copies
+/// without mass: the plain average). Rows sum to 1; a field equal on all copies maps to itself.
+Eigen::SparseMatrix<double> cover_to_input(const TuftedCover& cover, const Eigen::VectorXd& copy_mass);
+
+/// Per cover vertex: a third of the area of every cover face at its corners (lumped barycentric area).
+Eigen::VectorXd cover_vertex_areas(const TuftedCover& cover);
+
+}  // namespace ice

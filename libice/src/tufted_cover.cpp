@@ -1,0 +1,234 @@
+#include "ice/tufted_cover.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "disjoint_sets.h"
+#include "ice/mesh_validation.h"
+#include "ice/triangle_geometry.h"
+
+namespace ice {
+
+namespace {
+
+// The sides (3f + k: face f from corner k to k + 1) of F grouped by undirected edge: the sides of
+// edge e are sides[start[e] .. start[e + 1]), in increasing side order; low[e] < high[e] its ends.
+// Bucketed by the smaller end (O(m) but for the sort of each vertex's few sides).
+struct EdgeSides {
+  std::vector<Index> sides, start, low, high;
+};
+
+EdgeSides sides_by_edge(const Faces& F, Index vertex_count) {
+  const Index m = static_cast<Index>(F.rows());
+  const auto low_of = [&](Index s) { return std::min(F(s / 3, s % 3), F(s / 3, (s % 3 + 1) % 3)); };
+  const auto high_of = [&](Index s) { return std::max(F(s / 3, s % 3), F(s / 3, (s % 3 + 1) % 3)); };
+  std::vector<Index> bucket(static_cast<std::size_t>(vertex_count) + 1, 0);
+  for (Index s = 0; s < 3 * m; ++s) ++bucket[static_cast<std::size_t>(low_of(s)) + 1];
+  std::partial_sum(bucket.begin(), bucket.end(), bucket.begin());
+  std::vector<Index> by_low(static_cast<std::size_t>(3 * m));
+  {
+    std::vector<Index> next(bucket.begin(), bucket.end() - 1);
+    for (Index s = 0; s < 3 * m; ++s) by_low[static_cast<std::size_t>(next[static_cast<std::size_t>(low_of(s))]++)] = s;
+  }
+  EdgeSides out;
+  out.sides.reserve(by_low.size());
+  for (Index v = 0; v < vertex_count; ++v) {
+    const auto first = by_low.begin() + bucket[static_cast<std::size_t>(v)];
+    const auto last = by_low.begin() + bucket[static_cast<std::size_t>(v) + 1];
+    std::sort(first, last, [&](Index a, Index b) { return std::make_pair(high_of(a), a) < std::make_pair(high_of(b), b); });
+    for (auto it = first; it != last; ++it) {
+      if (it == first || high_of(*it) != high_of(*(it - 1))) {
+        out.start.push_back(static_cast<Index>(out.sides.size()));
+        out.low.push_back(v);
+        out.high.push_back(high_of(*it));
+      }
+      out.sides.push_back(*it);
+    }
+  }
+  out.start.push_back(static_cast<Index>(out.sides.size()));
+  return out;
+}
+
+void require_faces_in_range(const TriangleMesh& mesh, const char* who) {
+  const Index n = static_cast<Index>(mesh.V.rows());
+  if (mesh.V.cols() != 3 || mesh.F.cols() != 3) throw std::invalid_argument(std::string(who) + ": V and F must have 3 columns");
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (mesh.F(f, k) < 0 || mesh.F(f, k) >= n)
+        throw std::invalid_argument(std::string(who) + ": face " + std::to_string(f) + " has a vertex index out of range");
+}
+
+}  // namespace
+
+IntrinsicMesh TuftedCover::intrinsic_mesh() const {
+  return IntrinsicMesh{mesh.F, face_lengths_from_positions(mesh.V, mesh.F), twin, static_cast<Index>(mesh.V.rows())};
+}
+
+bool needs_tufted_cover(const TriangleMesh& mesh) {
+  require_faces_in_range(mesh, "needs_tufted_cover");
+  const Faces& F = mesh.F;
+  const Index n = static_cast<Index>(mesh.V.rows());
+  const EdgeSides edges = sides_by_edge(F, n);
+  // Corners around a vertex joined across the edges: one class per fan.
+  detail::DisjointSets fans(static_cast<std::size_t>(3 * F.rows()));
+  for (std::size_t e = 0; e + 1 < edges.start.size(); ++e) {
+    const Index count = edges.start[e + 1] - edges.start[e];
+    if (count > 2) return true;
+    if (count < 2) continue;
+    const Index s = edges.sides[static_cast<std::size_t>(edges.start[e])];
+    const Index t = edges.sides[static_cast<std::size_t>(edges.start[e]) + 1];
+    if (F(s / 3, s % 3) == F(t / 3, t % 3)) return true;  // both run the same way
+    // s runs v -> w, t runs w -> v: v is s's corner k and t's corner l + 1; w the other way round.
+    fans.unite(static_cast<std::size_t>(s), static_cast<std::size_t>(3 * (t / 3) + (t % 3 + 1) % 3));
+    fans.unite(static_cast<std::size_t>(t), static_cast<std::size_t>(3 * (s / 3) + (s % 3 + 1) % 3));
+  }
+  std::vector<Index> fan_of(static_cast<std::size_t>(n), kInvalid);
+  for (Index c = 0; c < 3 * static_cast<Index>(F.rows()); ++c) {
+    const Index v = F(c / 3, c % 3);
+    const Index root = static_cast<Index>(fans.find(static_cast<std::size_t>(c)));
+    Index& seen = fan_of[static_cast<std::size_t>(v)];
+    if (seen == kInvalid) seen = root;
+    else if (seen != root) return true;
+  }
+  return false;
+}
+
+TuftedCover tufted_cover(const TriangleMesh& mesh) {
+  require_faces_in_range(mesh, "tufted_cover");
+  const Positions& V = mesh.V;
+  const Faces& F = mesh.F;
+  const Index n = static_cast<Index>(V.rows()), m = static_cast<Index>(F.rows());
+  {
+    std::vector<char> used(static_cast<std::size_t>(n), 0);
+    const double diagonal = n > 0 ? (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm() : 0.0;
+    for (Index f = 0; f < m; ++f) {
+      if (F(f, 0) == F(f, 1) || F(f, 1) == F(f, 2) || F(f, 0) == F(f, 2))
+        throw std::invalid_argument("tufted_cover: face " + std::to_string(f) + " repeats a vertex");
+      if (is_degenerate_triangle(V, F(f, 0), F(f, 1), F(f, 2), diagonal))
+        throw std::invalid_argument("tufted_cover: face " + std::to_string(f) + " is degenerate (zero area)");
+      for (int k = 0; k < 3; ++k) used[static_cast<std::size_t>(F(f, k))] = 1;
+    }
+    for (Index v = 0; v < n; ++v)
+      if (!used[static_cast<std::size_t>(v)])
+        throw std::invalid_argument("tufted_cover: vertex " + std::to_string(v) + " lies on no face");
+  }
+  // Front side s = 3f + k; its back twin runs the other way on face m + f, side 2 − k.
+  const auto back = [m](Index s) { return 3 * (m + s / 3) + (2 - s % 3); };
+  const EdgeSides edges = sides_by_edge(F, n);
+  std::vector<Index> twin(static_cast<std::size_t>(6 * m), kInvalid);
+  const auto glue = [&twin](Index a, Index b) {
+    twin[static_cast<std::size_t>(a)] = b;
+    twin[static_cast<std::size_t>(b)] = a;
+  };
+  std::vector<std::pair<double, Index>> around;  // (angle about the edge, front side)
+  for (std::size_t e = 0; e + 1 < edges.start.size(); ++e) {
+    const Index* sides = edges.sides.data() + edges.start[e];
+    const Index count = edges.start[e + 1] - edges.start[e];
+    const Index lo = edges.low[e], hi = edges.high[e];
+    // The sheet of a face that looks towards increasing angle runs lo -> hi along the edge (its
+    // normal is u × d, d the face's direction away from the edge): the front when the face itself
+    // runs lo -> hi, else the back; the sheet looking the other way runs hi -> lo.
+    const auto forward_sheet = [&](Index s) { return F(s / 3, s % 3) == lo ? s : back(s); };
+    const auto backward_sheet = [&](Index s) { return F(s / 3, s % 3) == lo ? back(s) : s; };
+    if (count == 1) {
+      glue(sides[0], back(sides[0]));
+      continue;
+    }
+    around.clear();
+    if (count == 2) {  // two faces: one cyclic order, no angles needed
+      around = {{0.0, sides[0]}, {1.0, sides[1]}};
+    } else {
+      const Eigen::Vector3d u = (V.row(hi) - V.row(lo)).transpose().normalized();
+      Eigen::Vector3d e1 = Eigen::Vector3d::Zero(), e2 = Eigen::Vector3d::Zero();
+      for (Index i = 0; i < count; ++i) {
+        const Index s = sides[i];
+        const Index apex = F(s / 3, (s % 3 + 2) % 3);
+        Eigen::Vector3d d = (V.row(apex) - V.row(lo)).transpose();
+        d -= d.dot(u) * u;
+        if (i == 0) {
+          e1 = d.normalized();
+          e2 = u.cross(e1);
+        }
+        around.emplace_back(std::atan2(d.dot(e2), d.dot(e1)), s);
+      }
+      std::sort(around.begin(), around.end());  // ties: by side, i.e. by face
+    }
+    for (std::size_t i = 0; i < around.size(); ++i)
+      glue(forward_sheet(around[i].second), backward_sheet(around[(i + 1) % around.size()].second));
+  }
+  // Cover faces: front f as given, back m + f with corners 0, 2, 1.
+  TuftedCover cover;
+  cover.input_vertex_count = n;
+  Faces& C = cover.mesh.F;
+  C.resize(2 * m, 3);
+  for (Index f = 0; f < m; ++f) {
+    C.row(f) = F.row(f);
+    C(m + f, 0) = F(f, 0);
+    C(m + f, 1) = F(f, 2);
+    C(m + f, 2) = F(f, 1);
+  }
+  // Copies: the corners of one vertex joined across every glued side form its fans.
+  detail::DisjointSets fans(static_cast<std::size_t>(6 * m));
+  for (Index s = 0; s < 6 * m; ++s) {
+    const Index t = twin[static_cast<std::size_t>(s)];
+    fans.unite(static_cast<std::size_t>(s), static_cast<std::size_t>(3 * (t / 3) + (t % 3 + 1) % 3));
+  }
+  std::vector<Index> roots;  // a fan's representative is its smallest corner
+  for (Index c = 0; c < 6 * m; ++c)
+    if (fans.find(static_cast<std::size_t>(c)) == static_cast<std::size_t>(c)) roots.push_back(c);
+  const auto input_of = [&C](Index corner) { return C(corner / 3, corner % 3); };
+  std::sort(roots.begin(), roots.end(), [&](Index a, Index b) {
+    return std::make_pair(input_of(a), a) < std::make_pair(input_of(b), b);
+  });
+  std::vector<Index> copy_of_root(static_cast<std::size_t>(6 * m), kInvalid);
+  cover.to_input.resize(roots.size());
+  for (std::size_t i = 0; i < roots.size(); ++i) {
+    copy_of_root[static_cast<std::size_t>(roots[i])] = static_cast<Index>(i);
+    cover.to_input[i] = input_of(roots[i]);
+  }
+  for (Index c = 0; c < 6 * m; ++c)
+    C(c / 3, c % 3) = copy_of_root[fans.find(static_cast<std::size_t>(c))];
+  cover.mesh.V.resize(static_cast<Eigen::Index>(roots.size()), 3);
+  for (std::size_t i = 0; i < roots.size(); ++i) cover.mesh.V.row(static_cast<Eigen::Index>(i)) = V.row(cover.to_input[i]);
+  cover.twin = std::move(twin);
+  return cover;
+}
+
+Eigen::VectorXd cover_vertex_areas(const TuftedCover& cover) {
+  const Faces& F = cover.mesh.F;
+  Eigen::VectorXd area = Eigen::VectorXd::Zero(cover.mesh.V.rows());
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const double third = triangle_area(edge_length(cover.mesh.V, F(f, 0), F(f, 1)), edge_length(cover.mesh.V, F(f, 1), F(f, 2)),
+                                       edge_length(cover.mesh.V, F(f, 2), F(f, 0))) / 3.0;
+    for (int k = 0; k < 3; ++k) area(F(f, k)) += third;
+  }
+  return area;
+}
+
+Eigen::SparseMatrix<double> cover_to_input(const TuftedCover& cover, const Eigen::VectorXd& copy_mass) {
+  const Index copies = static_cast<Index>(cover.to_input.size());
+  if (copy_mass.size() != copies)
+    throw std::invalid_argument("cover_to_input: copy_mass has " + std::to_string(copy_mass.size()) + " entries, the cover " +
+                                std::to_string(copies) + " vertices");
+  Eigen::VectorXd total = Eigen::VectorXd::Zero(cover.input_vertex_count);
+  Eigen::VectorXi count = Eigen::VectorXi::Zero(cover.input_vertex_count);
+  for (Index c = 0; c < copies; ++c) {
+    total(cover.to_input[static_cast<std::size_t>(c)]) += copy_mass(c);
+    ++count(cover.to_input[static_cast<std::size_t>(c)]);
+  }
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(static_cast<std::size_t>(copies));
+  for (Index c = 0; c < copies; ++c) {
+    const Index i = cover.to_input[static_cast<std::size_t>(c)];
+    entries.emplace_back(i, c, total(i) > 0 ? copy_mass(c) / total(i) : 1.0 / count(i));
+  }
+  Eigen::SparseMatrix<double> W(cover.input_vertex_count, copies);
+  W.setFromTriplets(entries.begin(), entries.end());
+  return W;
+}
+
+}  // namespace ice

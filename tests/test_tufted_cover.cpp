@@ -1,0 +1,243 @@
+// The tufted cover (ice/tufted_cover.h): a closed, oriented Δ-complex for any triangle mesh, whose
+// Laplacian summed over each vertex's copies is twice the mesh's own on a manifold and the robust
+// Laplacian elsewhere; coarse spaces of it on the input's vertices.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <stdexcept>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "fem/curvature_correction.h"
+#include "fem/operators.h"
+#include "fem/topology.h"
+#include "ice/coarse_space.h"
+#include "ice/intrinsic_triangulation.h"
+#include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
+#include "ice/mesh_validation.h"
+#include "ice/tufted_cover.h"
+#include "test_support.h"
+
+namespace {
+
+using ice::Index;
+
+// The gluing is a fixed-point-free involution of the closed cover's 6m sides, joining sides with the
+// same ends (as input vertices and as copies) in opposite directions and of equal length; the cover
+// makes a valid triangulation; every input vertex has a copy, copies sit at its position.
+void check_cover(const ice::TriangleMesh& mesh, const ice::TuftedCover& cover) {
+  const Index m = static_cast<Index>(mesh.F.rows());
+  REQUIRE(cover.mesh.F.rows() == 2 * m);
+  REQUIRE(cover.twin.size() == static_cast<std::size_t>(6 * m));
+  REQUIRE(cover.input_vertex_count == mesh.V.rows());
+  REQUIRE(cover.to_input.size() == static_cast<std::size_t>(cover.mesh.V.rows()));
+  const ice::Faces& C = cover.mesh.F;
+  const auto from = [&](Index s) { return C(s / 3, s % 3); };
+  const auto to = [&](Index s) { return C(s / 3, (s % 3 + 1) % 3); };
+  for (Index s = 0; s < 6 * m; ++s) {
+    const Index t = cover.twin[static_cast<std::size_t>(s)];
+    REQUIRE(t >= 0);
+    REQUIRE(t != s);
+    REQUIRE(cover.twin[static_cast<std::size_t>(t)] == s);
+    REQUIRE(from(s) == to(t));
+    REQUIRE(to(s) == from(t));
+  }
+  for (Index f = 0; f < m; ++f)
+    for (int k = 0; k < 3; ++k) {
+      REQUIRE(cover.to_input[static_cast<std::size_t>(C(f, k))] == mesh.F(f, k));
+      REQUIRE(cover.to_input[static_cast<std::size_t>(C(m + f, k))] == mesh.F(f, k == 0 ? 0 : 3 - k));
+    }
+  std::vector<char> has_copy(static_cast<std::size_t>(mesh.V.rows()), 0);
+  for (std::size_t c = 0; c < cover.to_input.size(); ++c) {
+    has_copy[static_cast<std::size_t>(cover.to_input[c])] = 1;
+    REQUIRE(cover.mesh.V.row(static_cast<Eigen::Index>(c)) == mesh.V.row(cover.to_input[c]));
+    if (c > 0) REQUIRE(cover.to_input[c - 1] <= cover.to_input[c]);  // copies consecutive, input order
+  }
+  for (char c : has_copy) REQUIRE(c == 1);
+  const ice::IntrinsicMesh intrinsic = cover.intrinsic_mesh();
+  const ice::IntrinsicTriangulation T = ice::IntrinsicTriangulation::from_glued_faces(intrinsic.F, intrinsic.L, intrinsic.twin);
+  REQUIRE(T.validate().empty());
+  // Gauss–Bonnet on the closed cover: its angle defects sum to 2π χ.
+  const long chi = static_cast<long>(cover.mesh.V.rows()) - 3L * m + 2L * m;
+  REQUIRE(fem::angle_defects(intrinsic).sum() == Approx(2 * ice::kPi * static_cast<double>(chi)).margin(1e-9));
+}
+
+// Symmetric, positive semidefinite, with one zero eigenvalue per connected component of the input.
+void check_robust_laplacian(const ice::TriangleMesh& mesh, const fem::SparseMatrix& L) {
+  const Eigen::MatrixXd A(L);
+  REQUIRE((A - A.transpose()).norm() <= 1e-12 * A.norm());
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(A);
+  const Eigen::VectorXd values = eigen.eigenvalues();
+  const double scale = values.cwiseAbs().maxCoeff();
+  REQUIRE(values.minCoeff() >= -1e-10 * scale);
+  const Index components = fem::vertex_components(mesh.F, static_cast<Index>(mesh.V.rows())).count();
+  Index zeros = 0;
+  for (Eigen::Index i = 0; i < values.size(); ++i) zeros += values(i) <= 1e-10 * scale ? 1 : 0;
+  REQUIRE(zeros == components);
+}
+
+// A Möbius strip of `segments` quads (non-orientable, one boundary loop).
+ice::TriangleMesh moebius_strip(int segments) {
+  ice::TriangleMesh mesh;
+  mesh.V.resize(2 * segments, 3);
+  for (int i = 0; i < segments; ++i) {
+    const double u = 2 * ice::kPi * i / segments;
+    for (int side = 0; side < 2; ++side) {
+      const double v = side == 0 ? 0.4 : -0.4;
+      mesh.V.row(2 * i + side) << (1 + v * std::cos(u / 2)) * std::cos(u), (1 + v * std::cos(u / 2)) * std::sin(u), v * std::sin(u / 2);
+    }
+  }
+  mesh.F.resize(2 * segments, 3);
+  for (int i = 0; i < segments; ++i) {
+    const int top = 2 * i, bottom = 2 * i + 1;
+    const bool last = i + 1 == segments;  // the strip closes with a half twist: top meets bottom
+    const int next_top = last ? 1 : 2 * (i + 1), next_bottom = last ? 0 : 2 * (i + 1) + 1;
+    mesh.F.row(2 * i) << top, bottom, next_bottom;
+    mesh.F.row(2 * i + 1) << top, next_bottom, next_top;
+  }
+  return mesh;
+}
+
+// Two tetrahedra sharing the edge 0–1 (closed surfaces touching along an edge): around that edge the
+// outside is glued twice, so two copies of 0 and 1 are joined by two edges.
+ice::TriangleMesh tetrahedra_sharing_an_edge() {
+  ice::TriangleMesh mesh;
+  mesh.V.resize(6, 3);
+  mesh.V << 0, 0, 0, 0, 0, 1, 1, 0, 0.5, 0.5, 1, 0.5, -1, 0, 0.5, -0.5, -1, 0.5;
+  mesh.F.resize(8, 3);
+  // Tetrahedron (0, 1, 2, 3) and (0, 1, 4, 5), each oriented outwards.
+  mesh.F << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3,  //
+      0, 4, 1, 0, 1, 5, 0, 5, 4, 1, 4, 5;
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {  // outward: positive volume with the tetrahedron's centroid
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    const Eigen::Vector3d centroid = f < 4 ? (mesh.V.row(0) + mesh.V.row(1) + mesh.V.row(2) + mesh.V.row(3)).transpose() / 4
+                                           : (mesh.V.row(0) + mesh.V.row(1) + mesh.V.row(4) + mesh.V.row(5)).transpose() / 4;
+    if ((b - a).cross(c - a).dot(a - centroid) < 0) std::swap(mesh.F(f, 1), mesh.F(f, 2));
+  }
+  return mesh;
+}
+
+ice::TriangleMesh load_keeping_sheets(const std::string& name, bool repair = true) {
+  ice::LoadOptions options;
+  options.repair = repair;
+  options.keep_nonmanifold = true;
+  return ice::load_mesh(ice_test::project_mesh(name), options);
+}
+
+}  // namespace
+
+TEST_CASE("tufted cover of a manifold: two sheets, the Laplacian twice the mesh's to 1e-12", "[cover]") {
+  for (const char* name : {"cat_head.obj", "eight.off"}) {  // an open disk, a closed genus-2 surface
+    INFO(name);
+    const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh(name));
+    REQUIRE_FALSE(ice::needs_tufted_cover(mesh));
+    const ice::TuftedCover cover = ice::tufted_cover(mesh);
+    check_cover(mesh, cover);
+    // A closed surface: an inside and an outside copy of every vertex; a disk: boundary vertices
+    // have one copy (front and back meet there), interior ones two.
+    const ice::ValidationReport report = ice::validate_mesh(mesh);
+    std::vector<int> copies(static_cast<std::size_t>(mesh.V.rows()), 0);
+    for (Index v : cover.to_input) ++copies[static_cast<std::size_t>(v)];
+    std::vector<char> on_boundary(static_cast<std::size_t>(mesh.V.rows()), 0);
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)  // a side without its reverse is a boundary side
+      for (int k = 0; k < 3; ++k) {
+        bool paired = false;
+        for (Eigen::Index g = 0; g < mesh.F.rows() && !paired; ++g)
+          for (int l = 0; l < 3; ++l)
+            paired = paired || (mesh.F(g, l) == mesh.F(f, (k + 1) % 3) && mesh.F(g, (l + 1) % 3) == mesh.F(f, k));
+        if (!paired) on_boundary[static_cast<std::size_t>(mesh.F(f, k))] = on_boundary[static_cast<std::size_t>(mesh.F(f, (k + 1) % 3))] = 1;
+      }
+    for (std::size_t v = 0; v < copies.size(); ++v) REQUIRE(copies[v] == (on_boundary[v] ? 1 : 2));
+    REQUIRE((report.n_boundary_loops > 0) == (std::count(on_boundary.begin(), on_boundary.end(), 1) > 0));
+    // On the input's own triangles: the cover's cotan Laplacian and mass, gathered on the input
+    // vertices, are twice the mesh's.
+    const ice::FineMesh fine = ice::fine_mesh(cover, ice::FineGeometry::input);
+    const fem::SparseMatrix L = fem::cotan_laplacian(ice::intrinsic_mesh(mesh));
+    REQUIRE(ice_test::relative_difference(fem::cotan_laplacian(fine), fem::SparseMatrix(2 * L)) <= 1e-12);
+    const fem::SparseMatrix M = fem::mass_matrix(ice::intrinsic_mesh(mesh));
+    REQUIRE(ice_test::relative_difference(fem::mass_matrix(fine), fem::SparseMatrix(2 * M)) <= 1e-12);
+  }
+}
+
+TEST_CASE("tufted cover of non-manifold and non-orientable meshes: closed, and its Laplacian robust", "[cover]") {
+  struct Case {
+    const char* name;
+    ice::TriangleMesh mesh;
+  };
+  std::vector<Case> cases;
+  cases.push_back({"triple_vierbein.obj (20 non-manifold edges)", load_keeping_sheets("triple_vierbein.obj")});
+  cases.push_back({"hourglass_ico.obj (a non-manifold vertex)", load_keeping_sheets("hourglass_ico.obj", false)});  // (repair splits it)
+  cases.push_back({"Moebius strip", moebius_strip(16)});
+  cases.push_back({"two tetrahedra sharing an edge", tetrahedra_sharing_an_edge()});
+  for (const Case& c : cases) {
+    INFO(c.name);
+    const ice::TriangleMesh& mesh = c.mesh;
+    REQUIRE(ice::needs_tufted_cover(mesh));
+    const ice::TuftedCover cover = ice::tufted_cover(mesh);
+    check_cover(mesh, cover);
+    // The intrinsic Delaunay Laplacian of the cover on the input's vertices (the robust Laplacian):
+    // symmetric, positive semidefinite, its kernel the constants of each component; every edge's
+    // cotan weight non-negative (Delaunay); P·1 = 1 for a coarse space of the cover.
+    const ice::FineMesh fine = ice::fine_mesh(cover, ice::FineGeometry::intrinsic_delaunay);
+    REQUIRE(fine.vertex_count == mesh.V.rows());
+    const fem::SparseMatrix L = fem::cotan_laplacian(fine);
+    check_robust_laplacian(mesh, L);
+    for (int k = 0; k < L.outerSize(); ++k)
+      for (fem::SparseMatrix::InnerIterator it(L, k); it; ++it)
+        if (it.row() != it.col()) REQUIRE(it.value() <= 1e-12 * L.diagonal().cwiseAbs().maxCoeff());
+    ice::CoarseSpaceOptions options;
+    options.coarsen.target_ratio = 0.5;
+    options.keep_method_state = true;
+    ice::FineMesh shared;
+    const ice::CoarseSpace space = ice::build_coarse_space(cover, options, &shared);
+    REQUIRE(shared.F == fine.F);  // the fine mesh handed out is fine_mesh()'s
+    REQUIRE(shared.L == fine.L);
+    REQUIRE(space.P.rows() == mesh.V.rows());
+    REQUIRE(space.P.cols() == space.mesh.num_vertices());
+    const Eigen::VectorXd row_sums = space.P * Eigen::VectorXd::Ones(space.P.cols());
+    REQUIRE((row_sums.array() - 1).abs().maxCoeff() <= 1e-12);
+    REQUIRE(space.P.coeffs().minCoeff() >= 0);
+    REQUIRE(space.summary.input_vertices == mesh.V.rows());
+    const ice::IntrinsicTriangulation coarse =
+        ice::IntrinsicTriangulation::from_glued_faces(space.mesh.F, space.mesh.L, space.mesh.twin);
+    REQUIRE(coarse.validate().empty());
+    for (std::size_t c = 0; c < space.mesh.to_input.size(); ++c) {
+      const Index v = space.mesh.to_input[c];
+      REQUIRE(v >= 0);
+      REQUIRE(v < mesh.V.rows());
+    }
+    for (Eigen::Index v = 0; v < mesh.V.rows(); ++v)
+      if (space.mesh.from_input[static_cast<std::size_t>(v)] != ice::kInvalid)
+        REQUIRE(space.mesh.to_input[static_cast<std::size_t>(space.mesh.from_input[static_cast<std::size_t>(v)])] == v);
+  }
+}
+
+TEST_CASE("tufted cover: two closed surfaces sharing an edge give the outside two edges between one pair", "[cover]") {
+  const ice::TriangleMesh mesh = tetrahedra_sharing_an_edge();
+  const ice::TuftedCover cover = ice::tufted_cover(mesh);
+  // 0 and 1: inside the first, inside the second, outside both; the others: inside and outside.
+  std::vector<int> copies(6, 0);
+  for (Index v : cover.to_input) ++copies[static_cast<std::size_t>(v)];
+  REQUIRE(copies == std::vector<int>{3, 3, 2, 2, 2, 2});
+  // Vertex pairs cannot glue it: glue_by_vertex_pairs refuses (the outside's two 0–1 edges).
+  REQUIRE_THROWS_AS(ice::glue_by_vertex_pairs(cover.mesh.F), std::invalid_argument);
+}
+
+TEST_CASE("tufted cover: bad input is refused, the loader keeps sheets only when asked", "[cover]") {
+  ice::TriangleMesh mesh = moebius_strip(8);
+  mesh.F(0, 1) = mesh.F(0, 0);
+  REQUIRE_THROWS_WITH(ice::tufted_cover(mesh), Catch::Contains("face 0 repeats a vertex"));
+  mesh.F(0, 1) = 99;
+  REQUIRE_THROWS_WITH(ice::tufted_cover(mesh), Catch::Contains("out of range"));
+  REQUIRE_THROWS_WITH(ice::load_mesh(ice_test::project_mesh("triple_vierbein.obj"), ice::LoadOptions{true, false, false}),
+                      Catch::Contains("--nonmanifold tufted"));
+  const ice::TriangleMesh kept = load_keeping_sheets("triple_vierbein.obj");
+  REQUIRE(kept.F.rows() > 0);
+  ice::CoarseSpaceOptions qem;
+  qem.method = ice::CoarseningMethod::qem;
+  REQUIRE_THROWS_WITH(ice::build_coarse_space(ice::tufted_cover(kept), qem), Catch::Contains("ICE only"));
+}
