@@ -27,6 +27,10 @@ namespace fs = std::filesystem;
 ice::LoadResult load_input_mesh(const std::string& path, bool repair) {
   ice::LoadOptions options;
   options.repair = repair;
+  return load_input_mesh(path, options);
+}
+
+ice::LoadResult load_input_mesh(const std::string& path, const ice::LoadOptions& options) {
   ice::LoadResult loaded = ice::load_mesh_with_report(path, options);
   // The tools work on the mesh; the raw soup (a second copy of the positions and the faces, 100 MB
   // at 1.6M vertices) would only raise their peak memory. Its vertex count stays in input_report.
@@ -159,6 +163,7 @@ ice::CoarseSpaceOptions pde_space_options(const ice::CoarsenOptions& options, co
   space_options.record_history = record_history;
   space_options.method = opt.target.method;
   space_options.qem_geometry = opt.qem_geometry;
+  space_options.nonmanifold = opt.nonmanifold;
   space_options.coarsen = options;
   space_options.refinement = opt.target.refinement();
   return space_options;
@@ -189,6 +194,12 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
   return coarsen_space_for_pde(mesh, pde_space_options(options, opt, keep_method_state, record_history), opt, run, nullptr);
 }
 
+void refuse_multigrid_on_cover(const PdeOptions& opt, const ice::TriangleMesh& mesh) {
+  if (opt.nonmanifold == ice::NonmanifoldInput::tufted_cover && ice::needs_tufted_cover(mesh))
+    throw AppError(kUsage, opt.mesh + ": --solver multigrid builds its hierarchy on oriented manifolds only; this mesh "
+                                      "needs its tufted cover: use --solver proxy or direct");
+}
+
 ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const ice::TriangleMesh& mesh, const MultigridCli& mg,
                                                 const ice::proxy::Store& store) {
   ice::proxy::MultigridHierarchy hierarchy = ice::proxy::multigrid_hierarchy(mesh, mg.hierarchy, store);
@@ -203,7 +214,9 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   // An output file draws the coarse mesh on the surface (write_result_fields) exactly: ICE's state is
   // kept with its history for it. Traced lengths (keep_method_state) need the state alone (the walk).
   // The store holds coarse spaces without the method's state: such runs set up from scratch.
-  const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice;
+  // A mesh solved on its tufted cover: the coarse mesh is the cover's, which no output draws.
+  const bool covered = opt.nonmanifold == ice::NonmanifoldInput::tufted_cover && ice::needs_tufted_cover(mesh);
+  const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice && !covered;
   ice::proxy::ProxySetupOptions setup_options;
   setup_options.coarsening = pde_space_options(options, opt, keep_method_state || drawn, drawn);
   setup_options.fine = opt.fine_geometry();
@@ -235,6 +248,7 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   run.fine_built = need_fine || (assemble_proxy && !hit);
   if (hit) run.proxy_uses_fine_mesh = false;  // only the reference's, now
   run.idt_flips = setup.fine.flips;
+  run.tufted_cover = covered;
   return setup;
 }
 

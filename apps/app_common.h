@@ -34,6 +34,7 @@ namespace app {
 /// Loads and validates a mesh (ice::load_mesh_with_report) and drops the raw soup (`file.soup` is
 /// empty; `input_report.n_vertices` is the file's vertex count); throws the MeshError of the loader.
 ice::LoadResult load_input_mesh(const std::string& path, bool repair);
+ice::LoadResult load_input_mesh(const std::string& path, const ice::LoadOptions& options);
 
 /// 0-based vertex indices of the input *file* → the loaded mesh's indices (they differ only when
 /// --repair dropped, welded or split vertices; a split file vertex maps to its first mesh vertex).
@@ -70,6 +71,10 @@ void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::
 /// stderr is a terminal), cleared before it returns. Any progress callback in `options` is replaced.
 ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
                                                  bool show_progress, ice::FineMesh* fine_delaunay = nullptr);
+
+/// --solver multigrid on a mesh that needs its tufted cover (--nonmanifold tufted): throws
+/// AppError(kUsage) saying so (the multigrid hierarchy is built on oriented manifolds only).
+void refuse_multigrid_on_cover(const PdeOptions& opt, const ice::TriangleMesh& mesh);
 
 /// Prints a warning when the coarsening stopped before its vertex target (either method).
 void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,

@@ -224,7 +224,7 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
              "Coarsening method: 'ice', or 'qem' (the extrinsic QEM baseline)");
   add_coarsen_parallel_options(cli, threads, regions);
   cli.add_option("--refine-angle", refine_angle,
-                 "Refine the ICE coarse mesh until every angle is at least DEG degrees (0: none)")
+                 "Refine the ICE coarse mesh to a smallest angle of DEG degrees (0: none)")
       ->check(number_between(0, 30))
       ->capture_default_str();
   cli.add_option("--refine-budget", refine_budget,
@@ -295,7 +295,7 @@ void add_prolongation_option(CLI::App& cli, ice::proxy::Prolongation& choice, co
                              const std::string& description) {
   add_choice(cli, name, choice, choice_names<ice::proxy::Prolongation>(),
              description.empty()
-                 ? "Prolongation: 'barycentric', 'smoothed' (Galerkin, no Dirichlet) or 'auto' (smoothed if allowed)"
+                 ? "'barycentric', 'smoothed' (Galerkin, no Dirichlet) or 'auto' (smoothed if allowed)"
                  : description);
 }
 
@@ -320,12 +320,12 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
                "Fine operators on the input's intrinsic Delaunay triangulation (else its triangles)")
       ->capture_default_str();
   cli.add_option("--output,-o", output,
-                 "Write the mesh with the fields " + field_names + " (ICE: + 'patch') as PLY or glTF (.glb)");
+                 "Write the mesh with the fields " + field_names + " (ICE: + 'patch'): PLY, or glTF (.glb)");
   cli.add_flag("--ascii", ascii, "With --output: ASCII PLY instead of binary");
   cli.add_option("--html", html,
                  "Write an interactive 3D page (PAGE.html + PAGE_files/) of the results");
   cli.add_flag("--no-reference", no_reference, "Skip the fine reference solve (no errors, no speed-up)");
-  cli.add_option("--report", report, "Write a JSON report (sizes, timings, errors, memory, BLAS)");
+  cli.add_option("--report", report, "Write a JSON report (sizes, timings, errors)");
   cli.add_flag("--quiet,-q", quiet, "No progress bar");
   cli.add_flag("--force", force, "Overwrite existing output files");
   cli.add_flag("--repair", repair, "Apply the safe mesh repairs first (see ice-info --repair)");
@@ -349,7 +349,7 @@ ice::proxy::Store PdeOptions::store() const { return no_cache ? ice::proxy::Stor
 
 void PdeOptions::add_polish_options(CLI::App& cli) {
   cli.add_option("--polish", polish.iterations,
-                 "At most N fine two-level-preconditioned CG iterations (0: none)")
+                 "At most N fine two-level PCG iterations (0: none)")
       ->check(non_negative_integer())
       ->capture_default_str();
   cli.add_option("--tolerance", polish.tolerance,
@@ -401,6 +401,18 @@ void PdeOptions::check_outputs() const {
       throw AppError(kUsage, "--html names the same file as --output or --report");
     check_view_page(html, force);  // the page, its folder of assets, the viewer's files: before any work
   }
+}
+
+void PdeOptions::add_nonmanifold_option(CLI::App& cli) {
+  add_choice(cli, "--nonmanifold", nonmanifold, choice_names<ice::NonmanifoldInput>(),
+             "Not an oriented manifold: refuse, or solve on the tufted cover");
+}
+
+ice::LoadOptions PdeOptions::load_options() const {
+  ice::LoadOptions options;
+  options.repair = repair;
+  options.keep_nonmanifold = nonmanifold == ice::NonmanifoldInput::tufted_cover;
+  return options;
 }
 
 ice::FineGeometry PdeOptions::fine_geometry() const {

@@ -17,6 +17,7 @@
 #include "fem/multigrid.h"
 #include "ice/hierarchy.h"
 #include "ice/coarse_space.h"
+#include "ice/mesh_io.h"
 #include "ice/coarsen.h"
 #include "ice/proxy/policies.h"
 #include "ice/proxy/store.h"
@@ -181,6 +182,11 @@ struct PdeOptions {
   /// marching read it, and gain nothing from smoothing).
   fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric;
   ice::QemGeometry qem_geometry = ice::QemGeometry::extrinsic;  ///< --qem-operators extrinsic|idt
+  /// --nonmanifold refuse|tufted (add_nonmanifold_option), for the tools that solve on the cover.
+  ice::NonmanifoldInput nonmanifold = ice::NonmanifoldInput::refuse;
+  void add_nonmanifold_option(CLI::App& cli);
+  /// The load options of the input: --repair, and non-manifold parts kept with --nonmanifold tufted.
+  ice::LoadOptions load_options() const;
   bool fine_idt = true;
   std::string output;  ///< PLY or binary glTF (.glb)
   std::string html;    ///< the interactive 3D page (app/view_page.h)

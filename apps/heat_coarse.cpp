@@ -63,6 +63,7 @@ app::ExitCode step_on_fine_mesh(const app::MultigridCli& mg, const app::PdeOptio
                                 const HeatProblem& heat, double load_seconds) {
   const long long n = mesh.V.rows();
   app::Stopwatch clock;
+  app::refuse_multigrid_on_cover(opt, mesh);
   const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
   const double fine_mesh_seconds = clock.lap();
   const fem::SparseMatrix L = fem::cotan_laplacian(fine);
@@ -178,6 +179,7 @@ int main(int argc, char** argv) {
   app::MultigridCli mg;
   mg.add_to(cli);
   opt.add_cache_options(cli);
+  opt.add_nonmanifold_option(cli);
   ice::proxy::Prolongation prolongation = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(cli, prolongation);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
@@ -192,7 +194,7 @@ int main(int argc, char** argv) {
 
     // ---- load
     app::Stopwatch clock;
-    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
     const ice::TriangleMesh& mesh = loaded.mesh;
     const long long n = mesh.V.rows();
     Eigen::VectorXd u0;

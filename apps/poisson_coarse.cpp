@@ -91,7 +91,8 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
   const long long n = mesh.V.rows();
   const bool dirichlet = !fixed_vertices.empty();
   app::Stopwatch clock;
-  const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
+  if (solver == "multigrid") app::refuse_multigrid_on_cover(opt, mesh);
+  const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry(), opt.nonmanifold);
   const double fine_mesh_seconds = clock.lap();
   const fem::SparseMatrix L = fem::cotan_laplacian(fine);
   const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
@@ -206,17 +207,17 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
 int main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
-      "poisson-coarse: solve -Laplace(u) = f through a small ICE coarse proxy, carried back to every vertex and (by "
-      "default)\ncompared with the fine solve. Without --rhs: a demo source; without --fix: zero-mean Neumann.\n\n"
+      "poisson-coarse: solve -Laplace(u) = f through a small ICE coarse proxy and (by default) compare with the fine\n"
+      "solve. Without --rhs: a demo source; without --fix: zero-mean Neumann.\n\n"
       "Examples:\n  poisson-coarse spot.obj --ratio 0.05\n"
-      "  poisson-coarse lion-head.off --vertices 800 --fix 0=1 --fix 4000=0 -o u.ply --report r.json\n\n"
+      "  poisson-coarse lion-head.off --vertices 800 --fix 0=1 --fix 4000=0 -o u.ply\n\n"
       "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written, 4 bad command "
       "line,\n5 computation failed."};
   app::PdeOptions opt;
   std::string rhs_path, solver = "proxy";
   std::vector<std::string> fixes;
   cli.add_option("--rhs", rhs_path,
-                 "Source f: one number per input vertex (text), or .npy (n x k: k sources)");
+                 "Source f: one value per vertex (text), or .npy (n x k: k sources)");
   cli.add_option("--solutions", opt.solutions, "Write the solutions as .npy (float64, n x k: one column per source)");
   cli.add_option("--fix", fixes,
                  "Dirichlet condition V=value at vertex V (0-based); repeat or comma-separate")
@@ -234,6 +235,7 @@ int main(int argc, char** argv) {
   opt.add_to(cli, "'solution', 'reference', 'error'");
   opt.add_polish_options(cli);
   opt.add_cache_options(cli);
+  opt.add_nonmanifold_option(cli);
   ice::proxy::Prolongation prolongation = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(cli, prolongation);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
@@ -272,7 +274,7 @@ int main(int argc, char** argv) {
 
     // ---- load
     app::Stopwatch clock;
-    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
     const ice::TriangleMesh& mesh = loaded.mesh;
     const long long n = mesh.V.rows();
     std::vector<int> fixed_vertices;

@@ -162,7 +162,8 @@ nlohmann::json PdeRun::report() const {
   r["coarse"] = ice::proxy::coarsen_json(coarsening);
   r["fine_mesh"] = {{"kind", !fine_built ? "none (not needed)" : fine_idt ? "intrinsic Delaunay" : "input"},
                     {"flips", idt_flips},
-                    {"used_by_proxy", proxy_uses_fine_mesh}};
+                    {"used_by_proxy", proxy_uses_fine_mesh},
+                    {"tufted_cover", tufted_cover}};
   nlohmann::json t = {{"load", load},       {"coarsen", coarsen}, {"fine_mesh", fine_mesh}, {"assemble", assemble},
                       {"factor", factor},   {"solve", solve},     {"prolong", prolong},     {"proxy_total", proxy_total()},
                       {"per_solve", per_solve()}, {"write", write},
@@ -211,7 +212,8 @@ void PdeRun::print_summary(std::ostream& out) const {
   if (coarsening.refinement) out << "  refine          " << refinement_line(coarsening) << '\n';
   if (fine_built)
     row("fine mesh", fine_mesh,
-        (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +
+        std::string(tufted_cover ? "tufted cover, " : "") +
+            (fine_idt ? "intrinsic Delaunay, " + thousands(idt_flips) + " flips" : std::string("input triangles")) +
             (proxy_uses_fine_mesh ? " (used by the proxy too; counted in neither total)" : " (for the reference; counted in neither total)"));
   else
     row("fine mesh", 0, "not built (neither the proxy nor a reference needs it)");

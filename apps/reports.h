@@ -112,6 +112,9 @@ struct PdeRun {
   bool fine_idt = true;
   bool fine_built = true;  ///< false: no fine mesh was needed (a marching proxy without reference)
   long long idt_flips = 0;
+  /// Solved on the input's tufted cover (--nonmanifold tufted on a mesh that needs it): the fine
+  /// mesh and the coarse mesh are the cover's (its copies' values averaged onto the input vertices).
+  bool tufted_cover = false;
   bool proxy_uses_fine_mesh = false;  ///< the proxy needed the fine discretisation (Galerkin, M f)
   bool has_reference = false;
   /// Solves made (sources of a block): solve, prolong, polish and ref_solve are their totals.

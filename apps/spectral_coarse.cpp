@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
   cli.add_option("--descriptors", descriptors, "Write the --hks descriptors as .npy (float64, n x times)");
   opt.add_to(cli, "'eigenfunction' (the --show one), 'reference', 'error'");
   opt.add_cache_options(cli);
+  opt.add_nonmanifold_option(cli);
   ice::proxy::Prolongation prolongation = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(cli, prolongation);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
@@ -75,7 +76,7 @@ int main(int argc, char** argv) {
 
     // ---- load
     app::Stopwatch clock;
-    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
     const ice::TriangleMesh& mesh = loaded.mesh;
     const long long n = mesh.V.rows();
     if (k >= n)

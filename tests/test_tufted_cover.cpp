@@ -13,12 +13,14 @@
 
 #include "fem/curvature_correction.h"
 #include "fem/operators.h"
+#include "fem/problems.h"
 #include "fem/topology.h"
 #include "ice/coarse_space.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "ice/mesh_validation.h"
+#include "ice/proxy/poisson.h"
 #include "ice/tufted_cover.h"
 #include "test_support.h"
 
@@ -240,4 +242,45 @@ TEST_CASE("tufted cover: bad input is refused, the loader keeps sheets only when
   ice::CoarseSpaceOptions qem;
   qem.method = ice::CoarseningMethod::qem;
   REQUIRE_THROWS_WITH(ice::build_coarse_space(ice::tufted_cover(kept), qem), Catch::Contains("ICE only"));
+}
+
+TEST_CASE("tufted cover through the recipes: a manifold mesh to the same bits, a non-manifold one near its fine solve", "[cover][proxy]") {
+  // An oriented manifold is coarsened as it is with or without the option: the same arrays.
+  const ice::TriangleMesh spot = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+  ice::CoarseSpaceOptions options = ice::proxy::default_coarsening(ice::ProxyUse::poisson_heat);
+  const ice::CoarseSpace plain = ice::build_coarse_space(spot, options);
+  options.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  const ice::CoarseSpace covered = ice::build_coarse_space(spot, options);
+  REQUIRE(covered.mesh.F == plain.mesh.F);
+  REQUIRE(covered.mesh.L == plain.mesh.L);
+  REQUIRE(covered.mesh.twin == plain.mesh.twin);
+  REQUIRE(ice_test::relative_difference(covered.P, plain.P) == 0.0);
+  REQUIRE(ice::fine_mesh(spot, ice::FineGeometry::intrinsic_delaunay, ice::NonmanifoldInput::tufted_cover).L ==
+          ice::fine_mesh(spot, ice::FineGeometry::intrinsic_delaunay).L);
+
+  // A non-manifold mesh: refused without the option, solved on its cover with it, the proxy's
+  // solution near the fine robust Laplacian's (zero-mean and Dirichlet).
+  const ice::TriangleMesh mesh = load_keeping_sheets("triple_vierbein.obj");
+  REQUIRE_THROWS_AS(ice::proxy::PoissonSolver(mesh), std::invalid_argument);
+  ice::proxy::PoissonOptions poisson;
+  poisson.coarsening.coarsen.target_ratio = 0.5;
+  poisson.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  Eigen::VectorXd f(mesh.V.rows());
+  for (Eigen::Index i = 0; i < f.size(); ++i) f(i) = std::sin(3 * mesh.V(i, 0)) + mesh.V(i, 1) * mesh.V(i, 2);
+  for (const bool dirichlet : {false, true}) {
+    INFO((dirichlet ? "Dirichlet" : "zero-mean"));
+    poisson.fixed_vertices = dirichlet ? std::vector<Index>{0, 40} : std::vector<Index>{};
+    const ice::proxy::PoissonSolver solver(mesh, poisson);
+    REQUIRE(solver.fine_mesh().vertex_count == mesh.V.rows());
+    const Eigen::VectorXd u = solver.solve(f);
+    const fem::SparseMatrix L = fem::cotan_laplacian(solver.fine_mesh());
+    const fem::SparseMatrix M = fem::mass_matrix(solver.fine_mesh());
+    const fem::PoissonSolver fine = dirichlet ? fem::PoissonSolver::dirichlet(L, M, poisson.fixed_vertices)
+                                              : fem::PoissonSolver::zero_mean(L, M);
+    const Eigen::VectorXd reference = fine.solve(f);
+    const double error = std::sqrt((u - reference).dot(M * (u - reference)) / reference.dot(M * reference));
+    INFO("relative L2 error " << error);
+    REQUIRE(error < 0.1);
+    if (dirichlet) REQUIRE(u(40) == 0.0);
+  }
 }

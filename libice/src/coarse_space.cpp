@@ -40,6 +40,10 @@ const char* to_string(QemGeometry geometry) {
   return geometry == QemGeometry::intrinsic_delaunay ? "intrinsic_delaunay" : "extrinsic";
 }
 
+const char* to_string(NonmanifoldInput choice) {
+  return choice == NonmanifoldInput::tufted_cover ? "tufted_cover" : "refuse";
+}
+
 const char* to_string(ProxyUse use) { return use == ProxyUse::geodesic ? "geodesic" : "poisson_heat"; }
 
 CoarsenOptions recommended_coarsen_options(ProxyUse use) {
@@ -285,6 +289,8 @@ CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep
 }
 
 CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
+  if (options.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh))
+    return build_coarse_space(tufted_cover(mesh), options, fine_delaunay);
   const auto start = Clock::now();
   CoarseSpace space;
   // ICE in the locality numbering starts from the very triangulation fine_mesh() flips: it hands a
@@ -327,6 +333,9 @@ std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space) {
   if (!space.triangulation)
     throw std::invalid_argument("fine_to_coarse_map: build the coarse space with keep_method_state");
   const IntrinsicTriangulation& T = *space.triangulation;
+  if (space.summary.tufted_cover)
+    throw std::invalid_argument("fine_to_coarse_map: the space was coarsened through a tufted cover: its triangulation "
+                                "tracks the cover's vertices, not the mesh's");
   // Face slot -> compact face (compact() lists the live slots in order, corners from halfedge(f)).
   std::vector<Index> compact_face(static_cast<std::size_t>(T.num_face_slots()), kInvalid);
   Index next_face = 0;
@@ -373,7 +382,8 @@ Positions coarse_vertex_positions(const TriangleMesh& mesh, const CoarseSpace& s
   return positions;
 }
 
-FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry) {
+FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry, NonmanifoldInput nonmanifold) {
+  if (nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh)) return fine_mesh(tufted_cover(mesh), geometry);
   FineMesh fine;
   fine.geometry = geometry;
   if (geometry == FineGeometry::input) {
@@ -440,6 +450,7 @@ CoarseSpace build_coarse_space(const TuftedCover& cover, const CoarseSpaceOption
   }
   C.from_input = std::move(from_input);
   space.summary.input_vertices = cover.input_vertex_count;
+  space.summary.tufted_cover = true;
   space.summary.prolongation_seconds += seconds_since(map_start);
   if (fine_delaunay) {
     const auto fine_start = Clock::now();

@@ -986,7 +986,15 @@ bool reduce_degree(Tri& T, Index v, int target, int* degree, std::vector<Index>*
   };
   const bool cyclic = !T.is_boundary_vertex(v);  // on the boundary the fan is a sequence
   collect();
+  // Without self-edges every flip takes a spoke away; a flip at a self-edge need not (it can make
+  // another), and stars of many self-edges (a tufted cover's folds) could flip for ever: give up
+  // after more flips than a star's spokes could ever need.
+  int flips_left = 4 * static_cast<int>(spokes.size()) + 8;
   while (static_cast<int>(spokes.size()) > target) {
+    if (--flips_left < 0) {
+      *degree = static_cast<int>(spokes.size());
+      return false;
+    }
     order.clear();
     for (int i = 0; i < static_cast<int>(spokes.size()); ++i)
       if (spokes[i].candidate) order.push_back(i);

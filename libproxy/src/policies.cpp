@@ -88,6 +88,12 @@ const Spellings<FineGeometry>& spellings<FineGeometry>() {
   return names;
 }
 template <>
+const Spellings<NonmanifoldInput>& spellings<NonmanifoldInput>() {
+  static const Spellings<NonmanifoldInput> names{{"refuse", NonmanifoldInput::refuse},
+                                                 {"tufted", NonmanifoldInput::tufted_cover}};
+  return names;
+}
+template <>
 const Spellings<ProxyUse>& spellings<ProxyUse>() {
   static const Spellings<ProxyUse> names{{"poisson_heat", ProxyUse::poisson_heat}, {"geodesic", ProxyUse::geodesic}};
   return names;

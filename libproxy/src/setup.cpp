@@ -31,7 +31,9 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
     CoarseSpaceOptions coarsening = options.coarsening;
     std::vector<Index>& kept = coarsening.coarsen.locked_vertices;
     kept.insert(kept.end(), options.locked.begin(), options.locked.end());
-    if (options.assemble && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history) {
+    // A mesh coarsened through its tufted cover is not stored (its key would have to say so).
+    const bool covered = coarsening.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
+    if (options.assemble && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history && !covered) {
       key = proxy_setup_key(mesh, coarsening, options.fine, options.operators, resolved);
       fem::CoarseProxy::FineMeshSource source = options.restored_fine_mesh;
       if (!source && options.fine_operators) source = fine_mesh_source(mesh, options.fine);
@@ -55,7 +57,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   }
   if (needs_fine && !fine_made) {
     const auto start = Clock::now();
-    setup.fine = fine_mesh(mesh, options.fine);
+    setup.fine = fine_mesh(mesh, options.fine, options.coarsening.nonmanifold);
     setup.times.fine_mesh += seconds_since(start);
   }
   if (options.assemble) {

@@ -45,6 +45,13 @@ enum class QemGeometry {
 const char* to_string(CoarseningMethod method);
 const char* to_string(QemGeometry geometry);
 
+/// What becomes of a mesh that is not an oriented manifold (ice::needs_tufted_cover).
+enum class NonmanifoldInput {
+  refuse,        ///< coarsening it throws std::invalid_argument (as IntrinsicTriangulation::from_mesh)
+  tufted_cover,  ///< it is coarsened through its tufted cover (ice/tufted_cover.h), on its own vertices
+};
+const char* to_string(NonmanifoldInput choice);
+
 /// What a coarse space will serve; picks the ICE metric's defaults for it (recommended_coarsen_options).
 enum class ProxyUse { poisson_heat, geodesic };
 const char* to_string(ProxyUse use);
@@ -75,6 +82,10 @@ struct CoarseSpaceOptions {
   CoarsenOptions coarsen = recommended_coarsen_options();
   /// With QEM only.
   QemGeometry qem_geometry = QemGeometry::extrinsic;
+  /// A mesh that needs the tufted cover (needs_tufted_cover): refused, or coarsened through its
+  /// cover (build_coarse_space of a TuftedCover: ICE only). An oriented manifold is coarsened as it
+  /// is either way, to the same bits.
+  NonmanifoldInput nonmanifold = NonmanifoldInput::refuse;
   /// Keep the method's own result in CoarseSpace (the coarsened triangulation with every input
   /// vertex's location, or the QEM result with its mesh and closest-point map): for the map file,
   /// validation, refinement. Off by default: the PDE tools free it before the fine solves.
@@ -114,6 +125,8 @@ struct CoarseSpaceSummary {
   /// ErrorThreshold here as false).
   bool target_reached = false;
   double seconds = 0;                ///< the whole call: coarsening, map, coarse mesh and P
+  /// Coarsened through the input's tufted cover (build_coarse_space of a TuftedCover).
+  bool tufted_cover = false;
   /// ICE: where `seconds` went besides coarsen() (whose phases are in `ice`): numbering the mesh for
   /// locality and building its intrinsic triangulation, then the compact coarse mesh and P.
   double triangulation_seconds = 0, prolongation_seconds = 0;
@@ -161,7 +174,8 @@ struct CoarseSpace {
   CoarseSpace& operator=(CoarseSpace&& other) noexcept;
 };
 
-/// Coarsens `mesh` (clean, oriented, manifold: e.g. from ice::load_mesh) by options.method.
+/// Coarsens `mesh` (clean, oriented, manifold: e.g. from ice::load_mesh; any clean_but_for_sheets()
+/// mesh with options.nonmanifold = tufted_cover) by options.method.
 /// Throws std::invalid_argument on bad options (those of ice::coarsen / ice::qem_coarsen) and
 /// std::runtime_error when a QEM mesh with QemGeometry::intrinsic_delaunay has a degenerate face.
 ///
@@ -179,7 +193,7 @@ CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep
 /// The fine-to-coarse map: one CoarsePoint (ice/mesh.h) per input vertex, faces in space.mesh's numbering (for
 /// ICE the points the coarsened triangulation tracked, for QEM its closest-point map). Its rows
 /// agree with P (P(i, ·) is point i's barycentric coordinates summed over repeated corners).
-/// Preconditions: the space was built with keep_method_state; a QEM space has extrinsic geometry
+/// Preconditions: the space was built with keep_method_state, not through a tufted cover; a QEM space has extrinsic geometry
 /// (with QemGeometry::intrinsic_delaunay the points lie in the QEM mesh's faces, not in
 /// space.mesh's: see space.qem_result->map). Throws std::invalid_argument otherwise.
 std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space);
@@ -195,7 +209,8 @@ enum class FineGeometry {
 };
 const char* to_string(FineGeometry geometry);
 
-/// The fine intrinsic mesh, in the input's vertex numbering (vertex_count: the input's). With
+/// The fine intrinsic mesh, in the input's vertex numbering (vertex_count: the input's). A mesh that
+/// needs the tufted cover: fine_mesh(tufted_cover(mesh), geometry) when `nonmanifold` says so. With
 /// FineGeometry::input the input's faces, glued by vertex pairs (`twin` empty); with
 /// intrinsic_delaunay faces in an order of their own (the triangulation is built and flipped in the
 /// locality numbering of build_coarse_space, for speed: docs/measurements.md, "Locality numbering")
@@ -204,7 +219,7 @@ struct FineMesh : IntrinsicMesh {
   FineGeometry geometry = FineGeometry::intrinsic_delaunay;
   Index flips = 0;  ///< intrinsic Delaunay flips made
 };
-FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry);
+FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry, NonmanifoldInput nonmanifold = NonmanifoldInput::refuse);
 
 // ---- meshes that are not oriented manifolds: through their tufted cover (ice/tufted_cover.h) ----
 

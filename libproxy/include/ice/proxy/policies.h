@@ -92,6 +92,7 @@ template <> const Spellings<VectorSolver>& spellings<VectorSolver>();
 template <> const Spellings<CoarseningMethod>& spellings<CoarseningMethod>();
 template <> const Spellings<QemGeometry>& spellings<QemGeometry>();
 template <> const Spellings<FineGeometry>& spellings<FineGeometry>();
+template <> const Spellings<NonmanifoldInput>& spellings<NonmanifoldInput>();
 template <> const Spellings<ProxyUse>& spellings<ProxyUse>();
 template <> const Spellings<fem::CoarseOperatorKind>& spellings<fem::CoarseOperatorKind>();
 template <> const Spellings<fem::VectorOperatorKind>& spellings<fem::VectorOperatorKind>();

@@ -85,7 +85,9 @@ struct ProxySetupOptions {
 /// (the same arrays to the last bit). Otherwise it is built and saved. A damaged entry is reported
 /// in ProxySetup::cache (status rebuilt), removed and built again; an entry that cannot be written
 /// leaves the run as it is (save_error). Options that keep the method's state (keep_method_state,
-/// record_history) bypass the store: the triangulation is not stored.
+/// record_history) bypass the store: the triangulation is not stored; so does a mesh coarsened
+/// through its tufted cover (options.coarsening.nonmanifold), whose fine mesh is then the cover's
+/// (ice::fine_mesh of the cover, on the mesh's vertices).
 ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& options,
                              std::optional<CoarseSpace> coarse = std::nullopt);
 
