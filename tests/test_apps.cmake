@@ -18,7 +18,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   endif()
   set(_ice_app_cases
     coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot refine_spot poisson_spot poisson_fix_rhs_spot
-    poisson_cache heat_block_spot heat_multigrid_spot spectral_spot ply_ascii errors view_page help)
+    poisson_cache heat_block_spot heat_multigrid_spot spectral_spot nonmanifold_cover ply_ascii errors view_page help)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
       COMMAND ${CMAKE_COMMAND}
@@ -1239,6 +1239,32 @@ elseif(CASE STREQUAL "spectral_spot")
   check(${median} LESS 0.05 "Dirichlet eigenvalue error (median)")
   project_mesh(holes elephant-with-holes.off)
   expect_error(4 "vertices off the boundary" spectral-coarse "${holes}" -k 8 --ratio 0.2 --boundary dirichlet --no-cache)
+
+elseif(CASE STREQUAL "nonmanifold_cover")
+  # A mesh with non-manifold edges and inconsistent orientation: refused, naming the option that takes
+  # it; with --nonmanifold tufted, Poisson, heat and the eigenbasis are solved on its tufted cover,
+  # near the fine robust Laplacian, one value per vertex of the file; multigrid says it cannot.
+  project_mesh(mesh triple_vierbein.obj)
+  expect_error(2 "non-manifold edges.*--nonmanifold tufted" poisson-coarse "${mesh}" --repair --ratio 0.2 -q)
+  run(0 poisson-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.3 --no-cache --solutions "${WORK}/u.npy"
+      --report "${WORK}/p.json" --force -q)
+  json(cover "${WORK}/p.json" fine_mesh tufted_cover)
+  check_text("${cover}" "ON" "poisson-coarse: fine_mesh.tufted_cover")
+  json(err "${WORK}/p.json" error rel_l2)
+  check(${err} LESS 0.1 "Poisson on the cover: relative L2 error against the fine robust Laplacian")
+  check_npy_shape("${WORK}/u.npy" 75 1)
+  run(0 heat-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.3 --no-cache --report "${WORK}/h.json" --force -q)
+  json(err "${WORK}/h.json" error rel_l2)
+  check(${err} LESS 0.1 "heat on the cover: relative L2 error")
+  run(0 spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4 -k 6 --no-cache --report "${WORK}/s.json" --force -q)
+  json(zero "${WORK}/s.json" error zero_modes)
+  check(${zero} EQUAL 1 "zero modes of the cover's robust Laplacian (one component)")
+  expect_error(4 "needs its tufted cover" poisson-coarse "${mesh}" --repair --nonmanifold tufted --solver multigrid -q)
+  # An oriented manifold: the option changes nothing.
+  project_mesh(spot spot.obj)
+  run(0 poisson-coarse "${spot}" --ratio 0.05 --no-cache --no-reference --solutions "${WORK}/a.npy" --force -q)
+  run(0 poisson-coarse "${spot}" --ratio 0.05 --no-cache --no-reference --nonmanifold tufted --solutions "${WORK}/b.npy" --force -q)
+  require_same_bytes("${WORK}/a.npy" "${WORK}/b.npy" "poisson-coarse on spot with and without --nonmanifold tufted")
 
 elseif(CASE STREQUAL "help")
   foreach(_tool ice-info ice-coarsen poisson-coarse heat-coarse geodesic-coarse vector-coarse spectral-coarse ice-cache)
