@@ -173,6 +173,7 @@ ViewMesh view_mesh(const std::string& name, const ice::TriangleMesh& input, long
   ice::CoarseSpaceOptions options;
   options.coarsen.target_vertices = static_cast<ice::Index>(max_vertices);
   options.coarsen.threads = 0;
+  options.nonmanifold = ice::NonmanifoldInput::tufted_cover;  // (a manifold: the same bits; a tool's covered mesh: drawn)
   const ice::CoarseSpace space = ice::build_coarse_space(input, options);
   mesh.V = ice::coarse_vertex_positions(input, space);
   mesh.F = space.mesh.F;

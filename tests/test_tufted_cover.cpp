@@ -284,3 +284,37 @@ TEST_CASE("tufted cover through the recipes: a manifold mesh to the same bits, a
     if (dirichlet) REQUIRE(u(40) == 0.0);
   }
 }
+
+TEST_CASE("tufted cover: mirror sheets are coarsened once, multi-copy Dirichlet vertices refused", "[cover][proxy]") {
+  // Two icosahedra touching at a vertex: four closed sheets, two mirror pairs. Coarsening both of a
+  // pair would give every coarse basis function twice (a singular Galerkin mass).
+  const ice::TriangleMesh mesh = load_keeping_sheets("hourglass_ico.obj", false);
+  const ice::TuftedCover cover = ice::tufted_cover(mesh);
+  const ice::TuftedCover distinct = ice::distinct_sheets(cover);
+  REQUIRE(distinct.mesh.F.rows() == mesh.F.rows());  // one sheet of each icosahedron
+  const ice::IntrinsicMesh reduced = distinct.intrinsic_mesh();
+  REQUIRE(ice::IntrinsicTriangulation::from_glued_faces(reduced.F, reduced.L, reduced.twin).validate().empty());
+  ice::proxy::PoissonOptions poisson;
+  poisson.coarsening.coarsen.target_ratio = 0.5;
+  poisson.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  const ice::proxy::PoissonSolver solver(mesh, poisson);
+  const Eigen::SparseMatrix<double> P = solver.coarse_space().P;
+  const Eigen::MatrixXd mass = Eigen::MatrixXd(P.transpose() * fem::mass_matrix(solver.fine_mesh()) * P);
+  REQUIRE(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(mass).eigenvalues().minCoeff() > 1e-8 * mass.diagonal().maxCoeff());
+  Eigen::VectorXd f = mesh.V.col(2);
+  const Eigen::VectorXd u = solver.solve(f);
+  const fem::SparseMatrix L = fem::cotan_laplacian(solver.fine_mesh());
+  const fem::SparseMatrix M = fem::mass_matrix(solver.fine_mesh());
+  const Eigen::VectorXd reference = fem::PoissonSolver::zero_mean(L, M).solve(f);
+  REQUIRE(std::sqrt((u - reference).dot(M * (u - reference)) / reference.dot(M * reference)) < 0.2);
+  // The vertex where the two touch has a copy on each: it cannot be one Dirichlet vertex.
+  Index shared_vertex = 0;
+  std::vector<int> copies(static_cast<std::size_t>(mesh.V.rows()), 0);
+  for (Index v : distinct.to_input)
+    if (++copies[static_cast<std::size_t>(v)] > 1) shared_vertex = v;
+  poisson.fixed_vertices = {shared_vertex};
+  REQUIRE_THROWS_WITH(ice::proxy::PoissonSolver(mesh, poisson), Catch::Contains("copies on the tufted cover"));
+  poisson.fixed_vertices.clear();
+  poisson.operators = fem::CoarseOperatorKind::intrinsic;
+  REQUIRE_THROWS_WITH(ice::proxy::PoissonSolver(mesh, poisson), Catch::Contains("Galerkin"));
+}

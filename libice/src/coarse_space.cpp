@@ -410,12 +410,26 @@ FineMesh on_input_vertices(const TuftedCover& cover, FineMesh fine) {
 
 }  // namespace
 
-CoarseSpace build_coarse_space(const TuftedCover& cover, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
+CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
   const auto start = Clock::now();
+  // Coarsened once per distinct sheet (a mirror sheet would double every basis function); the
+  // fine mesh stays the whole cover's (the robust Laplacian).
+  const TuftedCover cover = distinct_sheets(full_cover);
+  const bool whole = cover.mesh.F.rows() == full_cover.mesh.F.rows();
   if (options.method != CoarseningMethod::ice)
     throw std::invalid_argument("build_coarse_space: a tufted cover is coarsened by ICE only (QEM decimates an extrinsic "
                                 "surface; the cover's front and back sheets coincide in space)");
   if (options.refinement) throw std::invalid_argument("build_coarse_space: no refinement on a tufted cover");
+  {  // a locked vertex stays one coarse vertex only if it has one copy
+    std::vector<Index> copies(static_cast<std::size_t>(cover.input_vertex_count), 0);
+    for (Index v : cover.to_input) ++copies[static_cast<std::size_t>(v)];
+    for (Index v : options.coarsen.locked_vertices)
+      if (v >= 0 && v < cover.input_vertex_count && copies[static_cast<std::size_t>(v)] > 1)
+        throw std::invalid_argument("build_coarse_space: locked vertex " + std::to_string(v) + " has " +
+                                    std::to_string(copies[static_cast<std::size_t>(v)]) +
+                                    " copies on the tufted cover (sheets meet there), so it cannot stay one coarse "
+                                    "vertex: Dirichlet values there are not supported on a cover");
+  }
   // Locked input vertices: every copy of each.
   CoarseSpaceOptions cover_options = options;
   std::vector<Index>& locked = cover_options.coarsen.locked_vertices;
@@ -433,7 +447,7 @@ CoarseSpace build_coarse_space(const TuftedCover& cover, const CoarseSpaceOption
         static_cast<double>(options.coarsen.target_vertices) * static_cast<double>(cover.to_input.size()) /
         static_cast<double>(cover.input_vertex_count)));
   FineMesh cover_fine;
-  const bool shared = fine_delaunay && options.locality_numbering;
+  const bool shared = fine_delaunay && options.locality_numbering && whole;
   CoarseSpace space = ice_coarse_space(cover.mesh, &cover.twin, cover_options, shared ? &cover_fine : nullptr);
   const auto map_start = Clock::now();
   space.P = cover_to_input(cover, cover_vertex_areas(cover)) * space.P;
@@ -454,7 +468,7 @@ CoarseSpace build_coarse_space(const TuftedCover& cover, const CoarseSpaceOption
   space.summary.prolongation_seconds += seconds_since(map_start);
   if (fine_delaunay) {
     const auto fine_start = Clock::now();
-    *fine_delaunay = on_input_vertices(cover, shared ? std::move(cover_fine) : fine_mesh(cover, FineGeometry::intrinsic_delaunay));
+    *fine_delaunay = shared ? on_input_vertices(full_cover, std::move(cover_fine)) : fine_mesh(full_cover, FineGeometry::intrinsic_delaunay);
     space.summary.fine_mesh_seconds += seconds_since(fine_start);
   }
   space.summary.seconds = seconds_since(start) - space.summary.fine_mesh_seconds;

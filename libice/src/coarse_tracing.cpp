@@ -1057,6 +1057,9 @@ CoarseTracing trace_from_history(const TriangleMesh& mesh, const CoarseSpace& sp
 CoarseTracing trace_coarse_mesh(const TriangleMesh& mesh, const CoarseSpace& space, int threads) {
   if (!space.triangulation)
     throw std::invalid_argument("trace_coarse_mesh: the coarse space has no triangulation (ICE with keep_method_state)");
+  if (space.summary.tufted_cover)
+    throw std::invalid_argument("trace_coarse_mesh: the space was coarsened through a tufted cover (its triangulation "
+                                "is the cover's, not the mesh's)");
   if (space.triangulation->records_history()) return trace_from_history(mesh, space, threads);
   return trace_coarse_mesh(mesh.F, space.mesh, fine_to_coarse_map(space), space.inserted, mesh.V, threads);
 }

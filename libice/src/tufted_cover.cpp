@@ -198,6 +198,65 @@ TuftedCover tufted_cover(const TriangleMesh& mesh) {
   return cover;
 }
 
+TuftedCover distinct_sheets(const TuftedCover& cover) {
+  const Index faces = static_cast<Index>(cover.mesh.F.rows()), m = faces / 2;
+  detail::DisjointSets parts(static_cast<std::size_t>(faces));
+  for (Index s = 0; s < 3 * faces; ++s) parts.unite(static_cast<std::size_t>(s / 3), static_cast<std::size_t>(cover.twin[static_cast<std::size_t>(s)] / 3));
+  // A component is a mirror of another when every face's mirror (f <-> m + f) lies in one other
+  // component of the same size; the one whose smallest face (its representative) is larger goes.
+  std::vector<Index> size(static_cast<std::size_t>(faces), 0), mirror(static_cast<std::size_t>(faces), kInvalid);
+  std::vector<char> mirrored(static_cast<std::size_t>(faces), 1);
+  for (Index f = 0; f < faces; ++f) ++size[parts.find(static_cast<std::size_t>(f))];
+  for (Index f = 0; f < faces; ++f) {
+    const std::size_t c = parts.find(static_cast<std::size_t>(f));
+    const Index other = static_cast<Index>(parts.find(static_cast<std::size_t>(f < m ? f + m : f - m)));
+    if (other == static_cast<Index>(c) || (mirror[c] != kInvalid && mirror[c] != other)) mirrored[c] = 0;
+    mirror[c] = other;
+  }
+  std::vector<char> keep_face(static_cast<std::size_t>(faces), 1);
+  bool dropped = false;
+  for (Index f = 0; f < faces; ++f) {
+    const std::size_t c = parts.find(static_cast<std::size_t>(f));
+    const Index other = mirror[c];
+    if (mirrored[c] && mirrored[static_cast<std::size_t>(other)] && size[c] == size[static_cast<std::size_t>(other)] &&
+        other < static_cast<Index>(c)) {
+      keep_face[static_cast<std::size_t>(f)] = 0;
+      dropped = true;
+    }
+  }
+  if (!dropped) return cover;
+  TuftedCover out;
+  out.input_vertex_count = cover.input_vertex_count;
+  std::vector<Index> new_face(static_cast<std::size_t>(faces), kInvalid), new_copy(cover.to_input.size(), kInvalid);
+  Index kept = 0;
+  for (Index f = 0; f < faces; ++f)
+    if (keep_face[static_cast<std::size_t>(f)]) new_face[static_cast<std::size_t>(f)] = kept++;
+  for (Index f = 0; f < faces; ++f)  // copies in increasing old order: still consecutive per input vertex
+    if (keep_face[static_cast<std::size_t>(f)])
+      for (int k = 0; k < 3; ++k) new_copy[static_cast<std::size_t>(cover.mesh.F(f, k))] = 0;
+  Index copies = 0;
+  for (std::size_t c = 0; c < new_copy.size(); ++c)
+    if (new_copy[c] == 0) {
+      new_copy[c] = copies++;
+      out.to_input.push_back(cover.to_input[c]);
+    }
+  out.mesh.V.resize(copies, 3);
+  for (std::size_t c = 0; c < new_copy.size(); ++c)
+    if (new_copy[c] != kInvalid) out.mesh.V.row(new_copy[c]) = cover.mesh.V.row(static_cast<Eigen::Index>(c));
+  out.mesh.F.resize(kept, 3);
+  out.twin.resize(static_cast<std::size_t>(3 * kept));
+  for (Index f = 0; f < faces; ++f) {
+    const Index g = new_face[static_cast<std::size_t>(f)];
+    if (g == kInvalid) continue;
+    for (int k = 0; k < 3; ++k) {
+      out.mesh.F(g, k) = new_copy[static_cast<std::size_t>(cover.mesh.F(f, k))];
+      const Index t = cover.twin[static_cast<std::size_t>(3 * f + k)];  // in the same component: kept
+      out.twin[static_cast<std::size_t>(3 * g + k)] = 3 * new_face[static_cast<std::size_t>(t / 3)] + t % 3;
+    }
+  }
+  return out;
+}
+
 Eigen::VectorXd cover_vertex_areas(const TuftedCover& cover) {
   const Faces& F = cover.mesh.F;
   Eigen::VectorXd area = Eigen::VectorXd::Zero(cover.mesh.V.rows());

@@ -23,6 +23,13 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   const bool needs_fine = options.assemble || options.need_fine_mesh;
   ProxySetup setup;
   setup.fine_geometry = options.fine;
+  // A mesh coarsened through its tufted cover: the cover's own coarse operators would be its
+  // components' (not the input's robust Laplacian), so Galerkin only; and not stored (its key would
+  // have to say so).
+  const bool covered = options.coarsening.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
+  if (covered && options.operators != fem::CoarseOperatorKind::galerkin)
+    throw std::invalid_argument("a mesh solved on its tufted cover takes Galerkin coarse operators (the cover's own "
+                                "coarse Laplacian is not the input's robust Laplacian)");
   bool fine_made = false;  // setup.fine
   std::optional<StoreKey> key;
   if (coarse) {
@@ -31,8 +38,6 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
     CoarseSpaceOptions coarsening = options.coarsening;
     std::vector<Index>& kept = coarsening.coarsen.locked_vertices;
     kept.insert(kept.end(), options.locked.begin(), options.locked.end());
-    // A mesh coarsened through its tufted cover is not stored (its key would have to say so).
-    const bool covered = coarsening.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
     if (options.assemble && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history && !covered) {
       key = proxy_setup_key(mesh, coarsening, options.fine, options.operators, resolved);
       fem::CoarseProxy::FineMeshSource source = options.restored_fine_mesh;

@@ -49,6 +49,14 @@ bool needs_tufted_cover(const TriangleMesh& mesh);
 /// load_mesh's safe repairs leave of a non-manifold file.
 TuftedCover tufted_cover(const TriangleMesh& mesh);
 
+/// The cover without redundant sheets: where a closed sheet and its mirror image are components of
+/// the cover of their own (each side of a closed oriented surface that touches the rest of the mesh
+/// at vertices only, or not at all), the mirror (the component without the lower front face) is
+/// left out. The two carry the same geometry, so coarsening both would give the coarse space each
+/// basis function twice (a singular Galerkin mass). Faces keep their order (a subset of the cover's,
+/// so face f < m is no longer front face f); the gluing and copies are renumbered to match.
+TuftedCover distinct_sheets(const TuftedCover& cover);
+
 /// The n × (cover vertices) matrix that takes a field on the cover to the input vertices: each input
 /// vertex gets the average of its copies' values weighted by `copy_mass` (their areas; all copies
 /// without mass: the plain average). Rows sum to 1; a field equal on all copies maps to itself.
