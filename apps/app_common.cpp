@@ -219,6 +219,8 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice && !covered;
   ice::proxy::ProxySetupOptions setup_options;
   setup_options.coarsening = pde_space_options(options, opt, keep_method_state || drawn, drawn);
+  // Decided here once: a manifold mesh is not checked again below.
+  setup_options.coarsening.nonmanifold = covered ? ice::NonmanifoldInput::tufted_cover : ice::NonmanifoldInput::refuse;
   setup_options.fine = opt.fine_geometry();
   setup_options.operators = opt.operators;
   setup_options.prolongation = opt.prolongation == fem::ProlongationKind::smoothed ? ice::proxy::Prolongation::smoothed

@@ -420,16 +420,15 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
     throw std::invalid_argument("build_coarse_space: a tufted cover is coarsened by ICE only (QEM decimates an extrinsic "
                                 "surface; the cover's front and back sheets coincide in space)");
   if (options.refinement) throw std::invalid_argument("build_coarse_space: no refinement on a tufted cover");
-  {  // a locked vertex stays one coarse vertex only if it has one copy
-    std::vector<Index> copies(static_cast<std::size_t>(cover.input_vertex_count), 0);
-    for (Index v : cover.to_input) ++copies[static_cast<std::size_t>(v)];
-    for (Index v : options.coarsen.locked_vertices)
-      if (v >= 0 && v < cover.input_vertex_count && copies[static_cast<std::size_t>(v)] > 1)
-        throw std::invalid_argument("build_coarse_space: locked vertex " + std::to_string(v) + " has " +
-                                    std::to_string(copies[static_cast<std::size_t>(v)]) +
-                                    " copies on the tufted cover (sheets meet there), so it cannot stay one coarse "
-                                    "vertex: Dirichlet values there are not supported on a cover");
-  }
+  std::vector<Index> copies(static_cast<std::size_t>(cover.input_vertex_count), 0);
+  for (Index v : cover.to_input) ++copies[static_cast<std::size_t>(v)];
+  // A locked vertex stays one coarse vertex only if it has one copy.
+  for (Index v : options.coarsen.locked_vertices)
+    if (v >= 0 && v < cover.input_vertex_count && copies[static_cast<std::size_t>(v)] > 1)
+      throw std::invalid_argument("build_coarse_space: locked vertex " + std::to_string(v) + " has " +
+                                  std::to_string(copies[static_cast<std::size_t>(v)]) +
+                                  " copies on the tufted cover (sheets meet there), so it cannot stay one coarse "
+                                  "vertex: Dirichlet values there are not supported on a cover");
   // Locked input vertices: every copy of each.
   CoarseSpaceOptions cover_options = options;
   std::vector<Index>& locked = cover_options.coarsen.locked_vertices;
@@ -452,8 +451,6 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
   const auto map_start = Clock::now();
   space.P = cover_to_input(cover, cover_vertex_areas(cover)) * space.P;
   space.P.makeCompressed();
-  std::vector<Index> copies(static_cast<std::size_t>(cover.input_vertex_count), 0);
-  for (Index v : cover.to_input) ++copies[static_cast<std::size_t>(v)];
   CompactMesh& C = space.mesh;
   for (Index& v : C.to_input)
     if (v != kInvalid) v = cover.to_input[static_cast<std::size_t>(v)];

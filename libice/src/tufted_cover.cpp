@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
 #include "disjoint_sets.h"
+#include "vertex_buckets.h"
 #include "ice/mesh_validation.h"
 #include "ice/triangle_geometry.h"
 
@@ -17,7 +17,7 @@ namespace {
 
 // The sides (3f + k: face f from corner k to k + 1) of F grouped by undirected edge: the sides of
 // edge e are sides[start[e] .. start[e + 1]), in increasing side order; low[e] < high[e] its ends.
-// Bucketed by the smaller end (O(m) but for the sort of each vertex's few sides).
+// Sorted by the smaller end with the triangulation's counting sort (detail::order_by_vertex).
 struct EdgeSides {
   std::vector<Index> sides, start, low, high;
 };
@@ -26,32 +26,24 @@ EdgeSides sides_by_edge(const Faces& F, Index vertex_count) {
   const Index m = static_cast<Index>(F.rows());
   const auto low_of = [&](Index s) { return std::min(F(s / 3, s % 3), F(s / 3, (s % 3 + 1) % 3)); };
   const auto high_of = [&](Index s) { return std::max(F(s / 3, s % 3), F(s / 3, (s % 3 + 1) % 3)); };
-  std::vector<Index> bucket(static_cast<std::size_t>(vertex_count) + 1, 0);
-  for (Index s = 0; s < 3 * m; ++s) ++bucket[static_cast<std::size_t>(low_of(s)) + 1];
-  std::partial_sum(bucket.begin(), bucket.end(), bucket.begin());
-  std::vector<Index> by_low(static_cast<std::size_t>(3 * m));
-  {
-    std::vector<Index> next(bucket.begin(), bucket.end() - 1);
-    for (Index s = 0; s < 3 * m; ++s) by_low[static_cast<std::size_t>(next[static_cast<std::size_t>(low_of(s))]++)] = s;
-  }
   EdgeSides out;
-  out.sides.reserve(by_low.size());
-  for (Index v = 0; v < vertex_count; ++v) {
-    const auto first = by_low.begin() + bucket[static_cast<std::size_t>(v)];
-    const auto last = by_low.begin() + bucket[static_cast<std::size_t>(v) + 1];
-    std::sort(first, last, [&](Index a, Index b) { return std::make_pair(high_of(a), a) < std::make_pair(high_of(b), b); });
-    for (auto it = first; it != last; ++it) {
-      if (it == first || high_of(*it) != high_of(*(it - 1))) {
-        out.start.push_back(static_cast<Index>(out.sides.size()));
-        out.low.push_back(v);
-        out.high.push_back(high_of(*it));
-      }
-      out.sides.push_back(*it);
+  out.sides = detail::order_by_vertex(static_cast<std::size_t>(3 * m), vertex_count, low_of,
+                                      [&](Index a, Index b) { return high_of(a) < high_of(b); });  // stable: ties by side
+  for (std::size_t i = 0; i < out.sides.size(); ++i) {
+    const Index s = out.sides[i];
+    if (i == 0 || low_of(s) != low_of(out.sides[i - 1]) || high_of(s) != high_of(out.sides[i - 1])) {
+      out.start.push_back(static_cast<Index>(i));
+      out.low.push_back(low_of(s));
+      out.high.push_back(high_of(s));
     }
   }
   out.start.push_back(static_cast<Index>(out.sides.size()));
   return out;
 }
+
+// The corner of side s's face at the vertex where s ends (side 3f + k runs from corner k to k + 1):
+// where a fan continues across s's edge onto s's face, from the other side of that edge.
+Index head_corner(Index s) { return 3 * (s / 3) + (s % 3 + 1) % 3; }
 
 void require_faces_in_range(const TriangleMesh& mesh, const char* who) {
   const Index n = static_cast<Index>(mesh.V.rows());
@@ -83,8 +75,8 @@ bool needs_tufted_cover(const TriangleMesh& mesh) {
     const Index t = edges.sides[static_cast<std::size_t>(edges.start[e]) + 1];
     if (F(s / 3, s % 3) == F(t / 3, t % 3)) return true;  // both run the same way
     // s runs v -> w, t runs w -> v: v is s's corner k and t's corner l + 1; w the other way round.
-    fans.unite(static_cast<std::size_t>(s), static_cast<std::size_t>(3 * (t / 3) + (t % 3 + 1) % 3));
-    fans.unite(static_cast<std::size_t>(t), static_cast<std::size_t>(3 * (s / 3) + (s % 3 + 1) % 3));
+    fans.unite(static_cast<std::size_t>(s), static_cast<std::size_t>(head_corner(t)));
+    fans.unite(static_cast<std::size_t>(t), static_cast<std::size_t>(head_corner(s)));
   }
   std::vector<Index> fan_of(static_cast<std::size_t>(n), kInvalid);
   for (Index c = 0; c < 3 * static_cast<Index>(F.rows()); ++c) {
@@ -175,7 +167,7 @@ TuftedCover tufted_cover(const TriangleMesh& mesh) {
   detail::DisjointSets fans(static_cast<std::size_t>(6 * m));
   for (Index s = 0; s < 6 * m; ++s) {
     const Index t = twin[static_cast<std::size_t>(s)];
-    fans.unite(static_cast<std::size_t>(s), static_cast<std::size_t>(3 * (t / 3) + (t % 3 + 1) % 3));
+    fans.unite(static_cast<std::size_t>(s), static_cast<std::size_t>(head_corner(t)));
   }
   std::vector<Index> roots;  // a fan's representative is its smallest corner
   for (Index c = 0; c < 6 * m; ++c)

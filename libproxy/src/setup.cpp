@@ -36,6 +36,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
     setup.coarse = std::move(*coarse);
   } else {
     CoarseSpaceOptions coarsening = options.coarsening;
+    coarsening.nonmanifold = covered ? NonmanifoldInput::tufted_cover : NonmanifoldInput::refuse;  // decided once
     std::vector<Index>& kept = coarsening.coarsen.locked_vertices;
     kept.insert(kept.end(), options.locked.begin(), options.locked.end());
     if (options.assemble && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history && !covered) {
@@ -62,7 +63,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   }
   if (needs_fine && !fine_made) {
     const auto start = Clock::now();
-    setup.fine = fine_mesh(mesh, options.fine, options.coarsening.nonmanifold);
+    setup.fine = fine_mesh(mesh, options.fine, covered ? NonmanifoldInput::tufted_cover : NonmanifoldInput::refuse);
     setup.times.fine_mesh += seconds_since(start);
   }
   if (options.assemble) {
