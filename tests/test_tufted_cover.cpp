@@ -204,9 +204,20 @@ TEST_CASE("tufted cover of non-manifold and non-orientable meshes: closed, and i
     REQUIRE((row_sums.array() - 1).abs().maxCoeff() <= 1e-12);
     REQUIRE(space.P.coeffs().minCoeff() >= 0);
     REQUIRE(space.summary.input_vertices == mesh.V.rows());
-    const ice::IntrinsicTriangulation coarse =
-        ice::IntrinsicTriangulation::from_glued_faces(space.mesh.F, space.mesh.L, space.mesh.twin);
-    REQUIRE(coarse.validate().empty());
+    // The coarse mesh: the cover's coarse triangulation (valid) with copies merged (names only).
+    const ice::IntrinsicTriangulation& kept = *space.triangulation;
+    REQUIRE(kept.validate().empty());
+    REQUIRE(space.mesh.F.rows() == kept.num_faces());
+    for (std::size_t s = 0; s < space.mesh.twin.size(); ++s) {
+      const Index t = space.mesh.twin[s];
+      REQUIRE(t >= 0);
+      REQUIRE(space.mesh.twin[static_cast<std::size_t>(t)] == static_cast<Index>(s));
+      const auto corner = [&](Index side, int k) { return space.mesh.F(side / 3, (side % 3 + k) % 3); };
+      REQUIRE(corner(static_cast<Index>(s), 0) == corner(t, 1));
+      REQUIRE(corner(static_cast<Index>(s), 1) == corner(t, 0));
+      REQUIRE(space.mesh.L(static_cast<Eigen::Index>(s / 3), static_cast<Eigen::Index>(s % 3)) ==
+              Approx(space.mesh.L(static_cast<Eigen::Index>(t / 3), static_cast<Eigen::Index>(t % 3))).epsilon(1e-12));
+    }
     for (std::size_t c = 0; c < space.mesh.to_input.size(); ++c) {
       const Index v = space.mesh.to_input[c];
       REQUIRE(v >= 0);
@@ -285,7 +296,7 @@ TEST_CASE("tufted cover through the recipes: a manifold mesh to the same bits, a
   }
 }
 
-TEST_CASE("tufted cover: mirror sheets are coarsened once, multi-copy Dirichlet vertices refused", "[cover][proxy]") {
+TEST_CASE("tufted cover: mirror sheets are coarsened once, a vertex's coarse copies are one coarse vertex", "[cover][proxy]") {
   // Two icosahedra touching at a vertex: four closed sheets, two mirror pairs. Coarsening both of a
   // pair would give every coarse basis function twice (a singular Galerkin mass).
   const ice::TriangleMesh mesh = load_keeping_sheets("hourglass_ico.obj", false);
@@ -307,13 +318,80 @@ TEST_CASE("tufted cover: mirror sheets are coarsened once, multi-copy Dirichlet 
   const fem::SparseMatrix M = fem::mass_matrix(solver.fine_mesh());
   const Eigen::VectorXd reference = fem::PoissonSolver::zero_mean(L, M).solve(f);
   REQUIRE(std::sqrt((u - reference).dot(M * (u - reference)) / reference.dot(M * reference)) < 0.2);
-  // The vertex where the two touch has a copy on each: it cannot be one Dirichlet vertex.
+  // Coarse vertices are input vertices: each at most once, P·1 = 1.
+  const ice::CompactMesh& coarse = solver.coarse_space().mesh;
+  REQUIRE(P.cols() == coarse.vertex_count);
+  std::vector<int> seen(static_cast<std::size_t>(mesh.V.rows()), 0);
+  for (Index c = 0; c < coarse.vertex_count; ++c) {
+    const Index v = coarse.to_input[static_cast<std::size_t>(c)];
+    REQUIRE(++seen[static_cast<std::size_t>(v)] == 1);
+    REQUIRE(coarse.from_input[static_cast<std::size_t>(v)] == c);
+  }
+  REQUIRE((P * Eigen::VectorXd::Ones(P.cols()) - Eigen::VectorXd::Ones(P.rows())).cwiseAbs().maxCoeff() < 1e-12);
+  // The vertex where the two touch has a copy on each sheet: locked, they are one coarse vertex, so a
+  // Dirichlet value there holds exactly.
   Index shared_vertex = 0;
   std::vector<int> copies(static_cast<std::size_t>(mesh.V.rows()), 0);
   for (Index v : distinct.to_input)
     if (++copies[static_cast<std::size_t>(v)] > 1) shared_vertex = v;
+  REQUIRE(copies[static_cast<std::size_t>(shared_vertex)] > 1);
   poisson.fixed_vertices = {shared_vertex};
-  REQUIRE_THROWS_WITH(ice::proxy::PoissonSolver(mesh, poisson), Catch::Contains("copies on the tufted cover"));
+  const ice::proxy::PoissonSolver pinned(mesh, poisson);
+  Eigen::VectorXd value(1);
+  value << 0.25;
+  const Eigen::VectorXd v = pinned.solve(f, value);
+  REQUIRE(v(shared_vertex) == Approx(0.25).margin(1e-12));
+  const Eigen::VectorXd pinned_reference = fem::PoissonSolver::dirichlet(L, M, {shared_vertex}).solve(f, value);
+  const double pinned_error =
+      std::sqrt((v - pinned_reference).dot(M * (v - pinned_reference)) / pinned_reference.dot(M * pinned_reference));
+  // As good as on each icosahedron alone (a manifold), pinned at the vertex where they touch.
+  double worst_half = 0;
+  // The halves: faces joined across edges (growing from face 0 until nothing is added).
+  std::vector<int> part(static_cast<std::size_t>(mesh.F.rows()), 1);
+  part[0] = 0;
+  for (bool grown = true; grown;) {
+    grown = false;
+    for (Eigen::Index t = 0; t < mesh.F.rows(); ++t)
+      for (Eigen::Index u = 0; u < mesh.F.rows(); ++u) {
+        if (part[static_cast<std::size_t>(t)] != 0 || part[static_cast<std::size_t>(u)] == 0) continue;
+        int common = 0;
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b) common += mesh.F(t, a) == mesh.F(u, b);
+        if (common == 2) part[static_cast<std::size_t>(u)] = 0, grown = true;
+      }
+  }
+  for (const int which : {0, 1}) {
+    ice::TriangleMesh half;
+    std::vector<Index> index(static_cast<std::size_t>(mesh.V.rows()), ice::kInvalid), faces;
+    for (Eigen::Index t = 0; t < mesh.F.rows(); ++t)
+      if (part[static_cast<std::size_t>(t)] == which) faces.push_back(static_cast<Index>(t));
+    REQUIRE(faces.size() == 20);
+    half.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+    std::vector<Index> vertices;
+    for (std::size_t t = 0; t < faces.size(); ++t)
+      for (int k = 0; k < 3; ++k) {
+        Index& i = index[static_cast<std::size_t>(mesh.F(faces[t], k))];
+        if (i == ice::kInvalid) {
+          i = static_cast<Index>(vertices.size());
+          vertices.push_back(mesh.F(faces[t], k));
+        }
+        half.F(static_cast<Eigen::Index>(t), k) = i;
+      }
+    half.V.resize(static_cast<Eigen::Index>(vertices.size()), 3);
+    for (std::size_t i = 0; i < vertices.size(); ++i) half.V.row(static_cast<Eigen::Index>(i)) = mesh.V.row(vertices[i]);
+    REQUIRE(!ice::needs_tufted_cover(half));
+    ice::proxy::PoissonOptions manifold = poisson;
+    manifold.coarsening.nonmanifold = ice::NonmanifoldInput::refuse;
+    manifold.fixed_vertices = {index[static_cast<std::size_t>(shared_vertex)]};
+    const ice::proxy::PoissonSolver alone(half, manifold);
+    const Eigen::VectorXd g = half.V.col(2), w = alone.solve(g, value);
+    const fem::SparseMatrix L1 = fem::cotan_laplacian(alone.fine_mesh()), M1 = fem::mass_matrix(alone.fine_mesh());
+    const Eigen::VectorXd half_reference = fem::PoissonSolver::dirichlet(L1, M1, manifold.fixed_vertices).solve(g, value);
+    worst_half = std::max(worst_half, std::sqrt((w - half_reference).dot(M1 * (w - half_reference)) /
+                                                half_reference.dot(M1 * half_reference)));
+  }
+  INFO("pinned at the shared vertex " << pinned_error << ", the worse half alone " << worst_half);
+  REQUIRE(pinned_error <= 1.5 * worst_half);
   poisson.fixed_vertices.clear();
   poisson.operators = fem::CoarseOperatorKind::intrinsic;
   REQUIRE_THROWS_WITH(ice::proxy::PoissonSolver(mesh, poisson), Catch::Contains("Galerkin"));

@@ -420,16 +420,7 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
     throw std::invalid_argument("build_coarse_space: a tufted cover is coarsened by ICE only (QEM decimates an extrinsic "
                                 "surface; the cover's front and back sheets coincide in space)");
   if (options.refinement) throw std::invalid_argument("build_coarse_space: no refinement on a tufted cover");
-  std::vector<Index> copies(static_cast<std::size_t>(cover.input_vertex_count), 0);
-  for (Index v : cover.to_input) ++copies[static_cast<std::size_t>(v)];
-  // A locked vertex stays one coarse vertex only if it has one copy.
-  for (Index v : options.coarsen.locked_vertices)
-    if (v >= 0 && v < cover.input_vertex_count && copies[static_cast<std::size_t>(v)] > 1)
-      throw std::invalid_argument("build_coarse_space: locked vertex " + std::to_string(v) + " has " +
-                                  std::to_string(copies[static_cast<std::size_t>(v)]) +
-                                  " copies on the tufted cover (sheets meet there), so it cannot stay one coarse "
-                                  "vertex: Dirichlet values there are not supported on a cover");
-  // Locked input vertices: every copy of each.
+  // Locked input vertices: every copy of each (they become one coarse vertex below).
   CoarseSpaceOptions cover_options = options;
   std::vector<Index>& locked = cover_options.coarsen.locked_vertices;
   if (!options.coarsen.locked_vertices.empty()) {
@@ -449,17 +440,35 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
   const bool shared = fine_delaunay && options.locality_numbering && whole;
   CoarseSpace space = ice_coarse_space(cover.mesh, &cover.twin, cover_options, shared ? &cover_fine : nullptr);
   const auto map_start = Clock::now();
-  space.P = cover_to_input(cover, cover_vertex_areas(cover)) * space.P;
-  space.P.makeCompressed();
+  // Coarse copies of one input vertex become one coarse vertex, as the fine mesh's copies are one
+  // fine vertex: where two sheets lie on each other (the inside and outside of a closed surface
+  // joined elsewhere), ICE keeps the same vertices on both, and their basis functions, mapped to
+  // the input, would coincide (a singular Galerkin mass). The coarse mesh keeps the cover's gluing.
   CompactMesh& C = space.mesh;
-  for (Index& v : C.to_input)
-    if (v != kInvalid) v = cover.to_input[static_cast<std::size_t>(v)];
+  std::vector<Index> merged(static_cast<std::size_t>(C.vertex_count)), to_input;
   std::vector<Index> from_input(static_cast<std::size_t>(cover.input_vertex_count), kInvalid);
-  for (std::size_t c = 0; c < C.to_input.size(); ++c) {
-    const Index v = C.to_input[c];
-    if (v != kInvalid && copies[static_cast<std::size_t>(v)] == 1) from_input[static_cast<std::size_t>(v)] = static_cast<Index>(c);
+  for (Index c = 0; c < C.vertex_count; ++c) {
+    const Index v = cover.to_input[static_cast<std::size_t>(C.to_input[static_cast<std::size_t>(c)])];
+    Index& coarse = from_input[static_cast<std::size_t>(v)];
+    if (coarse == kInvalid) {
+      coarse = static_cast<Index>(to_input.size());
+      to_input.push_back(v);
+    }
+    merged[static_cast<std::size_t>(c)] = coarse;
   }
+  for (Eigen::Index f = 0; f < C.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) C.F(f, k) = merged[static_cast<std::size_t>(C.F(f, k))];
+  std::vector<Eigen::Triplet<double>> sum;
+  sum.reserve(merged.size());
+  for (std::size_t c = 0; c < merged.size(); ++c) sum.emplace_back(static_cast<Index>(c), merged[c], 1.0);
+  Eigen::SparseMatrix<double> S(C.vertex_count, static_cast<Index>(to_input.size()));
+  S.setFromTriplets(sum.begin(), sum.end());
+  space.P = cover_to_input(cover, cover_vertex_areas(cover)) * space.P * S;
+  space.P.makeCompressed();
+  C.vertex_count = static_cast<Index>(to_input.size());
+  C.to_input = std::move(to_input);
   C.from_input = std::move(from_input);
+  space.summary.coarse_vertices = C.vertex_count;
   space.summary.input_vertices = cover.input_vertex_count;
   space.summary.tufted_cover = true;
   space.summary.prolongation_seconds += seconds_since(map_start);

@@ -224,11 +224,13 @@ FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry, NonmanifoldI
 // ---- meshes that are not oriented manifolds: through their tufted cover (ice/tufted_cover.h) ----
 
 /// The coarse space of a mesh through its tufted cover `cover` (tufted_cover(mesh)), on the mesh's
-/// own vertices: ICE coarsens the cover (a closed, oriented Δ-complex), then P = W·P_cover with
-/// W = cover_to_input(cover, cover_vertex_areas(cover)), so that an input vertex's value is the
-/// area-weighted mean of its copies' (rows sum to 1). mesh.to_input names the input vertex of each
-/// coarse vertex (several coarse vertices can be copies of one input vertex); mesh.from_input an
-/// input vertex's coarse vertex when it has a single copy and that copy survived, else kInvalid.
+/// own vertices: ICE coarsens the cover (a closed, oriented Δ-complex); the surviving copies of one
+/// input vertex are then one coarse vertex (as the fine mesh's copies are one fine vertex: the coarse
+/// mesh's faces are named by it and keep the cover's gluing), and P = W·P_cover·S with
+/// W = cover_to_input(cover, cover_vertex_areas(cover)) (an input vertex's value is the area-weighted
+/// mean of its copies') and S summing the columns of a coarse vertex's copies. Rows of P sum to 1;
+/// a locked input vertex (all its copies locked) has a unit row. mesh.to_input and mesh.from_input
+/// map coarse and input vertices both ways.
 /// The method's state (keep_method_state) is that of the cover (its vertices are the cover's).
 /// With `fine_delaunay`: the fine mesh of fine_mesh(cover, FineGeometry::intrinsic_delaunay).
 /// Throws std::invalid_argument for QEM (it decimates an extrinsic surface; the cover's sheets
