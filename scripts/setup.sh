@@ -47,12 +47,14 @@ as_root() {
 # playwright-core (step 4) and are installed from Debian only when the machine has none.
 # doxygen builds the API reference of the public headers (docs/Doxyfile.in: target doc, test api_docs).
 # clang, its sanitizer runtimes (libclang-rt-dev) and OpenMP (libomp-dev) build the test command's
-# sanitizer configuration (scripts/test.sh).
+# sanitizer configuration (scripts/test.sh). libnanoflann-dev (header-only k-d tree) finds the
+# k nearest neighbours of a point cloud's points (ice/point_cloud.h).
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsuitesparse-dev libxxhash-dev libspectra-dev
   libopenblas-dev libopenblas0-pthread libopenblas-pthread-dev
   libopenmesh-dev catch2 libbenchmark-dev libcli11-dev nlohmann-json3-dev gnuplot-nox libtinygltf-dev
+  libnanoflann-dev
   libcgal-demo libhypre-dev xz-utils chromium
   pybind11-dev python3-dev python3-numpy python3-scipy python3-pytest python3-matplotlib
   python3-dask python3-distributed python3-tqdm python3-psutil

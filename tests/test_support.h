@@ -15,6 +15,7 @@
 
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
 #include "mesh_sets.h"
 #include "test_skip.h"
 
@@ -116,6 +117,20 @@ inline ice::CompactMesh check_ilm_round_trip(const ice::IntrinsicTriangulation& 
   for (ice::Index v = 0; v < back.num_input_vertices(); ++v) boundary_after += back.is_boundary_vertex(v);
   CHECK(boundary_after == boundary_before);
   return written;
+}
+
+/// Expect a MeshError of the given kind whose message names the file and contains `needle`.
+template <class F>
+inline void require_mesh_error(F&& call, ice::MeshError::Kind kind, const std::string& path, const std::string& needle) {
+  try {
+    call();
+    FAIL("expected ice::MeshError containing '" << needle << "'");
+  } catch (const ice::MeshError& e) {
+    INFO(e.what());
+    CHECK(e.kind() == kind);
+    CHECK(std::string(e.what()).find(path) != std::string::npos);
+    CHECK(std::string(e.what()).find(needle) != std::string::npos);
+  }
 }
 
 /// A fresh directory under the system temp dir, removed (with its contents) when the test ends.

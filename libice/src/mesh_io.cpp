@@ -1,4 +1,5 @@
 #include "ice/mesh_io.h"
+#include "ice/point_cloud.h"
 
 #include "file_extension.h"
 #include "run_tasks.h"
@@ -465,6 +466,53 @@ PolygonSoup read_obj_exact(const std::string& path) {
     }
   });
   append_faces(soup.polygons, faces);
+  return soup;
+}
+
+/// A point set as text (.xyz, .pwn): one point a line, its first three numbers the position (more, such
+/// as a normal or a colour, are read past); '#' comments and blank lines skipped; a first line holding
+/// one whole number only (a point count, as some writers put) is skipped too.
+PolygonSoup read_xyz_exact(const std::string& path) {
+  const FileBytes file(path);
+  const std::string_view bytes = file.view();
+  std::size_t begin = 0, first_line = 1;
+  {
+    TextLines lines(bytes);
+    std::string_view line;
+    while (lines.next(line)) {
+      const std::vector<std::string> tokens = line_tokens(line);
+      if (tokens.empty()) continue;
+      long long count;
+      if (tokens.size() == 1 && parse_int(tokens[0], count)) {
+        begin = std::min(lines.offset(), bytes.size());
+        first_line = lines.number() + 1;
+      }
+      break;
+    }
+  }
+  const auto kind_of = [](std::string_view line) { return has_token(line) ? 0 : -1; };
+  const int threads = text_threads(bytes.size());
+  const std::vector<TextChunk> chunks = count_text_chunks(bytes, begin, first_line, threads, kind_of);
+  PolygonSoup soup;
+  soup.V.resize(static_cast<Eigen::Index>(total_records(chunks, 0)), 3);
+  detail::run_tasks(threads, static_cast<int>(chunks.size()), [&](int c) {
+    const TextChunk& chunk = chunks[c];
+    TextLines lines(bytes.substr(chunk.begin, chunk.end - chunk.begin));
+    std::string_view line, token;
+    auto point = static_cast<Eigen::Index>(chunk.first_record[0]);
+    while (lines.next(line)) {
+      if (kind_of(line) < 0) continue;
+      LineTokens tokens(line);
+      for (int k = 0; k < 3; ++k) {
+        double x;
+        if (!tokens.next(token) || !parse_double(token, x))
+          fail(path, "line " + std::to_string(chunk.first_line + lines.number() - 1) +
+                         ": a point needs three numbers: '" + std::string(line.substr(0, line.find('#'))) + "'");
+        soup.V(point, k) = x;
+      }
+      ++point;
+    }
+  });
   return soup;
 }
 
@@ -953,8 +1001,9 @@ MeshFile read_mesh_file(const std::string& path) {
   if (file.format == "ilm")
     fail(path, "is an intrinsic mesh (edge lengths, no vertex positions: nothing to place or draw); give the "
                "input mesh it was made from (.obj, .off, .ply, .stl)");
-  if (file.format != "obj" && file.format != "off" && file.format != "ply" && file.format != "stl")
-    fail(path, "unsupported format '." + file.format + "' (supported: .obj, .off, .ply, .stl)");
+  const bool points_only = file.format == "xyz" || file.format == "pwn";
+  if (file.format != "obj" && file.format != "off" && file.format != "ply" && file.format != "stl" && !points_only)
+    fail(path, "unsupported format '." + file.format + "' (supported: .obj, .off, .ply, .stl; points only: .xyz, .pwn)");
 
   // Every vertex or face record takes at least one byte: a larger count means a corrupt file.
   const std::size_t max_records = static_cast<std::size_t>(size) + 16;
@@ -966,17 +1015,82 @@ MeshFile read_mesh_file(const std::string& path) {
   } else {
     file.soup = file.format == "obj"   ? read_obj_exact(path)
                 : file.format == "off" ? read_off_exact(path, size)
+                : points_only          ? read_xyz_exact(path)
                                        : read_ply_exact(path, size);
     file.exact_coordinates = true;
   }
-  if (file.soup.polygons.empty()) fail(path, "contains no faces");
+  if (file.soup.polygons.empty() && file.soup.V.rows() == 0) fail(path, "contains no vertices or faces");
   return file;
 }
+
+namespace {
+
+// A file of points only: refused with the way to solve on it, or its points (coincident ones merged
+// when repairing) with the triangles of their local Delaunay fans.
+LoadResult load_point_cloud(const std::string& path, LoadResult result, const LoadOptions& options) {
+  const Positions& P = result.file.soup.V;
+  const Index n = static_cast<Index>(P.rows());
+  const std::string what = "contains no faces: a point cloud of " + std::to_string(n) + " points";
+  if (!options.keep_nonmanifold)
+    throw MeshError(MeshError::Kind::Defective, path,
+                    what + "; it can be solved on the tufted cover of its points' local Delaunay triangles "
+                           "(the tools' --nonmanifold tufted)");
+  for (Index i = 0; i < n; ++i)
+    if (!P.row(i).allFinite())
+      throw MeshError(MeshError::Kind::Defective, path, "refused: point " + std::to_string(i) + " has a coordinate that is not finite");
+  // Coincident points: refused, or merged into the first of them with repair.
+  std::vector<Index> order(static_cast<std::size_t>(n));
+  std::iota(order.begin(), order.end(), 0);
+  const auto position = [&P](Index i) { return std::array<double, 3>{P(i, 0), P(i, 1), P(i, 2)}; };
+  std::stable_sort(order.begin(), order.end(), [&](Index a, Index b) { return position(a) < position(b); });
+  std::vector<char> repeats(static_cast<std::size_t>(n), 0);
+  std::size_t repeated = 0;
+  Index first_repeat = kInvalid, first_original = kInvalid;
+  for (std::size_t k = 1; k < order.size(); ++k) {
+    if (position(order[k]) != position(order[k - 1])) continue;
+    repeats[static_cast<std::size_t>(order[k])] = 1;  // a stable sort keeps the earliest first
+    ++repeated;
+    if (first_repeat == kInvalid || order[k] < first_repeat) {
+      first_repeat = order[k];
+      std::size_t j = k;
+      while (j > 0 && position(order[j - 1]) == position(order[k])) --j;
+      first_original = order[j];
+    }
+  }
+  if (repeated > 0 && !options.repair)
+    throw MeshError(MeshError::Kind::Defective, path,
+                    "refused: " + std::to_string(repeated) + " points repeat an earlier point's position (first: point " +
+                        std::to_string(first_repeat) + " at point " + std::to_string(first_original) +
+                        "'s) (load with repair to merge them)");
+  for (Index i = 0; i < n; ++i)
+    if (!repeats[static_cast<std::size_t>(i)]) result.source_vertex.push_back(i);
+  result.repairs.welded_vertices = repeated;
+  TriangleMesh& mesh = result.mesh;
+  mesh.V.resize(static_cast<Eigen::Index>(result.source_vertex.size()), 3);
+  for (std::size_t i = 0; i < result.source_vertex.size(); ++i) mesh.V.row(static_cast<Eigen::Index>(i)) = P.row(result.source_vertex[i]);
+  PointCloudOptions cloud;
+  cloud.neighbours = options.point_cloud_neighbours;
+  try {
+    mesh.F = point_cloud_triangles(mesh.V, cloud);
+  } catch (const std::invalid_argument& error) {
+    std::string message = error.what();
+    message.erase(0, message.find(':') + 2);  // the function's name
+    throw MeshError(MeshError::Kind::Defective, path, "refused: " + message + (repeated > 0 ? " (after merging coincident points)" : ""));
+  }
+  result.point_cloud = true;
+  result.report = validate_mesh(mesh);
+  if (!result.report.clean_but_for_sheets())  // not expected: the fans are non-degenerate and distinct
+    throw MeshError(MeshError::Kind::Defective, path, "refused: its points' local triangles have " + describe_defects(result.report));
+  return result;
+}
+
+}  // namespace
 
 LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& options) {
   LoadResult result;
   result.file = read_mesh_file(path);
   result.input_report = validate_mesh(result.file.soup);
+  if (result.file.soup.polygons.empty()) return load_point_cloud(path, std::move(result), options);
 
   const auto acceptable = [&](const ValidationReport& report) {
     return report.clean() || (options.keep_nonmanifold && report.clean_but_for_sheets());

@@ -36,6 +36,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     load_setup,
     loop_subdivide,
     mass_matrix,
+    point_cloud_triangles,
     proxy_eigenbasis,
     reconstruction_error,
     save_hierarchy,
@@ -55,7 +56,8 @@ __all__ = [
     "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
     "boundary_vertices", "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
-    "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_hierarchy", "load_mesh", "load_setup", "loop_subdivide", "mass_matrix", "proxy_eigenbasis",
+    "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_hierarchy", "load_mesh", "load_setup", "loop_subdivide", "mass_matrix",
+    "point_cloud_triangles", "proxy_eigenbasis",
     "read_mesh", "reconstruction_error", "save_hierarchy", "save_mesh", "save_setup", "setup_proxy", "solve_poisson", "transport_vectors", "validate", "wave_kernel_signature",
     "VectorHeatSolver",
 ]
@@ -67,10 +69,11 @@ class LoadedMesh:
 
     Attributes: V (n×3 float64), F (m×3 int32), report (validation of the loaded mesh, the keys of
     ``ice-info --json``), input_report (of the file as read), repairs (what repair=True did, one line
-    each), source_vertex / source_face (the file's index of each mesh vertex / face), format.
+    each), source_vertex / source_face (the file's index of each mesh vertex / face), format,
+    point_cloud (the file had points only: F are their local Delaunay triangles).
     """
 
-    __slots__ = ("V", "F", "report", "input_report", "repairs", "source_vertex", "source_face", "format")
+    __slots__ = ("V", "F", "report", "input_report", "repairs", "source_vertex", "source_face", "format", "point_cloud")
 
     def __init__(self, fields: dict):
         for name in self.__slots__:
@@ -89,19 +92,24 @@ class LoadedMesh:
         return f"<ice.LoadedMesh {self.V.shape[0]} vertices, {self.F.shape[0]} faces ({self.format})>"
 
 
-def load_mesh(path, repair: bool = False, weld: bool = False) -> LoadedMesh:
-    """Reads and validates an OBJ, OFF, PLY or STL mesh under ICE's loading policy (as the tools do).
+def load_mesh(path, repair: bool = False, weld: bool = False, nonmanifold: str = "refuse",
+              neighbours: int = 30) -> LoadedMesh:
+    """Reads and validates an OBJ, OFF, PLY or STL mesh (or an XYZ/PWN point set) under ICE's loading policy.
 
     Refused meshes (non-manifold, inconsistently oriented, zero-area or duplicate faces, ...) raise
     ice.MeshError naming the file and each defect; repair=True applies the safe repairs first
     (triangulate, drop zero-area/duplicate faces and unused vertices, re-orient; weld=True also welds
-    exactly coincident vertices). Returns a LoadedMesh (``V, F = ice.load_mesh(path)``).
+    exactly coincident vertices). nonmanifold="tufted" keeps what the tufted cover solves on (non-manifold
+    and non-orientable sheets), and reads a file of points only as its points with the triangles of their
+    local Delaunay fans (ice.point_cloud_triangles with `neighbours`; repeated points refused, merged with
+    repair=True); pass nonmanifold="tufted" to the solvers too. Returns a LoadedMesh
+    (``V, F = ice.load_mesh(path)``).
     """
-    return LoadedMesh(_ice._load_mesh(str(path), repair, weld))
+    return LoadedMesh(_ice._load_mesh(str(path), repair, weld, nonmanifold, neighbours))
 
 
 # The extensions ICE's own reader takes (libice/src/mesh_io.cpp: read_mesh_file); read_mesh hands the rest to meshio.
-_ICE_FORMATS = (".obj", ".off", ".ply", ".stl")
+_ICE_FORMATS = (".obj", ".off", ".ply", ".stl", ".xyz", ".pwn")
 
 
 def read_mesh(path, *, skip_cells=(), **kw):

@@ -29,11 +29,13 @@ class LoadedMesh:
     source_vertex: IndexArray
     source_face: IndexArray
     format: str
+    point_cloud: bool
     def __iter__(self) -> Iterator[FloatArray | IndexArray]: ...
     def __len__(self) -> int: ...
     def __getitem__(self, index: int) -> FloatArray | IndexArray: ...
 
-def load_mesh(path: Path, repair: bool = False, weld: bool = False) -> LoadedMesh:
+def load_mesh(path: Path, repair: bool = False, weld: bool = False, nonmanifold: str = "refuse",
+              neighbours: int = 30) -> LoadedMesh:
     """Reads and validates an OBJ, OFF, PLY or STL mesh under ICE's loading policy."""
 def read_mesh(path: Path, *, skip_cells: str | Iterable[str] = (), **kw: Any) -> tuple[FloatArray, IndexArray]:
     """(V, F) of a triangle mesh: OBJ/OFF/PLY/STL by ice.load_mesh, other formats by meshio (triangles only)."""
@@ -45,6 +47,8 @@ def face_lengths(V: ArrayLike, F: ArrayLike) -> FloatArray:
     """Per-face edge lengths (m×3), column k from corner k to corner (k+1)%3."""
 def intrinsic_delaunay(V: ArrayLike, F: ArrayLike) -> tuple[IndexArray, FloatArray, int]:
     """(F, lengths, flips) of the intrinsic Delaunay triangulation of (V, F)."""
+def point_cloud_triangles(P: ArrayLike, *, neighbours: int = 30, threads: int = 0) -> IndexArray:
+    """Faces of a point cloud: its points' local Delaunay triangles (a soup; solve with nonmanifold="tufted")."""
 def loop_subdivide(V: ArrayLike, F: ArrayLike, levels: int = 1) -> tuple[FloatArray, IndexArray]:
     """Loop subdivision `levels` times (about 4x the vertices each)."""
 def cotan_laplacian(V: ArrayLike | None = None, F: ArrayLike | None = None, *, lengths: ArrayLike | None = None,
@@ -97,7 +101,8 @@ def coarsen(V: ArrayLike, F: ArrayLike, *, n: int | None = None, ratio: float | 
             threads: int = 1, regions: int = 0, qem_geometry: Literal["extrinsic", "intrinsic_delaunay"] = "extrinsic",
             refine_angle: float | None = None, refine_budget: float = 1.5, keep_map: bool = True,
             locality_numbering: bool = True, trace: bool = False,
-            progress: Callable[[dict[str, Any]], bool | None] | None = None) -> CoarseSpace:
+            progress: Callable[[dict[str, Any]], bool | None] | None = None,
+            nonmanifold: Literal["refuse", "tufted"] = "refuse") -> CoarseSpace:
     """Coarsens (V, F) by ICE (or QEM) to n vertices, a ratio of them, or an error bound."""
 def load_coarse_mesh(path: Path) -> CoarseSpace:
     """Reads an .ilm coarse mesh (faces, lengths, gluing, vertex map)."""

@@ -43,6 +43,7 @@
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
+#include "ice/point_cloud.h"
 #include "ice/refinement.h"
 
 namespace py = pybind11;
@@ -204,24 +205,34 @@ CleanMeshes& clean_meshes() {
 }
 
 /// ice::require_clean_mesh for arrays, skipped for a mesh already found clean. No GIL needed.
-void require_clean(const ice::TriangleMesh& mesh) {
+/// With `cover` (nonmanifold="tufted"): also a mesh whose only defects are the sheets the tufted cover
+/// takes (non-manifold, inconsistently oriented, non-orientable).
+void require_clean(const ice::TriangleMesh& mesh, ice::NonmanifoldInput cover = ice::NonmanifoldInput::refuse) {
   const std::uint64_t fingerprint = mesh_fingerprint(mesh);
   if (clean_meshes().contains(fingerprint)) return;
+  if (cover == ice::NonmanifoldInput::tufted_cover) {
+    const ice::ValidationReport report = ice::validate_mesh(mesh);
+    if (report.clean_but_for_sheets()) return;
+  }
   ice::require_clean_mesh(mesh, "(V, F)");
   clean_meshes().add(fingerprint);
 }
 
-py::dict load_mesh(const std::filesystem::path& file_path, bool repair, bool weld) {
+py::dict load_mesh(const std::filesystem::path& file_path, bool repair, bool weld, const std::string& nonmanifold,
+                   int neighbours) {
   const std::string path = file_path.string();
   ice::LoadOptions options;
   options.repair = repair;
   options.weld_duplicate_positions = weld;
+  options.keep_nonmanifold = choice<ice::NonmanifoldInput>(nonmanifold, "nonmanifold") == ice::NonmanifoldInput::tufted_cover;
+  if (neighbours < 2) throw py::value_error("neighbours must be at least 2");
+  options.point_cloud_neighbours = neighbours;
   if (weld && !repair) throw py::value_error("weld=True goes with repair=True");
   ice::LoadResult loaded;
   {
     py::gil_scoped_release release;
     loaded = ice::load_mesh_with_report(path, options);
-    clean_meshes().add(mesh_fingerprint(loaded.mesh));  // the loader validated it
+    if (loaded.report.clean()) clean_meshes().add(mesh_fingerprint(loaded.mesh));  // the loader validated it
   }
   py::dict result;
   result["V"] = py::cast(std::move(loaded.mesh.V));
@@ -232,6 +243,7 @@ py::dict load_mesh(const std::filesystem::path& file_path, bool repair, bool wel
   result["source_vertex"] = to_numpy(std::move(loaded.source_vertex));
   result["source_face"] = to_numpy(std::move(loaded.source_face));
   result["format"] = loaded.file.format;
+  result["point_cloud"] = loaded.point_cloud;
   return result;
 }
 
@@ -304,9 +316,10 @@ ice::CoarseSpaceOptions coarse_space_options(const ice::TriangleMesh& mesh, cons
                                              const py::object& normalize_curvature, const py::object& locked,
                                              bool remove_boundary, const py::object& threads, const py::object& regions,
                                              const std::string& qem_geometry, const py::object& refine_angle,
-                                             double refine_budget, bool locality_numbering) {
+                                             double refine_budget, bool locality_numbering, const std::string& nonmanifold) {
   const auto vertex_count = static_cast<long long>(mesh.V.rows());
   ice::CoarseSpaceOptions options;
+  options.nonmanifold = choice<ice::NonmanifoldInput>(nonmanifold, "nonmanifold");
   options.method = choice<ice::CoarseningMethod>(method, "method");
   options.coarsen = ice::recommended_coarsen_options(
       choice<ice::ProxyUse>(use, "use"));
@@ -371,11 +384,13 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
                                        bool remove_boundary, const py::object& threads, const py::object& regions,
                                        const std::string& qem_geometry,
                                        const py::object& refine_angle, double refine_budget, bool keep_map,
-                                       bool locality_numbering, bool trace, const py::object& progress) {
+                                       bool locality_numbering, bool trace, const py::object& progress,
+                                       const std::string& nonmanifold) {
   const ice::TriangleMesh mesh = mesh_argument(V, F);
   ice::CoarseSpaceOptions options =
       coarse_space_options(mesh, n, ratio, min_vertices, max_error, method, use, area_weight, normalize_curvature, locked,
-                           remove_boundary, threads, regions, qem_geometry, refine_angle, refine_budget, locality_numbering);
+                           remove_boundary, threads, regions, qem_geometry, refine_angle, refine_budget, locality_numbering,
+                           nonmanifold);
   ice::CoarsenOptions& c = options.coarsen;
   if (trace && options.method != ice::CoarseningMethod::ice)
     throw py::value_error("trace=True draws ICE's intrinsic coarse edges on the surface; a QEM mesh has straight edges (method='ice')");
@@ -388,14 +403,15 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
   result->input_vertices = static_cast<ice::Index>(mesh.V.rows());
   {
     py::gil_scoped_release release;
-    require_clean(mesh);
+    require_clean(mesh, options.nonmanifold);
     result->space = ice::build_coarse_space(mesh, options);
   }
   if (bridge.error) std::rethrow_exception(bridge.error);
   {
     py::gil_scoped_release release;
-    if (keep_map && !(options.method == ice::CoarseningMethod::qem &&
-                      options.qem_geometry == ice::QemGeometry::intrinsic_delaunay))
+    // No map on a tufted cover (the kept triangulation tracks the cover's copies, not the input's vertices).
+    if (keep_map && !result->space.summary.tufted_cover &&
+        !(options.method == ice::CoarseningMethod::qem && options.qem_geometry == ice::QemGeometry::intrinsic_delaunay))
       result->map = ice::fine_to_coarse_map(result->space);
     if (trace) {
       result->tracing = ice::trace_coarse_mesh(mesh, result->space, c.threads);
@@ -574,12 +590,17 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
       prolongation, "prolongation");
   if (smoothing == fem::ProlongationKind::smoothed && kind != fem::CoarseOperatorKind::galerkin)
     throw py::value_error("prolongation='smoothed' needs operators='galerkin'");
+  const ice::NonmanifoldInput cover =
+      coarse.space.summary.tufted_cover ? ice::NonmanifoldInput::tufted_cover : ice::NonmanifoldInput::refuse;
+  if (cover == ice::NonmanifoldInput::tufted_cover && kind != fem::CoarseOperatorKind::galerkin)
+    throw py::value_error("a coarse space of a tufted cover takes operators='galerkin' (the cover's own coarse Laplacian "
+                          "is not the input's robust Laplacian)");
   auto result = std::make_shared<PyProxy>();
   result->method = coarse.space.summary.method;
   result->geometry = geometry;
   py::gil_scoped_release release;
-  require_clean(mesh);
-  result->fine = ice::fine_mesh(mesh, geometry);
+  require_clean(mesh, cover);
+  result->fine = ice::fine_mesh(mesh, geometry, cover);
   // `new` initialised from the returned proxy itself: make_unique would move it, and a CoarseProxy's
   // move copies its sparse matrices (Eigen 3.4 has no sparse move).
   result->proxy.reset(new fem::CoarseProxy(ice::proxy::make_proxy(result->fine, coarse.space, kind, smoothing)));
@@ -623,11 +644,13 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
                       const py::object& area_weight, const py::object& normalize_curvature, const py::object& locked,
                       bool remove_boundary, const py::object& threads, const py::object& regions,
                       const std::string& qem_geometry, const py::object& refine_angle, double refine_budget,
-                      bool locality_numbering) {
+                      bool locality_numbering, const std::string& nonmanifold) {
   const ice::TriangleMesh mesh = mesh_argument(V, F);
   ice::CoarseSpaceOptions options =
       coarse_space_options(mesh, n, ratio, min_vertices, max_error, method, use, area_weight, normalize_curvature, locked,
-                           remove_boundary, threads, regions, qem_geometry, refine_angle, refine_budget, locality_numbering);
+                           remove_boundary, threads, regions, qem_geometry, refine_angle, refine_budget, locality_numbering,
+                           nonmanifold);
+  const ice::NonmanifoldInput cover_choice = options.nonmanifold;
   std::vector<ice::Index> dirichlet;
   if (!fixed.is_none()) dirichlet = index_argument(fixed, mesh.V.rows(), "fixed");
   const auto kind = choice<fem::CoarseOperatorKind>(operators, "operators");
@@ -638,7 +661,7 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
   auto proxy = std::make_shared<PyProxy>();
   {
     py::gil_scoped_release release;
-    require_clean(mesh);
+    require_clean(mesh, cover_choice);
     ice::proxy::ProxySetup setup;
     try {
       ice::proxy::ProxySetupOptions setup_options;
@@ -887,7 +910,31 @@ PYBIND11_MODULE(_ice, m) {
       py::arg("prolongation"), py::arg("operators"), py::arg("dirichlet"),
       "The prolongation 'auto' means for these operators (ice::proxy::resolve_prolongation).");
   m.def("_load_mesh", &load_mesh, py::arg("path"), py::arg("repair") = false, py::arg("weld") = false,
-        "The dict behind ice.load_mesh (use that).");
+        py::arg("nonmanifold") = "refuse", py::arg("neighbours") = 30, "The dict behind ice.load_mesh (use that).");
+  m.def(
+      "point_cloud_triangles",
+      [](const py::object& P, int neighbours, int threads) {
+        const ice::Positions points = positions_argument(P, "P");
+        ice::PointCloudOptions options;
+        options.neighbours = neighbours;
+        options.threads = bounded_integer(py::int_(threads), "threads", 0, 64);
+        ice::Faces F;
+        {
+          py::gil_scoped_release release;
+          try {
+            F = ice::point_cloud_triangles(points, options);
+          } catch (const std::invalid_argument& error) {
+            throw py::value_error(error.what());
+          }
+        }
+        return py::cast(std::move(F));
+      },
+      py::arg("P"), py::kw_only(), py::arg("neighbours") = 30, py::arg("threads") = 0,
+      R"doc(Faces (m×3) for a point cloud P (n×3): the triangles of each point's local Delaunay fan (its `neighbours`
+nearest points projected onto its least-squares tangent plane; Sharp & Crane 2020, §5.3), each distinct
+triangle once. A triangle soup (non-manifold, inconsistently oriented): pass (P, F) with
+nonmanifold="tufted" to ice.coarsen, ice.setup_proxy or the solve_* functions. Raises ValueError for fewer
+than 3 points, non-finite or repeated positions, or a point whose neighbours and it lie on one line.)doc");
   m.def("validate", &validate, py::arg("V"), py::arg("F"),
         R"doc(Validation report of the mesh (V, F): sizes, components, boundary loops, genus, bounding box,
 edge lengths and each defect ICE refuses (count and first offenders), as `ice-info --json` reports it.
@@ -1045,8 +1092,12 @@ ice.load_coarse_mesh reads it back). An existing file is replaced only with over
         py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1,
         py::arg("regions") = 0, py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
         py::arg("keep_map") = true, py::arg("locality_numbering") = true, py::arg("trace") = false, py::arg("progress") = py::none(),
+        py::arg("nonmanifold") = "refuse",
         R"doc(Coarsens the mesh (V, F) (clean, oriented, manifold; several components, boundaries and any genus
 are fine) and returns its ice.CoarseSpace: the intrinsic coarse mesh, P, the fine-to-coarse map.
+nonmanifold="tufted": a mesh that is not an oriented manifold (non-manifold edges or vertices,
+inconsistent orientation, non-orientable; a point cloud with ice.point_cloud_triangles' faces) is
+coarsened through its tufted cover instead of refused (Galerkin proxies only; no fine-to-coarse map).
 
 Target: exactly one of n (vertices), ratio (of the input vertices, e.g. 0.05; with min_vertices, at
 least that many, as the tools' --min-vertices), or max_error (the ICE error metric; may be combined
@@ -1073,7 +1124,7 @@ ProxyGeodesicSolver.from_coarse(..., lengths='traced'). Raises ice.MeshError nam
         py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(), py::arg("normalize_curvature") = py::none(),
         py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1, py::arg("regions") = 0,
         py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
-        py::arg("locality_numbering") = true,
+        py::arg("locality_numbering") = true, py::arg("nonmanifold") = "refuse",
         R"doc(Coarsens (V, F) and builds its Proxy in one step, through the store of set-up proxies: (CoarseSpace, Proxy).
 
 The coarsening arguments are ice.coarsen's (the coarse space keeps no fine-to-coarse map); operators, fine and

@@ -74,8 +74,9 @@ struct MeshFile {
 };
 
 /// Read a mesh file into a raw polygon soup; no validation. The format is chosen by the extension
-/// (case-insensitive). Throws MeshError (Unreadable) naming the file if it is missing, not a regular
-/// file, of unknown format, empty (no faces), truncated or not parsable.
+/// (case-insensitive): .obj, .off, .ply, .stl, or a point set as text (.xyz, .pwn: the first three
+/// numbers of each line). Throws MeshError (Unreadable) naming the file if it is missing, not a
+/// regular file, of unknown format, empty (no vertices), truncated or not parsable.
 MeshFile read_mesh_file(const std::string& path);
 
 /// Options of `load_mesh`.
@@ -85,14 +86,19 @@ struct LoadOptions {
   /// Accept a mesh (after the repairs, when asked) whose only defects are non-manifold edges or
   /// vertices, inconsistent orientation or non-orientable components: what the tufted cover
   /// (ice/tufted_cover.h) solves on. LoadResult::report still lists them.
+  /// A file of points only (.xyz, .pwn, or .obj/.off/.ply without faces) then becomes its points with the
+  /// triangles of their local Delaunay fans (ice/point_cloud.h), coincident points refused or, with
+  /// repair, merged into the first of them. Without this option such a file is refused.
   bool keep_nonmanifold = false;
+  int point_cloud_neighbours = 30;  ///< PointCloudOptions::neighbours of a point cloud's fans.
 };
 
 /// Everything `load_mesh_with_report` learned about a file.
 struct LoadResult {
   TriangleMesh mesh;               ///< The validated mesh.
   std::vector<Index> source_vertex;  ///< mesh vertex i is vertex source_vertex[i] of the file (0-based).
-  std::vector<Index> source_face;    ///< mesh face f comes from face source_face[f] of the file.
+  std::vector<Index> source_face;    ///< mesh face f comes from face source_face[f] of the file (empty for a point cloud).
+  bool point_cloud = false;          ///< The file had points only; the faces are their local Delaunay fans.
   MeshFile file;                   ///< Raw input (soup, format, reader notes).
   ValidationReport input_report;   ///< Validation of the raw input.
   RepairLog repairs;               ///< Empty unless options.repair.

@@ -1,0 +1,178 @@
+#include "ice/point_cloud.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/Eigenvalues>
+#include <nanoflann.hpp>
+
+#include "run_tasks.h"
+#include "ice/mesh_validation.h"
+
+namespace ice {
+
+namespace {
+
+// nanoflann's view of the rows of an n × 3 matrix.
+struct PointCloudRows {
+  const Positions& points;
+  std::size_t kdtree_get_point_count() const { return static_cast<std::size_t>(points.rows()); }
+  double kdtree_get_pt(std::size_t i, std::size_t d) const {
+    return points(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(d));
+  }
+  template <class Box>
+  bool kdtree_get_bbox(Box&) const { return false; }
+};
+using PointCloudTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, PointCloudRows>, PointCloudRows, 3, Index>;
+
+struct InvertedNeighbour {
+  Eigen::Vector2d q;  // the neighbour's position in the tangent plane, inverted in the unit circle
+  Index point;
+};
+
+double cross_2d(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+// The convex hull of the inverted positions, counter-clockwise without collinear points (Andrew's
+// monotone chain), as indices into `q`.
+void convex_hull(std::vector<InvertedNeighbour>& q, std::vector<Index>& hull) {
+  std::sort(q.begin(), q.end(), [](const InvertedNeighbour& a, const InvertedNeighbour& b) {
+    return a.q.x() < b.q.x() || (a.q.x() == b.q.x() && a.q.y() < b.q.y());
+  });
+  hull.clear();
+  const Index n = static_cast<Index>(q.size());
+  if (n < 2) return;
+  hull.resize(static_cast<std::size_t>(2 * n));
+  Index k = 0;
+  const auto turns_left = [&](Index a, Index b, Index c) {
+    return cross_2d(q[b].q - q[a].q, q[c].q - q[a].q) > 0;
+  };
+  for (Index i = 0; i < n; ++i) {  // lower chain
+    while (k >= 2 && !turns_left(hull[k - 2], hull[k - 1], i)) --k;
+    hull[k++] = i;
+  }
+  for (Index i = n - 2, lower = k + 1; i >= 0; --i) {  // upper chain
+    while (k >= lower && !turns_left(hull[k - 2], hull[k - 1], i)) --k;
+    hull[k++] = i;
+  }
+  hull.resize(static_cast<std::size_t>(k - 1));  // the first point closes the chain
+}
+
+// Point i's fan, appended to `out` as (i, a, b) counter-clockwise in i's tangent plane.
+//
+// Why the hull: the Delaunay neighbours of the origin among points x_j are those whose bisector
+// half-plane {y : y·x_j ≤ |x_j|²/2} bounds the origin's Voronoi cell. Written y·q_j ≤ 1/2 with
+// q_j = x_j/|x_j|², these are the vertices of the convex hull of the q_j (polar duality), in angular
+// order; consecutive hull vertices a, b meet at a Voronoi vertex (the circumcentre of 0, x_a, x_b)
+// exactly when the origin lies to the left of the hull edge a → b, i.e. q_a × q_b > 0. Otherwise the
+// cell is unbounded there: the point is on the boundary of its neighbourhood.
+void local_fan(const Positions& P, Index i, const Index* neighbour, std::size_t count, double diagonal,
+               std::vector<InvertedNeighbour>& q, std::vector<Index>& hull, std::vector<std::array<Index, 3>>& out) {
+  const Eigen::RowVector3d p = P.row(i);
+  Eigen::Vector3d mean = p.transpose();
+  for (std::size_t j = 0; j < count; ++j) mean += P.row(neighbour[j]).transpose();
+  mean /= static_cast<double>(count + 1);
+  Eigen::Matrix3d covariance = (p.transpose() - mean) * (p.transpose() - mean).transpose();
+  for (std::size_t j = 0; j < count; ++j) {
+    const Eigen::Vector3d d = P.row(neighbour[j]).transpose() - mean;
+    covariance += d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+  solver.computeDirect(covariance);
+  const Eigen::Vector3d e1 = solver.eigenvectors().col(2), e2 = solver.eigenvectors().col(1);  // the two largest
+  q.clear();
+  for (std::size_t j = 0; j < count; ++j) {
+    const Eigen::Vector3d d = (P.row(neighbour[j]) - p).transpose();
+    const Eigen::Vector2d x(d.dot(e1), d.dot(e2));
+    const double r2 = x.squaredNorm();
+    if (!(r2 > 0)) continue;  // right above or below i in its plane: no place in the fan
+    q.push_back({x / r2, neighbour[j]});
+  }
+  convex_hull(q, hull);
+  const std::size_t h = hull.size();
+  if (h < 2) return;
+  for (std::size_t k = 0; k < h; ++k) {  // h = 2: both ways round, at most one with the origin on its left
+    const InvertedNeighbour& a = q[static_cast<std::size_t>(hull[k])];
+    const InvertedNeighbour& b = q[static_cast<std::size_t>(hull[(k + 1) % h])];
+    if (!(cross_2d(a.q, b.q) > 0)) continue;
+    if (is_degenerate_triangle(P, i, a.point, b.point, diagonal)) continue;
+    out.push_back({i, a.point, b.point});
+  }
+}
+
+}  // namespace
+
+Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& options) {
+  const Index n = static_cast<Index>(points.rows());
+  if (points.cols() != 3) throw std::invalid_argument("point_cloud_triangles: the points must have 3 columns");
+  if (n < 3) throw std::invalid_argument("point_cloud_triangles: a point cloud needs at least 3 points, not " + std::to_string(n));
+  if (options.neighbours < 2)
+    throw std::invalid_argument("point_cloud_triangles: neighbours must be at least 2, not " + std::to_string(options.neighbours));
+  for (Index i = 0; i < n; ++i)
+    if (!points.row(i).allFinite())
+      throw std::invalid_argument("point_cloud_triangles: point " + std::to_string(i) + " has a coordinate that is not finite");
+  const double diagonal = (points.colwise().maxCoeff() - points.colwise().minCoeff()).norm();
+
+  const PointCloudRows rows{points};
+  const PointCloudTree tree(3, rows, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  const std::size_t wanted = static_cast<std::size_t>(std::min<Index>(options.neighbours, n - 1)) + 1;  // the point itself
+
+  // Per range of points, in point order: the fans' triangles.
+  const int threads = detail::requested_threads(options.threads);
+  const int ranges = detail::range_count(threads, n);
+  std::vector<std::vector<std::array<Index, 3>>> fans(static_cast<std::size_t>(ranges));
+  detail::run_numbered_ranges(threads, n, [&](int range, Index begin, Index end) {
+    std::vector<Index> found(wanted), neighbour(wanted);
+    std::vector<double> distance(wanted);
+    std::vector<InvertedNeighbour> q;
+    std::vector<Index> hull;
+    auto& out = fans[static_cast<std::size_t>(range)];
+    for (Index i = begin; i < end; ++i) {
+      const double query[3] = {points(i, 0), points(i, 1), points(i, 2)};
+      const std::size_t got = tree.knnSearch(query, wanted, found.data(), distance.data());
+      std::size_t count = 0;
+      for (std::size_t j = 0; j < got; ++j) {
+        if (found[j] == i) continue;
+        if (!(distance[j] > 0))
+          throw std::invalid_argument("point_cloud_triangles: points " + std::to_string(std::min(i, found[j])) + " and " +
+                                      std::to_string(std::max(i, found[j])) + " are at the same position");
+        if (count + 1 < wanted) neighbour[count++] = found[j];
+      }
+      local_fan(points, i, neighbour.data(), count, diagonal, q, hull, out);
+    }
+  });
+
+  // Every distinct triangle once: sorted by its vertex set, the first (lowest point's fan) kept.
+  std::vector<std::array<Index, 3>> all;
+  std::size_t total = 0;
+  for (const auto& part : fans) total += part.size();
+  all.reserve(total);
+  for (auto& part : fans) {
+    all.insert(all.end(), part.begin(), part.end());
+    std::vector<std::array<Index, 3>>().swap(part);
+  }
+  const auto key = [](const std::array<Index, 3>& t) {
+    std::array<Index, 3> k = t;
+    std::sort(k.begin(), k.end());
+    return k;
+  };
+  std::stable_sort(all.begin(), all.end(), [&](const auto& a, const auto& b) { return key(a) < key(b); });
+  all.erase(std::unique(all.begin(), all.end(), [&](const auto& a, const auto& b) { return key(a) == key(b); }), all.end());
+  std::sort(all.begin(), all.end());
+
+  std::vector<char> used(static_cast<std::size_t>(n), 0);
+  for (const auto& t : all)
+    for (Index v : t) used[static_cast<std::size_t>(v)] = 1;
+  for (Index i = 0; i < n; ++i)
+    if (!used[static_cast<std::size_t>(i)])
+      throw std::invalid_argument("point_cloud_triangles: point " + std::to_string(i) +
+                                  " lies on no triangle (it and its nearest neighbours lie on one line)");
+  Faces F(static_cast<Eigen::Index>(all.size()), 3);
+  for (std::size_t f = 0; f < all.size(); ++f)
+    for (int k = 0; k < 3; ++k) F(static_cast<Eigen::Index>(f), k) = all[f][static_cast<std::size_t>(k)];
+  return F;
+}
+
+}  // namespace ice

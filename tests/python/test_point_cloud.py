@@ -1,0 +1,63 @@
+"""Point clouds and non-manifold meshes from Python: nonmanifold="tufted" and ice.point_cloud_triangles."""
+import numpy as np
+import pytest
+
+import ice
+
+
+def sphere_points(n):
+    """n points spread evenly over the unit sphere (a Fibonacci spiral)."""
+    i = np.arange(n)
+    z = 1 - (2 * i + 1) / n
+    r = np.sqrt(1 - z * z)
+    phi = i * np.pi * (3 - np.sqrt(5))
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def test_point_cloud_poisson_near_the_sphere_solution():
+    P = sphere_points(3000)
+    F = ice.point_cloud_triangles(P)
+    assert F.shape[1] == 3 and F.shape[0] > 5000
+    assert np.array_equal(np.unique(F), np.arange(3000))  # every point on a triangle
+    with pytest.raises(ice.MeshError, match="nonmanifold|inconsistent"):
+        ice.coarsen(P, F, ratio=0.1)
+    coarse = ice.coarsen(P, F, ratio=0.1, nonmanifold="tufted")
+    assert np.allclose(coarse.P @ np.ones(coarse.P.shape[1]), 1, atol=1e-12)
+    # −Δu = z on the unit sphere: u = z/2 (zero mean both)
+    u = ice.solve_poisson(P, F, P[:, 2], ratio=0.1, nonmanifold="tufted", cache=False)
+    exact = P[:, 2] / 2
+    u, exact = u - u.mean(), exact - exact.mean()
+    assert np.linalg.norm(u - exact) / np.linalg.norm(exact) < 0.05
+    with pytest.raises(ValueError, match="galerkin"):
+        ice.Proxy(P, F, coarse, operators="intrinsic")
+
+
+def test_point_cloud_faces_refuse_bad_points():
+    P = sphere_points(100)
+    with pytest.raises(ValueError, match="same position"):
+        ice.point_cloud_triangles(np.vstack([P, P[:1]]))
+    with pytest.raises(ValueError, match="one line"):
+        ice.point_cloud_triangles(np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)]))
+
+
+def test_point_files_load_with_the_option(tmp_path):
+    P = sphere_points(500)
+    path = tmp_path / "points.xyz"
+    np.savetxt(path, P)
+    with pytest.raises(ice.MeshError, match="point cloud of 500 points"):
+        ice.load_mesh(path)
+    loaded = ice.load_mesh(path, nonmanifold="tufted")
+    assert loaded.point_cloud and loaded.V.shape == (500, 3)
+    assert np.allclose(loaded.V, P)
+    # Heat from one point spreads on the cloud: far hotter near it than on the far side.
+    u0 = np.zeros(500)
+    u0[0] = 1
+    h = ice.heat_flow(loaded.V, loaded.F, u0, time_step=0.01, ratio=0.2, nonmanifold="tufted", cache=False)
+    distance = np.linalg.norm(P - P[0], axis=1)
+    assert h.shape == (500,) and h[distance < 0.3].mean() > 100 * abs(h[distance > 1.5]).mean()
+    repeated = tmp_path / "repeated.xyz"
+    np.savetxt(repeated, np.vstack([P, P[7:8]]))
+    with pytest.raises(ice.MeshError, match="repeat an earlier point"):
+        ice.load_mesh(repeated, nonmanifold="tufted")
+    merged = ice.load_mesh(repeated, repair=True, nonmanifold="tufted")
+    assert merged.V.shape == (500, 3) and list(merged.source_vertex) == list(range(500))

@@ -1,0 +1,171 @@
+// Point clouds: the local Delaunay fans of ice/point_cloud.h, the loader's point sets, and solves on
+// the tufted cover of the fans.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "fem/operators.h"
+#include "fem/problems.h"
+#include "ice/coarse_space.h"
+#include "ice/mesh_io.h"
+#include "ice/mesh_validation.h"
+#include "ice/point_cloud.h"
+#include "ice/proxy/poisson.h"
+#include "ice/tufted_cover.h"
+#include "test_support.h"
+
+namespace {
+
+using ice::Index;
+
+// n points spread evenly over the unit sphere (a Fibonacci spiral).
+ice::Positions sphere_points(int n) {
+  ice::Positions P(n, 3);
+  const double golden = ice::kPi * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < n; ++i) {
+    const double z = 1.0 - (2.0 * i + 1.0) / n, r = std::sqrt(1.0 - z * z);
+    P.row(i) << r * std::cos(golden * i), r * std::sin(golden * i), z;
+  }
+  return P;
+}
+
+double face_area(const ice::Positions& P, const ice::Faces& F, Eigen::Index f) {
+  const Eigen::Vector3d a = P.row(F(f, 0)), b = P.row(F(f, 1)), c = P.row(F(f, 2));
+  return 0.5 * (b - a).cross(c - a).norm();
+}
+
+}  // namespace
+
+TEST_CASE("point cloud: a jittered grid in the plane gives its Delaunay triangulation", "[cloud]") {
+  // Interior points jittered, the square's boundary points not: the fans of all points agree with the
+  // Delaunay triangulation of the whole set, whose triangles tile the unit square.
+  const int side = 15;
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> jitter(-0.3 / (side - 1), 0.3 / (side - 1));
+  ice::Positions P(side * side, 3);
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j) {
+      const bool boundary = i == 0 || j == 0 || i + 1 == side || j + 1 == side;
+      P.row(i * side + j) << double(i) / (side - 1) + (boundary ? 0.0 : jitter(random)),
+          double(j) / (side - 1) + (boundary ? 0.0 : jitter(random)), 0.0;
+    }
+  const ice::Faces F = ice::point_cloud_triangles(P);
+  double area = 0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) area += face_area(P, F, f);
+  REQUIRE(area == Approx(1.0).epsilon(1e-12));
+  REQUIRE(F.rows() == 2 * (side - 1) * (side - 1));  // Euler: 2n − 2 − (boundary points)
+  std::map<std::pair<Index, Index>, int> faces_at_edge;
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) ++faces_at_edge[std::minmax(F(f, k), F(f, (k + 1) % 3))];
+  for (const auto& [edge, count] : faces_at_edge) REQUIRE(count <= 2);
+  // Empty circumcircles.
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector2d a = P.row(F(f, 0)).head<2>(), b = P.row(F(f, 1)).head<2>(), c = P.row(F(f, 2)).head<2>();
+    const double d = 2 * (a.x() * (b.y() - c.y()) + b.x() * (c.y() - a.y()) + c.x() * (a.y() - b.y()));
+    const Eigen::Vector2d centre((a.squaredNorm() * (b.y() - c.y()) + b.squaredNorm() * (c.y() - a.y()) + c.squaredNorm() * (a.y() - b.y())) / d,
+                                 (a.squaredNorm() * (c.x() - b.x()) + b.squaredNorm() * (a.x() - c.x()) + c.squaredNorm() * (b.x() - a.x())) / d);
+    const double radius = (a - centre).norm();
+    for (Eigen::Index i = 0; i < P.rows(); ++i) REQUIRE((P.row(i).head<2>().transpose() - centre).norm() >= radius * (1 - 1e-9));
+  }
+}
+
+TEST_CASE("point cloud: a sphere's points give a robust Laplacian with the sphere's spectrum", "[cloud]") {
+  const ice::TriangleMesh mesh{sphere_points(600), ice::point_cloud_triangles(sphere_points(600))};
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) REQUIRE(!ice::is_degenerate_triangle(mesh.V, mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2), 2.0));
+  const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay, ice::NonmanifoldInput::tufted_cover);
+  REQUIRE(fine.vertex_count == 600);
+  const Eigen::MatrixXd L(fem::cotan_laplacian(fine));
+  const Eigen::VectorXd M = Eigen::MatrixXd(fem::mass_matrix(fine)).diagonal();
+  REQUIRE((L - L.transpose()).norm() <= 1e-12 * L.norm());
+  // Off-diagonal weights ≤ 0 (a maximum principle), one zero eigenvalue (the cloud is connected).
+  for (Eigen::Index i = 0; i < L.rows(); ++i)
+    for (Eigen::Index j = 0; j < L.cols(); ++j)
+      if (i != j) REQUIRE(L(i, j) <= 1e-12 * L.diagonal().maxCoeff());
+  // L u = λ M u: 0, then the sphere's 2 (three times) and 6 (five times), from the cover's twofold
+  // operators (the ratio does not see the factor).
+  const Eigen::VectorXd root = M.cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd A = root.asDiagonal() * L * root.asDiagonal();
+  const Eigen::VectorXd values = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(A, Eigen::EigenvaluesOnly).eigenvalues();
+  REQUIRE(std::abs(values(0)) <= 1e-10 * values(values.size() - 1));
+  REQUIRE(values(1) > 1e-3);
+  for (int k = 1; k <= 3; ++k) REQUIRE(values(k) == Approx(2.0).epsilon(0.03));
+  for (int k = 4; k <= 8; ++k) REQUIRE(values(k) == Approx(6.0).epsilon(0.03));
+  // The cover's area, halved (it sees each triangle from both sides), is the sphere's to a few percent.
+  REQUIRE(M.sum() / 2 == Approx(4 * ice::kPi).epsilon(0.05));
+}
+
+TEST_CASE("point cloud: Poisson through the proxy near the fine robust Laplacian's solution", "[cloud][proxy]") {
+  const ice::TriangleMesh mesh{sphere_points(3000), ice::point_cloud_triangles(sphere_points(3000))};
+  REQUIRE_THROWS_AS(ice::proxy::PoissonSolver(mesh), std::invalid_argument);  // needs the cover
+  ice::proxy::PoissonOptions poisson;
+  poisson.coarsening.coarsen.target_ratio = 0.1;
+  poisson.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  const ice::proxy::PoissonSolver solver(mesh, poisson);
+  Eigen::VectorXd f(mesh.V.rows());
+  for (Eigen::Index i = 0; i < f.size(); ++i) f(i) = mesh.V(i, 0) * mesh.V(i, 1) + mesh.V(i, 2);  // degrees 1 and 2
+  const Eigen::VectorXd u = solver.solve(f);
+  const fem::SparseMatrix L = fem::cotan_laplacian(solver.fine_mesh());
+  const fem::SparseMatrix M = fem::mass_matrix(solver.fine_mesh());
+  const Eigen::VectorXd reference = fem::PoissonSolver::zero_mean(L, M).solve(f);
+  const double error = std::sqrt((u - reference).dot(M * (u - reference)) / reference.dot(M * reference));
+  INFO("relative L2 error against the fine robust Laplacian " << error);
+  REQUIRE(error < 0.05);
+  // And the fine solve against the sphere's: Δ⁻¹ of z is −z/2, of xy −xy/6.
+  Eigen::VectorXd exact(f.size());
+  for (Eigen::Index i = 0; i < f.size(); ++i) exact(i) = -(mesh.V(i, 0) * mesh.V(i, 1) / 6 + mesh.V(i, 2) / 2);
+  const double sphere_error = std::sqrt((reference + exact).dot(M * (reference + exact)) / exact.dot(M * exact));
+  INFO("fine against the smooth sphere " << sphere_error);
+  REQUIRE(std::min((reference - exact).norm(), (reference + exact).norm()) / exact.norm() < 0.05);
+}
+
+TEST_CASE("point cloud: point files are read, refused without the option, merged with repair", "[cloud][io]") {
+  using Kind = ice::MeshError::Kind;
+  const ice_test::TempDir dir;
+  const auto write_text = [&dir](const std::string& name, const std::string& text) { return dir.write(name, text); };
+  std::string text = "# a point set\n600\n";  // a count line, as some writers put
+  const ice::Positions P = sphere_points(600);
+  for (Eigen::Index i = 0; i < P.rows(); ++i)
+    text += std::to_string(P(i, 0)) + " " + std::to_string(P(i, 1)) + " " + std::to_string(P(i, 2)) + " 0 0 1\n";  // with normals
+  const std::string xyz = write_text("cloud_sphere.xyz", text);
+  const ice::MeshFile file = ice::read_mesh_file(xyz);
+  REQUIRE(file.soup.V.rows() == 600);
+  REQUIRE(file.soup.polygons.empty());
+  REQUIRE(file.soup.V(7, 2) == Approx(P(7, 2)).margin(1e-6));
+
+  ice_test::require_mesh_error([&] { ice::load_mesh(xyz); }, Kind::Defective, xyz, "point cloud of 600 points");
+  ice_test::require_mesh_error([&] { ice::load_mesh(xyz); }, Kind::Defective, xyz, "--nonmanifold tufted");
+  ice::LoadOptions options;
+  options.keep_nonmanifold = true;
+  const ice::LoadResult loaded = ice::load_mesh_with_report(xyz, options);
+  REQUIRE(loaded.point_cloud);
+  REQUIRE(loaded.mesh.V.rows() == 600);
+  REQUIRE(loaded.mesh.F.rows() > 600);
+  REQUIRE(loaded.report.clean_but_for_sheets());
+
+  // A repeated point: refused naming it, merged into the first with repair.
+  const std::string repeated = write_text("cloud_repeated.xyz", text + std::to_string(P(3, 0)) + " " + std::to_string(P(3, 1)) + " " +
+                                                                    std::to_string(P(3, 2)) + "\n");
+  ice_test::require_mesh_error([&] { ice::load_mesh(repeated, options); }, Kind::Defective, repeated, "point 600 at point 3's");
+  options.repair = true;
+  const ice::LoadResult merged = ice::load_mesh_with_report(repeated, options);
+  REQUIRE(merged.mesh.V.rows() == 600);
+  REQUIRE(merged.repairs.welded_vertices == 1);
+  REQUIRE(merged.source_vertex.size() == 600);
+  REQUIRE(merged.source_vertex.back() == 599);
+
+  // Points on one line have no triangles; a short line is a read error naming it.
+  const std::string line = write_text("cloud_line.xyz", "0 0 0\n1 0 0\n2 0 0\n3 0 0\n");
+  ice_test::require_mesh_error([&] { ice::load_mesh(line, options); }, Kind::Defective, line, "lies on no triangle");
+  const std::string short_line = write_text("cloud_short.xyz", "0 0 0\n1 0\n");
+  ice_test::require_mesh_error([&] { ice::read_mesh_file(short_line); }, Kind::Unreadable, short_line, "line 2");
+  const std::string pwn = write_text("cloud_empty.pwn", "# nothing\n");
+  ice_test::require_mesh_error([&] { ice::read_mesh_file(pwn); }, Kind::Unreadable, pwn, "no vertices");
+  REQUIRE_THROWS_AS(ice::point_cloud_triangles(P.topRows(2)), std::invalid_argument);
+}
