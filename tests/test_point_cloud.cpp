@@ -76,6 +76,40 @@ TEST_CASE("point cloud: a jittered grid in the plane gives its Delaunay triangul
   }
 }
 
+TEST_CASE("point cloud: where the fans disagree, one consistent choice", "[cloud]") {
+  // A square grid: every quad's corners are cocircular, each corner's fan takes its own diagonal;
+  // the union would cover every quad twice. The choice keeps one triangulation of the square.
+  const int side = 12;
+  ice::Positions grid(side * side, 3);
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j) grid.row(i * side + j) << double(i) / (side - 1), double(j) / (side - 1), 0.0;
+  const ice::Faces G = ice::point_cloud_triangles(grid);
+  double area = 0;
+  for (Eigen::Index f = 0; f < G.rows(); ++f) area += face_area(grid, G, f);
+  REQUIRE(area == Approx(1.0).epsilon(1e-12));
+  REQUIRE(G.rows() == 2 * (side - 1) * (side - 1));
+  // Random points on the unit sphere (clusters and near-cocircular quads in different tangent
+  // planes): the triangles cover the sphere about once, almost every edge has two of them.
+  std::mt19937 random(3);
+  std::normal_distribution<double> normal;
+  ice::Positions P(2000, 3);
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    const Eigen::Vector3d x(normal(random), normal(random), normal(random));
+    P.row(i) = x.normalized().transpose();
+  }
+  const ice::Faces F = ice::point_cloud_triangles(P);
+  double sphere_area = 0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) sphere_area += face_area(P, F, f);
+  std::map<std::pair<Index, Index>, int> faces_at_edge;
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) ++faces_at_edge[std::minmax(F(f, k), F(f, (k + 1) % 3))];
+  std::size_t two = 0;
+  for (const auto& [edge, count] : faces_at_edge) two += count == 2;
+  INFO("area / 4π " << sphere_area / (4 * ice::kPi) << ", edges with two faces " << two << " of " << faces_at_edge.size());
+  REQUIRE(sphere_area / (4 * ice::kPi) == Approx(1.0).epsilon(0.02));  // inscribed: a little below 1
+  REQUIRE(double(two) >= 0.99 * double(faces_at_edge.size()));
+}
+
 TEST_CASE("point cloud: a sphere's points give a robust Laplacian with the sphere's spectrum", "[cloud]") {
   const ice::TriangleMesh mesh{sphere_points(600), ice::point_cloud_triangles(sphere_points(600))};
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) REQUIRE(!ice::is_degenerate_triangle(mesh.V, mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2), 2.0));

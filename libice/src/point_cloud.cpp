@@ -11,6 +11,7 @@
 
 #include "run_tasks.h"
 #include "ice/mesh_validation.h"
+#include "ice/triangle_geometry.h"
 
 namespace ice {
 
@@ -27,6 +28,11 @@ struct PointCloudRows {
   bool kdtree_get_bbox(Box&) const { return false; }
 };
 using PointCloudTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, PointCloudRows>, PointCloudRows, 3, Index>;
+
+// A point's tangent plane: its least-squares plane's two axes.
+struct TangentFrame {
+  Eigen::Vector3d e1 = Eigen::Vector3d::Zero(), e2 = Eigen::Vector3d::Zero();
+};
 
 struct InvertedNeighbour {
   Eigen::Vector2d q;  // the neighbour's position in the tangent plane, inverted in the unit circle
@@ -69,7 +75,8 @@ void convex_hull(std::vector<InvertedNeighbour>& q, std::vector<Index>& hull) {
 // exactly when the origin lies to the left of the hull edge a → b, i.e. q_a × q_b > 0. Otherwise the
 // cell is unbounded there: the point is on the boundary of its neighbourhood.
 void local_fan(const Positions& P, Index i, const Index* neighbour, std::size_t count, double diagonal,
-               std::vector<InvertedNeighbour>& q, std::vector<Index>& hull, std::vector<std::array<Index, 3>>& out) {
+               std::vector<InvertedNeighbour>& q, std::vector<Index>& hull, std::vector<std::array<Index, 3>>& out,
+               TangentFrame& frame) {
   const Eigen::RowVector3d p = P.row(i);
   Eigen::Vector3d mean = p.transpose();
   for (std::size_t j = 0; j < count; ++j) mean += P.row(neighbour[j]).transpose();
@@ -82,6 +89,7 @@ void local_fan(const Positions& P, Index i, const Index* neighbour, std::size_t 
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
   solver.computeDirect(covariance);
   const Eigen::Vector3d e1 = solver.eigenvectors().col(2), e2 = solver.eigenvectors().col(1);  // the two largest
+  frame = {e1, e2};
   q.clear();
   for (std::size_t j = 0; j < count; ++j) {
     const Eigen::Vector3d d = (P.row(neighbour[j]) - p).transpose();
@@ -100,6 +108,29 @@ void local_fan(const Positions& P, Index i, const Index* neighbour, std::size_t 
     if (is_degenerate_triangle(P, i, a.point, b.point, diagonal)) continue;
     out.push_back({i, a.point, b.point});
   }
+}
+
+// The directions a triangle at corner v covers in v's tangent plane: from `start`, counter-clockwise
+// over `length` (< π unless the triangle stands steeply on the plane).
+struct CornerArc {
+  double start = 0, length = 0;
+};
+
+CornerArc corner_arc(const Positions& P, const TangentFrame& frame, Index v, Index x, Index y) {
+  const auto angle = [&](Index w) {
+    const Eigen::Vector3d d = (P.row(w) - P.row(v)).transpose();
+    return std::atan2(d.dot(frame.e2), d.dot(frame.e1));
+  };
+  const double tau = 2 * kPi, ax = angle(x), ay = angle(y);
+  const double turn = std::fmod(ay - ax + 2 * tau, tau);
+  return turn <= kPi ? CornerArc{ax, turn} : CornerArc{ay, tau - turn};
+}
+
+// Whether two arcs share interior directions (arcs that only touch at an end do not).
+bool arcs_overlap(const CornerArc& a, const CornerArc& b) {
+  const double tau = 2 * kPi, slack = 1e-9;
+  return std::fmod(b.start - a.start + 2 * tau, tau) < a.length - slack ||
+         std::fmod(a.start - b.start + 2 * tau, tau) < b.length - slack;
 }
 
 }  // namespace
@@ -123,6 +154,7 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
   const int threads = detail::requested_threads(options.threads);
   const int ranges = detail::range_count(threads, n);
   std::vector<std::vector<std::array<Index, 3>>> fans(static_cast<std::size_t>(ranges));
+  std::vector<TangentFrame> frames(static_cast<std::size_t>(n));
   detail::run_numbered_ranges(threads, n, [&](int range, Index begin, Index end) {
     std::vector<Index> found(wanted), neighbour(wanted);
     std::vector<double> distance(wanted);
@@ -140,11 +172,12 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
                                       std::to_string(std::max(i, found[j])) + " are at the same position");
         if (count + 1 < wanted) neighbour[count++] = found[j];
       }
-      local_fan(points, i, neighbour.data(), count, diagonal, q, hull, out);
+      local_fan(points, i, neighbour.data(), count, diagonal, q, hull, out, frames[static_cast<std::size_t>(i)]);
     }
   });
 
-  // Every distinct triangle once: sorted by its vertex set, the first (lowest point's fan) kept.
+  // Every distinct triangle once (in the orientation of the lowest point's fan), with the number of
+  // fans that have it (1 to 3).
   std::vector<std::array<Index, 3>> all;
   std::size_t total = 0;
   for (const auto& part : fans) total += part.size();
@@ -159,8 +192,62 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     return k;
   };
   std::stable_sort(all.begin(), all.end(), [&](const auto& a, const auto& b) { return key(a) < key(b); });
-  all.erase(std::unique(all.begin(), all.end(), [&](const auto& a, const auto& b) { return key(a) == key(b); }), all.end());
-  std::sort(all.begin(), all.end());
+  struct Candidate {
+    std::array<Index, 3> face;
+    int votes;
+    double circumradius;
+  };
+  std::vector<Candidate> candidates;
+  for (std::size_t first = 0, last; first < all.size(); first = last) {
+    for (last = first + 1; last < all.size() && key(all[last]) == key(all[first]);) ++last;
+    const auto& t = all[first];
+    const double a = (points.row(t[1]) - points.row(t[0])).norm(), b = (points.row(t[2]) - points.row(t[1])).norm(),
+                 c = (points.row(t[0]) - points.row(t[2])).norm();
+    candidates.push_back({t, static_cast<int>(last - first), a * b * c / (4 * triangle_area(a, b, c))});
+  }
+  std::vector<std::array<Index, 3>>().swap(all);
+  // The fans of a triangle's corners can disagree (near-cocircular neighbours seen in different
+  // tangent planes take different diagonals): their union would cover such places twice, which the
+  // cover keeps as folded sheets that no vertex removal can flatten. One consistent choice: the
+  // triangles most fans agree on first, then the smaller circumradius (the Delaunay choice of a
+  // quad's diagonal), each kept unless it covers, at one of its corners, directions in that corner's
+  // tangent plane that a kept triangle covers already.
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    if (a.votes != b.votes) return a.votes > b.votes;
+    if (a.circumradius != b.circumradius) return a.circumradius < b.circumradius;
+    return a.face < b.face;
+  });
+  std::vector<std::vector<CornerArc>> covered(static_cast<std::size_t>(n));
+  std::vector<std::array<Index, 3>> kept;
+  kept.reserve(candidates.size());
+  for (const Candidate& candidate : candidates) {
+    const auto& t = candidate.face;
+    std::array<CornerArc, 3> arcs;
+    bool free = true;
+    for (int k = 0; k < 3 && free; ++k) {
+      const Index v = t[static_cast<std::size_t>(k)];
+      arcs[static_cast<std::size_t>(k)] =
+          corner_arc(points, frames[static_cast<std::size_t>(v)], v, t[static_cast<std::size_t>((k + 1) % 3)], t[static_cast<std::size_t>((k + 2) % 3)]);
+      for (const CornerArc& other : covered[static_cast<std::size_t>(v)])
+        if (arcs_overlap(arcs[static_cast<std::size_t>(k)], other)) free = false;
+    }
+    if (!free) continue;
+    for (int k = 0; k < 3; ++k) covered[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])].push_back(arcs[static_cast<std::size_t>(k)]);
+    kept.push_back(t);
+  }
+  std::vector<std::vector<CornerArc>>().swap(covered);
+  // A point whose every triangle lost to its neighbours' (a point squeezed between close ones) keeps
+  // its own: a point on no triangle would have no value.
+  std::vector<char> on_face(static_cast<std::size_t>(n), 0);
+  for (const auto& t : kept)
+    for (Index v : t) on_face[static_cast<std::size_t>(v)] = 1;
+  for (const Candidate& candidate : candidates) {
+    const auto& t = candidate.face;
+    if (!on_face[static_cast<std::size_t>(t[0])] || !on_face[static_cast<std::size_t>(t[1])] || !on_face[static_cast<std::size_t>(t[2])])
+      kept.push_back(t);
+  }
+  std::sort(kept.begin(), kept.end());
+  all = std::move(kept);
 
   std::vector<char> used(static_cast<std::size_t>(n), 0);
   for (const auto& t : all)

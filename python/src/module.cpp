@@ -931,8 +931,8 @@ PYBIND11_MODULE(_ice, m) {
       },
       py::arg("P"), py::kw_only(), py::arg("neighbours") = 30, py::arg("threads") = 0,
       R"doc(Faces (m×3) for a point cloud P (n×3): the triangles of each point's local Delaunay fan (its `neighbours`
-nearest points projected onto its least-squares tangent plane; Sharp & Crane 2020, §5.3), each distinct
-triangle once. A triangle soup (non-manifold, inconsistently oriented): pass (P, F) with
+nearest points projected onto its least-squares tangent plane; Sharp & Crane 2020, §5.3), made consistent
+where the fans disagree (no two overlapping at a corner). A triangle soup (non-manifold, inconsistently oriented): pass (P, F) with
 nonmanifold="tufted" to ice.coarsen, ice.setup_proxy or the solve_* functions. Raises ValueError for fewer
 than 3 points, non-finite or repeated positions, or a point whose neighbours and it lie on one line.)doc");
   m.def("validate", &validate, py::arg("V"), py::arg("F"),
