@@ -17,13 +17,15 @@ namespace ice {
 
 namespace {
 
-// nanoflann's view of the rows of an n × 3 matrix.
+// The points one after the other (a Positions matrix stores each coordinate apart: three cache
+// misses per point for the k-d tree and the fans).
+using PointList = std::vector<Eigen::Vector3d>;
+
+// nanoflann's view of the points.
 struct PointCloudRows {
-  const Positions& points;
-  std::size_t kdtree_get_point_count() const { return static_cast<std::size_t>(points.rows()); }
-  double kdtree_get_pt(std::size_t i, std::size_t d) const {
-    return points(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(d));
-  }
+  const PointList& points;
+  std::size_t kdtree_get_point_count() const { return points.size(); }
+  double kdtree_get_pt(std::size_t i, std::size_t d) const { return points[i][static_cast<Eigen::Index>(d)]; }
   template <class Box>
   bool kdtree_get_bbox(Box&) const { return false; }
 };
@@ -74,16 +76,16 @@ void convex_hull(std::vector<InvertedNeighbour>& q, std::vector<Index>& hull) {
 // order; consecutive hull vertices a, b meet at a Voronoi vertex (the circumcentre of 0, x_a, x_b)
 // exactly when the origin lies to the left of the hull edge a → b, i.e. q_a × q_b > 0. Otherwise the
 // cell is unbounded there: the point is on the boundary of its neighbourhood.
-void local_fan(const Positions& P, Index i, const Index* neighbour, std::size_t count, double diagonal,
+void local_fan(const Positions& P, const PointList& X, Index i, const Index* neighbour, std::size_t count, double diagonal,
                std::vector<InvertedNeighbour>& q, std::vector<Index>& hull, std::vector<std::array<Index, 3>>& out,
                TangentFrame& frame) {
-  const Eigen::RowVector3d p = P.row(i);
-  Eigen::Vector3d mean = p.transpose();
-  for (std::size_t j = 0; j < count; ++j) mean += P.row(neighbour[j]).transpose();
+  const Eigen::Vector3d& p = X[static_cast<std::size_t>(i)];
+  Eigen::Vector3d mean = p;
+  for (std::size_t j = 0; j < count; ++j) mean += X[static_cast<std::size_t>(neighbour[j])];
   mean /= static_cast<double>(count + 1);
-  Eigen::Matrix3d covariance = (p.transpose() - mean) * (p.transpose() - mean).transpose();
+  Eigen::Matrix3d covariance = (p - mean) * (p - mean).transpose();
   for (std::size_t j = 0; j < count; ++j) {
-    const Eigen::Vector3d d = P.row(neighbour[j]).transpose() - mean;
+    const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - mean;
     covariance += d * d.transpose();
   }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
@@ -92,7 +94,7 @@ void local_fan(const Positions& P, Index i, const Index* neighbour, std::size_t 
   frame = {e1, e2};
   q.clear();
   for (std::size_t j = 0; j < count; ++j) {
-    const Eigen::Vector3d d = (P.row(neighbour[j]) - p).transpose();
+    const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - p;
     const Eigen::Vector2d x(d.dot(e1), d.dot(e2));
     const double r2 = x.squaredNorm();
     if (!(r2 > 0)) continue;  // right above or below i in its plane: no place in the fan
@@ -116,9 +118,9 @@ struct CornerArc {
   double start = 0, length = 0;
 };
 
-CornerArc corner_arc(const Positions& P, const TangentFrame& frame, Index v, Index x, Index y) {
+CornerArc corner_arc(const PointList& X, const TangentFrame& frame, Index v, Index x, Index y) {
   const auto angle = [&](Index w) {
-    const Eigen::Vector3d d = (P.row(w) - P.row(v)).transpose();
+    const Eigen::Vector3d d = X[static_cast<std::size_t>(w)] - X[static_cast<std::size_t>(v)];
     return std::atan2(d.dot(frame.e2), d.dot(frame.e1));
   };
   const double tau = 2 * kPi, ax = angle(x), ay = angle(y);
@@ -146,7 +148,9 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
       throw std::invalid_argument("point_cloud_triangles: point " + std::to_string(i) + " has a coordinate that is not finite");
   const double diagonal = (points.colwise().maxCoeff() - points.colwise().minCoeff()).norm();
 
-  const PointCloudRows rows{points};
+  PointList X(static_cast<std::size_t>(n));
+  for (Index i = 0; i < n; ++i) X[static_cast<std::size_t>(i)] = points.row(i).transpose();
+  const PointCloudRows rows{X};
   const PointCloudTree tree(3, rows, nanoflann::KDTreeSingleIndexAdaptorParams(16));
   const std::size_t wanted = static_cast<std::size_t>(std::min<Index>(options.neighbours, n - 1)) + 1;  // the point itself
 
@@ -162,8 +166,7 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     std::vector<Index> hull;
     auto& out = fans[static_cast<std::size_t>(range)];
     for (Index i = begin; i < end; ++i) {
-      const double query[3] = {points(i, 0), points(i, 1), points(i, 2)};
-      const std::size_t got = tree.knnSearch(query, wanted, found.data(), distance.data());
+      const std::size_t got = tree.knnSearch(X[static_cast<std::size_t>(i)].data(), wanted, found.data(), distance.data());
       std::size_t count = 0;
       for (std::size_t j = 0; j < got; ++j) {
         if (found[j] == i) continue;
@@ -172,26 +175,29 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
                                       std::to_string(std::max(i, found[j])) + " are at the same position");
         if (count + 1 < wanted) neighbour[count++] = found[j];
       }
-      local_fan(points, i, neighbour.data(), count, diagonal, q, hull, out, frames[static_cast<std::size_t>(i)]);
+      local_fan(points, X, i, neighbour.data(), count, diagonal, q, hull, out, frames[static_cast<std::size_t>(i)]);
     }
   });
 
   // Every distinct triangle once (in the orientation of the lowest point's fan), with the number of
   // fans that have it (1 to 3).
-  std::vector<std::array<Index, 3>> all;
+  // (vertex set, the triangle as its fan has it); a fan's triangles start at its own point, so the
+  // lowest point's comes first in a group of equal vertex sets.
+  std::vector<std::pair<std::array<Index, 3>, std::array<Index, 3>>> all;
   std::size_t total = 0;
   for (const auto& part : fans) total += part.size();
   all.reserve(total);
   for (auto& part : fans) {
-    all.insert(all.end(), part.begin(), part.end());
+    for (const auto& t : part) {
+      std::array<Index, 3> k = t;
+      std::sort(k.begin(), k.end());
+      all.emplace_back(k, t);
+    }
     std::vector<std::array<Index, 3>>().swap(part);
   }
-  const auto key = [](const std::array<Index, 3>& t) {
-    std::array<Index, 3> k = t;
-    std::sort(k.begin(), k.end());
-    return k;
-  };
-  std::stable_sort(all.begin(), all.end(), [&](const auto& a, const auto& b) { return key(a) < key(b); });
+  std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first < b.first : a.second[0] < b.second[0];
+  });
   struct Candidate {
     std::array<Index, 3> face;
     int votes;
@@ -199,13 +205,13 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
   };
   std::vector<Candidate> candidates;
   for (std::size_t first = 0, last; first < all.size(); first = last) {
-    for (last = first + 1; last < all.size() && key(all[last]) == key(all[first]);) ++last;
-    const auto& t = all[first];
-    const double a = (points.row(t[1]) - points.row(t[0])).norm(), b = (points.row(t[2]) - points.row(t[1])).norm(),
-                 c = (points.row(t[0]) - points.row(t[2])).norm();
+    for (last = first + 1; last < all.size() && all[last].first == all[first].first;) ++last;
+    const auto& t = all[first].second;
+    const Eigen::Vector3d &x = X[static_cast<std::size_t>(t[0])], &y = X[static_cast<std::size_t>(t[1])], &z = X[static_cast<std::size_t>(t[2])];
+    const double a = (y - x).norm(), b = (z - y).norm(), c = (x - z).norm();
     candidates.push_back({t, static_cast<int>(last - first), a * b * c / (4 * triangle_area(a, b, c))});
   }
-  std::vector<std::array<Index, 3>>().swap(all);
+  decltype(all)().swap(all);
   // The fans of a triangle's corners can disagree (near-cocircular neighbours seen in different
   // tangent planes take different diagonals): their union would cover such places twice, which the
   // cover keeps as folded sheets that no vertex removal can flatten. One consistent choice: the
@@ -217,7 +223,13 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     if (a.circumradius != b.circumradius) return a.circumradius < b.circumradius;
     return a.face < b.face;
   });
-  std::vector<std::vector<CornerArc>> covered(static_cast<std::size_t>(n));
+  // The kept triangles' arcs at each point: at most one per candidate at the point (slots start[v] ..).
+  std::vector<std::size_t> start(static_cast<std::size_t>(n) + 1, 0);
+  for (const Candidate& candidate : candidates)
+    for (Index v : candidate.face) ++start[static_cast<std::size_t>(v) + 1];
+  for (std::size_t v = 0; v < static_cast<std::size_t>(n); ++v) start[v + 1] += start[v];
+  std::vector<CornerArc> covered(start.back());
+  std::vector<std::size_t> covered_count(static_cast<std::size_t>(n), 0);
   std::vector<std::array<Index, 3>> kept;
   kept.reserve(candidates.size());
   for (const Candidate& candidate : candidates) {
@@ -225,17 +237,20 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     std::array<CornerArc, 3> arcs;
     bool free = true;
     for (int k = 0; k < 3 && free; ++k) {
-      const Index v = t[static_cast<std::size_t>(k)];
+      const auto v = static_cast<std::size_t>(t[static_cast<std::size_t>(k)]);
       arcs[static_cast<std::size_t>(k)] =
-          corner_arc(points, frames[static_cast<std::size_t>(v)], v, t[static_cast<std::size_t>((k + 1) % 3)], t[static_cast<std::size_t>((k + 2) % 3)]);
-      for (const CornerArc& other : covered[static_cast<std::size_t>(v)])
-        if (arcs_overlap(arcs[static_cast<std::size_t>(k)], other)) free = false;
+          corner_arc(X, frames[v], t[static_cast<std::size_t>(k)], t[static_cast<std::size_t>((k + 1) % 3)], t[static_cast<std::size_t>((k + 2) % 3)]);
+      for (std::size_t j = start[v]; j < start[v] + covered_count[v] && free; ++j)
+        if (arcs_overlap(arcs[static_cast<std::size_t>(k)], covered[j])) free = false;
     }
     if (!free) continue;
-    for (int k = 0; k < 3; ++k) covered[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])].push_back(arcs[static_cast<std::size_t>(k)]);
+    for (int k = 0; k < 3; ++k) {
+      const auto v = static_cast<std::size_t>(t[static_cast<std::size_t>(k)]);
+      covered[start[v] + covered_count[v]++] = arcs[static_cast<std::size_t>(k)];
+    }
     kept.push_back(t);
   }
-  std::vector<std::vector<CornerArc>>().swap(covered);
+  decltype(covered)().swap(covered);
   // A point whose every triangle lost to its neighbours' (a point squeezed between close ones) keeps
   // its own: a point on no triangle would have no value.
   std::vector<char> on_face(static_cast<std::size_t>(n), 0);
@@ -247,18 +262,17 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
       kept.push_back(t);
   }
   std::sort(kept.begin(), kept.end());
-  all = std::move(kept);
 
   std::vector<char> used(static_cast<std::size_t>(n), 0);
-  for (const auto& t : all)
+  for (const auto& t : kept)
     for (Index v : t) used[static_cast<std::size_t>(v)] = 1;
   for (Index i = 0; i < n; ++i)
     if (!used[static_cast<std::size_t>(i)])
       throw std::invalid_argument("point_cloud_triangles: point " + std::to_string(i) +
                                   " lies on no triangle (it and its nearest neighbours lie on one line)");
-  Faces F(static_cast<Eigen::Index>(all.size()), 3);
-  for (std::size_t f = 0; f < all.size(); ++f)
-    for (int k = 0; k < 3; ++k) F(static_cast<Eigen::Index>(f), k) = all[f][static_cast<std::size_t>(k)];
+  Faces F(static_cast<Eigen::Index>(kept.size()), 3);
+  for (std::size_t f = 0; f < kept.size(); ++f)
+    for (int k = 0; k < 3; ++k) F(static_cast<Eigen::Index>(f), k) = kept[f][static_cast<std::size_t>(k)];
   return F;
 }
 
