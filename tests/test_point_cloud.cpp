@@ -108,6 +108,16 @@ TEST_CASE("point cloud: where the fans disagree, one consistent choice", "[cloud
   INFO("area / 4π " << sphere_area / (4 * ice::kPi) << ", edges with two faces " << two << " of " << faces_at_edge.size());
   REQUIRE(sphere_area / (4 * ice::kPi) == Approx(1.0).epsilon(0.02));  // inscribed: a little below 1
   REQUIRE(double(two) >= 0.99 * double(faces_at_edge.size()));
+  // The same faces on any thread count, and at any scale (powers of two: the same points, exactly,
+  // once translated and scaled into the unit box), near the ends of the double range too.
+  ice::PointCloudOptions one_thread, four_threads;
+  one_thread.threads = 1;
+  four_threads.threads = 4;
+  REQUIRE(ice::point_cloud_triangles(P, one_thread) == F);
+  REQUIRE(ice::point_cloud_triangles(P, four_threads) == F);
+  REQUIRE(ice::point_cloud_triangles(P * std::ldexp(1.0, -560)) == F);
+  REQUIRE(ice::point_cloud_triangles(P * std::ldexp(1.0, 500)) == F);
+  REQUIRE(ice::point_cloud_triangles((P.array() + 1e6).matrix()).rows() == F.rows());
 }
 
 TEST_CASE("point cloud: a sphere's points give a robust Laplacian with the sphere's spectrum", "[cloud]") {
@@ -202,4 +212,7 @@ TEST_CASE("point cloud: point files are read, refused without the option, merged
   const std::string pwn = write_text("cloud_empty.pwn", "# nothing\n");
   ice_test::require_mesh_error([&] { ice::read_mesh_file(pwn); }, Kind::Unreadable, pwn, "no vertices");
   REQUIRE_THROWS_AS(ice::point_cloud_triangles(P.topRows(2)), std::invalid_argument);
+  ice::LoadOptions one_neighbour = options;
+  one_neighbour.point_cloud_neighbours = 1;
+  REQUIRE_THROWS_AS(ice::load_mesh(xyz, one_neighbour), std::invalid_argument);  // an option, not the file
 }

@@ -3,6 +3,7 @@
 
 #include "file_extension.h"
 #include "run_tasks.h"
+#include "soup_duplicates.h"
 
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/importer/BaseImporter.hh>
@@ -31,6 +32,7 @@
 #include <iterator>
 #include <limits>
 #include <numeric>
+#include <regex>
 
 namespace ice {
 
@@ -997,7 +999,7 @@ MeshFile read_mesh_file(const std::string& path) {
   MeshFile file;
   file.format = lower_extension(path);
   if (file.format.empty())
-    fail(path, "has no file extension: the format is taken from it (.obj, .off, .ply, .stl)");
+    fail(path, "has no file extension: the format is taken from it (.obj, .off, .ply, .stl; points only: .xyz, .pwn)");
   if (file.format == "ilm")
     fail(path, "is an intrinsic mesh (edge lengths, no vertex positions: nothing to place or draw); give the "
                "input mesh it was made from (.obj, .off, .ply, .stl)");
@@ -1029,41 +1031,36 @@ namespace {
 // when repairing) with the triangles of their local Delaunay fans.
 LoadResult load_point_cloud(const std::string& path, LoadResult result, const LoadOptions& options) {
   const Positions& P = result.file.soup.V;
+  if (P.rows() > std::numeric_limits<Index>::max() / 8)
+    throw MeshError(MeshError::Kind::Defective, path, "refused: " + std::to_string(P.rows()) + " points are too many");
   const Index n = static_cast<Index>(P.rows());
   const std::string what = "contains no faces: a point cloud of " + std::to_string(n) + " points";
   if (!options.keep_nonmanifold)
     throw MeshError(MeshError::Kind::Defective, path,
                     what + "; it can be solved on the tufted cover of its points' local Delaunay triangles "
-                           "(the tools' --nonmanifold tufted)");
-  for (Index i = 0; i < n; ++i)
-    if (!P.row(i).allFinite())
-      throw MeshError(MeshError::Kind::Defective, path, "refused: point " + std::to_string(i) + " has a coordinate that is not finite");
-  // Coincident points: refused, or merged into the first of them with repair.
-  std::vector<Index> order(static_cast<std::size_t>(n));
-  std::iota(order.begin(), order.end(), 0);
-  const auto position = [&P](Index i) { return std::array<double, 3>{P(i, 0), P(i, 1), P(i, 2)}; };
-  std::stable_sort(order.begin(), order.end(), [&](Index a, Index b) { return position(a) < position(b); });
-  std::vector<char> repeats(static_cast<std::size_t>(n), 0);
+                           "(LoadOptions::keep_nonmanifold; poisson-coarse, heat-coarse, spectral-coarse: --nonmanifold "
+                           "tufted; Python: nonmanifold=\"tufted\")");
+  if (!result.input_report.non_finite_vertices.first.empty())
+    throw MeshError(MeshError::Kind::Defective, path,
+                    "refused: point " + std::to_string(result.input_report.non_finite_vertices.first.front()) +
+                        " has a coordinate that is not finite");
+  // Coincident points: refused, or merged into the first of them with repair (repeated points add
+  // nothing to a point cloud, so no weld option is needed as for a mesh's vertices).
+  const std::vector<int> first = detail::first_coincident_vertex(P);
   std::size_t repeated = 0;
-  Index first_repeat = kInvalid, first_original = kInvalid;
-  for (std::size_t k = 1; k < order.size(); ++k) {
-    if (position(order[k]) != position(order[k - 1])) continue;
-    repeats[static_cast<std::size_t>(order[k])] = 1;  // a stable sort keeps the earliest first
-    ++repeated;
-    if (first_repeat == kInvalid || order[k] < first_repeat) {
-      first_repeat = order[k];
-      std::size_t j = k;
-      while (j > 0 && position(order[j - 1]) == position(order[k])) --j;
-      first_original = order[j];
+  Index first_repeat = kInvalid;
+  for (Index i = 0; i < n; ++i)
+    if (first[static_cast<std::size_t>(i)] != i) {
+      if (first_repeat == kInvalid) first_repeat = i;
+      ++repeated;
+    } else {
+      result.source_vertex.push_back(i);
     }
-  }
   if (repeated > 0 && !options.repair)
     throw MeshError(MeshError::Kind::Defective, path,
                     "refused: " + std::to_string(repeated) + " points repeat an earlier point's position (first: point " +
-                        std::to_string(first_repeat) + " at point " + std::to_string(first_original) +
+                        std::to_string(first_repeat) + " at point " + std::to_string(first[static_cast<std::size_t>(first_repeat)]) +
                         "'s) (load with repair to merge them)");
-  for (Index i = 0; i < n; ++i)
-    if (!repeats[static_cast<std::size_t>(i)]) result.source_vertex.push_back(i);
   result.repairs.welded_vertices = repeated;
   TriangleMesh& mesh = result.mesh;
   mesh.V.resize(static_cast<Eigen::Index>(result.source_vertex.size()), 3);
@@ -1073,9 +1070,17 @@ LoadResult load_point_cloud(const std::string& path, LoadResult result, const Lo
   try {
     mesh.F = point_cloud_triangles(mesh.V, cloud);
   } catch (const std::invalid_argument& error) {
-    std::string message = error.what();
-    message.erase(0, message.find(':') + 2);  // the function's name
-    throw MeshError(MeshError::Kind::Defective, path, "refused: " + message + (repeated > 0 ? " (after merging coincident points)" : ""));
+    // The message without the function's name, its point numbers those of the file.
+    std::string message = std::string(error.what()).substr(std::string("point_cloud_triangles: ").size()), named;
+    const std::regex number(R"((points? |and )(\d+))");
+    std::size_t at = 0;
+    for (std::sregex_iterator it(message.begin(), message.end(), number), end; it != end; ++it) {
+      const std::size_t i = std::stoul((*it)[2].str());
+      named += message.substr(at, static_cast<std::size_t>(it->position()) - at) + (*it)[1].str() +
+               std::to_string(i < result.source_vertex.size() ? result.source_vertex[i] : static_cast<Index>(i));
+      at = static_cast<std::size_t>(it->position() + it->length());
+    }
+    throw MeshError(MeshError::Kind::Defective, path, "refused: " + named + message.substr(at));
   }
   result.point_cloud = true;
   result.report = validate_mesh(mesh);
@@ -1087,6 +1092,9 @@ LoadResult load_point_cloud(const std::string& path, LoadResult result, const Lo
 }  // namespace
 
 LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& options) {
+  if (options.point_cloud_neighbours < 2)
+    throw std::invalid_argument("LoadOptions::point_cloud_neighbours must be at least 2, not " +
+                                std::to_string(options.point_cloud_neighbours));
   LoadResult result;
   result.file = read_mesh_file(path);
   result.input_report = validate_mesh(result.file.soup);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -113,7 +114,7 @@ void local_fan(const Positions& P, const PointList& X, Index i, const Index* nei
 }
 
 // The directions a triangle at corner v covers in v's tangent plane: from `start`, counter-clockwise
-// over `length` (< π unless the triangle stands steeply on the plane).
+// over `length` (at most π: the shorter way round between its two other corners' directions).
 struct CornerArc {
   double start = 0, length = 0;
 };
@@ -138,18 +139,27 @@ bool arcs_overlap(const CornerArc& a, const CornerArc& b) {
 }  // namespace
 
 Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& options) {
-  const Index n = static_cast<Index>(points.rows());
   if (points.cols() != 3) throw std::invalid_argument("point_cloud_triangles: the points must have 3 columns");
+  if (points.rows() > std::numeric_limits<Index>::max() / 8)  // 3·(faces) stays an Index
+    throw std::invalid_argument("point_cloud_triangles: " + std::to_string(points.rows()) + " points are too many");
+  const Index n = static_cast<Index>(points.rows());
   if (n < 3) throw std::invalid_argument("point_cloud_triangles: a point cloud needs at least 3 points, not " + std::to_string(n));
   if (options.neighbours < 2)
     throw std::invalid_argument("point_cloud_triangles: neighbours must be at least 2, not " + std::to_string(options.neighbours));
   for (Index i = 0; i < n; ++i)
     if (!points.row(i).allFinite())
       throw std::invalid_argument("point_cloud_triangles: point " + std::to_string(i) + " has a coordinate that is not finite");
-  const double diagonal = (points.colwise().maxCoeff() - points.colwise().minCoeff()).norm();
 
+  // Translated and scaled into the unit box: squared distances, covariances and circumradii of
+  // coordinates near the ends of the double range would underflow or overflow. Triangles do not
+  // depend on it.
+  const Eigen::RowVector3d low = points.colwise().minCoeff();
+  const double extent = (points.colwise().maxCoeff() - low).maxCoeff();
+  if (!(extent > 0)) throw std::invalid_argument("point_cloud_triangles: points 0 and 1 are at the same position (all are)");
+  const Positions unit = (points.rowwise() - low) / extent;  // for the zero-area test (relative) as well
+  const double diagonal = (unit.colwise().maxCoeff() - unit.colwise().minCoeff()).norm();
   PointList X(static_cast<std::size_t>(n));
-  for (Index i = 0; i < n; ++i) X[static_cast<std::size_t>(i)] = points.row(i).transpose();
+  for (Index i = 0; i < n; ++i) X[static_cast<std::size_t>(i)] = unit.row(i).transpose();
   const PointCloudRows rows{X};
   const PointCloudTree tree(3, rows, nanoflann::KDTreeSingleIndexAdaptorParams(16));
   const std::size_t wanted = static_cast<std::size_t>(std::min<Index>(options.neighbours, n - 1)) + 1;  // the point itself
@@ -175,7 +185,7 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
                                       std::to_string(std::max(i, found[j])) + " are at the same position");
         if (count + 1 < wanted) neighbour[count++] = found[j];
       }
-      local_fan(points, X, i, neighbour.data(), count, diagonal, q, hull, out, frames[static_cast<std::size_t>(i)]);
+      local_fan(unit, X, i, neighbour.data(), count, diagonal, q, hull, out, frames[static_cast<std::size_t>(i)]);
     }
   });
 
@@ -202,14 +212,18 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     std::array<Index, 3> face;
     int votes;
     double circumradius;
+    std::array<bool, 3> in_fan_of;  // corner k's own fan has it
   };
   std::vector<Candidate> candidates;
   for (std::size_t first = 0, last; first < all.size(); first = last) {
     for (last = first + 1; last < all.size() && all[last].first == all[first].first;) ++last;
     const auto& t = all[first].second;
+    std::array<bool, 3> in_fan_of{false, false, false};
+    for (std::size_t j = first; j < last; ++j)
+      for (int k = 0; k < 3; ++k) in_fan_of[static_cast<std::size_t>(k)] |= all[j].second[0] == t[static_cast<std::size_t>(k)];
     const Eigen::Vector3d &x = X[static_cast<std::size_t>(t[0])], &y = X[static_cast<std::size_t>(t[1])], &z = X[static_cast<std::size_t>(t[2])];
     const double a = (y - x).norm(), b = (z - y).norm(), c = (x - z).norm();
-    candidates.push_back({t, static_cast<int>(last - first), a * b * c / (4 * triangle_area(a, b, c))});
+    candidates.push_back({t, static_cast<int>(last - first), a * b * c / (4 * triangle_area(a, b, c)), in_fan_of});
   }
   decltype(all)().swap(all);
   // The fans of a triangle's corners can disagree (near-cocircular neighbours seen in different
@@ -258,8 +272,11 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     for (Index v : t) on_face[static_cast<std::size_t>(v)] = 1;
   for (const Candidate& candidate : candidates) {
     const auto& t = candidate.face;
-    if (!on_face[static_cast<std::size_t>(t[0])] || !on_face[static_cast<std::size_t>(t[1])] || !on_face[static_cast<std::size_t>(t[2])])
-      kept.push_back(t);
+    for (int k = 0; k < 3; ++k)
+      if (candidate.in_fan_of[static_cast<std::size_t>(k)] && !on_face[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])]) {
+        kept.push_back(t);
+        break;
+      }
   }
   std::sort(kept.begin(), kept.end());
 

@@ -322,6 +322,8 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
 
 void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
                            const fem::CoarseProxy& proxy, FineGeometry geometry, bool overwrite) {
+  if (coarse.summary.tufted_cover)  // its fine mesh is the cover's, which a setup file does not record
+    throw std::invalid_argument("save_proxy_setup_file: a setup through a tufted cover cannot be saved yet (set it up again)");
   const Eigen::SparseMatrix<double>& P = proxy.barycentric_prolongation();
   // Shapes first: a sparse expression of matrices of other shapes reads out of bounds.
   const bool same_P = coarse.P.rows() == P.rows() && coarse.P.cols() == P.cols() && coarse.P.isApprox(P, 0.0);

@@ -44,6 +44,7 @@
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "ice/point_cloud.h"
+#include "ice/tufted_cover.h"
 #include "ice/refinement.h"
 
 namespace py = pybind11;
@@ -394,7 +395,11 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
   ice::CoarsenOptions& c = options.coarsen;
   if (trace && options.method != ice::CoarseningMethod::ice)
     throw py::value_error("trace=True draws ICE's intrinsic coarse edges on the surface; a QEM mesh has straight edges (method='ice')");
-  options.keep_method_state = keep_map || trace;
+  // Through a cover: no map and no tracing (the method's state tracks the cover's copies); decided
+  // here, before the work.
+  const bool covered = options.nonmanifold == ice::NonmanifoldInput::tufted_cover && ice::needs_tufted_cover(mesh);
+  if (trace && covered) throw py::value_error("trace=True does not take a tufted cover (nonmanifold='tufted') yet");
+  options.keep_method_state = (keep_map || trace) && !covered;
   options.record_history = trace;  // exact tracing (ice/coarse_tracing.h), made below before the history is freed
   ProgressBridge bridge{progress, nullptr};
   c.progress = [&bridge](const ice::CoarsenProgress& state) { return bridge(state); };
@@ -489,7 +494,18 @@ py::object prolongation(const py::object& self) {
   return scipy_view(*space.P_rows, self);
 }
 
+/// What does not take a tufted cover's coarse space yet (its coarse vertices have one fan per sheet;
+/// marching, tangent spaces and the fine-to-coarse map need one).
+void refuse_cover(bool tufted_cover, const std::string& what) {
+  if (tufted_cover)
+    throw py::value_error(what + " does not take a tufted cover's coarse space yet (nonmanifold='tufted': Poisson, "
+                                 "heat and the eigenbasis do)");
+}
+
 void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& file_path, bool overwrite, const std::string& comment) {
+  // Its faces are named by input vertex with the cover's gluing: a vertex can have several fans,
+  // which an intrinsic mesh file (one triangulation) cannot be read back as.
+  refuse_cover(space.space.summary.tufted_cover, "CoarseSpace.save");
   const std::string path = file_path.string();
   py::gil_scoped_release release;
   ice::require_writable(path, overwrite);
@@ -503,6 +519,7 @@ struct PyProxy {
   ice::FineGeometry geometry = ice::FineGeometry::intrinsic_delaunay;  ///< of the fine mesh it was assembled on
   std::unique_ptr<fem::CoarseProxy> proxy;
   ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< of its coarse space
+  bool tufted_cover = false;                                  ///< its coarse space is a tufted cover's
   nlohmann::json cache = {{"status", "off"}};  ///< ice::proxy::cache_json of setup_proxy
 };
 
@@ -556,6 +573,7 @@ bool traced_lengths_argument(const std::string& lengths, const PyCoarseSpace& co
 
 /// The oracle and the vector proxy need the coarse space's fine-to-coarse map.
 void require_map(const PyCoarseSpace& coarse) {
+  refuse_cover(coarse.space.summary.tufted_cover, "the distance oracle and the vector heat method");
   if (coarse.map.empty())
     throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
                           "QEM with extrinsic geometry)");
@@ -597,6 +615,7 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
                           "is not the input's robust Laplacian)");
   auto result = std::make_shared<PyProxy>();
   result->method = coarse.space.summary.method;
+  result->tufted_cover = coarse.space.summary.tufted_cover;
   result->geometry = geometry;
   py::gil_scoped_release release;
   require_clean(mesh, cover);
@@ -679,6 +698,7 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
       throw py::value_error(e.what());
     }
     take_setup(mesh, setup, *coarse, *proxy);
+    proxy->tufted_cover = coarse->space.summary.tufted_cover;
     proxy->cache = ice::proxy::cache_json(setup.cache, store);
     proxy->cache["load_seconds"] = setup.cache.load_seconds;
     proxy->cache["save_seconds"] = setup.cache.save_seconds;
@@ -1369,6 +1389,7 @@ barycentric). ValueError unless 1 <= k < the free coarse vertex count and the op
   m.def("curvature_corrected_lengths", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
                                           const py::object& lengths, double divisor) {
           const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "curvature_corrected_lengths");
+          refuse_cover(coarse.space.summary.tufted_cover, "curvature_corrected_lengths");
           const ice::FaceLengths L =
               lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
           py::gil_scoped_release release;
@@ -1394,6 +1415,7 @@ coarse spaces, not QEM's (measured: 0.79x ICE's error against exact geodesics ov
 QEM's).)doc")
       .def(py::init([](std::shared_ptr<PyProxy> proxy, const std::string& method, double time_factor, int subdivisions,
                        const py::object& curvature_correction) {
+             refuse_cover(proxy->tufted_cover, "ProxyGeodesicSolver");
              if (!(time_factor > 0)) throw py::value_error("time_factor must be > 0");
              fem::ProxyGeodesicOptions options;
              options.method = coarse_distance_method(method);
@@ -1410,6 +1432,7 @@ QEM's).)doc")
       .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse, const std::string& lengths,
                                     int subdivisions, const py::object& curvature_correction) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
+             refuse_cover(coarse.space.summary.tufted_cover, "ProxyGeodesicSolver");
              const bool traced = traced_lengths_argument(lengths, coarse);
              const ice::proxy::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
              auto solver = std::make_unique<PyGeodesicSolver>();

@@ -61,3 +61,20 @@ def test_point_files_load_with_the_option(tmp_path):
         ice.load_mesh(repeated, nonmanifold="tufted")
     merged = ice.load_mesh(repeated, repair=True, nonmanifold="tufted")
     assert merged.V.shape == (500, 3) and list(merged.source_vertex) == list(range(500))
+
+
+def test_what_a_cover_does_not_take_yet_is_refused(tmp_path):
+    P = sphere_points(800)
+    F = ice.point_cloud_triangles(P)
+    coarse = ice.coarsen(P, F, ratio=0.2, nonmanifold="tufted")
+    with pytest.raises(ValueError, match="tufted cover"):
+        coarse.save(tmp_path / "coarse.ilm")
+    with pytest.raises(ValueError, match="tufted cover"):
+        ice.ProxyGeodesicSolver.from_coarse(P, F, coarse)
+    with pytest.raises(ValueError, match="tufted cover"):
+        ice.DistanceOracle(coarse)
+    space, proxy = ice.setup_proxy(P, F, ratio=0.2, nonmanifold="tufted", cache=False)
+    with pytest.raises(ValueError, match="tufted cover"):
+        ice.save_setup(tmp_path / "setup.bin", P, F, space, proxy)
+    with pytest.raises(ValueError, match="tufted cover"):
+        ice.ProxyGeodesicSolver(proxy)

@@ -68,7 +68,7 @@ void require_writable(const std::string& path, bool overwrite);
 /// A file's raw content.
 struct MeshFile {
   PolygonSoup soup;
-  std::string format;             ///< "obj", "off", "ply" or "stl".
+  std::string format;             ///< "obj", "off", "ply", "stl", or "xyz" / "pwn" (points only).
   bool exact_coordinates = false; ///< Read by ICE's own reader (OBJ, OFF, PLY); false for STL (OpenMesh's reader).
   std::vector<std::string> notes; ///< Remarks of the reader (none at present; kept for ice-info's report).
 };
@@ -88,9 +88,11 @@ struct LoadOptions {
   /// (ice/tufted_cover.h) solves on. LoadResult::report still lists them.
   /// A file of points only (.xyz, .pwn, or .obj/.off/.ply without faces) then becomes its points with the
   /// triangles of their local Delaunay fans (ice/point_cloud.h), coincident points refused or, with
-  /// repair, merged into the first of them. Without this option such a file is refused.
+  /// repair, merged into the first of them (weld_duplicate_positions is not needed for points). Without
+  /// this option such a file is refused. Refusals name points by their number in the file.
   bool keep_nonmanifold = false;
-  int point_cloud_neighbours = 30;  ///< PointCloudOptions::neighbours of a point cloud's fans.
+  /// PointCloudOptions::neighbours of a point cloud's fans; below 2 load_mesh throws std::invalid_argument.
+  int point_cloud_neighbours = 30;
 };
 
 /// Everything `load_mesh_with_report` learned about a file.

@@ -114,8 +114,8 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
 /// Writes `setup` (its coarse space and assembled proxy, not its fine mesh) to the file `path` in
 /// the store's entry format, keyed by `mesh`'s arrays: load_proxy_setup_file takes it back for that
 /// mesh only. Atomic (a temporary file beside `path`, renamed). An existing file is replaced only
-/// when `overwrite`. Throws std::invalid_argument when the setup has no proxy or was not made for a
-/// mesh of `mesh`'s vertex count, ice::MeshError (unwritable) when `path` exists and `overwrite` is
+/// when `overwrite`. Throws std::invalid_argument when the setup has no proxy, was not made for a
+/// mesh of `mesh`'s vertex count or went through a tufted cover (not recorded yet), ice::MeshError (unwritable) when `path` exists and `overwrite` is
 /// false or its directory does not exist, std::runtime_error naming the file when it cannot be written.
 void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const ProxySetup& setup,
                            bool overwrite = false);
