@@ -93,6 +93,7 @@ nlohmann::json coarsen_json(const CoarseSpaceSummary& summary) {
                       {"faces", summary.coarse_faces},
                       {"stop_reason", to_string(summary.stop_reason())},
                       {"removed", summary.removed()}};
+  if (summary.tufted_cover) j["tufted_cover"] = true;  // coarsened through the input's tufted cover
   if (summary.refinement) {
     const RefinementResult& r = *summary.refinement;
     j["refinement"] = {{"inserted", r.inserted},

@@ -3,7 +3,8 @@
     ice-batch INPUT -o OUT --ratio 0.05 [--workers 2 | --scheduler tcp://HOST:PORT] [options]
     python3 -m ice.batch INPUT -o OUT --ratio 0.05
 
-INPUT is a directory (searched recursively for .obj .off .ply .stl), a glob pattern ('scans/**/*.ply',
+INPUT is a directory (searched recursively for .obj .off .ply .stl, and .xyz .pwn point sets, which
+--nonmanifold tufted solves on), a glob pattern ('scans/**/*.ply',
 quoted), or a text file listing mesh paths (one a line, '#' comments). For each mesh the output tree
 mirrors the input: OUT/<relative path>.ilm (the coarse intrinsic mesh), <...>.npz (P as CSR arrays
 and the fine-to-coarse map; with --features eigs:K also the K smallest Laplace-Beltrami eigenpairs
@@ -67,12 +68,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse
 
-MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
+MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".xyz", ".pwn")  # .xyz/.pwn: point sets (nonmanifold="tufted")
 RECORD_VERSION = 1
 # Coarsening options that a batch passes to ice.coarsen (and hashes). Not the thread count: the
 # batch chooses it per mesh (BatchOptions.mesh_threads) and it does not change the result.
 COARSEN_OPTIONS = ("n", "ratio", "max_error", "method", "use", "area_weight", "normalize_curvature",
-                   "remove_boundary", "regions", "qem_geometry", "refine_angle", "refine_budget")
+                   "remove_boundary", "regions", "qem_geometry", "refine_angle", "refine_budget", "nonmanifold")
 # A record's hash is of the options with these filled in, so {"ratio": 0.05} and {"ratio": 0.05,
 # "method": "ice"} are the same run. All but one are what ice.coarsen does when an option is not
 # given; "regions" is the batch's own: meshes of 20,000+ vertices are coarsened by ICE's parallel
@@ -163,6 +164,8 @@ def canonical_options(coarsen: dict) -> dict:
     if unknown:
         raise ValueError(f"unknown coarsening options {sorted(unknown)} (known: {', '.join(COARSEN_OPTIONS)})")
     options = {**COARSEN_DEFAULTS, **{k: v for k, v in coarsen.items() if v is not None}}
+    if options.get("nonmanifold") == "refuse":  # the default, left out (so records made before it stay valid)
+        del options["nonmanifold"]
     if options["regions"] == 0:
         raise ValueError("regions=0 (4 x threads) would make a mesh's result depend on the threads the batch gives it; "
                          "give a fixed count (default 16; 1 = the exact serial greedy order)")
@@ -322,7 +325,7 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
         record["policy"] = _scheduling_policy()
     finished: list[tuple[pathlib.Path, str]] = []  # (output, its written temporary)
     try:
-        loaded = ice.load_mesh(path, repair=repair)
+        loaded = ice.load_mesh(path, repair=repair, nonmanifold=options.get("nonmanifold", "refuse"))
         record["vertices"], record["faces"] = int(loaded.V.shape[0]), int(loaded.F.shape[0])
         record["repairs"] = loaded.repairs
         deadline = None if timeout is None else started + timeout
@@ -361,8 +364,14 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
         # The outputs are renamed into place only after the record is written: a batch killed in
         # between leaves outputs *with* their record (redone by the rerun as incomplete), never
         # outputs without one, which a rerun would have to refuse as files a batch did not write.
-        finished.append((paths["ilm"], _write_temporary(paths["ilm"], lambda temporary: coarse.save(temporary, overwrite=True))))
+        # Through a tufted cover there is no .ilm: the coarse vertices have a fan per sheet, which an
+        # intrinsic mesh file cannot be read back as (the record says so; P and the features are written).
+        covered = bool(coarse.summary.get("tufted_cover", False))
+        if not covered:
+            finished.append((paths["ilm"], _write_temporary(paths["ilm"], lambda temporary: coarse.save(temporary, overwrite=True))))
         finished.append((paths["npz"], _write_temporary(paths["npz"], write_npz)))
+        record["tufted_cover"] = covered
+        record["point_cloud"] = bool(loaded.point_cloud)
         summary = coarse.summary
         record.update(status="ok", coarse_vertices=int(coarse.n_vertices), coarse_faces=int(coarse.n_faces),
                       stop_reason=summary["stop_reason"], target_reached=summary["target_reached"],
@@ -381,8 +390,9 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
 
 
 def load_result(out: str | os.PathLike, relative: str) -> dict:
-    """A finished mesh's outputs: the record, the coarse mesh (ice.CoarseSpace from the .ilm) and P
-    (scipy.sparse.csr_matrix), plus the map arrays when they were kept."""
+    """A finished mesh's outputs: the record, the coarse mesh (ice.CoarseSpace from the .ilm; None for a
+    mesh or point set solved on its tufted cover) and P (scipy.sparse.csr_matrix), plus the map arrays
+    when they were kept."""
     import ice
     paths = output_paths(pathlib.Path(out), relative)
     record = json.loads(paths["record"].read_text())
@@ -392,7 +402,7 @@ def load_result(out: str | os.PathLike, relative: str) -> dict:
         result = {name: arrays[name] for name in arrays.files}
     result["P"] = scipy.sparse.csr_matrix((result.pop("P_data"), result.pop("P_indices"), result.pop("P_indptr")),
                                           shape=tuple(result.pop("P_shape")))
-    result["coarse"] = ice.load_coarse_mesh(paths["ilm"])
+    result["coarse"] = None if record.get("tufted_cover") else ice.load_coarse_mesh(paths["ilm"])
     result["record"] = record
     return result
 
@@ -452,7 +462,7 @@ def _up_to_date(job: Job, paths: dict, digest: str) -> dict | None:
     if (record.get("hash"), record.get("input_size"), record.get("input_mtime_ns")) != (digest, job.size, job.mtime_ns):
         return None
     if record.get("status") == "ok":
-        return record if paths["ilm"].exists() and paths["npz"].exists() else None
+        return record if (record.get("tufted_cover") or paths["ilm"].exists()) and paths["npz"].exists() else None
     return record if record.get("error_kind") in DETERMINISTIC_ERRORS else None
 
 
@@ -738,6 +748,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--keep-boundary", action="store_true", help="never remove boundary vertices")
     parser.add_argument("--refine-angle", type=float, help="intrinsic Delaunay refinement to this smallest angle")
     parser.add_argument("--repair", action="store_true", help="apply the safe mesh repairs before coarsening")
+    parser.add_argument("--nonmanifold", choices=("refuse", "tufted"), default="refuse",
+                        help="tufted: solve meshes that are not oriented manifolds, and point sets (.xyz, .pwn, "
+                             "faceless files), on their tufted cover (no .ilm written for those)")
     parser.add_argument("--features", help="also write eigs:K (the K smallest Laplace-Beltrami eigenpairs through the "
                                            "coarse proxy) and hks:T1:T2:... (heat kernel signatures) into each .npz")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
@@ -779,6 +792,8 @@ def main(argv=None) -> int:
             coarsen[name] = value
     if args.keep_boundary:
         coarsen["remove_boundary"] = False
+    if args.nonmanifold != "refuse":
+        coarsen["nonmanifold"] = args.nonmanifold
     if args.workers < 1:
         print("ice-batch: --workers must be >= 1", file=sys.stderr)
         return 4
