@@ -321,9 +321,10 @@ void print_written(std::ostream& out, const PdeOptions& opt, const ice::CoarseTr
 void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& title,
                        const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
                        const Eigen::VectorXd& reference, const ice::CoarseSpace& space,
-                       const ice::CoarseTracing* tracing, const nlohmann::json& error_json) {
+                       const ice::CoarseTracing* tracing, const nlohmann::json& error_json, bool points) {
   if (opt.html.empty()) return;
   ViewMesh view = view_mesh(fs::path(opt.mesh).filename().string(), mesh, kDisplayVertices);
+  view.points = points;
   view.fields.push_back(view_field(view, name, problem, "solution", "", result));
   const std::string method = space.summary.method == ice::CoarseningMethod::ice ? "ICE" : "QEM";
   if (reference.size() != 0) {

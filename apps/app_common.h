@@ -132,11 +132,12 @@ void write_result_fields(const PdeOptions& opt, const ice::TriangleMesh& mesh, c
 /// (decimated for display above 200,000 vertices) coloured by `name` (the result), 'reference',
 /// 'error' (|result − reference|) and, with a `tracing` of `space`, 'patch' and the traced coarse
 /// edges (else the space's straight edges: QEM) — titled `title`; `problem` names the problem
-/// ("poisson", "geodesic"), `error_json` the run's errors (its rel_l2 is shown; null or empty: none).
+/// ("poisson", "geodesic"), `error_json` the run's errors (its rel_l2 is shown; null or empty: none);
+/// `points`: the input is a point cloud (ice::LoadResult::point_cloud), drawn as points.
 void write_result_page(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& title,
                        const std::string& problem, const std::string& name, const Eigen::VectorXd& result,
                        const Eigen::VectorXd& reference, const ice::CoarseSpace& space,
-                       const ice::CoarseTracing* tracing, const nlohmann::json& error_json);
+                       const ice::CoarseTracing* tracing, const nlohmann::json& error_json, bool points = false);
 
 /// The summary's "wrote ..." lines of --output (with the counts of `tracing`, if any), --html and
 /// --report.

@@ -272,7 +272,7 @@ int main(int argc, char** argv) {
     const ice::CoarseTracing* traced = tracing ? &*tracing : nullptr;
     app::write_result_fields(opt, mesh, "solution", last, reference, {{"u0", u0}}, traced);
     app::write_result_page(opt, mesh, "heat-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "heat",
-                           "solution", last, reference, pde.coarse, traced, error_json);
+                           "solution", last, reference, pde.coarse, traced, error_json, loaded.point_cloud);
     run.write = clock.lap();
 
     nlohmann::json report = run.report();

@@ -404,7 +404,7 @@ int main(int argc, char** argv) {
     const ice::CoarseTracing* traced = tracing ? &*tracing : nullptr;
     app::write_result_fields(opt, mesh, "solution", solution, reference, {{"rhs", f}}, traced);
     app::write_result_page(opt, mesh, "poisson-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "poisson", "solution",
-                           solution, reference, pde.coarse, traced, error_json);
+                           solution, reference, pde.coarse, traced, error_json, loaded.point_cloud);
     run.write = clock.lap();
     nlohmann::json report = run.report();
     if (traced) report["trace"] = {{"edges", traced->edges.size()}, {"traced", traced->traced}};

@@ -155,7 +155,7 @@ int main(int argc, char** argv) {
     app::write_result_fields(opt, mesh, "eigenfunction", shown, reference_field, {}, traced);
     app::write_result_page(opt, mesh, "spectral-coarse: " + std::filesystem::path(opt.mesh).filename().string(),
                            "eigenfunction " + std::to_string(show), "eigenfunction", shown, reference_field, pde.coarse,
-                           traced, nlohmann::json());
+                           traced, nlohmann::json(), loaded.point_cloud);
     run.write = clock.lap();
 
     nlohmann::json report = run.report();

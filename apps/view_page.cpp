@@ -111,6 +111,15 @@ void replace_all(std::string& text, const std::string& from, const std::string& 
   for (std::size_t at = 0; (at = text.find(from, at)) != std::string::npos; at += to.size()) text.replace(at, from.size(), to);
 }
 
+// The points' size for a point cloud's page: 1.5 times the mean length of its display edges (its
+// points' spacing), so that neighbouring points touch.
+double point_size(const ViewMesh& mesh) {
+  double total = 0;
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) total += (mesh.V.row(mesh.F(f, k)) - mesh.V.row(mesh.F(f, (k + 1) % 3))).norm();
+  return mesh.F.rows() > 0 ? 1.5 * total / static_cast<double>(3 * mesh.F.rows()) : 1.0;
+}
+
 nlohmann::json mesh_json(const ViewMesh& mesh) {
   std::vector<float> positions(static_cast<std::size_t>(3 * mesh.V.rows()));
   for (Eigen::Index v = 0; v < mesh.V.rows(); ++v)
@@ -148,6 +157,8 @@ nlohmann::json mesh_json(const ViewMesh& mesh) {
            {{"vertices", mesh.V.rows()},
             {"faces", mesh.F.rows()},
             {"decimated", mesh.decimated},
+            {"points", mesh.points},
+            {"point_size", mesh.points ? point_size(mesh) : 0.0},
             {"positions", base64_of(positions)},
             {"indices", base64_of(indices)}}},
           {"fields", fields},

@@ -49,6 +49,7 @@ struct ViewMesh {
   ice::Positions V;  // display mesh
   ice::Faces F;
   bool decimated = false;
+  bool points = false;  // a point cloud: the page draws the display vertices as points, not the faces
   // Display vertex -> input vertex (identity when not decimated): fields given per input vertex are
   // sampled through it.
   std::vector<ice::Index> input_vertex;

@@ -1290,6 +1290,22 @@ elseif(CASE STREQUAL "point_cloud")
   run(0 poisson-coarse "${WORK}/repeated.xyz" --nonmanifold tufted --repair --ratio 0.1 --no-cache --no-reference
       --solutions "${WORK}/r.npy" --force -q)
   check_npy_shape("${WORK}/r.npy" 5210 1)  # per distinct point, as after --repair's welds of a mesh
+  # The 3D page draws the points (not the fans' faces), coloured; the browser checks it in release.
+  run(0 poisson-coarse "${kitten}" --nonmanifold tufted --ratio 0.05 --no-cache --html "${WORK}/kitten.html" --force -q)
+  file(READ "${WORK}/kitten_files/mesh-0.js" _page_data)
+  if(NOT _page_data MATCHES "\"points\":true")
+    fail("the point cloud's page does not draw points")
+  endif()
+  if(NOT DEFINED BROWSER OR BROWSER)
+    find_program(NODE node)
+    execute_process(COMMAND "${CMAKE_COMMAND}" -DNODE=${NODE} -DSCRIPT=${SOURCE_DIR}/tests/browser/view_test.mjs
+                            "-DPAGE=${WORK}/kitten.html" -P "${SOURCE_DIR}/tests/browser/run_view_test.cmake"
+                    RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+    message(STATUS "view_test kitten.html:\n${out}${err}")
+    if(NOT rc EQUAL 0)
+      fail("the browser test of the point cloud's page failed")
+    endif()
+  endif()
 
 elseif(CASE STREQUAL "help")
   foreach(_tool ice-info ice-coarsen poisson-coarse heat-coarse geodesic-coarse vector-coarse spectral-coarse ice-cache)

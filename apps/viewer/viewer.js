@@ -6,7 +6,8 @@
  * can load neither ES modules nor files through fetch(). Each data script of the page calls
  * ICE_VIEWER.register(mesh); the page then calls ICE_VIEWER.start(element). A mesh object:
  *   name, input_vertices, input_faces,
- *   display: {vertices, faces, decimated, positions (3 floats a vertex), indices (3 uint32 a face)},
+ *   display: {vertices, faces, decimated, positions (3 floats a vertex), indices (3 uint32 a face),
+ *             points (a point cloud: its vertices drawn as points of point_size, the faces not)},
  *   fields: [{name, problem, kind: "solution"|"error"|"label", method (null: common to all),
  *             values (1 float a vertex), min, max}],
  *   methods: [{name, status: "ok"|"failed", message, coarse_vertices,
@@ -347,6 +348,12 @@
     ui.lineMaterial = new THREE.LineBasicMaterial({ color: EDGE_COLOR });
   }
 
+  // A point cloud's points: unlit (its faces are inconsistently oriented, so normals would shade them
+  // dark at random), sized in model units like splats so that they close up at any zoom.
+  function pointsMaterial(size) {
+    return new THREE.PointsMaterial({ vertexColors: true, size, sizeAttenuation: true });
+  }
+
   // A pane is one viewport: the surface and edges of one method, and its overlays.
   function makePane() {
     const el = element('div', 'ice-pane', ui.viewport);
@@ -356,10 +363,12 @@
       overlay: element('div', 'ice-overlay', el),
       group: new THREE.Group(),
       surface: new THREE.Mesh(new THREE.BufferGeometry(), ui.surfaceMaterial),
+      points: new THREE.Points(new THREE.BufferGeometry(), pointsMaterial(1)),
       lines: new THREE.LineSegments(new THREE.BufferGeometry(), ui.lineMaterial),
       colorKey: null,
     };
-    pane.group.add(pane.surface, pane.lines);
+    pane.points.visible = false;
+    pane.group.add(pane.surface, pane.points, pane.lines);
     ui.scene.add(pane.group);
     return pane;
   }
@@ -404,6 +413,16 @@
       geometry.setAttribute('color', new THREE.BufferAttribute(new Float32Array(3 * mesh.display.vertices), 3));
       geometry.boundingSphere = prepared.sphere;
       pane.surface.geometry = geometry;
+      // The points share the surface's positions and colours (one colour update serves both).
+      pane.points.geometry.dispose();
+      const points = new THREE.BufferGeometry();
+      points.setAttribute('position', prepared.position);
+      points.setAttribute('color', geometry.getAttribute('color'));
+      points.boundingSphere = prepared.sphere;
+      pane.points.geometry = points;
+      pane.points.material.size = mesh.display.point_size || 1;
+      pane.points.visible = !!mesh.display.points;
+      pane.surface.visible = !mesh.display.points;
       pane.colorKey = null;
     }
     for (const m of meshes) {
@@ -617,7 +636,8 @@
   function updateMeshInfo() {
     const mesh = currentMesh();
     const d = mesh.display;
-    const size = `${formatCount(d.vertices)} vertices, ${formatCount(d.faces)} faces`;
+    const size = d.points ? `${formatCount(d.vertices)} points`
+      : `${formatCount(d.vertices)} vertices, ${formatCount(d.faces)} faces`;
     ui.meshSize.textContent = d.decimated
       ? `${mesh.name}: decimated display mesh, ${size} (input ${formatCount(mesh.input_vertices)} ` +
         `vertices, ${formatCount(mesh.input_faces)} faces)`
