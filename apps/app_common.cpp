@@ -147,12 +147,14 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
     return;
   }
   const ice::CoarsenResult& result = *summary.ice;
+  // On a tufted cover the coarsener counts the cover's copies; the coarse vertices are the merged ones.
+  const std::string where = summary.tufted_cover ? thousands(summary.coarse_vertices) + " vertices (" +
+                                                       thousands(result.output_vertices) + " on the tufted cover)"
+                                                 : thousands(result.output_vertices) + " vertices";
   if (result.stop_reason == ice::StopReason::NothingRemovable)
-    warn(tool, "stopped at " + thousands(result.output_vertices) +
-                   " vertices: no further vertex could be removed (locked, boundary kept, or topology)");
+    warn(tool, "stopped at " + where + ": no further vertex could be removed (locked, boundary kept, or topology)");
   else if (result.stop_reason == ice::StopReason::ErrorThreshold && (options.target_vertices > 0 || options.target_ratio > 0))
-    warn(tool, "stopped at " + thousands(result.output_vertices) + " vertices: the next removal would cost " +
-                   std::to_string(result.next_cost) + " > --max-error");
+    warn(tool, "stopped at " + where + ": the next removal would cost " + std::to_string(result.next_cost) + " > --max-error");
 }
 
 namespace {
