@@ -83,6 +83,10 @@ int main(int argc, char** argv) {
       throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the mesh has " + std::to_string(n) + " vertices (k < vertices)");
     // Dirichlet: φ = 0 on the boundary, whose vertices the coarsening keeps (so coarse functions
     // vanishing there vanish on the whole fine boundary).
+    // A point cloud has no boundary: its fans' one-sided edges are where candidates lost to overlaps.
+    if (dirichlet && loaded.point_cloud)
+      throw app::AppError(app::kUsage, "--boundary dirichlet: a point cloud has no boundary (its triangles' free edges are "
+                                       "gaps between local fans, not a boundary of the surface)");
     const std::vector<ice::Index> fixed = dirichlet ? fem::boundary_vertices(mesh.F) : std::vector<ice::Index>();
     if (dirichlet && fixed.empty()) app::warn(kTool, "--boundary dirichlet: the mesh has no boundary (no vertex is fixed)");
     opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, fixed.empty() ? "" : "--boundary dirichlet");

@@ -111,13 +111,13 @@ void replace_all(std::string& text, const std::string& from, const std::string& 
   for (std::size_t at = 0; (at = text.find(from, at)) != std::string::npos; at += to.size()) text.replace(at, from.size(), to);
 }
 
-// The points' size for a point cloud's page: 1.5 times the mean length of its display edges (its
-// points' spacing), so that neighbouring points touch.
+// The points' diameter for a point cloud's page: the mean length of its display edges (its points'
+// spacing), so that neighbouring points touch and the coarse edges still show between them.
 double point_size(const ViewMesh& mesh) {
   double total = 0;
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
     for (int k = 0; k < 3; ++k) total += (mesh.V.row(mesh.F(f, k)) - mesh.V.row(mesh.F(f, (k + 1) % 3))).norm();
-  return mesh.F.rows() > 0 ? 1.5 * total / static_cast<double>(3 * mesh.F.rows()) : 1.0;
+  return mesh.F.rows() > 0 ? total / static_cast<double>(3 * mesh.F.rows()) : 1.0;
 }
 
 nlohmann::json mesh_json(const ViewMesh& mesh) {

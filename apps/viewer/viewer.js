@@ -420,7 +420,9 @@
       points.setAttribute('color', geometry.getAttribute('color'));
       points.boundingSphere = prepared.sphere;
       pane.points.geometry = points;
-      pane.points.material.size = mesh.display.point_size || 1;
+      // three.js draws a point `size` pixels per (half the viewport's height / depth), where a length L
+      // spans L / tan(FOV/2) of them: the points' diameter in model units is point_size.
+      pane.points.material.size = (mesh.display.point_size || 1) / Math.tan(THREE.MathUtils.degToRad(FOV) / 2);
       pane.points.visible = !!mesh.display.points;
       pane.surface.visible = !mesh.display.points;
       pane.colorKey = null;

@@ -153,10 +153,15 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
   // Translated and scaled into the unit box: squared distances, covariances and circumradii of
   // coordinates near the ends of the double range would underflow or overflow. Triangles do not
   // depend on it.
+  // Half the extent (no overflow near the largest doubles), rounded up to a power of two (an exact
+  // scaling: the same points at any power-of-two scale).
   const Eigen::RowVector3d low = points.colwise().minCoeff();
-  const double extent = (points.colwise().maxCoeff() - low).maxCoeff();
-  if (!(extent > 0)) throw std::invalid_argument("point_cloud_triangles: points 0 and 1 are at the same position (all are)");
-  const Positions unit = (points.rowwise() - low) / extent;  // for the zero-area test (relative) as well
+  const double half_extent = (0.5 * points.colwise().maxCoeff() - 0.5 * low).maxCoeff();
+  if (!(half_extent > 0)) throw std::invalid_argument("point_cloud_triangles: points 0 and 1 are at the same position (all are)");
+  int exponent = 0;
+  std::frexp(half_extent, &exponent);
+  const double scale = std::ldexp(1.0, -exponent);  // half_extent · scale in [0.5, 1)
+  const Positions unit = (points.rowwise() - low) * scale;  // for the zero-area test (relative) as well
   const double diagonal = (unit.colwise().maxCoeff() - unit.colwise().minCoeff()).norm();
   PointList X(static_cast<std::size_t>(n));
   for (Index i = 0; i < n; ++i) X[static_cast<std::size_t>(i)] = unit.row(i).transpose();
@@ -270,13 +275,20 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
   std::vector<char> on_face(static_cast<std::size_t>(n), 0);
   for (const auto& t : kept)
     for (Index v : t) on_face[static_cast<std::size_t>(v)] = 1;
+  // (A point whose own fan is empty keeps every candidate through it.)
+  std::vector<char> has_fan(static_cast<std::size_t>(n), 0);
+  for (const Candidate& candidate : candidates)
+    for (int k = 0; k < 3; ++k)
+      if (candidate.in_fan_of[static_cast<std::size_t>(k)]) has_fan[static_cast<std::size_t>(candidate.face[static_cast<std::size_t>(k)])] = 1;
   for (const Candidate& candidate : candidates) {
     const auto& t = candidate.face;
-    for (int k = 0; k < 3; ++k)
-      if (candidate.in_fan_of[static_cast<std::size_t>(k)] && !on_face[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])]) {
+    for (int k = 0; k < 3; ++k) {
+      const auto v = static_cast<std::size_t>(t[static_cast<std::size_t>(k)]);
+      if (!on_face[v] && (candidate.in_fan_of[static_cast<std::size_t>(k)] || !has_fan[v])) {
         kept.push_back(t);
         break;
       }
+    }
   }
   std::sort(kept.begin(), kept.end());
 

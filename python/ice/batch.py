@@ -3,8 +3,8 @@
     ice-batch INPUT -o OUT --ratio 0.05 [--workers 2 | --scheduler tcp://HOST:PORT] [options]
     python3 -m ice.batch INPUT -o OUT --ratio 0.05
 
-INPUT is a directory (searched recursively for .obj .off .ply .stl, and .xyz .pwn point sets, which
---nonmanifold tufted solves on), a glob pattern ('scans/**/*.ply',
+INPUT is a directory (searched recursively for .obj .off .ply .stl, and with --nonmanifold tufted also
+.xyz .pwn point sets), a glob pattern ('scans/**/*.ply',
 quoted), or a text file listing mesh paths (one a line, '#' comments). For each mesh the output tree
 mirrors the input: OUT/<relative path>.ilm (the coarse intrinsic mesh), <...>.npz (P as CSR arrays
 and the fine-to-coarse map; with --features eigs:K also the K smallest Laplace-Beltrami eigenpairs
@@ -68,7 +68,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse
 
-MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".xyz", ".pwn")  # .xyz/.pwn: point sets (nonmanifold="tufted")
+MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
+POINT_SET_EXTENSIONS = (".xyz", ".pwn")  # in the manifest with nonmanifold="tufted" only
 RECORD_VERSION = 1
 # Coarsening options that a batch passes to ice.coarsen (and hashes). Not the thread count: the
 # batch chooses it per mesh (BatchOptions.mesh_threads) and it does not change the result.
@@ -103,18 +104,19 @@ class Job:
     mtime_ns: int = 0
 
 
-def _is_mesh(path: pathlib.Path) -> bool:
-    return path.suffix.lower() in MESH_EXTENSIONS and path.is_file()
+def _is_mesh(path: pathlib.Path, point_sets: bool = False) -> bool:
+    return path.suffix.lower() in MESH_EXTENSIONS + (POINT_SET_EXTENSIONS if point_sets else ()) and path.is_file()
 
 
-def manifest(source: str) -> tuple[list[Job], pathlib.Path]:
-    """The meshes of `source` (a directory, a glob pattern or a list file) and their common root."""
+def manifest(source: str, point_sets: bool = False) -> tuple[list[Job], pathlib.Path]:
+    """The meshes of `source` (a directory, a glob pattern or a list file) and their common root; with
+    `point_sets`, also the .xyz/.pwn files of a directory or pattern."""
     root: pathlib.Path
     given = pathlib.Path(source)
     if given.is_dir():
         root = given
-        paths = sorted(p for p in given.rglob("*") if _is_mesh(p))
-    elif given.is_file() and given.suffix.lower() not in MESH_EXTENSIONS:
+        paths = sorted(p for p in given.rglob("*") if _is_mesh(p, point_sets))
+    elif given.is_file() and given.suffix.lower() not in MESH_EXTENSIONS + POINT_SET_EXTENSIONS:
         paths = []
         for number, line in enumerate(given.read_text().splitlines(), 1):
             line = line.split("#", 1)[0].strip()
@@ -128,7 +130,7 @@ def manifest(source: str) -> tuple[list[Job], pathlib.Path]:
     elif given.is_file():
         root, paths = given.parent, [given]
     else:
-        paths = sorted(pathlib.Path(p) for p in glob.glob(source, recursive=True) if _is_mesh(pathlib.Path(p)))
+        paths = sorted(pathlib.Path(p) for p in glob.glob(source, recursive=True) if _is_mesh(pathlib.Path(p), point_sets))
         magic = min((i for i, c in enumerate(source) if c in "*?["), default=len(source))
         root = pathlib.Path(source[:magic]).parent if paths else pathlib.Path(".")
     if not paths:
@@ -164,6 +166,8 @@ def canonical_options(coarsen: dict) -> dict:
     if unknown:
         raise ValueError(f"unknown coarsening options {sorted(unknown)} (known: {', '.join(COARSEN_OPTIONS)})")
     options = {**COARSEN_DEFAULTS, **{k: v for k, v in coarsen.items() if v is not None}}
+    if options.get("nonmanifold", "refuse") not in ("refuse", "tufted"):
+        raise ValueError(f"nonmanifold must be 'refuse' or 'tufted', not {options['nonmanifold']!r}")
     if options.get("nonmanifold") == "refuse":  # the default, left out (so records made before it stay valid)
         del options["nonmanifold"]
     if options["regions"] == 0:
@@ -369,6 +373,8 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
         covered = bool(coarse.summary.get("tufted_cover", False))
         if not covered:
             finished.append((paths["ilm"], _write_temporary(paths["ilm"], lambda temporary: coarse.save(temporary, overwrite=True))))
+        elif paths["ilm"].exists():  # from an earlier run on another input of that name
+            paths["ilm"].unlink()
         finished.append((paths["npz"], _write_temporary(paths["npz"], write_npz)))
         record["tufted_cover"] = covered
         record["point_cloud"] = bool(loaded.point_cloud)
@@ -540,7 +546,7 @@ def run(source: str, out: str | os.PathLike, options: BatchOptions, log=sys.stde
         _start_method(options)  # refuse an unknown method before any work
     threads = options.mesh_threads or (1 if options.scheduler else max(1, min(options.workers, os.cpu_count() or 1)))
     options = dataclasses.replace(options, coarsen=canonical_options(options.coarsen))
-    jobs, _ = manifest(source)
+    jobs, _ = manifest(source, point_sets=options.coarsen.get("nonmanifold") == "tufted")
     out = pathlib.Path(out)
     _check_outputs(jobs, out, options.force)
     features = check_features(dict(options.features))
