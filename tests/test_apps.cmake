@@ -144,6 +144,40 @@ function(check_npy_shape file rows cols)
   endif()
 endfunction()
 
+# solved_on_cover(<input> <vertices> <Poisson bound> <heat bound> args...): poisson-coarse and
+# heat-coarse on <input> with --nonmanifold tufted and args: the report says the tufted cover, the
+# relative L2 errors against the fine robust Laplacian are below the bounds, one row per vertex.
+function(solved_on_cover input vertices poisson_bound heat_bound)
+  run(0 poisson-coarse "${input}" --nonmanifold tufted ${ARGN} --no-cache --solutions "${WORK}/u.npy"
+      --report "${WORK}/p.json" --force -q)
+  json(cover "${WORK}/p.json" fine_mesh tufted_cover)
+  check_text("${cover}" "ON" "poisson-coarse: fine_mesh.tufted_cover")
+  json(err "${WORK}/p.json" error rel_l2)
+  check(${err} LESS ${poisson_bound} "Poisson on the cover: relative L2 error against the fine robust Laplacian")
+  check_npy_shape("${WORK}/u.npy" ${vertices} 1)
+  run(0 heat-coarse "${input}" --nonmanifold tufted ${ARGN} --no-cache --report "${WORK}/h.json" --force -q)
+  json(err "${WORK}/h.json" error rel_l2)
+  check(${err} LESS ${heat_bound} "heat on the cover: relative L2 error")
+endfunction()
+
+# view_test(<page>): the page opened in headless Chromium by tests/browser/view_test.mjs: no errors
+# logged, the mesh in varied colours, the coarse edges drawn, the mouse controls working. In the
+# release configuration only: the sanitizers do not instrument the page's script.
+function(view_test page)
+  if(DEFINED BROWSER AND NOT BROWSER)
+    message(STATUS "view_test: not in the sanitizer configuration (the release configuration runs it)")
+    return()
+  endif()
+  find_program(NODE node)
+  execute_process(COMMAND "${CMAKE_COMMAND}" -DNODE=${NODE} -DSCRIPT=${SOURCE_DIR}/tests/browser/view_test.mjs
+                          "-DPAGE=${page}" -P "${SOURCE_DIR}/tests/browser/run_view_test.cmake"
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  message(STATUS "view_test ${page}:\n${out}${err}")
+  if(NOT rc EQUAL 0)
+    fail("the browser test of ${page} failed")
+  endif()
+endfunction()
+
 # require_same_bytes(<a> <b> <what>): two files with identical contents.
 function(require_same_bytes a b what)
   file(READ "${a}" _a HEX)
@@ -845,22 +879,9 @@ elseif(CASE STREQUAL "view_page")
   # An intrinsic mesh alone has no positions to draw.
   run(0 ice-coarsen "${mesh}" --ratio 0.05 -o "${WORK}/coarse" -q)
   expect_error(1 "no vertex positions" poisson-coarse "${WORK}/coarse/coarse.ilm" --ratio 0.5 --html "${WORK}/ilm.html" -q)
-  # The browser checks the page's script, which the sanitizers do not instrument: it runs in the
-  # release configuration only (the tools that wrote the pages ran above in both).
-  if(NOT DEFINED BROWSER OR BROWSER)
-    find_program(NODE node)
-    foreach(p "${page}" "${WORK}/qem.html")
-      execute_process(COMMAND "${CMAKE_COMMAND}" -DNODE=${NODE} -DSCRIPT=${SOURCE_DIR}/tests/browser/view_test.mjs
-                              "-DPAGE=${p}" -P "${SOURCE_DIR}/tests/browser/run_view_test.cmake"
-                      RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-      message(STATUS "view_test ${p}:\n${out}${err}")
-      if(NOT rc EQUAL 0)
-        fail("the browser test of ${p} failed")
-      endif()
-    endforeach()
-  else()
-    message(STATUS "view_test: not in the sanitizer configuration (the release configuration runs it)")
-  endif()
+  # The browser checks the pages (the tools that wrote them ran above in both configurations).
+  view_test("${page}")
+  view_test("${WORK}/qem.html")
 
 elseif(CASE STREQUAL "errors")
   project_mesh(mesh spot.obj)
@@ -1246,16 +1267,7 @@ elseif(CASE STREQUAL "nonmanifold_cover")
   # near the fine robust Laplacian, one value per vertex of the file; multigrid says it cannot.
   project_mesh(mesh triple_vierbein.obj)
   expect_error(2 "non-manifold edges.*--nonmanifold tufted" poisson-coarse "${mesh}" --repair --ratio 0.2 -q)
-  run(0 poisson-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.3 --no-cache --solutions "${WORK}/u.npy"
-      --report "${WORK}/p.json" --force -q)
-  json(cover "${WORK}/p.json" fine_mesh tufted_cover)
-  check_text("${cover}" "ON" "poisson-coarse: fine_mesh.tufted_cover")
-  json(err "${WORK}/p.json" error rel_l2)
-  check(${err} LESS 0.1 "Poisson on the cover: relative L2 error against the fine robust Laplacian")
-  check_npy_shape("${WORK}/u.npy" 75 1)
-  run(0 heat-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.3 --no-cache --report "${WORK}/h.json" --force -q)
-  json(err "${WORK}/h.json" error rel_l2)
-  check(${err} LESS 0.1 "heat on the cover: relative L2 error")
+  solved_on_cover("${mesh}" 75 0.1 0.1 --repair --ratio 0.3)
   run(0 spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4 -k 6 --no-cache --report "${WORK}/s.json" --force -q)
   json(zero "${WORK}/s.json" error zero_modes)
   check(${zero} EQUAL 1 "zero modes of the cover's robust Laplacian (one component)")
@@ -1272,16 +1284,7 @@ elseif(CASE STREQUAL "point_cloud")
   # point, near the fine robust Laplacian; a repeated point refused, then merged by --repair.
   project_mesh(kitten kitten.xyz)
   expect_error(2 "point cloud of 5210 points.*--nonmanifold tufted" poisson-coarse "${kitten}" -q)
-  run(0 poisson-coarse "${kitten}" --nonmanifold tufted --ratio 0.1 --no-cache --solutions "${WORK}/u.npy"
-      --report "${WORK}/p.json" --force -q)
-  json(cover "${WORK}/p.json" fine_mesh tufted_cover)
-  check_text("${cover}" "ON" "poisson-coarse on points: fine_mesh.tufted_cover")
-  json(err "${WORK}/p.json" error rel_l2)
-  check(${err} LESS 0.02 "Poisson on a point cloud: relative L2 error against the fine robust Laplacian")
-  check_npy_shape("${WORK}/u.npy" 5210 1)
-  run(0 heat-coarse "${kitten}" --nonmanifold tufted --ratio 0.1 --no-cache --report "${WORK}/h.json" --force -q)
-  json(err "${WORK}/h.json" error rel_l2)
-  check(${err} LESS 0.05 "heat on a point cloud: relative L2 error")
+  solved_on_cover("${kitten}" 5210 0.02 0.05 --ratio 0.1)
   file(STRINGS "${kitten}" _lines)
   list(GET _lines 0 _first)
   file(READ "${kitten}" _points)
@@ -1298,16 +1301,7 @@ elseif(CASE STREQUAL "point_cloud")
   if(NOT _page_data MATCHES "\"points\":true")
     fail("the point cloud's page does not draw points")
   endif()
-  if(NOT DEFINED BROWSER OR BROWSER)
-    find_program(NODE node)
-    execute_process(COMMAND "${CMAKE_COMMAND}" -DNODE=${NODE} -DSCRIPT=${SOURCE_DIR}/tests/browser/view_test.mjs
-                            "-DPAGE=${WORK}/kitten.html" -P "${SOURCE_DIR}/tests/browser/run_view_test.cmake"
-                    RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-    message(STATUS "view_test kitten.html:\n${out}${err}")
-    if(NOT rc EQUAL 0)
-      fail("the browser test of the point cloud's page failed")
-    endif()
-  endif()
+  view_test("${WORK}/kitten.html")
 
 elseif(CASE STREQUAL "help")
   foreach(_tool ice-info ice-coarsen poisson-coarse heat-coarse geodesic-coarse vector-coarse spectral-coarse ice-cache)

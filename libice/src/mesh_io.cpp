@@ -1044,24 +1044,24 @@ LoadResult load_point_cloud(const std::string& path, LoadResult result, const Lo
     throw MeshError(MeshError::Kind::Defective, path,
                     "refused: point " + std::to_string(result.input_report.non_finite_vertices.first.front()) +
                         " has a coordinate that is not finite");
-  // Coincident points: refused, or merged into the first of them with repair (repeated points add
-  // nothing to a point cloud, so no weld option is needed as for a mesh's vertices).
-  const std::vector<int> first = detail::first_coincident_vertex(P);
-  std::size_t repeated = 0;
-  Index first_repeat = kInvalid;
-  for (Index i = 0; i < n; ++i)
-    if (first[static_cast<std::size_t>(i)] != i) {
-      if (first_repeat == kInvalid) first_repeat = i;
-      ++repeated;
-    } else {
-      result.source_vertex.push_back(i);
+  // Coincident points (the validator counted them): refused, or merged into the first of them with
+  // repair (repeated points add nothing to a point cloud, so no weld option is needed as for a mesh's
+  // vertices).
+  const auto& repeats = result.input_report.duplicate_positions;
+  std::vector<int> first;  // empty: no point repeats another
+  if (repeats.count > 0) {
+    first = detail::first_coincident_vertex(P);
+    if (!options.repair) {
+      const int repeat = repeats.first.front();
+      throw MeshError(MeshError::Kind::Defective, path,
+                      "refused: " + std::to_string(repeats.count) + " points repeat an earlier point's position (first: point " +
+                          std::to_string(repeat) + " at point " + std::to_string(first[static_cast<std::size_t>(repeat)]) +
+                          "'s) (load with repair to merge them)");
     }
-  if (repeated > 0 && !options.repair)
-    throw MeshError(MeshError::Kind::Defective, path,
-                    "refused: " + std::to_string(repeated) + " points repeat an earlier point's position (first: point " +
-                        std::to_string(first_repeat) + " at point " + std::to_string(first[static_cast<std::size_t>(first_repeat)]) +
-                        "'s) (load with repair to merge them)");
-  result.repairs.welded_vertices = repeated;
+  }
+  for (Index i = 0; i < n; ++i)
+    if (first.empty() || first[static_cast<std::size_t>(i)] == i) result.source_vertex.push_back(i);
+  result.repairs.welded_vertices = repeats.count;
   TriangleMesh& mesh = result.mesh;
   mesh.V.resize(static_cast<Eigen::Index>(result.source_vertex.size()), 3);
   for (std::size_t i = 0; i < result.source_vertex.size(); ++i) mesh.V.row(static_cast<Eigen::Index>(i)) = P.row(result.source_vertex[i]);

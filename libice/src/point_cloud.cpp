@@ -150,11 +150,10 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     if (!points.row(i).allFinite())
       throw std::invalid_argument("point_cloud_triangles: point " + std::to_string(i) + " has a coordinate that is not finite");
 
-  // Translated and scaled into the unit box: squared distances, covariances and circumradii of
-  // coordinates near the ends of the double range would underflow or overflow. Triangles do not
-  // depend on it.
-  // Half the extent (no overflow near the largest doubles), rounded up to a power of two (an exact
-  // scaling: the same points at any power-of-two scale).
+  // Translated and scaled into a box of side 1 to 2: squared distances, covariances and circumradii
+  // of coordinates near the ends of the double range would underflow or overflow. The scale is a power
+  // of two (exact: the same triangles at any power-of-two scale) from half the extent (no overflow near
+  // the largest doubles).
   const Eigen::RowVector3d low = points.colwise().minCoeff();
   const double half_extent = (0.5 * points.colwise().maxCoeff() - 0.5 * low).maxCoeff();
   if (!(half_extent > 0)) throw std::invalid_argument("point_cloud_triangles: points 0 and 1 are at the same position (all are)");
@@ -194,10 +193,9 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     }
   });
 
-  // Every distinct triangle once (in the orientation of the lowest point's fan), with the number of
-  // fans that have it (1 to 3).
-  // (vertex set, the triangle as its fan has it); a fan's triangles start at its own point, so the
-  // lowest point's comes first in a group of equal vertex sets.
+  // Every distinct triangle once (in the orientation of the lowest point's fan), with the fans that
+  // have it (1 to 3): pairs (vertex set, the triangle as its fan has it) sorted; a fan's triangles
+  // start at its own point, so the lowest point's comes first in a group of equal vertex sets.
   std::vector<std::pair<std::array<Index, 3>, std::array<Index, 3>>> all;
   std::size_t total = 0;
   for (const auto& part : fans) total += part.size();
@@ -292,11 +290,10 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
   }
   std::sort(kept.begin(), kept.end());
 
-  std::vector<char> used(static_cast<std::size_t>(n), 0);
   for (const auto& t : kept)
-    for (Index v : t) used[static_cast<std::size_t>(v)] = 1;
+    for (Index v : t) on_face[static_cast<std::size_t>(v)] = 1;
   for (Index i = 0; i < n; ++i)
-    if (!used[static_cast<std::size_t>(i)])
+    if (!on_face[static_cast<std::size_t>(i)])
       throw std::invalid_argument("point_cloud_triangles: point " + std::to_string(i) +
                                   " lies on no triangle (it and its nearest neighbours lie on one line)");
   Faces F(static_cast<Eigen::Index>(kept.size()), 3);

@@ -10,8 +10,15 @@
 
 namespace ice::proxy {
 
+void require_galerkin_on_cover(bool tufted_cover, fem::CoarseOperatorKind kind) {
+  if (tufted_cover && kind != fem::CoarseOperatorKind::galerkin)
+    throw std::invalid_argument("a mesh solved on its tufted cover takes Galerkin coarse operators (galerkin: the cover's "
+                                "own coarse Laplacian is not the input's robust Laplacian)");
+}
+
 fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem::CoarseOperatorKind kind,
                             fem::ProlongationKind prolongation) {
+  require_galerkin_on_cover(coarse.summary.tufted_cover, kind);
   // The faces and lengths only: the proxy keeps no gluing, so none is copied.
   return fem::CoarseProxy(IntrinsicMesh{fine.F, fine.L, {}, fine.vertex_count}, coarse.mesh, coarse.P,
                           {kind, fem::MassKind::lumped, prolongation});
@@ -27,9 +34,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   // components' (not the input's robust Laplacian), so Galerkin only; and not stored (its key would
   // have to say so).
   const bool covered = options.coarsening.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
-  if (covered && options.operators != fem::CoarseOperatorKind::galerkin)
-    throw std::invalid_argument("a mesh solved on its tufted cover takes Galerkin coarse operators (the cover's own "
-                                "coarse Laplacian is not the input's robust Laplacian)");
+  require_galerkin_on_cover(covered, options.operators);  // before the work
   bool fine_made = false;  // setup.fine
   std::optional<StoreKey> key;
   if (coarse) {

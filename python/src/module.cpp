@@ -610,9 +610,7 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
     throw py::value_error("prolongation='smoothed' needs operators='galerkin'");
   const ice::NonmanifoldInput cover =
       coarse.space.summary.tufted_cover ? ice::NonmanifoldInput::tufted_cover : ice::NonmanifoldInput::refuse;
-  if (cover == ice::NonmanifoldInput::tufted_cover && kind != fem::CoarseOperatorKind::galerkin)
-    throw py::value_error("a coarse space of a tufted cover takes operators='galerkin' (the cover's own coarse Laplacian "
-                          "is not the input's robust Laplacian)");
+  ice::proxy::require_galerkin_on_cover(coarse.space.summary.tufted_cover, kind);  // before the fine mesh is made
   auto result = std::make_shared<PyProxy>();
   result->method = coarse.space.summary.method;
   result->tufted_cover = coarse.space.summary.tufted_cover;

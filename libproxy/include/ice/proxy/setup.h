@@ -20,8 +20,13 @@
 
 namespace ice::proxy {
 
+/// Throws std::invalid_argument unless `kind` is Galerkin when the coarse space is (or will be) a tufted
+/// cover's: the cover's own coarse Laplacian is not the input's robust Laplacian.
+void require_galerkin_on_cover(bool tufted_cover, fem::CoarseOperatorKind kind);
+
 /// The coarse proxy of the fine discretisation `fine` through `coarse` (a coarse space of the mesh
 /// `fine` was made from): operators of `kind`, lumped mass, the prolongation `prolongation`.
+/// Throws as require_galerkin_on_cover for a tufted cover's coarse space.
 fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem::CoarseOperatorKind kind,
                             fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric);
 
