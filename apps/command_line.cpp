@@ -187,11 +187,11 @@ void TargetOptions::use_defaults_for(ice::ProxyUse use) {
 
 void add_coarsen_parallel_options(CLI::App& cli, int& threads, int& regions) {
   cli.add_option("--coarsen-threads", threads,
-                 "ICE coarsening threads (0: all cores; k > 1: 4k regions in parallel, then a serial pass)")
+                 "Coarsening threads (0: all cores; never change the result)")
       ->check(integer_between(0, 64))
       ->capture_default_str();
   cli.add_option("--coarsen-regions", regions,
-                 "Regions of the parallel phase (0: 4 x threads; 1: serial)")
+                 "Regions coarsened in parallel on large meshes (0: 16; 1: serial greedy order)")
       ->check(integer_between(0, 254))
       ->capture_default_str();
 }

@@ -83,7 +83,7 @@ struct TargetOptions {
   double area_weight = ice::recommended_coarsen_options().area_weight;
   bool normalize_curvature = ice::recommended_coarsen_options().normalize_curvature;
   ice::CoarseningMethod method = ice::CoarseningMethod::ice;  ///< --method ice|qem
-  int threads = 1;             ///< ICE coarsening threads (ice::CoarsenOptions::threads)
+  int threads = 0;             ///< ICE coarsening threads (ice::CoarsenOptions::threads)
   int regions = 0;             ///< regions of the parallel phase (ice::CoarsenOptions::regions)
   /// --refine-angle DEG (0: no refinement) and --refine-budget R: intrinsic Delaunay refinement of
   /// the ICE coarse mesh (ice::RefinementOptions).

@@ -295,7 +295,7 @@ int main(int argc, char** argv) {
                            {"area_weight", options.area_weight},
                            {"normalize_curvature", options.normalize_curvature},
                            {"coarsen_threads", options.threads},
-                           {"coarsen_regions", options.regions},
+                           {"coarsen_regions", ice::coarsening_regions(options)},
                            {"keep_boundary", keep_boundary},
                            {"locked_vertices", options.locked_vertices.size()}};
       report["coarse"] = ice::proxy::coarsen_json(summary);

@@ -128,10 +128,9 @@ void BM_BytesPerVertex(benchmark::State& state) {
 }
 BENCHMARK(BM_BytesPerVertex)->Arg(4)->Unit(benchmark::kMillisecond)->Iterations(1);
 
-// ICE coarsening: spot_subdiv 24,755 -> 1,000 and fertility (Loop ×4, 1,150,214) -> 10,000.
 // ICE coarsening: arg 0 = the case (0: spot_subdiv 24,755 -> 1,000; 1: fertility Loop x4,
-// 1.15M -> 10,000), arg 1 = threads (1: the exact serial greedy order; 2: the parallel mode). Wall
-// time (UseRealTime): the parallel mode's work runs on several threads.
+// 1.15M -> 10,000), arg 1 = threads (1: the exact serial greedy order, one region; 2: the default
+// regions on two threads). Wall time (UseRealTime): the parallel mode's work runs on several threads.
 void BM_Coarsen(benchmark::State& state) {
   const bool large = state.range(0) == 1;
   if (large && !ice_bench::has_mesh(state, "fertility.off")) return;
@@ -139,6 +138,7 @@ void BM_Coarsen(benchmark::State& state) {
   CoarsenOptions options;
   options.target_vertices = large ? 10000 : 1000;
   options.threads = static_cast<int>(state.range(1));
+  options.regions = options.threads == 1 ? 1 : 0;
   CoarsenResult result;
   const double rss_before = peak_rss_mb();
   for (auto _ : state) {
@@ -162,8 +162,8 @@ BENCHMARK(BM_Coarsen)->Args({1, 1})->Args({1, 2})->Unit(benchmark::kMillisecond)
 // A point cloud against the mesh it comes from: spot_subdiv Loop ×3 (1,584,194 vertices) coarsened
 // to 5 % with its fine intrinsic Delaunay mesh, as the tools set up a proxy (arg 0), and the same
 // vertices as a point cloud (arg 1): its consistent local Delaunay triangles, then the coarse space and
-// fine mesh through their tufted cover. Serial coarsening (threads 1) both; the triangles use the
-// hardware's threads. Counters: the phases' seconds.
+// fine mesh through their tufted cover. The default coarsening (regions in parallel) both; the
+// triangles use the hardware's threads. Counters: the phases' seconds.
 void BM_PointCloudCoarsening(benchmark::State& state) {
   const bool cloud = state.range(0) == 1;
   const TriangleMesh& m = mesh("spot_subdiv.obj", 3);

@@ -48,7 +48,8 @@ Eigen::VectorXd smooth_source(const Positions& V) {
   return f;
 }
 
-// Args: Loop subdivisions of spot_subdiv (0–3), coarse budget in percent, coarsening threads, the
+// Args: Loop subdivisions of spot_subdiv (0–3), coarse budget in percent, coarsening threads (1: the
+// exact serial greedy order, one region; more: the default regions on that many threads), the
 // fine CHOLMOD's fill-reducing ordering (fem::CholeskyOrdering: 0 CHOLMOD's default strategy, 1 AMD
 // only, the fastest at 1.6M vertices: BM_MultigridCholmod).
 void BM_ProxyVsFine(benchmark::State& state) {
@@ -73,6 +74,7 @@ void BM_ProxyVsFine(benchmark::State& state) {
     CoarseSpaceOptions options;
     options.coarsen.target_ratio = budget;
     options.coarsen.threads = threads;
+    options.coarsen.regions = threads == 1 ? 1 : 0;
     CoarseSpace space = build_coarse_space(m, options);
     const CompactMesh& coarse = space.mesh;
     const double coarsen_time = seconds_since(t);

@@ -357,7 +357,7 @@ elseif(CASE STREQUAL "coarsen_keep_boundary_lock")
   expect_error(1 "no such file" ice-coarsen "${mesh}" --ratio 0.2 -o "${WORK}/out2" -q --lock "${WORK}/none.txt")
 
 elseif(CASE STREQUAL "coarsen_threads")
-  # The parallel mode end to end: regions on two threads, then the serial pass; a valid result.
+  # The parallel mode end to end: the default regions on two threads, then the serial pass; a valid result.
   project_mesh(mesh spot_subdiv.obj)
   run(0 ice-coarsen "${mesh}" --ratio 0.05 --coarsen-threads 2 -o "${WORK}/out" --report "${WORK}/r.json" --validate -q)
   json(nc "${WORK}/r.json" coarse vertices)
@@ -367,17 +367,20 @@ elseif(CASE STREQUAL "coarsen_threads")
     fail("stop reason ${stop}")
   endif()
   json(parallel "${WORK}/r.json" coarse parallel_removed)
-  # Measured: 16,847 of the 23,517 removals ran in the regions.
   check(${parallel} GREATER 14000 "coarse.parallel_removed (most of the 23,517 removals run in the regions)")
   json(threads "${WORK}/r.json" options coarsen_threads)
   check(${threads} EQUAL 2 "options.coarsen_threads")
   expect_error(4 "coarsen-threads" ice-coarsen "${mesh}" --ratio 0.05 --coarsen-threads -1 -o "${WORK}/out2" -q)
-  # A fixed region count: the same coarse mesh on one thread as on two (2 threads = 8 regions too).
-  run(0 ice-coarsen "${mesh}" --ratio 0.05 --coarsen-threads 1 --coarsen-regions 8 -o "${WORK}/one" --report "${WORK}/one.json" -q)
+  # The regions fix the result: the default count (16) on one thread as on two; one region is the
+  # serial greedy order.
+  run(0 ice-coarsen "${mesh}" --ratio 0.05 --coarsen-threads 1 --coarsen-regions 16 -o "${WORK}/one" --report "${WORK}/one.json" -q)
   execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files "${WORK}/one/coarse.ilm" "${WORK}/out/coarse.ilm" RESULT_VARIABLE differ)
-  check(${differ} EQUAL 0 "coarse.ilm of 1 thread with 8 regions against 2 threads (files differ)")
-  json(regions "${WORK}/one.json" options coarsen_regions)
-  check(${regions} EQUAL 8 "options.coarsen_regions")
+  check(${differ} EQUAL 0 "coarse.ilm of 1 thread with 16 regions against 2 threads and the default regions (files differ)")
+  json(regions "${WORK}/r.json" options coarsen_regions)
+  check(${regions} EQUAL 16 "options.coarsen_regions (the default)")
+  run(0 ice-coarsen "${mesh}" --ratio 0.05 --coarsen-regions 1 -o "${WORK}/serial" --report "${WORK}/serial.json" -q)
+  json(serial_parallel "${WORK}/serial.json" coarse parallel_removed)
+  check(${serial_parallel} EQUAL 0 "coarse.parallel_removed with one region")
   expect_error(4 "coarsen-regions" ice-coarsen "${mesh}" --ratio 0.05 --coarsen-regions 255 -o "${WORK}/out3" -q)
 
 elseif(CASE STREQUAL "geodesic_spot")

@@ -269,6 +269,7 @@ TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays c
     CoarsenOptions options;
     options.target_ratio = 0.02;
     options.threads = c.threads;
+    options.regions = 4 * c.threads;
     options.parallel_min_vertices = 1000;
     for (Index v = 0; v < mesh.V.rows(); v += 997) options.locked_vertices.push_back(v);
     auto T = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
@@ -307,10 +308,10 @@ TEST_CASE("the parallel mode keeps every invariant, is deterministic and stays c
     // The same problem serially: the largest removal cost is of the same size (the regions only
     // reorder the early, cheap removals; the serial pass orders the last ones globally).
     auto serial = IntrinsicTriangulation::from_mesh(mesh.V, mesh.F);
-    options.threads = 1;
+    options.regions = 1;
     const CoarsenResult serial_result = coarsen(serial, options);
     CHECK(serial_result.parallel_removed == 0);
-    // The phase times: a parallel phase only with threads, and the phases within the whole call.
+    // The phase times: a parallel phase only with regions, and the phases within the whole call.
     CHECK(result.parallel_seconds > 0);
     CHECK(serial_result.parallel_seconds == 0);
     for (const CoarsenResult* r : {&result, &serial_result}) {
@@ -355,11 +356,15 @@ TEST_CASE("with a fixed region count the result does not depend on the thread co
     CHECK(one_thread.parallel_removed > one_thread.removed / 2);  // the regions ran, on one thread
     check_equal(coarsened(2, 8), reference);
     check_equal(coarsened(3, 8), reference);
-    check_equal(coarsened(2, 0), reference);  // 0: 4 × threads regions, as before
+    // 0: the default count, on any number of threads (0: this machine's).
+    const CompactMesh by_default = coarsened(1, kDefaultCoarseningRegions);
+    check_equal(coarsened(1, 0), by_default);
+    check_equal(coarsened(2, 0), by_default);
+    check_equal(coarsened(0, 0), by_default);
     // An odd region count (its stages pair the regions unevenly) is as independent of the threads.
     check_equal(coarsened(2, 5), coarsened(1, 5));
-    // One region (or the default with one thread) is the serial greedy order, which differs.
-    const CompactMesh exact = coarsened(1, 0, &serial);
+    // One region is the serial greedy order, which differs.
+    const CompactMesh exact = coarsened(1, 1, &serial);
     CHECK(serial.parallel_removed == 0);
     check_equal(coarsened(4, 1), exact);
     CHECK(!same(exact.L, reference.L));

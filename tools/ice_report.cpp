@@ -882,7 +882,7 @@ int main(int argc, char** argv) {
                  "Divisor d of the curvature correction exp(K l^2/d) (default: measured best)")
       ->check(app::positive_number())
       ->capture_default_str();
-  int coarsen_threads = 1, coarsen_regions = 0;  // ICE coarsening's parallel phase (default: the serial order)
+  int coarsen_threads = 0, coarsen_regions = 0;  // ICE coarsening's parallel phase (ice::CoarsenOptions' defaults)
   app::add_coarsen_parallel_options(cli, coarsen_threads, coarsen_regions);
   std::string tolerances_text;
   cli.add_option("--tolerances", tolerances_text,

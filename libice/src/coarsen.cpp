@@ -390,8 +390,7 @@ void coarsen_whole(GreedyContext& context, CoarsenResult& result) {
 }  // namespace
 
 int coarsening_regions(const CoarsenOptions& options) {
-  const int threads = detail::requested_threads(options.threads);
-  return options.regions > 0 ? options.regions : threads > 1 ? std::min(4 * threads, 254) : 1;
+  return options.regions > 0 ? options.regions : kDefaultCoarseningRegions;
 }
 
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options) {

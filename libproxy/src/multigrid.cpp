@@ -144,7 +144,7 @@ StoreKey multigrid_hierarchy_key(const TriangleMesh& mesh, const HierarchyOption
   locked.erase(std::unique(locked.begin(), locked.end()), locked.end());
   h.add_bytes(locked.data(), locked.size() * sizeof(Index));
   // Independent-set levels are the same for every thread count; greedy levels run ice::coarsen,
-  // whose result depends on the region count its default thread count resolves to here.
+  // whose result depends on its default region count.
   h.add(o.coarsening == LevelCoarsening::greedy ? coarsening_regions(CoarsenOptions{}) : 0);
   return h.finish();
 }

@@ -140,8 +140,8 @@ StoreKey proxy_setup_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coa
   std::sort(locked.begin(), locked.end());
   locked.erase(std::unique(locked.begin(), locked.end()), locked.end());
   h.add_bytes(locked.data(), locked.size() * sizeof(Index));
-  // The coarsening's result depends on its region count, which a thread count of 0 resolves on
-  // this machine: key on the regions it runs with.
+  // The coarsening's result depends on its region count (0 stands for the default count): key on the
+  // count it runs with, so a change of the default is a new key.
   h.add(coarsening_regions(c)).add(static_cast<std::int64_t>(c.parallel_min_vertices));
   h.add(to_string(coarsening.qem_geometry)).add(coarsening.locality_numbering);
   h.add(coarsening.refinement.has_value());

@@ -14,6 +14,7 @@ refused meshes and unreadable files raise ice.MeshError with the tools' message.
 from __future__ import annotations
 
 from ._ice import (  # noqa: F401  (the package's API)
+    DEFAULT_COARSENING_REGIONS,
     CoarseSpace,
     DistanceOracle,
     MeshError,

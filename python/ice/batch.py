@@ -33,7 +33,7 @@ lost its workers), the meshes still queued or running get a "stalled" error reco
 retries, and the batch ends.
 
 Threads: meshes of 20,000+ vertices run ICE's parallel phase with a fixed number of regions
-(--regions, default 16), so their result does not depend on where or on how many threads they run;
+(--regions, ice.coarsen's default 16), so their result does not depend on where or on how many threads they run;
 each gets --mesh-threads threads (default: the number of local workers) for its coarsening, so the
 last large meshes use the cores that workers with nothing left to do leave idle (reading and
 validating a mesh and building its triangulation run their short passes on the machine's cores,
@@ -68,6 +68,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse
 
+from ._ice import DEFAULT_COARSENING_REGIONS
+
 MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
 POINT_SET_EXTENSIONS = (".xyz", ".pwn")  # in the manifest with nonmanifold="tufted" only
 RECORD_VERSION = 1
@@ -76,13 +78,12 @@ RECORD_VERSION = 1
 COARSEN_OPTIONS = ("n", "ratio", "max_error", "method", "use", "area_weight", "normalize_curvature",
                    "remove_boundary", "regions", "qem_geometry", "refine_angle", "refine_budget", "nonmanifold")
 # A record's hash is of the options with these filled in, so {"ratio": 0.05} and {"ratio": 0.05,
-# "method": "ice"} are the same run. All but one are what ice.coarsen does when an option is not
-# given; "regions" is the batch's own: meshes of 20,000+ vertices are coarsened by ICE's parallel
-# phase with 16 regions (ice.coarsen's default 0 would tie the result to the thread count), so a
-# mesh's result is the same whichever worker, machine or number of threads runs it, and a large
-# mesh can take cores that other workers leave idle. regions=1: the exact serial greedy order.
-COARSEN_DEFAULTS = {"method": "ice", "use": "poisson_heat", "remove_boundary": True, "regions": 16,
-                    "qem_geometry": "extrinsic", "refine_budget": 1.5}
+# "method": "ice"} are the same run: what ice.coarsen does when an option is not given. Its regions
+# (0 stands for DEFAULT_COARSENING_REGIONS; 1: the exact serial greedy order) fix a mesh's result
+# whichever worker, machine or number of threads runs it, so a large mesh can take cores that other
+# workers leave idle.
+COARSEN_DEFAULTS = {"method": "ice", "use": "poisson_heat", "remove_boundary": True,
+                    "regions": DEFAULT_COARSENING_REGIONS, "qem_geometry": "extrinsic", "refine_budget": 1.5}
 # How a local cluster can start its worker processes (Python's multiprocessing start methods).
 START_METHODS = ("spawn", "forkserver")
 # forkserver where the platform has it (Linux, macOS): the shared meshes at 5 % as whole ice-batch
@@ -170,9 +171,8 @@ def canonical_options(coarsen: dict) -> dict:
         raise ValueError(f"nonmanifold must be 'refuse' or 'tufted', not {options['nonmanifold']!r}")
     if options.get("nonmanifold") == "refuse":  # the default, left out (so records made before it stay valid)
         del options["nonmanifold"]
-    if options["regions"] == 0:
-        raise ValueError("regions=0 (4 x threads) would make a mesh's result depend on the threads the batch gives it; "
-                         "give a fixed count (default 16; 1 = the exact serial greedy order)")
+    if options["regions"] == 0:  # ice.coarsen's own default, spelled out: the same run, the same hash
+        options["regions"] = DEFAULT_COARSENING_REGIONS
     return options
 
 

@@ -895,6 +895,8 @@ fem::MultigridOptions multigrid_options(double tolerance, int max_iterations, co
 
 PYBIND11_MODULE(_ice, m) {
   m.doc() = "ICE: intrinsic coarsening and coarse-proxy PDE solvers (C++ core; see the ice package)";
+  // What coarsen(regions=0) runs with (ice::kDefaultCoarseningRegions): ice-batch hashes it.
+  m.attr("DEFAULT_COARSENING_REGIONS") = ice::kDefaultCoarseningRegions;
 
   // ice.MeshError: the library's MeshError, message as the tools print it, with .kind and .path.
   static py::handle mesh_error = py::exception<ice::MeshError>(m, "MeshError", PyExc_RuntimeError).release();
@@ -1107,7 +1109,7 @@ ice.load_coarse_mesh reads it back). An existing file is replaced only with over
   m.def("coarsen", &coarsen, py::arg("V"), py::arg("F"), py::kw_only(), py::arg("n") = py::none(),
         py::arg("ratio") = py::none(), py::arg("min_vertices") = py::none(), py::arg("max_error") = py::none(), py::arg("method") = "ice",
         py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(), py::arg("normalize_curvature") = py::none(),
-        py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1,
+        py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 0,
         py::arg("regions") = 0, py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
         py::arg("keep_map") = true, py::arg("locality_numbering") = true, py::arg("trace") = false, py::arg("progress") = py::none(),
         py::arg("nonmanifold") = "refuse",
@@ -1123,11 +1125,9 @@ with n or ratio, whichever stops first).
 method: "ice" (intrinsic vertex removals) or "qem" (the QEM baseline; qem_geometry "extrinsic" or
 "intrinsic_delaunay"). use: "poisson_heat" or "geodesic" picks the measured metric defaults
 (area_weight, normalize_curvature), which the two arguments override. locked: vertices never
-removed (e.g. Dirichlet vertices). threads: coarsening threads (1: the exact serial greedy order;
-k > 1: 4k regions coarsened in parallel on meshes of 20,000+ vertices, then a serial pass).
-regions: R >= 2 runs that parallel phase with R regions on `threads` threads, one included, with a
-result that depends on R only (bit-identical for any thread count); 1: the serial order; 0: 4 x
-threads.
+removed (e.g. Dirichlet vertices). regions: meshes of 20,000+ vertices are coarsened in R regions
+in parallel, then a serial pass (0: R = 16; 1: the exact serial greedy order); the result depends
+on R, never on threads: coarsening threads (0: one per core), which only change the time.
 refine_angle: intrinsic Delaunay refinement to this smallest angle (degrees), at most refine_budget
 times the vertices. progress: called with a dict (vertices, target, removed, last_cost) every 1000
 removals; returning False stops early (summary["stop_reason"] == "cancelled"), an exception in it or
@@ -1140,7 +1140,7 @@ ProxyGeodesicSolver.from_coarse(..., lengths='traced'). Raises ice.MeshError nam
         py::arg("cache") = py::none(), py::arg("n") = py::none(), py::arg("ratio") = py::none(),
         py::arg("min_vertices") = py::none(), py::arg("max_error") = py::none(), py::arg("method") = "ice",
         py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(), py::arg("normalize_curvature") = py::none(),
-        py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 1, py::arg("regions") = 0,
+        py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 0, py::arg("regions") = 0,
         py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
         py::arg("locality_numbering") = true, py::arg("nonmanifold") = "refuse",
         R"doc(Coarsens (V, F) and builds its Proxy in one step, through the store of set-up proxies: (CoarseSpace, Proxy).

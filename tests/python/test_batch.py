@@ -102,9 +102,9 @@ def test_rerun_skips_and_changed_option_redoes(dataset, tmp_path):
 
 
 def test_large_mesh_result_does_not_depend_on_workers_or_threads(project_mesh, tmp_path):
-    """A mesh of 20,000+ vertices runs ICE's parallel phase with the batch's fixed region count: one
-    worker (one thread per mesh) and two workers (two threads per mesh) give the same result to the
-    bit, which is ice.coarsen's with regions=16 on one thread."""
+    """A mesh of 20,000+ vertices runs ICE's parallel phase with a fixed region count: one worker (one
+    thread per mesh) and two workers (two threads per mesh) give the same result to the bit, which is
+    ice.coarsen's by default, on any number of threads."""
     V, F = ice.loop_subdivide(*ice.load_mesh(project_mesh("spot.obj")), 2)  # 46,850 vertices
     folder = tmp_path / "in"
     folder.mkdir()
@@ -119,18 +119,20 @@ def test_large_mesh_result_does_not_depend_on_workers_or_threads(project_mesh, t
         results[workers, method] = batch.load_result(out, "big.ply")
     assert len({result["record"]["hash"] for result in results.values()}) == 1  # the threads are not an option
     V, F = ice.load_mesh(folder / "big.ply")
-    direct = ice.coarsen(V, F, ratio=0.05, regions=16)
+    direct = ice.coarsen(V, F, ratio=0.05)  # the library's default regions, on this machine's threads
     assert direct.summary["parallel_removed"] > direct.summary["removed"] // 2
     for result in results.values():
         assert abs(result["P"] - direct.P).max() == 0
         assert np.array_equal(result["coarse"].lengths, direct.lengths)
         assert np.array_equal(result["map_face"], direct.map[0])
-    # the exact serial order is one region; 0 (4 x threads) would tie the result to the threads
+    assert np.array_equal(ice.coarsen(V, F, ratio=0.05, regions=ice.DEFAULT_COARSENING_REGIONS, threads=1).lengths,
+                          direct.lengths)
+    # the exact serial order is one region; 0 is the default count spelled out: the same run and hash
     serial = batch.run(str(folder), tmp_path / "serial", options(ratio=0.05, regions=1))
     assert serial.records[0]["coarse_vertices"] == direct.n_vertices
     assert not np.array_equal(batch.load_result(tmp_path / "serial", "big.ply")["coarse"].lengths, direct.lengths)
-    with pytest.raises(ValueError, match="regions=0"):
-        batch.run(str(folder), tmp_path / "bad", options(ratio=0.05, regions=0))
+    zero = batch.run(str(folder), tmp_path / "zero", options(ratio=0.05, regions=0))
+    assert zero.records[0]["hash"] == results[1, "spawn"]["record"]["hash"]
     with pytest.raises(ValueError, match="mesh_threads"):
         batch.run(str(folder), tmp_path / "bad", options(ratio=0.05, threads=2))
     with pytest.raises(ValueError, match="start method"):

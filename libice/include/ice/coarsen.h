@@ -49,32 +49,33 @@ struct CoarsenOptions {
   /// calling thread.
   std::function<bool(const CoarsenProgress&)> progress;
   Index progress_interval = 1000;
-  /// Threads (1: serial, the exact greedy order; 0: one per hardware thread). With k > 1 and at
-  /// least `parallel_min_vertices` live vertices, the mesh is first cut into 4k compact regions (or `regions`)
-  /// (ranges of a breadth-first order) and the threads run the greedy order inside the regions,
-  /// never removing a vertex with a neighbour in another region nor flipping an edge across two,
-  /// in rounds with a common cost threshold (growing 1.4x per round, so the regions advance in
+  /// Regions of the parallel phase, in [0, 254] (std::invalid_argument otherwise). 0 (the default):
+  /// kDefaultCoarseningRegions. 1: no parallel phase, the exact serial greedy order. R ≥ 2: on a
+  /// mesh of at least `parallel_min_vertices` live vertices, the mesh is first cut into R compact
+  /// regions (ranges of a breadth-first order) and the threads run the greedy order inside the
+  /// regions, never removing a vertex with a neighbour in another region nor flipping an edge across
+  /// two, in rounds with a common cost threshold (growing 1.4x per round, so the regions advance in
   /// nearly the global cost order), down to an intermediate size that leaves max(target, 1/32 of
   /// the removals), plus the vertices the regions cannot remove (boundary, locked, along the last
   /// seams), to a final serial greedy pass over the whole mesh (which first restores the Delaunay
-  /// property along the region seams). With 4+ regions that phase runs in three stages:
-  /// the regions, then pairs of neighbouring regions across every other seam, then across the
-  /// others, so the seams' vertices (which a region never removes) are coarsened in parallel too
-  /// instead of by the serial pass, which then has much less to do (docs/measurements.md,
-  /// "Parallel coarsening: seam stages"). In that phase
-  /// `progress` is called once per round.
-  /// The result is deterministic for a given region count (`regions`), but differs from the
-  /// serial one.
-  int threads = 1;
-  /// Regions of the parallel phase, in [0, 254] (std::invalid_argument otherwise). 0: 4 × threads,
-  /// and no parallel phase with one thread. 1: no parallel phase. R ≥ 2: the parallel phase with R
-  /// regions on however many threads there are, one included: the result depends on R, never on
-  /// `threads` (bit-identical for 1, 2, … threads), so a caller can fix R for reproducible output
-  /// and choose the threads by the cores free at the time (ice-batch gives large meshes the cores
-  /// its other workers leave idle).
+  /// property along the region seams). With 4+ regions that phase runs in three stages: the
+  /// regions, then pairs of neighbouring regions across every other seam, then across the others,
+  /// so the seams' vertices (which a region never removes) are coarsened in parallel too. In that
+  /// phase `progress` is called once per round.
+  /// The result depends on the region count and the mesh, never on `threads` (bit-identical for 1,
+  /// 2, … threads, so on any machine), and differs from the serial order's within its noise
+  /// (docs/measurements.md, "The parallel phase by default").
   int regions = 0;
+  /// Threads of the parallel phase (0, the default: one per hardware thread; k ≥ 1: at most k).
+  /// They change how long coarsening takes, never its result.
+  int threads = 0;
   Index parallel_min_vertices = 20000;
 };
+
+/// The region count `regions = 0` stands for. Fixed, so that a result does not depend on the machine
+/// that made it; 16 keeps four regions per thread (a thread that finishes early takes another) on up
+/// to four threads. Give more regions for more threads.
+inline constexpr int kDefaultCoarseningRegions = 16;
 
 enum class StopReason { TargetReached, ErrorThreshold, NothingRemovable, Cancelled };
 const char* to_string(StopReason reason);
@@ -111,9 +112,9 @@ struct CoarsenResult {
 /// bit-identical output.
 CoarsenResult coarsen(IntrinsicTriangulation& T, const CoarsenOptions& options);
 
-/// The regions coarsen() cuts the mesh into for its parallel phase under `options` (`regions`, or
-/// 4 per thread with `threads` resolved on this machine, at most 254; 1: serial). Its result depends
-/// on this count, never on the thread count itself.
+/// The regions coarsen() cuts a mesh of at least `options.parallel_min_vertices` live vertices into
+/// for its parallel phase (`regions`, or kDefaultCoarseningRegions for 0; 1: serial). Its result
+/// depends on this count, never on the thread count.
 int coarsening_regions(const CoarsenOptions& options);
 
 

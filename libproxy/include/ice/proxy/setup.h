@@ -97,8 +97,8 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
                              std::optional<CoarseSpace> coarse = std::nullopt);
 
 /// The key build_proxy_setup stores a setup under: the mesh's positions and faces, the coarsening
-/// options (with its locked vertices, and its thread count resolved to the regions the result
-/// depends on), the fine geometry, the operators, the resolved prolongation and the format version.
+/// options (with its locked vertices and the region count the result depends on; never the thread
+/// count), the fine geometry, the operators, the resolved prolongation and the format version.
 StoreKey proxy_setup_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening, FineGeometry geometry,
                          fem::CoarseOperatorKind kind, fem::ProlongationKind prolongation);
 
