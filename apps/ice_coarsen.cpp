@@ -295,7 +295,8 @@ int main(int argc, char** argv) {
                            {"area_weight", options.area_weight},
                            {"normalize_curvature", options.normalize_curvature},
                            {"coarsen_threads", options.threads},
-                           {"coarsen_regions", ice::coarsening_regions(options)},
+                           // the regions that ran: 1 when no parallel phase did (small mesh, target, QEM)
+                           {"coarsen_regions", summary.ice && summary.ice->parallel_removed > 0 ? ice::coarsening_regions(options) : 1},
                            {"keep_boundary", keep_boundary},
                            {"locked_vertices", options.locked_vertices.size()}};
       report["coarse"] = ice::proxy::coarsen_json(summary);

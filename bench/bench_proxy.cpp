@@ -246,6 +246,7 @@ void BM_ProxySetupPhases(benchmark::State& state) {
     CoarseSpaceOptions options;
     options.coarsen.target_ratio = 0.01;
     options.coarsen.threads = threads;
+    options.coarsen.regions = threads == 1 ? 1 : 0;  // one thread: the serial greedy order
     FineMesh fine;
     CoarseSpace space = build_coarse_space(m, options, &fine);
     const double coarsen = seconds_since(t);

@@ -445,6 +445,7 @@ Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const HierarchyOpti
     co.target_vertices = std::max<Index>(static_cast<Index>(std::ceil(options.ratio * n)), options.coarsest_vertices);
     co.area_weight = options.area_weight;
     co.remove_boundary = options.remove_boundary;
+    co.threads = options.threads;  // the caller's (a greedy level below a quarter runs the parallel phase)
     if (!options.locked_vertices.empty()) {
       std::vector<Index> fine_to_t(static_cast<std::size_t>(n0), kInvalid);
       for (std::size_t i = 0; i < t_to_fine.size(); ++i) fine_to_t[static_cast<std::size_t>(t_to_fine[i])] = static_cast<Index>(i);

@@ -148,7 +148,7 @@ constexpr int kValidationTasks = 16;
 
 int validation_threads(int faces) {
   if (faces < kParallelValidationFaces) return 1;
-  return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 2u, 8u));
+  return std::clamp(detail::available_threads(), 2, 8);
 }
 
 // What the stages share: the soup and what earlier stages found about it.

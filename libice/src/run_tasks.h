@@ -1,8 +1,13 @@
 #pragma once
 // Internal to libice: a small fork–join for the coarsener's regions and the triangulation's
 // per-vertex passes.
+#ifdef __linux__
+#include <sched.h>
+#endif
+
 #include <algorithm>
 #include <atomic>
+#include <cstdlib>
 #include <exception>
 #include <system_error>
 #include <thread>
@@ -42,14 +47,33 @@ void run_tasks(int threads, int tasks, F&& f) {
 
 // The threads of a pass over `size` elements: the hardware's (at most 8) from `parallel_from`
 // elements on, else 1 (below that, starting threads costs more than it saves).
-inline int threads_for(std::size_t size, std::size_t parallel_from) {
-  if (size < parallel_from) return 1;
-  return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
+// The threads a "0: all cores" option runs on: the hardware threads this process may run on (its CPU
+// affinity where the system says: taskset, a batch scheduler's or a container's cpuset; else
+// std::thread's count), at most OMP_NUM_THREADS when that is set — the one knob that also bounds
+// libfem's OpenMP loops and the BLAS, so a caller that runs several processes side by side sets one
+// variable; at least 1.
+inline int available_threads() {
+  int count = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+#ifdef __linux__
+  cpu_set_t set;
+  if (sched_getaffinity(0, sizeof(set), &set) == 0) count = std::max(1, CPU_COUNT(&set));
+#endif
+  if (const char* omp = std::getenv("OMP_NUM_THREADS")) {
+    char* end = nullptr;
+    const long limit = std::strtol(omp, &end, 10);  // OpenMP's list form "4,2": its first level
+    if (end != omp && limit > 0) count = static_cast<int>(std::min<long>(count, limit));
+  }
+  return count;
 }
 
-// The threads an option asks for: `requested`, or one per hardware thread for 0; at most 64.
+inline int threads_for(std::size_t size, std::size_t parallel_from) {
+  if (size < parallel_from) return 1;
+  return std::clamp(available_threads(), 1, 8);
+}
+
+// The threads an option asks for: `requested`, or one per available hardware thread for 0; at most 64.
 inline int requested_threads(int requested) {
-  return std::min(requested > 0 ? requested : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), 64);
+  return std::min(requested > 0 ? requested : available_threads(), 64);
 }
 
 // How many contiguous ranges run_ranges cuts [0, count) into on `threads` threads: 4 per thread (so

@@ -7,6 +7,7 @@ import numpy.typing as npt
 import scipy.sparse
 
 __version__: str
+DEFAULT_COARSENING_REGIONS: int  # what coarsen(regions=0) runs with on large meshes
 
 Path = str | PathLike[str]
 FloatArray = npt.NDArray[np.float64]
@@ -98,7 +99,7 @@ def coarsen(V: ArrayLike, F: ArrayLike, *, n: int | None = None, ratio: float | 
             min_vertices: int | None = None, max_error: float | None = None, method: Literal["ice", "qem"] = "ice",
             use: Literal["poisson_heat", "geodesic"] = "poisson_heat", area_weight: float | None = None,
             normalize_curvature: bool | None = None, locked: Indices | None = None, remove_boundary: bool = True,
-            threads: int = 1, regions: int = 0, qem_geometry: Literal["extrinsic", "intrinsic_delaunay"] = "extrinsic",
+            threads: int = 0, regions: int = 0, qem_geometry: Literal["extrinsic", "intrinsic_delaunay"] = "extrinsic",
             refine_angle: float | None = None, refine_budget: float = 1.5, keep_map: bool = True,
             locality_numbering: bool = True, trace: bool = False,
             progress: Callable[[dict[str, Any]], bool | None] | None = None,

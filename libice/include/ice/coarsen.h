@@ -66,8 +66,9 @@ struct CoarsenOptions {
   /// 2, … threads, so on any machine), and differs from the serial order's within its noise
   /// (docs/measurements.md, "The parallel phase by default").
   int regions = 0;
-  /// Threads of the parallel phase (0, the default: one per hardware thread; k ≥ 1: at most k).
-  /// They change how long coarsening takes, never its result.
+  /// Threads of the parallel phase (0, the default: one per hardware thread the process may run on,
+  /// at most OMP_NUM_THREADS when that is set; k ≥ 1: at most k). They change how long coarsening
+  /// takes, never its result.
   int threads = 0;
   Index parallel_min_vertices = 20000;
 };
