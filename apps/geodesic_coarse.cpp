@@ -29,6 +29,7 @@
 #include <limits>
 #include <optional>
 #include <random>
+#include <string>
 #include <utility>
 
 #include "app_common.h"
@@ -37,9 +38,22 @@
 #include "fem/errors.h"
 #include "fem/problems.h"
 #include "ice/large_array.h"
+#include "ice/proxy/geodesics.h"
 #include "ice/scalar_field_io.h"
+#include "ice/tufted_cover.h"
 
 namespace {
+
+// A mesh read with --nonmanifold tufted that needs its cover is solved by the coarse heat method
+// only (ice::proxy::require_no_marching_on_cover says why): a usage error naming the file.
+void refuse_marching_on_cover(const app::PdeOptions& opt, const ice::TriangleMesh& mesh, bool marching, const std::string& what) {
+  if (!marching || opt.nonmanifold != ice::NonmanifoldInput::tufted_cover) return;
+  try {
+    ice::proxy::require_no_marching_on_cover(ice::needs_tufted_cover(mesh), what);
+  } catch (const std::invalid_argument& e) {
+    throw app::AppError(app::kUsage, opt.mesh + ": " + e.what() + " (--coarse-distances heat with --source)");
+  }
+}
 
 const std::string kTool = "geodesic-coarse";
 
@@ -111,8 +125,9 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
 
   // ---- load
   app::Stopwatch clock;
-  const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+  const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
   const ice::TriangleMesh& mesh = loaded.mesh;
+  refuse_marching_on_cover(opt, mesh, true, "the distance oracle (--all-pairs, --pairs, --sample)");
   const long long n = mesh.V.rows();
   const app::FileVertexMap vertices(loaded);
   std::vector<std::array<ice::Index, 2>> pairs;
@@ -352,6 +367,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   opt.target.use_defaults_for(ice::ProxyUse::geodesic);  // the metric measured best for geodesics
   opt.add_to(cli, "'distance', 'reference', 'error'");
+  opt.add_nonmanifold_option(cli);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&]() -> int {
@@ -394,8 +410,9 @@ int main(int argc, char** argv) {
 
     // ---- load
     app::Stopwatch clock;
-    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
     const ice::TriangleMesh& mesh = loaded.mesh;
+    refuse_marching_on_cover(opt, mesh, oracle.method == fem::CoarseDistanceMethod::marching, "coarse marching");
     const long long n = mesh.V.rows();
     std::vector<int> sources;
     const app::FileVertexMap vertices(loaded);
@@ -459,7 +476,7 @@ int main(int argc, char** argv) {
     const ice::CoarseTracing* traced = tracing && (!opt.output.empty() || !opt.html.empty()) ? &*tracing : nullptr;
     app::write_result_fields(opt, mesh, "distance", distance, reference, {}, traced);
     app::write_result_page(opt, mesh, "geodesic-coarse: " + std::filesystem::path(opt.mesh).filename().string(), "geodesic",
-                           "distance", distance, reference, pde.coarse, traced, error_json);
+                           "distance", distance, reference, pde.coarse, traced, error_json, loaded.point_cloud);
     run.write = clock.lap();
     nlohmann::json report = run.report();
     if (traced) report["trace"] = {{"edges", traced->edges.size()}, {"traced", traced->traced}};

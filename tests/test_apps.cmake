@@ -147,7 +147,7 @@ endfunction()
 # solved_on_cover(<input> <vertices> <Poisson bound> <heat bound> args...): poisson-coarse and
 # heat-coarse on <input> with --nonmanifold tufted and args: the report says the tufted cover, the
 # relative L2 errors against the fine robust Laplacian are below the bounds, one row per vertex.
-function(solved_on_cover input vertices poisson_bound heat_bound)
+function(solved_on_cover input vertices poisson_bound heat_bound geodesic_bound)
   run(0 poisson-coarse "${input}" --nonmanifold tufted ${ARGN} --no-cache --solutions "${WORK}/u.npy"
       --report "${WORK}/p.json" --force -q)
   json(cover "${WORK}/p.json" fine_mesh tufted_cover)
@@ -158,6 +158,13 @@ function(solved_on_cover input vertices poisson_bound heat_bound)
   run(0 heat-coarse "${input}" --nonmanifold tufted ${ARGN} --no-cache --report "${WORK}/h.json" --force -q)
   json(err "${WORK}/h.json" error rel_l2)
   check(${err} LESS ${heat_bound} "heat on the cover: relative L2 error")
+  # Geodesics by the heat method, against the fine heat method on the cover; marching says it cannot.
+  run(0 geodesic-coarse "${input}" --nonmanifold tufted ${ARGN} --coarse-distances heat --source 0
+      --report "${WORK}/g.json" --force -q)
+  json(err "${WORK}/g.json" error rel_l2)
+  check(${err} LESS ${geodesic_bound} "geodesics on the cover by the heat method: relative L2 error")
+  expect_error(4 "coarse marching does not take a tufted cover.*--coarse-distances heat" geodesic-coarse "${input}"
+               --nonmanifold tufted ${ARGN} --source 0 -q)
 endfunction()
 
 # view_test(<page>): the page opened in headless Chromium by tests/browser/view_test.mjs: no errors
@@ -1266,11 +1273,13 @@ elseif(CASE STREQUAL "spectral_spot")
 
 elseif(CASE STREQUAL "nonmanifold_cover")
   # A mesh with non-manifold edges and inconsistent orientation: refused, naming the option that takes
-  # it; with --nonmanifold tufted, Poisson, heat and the eigenbasis are solved on its tufted cover,
-  # near the fine robust Laplacian, one value per vertex of the file; multigrid says it cannot.
+  # it; with --nonmanifold tufted, Poisson, heat, geodesics (heat method) and the eigenbasis are solved
+  # on its tufted cover, near the fine robust Laplacian, one value per vertex of the file; multigrid,
+  # coarse marching and the oracle say they cannot.
   project_mesh(mesh triple_vierbein.obj)
   expect_error(2 "non-manifold edges.*--nonmanifold tufted" poisson-coarse "${mesh}" --repair --ratio 0.2 -q)
-  solved_on_cover("${mesh}" 75 0.1 0.1 --repair --ratio 0.3)
+  solved_on_cover("${mesh}" 75 0.1 0.1 0.1 --repair --ratio 0.3)
+  expect_error(4 "distance oracle" geodesic-coarse "${mesh}" --repair --nonmanifold tufted --all-pairs --ratio 0.3 -q)
   run(0 spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4 -k 6 --no-cache --report "${WORK}/s.json" --force -q)
   json(zero "${WORK}/s.json" error zero_modes)
   check(${zero} EQUAL 1 "zero modes of the cover's robust Laplacian (one component)")
@@ -1287,7 +1296,7 @@ elseif(CASE STREQUAL "point_cloud")
   # point, near the fine robust Laplacian; a repeated point refused, then merged by --repair.
   project_mesh(kitten kitten.xyz)
   expect_error(2 "point cloud of 5210 points.*--nonmanifold tufted" poisson-coarse "${kitten}" -q)
-  solved_on_cover("${kitten}" 5210 0.02 0.05 --ratio 0.1)
+  solved_on_cover("${kitten}" 5210 0.02 0.05 0.1 --ratio 0.1)
   file(STRINGS "${kitten}" _lines)
   list(GET _lines 0 _first)
   file(READ "${kitten}" _points)

@@ -17,6 +17,7 @@
 #include "ice/mesh_io.h"
 #include "ice/mesh_validation.h"
 #include "ice/point_cloud.h"
+#include "ice/proxy/geodesics.h"
 #include "ice/proxy/poisson.h"
 #include "ice/tufted_cover.h"
 #include "test_support.h"
@@ -167,6 +168,41 @@ TEST_CASE("point cloud: Poisson through the proxy near the fine robust Laplacian
   const double sphere_error = std::sqrt((reference + exact).dot(M * (reference + exact)) / exact.dot(M * exact));
   INFO("fine against the smooth sphere " << sphere_error);
   REQUIRE(std::min((reference - exact).norm(), (reference + exact).norm()) / exact.norm() < 0.05);
+}
+
+TEST_CASE("point cloud: geodesics by the heat method through the proxy near the fine heat method's and the sphere's",
+          "[cloud][proxy][geodesic]") {
+  const ice::TriangleMesh mesh{sphere_points(3000), ice::point_cloud_triangles(sphere_points(3000))};
+  ice::proxy::GeodesicOptions options;
+  options.coarsening.coarsen.target_ratio = 0.1;
+  options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  REQUIRE_THROWS_AS(ice::proxy::GeodesicSolver(mesh, options), std::invalid_argument);  // marching: not on a cover
+  ice::proxy::OracleOptions oracle;
+  oracle.coarsening = options.coarsening;
+  REQUIRE_THROWS_AS(ice::proxy::distance_oracle(mesh, oracle), std::invalid_argument);
+  options.method = fem::CoarseDistanceMethod::heat_method;
+  const ice::proxy::GeodesicSolver solver(mesh, options);
+  REQUIRE(solver.coarse_space().summary.tufted_cover);
+  const Eigen::VectorXd d = solver.distance({0});
+  // The fine heat method on the cover's robust mesh (the same t rule on the fine edges), and the
+  // sphere's great-circle distance from the source.
+  const ice::IntrinsicMesh& fine = solver.proxy()->fine_mesh();
+  const fem::HeatGeodesicSolver fine_solver(fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0));
+  const Eigen::VectorXd reference = fine_solver.distance({0});
+  const fem::SparseMatrix& M = fine_solver.operators().mass;
+  Eigen::VectorXd exact(d.size());
+  for (Eigen::Index i = 0; i < d.size(); ++i)
+    exact(i) = std::acos(std::clamp(mesh.V.row(0).dot(mesh.V.row(i)), -1.0, 1.0));
+  const auto relative = [&M](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    return std::sqrt((a - b).dot(M * (a - b)) / b.dot(M * b));
+  };
+  INFO("proxy against the fine heat method " << relative(d, reference) << ", against the sphere " << relative(d, exact)
+                                             << "; fine against the sphere " << relative(reference, exact));
+  REQUIRE(d.allFinite());
+  REQUIRE(d(0) == Approx(0.0).margin(1e-12));
+  REQUIRE(relative(d, reference) < 0.05);
+  REQUIRE(relative(d, exact) < 0.05);
+  REQUIRE(relative(reference, exact) < 0.05);
 }
 
 TEST_CASE("point cloud: point files are read, refused without the option, merged with repair", "[cloud][io]") {

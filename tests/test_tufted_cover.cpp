@@ -20,6 +20,7 @@
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "ice/mesh_validation.h"
+#include "ice/proxy/geodesics.h"
 #include "ice/proxy/poisson.h"
 #include "ice/tufted_cover.h"
 #include "test_support.h"
@@ -294,6 +295,36 @@ TEST_CASE("tufted cover through the recipes: a manifold mesh to the same bits, a
     REQUIRE(error < 0.1);
     if (dirichlet) REQUIRE(u(40) == 0.0);
   }
+}
+
+TEST_CASE("tufted cover: geodesics by the heat method near the fine heat method on the cover; marching refused",
+          "[cover][proxy][geodesic]") {
+  const ice::TriangleMesh mesh = load_keeping_sheets("triple_vierbein.obj");
+  ice::proxy::GeodesicOptions options;
+  options.coarsening.coarsen.target_ratio = 0.5;
+  options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  REQUIRE_THROWS_WITH(ice::proxy::GeodesicSolver(mesh, options), Catch::Contains("heat method"));
+  options.method = fem::CoarseDistanceMethod::heat_method;
+  const ice::proxy::GeodesicSolver solver(mesh, options);
+  const ice::IntrinsicMesh& fine = solver.proxy()->fine_mesh();
+  const fem::HeatGeodesicSolver fine_solver(fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0));
+  const fem::SparseMatrix& M = fine_solver.operators().mass;
+  for (const Index source : {Index{0}, Index{40}}) {
+    INFO("source " << source);
+    const Eigen::VectorXd d = solver.distance({source});
+    const Eigen::VectorXd reference = fine_solver.distance({source});
+    const double error = std::sqrt((d - reference).dot(M * (d - reference)) / reference.dot(M * reference));
+    INFO("relative L2 error against the fine heat method " << error);
+    REQUIRE(d.allFinite());
+    REQUIRE(d(source) == Approx(0.0).margin(1e-12));
+    REQUIRE(error < 0.1);
+  }
+  // A manifold mesh: the option changes nothing, marching included.
+  const ice::TriangleMesh spot = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+  ice::proxy::GeodesicOptions manifold;
+  const Eigen::VectorXd plain = ice::proxy::geodesic_distance(spot, {0}, manifold);
+  manifold.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  REQUIRE(ice::proxy::geodesic_distance(spot, {0}, manifold) == plain);
 }
 
 TEST_CASE("tufted cover: mirror sheets are coarsened once, a vertex's coarse copies are one coarse vertex", "[cover][proxy]") {

@@ -1,7 +1,10 @@
 #include "ice/proxy/geodesics.h"
 
 #include <stdexcept>
+#include <string>
 #include <utility>
+
+#include "ice/tufted_cover.h"
 
 namespace ice::proxy {
 
@@ -11,6 +14,12 @@ namespace {
 void require_marching_for_traced(CoarseLengths lengths, bool marching) {
   if (lengths == CoarseLengths::traced && !marching)
     throw std::invalid_argument("traced coarse lengths are for coarse marching, not the heat method");
+}
+
+/// Whether the recipe runs on a tufted cover: `coarse`'s, else the options' decision for `mesh`.
+bool on_cover(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening, const std::optional<CoarseSpace>& coarse) {
+  return coarse ? coarse->summary.tufted_cover
+                : coarsening.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
 }
 
 /// The coarse space of a marching recipe: `coarse` if given, else coarsened keeping the method's
@@ -33,12 +42,19 @@ bool trace(CoarseLengths choice, const CoarseSpace& space, const std::vector<Coa
 
 }  // namespace
 
+void require_no_marching_on_cover(bool tufted_cover, const std::string& what) {
+  if (tufted_cover)
+    throw std::invalid_argument(what + " does not take a tufted cover yet (a mesh that is not an oriented manifold, or a "
+                                "point cloud): use the heat method");
+}
+
 GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options, std::optional<CoarseSpace> coarse,
                                const std::vector<CoarsePoint>* map)
     : options_(std::move(options)) {
   const bool marching = options_.method == fem::CoarseDistanceMethod::marching;
   require_marching_for_traced(options_.lengths, marching);
   if (marching) {
+    require_no_marching_on_cover(on_cover(mesh, options_.coarsening, coarse), "coarse marching");
     setup_.coarse = marching_space(mesh, std::move(coarse), options_.coarsening, options_.lengths, true);
     traced_ = trace(options_.lengths, setup_.coarse, map, true);
     lengths_ = marching_lengths(mesh, setup_.coarse, traced_, options_.curvature_correction, map,
@@ -71,6 +87,7 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
                                     const std::vector<CoarsePoint>* map) {
   const bool marching = options.oracle.method == fem::CoarseDistanceMethod::marching;
   require_marching_for_traced(options.lengths, marching);
+  require_no_marching_on_cover(on_cover(mesh, options.coarsening, coarse), "the distance oracle");
   CoarseSpaceOptions coarsening = options.coarsening;
   coarsening.keep_method_state = true;  // the oracle's fine points are the fine-to-coarse map
   const CoarseSpace space = marching_space(mesh, std::move(coarse), std::move(coarsening), options.lengths, marching);

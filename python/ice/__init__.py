@@ -54,7 +54,7 @@ import os
 import numpy as np
 
 __all__ = [
-    "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
+    "DEFAULT_COARSENING_REGIONS", "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
     "boundary_vertices", "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
     "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_hierarchy", "load_mesh", "load_setup", "loop_subdivide", "mass_matrix",
@@ -271,8 +271,9 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     1:4 that many times (geodesic-coarse --marching-subdivisions). curvature_correction: with marching,
     edge lengths scaled for the curvature each coarse face flattens (None: for ICE coarse spaces, as
     geodesic-coarse --curvature-correction auto). On a mesh of several components
-    the distance is +inf on the components without a source. For many sources or pairs see
-    ProxyGeodesicSolver and DistanceOracle.
+    the distance is +inf on the components without a source. With nonmanifold="tufted" (a mesh
+    that is not an oriented manifold, or a point cloud's faces) the heat method only. For many
+    sources or pairs see ProxyGeodesicSolver and DistanceOracle.
     """
     if method not in ("marching", "heat"):
         raise ValueError(f"method must be 'marching' or 'heat', not {method!r}")

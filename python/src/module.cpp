@@ -39,6 +39,7 @@
 #include "ice/hierarchy.h"
 #include "fem/topology.h"
 #include "ice/proxy/eigen.h"
+#include "ice/proxy/geodesics.h"
 #include "ice/proxy/multigrid.h"
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_generators.h"
@@ -499,7 +500,7 @@ py::object prolongation(const py::object& self) {
 void refuse_cover(bool tufted_cover, const std::string& what) {
   if (tufted_cover)
     throw py::value_error(what + " does not take a tufted cover's coarse space yet (nonmanifold='tufted': Poisson, "
-                                 "heat and the eigenbasis do)");
+                                 "heat, the eigenbasis and geodesics by the heat method do)");
 }
 
 void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& file_path, bool overwrite, const std::string& comment) {
@@ -1125,12 +1126,12 @@ with n or ratio, whichever stops first).
 method: "ice" (intrinsic vertex removals) or "qem" (the QEM baseline; qem_geometry "extrinsic" or
 "intrinsic_delaunay"). use: "poisson_heat" or "geodesic" picks the measured metric defaults
 (area_weight, normalize_curvature), which the two arguments override. locked: vertices never
-removed (e.g. Dirichlet vertices). regions: meshes of 20,000+ vertices are coarsened in R regions
-in parallel, then a serial pass (0: R = 16; 1: the exact serial greedy order); the result depends
+removed (e.g. Dirichlet vertices). regions: meshes of 20,000+ vertices coarsened below a quarter of
+their vertices are coarsened in R regions in parallel, then a serial pass (0: R = 16; 1: the exact serial greedy order); the result depends
 on R, never on threads: coarsening threads (0: one per core), which only change the time.
 refine_angle: intrinsic Delaunay refinement to this smallest angle (degrees), at most refine_budget
 times the vertices. progress: called with a dict (vertices, target, removed, last_cost) every 1000
-removals; returning False stops early (summary["stop_reason"] == "cancelled"), an exception in it or
+removals (once per round of the parallel phase); returning False stops early (summary["stop_reason"] == "cancelled"), an exception in it or
 Ctrl-C stops and is raised. keep_map: keep the fine-to-coarse map (CoarseSpace.map, DistanceOracle). trace (ICE):
 also trace every coarse edge on the input surface exactly (ice-coarsen --trace: the coarsening's history recorded
 while it runs, ~1 KB per removal until this call returns): CoarseSpace.traced_edges, and the lengths of
@@ -1413,10 +1414,11 @@ coarse spaces, not QEM's (measured: 0.79x ICE's error against exact geodesics ov
 QEM's).)doc")
       .def(py::init([](std::shared_ptr<PyProxy> proxy, const std::string& method, double time_factor, int subdivisions,
                        const py::object& curvature_correction) {
-             refuse_cover(proxy->tufted_cover, "ProxyGeodesicSolver");
              if (!(time_factor > 0)) throw py::value_error("time_factor must be > 0");
              fem::ProxyGeodesicOptions options;
              options.method = coarse_distance_method(method);
+             if (options.method == fem::CoarseDistanceMethod::marching)
+               ice::proxy::require_no_marching_on_cover(proxy->tufted_cover, "ProxyGeodesicSolver(method='marching')");
              options.time_factor = time_factor;
              options.subdivisions = subdivisions;
              options.curvature_correction = curvature_correction_argument(curvature_correction, proxy->method);
@@ -1430,7 +1432,7 @@ QEM's).)doc")
       .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse, const std::string& lengths,
                                     int subdivisions, const py::object& curvature_correction) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
-             refuse_cover(coarse.space.summary.tufted_cover, "ProxyGeodesicSolver");
+             ice::proxy::require_no_marching_on_cover(coarse.space.summary.tufted_cover, "ProxyGeodesicSolver.from_coarse (coarse marching)");
              const bool traced = traced_lengths_argument(lengths, coarse);
              const ice::proxy::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
              auto solver = std::make_unique<PyGeodesicSolver>();

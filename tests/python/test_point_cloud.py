@@ -78,3 +78,15 @@ def test_what_a_cover_does_not_take_yet_is_refused(tmp_path):
         ice.save_setup(tmp_path / "setup.bin", P, F, space, proxy)
     with pytest.raises(ValueError, match="tufted cover"):
         ice.ProxyGeodesicSolver(proxy)
+
+
+def test_point_cloud_geodesics_by_the_heat_method():
+    P = sphere_points(3000)
+    F = ice.point_cloud_triangles(P)
+    d = ice.geodesic_distance(P, F, [0], method="heat", ratio=0.1, nonmanifold="tufted")
+    exact = np.arccos(np.clip(P @ P[0], -1, 1))  # great-circle distance on the unit sphere
+    assert d.shape == (3000,) and np.isfinite(d).all()
+    assert d[0] == pytest.approx(0, abs=1e-12)
+    assert np.linalg.norm(d - exact) / np.linalg.norm(exact) < 0.05
+    with pytest.raises(ValueError, match="heat method"):
+        ice.geodesic_distance(P, F, [0], ratio=0.1, nonmanifold="tufted")  # coarse marching

@@ -6,6 +6,7 @@
 /// with the same defaults: coarse fast marching on the coarse edges traced on the surface,
 /// curvature-corrected, the coarse mesh split once (policies.h).
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -36,8 +37,11 @@ class GeodesicSolver {
   /// Coarsens `mesh` (clean, oriented, manifold) by options.coarsening, or uses `coarse`, a coarse
   /// space of it; traced lengths need its fine-to-coarse map: `map`, or a space built with
   /// keep_method_state (with CoarseLengths::automatic and neither, the coarse mesh's own lengths are
-  /// used). Throws std::invalid_argument on bad options (traced lengths without a way to trace,
-  /// options of the heat method with marching and conversely are simply unused).
+  /// used). With options.coarsening.nonmanifold = tufted_cover a mesh that is not an oriented
+  /// manifold (or a point cloud's faces, ice/point_cloud.h) is solved on its tufted cover, by the
+  /// heat method only. Throws std::invalid_argument on bad options (traced lengths without a way to
+  /// trace, marching on a tufted cover; options of the heat method with marching and conversely are
+  /// simply unused).
   explicit GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options = {}, std::optional<CoarseSpace> coarse = {},
                           const std::vector<CoarsePoint>* map = nullptr);
 
@@ -66,6 +70,12 @@ class GeodesicSolver {
 Eigen::VectorXd geodesic_distance(const TriangleMesh& mesh, const std::vector<Index>& sources,
                                   const GeodesicOptions& options = {});
 
+/// Throws std::invalid_argument naming `what` when `tufted_cover`: coarse marching and the distance
+/// oracle walk the coarse mesh from the input vertices' points on it, and a coarse vertex merged from
+/// several copies of one input vertex has one fan per sheet. Geodesics on a tufted cover are by the
+/// heat method, which needs only P and the cover's operators.
+void require_no_marching_on_cover(bool tufted_cover, const std::string& what);
+
 struct OracleOptions {
   CoarseSpaceOptions coarsening = default_coarsening(ProxyUse::geodesic);
   CoarseLengths lengths = CoarseLengths::automatic;
@@ -77,7 +87,8 @@ struct OracleOptions {
 /// The distance oracle of `mesh` (fem::DistanceOracle: all coarse pairs precomputed, then any two
 /// vertices in O(1)), with the lengths and correction divisor measured for all-pairs marching.
 /// `coarse`/`map` as for GeodesicSolver, except that the oracle always needs the map: a given space
-/// without `map` must have been built with keep_method_state (std::invalid_argument otherwise).
+/// without `map` must have been built with keep_method_state (std::invalid_argument otherwise, and
+/// for a tufted cover).
 fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOptions& options = {},
                                     std::optional<CoarseSpace> coarse = {}, const std::vector<CoarsePoint>* map = nullptr);
 
