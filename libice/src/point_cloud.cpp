@@ -194,41 +194,64 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
   });
 
   // Every distinct triangle once (in the orientation of the lowest point's fan), with the fans that
-  // have it (1 to 3): pairs (vertex set, the triangle as its fan has it) sorted; a fan's triangles
-  // start at its own point, so the lowest point's comes first in a group of equal vertex sets.
-  std::vector<std::pair<std::array<Index, 3>, std::array<Index, 3>>> all;
-  std::size_t total = 0;
-  for (const auto& part : fans) total += part.size();
-  all.reserve(total);
-  for (auto& part : fans) {
-    for (const auto& t : part) {
-      std::array<Index, 3> k = t;
-      std::sort(k.begin(), k.end());
-      all.emplace_back(k, t);
+  // have it (1 to 3): pairs (vertex set, the triangle as its fan has it) in increasing order; a fan's
+  // triangles start at its own point, so the lowest point's comes first in a group of equal vertex
+  // sets. That order by buckets of the lowest vertex (a counting sort), then each short bucket sorted
+  // on the threads: one global sort's order without its serial n log n.
+  using Keyed = std::pair<std::array<Index, 3>, std::array<Index, 3>>;
+  std::vector<std::size_t> bucket(static_cast<std::size_t>(n) + 1, 0);
+  for (const auto& part : fans)
+    for (const auto& t : part) ++bucket[static_cast<std::size_t>(std::min({t[0], t[1], t[2]})) + 1];
+  for (std::size_t v = 0; v < static_cast<std::size_t>(n); ++v) bucket[v + 1] += bucket[v];
+  std::vector<Keyed> all(bucket.back());
+  {
+    std::vector<std::size_t> cursor(bucket.begin(), bucket.end() - 1);
+    for (auto& part : fans) {
+      for (const auto& t : part) {
+        std::array<Index, 3> k = t;
+        std::sort(k.begin(), k.end());
+        all[cursor[static_cast<std::size_t>(k[0])]++] = {k, t};
+      }
+      std::vector<std::array<Index, 3>>().swap(part);
     }
-    std::vector<std::array<Index, 3>>().swap(part);
   }
-  std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
-    return a.first != b.first ? a.first < b.first : a.second[0] < b.second[0];
-  });
   struct Candidate {
     std::array<Index, 3> face;
     int votes;
     double circumradius;
     std::array<bool, 3> in_fan_of;  // corner k's own fan has it
   };
-  std::vector<Candidate> candidates;
-  for (std::size_t first = 0, last; first < all.size(); first = last) {
-    for (last = first + 1; last < all.size() && all[last].first == all[first].first;) ++last;
-    const auto& t = all[first].second;
-    std::array<bool, 3> in_fan_of{false, false, false};
-    for (std::size_t j = first; j < last; ++j)
-      for (int k = 0; k < 3; ++k) in_fan_of[static_cast<std::size_t>(k)] |= all[j].second[0] == t[static_cast<std::size_t>(k)];
-    const Eigen::Vector3d &x = X[static_cast<std::size_t>(t[0])], &y = X[static_cast<std::size_t>(t[1])], &z = X[static_cast<std::size_t>(t[2])];
-    const double a = (y - x).norm(), b = (z - y).norm(), c = (x - z).norm();
-    candidates.push_back({t, static_cast<int>(last - first), a * b * c / (4 * triangle_area(a, b, c)), in_fan_of});
-  }
+  // Per range of lowest vertices (a group of equal vertex sets never spans two), in order.
+  std::vector<std::vector<Candidate>> candidate_parts(static_cast<std::size_t>(detail::range_count(threads, n)));
+  detail::run_numbered_ranges(threads, n, [&](int range, Index begin, Index end) {
+    const std::size_t from = bucket[static_cast<std::size_t>(begin)], to = bucket[static_cast<std::size_t>(end)];
+    for (Index v = begin; v < end; ++v)
+      std::sort(all.begin() + static_cast<std::ptrdiff_t>(bucket[static_cast<std::size_t>(v)]),
+                all.begin() + static_cast<std::ptrdiff_t>(bucket[static_cast<std::size_t>(v) + 1]),
+                [](const Keyed& a, const Keyed& b) { return a.first != b.first ? a.first < b.first : a.second[0] < b.second[0]; });
+    auto& out = candidate_parts[static_cast<std::size_t>(range)];
+    for (std::size_t first = from, last; first < to; first = last) {
+      for (last = first + 1; last < to && all[last].first == all[first].first;) ++last;
+      const auto& t = all[first].second;
+      std::array<bool, 3> in_fan_of{false, false, false};
+      for (std::size_t j = first; j < last; ++j)
+        for (int k = 0; k < 3; ++k) in_fan_of[static_cast<std::size_t>(k)] |= all[j].second[0] == t[static_cast<std::size_t>(k)];
+      const Eigen::Vector3d &x = X[static_cast<std::size_t>(t[0])], &y = X[static_cast<std::size_t>(t[1])], &z = X[static_cast<std::size_t>(t[2])];
+      const double a = (y - x).norm(), b = (z - y).norm(), c = (x - z).norm();
+      out.push_back({t, static_cast<int>(last - first), a * b * c / (4 * triangle_area(a, b, c)), in_fan_of});
+    }
+  });
   decltype(all)().swap(all);
+  std::vector<Candidate> candidates;
+  {
+    std::size_t count = 0;
+    for (const auto& part : candidate_parts) count += part.size();
+    candidates.reserve(count);
+    for (auto& part : candidate_parts) {
+      candidates.insert(candidates.end(), part.begin(), part.end());
+      std::vector<Candidate>().swap(part);
+    }
+  }
   // The fans of a triangle's corners can disagree (near-cocircular neighbours seen in different
   // tangent planes take different diagonals): their union would cover such places twice, which the
   // cover keeps as folded sheets that no vertex removal can flatten. One consistent choice: the
@@ -245,29 +268,37 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
   for (const Candidate& candidate : candidates)
     for (Index v : candidate.face) ++start[static_cast<std::size_t>(v) + 1];
   for (std::size_t v = 0; v < static_cast<std::size_t>(n); ++v) start[v + 1] += start[v];
+  // Each candidate's arcs at its corners, on the threads (they depend on the candidate alone): the
+  // choice below, which must follow the order, then only compares arcs.
+  std::vector<std::array<CornerArc, 3>> arcs(candidates.size());
+  detail::run_ranges(threads, candidates.size(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t c = begin; c < end; ++c) {
+      const auto& t = candidates[c].face;
+      for (std::size_t k = 0; k < 3; ++k)
+        arcs[c][k] = corner_arc(X, frames[static_cast<std::size_t>(t[k])], t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+    }
+  });
   std::vector<CornerArc> covered(start.back());
   std::vector<std::size_t> covered_count(static_cast<std::size_t>(n), 0);
   std::vector<std::array<Index, 3>> kept;
   kept.reserve(candidates.size());
-  for (const Candidate& candidate : candidates) {
-    const auto& t = candidate.face;
-    std::array<CornerArc, 3> arcs;
+  for (std::size_t c = 0; c < candidates.size(); ++c) {
+    const auto& t = candidates[c].face;
     bool free = true;
-    for (int k = 0; k < 3 && free; ++k) {
-      const auto v = static_cast<std::size_t>(t[static_cast<std::size_t>(k)]);
-      arcs[static_cast<std::size_t>(k)] =
-          corner_arc(X, frames[v], t[static_cast<std::size_t>(k)], t[static_cast<std::size_t>((k + 1) % 3)], t[static_cast<std::size_t>((k + 2) % 3)]);
+    for (std::size_t k = 0; k < 3 && free; ++k) {
+      const auto v = static_cast<std::size_t>(t[k]);
       for (std::size_t j = start[v]; j < start[v] + covered_count[v] && free; ++j)
-        if (arcs_overlap(arcs[static_cast<std::size_t>(k)], covered[j])) free = false;
+        if (arcs_overlap(arcs[c][k], covered[j])) free = false;
     }
     if (!free) continue;
-    for (int k = 0; k < 3; ++k) {
-      const auto v = static_cast<std::size_t>(t[static_cast<std::size_t>(k)]);
-      covered[start[v] + covered_count[v]++] = arcs[static_cast<std::size_t>(k)];
+    for (std::size_t k = 0; k < 3; ++k) {
+      const auto v = static_cast<std::size_t>(t[k]);
+      covered[start[v] + covered_count[v]++] = arcs[c][k];
     }
     kept.push_back(t);
   }
   decltype(covered)().swap(covered);
+  decltype(arcs)().swap(arcs);
   // A point whose every triangle lost to its neighbours' (a point squeezed between close ones) keeps
   // its own: a point on no triangle would have no value.
   std::vector<char> on_face(static_cast<std::size_t>(n), 0);
