@@ -529,7 +529,7 @@ void BM_MultigridAMGCL100(benchmark::State& state) {
     state.counters["total100_s"] = setup + solve100;
   }
 }
-BENCHMARK(BM_MultigridAMGCL100)->ArgsProduct({{3, 4}, {8}})->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_MultigridAMGCL100)->ArgsProduct({{3, 4}, {8, 4}})->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 #endif
 
 BENCHMARK(BM_MultigridICE)->Arg(2)->Arg(3)->Arg(4)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
