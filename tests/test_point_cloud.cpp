@@ -170,6 +170,27 @@ TEST_CASE("point cloud: Poisson through the proxy near the fine robust Laplacian
   REQUIRE(std::min((reference - exact).norm(), (reference + exact).norm()) / exact.norm() < 0.05);
 }
 
+TEST_CASE("point cloud: a large cloud is coarsened through the parallel phase, the same on any thread count",
+          "[cloud][proxy]") {
+  const ice::TriangleMesh mesh{sphere_points(24000), ice::point_cloud_triangles(sphere_points(24000))};
+  ice::CoarseSpaceOptions options;
+  options.coarsen.target_ratio = 0.05;
+  options.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  options.coarsen.threads = 1;
+  const ice::CoarseSpace one = ice::build_coarse_space(mesh, options);
+  options.coarsen.threads = 2;
+  const ice::CoarseSpace two = ice::build_coarse_space(mesh, options);
+  REQUIRE(one.summary.tufted_cover);
+  REQUIRE(one.summary.ice);
+  CHECK(one.summary.ice->parallel_removed > one.summary.ice->removed / 2);  // the default regions ran
+  CHECK(one.mesh.F == two.mesh.F);
+  CHECK(one.mesh.L == two.mesh.L);
+  CHECK(ice_test::relative_difference(one.P, two.P) == 0.0);
+  const Eigen::VectorXd row_sums = one.P * Eigen::VectorXd::Ones(one.P.cols());
+  CHECK((row_sums.array() - 1).abs().maxCoeff() < 1e-12);
+  CHECK(one.mesh.vertex_count < 24000 / 10);
+}
+
 TEST_CASE("point cloud: geodesics by the heat method through the proxy near the fine heat method's and the sphere's",
           "[cloud][proxy][geodesic]") {
   const ice::TriangleMesh mesh{sphere_points(3000), ice::point_cloud_triangles(sphere_points(3000))};
