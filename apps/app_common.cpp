@@ -197,7 +197,7 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
 }
 
 void refuse_multigrid_on_cover(const PdeOptions& opt, const ice::TriangleMesh& mesh) {
-  if (opt.nonmanifold == ice::NonmanifoldInput::tufted_cover && ice::needs_tufted_cover(mesh))
+  if (ice::solved_on_tufted_cover(mesh, opt.nonmanifold))
     throw AppError(kUsage, opt.mesh + ": --solver multigrid builds its hierarchy on oriented manifolds only; this mesh "
                                       "needs its tufted cover: use --solver proxy or direct");
 }
@@ -217,7 +217,7 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   // kept with its history for it. Traced lengths (keep_method_state) need the state alone (the walk).
   // The store holds coarse spaces without the method's state: such runs set up from scratch.
   // A mesh solved on its tufted cover: the coarse mesh is the cover's, which no output draws.
-  const bool covered = opt.nonmanifold == ice::NonmanifoldInput::tufted_cover && ice::needs_tufted_cover(mesh);
+  const bool covered = ice::solved_on_tufted_cover(mesh, opt.nonmanifold);
   const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice && !covered;
   ice::proxy::ProxySetupOptions setup_options;
   setup_options.coarsening = pde_space_options(options, opt, keep_method_state || drawn, drawn);

@@ -40,16 +40,15 @@
 #include "ice/large_array.h"
 #include "ice/proxy/geodesics.h"
 #include "ice/scalar_field_io.h"
-#include "ice/tufted_cover.h"
 
 namespace {
 
 // A mesh read with --nonmanifold tufted that needs its cover is solved by the coarse heat method
 // only (ice::proxy::require_no_marching_on_cover says why): a usage error naming the file.
 void refuse_marching_on_cover(const app::PdeOptions& opt, const ice::TriangleMesh& mesh, bool marching, const std::string& what) {
-  if (!marching || opt.nonmanifold != ice::NonmanifoldInput::tufted_cover) return;
+  if (!marching) return;
   try {
-    ice::proxy::require_no_marching_on_cover(ice::needs_tufted_cover(mesh), what);
+    ice::proxy::require_no_marching_on_cover(ice::solved_on_tufted_cover(mesh, opt.nonmanifold), what);
   } catch (const std::invalid_argument& e) {
     throw app::AppError(app::kUsage, opt.mesh + ": " + e.what() + " (--coarse-distances heat with --source)");
   }

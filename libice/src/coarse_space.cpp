@@ -288,8 +288,12 @@ CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep
   return space;
 }
 
+bool solved_on_tufted_cover(const TriangleMesh& mesh, NonmanifoldInput choice) {
+  return choice == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
+}
+
 CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
-  if (options.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh))
+  if (solved_on_tufted_cover(mesh, options.nonmanifold))
     return build_coarse_space(tufted_cover(mesh), options, fine_delaunay);
   const auto start = Clock::now();
   CoarseSpace space;
@@ -383,7 +387,7 @@ Positions coarse_vertex_positions(const TriangleMesh& mesh, const CoarseSpace& s
 }
 
 FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry, NonmanifoldInput nonmanifold) {
-  if (nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh)) return fine_mesh(tufted_cover(mesh), geometry);
+  if (solved_on_tufted_cover(mesh, nonmanifold)) return fine_mesh(tufted_cover(mesh), geometry);
   FineMesh fine;
   fine.geometry = geometry;
   if (geometry == FineGeometry::input) {

@@ -11,6 +11,7 @@
 #include <nanoflann.hpp>
 
 #include "run_tasks.h"
+#include "vertex_buckets.h"
 #include "ice/mesh_validation.h"
 #include "ice/triangle_geometry.h"
 
@@ -194,27 +195,27 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
   });
 
   // Every distinct triangle once (in the orientation of the lowest point's fan), with the fans that
-  // have it (1 to 3): pairs (vertex set, the triangle as its fan has it) in increasing order; a fan's
-  // triangles start at its own point, so the lowest point's comes first in a group of equal vertex
-  // sets. That order by buckets of the lowest vertex (a counting sort), then each short bucket sorted
-  // on the threads: one global sort's order without its serial n log n.
+  // have it (1 to 3): pairs (vertex set, the triangle as its fan has it) in increasing order (the
+  // project's counting sort on the lowest point, its buckets ordered on the threads); a fan's
+  // triangles start at its own point, so the lowest point's comes first in a group of equal vertex sets.
   using Keyed = std::pair<std::array<Index, 3>, std::array<Index, 3>>;
-  std::vector<std::size_t> bucket(static_cast<std::size_t>(n) + 1, 0);
-  for (const auto& part : fans)
-    for (const auto& t : part) ++bucket[static_cast<std::size_t>(std::min({t[0], t[1], t[2]})) + 1];
-  for (std::size_t v = 0; v < static_cast<std::size_t>(n); ++v) bucket[v + 1] += bucket[v];
-  std::vector<Keyed> all(bucket.back());
+  std::vector<Keyed> all;
   {
-    std::vector<std::size_t> cursor(bucket.begin(), bucket.end() - 1);
-    for (auto& part : fans) {
-      for (const auto& t : part) {
-        std::array<Index, 3> k = t;
-        std::sort(k.begin(), k.end());
-        all[cursor[static_cast<std::size_t>(k[0])]++] = {k, t};
-      }
-      std::vector<std::array<Index, 3>>().swap(part);
-    }
+    std::size_t total = 0;
+    for (const auto& part : fans) total += part.size();
+    all.reserve(total);
   }
+  for (auto& part : fans) {
+    for (const auto& t : part) {
+      std::array<Index, 3> k = t;
+      std::sort(k.begin(), k.end());
+      all.emplace_back(k, t);
+    }
+    std::vector<std::array<Index, 3>>().swap(part);
+  }
+  detail::sort_by_vertex(
+      all, n, [](const Keyed& r) { return r.first[0]; },
+      [](const Keyed& a, const Keyed& b) { return a.first != b.first ? a.first < b.first : a.second[0] < b.second[0]; }, threads);
   struct Candidate {
     std::array<Index, 3> face;
     int votes;
@@ -222,13 +223,13 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
     std::array<bool, 3> in_fan_of;  // corner k's own fan has it
   };
   // Per range of lowest vertices (a group of equal vertex sets never spans two), in order.
-  std::vector<std::vector<Candidate>> candidate_parts(static_cast<std::size_t>(detail::range_count(threads, n)));
+  const auto first_of = [&all](Index v) {
+    return static_cast<std::size_t>(std::partition_point(all.begin(), all.end(), [v](const Keyed& r) { return r.first[0] < v; }) -
+                                    all.begin());
+  };
+  std::vector<std::vector<Candidate>> candidate_parts(static_cast<std::size_t>(ranges));
   detail::run_numbered_ranges(threads, n, [&](int range, Index begin, Index end) {
-    const std::size_t from = bucket[static_cast<std::size_t>(begin)], to = bucket[static_cast<std::size_t>(end)];
-    for (Index v = begin; v < end; ++v)
-      std::sort(all.begin() + static_cast<std::ptrdiff_t>(bucket[static_cast<std::size_t>(v)]),
-                all.begin() + static_cast<std::ptrdiff_t>(bucket[static_cast<std::size_t>(v) + 1]),
-                [](const Keyed& a, const Keyed& b) { return a.first != b.first ? a.first < b.first : a.second[0] < b.second[0]; });
+    const std::size_t from = first_of(begin), to = first_of(end);
     auto& out = candidate_parts[static_cast<std::size_t>(range)];
     for (std::size_t first = from, last; first < to; first = last) {
       for (last = first + 1; last < to && all[last].first == all[first].first;) ++last;

@@ -46,9 +46,10 @@ std::vector<Index> order_by_vertex(std::size_t count, Index vertices, VertexOf&&
 
 /// Sorts `records` in place by (vertex_of(record), then `less` within a vertex), stably, with the
 /// same counting sort as order_by_vertex but moving the records themselves (one scattering pass
-/// instead of an index order and a gathering pass: half the random memory accesses).
+/// instead of an index order and a gathering pass: half the random memory accesses). The buckets are
+/// ordered on `threads` threads.
 template <class Record, class VertexOf, class Less>
-void sort_by_vertex(std::vector<Record>& records, Index vertices, VertexOf&& vertex_of, Less&& less) {
+void sort_by_vertex(std::vector<Record>& records, Index vertices, VertexOf&& vertex_of, Less&& less, int threads = 1) {
   std::vector<std::size_t> start(static_cast<std::size_t>(vertices) + 1, 0);
   for (const Record& record : records) ++start[static_cast<std::size_t>(vertex_of(record)) + 1];
   for (std::size_t v = 0; v < static_cast<std::size_t>(vertices); ++v) start[v + 1] += start[v];
@@ -57,20 +58,22 @@ void sort_by_vertex(std::vector<Record>& records, Index vertices, VertexOf&& ver
     std::vector<std::size_t> fill(start.begin(), start.end() - 1);
     for (const Record& record : records) sorted[fill[vertex_of(record)]++] = record;
   }
-  for (std::size_t v = 0; v < static_cast<std::size_t>(vertices); ++v) {
-    const std::size_t begin = start[v], end = start[v + 1];
-    if (end - begin < 2) continue;  // nothing to order (and no iterator may step past an empty bucket)
-    if (end - begin > 32) {
-      std::stable_sort(sorted.begin() + static_cast<std::ptrdiff_t>(begin), sorted.begin() + static_cast<std::ptrdiff_t>(end), less);
-      continue;
+  run_ranges(threads, static_cast<std::size_t>(vertices), [&](std::size_t first, std::size_t last) {
+    for (std::size_t v = first; v < last; ++v) {
+      const std::size_t begin = start[v], end = start[v + 1];
+      if (end - begin < 2) continue;  // nothing to order (and no iterator may step past an empty bucket)
+      if (end - begin > 32) {
+        std::stable_sort(sorted.begin() + static_cast<std::ptrdiff_t>(begin), sorted.begin() + static_cast<std::ptrdiff_t>(end), less);
+        continue;
+      }
+      for (std::size_t i = begin + 1; i < end; ++i) {
+        Record record = sorted[i];
+        std::size_t j = i;
+        for (; j > begin && less(record, sorted[j - 1]); --j) sorted[j] = sorted[j - 1];
+        sorted[j] = record;
+      }
     }
-    for (std::size_t i = begin + 1; i < end; ++i) {
-      Record record = sorted[i];
-      std::size_t j = i;
-      for (; j > begin && less(record, sorted[j - 1]); --j) sorted[j] = sorted[j - 1];
-      sorted[j] = record;
-    }
-  }
+  });
   records.swap(sorted);
 }
 

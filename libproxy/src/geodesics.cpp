@@ -4,8 +4,6 @@
 #include <string>
 #include <utility>
 
-#include "ice/tufted_cover.h"
-
 namespace ice::proxy {
 
 namespace {
@@ -18,8 +16,7 @@ void require_marching_for_traced(CoarseLengths lengths, bool marching) {
 
 /// Whether the recipe runs on a tufted cover: `coarse`'s, else the options' decision for `mesh`.
 bool on_cover(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening, const std::optional<CoarseSpace>& coarse) {
-  return coarse ? coarse->summary.tufted_cover
-                : coarsening.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
+  return coarse ? coarse->summary.tufted_cover : solved_on_tufted_cover(mesh, coarsening.nonmanifold);
 }
 
 /// The coarse space of a marching recipe: `coarse` if given, else coarsened keeping the method's

@@ -33,7 +33,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   // A mesh coarsened through its tufted cover: the cover's own coarse operators would be its
   // components' (not the input's robust Laplacian), so Galerkin only; and not stored (its key would
   // have to say so).
-  const bool covered = options.coarsening.nonmanifold == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
+  const bool covered = solved_on_tufted_cover(mesh, options.coarsening.nonmanifold);
   require_galerkin_on_cover(covered, options.operators);  // before the work
   bool fine_made = false;  // setup.fine
   std::optional<StoreKey> key;

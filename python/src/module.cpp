@@ -45,7 +45,6 @@
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "ice/point_cloud.h"
-#include "ice/tufted_cover.h"
 #include "ice/refinement.h"
 
 namespace py = pybind11;
@@ -398,7 +397,7 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     throw py::value_error("trace=True draws ICE's intrinsic coarse edges on the surface; a QEM mesh has straight edges (method='ice')");
   // Through a cover: no map and no tracing (the method's state tracks the cover's copies); decided
   // here, before the work.
-  const bool covered = options.nonmanifold == ice::NonmanifoldInput::tufted_cover && ice::needs_tufted_cover(mesh);
+  const bool covered = ice::solved_on_tufted_cover(mesh, options.nonmanifold);
   if (trace && covered) throw py::value_error("trace=True does not take a tufted cover (nonmanifold='tufted') yet");
   options.keep_method_state = (keep_map || trace) && !covered;
   options.record_history = trace;  // exact tracing (ice/coarse_tracing.h), made below before the history is freed
