@@ -218,7 +218,7 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   // The store holds coarse spaces without the method's state: such runs set up from scratch.
   // A mesh solved on its tufted cover: the coarse mesh is the cover's, which no output draws.
   const bool covered = ice::solved_on_tufted_cover(mesh, opt.nonmanifold);
-  const bool drawn = (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice && !covered;
+  const bool drawn = outputs_draw_coarse_mesh(opt, covered);
   ice::proxy::ProxySetupOptions setup_options;
   setup_options.coarsening = pde_space_options(options, opt, keep_method_state || drawn, drawn);
   // Decided here once: a manifold mesh is not checked again below.
@@ -244,8 +244,7 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   const bool hit = setup.cache.status == ice::proxy::CacheStatus::hit;
   if (setup.cache.status == ice::proxy::CacheStatus::rebuilt)
     warn(run.tool, "the stored setup was damaged and is rebuilt: " + setup.cache.damage);
-  run.cache = setup.cache;
-  if (setup.cache.status != ice::proxy::CacheStatus::off) run.cache_json = ice::proxy::cache_json(run.cache, store);
+  run.record_cache(setup.cache, store);
   run.coarsening = setup.coarse.summary;
   run.coarsen = setup.times.coarsen;  // a hit's load is run.cache.load_seconds
   run.fine_mesh = setup.times.fine_mesh;
@@ -254,6 +253,50 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   run.idt_flips = setup.fine.flips;
   run.tufted_cover = covered;
   return setup;
+}
+
+ice::SurfaceEdgeLengths stored_traced_lengths(const std::string& tool, const ice::TriangleMesh& mesh,
+                                             ice::proxy::MappedSpace& space, const ice::proxy::Store& store) {
+  const std::string damage_before = space.cache.damage;
+  ice::SurfaceEdgeLengths lengths = ice::proxy::traced_edge_lengths(mesh, space, store, &space.cache);
+  if (space.cache.damage != damage_before)
+    warn(tool, "the stored traced lengths were damaged and are traced again: " + space.cache.damage);
+  return lengths;
+}
+
+bool outputs_draw_coarse_mesh(const PdeOptions& opt, bool tufted_cover) {
+  return (!opt.output.empty() || !opt.html.empty()) && opt.target.method == ice::CoarseningMethod::ice && !tufted_cover;
+}
+
+ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options,
+                                             const PdeOptions& opt, PdeRun& run, const ice::proxy::Store& store,
+                                             bool record_history, ice::FineMesh* fine_delaunay) {
+  ice::proxy::MappedSpaceOptions space_options;
+  space_options.coarsening = pde_space_options(options, opt, record_history, record_history);
+  space_options.store = store;
+  double seconds = 0;
+  space_options.builder = [&opt, &run, &seconds](const ice::TriangleMesh& m, const ice::CoarseSpaceOptions& coarsening,
+                                                 ice::FineMesh* fine_delaunay) {
+    const Stopwatch clock;
+    ice::CoarseSpace space = coarsen_space_for_pde(m, coarsening, opt, run, fine_delaunay);
+    seconds = clock.seconds();
+    return space;
+  };
+  ice::proxy::MappedSpace space;
+  try {
+    space = ice::proxy::build_mapped_space(mesh, space_options, fine_delaunay);
+  } catch (const std::invalid_argument& e) {  // a tufted cover, QEM with intrinsic Delaunay geometry
+    throw AppError(kUsage, opt.mesh + ": " + e.what());
+  }
+  if (space.cache.status == ice::proxy::CacheStatus::rebuilt)
+    warn(run.tool, "the stored coarse space was damaged and is rebuilt: " + space.cache.damage);
+  run.coarsening = space.coarse.summary;
+  // 0 on a hit, whose load is run.cache.load_seconds; the fine mesh made on the way is the caller's phase
+  run.coarsen = seconds - space.coarse.summary.fine_mesh_seconds;
+  run.fine_mesh = space.coarse.summary.fine_mesh_seconds;
+  run.stored_setup = "coarse space and map from the store (nothing coarsened)";
+  run.record_cache(space.cache, store);
+  return space;
 }
 
 void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrection& correction) {

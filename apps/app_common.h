@@ -106,6 +106,26 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
                                        PdeRun& run, Stopwatch& clock, bool assemble_proxy = true, bool need_fine = true,
                                        bool keep_method_state = false, const ice::proxy::Store& store = {});
 
+/// The coarse space with its fine-to-coarse map (ice::proxy::build_mapped_space), for the tools that
+/// march on the coarse mesh or fit vectors to the map, with the method, QEM geometry and progress bar
+/// of `opt`, through `store`; `record_history` keeps what draws the coarse mesh on the surface (and
+/// bypasses the store). Warns when the target was missed or a stored entry was damaged; records
+/// run.coarsening, run.coarsen and the cache. AppError(kUsage) for a tufted cover or QEM with intrinsic
+/// Delaunay geometry (no map).
+/// `fine_delaunay`: as ice::proxy::build_mapped_space's (filled on a build, not on a hit).
+ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options,
+                                             const PdeOptions& opt, PdeRun& run, const ice::proxy::Store& store,
+                                             bool record_history = false, ice::FineMesh* fine_delaunay = nullptr);
+
+/// The traced lengths of `space` through `store` (ice::proxy::traced_edge_lengths, recorded in
+/// space.cache), warning as `tool` when a stored entry was damaged.
+ice::SurfaceEdgeLengths stored_traced_lengths(const std::string& tool, const ice::TriangleMesh& mesh,
+                                             ice::proxy::MappedSpace& space, const ice::proxy::Store& store);
+
+/// Whether the outputs of `opt` draw the coarse mesh on the surface (--output or --html of an ICE
+/// space; not through a tufted cover, whose coarse mesh is the cover's).
+bool outputs_draw_coarse_mesh(const PdeOptions& opt, bool tufted_cover = false);
+
 /// --curvature-correction auto|on|off, for the tools that march on the coarse mesh.
 void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrection& correction);
 

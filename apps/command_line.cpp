@@ -331,10 +331,9 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   cli.add_flag("--repair", repair, "Apply the safe mesh repairs first (see ice-info --repair)");
 }
 
-void PdeOptions::add_cache_options(CLI::App& cli) {
-  auto* dir = cli.add_option("--cache", cache_directory,
-                             "Store of set-up proxies (default: $ICE_CACHE or ~/.cache/ice)");
-  cli.add_flag("--no-cache", no_cache, "Set up from scratch, store nothing")->excludes(dir);
+void CacheOptions::add_to(CLI::App& cli) {
+  auto* dir = cli.add_option("--cache", directory, "Store of set-ups (default: $ICE_CACHE or ~/.cache/ice)");
+  cli.add_flag("--no-cache", off, "Set up from scratch, store nothing")->excludes(dir);
 }
 
 ice::proxy::Store store_at(const std::string& directory) {
@@ -345,7 +344,6 @@ ice::proxy::Store store_at(const std::string& directory) {
   }
 }
 
-ice::proxy::Store PdeOptions::store() const { return no_cache ? ice::proxy::Store() : store_at(cache_directory); }
 
 void PdeOptions::add_polish_options(CLI::App& cli) {
   cli.add_option("--polish", polish.iterations,

@@ -142,6 +142,15 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 /// $ICE_CACHE, the XDG cache folder) when it is empty; throws AppError(kUsage) on a malformed
 /// $ICE_CACHE_MAX_MB.
 ice::proxy::Store store_at(const std::string& directory);
+/// The store of set-ups (ice/proxy/store.h) a tool uses: --cache DIR, or the default
+/// (ice::proxy::default_store_options: $ICE_CACHE, the XDG cache folder); off with --no-cache.
+struct CacheOptions {
+  std::string directory;
+  bool off = false;
+  void add_to(CLI::App& cli);
+  /// The store these options name; throws AppError(kUsage) on a malformed $ICE_CACHE_MAX_MB.
+  ice::proxy::Store store() const { return off ? ice::proxy::Store() : store_at(directory); }
+};
 /// The extension of `path` in lower case, with its dot (".npy").
 std::string lower_extension(const std::string& path);
 /// Whether two paths name one file (also when written differently: ./a and a).
@@ -215,14 +224,10 @@ struct PdeOptions {
   bool output_is_gltf() const;
   /// The fine discretisation chosen by --fine-idt / --no-fine-idt.
   ice::FineGeometry fine_geometry() const;
-  /// The store of set-up proxies (ice/proxy/store.h): --cache DIR, or the default
-  /// (ice::proxy::default_store_options: $ICE_CACHE, the XDG cache folder); off with --no-cache.
-  std::string cache_directory;
-  bool no_cache = false;
-  /// --cache and --no-cache, for the tools that set up a proxy through the store.
-  void add_cache_options(CLI::App& cli);
-  /// The store those options name; throws AppError(kUsage) on a malformed $ICE_CACHE_MAX_MB.
-  ice::proxy::Store store() const;
+  /// --cache and --no-cache (CacheOptions), for the tools that set up through the store.
+  CacheOptions cache;
+  void add_cache_options(CLI::App& cli) { cache.add_to(cli); }
+  ice::proxy::Store store() const { return cache.store(); }
 };
 
 }  // namespace app

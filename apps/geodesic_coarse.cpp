@@ -174,22 +174,27 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   run.fine_faces = mesh.F.rows();
   run.load = clock.lap();
 
-  // ---- coarsen (keeping the map), then the oracle
-  const ice::CoarseSpace space = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true);
-  const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
-  run.coarsen = clock.lap();
+  // ---- the coarse space with its map and traced lengths (through the store), then the oracle
+  const ice::proxy::Store store = opt.store();
+  ice::proxy::MappedSpace mapped = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store);
+  const ice::CoarseSpace& space = mapped.coarse;
+  clock.lap();  // run.coarsen, and the cache's load and save
+  ice::SurfaceEdgeLengths lengths = request.traced_lengths ? app::stored_traced_lengths(kTool, mesh, mapped, store)
+                                                           : ice::SurfaceEdgeLengths{space.mesh.L, 0, 0};
+  lengths = ice::proxy::corrected_marching_lengths(mesh, space, std::move(lengths), request.curvature_correction,
+                                                   fem::kOracleCorrectionDivisor);
+  run.record_cache(mapped.cache, store);
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
   oracle_options.subdivisions = request.subdivisions;
-  const fem::DistanceOracle oracle(ice::with_lengths(space.mesh, ice::proxy::marching_lengths(mesh, space, request.traced_lengths, request.curvature_correction, &map,
-                                                         fem::kOracleCorrectionDivisor)
-                                       .lengths),
-                                   map, oracle_options);
-  const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced
+  const fem::DistanceOracle oracle(ice::with_lengths(space.mesh, lengths.lengths), mapped.map, oracle_options);
+  const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced (or its load)
 
   // ---- the queries
-  nlohmann::json timings = {{"load", run.load}, {"coarsen", run.coarsen}, {"oracle", oracle_seconds}};
+  nlohmann::json timings = {{"load", run.load}, {"coarsen", run.coarsen}, {"oracle", oracle_seconds},
+                            {"cache_load", run.cache.load_seconds}, {"cache_save", run.cache.save_seconds}};
   nlohmann::json report = app::report_header(kTool, opt.mesh);
+  report["cache"] = run.cache_json.is_null() ? nlohmann::json{{"status", "off"}} : run.cache_json;
   report["mode"] = request.mode();
   std::vector<ice::Index> samples;
   OutputsOfThisRun outputs;
@@ -296,7 +301,11 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
             << " coarse vertices (" << ice::proxy::spelling(space.summary.method) << "); distance oracle ("
             << fem::to_string(request.method) << ") in " << app::fixed(oracle_seconds, 3) << " s, "
             << app::fixed(static_cast<double>(oracle.memory_bytes()) / (1 << 20), 1) << " MiB; coarsening "
-            << app::fixed(run.coarsen, 3) << " s\n";
+            << app::fixed(run.coarsen, 3) << " s"
+            << (run.cache.status == ice::proxy::CacheStatus::hit
+                    ? " (set up from the store in " + app::fixed(run.cache.load_seconds, 3) + " s)"
+                    : "")
+            << '\n';
   if (report.contains("queries"))
     std::cout << "  " << app::thousands(static_cast<long long>(pairs.size())) << " pairs answered in "
               << app::fixed(report["queries"]["seconds"], 4) << " s\n";
@@ -367,6 +376,7 @@ int main(int argc, char** argv) {
   opt.target.use_defaults_for(ice::ProxyUse::geodesic);  // the metric measured best for geodesics
   opt.add_to(cli, "'distance', 'reference', 'error'");
   opt.add_nonmanifold_option(cli);
+  opt.add_cache_options(cli);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&]() -> int {
@@ -425,21 +435,39 @@ int main(int argc, char** argv) {
     // ---- coarsen, fine discretisation, then the proxy (fem::ProxyGeodesicSolver): assemble, factor,
     // restrict + solve and prolong, the last two timed by the solver
     const bool marching = oracle.method == fem::CoarseDistanceMethod::marching;
-    // The marching proxy reads only the coarse mesh and P: the fine mesh is built for a reference.
-    const ice::proxy::ProxySetup pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/!marching,
-                                                   /*need_fine=*/!marching || run.has_reference,
-                                                   /*keep_method_state=*/oracle.traced_lengths);
-    const ice::FineMesh& fine = pde.fine;
+    const ice::proxy::Store store = opt.store();
+    ice::proxy::ProxySetup pde;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
     std::optional<std::pair<ice::Index, ice::Index>> traced_counts;  // --coarse-lengths traced: edges, traced
-    if (marching) {  // no coarse operators: the coarse mesh and P are all the marching reads
+    if (marching) {  // no coarse operators: the coarse mesh, P and the lengths are all the marching reads
+      // The coarse space with its map and traced lengths through the store; the fine mesh is for a
+      // reference (made on the way when the space is built, else now).
+      const bool share_fine = run.has_reference && opt.fine_geometry() == ice::FineGeometry::intrinsic_delaunay;
+      ice::proxy::MappedSpace space = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store,
+                                                                app::outputs_draw_coarse_mesh(opt), share_fine ? &pde.fine : nullptr);
+      clock.lap();
+      if (run.has_reference && pde.fine.vertex_count == 0) {
+        pde.fine = ice::fine_mesh(mesh, opt.fine_geometry());
+        run.fine_mesh = clock.lap();
+      }
+      run.fine_built = run.has_reference;
+      run.idt_flips = pde.fine.flips;
       run.coarse_solver = oracle.traced_lengths ? "coarse fast marching on traced lengths" : "coarse fast marching";
-      const ice::SurfaceEdgeLengths lengths =
-          ice::proxy::marching_lengths(mesh, pde.coarse, oracle.traced_lengths, oracle.curvature_correction);
+      const double stored_before = space.cache.load_seconds + space.cache.save_seconds;
+      ice::SurfaceEdgeLengths lengths = oracle.traced_lengths ? app::stored_traced_lengths(kTool, mesh, space, store)
+                                                              : ice::SurfaceEdgeLengths{space.coarse.mesh.L, 0, 0};
       if (oracle.traced_lengths) traced_counts = {lengths.edges, lengths.traced};
-      run.assemble = clock.lap();  // with the tracing of --coarse-lengths traced
+      lengths = ice::proxy::corrected_marching_lengths(mesh, space.coarse, std::move(lengths), oracle.curvature_correction,
+                                                       ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
+      run.record_cache(space.cache, store);
+      if (oracle.traced_lengths) run.stored_setup = "coarse space, map and traced lengths from the store (nothing coarsened or traced)";
+      // The tracing of --coarse-lengths traced and the correction; the traced lengths' load or save is the cache's.
+      run.assemble = clock.lap() - (space.cache.load_seconds + space.cache.save_seconds - stored_before);
+      pde.coarse = std::move(space.coarse);
       proxy_solver.emplace(ice::with_lengths(pde.coarse.mesh, lengths.lengths), pde.coarse.P, oracle.subdivisions);
     } else {
+      pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, /*assemble_proxy=*/true, /*need_fine=*/true,
+                                 /*keep_method_state=*/false, store);
       fem::HeatMethodOperators coarse_ops = pde.proxy->coarse_heat_method_operators();  // lumped mass for Galerkin
       run.assemble = clock.lap();
       proxy_solver.emplace(*pde.proxy, std::move(coarse_ops));
@@ -455,7 +483,7 @@ int main(int argc, char** argv) {
     nlohmann::json error_json;
     Eigen::VectorXd reference;
     if (run.has_reference) {
-      fem::HeatMethodOperators fine_ops = fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0);
+      fem::HeatMethodOperators fine_ops = fem::heat_method_operators(pde.fine, fem::MassKind::lumped, 1.0);
       run.ref_assemble = clock.lap();
       const fem::HeatGeodesicSolver fine_solver(std::move(fine_ops));
       run.ref_factor = clock.lap();

@@ -42,6 +42,7 @@
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_io.h"
 #include "ice/prolongation.h"
+#include "ice/proxy/setup.h"
 #include "ice/qem.h"
 
 namespace {
@@ -133,14 +134,16 @@ ice::CoarseTracing write_traced_edges(const std::string& path, const ice::Triang
   return tracing;
 }
 
-// preview.obj of a QEM coarsening: the QEM mesh itself (its positions are its geometry).
-void write_qem_preview(const std::string& path, const ice::QemResult& qem) {
+// preview.obj of a QEM coarsening: the QEM mesh itself (its positions, the survivors' input
+// positions, are its geometry).
+void write_qem_preview(const std::string& path, const ice::TriangleMesh& mesh, const ice::CoarseSpace& space) {
   std::ofstream out = open_output(path);
   out << "# QEM mesh (ice-coarsen --method qem): extrinsic, these positions are its geometry\n";
-  for (Eigen::Index v = 0; v < qem.coarse.V.rows(); ++v)
-    out << "v " << Num{qem.coarse.V(v, 0)} << ' ' << Num{qem.coarse.V(v, 1)} << ' ' << Num{qem.coarse.V(v, 2)} << '\n';
-  for (Eigen::Index f = 0; f < qem.coarse.F.rows(); ++f)
-    out << "f " << qem.coarse.F(f, 0) + 1 << ' ' << qem.coarse.F(f, 1) + 1 << ' ' << qem.coarse.F(f, 2) + 1 << '\n';
+  const ice::Positions positions = ice::coarse_vertex_positions(mesh, space);
+  for (Eigen::Index v = 0; v < positions.rows(); ++v)
+    out << "v " << Num{positions(v, 0)} << ' ' << Num{positions(v, 1)} << ' ' << Num{positions(v, 2)} << '\n';
+  const ice::Faces& F = space.mesh.F;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) out << "f " << F(f, 0) + 1 << ' ' << F(f, 1) + 1 << ' ' << F(f, 2) + 1 << '\n';
   check_stream(out, path);
 }
 
@@ -219,6 +222,8 @@ int main(int argc, char** argv) {
                "Also write coarse_edges.obj: the coarse edges traced on the input surface as polylines (ICE only)");
   cli.add_flag("--repair", repair, "Apply the safe mesh repairs before coarsening (see ice-info --repair)");
   cli.add_flag("--validate", validate, "Check every invariant of the coarse triangulation afterwards (fails loudly)");
+  app::CacheOptions cache;
+  cache.add_to(cli);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&] {
@@ -255,12 +260,23 @@ int main(int argc, char** argv) {
     space_options.method = target.method;
     space_options.coarsen = options;
     space_options.refinement = target.refinement();
-    space_options.keep_method_state = true;  // the map, the preview and --validate need it
-    space_options.record_history = trace;     // --trace draws the coarse edges exactly from it
-    const ice::CoarseSpace space = app::build_coarse_space_with_progress(mesh, space_options, !quiet);
+    // --validate reads the method's state, --trace its history: neither is stored, so both bypass the store.
+    space_options.keep_method_state = validate || trace;
+    space_options.record_history = trace;  // --trace draws the coarse edges exactly from it
+    ice::proxy::MappedSpaceOptions mapped_options;
+    mapped_options.coarsening = space_options;
+    mapped_options.store = cache.store();
+    mapped_options.builder = [quiet](const ice::TriangleMesh& m, const ice::CoarseSpaceOptions& o, ice::FineMesh*) {
+      return app::build_coarse_space_with_progress(m, o, !quiet);
+    };
+    const ice::proxy::MappedSpace mapped = ice::proxy::build_mapped_space(mesh, mapped_options);
+    const ice::proxy::CacheReport& stored = mapped.cache;
+    if (stored.status == ice::proxy::CacheStatus::rebuilt)
+      app::warn(kTool, "the stored coarse space was damaged and is rebuilt: " + stored.damage);
+    const ice::CoarseSpace& space = mapped.coarse;
     const ice::CoarseSpaceSummary& summary = space.summary;
     const ice::CompactMesh& coarse = space.mesh;
-    const double t_coarsen = clock.lap();
+    const double t_coarsen = clock.lap() - stored.load_seconds - stored.save_seconds;
     app::warn_if_target_missed(kTool, summary, options);
     if (validate) {
       const std::string problems = qem ? validate_qem(*space.qem_result, space.P) : space.triangulation->validate();
@@ -274,9 +290,9 @@ int main(int argc, char** argv) {
     ice::write_intrinsic_mesh(outputs[0], coarse, static_cast<ice::Index>(n),
                               std::string(qem ? "QEM" : "intrinsic") + " mesh written by ice-coarsen from " + input);
     write_matrix_market(outputs[1], space.P);
-    write_map(outputs[2], ice::fine_to_coarse_map(space));
+    write_map(outputs[2], mapped.map);
     if (qem)
-      write_qem_preview(outputs[3], *space.qem_result);
+      write_qem_preview(outputs[3], mesh, space);
     else
       write_preview(outputs[3], mesh, space);
     const double t_write = clock.lap();
@@ -284,7 +300,8 @@ int main(int argc, char** argv) {
     if (trace) tracing = write_traced_edges(outputs[4], mesh, space);
     const double t_trace = trace ? clock.lap() : 0.0;
 
-    const double rate = summary.removed() / std::max(t_coarsen, 1e-9);
+    const bool hit = stored.status == ice::proxy::CacheStatus::hit;
+    const double rate = hit ? 0.0 : summary.removed() / std::max(t_coarsen, 1e-9);
     if (!report_path.empty()) {
       nlohmann::json report = app::report_header(kTool, input);
       report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
@@ -301,7 +318,9 @@ int main(int argc, char** argv) {
                            {"locked_vertices", options.locked_vertices.size()}};
       report["coarse"] = ice::proxy::coarsen_json(summary);
       if (qem) report["qem"] = ice::proxy::qem_json(*summary.qem, summary.target_reached);
-      report["timings_s"] = {{"load", t_load}, {"coarsen", t_coarsen}, {"write", t_write}};
+      report["timings_s"] = {{"load", t_load}, {"coarsen", t_coarsen}, {"write", t_write},
+                             {"cache_load", stored.load_seconds}, {"cache_save", stored.save_seconds}};
+      report["cache"] = ice::proxy::cache_json(stored, mapped_options.store);
       if (validate) report["timings_s"]["validate"] = t_validate;
       if (tracing) {
         std::map<std::string, long long> untraced;
@@ -327,8 +346,10 @@ int main(int argc, char** argv) {
               << app::percent(double(nc) / double(n)) << " of the vertices)\n"
               << "  stop: " << stop_line(summary) << '\n'
               << (summary.refinement ? "  refine: " + app::refinement_line(summary) + "\n" : std::string())
-              << "  time: load " << app::fixed(t_load, 3) << " s, coarsen " << app::fixed(t_coarsen, 3) << " s ("
-              << app::thousands(static_cast<long long>(rate)) << " removals/s), "
+              << "  time: load " << app::fixed(t_load, 3) << " s, "
+              << (hit ? "coarse space and map from the store " + app::fixed(stored.load_seconds, 3) + " s (nothing coarsened), "
+                      : "coarsen " + app::fixed(t_coarsen, 3) + " s (" + app::thousands(static_cast<long long>(rate)) +
+                            " removals/s), ")
               << (validate ? "validate " + app::fixed(t_validate, 3) + " s (ok), " : std::string())
               << "write " << app::fixed(t_write, 3) << " s; peak memory " << app::fixed(app::peak_rss_mb(), 0) << " MiB\n"
               << (tracing ? "  trace: " + app::thousands(tracing->traced) + " of " +

@@ -136,6 +136,11 @@ PdeRun PdeRun::start(const std::string& tool, const PdeOptions& opt, bool proxy_
   return run;
 }
 
+void PdeRun::record_cache(const ice::proxy::CacheReport& report, const ice::proxy::Store& store) {
+  cache = report;
+  cache_json = cache.status == ice::proxy::CacheStatus::off ? nlohmann::json() : ice::proxy::cache_json(cache, store);
+}
+
 double PdeRun::proxy_total() const {
   return cache.load_seconds + cache.save_seconds + coarsen + assemble + factor + polish_setup + solve + prolong + polish;
 }
@@ -203,7 +208,7 @@ void PdeRun::print_summary(std::ostream& out) const {
   };
   row("load", load);
   if (cache.status == ice::proxy::CacheStatus::hit)
-    row("cache load", cache.load_seconds, "coarse space and proxy from the store (nothing coarsened or assembled)");
+    row("cache load", cache.load_seconds, stored_setup);
   if (cache.status == ice::proxy::CacheStatus::rebuilt)
     out << "  cache           damaged entry removed and rebuilt: " << cache.damage << '\n';
   if (cache.status != ice::proxy::CacheStatus::hit)

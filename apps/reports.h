@@ -130,6 +130,10 @@ struct PdeRun {
   /// The store of set-up proxies: where the setup came from, and the store's directory (report only).
   ice::proxy::CacheReport cache;
   nlohmann::json cache_json;
+  /// What a hit loaded, for the summary.
+  std::string stored_setup = "coarse space and proxy from the store (nothing coarsened or assembled)";
+  /// Records where the setup came from (`cache`, through `store`).
+  void record_cache(const ice::proxy::CacheReport& report, const ice::proxy::Store& store);
 
   /// A run of `tool` with the shared PDE options (mesh, operators, fine mesh, reference).
   static PdeRun start(const std::string& tool, const PdeOptions& opt, bool proxy_uses_fine_mesh);

@@ -110,6 +110,7 @@ int main(int argc, char** argv) {
       ->check(app::positive_number())
       ->capture_default_str();
   opt.add_to(cli, "vector_*, reference_*, angle_error, magnitude_error");
+  opt.add_cache_options(cli);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&]() -> int {
@@ -161,9 +162,12 @@ int main(int argc, char** argv) {
     opt.target.apply(coarsen_options, n);
     run.load = clock.lap();
 
-    // ---- coarsen (with the map P_vec is fitted from)
-    const ice::CoarseSpace coarse = app::coarsen_for_pde(mesh, coarsen_options, opt, run, true);
-    run.coarsen = clock.lap();
+    // ---- coarsen (with the map P_vec is fitted from), or the coarse space and map from the store
+    const ice::proxy::Store store = opt.store();
+    ice::proxy::MappedSpace space = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store);
+    const ice::CoarseSpace& coarse = space.coarse;
+    const std::vector<ice::CoarsePoint>& map = space.map;
+    clock.lap();  // run.coarsen, and the cache's load and save
 
     // ---- the input triangles' frames (the fields' and the sources'), the fine operators in them
     const ice::proxy::TangentMesh fine =
@@ -191,14 +195,21 @@ int main(int argc, char** argv) {
     run.assemble = clock.lap();
     // One of the two proxies: the sweep's marching distance, or the diffusion's vector prolongation
     // and coarse factorisations.
-    const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(coarse);
     std::optional<fem::VectorSweepProxy> sweep_proxy;
     std::optional<fem::VectorHeatProxy> diffusion_proxy;
-    if (sweep)
-      sweep_proxy.emplace(ice::proxy::make_vector_sweep(mesh, fine, coarse, map, sweep_options));
-    else
+    const double stored_before = space.cache.load_seconds + space.cache.save_seconds;
+    if (sweep) {
+      // The sweep marches on the coarse edges' traced lengths (ICE): through the store too.
+      std::optional<ice::SurfaceEdgeLengths> traced;
+      if (ice::proxy::traces_lengths(ice::proxy::CoarseLengths::automatic, coarse.summary.method, true))
+        traced = app::stored_traced_lengths(kTool, mesh, space, store);
+      sweep_proxy.emplace(ice::proxy::make_vector_sweep(mesh, fine, coarse, map, sweep_options, traced ? &*traced : nullptr));
+      run.record_cache(space.cache, store);
+      if (traced) run.stored_setup = "coarse space, map and traced lengths from the store (nothing coarsened or traced)";
+    } else {
       diffusion_proxy.emplace(ice::proxy::make_vector_proxy(fine, coarse, map, kind, time_factor));
-    run.factor = clock.lap();
+    }
+    run.factor = clock.lap() - (space.cache.load_seconds + space.cache.save_seconds - stored_before);
     if (diffusion_proxy) warn_if_frames_fit_poorly(diffusion_proxy->prolongation_stats());
     fem::DistanceSweepStats sweep_stats;
     const Eigen::VectorXcd field =

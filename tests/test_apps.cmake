@@ -18,7 +18,7 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   endif()
   set(_ice_app_cases
     coarsen_spot coarsen_keep_boundary_lock coarsen_threads geodesic_spot geodesic_galerkin_spot geodesic_oracle vector_spot refine_spot poisson_spot poisson_fix_rhs_spot
-    poisson_cache heat_block_spot heat_multigrid_spot spectral_spot nonmanifold_cover point_cloud ply_ascii errors view_page help)
+    poisson_cache mapped_cache heat_block_spot heat_multigrid_spot spectral_spot nonmanifold_cover point_cloud ply_ascii errors view_page help)
   foreach(_case IN LISTS _ice_app_cases)
     add_test(NAME app_${_case}
       COMMAND ${CMAKE_COMMAND}
@@ -751,6 +751,54 @@ elseif(CASE STREQUAL "poisson_cache")
   run(0 ice-cache clear --cache "${WORK}/store")
   file(GLOB entries "${WORK}/store/*.ice")
   check_text("${entries}" "" "entries after ice-cache clear")
+
+elseif(CASE STREQUAL "mapped_cache")
+  # The tools that read a coarse space with its fine-to-coarse map (coarse marching, the oracle, the
+  # vector heat method, ice-coarsen) store it: a second run loads it (and the traced lengths) and gives
+  # the first run's results to the last bit; --validate (the method's state) bypasses the store.
+  project_mesh(mesh spot.obj)
+  file(REMOVE_RECURSE "${WORK}/store")
+  foreach(_run cold warm)
+    run(0 geodesic-coarse "${mesh}" --source 0 --ratio 0.05 --cache "${WORK}/store" --report "${WORK}/g_${_run}.json" -q)
+    run(0 geodesic-coarse "${mesh}" --sample 20 --ratio 0.05 --cache "${WORK}/store" --report "${WORK}/o_${_run}.json" -q)
+    run(0 vector-coarse "${mesh}" --source 0 --vector 30 --ratio 0.05 --cache "${WORK}/store" --report "${WORK}/v_${_run}.json" -q)
+    run(0 ice-coarsen "${mesh}" --ratio 0.05 -o "${WORK}/c_${_run}" --cache "${WORK}/store" --report "${WORK}/c_${_run}.json" -q)
+  endforeach()
+  if(NOT RUN_OUT MATCHES "from the store")
+    fail("the warm ice-coarsen run does not say the space came from the store:\n${RUN_OUT}")
+  endif()
+  # The oracle shares the --source run's space (the same coarsening), ice-coarsen the vector run's (the
+  # Poisson metric): hits on their first runs.
+  foreach(_pair "g_cold;miss" "g_warm;hit" "o_cold;hit" "o_warm;hit" "v_cold;miss" "v_warm;hit" "c_cold;hit" "c_warm;hit")
+    list(GET _pair 0 _file)
+    list(GET _pair 1 _expected)
+    json(_status "${WORK}/${_file}.json" cache status)
+    check_text("${_status}" "${_expected}" "cache.status of ${_file}")
+  endforeach()
+  foreach(_keys "g;error;max_abs" "o;accuracy;all;mean_rel" "v;error;angle;mean_deg")
+    list(GET _keys 0 _tool)
+    list(SUBLIST _keys 1 -1 _path)
+    json(_cold "${WORK}/${_tool}_cold.json" ${_path})
+    json(_warm "${WORK}/${_tool}_warm.json" ${_path})
+    check_text("${_warm}" "${_cold}" "${_path} of ${_tool} warm (the same result to the last bit)")
+  endforeach()
+  run(0 ice-coarsen "${mesh}" --ratio 0.05 -o "${WORK}/c_none" --no-cache --report "${WORK}/c_none.json" -q)
+  json(_status "${WORK}/c_none.json" cache status)
+  check_text("${_status}" "off" "cache.status with --no-cache")
+  foreach(_file coarse.ilm prolongation.mtx map.csv preview.obj)
+    file(SHA256 "${WORK}/c_none/${_file}" _none)
+    file(SHA256 "${WORK}/c_warm/${_file}" _warm)
+    check_text("${_warm}" "${_none}" "ice-coarsen's ${_file} from the store")
+  endforeach()
+  file(GLOB entries "${WORK}/store/space-*.ice")
+  list(LENGTH entries count)
+  check(${count} EQUAL 2 "coarse space entries (the geodesic metric's and the Poisson metric's)")
+  file(GLOB entries "${WORK}/store/traced-*.ice")
+  list(LENGTH entries count)
+  check(${count} EQUAL 2 "traced length entries")
+  run(0 ice-coarsen "${mesh}" --ratio 0.05 -o "${WORK}/c_valid" --validate --report "${WORK}/c_valid.json" -q)
+  json(_status "${WORK}/c_valid.json" cache status)
+  check_text("${_status}" "off" "cache.status with --validate (the method's state is not stored)")
 
 elseif(CASE STREQUAL "heat_block_spot")
   # heat-coarse: 20 steps stepped on the coarse mesh, 4 states prolonged and compared with the fine

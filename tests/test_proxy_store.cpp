@@ -5,6 +5,8 @@
 
 #include <unistd.h>
 
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -16,6 +18,8 @@
 #include "ice/mesh_generators.h"
 #include "fem/coarse_proxy.h"
 #include "ice/mesh_io.h"
+#include "ice/coarse_tracing.h"
+#include "ice/proxy/geodesics.h"
 #include "ice/proxy/heat.h"
 #include "ice/proxy/multigrid.h"
 #include "ice/proxy/poisson.h"
@@ -315,5 +319,188 @@ TEST_CASE("setup files: an explicit save loads back bit for bit, for its own mes
     CHECK_THROWS_WITH(ice::proxy::load_proxy_setup_file(dir / "h.ice", mesh), Catch::Contains("kind 'hierarchy'"));
     CHECK_THROWS_WITH(ice::proxy::load_proxy_setup_file(dir / "none.ice", mesh), Catch::Contains("no such file"));
   }
+  fs::remove_all(dir);
+}
+
+namespace {
+
+ice::proxy::MappedSpaceOptions mapped_options(const fs::path& dir, ice::CoarseningMethod method = ice::CoarseningMethod::ice) {
+  ice::proxy::MappedSpaceOptions options;
+  options.coarsening.method = method;
+  options.coarsening.coarsen.target_vertices = 300;
+  options.store = ice::proxy::Store({dir, ice::proxy::kDefaultStoreBytes});
+  return options;
+}
+
+void check_same_space(const ice::proxy::MappedSpace& a, const ice::proxy::MappedSpace& b) {
+  CHECK(a.coarse.mesh.F == b.coarse.mesh.F);
+  CHECK(a.coarse.mesh.L == b.coarse.mesh.L);
+  CHECK(a.coarse.mesh.twin == b.coarse.mesh.twin);
+  CHECK(a.coarse.mesh.to_input == b.coarse.mesh.to_input);
+  CHECK(a.coarse.mesh.from_input == b.coarse.mesh.from_input);
+  CHECK(a.coarse.P.isApprox(b.coarse.P, 0.0));
+  CHECK(a.coarse.summary.removed() == b.coarse.summary.removed());
+  REQUIRE(a.coarse.inserted.size() == b.coarse.inserted.size());
+  for (std::size_t i = 0; i < a.coarse.inserted.size(); ++i) {
+    CHECK(a.coarse.inserted[i].face == b.coarse.inserted[i].face);
+    CHECK(a.coarse.inserted[i].bary == b.coarse.inserted[i].bary);
+  }
+  REQUIRE(a.map.size() == b.map.size());
+  for (std::size_t i = 0; i < a.map.size(); ++i) {
+    CHECK(a.map[i].coarse_vertex == b.map[i].coarse_vertex);
+    CHECK(a.map[i].face == b.map[i].face);
+    CHECK(a.map[i].bary == b.map[i].bary);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("store: a coarse space with its map and traced lengths loads back bit for bit (ICE, refined, QEM)",
+          "[proxy][store]") {
+  const fs::path dir = fresh_store("mapped");
+  const ice::TriangleMesh& mesh = unit_sphere();
+  const auto method = GENERATE(as<std::string>{}, "ice", "refined", "qem");
+  INFO(method);
+  ice::proxy::MappedSpaceOptions options = mapped_options(dir, method == "qem" ? ice::CoarseningMethod::qem : ice::CoarseningMethod::ice);
+  if (method == "refined") options.coarsening.refinement = ice::RefinementOptions{};
+  ice::proxy::MappedSpaceOptions off = options;
+  off.store = {};
+
+  const ice::proxy::MappedSpace plain = ice::proxy::build_mapped_space(mesh, off);
+  CHECK(plain.cache.status == CacheStatus::off);
+  CHECK(!plain.coarse.triangulation);  // the method's state is freed once the map is read
+  if (method == "refined") CHECK(!plain.coarse.inserted.empty());
+  const ice::proxy::MappedSpace cold = ice::proxy::build_mapped_space(mesh, options);
+  CHECK(cold.cache.status == CacheStatus::miss);
+  REQUIRE(entries(dir).size() == 1);
+  // The map costs 40 bytes per input vertex: an entry stays below 200.
+  CHECK(fs::file_size(entries(dir)[0]) < 200 * static_cast<std::uintmax_t>(mesh.V.rows()));
+  const ice::proxy::MappedSpace warm = ice::proxy::build_mapped_space(mesh, options);
+  CHECK(warm.cache.status == CacheStatus::hit);
+  REQUIRE(warm.key);
+  CHECK(warm.cache.keys == cold.cache.keys);
+  check_same_space(plain, cold);
+  check_same_space(plain, warm);
+
+  // The map agrees with P: each row of P is its point's coordinates summed over the face's corners.
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> rows = warm.coarse.P;
+  for (Eigen::Index i = 0; i < rows.rows(); ++i) {
+    const ice::CoarsePoint& p = warm.map[static_cast<std::size_t>(i)];
+    for (int k = 0; k < 3; ++k) {
+      double expected = 0;
+      for (int l = 0; l < 3; ++l)
+        if (warm.coarse.mesh.F(p.face, l) == warm.coarse.mesh.F(p.face, k)) expected += p.bary[static_cast<std::size_t>(l)];
+      CHECK(std::abs(rows.coeff(i, warm.coarse.mesh.F(p.face, k)) - expected) <= 1e-12);
+    }
+  }
+
+  if (method != "qem") {  // QEM's edges are straight: nothing to trace
+    const ice::SurfaceEdgeLengths traced = ice::surface_edge_lengths(mesh, plain.coarse.mesh, plain.map, plain.coarse.inserted);
+    ice::proxy::CacheReport first = warm.cache, second = warm.cache;
+    const ice::SurfaceEdgeLengths made = ice::proxy::traced_edge_lengths(mesh, warm, options.store, &first);
+    CHECK(first.keys.size() == 2);
+    CHECK(entries(dir).size() == 2);
+    const ice::SurfaceEdgeLengths loaded = ice::proxy::traced_edge_lengths(mesh, warm, options.store, &second);
+    CHECK(second.keys == first.keys);
+    CHECK(second.status == CacheStatus::hit);
+    CHECK(made.lengths == traced.lengths);
+    CHECK(loaded.lengths == traced.lengths);
+    CHECK(loaded.edges == traced.edges);
+    CHECK(loaded.traced == traced.traced);
+    CHECK(traced.traced > 0);
+
+    // A damaged traced entry is reported, removed and traced again.
+    const fs::path traced_entry = dir / ("traced-" + first.keys.at(1) + ".ice");
+    std::vector<char> bytes = read_bytes(traced_entry);
+    bytes[bytes.size() - 20] ^= 0x04;
+    write_bytes(traced_entry, bytes);
+    ice::proxy::CacheReport third = warm.cache;
+    CHECK(ice::proxy::traced_edge_lengths(mesh, warm, options.store, &third).lengths == traced.lengths);
+    CHECK(third.status == CacheStatus::rebuilt);
+    CHECK(third.damage.find("checksum") != std::string::npos);
+  }
+  fs::remove_all(dir);
+}
+
+TEST_CASE("store: a damaged coarse space entry is never used and is rebuilt to the same space and map", "[proxy][store]") {
+  const fs::path dir = fresh_store("mapped-damage");
+  const ice::TriangleMesh& mesh = unit_sphere();
+  const ice::proxy::MappedSpaceOptions options = mapped_options(dir);
+  const ice::proxy::MappedSpace cold = ice::proxy::build_mapped_space(mesh, options);
+  const fs::path entry = entries(dir).at(0);
+  const std::vector<char> good = read_bytes(entry);
+  std::vector<char> flipped = good;
+  flipped[flipped.size() / 2] ^= 0x01;
+  for (const std::vector<char>& bad : {std::vector<char>(good.begin(), good.begin() + good.size() / 3), flipped}) {
+    write_bytes(entry, bad);
+    const ice::proxy::MappedSpace rebuilt = ice::proxy::build_mapped_space(mesh, options);
+    CHECK(rebuilt.cache.status == CacheStatus::rebuilt);
+    CHECK(!rebuilt.cache.damage.empty());
+    check_same_space(cold, rebuilt);
+    CHECK(ice::proxy::build_mapped_space(mesh, options).cache.status == CacheStatus::hit);
+  }
+  // A coarsening its progress callback cancelled is not the space its key names: never stored.
+  ice::proxy::MappedSpaceOptions cancelled = options;
+  cancelled.coarsening.coarsen.target_vertices = 200;
+  cancelled.coarsening.coarsen.progress_interval = 10;
+  cancelled.coarsening.coarsen.progress = [](const ice::CoarsenProgress&) { return false; };
+  const std::size_t before = entries(dir).size();
+  CHECK(ice::proxy::build_mapped_space(mesh, cancelled).coarse.summary.stop_reason() == ice::StopReason::Cancelled);
+  CHECK(entries(dir).size() == before);
+  // What needs the method's state bypasses the store; so does nothing else.
+  ice::proxy::MappedSpaceOptions kept = options;
+  kept.coarsening.keep_method_state = true;
+  const ice::proxy::MappedSpace with_state = ice::proxy::build_mapped_space(mesh, kept);
+  CHECK(with_state.cache.status == CacheStatus::off);
+  CHECK(with_state.coarse.triangulation);
+  check_same_space(cold, with_state);
+  // Spaces without a map are refused before any work.
+  ice::proxy::MappedSpaceOptions idt = options;
+  idt.coarsening.method = ice::CoarseningMethod::qem;
+  idt.coarsening.qem_geometry = ice::QemGeometry::intrinsic_delaunay;
+  CHECK_THROWS_AS(ice::proxy::build_mapped_space(mesh, idt), std::invalid_argument);
+  ice::TriangleMesh fin;  // three triangles on one edge: solved on its tufted cover
+  fin.V.resize(5, 3);
+  fin.V << 0, 0, 0, 1, 0, 0, 0.5, 1, 0, 0.5, -1, 0, 0.5, 0, 1;
+  fin.F.resize(3, 3);
+  fin.F << 0, 1, 2, 1, 0, 3, 0, 1, 4;
+  ice::proxy::MappedSpaceOptions covered = options;
+  covered.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  covered.coarsening.coarsen.target_vertices = 4;
+  CHECK_THROWS_AS(ice::proxy::build_mapped_space(fin, covered), std::invalid_argument);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("store: geodesics from a stored space equal those set up from scratch, bit for bit", "[proxy][store][geodesic]") {
+  const fs::path dir = fresh_store("geodesic");
+  const ice::TriangleMesh& mesh = unit_sphere();
+  const std::vector<ice::Index> sources{0, 17};
+  for (const fem::CoarseDistanceMethod method : {fem::CoarseDistanceMethod::marching, fem::CoarseDistanceMethod::heat_method}) {
+    ice::proxy::GeodesicOptions options;
+    options.method = method;
+    options.coarsening.coarsen.target_vertices = 300;
+    const Eigen::VectorXd plain = ice::proxy::GeodesicSolver(mesh, options).distance(sources);
+    options.store.directory = dir;
+    const ice::proxy::GeodesicSolver cold(mesh, options);
+    CHECK(cold.cache().status == CacheStatus::miss);
+    const ice::proxy::GeodesicSolver warm(mesh, options);
+    CHECK(warm.cache().status == CacheStatus::hit);
+    if (method == fem::CoarseDistanceMethod::marching) {
+      CHECK(warm.traced_lengths());
+      CHECK(warm.cache().keys.size() == 2);  // the space with its map, and its traced lengths
+    }
+    CHECK(cold.distance(sources) == plain);
+    CHECK(warm.distance(sources) == plain);
+  }
+  // The oracle reads the same space and traced lengths.
+  ice::proxy::OracleOptions oracle;
+  oracle.coarsening.coarsen.target_vertices = 300;
+  const fem::DistanceOracle plain = ice::proxy::distance_oracle(mesh, oracle);
+  oracle.store.directory = dir;
+  ice::proxy::CacheReport cache;
+  const fem::DistanceOracle warm = ice::proxy::distance_oracle(mesh, oracle, {}, nullptr, &cache);
+  CHECK(cache.status == CacheStatus::hit);
+  const std::vector<std::array<ice::Index, 2>> pairs{{0, 100}, {5, 2000}, {17, 2561}};
+  CHECK(warm.distances(pairs) == plain.distances(pairs));
   fs::remove_all(dir);
 }

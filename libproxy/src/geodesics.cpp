@@ -1,5 +1,6 @@
 #include "ice/proxy/geodesics.h"
 
+#include <filesystem>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -28,6 +29,14 @@ CoarseSpace marching_space(const TriangleMesh& mesh, std::optional<CoarseSpace> 
   return build_coarse_space(mesh, coarsening);
 }
 
+/// The coarse space of a marching recipe with its map, through `store`.
+MappedSpace mapped_space(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening, const Store& store) {
+  MappedSpaceOptions options;
+  options.coarsening = coarsening;
+  options.store = store;
+  return build_mapped_space(mesh, options);
+}
+
 /// Whether to trace: as traces_lengths says, except that `automatic` falls back to the coarse mesh's
 /// own lengths when there is nothing to trace with (a given space without map or method state).
 bool trace(CoarseLengths choice, const CoarseSpace& space, const std::vector<CoarsePoint>* map, bool marching) {
@@ -52,10 +61,20 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
   require_marching_for_traced(options_.lengths, marching);
   if (marching) {
     require_no_marching_on_cover(on_cover(mesh, options_.coarsening, coarse), "coarse marching");
-    setup_.coarse = marching_space(mesh, std::move(coarse), options_.coarsening, options_.lengths, true);
-    traced_ = trace(options_.lengths, setup_.coarse, map, true);
-    lengths_ = marching_lengths(mesh, setup_.coarse, traced_, options_.curvature_correction, map,
-                                curvature_divisor(MarchingUse::single_source));
+    const double divisor = curvature_divisor(MarchingUse::single_source);
+    if (!coarse && options_.store.directory != std::filesystem::path()) {  // the space, its map and traced lengths stored
+      const Store store(options_.store);
+      MappedSpace space = mapped_space(mesh, options_.coarsening, store);
+      traced_ = trace(options_.lengths, space.coarse, &space.map, true);
+      lengths_ = traced_ ? traced_edge_lengths(mesh, space, store, &space.cache) : SurfaceEdgeLengths{space.coarse.mesh.L, 0, 0};
+      lengths_ = corrected_marching_lengths(mesh, space.coarse, std::move(lengths_), options_.curvature_correction, divisor);
+      setup_.coarse = std::move(space.coarse);
+      cache_ = std::move(space.cache);
+    } else {
+      setup_.coarse = marching_space(mesh, std::move(coarse), options_.coarsening, options_.lengths, true);
+      traced_ = trace(options_.lengths, setup_.coarse, map, true);
+      lengths_ = marching_lengths(mesh, setup_.coarse, traced_, options_.curvature_correction, map, divisor);
+    }
     solver_ = std::make_unique<fem::ProxyGeodesicSolver>(with_lengths(setup_.coarse.mesh, lengths_.lengths), setup_.coarse.P,
                                                          options_.subdivisions);
   } else {
@@ -64,7 +83,10 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
     setup.fine = options_.fine;
     setup.operators = options_.operators;
     setup.prolongation = Prolongation::barycentric;
+    setup.store = Store(options_.store);
+    setup.fine_operators = true;  // the Galerkin heat method's coarse operators are made from the fine ones
     setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
+    cache_ = setup_.cache;
     fem::ProxyGeodesicOptions heat;
     heat.method = fem::CoarseDistanceMethod::heat_method;
     heat.time_factor = options_.time_factor;
@@ -81,10 +103,21 @@ Eigen::VectorXd geodesic_distance(const TriangleMesh& mesh, const std::vector<In
 }
 
 fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOptions& options, std::optional<CoarseSpace> coarse,
-                                    const std::vector<CoarsePoint>* map) {
+                                    const std::vector<CoarsePoint>* map, CacheReport* cache) {
   const bool marching = options.oracle.method == fem::CoarseDistanceMethod::marching;
   require_marching_for_traced(options.lengths, marching);
   require_no_marching_on_cover(on_cover(mesh, options.coarsening, coarse), "the distance oracle");
+  const double divisor = curvature_divisor(MarchingUse::all_pairs);
+  if (!coarse && options.store.directory != std::filesystem::path()) {  // the space, its map and traced lengths stored
+    const Store store(options.store);
+    MappedSpace space = mapped_space(mesh, options.coarsening, store);
+    const bool traced = trace(options.lengths, space.coarse, &space.map, marching);
+    SurfaceEdgeLengths lengths =
+        traced ? traced_edge_lengths(mesh, space, store, &space.cache) : SurfaceEdgeLengths{space.coarse.mesh.L, 0, 0};
+    lengths = corrected_marching_lengths(mesh, space.coarse, std::move(lengths), options.curvature_correction, divisor);
+    if (cache) *cache = space.cache;
+    return fem::DistanceOracle(with_lengths(space.coarse.mesh, lengths.lengths), space.map, options.oracle);
+  }
   CoarseSpaceOptions coarsening = options.coarsening;
   coarsening.keep_method_state = true;  // the oracle's fine points are the fine-to-coarse map
   const CoarseSpace space = marching_space(mesh, std::move(coarse), std::move(coarsening), options.lengths, marching);
@@ -95,7 +128,7 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
   }
   const bool traced = trace(options.lengths, space, map, marching);
   return fem::DistanceOracle(with_lengths(space.mesh, marching_lengths(mesh, space, traced, options.curvature_correction,
-                                                                      map, curvature_divisor(MarchingUse::all_pairs))
+                                                                      map, divisor)
                                                          .lengths),
                              *map, options.oracle);
 }

@@ -78,7 +78,8 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
     setup.proxy.reset(new fem::CoarseProxy(make_proxy(setup.fine, setup.coarse, options.operators, resolved)));
     setup.times.assemble = seconds_since(start);
   }
-  if (key) save_proxy_setup(options.store, *key, setup);
+  // A coarsening cancelled by its progress callback is not the space its key names: never stored.
+  if (key && setup.coarse.summary.stop_reason() != StopReason::Cancelled) save_proxy_setup(options.store, *key, setup);
   return setup;
 }
 
@@ -96,9 +97,14 @@ SurfaceEdgeLengths marching_lengths(const TriangleMesh& mesh, const CoarseSpace&
     result = surface_edge_lengths(mesh, space.mesh, fine_to_coarse_map(space), space.inserted);
   else
     result.lengths = space.mesh.L;
+  return corrected_marching_lengths(mesh, space, std::move(result), correction, divisor);
+}
+
+SurfaceEdgeLengths corrected_marching_lengths(const TriangleMesh& mesh, const CoarseSpace& space, SurfaceEdgeLengths lengths,
+                                              CurvatureCorrection correction, double divisor) {
   if (corrects_curvature(correction, space.summary.method))
-    result.lengths = curvature_corrected_lengths(mesh, space, result.lengths, divisor);
-  return result;
+    lengths.lengths = curvature_corrected_lengths(mesh, space, lengths.lengths, divisor);
+  return lengths;
 }
 
 TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool with_operators, double time_factor) {
@@ -131,10 +137,15 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const CoarseSpac
 }
 
 fem::VectorSweepProxy make_vector_sweep(const TriangleMesh& mesh, const TangentMesh& fine, const CoarseSpace& coarse,
-                                        const std::vector<CoarsePoint>& map, const fem::DistanceSweepOptions& options) {
+                                        const std::vector<CoarsePoint>& map, const fem::DistanceSweepOptions& options,
+                                        const SurfaceEdgeLengths* traced_lengths) {
   if (!fine.operators) throw std::logic_error("make_vector_sweep: the sweep needs the fine operators (tangent_mesh with_operators)");
   const bool traced = traces_lengths(CoarseLengths::automatic, coarse.summary.method, true);
-  const SurfaceEdgeLengths lengths = marching_lengths(mesh, coarse, traced, CurvatureCorrection::automatic, &map);
+  const SurfaceEdgeLengths lengths =
+      traced && traced_lengths
+          ? corrected_marching_lengths(mesh, coarse, *traced_lengths, CurvatureCorrection::automatic,
+                                       curvature_divisor(MarchingUse::single_source))
+          : marching_lengths(mesh, coarse, traced, CurvatureCorrection::automatic, &map);
   return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(with_lengths(coarse.mesh, lengths.lengths), coarse.P), options);
 }
 

@@ -169,7 +169,7 @@ def _with_defaults(coarsening, use):
     return coarsening
 
 
-def _coarse_for(V, F, coarse, coarsening, use, locked=None):
+def _coarse_for(V, F, coarse, coarsening, use, locked=None, cache=None):
     if coarse is not None:
         if coarsening:
             raise ValueError(f"give coarse or coarsening options ({', '.join(sorted(coarsening))}), not both")
@@ -178,7 +178,7 @@ def _coarse_for(V, F, coarse, coarsening, use, locked=None):
     if locked is not None:  # the fixed vertices must stay: locked besides the caller's own
         own = coarsening.get("locked")
         coarsening["locked"] = locked if own is None else np.union1d(np.asarray(own), np.asarray(locked))
-    return coarsen(V, F, **coarsening)
+    return coarsen(V, F, cache=cache, **coarsening)
 
 
 def _stored_proxy(V, F, coarsening, use, operators, fine, prolongation, fixed, cache):
@@ -259,7 +259,7 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
 def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, method: str = "marching",
                       time_factor: float = 1.0, operators: str = "galerkin", fine: str = "intrinsic_delaunay",
                       lengths: str = "auto", subdivisions: int = 1, curvature_correction: bool | None = None,
-                      **coarsening):
+                      cache=None, **coarsening):
     """Geodesic distance to `sources` through a coarse proxy (geodesic-coarse).
 
     method: "marching" (fast marching on the coarse mesh, the default; operators and fine are then
@@ -273,11 +273,13 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     geodesic-coarse --curvature-correction auto). On a mesh of several components
     the distance is +inf on the components without a source. With nonmanifold="tufted" (a mesh
     that is not an oriented manifold, or a point cloud's faces) the heat method only. For many
-    sources or pairs see ProxyGeodesicSolver and DistanceOracle.
+    sources or pairs see ProxyGeodesicSolver and DistanceOracle. cache: the coarse space (with its
+    map and traced lengths) goes through the store as in ice.coarsen: None the default store, a
+    directory, or False for none.
     """
     if method not in ("marching", "heat"):
         raise ValueError(f"method must be 'marching' or 'heat', not {method!r}")
-    coarse = _coarse_for(V, F, coarse, coarsening, "geodesic")
+    coarse = _coarse_for(V, F, coarse, coarsening, "geodesic", cache=cache)
     if lengths == "traced" and method != "marching":
         raise ValueError(f"lengths={lengths!r} is for method='marching'")
     if method == "marching":  # needs only the coarse mesh and P: no Proxy (fine mesh, operators) to build
@@ -289,7 +291,8 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
 
 def transport_vectors(V, F, sources, vectors=1.0, *, coarse: CoarseSpace | None = None, solver: str = "sweep",
                       operators: str = "galerkin", time_factor: float | None = None, fine: str = "intrinsic_delaunay",
-                      sweep_passes: int = 50, sweep_coarse_interval: int = 2, ambient: bool = False, **coarsening):
+                      sweep_passes: int = 50, sweep_coarse_interval: int = 2, ambient: bool = False, cache=None,
+                      **coarsening):
     """Tangent vectors carried from `sources` to every vertex through a coarse proxy, in one call (vector-coarse).
 
     vectors: one complex number per source, in its tangent frame (see VectorHeatSolver; default 1, the
@@ -297,8 +300,9 @@ def transport_vectors(V, F, sources, vectors=1.0, *, coarse: CoarseSpace | None 
     geodesics, several give the smooth field through them. coarse / coarsening options as for
     solve_poisson; solver, operators, time_factor, fine, sweep_passes and sweep_coarse_interval as for VectorHeatSolver. Returns the complex field (one tangent vector per vertex), or with ambient=True its
     n×3 vectors in the planes of the input triangles. For many calls build VectorHeatSolver once.
+    cache: the coarse space (with its map and traced lengths) through the store, as geodesic_distance.
     """
-    coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat")
+    coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", cache=cache)
     heat = VectorHeatSolver(V, F, coarse, operators=operators, time_factor=time_factor, fine=fine, solver=solver,
                             sweep_passes=sweep_passes, sweep_coarse_interval=sweep_coarse_interval)
     indices = np.atleast_1d(np.asarray(sources))

@@ -86,6 +86,9 @@ class CoarseSpace:
     @property
     def summary(self) -> dict[str, Any] | None: ...
     @property
+    def cache(self) -> dict[str, Any]:
+        """Where coarsen's space came from: status 'hit', 'miss', 'rebuilt' or 'off'."""
+    @property
     def positions(self) -> FloatArray | None: ...
     @property
     def traced_edges(self) -> tuple[list[FloatArray], IndexArray] | None:
@@ -103,7 +106,7 @@ def coarsen(V: ArrayLike, F: ArrayLike, *, n: int | None = None, ratio: float | 
             refine_angle: float | None = None, refine_budget: float = 1.5, keep_map: bool = True,
             locality_numbering: bool = True, trace: bool = False,
             progress: Callable[[dict[str, Any]], bool | None] | None = None,
-            nonmanifold: Literal["refuse", "tufted"] = "refuse") -> CoarseSpace:
+            nonmanifold: Literal["refuse", "tufted"] = "refuse", cache: str | PathLike[str] | Literal[False] | None = None) -> CoarseSpace:
     """Coarsens (V, F) by ICE (or QEM) to n vertices, a ratio of them, or an error bound."""
 def load_coarse_mesh(path: Path) -> CoarseSpace:
     """Reads an .ilm coarse mesh (faces, lengths, gluing, vertex map)."""
@@ -291,14 +294,15 @@ def geodesic_distance(V: ArrayLike, F: ArrayLike, sources: Indices, *, coarse: C
                       time_factor: float = 1.0, operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
                       lengths: Literal["auto", "intrinsic", "traced"] = "auto", subdivisions: int = 1,
-                      curvature_correction: bool | None = None, **coarsening: Any) -> FloatArray:
+                      curvature_correction: bool | None = None, cache: str | PathLike[str] | Literal[False] | None = None,
+                      **coarsening: Any) -> FloatArray:
     """Geodesic distance through a coarse proxy in one call (coarse fast marching by default)."""
 def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: ArrayLike = 1.0, *,
                       coarse: CoarseSpace | None = None, solver: Literal["sweep", "diffusion"] = "sweep",
                       operators: Literal["galerkin", "intrinsic"] = "galerkin",
                       time_factor: float | None = None, fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
                       sweep_passes: int = 50, sweep_coarse_interval: int = 2, ambient: bool = False,
-                      **coarsening: Any) -> ComplexArray | FloatArray:
+                      cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> ComplexArray | FloatArray:
     """Tangent vectors carried from sources to every vertex through a coarse proxy in one call."""
 
 def boundary_vertices(F: ArrayLike) -> IndexArray:

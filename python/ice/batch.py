@@ -340,7 +340,9 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
                 timed_out.append(True)
                 return False
             return True
-        coarse = ice.coarsen(loaded.V, loaded.F, progress=progress, threads=threads, **options)
+        # Not through the store of coarse spaces: the batch's records are its own store (it resumes from
+        # them), and a dataset's spaces would crowd out a user's set-ups there.
+        coarse = ice.coarsen(loaded.V, loaded.F, progress=progress, threads=threads, cache=False, **options)
         if timed_out:
             raise TimeoutError(f"{path}: coarsening passed the timeout of {timeout:g} s "
                                f"(at {coarse.n_vertices} vertices); cancelled")

@@ -281,6 +281,11 @@ struct PyCoarseSpace {
   std::uint64_t faces_fingerprint = 0; ///< of the input's F, which a Proxy must be built on
   /// P row by row, made on first access of .P, viewed (read-only) by the scipy matrix it returns.
   std::optional<Eigen::SparseMatrix<double, Eigen::RowMajor, int>> P_rows;
+  /// The store it went through (ice.coarsen's cache) and its key there, under which its traced lengths
+  /// are stored too; where it came from (CoarseSpace.cache).
+  ice::proxy::Store store;
+  std::optional<ice::proxy::StoreKey> store_key;
+  nlohmann::json cache = {{"status", "off"}};
 };
 
 // Calls a Python progress callback from the coarsener (on the calling thread, GIL released): with
@@ -378,6 +383,8 @@ ice::CoarseSpaceOptions coarse_space_options(const ice::TriangleMesh& mesh, cons
   return options;
 }
 
+ice::proxy::Store store_argument(const py::object& cache);
+
 std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F, const py::object& n,
                                        const py::object& ratio, const py::object& min_vertices, const py::object& max_error, const std::string& method,
                                        const std::string& use, const py::object& area_weight,
@@ -386,7 +393,7 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
                                        const std::string& qem_geometry,
                                        const py::object& refine_angle, double refine_budget, bool keep_map,
                                        bool locality_numbering, bool trace, const py::object& progress,
-                                       const std::string& nonmanifold) {
+                                       const std::string& nonmanifold, const py::object& cache) {
   const ice::TriangleMesh mesh = mesh_argument(V, F);
   ice::CoarseSpaceOptions options =
       coarse_space_options(mesh, n, ratio, min_vertices, max_error, method, use, area_weight, normalize_curvature, locked,
@@ -403,20 +410,45 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
   options.record_history = trace;  // exact tracing (ice/coarse_tracing.h), made below before the history is freed
   ProgressBridge bridge{progress, nullptr};
   c.progress = [&bridge](const ice::CoarsenProgress& state) { return bridge(state); };
+  const bool has_map = !covered && !(options.method == ice::CoarseningMethod::qem &&
+                                     options.qem_geometry == ice::QemGeometry::intrinsic_delaunay);
+  // Through the store: a space with a map (not a tufted cover's, nor QEM's intrinsic Delaunay one),
+  // without the history of trace=True, which is not stored.
+  const ice::proxy::Store store = has_map && !trace ? store_argument(cache) : ice::proxy::Store();
 
   auto result = std::make_shared<PyCoarseSpace>();
   result->input_vertices = static_cast<ice::Index>(mesh.V.rows());
+  std::optional<ice::proxy::MappedSpace> mapped;
   {
     py::gil_scoped_release release;
     require_clean(mesh, options.nonmanifold);
-    result->space = ice::build_coarse_space(mesh, options);
+    if (store.enabled()) {
+      ice::proxy::MappedSpaceOptions mapped_options;
+      mapped_options.coarsening = options;
+      mapped_options.coarsening.keep_method_state = false;  // the map comes with the space
+      mapped_options.store = store;
+      mapped.emplace(ice::proxy::build_mapped_space(mesh, mapped_options));
+      result->space = std::move(mapped->coarse);
+    } else {
+      result->space = ice::build_coarse_space(mesh, options);
+    }
   }
   if (bridge.error) std::rethrow_exception(bridge.error);
+  if (mapped) {
+    result->store = store;
+    result->store_key = mapped->key;
+    result->cache = ice::proxy::cache_json(mapped->cache, store);
+    result->cache["load_seconds"] = mapped->cache.load_seconds;
+    result->cache["save_seconds"] = mapped->cache.save_seconds;
+    if (mapped->cache.status == ice::proxy::CacheStatus::rebuilt)
+      PyErr_WarnEx(PyExc_RuntimeWarning, ("ice.coarsen: the stored coarse space was damaged and is rebuilt: " + mapped->cache.damage).c_str(), 1);
+  }
   {
     py::gil_scoped_release release;
     // No map on a tufted cover (the kept triangulation tracks the cover's copies, not the input's vertices).
-    if (keep_map && !result->space.summary.tufted_cover &&
-        !(options.method == ice::CoarseningMethod::qem && options.qem_geometry == ice::QemGeometry::intrinsic_delaunay))
+    if (mapped && keep_map)
+      result->map = std::move(mapped->map);
+    else if (keep_map && has_map)
       result->map = ice::fine_to_coarse_map(result->space);
     if (trace) {
       result->tracing = ice::trace_coarse_mesh(mesh, result->space, c.threads);
@@ -557,7 +589,11 @@ ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const 
   if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
     throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
   py::gil_scoped_release release;
-  return ice::proxy::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map, divisor).lengths;
+  if (!traced || !coarse.store_key) return ice::proxy::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map, divisor).lengths;
+  // Traced lengths of a space that came through the store: stored beside it.
+  ice::SurfaceEdgeLengths lengths =
+      ice::proxy::traced_edge_lengths(mesh, coarse.space, coarse.map, &*coarse.store_key, coarse.store);
+  return ice::proxy::corrected_marching_lengths(mesh, coarse.space, std::move(lengths), correction, divisor).lengths;
 }
 
 /// lengths="auto"|"intrinsic"|"traced" of the marching entry points: whether to march on traced lengths
@@ -800,8 +836,15 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   fem::DistanceSweepOptions sweep_options;
   sweep_options.max_passes = sweep_passes;
   sweep_options.coarse_correction_interval = sweep_coarse_interval;
-  if (sweep)
-    result->sweep = std::make_unique<fem::VectorSweepProxy>(ice::proxy::make_vector_sweep(mesh, result->fine, coarse->space, coarse->map, sweep_options));
+  if (sweep) {
+    // A space that came through the store: the sweep's traced lengths are stored beside it.
+    std::optional<ice::SurfaceEdgeLengths> traced;
+    if (coarse->store_key &&
+        ice::proxy::traces_lengths(ice::proxy::CoarseLengths::automatic, coarse->space.summary.method, true))
+      traced = ice::proxy::traced_edge_lengths(mesh, coarse->space, coarse->map, &*coarse->store_key, coarse->store);
+    result->sweep = std::make_unique<fem::VectorSweepProxy>(
+        ice::proxy::make_vector_sweep(mesh, result->fine, coarse->space, coarse->map, sweep_options, traced ? &*traced : nullptr));
+  }
   else if (coarse)
     result->proxy = std::make_unique<fem::VectorHeatProxy>(ice::proxy::make_vector_proxy(result->fine, coarse->space, coarse->map, kind, time_factor));
   else
@@ -1066,6 +1109,9 @@ barycentric coordinates of input vertex i in a coarse face; every row sums to 1.
       .def_property_readonly("map", &coarse_map, R"doc(The fine-to-coarse map as (face, bary, coarse_vertex): for each input vertex a coarse face containing
 it, its barycentric coordinates (n×3) in that face's corners, and the coarse vertex it became (-1 if removed).
 None when read from a file, with keep_map=False, or for QEM with intrinsic Delaunay geometry.)doc")
+      .def_property_readonly("cache", [](const PyCoarseSpace& s) { return json_to_python(s.cache); },
+                             "Where ice.coarsen's space came from: {'status': 'hit'|'miss'|'rebuilt'|'off', 'keys', 'directory', "
+                             "'load_seconds', 'save_seconds'} ('off' without a store, and for spaces read from a file).")
       .def_property_readonly("summary", &coarse_summary, "What the coarsening did (the tools' report keys): sizes, stop reason, removals, costs, seconds.")
       .def_property_readonly("positions", [](const PyCoarseSpace& s) -> py::object {
         if (!s.has_space) return py::none();
@@ -1112,7 +1158,7 @@ ice.load_coarse_mesh reads it back). An existing file is replaced only with over
         py::arg("locked") = py::none(), py::arg("remove_boundary") = true, py::arg("threads") = 0,
         py::arg("regions") = 0, py::arg("qem_geometry") = "extrinsic", py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5,
         py::arg("keep_map") = true, py::arg("locality_numbering") = true, py::arg("trace") = false, py::arg("progress") = py::none(),
-        py::arg("nonmanifold") = "refuse",
+        py::arg("nonmanifold") = "refuse", py::arg("cache") = py::none(),
         R"doc(Coarsens the mesh (V, F) (clean, oriented, manifold; several components, boundaries and any genus
 are fine) and returns its ice.CoarseSpace: the intrinsic coarse mesh, P, the fine-to-coarse map.
 nonmanifold="tufted": a mesh that is not an oriented manifold (non-manifold edges or vertices,
@@ -1134,7 +1180,12 @@ removals (once per round of the parallel phase); returning False stops early (su
 Ctrl-C stops and is raised. keep_map: keep the fine-to-coarse map (CoarseSpace.map, DistanceOracle). trace (ICE):
 also trace every coarse edge on the input surface exactly (ice-coarsen --trace: the coarsening's history recorded
 while it runs, ~1 KB per removal until this call returns): CoarseSpace.traced_edges, and the lengths of
-ProxyGeodesicSolver.from_coarse(..., lengths='traced'). Raises ice.MeshError naming each defect of a refused mesh.)doc");
+ProxyGeodesicSolver.from_coarse(..., lengths='traced'). cache: None (the default store: $ICE_CACHE, else
+~/.cache/ice), False (none) or a directory: a coarse space stored there with its map for the same mesh and
+options is loaded instead of built (the same arrays to the last bit; no progress calls then), and the coarse
+edges' traced lengths are stored beside it; CoarseSpace.cache says which ('hit', 'miss', 'rebuilt', 'off').
+trace=True, nonmanifold covers and QEM's intrinsic Delaunay geometry bypass it. Raises ice.MeshError naming
+each defect of a refused mesh.)doc");
   m.def("setup_proxy", &setup_proxy, py::arg("V"), py::arg("F"), py::kw_only(), py::arg("operators") = "galerkin",
         py::arg("fine") = "intrinsic_delaunay", py::arg("prolongation") = "auto", py::arg("fixed") = py::none(),
         py::arg("cache") = py::none(), py::arg("n") = py::none(), py::arg("ratio") = py::none(),

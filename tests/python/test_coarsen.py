@@ -144,16 +144,17 @@ def test_qem_and_targets(project_mesh):
 def test_progress_callback_and_cancel(project_mesh):
     V, F = ice.load_mesh(project_mesh("bear.off"))
     seen = []
-    coarse = ice.coarsen(V, F, n=500, progress=lambda state: seen.append(state["vertices"]))
+    # Progress is reported while a space is built (cache=False: not loaded from the store).
+    coarse = ice.coarsen(V, F, n=500, progress=lambda state: seen.append(state["vertices"]), cache=False)
     assert seen and seen == sorted(seen, reverse=True) and coarse.n_vertices == 500
-    stopped = ice.coarsen(V, F, n=500, progress=lambda state: False)
+    stopped = ice.coarsen(V, F, n=500, progress=lambda state: False, cache=False)
     assert stopped.summary["stop_reason"] == "cancelled" and stopped.n_vertices > 500
     check_coarse_space(stopped, V, F)
 
     def fail(state):
         raise KeyError("from the callback")
     with pytest.raises(KeyError, match="from the callback"):
-        ice.coarsen(V, F, n=500, progress=fail)
+        ice.coarsen(V, F, n=500, progress=fail, cache=False)
 
 
 def test_long_calls_release_the_gil(project_mesh):
@@ -171,7 +172,7 @@ def test_long_calls_release_the_gil(project_mesh):
     ticker.start()
     try:
         before = len(ticks)
-        coarse = ice.coarsen(V, F, ratio=0.05)
+        coarse = ice.coarsen(V, F, ratio=0.05, cache=False)  # built, not loaded
         during = len(ticks) - before
     finally:
         running.clear()
@@ -212,4 +213,4 @@ def test_option_types_and_ranges(project_mesh):
     def odd(state):
         return np.array([1, 2])  # no single truth value: the callback's own error is raised
     with pytest.raises(ValueError, match="truth value"):
-        ice.coarsen(V, F, n=300, progress=odd)
+        ice.coarsen(V, F, n=300, progress=odd, cache=False)

@@ -214,3 +214,51 @@ def test_saved_proxy_keeps_its_fine_geometry_and_parts_must_match(spot, tmp_path
     with pytest.raises(ValueError, match="not one setup"):
         ice.save_setup(tmp_path / "mixed.ice", V, F, other, proxy)
     assert not (tmp_path / "mixed.ice").exists()
+
+
+def test_coarsen_geodesics_and_vectors_through_the_store(spot, tmp_path):
+    """ice.coarsen stores the space with its map; marching and the vector sweep store the traced lengths
+    beside it; every result from the store equals the one set up from scratch, bit for bit."""
+    V, F = spot
+    plain = ice.coarsen(V, F, ratio=0.05, use="geodesic", cache=False)
+    assert plain.cache["status"] == "off"
+    cold = ice.coarsen(V, F, ratio=0.05, use="geodesic", cache=tmp_path)
+    warm = ice.coarsen(V, F, ratio=0.05, use="geodesic", cache=tmp_path)
+    assert (cold.cache["status"], warm.cache["status"]) == ("miss", "hit")
+    assert warm.cache["keys"] == cold.cache["keys"] and warm.cache["load_seconds"] > 0
+    for name in ("faces", "lengths", "twin", "to_input", "from_input", "positions"):
+        assert np.array_equal(getattr(warm, name), getattr(plain, name)), name
+    assert (warm.P != plain.P).nnz == 0
+    for a, b in zip(warm.map, plain.map):
+        assert np.array_equal(a, b)
+    assert warm.summary["removed"] == plain.summary["removed"]
+    # Marching on traced lengths: traced once, then loaded (the space's key names them).
+    d_plain = ice.ProxyGeodesicSolver.from_coarse(V, F, plain, lengths="traced").distance([0])
+    assert len(list(tmp_path.glob("traced-*.ice"))) == 0
+    d_cold = ice.ProxyGeodesicSolver.from_coarse(V, F, warm, lengths="traced").distance([0])
+    assert len(list(tmp_path.glob("traced-*.ice"))) == 1
+    d_warm = ice.ProxyGeodesicSolver.from_coarse(V, F, warm, lengths="traced").distance([0])
+    assert np.array_equal(d_cold, d_plain) and np.array_equal(d_warm, d_plain)
+    assert np.array_equal(ice.geodesic_distance(V, F, [0], cache=tmp_path), ice.geodesic_distance(V, F, [0], cache=False))
+    # The vector sweep marches on traced lengths of the Poisson metric's space.
+    field_off = ice.transport_vectors(V, F, [0], cache=False)
+    assert np.array_equal(ice.transport_vectors(V, F, [0], cache=tmp_path), field_off)
+    assert np.array_equal(ice.transport_vectors(V, F, [0], cache=tmp_path), field_off)
+    assert len(list(tmp_path.glob("space-*.ice"))) == 2 and len(list(tmp_path.glob("traced-*.ice"))) == 2
+    # What is not stored: the history of trace=True, a space without a map.
+    assert ice.coarsen(V, F, ratio=0.05, trace=True, cache=tmp_path).cache["status"] == "off"
+    assert ice.coarsen(V, F, ratio=0.05, method="qem", qem_geometry="intrinsic_delaunay", cache=tmp_path).cache["status"] == "off"
+    # A coarsening its progress callback cancelled is not the space its key names: never stored.
+    before = sorted(tmp_path.glob("*.ice"))
+    stopped = ice.coarsen(V, F, ratio=0.02, progress=lambda state: False, cache=tmp_path)
+    assert stopped.summary["stop_reason"] == "cancelled" and sorted(tmp_path.glob("*.ice")) == before
+    assert ice.coarsen(V, F, ratio=0.02, cache=tmp_path).summary["stop_reason"] == "target_reached"
+    # A damaged entry is reported (a warning), never used, and rebuilt to the same space.
+    entry = tmp_path / f"space-{cold.cache['keys'][0]}.ice"
+    data = bytearray(entry.read_bytes())
+    data[len(data) // 2] ^= 0x40
+    entry.write_bytes(bytes(data))
+    with pytest.warns(RuntimeWarning, match="damaged"):
+        rebuilt = ice.coarsen(V, F, ratio=0.05, use="geodesic", cache=tmp_path)
+    assert rebuilt.cache["status"] == "rebuilt"
+    assert np.array_equal(rebuilt.lengths, plain.lengths) and (rebuilt.P != plain.P).nnz == 0

@@ -30,6 +30,10 @@ struct GeodesicOptions {
   double time_factor = 1.0;
   fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
   FineGeometry fine = FineGeometry::intrinsic_delaunay;
+  /// Where the setup is looked up and saved (store.h): marching's coarse space with its map and
+  /// traced lengths (build_mapped_space, traced_edge_lengths), the heat method's proxy
+  /// (build_proxy_setup). Off by default in the library; a given coarse space bypasses it.
+  StoreOptions store;
 };
 
 class GeodesicSolver {
@@ -57,10 +61,13 @@ class GeodesicSolver {
   /// The CoarseProxy of the heat method, or null with marching (which needs none).
   const fem::CoarseProxy* proxy() const { return setup_.proxy.get(); }
   const fem::ProxyGeodesicSolver& proxy_solver() const { return *solver_; }
+  /// Where the setup came from (the store's status, times and keys).
+  const CacheReport& cache() const { return cache_; }
 
  private:
   GeodesicOptions options_;
   ProxySetup setup_;  ///< with marching: the coarse space alone
+  CacheReport cache_;
   bool traced_ = false;
   SurfaceEdgeLengths lengths_;
   std::unique_ptr<fem::ProxyGeodesicSolver> solver_;
@@ -82,14 +89,17 @@ struct OracleOptions {
   CurvatureCorrection curvature_correction = CurvatureCorrection::automatic;
   /// Coarse distances (marching or heat), subdivisions, threads.
   fem::DistanceOracleOptions oracle;
+  /// Where the coarse space with its map and traced lengths is looked up and saved (as GeodesicOptions::store).
+  StoreOptions store;
 };
 
 /// The distance oracle of `mesh` (fem::DistanceOracle: all coarse pairs precomputed, then any two
 /// vertices in O(1)), with the lengths and correction divisor measured for all-pairs marching.
 /// `coarse`/`map` as for GeodesicSolver, except that the oracle always needs the map: a given space
 /// without `map` must have been built with keep_method_state (std::invalid_argument otherwise, and
-/// for a tufted cover).
+/// for a tufted cover). `cache`, when given, says where the setup came from.
 fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOptions& options = {},
-                                    std::optional<CoarseSpace> coarse = {}, const std::vector<CoarsePoint>* map = nullptr);
+                                    std::optional<CoarseSpace> coarse = {}, const std::vector<CoarsePoint>* map = nullptr,
+                                    CacheReport* cache = nullptr);
 
 }  // namespace ice::proxy

@@ -136,10 +136,61 @@ void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh
 ProxySetup load_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh,
                                  fem::CoarseProxy::FineMeshSource fine_mesh = {});
 
+/// A coarse space with its fine-to-coarse map (ice::fine_to_coarse_map): what coarse marching, the
+/// distance oracle, the vector heat method and ice-coarsen read. Movable.
+struct MappedSpace {
+  /// The method's state (triangulation, QEM result) only when built with keep_method_state or
+  /// record_history, which bypass the store.
+  CoarseSpace coarse;
+  std::vector<CoarsePoint> map;  ///< one point per input vertex, faces in coarse.mesh's numbering
+  CacheReport cache;             ///< the space's entry, then the traced lengths' (traced_edge_lengths)
+  /// The key the space is stored under; the traced lengths are stored under a key made from it.
+  std::optional<StoreKey> key;
+};
+
+struct MappedSpaceOptions {
+  CoarseSpaceOptions coarsening;
+  Store store;                 ///< off by default
+  CoarseSpaceBuilder builder;  ///< empty: ice::build_coarse_space
+};
+
+/// The coarse space of `mesh` by options.coarsening and its fine-to-coarse map. With an enabled
+/// store it is first looked up under mapped_space_key: on a hit nothing is coarsened, and the space
+/// and map are those that were stored (the same arrays to the last bit), checked (every array's
+/// structure, and every row of P against the map's point) before use. Otherwise it is built and
+/// saved. A damaged entry is reported in `cache` (status rebuilt), removed and built again; an entry
+/// that cannot be written leaves the run as it is (save_error). keep_method_state and
+/// record_history bypass the store (the method's state is not stored).
+/// Throws std::invalid_argument, before any work, for a mesh solved on its tufted cover (the cover's
+/// triangulation tracks the copies of its vertices: there is no map) and for QEM with intrinsic
+/// Delaunay geometry (its map lies in the QEM mesh's faces), and on bad options as build_coarse_space.
+/// `fine_delaunay`, when given, is filled as build_coarse_space fills it if the space is built, and
+/// left as it is on a hit.
+MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOptions& options, FineMesh* fine_delaunay = nullptr);
+
+/// The key build_mapped_space stores a space under: the mesh's arrays, every coarsening option that
+/// changes the result (as proxy_setup_key) and the format version.
+StoreKey mapped_space_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening);
+
+/// The coarse edges' lengths on the input surface (ice::surface_edge_lengths over space.map): from
+/// `store` when the space has a key and its traced lengths were stored (checked: one positive, finite
+/// length per coarse face side, the counts in range), else traced and saved there. The entry's use is
+/// added to `cache` when given (its keys; status and times are left to the space's).
+SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const MappedSpace& space, const Store& store,
+                                       CacheReport* cache = nullptr);
+/// The same from a mapped space's parts (`space_key`: MappedSpace::key, null when it has none).
+SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const CoarseSpace& coarse, const std::vector<CoarsePoint>& map,
+                                       const StoreKey* space_key, const Store& store, CacheReport* cache = nullptr);
+
 /// `lengths` (of space's coarse faces) curvature-corrected with the input `mesh`: its angle defects
 /// and vertex areas gathered through space.P (fem::curvature_corrected_lengths) with divisor `divisor`.
 FaceLengths curvature_corrected_lengths(const TriangleMesh& mesh, const CoarseSpace& space, const FaceLengths& lengths,
                                         double divisor);
+
+/// `lengths` (the coarse mesh's own or traced) curvature-corrected as `correction` says for space's
+/// coarsening method (corrects_curvature), with `divisor`: the last step of marching_lengths.
+SurfaceEdgeLengths corrected_marching_lengths(const TriangleMesh& mesh, const CoarseSpace& space, SurfaceEdgeLengths lengths,
+                                              CurvatureCorrection correction, double divisor);
 
 /// The coarse edge lengths coarse marching runs on: the coarse mesh's own, or (`traced`) those of
 /// its edges traced on the input surface by the walk over the fine-to-coarse map (`map`, or
@@ -171,8 +222,10 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const CoarseSpac
 
 /// The sweep proxy of vector fields through `coarse`: coarse marching with the measured defaults
 /// (CoarseLengths::automatic, CurvatureCorrection::automatic, one subdivision) and fine.operators
-/// (which must have been built: std::logic_error otherwise).
+/// (which must have been built: std::logic_error otherwise). `traced`: the coarse edges' traced
+/// lengths when already made (traced_edge_lengths), else they are traced here if the defaults trace.
 fem::VectorSweepProxy make_vector_sweep(const TriangleMesh& mesh, const TangentMesh& fine, const CoarseSpace& coarse,
-                                        const std::vector<CoarsePoint>& map, const fem::DistanceSweepOptions& options = {});
+                                        const std::vector<CoarsePoint>& map, const fem::DistanceSweepOptions& options = {},
+                                        const SurfaceEdgeLengths* traced = nullptr);
 
 }  // namespace ice::proxy

@@ -1,0 +1,206 @@
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "entry_checks.h"
+#include "ice/proxy/setup.h"
+#include "ice/wall_time.h"
+#include "stored_space.h"
+
+namespace ice::proxy {
+
+namespace {
+
+using detail::require;
+
+constexpr const char* kSpaceKind = "space";
+constexpr const char* kTracedKind = "traced";
+
+// A mapped space's entry: the coarse space's arrays and the map's, two int32 and three doubles a point.
+struct SpaceEntry {
+  EntryWriter writer;
+  detail::CoarseSpaceArrays coarse_arrays;
+  std::vector<std::int32_t> vertex_face;
+  std::vector<double> bary;
+  SpaceEntry(const CoarseSpace& coarse, const std::vector<CoarsePoint>& map) : coarse_arrays(writer, coarse) {
+    vertex_face.reserve(2 * map.size());
+    bary.reserve(3 * map.size());
+    for (const CoarsePoint& p : map) {
+      vertex_face.push_back(p.coarse_vertex);
+      vertex_face.push_back(p.face);
+      bary.insert(bary.end(), p.bary.begin(), p.bary.end());
+    }
+    writer.put("map.vertex_face", vertex_face.data(), vertex_face.size());
+    writer.put("map.bary", bary.data(), bary.size());
+  }
+};
+
+// The map an entry holds, checked against its coarse space: points in range, survivors where
+// from_input says, and every entry of P the point's barycentric coordinates summed over its face's
+// corners (a consumer walks the map and prolongs with P: the two must be one map).
+std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::string& path, const CoarseSpace& c) {
+  const std::vector<std::int32_t> vertex_face = entry.ints("map.vertex_face");
+  const std::vector<double> bary = entry.doubles("map.bary");
+  const auto n = static_cast<std::size_t>(c.P.rows());
+  require(vertex_face.size() == 2 * n && bary.size() == 3 * n, path, "the fine-to-coarse map has the wrong size");
+  const auto faces = static_cast<std::int32_t>(c.mesh.F.rows());
+  const auto vertices = static_cast<std::int32_t>(c.mesh.vertex_count);
+  std::vector<CoarsePoint> map(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    CoarsePoint& p = map[i];
+    p.coarse_vertex = vertex_face[2 * i];
+    p.face = vertex_face[2 * i + 1];
+    require(p.coarse_vertex >= kInvalid && p.coarse_vertex < vertices, path, "a map point's coarse vertex is out of range");
+    require(p.coarse_vertex == c.mesh.from_input[i], path, "the map and the input vertex map disagree");
+    require(p.face >= 0 && p.face < faces, path, "a map point lies in no coarse face");
+    double sum = 0;
+    for (int k = 0; k < 3; ++k) {
+      p.bary[static_cast<std::size_t>(k)] = bary[3 * i + static_cast<std::size_t>(k)];
+      require(std::isfinite(p.bary[static_cast<std::size_t>(k)]), path, "a map point's coordinates are not finite");
+      sum += p.bary[static_cast<std::size_t>(k)];
+    }
+    require(std::abs(sum - 1) <= 1e-9, path, "a map point's coordinates do not sum to 1");
+  }
+  constexpr double kTolerance = 1e-12;  // P's entries are the map's coordinates summed over repeated corners
+  std::vector<double> row_sum(n, 0.0);
+  for (Eigen::Index j = 0; j < c.P.outerSize(); ++j)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(c.P, j); it; ++it) {
+      const auto i = static_cast<std::size_t>(it.row());
+      const CoarsePoint& p = map[i];
+      double expected = 0;
+      for (int k = 0; k < 3; ++k)
+        if (c.mesh.F(p.face, k) == j) expected += p.bary[static_cast<std::size_t>(k)];
+      require(std::abs(it.value() - expected) <= kTolerance, path, "P and the fine-to-coarse map disagree");
+      row_sum[i] += it.value();
+    }
+  for (double s : row_sum) require(std::abs(s - 1) <= 1e-9, path, "a row of P does not sum to 1");
+  return map;
+}
+
+struct StoredLengths {
+  SurfaceEdgeLengths lengths;
+  CacheReport cache;
+};
+
+StoreKey traced_key(const StoreKey& space_key) {
+  KeyHasher h(kTracedKind);
+  return h.add(space_key).finish();
+}
+
+}  // namespace
+
+StoreKey mapped_space_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening) {
+  KeyHasher h(kSpaceKind);
+  detail::add_mesh_and_coarsening(h, mesh, coarsening);
+  return h.finish();
+}
+
+MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOptions& options, FineMesh* fine_delaunay) {
+  const CoarseSpaceOptions& coarsening = options.coarsening;
+  if (coarsening.method == CoarseningMethod::qem && coarsening.qem_geometry == QemGeometry::intrinsic_delaunay)
+    throw std::invalid_argument("QEM with intrinsic Delaunay geometry has no fine-to-coarse map onto its coarse mesh (the "
+                                "closest-point map lies in the QEM mesh's faces): use its extrinsic geometry");
+  if (solved_on_tufted_cover(mesh, coarsening.nonmanifold))
+    throw std::invalid_argument("a mesh solved on its tufted cover has no fine-to-coarse map (the cover's triangulation "
+                                "tracks the copies of its vertices)");
+  MappedSpace result;
+  const bool stored = options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history;
+  if (stored) {
+    result.key = mapped_space_key(mesh, coarsening);
+    std::optional<MappedSpace> hit = detail::load_entry<MappedSpace>(
+        options.store, kSpaceKind, *result.key, result.cache, [&](const EntryReader& entry, const std::string& path) {
+          MappedSpace space;
+          space.coarse = detail::coarse_space_from_entry(entry, path, mesh);
+          space.map = map_from_entry(entry, path, space.coarse);
+          return space;
+        });
+    if (hit) {
+      hit->key = result.key;
+      return std::move(*hit);
+    }
+  }
+  CoarseSpaceOptions build = coarsening;
+  build.keep_method_state = true;  // the map is read from it
+  build.nonmanifold = NonmanifoldInput::refuse;  // decided above
+  result.coarse = options.builder ? options.builder(mesh, build, fine_delaunay) : build_coarse_space(mesh, build, fine_delaunay);
+  result.map = fine_to_coarse_map(result.coarse);
+  if (!coarsening.keep_method_state) {
+    result.coarse.triangulation.reset();
+    result.coarse.triangulation_order = {};
+    result.coarse.triangulation_face_order = {};
+    result.coarse.qem_result.reset();
+  }
+  // A coarsening cancelled by its progress callback is not the space its key names: never stored.
+  if (stored && result.coarse.summary.stop_reason() != StopReason::Cancelled) {
+    const auto start = std::chrono::steady_clock::now();
+    const SpaceEntry entry(result.coarse, result.map);
+    detail::save_entry(options.store, kSpaceKind, *result.key, entry.writer, result.cache, start);
+  }
+  return result;
+}
+
+SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const MappedSpace& space, const Store& store,
+                                       CacheReport* cache) {
+  return traced_edge_lengths(mesh, space.coarse, space.map, space.key ? &*space.key : nullptr, store, cache);
+}
+
+SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const CoarseSpace& coarse, const std::vector<CoarsePoint>& map,
+                                       const StoreKey* space_key, const Store& store, CacheReport* cache) {
+  std::optional<StoreKey> key;
+  if (store.enabled() && space_key) {
+    key = traced_key(*space_key);
+    CacheReport attempt;
+    const Eigen::Index faces = coarse.mesh.F.rows();
+    std::optional<StoredLengths> hit = detail::load_entry<StoredLengths>(
+        store, kTracedKind, *key, attempt, [&](const EntryReader& entry, const std::string& path) {
+          StoredLengths stored;
+          stored.lengths.lengths = entry.double_matrix("lengths");
+          require(stored.lengths.lengths.rows() == faces && stored.lengths.lengths.cols() == 3, path,
+                  "traced lengths of the wrong shape");
+          require((stored.lengths.lengths.array() > 0).all() && stored.lengths.lengths.allFinite(), path,
+                  "a traced length is not positive and finite");
+          const std::int64_t edges = entry.integer("edges"), traced = entry.integer("traced");
+          require(edges >= 0 && edges <= 3 * faces && traced >= 0 && traced <= edges, path, "traced edge counts out of range");
+          stored.lengths.edges = static_cast<Index>(edges);
+          stored.lengths.traced = static_cast<Index>(traced);
+          return stored;
+        });
+    if (hit) {
+      if (cache) {
+        cache->keys.push_back(key->hex());
+        cache->load_seconds += hit->cache.load_seconds;
+      }
+      return std::move(hit->lengths);
+    }
+    if (cache) {
+      cache->load_seconds += attempt.load_seconds;
+      if (attempt.status == CacheStatus::rebuilt) {
+        cache->status = CacheStatus::rebuilt;
+        cache->damage += (cache->damage.empty() ? "" : "; ") + attempt.damage;
+      }
+    }
+  }
+  SurfaceEdgeLengths lengths = surface_edge_lengths(mesh, coarse.mesh, map, coarse.inserted);
+  if (key) {
+    const auto start = std::chrono::steady_clock::now();
+    EntryWriter writer;
+    writer.put_matrix("lengths", lengths.lengths);
+    writer.put_int("edges", lengths.edges);
+    writer.put_int("traced", lengths.traced);
+    CacheReport saved;
+    detail::save_entry(store, kTracedKind, *key, writer, saved, start);
+    if (cache) {
+      cache->keys.push_back(key->hex());
+      cache->save_seconds += saved.save_seconds;
+      if (!saved.save_error.empty()) cache->save_error = saved.save_error;
+    }
+  }
+  return lengths;
+}
+
+}  // namespace ice::proxy
