@@ -382,6 +382,16 @@ TEST_CASE("store: a coarse space with its map and traced lengths loads back bit 
   check_same_space(plain, cold);
   check_same_space(plain, warm);
 
+  // An explicit file of it reads back the same, for this mesh only.
+  const fs::path file = dir / "space.ices";
+  ice::proxy::save_mapped_space_file(file, mesh, plain.coarse, plain.map);
+  check_same_space(plain, ice::proxy::load_mapped_space_file(file, mesh));
+  CHECK_THROWS_AS(ice::proxy::save_mapped_space_file(file, mesh, plain.coarse, plain.map), ice::MeshError);
+  ice::TriangleMesh moved = mesh;
+  moved.V(0, 0) += 1e-3;
+  CHECK_THROWS_WITH(ice::proxy::load_mapped_space_file(file, moved), Catch::Contains("another mesh"));
+  fs::remove(file);
+
   // The map agrees with P: each row of P is its point's coordinates summed over the face's corners.
   const Eigen::SparseMatrix<double, Eigen::RowMajor> rows = warm.coarse.P;
   for (Eigen::Index i = 0; i < rows.rows(); ++i) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "entry_checks.h"
+#include "ice/mesh_io.h"
 #include "ice/proxy/setup.h"
 #include "ice/wall_time.h"
 #include "stored_space.h"
@@ -142,6 +143,28 @@ MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOption
     detail::save_entry(options.store, kSpaceKind, *result.key, entry.writer, result.cache, start);
   }
   return result;
+}
+
+void save_mapped_space_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
+                            const std::vector<CoarsePoint>& map, bool overwrite) {
+  if (coarse.summary.tufted_cover)
+    throw std::invalid_argument("save_mapped_space_file: a tufted cover's space has no fine-to-coarse map");
+  if (coarse.P.rows() != mesh.V.rows() || map.size() != static_cast<std::size_t>(mesh.V.rows()))
+    throw std::invalid_argument("save_mapped_space_file: the coarse space and map are not of this mesh of " +
+                                std::to_string(mesh.V.rows()) + " vertices");
+  require_writable(path.string(), overwrite);
+  const SpaceEntry entry(coarse, map);
+  write_entry_file(path, kSpaceKind, detail::file_key(kSpaceKind, mesh), entry.writer);
+}
+
+MappedSpace load_mapped_space_file(const std::filesystem::path& path, const TriangleMesh& mesh) {
+  const auto start = std::chrono::steady_clock::now();
+  const EntryReader entry = detail::read_file_for(path, kSpaceKind, mesh);
+  MappedSpace space;
+  space.coarse = detail::coarse_space_from_entry(entry, path.string(), mesh);
+  space.map = map_from_entry(entry, path.string(), space.coarse);
+  space.cache.load_seconds = seconds_since(start);
+  return space;
 }
 
 SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const MappedSpace& space, const Store& store,

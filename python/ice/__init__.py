@@ -33,6 +33,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     hierarchy,
     intrinsic_delaunay,
     load_coarse_mesh,
+    load_coarse_space,
     load_hierarchy,
     load_setup,
     loop_subdivide,
@@ -40,6 +41,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     point_cloud_triangles,
     proxy_eigenbasis,
     reconstruction_error,
+    save_coarse_space,
     save_hierarchy,
     save_mesh,
     save_setup,
@@ -57,9 +59,9 @@ __all__ = [
     "DEFAULT_COARSENING_REGIONS", "CoarseSpace", "DistanceOracle", "LoadedMesh", "MeshError", "MultigridSolver", "Proxy",
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
     "boundary_vertices", "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
-    "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_hierarchy", "load_mesh", "load_setup", "loop_subdivide", "mass_matrix",
+    "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_coarse_space", "load_hierarchy", "load_mesh", "load_setup", "loop_subdivide", "mass_matrix",
     "point_cloud_triangles", "proxy_eigenbasis",
-    "read_mesh", "reconstruction_error", "save_hierarchy", "save_mesh", "save_setup", "setup_proxy", "solve_poisson", "transport_vectors", "validate", "wave_kernel_signature",
+    "read_mesh", "reconstruction_error", "save_coarse_space", "save_hierarchy", "save_mesh", "save_setup", "setup_proxy", "solve_poisson", "transport_vectors", "validate", "wave_kernel_signature",
     "VectorHeatSolver",
 ]
 __version__ = "0.1.0"

@@ -108,6 +108,10 @@ def coarsen(V: ArrayLike, F: ArrayLike, *, n: int | None = None, ratio: float | 
             progress: Callable[[dict[str, Any]], bool | None] | None = None,
             nonmanifold: Literal["refuse", "tufted"] = "refuse", cache: str | PathLike[str] | Literal[False] | None = None) -> CoarseSpace:
     """Coarsens (V, F) by ICE (or QEM) to n vertices, a ratio of them, or an error bound."""
+def save_coarse_space(path: Path, V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *, overwrite: bool = False) -> None:
+    """Writes a coarse space of (V, F) with P, its map and summary (the store's binary format)."""
+def load_coarse_space(path: Path, V: ArrayLike, F: ArrayLike) -> CoarseSpace:
+    """The coarse space save_coarse_space wrote for (V, F), checked, bit for bit."""
 def load_coarse_mesh(path: Path) -> CoarseSpace:
     """Reads an .ilm coarse mesh (faces, lengths, gluing, vertex map)."""
 

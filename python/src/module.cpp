@@ -753,6 +753,37 @@ void save_setup(const std::filesystem::path& path, const py::object& V, const py
   }
 }
 
+// ice.save_coarse_space / ice.load_coarse_space: a coarse space with its map in a file of the user's choosing.
+void save_coarse_space(const std::filesystem::path& path, const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
+                       bool overwrite) {
+  const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "save_coarse_space");
+  if (coarse.map.empty())
+    throw py::value_error("save_coarse_space: the coarse space has no fine-to-coarse map (coarsen with keep_map=True; not a "
+                          "tufted cover's nor QEM's intrinsic Delaunay space)");
+  py::gil_scoped_release release;
+  try {
+    ice::proxy::save_mapped_space_file(path, mesh, coarse.space, coarse.map, overwrite);
+  } catch (const std::invalid_argument& e) {
+    py::gil_scoped_acquire acquire;
+    throw py::value_error(e.what());
+  }
+}
+
+std::shared_ptr<PyCoarseSpace> load_coarse_space(const std::filesystem::path& path, const py::object& V, const py::object& F) {
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  auto result = std::make_shared<PyCoarseSpace>();
+  py::gil_scoped_release release;
+  ice::proxy::MappedSpace space = ice::proxy::load_mapped_space_file(path, mesh);
+  result->space = std::move(space.coarse);
+  result->map = std::move(space.map);
+  result->positions = ice::coarse_vertex_positions(mesh, result->space);
+  result->input_vertices = static_cast<ice::Index>(mesh.V.rows());
+  result->has_space = true;
+  result->faces_fingerprint = faces_fingerprint(mesh.F);
+  result->cache = {{"status", "off"}, {"file", path.string()}, {"load_seconds", space.cache.load_seconds}};
+  return result;
+}
+
 py::tuple load_setup(const std::filesystem::path& path, const py::object& V, const py::object& F) {
   const ice::TriangleMesh mesh = mesh_argument(V, F);
   auto coarse = std::make_shared<PyCoarseSpace>();
@@ -1212,6 +1243,18 @@ space and proxy are not one setup of (V, F).)doc");
 checksum, every array's structure, P's rows) and bit for bit the same; nothing is coarsened or assembled.
 Proxy.cache says {'status': 'off', 'file': path, 'load_seconds': ...}. Raises RuntimeError naming the file and
 the defect: no such file, not a setup, damaged, another format version, or made for another mesh.)doc");
+  m.def("save_coarse_space", &save_coarse_space, py::arg("path"), py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(),
+        py::arg("overwrite") = false,
+        R"doc(Writes a coarse space of (V, F) with its fine-to-coarse map (ice.coarsen, keep_map=True) to a file that
+ice.load_coarse_space takes back for the same (V, F) only: binary, checksummed, written atomically, the store's
+format, with P, the map and the summary (CoarseSpace.save writes the coarse mesh alone, as portable .ilm text).
+An existing file is replaced only with overwrite=True (ice.MeshError, kind "unwritable", otherwise); ValueError
+for a space without a map or of another mesh.)doc");
+  m.def("load_coarse_space", &load_coarse_space, py::arg("path"), py::arg("V"), py::arg("F"),
+        R"doc(The CoarseSpace ice.save_coarse_space wrote for (V, F), checked (header, checksum, every array, every entry
+of P against the map) and bit for bit the same, P, map and summary included; nothing is coarsened. .cache says
+{'status': 'off', 'file': path, 'load_seconds': ...}. Raises RuntimeError naming the file and the defect: no such
+file, not a coarse space, damaged, another format version, or made for another mesh.)doc");
   m.def("load_coarse_mesh", &load_coarse_mesh, py::arg("path"),
         R"doc(Reads an .ilm coarse mesh (CoarseSpace.save, ice-coarsen): faces, lengths, gluing, vertex map; its
 P, map and summary are None. Raises ice.MeshError naming the file, line and defect.)doc");

@@ -262,3 +262,38 @@ def test_coarsen_geodesics_and_vectors_through_the_store(spot, tmp_path):
         rebuilt = ice.coarsen(V, F, ratio=0.05, use="geodesic", cache=tmp_path)
     assert rebuilt.cache["status"] == "rebuilt"
     assert np.array_equal(rebuilt.lengths, plain.lengths) and (rebuilt.P != plain.P).nnz == 0
+
+
+def test_save_and_load_coarse_space_explicitly(spot, tmp_path):
+    V, F = spot
+    coarse = ice.coarsen(V, F, ratio=0.05, cache=False)
+    path = tmp_path / "spot.ices"
+    ice.save_coarse_space(path, V, F, coarse)
+    back = ice.load_coarse_space(path, V, F)
+    assert back.cache["status"] == "off" and back.cache["file"] == str(path)
+    for name in ("faces", "lengths", "twin", "to_input", "from_input", "positions"):
+        assert np.array_equal(getattr(back, name), getattr(coarse, name)), name
+    assert (back.P != coarse.P).nnz == 0 and back.summary == coarse.summary
+    for a, b in zip(back.map, coarse.map):
+        assert np.array_equal(a, b)
+    # What the map serves works from the loaded space: the same distances bit for bit.
+    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(V, F, back).distance([3]),
+                          ice.ProxyGeodesicSolver.from_coarse(V, F, coarse).distance([3]))
+    with pytest.raises(ice.MeshError, match="exists"):
+        ice.save_coarse_space(path, V, F, coarse)
+    ice.save_coarse_space(path, V, F, coarse, overwrite=True)
+    # Another mesh, damage, another kind of file: refused naming the file.
+    W = V.copy()
+    W[0, 0] += 1e-3
+    with pytest.raises(RuntimeError, match="another mesh"):
+        ice.load_coarse_space(path, W, F)
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0x08
+    (tmp_path / "bad.ices").write_bytes(bytes(data))
+    with pytest.raises(RuntimeError, match="bad.ices"):
+        ice.load_coarse_space(tmp_path / "bad.ices", V, F)
+    ice.save_setup(tmp_path / "setup.ice", V, F, *ice.setup_proxy(V, F, ratio=0.05, cache=False))
+    with pytest.raises(RuntimeError, match="setup.ice"):
+        ice.load_coarse_space(tmp_path / "setup.ice", V, F)
+    with pytest.raises(ValueError, match="no fine-to-coarse map"):
+        ice.save_coarse_space(tmp_path / "nomap.ices", V, F, ice.coarsen(V, F, ratio=0.05, keep_map=False, cache=False))

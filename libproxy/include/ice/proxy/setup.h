@@ -172,6 +172,20 @@ MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOption
 /// changes the result (as proxy_setup_key) and the format version.
 StoreKey mapped_space_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening);
 
+/// Writes a coarse space with its map (`map`: ice::fine_to_coarse_map of it) to the file `path` in
+/// the store's entry format, keyed by `mesh`'s arrays: load_mapped_space_file takes it back for that
+/// mesh only. Atomic (a temporary file beside `path`, renamed); an existing file is replaced only when
+/// `overwrite`. Throws std::invalid_argument when the space or map is not one of `mesh` (P's rows, the
+/// map's size, a tufted cover's space), ice::MeshError (unwritable) when `path` exists and `overwrite`
+/// is false or its directory does not exist, std::runtime_error naming the file when it cannot be written.
+void save_mapped_space_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
+                            const std::vector<CoarsePoint>& map, bool overwrite = false);
+/// The coarse space and map saved at `path` for `mesh`, checked as a stored one is (header, checksum,
+/// every array, every entry of P against the map); cache.status off, cache.load_seconds its time.
+/// Throws std::runtime_error naming the file and the defect: no such file, not a coarse space,
+/// damaged, of another format version, or made for another mesh.
+MappedSpace load_mapped_space_file(const std::filesystem::path& path, const TriangleMesh& mesh);
+
 /// The coarse edges' lengths on the input surface (ice::surface_edge_lengths over space.map): from
 /// `store` when the space has a key and its traced lengths were stored (checked: one positive, finite
 /// length per coarse face side, the counts in range), else traced and saved there. The entry's use is
