@@ -255,12 +255,14 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   return setup;
 }
 
-ice::SurfaceEdgeLengths stored_traced_lengths(const std::string& tool, const ice::TriangleMesh& mesh,
-                                             ice::proxy::MappedSpace& space, const ice::proxy::Store& store) {
+ice::SurfaceEdgeLengths stored_marching_lengths(const std::string& tool, const ice::TriangleMesh& mesh,
+                                               ice::proxy::MappedSpace& space, const ice::proxy::Store& store, bool traced,
+                                               ice::proxy::CurvatureCorrection correction, double divisor) {
   const std::string damage_before = space.cache.damage;
-  ice::SurfaceEdgeLengths lengths = ice::proxy::traced_edge_lengths(mesh, space, store, &space.cache);
+  ice::SurfaceEdgeLengths lengths =
+      ice::proxy::stored_marching_lengths(mesh, space, store, traced, correction, divisor, &space.cache);
   if (space.cache.damage != damage_before)
-    warn(tool, "the stored traced lengths were damaged and are traced again: " + space.cache.damage);
+    warn(tool, "stored marching lengths were damaged and are made again: " + space.cache.damage);
   return lengths;
 }
 

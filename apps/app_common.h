@@ -117,10 +117,11 @@ ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, cons
                                              const PdeOptions& opt, PdeRun& run, const ice::proxy::Store& store,
                                              bool record_history = false, ice::FineMesh* fine_delaunay = nullptr);
 
-/// The traced lengths of `space` through `store` (ice::proxy::traced_edge_lengths, recorded in
+/// The marching lengths of `space` through `store` (ice::proxy::stored_marching_lengths, recorded in
 /// space.cache), warning as `tool` when a stored entry was damaged.
-ice::SurfaceEdgeLengths stored_traced_lengths(const std::string& tool, const ice::TriangleMesh& mesh,
-                                             ice::proxy::MappedSpace& space, const ice::proxy::Store& store);
+ice::SurfaceEdgeLengths stored_marching_lengths(const std::string& tool, const ice::TriangleMesh& mesh,
+                                               ice::proxy::MappedSpace& space, const ice::proxy::Store& store, bool traced,
+                                               ice::proxy::CurvatureCorrection correction, double divisor);
 
 /// Whether the outputs of `opt` draw the coarse mesh on the surface (--output or --html of an ICE
 /// space; not through a tufted cover, whose coarse mesh is the cover's).

@@ -179,10 +179,8 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   ice::proxy::MappedSpace mapped = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store);
   const ice::CoarseSpace& space = mapped.coarse;
   clock.lap();  // run.coarsen, and the cache's load and save
-  ice::SurfaceEdgeLengths lengths = request.traced_lengths ? app::stored_traced_lengths(kTool, mesh, mapped, store)
-                                                           : ice::SurfaceEdgeLengths{space.mesh.L, 0, 0};
-  lengths = ice::proxy::corrected_marching_lengths(mesh, space, std::move(lengths), request.curvature_correction,
-                                                   fem::kOracleCorrectionDivisor);
+  const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(kTool, mesh, mapped, store, request.traced_lengths,
+                                                                      request.curvature_correction, fem::kOracleCorrectionDivisor);
   run.record_cache(mapped.cache, store);
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
@@ -454,11 +452,10 @@ int main(int argc, char** argv) {
       run.idt_flips = pde.fine.flips;
       run.coarse_solver = oracle.traced_lengths ? "coarse fast marching on traced lengths" : "coarse fast marching";
       const double stored_before = space.cache.load_seconds + space.cache.save_seconds;
-      ice::SurfaceEdgeLengths lengths = oracle.traced_lengths ? app::stored_traced_lengths(kTool, mesh, space, store)
-                                                              : ice::SurfaceEdgeLengths{space.coarse.mesh.L, 0, 0};
+      const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(
+          kTool, mesh, space, store, oracle.traced_lengths, oracle.curvature_correction,
+          ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
       if (oracle.traced_lengths) traced_counts = {lengths.edges, lengths.traced};
-      lengths = ice::proxy::corrected_marching_lengths(mesh, space.coarse, std::move(lengths), oracle.curvature_correction,
-                                                       ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
       run.record_cache(space.cache, store);
       if (oracle.traced_lengths) run.stored_setup = "coarse space, map and traced lengths from the store (nothing coarsened or traced)";
       // The tracing of --coarse-lengths traced and the correction; the traced lengths' load or save is the cache's.

@@ -40,6 +40,7 @@
 #include "ice/coarsen.h"
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/intrinsic_triangulation.h"
+#include "ice/large_array.h"
 #include "ice/mesh_io.h"
 #include "ice/prolongation.h"
 #include "ice/proxy/setup.h"
@@ -197,6 +198,7 @@ std::vector<ice::Index> read_lock_file(const std::string& path, const ice::LoadR
 }  // namespace
 
 int main(int argc, char** argv) {
+  ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "ice-coarsen: simplify a triangle mesh intrinsically (ICE). Vertices are removed from an intrinsic "
       "triangulation of the input,\ncheapest first by the intrinsic curvature error, so the coarse mesh keeps "

@@ -199,13 +199,14 @@ int main(int argc, char** argv) {
     std::optional<fem::VectorHeatProxy> diffusion_proxy;
     const double stored_before = space.cache.load_seconds + space.cache.save_seconds;
     if (sweep) {
-      // The sweep marches on the coarse edges' traced lengths (ICE): through the store too.
-      std::optional<ice::SurfaceEdgeLengths> traced;
-      if (ice::proxy::traces_lengths(ice::proxy::CoarseLengths::automatic, coarse.summary.method, true))
-        traced = app::stored_traced_lengths(kTool, mesh, space, store);
-      sweep_proxy.emplace(ice::proxy::make_vector_sweep(mesh, fine, coarse, map, sweep_options, traced ? &*traced : nullptr));
+      // The sweep marches on the coarse edges' traced, curvature-corrected lengths (ICE): through the store too.
+      const bool traced = ice::proxy::vector_sweep_traces(coarse);
+      const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(
+          kTool, mesh, space, store, traced, ice::proxy::CurvatureCorrection::automatic,
+          ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
+      sweep_proxy.emplace(ice::proxy::make_vector_sweep(mesh, fine, coarse, map, sweep_options, &lengths));
       run.record_cache(space.cache, store);
-      if (traced) run.stored_setup = "coarse space, map and traced lengths from the store (nothing coarsened or traced)";
+      if (traced) run.stored_setup = "coarse space, map and marching lengths from the store (nothing coarsened or traced)";
     } else {
       diffusion_proxy.emplace(ice::proxy::make_vector_proxy(fine, coarse, map, kind, time_factor));
     }

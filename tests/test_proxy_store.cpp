@@ -428,6 +428,19 @@ TEST_CASE("store: a coarse space with its map and traced lengths loads back bit 
     CHECK(ice::proxy::traced_edge_lengths(mesh, warm, options.store, &third).lengths == traced.lengths);
     CHECK(third.status == CacheStatus::rebuilt);
     CHECK(third.damage.find("checksum") != std::string::npos);
+
+    // The marching lengths from the store (traced, then curvature-corrected from the gathered
+    // curvature stored beside the space) equal those made from scratch, bit for bit.
+    const double divisor = ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source);
+    const ice::SurfaceEdgeLengths own = ice::proxy::marching_lengths(mesh, plain.coarse, true, ice::proxy::CurvatureCorrection::on,
+                                                                     &plain.map, divisor);
+    for (int run = 0; run < 2; ++run) {
+      ice::proxy::CacheReport report = warm.cache;
+      CHECK(ice::proxy::stored_marching_lengths(mesh, warm, options.store, true, ice::proxy::CurvatureCorrection::on, divisor,
+                                                &report)
+                .lengths == own.lengths);
+      CHECK(report.keys.size() == 3);
+    }
   }
   fs::remove_all(dir);
 }
@@ -497,7 +510,7 @@ TEST_CASE("store: geodesics from a stored space equal those set up from scratch,
     CHECK(warm.cache().status == CacheStatus::hit);
     if (method == fem::CoarseDistanceMethod::marching) {
       CHECK(warm.traced_lengths());
-      CHECK(warm.cache().keys.size() == 2);  // the space with its map, and its traced lengths
+      CHECK(warm.cache().keys.size() == 3);  // the space with its map, its traced lengths, its gathered curvature
     }
     CHECK(cold.distance(sources) == plain);
     CHECK(warm.distance(sources) == plain);

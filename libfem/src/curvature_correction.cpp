@@ -34,23 +34,35 @@ Eigen::VectorXd angle_defects(const ice::IntrinsicMesh& mesh) {
   return defect;
 }
 
-FaceLengths curvature_corrected_lengths(const ice::IntrinsicMesh& fine, const ice::IntrinsicMesh& coarse,
-                                        const SparseMatrix& P, double divisor) {
+CoarseCurvature coarse_curvature(const ice::IntrinsicMesh& fine, const SparseMatrix& P) {
   const char* who = "curvature_corrected_lengths: ";
-  const Faces& coarse_faces = coarse.F;
-  const FaceLengths& coarse_lengths = coarse.L;
   if (checked_vertex_count(fine) != P.rows())
     throw std::invalid_argument(std::string(who) + "the fine mesh's vertex count is not P's row count");
-  if (!(divisor > 0) || !std::isfinite(divisor)) throw std::invalid_argument(std::string(who) + "the divisor must be positive");
-  if (coarse_lengths.rows() != coarse_faces.rows() || coarse_faces.cols() != 3 || coarse_lengths.cols() != 3)
-    throw std::invalid_argument(std::string(who) + "coarse faces and lengths of different shapes");
-  if (coarse_faces.rows() > 0 && (coarse_faces.minCoeff() < 0 || coarse_faces.maxCoeff() >= P.cols()))
-    throw std::invalid_argument(std::string(who) + "a coarse vertex beyond P's columns");
   for (Eigen::Index k = 0; k < P.outerSize(); ++k)
     for (SparseMatrix::InnerIterator it(P, k); it; ++it)
       if (!(it.value() >= 0)) throw std::invalid_argument(std::string(who) + "P has a negative or non-finite weight");
-  const Eigen::VectorXd curvature = P.transpose() * angle_defects(fine);
-  const Eigen::VectorXd area = P.transpose() * lumped_vertex_areas(fine);
+  return {P.transpose() * angle_defects(fine), P.transpose() * lumped_vertex_areas(fine)};
+}
+
+FaceLengths curvature_corrected_lengths(const ice::IntrinsicMesh& fine, const ice::IntrinsicMesh& coarse,
+                                        const SparseMatrix& P, double divisor) {
+  if (coarse.F.rows() > 0 && (coarse.F.minCoeff() < 0 || coarse.F.maxCoeff() >= P.cols()))
+    throw std::invalid_argument("curvature_corrected_lengths: a coarse vertex beyond P's columns");
+  return curvature_corrected_lengths(coarse, coarse_curvature(fine, P), divisor);
+}
+
+FaceLengths curvature_corrected_lengths(const ice::IntrinsicMesh& coarse, const CoarseCurvature& gathered, double divisor) {
+  const char* who = "curvature_corrected_lengths: ";
+  const Faces& coarse_faces = coarse.F;
+  const FaceLengths& coarse_lengths = coarse.L;
+  const Eigen::VectorXd& curvature = gathered.curvature;
+  const Eigen::VectorXd& area = gathered.area;
+  if (!(divisor > 0) || !std::isfinite(divisor)) throw std::invalid_argument(std::string(who) + "the divisor must be positive");
+  if (coarse_lengths.rows() != coarse_faces.rows() || coarse_faces.cols() != 3 || coarse_lengths.cols() != 3)
+    throw std::invalid_argument(std::string(who) + "coarse faces and lengths of different shapes");
+  if (curvature.size() != area.size() ||
+      (coarse_faces.rows() > 0 && (coarse_faces.minCoeff() < 0 || coarse_faces.maxCoeff() >= curvature.size())))
+    throw std::invalid_argument(std::string(who) + "the gathered curvature is not of the coarse vertices");
 
   // One scale per edge: sides with the same ends and length are one edge (as the marching reads
   // them), numbered in the order of their keys.

@@ -66,8 +66,7 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
       const Store store(options_.store);
       MappedSpace space = mapped_space(mesh, options_.coarsening, store);
       traced_ = trace(options_.lengths, space.coarse, &space.map, true);
-      lengths_ = traced_ ? traced_edge_lengths(mesh, space, store, &space.cache) : SurfaceEdgeLengths{space.coarse.mesh.L, 0, 0};
-      lengths_ = corrected_marching_lengths(mesh, space.coarse, std::move(lengths_), options_.curvature_correction, divisor);
+      lengths_ = stored_marching_lengths(mesh, space, store, traced_, options_.curvature_correction, divisor, &space.cache);
       setup_.coarse = std::move(space.coarse);
       cache_ = std::move(space.cache);
     } else {
@@ -112,9 +111,8 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
     const Store store(options.store);
     MappedSpace space = mapped_space(mesh, options.coarsening, store);
     const bool traced = trace(options.lengths, space.coarse, &space.map, marching);
-    SurfaceEdgeLengths lengths =
-        traced ? traced_edge_lengths(mesh, space, store, &space.cache) : SurfaceEdgeLengths{space.coarse.mesh.L, 0, 0};
-    lengths = corrected_marching_lengths(mesh, space.coarse, std::move(lengths), options.curvature_correction, divisor);
+    const SurfaceEdgeLengths lengths =
+        stored_marching_lengths(mesh, space, store, traced, options.curvature_correction, divisor, &space.cache);
     if (cache) *cache = space.cache;
     return fem::DistanceOracle(with_lengths(space.coarse.mesh, lengths.lengths), space.map, options.oracle);
   }

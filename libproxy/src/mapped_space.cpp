@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "entry_checks.h"
+#include "fem/curvature_correction.h"
 #include "ice/mesh_io.h"
 #include "ice/proxy/setup.h"
 #include "ice/wall_time.h"
@@ -21,6 +22,7 @@ using detail::require;
 
 constexpr const char* kSpaceKind = "space";
 constexpr const char* kTracedKind = "traced";
+constexpr const char* kCurvatureKind = "curvature";
 
 // A mapped space's entry: the coarse space's arrays and the map's, two int32 and three doubles a point.
 struct SpaceEntry {
@@ -83,14 +85,55 @@ std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::str
   return map;
 }
 
-struct StoredLengths {
-  SurfaceEdgeLengths lengths;
+template <class T>
+struct Stored {
+  T value;
   CacheReport cache;
 };
 
-StoreKey traced_key(const StoreKey& space_key) {
-  KeyHasher h(kTracedKind);
-  return h.add(space_key).finish();
+// A value stored beside a mapped space, under a key of `kind` made from the space's (`space_key`; null,
+// or a store that is off: made and not stored): loaded when there and whole (`parse`), else made
+// (`make`) and saved (`put` writes its arrays). Its use is added to `cache` when given: its key and
+// times, and a damaged entry (status rebuilt, the damage appended).
+template <class T, class Parse, class Make, class Put>
+T stored_beside(const Store& store, const char* kind, const StoreKey* space_key, CacheReport* cache, Parse&& parse, Make&& make,
+                Put&& put) {
+  std::optional<StoreKey> key;
+  if (store.enabled() && space_key) {
+    KeyHasher h(kind);
+    key = h.add(*space_key).finish();
+    CacheReport attempt;
+    std::optional<Stored<T>> hit = detail::load_entry<Stored<T>>(
+        store, kind, *key, attempt, [&](const EntryReader& entry, const std::string& path) { return Stored<T>{parse(entry, path), {}}; });
+    if (hit) {
+      if (cache) {
+        cache->keys.push_back(key->hex());
+        cache->load_seconds += hit->cache.load_seconds;
+      }
+      return std::move(hit->value);
+    }
+    if (cache) {
+      cache->load_seconds += attempt.load_seconds;
+      if (attempt.status == CacheStatus::rebuilt) {
+        cache->status = CacheStatus::rebuilt;
+        cache->damage += (cache->damage.empty() ? "" : "; ") + attempt.damage;
+      }
+    }
+  }
+  T value = make();
+  if (key) {
+    const auto start = std::chrono::steady_clock::now();
+    EntryWriter writer;
+    put(writer, value);
+    CacheReport saved;
+    detail::save_entry(store, kind, *key, writer, saved, start);
+    if (cache) {
+      cache->keys.push_back(key->hex());
+      cache->save_seconds += saved.save_seconds;
+      if (!saved.save_error.empty()) cache->save_error = saved.save_error;
+    }
+  }
+  return value;
 }
 
 }  // namespace
@@ -174,56 +217,67 @@ SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const MappedSpa
 
 SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const CoarseSpace& coarse, const std::vector<CoarsePoint>& map,
                                        const StoreKey* space_key, const Store& store, CacheReport* cache) {
-  std::optional<StoreKey> key;
-  if (store.enabled() && space_key) {
-    key = traced_key(*space_key);
-    CacheReport attempt;
-    const Eigen::Index faces = coarse.mesh.F.rows();
-    std::optional<StoredLengths> hit = detail::load_entry<StoredLengths>(
-        store, kTracedKind, *key, attempt, [&](const EntryReader& entry, const std::string& path) {
-          StoredLengths stored;
-          stored.lengths.lengths = entry.double_matrix("lengths");
-          require(stored.lengths.lengths.rows() == faces && stored.lengths.lengths.cols() == 3, path,
-                  "traced lengths of the wrong shape");
-          require((stored.lengths.lengths.array() > 0).all() && stored.lengths.lengths.allFinite(), path,
-                  "a traced length is not positive and finite");
-          const std::int64_t edges = entry.integer("edges"), traced = entry.integer("traced");
-          require(edges >= 0 && edges <= 3 * faces && traced >= 0 && traced <= edges, path, "traced edge counts out of range");
-          stored.lengths.edges = static_cast<Index>(edges);
-          stored.lengths.traced = static_cast<Index>(traced);
-          return stored;
-        });
-    if (hit) {
-      if (cache) {
-        cache->keys.push_back(key->hex());
-        cache->load_seconds += hit->cache.load_seconds;
-      }
-      return std::move(hit->lengths);
-    }
-    if (cache) {
-      cache->load_seconds += attempt.load_seconds;
-      if (attempt.status == CacheStatus::rebuilt) {
-        cache->status = CacheStatus::rebuilt;
-        cache->damage += (cache->damage.empty() ? "" : "; ") + attempt.damage;
-      }
-    }
-  }
-  SurfaceEdgeLengths lengths = surface_edge_lengths(mesh, coarse.mesh, map, coarse.inserted);
-  if (key) {
-    const auto start = std::chrono::steady_clock::now();
-    EntryWriter writer;
-    writer.put_matrix("lengths", lengths.lengths);
-    writer.put_int("edges", lengths.edges);
-    writer.put_int("traced", lengths.traced);
-    CacheReport saved;
-    detail::save_entry(store, kTracedKind, *key, writer, saved, start);
-    if (cache) {
-      cache->keys.push_back(key->hex());
-      cache->save_seconds += saved.save_seconds;
-      if (!saved.save_error.empty()) cache->save_error = saved.save_error;
-    }
-  }
+  const Eigen::Index faces = coarse.mesh.F.rows();
+  return stored_beside<SurfaceEdgeLengths>(
+      store, kTracedKind, space_key, cache,
+      [&](const EntryReader& entry, const std::string& path) {
+        SurfaceEdgeLengths stored;
+        stored.lengths = entry.double_matrix("lengths");
+        require(stored.lengths.rows() == faces && stored.lengths.cols() == 3, path, "traced lengths of the wrong shape");
+        require((stored.lengths.array() > 0).all() && stored.lengths.allFinite(), path, "a traced length is not positive and finite");
+        const std::int64_t edges = entry.integer("edges"), traced = entry.integer("traced");
+        require(edges >= 0 && edges <= 3 * faces && traced >= 0 && traced <= edges, path, "traced edge counts out of range");
+        stored.edges = static_cast<Index>(edges);
+        stored.traced = static_cast<Index>(traced);
+        return stored;
+      },
+      [&] { return surface_edge_lengths(mesh, coarse.mesh, map, coarse.inserted); },
+      [](EntryWriter& writer, const SurfaceEdgeLengths& lengths) {
+        writer.put_matrix("lengths", lengths.lengths);
+        writer.put_int("edges", lengths.edges);
+        writer.put_int("traced", lengths.traced);
+      });
+}
+
+fem::CoarseCurvature gathered_curvature(const TriangleMesh& mesh, const CoarseSpace& coarse, const StoreKey* space_key,
+                                        const Store& store, CacheReport* cache) {
+  const Eigen::Index vertices = coarse.P.cols();
+  return stored_beside<fem::CoarseCurvature>(
+      store, kCurvatureKind, space_key, cache,
+      [&](const EntryReader& entry, const std::string& path) {
+        const std::vector<double> curvature = entry.doubles("curvature"), area = entry.doubles("area");
+        require(static_cast<Eigen::Index>(curvature.size()) == vertices && static_cast<Eigen::Index>(area.size()) == vertices,
+                path, "gathered curvature of the wrong size");
+        for (std::size_t v = 0; v < area.size(); ++v)
+          require(std::isfinite(curvature[v]) && std::isfinite(area[v]) && area[v] >= 0, path,
+                  "a gathered curvature or area is not finite (or an area negative)");
+        fem::CoarseCurvature stored;
+        stored.curvature = Eigen::Map<const Eigen::VectorXd>(curvature.data(), vertices);
+        stored.area = Eigen::Map<const Eigen::VectorXd>(area.data(), vertices);
+        return stored;
+      },
+      [&] { return fem::coarse_curvature(intrinsic_mesh(mesh), coarse.P); },
+      [](EntryWriter& writer, const fem::CoarseCurvature& gathered) {
+        writer.put("curvature", gathered.curvature.data(), static_cast<std::size_t>(gathered.curvature.size()));
+        writer.put("area", gathered.area.data(), static_cast<std::size_t>(gathered.area.size()));
+      });
+}
+
+SurfaceEdgeLengths stored_marching_lengths(const TriangleMesh& mesh, const CoarseSpace& coarse, const std::vector<CoarsePoint>& map,
+                                           const StoreKey* space_key, const Store& store, bool traced,
+                                           CurvatureCorrection correction, double divisor, CacheReport* cache) {
+  SurfaceEdgeLengths lengths =
+      traced ? traced_edge_lengths(mesh, coarse, map, space_key, store, cache) : SurfaceEdgeLengths{coarse.mesh.L, 0, 0};
+  if (corrects_curvature(correction, coarse.summary.method))
+    lengths.lengths = fem::curvature_corrected_lengths(with_lengths(coarse.mesh, lengths.lengths),
+                                                       gathered_curvature(mesh, coarse, space_key, store, cache), divisor);
   return lengths;
+}
+
+SurfaceEdgeLengths stored_marching_lengths(const TriangleMesh& mesh, const MappedSpace& space, const Store& store, bool traced,
+                                           CurvatureCorrection correction, double divisor, CacheReport* cache) {
+  return stored_marching_lengths(mesh, space.coarse, space.map, space.key ? &*space.key : nullptr, store, traced, correction,
+                                 divisor, cache);
 }
 
 }  // namespace ice::proxy

@@ -97,14 +97,9 @@ SurfaceEdgeLengths marching_lengths(const TriangleMesh& mesh, const CoarseSpace&
     result = surface_edge_lengths(mesh, space.mesh, fine_to_coarse_map(space), space.inserted);
   else
     result.lengths = space.mesh.L;
-  return corrected_marching_lengths(mesh, space, std::move(result), correction, divisor);
-}
-
-SurfaceEdgeLengths corrected_marching_lengths(const TriangleMesh& mesh, const CoarseSpace& space, SurfaceEdgeLengths lengths,
-                                              CurvatureCorrection correction, double divisor) {
   if (corrects_curvature(correction, space.summary.method))
-    lengths.lengths = curvature_corrected_lengths(mesh, space, lengths.lengths, divisor);
-  return lengths;
+    result.lengths = curvature_corrected_lengths(mesh, space, result.lengths, divisor);
+  return result;
 }
 
 TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool with_operators, double time_factor) {
@@ -136,16 +131,16 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const CoarseSpac
   return fem::VectorHeatProxy(fine.mesh, fine.frames, coarse.mesh, coarse_frames, map, coarse.P, kind, time_factor);
 }
 
+bool vector_sweep_traces(const CoarseSpace& coarse) {
+  return traces_lengths(CoarseLengths::automatic, coarse.summary.method, true);
+}
+
 fem::VectorSweepProxy make_vector_sweep(const TriangleMesh& mesh, const TangentMesh& fine, const CoarseSpace& coarse,
                                         const std::vector<CoarsePoint>& map, const fem::DistanceSweepOptions& options,
-                                        const SurfaceEdgeLengths* traced_lengths) {
+                                        const SurfaceEdgeLengths* given) {
   if (!fine.operators) throw std::logic_error("make_vector_sweep: the sweep needs the fine operators (tangent_mesh with_operators)");
-  const bool traced = traces_lengths(CoarseLengths::automatic, coarse.summary.method, true);
   const SurfaceEdgeLengths lengths =
-      traced && traced_lengths
-          ? corrected_marching_lengths(mesh, coarse, *traced_lengths, CurvatureCorrection::automatic,
-                                       curvature_divisor(MarchingUse::single_source))
-          : marching_lengths(mesh, coarse, traced, CurvatureCorrection::automatic, &map);
+      given ? *given : marching_lengths(mesh, coarse, vector_sweep_traces(coarse), CurvatureCorrection::automatic, &map);
   return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(with_lengths(coarse.mesh, lengths.lengths), coarse.P), options);
 }
 

@@ -52,4 +52,16 @@ inline constexpr double kOracleCorrectionDivisor = 24;
 FaceLengths curvature_corrected_lengths(const ice::IntrinsicMesh& fine, const ice::IntrinsicMesh& coarse,
                                         const SparseMatrix& P, double divisor = kProxyCorrectionDivisor);
 
+/// What the correction gathers from the fine mesh onto the coarse vertices: κ = Pᵀ (fine angle
+/// defects) and A = Pᵀ (fine vertex areas), the fine mesh's whole part of it (what a store keeps).
+struct CoarseCurvature {
+  Eigen::VectorXd curvature, area;
+};
+/// κ and A of `fine` through P; preconditions on `fine` and P as curvature_corrected_lengths'.
+CoarseCurvature coarse_curvature(const ice::IntrinsicMesh& fine, const SparseMatrix& P);
+/// curvature_corrected_lengths from κ and A already gathered (`gathered`, of `coarse`'s vertex count:
+/// std::invalid_argument otherwise): the same lengths to the last bit.
+FaceLengths curvature_corrected_lengths(const ice::IntrinsicMesh& coarse, const CoarseCurvature& gathered,
+                                        double divisor = kProxyCorrectionDivisor);
+
 }  // namespace fem

@@ -172,6 +172,19 @@ MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOption
 /// changes the result (as proxy_setup_key) and the format version.
 StoreKey mapped_space_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening);
 
+/// The lengths coarse marching runs on, for a mapped space through `store`: its coarse edges traced
+/// on the surface (traced_edge_lengths) when `traced`, else the coarse mesh's own, then corrected for
+/// curvature as `correction` says for the space's method (corrects_curvature) with `divisor`, from the
+/// fine curvature and areas gathered through P (fem::coarse_curvature), which are stored beside the
+/// space too (`curvature-KEY.ice`, checked: one finite curvature and non-negative area per coarse
+/// vertex). The same lengths to the last bit as marching_lengths; the entries' use is added to `cache`.
+SurfaceEdgeLengths stored_marching_lengths(const TriangleMesh& mesh, const MappedSpace& space, const Store& store, bool traced,
+                                           CurvatureCorrection correction, double divisor, CacheReport* cache = nullptr);
+/// The same from a mapped space's parts (`space_key`: MappedSpace::key, null when it has none).
+SurfaceEdgeLengths stored_marching_lengths(const TriangleMesh& mesh, const CoarseSpace& coarse, const std::vector<CoarsePoint>& map,
+                                           const StoreKey* space_key, const Store& store, bool traced,
+                                           CurvatureCorrection correction, double divisor, CacheReport* cache = nullptr);
+
 /// Writes a coarse space with its map (`map`: ice::fine_to_coarse_map of it) to the file `path` in
 /// the store's entry format, keyed by `mesh`'s arrays: load_mapped_space_file takes it back for that
 /// mesh only. Atomic (a temporary file beside `path`, renamed); an existing file is replaced only when
@@ -200,11 +213,6 @@ SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const CoarseSpa
 /// and vertex areas gathered through space.P (fem::curvature_corrected_lengths) with divisor `divisor`.
 FaceLengths curvature_corrected_lengths(const TriangleMesh& mesh, const CoarseSpace& space, const FaceLengths& lengths,
                                         double divisor);
-
-/// `lengths` (the coarse mesh's own or traced) curvature-corrected as `correction` says for space's
-/// coarsening method (corrects_curvature), with `divisor`: the last step of marching_lengths.
-SurfaceEdgeLengths corrected_marching_lengths(const TriangleMesh& mesh, const CoarseSpace& space, SurfaceEdgeLengths lengths,
-                                              CurvatureCorrection correction, double divisor);
 
 /// The coarse edge lengths coarse marching runs on: the coarse mesh's own, or (`traced`) those of
 /// its edges traced on the input surface by the walk over the fine-to-coarse map (`map`, or
@@ -236,10 +244,13 @@ fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const CoarseSpac
 
 /// The sweep proxy of vector fields through `coarse`: coarse marching with the measured defaults
 /// (CoarseLengths::automatic, CurvatureCorrection::automatic, one subdivision) and fine.operators
-/// (which must have been built: std::logic_error otherwise). `traced`: the coarse edges' traced
-/// lengths when already made (traced_edge_lengths), else they are traced here if the defaults trace.
+/// (which must have been built: std::logic_error otherwise). `lengths`: the marching lengths of those
+/// defaults when already made (stored_marching_lengths with vector_sweep_traces(coarse)), else they
+/// are made here.
 fem::VectorSweepProxy make_vector_sweep(const TriangleMesh& mesh, const TangentMesh& fine, const CoarseSpace& coarse,
                                         const std::vector<CoarsePoint>& map, const fem::DistanceSweepOptions& options = {},
-                                        const SurfaceEdgeLengths* traced = nullptr);
+                                        const SurfaceEdgeLengths* lengths = nullptr);
+/// Whether the vector sweep's marching runs on traced lengths (CoarseLengths::automatic for `coarse`'s method).
+bool vector_sweep_traces(const CoarseSpace& coarse);
 
 }  // namespace ice::proxy
