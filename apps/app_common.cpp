@@ -244,6 +244,7 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   const bool hit = setup.cache.status == ice::proxy::CacheStatus::hit;
   if (setup.cache.status == ice::proxy::CacheStatus::rebuilt)
     warn(run.tool, "the stored setup was damaged and is rebuilt: " + setup.cache.damage);
+  if (hit) warn_if_target_missed(run.tool, setup.coarse.summary, options);  // a build warns as it coarsens
   run.record_cache(setup.cache, store);
   run.coarsening = setup.coarse.summary;
   run.coarsen = setup.times.coarsen;  // a hit's load is run.cache.load_seconds
@@ -272,29 +273,34 @@ bool outputs_draw_coarse_mesh(const PdeOptions& opt, bool tufted_cover) {
 
 ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options,
                                              const PdeOptions& opt, PdeRun& run, const ice::proxy::Store& store,
-                                             bool record_history, ice::FineMesh* fine_delaunay) {
+                                             bool need_map, bool record_history, ice::FineMesh* fine_delaunay) {
   ice::proxy::MappedSpaceOptions space_options;
   space_options.coarsening = pde_space_options(options, opt, record_history, record_history);
   space_options.store = store;
-  double seconds = 0;
-  space_options.builder = [&opt, &run, &seconds](const ice::TriangleMesh& m, const ice::CoarseSpaceOptions& coarsening,
-                                                 ice::FineMesh* fine_delaunay) {
-    const Stopwatch clock;
-    ice::CoarseSpace space = coarsen_space_for_pde(m, coarsening, opt, run, fine_delaunay);
-    seconds = clock.seconds();
-    return space;
+  space_options.builder = [&opt, &run](const ice::TriangleMesh& m, const ice::CoarseSpaceOptions& coarsening,
+                                       ice::FineMesh* fine_delaunay) {
+    return coarsen_space_for_pde(m, coarsening, opt, run, fine_delaunay);  // warns if the target was missed
   };
   ice::proxy::MappedSpace space;
+  const Stopwatch clock;
   try {
     space = ice::proxy::build_mapped_space(mesh, space_options, fine_delaunay);
-  } catch (const std::invalid_argument& e) {  // a tufted cover, QEM with intrinsic Delaunay geometry
+  } catch (const std::invalid_argument& e) {  // a tufted cover
     throw AppError(kUsage, opt.mesh + ": " + e.what());
   }
+  const double seconds = clock.seconds();
+  if (need_map && space.map.empty())
+    throw AppError(kUsage, opt.mesh + ": --qem-operators idt has no fine-to-coarse map onto its coarse mesh (its closest-point "
+                                      "map lies in the QEM mesh's faces); use extrinsic");
+  const bool hit = space.cache.status == ice::proxy::CacheStatus::hit;
   if (space.cache.status == ice::proxy::CacheStatus::rebuilt)
     warn(run.tool, "the stored coarse space was damaged and is rebuilt: " + space.cache.damage);
+  if (hit) warn_if_target_missed(run.tool, space.coarse.summary, options);
   run.coarsening = space.coarse.summary;
-  // 0 on a hit, whose load is run.cache.load_seconds; the fine mesh made on the way is the caller's phase
-  run.coarsen = seconds - space.coarse.summary.fine_mesh_seconds;
+  // Coarsening and the map: 0 on a hit, whose load is run.cache.load_seconds; the fine mesh made on
+  // the way is the caller's phase.
+  run.coarsen = hit ? 0.0
+                    : seconds - space.cache.load_seconds - space.cache.save_seconds - space.coarse.summary.fine_mesh_seconds;
   run.fine_mesh = space.coarse.summary.fine_mesh_seconds;
   run.stored_setup = "coarse space and map from the store (nothing coarsened)";
   run.record_cache(space.cache, store);

@@ -110,11 +110,11 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
 /// march on the coarse mesh or fit vectors to the map, with the method, QEM geometry and progress bar
 /// of `opt`, through `store`; `record_history` keeps what draws the coarse mesh on the surface (and
 /// bypasses the store). Warns when the target was missed or a stored entry was damaged; records
-/// run.coarsening, run.coarsen and the cache. AppError(kUsage) for a tufted cover or QEM with intrinsic
-/// Delaunay geometry (no map).
+/// run.coarsening, run.coarsen and the cache. AppError(kUsage) for a tufted cover, and when
+/// `need_map` for QEM with intrinsic Delaunay geometry (no map).
 /// `fine_delaunay`: as ice::proxy::build_mapped_space's (filled on a build, not on a hit).
 ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options,
-                                             const PdeOptions& opt, PdeRun& run, const ice::proxy::Store& store,
+                                             const PdeOptions& opt, PdeRun& run, const ice::proxy::Store& store, bool need_map,
                                              bool record_history = false, ice::FineMesh* fine_delaunay = nullptr);
 
 /// The marching lengths of `space` through `store` (ice::proxy::stored_marching_lengths, recorded in

@@ -164,7 +164,7 @@ int main(int argc, char** argv) {
 
     // ---- coarsen (with the map P_vec is fitted from), or the coarse space and map from the store
     const ice::proxy::Store store = opt.store();
-    ice::proxy::MappedSpace space = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store);
+    ice::proxy::MappedSpace space = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store, /*need_map=*/true);
     const ice::CoarseSpace& coarse = space.coarse;
     const std::vector<ice::CoarsePoint>& map = space.map;
     clock.lap();  // run.coarsen, and the cache's load and save
@@ -206,7 +206,8 @@ int main(int argc, char** argv) {
           ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
       sweep_proxy.emplace(ice::proxy::make_vector_sweep(mesh, fine, coarse, map, sweep_options, &lengths));
       run.record_cache(space.cache, store);
-      if (traced) run.stored_setup = "coarse space, map and marching lengths from the store (nothing coarsened or traced)";
+      run.stored_setup = run.cache.save_seconds > 0 ? "coarse space and map from the store (nothing coarsened; marching lengths made and stored)"
+                                                     : "coarse space, map and marching lengths from the store (nothing coarsened or traced)";
     } else {
       diffusion_proxy.emplace(ice::proxy::make_vector_proxy(fine, coarse, map, kind, time_factor));
     }

@@ -468,7 +468,10 @@ TEST_CASE("store: a damaged coarse space entry is never used and is rebuilt to t
   cancelled.coarsening.coarsen.progress_interval = 10;
   cancelled.coarsening.coarsen.progress = [](const ice::CoarsenProgress&) { return false; };
   const std::size_t before = entries(dir).size();
-  CHECK(ice::proxy::build_mapped_space(mesh, cancelled).coarse.summary.stop_reason() == ice::StopReason::Cancelled);
+  const ice::proxy::MappedSpace stopped = ice::proxy::build_mapped_space(mesh, cancelled);
+  CHECK(stopped.coarse.summary.stop_reason() == ice::StopReason::Cancelled);
+  CHECK(!stopped.key);  // nor is anything stored beside it
+  (void)ice::proxy::stored_marching_lengths(mesh, stopped, options.store, true, ice::proxy::CurvatureCorrection::on, 48);
   CHECK(entries(dir).size() == before);
   // What needs the method's state bypasses the store; so does nothing else.
   ice::proxy::MappedSpaceOptions kept = options;
@@ -477,11 +480,16 @@ TEST_CASE("store: a damaged coarse space entry is never used and is rebuilt to t
   CHECK(with_state.cache.status == CacheStatus::off);
   CHECK(with_state.coarse.triangulation);
   check_same_space(cold, with_state);
-  // Spaces without a map are refused before any work.
+  // QEM's intrinsic Delaunay geometry has no map: made, not stored (marching on its own lengths works).
   ice::proxy::MappedSpaceOptions idt = options;
   idt.coarsening.method = ice::CoarseningMethod::qem;
   idt.coarsening.qem_geometry = ice::QemGeometry::intrinsic_delaunay;
-  CHECK_THROWS_AS(ice::proxy::build_mapped_space(mesh, idt), std::invalid_argument);
+  const ice::proxy::MappedSpace unmapped = ice::proxy::build_mapped_space(mesh, idt);
+  CHECK(unmapped.map.empty());
+  CHECK(!unmapped.key);
+  CHECK(unmapped.cache.status == CacheStatus::off);
+  CHECK(unmapped.coarse.P.rows() == mesh.V.rows());
+  // A tufted cover has no map at all: refused before any work.
   ice::TriangleMesh fin;  // three triangles on one edge: solved on its tufted cover
   fin.V.resize(5, 3);
   fin.V << 0, 0, 0, 1, 0, 0, 0.5, 1, 0, 0.5, -1, 0, 0.5, 0, 1;
@@ -525,5 +533,34 @@ TEST_CASE("store: geodesics from a stored space equal those set up from scratch,
   CHECK(cache.status == CacheStatus::hit);
   const std::vector<std::array<ice::Index, 2>> pairs{{0, 100}, {5, 2000}, {17, 2561}};
   CHECK(warm.distances(pairs) == plain.distances(pairs));
+
+  // What is stored beside a space is keyed by the mesh too: the same space handed another mesh of its
+  // faces (an animation's next frame) gets that mesh's lengths, never the first one's.
+  ice::proxy::MappedSpaceOptions space_options;
+  space_options.coarsening = ice::proxy::GeodesicOptions{}.coarsening;
+  space_options.coarsening.coarsen.target_vertices = 300;
+  space_options.store = ice::proxy::Store({dir, ice::proxy::kDefaultStoreBytes});
+  const ice::proxy::MappedSpace space = ice::proxy::build_mapped_space(mesh, space_options);
+  REQUIRE(space.cache.status == CacheStatus::hit);
+  ice::TriangleMesh stretched = mesh;
+  stretched.V.col(2) *= 1.5;
+  const double divisor = ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source);
+  const ice::SurfaceEdgeLengths own = ice::proxy::marching_lengths(stretched, space.coarse, true, ice::proxy::CurvatureCorrection::on,
+                                                                   &space.map, divisor);
+  for (int run = 0; run < 2; ++run)
+    CHECK(ice::proxy::stored_marching_lengths(stretched, space, space_options.store, true, ice::proxy::CurvatureCorrection::on,
+                                              divisor)
+              .lengths == own.lengths);
+
+  // QEM's intrinsic Delaunay geometry (no map) marches on its own lengths through a store too.
+  ice::proxy::GeodesicOptions idt;
+  idt.coarsening.method = ice::CoarseningMethod::qem;
+  idt.coarsening.qem_geometry = ice::QemGeometry::intrinsic_delaunay;
+  idt.coarsening.coarsen.target_vertices = 300;
+  const Eigen::VectorXd idt_plain = ice::proxy::GeodesicSolver(mesh, idt).distance(sources);
+  idt.store.directory = dir;
+  const ice::proxy::GeodesicSolver idt_stored(mesh, idt);
+  CHECK(idt_stored.cache().status == CacheStatus::off);
+  CHECK(idt_stored.distance(sources) == idt_plain);
   fs::remove_all(dir);
 }

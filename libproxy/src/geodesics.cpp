@@ -65,7 +65,7 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
     if (!coarse && options_.store.directory != std::filesystem::path()) {  // the space, its map and traced lengths stored
       const Store store(options_.store);
       MappedSpace space = mapped_space(mesh, options_.coarsening, store);
-      traced_ = trace(options_.lengths, space.coarse, &space.map, true);
+      traced_ = trace(options_.lengths, space.coarse, space.map.empty() ? nullptr : &space.map, true);
       lengths_ = stored_marching_lengths(mesh, space, store, traced_, options_.curvature_correction, divisor, &space.cache);
       setup_.coarse = std::move(space.coarse);
       cache_ = std::move(space.cache);
@@ -110,6 +110,9 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
   if (!coarse && options.store.directory != std::filesystem::path()) {  // the space, its map and traced lengths stored
     const Store store(options.store);
     MappedSpace space = mapped_space(mesh, options.coarsening, store);
+    if (space.map.empty())
+      throw std::invalid_argument("the distance oracle needs the fine-to-coarse map, which QEM's intrinsic Delaunay geometry "
+                                  "does not have (its closest-point map lies in the QEM mesh's faces)");
     const bool traced = trace(options.lengths, space.coarse, &space.map, marching);
     const SurfaceEdgeLengths lengths =
         stored_marching_lengths(mesh, space, store, traced, options.curvature_correction, divisor, &space.cache);

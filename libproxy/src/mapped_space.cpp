@@ -91,17 +91,18 @@ struct Stored {
   CacheReport cache;
 };
 
-// A value stored beside a mapped space, under a key of `kind` made from the space's (`space_key`; null,
-// or a store that is off: made and not stored): loaded when there and whole (`parse`), else made
-// (`make`) and saved (`put` writes its arrays). Its use is added to `cache` when given: its key and
-// times, and a damaged entry (status rebuilt, the damage appended).
+// A value of `mesh` stored beside a mapped space, under a key of `kind` made from the space's
+// (`space_key`; null, or a store that is off: made and not stored) and the mesh's arrays (a coarse
+// space may be handed another mesh of the same faces and count: the value is that mesh's): loaded when
+// there and whole (`parse`), else made (`make`) and saved (`put` writes its arrays). Its use is added
+// to `cache` when given: its key and times, and a damaged entry (status rebuilt, the damage appended).
 template <class T, class Parse, class Make, class Put>
-T stored_beside(const Store& store, const char* kind, const StoreKey* space_key, CacheReport* cache, Parse&& parse, Make&& make,
-                Put&& put) {
+T stored_beside(const TriangleMesh& mesh, const Store& store, const char* kind, const StoreKey* space_key, CacheReport* cache,
+                Parse&& parse, Make&& make, Put&& put) {
   std::optional<StoreKey> key;
   if (store.enabled() && space_key) {
     KeyHasher h(kind);
-    key = h.add(*space_key).finish();
+    key = h.add(*space_key).add_matrix(mesh.V).add_matrix(mesh.F).finish();
     CacheReport attempt;
     std::optional<Stored<T>> hit = detail::load_entry<Stored<T>>(
         store, kind, *key, attempt, [&](const EntryReader& entry, const std::string& path) { return Stored<T>{parse(entry, path), {}}; });
@@ -146,14 +147,14 @@ StoreKey mapped_space_key(const TriangleMesh& mesh, const CoarseSpaceOptions& co
 
 MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOptions& options, FineMesh* fine_delaunay) {
   const CoarseSpaceOptions& coarsening = options.coarsening;
-  if (coarsening.method == CoarseningMethod::qem && coarsening.qem_geometry == QemGeometry::intrinsic_delaunay)
-    throw std::invalid_argument("QEM with intrinsic Delaunay geometry has no fine-to-coarse map onto its coarse mesh (the "
-                                "closest-point map lies in the QEM mesh's faces): use its extrinsic geometry");
+  // QEM's intrinsic Delaunay geometry: its closest-point map lies in the QEM mesh's faces, not in the
+  // coarse mesh's: no map, and so not stored (what needs only the coarse mesh and P still works).
+  const bool has_map = !(coarsening.method == CoarseningMethod::qem && coarsening.qem_geometry == QemGeometry::intrinsic_delaunay);
   if (solved_on_tufted_cover(mesh, coarsening.nonmanifold))
     throw std::invalid_argument("a mesh solved on its tufted cover has no fine-to-coarse map (the cover's triangulation "
                                 "tracks the copies of its vertices)");
   MappedSpace result;
-  const bool stored = options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history;
+  const bool stored = has_map && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history;
   if (stored) {
     result.key = mapped_space_key(mesh, coarsening);
     std::optional<MappedSpace> hit = detail::load_entry<MappedSpace>(
@@ -169,18 +170,20 @@ MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOption
     }
   }
   CoarseSpaceOptions build = coarsening;
-  build.keep_method_state = true;  // the map is read from it
+  build.keep_method_state = has_map;  // the map is read from it
   build.nonmanifold = NonmanifoldInput::refuse;  // decided above
   result.coarse = options.builder ? options.builder(mesh, build, fine_delaunay) : build_coarse_space(mesh, build, fine_delaunay);
-  result.map = fine_to_coarse_map(result.coarse);
+  if (has_map) result.map = fine_to_coarse_map(result.coarse);
   if (!coarsening.keep_method_state) {
     result.coarse.triangulation.reset();
     result.coarse.triangulation_order = {};
     result.coarse.triangulation_face_order = {};
     result.coarse.qem_result.reset();
   }
-  // A coarsening cancelled by its progress callback is not the space its key names: never stored.
-  if (stored && result.coarse.summary.stop_reason() != StopReason::Cancelled) {
+  // A coarsening cancelled by its progress callback is not the space its key names: never stored,
+  // and nothing is stored beside it.
+  if (result.coarse.summary.stop_reason() == StopReason::Cancelled) result.key.reset();
+  if (stored && result.key) {
     const auto start = std::chrono::steady_clock::now();
     const SpaceEntry entry(result.coarse, result.map);
     detail::save_entry(options.store, kSpaceKind, *result.key, entry.writer, result.cache, start);
@@ -219,7 +222,7 @@ SurfaceEdgeLengths traced_edge_lengths(const TriangleMesh& mesh, const CoarseSpa
                                        const StoreKey* space_key, const Store& store, CacheReport* cache) {
   const Eigen::Index faces = coarse.mesh.F.rows();
   return stored_beside<SurfaceEdgeLengths>(
-      store, kTracedKind, space_key, cache,
+      mesh, store, kTracedKind, space_key, cache,
       [&](const EntryReader& entry, const std::string& path) {
         SurfaceEdgeLengths stored;
         stored.lengths = entry.double_matrix("lengths");
@@ -243,7 +246,7 @@ fem::CoarseCurvature gathered_curvature(const TriangleMesh& mesh, const CoarseSp
                                         const Store& store, CacheReport* cache) {
   const Eigen::Index vertices = coarse.P.cols();
   return stored_beside<fem::CoarseCurvature>(
-      store, kCurvatureKind, space_key, cache,
+      mesh, store, kCurvatureKind, space_key, cache,
       [&](const EntryReader& entry, const std::string& path) {
         const std::vector<double> curvature = entry.doubles("curvature"), area = entry.doubles("area");
         require(static_cast<Eigen::Index>(curvature.size()) == vertices && static_cast<Eigen::Index>(area.size()) == vertices,

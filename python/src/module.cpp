@@ -440,8 +440,9 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     result->cache = ice::proxy::cache_json(mapped->cache, store);
     result->cache["load_seconds"] = mapped->cache.load_seconds;
     result->cache["save_seconds"] = mapped->cache.save_seconds;
-    if (mapped->cache.status == ice::proxy::CacheStatus::rebuilt)
-      PyErr_WarnEx(PyExc_RuntimeWarning, ("ice.coarsen: the stored coarse space was damaged and is rebuilt: " + mapped->cache.damage).c_str(), 1);
+    if (mapped->cache.status == ice::proxy::CacheStatus::rebuilt &&
+        PyErr_WarnEx(PyExc_RuntimeWarning, ("ice.coarsen: the stored coarse space was damaged and is rebuilt: " + mapped->cache.damage).c_str(), 1) < 0)
+      throw py::error_already_set();  // warnings turned into errors
   }
   {
     py::gil_scoped_release release;

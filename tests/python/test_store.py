@@ -1,4 +1,6 @@
 """Set up once, solve many times from Python: the store of set-up proxies, block sources, heat steps."""
+import warnings
+
 import numpy as np
 import pytest
 
@@ -261,6 +263,12 @@ def test_coarsen_geodesics_and_vectors_through_the_store(spot, tmp_path):
     with pytest.warns(RuntimeWarning, match="damaged"):
         rebuilt = ice.coarsen(V, F, ratio=0.05, use="geodesic", cache=tmp_path)
     assert rebuilt.cache["status"] == "rebuilt"
+    # With warnings as errors the warning is raised as itself.
+    entry.write_bytes(bytes(data))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(RuntimeWarning, match="damaged"):
+            ice.coarsen(V, F, ratio=0.05, use="geodesic", cache=tmp_path)
     assert np.array_equal(rebuilt.lengths, plain.lengths) and (rebuilt.P != plain.P).nnz == 0
 
 

@@ -142,9 +142,12 @@ struct MappedSpace {
   /// The method's state (triangulation, QEM result) only when built with keep_method_state or
   /// record_history, which bypass the store.
   CoarseSpace coarse;
-  std::vector<CoarsePoint> map;  ///< one point per input vertex, faces in coarse.mesh's numbering
+  /// One point per input vertex, faces in coarse.mesh's numbering; empty for QEM with intrinsic
+  /// Delaunay geometry (its closest-point map lies in the QEM mesh's faces).
+  std::vector<CoarsePoint> map;
   CacheReport cache;             ///< the space's entry, then the traced lengths' (traced_edge_lengths)
-  /// The key the space is stored under; the traced lengths are stored under a key made from it.
+  /// The key the space is stored under (none when it is not: store off, bypassed, no map, cancelled);
+  /// the traced lengths and gathered curvature are stored under keys made from it and the mesh's arrays.
   std::optional<StoreKey> key;
 };
 
@@ -160,10 +163,11 @@ struct MappedSpaceOptions {
 /// structure, and every row of P against the map's point) before use. Otherwise it is built and
 /// saved. A damaged entry is reported in `cache` (status rebuilt), removed and built again; an entry
 /// that cannot be written leaves the run as it is (save_error). keep_method_state and
-/// record_history bypass the store (the method's state is not stored).
-/// Throws std::invalid_argument, before any work, for a mesh solved on its tufted cover (the cover's
-/// triangulation tracks the copies of its vertices: there is no map) and for QEM with intrinsic
-/// Delaunay geometry (its map lies in the QEM mesh's faces), and on bad options as build_coarse_space.
+/// record_history bypass the store (the method's state is not stored), and so does QEM with intrinsic
+/// Delaunay geometry, which has no map (`map` empty); a coarsening cancelled by its progress callback
+/// is not stored (`key` empty). Throws std::invalid_argument, before any work, for a mesh solved on its
+/// tufted cover (the cover's triangulation tracks the copies of its vertices: there is no map), and on
+/// bad options as build_coarse_space.
 /// `fine_delaunay`, when given, is filled as build_coarse_space fills it if the space is built, and
 /// left as it is on a hit.
 MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOptions& options, FineMesh* fine_delaunay = nullptr);
