@@ -1,5 +1,5 @@
-// ice-cache: look after the store of set-up proxies the tools reuse (ice/proxy/store.h): list its
-// entries, verify them, tell its size, clear it.
+// ice-cache: look after the store of set-ups the tools and the Python package reuse (ice/proxy/store.h):
+// list its entries, verify them, tell its size, clear it.
 #include <algorithm>
 #include <chrono>
 #include <iomanip>
@@ -41,9 +41,10 @@ std::string age_text(std::filesystem::file_time_type time) {
 
 int main(int argc, char** argv) {
   CLI::App cli{
-      "ice-cache: the store of set-up proxies that poisson-coarse and the Python package reuse (coarse spaces and\n"
-      "proxy operators, keyed by the mesh and the options). Default store: $ICE_CACHE, else $XDG_CACHE_HOME/ice,\n"
-      "else ~/.cache/ice; size bound $ICE_CACHE_MAX_MB (default 4096).\n\n"
+      "ice-cache: the store of set-ups that the tools and the Python package reuse, keyed by the mesh and the options:\n"
+      "proxy (a coarse space and its proxy's operators), hierarchy (multigrid), space (a coarse space with its\n"
+      "fine-to-coarse map), traced and curvature (what coarse marching reads beside a space). Default store:\n"
+      "$ICE_CACHE, else $XDG_CACHE_HOME/ice, else ~/.cache/ice; size bound $ICE_CACHE_MAX_MB (default 4096).\n\n"
       "Examples:\n  ice-cache list\n  ice-cache verify --remove\n  ice-cache clear --cache /tmp/store\n\n"
       "Exit status: 0 ok (verify: every entry whole), 4 bad command line, 5 damaged entries found."};
   std::string directory;
@@ -68,7 +69,7 @@ int main(int argc, char** argv) {
     if (*list) {
       std::cout << options.directory.string() << ": " << entries.size() << " entries, " << bytes_text(total) << '\n';
       for (const auto& e : entries)
-        std::cout << "  " << std::left << std::setw(8) << e.kind << ' ' << e.key << "  " << std::right << std::setw(9)
+        std::cout << "  " << std::left << std::setw(9) << e.kind << ' ' << e.key << "  " << std::right << std::setw(9)
                   << bytes_text(e.bytes) << "  " << age_text(e.last_used) << '\n';
     } else if (*size) {
       std::cout << options.directory.string() << ": " << entries.size() << " entries, " << bytes_text(total) << " of "
