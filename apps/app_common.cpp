@@ -256,14 +256,22 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   return setup;
 }
 
-ice::SurfaceEdgeLengths stored_marching_lengths(const std::string& tool, const ice::TriangleMesh& mesh,
+ice::SurfaceEdgeLengths stored_marching_lengths(PdeRun& run, Stopwatch& clock, const ice::TriangleMesh& mesh,
                                                ice::proxy::MappedSpace& space, const ice::proxy::Store& store, bool traced,
                                                ice::proxy::CurvatureCorrection correction, double divisor) {
   const std::string damage_before = space.cache.damage;
+  const double stored_before = space.cache.load_seconds + space.cache.save_seconds;
   ice::SurfaceEdgeLengths lengths =
       ice::proxy::stored_marching_lengths(mesh, space, store, traced, correction, divisor, &space.cache);
   if (space.cache.damage != damage_before)
-    warn(tool, "stored marching lengths were damaged and are made again: " + space.cache.damage);
+    warn(run.tool, "stored marching lengths were damaged and are made again: " + space.cache.damage);
+  // Their entries' load and save are the cache's, not the caller's phase.
+  clock.rewind(stored_before - (space.cache.load_seconds + space.cache.save_seconds));
+  run.record_cache(space.cache, store);
+  // What a hit loaded: everything, or the space alone (its marching lengths made now and stored).
+  run.stored_setup = space.cache.save_seconds > 0
+                         ? "coarse space and map from the store (nothing coarsened; marching lengths made and stored)"
+                         : "coarse space, map and marching lengths from the store (nothing coarsened or traced)";
   return lengths;
 }
 

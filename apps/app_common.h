@@ -117,9 +117,10 @@ ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, cons
                                              const PdeOptions& opt, PdeRun& run, const ice::proxy::Store& store, bool need_map,
                                              bool record_history = false, ice::FineMesh* fine_delaunay = nullptr);
 
-/// The marching lengths of `space` through `store` (ice::proxy::stored_marching_lengths, recorded in
-/// space.cache), warning as `tool` when a stored entry was damaged.
-ice::SurfaceEdgeLengths stored_marching_lengths(const std::string& tool, const ice::TriangleMesh& mesh,
+/// The marching lengths of `space` through `store` (ice::proxy::stored_marching_lengths), warning
+/// when a stored entry was damaged; records space.cache in `run` (and what a hit loaded), and leaves
+/// the entries' load and save out of the phase running on `clock`.
+ice::SurfaceEdgeLengths stored_marching_lengths(PdeRun& run, Stopwatch& clock, const ice::TriangleMesh& mesh,
                                                ice::proxy::MappedSpace& space, const ice::proxy::Store& store, bool traced,
                                                ice::proxy::CurvatureCorrection correction, double divisor);
 

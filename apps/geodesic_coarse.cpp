@@ -179,17 +179,13 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   ice::proxy::MappedSpace mapped = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store, /*need_map=*/true);
   const ice::CoarseSpace& space = mapped.coarse;
   clock.lap();  // run.coarsen, and the cache's load and save
-  const double stored_before = mapped.cache.load_seconds + mapped.cache.save_seconds;
-  const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(kTool, mesh, mapped, store, request.traced_lengths,
+  const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(run, clock, mesh, mapped, store, request.traced_lengths,
                                                                       request.curvature_correction, fem::kOracleCorrectionDivisor);
-  run.record_cache(mapped.cache, store);
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
   oracle_options.subdivisions = request.subdivisions;
   const fem::DistanceOracle oracle(ice::with_lengths(space.mesh, lengths.lengths), mapped.map, oracle_options);
-  // With the tracing of --coarse-lengths traced and the curvature correction; their entries' load or
-  // save is the cache's.
-  const double oracle_seconds = clock.lap() - (mapped.cache.load_seconds + mapped.cache.save_seconds - stored_before);
+  const double oracle_seconds = clock.lap();  // with the tracing of --coarse-lengths traced and the correction
 
   // ---- the queries
   nlohmann::json timings = {{"load", run.load}, {"coarsen", run.coarsen}, {"oracle", oracle_seconds},
@@ -454,17 +450,11 @@ int main(int argc, char** argv) {
       run.fine_built = run.has_reference;
       run.idt_flips = pde.fine.flips;
       run.coarse_solver = oracle.traced_lengths ? "coarse fast marching on traced lengths" : "coarse fast marching";
-      const double stored_before = space.cache.load_seconds + space.cache.save_seconds;
       const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(
-          kTool, mesh, space, store, oracle.traced_lengths, oracle.curvature_correction,
+          run, clock, mesh, space, store, oracle.traced_lengths, oracle.curvature_correction,
           ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
       if (oracle.traced_lengths) traced_counts = {lengths.edges, lengths.traced};
-      run.record_cache(space.cache, store);
-      // What a hit loaded: everything, or the space alone (its marching lengths made now and stored).
-      run.stored_setup = run.cache.save_seconds > 0 ? "coarse space and map from the store (nothing coarsened; marching lengths made and stored)"
-                                                     : "coarse space, map and marching lengths from the store (nothing coarsened or traced)";
-      // The tracing of --coarse-lengths traced and the correction; the traced lengths' load or save is the cache's.
-      run.assemble = clock.lap() - (space.cache.load_seconds + space.cache.save_seconds - stored_before);
+      run.assemble = clock.lap();  // the tracing of --coarse-lengths traced and the correction
       pde.coarse = std::move(space.coarse);
       proxy_solver.emplace(ice::with_lengths(pde.coarse.mesh, lengths.lengths), pde.coarse.P, oracle.subdivisions);
     } else {

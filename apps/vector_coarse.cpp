@@ -197,21 +197,16 @@ int main(int argc, char** argv) {
     // and coarse factorisations.
     std::optional<fem::VectorSweepProxy> sweep_proxy;
     std::optional<fem::VectorHeatProxy> diffusion_proxy;
-    const double stored_before = space.cache.load_seconds + space.cache.save_seconds;
     if (sweep) {
       // The sweep marches on the coarse edges' traced, curvature-corrected lengths (ICE): through the store too.
-      const bool traced = ice::proxy::vector_sweep_traces(coarse);
       const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(
-          kTool, mesh, space, store, traced, ice::proxy::CurvatureCorrection::automatic,
+          run, clock, mesh, space, store, ice::proxy::vector_sweep_traces(coarse), ice::proxy::CurvatureCorrection::automatic,
           ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
       sweep_proxy.emplace(ice::proxy::make_vector_sweep(mesh, fine, coarse, map, sweep_options, &lengths));
-      run.record_cache(space.cache, store);
-      run.stored_setup = run.cache.save_seconds > 0 ? "coarse space and map from the store (nothing coarsened; marching lengths made and stored)"
-                                                     : "coarse space, map and marching lengths from the store (nothing coarsened or traced)";
     } else {
       diffusion_proxy.emplace(ice::proxy::make_vector_proxy(fine, coarse, map, kind, time_factor));
     }
-    run.factor = clock.lap() - (space.cache.load_seconds + space.cache.save_seconds - stored_before);
+    run.factor = clock.lap();
     if (diffusion_proxy) warn_if_frames_fit_poorly(diffusion_proxy->prolongation_stats());
     fem::DistanceSweepStats sweep_stats;
     const Eigen::VectorXcd field =

@@ -1,6 +1,5 @@
 #include "ice/proxy/geodesics.h"
 
-#include <filesystem>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -20,16 +19,7 @@ bool on_cover(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening, co
   return coarse ? coarse->summary.tufted_cover : solved_on_tufted_cover(mesh, coarsening.nonmanifold);
 }
 
-/// The coarse space of a marching recipe: `coarse` if given, else coarsened keeping the method's
-/// state when the lengths are to be traced (the walk reads it).
-CoarseSpace marching_space(const TriangleMesh& mesh, std::optional<CoarseSpace> coarse, CoarseSpaceOptions coarsening,
-                           CoarseLengths lengths, bool marching) {
-  if (coarse) return std::move(*coarse);
-  coarsening.keep_method_state = coarsening.keep_method_state || traces_lengths(lengths, coarsening.method, marching);
-  return build_coarse_space(mesh, coarsening);
-}
-
-/// The coarse space of a marching recipe with its map, through `store`.
+/// The coarse space of a marching recipe with its map, through `store` (which may be off).
 MappedSpace mapped_space(const TriangleMesh& mesh, const CoarseSpaceOptions& coarsening, const Store& store) {
   MappedSpaceOptions options;
   options.coarsening = coarsening;
@@ -62,7 +52,7 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
   if (marching) {
     require_no_marching_on_cover(on_cover(mesh, options_.coarsening, coarse), "coarse marching");
     const double divisor = curvature_divisor(MarchingUse::single_source);
-    if (!coarse && options_.store.directory != std::filesystem::path()) {  // the space, its map and traced lengths stored
+    if (!coarse) {  // coarsened with its map, the space and its marching lengths through the store
       const Store store(options_.store);
       MappedSpace space = mapped_space(mesh, options_.coarsening, store);
       traced_ = trace(options_.lengths, space.coarse, space.map.empty() ? nullptr : &space.map, true);
@@ -70,7 +60,7 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
       setup_.coarse = std::move(space.coarse);
       cache_ = std::move(space.cache);
     } else {
-      setup_.coarse = marching_space(mesh, std::move(coarse), options_.coarsening, options_.lengths, true);
+      setup_.coarse = std::move(*coarse);
       traced_ = trace(options_.lengths, setup_.coarse, map, true);
       lengths_ = marching_lengths(mesh, setup_.coarse, traced_, options_.curvature_correction, map, divisor);
     }
@@ -107,7 +97,7 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
   require_marching_for_traced(options.lengths, marching);
   require_no_marching_on_cover(on_cover(mesh, options.coarsening, coarse), "the distance oracle");
   const double divisor = curvature_divisor(MarchingUse::all_pairs);
-  if (!coarse && options.store.directory != std::filesystem::path()) {  // the space, its map and traced lengths stored
+  if (!coarse) {  // coarsened with its map, the space and its marching lengths through the store
     const Store store(options.store);
     MappedSpace space = mapped_space(mesh, options.coarsening, store);
     if (space.map.empty())
@@ -119,9 +109,7 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
     if (cache) *cache = space.cache;
     return fem::DistanceOracle(with_lengths(space.coarse.mesh, lengths.lengths), space.map, options.oracle);
   }
-  CoarseSpaceOptions coarsening = options.coarsening;
-  coarsening.keep_method_state = true;  // the oracle's fine points are the fine-to-coarse map
-  const CoarseSpace space = marching_space(mesh, std::move(coarse), std::move(coarsening), options.lengths, marching);
+  const CoarseSpace& space = *coarse;
   std::vector<CoarsePoint> own_map;
   if (!map) {
     own_map = fine_to_coarse_map(space);

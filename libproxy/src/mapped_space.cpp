@@ -43,8 +43,8 @@ struct SpaceEntry {
   }
 };
 
-// The map an entry holds, checked against its coarse space: points in range, survivors where
-// from_input says, and every entry of P the point's barycentric coordinates summed over its face's
+// The map an entry holds, checked against its coarse space (whose vertex maps are checked already):
+// points in a face, survivors where from_input says, and every entry of P the point's barycentric coordinates summed over its face's
 // corners (a consumer walks the map and prolongs with P: the two must be one map).
 std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::string& path, const CoarseSpace& c) {
   const std::vector<std::int32_t> vertex_face = entry.ints("map.vertex_face");
@@ -52,20 +52,18 @@ std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::str
   const auto n = static_cast<std::size_t>(c.P.rows());
   require(vertex_face.size() == 2 * n && bary.size() == 3 * n, path, "the fine-to-coarse map has the wrong size");
   const auto faces = static_cast<std::int32_t>(c.mesh.F.rows());
-  const auto vertices = static_cast<std::int32_t>(c.mesh.vertex_count);
   std::vector<CoarsePoint> map(n);
   for (std::size_t i = 0; i < n; ++i) {
     CoarsePoint& p = map[i];
     p.coarse_vertex = vertex_face[2 * i];
     p.face = vertex_face[2 * i + 1];
-    require(p.coarse_vertex >= kInvalid && p.coarse_vertex < vertices, path, "a map point's coarse vertex is out of range");
     require(p.coarse_vertex == c.mesh.from_input[i], path, "the map and the input vertex map disagree");
     require(p.face >= 0 && p.face < faces, path, "a map point lies in no coarse face");
     double sum = 0;
-    for (int k = 0; k < 3; ++k) {
-      p.bary[static_cast<std::size_t>(k)] = bary[3 * i + static_cast<std::size_t>(k)];
-      require(std::isfinite(p.bary[static_cast<std::size_t>(k)]), path, "a map point's coordinates are not finite");
-      sum += p.bary[static_cast<std::size_t>(k)];
+    for (std::size_t k = 0; k < 3; ++k) {
+      p.bary[k] = bary[3 * i + k];
+      require(std::isfinite(p.bary[k]), path, "a map point's coordinates are not finite");
+      sum += p.bary[k];
     }
     require(std::abs(sum - 1) <= 1e-9, path, "a map point's coordinates do not sum to 1");
   }

@@ -590,10 +590,10 @@ ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const 
   if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
     throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
   py::gil_scoped_release release;
-  if (!coarse.store_key) return ice::proxy::marching_lengths(mesh, coarse.space, traced, correction, &coarse.map, divisor).lengths;
-  // A space that came through the store: its traced lengths and gathered curvature are stored beside it.
-  return ice::proxy::stored_marching_lengths(mesh, coarse.space, coarse.map, &*coarse.store_key, coarse.store, traced, correction,
-                                             divisor)
+  // A space that came through the store has its traced lengths and gathered curvature stored beside it
+  // (without a key, or with the store off, they are made here).
+  return ice::proxy::stored_marching_lengths(mesh, coarse.space, coarse.map, coarse.store_key ? &*coarse.store_key : nullptr,
+                                             coarse.store, traced, correction, divisor)
       .lengths;
 }
 
@@ -869,15 +869,13 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   sweep_options.max_passes = sweep_passes;
   sweep_options.coarse_correction_interval = sweep_coarse_interval;
   if (sweep) {
-    // A space that came through the store: the sweep's marching lengths come from beside it.
-    std::optional<ice::SurfaceEdgeLengths> lengths;
-    if (coarse->store_key)
-      lengths = ice::proxy::stored_marching_lengths(mesh, coarse->space, coarse->map, &*coarse->store_key, coarse->store,
-                                                    ice::proxy::vector_sweep_traces(coarse->space),
-                                                    ice::proxy::CurvatureCorrection::automatic,
-                                                    ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
+    // The sweep's marching lengths, from beside a space that came through the store.
+    const ice::SurfaceEdgeLengths lengths = ice::proxy::stored_marching_lengths(
+        mesh, coarse->space, coarse->map, coarse->store_key ? &*coarse->store_key : nullptr, coarse->store,
+        ice::proxy::vector_sweep_traces(coarse->space), ice::proxy::CurvatureCorrection::automatic,
+        ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
     result->sweep = std::make_unique<fem::VectorSweepProxy>(
-        ice::proxy::make_vector_sweep(mesh, result->fine, coarse->space, coarse->map, sweep_options, lengths ? &*lengths : nullptr));
+        ice::proxy::make_vector_sweep(mesh, result->fine, coarse->space, coarse->map, sweep_options, &lengths));
   }
   else if (coarse)
     result->proxy = std::make_unique<fem::VectorHeatProxy>(ice::proxy::make_vector_proxy(result->fine, coarse->space, coarse->map, kind, time_factor));
