@@ -9,12 +9,14 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "app_common.h"
 #include "fem/eigen.h"
 #include "fem/errors.h"
 #include "fem/topology.h"
 #include "ice/proxy/eigen.h"
+#include "ice/proxy/report.h"
 #include "ice/scalar_field_io.h"
 
 namespace {
@@ -37,10 +39,16 @@ int main(int argc, char** argv) {
       "line,\n5 computation failed."};
   app::PdeOptions opt;
   int k = 0, show = -1;
+  double tolerance = 0;
   std::string hks_text, descriptors, boundary = "neumann";
   cli.add_option("-k,--eigenpairs", k, "Number of eigenpairs (smallest eigenvalues first)")->required()->check(app::integer_between(1, 100000));
   cli.add_option("--boundary", boundary, "Boundary condition on meshes with a boundary: neumann, or dirichlet (phi = 0)")
       ->check(CLI::IsMember({"neumann", "dirichlet"}))
+      ->capture_default_str();
+  cli.add_option("--tolerance", tolerance,
+                 "Refine every pair on the input mesh to this relative residual |L phi - lambda M phi| / (lambda |M phi|) "
+                 "(multigrid-preconditioned LOBPCG); 0: the proxy's pairs as they are")
+      ->check(CLI::Range(0.0, 0.1))
       ->capture_default_str();
   cli.add_option("--solutions", opt.solutions, "Write the eigenvectors as .npy (float64, n x k, M-orthonormal)");
   cli.add_option("--show", show, "Eigenfunction drawn by -o/--html (0-based; default: the first non-constant)")
@@ -112,10 +120,25 @@ int main(int argc, char** argv) {
       throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the coarse space has " + std::to_string(coarse) +
                                            (dirichlet ? " vertices off the boundary" : " vertices") +
                                            " (k < coarse vertices: raise --vertices or --ratio)");
-    const ice::proxy::Eigenbasis basis = ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed);
-    // One eigenbasis is one "solve": the coarse factorisation and the Lanczos iteration, as the
-    // reference's is its fine factorisation and iteration (both factor L − σM for their own σ).
-    run.solve = basis.eigensolve_seconds;
+    // The refined route: the hierarchy whose V-cycle preconditions the refinement is set-up (with
+    // the proxy, through the store), the refinement part of the solve.
+    ice::proxy::EigenRefinement refinement;
+    refinement.tolerance = tolerance;
+    std::optional<ice::proxy::MultigridHierarchy> hierarchy;
+    if (tolerance > 0) {
+      hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt.store());
+      run.assemble += clock.lap();
+    }
+    const ice::proxy::Eigenbasis basis = hierarchy ? ice::proxy::refined_eigenbasis(proxy, *hierarchy, k, refinement, {}, fixed)
+                                                   : ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed);
+    if (basis.refined && !basis.converged)
+      app::warn(kTool, "the refinement stopped after " + std::to_string(basis.refine_iterations) +
+                           " iterations with a residual of " + std::to_string(basis.residuals.maxCoeff()) + " (--tolerance " +
+                           std::to_string(tolerance) + ")");
+    // One eigenbasis is one "solve": the coarse factorisation and the Lanczos iteration (and the
+    // refinement), as the reference's is its fine factorisation and iteration (both factor L − σM
+    // for their own σ).
+    run.solve = basis.eigensolve_seconds + basis.refine_seconds;
     run.prolong = basis.prolong_seconds;
     run.unit = "eigenbasis";
     clock.lap();
@@ -166,6 +189,16 @@ int main(int argc, char** argv) {
     std::vector<double> values(basis.values.data(), basis.values.data() + k);
     report["eigen"] = {{"k", k}, {"values", values}, {"restarts", basis.restarts}, {"shown", show},
                        {"boundary", boundary}, {"dirichlet_vertices", fixed.size()}};
+    if (basis.refined)
+      report["eigen"]["refine"] = {{"tolerance", tolerance},
+                                   {"converged", basis.converged},
+                                   {"iterations", basis.refine_iterations},
+                                   {"guard", basis.guard},
+                                   {"residual_max", basis.residuals.maxCoeff()},
+                                   {"seconds", basis.refine_seconds},
+                                   {"precondition_seconds", basis.precondition_seconds},
+                                   {"hierarchy", ice::proxy::hierarchy_json(*hierarchy, refinement.hierarchy)},
+                                   {"hierarchy_cache", ice::proxy::cache_json(hierarchy->cache, opt.store())}};
     if (!hks_text.empty())
       report["eigen"]["hks_times"] = std::vector<double>(hks_times.data(), hks_times.data() + hks_times.size());
     if (run.has_reference) {
@@ -179,6 +212,9 @@ int main(int argc, char** argv) {
     std::cout << "  problem: the " << k << " smallest eigenpairs; lambda_1.." << std::min(k, 4) << " =";
     for (int j = 0; j < std::min(k, 4); ++j) std::cout << ' ' << basis.values(j);
     std::cout << '\n';
+    if (basis.refined)
+      std::cout << "  refined on the input mesh: " << basis.refine_iterations << " iterations, largest residual "
+                << basis.residuals.maxCoeff() << (basis.converged ? "" : " (not converged)") << '\n';
     if (run.has_reference)
       std::cout << "  vs fine eigenpairs: eigenvalue error median " << app::relative_error(error_json["eigenvalue_rel_median"])
                 << ", max " << app::relative_error(error_json["eigenvalue_rel_max"]) << "; angle to the fine eigenspace median "

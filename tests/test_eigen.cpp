@@ -6,11 +6,14 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstdlib>
 
+#include "fem/cholesky.h"
 #include "fem/eigen.h"
 #include "fem/operators.h"
 #include "fem/topology.h"
 #include "ice/mesh_generators.h"
+#include "ice/mesh_io.h"
 #include "ice/proxy/eigen.h"
 #include "test_support.h"
 
@@ -153,4 +156,147 @@ TEST_CASE("Dirichlet eigenpairs of the unit disk: Bessel zeros squared; the prox
     CHECK(basis.values(j) >= fine.values(j) - 1e-9);  // the coarse functions are a subspace of the fine Dirichlet ones
     CHECK(basis.values(j) <= fine.values(j) * 1.05);
   }
+}
+
+namespace {
+
+// How refined pairs compare with a reference computed to 1e-12: the relative eigenvalue errors
+// (zero modes against the largest value) and, both ways, the angles to the other's eigenspaces.
+struct Agreement {
+  double value_error = 0, angle_to_reference = 0, reference_to_refined = 0;
+};
+
+Agreement agreement(const Eigen::VectorXd& values, const Eigen::MatrixXd& vectors, const fem::Eigenpairs& reference,
+                    const fem::SparseMatrix& M) {
+  const Eigen::Index k = values.size();
+  Agreement a;
+  const double largest = reference.values.head(k).cwiseAbs().maxCoeff();
+  for (Eigen::Index j = 0; j < k; ++j) {
+    const double scale = fem::is_zero_mode(reference.values(j), largest) ? largest : reference.values(j);
+    a.value_error = std::max(a.value_error, std::abs(values(j) - reference.values(j)) / scale);
+  }
+  a.angle_to_reference = fem::eigenspace_angles(vectors, reference.vectors, reference.values, M).maxCoeff();
+  // No reference pair missing: each reference vector lies in the refined eigenspace of its value.
+  a.reference_to_refined = fem::eigenspace_angles(reference.vectors.leftCols(k), vectors, values, M).maxCoeff();
+  return a;
+}
+
+fem::EigenOptions tight_reference() {
+  fem::EigenOptions options;
+  options.tolerance = 1e-13;
+  return options;
+}
+
+}  // namespace
+
+TEST_CASE("refined eigenbasis: every pair to the tolerance, the fine eigenpairs to 1e-8, none missing or repeated", "[eigen][proxy][refine]") {
+  // The sphere's eigenvalues come in clusters of 2l + 1 (1, 3, 5, 7: k = 16 closes the fourth): the
+  // refinement must find whole eigenspaces, not vectors of them.
+  const ice::TriangleMesh& mesh = unit_sphere();
+  const Pencil p = pencil(mesh);
+  const int k = 16;
+  const fem::Eigenpairs fine = fem::smallest_eigenpairs(p.L, p.M, k + 4, tight_reference());
+  ice::proxy::EigenbasisOptions options;
+  options.coarsening.coarsen.target_vertices = 200;  // a coarse start: eigenvalues a few per cent off
+  options.refine.tolerance = 1e-6;
+  const ice::proxy::EigenSolver solver(mesh, options);
+  REQUIRE(solver.hierarchy().fine_vertices == mesh.V.rows());
+  const ice::proxy::Eigenbasis basis = solver.compute(k);
+  REQUIRE(basis.refined);
+  REQUIRE(basis.converged);
+  REQUIRE(basis.vectors.cols() == k);
+  CHECK(basis.guard == 4);
+  CHECK(basis.refine_iterations >= 1);
+  const Eigen::VectorXd residuals = fem::eigen_residuals(p.L, p.M, basis.values, basis.vectors);
+  CHECK(residuals.maxCoeff() <= 1e-6);
+  CHECK((residuals - basis.residuals).cwiseAbs().maxCoeff() < 1e-12);
+  CHECK(orthonormality_defect(basis.vectors, p.M) < 1e-10);
+  const Agreement a = agreement(basis.values, basis.vectors, fine, p.M);
+  CHECK(a.value_error < 1e-8);
+  CHECK(a.angle_to_reference < 1e-6);
+  CHECK(a.reference_to_refined < 1e-6);
+  // The proxy route's start was far from that.
+  ice::proxy::EigenbasisOptions proxy_only = options;
+  proxy_only.refine.tolerance = 0;
+  const ice::proxy::Eigenbasis start = ice::proxy::EigenSolver(mesh, proxy_only).compute(k);
+  CHECK_FALSE(start.refined);
+  CHECK(agreement(start.values, start.vectors, fine, p.M).value_error > 1e-3);
+}
+
+TEST_CASE("refined eigenbasis on a real mesh and under Dirichlet conditions", "[eigen][proxy][refine]") {
+  SECTION("spot, Neumann") {
+    const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+    const Pencil p = pencil(mesh);
+    const int k = 20;
+    const fem::Eigenpairs fine = fem::smallest_eigenpairs(p.L, p.M, k, tight_reference());
+    ice::proxy::EigenbasisOptions options;
+    options.coarsening.coarsen.target_vertices = 300;
+    options.refine.tolerance = 1e-6;
+    const ice::proxy::Eigenbasis basis = ice::proxy::eigenbasis(mesh, k, options);
+    REQUIRE(basis.converged);
+    CHECK(fem::eigen_residuals(p.L, p.M, basis.values, basis.vectors).maxCoeff() <= 1e-6);
+    const Agreement a = agreement(basis.values, basis.vectors, fine, p.M);
+    CHECK(a.value_error < 1e-8);
+    CHECK(a.reference_to_refined < 1e-6);
+  }
+  SECTION("the unit disk, Dirichlet") {
+    const ice::TriangleMesh disk = ice::make_flat_disk(24);  // 1,801 vertices
+    const Pencil p = pencil(disk);
+    const std::vector<fem::Index> boundary = fem::boundary_vertices(disk.F);
+    const fem::Eigenpairs fine = fem::smallest_eigenpairs_dirichlet(p.L, p.M, boundary, 8, tight_reference());
+    ice::proxy::EigenbasisOptions options;
+    options.boundary = ice::proxy::EigenBoundary::dirichlet;
+    options.coarsening.coarsen.target_vertices = 300;
+    options.refine.tolerance = 1e-7;
+    const ice::proxy::Eigenbasis basis = ice::proxy::eigenbasis(disk, 8, options);
+    REQUIRE(basis.converged);
+    for (fem::Index v : boundary) CHECK(basis.vectors.row(v).isZero(0.0));
+    CHECK(fem::eigen_residuals(p.L, p.M, basis.values, basis.vectors, boundary).maxCoeff() <= 1e-7);
+    CHECK(agreement(basis.values, basis.vectors, fine, p.M).value_error < 1e-8);
+  }
+}
+
+TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two components; bad input refused", "[eigen][refine]") {
+  // Two spheres: two zero modes, then each sphere's clusters interleaved. Random start vectors know
+  // nothing of that; an exact preconditioner ((L + σM)⁻¹ by CHOLMOD) makes the iteration quick.
+  ice::TriangleMesh two = ice::make_icosphere(2, 1.0);
+  const ice::TriangleMesh other = ice::make_icosphere(2, 0.7);
+  const Eigen::Index offset = two.V.rows();
+  two.V.conservativeResize(offset + other.V.rows(), 3);
+  two.V.bottomRows(other.V.rows()) = other.V;
+  two.F.conservativeResize(two.F.rows() + other.F.rows(), 3);
+  two.F.bottomRows(other.F.rows()) = other.F.array() + static_cast<fem::Index>(offset);
+  const Pencil p = pencil(two);
+  const int k = 8, m = 14;  // 0, 0, 2 (x3), 4.08 (x3): k closes a cluster
+  const fem::Eigenpairs fine = fem::smallest_eigenpairs(p.L, p.M, m, tight_reference());
+  fem::CholeskySolver inverse;
+  inverse.compute(fem::SparseMatrix(p.L + 1.0 * p.M));
+  const fem::BlockPreconditioner exact = [&inverse](const Eigen::MatrixXd& R) { return inverse.solve_multiple(R); };
+  std::srand(7);
+  Eigen::MatrixXd vectors = Eigen::MatrixXd::Random(two.V.rows(), m);
+  Eigen::VectorXd values = Eigen::VectorXd::Zero(m);
+  const fem::EigenRefineReport report = fem::refine_eigenpairs(p.L, p.M, values, vectors, k, exact);
+  REQUIRE(report.converged);
+  CHECK(report.history.front() > report.history.back());
+  CHECK(report.residuals.maxCoeff() <= 1e-6);
+  CHECK(std::abs(values(0)) < 1e-8);
+  CHECK(std::abs(values(1)) < 1e-8);  // one constant per sphere
+  const Agreement a = agreement(values.head(k), vectors.leftCols(k), fine, p.M);
+  CHECK(a.value_error < 1e-8);
+  CHECK(a.reference_to_refined < 1e-6);
+  CHECK(orthonormality_defect(vectors, p.M) < 1e-10);
+
+  Eigen::VectorXd v = values;
+  Eigen::MatrixXd X = vectors;
+  fem::EigenRefineOptions bad;
+  bad.tolerance = 0;
+  CHECK_THROWS_AS(fem::refine_eigenpairs(p.L, p.M, v, X, k, exact, {}, bad), std::invalid_argument);
+  CHECK_THROWS_AS(fem::refine_eigenpairs(p.L, p.M, v, X, m + 1, exact), std::invalid_argument);
+  CHECK_THROWS_AS(fem::refine_eigenpairs(p.L, p.L, v, X, k, exact), std::invalid_argument);  // M not diagonal
+  const fem::BlockPreconditioner wrong = [](const Eigen::MatrixXd& R) { return Eigen::MatrixXd(R.rows(), 1); };
+  Eigen::MatrixXd random = Eigen::MatrixXd::Random(two.V.rows(), m);
+  CHECK_THROWS_AS(fem::refine_eigenpairs(p.L, p.M, v, random, k, wrong), std::invalid_argument);
+  ice::proxy::EigenbasisOptions negative;
+  negative.refine.tolerance = -1;
+  CHECK_THROWS_AS(ice::proxy::EigenSolver(unit_sphere(), negative), std::invalid_argument);
 }

@@ -1,11 +1,13 @@
 #include "ice/proxy/eigen.h"
 
+#include "fem/multigrid.h"
 #include "fem/topology.h"
 #include "ice/wall_time.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -34,10 +36,82 @@ EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, st
   setup.prolongation = options_.prolongation;
   setup.dirichlet = !dirichlet_.empty();
   setup.store = Store(options_.store);
+  const EigenRefinement& refine = options_.refine;
+  if (refine.tolerance < 0 || !std::isfinite(refine.tolerance) || refine.max_iterations < 1)
+    throw std::invalid_argument("eigenbasis: the refinement needs tolerance >= 0 (0: none) and max_iterations >= 1");
+  const bool refining = refine.tolerance > 0;
+  setup.fine_operators = refining;  // a restored proxy makes its fine Laplacian from a copy of the mesh
   setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
+  if (refining) {
+    setup_.proxy->fine_laplacian();  // made now, while `mesh` is at hand
+    hierarchy_ = multigrid_hierarchy(mesh, refine.hierarchy, Store(options_.store));
+  }
 }
 
-Eigenbasis EigenSolver::compute(int k) const { return proxy_eigenbasis(*setup_.proxy, k, options_.eigen, dirichlet_); }
+Eigenbasis EigenSolver::compute(int k) const {
+  if (options_.refine.tolerance > 0)
+    return refined_eigenbasis(*setup_.proxy, hierarchy_, k, options_.refine, options_.eigen, dirichlet_);
+  return proxy_eigenbasis(*setup_.proxy, k, options_.eigen, dirichlet_);
+}
+
+int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices) {
+  const long long wanted = refinement.guard >= 0 ? refinement.guard : std::max(4, (k + 3) / 4);
+  return static_cast<int>(std::max<long long>(0, std::min<long long>(wanted, coarse_free_vertices - 1 - k)));
+}
+
+Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHierarchy& hierarchy, int k,
+                              const EigenRefinement& refinement, const fem::EigenOptions& options,
+                              const std::vector<Index>& dirichlet_vertices) {
+  if (!(refinement.tolerance > 0) || !std::isfinite(refinement.tolerance))
+    throw std::invalid_argument("refined_eigenbasis: the tolerance must be > 0");
+  const fem::SparseMatrix& L = proxy.fine_laplacian();
+  const fem::SparseMatrix& M = proxy.fine_mass();
+  if (hierarchy.fine_vertices != L.rows())
+    throw std::invalid_argument("refined_eigenbasis: the hierarchy has " + std::to_string(hierarchy.fine_vertices) +
+                                " fine vertices, the proxy " + std::to_string(L.rows()));
+  const std::vector<Index> coarse_fixed = fem::coarse_dirichlet_vertices(proxy, dirichlet_vertices);
+  const Eigen::Index coarse_free = proxy.coarse_laplacian().rows() - static_cast<Eigen::Index>(coarse_fixed.size());
+  const int guard = refinement_guard(k, refinement, coarse_free);
+  Eigenbasis basis = proxy_eigenbasis(proxy, k + guard, options, dirichlet_vertices);
+  const auto start = Clock::now();
+  // The preconditioner: one V-cycle of L + σM (symmetric positive definite for any σ > 0). σ is
+  // the scale of the modes sought, the smallest positive coarse eigenvalue (an upper bound of the
+  // fine one); with zero modes only, the inverse area (λ·area is of order 10 for the lowest modes
+  // of compact surfaces).
+  const double largest = basis.values.cwiseAbs().maxCoeff();
+  double sigma = 0;
+  for (Eigen::Index j = 0; j < basis.values.size() && sigma == 0; ++j)
+    if (!fem::is_zero_mode(basis.values(j), largest)) sigma = basis.values(j);
+  if (!(sigma > 0)) sigma = 1.0 / M.sum();
+  fem::MultigridOptions cycle;
+  cycle.mode = fem::MultigridMode::vcycle;
+  cycle.max_iterations = 1;
+  cycle.tolerance = std::numeric_limits<double>::min();  // never stops before its one cycle
+  fem::MultigridSolver multigrid(hierarchy.prolongations, cycle);
+  multigrid.set_locality_order(hierarchy.fine_order);
+  multigrid.setup(fem::SparseMatrix(L + sigma * M), dirichlet_vertices);
+  const fem::BlockPreconditioner precondition = [&multigrid](const Eigen::MatrixXd& R) {
+    return multigrid.solve_multiple(R);
+  };
+  fem::EigenRefineOptions refine;
+  refine.tolerance = refinement.tolerance;
+  refine.max_iterations = refinement.max_iterations;
+  Eigen::VectorXd values = std::move(basis.values);
+  Eigen::MatrixXd vectors = std::move(basis.vectors);
+  const fem::EigenRefineReport report =
+      fem::refine_eigenpairs(L, M, values, vectors, k, precondition, dirichlet_vertices, refine);
+  basis.values = values.head(k);
+  vectors.conservativeResize(Eigen::NoChange, k);
+  basis.vectors = std::move(vectors);
+  basis.refined = true;
+  basis.converged = report.converged;
+  basis.refine_iterations = report.iterations;
+  basis.guard = guard;
+  basis.residuals = report.residuals;
+  basis.precondition_seconds = report.precondition_seconds;
+  basis.refine_seconds = seconds_since(start);
+  return basis;
+}
 
 Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options,
                             const std::vector<Index>& dirichlet_vertices) {

@@ -9,6 +9,7 @@
 /// with L's null space (constants, one per connected component): the eigenvalues nearest σ, i.e.
 /// the smallest, converge first.
 #include <cmath>
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -53,6 +54,49 @@ Eigenpairs smallest_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int
 /// count of free indices (std::invalid_argument naming it).
 Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
                                          int k, const EigenOptions& options = {});
+
+/// Refinement of approximate eigenpairs on the pencil itself (refine_eigenpairs).
+struct EigenRefineOptions {
+  /// Stop when each of the first k pairs has a relative residual (eigen_residuals) at most this (> 0).
+  double tolerance = 1e-6;
+  /// Upper bound on iterations (>= 1).
+  int max_iterations = 200;
+  /// Threads of the block products (0: OpenMP's default; results do not depend on it).
+  int threads = 0;
+};
+
+struct EigenRefineReport {
+  bool converged = false;
+  int iterations = 0;
+  /// eigen_residuals of the first k pairs returned.
+  Eigen::VectorXd residuals;
+  /// Largest residual of the first k pairs before the first and after every iteration.
+  std::vector<double> history;
+  double seconds = 0;
+  double precondition_seconds = 0;  ///< of those, in the preconditioner
+};
+
+/// Applies an approximation of (L + σM)⁻¹ (symmetric positive definite, σ > 0: e.g. a multigrid
+/// V-cycle) to every column of a block; rows at the Dirichlet indices of the result must be 0.
+using BlockPreconditioner = std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>;
+
+/// Improves m approximate eigenpairs of L φ = λ M φ (`vectors`, n × m, with `values`) until the
+/// first k have relative residuals ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂) (eigen_residuals, zero modes against
+/// the largest |λ|) at most options.tolerance, by the locally optimal block preconditioned
+/// conjugate gradient method (LOBPCG, Knyazev 2001): each iteration takes the Rayleigh–Ritz pairs
+/// of span[X, T R, P] in the M inner product — X the current vectors, T R the preconditioned
+/// residuals of those not yet converged, P the previous step — and keeps the smallest m. The m − k
+/// extra pairs (guards) are carried along to speed up the k-th: its convergence factor depends on
+/// the gap λ_k / λ_{m+1}.
+/// On return `values` (increasing) and `vectors` are the m Ritz pairs, M-orthonormal to round-off.
+/// The iteration converges to the smallest eigenpairs whatever the start, faster the better it is:
+/// prolonged proxy vectors start within a few per cent.
+/// Preconditions: L symmetric, M diagonal with positive entries off `fixed` (std::invalid_argument
+/// otherwise), 1 <= k <= m < n − |fixed|, vectors zero at the `fixed` (Dirichlet) rows, which stay
+/// zero. Does not throw when max_iterations is reached: check converged.
+EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,
+                                    Eigen::MatrixXd& vectors, int k, const BlockPreconditioner& preconditioner,
+                                    const std::vector<Index>& fixed = {}, const EigenRefineOptions& options = {});
 
 /// Whether the eigenvalue `lambda` of a basis whose largest |λ| is `largest` is a zero mode (a
 /// constant on a component, converged only to round-off): |λ| ≤ 1e-6 · largest. The one rule the

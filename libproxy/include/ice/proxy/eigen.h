@@ -5,6 +5,11 @@
 /// Galerkin problem (PᵀLP) ψ = λ (PᵀMP) ψ and prolonged, φ = P ψ. eigenbasis in one call, or an
 /// EigenSolver set up once (the proxy, from the store when it holds it) and asked for any k.
 ///
+/// Two routes: the proxy route (the default) stops there; the refined route (EigenRefinement with a
+/// tolerance) improves the prolonged pairs on the input mesh until each has a relative residual
+/// below the tolerance (fem::refine_eigenpairs, preconditioned by a multigrid V-cycle on the mesh's
+/// ICE hierarchy, multigrid.h): the fine eigenpairs, found from a start within a few per cent.
+///
 /// Why the prolonged vectors are a basis: with Galerkin operators, φᵢᵀ M φⱼ = ψᵢᵀ (PᵀMP) ψⱼ = δᵢⱼ and
 /// φᵢᵀ L φⱼ = λᵢ δᵢⱼ exactly, so the φ are M-orthonormal on the input mesh and each λ is the Rayleigh
 /// quotient of its φ: an upper bound of the fine eigenvalue of the same index (Courant–Fischer).
@@ -14,6 +19,7 @@
 #include <Eigen/Core>
 
 #include "fem/eigen.h"
+#include "ice/proxy/multigrid.h"
 #include "ice/proxy/setup.h"
 
 namespace ice::proxy {
@@ -24,6 +30,23 @@ enum class EigenBoundary {
   dirichlet,  ///< φ = 0 on the boundary: the boundary vertices are kept by the coarsening
 };
 
+/// The refined route (fem::refine_eigenpairs on the input mesh's pencil).
+struct EigenRefinement {
+  /// Every returned pair reaches a relative residual ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂) at most this
+  /// (fem::eigen_residuals); 0: no refinement (the proxy route).
+  double tolerance = 0;
+  /// Upper bound on refinement iterations (>= 1); reaching it is reported, not thrown.
+  int max_iterations = 200;
+  /// Pairs computed beyond k and refined along (not returned): the k-th pair converges at a rate
+  /// set by the gap λ_k / λ_{k+guard+1}. < 0: max(4, ⌈k/4⌉) (eigenvalues grow about linearly with
+  /// their index on a surface, so a quarter more pairs keeps that ratio near 0.8 at any k), capped
+  /// by the coarse space's size.
+  int guard = -1;
+  /// The multigrid hierarchy whose V-cycle on L + σM preconditions the refinement (σ: the smallest
+  /// positive coarse eigenvalue, a scale of the lowest modes); through the store when it is on.
+  HierarchyOptions hierarchy;
+};
+
 struct EigenbasisOptions {
   /// How the coarse space is made when none is given (as PoissonOptions::coarsening).
   CoarseSpaceOptions coarsening = default_coarsening(ProxyUse::poisson_heat);
@@ -32,6 +55,8 @@ struct EigenbasisOptions {
   EigenBoundary boundary = EigenBoundary::neumann;
   /// The coarse eigensolve's (fem::smallest_eigenpairs).
   fem::EigenOptions eigen;
+  /// Off by default (the proxy route).
+  EigenRefinement refine;
   /// Where the set-up proxy is looked up and saved (store.h); off by default in the library.
   StoreOptions store;
 };
@@ -44,6 +69,16 @@ struct Eigenbasis {
   int restarts = 0;              ///< of the coarse Lanczos iteration
   double eigensolve_seconds = 0; ///< the coarse eigensolve (factorisation included)
   double prolong_seconds = 0;
+  /// The refined route only: whether every pair reached the tolerance, the iterations, the pairs'
+  /// relative residuals (fem::eigen_residuals) and the refinement's time (preconditioner set-up
+  /// included; the hierarchy's build is the solver's set-up).
+  bool refined = false;
+  bool converged = false;
+  int refine_iterations = 0;
+  int guard = 0;
+  Eigen::VectorXd residuals;
+  double refine_seconds = 0;
+  double precondition_seconds = 0;  ///< of refine_seconds: V-cycles
 };
 
 class EigenSolver {
@@ -51,11 +86,13 @@ class EigenSolver {
   /// Coarsens `mesh` (clean, oriented, manifold: e.g. from ice::load_mesh) by options.coarsening
   /// (with the boundary vertices locked under EigenBoundary::dirichlet), or uses `coarse` (a coarse
   /// space of `mesh`; under Dirichlet conditions every boundary vertex must be one of its vertices,
-  /// else compute() throws std::invalid_argument), and sets up the Galerkin proxy. Throws
-  /// std::invalid_argument on bad options.
+  /// else compute() throws std::invalid_argument), and sets up the Galerkin proxy; with
+  /// options.refine.tolerance > 0 also the multigrid hierarchy of `mesh` (the refined route).
+  /// Throws std::invalid_argument on bad options.
   explicit EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options = {}, std::optional<CoarseSpace> coarse = {});
-  /// The k smallest eigenpairs through the proxy. Throws std::invalid_argument unless
-  /// 1 <= k < the coarse vertex count (the message names both).
+  /// The k smallest eigenpairs through the proxy, refined with options.refine.tolerance > 0
+  /// (refined_eigenbasis). Throws std::invalid_argument unless 1 <= k < the coarse vertex count
+  /// (the message names both).
   Eigenbasis compute(int k) const;
 
   const EigenbasisOptions& options() const { return options_; }
@@ -63,6 +100,8 @@ class EigenSolver {
   const fem::CoarseProxy& proxy() const { return *setup_.proxy; }
   /// Where the setup came from (the store's status and times).
   const CacheReport& cache() const { return setup_.cache; }
+  /// The refined route's multigrid hierarchy (empty without a refinement tolerance).
+  const MultigridHierarchy& hierarchy() const { return hierarchy_; }
   /// The Dirichlet vertices (the mesh's boundary with EigenBoundary::dirichlet), else empty.
   const std::vector<Index>& dirichlet_vertices() const { return dirichlet_; }
 
@@ -70,6 +109,7 @@ class EigenSolver {
   EigenbasisOptions options_;
   std::vector<Index> dirichlet_;
   ProxySetup setup_;
+  MultigridHierarchy hierarchy_;
 };
 
 /// The k smallest eigenpairs through a set-up Galerkin proxy (what EigenSolver::compute runs): the
@@ -80,6 +120,20 @@ class EigenSolver {
 /// Galerkin and 1 <= k < its free coarse size, or when a Dirichlet vertex is not a coarse vertex.
 Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options = {},
                             const std::vector<Index>& dirichlet_vertices = {});
+
+/// The refined route on a set-up Galerkin proxy (what EigenSolver::compute runs with a tolerance):
+/// proxy_eigenbasis for k + guard pairs, then fem::refine_eigenpairs on the proxy's fine pencil
+/// (its fine Laplacian and lumped mass), preconditioned by one V-cycle of L + σM over `hierarchy`
+/// (a hierarchy of the proxy's fine mesh: its level 0 has the fine vertex count), with φ = 0 kept
+/// at `dirichlet_vertices`. Returns the first k pairs. Throws as proxy_eigenbasis, and
+/// std::invalid_argument when refinement.tolerance is not > 0 or the hierarchy's size differs.
+Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHierarchy& hierarchy, int k,
+                              const EigenRefinement& refinement, const fem::EigenOptions& options = {},
+                              const std::vector<Index>& dirichlet_vertices = {});
+
+/// The guard pairs refined_eigenbasis adds to k (EigenRefinement::guard), given the coarse space's
+/// free vertex count.
+int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices);
 
 /// EigenSolver(mesh, options).compute(k).
 Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options = {});
