@@ -46,8 +46,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"neumann", "dirichlet"}))
       ->capture_default_str();
   cli.add_option("--tolerance", tolerance,
-                 "Refine every pair on the input mesh to this relative residual |L phi - lambda M phi| / (lambda |M phi|) "
-                 "(multigrid-preconditioned LOBPCG); 0: the proxy's pairs as they are")
+                 "Refine the pairs on the input mesh to this relative residual |L phi - lambda M phi| / (lambda |M phi|);\n"
+                 "0: the proxy's pairs as they are")
       ->check(CLI::Range(0.0, 0.1))
       ->capture_default_str();
   cli.add_option("--solutions", opt.solutions, "Write the eigenvectors as .npy (float64, n x k, M-orthonormal)");
@@ -126,6 +126,9 @@ int main(int argc, char** argv) {
     refinement.tolerance = tolerance;
     std::optional<ice::proxy::MultigridHierarchy> hierarchy;
     if (tolerance > 0) {
+      if (ice::solved_on_tufted_cover(mesh, opt.nonmanifold))
+        throw app::AppError(app::kUsage, opt.mesh + ": --tolerance refines on a multigrid hierarchy, built on oriented "
+                                                    "manifolds only; this mesh needs its tufted cover: drop --tolerance");
       hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt.store());
       run.assemble += clock.lap();
     }

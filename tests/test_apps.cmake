@@ -1317,6 +1317,16 @@ elseif(CASE STREQUAL "spectral_spot")
   expect_error(4 "coarse target is" spectral-coarse "${mesh}" -k 200 --vertices 100)
   expect_error(4 "the mesh has" spectral-coarse "${mesh}" -k 5000 --ratio 0.1)
   expect_error(4 "go together" spectral-coarse "${mesh}" -k 5 --ratio 0.1 --hks 0.1)
+  # The refined route: every pair to the tolerance, the fine eigenvalues to round-off; the hierarchy
+  # through the store beside the proxy.
+  run(0 spectral-coarse "${mesh}" -k 20 --ratio 0.1 --tolerance 1e-7 --cache "${WORK}/store" --report "${WORK}/t.json" -q)
+  require_keys("${WORK}/t.json" eigen.refine.iterations eigen.refine.hierarchy.levels eigen.refine.hierarchy_cache.status)
+  json(converged "${WORK}/t.json" eigen refine converged)
+  check_text("${converged}" "ON" "eigen.refine.converged (CMake reads JSON true as ON)")
+  json(residual "${WORK}/t.json" residual max)
+  check(${residual} LESS_EQUAL 1e-7 "largest residual of the refined pairs")
+  json(worst "${WORK}/t.json" error eigenvalue_rel_max)
+  check(${worst} LESS 1e-8 "largest relative eigenvalue error of the refined pairs")
   # Dirichlet conditions on an open surface: no zero mode, the eigenvalues close to the fine Dirichlet
   # ones; a coarse space that is all boundary leaves no free vertex (a usage error naming it).
   project_mesh(open lion-head.off)
@@ -1342,6 +1352,8 @@ elseif(CASE STREQUAL "nonmanifold_cover")
   run(0 spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4 -k 6 --no-cache --report "${WORK}/s.json" --force -q)
   json(zero "${WORK}/s.json" error zero_modes)
   check(${zero} EQUAL 1 "zero modes of the cover's robust Laplacian (one component)")
+  expect_error(4 "needs its tufted cover: drop --tolerance" spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4
+               -k 6 --tolerance 1e-6 --no-cache -q)
   expect_error(4 "needs its tufted cover" poisson-coarse "${mesh}" --repair --nonmanifold tufted --solver multigrid -q)
   # An oriented manifold: the option changes nothing.
   project_mesh(spot spot.obj)

@@ -20,56 +20,77 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using Dense = Eigen::MatrixXd;
 
-// Row blocks of the tall products: fixed in number, so that every sum is taken in the same order
-// whatever the thread count (results do not depend on it).
-constexpr Eigen::Index kRowBlocks = 64;
+}  // namespace
+}  // namespace fem
 
-struct RowBlock {
-  Eigen::Index first, size;
-};
+// The Fortran BLAS interface (every BLAS has it): C = alpha op(A) op(B) + beta C, column-major.
+extern "C" void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k, const double* alpha,
+                       const double* a, const int* lda, const double* b, const int* ldb, const double* beta, double* c,
+                       const int* ldc);
 
-RowBlock row_block(Eigen::Index n, Eigen::Index b) {
-  const Eigen::Index lo = n * b / kRowBlocks, hi = n * (b + 1) / kRowBlocks;
-  return {lo, hi - lo};
+namespace fem {
+namespace {
+
+int blas_size(Eigen::Index value) {
+  if (value > std::numeric_limits<int>::max()) throw std::length_error("refine_eigenpairs: a block too large for BLAS");
+  return static_cast<int>(value);
 }
 
-int threads_for(Eigen::Index rows, int threads) { return detail::active_threads(rows, threads); }
-
-// Aᵀ diag(w) B (w empty: Aᵀ B), n × a and n × b blocks.
-Dense weighted_gram(const Dense& A, const Eigen::VectorXd& w, const Dense& B, int threads) {
-  const Eigen::Index n = A.rows();
-  std::vector<Dense> parts(static_cast<std::size_t>(kRowBlocks));
-#pragma omp parallel for schedule(dynamic) num_threads(threads_for(n, threads))
-  for (Eigen::Index b = 0; b < kRowBlocks; ++b) {
-    const RowBlock r = row_block(n, b);
-    Dense& part = parts[static_cast<std::size_t>(b)];
-    if (w.size() == 0)
-      part.noalias() = A.middleRows(r.first, r.size).transpose() * B.middleRows(r.first, r.size);
-    else
-      part.noalias() =
-          A.middleRows(r.first, r.size).transpose() * (w.segment(r.first, r.size).asDiagonal() * B.middleRows(r.first, r.size));
+// C = op(A) op(B) (+ C when `accumulate`), A and B dense column-major; op = transpose when asked.
+void product(const Dense& A, bool transpose_a, const Dense& B, bool transpose_b, Dense& C, bool accumulate = false,
+             double alpha = 1.0) {
+  const Eigen::Index rows = transpose_a ? A.cols() : A.rows(), inner = transpose_a ? A.rows() : A.cols();
+  const Eigen::Index cols = transpose_b ? B.rows() : B.cols();
+  if ((transpose_b ? B.cols() : B.rows()) != inner) throw std::logic_error("refine_eigenpairs: product sizes");
+  if (!accumulate) C.resize(rows, cols);
+  if (rows == 0 || cols == 0) return;
+  if (inner == 0) {
+    if (!accumulate) C.setZero();
+    return;
   }
-  Dense sum = Dense::Zero(A.cols(), B.cols());
-  for (const Dense& part : parts) sum += part;
-  return sum;
+  const int m = blas_size(rows), n = blas_size(cols), k = blas_size(inner);
+  const int lda = blas_size(std::max<Eigen::Index>(1, A.rows())), ldb = blas_size(std::max<Eigen::Index>(1, B.rows()));
+  const int ldc = blas_size(std::max<Eigen::Index>(1, C.rows()));
+  const double beta = accumulate ? 1.0 : 0.0;
+  dgemm_(transpose_a ? "T" : "N", transpose_b ? "T" : "N", &m, &n, &k, &alpha, A.data(), &lda, B.data(), &ldb, &beta,
+         C.data(), &ldc);
 }
 
-// A Y (n × a times a × c), row block by row block.
-Dense block_product(const Dense& A, const Dense& Y, int threads) {
-  const Eigen::Index n = A.rows();
-  Dense out(n, Y.cols());
-#pragma omp parallel for schedule(dynamic) num_threads(threads_for(n, threads))
-  for (Eigen::Index b = 0; b < kRowBlocks; ++b) {
-    const RowBlock r = row_block(n, b);
-    out.middleRows(r.first, r.size).noalias() = A.middleRows(r.first, r.size) * Y;
+// Aᵀ B.
+Dense gram(const Dense& A, const Dense& B) {
+  Dense C;
+  product(A, true, B, false, C);
+  return C;
+}
+
+// Aᵀ diag(w) B, a band of rows at a time: no n-row copy of diag(w) B is kept.
+Dense mass_gram(const Dense& A, const Eigen::VectorXd& w, const Dense& B) {
+  constexpr Eigen::Index kBand = 4096;
+  Dense C = Dense::Zero(A.cols(), B.cols());
+  if (A.cols() == 0 || B.cols() == 0) return C;
+  const int m = blas_size(A.cols()), n = blas_size(B.cols()), lda = blas_size(A.rows()), ldc = m;
+  const double one = 1.0;
+  Dense band;
+  for (Eigen::Index first = 0; first < A.rows(); first += kBand) {
+    const Eigen::Index rows = std::min(kBand, A.rows() - first);
+    band.noalias() = w.segment(first, rows).asDiagonal() * B.middleRows(first, rows);
+    const int k = blas_size(rows), ldb = k;
+    dgemm_("T", "N", &m, &n, &k, &one, A.data() + first, &lda, band.data(), &ldb, &one, C.data(), &ldc);
   }
-  return out;
+  return C;
+}
+
+// A Y.
+Dense block_product(const Dense& A, const Dense& Y) {
+  Dense C;
+  product(A, false, Y, false, C);
+  return C;
 }
 
 // L X for a symmetric L, column by column (each column's sum in one order).
 Dense sparse_times(const SparseMatrix& L, const Dense& X, int threads) {
   Dense out(L.rows(), X.cols());
-#pragma omp parallel for schedule(dynamic) num_threads(threads_for(L.rows(), threads))
+#pragma omp parallel for schedule(dynamic) num_threads(detail::active_threads(L.rows(), threads))
   for (Eigen::Index j = 0; j < X.cols(); ++j) {
     Eigen::VectorXd column(L.rows());
     detail::gather_product(L, X.col(j).data(), column.data(), false, 1, 0);
@@ -148,30 +169,50 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M
   // Directions whose mass-Gram eigenvalue is below this share of the largest are dependent: ~1e-12
   // keeps what double precision can still orthonormalise (a condition number up to ~1e6).
   constexpr double kDrop = 1e-12;
+  // M-orthonormalises the columns of V (and gives M V), dropping the numerically dependent ones:
+  // each column normalised, then the Gram matrix's independent part (SVQB).
+  const auto orthonormalise = [&](Dense& V) {
+    const Dense G = mass_gram(V, mass, V);
+    Eigen::VectorXd scale = G.diagonal().cwiseMax(0).cwiseSqrt();
+    const double largest_scale = scale.size() ? scale.maxCoeff() : 0;
+    for (Eigen::Index j = 0; j < scale.size(); ++j) scale(j) = scale(j) > 1e-14 * largest_scale ? 1 / scale(j) : 0;
+    Eigen::SelfAdjointEigenSolver<Dense> solver(symmetrised(scale.asDiagonal() * G * scale.asDiagonal()));
+    const Eigen::VectorXd& e = solver.eigenvalues();
+    Eigen::Index first = 0;
+    while (first < e.size() && !(e(first) > 1e-10 * e.maxCoeff())) ++first;
+    const Eigen::Index rank = e.size() - first;
+    V = block_product(V, scale.asDiagonal() * solver.eigenvectors().rightCols(rank) *
+                             e.tail(rank).cwiseSqrt().cwiseInverse().asDiagonal());
+  };
 
+  // Memory: the iteration holds X and, at most, four more blocks of n rows and up to m columns
+  // (R or the new directions W with P, their L-products, or the updated X with the next step);
+  // M is diagonal and applied on the fly.
   EigenRefineReport report;
   Dense X = vectors;
   clear_fixed_rows(X);
-  Dense LX = sparse_times(L, X, threads);
   {
     // Rayleigh–Ritz on the start vectors: M-orthonormal Ritz vectors whatever the start.
-    const Ritz r = ritz_pairs(weighted_gram(X, {}, LX, threads), weighted_gram(X, mass, X, threads), m, kDrop);
-    X = block_product(X, r.coefficients, threads);
-    LX = sparse_times(L, X, threads);
+    const Dense LX = sparse_times(L, X, threads);
+    const Ritz r = ritz_pairs(gram(X, LX), mass_gram(X, mass, X), m, kDrop);
+    X = block_product(X, r.coefficients);
     values = r.values;
   }
   Dense P(n, 0);
   for (int iteration = 0;; ++iteration) {
     // Residuals R = L X − M X Θ, outside the Dirichlet rows.
-    Dense MX = mass.asDiagonal() * X;
-    Dense R = LX - MX * values.asDiagonal();
+    Dense R = sparse_times(L, X, threads);
+    Eigen::VectorXd mass_norm(m);
+    for (Eigen::Index j = 0; j < m; ++j) {
+      R.col(j) -= values(j) * mass.cwiseProduct(X.col(j));
+      mass_norm(j) = mass.cwiseProduct(X.col(j)).norm();  // rows of X at Dirichlet indices are 0
+    }
     clear_fixed_rows(R);
-    for (Index i : fixed) MX.row(i).setZero();
     const double largest = std::max(values.head(k).cwiseAbs().maxCoeff(), std::numeric_limits<double>::min());
     Eigen::VectorXd residual(m);
     for (Eigen::Index j = 0; j < m; ++j) {
       const double scale = is_zero_mode(values(j), largest) ? largest : std::abs(values(j));
-      const double denominator = scale * MX.col(j).norm();
+      const double denominator = scale * mass_norm(j);
       residual(j) = denominator > 0 ? R.col(j).norm() / denominator : std::numeric_limits<double>::infinity();
     }
     report.history.push_back(residual.head(k).maxCoeff());
@@ -185,55 +226,57 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M
     std::vector<Eigen::Index> active;
     for (Eigen::Index j = 0; j < m; ++j)
       if (residual(j) > options.tolerance) active.push_back(j);
-    const auto precondition_start = Clock::now();
-    Dense W = preconditioner(column_subset(R, active));
-    report.precondition_seconds += ice::seconds_since(precondition_start);
+    Dense W;
+    {
+      Dense RA = column_subset(R, active);
+      R.resize(0, 0);
+      const auto precondition_start = Clock::now();
+      W = preconditioner(RA);
+      report.precondition_seconds += ice::seconds_since(precondition_start);
+    }
     if (W.rows() != n || W.cols() != static_cast<Eigen::Index>(active.size()))
       throw std::invalid_argument("refine_eigenpairs: the preconditioner returned a block of the wrong size");
     clear_fixed_rows(W);
-    // The new directions [W, P], M-orthogonal to X (classical Gram–Schmidt twice) and M-orthonormal
-    // among themselves (each column normalised, then the Gram matrix's independent part).
-    Dense Q(n, W.cols() + P.cols());
-    Q << W, P;
-    W.resize(0, 0);
-    for (int pass = 0; pass < 2; ++pass) Q -= block_product(X, weighted_gram(X, mass, Q, threads), threads);
-    {
-      const Eigen::VectorXd norms = weighted_gram(Q, mass, Q, threads).diagonal().cwiseMax(0).cwiseSqrt();
-      const double largest_norm = norms.size() ? norms.maxCoeff() : 0;
-      std::vector<Eigen::Index> kept;
-      for (Eigen::Index j = 0; j < norms.size(); ++j)
-        if (norms(j) > 1e-14 * largest_norm && norms(j) > 0) kept.push_back(j);
-      Q = column_subset(Q, kept);
-      for (std::size_t c = 0; c < kept.size(); ++c) Q.col(static_cast<Eigen::Index>(c)) /= norms(kept[c]);
-      Eigen::SelfAdjointEigenSolver<Dense> gram(symmetrised(weighted_gram(Q, mass, Q, threads)));
-      const Eigen::VectorXd& s = gram.eigenvalues();
-      Eigen::Index first = 0;
-      while (first < s.size() && !(s(first) > 1e-10 * s.maxCoeff())) ++first;
-      const Eigen::Index rank = s.size() - first;
-      Q = block_product(Q, gram.eigenvectors().rightCols(rank) * s.tail(rank).cwiseSqrt().cwiseInverse().asDiagonal(), threads);
-      Q -= block_product(X, weighted_gram(X, mass, Q, threads), threads);  // what the scaling brought back of X
-    }
-    const Eigen::Index q = Q.cols();
+    // The new directions: W M-orthogonal to X, then W and P each M-orthonormal (their mutual and
+    // X–P products are computed, not assumed).
+    product(X, false, mass_gram(X, mass, W), false, W, true, -1.0);
+    orthonormalise(W);
+    if (P.cols() > 0) orthonormalise(P);
+    const Eigen::Index a = W.cols(), p = P.cols(), q = a + p;
     if (q == 0) break;  // nothing new to search: the residuals are below what round-off can improve
-    const Dense LQ = sparse_times(L, Q, threads);
-    // Rayleigh–Ritz on [X, Q], the Gram matrices computed in full (not assumed) so that the
-    // returned vectors are M-orthonormal to round-off after any number of iterations.
-    Dense GL(m + q, m + q), GM(m + q, m + q);
-    GL.topLeftCorner(m, m) = weighted_gram(X, {}, LX, threads);
-    GL.topRightCorner(m, q) = weighted_gram(X, {}, LQ, threads);
-    GL.bottomLeftCorner(q, m) = GL.topRightCorner(m, q).transpose();
-    GL.bottomRightCorner(q, q) = weighted_gram(Q, {}, LQ, threads);
-    GM.topLeftCorner(m, m) = weighted_gram(X, mass, X, threads);
-    GM.topRightCorner(m, q) = weighted_gram(X, mass, Q, threads);
-    GM.bottomLeftCorner(q, m) = GM.topRightCorner(m, q).transpose();
-    GM.bottomRightCorner(q, q) = weighted_gram(Q, mass, Q, threads);
+    // Rayleigh–Ritz on [X, W, P]. X is M-orthonormal with XᵀLX = Θ, W and P M-orthonormal by
+    // construction: those blocks are exact; the others are computed.
+    Dense GL = Dense::Zero(m + q, m + q), GM = Dense::Identity(m + q, m + q);
+    GL.topLeftCorner(m, m) = values.asDiagonal();
+    {
+      const Dense LW = sparse_times(L, W, threads);
+      GL.block(0, m, m, a) = gram(X, LW);
+      GL.block(m, m, a, a) = gram(W, LW);
+    }
+    GM.block(0, m, m, a) = mass_gram(X, mass, W);
+    if (p > 0) {
+      const Dense LP = sparse_times(L, P, threads);
+      GL.block(0, m + a, m, p) = gram(X, LP);
+      GL.block(m, m + a, a, p) = gram(W, LP);
+      GL.block(m + a, m + a, p, p) = gram(P, LP);
+      GM.block(0, m + a, m, p) = mass_gram(X, mass, P);
+      GM.block(m, m + a, a, p) = mass_gram(W, mass, P);
+    }
+    GL.triangularView<Eigen::StrictlyLower>() = GL.transpose();
+    GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
     const Ritz r = ritz_pairs(GL, GM, m, kDrop);
-    const Dense YX = r.coefficients.topRows(m), YQ = r.coefficients.bottomRows(q);
-    // The step of the pairs still active, for the next iteration's search space.
-    P = block_product(Q, column_subset(YQ, active), threads);
-    X = block_product(X, YX, threads) + block_product(Q, YQ, threads);
+    const Dense YX = r.coefficients.topRows(m), YW = r.coefficients.middleRows(m, a), YP = r.coefficients.bottomRows(p);
+    // The step of the pairs still active, for the next iteration's search space; X moves by it.
+    Dense step = block_product(W, column_subset(YW, active));
+    if (p > 0) product(P, false, column_subset(YP, active), false, step, true);
+    {
+      Dense moved = block_product(X, YX);
+      product(W, false, YW, false, moved, true);
+      if (p > 0) product(P, false, YP, false, moved, true);
+      X = std::move(moved);
+    }
+    P = std::move(step);
     clear_fixed_rows(X);
-    LX = sparse_times(L, X, threads);
     values = r.values;
   }
   vectors = std::move(X);

@@ -40,6 +40,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     mass_matrix,
     point_cloud_triangles,
     proxy_eigenbasis,
+    refined_eigenbasis,
     reconstruction_error,
     save_coarse_space,
     save_hierarchy,
@@ -52,6 +53,7 @@ from ._ice import (  # noqa: F401  (the package's API)
 from . import _ice
 
 import os
+import warnings
 
 import numpy as np
 
@@ -60,7 +62,7 @@ __all__ = [
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
     "boundary_vertices", "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
     "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_coarse_space", "load_hierarchy", "load_mesh", "load_setup", "loop_subdivide", "mass_matrix",
-    "point_cloud_triangles", "proxy_eigenbasis",
+    "point_cloud_triangles", "proxy_eigenbasis", "refined_eigenbasis",
     "read_mesh", "reconstruction_error", "save_coarse_space", "save_hierarchy", "save_mesh", "save_setup", "setup_proxy", "solve_poisson", "transport_vectors", "validate", "wave_kernel_signature",
     "VectorHeatSolver",
 ]
@@ -235,7 +237,7 @@ def heat_flow(V, F, u0, time_step: float, steps: int = 1, *, coarse: CoarseSpace
 
 def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace | None = None,
                fine: str = "intrinsic_delaunay", prolongation: str = "auto", tolerance: float = 1e-10, cache=None,
-               **coarsening):
+               refine_tolerance: float = 0.0, **coarsening):
     """(values, vectors): the k smallest Laplace–Beltrami eigenpairs of (V, F) through a coarse proxy
     (spectral-coarse): L φ = λ M φ with the cotan L and lumped M, solved on the coarse Galerkin pencil
     and prolonged. values increasing; vectors (n × k) M-orthonormal on the input mesh.
@@ -243,6 +245,9 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
     boundary: "neumann", or "dirichlet" (φ = 0 on the mesh's boundary, whose vertices the coarsening then
     keeps). coarse / coarsening options (default ratio=0.05), prolongation and cache as for solve_poisson;
     k must be below the coarse vertex count (ValueError otherwise).
+    refine_tolerance > 0: the refined route (spectral-coarse --tolerance): the pairs improved on the input
+    mesh until each relative residual |Lφ − λMφ| / (λ|Mφ|) is at most this (refined_eigenbasis; its
+    multigrid hierarchy goes through `cache` too). A refinement that does not converge warns.
     """
     if boundary not in ("neumann", "dirichlet"):
         raise ValueError(f"boundary must be 'neumann' or 'dirichlet', not {boundary!r}")
@@ -255,6 +260,14 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
         coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", fixed)
         proxy = Proxy(V, F, coarse, operators="galerkin", fine=fine,
                       prolongation=_ice._resolve_prolongation(prolongation, "galerkin", fixed is not None))
+    if refine_tolerance:
+        values, vectors, info = refined_eigenbasis(proxy, V, F, k, refine_tolerance=refine_tolerance, tolerance=tolerance,
+                                                   dirichlet=fixed, cache=cache)
+        if not info["converged"]:
+            warnings.warn(f"eigenbasis: the refinement stopped after {info['iterations']} iterations with a largest "
+                          f"residual of {max(info['residuals']):.3g} (refine_tolerance {refine_tolerance:g})", RuntimeWarning,
+                          stacklevel=2)
+        return values, vectors
     return proxy_eigenbasis(proxy, k, tolerance=tolerance, dirichlet=fixed)
 
 

@@ -1439,6 +1439,51 @@ ProxyPoissonSolver, per step.)doc")
 the coarse pencil's, prolonged; values increasing, vectors (n × k) M-orthonormal with the fine lumped mass.
 dirichlet: input vertices where φ = 0 (each a coarse vertex: locked when coarsening; the proxy's P
 barycentric). ValueError unless 1 <= k < the free coarse vertex count and the operators are Galerkin.)doc");
+  m.def("refined_eigenbasis", [](std::shared_ptr<PyProxy> proxy, const py::object& V, const py::object& F, int k,
+                                 double refine_tolerance, int max_iterations, double tolerance, const py::object& dirichlet,
+                                 const py::object& cache) {
+        if (!(tolerance > 0)) throw py::value_error("tolerance must be > 0");
+        if (!(refine_tolerance > 0) || !std::isfinite(refine_tolerance)) throw py::value_error("refine_tolerance must be > 0");
+        if (max_iterations < 1) throw py::value_error("max_iterations must be >= 1");
+        const ice::TriangleMesh mesh = mesh_argument(V, F);
+        if (mesh.V.rows() != proxy->proxy->fine_size())
+          throw py::value_error("(V, F) has " + std::to_string(mesh.V.rows()) + " vertices, the proxy's fine mesh " +
+                                std::to_string(proxy->proxy->fine_size()));
+        fem::EigenOptions options;
+        options.tolerance = tolerance;
+        ice::proxy::EigenRefinement refinement;
+        refinement.tolerance = refine_tolerance;
+        refinement.max_iterations = max_iterations;
+        std::vector<ice::Index> fixed;
+        if (!dirichlet.is_none()) fixed = index_argument(dirichlet, proxy->proxy->fine_size(), "dirichlet");
+        const ice::proxy::Store store = store_argument(cache);
+        ice::proxy::Eigenbasis basis;
+        ice::proxy::MultigridHierarchy hierarchy;
+        {
+          py::gil_scoped_release release;
+          require_clean(mesh);
+          hierarchy = ice::proxy::multigrid_hierarchy(mesh, refinement.hierarchy, store);
+          basis = ice::proxy::refined_eigenbasis(*proxy->proxy, hierarchy, k, refinement, options, fixed);
+        }
+        py::dict info;
+        info["converged"] = basis.converged;
+        info["iterations"] = basis.refine_iterations;
+        info["guard"] = basis.guard;
+        info["residuals"] = basis.residuals;
+        info["seconds"] = basis.refine_seconds;
+        info["hierarchy_seconds"] = hierarchy.build_seconds;
+        info["hierarchy_cache"] = json_to_python(ice::proxy::cache_json(hierarchy.cache, store));
+        return py::make_tuple(std::move(basis.values), std::move(basis.vectors), info);
+      },
+      py::arg("proxy"), py::arg("V"), py::arg("F"), py::arg("k"), py::kw_only(), py::arg("refine_tolerance") = 1e-6,
+      py::arg("max_iterations") = 200, py::arg("tolerance") = 1e-10, py::arg("dirichlet") = py::none(),
+      py::arg("cache") = py::none(),
+      R"doc((values, vectors, info): the k smallest eigenpairs of L φ = λ M φ refined on the fine mesh (spectral-coarse
+--tolerance): the Galerkin Proxy's pairs and a few more, improved by LOBPCG preconditioned with a multigrid
+V-cycle on (V, F)'s ICE hierarchy (made or loaded through `cache` as by hierarchy()) until each pair's
+relative residual |Lφ − λMφ| / (λ|Mφ|) is at most refine_tolerance. (V, F) is the proxy's input mesh.
+info: converged, iterations, guard (pairs refined along), residuals (per pair), seconds, hierarchy_seconds,
+hierarchy_cache. A refinement that stops at max_iterations returns its pairs with converged False.)doc");
   // A one-dimensional array of any length, or a two-dimensional one of any row count.
   const auto any_vector = [](const py::object& object, const char* name) {
     const py::array a = py::array::ensure(object);

@@ -61,7 +61,7 @@ struct EigenRefineOptions {
   double tolerance = 1e-6;
   /// Upper bound on iterations (>= 1).
   int max_iterations = 200;
-  /// Threads of the block products (0: OpenMP's default; results do not depend on it).
+  /// Threads of the sparse products (0: OpenMP's default); the dense products run on BLAS's.
   int threads = 0;
 };
 
