@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <iostream>
 #include <optional>
+#include <sstream>
 
 #include "app_common.h"
 #include "fem/eigen.h"
@@ -134,10 +135,12 @@ int main(int argc, char** argv) {
     }
     const ice::proxy::Eigenbasis basis = hierarchy ? ice::proxy::refined_eigenbasis(proxy, *hierarchy, k, refinement, {}, fixed)
                                                    : ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed);
-    if (basis.refined && !basis.converged)
-      app::warn(kTool, "the refinement stopped after " + std::to_string(basis.refine_iterations) +
-                           " iterations with a residual of " + std::to_string(basis.residuals.maxCoeff()) + " (--tolerance " +
-                           std::to_string(tolerance) + ")");
+    if (basis.refined && !basis.converged) {
+      std::ostringstream message;
+      message << "the refinement stopped after " << basis.refine_iterations << " iterations with a largest residual of "
+              << basis.residuals.maxCoeff() << " (--tolerance " << tolerance << ")";
+      app::warn(kTool, message.str());
+    }
     // One eigenbasis is one "solve": the coarse factorisation and the Lanczos iteration (and the
     // refinement), as the reference's is its fine factorisation and iteration (both factor L − σM
     // for their own σ).

@@ -131,15 +131,22 @@ Dense column_subset(const Dense& A, const std::vector<Eigen::Index>& which) {
 
 }  // namespace
 
-EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,
+EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMatrix& M, Eigen::VectorXd& values,
                                     Eigen::MatrixXd& vectors, int k, const BlockPreconditioner& preconditioner,
                                     const std::vector<Index>& fixed, const EigenRefineOptions& options) {
   const auto start = Clock::now();
+  // The products read the compressed arrays directly.
+  SparseMatrix compressed;
+  if (!given_L.isCompressed()) {
+    compressed = given_L;
+    compressed.makeCompressed();
+  }
+  const SparseMatrix& L = given_L.isCompressed() ? given_L : compressed;
   const Eigen::Index n = L.rows(), m = vectors.cols();
-  if (L.cols() != n || M.rows() != n || M.cols() != n || vectors.rows() != n || values.size() != m)
+  if (L.cols() != n || M.rows() != n || M.cols() != n || vectors.rows() != n)
     throw std::invalid_argument("refine_eigenpairs: L, M (" + std::to_string(M.rows()) + " x " + std::to_string(M.cols()) +
-                                "), the vectors (" + std::to_string(vectors.rows()) + " rows) and " +
-                                std::to_string(values.size()) + " values do not match L's size " + std::to_string(n));
+                                ") and the vectors (" + std::to_string(vectors.rows()) + " rows) do not match L's size " +
+                                std::to_string(n));
   if (!(options.tolerance > 0) || options.max_iterations < 1)
     throw std::invalid_argument("refine_eigenpairs: need tolerance > 0 and max_iterations >= 1");
   if (!preconditioner) throw std::invalid_argument("refine_eigenpairs: no preconditioner");
@@ -167,7 +174,8 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M
     for (Index i : fixed) A.row(i).setZero();
   };
   // Directions whose mass-Gram eigenvalue is below this share of the largest are dependent: ~1e-12
-  // keeps what double precision can still orthonormalise (a condition number up to ~1e6).
+  // keeps what double precision can still orthonormalise (a basis of condition number up to ~1e6);
+  // the Gram matrices are always computed in full, so what is kept is used exactly.
   constexpr double kDrop = 1e-12;
   // M-orthonormalises the columns of V (and gives M V), dropping the numerically dependent ones:
   // each column normalised, then the Gram matrix's independent part (SVQB).
@@ -189,29 +197,35 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M
   // (R or the new directions W with P, their L-products, or the updated X with the next step);
   // M is diagonal and applied on the fly.
   EigenRefineReport report;
+  // The caller's values and vectors are replaced only at the end (a throw leaves both as given).
   Dense X = vectors;
+  Eigen::VectorXd theta;
   clear_fixed_rows(X);
   {
     // Rayleigh–Ritz on the start vectors: M-orthonormal Ritz vectors whatever the start.
     const Dense LX = sparse_times(L, X, threads);
     const Ritz r = ritz_pairs(gram(X, LX), mass_gram(X, mass, X), m, kDrop);
     X = block_product(X, r.coefficients);
-    values = r.values;
+    theta = r.values;
   }
   Dense P(n, 0);
+  Eigen::VectorXd residual(m);
   for (int iteration = 0;; ++iteration) {
-    // Residuals R = L X − M X Θ, outside the Dirichlet rows.
+    // Residuals R = L X − M X Θ, outside the Dirichlet rows; X's Gram blocks from the same L X
+    // (computed, not assumed: the Rayleigh–Ritz then corrects any drift of X from M-orthonormality).
     Dense R = sparse_times(L, X, threads);
+    const Dense XLX = gram(X, R), XMX = mass_gram(X, mass, X);
     Eigen::VectorXd mass_norm(m);
     for (Eigen::Index j = 0; j < m; ++j) {
-      R.col(j) -= values(j) * mass.cwiseProduct(X.col(j));
+      R.col(j) -= theta(j) * mass.cwiseProduct(X.col(j));
       mass_norm(j) = mass.cwiseProduct(X.col(j)).norm();  // rows of X at Dirichlet indices are 0
     }
     clear_fixed_rows(R);
-    const double largest = std::max(values.head(k).cwiseAbs().maxCoeff(), std::numeric_limits<double>::min());
-    Eigen::VectorXd residual(m);
+    // Zero modes are judged against the largest |λ| of all m pairs: the guards' are not round-off
+    // even when the first k are all zero modes (k at most the component count).
+    const double largest = std::max(theta.cwiseAbs().maxCoeff(), std::numeric_limits<double>::min());
     for (Eigen::Index j = 0; j < m; ++j) {
-      const double scale = is_zero_mode(values(j), largest) ? largest : std::abs(values(j));
+      const double scale = is_zero_mode(theta(j), largest) ? largest : std::abs(theta(j));
       const double denominator = scale * mass_norm(j);
       residual(j) = denominator > 0 ? R.col(j).norm() / denominator : std::numeric_limits<double>::infinity();
     }
@@ -244,16 +258,18 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M
     if (P.cols() > 0) orthonormalise(P);
     const Eigen::Index a = W.cols(), p = P.cols(), q = a + p;
     if (q == 0) break;  // nothing new to search: the residuals are below what round-off can improve
-    // Rayleigh–Ritz on [X, W, P]. X is M-orthonormal with XᵀLX = Θ, W and P M-orthonormal by
-    // construction: those blocks are exact; the others are computed.
-    Dense GL = Dense::Zero(m + q, m + q), GM = Dense::Identity(m + q, m + q);
-    GL.topLeftCorner(m, m) = values.asDiagonal();
+    // Rayleigh–Ritz on [X, W, P], every Gram block computed (X, W and P are M-orthonormal only to
+    // the accuracy of their last orthonormalisation).
+    Dense GL(m + q, m + q), GM(m + q, m + q);
+    GL.topLeftCorner(m, m) = XLX;
+    GM.topLeftCorner(m, m) = XMX;
     {
       const Dense LW = sparse_times(L, W, threads);
       GL.block(0, m, m, a) = gram(X, LW);
       GL.block(m, m, a, a) = gram(W, LW);
     }
     GM.block(0, m, m, a) = mass_gram(X, mass, W);
+    GM.block(m, m, a, a) = mass_gram(W, mass, W);
     if (p > 0) {
       const Dense LP = sparse_times(L, P, threads);
       GL.block(0, m + a, m, p) = gram(X, LP);
@@ -261,6 +277,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M
       GL.block(m + a, m + a, p, p) = gram(P, LP);
       GM.block(0, m + a, m, p) = mass_gram(X, mass, P);
       GM.block(m, m + a, a, p) = mass_gram(W, mass, P);
+      GM.block(m + a, m + a, p, p) = mass_gram(P, mass, P);
     }
     GL.triangularView<Eigen::StrictlyLower>() = GL.transpose();
     GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
@@ -276,11 +293,11 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M
       X = std::move(moved);
     }
     P = std::move(step);
-    clear_fixed_rows(X);
-    values = r.values;
+    theta = r.values;
   }
+  values = std::move(theta);
   vectors = std::move(X);
-  report.residuals = eigen_residuals(L, M, values.head(k), vectors.leftCols(k), fixed);
+  report.residuals = residual.head(k);
   report.seconds = ice::seconds_since(start);
   return report;
 }

@@ -58,7 +58,7 @@ Eigenbasis EigenSolver::compute(int k) const {
 }
 
 int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices) {
-  const long long wanted = refinement.guard >= 0 ? refinement.guard : std::max(4, (k + 3) / 4);
+  const long long wanted = refinement.guard >= 0 ? refinement.guard : std::max(4LL, (static_cast<long long>(k) + 3) / 4);
   return static_cast<int>(std::max<long long>(0, std::min<long long>(wanted, coarse_free_vertices - 1 - k)));
 }
 
@@ -67,6 +67,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
                               const std::vector<Index>& dirichlet_vertices) {
   if (!(refinement.tolerance > 0) || !std::isfinite(refinement.tolerance))
     throw std::invalid_argument("refined_eigenbasis: the tolerance must be > 0");
+  if (k < 1) throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs (k >= 1)");
   const fem::SparseMatrix& L = proxy.fine_laplacian();
   const fem::SparseMatrix& M = proxy.fine_mass();
   if (hierarchy.fine_vertices != L.rows())
@@ -75,6 +76,10 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   const std::vector<Index> coarse_fixed = fem::coarse_dirichlet_vertices(proxy, dirichlet_vertices);
   const Eigen::Index coarse_free = proxy.coarse_laplacian().rows() - static_cast<Eigen::Index>(coarse_fixed.size());
   const int guard = refinement_guard(k, refinement, coarse_free);
+  if (k >= coarse_free)
+    throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs, the coarse space has " +
+                                std::to_string(coarse_free) + (coarse_fixed.empty() ? "" : " free") +
+                                " vertices (1 <= k < coarse vertices: ask for more coarse vertices)");
   Eigenbasis basis = proxy_eigenbasis(proxy, k + guard, options, dirichlet_vertices);
   const auto start = Clock::now();
   // The preconditioner: one V-cycle of L + σM (symmetric positive definite for any σ > 0). σ is

@@ -1481,7 +1481,8 @@ barycentric). ValueError unless 1 <= k < the free coarse vertex count and the op
       R"doc((values, vectors, info): the k smallest eigenpairs of L φ = λ M φ refined on the fine mesh (spectral-coarse
 --tolerance): the Galerkin Proxy's pairs and a few more, improved by LOBPCG preconditioned with a multigrid
 V-cycle on (V, F)'s ICE hierarchy (made or loaded through `cache` as by hierarchy()) until each pair's
-relative residual |Lφ − λMφ| / (λ|Mφ|) is at most refine_tolerance. (V, F) is the proxy's input mesh.
+relative residual |Lφ − λMφ| / (λ|Mφ|) is at most refine_tolerance. (V, F) must be the proxy's input mesh
+(only its vertex count is checked: another mesh's hierarchy would precondition worse, not wrongly).
 info: converged, iterations, guard (pairs refined along), residuals (per pair), seconds, hierarchy_seconds,
 hierarchy_cache. A refinement that stops at max_iterations returns its pairs with converged False.)doc");
   // A one-dimensional array of any length, or a two-dimensional one of any row count.

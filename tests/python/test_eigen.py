@@ -80,7 +80,18 @@ def test_refined_eigenbasis_reaches_the_fine_pairs(spot, tmp_path):
     assert info["converged"] and info["iterations"] >= 1 and info["hierarchy_cache"]["status"] == "hit"
     assert max(info["residuals"]) <= 1e-7
     np.testing.assert_allclose(again, values, rtol=1e-9, atol=1e-9 * values.max())  # the zero mode: round-off
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="refine_tolerance must be > 0"):
         ice.refined_eigenbasis(proxy, V, F, k, refine_tolerance=0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="vertices, the proxy's fine mesh"):
         ice.refined_eigenbasis(proxy, V[:-1], F[:10], k)
+    # A refinement stopped before its tolerance says so.
+    _, _, info = ice.refined_eigenbasis(proxy, V, F, k, refine_tolerance=1e-7, max_iterations=1, cache=tmp_path)
+    assert not info["converged"] and info["iterations"] == 1 and max(info["residuals"]) > 1e-7
+
+
+def test_a_refinement_that_stops_early_warns(spot, tmp_path, monkeypatch):
+    V, F = spot
+    refine = ice.refined_eigenbasis
+    monkeypatch.setattr(ice, "refined_eigenbasis", lambda *args, **kw: refine(*args, max_iterations=1, **kw))
+    with pytest.warns(RuntimeWarning, match="the refinement stopped after 1 iterations"):
+        ice.eigenbasis(V, F, 6, ratio=0.05, cache=tmp_path, refine_tolerance=1e-7)

@@ -68,7 +68,7 @@ struct EigenRefineOptions {
 struct EigenRefineReport {
   bool converged = false;
   int iterations = 0;
-  /// eigen_residuals of the first k pairs returned.
+  /// The relative residuals of the first k pairs returned (the convergence test's).
   Eigen::VectorXd residuals;
   /// Largest residual of the first k pairs before the first and after every iteration.
   std::vector<double> history;
@@ -80,20 +80,22 @@ struct EigenRefineReport {
 /// V-cycle) to every column of a block; rows at the Dirichlet indices of the result must be 0.
 using BlockPreconditioner = std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>;
 
-/// Improves m approximate eigenpairs of L φ = λ M φ (`vectors`, n × m, with `values`) until the
-/// first k have relative residuals ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂) (eigen_residuals, zero modes against
-/// the largest |λ|) at most options.tolerance, by the locally optimal block preconditioned
-/// conjugate gradient method (LOBPCG, Knyazev 2001): each iteration takes the Rayleigh–Ritz pairs
-/// of span[X, T R, P] in the M inner product — X the current vectors, T R the preconditioned
-/// residuals of those not yet converged, P the previous step — and keeps the smallest m. The m − k
-/// extra pairs (guards) are carried along to speed up the k-th: its convergence factor depends on
-/// the gap λ_k / λ_{m+1}.
-/// On return `values` (increasing) and `vectors` are the m Ritz pairs, M-orthonormal to round-off.
-/// The iteration converges to the smallest eigenpairs whatever the start, faster the better it is:
-/// prolonged proxy vectors start within a few per cent.
-/// Preconditions: L symmetric, M diagonal with positive entries off `fixed` (std::invalid_argument
-/// otherwise), 1 <= k <= m < n − |fixed|, vectors zero at the `fixed` (Dirichlet) rows, which stay
-/// zero. Does not throw when max_iterations is reached: check converged.
+/// Improves m approximate eigenvectors of L φ = λ M φ (`vectors`, n × m) until the first k pairs
+/// have relative residuals ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂) at most options.tolerance (as eigen_residuals,
+/// but zero modes judged against the largest |λ| of all m pairs), by the locally optimal block
+/// preconditioned conjugate gradient method (LOBPCG, Knyazev 2001): each iteration takes the
+/// Rayleigh–Ritz pairs of span[X, T R, P] in the M inner product — X the current vectors, T R the
+/// preconditioned residuals of those not yet converged, P the previous step — and keeps the smallest
+/// m. The m − k extra pairs (guards) speed up the k-th: its convergence depends on the gap
+/// λ_k / λ_{m+1}. The iteration converges to the smallest eigenpairs from any start whose vectors are
+/// linearly independent, faster the better it is: prolonged proxy vectors start within a few per cent.
+/// On return `values` (m, increasing: the Ritz values; their input is not read) and `vectors` are the
+/// m Ritz pairs, M-orthonormal to round-off; on a throw both are left as given.
+/// Preconditions: L symmetric (not checked), M diagonal with positive entries off `fixed`, fixed in
+/// range, 1 <= k <= m < n − |fixed| (std::invalid_argument otherwise); the vectors' rows at `fixed`
+/// (Dirichlet) are set to zero and stay zero. Throws std::runtime_error when the start vectors are
+/// linearly dependent (the search space lost rank). Does not throw when max_iterations is reached:
+/// check converged.
 EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,
                                     Eigen::MatrixXd& vectors, int k, const BlockPreconditioner& preconditioner,
                                     const std::vector<Index>& fixed = {}, const EigenRefineOptions& options = {});

@@ -32,8 +32,9 @@ enum class EigenBoundary {
 
 /// The refined route (fem::refine_eigenpairs on the input mesh's pencil).
 struct EigenRefinement {
-  /// Every returned pair reaches a relative residual ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂) at most this
-  /// (fem::eigen_residuals); 0: no refinement (the proxy route).
+  /// Refine until every returned pair has a relative residual ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂) at most this
+  /// (fem::refine_eigenpairs; Eigenbasis::converged says whether it did); 0: no refinement (the
+  /// proxy route).
   double tolerance = 0;
   /// Upper bound on refinement iterations (>= 1); reaching it is reported, not thrown.
   int max_iterations = 200;
@@ -66,8 +67,8 @@ struct EigenbasisOptions {
 struct Eigenbasis {
   Eigen::VectorXd values;
   Eigen::MatrixXd vectors;
-  int restarts = 0;              ///< of the coarse Lanczos iteration
-  double eigensolve_seconds = 0; ///< the coarse eigensolve (factorisation included)
+  int restarts = 0;              ///< of the coarse Lanczos iteration (of k + guard pairs when refined)
+  double eigensolve_seconds = 0; ///< the coarse eigensolve (factorisation included; k + guard pairs when refined)
   double prolong_seconds = 0;
   /// The refined route only: whether every pair reached the tolerance, the iterations, the pairs'
   /// relative residuals (fem::eigen_residuals) and the refinement's time (preconditioner set-up
