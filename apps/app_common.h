@@ -72,9 +72,12 @@ void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::
 ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
                                                  bool show_progress, ice::FineMesh* fine_delaunay = nullptr);
 
-/// --solver multigrid on a mesh that needs its tufted cover (--nonmanifold tufted): throws
-/// AppError(kUsage) saying so (the multigrid hierarchy is built on oriented manifolds only).
-void refuse_multigrid_on_cover(const PdeOptions& opt, const ice::TriangleMesh& mesh);
+/// A multigrid hierarchy asked for on a mesh that needs its tufted cover (--nonmanifold tufted):
+/// throws AppError(kUsage) saying so (the hierarchy is built on oriented manifolds only), in the
+/// words of `what` (what builds it) and `instead` (the way out).
+void refuse_multigrid_on_cover(const PdeOptions& opt, const ice::TriangleMesh& mesh,
+                               const std::string& what = "--solver multigrid builds its hierarchy",
+                               const std::string& instead = "use --solver proxy or direct");
 
 /// Prints a warning when the coarsening stopped before its vertex target (either method).
 void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,

@@ -127,9 +127,7 @@ int main(int argc, char** argv) {
     refinement.tolerance = tolerance;
     std::optional<ice::proxy::MultigridHierarchy> hierarchy;
     if (tolerance > 0) {
-      if (ice::solved_on_tufted_cover(mesh, opt.nonmanifold))
-        throw app::AppError(app::kUsage, opt.mesh + ": --tolerance refines on a multigrid hierarchy, built on oriented "
-                                                    "manifolds only; this mesh needs its tufted cover: drop --tolerance");
+      app::refuse_multigrid_on_cover(opt, mesh, "--tolerance refines on a multigrid hierarchy, built", "drop --tolerance");
       hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt.store());
       run.assemble += clock.lap();
     }

@@ -101,24 +101,29 @@ Dense sparse_times(const SparseMatrix& L, const Dense& X, int threads) {
 
 Dense symmetrised(const Dense& G) { return 0.5 * (G + G.transpose()); }
 
-// The `count` smallest Ritz pairs of the pencil (GL, GM) on its numerically independent part:
-// GM = V S Vᵀ, directions with S below `drop`·max S left out (a search space that lost rank),
-// the rest made orthonormal (B = V S^-1/2) and BᵀGL B diagonalised. Columns of the returned Y
-// are GM-orthonormal coefficient vectors.
+// Coefficients B of an orthonormal basis of a Gram matrix G's numerically independent part
+// (BᵀGB = I): G = V S Vᵀ, directions with S below `drop`·max S left out, B = V S^-1/2 (SVQB).
+Dense independent_orthonormal_basis(const Dense& G, double drop) {
+  Eigen::SelfAdjointEigenSolver<Dense> solver(symmetrised(G));
+  const Eigen::VectorXd& s = solver.eigenvalues();
+  const double largest = s.size() ? s.maxCoeff() : 0;
+  Eigen::Index first = 0;
+  while (first < s.size() && !(s(first) > drop * largest)) ++first;
+  const Eigen::Index kept = s.size() - first;
+  return solver.eigenvectors().rightCols(kept) * s.tail(kept).cwiseSqrt().cwiseInverse().asDiagonal();
+}
+
+// The `count` smallest Ritz pairs of the pencil (GL, GM) on GM's numerically independent part
+// (a search space that lost rank leaves directions out): BᵀGL B diagonalised. Columns of the
+// returned coefficients are GM-orthonormal.
 struct Ritz {
   Eigen::VectorXd values;
   Dense coefficients;
 };
 
 Ritz ritz_pairs(const Dense& GL, const Dense& GM, Eigen::Index count, double drop) {
-  Eigen::SelfAdjointEigenSolver<Dense> mass(symmetrised(GM));
-  const Eigen::VectorXd& s = mass.eigenvalues();
-  const double largest = s.size() ? s.maxCoeff() : 0;
-  Eigen::Index first = 0;
-  while (first < s.size() && !(s(first) > drop * largest)) ++first;
-  const Eigen::Index kept = s.size() - first;
-  if (kept < count) throw std::runtime_error("refine_eigenpairs: the search space lost rank (linearly dependent vectors)");
-  const Dense B = mass.eigenvectors().rightCols(kept) * s.tail(kept).cwiseSqrt().cwiseInverse().asDiagonal();
+  const Dense B = independent_orthonormal_basis(GM, drop);
+  if (B.cols() < count) throw std::runtime_error("refine_eigenpairs: the search space lost rank (linearly dependent vectors)");
   Eigen::SelfAdjointEigenSolver<Dense> stiffness(symmetrised(B.transpose() * GL * B));
   return {stiffness.eigenvalues().head(count), B * stiffness.eigenvectors().leftCols(count)};
 }
@@ -177,20 +182,14 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   // keeps what double precision can still orthonormalise (a basis of condition number up to ~1e6);
   // the Gram matrices are always computed in full, so what is kept is used exactly.
   constexpr double kDrop = 1e-12;
-  // M-orthonormalises the columns of V (and gives M V), dropping the numerically dependent ones:
-  // each column normalised, then the Gram matrix's independent part (SVQB).
+  // M-orthonormalises the columns of V, dropping the numerically dependent ones: each column
+  // normalised, then the Gram matrix's independent part.
   const auto orthonormalise = [&](Dense& V) {
     const Dense G = mass_gram(V, mass, V);
     Eigen::VectorXd scale = G.diagonal().cwiseMax(0).cwiseSqrt();
     const double largest_scale = scale.size() ? scale.maxCoeff() : 0;
     for (Eigen::Index j = 0; j < scale.size(); ++j) scale(j) = scale(j) > 1e-14 * largest_scale ? 1 / scale(j) : 0;
-    Eigen::SelfAdjointEigenSolver<Dense> solver(symmetrised(scale.asDiagonal() * G * scale.asDiagonal()));
-    const Eigen::VectorXd& e = solver.eigenvalues();
-    Eigen::Index first = 0;
-    while (first < e.size() && !(e(first) > 1e-10 * e.maxCoeff())) ++first;
-    const Eigen::Index rank = e.size() - first;
-    V = block_product(V, scale.asDiagonal() * solver.eigenvectors().rightCols(rank) *
-                             e.tail(rank).cwiseSqrt().cwiseInverse().asDiagonal());
+    V = block_product(V, scale.asDiagonal() * independent_orthonormal_basis(scale.asDiagonal() * G * scale.asDiagonal(), 1e-10));
   };
 
   // Memory: the iteration holds X and, at most, four more blocks of n rows and up to m columns
@@ -217,8 +216,9 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     const Dense XLX = gram(X, R), XMX = mass_gram(X, mass, X);
     Eigen::VectorXd mass_norm(m);
     for (Eigen::Index j = 0; j < m; ++j) {
-      R.col(j) -= theta(j) * mass.cwiseProduct(X.col(j));
-      mass_norm(j) = mass.cwiseProduct(X.col(j)).norm();  // rows of X at Dirichlet indices are 0
+      const Eigen::VectorXd mx = mass.cwiseProduct(X.col(j));  // 0 at the Dirichlet rows, as X
+      R.col(j) -= theta(j) * mx;
+      mass_norm(j) = mx.norm();
     }
     clear_fixed_rows(R);
     // Zero modes are judged against the largest |λ| of all m pairs: the guards' are not round-off

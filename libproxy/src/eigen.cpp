@@ -19,6 +19,21 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// The proxy's coarse vertices off the Dirichlet ones (`coarse_fixed`: those, as coarse vertices),
+// and the check that k pairs fit in them.
+Eigen::Index free_coarse_vertices(const fem::CoarseProxy& proxy, const std::vector<Index>& dirichlet_vertices,
+                                  std::vector<Index>& coarse_fixed) {
+  coarse_fixed = fem::coarse_dirichlet_vertices(proxy, dirichlet_vertices);
+  return proxy.coarse_laplacian().rows() - static_cast<Eigen::Index>(coarse_fixed.size());
+}
+
+void require_pair_count(int k, Eigen::Index coarse, bool dirichlet) {
+  if (k < 1 || k >= coarse)
+    throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs, the coarse space has " +
+                                std::to_string(coarse) + (dirichlet ? " free" : "") +
+                                " vertices (1 <= k < coarse vertices: ask for more coarse vertices)");
+}
+
 }  // namespace
 
 EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, std::optional<CoarseSpace> coarse)
@@ -67,19 +82,15 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
                               const std::vector<Index>& dirichlet_vertices) {
   if (!(refinement.tolerance > 0) || !std::isfinite(refinement.tolerance))
     throw std::invalid_argument("refined_eigenbasis: the tolerance must be > 0");
-  if (k < 1) throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs (k >= 1)");
+  std::vector<Index> coarse_fixed;
+  const Eigen::Index coarse_free = free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed);
+  require_pair_count(k, coarse_free, !coarse_fixed.empty());  // before the coarse eigensolve of k + guard pairs
   const fem::SparseMatrix& L = proxy.fine_laplacian();
   const fem::SparseMatrix& M = proxy.fine_mass();
   if (hierarchy.fine_vertices != L.rows())
     throw std::invalid_argument("refined_eigenbasis: the hierarchy has " + std::to_string(hierarchy.fine_vertices) +
                                 " fine vertices, the proxy " + std::to_string(L.rows()));
-  const std::vector<Index> coarse_fixed = fem::coarse_dirichlet_vertices(proxy, dirichlet_vertices);
-  const Eigen::Index coarse_free = proxy.coarse_laplacian().rows() - static_cast<Eigen::Index>(coarse_fixed.size());
   const int guard = refinement_guard(k, refinement, coarse_free);
-  if (k >= coarse_free)
-    throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs, the coarse space has " +
-                                std::to_string(coarse_free) + (coarse_fixed.empty() ? "" : " free") +
-                                " vertices (1 <= k < coarse vertices: ask for more coarse vertices)");
   Eigenbasis basis = proxy_eigenbasis(proxy, k + guard, options, dirichlet_vertices);
   const auto start = Clock::now();
   // The preconditioner: one V-cycle of L + σM (symmetric positive definite for any σ > 0). σ is
@@ -125,12 +136,8 @@ Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::Eig
                             const std::vector<Index>& dirichlet_vertices) {
   if (proxy.kind() != fem::CoarseOperatorKind::galerkin)
     throw std::invalid_argument("eigenbasis: the proxy's coarse operators must be Galerkin (PᵀLP, PᵀMP)");
-  std::vector<Index> coarse_fixed = fem::coarse_dirichlet_vertices(proxy, dirichlet_vertices);
-  const Eigen::Index coarse = proxy.coarse_laplacian().rows() - static_cast<Eigen::Index>(coarse_fixed.size());
-  if (k < 1 || k >= coarse)
-    throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs, the coarse space has " +
-                                std::to_string(coarse) + (coarse_fixed.empty() ? "" : " free") +
-                                " vertices (1 <= k < coarse vertices: ask for more coarse vertices)");
+  std::vector<Index> coarse_fixed;
+  require_pair_count(k, free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed), !coarse_fixed.empty());
   auto start = Clock::now();
   const fem::Eigenpairs pairs =
       fem::smallest_eigenpairs_dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed, k, options);
