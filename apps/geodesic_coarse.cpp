@@ -32,6 +32,7 @@
 #include <string>
 #include <utility>
 
+#include "tool_main.h"
 #include "app_common.h"
 #include "fem/coarse_proxy.h"
 #include "fem/distance_oracle.h"
@@ -41,7 +42,7 @@
 #include "ice/proxy/geodesics.h"
 #include "ice/scalar_field_io.h"
 
-namespace {
+namespace geodesic_coarse_tool {
 
 // A mesh read with --nonmanifold tufted that needs its cover is solved by the coarse heat method
 // only (ice::proxy::require_no_marching_on_cover says why): a usage error naming the file.
@@ -327,9 +328,9 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   return app::kOk;
 }
 
-}  // namespace
+}  // namespace geodesic_coarse_tool
 
-int main(int argc, char** argv) {
+int geodesic_coarse_tool::main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "geodesic-coarse: geodesic distance from sources (or between any vertices: the oracle modes) through a small "

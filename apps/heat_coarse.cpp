@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "tool_main.h"
 #include "app_common.h"
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
@@ -21,7 +22,7 @@
 #include "ice/proxy/report.h"
 #include "ice/scalar_field_io.h"
 
-namespace {
+namespace heat_coarse_tool {
 
 const std::string kTool = "heat-coarse";
 
@@ -147,9 +148,9 @@ app::ExitCode step_on_fine_mesh(const app::MultigridCli& mg, const app::PdeOptio
   return app::kOk;
 }
 
-}  // namespace
+}  // namespace heat_coarse_tool
 
-int main(int argc, char** argv) {
+int heat_coarse_tool::main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "heat-coarse: backward-Euler heat flow stepped on a small ICE coarse proxy (restricted once, prolonged only\n"

@@ -6,11 +6,12 @@
 #include <iostream>
 #include <sstream>
 
+#include "tool_main.h"
 #include "command_line.h"
 #include "ice/proxy/store.h"
 #include "reports.h"
 
-namespace {
+namespace ice_cache_tool {
 
 const std::string kTool = "ice-cache";
 
@@ -37,9 +38,9 @@ std::string age_text(std::filesystem::file_time_type time) {
   return std::to_string(seconds / 86400) + " days ago";
 }
 
-}  // namespace
+}  // namespace ice_cache_tool
 
-int main(int argc, char** argv) {
+int ice_cache_tool::main(int argc, char** argv) {
   CLI::App cli{
       "ice-cache: the store of set-ups that the tools and the Python package reuse, keyed by the mesh and the options:\n"
       "proxy (a coarse space and its proxy's operators), hierarchy (multigrid), space (a coarse space with its\n"

@@ -35,6 +35,7 @@
 #include <iostream>
 #include <optional>
 
+#include "tool_main.h"
 #include "app_common.h"
 #include "ice/coarse_tracing.h"
 #include "ice/coarsen.h"
@@ -46,7 +47,7 @@
 #include "ice/proxy/setup.h"
 #include "ice/qem.h"
 
-namespace {
+namespace ice_coarsen_tool {
 
 const std::string kTool = "ice-coarsen";
 namespace fs = std::filesystem;
@@ -195,9 +196,9 @@ std::vector<ice::Index> read_lock_file(const std::string& path, const ice::LoadR
   return locked;
 }
 
-}  // namespace
+}  // namespace ice_coarsen_tool
 
-int main(int argc, char** argv) {
+int ice_coarsen_tool::main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "ice-coarsen: simplify a triangle mesh intrinsically (ICE). Vertices are removed from an intrinsic "

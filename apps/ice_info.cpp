@@ -14,13 +14,14 @@
 #include <optional>
 #include <sstream>
 
+#include "tool_main.h"
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_io.h"
 #include "ice/mesh_repair.h"
 #include "ice/mesh_validation.h"
 #include "app_common.h"
 
-namespace {
+namespace ice_info_tool {
 
 using app::kDefective;
 using app::kNotWritten;
@@ -138,9 +139,9 @@ int describe_intrinsic_mesh(const std::string& input, bool json) {
 
 int run(const std::string& input, const std::string& output, bool json, bool repair, bool weld, bool force);
 
-}  // namespace
+}  // namespace ice_info_tool
 
-int main(int argc, char** argv) {
+int ice_info_tool::main(int argc, char** argv) {
   CLI::App app{"Read a triangle mesh, validate it for ICE and print the report."};
   std::string input, output;
   bool json = false, repair = false, weld = false, force = false;
@@ -154,7 +155,7 @@ int main(int argc, char** argv) {
   return app::run_tool("ice-info", [&] { return run(input, output, json, repair, weld, force); });
 }
 
-namespace {
+namespace ice_info_tool {
 
 // The tool after the command line: read, validate, repair, report, write. Exit statuses as in
 // app_common.h (errors that reach run_tool are reported there).
@@ -239,4 +240,4 @@ int run(const std::string& input, const std::string& output, bool json, bool rep
   return app::kOk;
 }
 
-}  // namespace
+}  // namespace ice_info_tool

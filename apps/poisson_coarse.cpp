@@ -22,6 +22,7 @@
 #include <map>
 #include <optional>
 
+#include "tool_main.h"
 #include "app_common.h"
 #include "fem/coarse_proxy.h"
 #include "fem/errors.h"
@@ -31,7 +32,7 @@
 #include "ice/large_array.h"
 #include "ice/scalar_field_io.h"
 
-namespace {
+namespace poisson_coarse_tool {
 
 /// The report's "error" object: relative L2 error in the mass norm, max abs error, and max abs error
 /// relative to max |reference|. A zero reference leaves the relative errors undefined (null): that is
@@ -202,9 +203,9 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
   return app::kOk;
 }
 
-}  // namespace
+}  // namespace poisson_coarse_tool
 
-int main(int argc, char** argv) {
+int poisson_coarse_tool::main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "poisson-coarse: solve -Laplace(u) = f through a small ICE coarse proxy and (by default) compare with the fine\n"

@@ -12,6 +12,7 @@
 #include <optional>
 #include <sstream>
 
+#include "tool_main.h"
 #include "app_common.h"
 #include "fem/eigen.h"
 #include "fem/errors.h"
@@ -20,15 +21,15 @@
 #include "ice/proxy/report.h"
 #include "ice/scalar_field_io.h"
 
-namespace {
+namespace spectral_coarse_tool {
 
 const std::string kTool = "spectral-coarse";
 
 using ice::proxy::median;
 
-}  // namespace
+}  // namespace spectral_coarse_tool
 
-int main(int argc, char** argv) {
+int spectral_coarse_tool::main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "spectral-coarse: the k smallest Laplace-Beltrami eigenpairs (cotan L, lumped M; Neumann or Dirichlet) through a\n"

@@ -30,13 +30,14 @@
 #include <iostream>
 #include <optional>
 
+#include "tool_main.h"
 #include "app_common.h"
 #include "fem/vector_fields.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/large_array.h"
 #include "ice/scalar_field_io.h"
 
-namespace {
+namespace vector_coarse_tool {
 
 const std::string kTool = "vector-coarse";
 constexpr double kPi = 3.141592653589793238462643383279502884;
@@ -68,9 +69,9 @@ void warn_if_frames_fit_poorly(const fem::VectorProlongationStats& stats) {
                        "Coarsen less (--ratio, --vertices)");
 }
 
-}  // namespace
+}  // namespace vector_coarse_tool
 
-int main(int argc, char** argv) {
+int vector_coarse_tool::main(int argc, char** argv) {
   ice::keep_freed_memory_for_reuse();  // one job per process: reuse freed arrays instead of re-faulting them
   CLI::App cli{
       "vector-coarse: tangent vector fields by the vector heat method (parallel transport from a source, or the "
