@@ -113,8 +113,9 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     run.load = clock.lap();
 
     // ---- the proxy (from the store when it holds this setup), the coarse eigenproblem, prolongation
+    const ice::proxy::Store store = opt.store();
     const ice::proxy::ProxySetup pde = app::build_pde_proxy(mesh, coarsen_options, opt, run, clock, true, run.has_reference, false,
-                                                   opt.store());
+                                                   store);
     const fem::CoarseProxy& proxy = *pde.proxy;
     run.assemble = clock.lap();
     const Eigen::Index coarse = proxy.coarse_laplacian().rows() - static_cast<Eigen::Index>(fixed.size());
@@ -129,11 +130,11 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     std::optional<ice::proxy::MultigridHierarchy> hierarchy;
     if (tolerance > 0) {
       app::refuse_multigrid_on_cover(opt, mesh, "--tolerance refines on a multigrid hierarchy, built", "drop --tolerance");
-      hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt.store());
+      hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, store);
       run.assemble += clock.lap();
     }
-    const ice::proxy::Eigenbasis basis = hierarchy ? ice::proxy::refined_eigenbasis(proxy, *hierarchy, k, refinement, {}, fixed)
-                                                   : ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed);
+    const ice::proxy::Eigenbasis basis = hierarchy ? ice::proxy::refined_eigenbasis(proxy, *hierarchy, k, refinement, {}, fixed, store)
+                                                   : ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed, store);
     if (basis.refined && !basis.converged) {
       std::ostringstream message;
       message << "the refinement stopped after " << basis.refine_iterations << " iterations with a largest residual of "
@@ -193,7 +194,8 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     nlohmann::json report = run.report();
     std::vector<double> values(basis.values.data(), basis.values.data() + k);
     report["eigen"] = {{"k", k}, {"values", values}, {"restarts", basis.restarts}, {"shown", show},
-                       {"boundary", boundary}, {"dirichlet_vertices", fixed.size()}};
+                       {"boundary", boundary}, {"dirichlet_vertices", fixed.size()},
+                       {"cache", ice::proxy::cache_json(basis.cache, store)}};
     if (basis.refined)
       report["eigen"]["refine"] = {{"tolerance", tolerance},
                                    {"converged", basis.converged},
@@ -203,7 +205,7 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                    {"seconds", basis.refine_seconds},
                                    {"precondition_seconds", basis.precondition_seconds},
                                    {"hierarchy", ice::proxy::hierarchy_json(*hierarchy, refinement.hierarchy)},
-                                   {"hierarchy_cache", ice::proxy::cache_json(hierarchy->cache, opt.store())}};
+                                   {"hierarchy_cache", ice::proxy::cache_json(hierarchy->cache, store)}};
     if (!hks_text.empty())
       report["eigen"]["hks_times"] = std::vector<double>(hks_times.data(), hks_times.data() + hks_times.size());
     if (run.has_reference) {

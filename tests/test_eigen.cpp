@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
+#include <string>
 
 #include "fem/cholesky.h"
 #include "fem/eigen.h"
@@ -15,6 +17,7 @@
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
 #include "ice/proxy/eigen.h"
+#include "ice/proxy/store.h"
 #include "test_support.h"
 
 namespace {
@@ -328,4 +331,79 @@ TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two c
   ice::proxy::EigenbasisOptions negative;
   negative.refine.tolerance = -1;
   CHECK_THROWS_AS(ice::proxy::EigenSolver(unit_sphere(), negative), std::invalid_argument);
+}
+
+TEST_CASE("stored coarse eigenpairs: a second eigenbasis loads them bit for bit; forged or damaged ones are rebuilt", "[eigen][proxy][store]") {
+  namespace fs = std::filesystem;
+  using ice::proxy::CacheStatus;
+  const fs::path dir = ice_test::fresh_store("eigenpairs");
+  const ice::TriangleMesh& sphere = unit_sphere();
+  ice::proxy::EigenbasisOptions options;
+  options.coarsening.coarsen.target_vertices = 300;
+  options.store.directory = dir;
+  const int k = 16;
+  ice::proxy::EigenbasisOptions unstored = options;
+  unstored.store = {};
+  const ice::proxy::Eigenbasis plain = ice::proxy::eigenbasis(sphere, k, unstored);
+  CHECK(plain.cache.status == CacheStatus::off);
+  const ice::proxy::EigenSolver solver(sphere, options);
+  const ice::proxy::Eigenbasis cold = solver.compute(k);
+  CHECK(cold.cache.status == CacheStatus::miss);
+  const auto same = [&](const ice::proxy::Eigenbasis& b) {
+    CHECK(b.values == cold.values);
+    CHECK(b.vectors == cold.vectors);
+  };
+  same(plain);  // the store changes nothing in the numbers
+  const ice::proxy::Eigenbasis warm = ice::proxy::EigenSolver(sphere, options).compute(k);
+  CHECK(warm.cache.status == CacheStatus::hit);
+  same(warm);
+  // Another k is another entry; so are Dirichlet conditions (none on a sphere: the same pencil) or options.
+  CHECK(solver.compute(k + 1).cache.status == CacheStatus::miss);
+  ice::proxy::EigenbasisOptions looser = options;
+  looser.eigen.tolerance = 1e-8;
+  CHECK(ice::proxy::EigenSolver(sphere, looser).compute(k).cache.status == CacheStatus::miss);
+
+  // Entries that pass the store's checksum but are not this pencil's pairs: a changed eigenvalue (its
+  // residual no longer the stored one), a vector scaled (the same residual, not M-normal).
+  const ice::proxy::Store store(options.store);
+  std::string hex;
+  for (const ice::proxy::StoreEntryInfo& e : store.list())
+    if (e.kind == "eigenpairs" && e.key == warm.cache.keys.at(0)) hex = e.key;
+  REQUIRE(hex.size() == 32);
+  ice::proxy::StoreKey key;
+  key.high = std::stoull(hex.substr(0, 16), nullptr, 16);
+  key.low = std::stoull(hex.substr(16), nullptr, 16);
+  REQUIRE(key.hex() == hex);
+  const Pencil coarse{solver.proxy().coarse_laplacian(), solver.proxy().coarse_mass()};
+  const fem::Eigenpairs pairs = fem::smallest_eigenpairs(coarse.L, coarse.M, k);
+  const Eigen::VectorXd residuals = fem::eigen_residuals(coarse.L, coarse.M, pairs.values, pairs.vectors);
+  for (int forgery = 0; forgery < 2; ++forgery) {
+    Eigen::VectorXd values = pairs.values;
+    Eigen::MatrixXd vectors = pairs.vectors;
+    if (forgery == 0) values(k - 1) *= 1.01;  // the largest: the order holds
+    else vectors.col(5) *= 2;
+    const double shift = pairs.shift;
+    ice::proxy::EntryWriter writer;
+    writer.put("values", values.data(), static_cast<std::size_t>(k));
+    writer.put("residuals", residuals.data(), static_cast<std::size_t>(k));
+    writer.put_matrix("vectors", vectors);
+    writer.put_int("restarts", pairs.restarts);
+    writer.put("shift", &shift, 1);
+    REQUIRE(store.save("eigenpairs", key, writer));
+    const ice::proxy::Eigenbasis rebuilt = solver.compute(k);
+    INFO("forgery " << forgery << ": " << rebuilt.cache.damage);
+    CHECK(rebuilt.cache.status == CacheStatus::rebuilt);
+    CHECK(rebuilt.cache.damage.find(forgery == 0 ? "residuals differ" : "M-orthonormal") != std::string::npos);
+    same(rebuilt);
+    CHECK(solver.compute(k).cache.status == CacheStatus::hit);
+  }
+  // A byte flipped in the file: the store's checksum.
+  const fs::path file = store.entry_path("eigenpairs", key);
+  std::vector<char> bytes = ice_test::read_bytes(file);
+  bytes[bytes.size() / 2] ^= 0x10;
+  ice_test::write_bytes(file, bytes);
+  const ice::proxy::Eigenbasis flipped = solver.compute(k);
+  CHECK(flipped.cache.status == CacheStatus::rebuilt);
+  same(flipped);
+  fs::remove_all(dir);
 }

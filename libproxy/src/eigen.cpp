@@ -1,5 +1,6 @@
 #include "ice/proxy/eigen.h"
 
+#include "entry_checks.h"
 #include "fem/multigrid.h"
 #include "fem/topology.h"
 #include "ice/wall_time.h"
@@ -32,6 +33,86 @@ void require_pair_count(int k, Eigen::Index coarse, bool dirichlet) {
     throw std::invalid_argument("eigenbasis: asked for " + std::to_string(k) + " eigenpairs, the coarse space has " +
                                 std::to_string(coarse) + (dirichlet ? " free" : "") +
                                 " vertices (1 <= k < coarse vertices: ask for more coarse vertices)");
+}
+
+constexpr const char* kEigenpairsKind = "eigenpairs";
+
+void add_sparse(KeyHasher& h, const fem::SparseMatrix& A) {
+  fem::SparseMatrix compressed;
+  const fem::SparseMatrix* a = &A;
+  if (!A.isCompressed()) {
+    compressed = A;
+    compressed.makeCompressed();
+    a = &compressed;
+  }
+  h.add(static_cast<std::int64_t>(a->rows())).add(static_cast<std::int64_t>(a->cols())).add(static_cast<std::int64_t>(a->nonZeros()));
+  h.add_bytes(a->outerIndexPtr(), sizeof(*a->outerIndexPtr()) * static_cast<std::size_t>(a->outerSize() + 1));
+  h.add_bytes(a->innerIndexPtr(), sizeof(*a->innerIndexPtr()) * static_cast<std::size_t>(a->nonZeros()));
+  h.add_bytes(a->valuePtr(), sizeof(*a->valuePtr()) * static_cast<std::size_t>(a->nonZeros()));
+}
+
+// The stored pairs as a value load_entry can return (it records the hit in `cache`).
+struct StoredPairs {
+  fem::Eigenpairs pairs;
+  CacheReport cache;
+};
+
+// The coarse pencil's k smallest pairs (fem::smallest_eigenpairs_dirichlet), through the store when it
+// is on. The key is the pencil itself (the coarse operators' arrays), the Dirichlet coarse vertices,
+// k and the eigensolver's options: whatever proxy or setup made the pencil, the pairs are the same.
+// A stored entry is used only when its pairs are those of this pencil: the residuals recomputed from
+// the stored arrays equal the ones stored with them (computed when they were solved), the values
+// increase, the vectors are M-orthonormal and zero at the Dirichlet vertices; else it is rebuilt.
+fem::Eigenpairs coarse_eigenpairs(const fem::SparseMatrix& L, const fem::SparseMatrix& M, const std::vector<Index>& fixed,
+                                  int k, const fem::EigenOptions& options, const Store& store, CacheReport& cache) {
+  if (!store.enabled()) return fem::smallest_eigenpairs_dirichlet(L, M, fixed, k, options);
+  KeyHasher h(kEigenpairsKind);
+  add_sparse(h, L);
+  add_sparse(h, M);
+  h.add(static_cast<std::int64_t>(fixed.size())).add_bytes(fixed.data(), sizeof(Index) * fixed.size());
+  h.add(k).add(options.tolerance).add(options.max_restarts).add(static_cast<std::int64_t>(options.basis_size));
+  h.add(static_cast<int>(options.ordering));
+  const StoreKey key = h.finish();
+  const Eigen::Index n = L.rows();
+  std::optional<StoredPairs> hit = detail::load_entry<StoredPairs>(
+      store, kEigenpairsKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
+        StoredPairs stored;
+        fem::Eigenpairs& p = stored.pairs;
+        const std::vector<double> values = entry.doubles("values"), residuals = entry.doubles("residuals");
+        p.vectors = entry.double_matrix("vectors");
+        detail::require(static_cast<int>(values.size()) == k && static_cast<int>(residuals.size()) == k &&
+                            p.vectors.rows() == n && p.vectors.cols() == k,
+                        path, "eigenpairs of the wrong shape");
+        p.values = Eigen::Map<const Eigen::VectorXd>(values.data(), k);
+        detail::require(p.values.allFinite() && p.vectors.allFinite(), path, "an eigenpair is not finite");
+        for (int j = 1; j < k; ++j) detail::require(p.values(j) >= p.values(j - 1), path, "eigenvalues out of order");
+        for (Index v : fixed) detail::require(p.vectors.row(v).isZero(0), path, "an eigenvector is not zero at a Dirichlet vertex");
+        const Eigen::VectorXd recomputed = fem::eigen_residuals(L, M, p.values, p.vectors, fixed);
+        for (int j = 0; j < k; ++j)
+          detail::require(std::abs(recomputed(j) - residuals[static_cast<std::size_t>(j)]) <= 1e-9 * residuals[static_cast<std::size_t>(j)] + 1e-15,
+                          path, "the eigenpairs are not this pencil's (their residuals differ from those stored)");
+        const Eigen::MatrixXd gram = p.vectors.transpose() * (M * p.vectors);
+        detail::require((gram - Eigen::MatrixXd::Identity(k, k)).cwiseAbs().maxCoeff() <= 1e-8, path,
+                        "the eigenvectors are not M-orthonormal");
+        p.restarts = static_cast<int>(entry.integer("restarts"));
+        p.shift = entry.doubles("shift").at(0);
+        return stored;
+      });
+  if (hit) {
+    cache = std::move(hit->cache);
+    return std::move(hit->pairs);
+  }
+  fem::Eigenpairs pairs = fem::smallest_eigenpairs_dirichlet(L, M, fixed, k, options);
+  const auto start = Clock::now();
+  const Eigen::VectorXd residuals = fem::eigen_residuals(L, M, pairs.values, pairs.vectors, fixed);
+  EntryWriter writer;
+  writer.put("values", pairs.values.data(), static_cast<std::size_t>(pairs.values.size()));
+  writer.put("residuals", residuals.data(), static_cast<std::size_t>(residuals.size()));
+  writer.put_matrix("vectors", pairs.vectors);
+  writer.put_int("restarts", pairs.restarts);
+  writer.put("shift", &pairs.shift, 1);
+  detail::save_entry(store, kEigenpairsKind, key, writer, cache, start);
+  return pairs;
 }
 
 }  // namespace
@@ -67,9 +148,10 @@ EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, st
 }
 
 Eigenbasis EigenSolver::compute(int k) const {
+  const Store store(options_.store);
   if (options_.refine.tolerance > 0)
-    return refined_eigenbasis(*setup_.proxy, hierarchy_, k, options_.refine, options_.eigen, dirichlet_);
-  return proxy_eigenbasis(*setup_.proxy, k, options_.eigen, dirichlet_);
+    return refined_eigenbasis(*setup_.proxy, hierarchy_, k, options_.refine, options_.eigen, dirichlet_, store);
+  return proxy_eigenbasis(*setup_.proxy, k, options_.eigen, dirichlet_, store);
 }
 
 int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices) {
@@ -79,7 +161,7 @@ int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coar
 
 Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHierarchy& hierarchy, int k,
                               const EigenRefinement& refinement, const fem::EigenOptions& options,
-                              const std::vector<Index>& dirichlet_vertices) {
+                              const std::vector<Index>& dirichlet_vertices, const Store& store) {
   if (!(refinement.tolerance > 0) || !std::isfinite(refinement.tolerance))
     throw std::invalid_argument("refined_eigenbasis: the tolerance must be > 0");
   std::vector<Index> coarse_fixed;
@@ -91,7 +173,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
     throw std::invalid_argument("refined_eigenbasis: the hierarchy has " + std::to_string(hierarchy.fine_vertices) +
                                 " fine vertices, the proxy " + std::to_string(L.rows()));
   const int guard = refinement_guard(k, refinement, coarse_free);
-  Eigenbasis basis = proxy_eigenbasis(proxy, k + guard, options, dirichlet_vertices);
+  Eigenbasis basis = proxy_eigenbasis(proxy, k + guard, options, dirichlet_vertices, store);
   const auto start = Clock::now();
   // The preconditioner: one V-cycle of L + σM (symmetric positive definite for any σ > 0). σ is
   // the scale of the modes sought, the smallest positive coarse eigenvalue (an upper bound of the
@@ -133,15 +215,15 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
 }
 
 Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options,
-                            const std::vector<Index>& dirichlet_vertices) {
+                            const std::vector<Index>& dirichlet_vertices, const Store& store) {
   if (proxy.kind() != fem::CoarseOperatorKind::galerkin)
     throw std::invalid_argument("eigenbasis: the proxy's coarse operators must be Galerkin (PᵀLP, PᵀMP)");
   std::vector<Index> coarse_fixed;
   require_pair_count(k, free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed), !coarse_fixed.empty());
   auto start = Clock::now();
-  const fem::Eigenpairs pairs =
-      fem::smallest_eigenpairs_dirichlet(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed, k, options);
   Eigenbasis basis;
+  const fem::Eigenpairs pairs =
+      coarse_eigenpairs(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed, k, options, store, basis.cache);
   basis.eigensolve_seconds = seconds_since(start);
   start = Clock::now();
   basis.values = pairs.values;

@@ -318,8 +318,8 @@ def eigenbasis(V: ArrayLike, F: ArrayLike, k: int, *, boundary: Literal["neumann
                cache: str | PathLike[str] | Literal[False] | None = None, refine_tolerance: float = 0.0,
                **coarsening: Any) -> tuple[FloatArray, FloatArray]:
     """The k smallest Laplace–Beltrami eigenpairs through a coarse proxy: (values, vectors (n × k))."""
-def proxy_eigenbasis(proxy: Proxy, k: int, *, tolerance: float = 1e-10,
-                     dirichlet: Indices | None = None) -> tuple[FloatArray, FloatArray]: ...
+def proxy_eigenbasis(proxy: Proxy, k: int, *, tolerance: float = 1e-10, dirichlet: Indices | None = None,
+                     cache: str | PathLike[str] | Literal[False] | None = None) -> tuple[FloatArray, FloatArray]: ...
 def refined_eigenbasis(proxy: Proxy, V: ArrayLike, F: ArrayLike, k: int, *, refine_tolerance: float = 1e-6,
                        max_iterations: int = 200, tolerance: float = 1e-10, dirichlet: Indices | None = None,
                        cache: str | PathLike[str] | Literal[False] | None = None) -> tuple[FloatArray, FloatArray, dict[str, Any]]: ...

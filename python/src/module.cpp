@@ -1421,24 +1421,29 @@ ProxyPoissonSolver, per step.)doc")
         return to_numpy(fem::boundary_vertices(faces));
       },
       py::arg("F"), "The vertices on a boundary edge (an edge of one face), sorted (int32).");
-  m.def("proxy_eigenbasis", [](std::shared_ptr<PyProxy> proxy, int k, double tolerance, const py::object& dirichlet) {
+  m.def("proxy_eigenbasis", [](std::shared_ptr<PyProxy> proxy, int k, double tolerance, const py::object& dirichlet,
+                               const py::object& cache) {
         if (!(tolerance > 0)) throw py::value_error("tolerance must be > 0");
         fem::EigenOptions options;
         options.tolerance = tolerance;
         std::vector<ice::Index> fixed;
         if (!dirichlet.is_none()) fixed = index_argument(dirichlet, proxy->proxy->fine_size(), "dirichlet");
+        const ice::proxy::Store store = store_argument(cache);
         ice::proxy::Eigenbasis basis;
         {
           py::gil_scoped_release release;
-          basis = ice::proxy::proxy_eigenbasis(*proxy->proxy, k, options, fixed);
+          basis = ice::proxy::proxy_eigenbasis(*proxy->proxy, k, options, fixed, store);
         }
         return py::make_tuple(std::move(basis.values), std::move(basis.vectors));
       },
       py::arg("proxy"), py::arg("k"), py::kw_only(), py::arg("tolerance") = 1e-10, py::arg("dirichlet") = py::none(),
+      py::arg("cache") = py::none(),
       R"doc((values, vectors): the k smallest eigenpairs of L φ = λ M φ through a Galerkin Proxy (spectral-coarse):
 the coarse pencil's, prolonged; values increasing, vectors (n × k) M-orthonormal with the fine lumped mass.
 dirichlet: input vertices where φ = 0 (each a coarse vertex: locked when coarsening; the proxy's P
-barycentric). ValueError unless 1 <= k < the free coarse vertex count and the operators are Galerkin.)doc");
+barycentric). ValueError unless 1 <= k < the free coarse vertex count and the operators are Galerkin.
+cache: the coarse pairs through the store (None the default store, a directory, or False): a second call
+with the same proxy, k and tolerance loads them, the same numbers to the last bit.)doc");
   m.def("refined_eigenbasis", [](std::shared_ptr<PyProxy> proxy, const py::object& V, const py::object& F, int k,
                                  double refine_tolerance, int max_iterations, double tolerance, const py::object& dirichlet,
                                  const py::object& cache) {
@@ -1463,7 +1468,7 @@ barycentric). ValueError unless 1 <= k < the free coarse vertex count and the op
           py::gil_scoped_release release;
           require_clean(mesh);
           hierarchy = ice::proxy::multigrid_hierarchy(mesh, refinement.hierarchy, store);
-          basis = ice::proxy::refined_eigenbasis(*proxy->proxy, hierarchy, k, refinement, options, fixed);
+          basis = ice::proxy::refined_eigenbasis(*proxy->proxy, hierarchy, k, refinement, options, fixed, store);
         }
         py::dict info;
         info["converged"] = basis.converged;
@@ -1473,6 +1478,7 @@ barycentric). ValueError unless 1 <= k < the free coarse vertex count and the op
         info["seconds"] = basis.refine_seconds;
         info["hierarchy_seconds"] = hierarchy.build_seconds;
         info["hierarchy_cache"] = json_to_python(ice::proxy::cache_json(hierarchy.cache, store));
+        info["eigenpairs_cache"] = json_to_python(ice::proxy::cache_json(basis.cache, store));
         return py::make_tuple(std::move(basis.values), std::move(basis.vectors), info);
       },
       py::arg("proxy"), py::arg("V"), py::arg("F"), py::arg("k"), py::kw_only(), py::arg("refine_tolerance") = 1e-6,
@@ -1480,11 +1486,12 @@ barycentric). ValueError unless 1 <= k < the free coarse vertex count and the op
       py::arg("cache") = py::none(),
       R"doc((values, vectors, info): the k smallest eigenpairs of L φ = λ M φ refined on the fine mesh (spectral-coarse
 --tolerance): the Galerkin Proxy's pairs and a few more, improved by LOBPCG preconditioned with a multigrid
-V-cycle on (V, F)'s ICE hierarchy (made or loaded through `cache` as by hierarchy()) until each pair's
+V-cycle on (V, F)'s ICE hierarchy (made or loaded through `cache` as by hierarchy(), as are the coarse pairs
+it starts from) until each pair's
 relative residual |Lφ − λMφ| / (λ|Mφ|) is at most refine_tolerance. (V, F) must be the proxy's input mesh
 (only its vertex count is checked: another mesh's hierarchy would precondition worse, not wrongly).
 info: converged, iterations, guard (pairs refined along), residuals (per pair), seconds, hierarchy_seconds,
-hierarchy_cache. A refinement that stops at max_iterations returns its pairs with converged False.)doc");
+hierarchy_cache, eigenpairs_cache. A refinement that stops at max_iterations returns its pairs with converged False.)doc");
   // A one-dimensional array of any length, or a two-dimensional one of any row count.
   const auto any_vector = [](const py::object& object, const char* name) {
     const py::array a = py::array::ensure(object);

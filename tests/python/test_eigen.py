@@ -27,9 +27,12 @@ def test_eigenbasis_against_the_fine_pencil(spot, tmp_path):
     assert abs(values[0]) < 1e-8 and abs(fine[0]) < 1e-6
     assert np.all(values[1:] >= fine[1:] * (1 - 1e-9))
     assert np.median(values[1:] / fine[1:] - 1) < 0.05
-    # Warm from the store: the same basis to the bit.
+    # Warm from the store (the proxy and the coarse pairs): the same basis to the bit; without it too.
+    assert len(list(tmp_path.glob("eigenpairs-*.ice"))) == 1
     again = ice.eigenbasis(V, F, k, ratio=0.1, cache=tmp_path)
     assert np.array_equal(again[0], values) and np.array_equal(again[1], vectors)
+    unstored = ice.eigenbasis(V, F, k, ratio=0.1, cache=False)
+    assert np.array_equal(unstored[0], values) and np.array_equal(unstored[1], vectors)
     # Descriptors: Σ_x M_x HKS(x, t) = Σ_i exp(−λ_i t); the WKS weights are normalised per energy.
     mass = M.diagonal()
     times = np.array([0.001, 0.01])

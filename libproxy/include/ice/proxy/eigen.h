@@ -58,7 +58,8 @@ struct EigenbasisOptions {
   fem::EigenOptions eigen;
   /// Off by default (the proxy route).
   EigenRefinement refine;
-  /// Where the set-up proxy is looked up and saved (store.h); off by default in the library.
+  /// Where the set-up proxy, the coarse eigenpairs (proxy_eigenbasis) and the refinement's hierarchy
+  /// are looked up and saved (store.h); off by default in the library.
   StoreOptions store;
 };
 
@@ -68,7 +69,11 @@ struct Eigenbasis {
   Eigen::VectorXd values;
   Eigen::MatrixXd vectors;
   int restarts = 0;              ///< of the coarse Lanczos iteration (of k + guard pairs when refined)
-  double eigensolve_seconds = 0; ///< the coarse eigensolve (factorisation included; k + guard pairs when refined)
+  /// The coarse eigensolve (factorisation included; k + guard pairs when refined), or the load of
+  /// its stored pairs with their checks (cache.status hit).
+  double eigensolve_seconds = 0;
+  /// Where the coarse pairs came from: the store's "eigenpairs" entry (status off without a store).
+  CacheReport cache;
   double prolong_seconds = 0;
   /// The refined route only: whether every pair reached the tolerance, the iterations, the pairs'
   /// relative residuals (fem::eigen_residuals) and the refinement's time (preconditioner set-up
@@ -119,8 +124,14 @@ class EigenSolver {
 /// proxy's P barycentric) the coarse pencil is restricted to the other coarse vertices, so the
 /// prolonged vectors vanish there. Throws std::invalid_argument unless the proxy's operators are
 /// Galerkin and 1 <= k < its free coarse size, or when a Dirichlet vertex is not a coarse vertex.
+///
+/// With `store` on, the coarse pairs are looked up in it and saved there ("eigenpairs" entries, keyed
+/// by the coarse pencil's arrays, the Dirichlet coarse vertices, k and `options`; Eigenbasis::cache
+/// says which): a second eigenbasis of the same proxy and k loads them instead of solving, the same
+/// numbers to the last bit. A stored entry is used only if its pairs are this pencil's (residuals
+/// recomputed against those stored with them, M-orthonormality, order); else it is rebuilt.
 Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options = {},
-                            const std::vector<Index>& dirichlet_vertices = {});
+                            const std::vector<Index>& dirichlet_vertices = {}, const Store& store = {});
 
 /// The refined route on a set-up Galerkin proxy (what EigenSolver::compute runs with a tolerance):
 /// proxy_eigenbasis for k + guard pairs, then fem::refine_eigenpairs on the proxy's fine pencil
@@ -128,9 +139,10 @@ Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::Eig
 /// (a hierarchy of the proxy's fine mesh: its level 0 has the fine vertex count), with φ = 0 kept
 /// at `dirichlet_vertices`. Returns the first k pairs. Throws as proxy_eigenbasis, and
 /// std::invalid_argument when refinement.tolerance is not > 0 or the hierarchy's size differs.
+/// The k + guard coarse pairs it starts from come through `store` as proxy_eigenbasis's.
 Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHierarchy& hierarchy, int k,
                               const EigenRefinement& refinement, const fem::EigenOptions& options = {},
-                              const std::vector<Index>& dirichlet_vertices = {});
+                              const std::vector<Index>& dirichlet_vertices = {}, const Store& store = {});
 
 /// The guard pairs refined_eigenbasis adds to k (EigenRefinement::guard), given the coarse space's
 /// free vertex count.
