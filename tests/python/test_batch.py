@@ -300,9 +300,12 @@ def test_stalled_worker_does_not_hang_the_batch(dataset, tmp_path):
     assert sum(r["status"] == "ok" for r in again.records) == len(MESHES) + 3
 
 
-def test_spectral_features(project_mesh, tmp_path):
+def test_spectral_features(project_mesh, tmp_path, monkeypatch):
     """--features eigs:K,hks:...: the eigenbasis through each mesh's coarse proxy beside its coarse space
-    (M-orthonormal on the input mesh, one zero mode); the features are part of the options hash."""
+    (M-orthonormal on the input mesh, one zero mode); the features are part of the options hash. The
+    batch's records are its store: nothing goes into the user's store of set-ups."""
+    store = tmp_path / "store"
+    monkeypatch.setenv("ICE_CACHE", str(store))
     root = tmp_path / "in"
     root.mkdir()
     for name in ("spot.obj", "bear.off"):
@@ -322,6 +325,7 @@ def test_spectral_features(project_mesh, tmp_path):
     assert np.abs(vectors.T @ (M @ vectors) - np.eye(8)).max() < 1e-8
     assert abs(values[0]) < 1e-8 and np.all(np.diff(values) >= 0) and values[1] > 1e-3
     np.testing.assert_allclose(loaded["hks"], ice.heat_kernel_signature(values, vectors, [0.01, 0.1]), rtol=1e-12)
+    assert not store.exists() or not any(store.iterdir())
     # Other features redo every mesh; the same skip them.
     assert batch.run(str(root), out, batch.BatchOptions(coarsen={"ratio": 0.05}, features=features, workers=2,
                                                         progress=False)).skipped == 2
