@@ -44,7 +44,8 @@ int ice_cache_tool::main(int argc, char** argv) {
   CLI::App cli{
       "ice-cache: the store of set-ups that the tools and the Python package reuse, keyed by the mesh and the options:\n"
       "proxy (a coarse space and its proxy's operators), hierarchy (multigrid), space (a coarse space with its\n"
-      "fine-to-coarse map), traced and curvature (what coarse marching reads beside a space). Default store:\n"
+      "fine-to-coarse map), traced and curvature (what coarse marching reads beside a space), eigenpairs (a\n"
+      "coarse pencil's eigenpairs, spectral-coarse). Default store:\n"
       "$ICE_CACHE, else $XDG_CACHE_HOME/ice, else ~/.cache/ice; size bound $ICE_CACHE_MAX_MB (default 4096).\n\n"
       "Examples:\n  ice-cache list\n  ice-cache verify --remove\n  ice-cache clear --cache /tmp/store\n\n"
       "Exit status: 0 ok (verify: every entry whole), 4 bad command line, 5 damaged entries found."};
@@ -70,7 +71,7 @@ int ice_cache_tool::main(int argc, char** argv) {
     if (*list) {
       std::cout << options.directory.string() << ": " << entries.size() << " entries, " << bytes_text(total) << '\n';
       for (const auto& e : entries)
-        std::cout << "  " << std::left << std::setw(9) << e.kind << ' ' << e.key << "  " << std::right << std::setw(9)
+        std::cout << "  " << std::left << std::setw(10) << e.kind << ' ' << e.key << "  " << std::right << std::setw(9)
                   << bytes_text(e.bytes) << "  " << age_text(e.last_used) << '\n';
     } else if (*size) {
       std::cout << options.directory.string() << ": " << entries.size() << " entries, " << bytes_text(total) << " of "

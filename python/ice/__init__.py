@@ -245,8 +245,9 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
     boundary: "neumann", or "dirichlet" (φ = 0 on the mesh's boundary, whose vertices the coarsening then
     keeps). coarse / coarsening options (default ratio=0.05), prolongation and cache as for solve_poisson;
     k must be below the coarse vertex count (ValueError otherwise).
-    The coarse eigenpairs go through `cache` too: a second call with the same mesh, options and k loads
-    them (the same numbers to the last bit; only the prolongation is redone).
+    Without `coarse` the coarse eigenpairs go through `cache` too: a second call with the same mesh,
+    options and k loads them (the same numbers to the last bit; only the prolongation, and with
+    refine_tolerance the refinement, is redone).
     refine_tolerance > 0: the refined route (spectral-coarse --tolerance): the pairs improved on the input
     mesh until each relative residual |Lφ − λMφ| / (λ|Mφ|) is at most this (refined_eigenbasis; its
     multigrid hierarchy goes through `cache` too). A refinement that does not converge warns.
@@ -270,7 +271,7 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
                           f"residual of {max(info['residuals']):.3g} (refine_tolerance {refine_tolerance:g})", RuntimeWarning,
                           stacklevel=2)
         return values, vectors
-    return proxy_eigenbasis(proxy, k, tolerance=tolerance, dirichlet=fixed, cache=cache)
+    return proxy_eigenbasis(proxy, k, tolerance=tolerance, dirichlet=fixed, cache=cache if coarse is None else False)
 
 
 def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, method: str = "marching",

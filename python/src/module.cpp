@@ -1437,13 +1437,14 @@ ProxyPoissonSolver, per step.)doc")
         return py::make_tuple(std::move(basis.values), std::move(basis.vectors));
       },
       py::arg("proxy"), py::arg("k"), py::kw_only(), py::arg("tolerance") = 1e-10, py::arg("dirichlet") = py::none(),
-      py::arg("cache") = py::none(),
+      py::arg("cache") = false,
       R"doc((values, vectors): the k smallest eigenpairs of L φ = λ M φ through a Galerkin Proxy (spectral-coarse):
 the coarse pencil's, prolonged; values increasing, vectors (n × k) M-orthonormal with the fine lumped mass.
 dirichlet: input vertices where φ = 0 (each a coarse vertex: locked when coarsening; the proxy's P
 barycentric). ValueError unless 1 <= k < the free coarse vertex count and the operators are Galerkin.
-cache: the coarse pairs through the store (None the default store, a directory, or False): a second call
-with the same proxy, k and tolerance loads them, the same numbers to the last bit.)doc");
+cache: the coarse pairs through the store (False, the default: none, as for anything else given a Proxy;
+None the default store, or a directory): a second call with the same proxy, k and tolerance loads them,
+the same numbers to the last bit.)doc");
   m.def("refined_eigenbasis", [](std::shared_ptr<PyProxy> proxy, const py::object& V, const py::object& F, int k,
                                  double refine_tolerance, int max_iterations, double tolerance, const py::object& dirichlet,
                                  const py::object& cache) {

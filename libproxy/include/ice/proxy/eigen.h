@@ -70,7 +70,7 @@ struct Eigenbasis {
   Eigen::MatrixXd vectors;
   int restarts = 0;              ///< of the coarse Lanczos iteration (of k + guard pairs when refined)
   /// The coarse eigensolve (factorisation included; k + guard pairs when refined), or the load of
-  /// its stored pairs with their checks (cache.status hit).
+  /// its stored pairs with their checks (cache.status hit); a save is in cache.save_seconds.
   double eigensolve_seconds = 0;
   /// Where the coarse pairs came from: the store's "eigenpairs" entry (status off without a store).
   CacheReport cache;
@@ -129,7 +129,8 @@ class EigenSolver {
 /// by the coarse pencil's arrays, the Dirichlet coarse vertices, k and `options`; Eigenbasis::cache
 /// says which): a second eigenbasis of the same proxy and k loads them instead of solving, the same
 /// numbers to the last bit. A stored entry is used only if its pairs are this pencil's (residuals
-/// recomputed against those stored with them, M-orthonormality, order); else it is rebuilt.
+/// recomputed and matched against those stored with them, M-orthonormality, order); else it is
+/// rebuilt.
 Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options = {},
                             const std::vector<Index>& dirichlet_vertices = {}, const Store& store = {});
 
