@@ -88,38 +88,46 @@ TraceFigures check_tracing(const ice::TriangleMesh& mesh, const ice::CompactMesh
     std::array<double, 3> bfrom, bto;
   };
   std::map<Index, std::vector<Piece>> by_face;
+  ice_test::SweepChecks sweep;  // one assertion for all edges and segments
   for (std::size_t e = 0; e < tracing.edges.size(); ++e) {
     const ice::TracedEdge& edge = tracing.edges[e];
-    INFO("edge " << e << " (side " << edge.side << ", " << edge.tail << " -> " << edge.head << "): " << ice::to_string(edge.status));
+    const auto where = [&] {
+      return "edge " + std::to_string(e) + " (side " + std::to_string(edge.side) + ", " + std::to_string(edge.tail) + " -> " +
+             std::to_string(edge.head) + ")";
+    };
     if (edge.status != ice::TraceStatus::traced) {  // counted; the callers bound the failures
       ++figures.failed;
       continue;
     }
-    REQUIRE(!edge.segments.empty());
-    CHECK(edge.tail == coarse.F(edge.side / 3, edge.side % 3));
-    CHECK(edge.head == coarse.F(edge.side / 3, (edge.side + 1) % 3));
-    CHECK(edge.length == coarse.L(edge.side / 3, edge.side % 3));
+    if (edge.segments.empty()) {
+      ICE_SWEEP_CHECK(sweep, !edge.segments.empty(), where);
+      continue;
+    }
+    ICE_SWEEP_CHECK(sweep, edge.tail == coarse.F(edge.side / 3, edge.side % 3), where);
+    ICE_SWEEP_CHECK(sweep, edge.head == coarse.F(edge.side / 3, (edge.side + 1) % 3), where);
+    ICE_SWEEP_CHECK(sweep, edge.length == coarse.L(edge.side / 3, edge.side % 3), where);
     ++figures.edges;
     figures.segments += static_cast<Index>(edge.segments.size());
     // The ends are the end vertices.
-    CHECK((point_on(mesh, edge.segments.front().face, edge.segments.front().from) - vertex_position(edge.tail)).norm() <=
-          1e-12 * scale);
-    CHECK((point_on(mesh, edge.segments.back().face, edge.segments.back().to) - vertex_position(edge.head)).norm() <=
-          1e-12 * scale);
-    CHECK(edge.segments.front().from_param == 0);
-    CHECK(edge.segments.back().to_param == edge.length);
+    ICE_SWEEP_CHECK(sweep, (point_on(mesh, edge.segments.front().face, edge.segments.front().from) - vertex_position(edge.tail)).norm() <=
+                               1e-12 * scale, where);
+    ICE_SWEEP_CHECK(sweep, (point_on(mesh, edge.segments.back().face, edge.segments.back().to) - vertex_position(edge.head)).norm() <=
+                               1e-12 * scale, where);
+    ICE_SWEEP_CHECK(sweep, edge.segments.front().from_param == 0, where);
+    ICE_SWEEP_CHECK(sweep, edge.segments.back().to_param == edge.length, where);
     for (std::size_t i = 0; i < edge.segments.size(); ++i) {
       const ice::TracedSegment& s = edge.segments[i];
+      const auto segment = [&] { return where() + ", segment " + std::to_string(i); };
       // Inside one input face.
       for (const auto& b : {s.from, s.to}) {
-        CHECK(std::min({b[0], b[1], b[2]}) >= -1e-12);
-        CHECK(std::abs(b[0] + b[1] + b[2] - 1) <= 1e-12);
+        ICE_SWEEP_CHECK(sweep, std::min({b[0], b[1], b[2]}) >= -1e-12, segment);
+        ICE_SWEEP_CHECK(sweep, std::abs(b[0] + b[1] + b[2] - 1) <= 1e-12, segment);
       }
-      CHECK(s.to_param >= s.from_param - 1e-9 * edge.length);
+      ICE_SWEEP_CHECK(sweep, s.to_param >= s.from_param - 1e-9 * edge.length, segment);
       if (i + 1 < edge.segments.size()) {  // joined to the next
         const ice::TracedSegment& n = edge.segments[i + 1];
-        CHECK((point_on(mesh, s.face, s.to) - point_on(mesh, n.face, n.from)).norm() <= 1e-12 * scale);
-        CHECK(n.from_param == s.to_param);
+        ICE_SWEEP_CHECK(sweep, (point_on(mesh, s.face, s.to) - point_on(mesh, n.face, n.from)).norm() <= 1e-12 * scale, segment);
+        ICE_SWEEP_CHECK(sweep, n.from_param == s.to_param, segment);
       }
       const auto plane = [](const std::array<double, 3>& b) { return Eigen::Vector2d(b[1], b[2]); };
       by_face[s.face].push_back({static_cast<Index>(e), plane(s.from), plane(s.to), s.from, s.to});
@@ -132,6 +140,7 @@ TraceFigures check_tracing(const ice::TriangleMesh& mesh, const ice::CompactMesh
     figures.max_length_error = std::max(figures.max_length_error, length_error);
     figures.long_edges += std::abs(surface - edge.length) > 1e-9 * edge.length + position_roundoff;
   }
+  ICE_SWEEP_REPORT(sweep);
 
   // Two traced edges meet only at coarse vertices: no crossing inside a face, no shared point elsewhere.
   Index crossings = 0;
@@ -162,9 +171,10 @@ TraceFigures check_tracing(const ice::TriangleMesh& mesh, const ice::CompactMesh
   // inside one coarse face and that no traced edge crosses names that one; vertices name their map faces.
   REQUIRE(tracing.face_patch.size() == static_cast<std::size_t>(mesh.F.rows()));
   Index mislabelled = 0;
+  ice_test::SweepChecks labels;
   for (Index t = 0; t < mesh.F.rows(); ++t) {
     const Index label = tracing.face_patch[t];
-    CHECK((label >= 0 && label < coarse.F.rows()));
+    ICE_SWEEP_CHECK(labels, (label >= 0 && label < coarse.F.rows()), [&] { return "input face " + std::to_string(t); });
     const ice::CoarsePoint& p0 = map[mesh.F(t, 0)];
     bool inside_one = true;
     for (int c = 0; c < 3; ++c) {
@@ -191,7 +201,9 @@ TraceFigures check_tracing(const ice::TriangleMesh& mesh, const ice::CompactMesh
       }
     CHECK(split == 0);
   }
-  for (std::size_t v = 0; v < map.size(); ++v) CHECK(tracing.vertex_patch[v] == map[v].face);
+  for (std::size_t v = 0; v < map.size(); ++v)
+    ICE_SWEEP_CHECK(labels, tracing.vertex_patch[v] == map[v].face, [&] { return "input vertex " + std::to_string(v); });
+  ICE_SWEEP_REPORT(labels);
   return figures;
 }
 

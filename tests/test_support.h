@@ -21,6 +21,32 @@
 
 namespace ice_test {
 
+/// The failed conditions of a sweep over many elements, counted, the first few described: one
+/// assertion per sweep (ICE_SWEEP_REPORT) instead of one per element, whose cost dominates large
+/// sweeps in the sanitizer build. The description is made only on failure.
+class SweepChecks {
+ public:
+  template <class Describe>
+  void check(bool ok, const char* expression, Describe&& context) {
+    if (ok) return;
+    if (failures_++ < 5) text_ += std::string(expression) + " failed: " + context() + "\n";
+  }
+  long long failures() const { return failures_; }
+  const std::string& text() const { return text_; }
+
+ private:
+  long long failures_ = 0;
+  std::string text_;
+};
+/// Checks `expression` within a sweep, `context` a callable returning what the element is.
+#define ICE_SWEEP_CHECK(sweep, expression, context) (sweep).check(static_cast<bool>(expression), #expression, context)
+/// The sweep's one assertion: no condition failed (the first failures' descriptions as the message).
+#define ICE_SWEEP_REPORT(sweep)    \
+  do {                             \
+    INFO((sweep).text());          \
+    CHECK((sweep).failures() == 0); \
+  } while (false)
+
 /// A fresh, empty directory for one test case's store (TMP/ice-store-test-NAME-PID, emptied if it
 /// exists); NAME must be unique across the suite, whose cases run in parallel processes.
 inline std::filesystem::path fresh_store(const std::string& name) {
