@@ -48,18 +48,22 @@ void check_map(const IntrinsicTriangulation& T) {
   // The same matrix as the plain definition: one entry per corner of the point's face (repeated
   // corners of a Δ-complex face summed), a vertex's own column with weight 1.
   std::vector<Eigen::Triplet<double>> entries;
+  ice_test::SweepChecks points;  // one assertion for all input points
   for (Index p = 0; p < T.num_input_vertices(); ++p) {
     const SurfacePoint s = T.location(p);
     if (s.is_vertex()) {
       entries.emplace_back(p, coarse.from_input[static_cast<std::size_t>(p)], 1.0);
       continue;
     }
-    REQUIRE(T.face_alive(s.face));
-    CHECK((s.bary[0] >= 0 && s.bary[1] >= 0 && s.bary[2] >= 0));
+    const auto which = [&] { return "input vertex " + std::to_string(p) + " in face " + std::to_string(s.face); };
+    ICE_SWEEP_CHECK(points, T.face_alive(s.face), which);
+    if (!T.face_alive(s.face)) continue;
+    ICE_SWEEP_CHECK(points, (s.bary[0] >= 0 && s.bary[1] >= 0 && s.bary[2] >= 0), which);
     Index h = T.halfedge(s.face);
     for (int k = 0; k < 3; ++k, h = T.next(h))
       if (s.bary[k] != 0) entries.emplace_back(p, coarse.from_input[static_cast<std::size_t>(T.tail(h))], s.bary[k]);
   }
+  ICE_SWEEP_REPORT(points);
   Eigen::SparseMatrix<double> reference(P.rows(), P.cols());
   reference.setFromTriplets(entries.begin(), entries.end());
   CHECK(P.nonZeros() == reference.nonZeros());
