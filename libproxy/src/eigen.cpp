@@ -37,26 +37,6 @@ void require_pair_count(int k, Eigen::Index coarse, bool dirichlet) {
 
 constexpr const char* kEigenpairsKind = "eigenpairs";
 
-void add_sparse(KeyHasher& h, const fem::SparseMatrix& A) {
-  fem::SparseMatrix compressed;
-  const fem::SparseMatrix* a = &A;
-  if (!A.isCompressed()) {
-    compressed = A;
-    compressed.makeCompressed();
-    a = &compressed;
-  }
-  h.add(static_cast<std::int64_t>(a->rows())).add(static_cast<std::int64_t>(a->cols())).add(static_cast<std::int64_t>(a->nonZeros()));
-  h.add_bytes(a->outerIndexPtr(), sizeof(*a->outerIndexPtr()) * static_cast<std::size_t>(a->outerSize() + 1));
-  h.add_bytes(a->innerIndexPtr(), sizeof(*a->innerIndexPtr()) * static_cast<std::size_t>(a->nonZeros()));
-  h.add_bytes(a->valuePtr(), sizeof(*a->valuePtr()) * static_cast<std::size_t>(a->nonZeros()));
-}
-
-// The stored pairs as a value load_entry can return (it records the hit in `cache`).
-struct StoredPairs {
-  fem::Eigenpairs pairs;
-  CacheReport cache;
-};
-
 // What is wrong with `pairs` as the k smallest pairs of the pencil (L, M) with φ = 0 at `fixed`, or ""
 // when nothing is: finite, values in order, vectors zero at the Dirichlet vertices, M-orthonormal to
 // 1e-8, and every residual (fem::eigen_residuals, returned in `residuals`) within the square root of
@@ -90,16 +70,15 @@ fem::Eigenpairs coarse_eigenpairs(const fem::SparseMatrix& L, const fem::SparseM
   std::sort(fixed_set.begin(), fixed_set.end());
   fixed_set.erase(std::unique(fixed_set.begin(), fixed_set.end()), fixed_set.end());
   KeyHasher h(kEigenpairsKind);
-  add_sparse(h, L);
-  add_sparse(h, M);
+  h.add_sparse(L).add_sparse(M);
   h.add(static_cast<std::int64_t>(fixed_set.size())).add_bytes(fixed_set.data(), sizeof(Index) * fixed_set.size());
   h.add(k).add(options.tolerance).add(options.max_restarts).add(static_cast<std::int64_t>(options.basis_size));
   h.add(static_cast<int>(options.ordering));
   const StoreKey key = h.finish();
-  std::optional<StoredPairs> hit = detail::load_entry<StoredPairs>(
+  std::optional<detail::Stored<fem::Eigenpairs>> hit = detail::load_entry<detail::Stored<fem::Eigenpairs>>(
       store, kEigenpairsKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
-        StoredPairs stored;
-        fem::Eigenpairs& p = stored.pairs;
+        detail::Stored<fem::Eigenpairs> stored;
+        fem::Eigenpairs& p = stored.value;
         const std::vector<double> values = entry.doubles("values"), residuals = entry.doubles("residuals");
         detail::require(static_cast<int>(values.size()) == k && static_cast<int>(residuals.size()) == k, path,
                         "eigenpairs of the wrong shape");
@@ -121,7 +100,7 @@ fem::Eigenpairs coarse_eigenpairs(const fem::SparseMatrix& L, const fem::SparseM
       });
   if (hit) {
     cache = std::move(hit->cache);
-    return std::move(hit->pairs);
+    return std::move(hit->value);
   }
   fem::Eigenpairs pairs = fem::smallest_eigenpairs_dirichlet(L, M, fixed, k, options);
   const auto start = Clock::now();

@@ -51,6 +51,14 @@ inline void save_entry(const Store& store, const std::string& kind, const StoreK
   cache.keys.push_back(key.hex());
 }
 
+/// A value loaded from the store with the report of its load: what load_entry returns when the value
+/// itself has no `cache`.
+template <class T>
+struct Stored {
+  T value;
+  CacheReport cache;
+};
+
 /// The entry `kind`/`key` read by `parse(entry, path)` into a T (a value with a CacheReport `cache`),
 /// or std::nullopt: a miss, or a damaged entry — one the store rejects, or whose contents `parse`
 /// finds inconsistent (any exception), which is then removed. `cache` says which (miss, rebuilt with

@@ -83,12 +83,6 @@ std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::str
   return map;
 }
 
-template <class T>
-struct Stored {
-  T value;
-  CacheReport cache;
-};
-
 // A value of `mesh` stored beside a mapped space, under a key of `kind` made from the space's
 // (`space_key`; null, or a store that is off: made and not stored) and the mesh's arrays (a coarse
 // space may be handed another mesh of the same faces and count: the value is that mesh's): loaded when
@@ -102,8 +96,8 @@ T stored_beside(const TriangleMesh& mesh, const Store& store, const char* kind, 
     KeyHasher h(kind);
     key = h.add(*space_key).add_matrix(mesh.V).add_matrix(mesh.F).finish();
     CacheReport attempt;
-    std::optional<Stored<T>> hit = detail::load_entry<Stored<T>>(
-        store, kind, *key, attempt, [&](const EntryReader& entry, const std::string& path) { return Stored<T>{parse(entry, path), {}}; });
+    std::optional<detail::Stored<T>> hit = detail::load_entry<detail::Stored<T>>(
+        store, kind, *key, attempt, [&](const EntryReader& entry, const std::string& path) { return detail::Stored<T>{parse(entry, path), {}}; });
     if (hit) {
       if (cache) {
         cache->keys.push_back(key->hex());

@@ -180,6 +180,18 @@ KeyHasher& KeyHasher::add_bytes(const void* data, std::size_t bytes) {
   return *this;
 }
 
+KeyHasher& KeyHasher::add_sparse(const Eigen::SparseMatrix<double>& m) {
+  if (!m.isCompressed()) {
+    Eigen::SparseMatrix<double> compressed = m;
+    compressed.makeCompressed();
+    return add_sparse(compressed);
+  }
+  add(static_cast<std::int64_t>(m.rows())).add(static_cast<std::int64_t>(m.cols())).add(static_cast<std::int64_t>(m.nonZeros()));
+  add_bytes(m.outerIndexPtr(), sizeof(*m.outerIndexPtr()) * static_cast<std::size_t>(m.outerSize() + 1));
+  add_bytes(m.innerIndexPtr(), sizeof(*m.innerIndexPtr()) * static_cast<std::size_t>(m.nonZeros()));
+  return add_bytes(m.valuePtr(), sizeof(*m.valuePtr()) * static_cast<std::size_t>(m.nonZeros()));
+}
+
 KeyHasher& KeyHasher::add(const std::string& text) {
   const char tag = 's';
   XXH3_128bits_update(static_cast<XXH3_state_t*>(state_), &tag, 1);

@@ -81,6 +81,8 @@ class KeyHasher {
     add(static_cast<std::int64_t>(m.rows())).add(static_cast<std::int64_t>(m.cols()));
     return add_bytes(m.data(), sizeof(typename Derived::Scalar) * static_cast<std::size_t>(m.size()));
   }
+  /// The matrix's shape and its compressed arrays (an uncompressed one is hashed as compressed).
+  KeyHasher& add_sparse(const Eigen::SparseMatrix<double>& m);
   StoreKey finish() const;
 
  private:
