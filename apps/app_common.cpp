@@ -196,15 +196,11 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
   return coarsen_space_for_pde(mesh, pde_space_options(options, opt, keep_method_state, record_history), opt, run, nullptr);
 }
 
-void refuse_multigrid_on_cover(const PdeOptions& opt, const ice::TriangleMesh& mesh, const std::string& what,
-                               const std::string& instead) {
-  if (ice::solved_on_tufted_cover(mesh, opt.nonmanifold))
-    throw AppError(kUsage, opt.mesh + ": " + what + " on oriented manifolds only; this mesh needs its tufted cover: " + instead);
-}
-
 ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const ice::TriangleMesh& mesh, const MultigridCli& mg,
-                                                const ice::proxy::Store& store) {
-  ice::proxy::MultigridHierarchy hierarchy = ice::proxy::multigrid_hierarchy(mesh, mg.hierarchy, store);
+                                                const PdeOptions& opt, const ice::proxy::Store& store) {
+  ice::HierarchyOptions options = mg.hierarchy;
+  options.nonmanifold = opt.nonmanifold;
+  ice::proxy::MultigridHierarchy hierarchy = ice::proxy::multigrid_hierarchy(mesh, options, store);
   if (hierarchy.cache.status == ice::proxy::CacheStatus::rebuilt)
     warn(tool, "the stored hierarchy was damaged and is rebuilt: " + hierarchy.cache.damage);
   return hierarchy;

@@ -72,13 +72,6 @@ void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::
 ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
                                                  bool show_progress, ice::FineMesh* fine_delaunay = nullptr);
 
-/// A multigrid hierarchy asked for on a mesh that needs its tufted cover (--nonmanifold tufted):
-/// throws AppError(kUsage) saying so (the hierarchy is built on oriented manifolds only), in the
-/// words of `what` (what builds it) and `instead` (the way out).
-void refuse_multigrid_on_cover(const PdeOptions& opt, const ice::TriangleMesh& mesh,
-                               const std::string& what = "--solver multigrid builds its hierarchy",
-                               const std::string& instead = "use --solver proxy or direct");
-
 /// Prints a warning when the coarsening stopped before its vertex target (either method).
 void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,
                            const ice::CoarsenOptions& options);
@@ -93,9 +86,10 @@ ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::Coars
                                  PdeRun& run, bool keep_method_state = false, bool record_history = false);
 
 /// The multigrid hierarchy of `mesh` for the --mg-* options through `store` (ice::proxy::
-/// multigrid_hierarchy), warning as `tool` when a damaged stored entry had to be rebuilt.
+/// multigrid_hierarchy; through the tufted cover where --nonmanifold tufted asks for it and the mesh
+/// needs it), warning as `tool` when a damaged stored entry had to be rebuilt.
 ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const ice::TriangleMesh& mesh, const MultigridCli& mg,
-                                                const ice::proxy::Store& store);
+                                                const PdeOptions& opt, const ice::proxy::Store& store);
 
 /// What a PDE tool solves through — the coarse space, the fine discretisation and the coarse proxy —
 /// by ice::proxy::build_proxy_setup with the method, QEM geometry, fine mesh, operators and prolongation

@@ -64,14 +64,13 @@ app::ExitCode step_on_fine_mesh(const app::MultigridCli& mg, const app::PdeOptio
                                 const HeatProblem& heat, double load_seconds) {
   const long long n = mesh.V.rows();
   app::Stopwatch clock;
-  app::refuse_multigrid_on_cover(opt, mesh);
-  const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
+  const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry(), opt.nonmanifold);
   const double fine_mesh_seconds = clock.lap();
   const fem::SparseMatrix L = fem::cotan_laplacian(fine);
   const fem::SparseMatrix M = fem::mass_matrix(fine, fem::MassKind::lumped);
   const double assemble_seconds = clock.lap();
   const ice::proxy::Store store = opt.store();
-  const ice::proxy::MultigridHierarchy hierarchy = app::stored_hierarchy(kTool, mesh, mg, store);
+  const ice::proxy::MultigridHierarchy hierarchy = app::stored_hierarchy(kTool, mesh, mg, opt, store);
   const double hierarchy_seconds = clock.lap();
   const fem::HeatSolver solver(L, M, heat.time_step, hierarchy.poisson_multigrid(mg.options));
   const double numeric_setup = clock.lap();
@@ -121,7 +120,9 @@ app::ExitCode step_on_fine_mesh(const app::MultigridCli& mg, const app::PdeOptio
   nlohmann::json report = app::report_header(kTool, opt.mesh);
   report["solver"] = solver_json;
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
-  report["fine_mesh"] = {{"kind", opt.fine_idt ? "intrinsic Delaunay" : "input"}, {"flips", fine.flips}};
+  report["fine_mesh"] = {{"kind", opt.fine_idt ? "intrinsic Delaunay" : "input"},
+                         {"flips", fine.flips},
+                         {"tufted_cover", ice::solved_on_tufted_cover(mesh, opt.nonmanifold)}};
   report["heat"] = heat.json();
   report["heat"]["output_steps"] = output_steps;
   report["timings_s"] = timings;

@@ -92,7 +92,6 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
   const long long n = mesh.V.rows();
   const bool dirichlet = !fixed_vertices.empty();
   app::Stopwatch clock;
-  if (solver == "multigrid") app::refuse_multigrid_on_cover(opt, mesh);
   const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry(), opt.nonmanifold);
   const double fine_mesh_seconds = clock.lap();
   const fem::SparseMatrix L = fem::cotan_laplacian(fine);
@@ -131,7 +130,7 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
     timings = {{"setup", setup_seconds}, {"solve", solve_seconds}};
   } else {
     const ice::proxy::Store store = opt.store();
-    const ice::proxy::MultigridHierarchy hierarchy = app::stored_hierarchy(kTool, mesh, mg, store);
+    const ice::proxy::MultigridHierarchy hierarchy = app::stored_hierarchy(kTool, mesh, mg, opt, store);
     const double hierarchy_seconds = clock.lap();
     const fem::PoissonSolver poisson = make_solver(hierarchy.poisson_multigrid(mg.options));
     const double numeric_setup = clock.lap();
@@ -176,7 +175,9 @@ app::ExitCode solve_on_fine_mesh(const std::string& solver, const app::Multigrid
   nlohmann::json report = app::report_header(kTool, opt.mesh);
   report["solver"] = solver_json;
   report["input"] = {{"vertices", n}, {"faces", mesh.F.rows()}};
-  report["fine_mesh"] = {{"kind", opt.fine_idt ? "intrinsic Delaunay" : "input"}, {"flips", fine.flips}};
+  report["fine_mesh"] = {{"kind", opt.fine_idt ? "intrinsic Delaunay" : "input"},
+                         {"flips", fine.flips},
+                         {"tufted_cover", ice::solved_on_tufted_cover(mesh, opt.nonmanifold)}};
   report["timings_s"] = timings;
   report["cache"] = cache;
   report["rhs"] = rhs_name;

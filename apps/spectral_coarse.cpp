@@ -129,8 +129,7 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     refinement.tolerance = tolerance;
     std::optional<ice::proxy::MultigridHierarchy> hierarchy;
     if (tolerance > 0) {
-      app::refuse_multigrid_on_cover(opt, mesh, "--tolerance refines on a multigrid hierarchy, built", "drop --tolerance");
-      hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, store);
+      hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt, store);
       run.assemble += clock.lap();
     }
     const ice::proxy::Eigenbasis basis = hierarchy ? ice::proxy::refined_eigenbasis(proxy, *hierarchy, k, refinement, {}, fixed, store)

@@ -1347,8 +1347,9 @@ elseif(CASE STREQUAL "spectral_spot")
 elseif(CASE STREQUAL "nonmanifold_cover")
   # A mesh with non-manifold edges and inconsistent orientation: refused, naming the option that takes
   # it; with --nonmanifold tufted, Poisson, heat, geodesics (heat method) and the eigenbasis are solved
-  # on its tufted cover, near the fine robust Laplacian, one value per vertex of the file; multigrid,
-  # coarse marching and the oracle say they cannot.
+  # on its tufted cover, near the fine robust Laplacian, one value per vertex of the file; multigrid
+  # (its hierarchy coarsened on the cover) solves the fine robust Laplacian to CHOLMOD's solution, and
+  # refines the eigenbasis to the fine one's; coarse marching and the oracle say they cannot.
   project_mesh(mesh triple_vierbein.obj)
   expect_error(2 "non-manifold edges.*--nonmanifold tufted" poisson-coarse "${mesh}" --repair --ratio 0.2 -q)
   solved_on_cover("${mesh}" 75 0.1 0.1 0.1 --repair --ratio 0.3)
@@ -1356,9 +1357,20 @@ elseif(CASE STREQUAL "nonmanifold_cover")
   run(0 spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4 -k 6 --no-cache --report "${WORK}/s.json" --force -q)
   json(zero "${WORK}/s.json" error zero_modes)
   check(${zero} EQUAL 1 "zero modes of the cover's robust Laplacian (one component)")
-  expect_error(4 "needs its tufted cover: drop --tolerance" spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4
-               -k 6 --tolerance 1e-6 --no-cache -q)
-  expect_error(4 "needs its tufted cover" poisson-coarse "${mesh}" --repair --nonmanifold tufted --solver multigrid -q)
+  run(0 spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4 -k 6 --tolerance 1e-6 --no-cache
+      --report "${WORK}/r.json" --force -q)
+  json(converged "${WORK}/r.json" eigen refine converged)
+  check_text("${converged}" "ON" "eigen.refine.converged on the cover (CMake reads JSON true as ON)")
+  json(worst "${WORK}/r.json" error eigenvalue_rel_max)
+  check(${worst} LESS 1e-6 "refined eigenvalues on the cover against the fine robust Laplacian's")
+  foreach(_tool poisson-coarse heat-coarse)
+    run(0 ${_tool} "${mesh}" --repair --nonmanifold tufted --solver multigrid --mg-coarsest 10 --no-cache
+        --report "${WORK}/m.json" --force -q)
+    json(levels "${WORK}/m.json" solver hierarchy levels)
+    check(${levels} GREATER 1 "${_tool}: multigrid levels on the cover")
+    json(difference "${WORK}/m.json" error rel_l2)
+    check(${difference} LESS 1e-6 "${_tool}: multigrid on the cover against CHOLMOD's solution")
+  endforeach()
   # An oriented manifold: the option changes nothing.
   project_mesh(spot spot.obj)
   run(0 poisson-coarse "${spot}" --ratio 0.05 --no-cache --no-reference --solutions "${WORK}/a.npy" --force -q)

@@ -318,9 +318,27 @@ TEST_CASE("multigrid refuses bad input", "[multigrid]") {
     const ice::FaceLengths L = ice::face_lengths_from_positions(s.mesh.V, s.mesh.F);
     CHECK_THROWS_AS(ice::build_hierarchy(ice::IntrinsicMesh{F, ice::FaceLengths(L.topRows(L.rows() - 1)), {}, static_cast<ice::Index>(s.mesh.V.rows())}, o), std::invalid_argument);
     ice::IntrinsicMesh glued = ice::intrinsic_mesh(s.mesh);
-    CHECK_NOTHROW(ice::build_hierarchy(glued, o));
-    glued.twin = ice::glue_by_vertex_pairs(glued.F);  // a gluing given: not supported
+    const ice::Hierarchy by_pairs = ice::build_hierarchy(glued, o);
+    // The same gluing given explicitly: the same levels, up to round-off (the triangulation numbers its
+    // edges in another order, so flips and sums run in another order).
+    glued.twin = ice::glue_by_vertex_pairs(glued.F);
+    const ice::Hierarchy by_twin = ice::build_hierarchy(glued, o);
+    REQUIRE(by_twin.num_levels() == by_pairs.num_levels());
+    for (std::size_t k = 0; k < by_pairs.prolongations.size(); ++k) {
+      CHECK(by_twin.prolongations[k].nonZeros() == by_pairs.prolongations[k].nonZeros());
+      CHECK(relative_difference(by_twin.prolongations[k], by_pairs.prolongations[k]) < 1e-4);
+    }
+    CHECK(by_twin.levels.back().twin.size() == 3 * static_cast<std::size_t>(by_twin.levels.back().F.rows()));
+    glued.twin.pop_back();
     CHECK_THROWS_AS(ice::build_hierarchy(glued, o), std::invalid_argument);
+    // An open mesh given with its gluing (its boundary sides kInvalid).
+    ice::IntrinsicMesh open = ice::intrinsic_mesh(ice::load_mesh(ice_test::project_mesh("cat_head.obj")));
+    open.twin = ice::glue_by_vertex_pairs(open.F);
+    REQUIRE(std::count(open.twin.begin(), open.twin.end(), ice::kInvalid) > 0);
+    ice::HierarchyOptions small = o;
+    small.coarsest_vertices = 20;
+    const ice::Hierarchy open_levels = ice::build_hierarchy(open, small);
+    CHECK(open_levels.num_levels() >= 2);
     CHECK_THROWS_AS(ice::build_hierarchy(ice::intrinsic_mesh(F, L, static_cast<ice::Index>(s.mesh.V.rows()) + 1), o),
                     std::invalid_argument);  // a vertex no face uses
     F(3, 1) = -2;

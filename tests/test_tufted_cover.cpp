@@ -5,17 +5,21 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <set>
 #include <stdexcept>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
 
+#include "fem/cholesky.h"
 #include "fem/curvature_correction.h"
+#include "fem/multigrid.h"
 #include "fem/operators.h"
 #include "fem/problems.h"
 #include "fem/topology.h"
 #include "ice/coarse_space.h"
+#include "ice/hierarchy.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
@@ -121,6 +125,41 @@ ice::TriangleMesh tetrahedra_sharing_an_edge() {
                                            : (mesh.V.row(0) + mesh.V.row(1) + mesh.V.row(4) + mesh.V.row(5)).transpose() / 4;
     if ((b - a).cross(c - a).dot(a - centroid) < 0) std::swap(mesh.F(f, 1), mesh.F(f, 2));
   }
+  return mesh;
+}
+
+// A square sheet (n × n quads) with a fin standing on its middle row, down and up: the n edges along
+// that row have four faces each (non-manifold edges). n even.
+ice::TriangleMesh sheet_with_fin(int n) {
+  const int row = n / 2, side = n + 1;
+  std::vector<Eigen::RowVector3d> points;
+  std::vector<Index> sheet(static_cast<std::size_t>(side * side)), fin(static_cast<std::size_t>(side * side));
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j) {
+      sheet[static_cast<std::size_t>(i * side + j)] = static_cast<Index>(points.size());
+      points.emplace_back(double(i) / n, double(j - row) / n, 0.0);
+    }
+  for (int i = 0; i <= n; ++i)
+    for (int k = 0; k <= n; ++k) {
+      if (k == row) {
+        fin[static_cast<std::size_t>(i * side + k)] = sheet[static_cast<std::size_t>(i * side + row)];
+        continue;
+      }
+      fin[static_cast<std::size_t>(i * side + k)] = static_cast<Index>(points.size());
+      points.emplace_back(double(i) / n, 0.0, double(k - row) / n);
+    }
+  ice::TriangleMesh mesh;
+  mesh.V.resize(static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t p = 0; p < points.size(); ++p) mesh.V.row(static_cast<Eigen::Index>(p)) = points[p];
+  mesh.F.resize(4 * n * n, 3);
+  Eigen::Index f = 0;
+  for (const std::vector<Index>* grid : {&sheet, &fin})
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        const auto at = [&](int a, int b) { return (*grid)[static_cast<std::size_t>(a * side + b)]; };
+        mesh.F.row(f++) << at(i, j), at(i + 1, j), at(i + 1, j + 1);
+        mesh.F.row(f++) << at(i, j), at(i + 1, j + 1), at(i, j + 1);
+      }
   return mesh;
 }
 
@@ -254,6 +293,20 @@ TEST_CASE("tufted cover: bad input is refused, the loader keeps sheets only when
   ice::CoarseSpaceOptions qem;
   qem.method = ice::CoarseningMethod::qem;
   REQUIRE_THROWS_WITH(ice::build_coarse_space(ice::tufted_cover(kept), qem), Catch::Contains("ICE only"));
+  // A cover damaged by hand is refused, naming the defect, before anything indexes through it.
+  const ice::TuftedCover cover = ice::tufted_cover(kept);
+  ice::TuftedCover damaged = cover;
+  damaged.twin[5] = damaged.twin[6];
+  REQUIRE_THROWS_WITH(ice::build_hierarchy(damaged), Catch::Contains("side 5 is not glued"));
+  damaged = cover;
+  damaged.twin.pop_back();
+  REQUIRE_THROWS_WITH(ice::build_coarse_space(damaged, ice::CoarseSpaceOptions{}), Catch::Contains("3 sides per face"));
+  damaged = cover;
+  damaged.to_input[0] = cover.input_vertex_count;
+  REQUIRE_THROWS_WITH(ice::build_hierarchy(damaged), Catch::Contains("out of range"));
+  damaged = cover;
+  damaged.input_vertex_count += 1;
+  REQUIRE_THROWS_WITH(ice::build_hierarchy(damaged), Catch::Contains("has no copy"));
 }
 
 TEST_CASE("tufted cover through the recipes: a manifold mesh to the same bits, a non-manifold one near its fine solve", "[cover][proxy]") {
@@ -325,6 +378,85 @@ TEST_CASE("tufted cover: geodesics by the heat method near the fine heat method 
   const Eigen::VectorXd plain = ice::proxy::geodesic_distance(spot, {0}, manifold);
   manifold.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
   REQUIRE(ice::proxy::geodesic_distance(spot, {0}, manifold) == plain);
+}
+
+TEST_CASE("tufted cover: a multigrid hierarchy on the input's vertices solves the robust Laplacian", "[cover][multigrid]") {
+  // An oriented manifold gets the same hierarchy with or without the option.
+  const ice::TriangleMesh spot = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+  ice::HierarchyOptions options;
+  const ice::Hierarchy plain = ice::build_hierarchy(spot, options);
+  options.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  const ice::Hierarchy same = ice::build_hierarchy(spot, options);
+  REQUIRE(same.num_levels() == plain.num_levels());
+  for (std::size_t k = 0; k < plain.prolongations.size(); ++k)
+    REQUIRE(ice_test::relative_difference(same.prolongations[k], plain.prolongations[k]) == 0.0);
+  REQUIRE(same.fine_order == plain.fine_order);
+
+  struct Case {
+    const char* name;
+    ice::TriangleMesh mesh;
+    int min_levels;
+  };
+  std::vector<Case> cases;
+  cases.push_back({"a sheet with a fin (40 non-manifold edges)", sheet_with_fin(40), 4});
+  cases.push_back({"triple_vierbein.obj", load_keeping_sheets("triple_vierbein.obj"), 2});
+  cases.push_back({"a Moebius strip (non-orientable)", moebius_strip(40), 2});
+  for (const Case& c : cases) {
+    INFO(c.name);
+    const ice::TriangleMesh& mesh = c.mesh;
+    const Index n = static_cast<Index>(mesh.V.rows());
+    REQUIRE_THROWS_AS(ice::build_hierarchy(mesh, ice::HierarchyOptions{}), std::invalid_argument);
+    options.coarsest_vertices = 12;
+    const Index locked = n / 3;
+    options.locked_vertices = {locked};
+    const ice::Hierarchy H = ice::build_hierarchy(mesh, options);
+    INFO("levels " << H.num_levels() << ", stopped: " << H.stop_reason);
+    REQUIRE(H.num_levels() >= c.min_levels);
+    REQUIRE(H.levels[0].vertex_count == n);
+    for (int k = 0; k < H.num_levels(); ++k) {
+      // Each level's unknowns are distinct input vertices, the locked one among them.
+      const ice::HierarchyLevel& level = H.levels[static_cast<std::size_t>(k)];
+      REQUIRE(level.to_fine.size() == static_cast<std::size_t>(level.vertex_count));
+      std::vector<Index> sorted = level.to_fine;
+      std::sort(sorted.begin(), sorted.end());
+      REQUIRE(std::adjacent_find(sorted.begin(), sorted.end()) == sorted.end());
+      REQUIRE((sorted.front() >= 0 && sorted.back() < n));
+      REQUIRE(std::binary_search(sorted.begin(), sorted.end(), locked));
+      if (k + 1 == H.num_levels()) break;
+      // P_k: level k × level k+1, non-negative, rows summing to 1 (constants are kept).
+      const Eigen::SparseMatrix<double>& P = H.prolongations[static_cast<std::size_t>(k)];
+      REQUIRE(P.rows() == level.vertex_count);
+      REQUIRE(P.cols() == H.levels[static_cast<std::size_t>(k) + 1].vertex_count);
+      REQUIRE(P.cols() < P.rows());
+      const Eigen::VectorXd row_sums = P * Eigen::VectorXd::Ones(P.cols());
+      REQUIRE((row_sums.array() - 1).abs().maxCoeff() < 1e-12);
+      REQUIRE(P.coeffs().minCoeff() >= 0);
+    }
+    std::vector<Index> order = H.fine_order, identity(static_cast<std::size_t>(n));
+    std::sort(order.begin(), order.end());
+    std::iota(identity.begin(), identity.end(), 0);
+    REQUIRE(order == identity);
+
+    // PCG with its V-cycles on L + εM of the cover's robust Laplacian reaches CHOLMOD's solution.
+    const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay, ice::NonmanifoldInput::tufted_cover);
+    const fem::SparseMatrix L = fem::cotan_laplacian(fine), M = fem::mass_matrix(fine);
+    const fem::SparseMatrix A = L + 1e-3 * (L.diagonal().sum() / M.diagonal().sum()) * M;
+    Eigen::VectorXd f(n);
+    for (Index i = 0; i < n; ++i) f(i) = std::sin(3 * mesh.V(i, 0)) + mesh.V(i, 1) * mesh.V(i, 2) + (i % 7 == 0 ? 1.0 : 0.0);
+    const Eigen::VectorXd b = M * f;
+    const Eigen::VectorXd reference = fem::CholeskySolver(A).solve(b);
+    fem::MultigridOptions multigrid;
+    multigrid.tolerance = 1e-10;
+    fem::MultigridSolver solver(H.prolongations, multigrid);
+    solver.set_locality_order(H.fine_order);
+    solver.setup(A);
+    const Eigen::VectorXd x = solver.solve(b);
+    const fem::MultigridReport& r = solver.report();
+    INFO("iterations " << r.iterations << ", convergence factor " << r.convergence_factor);
+    REQUIRE(r.converged);
+    REQUIRE(r.convergence_factor < 0.3);
+    REQUIRE(ice_test::relative_difference(x, reference) < 1e-7);
+  }
 }
 
 TEST_CASE("tufted cover: mirror sheets are coarsened once, a vertex's coarse copies are one coarse vertex", "[cover][proxy]") {

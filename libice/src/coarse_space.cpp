@@ -40,10 +40,6 @@ const char* to_string(QemGeometry geometry) {
   return geometry == QemGeometry::intrinsic_delaunay ? "intrinsic_delaunay" : "extrinsic";
 }
 
-const char* to_string(NonmanifoldInput choice) {
-  return choice == NonmanifoldInput::tufted_cover ? "tufted_cover" : "refuse";
-}
-
 const char* to_string(ProxyUse use) { return use == ProxyUse::geodesic ? "geodesic" : "poisson_heat"; }
 
 CoarsenOptions recommended_coarsen_options(ProxyUse use) {
@@ -286,10 +282,6 @@ CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep
   if (keep_method_state) space.qem_result = std::move(qem);
   space.summary.seconds = seconds_since(start);
   return space;
-}
-
-bool solved_on_tufted_cover(const TriangleMesh& mesh, NonmanifoldInput choice) {
-  return choice == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
 }
 
 CoarseSpace build_coarse_space(const TriangleMesh& mesh, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {

@@ -11,6 +11,7 @@
 
 #include "ice/graph_ordering.h"
 #include "ice/prolongation.h"
+#include "ice/triangle_geometry.h"
 #include "locality_numbering.h"
 #include "run_tasks.h"
 
@@ -347,8 +348,9 @@ CoarsenResult coarsen_by_independent_sets(IntrinsicTriangulation& T, const Coars
 // = old) with the faces sorted by their smallest new vertex (detail::renumber_faces): a removal's
 // faces then lie together in memory as its vertices do. Vertices that no face uses keep a place
 // (isolated vertices of the graph).
-void breadth_first_numbering(const Faces& F, const FaceLengths& L, std::vector<Index>& order, Faces& F_out,
-                             FaceLengths& L_out) {
+// A gluing `twin` (sides 3f + k) is renumbered with the faces into twin_out (corners keep their order).
+void breadth_first_numbering(const Faces& F, const FaceLengths& L, const std::vector<Index>& twin, std::vector<Index>& order,
+                             Faces& F_out, FaceLengths& L_out, std::vector<Index>& twin_out) {
   // What IntrinsicTriangulation::from_lengths would refuse, refused before the arrays are indexed.
   if (F.cols() != 3 || L.cols() != 3 || F.rows() != L.rows())
     throw std::invalid_argument("build_hierarchy: F and L must both be m x 3");
@@ -373,28 +375,148 @@ void breadth_first_numbering(const Faces& F, const FaceLengths& L, std::vector<I
   F_out = std::move(faces.F);
   L_out.resize(L.rows(), 3);
   for (Eigen::Index row = 0; row < L.rows(); ++row) L_out.row(row) = L.row(faces.face_order[static_cast<std::size_t>(row)]);
+  twin_out.clear();
+  if (twin.empty()) return;
+  if (twin.size() != static_cast<std::size_t>(3 * F.rows()))
+    throw std::invalid_argument("build_hierarchy: twin must have 3 entries per face");
+  std::vector<Index> new_face(static_cast<std::size_t>(F.rows()));
+  for (std::size_t row = 0; row < faces.face_order.size(); ++row)
+    new_face[static_cast<std::size_t>(faces.face_order[row])] = static_cast<Index>(row);
+  twin_out.resize(twin.size());
+  for (std::size_t row = 0; row < faces.face_order.size(); ++row)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const Index side = twin[3 * static_cast<std::size_t>(faces.face_order[row]) + k];
+      if (side == kInvalid) {  // a boundary side
+        twin_out[3 * row + k] = kInvalid;
+        continue;
+      }
+      if (side < 0 || side >= static_cast<Index>(twin.size()))
+        throw std::invalid_argument("build_hierarchy: twin entry out of range");
+      twin_out[3 * row + k] = 3 * new_face[static_cast<std::size_t>(side / 3)] + side % 3;
+    }
 }
 
-Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const HierarchyOptions& options);
+Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const std::vector<Index>& twin, const HierarchyOptions& options);
 
 }  // namespace
 
 Hierarchy build_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options) {
-  return hierarchy_of(mesh.F, face_lengths_from_positions(mesh.V, mesh.F), options);
+  if (solved_on_tufted_cover(mesh, options.nonmanifold)) return build_hierarchy(tufted_cover(mesh), options);
+  return hierarchy_of(mesh.F, face_lengths_from_positions(mesh.V, mesh.F), {}, options);
 }
 
 Hierarchy build_hierarchy(const IntrinsicMesh& mesh, const HierarchyOptions& options) {
-  if (!mesh.twin.empty())
-    throw std::invalid_argument("build_hierarchy: the mesh must be glued by vertex pairs (its twin empty)");
   if (mesh.vertex_count != (mesh.F.size() == 0 ? 0 : mesh.F.maxCoeff() + 1))
     throw std::invalid_argument("build_hierarchy: every vertex must be used by a face (vertex_count = max index + 1)");
-  return hierarchy_of(mesh.F, mesh.L, options);
+  return hierarchy_of(mesh.F, mesh.L, mesh.twin, options);
+}
+
+Hierarchy build_hierarchy(const TuftedCover& full_cover, const HierarchyOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  // Coarsened once per distinct sheet: a mirror sheet's copies would give every coarse basis
+  // function twice (singular coarse operators), as in build_coarse_space.
+  const TuftedCover cover = distinct_sheets(full_cover);
+  const Index n = cover.input_vertex_count;
+  const auto copies = static_cast<Index>(cover.to_input.size());
+  HierarchyOptions cover_options = options;
+  if (!options.locked_vertices.empty()) {
+    std::vector<char> locked(static_cast<std::size_t>(n), 0);
+    for (Index v : options.locked_vertices) {
+      if (v < 0 || v >= n) throw std::invalid_argument("build_hierarchy: locked vertex out of range");
+      locked[static_cast<std::size_t>(v)] = 1;
+    }
+    cover_options.locked_vertices.clear();
+    for (Index c = 0; c < copies; ++c)
+      if (locked[static_cast<std::size_t>(cover.to_input[static_cast<std::size_t>(c)])]) cover_options.locked_vertices.push_back(c);
+  }
+  // The coarsest size counts input vertices; a cover level has about copies / n times as many.
+  if (options.coarsest_vertices < 1) throw std::invalid_argument("build_hierarchy: coarsest_vertices must be >= 1");
+  if (n > 0) {
+    const double scaled = static_cast<double>(options.coarsest_vertices) * static_cast<double>(copies) / static_cast<double>(n);
+    cover_options.coarsest_vertices = static_cast<Index>(std::min(std::round(scaled), double(std::numeric_limits<Index>::max())));
+  }
+  const IntrinsicMesh intrinsic = cover.intrinsic_mesh();
+  Hierarchy H = hierarchy_of(intrinsic.F, intrinsic.L, intrinsic.twin, cover_options);
+
+  // Per level: each copy's unknown (its input vertex's, numbered by first copy; level 0: the input
+  // numbering), each copy's lumped area.
+  std::vector<std::vector<Index>> unknown(H.levels.size());
+  std::vector<std::vector<Index>> level_to_input(H.levels.size());
+  for (std::size_t k = 0; k < H.levels.size(); ++k) {
+    const HierarchyLevel& level = H.levels[k];
+    std::vector<Index>& of_copy = unknown[k];
+    of_copy.resize(level.to_fine.size());
+    if (k == 0) {
+      for (std::size_t c = 0; c < of_copy.size(); ++c) of_copy[c] = cover.to_input[c];
+      level_to_input[0].resize(static_cast<std::size_t>(n));
+      std::iota(level_to_input[0].begin(), level_to_input[0].end(), 0);
+      continue;
+    }
+    std::vector<Index> from_input(static_cast<std::size_t>(n), kInvalid);
+    for (std::size_t c = 0; c < of_copy.size(); ++c) {
+      const Index v = cover.to_input[static_cast<std::size_t>(level.to_fine[c])];
+      Index& u = from_input[static_cast<std::size_t>(v)];
+      if (u == kInvalid) {
+        u = static_cast<Index>(level_to_input[k].size());
+        level_to_input[k].push_back(v);
+      }
+      of_copy[c] = u;
+    }
+  }
+  const auto copy_areas = [](const HierarchyLevel& level) {
+    Eigen::VectorXd area = Eigen::VectorXd::Zero(level.vertex_count);
+    for (Eigen::Index f = 0; f < level.F.rows(); ++f) {
+      const double third = triangle_area(level.L(f, 0), level.L(f, 1), level.L(f, 2)) / 3.0;
+      for (int k = 0; k < 3; ++k) area(level.F(f, k)) += third;
+    }
+    return area;
+  };
+  for (std::size_t k = 0; k + 1 < H.levels.size(); ++k) {
+    const auto coarse_count = static_cast<Index>(level_to_input[k + 1].size());
+    std::vector<Eigen::Triplet<double>> spread;
+    spread.reserve(unknown[k + 1].size());
+    for (std::size_t c = 0; c < unknown[k + 1].size(); ++c) spread.emplace_back(static_cast<Index>(c), unknown[k + 1][c], 1.0);
+    Eigen::SparseMatrix<double> S(static_cast<Index>(unknown[k + 1].size()), coarse_count);
+    S.setFromTriplets(spread.begin(), spread.end());
+    const Eigen::SparseMatrix<double> W =
+        copies_to_vertices(unknown[k], static_cast<Index>(level_to_input[k].size()), copy_areas(H.levels[k]));
+    Eigen::SparseMatrix<double> P = W * H.prolongations[k] * S;
+    P.makeCompressed();
+    H.prolongations[k] = std::move(P);
+  }
+  // The levels on the unknowns: each copy named by its vertex, the gluing kept; level 0 the whole
+  // cover's (the fine operators' mesh).
+  for (std::size_t k = 0; k < H.levels.size(); ++k) {
+    HierarchyLevel& level = H.levels[k];
+    if (k == 0) {
+      static_cast<IntrinsicMesh&>(level) = full_cover.intrinsic_mesh();
+      for (Eigen::Index f = 0; f < level.F.rows(); ++f)
+        for (int c = 0; c < 3; ++c) level.F(f, c) = full_cover.to_input[static_cast<std::size_t>(level.F(f, c))];
+    } else {
+      for (Eigen::Index f = 0; f < level.F.rows(); ++f)
+        for (int c = 0; c < 3; ++c) level.F(f, c) = unknown[k][static_cast<std::size_t>(level.F(f, c))];
+    }
+    level.vertex_count = static_cast<Index>(level_to_input[k].size());
+    level.to_fine = std::move(level_to_input[k]);
+  }
+  if (!H.fine_order.empty()) {
+    std::vector<Index> order;
+    order.reserve(static_cast<std::size_t>(n));
+    std::vector<char> placed(static_cast<std::size_t>(n), 0);
+    for (Index c : H.fine_order) {
+      const Index v = cover.to_input[static_cast<std::size_t>(c)];
+      if (!placed[static_cast<std::size_t>(v)]) placed[static_cast<std::size_t>(v)] = 1, order.push_back(v);
+    }
+    H.fine_order = std::move(order);
+  }
+  H.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return H;
 }
 
 namespace {
 
 // The hierarchy of the intrinsic mesh (F, L) (the two public forms' common part).
-Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const HierarchyOptions& options) {
+Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const std::vector<Index>& twin, const HierarchyOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   if (!(options.ratio > 0 && options.ratio < 1))
     throw std::invalid_argument("build_hierarchy: ratio must be in (0, 1)");
@@ -409,12 +531,16 @@ Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const HierarchyOpti
   // (IntrinsicTriangulation::compacted restarts tracking), t_to_fine maps them to level-0 vertices.
   // With options.reorder, T's level-0 vertex i is input vertex fine_order[i].
   std::vector<Index> fine_order;
+  const bool glued = !twin.empty();
   IntrinsicTriangulation T = [&] {
-    if (!options.reorder) return IntrinsicTriangulation::from_lengths(F, L);
+    if (!options.reorder)
+      return glued ? IntrinsicTriangulation::from_glued_faces(F, L, twin) : IntrinsicTriangulation::from_lengths(F, L);
     Faces renumbered;
     FaceLengths lengths;
-    breadth_first_numbering(F, L, fine_order, renumbered, lengths);
-    return IntrinsicTriangulation::from_lengths(renumbered, std::move(lengths));
+    std::vector<Index> renumbered_twin;
+    breadth_first_numbering(F, L, twin, fine_order, renumbered, lengths, renumbered_twin);
+    return glued ? IntrinsicTriangulation::from_glued_faces(renumbered, lengths, renumbered_twin)
+                 : IntrinsicTriangulation::from_lengths(renumbered, std::move(lengths));
   }();
   // The independent-set passes read no angular coordinate (only ice::coarsen's metric does), so
   // their levels skip maintaining them (IntrinsicTriangulation::maintain_frames).
@@ -428,6 +554,7 @@ Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const HierarchyOpti
   HierarchyLevel input;
   input.F = F;
   input.L = L;
+  input.twin = twin;
   input.vertex_count = n0;
   input.to_fine.resize(static_cast<std::size_t>(n0));
   std::iota(input.to_fine.begin(), input.to_fine.end(), 0);
@@ -489,6 +616,7 @@ Hierarchy hierarchy_of(const Faces& F, const FaceLengths& L, const HierarchyOpti
       level.to_fine[i] = t_to_fine[static_cast<std::size_t>(C.to_input[i])];
     level.F = std::move(C.F);
     level.L = std::move(C.L);
+    if (glued) level.twin = std::move(C.twin);  // a Δ-complex's levels keep their gluing
     level.vertex_count = C.vertex_count;
     H.prolongations.push_back(std::move(P));
     H.coarsening.push_back(result);

@@ -13,6 +13,14 @@
 
 namespace ice {
 
+const char* to_string(NonmanifoldInput choice) {
+  return choice == NonmanifoldInput::tufted_cover ? "tufted_cover" : "refuse";
+}
+
+bool solved_on_tufted_cover(const TriangleMesh& mesh, NonmanifoldInput choice) {
+  return choice == NonmanifoldInput::tufted_cover && needs_tufted_cover(mesh);
+}
+
 namespace {
 
 // The sides (3f + k: face f from corner k to k + 1) of F grouped by undirected edge: the sides of
@@ -192,6 +200,23 @@ TuftedCover tufted_cover(const TriangleMesh& mesh) {
 
 TuftedCover distinct_sheets(const TuftedCover& cover) {
   const Index faces = static_cast<Index>(cover.mesh.F.rows()), m = faces / 2;
+  // What the cover's users index without looking (a cover made by hand may break it).
+  const auto refuse = [](const std::string& defect) { throw std::invalid_argument("tufted cover: " + defect); };
+  if (faces % 2 != 0) refuse("an odd face count (a front and a back sheet per input face)");
+  if (cover.twin.size() != static_cast<std::size_t>(3 * faces)) refuse("the gluing does not have 3 sides per face");
+  for (Index s = 0; s < 3 * faces; ++s) {
+    const Index t = cover.twin[static_cast<std::size_t>(s)];
+    if (t < 0 || t >= 3 * faces || t == s || cover.twin[static_cast<std::size_t>(t)] != s)
+      refuse("side " + std::to_string(s) + " is not glued to a side glued back to it (the cover is closed)");
+  }
+  if (cover.to_input.size() != static_cast<std::size_t>(cover.mesh.V.rows()))
+    refuse("to_input does not have one entry per cover vertex");
+  std::vector<char> has_copy(static_cast<std::size_t>(std::max<Index>(cover.input_vertex_count, 0)), 0);
+  for (Index v : cover.to_input) {
+    if (v < 0 || v >= cover.input_vertex_count) refuse("a cover vertex's input vertex is out of range");
+    has_copy[static_cast<std::size_t>(v)] = 1;
+  }
+  if (std::find(has_copy.begin(), has_copy.end(), 0) != has_copy.end()) refuse("an input vertex has no copy");
   detail::DisjointSets parts(static_cast<std::size_t>(faces));
   for (Index s = 0; s < 3 * faces; ++s) parts.unite(static_cast<std::size_t>(s / 3), static_cast<std::size_t>(cover.twin[static_cast<std::size_t>(s)] / 3));
   // A component is a mirror of another when every face's mirror (f <-> m + f) lies in one other
@@ -261,23 +286,30 @@ Eigen::VectorXd cover_vertex_areas(const TuftedCover& cover) {
 }
 
 Eigen::SparseMatrix<double> cover_to_input(const TuftedCover& cover, const Eigen::VectorXd& copy_mass) {
-  const Index copies = static_cast<Index>(cover.to_input.size());
+  return copies_to_vertices(cover.to_input, cover.input_vertex_count, copy_mass);
+}
+
+Eigen::SparseMatrix<double> copies_to_vertices(const std::vector<Index>& vertex_of_copy, Index vertex_count,
+                                               const Eigen::VectorXd& copy_mass) {
+  const Index copies = static_cast<Index>(vertex_of_copy.size());
   if (copy_mass.size() != copies)
-    throw std::invalid_argument("cover_to_input: copy_mass has " + std::to_string(copy_mass.size()) + " entries, the cover " +
-                                std::to_string(copies) + " vertices");
-  Eigen::VectorXd total = Eigen::VectorXd::Zero(cover.input_vertex_count);
-  Eigen::VectorXi count = Eigen::VectorXi::Zero(cover.input_vertex_count);
+    throw std::invalid_argument("copies_to_vertices: copy_mass has " + std::to_string(copy_mass.size()) + " entries, for " +
+                                std::to_string(copies) + " copies");
+  Eigen::VectorXd total = Eigen::VectorXd::Zero(vertex_count);
+  Eigen::VectorXi count = Eigen::VectorXi::Zero(vertex_count);
   for (Index c = 0; c < copies; ++c) {
-    total(cover.to_input[static_cast<std::size_t>(c)]) += copy_mass(c);
-    ++count(cover.to_input[static_cast<std::size_t>(c)]);
+    const Index i = vertex_of_copy[static_cast<std::size_t>(c)];
+    if (i < 0 || i >= vertex_count) throw std::invalid_argument("copies_to_vertices: a copy's vertex is out of range");
+    total(i) += copy_mass(c);
+    ++count(i);
   }
   std::vector<Eigen::Triplet<double>> entries;
   entries.reserve(static_cast<std::size_t>(copies));
   for (Index c = 0; c < copies; ++c) {
-    const Index i = cover.to_input[static_cast<std::size_t>(c)];
+    const Index i = vertex_of_copy[static_cast<std::size_t>(c)];
     entries.emplace_back(i, c, total(i) > 0 ? copy_mass(c) / total(i) : 1.0 / count(i));
   }
-  Eigen::SparseMatrix<double> W(cover.input_vertex_count, copies);
+  Eigen::SparseMatrix<double> W(vertex_count, copies);
   W.setFromTriplets(entries.begin(), entries.end());
   return W;
 }

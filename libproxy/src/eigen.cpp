@@ -141,14 +141,13 @@ EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, st
   if (refine.tolerance < 0 || !std::isfinite(refine.tolerance) || refine.max_iterations < 1)
     throw std::invalid_argument("eigenbasis: the refinement needs tolerance >= 0 (0: none) and max_iterations >= 1");
   const bool refining = refine.tolerance > 0;
-  if (refining && solved_on_tufted_cover(mesh, options_.coarsening.nonmanifold))
-    throw std::invalid_argument("eigenbasis: the refinement's multigrid hierarchy is built on oriented manifolds only; "
-                                "this mesh is solved on its tufted cover (set refine.tolerance = 0)");
   setup.fine_operators = refining;  // a restored proxy makes its fine Laplacian from a copy of the mesh
   setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
   if (refining) {
     setup_.proxy->fine_laplacian();  // made now, while `mesh` is at hand
-    hierarchy_ = multigrid_hierarchy(mesh, refine.hierarchy, Store(options_.store));
+    HierarchyOptions hierarchy = refine.hierarchy;
+    hierarchy.nonmanifold = options_.coarsening.nonmanifold;  // the proxy's choice, made once
+    hierarchy_ = multigrid_hierarchy(mesh, hierarchy, Store(options_.store));
   }
 }
 

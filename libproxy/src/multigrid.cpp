@@ -146,6 +146,9 @@ StoreKey multigrid_hierarchy_key(const TriangleMesh& mesh, const HierarchyOption
   // Independent-set levels are the same for every thread count; greedy levels run ice::coarsen,
   // whose result depends on its default region count.
   h.add(o.coarsening == LevelCoarsening::greedy ? coarsening_regions(CoarsenOptions{}) : 0);
+  // Through the tufted cover: keyed only where the mesh needs it (an oriented manifold's hierarchy is
+  // the same with either choice, and keeps the key it had before the choice existed).
+  if (solved_on_tufted_cover(mesh, o.nonmanifold)) h.add(static_cast<int>(o.nonmanifold));
   return h.finish();
 }
 

@@ -187,16 +187,17 @@ class ProxyGeodesicSolver:
 @overload
 def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
               max_levels: int = 20, threads: int = 0,
-              return_order: Literal[False] = False, cache: str | PathLike[str] | Literal[False] | None = None) -> list[scipy.sparse.csr_matrix]:
+              return_order: Literal[False] = False, nonmanifold: Literal["refuse", "tufted"] = "refuse", cache: str | PathLike[str] | Literal[False] | None = None) -> list[scipy.sparse.csr_matrix]:
     """Prolongations of an ICE multigrid hierarchy of (V, F)."""
 @overload
 def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
               max_levels: int = 20, threads: int = 0,
-              return_order: Literal[True], cache: str | PathLike[str] | Literal[False] | None = None) -> tuple[list[scipy.sparse.csr_matrix], IndexArray]:
+              return_order: Literal[True], nonmanifold: Literal["refuse", "tufted"] = "refuse", cache: str | PathLike[str] | Literal[False] | None = None) -> tuple[list[scipy.sparse.csr_matrix], IndexArray]:
     """Prolongations and the breadth-first numbering the hierarchy coarsened in."""
 @overload
 def hierarchy(V: ArrayLike, F: ArrayLike, *, ratio: float = 0.25, coarsest: int = 500,
-              max_levels: int = 20, threads: int = 0, return_order: bool = False, cache: str | PathLike[str] | Literal[False] | None = None
+              max_levels: int = 20, threads: int = 0, return_order: bool = False,
+              nonmanifold: Literal["refuse", "tufted"] = "refuse", cache: str | PathLike[str] | Literal[False] | None = None
               ) -> list[scipy.sparse.csr_matrix] | tuple[list[scipy.sparse.csr_matrix], IndexArray]: ...
 
 def save_hierarchy(path: str | PathLike[str], V: ArrayLike, F: ArrayLike, prolongations: Sequence[Any], *,

@@ -1467,8 +1467,13 @@ the same numbers to the last bit.)doc");
         ice::proxy::MultigridHierarchy hierarchy;
         {
           py::gil_scoped_release release;
-          require_clean(mesh);
-          hierarchy = ice::proxy::multigrid_hierarchy(mesh, refinement.hierarchy, store);
+          // The hierarchy through the tufted cover when the proxy's space is one (the same choice).
+          const ice::NonmanifoldInput nonmanifold =
+              proxy->tufted_cover ? ice::NonmanifoldInput::tufted_cover : ice::NonmanifoldInput::refuse;
+          require_clean(mesh, nonmanifold);
+          ice::HierarchyOptions hierarchy_options = refinement.hierarchy;
+          hierarchy_options.nonmanifold = nonmanifold;
+          hierarchy = ice::proxy::multigrid_hierarchy(mesh, hierarchy_options, store);
           basis = ice::proxy::refined_eigenbasis(*proxy->proxy, hierarchy, k, refinement, options, fixed, store);
         }
         py::dict info;
@@ -1702,10 +1707,11 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
   m.def(
       "hierarchy",
       [](const py::object& V, const py::object& F, double ratio, const py::object& coarsest, const py::object& max_levels,
-         const py::object& threads, bool return_order, const py::object& cache) -> py::object {
+         const py::object& threads, bool return_order, const std::string& nonmanifold, const py::object& cache) -> py::object {
         const ice::TriangleMesh mesh = mesh_argument(V, F);
         if (!(ratio > 0 && ratio < 1)) throw py::value_error("ratio must be in (0, 1)");
         ice::HierarchyOptions options;
+        options.nonmanifold = choice<ice::NonmanifoldInput>(nonmanifold, "nonmanifold");
         options.ratio = ratio;
         options.coarsest_vertices = bounded_integer(coarsest, "coarsest", 1, std::numeric_limits<int>::max());
         options.max_levels = bounded_integer(max_levels, "max_levels", 1, 1000);
@@ -1714,13 +1720,14 @@ length. to_ambient draws a field as 3D vectors; to_tangent turns 3D directions i
         ice::proxy::MultigridHierarchy hierarchy;
         {
           py::gil_scoped_release release;
-          require_clean(mesh);
+          require_clean(mesh, options.nonmanifold);
           hierarchy = ice::proxy::multigrid_hierarchy(mesh, options, store);
         }
         return hierarchy_to_python(hierarchy, return_order);
       },
       py::arg("V"), py::arg("F"), py::kw_only(), py::arg("ratio") = 0.25, py::arg("coarsest") = 500,
-      py::arg("max_levels") = 20, py::arg("threads") = 0, py::arg("return_order") = false, py::arg("cache") = py::none(),
+      py::arg("max_levels") = 20, py::arg("threads") = 0, py::arg("return_order") = false, py::arg("nonmanifold") = "refuse",
+      py::arg("cache") = py::none(),
       R"doc(The prolongations of an ICE multigrid hierarchy of (V, F) (scipy.sparse.csr_matrix, n_k × n_{k+1}, rows
 summing to 1): each level keeps about `ratio` of the previous one's vertices, down to about `coarsest`.
 Pass them to MultigridSolver; one hierarchy serves every operator on the mesh's vertices.
@@ -1729,7 +1736,10 @@ made before with the same mesh and options is loaded from there (checked; the sa
 threads: for the large levels' removals (0: one per core; the result does not depend on it).
 return_order=True returns (prolongations, order) instead: the breadth-first numbering the hierarchy
 coarsened in (order[new] = old vertex), which MultigridSolver(..., locality_order=order) reuses
-instead of ordering the matrix's graph again.)doc");
+instead of ordering the matrix's graph again.
+nonmanifold="tufted": a mesh that is not an oriented manifold is coarsened through its tufted cover, the
+copies of each vertex one unknown on every level (for the robust Laplacian: the fine_laplacian of
+ice.setup_proxy(V, F, nonmanifold="tufted", ...)); an oriented manifold gets the same hierarchy either way.)doc");
 
   m.def(
       "save_hierarchy",

@@ -45,16 +45,6 @@ enum class QemGeometry {
 const char* to_string(CoarseningMethod method);
 const char* to_string(QemGeometry geometry);
 
-/// What becomes of a mesh that is not an oriented manifold (ice::needs_tufted_cover).
-enum class NonmanifoldInput {
-  refuse,        ///< coarsening it throws std::invalid_argument (as IntrinsicTriangulation::from_mesh)
-  tufted_cover,  ///< it is coarsened through its tufted cover (ice/tufted_cover.h), on its own vertices
-};
-const char* to_string(NonmanifoldInput choice);
-/// Whether `mesh` is solved on its tufted cover under `choice`: asked for, and needed (needs_tufted_cover;
-/// an oriented manifold is solved as it is). O(faces).
-bool solved_on_tufted_cover(const TriangleMesh& mesh, NonmanifoldInput choice);
-
 /// What a coarse space will serve; picks the ICE metric's defaults for it (recommended_coarsen_options).
 enum class ProxyUse { poisson_heat, geodesic };
 const char* to_string(ProxyUse use);

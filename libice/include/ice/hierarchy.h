@@ -24,6 +24,7 @@
 #include "ice/coarsen.h"
 #include "ice/intrinsic_triangulation.h"
 #include "ice/mesh.h"
+#include "ice/tufted_cover.h"
 
 namespace ice {
 
@@ -95,10 +96,15 @@ struct HierarchyOptions {
   /// Fine (level-0) vertices that stay on every level (e.g. to keep sources as coarse vertices).
   /// Not needed for Dirichlet conditions: fem::MultigridSolver handles those algebraically.
   std::vector<Index> locked_vertices;
+  /// A mesh that is not an oriented manifold: refused (as IntrinsicTriangulation::from_mesh), or its
+  /// levels made by coarsening its tufted cover (build_hierarchy(const TuftedCover&, ...)). Read by
+  /// build_hierarchy(const TriangleMesh&, ...) only; an oriented manifold is coarsened as it is either way.
+  NonmanifoldInput nonmanifold = NonmanifoldInput::refuse;
 };
 
-/// One level: an intrinsic mesh (glued by vertex pairs: `twin` empty) and where its vertices come
-/// from (vertex_count == to_fine.size()).
+/// One level: an intrinsic mesh (glued by vertex pairs: `twin` empty; a tufted cover's levels keep
+/// their gluing, with each vertex's copies named by the vertex) and where its vertices come from
+/// (vertex_count == to_fine.size()).
 struct HierarchyLevel : IntrinsicMesh {
   std::vector<Index> to_fine; ///< level vertex -> level-0 vertex (the same surface point)
 };
@@ -127,13 +133,27 @@ struct Hierarchy {
   Eigen::SparseMatrix<double> prolongation_to_fine(int k) const;
 };
 
-/// Builds the hierarchy of an intrinsic mesh glued by vertex pairs (`twin` empty) whose every vertex
-/// is used (vertex_count = F.maxCoeff() + 1). Preconditions as for
-/// IntrinsicTriangulation::from_lengths, and those two (std::invalid_argument otherwise); options
-/// checked (std::invalid_argument).
+/// Builds the hierarchy of an intrinsic mesh, glued by vertex pairs (`twin` empty) or by `twin` (any
+/// Δ-complex; its levels keep their gluing), whose every vertex is used (vertex_count =
+/// F.maxCoeff() + 1). Preconditions as for IntrinsicTriangulation::from_lengths (or
+/// from_glued_faces), and that one (std::invalid_argument otherwise); options checked
+/// (std::invalid_argument; options.nonmanifold is not read).
 Hierarchy build_hierarchy(const IntrinsicMesh& mesh, const HierarchyOptions& options = {});
 
-/// Same for an extrinsic mesh (lengths from positions).
+/// Same for an extrinsic mesh (lengths from positions). With options.nonmanifold = tufted_cover, a
+/// mesh that needs the cover (ice::needs_tufted_cover) is coarsened through it, as below.
 Hierarchy build_hierarchy(const TriangleMesh& mesh, const HierarchyOptions& options = {});
+
+/// The hierarchy of a mesh that is not an oriented manifold, on its own vertices: the levels are
+/// coarsened on the cover's distinct sheets (ice::distinct_sheets) and, on every level, the copies of
+/// one input vertex are one unknown (as ice::build_coarse_space does for the proxy). Level 0 is the
+/// input's vertices in their numbering; P_k = W_k · Pᶜ_k · S_{k+1}, where Pᶜ_k is the cover level's
+/// prolongation, S_{k+1} gives each copy of level k+1 its vertex's value and W_k averages the copies
+/// of each level-k vertex by their lumped areas (ice::copies_to_vertices): rows sum to 1, and a
+/// field equal on all copies keeps its values. coarsest_vertices and locked_vertices count input
+/// vertices (every copy of a locked vertex stays). fine_order is the cover's breadth-first order
+/// of its copies, each vertex at its first copy. `coarsening` holds the cover levels' results.
+/// Preconditions as for ice::tufted_cover's result (std::invalid_argument otherwise).
+Hierarchy build_hierarchy(const TuftedCover& cover, const HierarchyOptions& options = {});
 
 }  // namespace ice

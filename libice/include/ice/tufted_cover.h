@@ -39,6 +39,16 @@ struct TuftedCover {
 /// Preconditions: indices in range.
 bool needs_tufted_cover(const TriangleMesh& mesh);
 
+/// What becomes of a mesh that is not an oriented manifold (ice::needs_tufted_cover).
+enum class NonmanifoldInput {
+  refuse,        ///< coarsening it throws std::invalid_argument (as IntrinsicTriangulation::from_mesh)
+  tufted_cover,  ///< it is coarsened through its tufted cover (below), on its own vertices
+};
+const char* to_string(NonmanifoldInput choice);
+/// Whether `mesh` is solved on its tufted cover under `choice`: asked for, and needed (needs_tufted_cover;
+/// an oriented manifold is solved as it is). O(faces).
+bool solved_on_tufted_cover(const TriangleMesh& mesh, NonmanifoldInput choice);
+
 /// The tufted cover of `mesh`. Around an edge shared by d faces the sheets are glued in the order of
 /// the faces' angle about the edge (ties by face index): the sheet of each face that looks into a
 /// wedge between two consecutive faces is glued to the other face's sheet that looks into the same
@@ -55,12 +65,22 @@ TuftedCover tufted_cover(const TriangleMesh& mesh);
 /// left out. The two carry the same geometry, so coarsening both would give the coarse space each
 /// basis function twice (a singular Galerkin mass). Faces keep their order (a subset of the cover's,
 /// so face f < m is no longer front face f); the gluing and copies are renumbered to match.
+/// Preconditions (std::invalid_argument naming the defect otherwise): the shape of ice::tufted_cover's
+/// result — an even face count, a closed gluing (an involution of the 3·faces sides), one input vertex
+/// in [0, input_vertex_count) per cover vertex and a copy of every input vertex.
 TuftedCover distinct_sheets(const TuftedCover& cover);
 
 /// The n × (cover vertices) matrix that takes a field on the cover to the input vertices: each input
 /// vertex gets the average of its copies' values weighted by `copy_mass` (their areas; all copies
 /// without mass: the plain average). Rows sum to 1; a field equal on all copies maps to itself.
 Eigen::SparseMatrix<double> cover_to_input(const TuftedCover& cover, const Eigen::VectorXd& copy_mass);
+
+/// The same averaging for any copies: the vertex_count × copies matrix whose row i averages the
+/// copies c with vertex_of_copy[c] == i, weighted by copy_mass (all of them without mass: the plain
+/// average). Preconditions (std::invalid_argument otherwise): copy_mass has one entry per copy, every
+/// vertex_of_copy in [0, vertex_count).
+Eigen::SparseMatrix<double> copies_to_vertices(const std::vector<Index>& vertex_of_copy, Index vertex_count,
+                                               const Eigen::VectorXd& copy_mass);
 
 /// Per cover vertex: a third of the area of every cover face at its corners (lumped barycentric area).
 Eigen::VectorXd cover_vertex_areas(const TuftedCover& cover);

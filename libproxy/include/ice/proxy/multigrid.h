@@ -63,8 +63,8 @@ void save_multigrid_hierarchy_file(const std::filesystem::path& path, const Tria
 MultigridHierarchy load_multigrid_hierarchy_file(const std::filesystem::path& path, const TriangleMesh& mesh);
 
 /// The key of the hierarchy of `mesh` by `options`: the mesh's positions and faces, every option
-/// (locked vertices as a set; the thread count only where the result depends on it) and the store's
-/// format version.
+/// (locked vertices as a set; the thread count and the non-manifold choice only where the result
+/// depends on them) and the store's format version.
 StoreKey multigrid_hierarchy_key(const TriangleMesh& mesh, const HierarchyOptions& options);
 
 }  // namespace ice::proxy
