@@ -226,8 +226,9 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   setup_options.assemble = assemble_proxy;
   setup_options.need_fine_mesh = need_fine;
   setup_options.fine_operators = true;
-  setup_options.restored_fine_mesh = [&mesh, geometry = opt.fine_geometry()](ice::IntrinsicMesh& fine) {
-    fine = static_cast<ice::IntrinsicMesh&&>(ice::fine_mesh(mesh, geometry));  // the tool's mesh outlives its proxy
+  setup_options.restored_fine_mesh = [&mesh, geometry = opt.fine_geometry(),
+                                       nonmanifold = setup_options.coarsening.nonmanifold](ice::IntrinsicMesh& fine) {
+    fine = static_cast<ice::IntrinsicMesh&&>(ice::fine_mesh(mesh, geometry, nonmanifold));  // the tool's mesh outlives its proxy
   };
   setup_options.store = store;
   setup_options.builder = [&opt, &run](const ice::TriangleMesh& m, const ice::CoarseSpaceOptions& space_options,

@@ -1371,6 +1371,16 @@ elseif(CASE STREQUAL "nonmanifold_cover")
     json(difference "${WORK}/m.json" error rel_l2)
     check(${difference} LESS 1e-6 "${_tool}: multigrid on the cover against CHOLMOD's solution")
   endforeach()
+  # Through the store: the covered setup is saved, then loaded, the same solution to the byte.
+  foreach(_run cold warm)
+    run(0 poisson-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.3 --cache "${WORK}/store" --no-reference
+        --solutions "${WORK}/${_run}.npy" --report "${WORK}/${_run}.json" --force -q)
+  endforeach()
+  json(_status "${WORK}/cold.json" cache status)
+  check_text("${_status}" "miss" "cache.status of the first covered run")
+  json(_status "${WORK}/warm.json" cache status)
+  check_text("${_status}" "hit" "cache.status of the second covered run")
+  require_same_bytes("${WORK}/cold.npy" "${WORK}/warm.npy" "poisson-coarse on the cover, cold and warm")
   # An oriented manifold: the option changes nothing.
   project_mesh(spot spot.obj)
   run(0 poisson-coarse "${spot}" --ratio 0.05 --no-cache --no-reference --solutions "${WORK}/a.npy" --force -q)

@@ -459,6 +459,51 @@ TEST_CASE("tufted cover: a multigrid hierarchy on the input's vertices solves th
   }
 }
 
+TEST_CASE("tufted cover: a covered setup through the store and a file, loaded bit for bit with the cover's fine mesh",
+          "[cover][store]") {
+  const ice::TriangleMesh mesh = sheet_with_fin(16);
+  const ice_test::TempDir dir;
+  ice::proxy::ProxySetupOptions options;
+  options.coarsening.coarsen.target_ratio = 0.2;
+  options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  options.fine_operators = true;
+  options.store = ice::proxy::Store({dir.file("store"), ice::proxy::kDefaultStoreBytes});
+  const ice::proxy::ProxySetup made = ice::proxy::build_proxy_setup(mesh, options);
+  REQUIRE(made.cache.status == ice::proxy::CacheStatus::miss);
+  REQUIRE(made.cache.save_error.empty());
+  REQUIRE(made.coarse.summary.tufted_cover);
+  const fem::SparseMatrix robust = fem::cotan_laplacian(
+      ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay, ice::NonmanifoldInput::tufted_cover));
+  const auto same_setup = [&](const ice::proxy::ProxySetup& loaded) {
+    REQUIRE(loaded.coarse.summary.tufted_cover);
+    REQUIRE(loaded.coarse.mesh.F == made.coarse.mesh.F);
+    REQUIRE(loaded.coarse.mesh.L == made.coarse.mesh.L);
+    REQUIRE(loaded.coarse.mesh.twin == made.coarse.mesh.twin);
+    REQUIRE(loaded.coarse.mesh.to_input == made.coarse.mesh.to_input);
+    REQUIRE(ice_test::relative_difference(loaded.coarse.P, made.coarse.P) == 0.0);
+    REQUIRE(ice_test::relative_difference(loaded.proxy->coarse_laplacian(), made.proxy->coarse_laplacian()) == 0.0);
+    // The restored proxy's fine operators are the cover's robust ones, made again from the mesh.
+    REQUIRE(ice_test::relative_difference(loaded.proxy->fine_laplacian(), robust) == 0.0);
+  };
+  const ice::proxy::ProxySetup warm = ice::proxy::build_proxy_setup(mesh, options);
+  REQUIRE(warm.cache.status == ice::proxy::CacheStatus::hit);
+  same_setup(warm);
+  // A file of the user's choosing.
+  ice::proxy::save_proxy_setup_file(dir.file("fin.ice"), mesh, made);
+  same_setup(ice::proxy::load_proxy_setup_file(dir.file("fin.ice"), mesh));
+  // An oriented manifold keeps the key it has without the option.
+  const ice::TriangleMesh spot = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+  ice::CoarseSpaceOptions plain;
+  ice::CoarseSpaceOptions covered = plain;
+  covered.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  const auto key = [&](const ice::TriangleMesh& m, const ice::CoarseSpaceOptions& o) {
+    return ice::proxy::proxy_setup_key(m, o, ice::FineGeometry::intrinsic_delaunay, fem::CoarseOperatorKind::galerkin,
+                                       fem::ProlongationKind::barycentric).hex();
+  };
+  REQUIRE(key(spot, covered) == key(spot, plain));
+  REQUIRE(key(mesh, covered) != key(mesh, plain));
+}
+
 TEST_CASE("tufted cover: mirror sheets are coarsened once, a vertex's coarse copies are one coarse vertex", "[cover][proxy]") {
   // Two icosahedra touching at a vertex: four closed sheets, two mirror pairs. Coarsening both of a
   // pair would give every coarse basis function twice (a singular Galerkin mass).

@@ -31,9 +31,10 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   ProxySetup setup;
   setup.fine_geometry = options.fine;
   // A mesh coarsened through its tufted cover: the cover's own coarse operators would be its
-  // components' (not the input's robust Laplacian), so Galerkin only; and not stored (its key would
-  // have to say so).
+  // components' (not the input's robust Laplacian), so Galerkin only. Stored under a key that says
+  // so (detail::add_mesh_and_coarsening), its fine mesh the cover's when made again.
   const bool covered = solved_on_tufted_cover(mesh, options.coarsening.nonmanifold);
+  const NonmanifoldInput nonmanifold = covered ? NonmanifoldInput::tufted_cover : NonmanifoldInput::refuse;
   require_galerkin_on_cover(covered, options.operators);  // before the work
   bool fine_made = false;  // setup.fine
   std::optional<StoreKey> key;
@@ -41,18 +42,18 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
     setup.coarse = std::move(*coarse);
   } else {
     CoarseSpaceOptions coarsening = options.coarsening;
-    coarsening.nonmanifold = covered ? NonmanifoldInput::tufted_cover : NonmanifoldInput::refuse;  // decided once
+    coarsening.nonmanifold = nonmanifold;  // decided once
     std::vector<Index>& kept = coarsening.coarsen.locked_vertices;
     kept.insert(kept.end(), options.locked.begin(), options.locked.end());
-    if (options.assemble && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history && !covered) {
+    if (options.assemble && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history) {
       key = proxy_setup_key(mesh, coarsening, options.fine, options.operators, resolved);
       fem::CoarseProxy::FineMeshSource source = options.restored_fine_mesh;
-      if (!source && options.fine_operators) source = fine_mesh_source(mesh, options.fine);
+      if (!source && options.fine_operators) source = fine_mesh_source(mesh, options.fine, nonmanifold);
       if (std::optional<ProxySetup> stored = load_proxy_setup(options.store, *key, mesh, setup.cache, std::move(source))) {
         stored->fine_geometry = options.fine;
         if (options.need_fine_mesh) {
           const auto start = Clock::now();
-          stored->fine = fine_mesh(mesh, options.fine);
+          stored->fine = fine_mesh(mesh, options.fine, nonmanifold);
           stored->times.fine_mesh = seconds_since(start);
         }
         return std::move(*stored);
@@ -68,7 +69,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   }
   if (needs_fine && !fine_made) {
     const auto start = Clock::now();
-    setup.fine = fine_mesh(mesh, options.fine, covered ? NonmanifoldInput::tufted_cover : NonmanifoldInput::refuse);
+    setup.fine = fine_mesh(mesh, options.fine, nonmanifold);
     setup.times.fine_mesh += seconds_since(start);
   }
   if (options.assemble) {

@@ -299,6 +299,10 @@ std::string EntryReader::text(const std::string& name) const {
   return std::string(reinterpret_cast<const char*>(a.data), a.count);
 }
 
+bool EntryReader::has(const std::string& name) const {
+  return std::any_of(arrays_.begin(), arrays_.end(), [&name](const Array& a) { return a.name == name; });
+}
+
 std::int64_t EntryReader::integer(const std::string& name) const {
   const Array& a = find(name, kInt64);
   if (a.count != 1) throw std::runtime_error(path_.string() + ": '" + name + "' is not one integer");

@@ -84,9 +84,9 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
   detail::save_entry(store, kProxyKind, key, entry.writer, setup.cache, start);
 }
 
-fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry) {
-  return [input = std::make_shared<const TriangleMesh>(mesh), geometry](IntrinsicMesh& fine) {
-    fine = static_cast<IntrinsicMesh&&>(fine_mesh(*input, geometry));
+fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry, NonmanifoldInput nonmanifold) {
+  return [input = std::make_shared<const TriangleMesh>(mesh), geometry, nonmanifold](IntrinsicMesh& fine) {
+    fine = static_cast<IntrinsicMesh&&>(fine_mesh(*input, geometry, nonmanifold));
   };
 }
 
@@ -149,8 +149,6 @@ std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& k
 
 void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
                            const fem::CoarseProxy& proxy, FineGeometry geometry, bool overwrite) {
-  if (coarse.summary.tufted_cover)  // its fine mesh is the cover's, which a setup file does not record
-    throw std::invalid_argument("save_proxy_setup_file: a setup through a tufted cover cannot be saved yet (set it up again)");
   const Eigen::SparseMatrix<double>& P = proxy.barycentric_prolongation();
   // Shapes first: a sparse expression of matrices of other shapes reads out of bounds.
   const bool same_P = coarse.P.rows() == P.rows() && coarse.P.cols() == P.cols() && coarse.P.isApprox(P, 0.0);
@@ -174,7 +172,9 @@ ProxySetup load_proxy_setup_file(const std::filesystem::path& path, const Triang
   const EntryReader entry = detail::read_file_for(path, kProxyKind, mesh);
   try {  // invalid_argument: an unknown geometry, or the restored proxy's own checks
     const FineGeometry geometry = parse<FineGeometry>(entry.text("fine_geometry"), "the fine geometry");
-    if (!fine_mesh) fine_mesh = fine_mesh_source(mesh, geometry);
+    // A setup through the tufted cover (marked in its coarse space) makes the cover's fine mesh again.
+    const NonmanifoldInput nonmanifold = entry.has("coarse.tufted_cover") ? NonmanifoldInput::tufted_cover : NonmanifoldInput::refuse;
+    if (!fine_mesh) fine_mesh = fine_mesh_source(mesh, geometry, nonmanifold);
     ProxySetup setup = setup_from_entry(entry, path.string(), mesh, std::move(fine_mesh));
     setup.fine_geometry = geometry;
     setup.cache.load_seconds = seconds_since(start);

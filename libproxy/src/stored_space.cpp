@@ -126,6 +126,8 @@ CoarseSpaceArrays::CoarseSpaceArrays(EntryWriter& w, const CoarseSpace& coarse) 
   w.put_sparse("coarse.P", coarse.P.isCompressed() ? coarse.P : compressed_P_);
   summary_ = summary_values(coarse.summary);
   w.put("coarse.summary", summary_.data(), summary_.size());
+  // Only where set: entries without it (all made before covers were stored) read as not covered.
+  if (coarse.summary.tufted_cover) w.put_int("coarse.tufted_cover", 1);
 }
 
 CoarseSpace coarse_space_from_entry(const EntryReader& entry, const std::string& path, const TriangleMesh& mesh) {
@@ -181,6 +183,10 @@ CoarseSpace coarse_space_from_entry(const EntryReader& entry, const std::string&
     entry.sparse("coarse.P").swap(c.P);  // Eigen 3.4's sparse assignment from a temporary copies; a swap does not
     require(c.P.rows() == n && c.P.cols() == nc, path, "P of the wrong shape");
     c.summary = summary_from(entry.doubles("coarse.summary"), path);
+    if (entry.has("coarse.tufted_cover")) {
+      require(entry.integer("coarse.tufted_cover") == 1, path, "the tufted-cover mark is not 1");
+      c.summary.tufted_cover = true;
+    }
 
     return c;
 }
@@ -200,6 +206,9 @@ void add_mesh_and_coarsening(KeyHasher& h, const TriangleMesh& mesh, const Coars
   h.add(to_string(coarsening.qem_geometry)).add(coarsening.locality_numbering);
   h.add(coarsening.refinement.has_value());
   if (coarsening.refinement) h.add(coarsening.refinement->min_angle_degrees).add(coarsening.refinement->max_vertex_ratio);
+  // Through the tufted cover: keyed only where the mesh needs it (an oriented manifold's space is the
+  // same with either choice, and keeps the key it had before covers were stored).
+  if (solved_on_tufted_cover(mesh, coarsening.nonmanifold)) h.add(to_string(coarsening.nonmanifold));
 }
 
 }  // namespace ice::proxy::detail

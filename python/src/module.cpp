@@ -689,6 +689,7 @@ void take_setup(const ice::TriangleMesh& mesh, ice::proxy::ProxySetup& setup, Py
   proxy.geometry = setup.fine_geometry;
   proxy.proxy = std::move(setup.proxy);
   proxy.method = coarse.space.summary.method;
+  proxy.tufted_cover = coarse.space.summary.tufted_cover;
 }
 
 py::tuple setup_proxy(const py::object& V, const py::object& F, const std::string& operators, const std::string& fine,
@@ -733,7 +734,6 @@ py::tuple setup_proxy(const py::object& V, const py::object& F, const std::strin
       throw py::value_error(e.what());
     }
     take_setup(mesh, setup, *coarse, *proxy);
-    proxy->tufted_cover = coarse->space.summary.tufted_cover;
     proxy->cache = ice::proxy::cache_json(setup.cache, store);
     proxy->cache["load_seconds"] = setup.cache.load_seconds;
     proxy->cache["save_seconds"] = setup.cache.save_seconds;

@@ -63,7 +63,7 @@ def test_point_files_load_with_the_option(tmp_path):
     assert merged.V.shape == (500, 3) and list(merged.source_vertex) == list(range(500))
 
 
-def test_what_a_cover_does_not_take_yet_is_refused(tmp_path):
+def test_what_a_cover_does_not_take_yet_is_refused_and_a_setup_saves(tmp_path):
     P = sphere_points(800)
     F = ice.point_cloud_triangles(P)
     coarse = ice.coarsen(P, F, ratio=0.2, nonmanifold="tufted")
@@ -75,9 +75,16 @@ def test_what_a_cover_does_not_take_yet_is_refused(tmp_path):
         ice.DistanceOracle(coarse)
     space, proxy = ice.setup_proxy(P, F, ratio=0.2, nonmanifold="tufted", cache=False)
     with pytest.raises(ValueError, match="tufted cover"):
-        ice.save_setup(tmp_path / "setup.bin", P, F, space, proxy)
-    with pytest.raises(ValueError, match="tufted cover"):
         ice.ProxyGeodesicSolver(proxy)
+    # A covered setup saves and loads as any other: the same solves, the cover's fine operators.
+    ice.save_setup(tmp_path / "setup.bin", P, F, space, proxy)
+    space2, proxy2 = ice.load_setup(tmp_path / "setup.bin", P, F)
+    assert space2.summary["tufted_cover"]
+    assert (proxy2.fine_laplacian != proxy.fine_laplacian).nnz == 0
+    f = P[:, 0] * P[:, 1]
+    assert np.array_equal(ice.ProxyPoissonSolver(proxy2).solve(f), ice.ProxyPoissonSolver(proxy).solve(f))
+    with pytest.raises(ValueError, match="tufted cover"):
+        ice.ProxyGeodesicSolver(proxy2)
 
 
 def test_multigrid_hierarchy_through_the_cover(tmp_path):

@@ -110,8 +110,10 @@ StoreKey proxy_setup_key(const TriangleMesh& mesh, const CoarseSpaceOptions& coa
 /// such as a Poisson or heat solver without polishing, keep no copy of the mesh).
 std::optional<ProxySetup> load_proxy_setup(const Store& store, const StoreKey& key, const TriangleMesh& mesh,
                                            CacheReport& cache, fem::CoarseProxy::FineMeshSource fine_mesh = {});
-/// A source of the fine mesh of `geometry` from a copy of `mesh`, for load_proxy_setup.
-fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry);
+/// A source of the fine mesh of `geometry` from a copy of `mesh` (its tufted cover's where `nonmanifold`
+/// says so and the mesh needs one: ice::fine_mesh), for load_proxy_setup.
+fem::CoarseProxy::FineMeshSource fine_mesh_source(const TriangleMesh& mesh, FineGeometry geometry,
+                                                  NonmanifoldInput nonmanifold = NonmanifoldInput::refuse);
 /// Saves the coarse space and proxy of `setup` under `key` (its method state and fine mesh are not
 /// stored); records the time and any error in setup.cache (status miss unless already rebuilt).
 void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup);

@@ -137,6 +137,8 @@ class EntryReader {
   std::vector<double> doubles(const std::string& name) const;
   std::string text(const std::string& name) const;
   std::int64_t integer(const std::string& name) const;
+  /// Whether the entry has an array of that name (an optional part, absent from older entries).
+  bool has(const std::string& name) const;
   /// A matrix put with put_matrix; entries of an int matrix must lie in [min_entry, max_entry].
   Eigen::MatrixXi int_matrix(const std::string& name, std::int64_t min_entry, std::int64_t max_entry) const;
   Eigen::MatrixXd double_matrix(const std::string& name) const;
