@@ -295,14 +295,15 @@ void add_prolongation_option(CLI::App& cli, ice::proxy::Prolongation& choice, co
                              const std::string& description) {
   add_choice(cli, name, choice, choice_names<ice::proxy::Prolongation>(),
              description.empty()
-                 ? "'barycentric', 'smoothed' (Galerkin, no Dirichlet) or 'auto' (smoothed if allowed)"
+                 ? "'auto': the recipe's choice; smoothing needs Galerkin, no Dirichlet"
                  : description);
 }
 
 fem::ProlongationKind resolve_prolongation(ice::proxy::Prolongation choice, fem::CoarseOperatorKind operators,
-                                           const std::string& needs_barycentric, const std::string& option) {
+                                           const std::string& needs_barycentric, const std::string& option,
+                                           ice::proxy::ProlongationUse use) {
   try {
-    return ice::proxy::resolve_prolongation(choice, operators, !needs_barycentric.empty());
+    return ice::proxy::resolve_prolongation(choice, operators, !needs_barycentric.empty(), use);
   } catch (const std::invalid_argument&) {  // the policy's refusal, in the command line's words
     if (operators != fem::CoarseOperatorKind::galerkin) throw AppError(kUsage, option + " smoothed needs --operators galerkin");
     throw AppError(kUsage, needs_barycentric + " needs " + option + " barycentric or auto (a smoothed prolongation "

@@ -158,15 +158,16 @@ bool same_file(const std::string& a, const std::string& b);
 
 /// Adds --operators intrinsic|galerkin.
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators);
-/// Adds the option `name` (auto|barycentric|smoothed; empty `description`: --prolongation's help).
+/// Adds the option `name` (auto|barycentric|smoothed|smoothed_twice; empty `description`: --prolongation's help).
 void add_prolongation_option(CLI::App& cli, ice::proxy::Prolongation& choice, const std::string& name = "--prolongation",
                              const std::string& description = "");
 /// ice::proxy::resolve_prolongation for a problem where `needs_barycentric` names what rules out a
-/// smoothed P (e.g. "--fix"; empty: nothing). Throws AppError(kUsage), naming `option`, for an
-/// explicit smoothed choice that cannot be honoured.
+/// smoothed P (e.g. "--fix"; empty: nothing), for `use`. Throws AppError(kUsage), naming `option`,
+/// for an explicit smoothed choice that cannot be honoured.
 fem::ProlongationKind resolve_prolongation(ice::proxy::Prolongation choice, fem::CoarseOperatorKind operators,
                                            const std::string& needs_barycentric = "",
-                                           const std::string& option = "--prolongation");
+                                           const std::string& option = "--prolongation",
+                                           ice::proxy::ProlongationUse use = ice::proxy::ProlongationUse::solves);
 
 // ---- the command line both PDE tools share (geodesic-coarse, poisson-coarse) ---------------------------
 

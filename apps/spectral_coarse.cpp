@@ -79,7 +79,7 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     const bool dirichlet = boundary == "dirichlet";
     if (show < 0) show = dirichlet ? 0 : std::min(1, k - 1);  // the first non-constant eigenfunction
     if (show >= k) throw app::AppError(app::kUsage, "--show " + std::to_string(show) + ": there are " + std::to_string(k) + " eigenfunctions");
-    if (dirichlet && prolongation == ice::proxy::Prolongation::smoothed)
+    if (dirichlet && (prolongation == ice::proxy::Prolongation::smoothed || prolongation == ice::proxy::Prolongation::smoothed_twice))
       throw app::AppError(app::kUsage, "--boundary dirichlet needs --prolongation barycentric or auto (a smoothed "
                                        "prolongation does not vanish on the boundary)");
     app::PdeRun run = app::PdeRun::start(kTool, opt, /*proxy_uses_fine_mesh=*/true);
@@ -99,7 +99,8 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                        "gaps between local fans, not a boundary of the surface)");
     const std::vector<ice::Index> fixed = dirichlet ? fem::boundary_vertices(mesh.F) : std::vector<ice::Index>();
     if (dirichlet && fixed.empty()) app::warn(kTool, "--boundary dirichlet: the mesh has no boundary (no vertex is fixed)");
-    opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, fixed.empty() ? "" : "--boundary dirichlet");
+    opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, fixed.empty() ? "" : "--boundary dirichlet",
+                                                 "--prolongation", ice::proxy::ProlongationUse::eigenpairs);
     run.prolongation = opt.prolongation;
     ice::CoarsenOptions coarsen_options;
     opt.target.apply(coarsen_options, n);

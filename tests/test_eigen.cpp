@@ -136,6 +136,51 @@ TEST_CASE("proxy eigenbasis: upper bounds, M-orthonormal on the input mesh, near
   }
 }
 
+TEST_CASE("proxy eigenbasis: by default through P smoothed twice, closer to the fine eigenvalues than once", "[eigen][proxy]") {
+  // A real mesh at 5 %: bear, 13,826 vertices -> 692 coarse, 30 pairs (median errors 1.23 % once,
+  // 0.75 % twice when measured).
+  const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("bear.off"));
+  const Pencil p = pencil(mesh);
+  const int k = 30;
+  const fem::Eigenpairs fine = fem::smallest_eigenpairs(p.L, p.M, k);
+  REQUIRE(ice::proxy::resolve_prolongation(ice::proxy::Prolongation::automatic, fem::CoarseOperatorKind::galerkin, false,
+                                           ice::proxy::ProlongationUse::eigenpairs) == fem::ProlongationKind::smoothed_twice);
+  REQUIRE(ice::proxy::resolve_prolongation(ice::proxy::Prolongation::automatic, fem::CoarseOperatorKind::galerkin, true,
+                                           ice::proxy::ProlongationUse::eigenpairs) == fem::ProlongationKind::barycentric);
+  double median[3] = {0, 0, 0};
+  const ice::proxy::Prolongation choices[3] = {ice::proxy::Prolongation::automatic, ice::proxy::Prolongation::smoothed,
+                                               ice::proxy::Prolongation::smoothed_twice};
+  for (int c = 0; c < 3; ++c) {
+    ice::proxy::EigenbasisOptions options;
+    options.coarsening.coarsen.target_ratio = 0.05;
+    options.prolongation = choices[c];
+    const ice::proxy::EigenSolver solver(mesh, options);
+    const fem::CoarseProxy& proxy = solver.proxy();
+    const fem::ProlongationKind kind = c == 1 ? fem::ProlongationKind::smoothed : fem::ProlongationKind::smoothed_twice;
+    REQUIRE(proxy.prolongation_kind() == kind);
+    // Twice is the smoothing applied to the smoothed P: rows still sum to 1.
+    if (c == 2) {
+      const fem::SparseMatrix twice = fem::smoothed_prolongation(
+          fem::smoothed_prolongation(proxy.barycentric_prolongation(), proxy.fine_laplacian()), proxy.fine_laplacian());
+      REQUIRE(ice_test::relative_difference(proxy.prolongation(), twice) == 0.0);
+      const Eigen::VectorXd rows = proxy.prolongation() * Eigen::VectorXd::Ones(proxy.prolongation().cols());
+      REQUIRE((rows.array() - 1).abs().maxCoeff() < 1e-12);
+    }
+    const ice::proxy::Eigenbasis basis = solver.compute(k);
+    for (int j = 0; j < k; ++j) REQUIRE(basis.values(j) >= fine.values(j) - 1e-9);  // still upper bounds (Galerkin)
+    median[c] = ice::proxy::eigenbasis_errors(basis.values, basis.vectors, fine, p.M).relative_median;
+  }
+  INFO("median eigenvalue error: auto " << median[0] << ", smoothed " << median[1] << ", twice " << median[2]);
+  REQUIRE(median[0] == median[2]);
+  REQUIRE(median[2] < 0.8 * median[1]);
+  // Dirichlet conditions keep refusing any smoothing.
+  ice::proxy::EigenbasisOptions dirichlet;
+  dirichlet.boundary = ice::proxy::EigenBoundary::dirichlet;
+  dirichlet.prolongation = ice::proxy::Prolongation::smoothed_twice;
+  dirichlet.coarsening.coarsen.target_ratio = 0.2;
+  REQUIRE_THROWS_AS(ice::proxy::EigenSolver(ice::load_mesh(ice_test::project_mesh("cat_head.obj")), dirichlet), std::invalid_argument);
+}
+
 TEST_CASE("Dirichlet eigenpairs of the unit disk: Bessel zeros squared; the proxy's vanish on the boundary", "[eigen][proxy]") {
   const ice::TriangleMesh disk = ice::make_flat_disk(24);  // 1,801 vertices
   const Pencil p = pencil(disk);

@@ -48,7 +48,9 @@ void require_prolongation(const Matrix& P, const Faces& coarse_faces, const std:
 }  // namespace
 
 const char* to_string(ProlongationKind kind) {
-  return kind == ProlongationKind::smoothed ? "smoothed" : "barycentric";
+  return kind == ProlongationKind::smoothed_twice ? "smoothed_twice"
+         : kind == ProlongationKind::smoothed    ? "smoothed"
+                                                 : "barycentric";
 }
 
 SparseMatrix smoothed_prolongation(const SparseMatrix& P, const SparseMatrix& laplacian, double omega) {
@@ -157,7 +159,7 @@ CoarseProxy::CoarseProxy(ice::IntrinsicMesh fine, ice::IntrinsicMesh coarse, Spa
   const ProlongationKind prolongation = options.prolongation;
   coarse_.twin.clear();
   P_.swap(P);  // Eigen 3.4's SparseMatrix has no move constructor (std::move copies)
-  if (prolongation == ProlongationKind::smoothed && kind != CoarseOperatorKind::galerkin)
+  if (is_smoothed(prolongation) && kind != CoarseOperatorKind::galerkin)
     throw std::invalid_argument("CoarseProxy: a smoothed prolongation needs Galerkin coarse operators");
   P_.makeCompressed();  // the proxy solvers gather straight from its arrays
   if (checked_vertex_count(fine) != P_.rows() || checked_vertex_count(coarse_) != P_.cols())
@@ -172,9 +174,10 @@ CoarseProxy::CoarseProxy(ice::IntrinsicMesh fine, ice::IntrinsicMesh coarse, Spa
   lazy_->mesh.twin = {};  // nothing here reads the gluing (fine_mesh()): not held for the proxy's life
 
   index_coinciding_vertices(P_);  // the given P (smoothed below)
-  if (prolongation == ProlongationKind::smoothed) {
+  if (is_smoothed(prolongation)) {
     barycentric_ = std::move(P_);
     P_ = smoothed_prolongation(barycentric_, fine_laplacian());
+    if (prolongation == ProlongationKind::smoothed_twice) P_ = smoothed_prolongation(P_, fine_laplacian());
   }
 
   if (kind == CoarseOperatorKind::intrinsic) {
@@ -197,7 +200,7 @@ CoarseProxy::CoarseProxy(CoarseProxyArrays&& a, FineMeshSource fine_mesh)
   coarse_laplacian_.swap(a.coarse_laplacian);
   coarse_mass_.swap(a.coarse_mass);
   const std::string who = "CoarseProxy (restored)";
-  const bool smoothed = prolongation_kind_ == ProlongationKind::smoothed;
+  const bool smoothed = is_smoothed(prolongation_kind_);
   if (smoothed && kind_ != CoarseOperatorKind::galerkin)
     throw std::invalid_argument(who + ": a smoothed prolongation needs Galerkin coarse operators");
   if (!fine_mesh) throw std::invalid_argument(who + ": no source of the fine mesh");
@@ -493,7 +496,7 @@ void require_barycentric(const CoarseProxy& proxy) {
 }  // namespace
 
 std::vector<Index> coarse_dirichlet_vertices(const CoarseProxy& proxy, const std::vector<Index>& fine_vertices) {
-  if (!fine_vertices.empty() && proxy.prolongation_kind() == ProlongationKind::smoothed)
+  if (!fine_vertices.empty() && is_smoothed(proxy.prolongation_kind()))
     throw std::invalid_argument(
         "Dirichlet vertices need the barycentric prolongation (a smoothed P does not take the prescribed "
         "values at them)");

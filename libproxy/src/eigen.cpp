@@ -135,6 +135,7 @@ EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, st
   setup.fine = options_.fine;
   setup.operators = fem::CoarseOperatorKind::galerkin;
   setup.prolongation = options_.prolongation;
+  setup.prolongation_use = ProlongationUse::eigenpairs;
   setup.dirichlet = !dirichlet_.empty();
   setup.store = Store(options_.store);
   const EigenRefinement& refine = options_.refine;

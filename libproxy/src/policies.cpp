@@ -8,16 +8,18 @@
 
 namespace ice::proxy {
 
-fem::ProlongationKind resolve_prolongation(Prolongation choice, fem::CoarseOperatorKind operators, bool dirichlet) {
+fem::ProlongationKind resolve_prolongation(Prolongation choice, fem::CoarseOperatorKind operators, bool dirichlet,
+                                           ProlongationUse use) {
   const bool galerkin = operators == fem::CoarseOperatorKind::galerkin;
-  if (choice == Prolongation::smoothed) {
+  if (choice == Prolongation::smoothed || choice == Prolongation::smoothed_twice) {
     if (!galerkin) throw std::invalid_argument("a smoothed prolongation needs Galerkin coarse operators");
     if (dirichlet)
       throw std::invalid_argument("a smoothed prolongation does not take the fixed values at Dirichlet vertices: "
                                   "use the barycentric one (or 'auto')");
-    return fem::ProlongationKind::smoothed;
+    return choice == Prolongation::smoothed ? fem::ProlongationKind::smoothed : fem::ProlongationKind::smoothed_twice;
   }
-  if (choice == Prolongation::automatic && galerkin && !dirichlet) return fem::ProlongationKind::smoothed;
+  if (choice == Prolongation::automatic && galerkin && !dirichlet)
+    return use == ProlongationUse::eigenpairs ? fem::ProlongationKind::smoothed_twice : fem::ProlongationKind::smoothed;
   return fem::ProlongationKind::barycentric;
 }
 
@@ -48,7 +50,8 @@ CoarseSpaceOptions default_coarsening(ProxyUse use, double ratio) {
 template <>
 const Spellings<Prolongation>& spellings<Prolongation>() {
   static const Spellings<Prolongation> names{
-      {"auto", Prolongation::automatic}, {"barycentric", Prolongation::barycentric}, {"smoothed", Prolongation::smoothed}};
+      {"auto", Prolongation::automatic}, {"barycentric", Prolongation::barycentric}, {"smoothed", Prolongation::smoothed},
+      {"smoothed_twice", Prolongation::smoothed_twice}};
   return names;
 }
 template <>
@@ -128,7 +131,8 @@ const Spellings<fem::CoarseDistanceMethod>& spellings<fem::CoarseDistanceMethod>
 template <>
 const Spellings<fem::ProlongationKind>& spellings<fem::ProlongationKind>() {
   static const Spellings<fem::ProlongationKind> names{{"barycentric", fem::ProlongationKind::barycentric},
-                                                      {"smoothed", fem::ProlongationKind::smoothed}};
+                                                      {"smoothed", fem::ProlongationKind::smoothed},
+                                                      {"smoothed_twice", fem::ProlongationKind::smoothed_twice}};
   return names;
 }
 

@@ -26,7 +26,8 @@ fem::CoarseProxy make_proxy(const FineMesh& fine, const CoarseSpace& coarse, fem
 
 ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& options, std::optional<CoarseSpace> coarse) {
   using Clock = std::chrono::steady_clock;
-  const fem::ProlongationKind resolved = resolve_prolongation(options.prolongation, options.operators, options.dirichlet);
+  const fem::ProlongationKind resolved =
+      resolve_prolongation(options.prolongation, options.operators, options.dirichlet, options.prolongation_use);
   const bool needs_fine = options.assemble || options.need_fine_mesh;
   ProxySetup setup;
   setup.fine_geometry = options.fine;

@@ -66,7 +66,7 @@ struct SetupEntry {
     w.put_int("proxy.mass_kind", static_cast<int>(proxy.mass_kind()));
     w.put_int("proxy.prolongation", static_cast<int>(proxy.prolongation_kind()));
     // P itself is the coarse space's (the proxy's barycentric one); only its smoothing is stored apart.
-    if (proxy.prolongation_kind() == fem::ProlongationKind::smoothed) w.put_sparse("proxy.P", proxy.prolongation());
+    if (fem::is_smoothed(proxy.prolongation_kind())) w.put_sparse("proxy.P", proxy.prolongation());
     mass = proxy.fine_mass().diagonal();
     w.put("proxy.fine_mass", mass.data(), static_cast<std::size_t>(mass.size()));
     w.put_sparse("proxy.coarse_laplacian", proxy.coarse_laplacian());
@@ -100,14 +100,16 @@ ProxySetup setup_from_entry(const EntryReader& entry, const std::string& path, c
     const auto n = static_cast<Index>(mesh.V.rows());
     setup.coarse = detail::coarse_space_from_entry(entry, path, mesh);
     CoarseSpace& c = setup.coarse;
-    for (const char* name : {"proxy.kind", "proxy.prolongation"})
-      if (entry.integer(name) != 0 && entry.integer(name) != 1) detail::fail(path, std::string(name) + " is not a known value");
+    if (entry.integer("proxy.kind") != 0 && entry.integer("proxy.kind") != 1) detail::fail(path, "proxy.kind is not a known value");
+    const std::int64_t prolongation = entry.integer("proxy.prolongation");
+    if (prolongation < 0 || prolongation > static_cast<std::int64_t>(fem::ProlongationKind::smoothed_twice))
+      detail::fail(path, "proxy.prolongation is not a known value");
     require(entry.integer("proxy.mass_kind") == static_cast<int>(fem::MassKind::lumped), path, "the fine mass is not lumped");
     fem::CoarseProxyArrays a;
     a.kind = static_cast<fem::CoarseOperatorKind>(entry.integer("proxy.kind"));
     a.mass_kind = static_cast<fem::MassKind>(entry.integer("proxy.mass_kind"));
     a.prolongation_kind = static_cast<fem::ProlongationKind>(entry.integer("proxy.prolongation"));
-    if (a.prolongation_kind == fem::ProlongationKind::smoothed) {
+    if (fem::is_smoothed(a.prolongation_kind)) {
       entry.sparse("proxy.P").swap(a.P);
       const Eigen::VectorXd row_sums = a.P * Eigen::VectorXd::Ones(a.P.cols());
       for (Eigen::Index i = 0; i < row_sums.size(); ++i)

@@ -257,12 +257,13 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
     fixed = boundary_vertices(F) if boundary == "dirichlet" else None
     if fixed is not None and len(fixed) == 0:
         fixed = None  # a closed mesh: the same as Neumann
+    # "auto" means the eigenbasis's own default (the P smoothed twice where allowed), as spectral-coarse's.
+    prolongation = _ice._resolve_prolongation(prolongation, "galerkin", fixed is not None, eigenpairs=True)
     if coarse is None and cache is not False:
         _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", "galerkin", fine, prolongation, fixed, cache)
     else:
         coarse = _coarse_for(V, F, coarse, coarsening, "poisson_heat", fixed)
-        proxy = Proxy(V, F, coarse, operators="galerkin", fine=fine,
-                      prolongation=_ice._resolve_prolongation(prolongation, "galerkin", fixed is not None))
+        proxy = Proxy(V, F, coarse, operators="galerkin", fine=fine, prolongation=prolongation)
     if refine_tolerance:
         values, vectors, info = refined_eigenbasis(proxy, V, F, k, refine_tolerance=refine_tolerance, tolerance=tolerance,
                                                    dirichlet=fixed, cache=cache)

@@ -356,7 +356,7 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
             # As spectral-coarse: the Galerkin proxy of this coarse space, its pencil's eigenpairs prolonged.
             eigen_started = time.perf_counter()
             proxy = ice.Proxy(loaded.V, loaded.F, coarse, operators="galerkin",
-                              prolongation=ice._ice._resolve_prolongation("auto", "galerkin", False))
+                              prolongation=ice._ice._resolve_prolongation("auto", "galerkin", False, eigenpairs=True))
             values, vectors = ice.proxy_eigenbasis(proxy, features["eigs"], cache=False)  # the records are the batch's store
             arrays.update(eigenvalues=values, eigenvectors=vectors)
             if "hks" in features:

@@ -643,7 +643,7 @@ std::shared_ptr<PyProxy> make_proxy(const py::object& V, const py::object& F, co
   const ice::FineGeometry geometry = fine_geometry_argument(fine);
   const auto smoothing = choice<fem::ProlongationKind>(
       prolongation, "prolongation");
-  if (smoothing == fem::ProlongationKind::smoothed && kind != fem::CoarseOperatorKind::galerkin)
+  if (fem::is_smoothed(smoothing) && kind != fem::CoarseOperatorKind::galerkin)
     throw py::value_error("prolongation='smoothed' needs operators='galerkin'");
   const ice::NonmanifoldInput cover =
       coarse.space.summary.tufted_cover ? ice::NonmanifoldInput::tufted_cover : ice::NonmanifoldInput::refuse;
@@ -993,16 +993,17 @@ PYBIND11_MODULE(_ice, m) {
 
   m.def(
       "_resolve_prolongation",
-      [](const std::string& prolongation, const std::string& operators, bool dirichlet) {
+      [](const std::string& prolongation, const std::string& operators, bool dirichlet, bool eigenpairs) {
         try {
           return ice::proxy::spelling(ice::proxy::resolve_prolongation(
               choice<ice::proxy::Prolongation>(prolongation, "prolongation"),
-              choice<fem::CoarseOperatorKind>(operators, "operators"), dirichlet));
+              choice<fem::CoarseOperatorKind>(operators, "operators"), dirichlet,
+              eigenpairs ? ice::proxy::ProlongationUse::eigenpairs : ice::proxy::ProlongationUse::solves));
         } catch (const std::invalid_argument& e) {
           throw py::value_error(e.what());
         }
       },
-      py::arg("prolongation"), py::arg("operators"), py::arg("dirichlet"),
+      py::arg("prolongation"), py::arg("operators"), py::arg("dirichlet"), py::arg("eigenpairs") = false,
       "The prolongation 'auto' means for these operators (ice::proxy::resolve_prolongation).");
   m.def("_load_mesh", &load_mesh, py::arg("path"), py::arg("repair") = false, py::arg("weld") = false,
         py::arg("nonmanifold") = "refuse", py::arg("neighbours") = 30, "The dict behind ice.load_mesh (use that).");
@@ -1268,7 +1269,8 @@ discretisation ("input" triangles or their "intrinsic_delaunay" triangulation), 
 "galerkin" (PᵀLP, PᵀMP) or "intrinsic" (cotan operators of the coarse lengths); lumped masses; the
 coarse space's P as given ("barycentric") or smoothed by one damped Jacobi step on the fine Laplacian
 ("smoothed": Galerkin operators only, no Dirichlet vertices, not for the coarse heat method; about
-half the Poisson and heat error at 5 % of the vertices). The operators and fine mesh default to the
+half the Poisson and heat error at 5 % of the vertices), or twice ("smoothed_twice": the same
+conditions; a richer coarse space for eigenpairs, about 1.5× the weights). The operators and fine mesh default to the
 tools'; the prolongation to the barycentric P, which serves every solver (solve_poisson, heat_flow
 and poisson-coarse pick the smoothed one where it serves: prolongation="auto").)doc")
       .def(py::init(&make_proxy), py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(),

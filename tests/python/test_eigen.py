@@ -45,6 +45,15 @@ def test_eigenbasis_against_the_fine_pencil(spot, tmp_path):
     assert ice.reconstruction_error(values, vectors, mass, np.cos(40 * V[:, 0])) > 0.1
     with pytest.raises(ValueError, match="coarse space has"):
         ice.eigenbasis(V, F, 10_000, ratio=0.1, cache=False)
+    # "auto" is the eigenbasis's own default, P smoothed twice (as spectral-coarse), closer to the fine
+    # eigenvalues than P smoothed once; a Proxy given that prolongation gives the same basis.
+    assert ice._ice._resolve_prolongation("auto", "galerkin", False, eigenpairs=True) == "smoothed_twice"
+    assert ice._ice._resolve_prolongation("auto", "galerkin", False) == "smoothed"
+    coarse = ice.coarsen(V, F, ratio=0.1)
+    twice = ice.proxy_eigenbasis(ice.Proxy(V, F, coarse, prolongation="smoothed_twice"), k)
+    assert np.array_equal(twice[0], values) and np.array_equal(twice[1], vectors)
+    once = ice.eigenbasis(V, F, k, ratio=0.1, prolongation="smoothed", cache=False)[0]
+    assert np.median(values[1:] / fine[1:] - 1) < np.median(once[1:] / fine[1:] - 1)
 
 
 def test_dirichlet_eigenbasis_vanishes_on_the_boundary(project_mesh):

@@ -26,11 +26,21 @@ enum class Prolongation {
   automatic,    ///< smoothed where it is allowed (Galerkin operators, no Dirichlet vertices), else barycentric
   barycentric,  ///< fem::ProlongationKind::barycentric
   smoothed,     ///< fem::ProlongationKind::smoothed
+  smoothed_twice,  ///< fem::ProlongationKind::smoothed_twice
 };
-/// The prolongation `choice` means for coarse operators of `operators` and a problem with (`dirichlet`)
-/// or without Dirichlet vertices. Throws std::invalid_argument for `smoothed` with intrinsic operators
-/// or with Dirichlet vertices (a smoothed P does not take the fixed values at the fixed vertices).
-fem::ProlongationKind resolve_prolongation(Prolongation choice, fem::CoarseOperatorKind operators, bool dirichlet);
+/// What a proxy's prolongation serves: it decides what Prolongation::automatic means where smoothing
+/// is allowed.
+enum class ProlongationUse {
+  solves,      ///< Poisson and heat solves: smoothed once (docs/measurements.md, "Smoothed prolongation")
+  eigenpairs,  ///< the eigenbasis: smoothed twice; its median eigenvalue error at 5 % about halves, for
+               ///< ~1.5× the weights (docs/measurements.md, "The eigenbasis through P smoothed twice")
+};
+/// The prolongation `choice` means for coarse operators of `operators`, a problem with (`dirichlet`)
+/// or without Dirichlet vertices, and `use`. Throws std::invalid_argument for `smoothed` or
+/// `smoothed_twice` with intrinsic operators or with Dirichlet vertices (a smoothed P does not take
+/// the fixed values at the fixed vertices).
+fem::ProlongationKind resolve_prolongation(Prolongation choice, fem::CoarseOperatorKind operators, bool dirichlet,
+                                           ProlongationUse use = ProlongationUse::solves);
 
 /// Which coarse edge lengths coarse marching runs on.
 enum class CoarseLengths {

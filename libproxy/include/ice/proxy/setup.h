@@ -64,6 +64,7 @@ struct ProxySetupOptions {
   FineGeometry fine = FineGeometry::intrinsic_delaunay;
   fem::CoarseOperatorKind operators = fem::CoarseOperatorKind::galerkin;
   Prolongation prolongation = Prolongation::automatic;
+  ProlongationUse prolongation_use = ProlongationUse::solves;  ///< what `automatic` serves (resolve_prolongation)
   bool dirichlet = false;  ///< the problem has Dirichlet vertices (resolve_prolongation)
   /// Assemble the proxy. Without it the setup is the coarse space (and the fine mesh when
   /// need_fine_mesh) and the store is not used: it holds coarse spaces with their proxies.
