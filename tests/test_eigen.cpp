@@ -171,6 +171,12 @@ TEST_CASE("proxy eigenbasis: by default through P smoothed twice, closer to the 
     median[c] = ice::proxy::eigenbasis_errors(basis.values, basis.vectors, fine, p.M).relative_median;
   }
   INFO("median eigenvalue error: auto " << median[0] << ", smoothed " << median[1] << ", twice " << median[2]);
+  // Set-ups through the two never share a store entry.
+  const auto key = [&](fem::ProlongationKind kind) {
+    return ice::proxy::proxy_setup_key(mesh, ice::CoarseSpaceOptions{}, ice::FineGeometry::intrinsic_delaunay,
+                                       fem::CoarseOperatorKind::galerkin, kind);
+  };
+  REQUIRE(!(key(fem::ProlongationKind::smoothed) == key(fem::ProlongationKind::smoothed_twice)));
   REQUIRE(median[0] == median[2]);
   REQUIRE(median[2] < 0.8 * median[1]);
   // Dirichlet conditions keep refusing any smoothing.

@@ -845,7 +845,7 @@ int main(int argc, char** argv) {
   ice::proxy::Prolongation qem_choice = ice::proxy::Prolongation::automatic;
   app::add_prolongation_option(
       cli, qem_choice, "--qem-prolongation",
-      "QEM's proxy: 'smoothed' (Galerkin, its most accurate), 'barycentric' (its own operators) or 'auto'");
+      "QEM's proxy: 'smoothed'/'smoothed_twice' (Galerkin), 'barycentric' (its own operators) or 'auto'");
   bool normalize_curvature = ice::recommended_coarsen_options().normalize_curvature;
   cli.add_flag("--normalize-curvature,!--no-normalize-curvature", normalize_curvature,
                "ice_area: curvature masses divided by the total absolute curvature")
@@ -943,9 +943,8 @@ int main(int argc, char** argv) {
     // QEM: Galerkin operators of its smoothed P, or the operators of its own geometry with its P as given.
     const fem::ProlongationKind qem_prolongation =
         app::resolve_prolongation(qem_choice, fem::CoarseOperatorKind::galerkin, heat_geodesics, "--qem-prolongation");
-    const fem::CoarseOperatorKind qem_kind = qem_prolongation == fem::ProlongationKind::smoothed
-                                                 ? fem::CoarseOperatorKind::galerkin
-                                                 : fem::CoarseOperatorKind::intrinsic;
+    const fem::CoarseOperatorKind qem_kind =
+        fem::is_smoothed(qem_prolongation) ? fem::CoarseOperatorKind::galerkin : fem::CoarseOperatorKind::intrinsic;
     if (cli.count("--view-budget") == 0) {
       view_budget = budgets.front();
       for (double b : budgets)
@@ -1164,9 +1163,9 @@ int main(int argc, char** argv) {
                               {"normalize_curvature", normalize_curvature},
                               {"operators", operators},
                               {"prolongation", ice::proxy::spelling(prolongation)},
-                              {"qem_operators", qem_prolongation == fem::ProlongationKind::smoothed
-                                                    ? "galerkin, smoothed prolongation"
-                                                    : "its own geometry's"},
+                              {"qem_operators", fem::is_smoothed(qem_prolongation)
+                                                    ? "galerkin, " + ice::proxy::spelling(qem_prolongation) + " prolongation"
+                                                    : std::string("its own geometry's")},
                               {"heat_time", "0.1 x surface area, one backward Euler step"},
                               {"geodesic_sources", "vertex 0 and two farthest-point picks (R^3)"},
                               {"geodesic_coarse_distances", fem::to_string(geodesic.method)},

@@ -34,7 +34,7 @@ ProxySetup build_proxy_setup(const TriangleMesh& mesh, const ProxySetupOptions& 
   // A mesh coarsened through its tufted cover: the cover's own coarse operators would be its
   // components' (not the input's robust Laplacian), so Galerkin only. Stored under a key that says
   // so (detail::add_mesh_and_coarsening), its fine mesh the cover's when made again.
-  const bool covered = solved_on_tufted_cover(mesh, options.coarsening.nonmanifold);
+  const bool covered = (coarse && coarse->summary.tufted_cover) || solved_on_tufted_cover(mesh, options.coarsening.nonmanifold);
   const NonmanifoldInput nonmanifold = covered ? NonmanifoldInput::tufted_cover : NonmanifoldInput::refuse;
   require_galerkin_on_cover(covered, options.operators);  // before the work
   bool fine_made = false;  // setup.fine

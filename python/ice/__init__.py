@@ -243,7 +243,8 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
     and prolonged. values increasing; vectors (n × k) M-orthonormal on the input mesh.
 
     boundary: "neumann", or "dirichlet" (φ = 0 on the mesh's boundary, whose vertices the coarsening then
-    keeps). coarse / coarsening options (default ratio=0.05), prolongation and cache as for solve_poisson;
+    keeps). coarse / coarsening options (default ratio=0.05) and cache as for solve_poisson; prolongation
+    "auto" (the default) is the eigenbasis's own: P smoothed twice where allowed, else barycentric;
     k must be below the coarse vertex count (ValueError otherwise).
     Without `coarse` the coarse eigenpairs go through `cache` too: a second call with the same mesh,
     options and k loads them (the same numbers to the last bit; only the prolongation, and with

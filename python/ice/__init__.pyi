@@ -120,7 +120,7 @@ class Proxy:
     def __init__(self, V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, *,
                  operators: Literal["galerkin", "intrinsic"] = "galerkin",
                  fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
-                 prolongation: Literal["barycentric", "smoothed"] = "barycentric") -> None: ...
+                 prolongation: Literal["barycentric", "smoothed", "smoothed_twice"] = "barycentric") -> None: ...
     @property
     def prolongation(self) -> scipy.sparse.csc_matrix: ...
     @property
@@ -273,20 +273,20 @@ def solve_poisson(V: ArrayLike, F: ArrayLike, f: ArrayLike, *, coarse: CoarseSpa
                   fixed: Indices | None = None, values: ArrayLike | None = None,
                   operators: Literal["galerkin", "intrinsic"] = "galerkin",
                   fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
-                  tolerance: float = 0.0, prolongation: Literal["auto", "barycentric", "smoothed"] = "auto",
+                  tolerance: float = 0.0, prolongation: Literal["auto", "barycentric", "smoothed", "smoothed_twice"] = "auto",
                   cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> FloatArray:
     """Poisson −Δu = f through a coarse proxy in one call (f of shape (n, k): k sources as a block)."""
 def heat_flow(V: ArrayLike, F: ArrayLike, u0: ArrayLike, time_step: float, steps: int = 1, *,
               coarse: CoarseSpace | None = None, restriction: Literal["l2", "injection"] = "l2",
               operators: Literal["galerkin", "intrinsic"] = "galerkin",
               fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay", polish: int = 0,
-              tolerance: float = 0.0, prolongation: Literal["auto", "barycentric", "smoothed"] = "auto",
+              tolerance: float = 0.0, prolongation: Literal["auto", "barycentric", "smoothed", "smoothed_twice"] = "auto",
               every: int | None = None, cache: str | PathLike[str] | Literal[False] | None = None,
               **coarsening: Any) -> FloatArray | tuple[FloatArray, list[int]]:
     """Backward-Euler heat flow through a coarse proxy in one call (every=M: the states every M steps)."""
 def setup_proxy(V: ArrayLike, F: ArrayLike, *, operators: Literal["galerkin", "intrinsic"] = "galerkin",
                 fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
-                prolongation: Literal["auto", "barycentric", "smoothed"] = "auto", fixed: Indices | None = None,
+                prolongation: Literal["auto", "barycentric", "smoothed", "smoothed_twice"] = "auto", fixed: Indices | None = None,
                 cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> tuple[CoarseSpace, Proxy]:
     """Coarsens and builds the Proxy in one step, through the store of set-up proxies."""
 def save_setup(path: str | PathLike[str], V: ArrayLike, F: ArrayLike, coarse: CoarseSpace, proxy: Proxy, *,
@@ -315,7 +315,7 @@ def boundary_vertices(F: ArrayLike) -> IndexArray:
 def eigenbasis(V: ArrayLike, F: ArrayLike, k: int, *, boundary: Literal["neumann", "dirichlet"] = "neumann",
                coarse: CoarseSpace | None = None,
                fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
-               prolongation: Literal["auto", "barycentric", "smoothed"] = "auto", tolerance: float = 1e-10,
+               prolongation: Literal["auto", "barycentric", "smoothed", "smoothed_twice"] = "auto", tolerance: float = 1e-10,
                cache: str | PathLike[str] | Literal[False] | None = None, refine_tolerance: float = 0.0,
                **coarsening: Any) -> tuple[FloatArray, FloatArray]:
     """The k smallest Laplace–Beltrami eigenpairs through a coarse proxy: (values, vectors (n × k))."""
