@@ -221,9 +221,7 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
   setup_options.coarsening.nonmanifold = covered ? ice::NonmanifoldInput::tufted_cover : ice::NonmanifoldInput::refuse;
   setup_options.fine = opt.fine_geometry();
   setup_options.operators = opt.operators;
-  setup_options.prolongation = opt.prolongation == fem::ProlongationKind::smoothed_twice ? ice::proxy::Prolongation::smoothed_twice
-                                : opt.prolongation == fem::ProlongationKind::smoothed ? ice::proxy::Prolongation::smoothed
-                                                                                      : ice::proxy::Prolongation::barycentric;
+  setup_options.prolongation = ice::proxy::prolongation_choice(opt.prolongation);
   setup_options.assemble = assemble_proxy;
   setup_options.need_fine_mesh = need_fine;
   setup_options.fine_operators = true;

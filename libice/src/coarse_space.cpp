@@ -12,6 +12,7 @@
 #include "ice/qem.h"
 #include "locality_numbering.h"
 #include "ice/wall_time.h"
+#include "cover_copies.h"
 
 namespace ice {
 
@@ -418,15 +419,9 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
   if (options.refinement) throw std::invalid_argument("build_coarse_space: no refinement on a tufted cover");
   // Locked input vertices: every copy of each (they become one coarse vertex below).
   CoarseSpaceOptions cover_options = options;
-  std::vector<Index>& locked = cover_options.coarsen.locked_vertices;
-  if (!options.coarsen.locked_vertices.empty()) {
-    std::vector<char> is_locked(static_cast<std::size_t>(cover.input_vertex_count), 0);
-    for (Index v : options.coarsen.locked_vertices)
-      if (v >= 0 && v < cover.input_vertex_count) is_locked[static_cast<std::size_t>(v)] = 1;
-    locked.clear();
-    for (std::size_t c = 0; c < cover.to_input.size(); ++c)
-      if (is_locked[static_cast<std::size_t>(cover.to_input[c])]) locked.push_back(static_cast<Index>(c));
-  }
+  if (!options.coarsen.locked_vertices.empty())
+    cover_options.coarsen.locked_vertices =
+        detail::copies_of(cover.to_input, cover.input_vertex_count, options.coarsen.locked_vertices);
   // A vertex target counts input vertices; the cover has more (copies): the same ratio of its own.
   if (options.coarsen.target_vertices > 0 && cover.input_vertex_count > 0)
     cover_options.coarsen.target_vertices = static_cast<Index>(std::llround(
@@ -441,29 +436,17 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
   // joined elsewhere), ICE keeps the same vertices on both, and their basis functions, mapped to
   // the input, would coincide (a singular Galerkin mass). The coarse mesh keeps the cover's gluing.
   CompactMesh& C = space.mesh;
-  std::vector<Index> merged(static_cast<std::size_t>(C.vertex_count)), to_input;
-  std::vector<Index> from_input(static_cast<std::size_t>(cover.input_vertex_count), kInvalid);
-  for (Index c = 0; c < C.vertex_count; ++c) {
-    const Index v = cover.to_input[static_cast<std::size_t>(C.to_input[static_cast<std::size_t>(c)])];
-    Index& coarse = from_input[static_cast<std::size_t>(v)];
-    if (coarse == kInvalid) {
-      coarse = static_cast<Index>(to_input.size());
-      to_input.push_back(v);
-    }
-    merged[static_cast<std::size_t>(c)] = coarse;
-  }
+  std::vector<Index> input_of_copy(static_cast<std::size_t>(C.vertex_count));
+  for (Index c = 0; c < C.vertex_count; ++c)
+    input_of_copy[static_cast<std::size_t>(c)] = cover.to_input[static_cast<std::size_t>(C.to_input[static_cast<std::size_t>(c)])];
+  detail::MergedCopies merged = detail::merge_copies(input_of_copy, cover.input_vertex_count);
   for (Eigen::Index f = 0; f < C.F.rows(); ++f)
-    for (int k = 0; k < 3; ++k) C.F(f, k) = merged[static_cast<std::size_t>(C.F(f, k))];
-  std::vector<Eigen::Triplet<double>> sum;
-  sum.reserve(merged.size());
-  for (std::size_t c = 0; c < merged.size(); ++c) sum.emplace_back(static_cast<Index>(c), merged[c], 1.0);
-  Eigen::SparseMatrix<double> S(C.vertex_count, static_cast<Index>(to_input.size()));
-  S.setFromTriplets(sum.begin(), sum.end());
-  space.P = cover_to_input(cover, cover_vertex_areas(cover)) * space.P * S;
+    for (int k = 0; k < 3; ++k) C.F(f, k) = merged.unknown[static_cast<std::size_t>(C.F(f, k))];
+  space.P = cover_to_input(cover, cover_vertex_areas(cover)) * space.P * merged.spread();
   space.P.makeCompressed();
-  C.vertex_count = static_cast<Index>(to_input.size());
-  C.to_input = std::move(to_input);
-  C.from_input = std::move(from_input);
+  C.vertex_count = static_cast<Index>(merged.to_input.size());
+  C.to_input = std::move(merged.to_input);
+  C.from_input = std::move(merged.from_input);
   space.summary.coarse_vertices = C.vertex_count;
   space.summary.input_vertices = cover.input_vertex_count;
   space.summary.tufted_cover = true;

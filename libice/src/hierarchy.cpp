@@ -11,7 +11,7 @@
 
 #include "ice/graph_ordering.h"
 #include "ice/prolongation.h"
-#include "ice/triangle_geometry.h"
+#include "cover_copies.h"
 #include "locality_numbering.h"
 #include "run_tasks.h"
 
@@ -419,16 +419,9 @@ Hierarchy build_hierarchy(const TuftedCover& full_cover, const HierarchyOptions&
   const Index n = cover.input_vertex_count;
   const auto copies = static_cast<Index>(cover.to_input.size());
   HierarchyOptions cover_options = options;
-  if (!options.locked_vertices.empty()) {
-    std::vector<char> locked(static_cast<std::size_t>(n), 0);
-    for (Index v : options.locked_vertices) {
-      if (v < 0 || v >= n) throw std::invalid_argument("build_hierarchy: locked vertex out of range");
-      locked[static_cast<std::size_t>(v)] = 1;
-    }
-    cover_options.locked_vertices.clear();
-    for (Index c = 0; c < copies; ++c)
-      if (locked[static_cast<std::size_t>(cover.to_input[static_cast<std::size_t>(c)])]) cover_options.locked_vertices.push_back(c);
-  }
+  for (Index v : options.locked_vertices)
+    if (v < 0 || v >= n) throw std::invalid_argument("build_hierarchy: locked vertex out of range");
+  cover_options.locked_vertices = detail::copies_of(cover.to_input, n, options.locked_vertices);
   // The coarsest size counts input vertices; a cover level has about copies / n times as many.
   if (options.coarsest_vertices < 1) throw std::invalid_argument("build_hierarchy: coarsest_vertices must be >= 1");
   if (n > 0) {
@@ -438,49 +431,21 @@ Hierarchy build_hierarchy(const TuftedCover& full_cover, const HierarchyOptions&
   const IntrinsicMesh intrinsic = cover.intrinsic_mesh();
   Hierarchy H = hierarchy_of(intrinsic.F, intrinsic.L, intrinsic.twin, cover_options);
 
-  // Per level: each copy's unknown (its input vertex's, numbered by first copy; level 0: the input
-  // numbering), each copy's lumped area.
-  std::vector<std::vector<Index>> unknown(H.levels.size());
-  std::vector<std::vector<Index>> level_to_input(H.levels.size());
+  // Per level, the copies merged into one unknown per input vertex (level 0: the input numbering,
+  // since the cover numbers copies in increasing input order and every input vertex has one).
+  std::vector<detail::MergedCopies> merged(H.levels.size());
   for (std::size_t k = 0; k < H.levels.size(); ++k) {
-    const HierarchyLevel& level = H.levels[k];
-    std::vector<Index>& of_copy = unknown[k];
-    of_copy.resize(level.to_fine.size());
-    if (k == 0) {
-      for (std::size_t c = 0; c < of_copy.size(); ++c) of_copy[c] = cover.to_input[c];
-      level_to_input[0].resize(static_cast<std::size_t>(n));
-      std::iota(level_to_input[0].begin(), level_to_input[0].end(), 0);
-      continue;
-    }
-    std::vector<Index> from_input(static_cast<std::size_t>(n), kInvalid);
-    for (std::size_t c = 0; c < of_copy.size(); ++c) {
-      const Index v = cover.to_input[static_cast<std::size_t>(level.to_fine[c])];
-      Index& u = from_input[static_cast<std::size_t>(v)];
-      if (u == kInvalid) {
-        u = static_cast<Index>(level_to_input[k].size());
-        level_to_input[k].push_back(v);
-      }
-      of_copy[c] = u;
-    }
+    std::vector<Index> input_of_copy(H.levels[k].to_fine.size());
+    for (std::size_t c = 0; c < input_of_copy.size(); ++c)
+      input_of_copy[c] = cover.to_input[static_cast<std::size_t>(H.levels[k].to_fine[c])];
+    merged[k] = detail::merge_copies(input_of_copy, n);
   }
-  const auto copy_areas = [](const HierarchyLevel& level) {
-    Eigen::VectorXd area = Eigen::VectorXd::Zero(level.vertex_count);
-    for (Eigen::Index f = 0; f < level.F.rows(); ++f) {
-      const double third = triangle_area(level.L(f, 0), level.L(f, 1), level.L(f, 2)) / 3.0;
-      for (int k = 0; k < 3; ++k) area(level.F(f, k)) += third;
-    }
-    return area;
-  };
   for (std::size_t k = 0; k + 1 < H.levels.size(); ++k) {
-    const auto coarse_count = static_cast<Index>(level_to_input[k + 1].size());
-    std::vector<Eigen::Triplet<double>> spread;
-    spread.reserve(unknown[k + 1].size());
-    for (std::size_t c = 0; c < unknown[k + 1].size(); ++c) spread.emplace_back(static_cast<Index>(c), unknown[k + 1][c], 1.0);
-    Eigen::SparseMatrix<double> S(static_cast<Index>(unknown[k + 1].size()), coarse_count);
-    S.setFromTriplets(spread.begin(), spread.end());
+    const HierarchyLevel& level = H.levels[k];
     const Eigen::SparseMatrix<double> W =
-        copies_to_vertices(unknown[k], static_cast<Index>(level_to_input[k].size()), copy_areas(H.levels[k]));
-    Eigen::SparseMatrix<double> P = W * H.prolongations[k] * S;
+        copies_to_vertices(merged[k].unknown, static_cast<Index>(merged[k].to_input.size()),
+                           detail::lumped_vertex_areas(level.F, level.L, level.vertex_count));
+    Eigen::SparseMatrix<double> P = W * H.prolongations[k] * merged[k + 1].spread();
     P.makeCompressed();
     H.prolongations[k] = std::move(P);
   }
@@ -488,26 +453,17 @@ Hierarchy build_hierarchy(const TuftedCover& full_cover, const HierarchyOptions&
   // cover's (the fine operators' mesh).
   for (std::size_t k = 0; k < H.levels.size(); ++k) {
     HierarchyLevel& level = H.levels[k];
-    if (k == 0) {
-      static_cast<IntrinsicMesh&>(level) = full_cover.intrinsic_mesh();
-      for (Eigen::Index f = 0; f < level.F.rows(); ++f)
-        for (int c = 0; c < 3; ++c) level.F(f, c) = full_cover.to_input[static_cast<std::size_t>(level.F(f, c))];
-    } else {
-      for (Eigen::Index f = 0; f < level.F.rows(); ++f)
-        for (int c = 0; c < 3; ++c) level.F(f, c) = unknown[k][static_cast<std::size_t>(level.F(f, c))];
-    }
-    level.vertex_count = static_cast<Index>(level_to_input[k].size());
-    level.to_fine = std::move(level_to_input[k]);
+    if (k == 0) static_cast<IntrinsicMesh&>(level) = full_cover.intrinsic_mesh();
+    const std::vector<Index>& name = k == 0 ? full_cover.to_input : merged[k].unknown;
+    for (Eigen::Index f = 0; f < level.F.rows(); ++f)
+      for (int c = 0; c < 3; ++c) level.F(f, c) = name[static_cast<std::size_t>(level.F(f, c))];
+    level.vertex_count = static_cast<Index>(merged[k].to_input.size());
+    level.to_fine = std::move(merged[k].to_input);
   }
   if (!H.fine_order.empty()) {
-    std::vector<Index> order;
-    order.reserve(static_cast<std::size_t>(n));
-    std::vector<char> placed(static_cast<std::size_t>(n), 0);
-    for (Index c : H.fine_order) {
-      const Index v = cover.to_input[static_cast<std::size_t>(c)];
-      if (!placed[static_cast<std::size_t>(v)]) placed[static_cast<std::size_t>(v)] = 1, order.push_back(v);
-    }
-    H.fine_order = std::move(order);
+    std::vector<Index> copy_order(H.fine_order.size());
+    for (std::size_t i = 0; i < copy_order.size(); ++i) copy_order[i] = cover.to_input[static_cast<std::size_t>(H.fine_order[i])];
+    H.fine_order = detail::merge_copies(copy_order, n).to_input;  // each vertex at its first copy
   }
   H.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return H;

@@ -6,6 +6,7 @@
 #include <string>
 #include <utility>
 
+#include "cover_copies.h"
 #include "disjoint_sets.h"
 #include "vertex_buckets.h"
 #include "ice/mesh_validation.h"
@@ -275,14 +276,8 @@ TuftedCover distinct_sheets(const TuftedCover& cover) {
 }
 
 Eigen::VectorXd cover_vertex_areas(const TuftedCover& cover) {
-  const Faces& F = cover.mesh.F;
-  Eigen::VectorXd area = Eigen::VectorXd::Zero(cover.mesh.V.rows());
-  for (Eigen::Index f = 0; f < F.rows(); ++f) {
-    const double third = triangle_area(edge_length(cover.mesh.V, F(f, 0), F(f, 1)), edge_length(cover.mesh.V, F(f, 1), F(f, 2)),
-                                       edge_length(cover.mesh.V, F(f, 2), F(f, 0))) / 3.0;
-    for (int k = 0; k < 3; ++k) area(F(f, k)) += third;
-  }
-  return area;
+  return detail::lumped_vertex_areas(cover.mesh.F, face_lengths_from_positions(cover.mesh.V, cover.mesh.F),
+                                     static_cast<Index>(cover.mesh.V.rows()));
 }
 
 Eigen::SparseMatrix<double> cover_to_input(const TuftedCover& cover, const Eigen::VectorXd& copy_mass) {
@@ -313,5 +308,52 @@ Eigen::SparseMatrix<double> copies_to_vertices(const std::vector<Index>& vertex_
   W.setFromTriplets(entries.begin(), entries.end());
   return W;
 }
+
+namespace detail {
+
+Eigen::SparseMatrix<double> MergedCopies::spread() const {
+  std::vector<Eigen::Triplet<double>> ones;
+  ones.reserve(unknown.size());
+  for (std::size_t c = 0; c < unknown.size(); ++c) ones.emplace_back(static_cast<Index>(c), unknown[c], 1.0);
+  Eigen::SparseMatrix<double> S(static_cast<Index>(unknown.size()), static_cast<Index>(to_input.size()));
+  S.setFromTriplets(ones.begin(), ones.end());
+  return S;
+}
+
+MergedCopies merge_copies(const std::vector<Index>& input_of_copy, Index input_vertices) {
+  MergedCopies m;
+  m.unknown.resize(input_of_copy.size());
+  m.from_input.assign(static_cast<std::size_t>(input_vertices), kInvalid);
+  for (std::size_t c = 0; c < input_of_copy.size(); ++c) {
+    Index& u = m.from_input[static_cast<std::size_t>(input_of_copy[c])];
+    if (u == kInvalid) {
+      u = static_cast<Index>(m.to_input.size());
+      m.to_input.push_back(input_of_copy[c]);
+    }
+    m.unknown[c] = u;
+  }
+  return m;
+}
+
+std::vector<Index> copies_of(const std::vector<Index>& input_of_copy, Index input_vertices, const std::vector<Index>& vertices) {
+  std::vector<char> wanted(static_cast<std::size_t>(input_vertices), 0);
+  for (Index v : vertices)
+    if (v >= 0 && v < input_vertices) wanted[static_cast<std::size_t>(v)] = 1;
+  std::vector<Index> copies;
+  for (std::size_t c = 0; c < input_of_copy.size(); ++c)
+    if (wanted[static_cast<std::size_t>(input_of_copy[c])]) copies.push_back(static_cast<Index>(c));
+  return copies;
+}
+
+Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, Index vertex_count) {
+  Eigen::VectorXd area = Eigen::VectorXd::Zero(vertex_count);
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const double third = triangle_area(L(f, 0), L(f, 1), L(f, 2)) / 3.0;
+    for (int k = 0; k < 3; ++k) area(F(f, k)) += third;
+  }
+  return area;
+}
+
+}  // namespace detail
 
 }  // namespace ice

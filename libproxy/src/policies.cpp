@@ -23,6 +23,15 @@ fem::ProlongationKind resolve_prolongation(Prolongation choice, fem::CoarseOpera
   return fem::ProlongationKind::barycentric;
 }
 
+Prolongation prolongation_choice(fem::ProlongationKind kind) {
+  switch (kind) {
+    case fem::ProlongationKind::smoothed: return Prolongation::smoothed;
+    case fem::ProlongationKind::smoothed_twice: return Prolongation::smoothed_twice;
+    case fem::ProlongationKind::barycentric: break;
+  }
+  return Prolongation::barycentric;
+}
+
 bool traces_lengths(CoarseLengths choice, CoarseningMethod method, bool marching) {
   return marching && (choice == CoarseLengths::traced || (choice == CoarseLengths::automatic && method == CoarseningMethod::ice));
 }

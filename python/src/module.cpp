@@ -1270,7 +1270,7 @@ discretisation ("input" triangles or their "intrinsic_delaunay" triangulation), 
 coarse space's P as given ("barycentric") or smoothed by one damped Jacobi step on the fine Laplacian
 ("smoothed": Galerkin operators only, no Dirichlet vertices, not for the coarse heat method; about
 half the Poisson and heat error at 5 % of the vertices), or twice ("smoothed_twice": the same
-conditions; a richer coarse space for eigenpairs, about 1.5× the weights). The operators and fine mesh default to the
+conditions; a richer coarse space for eigenpairs, for a denser P). The operators and fine mesh default to the
 tools'; the prolongation to the barycentric P, which serves every solver (solve_poisson, heat_flow
 and poisson-coarse pick the smoothed one where it serves: prolongation="auto").)doc")
       .def(py::init(&make_proxy), py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(),

@@ -61,9 +61,8 @@ enum class ProlongationKind {
   /// coarse fast marching reads the barycentric one whatever this is.
   smoothed,
   /// The smoothed P smoothed once more (two damped Jacobi steps; the same conditions). Its coarse
-  /// space resolves more of the smooth spectrum at the same coarse size — the eigenbasis's median
-  /// eigenvalue error at 5 % fell by about half on every measured mesh — at about 1.5× the
-  /// weights of P and nonzeros of the coarse operators (docs/measurements.md, "The eigenbasis through P smoothed twice").
+  /// space resolves more of the smooth spectrum at the same coarse size, for more weights per row of
+  /// P and denser coarse operators (docs/measurements.md, "The eigenbasis through P smoothed twice").
   smoothed_twice,
 };
 /// Whether `kind` smooths the given P (smoothed or smoothed_twice).

@@ -9,9 +9,9 @@
 /// The fans of a triangle's three corners need not agree: nearly cocircular neighbours, seen in
 /// different tangent planes, take different diagonals, and the union of the fans then covers such a
 /// place twice. Sharp & Crane keep every fan's triangles and divide the operators by 3; on the cover
-/// such overlaps are folded sheets that ICE cannot remove vertices from (measured: coarsening stopped
-/// at 2–8× its target and errors of 6–33 % on points sampled from public meshes, against about 1 %
-/// with the choice below). Here each distinct triangle is a candidate, and candidates are kept in
+/// such overlaps are folded sheets that ICE cannot remove vertices from (coarsening stalled far above
+/// its target, with large errors, where the choice below does not: docs/measurements.md, "Point
+/// clouds"). Here each distinct triangle is a candidate, and candidates are kept in
 /// order of the number of fans that have them, then of their circumradius (the Delaunay choice of a
 /// quad's diagonal), unless they cover, at one of their corners, directions of that corner's tangent
 /// plane that a kept triangle covers already.

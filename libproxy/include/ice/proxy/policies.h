@@ -32,8 +32,8 @@ enum class Prolongation {
 /// is allowed.
 enum class ProlongationUse {
   solves,      ///< Poisson and heat solves: smoothed once (docs/measurements.md, "Smoothed prolongation")
-  eigenpairs,  ///< the eigenbasis: smoothed twice; its median eigenvalue error at 5 % about halves, for
-               ///< ~1.5× the weights (docs/measurements.md, "The eigenbasis through P smoothed twice")
+  eigenpairs,  ///< the eigenbasis: smoothed twice, the more accurate eigenpairs for a denser P
+               ///< (docs/measurements.md, "The eigenbasis through P smoothed twice")
 };
 /// The prolongation `choice` means for coarse operators of `operators`, a problem with (`dirichlet`)
 /// or without Dirichlet vertices, and `use`. Throws std::invalid_argument for `smoothed` or
@@ -41,6 +41,8 @@ enum class ProlongationUse {
 /// the fixed values at the fixed vertices).
 fem::ProlongationKind resolve_prolongation(Prolongation choice, fem::CoarseOperatorKind operators, bool dirichlet,
                                            ProlongationUse use = ProlongationUse::solves);
+/// The explicit choice that resolves to `kind` (a resolved prolongation handed on as a choice).
+Prolongation prolongation_choice(fem::ProlongationKind kind);
 
 /// Which coarse edge lengths coarse marching runs on.
 enum class CoarseLengths {

@@ -1,0 +1,30 @@
+#pragma once
+// The tufted cover's copies of input vertices as the recipes use them: merged into one unknown per
+// input vertex (the coarse space's P and the hierarchy's levels), locked together, weighted by area.
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "ice/mesh.h"
+
+namespace ice::detail {
+
+/// Copies merged into one unknown per input vertex, the unknowns numbered by their first copy.
+struct MergedCopies {
+  std::vector<Index> unknown;     ///< per copy: its unknown
+  std::vector<Index> to_input;    ///< per unknown: its input vertex
+  std::vector<Index> from_input;  ///< per input vertex: its unknown, or kInvalid without a copy
+  /// copies × unknowns: each copy takes its unknown's value.
+  Eigen::SparseMatrix<double> spread() const;
+};
+/// input_of_copy[c] in [0, input_vertices) for every copy c (not checked).
+MergedCopies merge_copies(const std::vector<Index>& input_of_copy, Index input_vertices);
+
+/// The copies c whose input vertex is one of `vertices` (those out of [0, input_vertices) ignored).
+std::vector<Index> copies_of(const std::vector<Index>& input_of_copy, Index input_vertices, const std::vector<Index>& vertices);
+
+/// Per vertex of (F, L) with `vertex_count` vertices: a third of the area of every face at its corners.
+Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, Index vertex_count);
+
+}  // namespace ice::detail
