@@ -315,14 +315,14 @@ void add_curvature_correction_option(CLI::App& cli, ice::proxy::CurvatureCorrect
   add_choice(cli, "--curvature-correction", correction,
              choice_names<ice::proxy::CurvatureCorrection>(),
              "Coarse marching on lengths scaled by exp(K l^2/d), K the curvature each coarse face flattens "
-             "('auto': for ICE coarse meshes)");
+             "('auto': ICE meshes, not covers)");
 }
 
 void add_coarse_lengths_option(CLI::App& cli, const std::string& name, ice::proxy::CoarseLengths& choice) {
   add_choice(cli, name, choice,
              choice_names<ice::proxy::CoarseLengths>(),
              "Marching on coarse edge lengths traced on the surface ('traced', ICE only) or the coarse mesh's "
-             "own ('intrinsic', QEM's default)");
+             "own ('intrinsic': QEM, covers)");
 }
 
 std::optional<ice::CoarseTracing> trace_for_outputs(const PdeOptions& opt, const ice::TriangleMesh& mesh,

@@ -44,14 +44,13 @@
 
 namespace geodesic_coarse_tool {
 
-// A mesh read with --nonmanifold tufted that needs its cover is solved by the coarse heat method
-// only (ice::proxy::require_no_marching_on_cover says why): a usage error naming the file.
-void refuse_marching_on_cover(const app::PdeOptions& opt, const ice::TriangleMesh& mesh, bool marching, const std::string& what) {
-  if (!marching) return;
+// What needs the fine-to-coarse map refuses a mesh read with --nonmanifold tufted that needs its
+// cover (ice::proxy::require_map_on_cover says why): a usage error naming the file.
+void refuse_cover_without_map(const app::PdeOptions& opt, bool covered, const std::string& what) {
   try {
-    ice::proxy::require_no_marching_on_cover(ice::solved_on_tufted_cover(mesh, opt.nonmanifold), what);
+    ice::proxy::require_map_on_cover(covered, what);
   } catch (const std::invalid_argument& e) {
-    throw app::AppError(app::kUsage, opt.mesh + ": " + e.what() + " (--coarse-distances heat with --source)");
+    throw app::AppError(app::kUsage, opt.mesh + ": " + e.what());
   }
 }
 
@@ -127,7 +126,8 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   app::Stopwatch clock;
   const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
   const ice::TriangleMesh& mesh = loaded.mesh;
-  refuse_marching_on_cover(opt, mesh, true, "the distance oracle (--all-pairs, --pairs, --sample)");
+  refuse_cover_without_map(opt, ice::solved_on_tufted_cover(mesh, opt.nonmanifold),
+                           "the distance oracle (--all-pairs, --pairs, --sample)");
   const long long n = mesh.V.rows();
   const app::FileVertexMap vertices(loaded);
   std::vector<std::array<ice::Index, 2>> pairs;
@@ -419,7 +419,10 @@ int geodesic_coarse_tool::main(int argc, char** argv) {
     app::Stopwatch clock;
     const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
     const ice::TriangleMesh& mesh = loaded.mesh;
-    refuse_marching_on_cover(opt, mesh, oracle.method == fem::CoarseDistanceMethod::marching, "coarse marching");
+    // No map on a tufted cover: marching runs on the coarse mesh's own lengths (--coarse-lengths auto).
+    const bool covered = ice::solved_on_tufted_cover(mesh, opt.nonmanifold);
+    if (covered && traced_asked) refuse_cover_without_map(opt, true, "--coarse-lengths traced");
+    if (covered) oracle.traced_lengths = false;
     const long long n = mesh.V.rows();
     std::vector<int> sources;
     const app::FileVertexMap vertices(loaded);
@@ -437,7 +440,18 @@ int geodesic_coarse_tool::main(int argc, char** argv) {
     ice::proxy::ProxySetup pde;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
     std::optional<std::pair<ice::Index, ice::Index>> traced_counts;  // --coarse-lengths traced: edges, traced
-    if (marching) {  // no coarse operators: the coarse mesh, P and the lengths are all the marching reads
+    if (marching && covered) {  // the cover's coarse mesh and P, without a map (nor the store)
+      app::PdeOptions space_opt = opt;  // no operators: --operators is unused, as on a manifold mesh
+      space_opt.operators = fem::CoarseOperatorKind::galerkin;
+      pde = app::build_pde_proxy(mesh, coarsen_options, space_opt, run, clock, /*assemble_proxy=*/false,
+                                 /*need_fine=*/run.has_reference, /*keep_method_state=*/false, store);
+      run.coarse_solver = "coarse fast marching";
+      const ice::SurfaceEdgeLengths lengths =
+          ice::proxy::marching_lengths(mesh, pde.coarse, false, oracle.curvature_correction, nullptr,
+                                       ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
+      run.assemble = clock.lap();  // the correction
+      proxy_solver.emplace(ice::with_lengths(pde.coarse.mesh, lengths.lengths), pde.coarse.P, oracle.subdivisions);
+    } else if (marching) {  // no coarse operators: the coarse mesh, P and the lengths are all the marching reads
       // The coarse space with its map and traced lengths through the store; the fine mesh is for a
       // reference (made on the way when the space is built, else now).
       const bool share_fine = run.has_reference && opt.fine_geometry() == ice::FineGeometry::intrinsic_delaunay;
@@ -503,7 +517,9 @@ int geodesic_coarse_tool::main(int argc, char** argv) {
     report["sources"] = file_sources;
     report["coarse_distances"] = fem::to_string(oracle.method);
     report["coarse_lengths"] = oracle.traced_lengths ? "traced" : "intrinsic";
-    if (marching) report["curvature_corrected"] = ice::proxy::corrects_curvature(oracle.curvature_correction, pde.coarse.summary.method);
+    if (marching)
+      report["curvature_corrected"] = ice::proxy::corrects_curvature(oracle.curvature_correction, pde.coarse.summary.method,
+                                                                     pde.coarse.summary.tufted_cover);
     if (marching) report["marching_subdivisions"] = oracle.subdivisions;
     if (traced_counts) report["coarse_lengths_traced_edges"] = {{"edges", traced_counts->first}, {"traced", traced_counts->second}};
     report["max_distance"] = largest_finite(distance);

@@ -158,13 +158,27 @@ function(solved_on_cover input vertices poisson_bound heat_bound geodesic_bound)
   run(0 heat-coarse "${input}" --nonmanifold tufted ${ARGN} --no-cache --report "${WORK}/h.json" --force -q)
   json(err "${WORK}/h.json" error rel_l2)
   check(${err} LESS ${heat_bound} "heat on the cover: relative L2 error")
-  # Geodesics by the heat method, against the fine heat method on the cover; marching says it cannot.
+  # Geodesics by the heat method, against the fine heat method on the cover; by coarse marching (the
+  # default) on the coarse mesh's own lengths, reaching every vertex; what needs the fine-to-coarse
+  # map says it cannot.
   run(0 geodesic-coarse "${input}" --nonmanifold tufted ${ARGN} --coarse-distances heat --source 0
       --report "${WORK}/g.json" --force -q)
   json(err "${WORK}/g.json" error rel_l2)
   check(${err} LESS ${geodesic_bound} "geodesics on the cover by the heat method: relative L2 error")
-  expect_error(4 "coarse marching does not take a tufted cover.*--coarse-distances heat" geodesic-coarse "${input}"
-               --nonmanifold tufted ${ARGN} --source 0 -q)
+  run(0 geodesic-coarse "${input}" --nonmanifold tufted ${ARGN} --source 0 --report "${WORK}/m.json" --force -q)
+  file(READ "${WORK}/m.json" _marched)
+  string(JSON _method GET "${_marched}" coarse_distances)
+  string(JSON _lengths GET "${_marched}" coarse_lengths)
+  string(JSON _unreached ERROR_VARIABLE _all_reached GET "${_marched}" unreached_vertices)
+  if(NOT _method STREQUAL "marching" OR NOT _lengths STREQUAL "intrinsic" OR NOT _all_reached)
+    fail("marching on the cover: ${_method} on ${_lengths} lengths, unreached vertices '${_unreached}'")
+  endif()
+  json(err "${WORK}/m.json" error rel_l2)
+  check(${err} LESS ${geodesic_bound} "geodesics on the cover by marching: relative L2 error against the fine heat method")
+  expect_error(4 "--coarse-lengths traced needs the fine-to-coarse map" geodesic-coarse "${input}"
+               --nonmanifold tufted ${ARGN} --source 0 --coarse-lengths traced -q)
+  expect_error(4 "the distance oracle.*needs the fine-to-coarse map" geodesic-coarse "${input}"
+               --nonmanifold tufted ${ARGN} --sample 10 -q)
 endfunction()
 
 # view_test(<page>): the page opened in headless Chromium by tests/browser/view_test.mjs: no errors
@@ -1349,7 +1363,7 @@ elseif(CASE STREQUAL "nonmanifold_cover")
   # it; with --nonmanifold tufted, Poisson, heat, geodesics (heat method) and the eigenbasis are solved
   # on its tufted cover, near the fine robust Laplacian, one value per vertex of the file; multigrid
   # (its hierarchy coarsened on the cover) solves the fine robust Laplacian to CHOLMOD's solution, and
-  # refines the eigenbasis to the fine one's; coarse marching and the oracle say they cannot.
+  # refines the eigenbasis to the fine one's; coarse marching runs on the coarse mesh's own lengths; the oracle says it cannot.
   project_mesh(mesh triple_vierbein.obj)
   expect_error(2 "non-manifold edges.*--nonmanifold tufted" poisson-coarse "${mesh}" --repair --ratio 0.2 -q)
   solved_on_cover("${mesh}" 75 0.1 0.1 0.1 --repair --ratio 0.3)

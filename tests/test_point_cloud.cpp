@@ -197,16 +197,25 @@ TEST_CASE("point cloud: a large cloud is coarsened through the parallel phase, t
   CHECK(one.mesh.vertex_count < 24000 / 10);
 }
 
-TEST_CASE("point cloud: geodesics by the heat method through the proxy near the fine heat method's and the sphere's",
+TEST_CASE("point cloud: geodesics by marching and by the heat method through the proxy near the sphere's",
           "[cloud][proxy][geodesic]") {
   const ice::TriangleMesh mesh{sphere_points(3000), ice::point_cloud_triangles(sphere_points(3000))};
   ice::proxy::GeodesicOptions options;
   options.coarsening.coarsen.target_ratio = 0.1;
   options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
-  REQUIRE_THROWS_AS(ice::proxy::GeodesicSolver(mesh, options), std::invalid_argument);  // marching: not on a cover
+  // What needs the fine-to-coarse map refuses the cover, naming it.
   ice::proxy::OracleOptions oracle;
   oracle.coarsening = options.coarsening;
-  REQUIRE_THROWS_AS(ice::proxy::distance_oracle(mesh, oracle), std::invalid_argument);
+  REQUIRE_THROWS_WITH(ice::proxy::distance_oracle(mesh, oracle), Catch::Contains("fine-to-coarse map"));
+  options.lengths = ice::proxy::CoarseLengths::traced;
+  REQUIRE_THROWS_WITH(ice::proxy::GeodesicSolver(mesh, options), Catch::Contains("fine-to-coarse map"));
+  options.lengths = ice::proxy::CoarseLengths::automatic;
+  // Coarse marching (the default) on the coarse mesh's own lengths, uncorrected.
+  const ice::proxy::GeodesicSolver marching(mesh, options);
+  REQUIRE(marching.coarse_space().summary.tufted_cover);
+  REQUIRE_FALSE(marching.traced_lengths());
+  REQUIRE(marching.lengths().lengths == marching.coarse_space().mesh.L);
+  const Eigen::VectorXd marched = marching.distance({0});
   options.method = fem::CoarseDistanceMethod::heat_method;
   const ice::proxy::GeodesicSolver solver(mesh, options);
   REQUIRE(solver.coarse_space().summary.tufted_cover);
@@ -225,11 +234,15 @@ TEST_CASE("point cloud: geodesics by the heat method through the proxy near the 
   };
   INFO("proxy against the fine heat method " << relative(d, reference) << ", against the sphere " << relative(d, exact)
                                              << "; fine against the sphere " << relative(reference, exact));
+  INFO("marching against the sphere " << relative(marched, exact));
   REQUIRE(d.allFinite());
   REQUIRE(d(0) == Approx(0.0).margin(1e-12));
   REQUIRE(relative(d, reference) < 0.05);
   REQUIRE(relative(d, exact) < 0.05);
   REQUIRE(relative(reference, exact) < 0.05);
+  REQUIRE(marched.allFinite());
+  REQUIRE(marched(0) == Approx(0.0).margin(1e-12));
+  REQUIRE(relative(marched, exact) < relative(d, exact));  // marching: the sphere's distance, not a smoothed one
 }
 
 TEST_CASE("point cloud: point files are read, refused without the option, merged with repair", "[cloud][io]") {

@@ -49,6 +49,8 @@ TEST_CASE("proxy policies: prolongation, lengths, correction, targets, spellings
   CHECK(ice::proxy::corrects_curvature(ice::proxy::CurvatureCorrection::automatic, CoarseningMethod::ice));
   CHECK_FALSE(ice::proxy::corrects_curvature(ice::proxy::CurvatureCorrection::automatic, CoarseningMethod::qem));
   CHECK(ice::proxy::corrects_curvature(ice::proxy::CurvatureCorrection::on, CoarseningMethod::qem));
+  CHECK_FALSE(ice::proxy::corrects_curvature(ice::proxy::CurvatureCorrection::automatic, CoarseningMethod::ice, true));
+  CHECK(ice::proxy::corrects_curvature(ice::proxy::CurvatureCorrection::on, CoarseningMethod::ice, true));
   CHECK(ice::proxy::curvature_divisor(ice::proxy::MarchingUse::all_pairs) <
         ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
 

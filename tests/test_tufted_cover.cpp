@@ -350,13 +350,26 @@ TEST_CASE("tufted cover through the recipes: a manifold mesh to the same bits, a
   }
 }
 
-TEST_CASE("tufted cover: geodesics by the heat method near the fine heat method on the cover; marching refused",
+TEST_CASE("tufted cover: geodesics by the heat method near the fine heat method on the cover, and by marching",
           "[cover][proxy][geodesic]") {
   const ice::TriangleMesh mesh = load_keeping_sheets("triple_vierbein.obj");
   ice::proxy::GeodesicOptions options;
   options.coarsening.coarsen.target_ratio = 0.5;
   options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
-  REQUIRE_THROWS_WITH(ice::proxy::GeodesicSolver(mesh, options), Catch::Contains("heat method"));
+  const ice::proxy::GeodesicSolver marching(mesh, options);
+  const Eigen::VectorXd marched = marching.distance({0});
+  REQUIRE(marched.allFinite());  // one piece: marching crosses the non-manifold edges to every sheet
+  REQUIRE(marched(0) == Approx(0.0).margin(1e-12));
+  // The marching follows the coarse mesh's gluing where sides repeat (sheets meeting along an edge):
+  // paired by ends and lengths alone, the same mesh marches otherwise; a broken gluing is refused.
+  ice::IntrinsicMesh glued = ice::with_lengths(marching.coarse_space().mesh, marching.lengths().lengths);
+  const fem::SparseMatrix& P = marching.coarse_space().P;
+  REQUIRE(fem::ProxyGeodesicSolver(glued, P, options.subdivisions).distance({0}) == marched);
+  ice::IntrinsicMesh unglued = glued;
+  unglued.twin.clear();
+  CHECK_FALSE(fem::ProxyGeodesicSolver(unglued, P, options.subdivisions).distance({0}) == marched);
+  std::swap(glued.twin[static_cast<std::size_t>(glued.twin[0])], glued.twin[static_cast<std::size_t>(glued.twin[3])]);
+  REQUIRE_THROWS_WITH(fem::ProxyGeodesicSolver(glued, P, options.subdivisions), Catch::Contains("gluing"));
   options.method = fem::CoarseDistanceMethod::heat_method;
   const ice::proxy::GeodesicSolver solver(mesh, options);
   const ice::IntrinsicMesh& fine = solver.proxy()->fine_mesh();
@@ -603,4 +616,65 @@ TEST_CASE("tufted cover: mirror sheets are coarsened once, a vertex's coarse cop
   poisson.fixed_vertices.clear();
   poisson.operators = fem::CoarseOperatorKind::intrinsic;
   REQUIRE_THROWS_WITH(ice::proxy::PoissonSolver(mesh, poisson), Catch::Contains("Galerkin"));
+}
+
+TEST_CASE("tufted cover: spheres touching at a vertex stay joined there on the coarse mesh, and marching crosses",
+          "[cover][proxy][geodesic]") {
+  // Two unit icospheres sharing one vertex (the first's top, the second's bottom): a non-manifold
+  // vertex, where the cover's separate sheets meet at the vertex alone.
+  const ice::TriangleMesh sphere = ice::make_icosphere(3);
+  const Index n = sphere.V.rows();
+  Index top = 0, bottom = 0;
+  for (Index v = 0; v < n; ++v) {
+    if (sphere.V(v, 2) > sphere.V(top, 2)) top = v;
+    if (sphere.V(v, 2) < sphere.V(bottom, 2)) bottom = v;
+  }
+  ice::TriangleMesh mesh;
+  mesh.V.resize(2 * n - 1, 3);
+  mesh.V.topRows(n) = sphere.V;
+  std::vector<Index> second(static_cast<std::size_t>(n));
+  for (Index v = 0, next = n; v < n; ++v) {
+    second[static_cast<std::size_t>(v)] = v == bottom ? top : next;
+    if (v != bottom) mesh.V.row(next++) = sphere.V.row(v) + Eigen::RowVector3d(0, 0, sphere.V(top, 2) - sphere.V(bottom, 2));
+  }
+  mesh.F.resize(2 * sphere.F.rows(), 3);
+  mesh.F.topRows(sphere.F.rows()) = sphere.F;
+  for (Eigen::Index f = 0; f < sphere.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) mesh.F(sphere.F.rows() + f, k) = second[static_cast<std::size_t>(sphere.F(f, k))];
+  REQUIRE(ice::needs_tufted_cover(mesh));
+  ice::CoarseSpaceOptions coarsening;
+  coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  for (const double ratio : {0.01, 0.05, 0.25}) {
+    INFO("ratio " << ratio);
+    coarsening.coarsen.target_ratio = ratio;
+    const ice::CoarseSpace space = ice::build_coarse_space(mesh, coarsening);
+    // The junction is a coarse vertex, and the coarse mesh one piece as the input is.
+    REQUIRE(space.mesh.from_input[static_cast<std::size_t>(top)] != ice::kInvalid);
+    std::vector<std::vector<Index>> neighbours(static_cast<std::size_t>(space.mesh.vertex_count));
+    for (Eigen::Index f = 0; f < space.mesh.F.rows(); ++f)
+      for (int k = 0; k < 3; ++k)
+        neighbours[static_cast<std::size_t>(space.mesh.F(f, k))].push_back(space.mesh.F(f, (k + 1) % 3));
+    std::vector<char> reached(neighbours.size(), 0);
+    std::vector<Index> stack{0};
+    reached[0] = 1;
+    Index count = 1;
+    while (!stack.empty()) {
+      const Index u = stack.back();
+      stack.pop_back();
+      for (Index w : neighbours[static_cast<std::size_t>(u)])
+        if (!reached[static_cast<std::size_t>(w)]) reached[static_cast<std::size_t>(w)] = 1, ++count, stack.push_back(w);
+    }
+    REQUIRE(count == space.mesh.vertex_count);
+  }
+  coarsening.coarsen.target_ratio = 0.25;  // fine enough for distances within 5 %
+  // Marching from the first sphere's bottom reaches the second sphere through the junction: there the
+  // distance is about π (half a great circle) and at the second's top about 2π.
+  ice::proxy::GeodesicOptions options;
+  options.coarsening = coarsening;
+  const Eigen::VectorXd d = ice::proxy::GeodesicSolver(mesh, options).distance({bottom});
+  REQUIRE(d.allFinite());
+  const Index far_top = second[static_cast<std::size_t>(top)];
+  CHECK(d(top) == Approx(M_PI).epsilon(0.05));
+  CHECK(d(far_top) == Approx(2 * M_PI).epsilon(0.05));
+  CHECK(d.tail(n - 1).minCoeff() >= d(top) - 1e-9);  // the second sphere lies past the junction
 }

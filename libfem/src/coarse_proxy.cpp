@@ -863,7 +863,7 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const CoarseProxy& proxy, const ProxyGe
                          ? curvature_corrected_lengths(proxy.fine_mesh(), coarse, proxy.barycentric_prolongation(),
                                                        options.curvature_divisor)
                          : coarse.L,
-                     options.subdivisions);
+                     coarse.twin, options.subdivisions);
   }
 }
 
@@ -877,17 +877,44 @@ ProxyGeodesicSolver::ProxyGeodesicSolver(const ice::IntrinsicMesh& coarse, Spars
   for (Eigen::Index k = 0; k < P_rows_.nonZeros(); ++k)
     if (!(P_rows_.valuePtr()[k] > 0))
       throw std::invalid_argument("ProxyGeodesicSolver: P has a negative or non-finite weight (rows are barycentric coordinates)");
-  prepare_marching(coarse.F, coarse.L, subdivisions);
+  prepare_marching(coarse.F, coarse.L, coarse.twin, subdivisions);
 }
 
-void ProxyGeodesicSolver::prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths, int subdivisions) {
+void ProxyGeodesicSolver::prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths,
+                                           const std::vector<Index>& coarse_twin, int subdivisions) {
   detail::check_marching_mesh(coarse_faces, coarse_lengths, "ProxyGeodesicSolver");
   if (subdivisions < 0 || subdivisions > kMaxMarchingSubdivisions)
     throw std::invalid_argument("ProxyGeodesicSolver: subdivisions must be in [0, " +
                                 std::to_string(kMaxMarchingSubdivisions) + "]");
+  // Sides are paired by their ends and lengths, which is the mesh's own gluing wherever it is
+  // unambiguous; where three or more sides share ends and length (a tufted cover's sheets meet along
+  // one pair of vertices several times) only the coarse mesh's twin can say which are one edge.
+  const auto sides = static_cast<Index>(3 * coarse_faces.rows());
+  bool ambiguous = false;
+  if (!coarse_twin.empty())
+    for (const std::vector<Index>& group : detail::group_unknown_sides(coarse_faces, coarse_lengths, {}))
+      ambiguous = ambiguous || group.size() > 2;
+  if (ambiguous) {
+    bool glued = coarse_twin.size() == static_cast<std::size_t>(sides);
+    // A side from a to b is glued to one from b to a of the same length (to round-off).
+    const auto from = [&](Index side) { return coarse_faces(side / 3, side % 3); };
+    const auto to = [&](Index side) { return coarse_faces(side / 3, (side % 3 + 1) % 3); };
+    const auto length = [&](Index side) { return coarse_lengths(side / 3, side % 3); };
+    for (Index side = 0; glued && side < sides; ++side) {
+      const Index other = coarse_twin[static_cast<std::size_t>(side)];
+      glued = other == ice::kInvalid ||
+              (other >= 0 && other < sides && other != side && coarse_twin[static_cast<std::size_t>(other)] == side &&
+               from(other) == to(side) && to(other) == from(side) &&
+               std::abs(length(other) - length(side)) <= 1e-9 * std::max(length(other), length(side)));
+    }
+    if (!glued)
+      throw std::invalid_argument("ProxyGeodesicSolver: the coarse mesh's gluing (twin) is not 3 entries per face, each "
+                                  "side glued back by a side of the other direction and the same length, or on the boundary");
+  }
   Faces Fc = coarse_faces;
   FaceLengths Lc = coarse_lengths;
-  std::vector<Index> twin;  // the first subdivision pairs sides by their lengths, the next by this
+  std::vector<Index> twin;  // each subdivision's gluing for the next
+  if (ambiguous) twin = coarse_twin;
   for (int level = 0; level < subdivisions; ++level) {
     SubdividedCoarseMesh finer = subdivide_for_marching(Fc, Lc, P_rows_, twin);
     Fc = std::move(finer.F), Lc = std::move(finer.L), P_rows_ = std::move(finer.P), twin = std::move(finer.twin);

@@ -417,11 +417,13 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
     throw std::invalid_argument("build_coarse_space: a tufted cover is coarsened by ICE only (QEM decimates an extrinsic "
                                 "surface; the cover's front and back sheets coincide in space)");
   if (options.refinement) throw std::invalid_argument("build_coarse_space: no refinement on a tufted cover");
-  // Locked input vertices: every copy of each (they become one coarse vertex below).
+  // Locked input vertices: every copy of each (they become one coarse vertex below). So are the
+  // vertices where separate sheets meet at the vertex alone: a removed copy there would part the
+  // coarse mesh where the input is joined (coarse marching could not cross; P alone would join them).
   CoarseSpaceOptions cover_options = options;
-  if (!options.coarsen.locked_vertices.empty())
-    cover_options.coarsen.locked_vertices =
-        detail::copies_of(cover.to_input, cover.input_vertex_count, options.coarsen.locked_vertices);
+  std::vector<Index> locked = detail::sheet_junctions(cover);
+  locked.insert(locked.end(), options.coarsen.locked_vertices.begin(), options.coarsen.locked_vertices.end());
+  if (!locked.empty()) cover_options.coarsen.locked_vertices = detail::copies_of(cover.to_input, cover.input_vertex_count, locked);
   // A vertex target counts input vertices; the cover has more (copies): the same ratio of its own.
   if (options.coarsen.target_vertices > 0 && cover.input_vertex_count > 0)
     cover_options.coarsen.target_vertices = static_cast<Index>(std::llround(

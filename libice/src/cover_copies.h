@@ -8,6 +8,10 @@
 
 #include "ice/mesh.h"
 
+namespace ice {
+struct TuftedCover;
+}
+
 namespace ice::detail {
 
 /// Copies merged into one unknown per input vertex, the unknowns numbered by their first copy.
@@ -23,6 +27,11 @@ MergedCopies merge_copies(const std::vector<Index>& input_of_copy, Index input_v
 
 /// The copies c whose input vertex is one of `vertices` (those out of [0, input_vertices) ignored).
 std::vector<Index> copies_of(const std::vector<Index>& input_of_copy, Index input_vertices, const std::vector<Index>& vertices);
+
+/// The input vertices where separate sheets of `cover` meet at the vertex alone: copies in two or more
+/// of its connected components (glued faces). Call it on distinct_sheets' cover, where a closed
+/// sheet's mirror is gone (else every vertex of a closed sheet would count). Increasing order.
+std::vector<Index> sheet_junctions(const TuftedCover& cover);
 
 /// Per vertex of (F, L) with `vertex_count` vertices: a third of the area of every face at its corners.
 Eigen::VectorXd lumped_vertex_areas(const Faces& F, const FaceLengths& L, Index vertex_count);

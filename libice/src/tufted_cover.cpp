@@ -320,6 +320,28 @@ Eigen::SparseMatrix<double> MergedCopies::spread() const {
   return S;
 }
 
+std::vector<Index> sheet_junctions(const TuftedCover& cover) {
+  const auto faces = static_cast<std::size_t>(cover.mesh.F.rows());
+  DisjointSets parts(faces);
+  for (std::size_t s = 0; s < 3 * faces; ++s) parts.unite(s / 3, static_cast<std::size_t>(cover.twin[s] / 3));
+  // A copy is one fan of faces, so all of them lie in one component: any face names it.
+  std::vector<std::size_t> part_of_copy(cover.to_input.size(), faces);
+  for (std::size_t f = 0; f < faces; ++f)
+    for (int k = 0; k < 3; ++k) part_of_copy[static_cast<std::size_t>(cover.mesh.F(static_cast<Eigen::Index>(f), k))] = parts.find(f);
+  std::vector<std::size_t> first_part(static_cast<std::size_t>(cover.input_vertex_count), faces);
+  std::vector<char> junction(static_cast<std::size_t>(cover.input_vertex_count), 0);
+  for (std::size_t c = 0; c < cover.to_input.size(); ++c) {
+    const auto v = static_cast<std::size_t>(cover.to_input[c]);
+    if (part_of_copy[c] == faces) continue;  // a copy no face uses
+    if (first_part[v] == faces) first_part[v] = part_of_copy[c];
+    if (first_part[v] != part_of_copy[c]) junction[v] = 1;
+  }
+  std::vector<Index> junctions;
+  for (std::size_t v = 0; v < junction.size(); ++v)
+    if (junction[v]) junctions.push_back(static_cast<Index>(v));
+  return junctions;
+}
+
 MergedCopies merge_copies(const std::vector<Index>& input_of_copy, Index input_vertices) {
   MergedCopies m;
   m.unknown.resize(input_of_copy.size());

@@ -263,7 +263,7 @@ SurfaceEdgeLengths stored_marching_lengths(const TriangleMesh& mesh, const Coars
                                            CurvatureCorrection correction, double divisor, CacheReport* cache) {
   SurfaceEdgeLengths lengths =
       traced ? traced_edge_lengths(mesh, coarse, map, space_key, store, cache) : SurfaceEdgeLengths{coarse.mesh.L, 0, 0};
-  if (corrects_curvature(correction, coarse.summary.method))
+  if (corrects_curvature(correction, coarse.summary.method, coarse.summary.tufted_cover))
     lengths.lengths = fem::curvature_corrected_lengths(with_lengths(coarse.mesh, lengths.lengths),
                                                        gathered_curvature(mesh, coarse, space_key, store, cache), divisor);
   return lengths;

@@ -36,8 +36,9 @@ bool traces_lengths(CoarseLengths choice, CoarseningMethod method, bool marching
   return marching && (choice == CoarseLengths::traced || (choice == CoarseLengths::automatic && method == CoarseningMethod::ice));
 }
 
-bool corrects_curvature(CurvatureCorrection choice, CoarseningMethod method) {
-  return choice == CurvatureCorrection::on || (choice == CurvatureCorrection::automatic && method == CoarseningMethod::ice);
+bool corrects_curvature(CurvatureCorrection choice, CoarseningMethod method, bool tufted_cover) {
+  return choice == CurvatureCorrection::on ||
+         (choice == CurvatureCorrection::automatic && method == CoarseningMethod::ice && !tufted_cover);
 }
 
 double curvature_divisor(MarchingUse use) {

@@ -99,7 +99,7 @@ SurfaceEdgeLengths marching_lengths(const TriangleMesh& mesh, const CoarseSpace&
     result = surface_edge_lengths(mesh, space.mesh, fine_to_coarse_map(space), space.inserted);
   else
     result.lengths = space.mesh.L;
-  if (corrects_curvature(correction, space.summary.method))
+  if (corrects_curvature(correction, space.summary.method, space.summary.tufted_cover))
     result.lengths = curvature_corrected_lengths(mesh, space, result.lengths, divisor);
   return result;
 }

@@ -208,7 +208,8 @@ void add_mesh_and_coarsening(KeyHasher& h, const TriangleMesh& mesh, const Coars
   if (coarsening.refinement) h.add(coarsening.refinement->min_angle_degrees).add(coarsening.refinement->max_vertex_ratio);
   // Through the tufted cover: keyed only where the mesh needs it (an oriented manifold's space is the
   // same with either choice, and keeps the key it had before covers were stored).
-  if (solved_on_tufted_cover(mesh, coarsening.nonmanifold)) h.add(to_string(coarsening.nonmanifold));
+  // ("sheet junctions locked": covered spaces stored before those were locked are not reused.)
+  if (solved_on_tufted_cover(mesh, coarsening.nonmanifold)) h.add(to_string(coarsening.nonmanifold)).add("sheet junctions locked");
 }
 
 }  // namespace ice::proxy::detail

@@ -289,10 +289,11 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     (the coarse mesh's own), or "auto" (the default, as geodesic-coarse --coarse-lengths auto: traced
     for an ICE coarse space that has its fine-to-coarse map, intrinsic otherwise). subdivisions: marching on the coarse mesh split
     1:4 that many times (geodesic-coarse --marching-subdivisions). curvature_correction: with marching,
-    edge lengths scaled for the curvature each coarse face flattens (None: for ICE coarse spaces, as
-    geodesic-coarse --curvature-correction auto). On a mesh of several components
+    edge lengths scaled for the curvature each coarse face flattens (None: for ICE coarse spaces not of
+    a tufted cover, as geodesic-coarse --curvature-correction auto). On a mesh of several components
     the distance is +inf on the components without a source. With nonmanifold="tufted" (a mesh
-    that is not an oriented manifold, or a point cloud's faces) the heat method only. For many
+    that is not an oriented manifold, or a point cloud's faces) marching runs on the coarse mesh's own
+    lengths (a cover's coarse space has no map to trace with; lengths="traced" is refused). For many
     sources or pairs see ProxyGeodesicSolver and DistanceOracle. cache: the coarse space (with its
     map and traced lengths) goes through the store as in ice.coarsen: None the default store, a
     directory, or False for none.

@@ -527,12 +527,12 @@ py::object prolongation(const py::object& self) {
   return scipy_view(*space.P_rows, self);
 }
 
-/// What does not take a tufted cover's coarse space yet (its coarse vertices have one fan per sheet;
-/// marching, tangent spaces and the fine-to-coarse map need one).
+/// What does not take a tufted cover's coarse space yet (its coarse vertices have one fan per sheet:
+/// tangent spaces, the fine-to-coarse map and the one-triangulation file need one).
 void refuse_cover(bool tufted_cover, const std::string& what) {
   if (tufted_cover)
     throw py::value_error(what + " does not take a tufted cover's coarse space yet (nonmanifold='tufted': Poisson, "
-                                 "heat, the eigenbasis and geodesics by the heat method do)");
+                                 "heat, the eigenbasis and geodesics from sources do)");
 }
 
 void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& file_path, bool overwrite, const std::string& comment) {
@@ -587,6 +587,7 @@ ice::TriangleMesh require_coarse_space_of(const py::object& V, const py::object&
 /// then corrected as `correction` says for the space's method.
 ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const PyCoarseSpace& coarse, bool traced,
                                            ice::proxy::CurvatureCorrection correction, double divisor = fem::kProxyCorrectionDivisor) {
+  if (traced) ice::proxy::require_map_on_cover(coarse.space.summary.tufted_cover, "lengths='traced'");
   if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
     throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
   py::gil_scoped_release release;
@@ -1543,7 +1544,6 @@ hierarchy_cache, eigenpairs_cache. A refinement that stops at max_iterations ret
   m.def("curvature_corrected_lengths", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse,
                                           const py::object& lengths, double divisor) {
           const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "curvature_corrected_lengths");
-          refuse_cover(coarse.space.summary.tufted_cover, "curvature_corrected_lengths");
           const ice::FaceLengths L =
               lengths.is_none() ? coarse.space.mesh.L : lengths_argument(lengths, coarse.space.mesh.F.rows(), "lengths");
           py::gil_scoped_release release;
@@ -1565,15 +1565,19 @@ subdivisions: marching on the coarse mesh split 1:4 that many times (the coarse 
 2 measured: 2 is the most accurate, at ~8x the cost per source of 0). For the most accurate distances
 coarsen with use="geodesic". curvature_correction: march on edge lengths scaled by exp(K l²/48) for the
 Gaussian curvature K each coarse face flattens (geodesic-coarse --curvature-correction); None = for ICE
-coarse spaces, not QEM's (measured: 0.79x ICE's error against exact geodesics over 40 meshes x 1-10 %, 1.19x
+coarse spaces (not a tufted cover's), not QEM's (measured: 0.79x ICE's error against exact geodesics over 40 meshes x 1-10 %, 1.19x
 QEM's).)doc")
       .def(py::init([](std::shared_ptr<PyProxy> proxy, const std::string& method, double time_factor, int subdivisions,
                        const py::object& curvature_correction) {
              if (!(time_factor > 0)) throw py::value_error("time_factor must be > 0");
              fem::ProxyGeodesicOptions options;
              options.method = coarse_distance_method(method);
-             if (options.method == fem::CoarseDistanceMethod::marching)
-               ice::proxy::require_no_marching_on_cover(proxy->tufted_cover, "ProxyGeodesicSolver(method='marching')");
+             // The proxy's fine mesh on a cover has one fan per sheet at each vertex: its angle sums are not
+             // the surface's, which the curvature correction gathers. From the coarse space, the input's are.
+             if (options.method == fem::CoarseDistanceMethod::marching && proxy->tufted_cover)
+               throw py::value_error("ProxyGeodesicSolver(proxy, method='marching') does not take a tufted cover's Proxy: "
+                                     "march from its coarse space (ProxyGeodesicSolver.from_coarse(V, F, coarse), "
+                                     "geodesic_distance), or method='heat'");
              options.time_factor = time_factor;
              options.subdivisions = subdivisions;
              options.curvature_correction = curvature_correction_argument(curvature_correction, proxy->method);
@@ -1587,7 +1591,6 @@ QEM's).)doc")
       .def_static("from_coarse", [](const py::object& V, const py::object& F, const PyCoarseSpace& coarse, const std::string& lengths,
                                     int subdivisions, const py::object& curvature_correction) {
              const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "ProxyGeodesicSolver.from_coarse");
-             ice::proxy::require_no_marching_on_cover(coarse.space.summary.tufted_cover, "ProxyGeodesicSolver.from_coarse (coarse marching)");
              const bool traced = traced_lengths_argument(lengths, coarse);
              const ice::proxy::CurvatureCorrection correction = curvature_correction_choice(curvature_correction);
              auto solver = std::make_unique<PyGeodesicSolver>();
@@ -1598,7 +1601,8 @@ QEM's).)doc")
            }, py::arg("V"), py::arg("F"), py::arg("coarse"), py::kw_only(), py::arg("lengths") = "auto",
            py::arg("subdivisions") = fem::ProxyGeodesicOptions{}.subdivisions, py::arg("curvature_correction") = py::none(),
            "Coarse marching from a coarse space of (V, F) alone: no Proxy (no fine intrinsic Delaunay mesh, no operators), "
-           "which the marching does not need. The same distances as ProxyGeodesicSolver(Proxy(V, F, coarse)) (with the "
+           "which the marching does not need; a tufted cover's coarse space too (its own lengths). The same distances as "
+           "ProxyGeodesicSolver(Proxy(V, F, coarse)) on other spaces (with the "
            "curvature correction, up to the vertex areas of the fine triangulation: the input's here, its intrinsic "
            "Delaunay triangulation's there). "
            "lengths: 'traced' (ICE) marches on the coarse edges' lengths traced on the surface (more accurate on "

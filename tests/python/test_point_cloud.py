@@ -70,8 +70,6 @@ def test_what_a_cover_does_not_take_yet_is_refused_and_a_setup_saves(tmp_path):
     with pytest.raises(ValueError, match="tufted cover"):
         coarse.save(tmp_path / "coarse.ilm")
     with pytest.raises(ValueError, match="tufted cover"):
-        ice.ProxyGeodesicSolver.from_coarse(P, F, coarse)
-    with pytest.raises(ValueError, match="tufted cover"):
         ice.DistanceOracle(coarse)
     space, proxy = ice.setup_proxy(P, F, ratio=0.2, nonmanifold="tufted", cache=False)
     with pytest.raises(ValueError, match="tufted cover"):
@@ -119,7 +117,7 @@ def test_multigrid_hierarchy_through_the_cover(tmp_path):
     assert np.linalg.norm(x - reference) < 1e-7 * np.linalg.norm(reference)
 
 
-def test_point_cloud_geodesics_by_the_heat_method():
+def test_point_cloud_geodesics_by_marching_and_the_heat_method():
     P = sphere_points(3000)
     F = ice.point_cloud_triangles(P)
     d = ice.geodesic_distance(P, F, [0], method="heat", ratio=0.1, nonmanifold="tufted")
@@ -127,5 +125,14 @@ def test_point_cloud_geodesics_by_the_heat_method():
     assert d.shape == (3000,) and np.isfinite(d).all()
     assert d[0] == pytest.approx(0, abs=1e-12)
     assert np.linalg.norm(d - exact) / np.linalg.norm(exact) < 0.05
-    with pytest.raises(ValueError, match="heat method"):
-        ice.geodesic_distance(P, F, [0], ratio=0.1, nonmanifold="tufted")  # coarse marching
+    # Coarse marching (the default) on the coarse mesh's own lengths: nearer the sphere's distance.
+    marched = ice.geodesic_distance(P, F, [0], ratio=0.1, nonmanifold="tufted")
+    assert np.isfinite(marched).all() and marched[0] == pytest.approx(0, abs=1e-12)
+    assert np.linalg.norm(marched - exact) < np.linalg.norm(d - exact)
+    coarse = ice.coarsen(P, F, ratio=0.1, nonmanifold="tufted", use="geodesic", cache=False)
+    own = ice.ProxyGeodesicSolver.from_coarse(P, F, coarse, lengths="intrinsic", curvature_correction=False)
+    assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(P, F, coarse).distance([0]), own.distance([0]))  # the cover's default
+    with pytest.raises(ValueError, match="fine-to-coarse map"):
+        ice.geodesic_distance(P, F, [0], coarse=coarse, lengths="traced")
+    with pytest.raises(ValueError, match="from_coarse"):  # a Proxy's fine mesh has one fan per sheet
+        ice.ProxyGeodesicSolver(ice.Proxy(P, F, coarse))

@@ -407,7 +407,9 @@ class ProxyGeodesicSolver {
   /// non-negative weights summing to 1), not the fine or coarse operators a CoarseProxy assembles
   /// (a sizeable part of a proxy's setup on large meshes; docs/measurements.md, "Coarse geodesic
   /// solver: marching or heat method"). Throws std::invalid_argument on a bad coarse mesh or P.
-  /// Level 0 of the marching pairs sides by their ends and lengths: `coarse.twin` is not read.
+  /// The marching pairs sides by their ends and lengths, and follows `coarse.twin` where three or more
+  /// sides share both (std::invalid_argument when that twin is not a gluing). A CoarseProxy keeps no
+  /// coarse twin: march on a tufted cover's coarse mesh through this constructor.
   ProxyGeodesicSolver(const ice::IntrinsicMesh& coarse, SparseMatrix P,
                       int subdivisions = ProxyGeodesicOptions{}.subdivisions);
   /// The heat method with coarse operators assembled by the caller (to time assembly and
@@ -427,7 +429,8 @@ class ProxyGeodesicSolver {
  private:
   Eigen::VectorXd heat_distance(const std::vector<Index>& sources, ProxyPhaseTimes* times) const;
   Eigen::VectorXd marching_distance(const std::vector<Index>& sources, ProxyPhaseTimes* times) const;
-  void prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths, int subdivisions);
+  void prepare_marching(const Faces& coarse_faces, const FaceLengths& coarse_lengths, const std::vector<Index>& coarse_twin,
+                        int subdivisions);
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows_;  ///< P row-major (gathers per fine vertex)
   std::unique_ptr<HeatGeodesicSolver> heat_;                  ///< the heat method, or null
   std::unique_ptr<detail::MarchingMesh> marching_;            ///< marching, or null

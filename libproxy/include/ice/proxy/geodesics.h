@@ -32,7 +32,8 @@ struct GeodesicOptions {
   FineGeometry fine = FineGeometry::intrinsic_delaunay;
   /// Where the setup is looked up and saved (store.h): marching's coarse space with its map and
   /// traced lengths (build_mapped_space, traced_edge_lengths), the heat method's proxy
-  /// (build_proxy_setup). Off by default in the library; a given coarse space bypasses it.
+  /// (build_proxy_setup). Off by default in the library; a given coarse space bypasses it, and so
+  /// does marching on a tufted cover.
   StoreOptions store;
 };
 
@@ -42,10 +43,11 @@ class GeodesicSolver {
   /// space of it; traced lengths need its fine-to-coarse map: `map`, or a space built with
   /// keep_method_state (with CoarseLengths::automatic and neither, the coarse mesh's own lengths are
   /// used). With options.coarsening.nonmanifold = tufted_cover a mesh that is not an oriented
-  /// manifold (or a point cloud's faces, ice/point_cloud.h) is solved on its tufted cover, by the
-  /// heat method only. Throws std::invalid_argument on bad options (traced lengths without a way to
-  /// trace, marching on a tufted cover; options of the heat method with marching and conversely are
-  /// simply unused).
+  /// manifold (or a point cloud's faces, ice/point_cloud.h) is solved on its tufted cover: marching
+  /// then runs on the coarse mesh's own lengths (no map to trace with; CoarseLengths::automatic
+  /// means those) and coarsens afresh (the store holds covered spaces with their proxies only).
+  /// Throws std::invalid_argument on bad options (traced lengths without a way to trace, or on a
+  /// tufted cover; options of the heat method with marching and conversely are simply unused).
   explicit GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options = {}, std::optional<CoarseSpace> coarse = {},
                           const std::vector<CoarsePoint>* map = nullptr);
 
@@ -77,11 +79,12 @@ class GeodesicSolver {
 Eigen::VectorXd geodesic_distance(const TriangleMesh& mesh, const std::vector<Index>& sources,
                                   const GeodesicOptions& options = {});
 
-/// Throws std::invalid_argument naming `what` when `tufted_cover`: coarse marching and the distance
-/// oracle walk the coarse mesh from the input vertices' points on it, and a coarse vertex merged from
-/// several copies of one input vertex has one fan per sheet. Geodesics on a tufted cover are by the
-/// heat method, which needs only P and the cover's operators.
-void require_no_marching_on_cover(bool tufted_cover, const std::string& what);
+/// Throws std::invalid_argument naming `what` when `tufted_cover`: the distance oracle and traced
+/// coarse lengths need the fine-to-coarse map (each input vertex's point in one coarse face), which a
+/// tufted cover's coarse space does not have (its coarsening tracks the copies of a vertex, one per
+/// sheet, in different faces). Geodesics from sources on a cover are by coarse marching on the coarse
+/// mesh's own lengths, or by the heat method.
+void require_map_on_cover(bool tufted_cover, const std::string& what);
 
 struct OracleOptions {
   CoarseSpaceOptions coarsening = default_coarsening(ProxyUse::geodesic);

@@ -56,12 +56,16 @@ bool traces_lengths(CoarseLengths choice, CoarseningMethod method, bool marching
 
 /// Whether coarse marching runs on curvature-corrected lengths (fem/curvature_correction.h).
 enum class CurvatureCorrection {
-  automatic,  ///< for ICE coarse meshes, not for QEM's (whose chords already offset the flat faces' bias)
+  /// for ICE coarse meshes, not for QEM's (whose chords already offset the flat faces' bias), nor on a
+  /// tufted cover (the curvature is gathered from the input's faces around each vertex, several
+  /// sheets' fans where sheets meet: not the surface's angle defect; docs/measurements.md, "Coarse
+  /// marching on the cover")
+  automatic,
   on,
   off,
 };
-/// Whether `choice` corrects marching on a coarse space made by `method`.
-bool corrects_curvature(CurvatureCorrection choice, CoarseningMethod method);
+/// Whether `choice` corrects marching on a coarse space made by `method` (of a tufted cover or not).
+bool corrects_curvature(CurvatureCorrection choice, CoarseningMethod method, bool tufted_cover = false);
 
 /// Which marching reads corrected lengths: each has the divisor measured for it.
 enum class MarchingUse {
