@@ -440,7 +440,7 @@ int geodesic_coarse_tool::main(int argc, char** argv) {
     ice::proxy::ProxySetup pde;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
     std::optional<std::pair<ice::Index, ice::Index>> traced_counts;  // --coarse-lengths traced: edges, traced
-    if (marching && covered) {  // the cover's coarse mesh and P, without a map (nor the store)
+    if (marching && covered) {  // the cover's coarse mesh and P, without a map (assemble = false: not stored)
       app::PdeOptions space_opt = opt;  // no operators: --operators is unused, as on a manifold mesh
       space_opt.operators = fem::CoarseOperatorKind::galerkin;
       pde = app::build_pde_proxy(mesh, coarsen_options, space_opt, run, clock, /*assemble_proxy=*/false,

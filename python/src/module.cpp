@@ -1572,8 +1572,8 @@ QEM's).)doc")
              if (!(time_factor > 0)) throw py::value_error("time_factor must be > 0");
              fem::ProxyGeodesicOptions options;
              options.method = coarse_distance_method(method);
-             // The proxy's fine mesh on a cover has one fan per sheet at each vertex: its angle sums are not
-             // the surface's, which the curvature correction gathers. From the coarse space, the input's are.
+             // A CoarseProxy keeps no coarse gluing, which marching on a cover's coarse mesh needs where its
+             // sheets' sides repeat (and its fine mesh's angle sums are several sheets'): from the coarse space.
              if (options.method == fem::CoarseDistanceMethod::marching && proxy->tufted_cover)
                throw py::value_error("ProxyGeodesicSolver(proxy, method='marching') does not take a tufted cover's Proxy: "
                                      "march from its coarse space (ProxyGeodesicSolver.from_coarse(V, F, coarse), "
