@@ -895,18 +895,9 @@ void ProxyGeodesicSolver::prepare_marching(const Faces& coarse_faces, const Face
     for (const std::vector<Index>& group : detail::group_unknown_sides(coarse_faces, coarse_lengths, {}))
       ambiguous = ambiguous || group.size() > 2;
   if (ambiguous) {
-    bool glued = coarse_twin.size() == static_cast<std::size_t>(sides);
-    // A side from a to b is glued to one from b to a of the same length (to round-off).
-    const auto from = [&](Index side) { return coarse_faces(side / 3, side % 3); };
-    const auto to = [&](Index side) { return coarse_faces(side / 3, (side % 3 + 1) % 3); };
-    const auto length = [&](Index side) { return coarse_lengths(side / 3, side % 3); };
-    for (Index side = 0; glued && side < sides; ++side) {
-      const Index other = coarse_twin[static_cast<std::size_t>(side)];
-      glued = other == ice::kInvalid ||
-              (other >= 0 && other < sides && other != side && coarse_twin[static_cast<std::size_t>(other)] == side &&
-               from(other) == to(side) && to(other) == from(side) &&
-               std::abs(length(other) - length(side)) <= 1e-9 * std::max(length(other), length(side)));
-    }
+    // (Lengths to round-off: a caller may have computed them per face.)
+    const bool glued = coarse_twin.size() == static_cast<std::size_t>(sides) &&
+                       ice::first_gluing_defect(coarse_faces, coarse_lengths, coarse_twin, 1e-9).defect == ice::GluingDefect::none;
     if (!glued)
       throw std::invalid_argument("ProxyGeodesicSolver: the coarse mesh's gluing (twin) is not 3 entries per face, each "
                                   "side glued back by a side of the other direction and the same length, or on the boundary");

@@ -132,23 +132,16 @@ IntrinsicMeshFile read_intrinsic_mesh(const std::string& path) {
     }
   }
   // The gluing: symmetric, joining sides with the same ends run opposite ways, of one length (the
-  // writer writes one double per edge).
-  for (Index side = 0; side < static_cast<Index>(file.twin.size()); ++side) {
-    const Index other = file.twin[static_cast<std::size_t>(side)];
-    if (other == kInvalid) continue;
-    const Index f = side / 3, g = other / 3;
-    const int c = static_cast<int>(side % 3), d = static_cast<int>(other % 3);
-    std::string defect;
-    if (file.twin[static_cast<std::size_t>(other)] != side)
-      defect = "is glued to side " + std::to_string(other) + ", which is not glued back";
-    else if (file.F(f, c) != file.F(g, (d + 1) % 3) || file.F(f, (c + 1) % 3) != file.F(g, d))
-      defect = "is glued to side " + std::to_string(other) + ", whose end vertices differ";
-    else if (file.L(f, c) != file.L(g, d))
-      defect = "is glued to side " + std::to_string(other) + " of another length";
-    if (!defect.empty())
-      throw MeshError(MeshError::Kind::Defective, path,
-                      "line " + std::to_string(face_line[static_cast<std::size_t>(f)]) + ": face " + std::to_string(f) +
-                          ", side " + std::to_string(c) + " " + defect);
+  // writer writes one double per edge). Each twin is in range and not its own side: checked as read.
+  if (const GluingCheck glued = file.twin.empty() ? GluingCheck{} : first_gluing_defect(file.F, file.L, file.twin);
+      glued.defect != GluingDefect::none) {
+    const Index f = glued.side / 3;
+    const char* why = glued.defect == GluingDefect::not_glued_back ? ", which is not glued back"
+                      : glued.defect == GluingDefect::other_ends   ? ", whose end vertices differ"
+                                                                   : " of another length";
+    throw MeshError(MeshError::Kind::Defective, path,
+                    "line " + std::to_string(face_line[static_cast<std::size_t>(f)]) + ": face " + std::to_string(f) + ", side " +
+                        std::to_string(glued.side % 3) + " is glued to side " + std::to_string(glued.other) + why);
   }
   file.to_input.resize(static_cast<std::size_t>(n));
   file.vertex_count = static_cast<Index>(n);

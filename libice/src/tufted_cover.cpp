@@ -218,8 +218,7 @@ TuftedCover distinct_sheets(const TuftedCover& cover) {
     has_copy[static_cast<std::size_t>(v)] = 1;
   }
   if (std::find(has_copy.begin(), has_copy.end(), 0) != has_copy.end()) refuse("an input vertex has no copy");
-  detail::DisjointSets parts(static_cast<std::size_t>(faces));
-  for (Index s = 0; s < 3 * faces; ++s) parts.unite(static_cast<std::size_t>(s / 3), static_cast<std::size_t>(cover.twin[static_cast<std::size_t>(s)] / 3));
+  detail::DisjointSets parts = detail::glued_faces(cover);
   // A component is a mirror of another when every face's mirror (f <-> m + f) lies in one other
   // component of the same size; the one whose smallest face (its representative) is larger goes.
   std::vector<Index> size(static_cast<std::size_t>(faces), 0), mirror(static_cast<std::size_t>(faces), kInvalid);
@@ -320,10 +319,16 @@ Eigen::SparseMatrix<double> MergedCopies::spread() const {
   return S;
 }
 
-std::vector<Index> sheet_junctions(const TuftedCover& cover) {
+DisjointSets glued_faces(const TuftedCover& cover) {
   const auto faces = static_cast<std::size_t>(cover.mesh.F.rows());
   DisjointSets parts(faces);
   for (std::size_t s = 0; s < 3 * faces; ++s) parts.unite(s / 3, static_cast<std::size_t>(cover.twin[s] / 3));
+  return parts;
+}
+
+std::vector<Index> sheet_junctions(const TuftedCover& cover) {
+  const auto faces = static_cast<std::size_t>(cover.mesh.F.rows());
+  DisjointSets parts = glued_faces(cover);
   // A copy is one fan of faces, so all of them lie in one component: any face names it.
   std::vector<std::size_t> part_of_copy(cover.to_input.size(), faces);
   for (std::size_t f = 0; f < faces; ++f)

@@ -108,7 +108,7 @@ ProxySetup setup_from_entry(const EntryReader& entry, const std::string& path, c
     fem::CoarseProxyArrays a;
     a.kind = static_cast<fem::CoarseOperatorKind>(entry.integer("proxy.kind"));
     a.mass_kind = static_cast<fem::MassKind>(entry.integer("proxy.mass_kind"));
-    a.prolongation_kind = static_cast<fem::ProlongationKind>(entry.integer("proxy.prolongation"));
+    a.prolongation_kind = static_cast<fem::ProlongationKind>(prolongation);
     if (fem::is_smoothed(a.prolongation_kind)) {
       entry.sparse("proxy.P").swap(a.P);
       const Eigen::VectorXd row_sums = a.P * Eigen::VectorXd::Ones(a.P.cols());

@@ -9,7 +9,9 @@
 ///  - Per-face edge lengths (`FaceLengths`, m×3): column k holds the length of the edge that goes from
 ///    corner k to corner (k+1)%3 of the face, i.e. from F(f,k) to F(f,(k+1)%3). The corner angle at
 ///    corner k is therefore opposite the edge stored in column (k+1)%3.
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -79,6 +81,38 @@ inline IntrinsicMesh intrinsic_mesh(const TriangleMesh& mesh) {
 inline IntrinsicMesh intrinsic_mesh(Faces F, FaceLengths L, Index vertex_count = -1) {
   if (vertex_count < 0) vertex_count = F.size() == 0 ? 0 : F.maxCoeff() + 1;
   return IntrinsicMesh{std::move(F), std::move(L), {}, vertex_count};
+}
+
+/// What is wrong with a side's gluing (first_gluing_defect).
+enum class GluingDefect { none, out_of_range, not_glued_back, other_ends, other_length };
+struct GluingCheck {
+  GluingDefect defect = GluingDefect::none;
+  Index side = -1, other = -1;  ///< the side (3f + k) and the side `twin` glues it to
+};
+/// The first side, in increasing order, that `twin` (3·F.rows() entries: the IntrinsicMesh
+/// convention, −1 on the boundary) does not glue to a side glued back to it, running between the
+/// same two vertices the other way, of the same length to `relative_tolerance` (0: bit for bit).
+/// Precondition: twin.size() == 3·F.rows(), L of F's shape.
+inline GluingCheck first_gluing_defect(const Faces& F, const FaceLengths& L, const std::vector<Index>& twin,
+                                       double relative_tolerance = 0) {
+  const auto sides = static_cast<Index>(3 * F.rows());
+  for (Index side = 0; side < sides; ++side) {
+    const Index other = twin[static_cast<std::size_t>(side)];
+    if (other == -1) continue;
+    GluingCheck found{GluingDefect::none, side, other};
+    const Index f = side / 3, g = other / 3;
+    const int c = static_cast<int>(side % 3), d = static_cast<int>(other % 3);
+    if (other < 0 || other >= sides || other == side)
+      found.defect = GluingDefect::out_of_range;
+    else if (twin[static_cast<std::size_t>(other)] != side)
+      found.defect = GluingDefect::not_glued_back;
+    else if (F(f, c) != F(g, (d + 1) % 3) || F(f, (c + 1) % 3) != F(g, d))
+      found.defect = GluingDefect::other_ends;
+    else if (std::abs(L(f, c) - L(g, d)) > relative_tolerance * std::max(L(f, c), L(g, d)))
+      found.defect = GluingDefect::other_length;
+    if (found.defect != GluingDefect::none) return found;
+  }
+  return {};
 }
 
 /// The same faces, gluing and vertices with other lengths (e.g. traced or curvature-corrected ones).
