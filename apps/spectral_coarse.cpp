@@ -40,7 +40,7 @@ int spectral_coarse_tool::main(int argc, char** argv) {
       "Exit status: 0 ok, 1 unreadable input, 2 defective or disconnected mesh, 3 output not written, 4 bad command "
       "line,\n5 computation failed."};
   app::PdeOptions opt;
-  int k = 0, show = -1;
+  int k = 0, show = -1, coarse_directions = -1;
   double tolerance = 0;
   std::string hks_text, descriptors, boundary = "neumann";
   cli.add_option("-k,--eigenpairs", k, "Number of eigenpairs (smallest eigenvalues first)")->required()->check(app::integer_between(1, 100000));
@@ -51,6 +51,11 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                  "Refine the pairs on the input mesh to this relative residual |L phi - lambda M phi| / (lambda |M phi|);\n"
                  "0: the proxy's pairs as they are")
       ->check(CLI::Range(0.0, 0.1))
+      ->capture_default_str();
+  cli.add_option("--coarse-directions", coarse_directions,
+                 "With --tolerance: coarse eigenvectors added to every Rayleigh-Ritz step (the augmented subspace method);\n"
+                 "-1: 2 (k + guard); 0: none (LOBPCG)")
+      ->check(CLI::Range(-1, 1000000))
       ->capture_default_str();
   cli.add_option("--solutions", opt.solutions, "Write the eigenvectors as .npy (float64, n x k, M-orthonormal)");
   cli.add_option("--show", show, "Eigenfunction drawn by -o/--html (0-based; default: the first non-constant)")
@@ -128,6 +133,7 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     // the proxy, through the store), the refinement part of the solve.
     ice::proxy::EigenRefinement refinement;
     refinement.tolerance = tolerance;
+    refinement.coarse_directions = coarse_directions;
     std::optional<ice::proxy::MultigridHierarchy> hierarchy;
     if (tolerance > 0) {
       hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt, store);
@@ -201,6 +207,8 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                    {"converged", basis.converged},
                                    {"iterations", basis.refine_iterations},
                                    {"guard", basis.guard},
+                                   {"coarse_directions", basis.coarse_directions},
+                                   {"method", basis.coarse_directions > 0 ? "augmented" : "lobpcg"},
                                    {"residual_max", basis.residuals.maxCoeff()},
                                    {"seconds", basis.refine_seconds},
                                    {"precondition_seconds", basis.precondition_seconds},

@@ -253,6 +253,13 @@ TEST_CASE("refined eigenbasis: every pair to the tolerance, the fine eigenpairs 
   ice::proxy::EigenbasisOptions options;
   options.coarsening.coarsen.target_vertices = 200;  // a coarse start: eigenvalues a few per cent off
   options.refine.tolerance = 1e-6;
+  // Both methods: the augmented subspace method (the default: coarse directions) and LOBPCG.
+  int expected_directions = 2 * (k + 4);
+  SECTION("augmented subspace method") {}
+  SECTION("LOBPCG") {
+    options.refine.coarse_directions = 0;
+    expected_directions = 0;
+  }
   const ice::proxy::EigenSolver solver(mesh, options);
   REQUIRE(solver.hierarchy().fine_vertices == mesh.V.rows());
   const ice::proxy::Eigenbasis basis = solver.compute(k);
@@ -260,6 +267,7 @@ TEST_CASE("refined eigenbasis: every pair to the tolerance, the fine eigenpairs 
   REQUIRE(basis.converged);
   REQUIRE(basis.vectors.cols() == k);
   CHECK(basis.guard == 4);
+  CHECK(basis.coarse_directions == expected_directions);
   CHECK(basis.refine_iterations >= 1);
   const Eigen::VectorXd residuals = fem::eigen_residuals(p.L, p.M, basis.values, basis.vectors);
   CHECK(residuals.maxCoeff() <= 1e-6);
@@ -379,6 +387,36 @@ TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two c
   CHECK(early.history.size() == 2);
   CHECK(reached.size() == m);
   CHECK(early.residuals.maxCoeff() > 1e-6);
+  // The augmented subspace method, its coarse space the exact pairs beyond m (P = I): from the fine
+  // pairs perturbed by 1 %, back to them.
+  fem::SparseMatrix identity(two.V.rows(), two.V.rows());
+  identity.setIdentity();
+  {
+    const int g = 10;
+    const fem::Eigenpairs more = fem::smallest_eigenpairs(p.L, p.M, m + g, tight_reference());
+    fem::EigenCoarseDirections beyond;
+    beyond.prolongation = &identity;
+    beyond.coarse_vectors = more.vectors.rightCols(g);
+    beyond.laplacian_gram = beyond.coarse_vectors.transpose() * (p.L * beyond.coarse_vectors);
+    beyond.mass_gram = beyond.coarse_vectors.transpose() * (p.M * beyond.coarse_vectors);
+    Eigen::MatrixXd near = more.vectors.leftCols(m) + 0.01 * Eigen::MatrixXd::Random(two.V.rows(), m);
+    Eigen::VectorXd near_values;
+    const fem::EigenRefineReport augmented = fem::refine_eigenpairs(p.L, p.M, near_values, near, k, exact, {}, {}, &beyond);
+    REQUIRE(augmented.converged);
+    CHECK(augmented.residuals.maxCoeff() <= 1e-6);
+    CHECK(fem::eigen_residuals(p.L, p.M, near_values.head(k), near.leftCols(k)).tail(k - 2).maxCoeff() <= 1e-6);
+    const Agreement b = agreement(near_values.head(k), near.leftCols(k), fine, p.M);
+    CHECK(b.value_error < 1e-8);
+    CHECK(b.reference_to_refined < 1e-6);
+    CHECK(orthonormality_defect(near, p.M) < 1e-10);
+  }
+  // Coarse directions that do not match the pencil are refused.
+  fem::EigenCoarseDirections mismatched;
+  mismatched.prolongation = &identity;
+  mismatched.coarse_vectors = Eigen::MatrixXd::Random(two.V.rows(), 3);
+  mismatched.laplacian_gram = Eigen::MatrixXd::Identity(2, 2);
+  mismatched.mass_gram = Eigen::MatrixXd::Identity(3, 3);
+  CHECK_THROWS_AS(fem::refine_eigenpairs(p.L, p.M, v, X, k, exact, {}, {}, &mismatched), std::invalid_argument);
   ice::proxy::EigenbasisOptions negative;
   negative.refine.tolerance = -1;
   CHECK_THROWS_AS(ice::proxy::EigenSolver(unit_sphere(), negative), std::invalid_argument);

@@ -1,4 +1,5 @@
-// refine_eigenpairs (fem/eigen.h): LOBPCG on the fine pencil, started from approximate pairs.
+// refine_eigenpairs (fem/eigen.h): the augmented subspace method or LOBPCG on the fine pencil, started
+// from approximate pairs.
 #include "fem/eigen.h"
 #include "ice/wall_time.h"
 #include "parallel_kernels.h"
@@ -134,11 +135,57 @@ Dense column_subset(const Dense& A, const std::vector<Eigen::Index>& which) {
   return out;
 }
 
+
+// Pᵀ Y and Pᵀ diag(w) Y together for a row-major P (n × N_c) and a column-major n × q block Y: a
+// chunk of columns at a time, each fine row's values gathered once and scattered into the coarse
+// rows (the same order of sums whatever the thread count: scatter_transpose_row_source).
+void restrict_block(const detail::RowMajorSparse& P, const Dense& LY, const Dense& Y, const Eigen::VectorXd& w,
+                    Dense& restricted_LY, Dense& restricted_MY, int threads) {
+  constexpr Eigen::Index kChunk = 8;
+  const Eigen::Index q = Y.cols(), coarse = P.cols();
+  restricted_LY.resize(coarse, q);
+  restricted_MY.resize(coarse, q);
+  std::vector<double> rows(static_cast<std::size_t>(coarse * 2 * kChunk));
+  for (Eigen::Index first = 0; first < q; first += kChunk) {
+    const Eigen::Index width = std::min(kChunk, q - first);
+    detail::scatter_transpose_row_source(
+        P,
+        [&](Eigen::Index r, double* scratch) {
+          for (Eigen::Index c = 0; c < width; ++c) {
+            scratch[c] = LY(r, first + c);
+            scratch[width + c] = w(r) * Y(r, first + c);
+          }
+          return static_cast<const double*>(scratch);
+        },
+        rows.data(), 2 * width, threads);
+    for (Eigen::Index i = 0; i < coarse; ++i)
+      for (Eigen::Index c = 0; c < width; ++c) {
+        restricted_LY(i, first + c) = rows[static_cast<std::size_t>(i * 2 * width + c)];
+        restricted_MY(i, first + c) = rows[static_cast<std::size_t>(i * 2 * width + width + c)];
+      }
+  }
+}
+
+// out += P C for a row-major P (n × N_c) and a column-major N_c × q block C, a chunk of columns at a time.
+void prolong_add(const detail::RowMajorSparse& P, const Dense& C, Dense& out, int threads) {
+  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  constexpr Eigen::Index kChunk = 8;
+  RowMatrix chunk(C.rows(), kChunk);
+  for (Eigen::Index first = 0; first < C.cols(); first += kChunk) {
+    const Eigen::Index width = std::min(kChunk, C.cols() - first);
+    chunk.leftCols(width) = C.middleCols(first, width);
+    if (width < kChunk) chunk.rightCols(kChunk - width).setZero();
+    detail::gather_product_to_columns(P, chunk.data(), kChunk, width, out, first, threads,
+                                      [&out, first](Eigen::Index i, Eigen::Index c, double u) { return out(i, first + c) + u; });
+  }
+}
+
 }  // namespace
 
 EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMatrix& M, Eigen::VectorXd& values,
                                     Eigen::MatrixXd& vectors, int k, const BlockPreconditioner& preconditioner,
-                                    const std::vector<Index>& fixed, const EigenRefineOptions& options) {
+                                    const std::vector<Index>& fixed, const EigenRefineOptions& options,
+                                    const EigenCoarseDirections* coarse) {
   const auto start = Clock::now();
   // The products read the compressed arrays directly.
   SparseMatrix compressed;
@@ -164,6 +211,14 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   if (k < 1 || k > m || m >= free_count)
     throw std::invalid_argument("refine_eigenpairs: need 1 <= k <= m < free unknowns (k = " + std::to_string(k) +
                                 ", m = " + std::to_string(m) + ", " + std::to_string(free_count) + " free unknowns)");
+  const Eigen::Index g = coarse ? coarse->coarse_vectors.cols() : 0;
+  if (coarse) {
+    const SparseMatrix* P = coarse->prolongation;
+    if (!P || P->rows() != n || coarse->coarse_vectors.rows() != P->cols() || coarse->laplacian_gram.rows() != g ||
+        coarse->laplacian_gram.cols() != g || coarse->mass_gram.rows() != g || coarse->mass_gram.cols() != g)
+      throw std::invalid_argument("refine_eigenpairs: the coarse directions' prolongation, vectors and Gram matrices do "
+                                  "not match (" + std::to_string(n) + " fine rows)");
+  }
   Eigen::VectorXd mass(n);
   for (Eigen::Index j = 0; j < M.outerSize(); ++j) {
     mass(j) = 0;
@@ -207,28 +262,105 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     X = block_product(X, r.coefficients);
     theta = r.values;
   }
-  Dense P(n, 0);
   Eigen::VectorXd residual(m);
-  for (int iteration = 0;; ++iteration) {
-    // Residuals R = L X − M X Θ, outside the Dirichlet rows; X's Gram blocks from the same L X
-    // (computed, not assumed: the Rayleigh–Ritz then corrects any drift of X from M-orthonormality).
-    Dense R = sparse_times(L, X, threads);
-    const Dense XLX = gram(X, R), XMX = mass_gram(X, mass, X);
+  // The residuals R = L X − M X Θ of the current pairs (outside the Dirichlet rows), their relative
+  // norms in `residual`; zero modes are judged against the largest |λ| of all m pairs: the guards'
+  // are not round-off even when the first k are all zero modes (k at most the component count).
+  const auto residuals_of = [&](Dense& R) {
     Eigen::VectorXd mass_norm(m);
     for (Eigen::Index j = 0; j < m; ++j) {
-      const Eigen::VectorXd mx = mass.cwiseProduct(X.col(j));  // 0 at the Dirichlet rows, as X
-      R.col(j) -= theta(j) * mx;
-      mass_norm(j) = mx.norm();
+      double norm2 = 0;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double mx = mass(i) * X(i, j);  // 0 at the Dirichlet rows, as X
+        R(i, j) -= theta(j) * mx;
+        norm2 += mx * mx;
+      }
+      mass_norm(j) = std::sqrt(norm2);
     }
     clear_fixed_rows(R);
-    // Zero modes are judged against the largest |λ| of all m pairs: the guards' are not round-off
-    // even when the first k are all zero modes (k at most the component count).
     const double largest = std::max(theta.cwiseAbs().maxCoeff(), std::numeric_limits<double>::min());
     for (Eigen::Index j = 0; j < m; ++j) {
       const double scale = is_zero_mode(theta(j), largest) ? largest : std::abs(theta(j));
       const double denominator = scale * mass_norm(j);
       residual(j) = denominator > 0 ? R.col(j).norm() / denominator : std::numeric_limits<double>::infinity();
     }
+  };
+  // Soft locking: converged pairs stay in the Rayleigh–Ritz but get no new direction.
+  const auto still_active = [&] {
+    std::vector<Eigen::Index> active;
+    for (Eigen::Index j = 0; j < m; ++j)
+      if (residual(j) > options.tolerance) active.push_back(j);
+    return active;
+  };
+  const auto preconditioned = [&](const Dense& R, const std::vector<Eigen::Index>& active) {
+    const Dense RA = column_subset(R, active);
+    const auto precondition_start = Clock::now();
+    Dense W = preconditioner(RA);
+    report.precondition_seconds += ice::seconds_since(precondition_start);
+    if (W.rows() != n || W.cols() != static_cast<Eigen::Index>(active.size()))
+      throw std::invalid_argument("refine_eigenpairs: the preconditioner returned a block of the wrong size");
+    clear_fixed_rows(W);
+    return W;
+  };
+
+  if (coarse) {
+    // The augmented subspace method: Rayleigh–Ritz on [U, G], U = X − T R. Per iteration: L X (the
+    // residuals), the preconditioner, L U, Uᵀ L U and Uᵀ M U, G's products through the coarse
+    // space (one restriction of L U and M U), and X = U Y_U + P (Ψ Y_G).
+    const detail::RowMajorSparse coarse_rows = *coarse->prolongation;
+    const Dense& psi = coarse->coarse_vectors;
+    for (int iteration = 0;; ++iteration) {
+      Dense R = sparse_times(L, X, threads);
+      residuals_of(R);
+      report.history.push_back(residual.head(k).maxCoeff());
+      report.iterations = iteration;
+      if (residual.head(k).maxCoeff() <= options.tolerance) {
+        report.converged = true;
+        break;
+      }
+      if (iteration == options.max_iterations) break;
+      const std::vector<Eigen::Index> active = still_active();
+      {
+        const Dense W = preconditioned(R, active);
+        R.resize(0, 0);
+        for (std::size_t c = 0; c < active.size(); ++c) X.col(active[c]) -= W.col(static_cast<Eigen::Index>(c));
+      }
+      // X now holds U. The Gram matrices of [U, G]: U's own computed in full, G's given.
+      const Dense LU = sparse_times(L, X, threads);
+      Dense GL(m + g, m + g), GM(m + g, m + g);
+      GL.topLeftCorner(m, m) = gram(X, LU);
+      GM.topLeftCorner(m, m) = mass_gram(X, mass, X);
+      {
+        Dense restricted_LU, restricted_MU;
+        restrict_block(coarse_rows, LU, X, mass, restricted_LU, restricted_MU, threads);
+        GL.topRightCorner(m, g) = (psi.transpose() * restricted_LU).transpose();
+        GM.topRightCorner(m, g) = (psi.transpose() * restricted_MU).transpose();
+      }
+      GL.bottomRightCorner(g, g) = coarse->laplacian_gram;
+      GM.bottomRightCorner(g, g) = coarse->mass_gram;
+      GL.triangularView<Eigen::StrictlyLower>() = GL.transpose();
+      GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
+      const Ritz r = ritz_pairs(GL, GM, m, kDrop);
+      Dense moved = block_product(X, r.coefficients.topRows(m));
+      prolong_add(coarse_rows, Dense(psi * r.coefficients.bottomRows(g)), moved, threads);
+      clear_fixed_rows(moved);
+      X = std::move(moved);
+      theta = r.values;
+    }
+    values = std::move(theta);
+    vectors = std::move(X);
+    report.residuals = residual.head(k);
+    report.seconds = ice::seconds_since(start);
+    return report;
+  }
+
+  Dense P(n, 0);
+  for (int iteration = 0;; ++iteration) {
+    // Residuals R = L X − M X Θ, outside the Dirichlet rows; X's Gram blocks from the same L X
+    // (computed, not assumed: the Rayleigh–Ritz then corrects any drift of X from M-orthonormality).
+    Dense R = sparse_times(L, X, threads);
+    const Dense XLX = gram(X, R), XMX = mass_gram(X, mass, X);
+    residuals_of(R);
     report.history.push_back(residual.head(k).maxCoeff());
     report.iterations = iteration;
     if (residual.head(k).maxCoeff() <= options.tolerance) {
@@ -236,21 +368,9 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       break;
     }
     if (iteration == options.max_iterations) break;
-    // Soft locking: converged pairs stay in X (and in the Rayleigh–Ritz) but get no new directions.
-    std::vector<Eigen::Index> active;
-    for (Eigen::Index j = 0; j < m; ++j)
-      if (residual(j) > options.tolerance) active.push_back(j);
-    Dense W;
-    {
-      Dense RA = column_subset(R, active);
-      R.resize(0, 0);
-      const auto precondition_start = Clock::now();
-      W = preconditioner(RA);
-      report.precondition_seconds += ice::seconds_since(precondition_start);
-    }
-    if (W.rows() != n || W.cols() != static_cast<Eigen::Index>(active.size()))
-      throw std::invalid_argument("refine_eigenpairs: the preconditioner returned a block of the wrong size");
-    clear_fixed_rows(W);
+    const std::vector<Eigen::Index> active = still_active();
+    Dense W = preconditioned(R, active);
+    R.resize(0, 0);
     // The new directions: W M-orthogonal to X, then W and P each M-orthonormal (their mutual and
     // X–P products are computed, not assumed).
     product(X, false, mass_gram(X, mass, W), false, W, true, -1.0);

@@ -120,6 +120,28 @@ fem::Eigenpairs coarse_eigenpairs(const fem::SparseMatrix& L, const fem::SparseM
   return pairs;
 }
 
+// proxy_eigenbasis's work for `count` coarse pairs of which the first `prolonged` are prolonged and
+// returned; the coarse vectors of all `count` go to `coarse_vectors` when given.
+Eigenbasis coarse_basis(const fem::CoarseProxy& proxy, int count, int prolonged, const fem::EigenOptions& options,
+                        const std::vector<Index>& dirichlet_vertices, const Store& store, Eigen::MatrixXd* coarse_vectors) {
+  if (proxy.kind() != fem::CoarseOperatorKind::galerkin)
+    throw std::invalid_argument("eigenbasis: the proxy's coarse operators must be Galerkin (PᵀLP, PᵀMP)");
+  std::vector<Index> coarse_fixed;
+  require_pair_count(count, free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed), !coarse_fixed.empty());
+  auto start = Clock::now();
+  Eigenbasis basis;
+  fem::Eigenpairs pairs =
+      coarse_eigenpairs(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed, count, options, store, basis.cache);
+  basis.eigensolve_seconds = seconds_since(start) - basis.cache.save_seconds;
+  start = Clock::now();
+  basis.values = pairs.values.head(prolonged);
+  basis.vectors = proxy.prolong_block(pairs.vectors.leftCols(prolonged));
+  basis.prolong_seconds = seconds_since(start);
+  basis.restarts = pairs.restarts;
+  if (coarse_vectors) *coarse_vectors = std::move(pairs.vectors);
+  return basis;
+}
+
 }  // namespace
 
 EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, std::optional<CoarseSpace> coarse)
@@ -164,6 +186,11 @@ int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coar
   return static_cast<int>(std::max<long long>(0, std::min<long long>(wanted, coarse_free_vertices - 1 - k)));
 }
 
+int refinement_coarse_directions(int k, int guard, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices) {
+  const long long wanted = refinement.coarse_directions >= 0 ? refinement.coarse_directions : 2LL * (k + guard);
+  return static_cast<int>(std::max<long long>(0, std::min<long long>(wanted, coarse_free_vertices - 1 - k - guard)));
+}
+
 Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHierarchy& hierarchy, int k,
                               const EigenRefinement& refinement, const fem::EigenOptions& options,
                               const std::vector<Index>& dirichlet_vertices, const Store& store) {
@@ -178,8 +205,19 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
     throw std::invalid_argument("refined_eigenbasis: the hierarchy has " + std::to_string(hierarchy.fine_vertices) +
                                 " fine vertices, the proxy " + std::to_string(L.rows()));
   const int guard = refinement_guard(k, refinement, coarse_free);
-  Eigenbasis basis = proxy_eigenbasis(proxy, k + guard, options, dirichlet_vertices, store);
+  const int directions = refinement_coarse_directions(k, guard, refinement, coarse_free);
+  // One coarse eigensolve for the start (k + guard pairs, prolonged) and the coarse directions.
+  Eigen::MatrixXd coarse_vectors;
+  Eigenbasis basis = coarse_basis(proxy, k + guard + directions, k + guard, options, dirichlet_vertices, store, &coarse_vectors);
   const auto start = Clock::now();
+  fem::EigenCoarseDirections coarse;
+  if (directions > 0) {
+    coarse.prolongation = &proxy.prolongation();
+    coarse.coarse_vectors = coarse_vectors.rightCols(directions);
+    coarse.laplacian_gram = coarse.coarse_vectors.transpose() * (proxy.coarse_laplacian() * coarse.coarse_vectors);
+    coarse.mass_gram = coarse.coarse_vectors.transpose() * (proxy.coarse_mass() * coarse.coarse_vectors);
+  }
+  coarse_vectors.resize(0, 0);
   // The preconditioner: one V-cycle of L + σM (symmetric positive definite for any σ > 0). σ is
   // the scale of the modes sought, the smallest positive coarse eigenvalue (an upper bound of the
   // fine one); with zero modes only, the inverse area (λ·area is of order 10 for the lowest modes
@@ -205,7 +243,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   Eigen::VectorXd values = std::move(basis.values);
   Eigen::MatrixXd vectors = std::move(basis.vectors);
   const fem::EigenRefineReport report =
-      fem::refine_eigenpairs(L, M, values, vectors, k, precondition, dirichlet_vertices, refine);
+      fem::refine_eigenpairs(L, M, values, vectors, k, precondition, dirichlet_vertices, refine, directions > 0 ? &coarse : nullptr);
   basis.values = values.head(k);
   vectors.conservativeResize(Eigen::NoChange, k);
   basis.vectors = std::move(vectors);
@@ -213,6 +251,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   basis.converged = report.converged;
   basis.refine_iterations = report.iterations;
   basis.guard = guard;
+  basis.coarse_directions = directions;
   basis.residuals = report.residuals;
   basis.precondition_seconds = report.precondition_seconds;
   basis.refine_seconds = seconds_since(start);
@@ -221,21 +260,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
 
 Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options,
                             const std::vector<Index>& dirichlet_vertices, const Store& store) {
-  if (proxy.kind() != fem::CoarseOperatorKind::galerkin)
-    throw std::invalid_argument("eigenbasis: the proxy's coarse operators must be Galerkin (PᵀLP, PᵀMP)");
-  std::vector<Index> coarse_fixed;
-  require_pair_count(k, free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed), !coarse_fixed.empty());
-  auto start = Clock::now();
-  Eigenbasis basis;
-  const fem::Eigenpairs pairs =
-      coarse_eigenpairs(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed, k, options, store, basis.cache);
-  basis.eigensolve_seconds = seconds_since(start) - basis.cache.save_seconds;
-  start = Clock::now();
-  basis.values = pairs.values;
-  basis.vectors = proxy.prolong_block(pairs.vectors);
-  basis.prolong_seconds = seconds_since(start);
-  basis.restarts = pairs.restarts;
-  return basis;
+  return coarse_basis(proxy, k, k, options, dirichlet_vertices, store, nullptr);
 }
 
 Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options) {

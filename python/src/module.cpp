@@ -1483,6 +1483,7 @@ the same numbers to the last bit.)doc");
         info["converged"] = basis.converged;
         info["iterations"] = basis.refine_iterations;
         info["guard"] = basis.guard;
+        info["coarse_directions"] = basis.coarse_directions;
         info["residuals"] = basis.residuals;
         info["seconds"] = basis.refine_seconds;
         info["hierarchy_seconds"] = hierarchy.build_seconds;
@@ -1494,12 +1495,13 @@ the same numbers to the last bit.)doc");
       py::arg("max_iterations") = 200, py::arg("tolerance") = 1e-10, py::arg("dirichlet") = py::none(),
       py::arg("cache") = py::none(),
       R"doc((values, vectors, info): the k smallest eigenpairs of L φ = λ M φ refined on the fine mesh (spectral-coarse
---tolerance): the Galerkin Proxy's pairs and a few more, improved by LOBPCG preconditioned with a multigrid
+--tolerance): the Galerkin Proxy's pairs and a few more, improved by the augmented subspace method (each
+Rayleigh-Ritz step also over the prolonged coarse eigenvectors beyond them) preconditioned with a multigrid
 V-cycle on (V, F)'s ICE hierarchy (made or loaded through `cache` as by hierarchy(), as are the coarse pairs
 it starts from) until each pair's
 relative residual |Lφ − λMφ| / (λ|Mφ|) is at most refine_tolerance. (V, F) must be the proxy's input mesh
 (only its vertex count is checked: another mesh's hierarchy would precondition worse, not wrongly).
-info: converged, iterations, guard (pairs refined along), residuals (per pair), seconds, hierarchy_seconds,
+info: converged, iterations, guard (pairs refined along), coarse_directions, residuals (per pair), seconds, hierarchy_seconds,
 hierarchy_cache, eigenpairs_cache. A refinement that stops at max_iterations returns its pairs with converged False.)doc");
   // A one-dimensional array of any length, or a two-dimensional one of any row count.
   const auto any_vector = [](const py::object& object, const char* name) {

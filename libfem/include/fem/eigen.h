@@ -80,25 +80,45 @@ struct EigenRefineReport {
 /// V-cycle) to every column of a block; rows at the Dirichlet indices of the result must be 0.
 using BlockPreconditioner = std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>;
 
+/// A coarse space that refine_eigenpairs adds, fixed, to every Rayleigh–Ritz step: the fine vectors
+/// G = P Ψ, e.g. a Galerkin proxy's coarse eigenvectors beyond the m refined, prolonged (never formed:
+/// every product with G goes through the coarse space, Gᵀ Y = Ψᵀ (Pᵀ Y)).
+struct EigenCoarseDirections {
+  const SparseMatrix* prolongation = nullptr;  ///< P, n × N_c (not owned; outlives the call)
+  Eigen::MatrixXd coarse_vectors;               ///< Ψ, N_c × g, linearly independent
+  /// Gᵀ L G = Ψᵀ (Pᵀ L P) Ψ and Gᵀ M G = Ψᵀ (Pᵀ M P) Ψ (g × g) with refine_eigenpairs' L and M: with
+  /// Galerkin coarse operators (fem::CoarseProxy's), Ψᵀ Lc Ψ and Ψᵀ Mc Ψ.
+  Eigen::MatrixXd laplacian_gram, mass_gram;
+};
+
 /// Improves m approximate eigenvectors of L φ = λ M φ (`vectors`, n × m) until the first k pairs
 /// have relative residuals ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂) at most options.tolerance (as eigen_residuals,
-/// but zero modes judged against the largest |λ| of all m pairs), by the locally optimal block
-/// preconditioned conjugate gradient method (LOBPCG, Knyazev 2001): each iteration takes the
-/// Rayleigh–Ritz pairs of span[X, T R, P] in the M inner product — X the current vectors, T R the
-/// preconditioned residuals of those not yet converged, P the previous step — and keeps the smallest
-/// m. The m − k extra pairs (guards) speed up the k-th: its convergence depends on the gap
-/// λ_k / λ_{m+1}. The iteration converges to the smallest eigenpairs from any start whose vectors are
-/// linearly independent, faster the better it is: prolonged proxy vectors start within a few per cent.
+/// but zero modes judged against the largest |λ| of all m pairs). T R below are the residuals R of
+/// the pairs not yet converged with the preconditioner applied. Two methods:
+/// - without `coarse`: the locally optimal block preconditioned conjugate gradient method (LOBPCG,
+///   Knyazev 2001): each iteration takes the Rayleigh–Ritz pairs of span[X, T R, P] in the M inner
+///   product — X the current vectors, P the previous step — and keeps the smallest m. The m − k
+///   extra pairs (guards) speed up the k-th: its convergence depends on the gap λ_k / λ_{m+1}.
+/// - with `coarse` (G = P Ψ): the augmented subspace method (Xu & Zhou 2001; Xie, Zhang & Xu 2019):
+///   the Rayleigh–Ritz pairs of span[X − T R, G], one preconditioned inverse-iteration step per
+///   vector, the coarse space G catching the smooth error components that the step leaves (those of
+///   eigenvalues above the m sought, which limit LOBPCG through the gap). Its rate is about the
+///   preconditioner's (a V-cycle's), not the gap's, and an iteration has a few n × m dense products
+///   where LOBPCG's has over twenty (docs/measurements.md, "The refined eigenbasis").
+/// Either converges to the smallest eigenpairs from a start close to them: prolonged proxy vectors
+/// start within a few per cent (LOBPCG from any linearly independent start).
 /// On return `values` (m, increasing: the Ritz values; their input is not read) and `vectors` are the
 /// m Ritz pairs, M-orthonormal to round-off; on a throw both are left as given.
 /// Preconditions: L symmetric (not checked), M diagonal with positive entries off `fixed`, fixed in
-/// range, 1 <= k <= m < n − |fixed| (std::invalid_argument otherwise); the vectors' rows at `fixed`
-/// (Dirichlet) are set to zero and stay zero. Throws std::runtime_error when the start vectors are
-/// linearly dependent (the search space lost rank). Does not throw when max_iterations is reached:
-/// check converged.
+/// range, 1 <= k <= m < n − |fixed|, `coarse` (if given) of matching sizes (std::invalid_argument
+/// otherwise); the vectors' rows at `fixed` (Dirichlet) are set to zero and stay zero, and so must
+/// G's rows there be. Throws std::runtime_error when the search space loses rank (linearly dependent
+/// start vectors, or a coarse space containing them). Does not throw when max_iterations is
+/// reached: check converged.
 EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,
                                     Eigen::MatrixXd& vectors, int k, const BlockPreconditioner& preconditioner,
-                                    const std::vector<Index>& fixed = {}, const EigenRefineOptions& options = {});
+                                    const std::vector<Index>& fixed = {}, const EigenRefineOptions& options = {},
+                                    const EigenCoarseDirections* coarse = nullptr);
 
 /// Whether the eigenvalue `lambda` of a basis whose largest |λ| is `largest` is a zero mode (a
 /// constant on a component, converged only to round-off): |λ| ≤ 1e-6 · largest. The one rule the

@@ -43,6 +43,13 @@ struct EigenRefinement {
   /// their index on a surface, so a quarter more pairs keeps that ratio near 0.8 at any k), capped
   /// by the coarse space's size.
   int guard = -1;
+  /// Coarse eigenvectors beyond the k + guard refined, prolonged, that every Rayleigh–Ritz step adds
+  /// (fem::refine_eigenpairs's augmented subspace method; they come from the same coarse eigensolve,
+  /// through the store). They hold the error components that a V-cycle step leaves, those of the
+  /// eigenvalues just above the ones sought; the coarse space approximates the first few times k of
+  /// them well. < 0: 2·(k + guard) (with eigenvalues about linear in their index, directions up to
+  /// about three times λ_k), capped by the coarse space's size; 0: none, LOBPCG instead.
+  int coarse_directions = -1;
   /// The multigrid hierarchy whose V-cycle on L + σM preconditions the refinement (σ: the smallest
   /// positive coarse eigenvalue, a scale of the lowest modes); through the store when it is on.
   HierarchyOptions hierarchy;
@@ -68,8 +75,8 @@ struct EigenbasisOptions {
 struct Eigenbasis {
   Eigen::VectorXd values;
   Eigen::MatrixXd vectors;
-  int restarts = 0;              ///< of the coarse Lanczos iteration (of k + guard pairs when refined)
-  /// The coarse eigensolve (factorisation included; k + guard pairs when refined), or the load of
+  int restarts = 0;              ///< of the coarse Lanczos iteration (of all the coarse pairs when refined)
+  /// The coarse eigensolve (factorisation included; k + guard + coarse-direction pairs when refined), or the load of
   /// its stored pairs with their checks (cache.status hit); a save is in cache.save_seconds.
   double eigensolve_seconds = 0;
   /// Where the coarse pairs came from: the store's "eigenpairs" entry (status off without a store).
@@ -82,6 +89,7 @@ struct Eigenbasis {
   bool converged = false;
   int refine_iterations = 0;
   int guard = 0;
+  int coarse_directions = 0;  ///< of the refinement (0: LOBPCG)
   Eigen::VectorXd residuals;
   double refine_seconds = 0;
   double precondition_seconds = 0;  ///< of refine_seconds: V-cycles
@@ -135,12 +143,13 @@ Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::Eig
                             const std::vector<Index>& dirichlet_vertices = {}, const Store& store = {});
 
 /// The refined route on a set-up Galerkin proxy (what EigenSolver::compute runs with a tolerance):
-/// proxy_eigenbasis for k + guard pairs, then fem::refine_eigenpairs on the proxy's fine pencil
-/// (its fine Laplacian and lumped mass), preconditioned by one V-cycle of L + σM over `hierarchy`
+/// the coarse pencil's k + guard + coarse-direction pairs (as proxy_eigenbasis), the first k + guard
+/// prolonged, then fem::refine_eigenpairs on the proxy's fine pencil (its fine Laplacian and lumped
+/// mass) with the others as its coarse directions, preconditioned by one V-cycle of L + σM over `hierarchy`
 /// (a hierarchy of the proxy's fine mesh: its level 0 has the fine vertex count), with φ = 0 kept
 /// at `dirichlet_vertices`. Returns the first k pairs. Throws as proxy_eigenbasis, and
 /// std::invalid_argument when refinement.tolerance is not > 0 or the hierarchy's size differs.
-/// The k + guard coarse pairs it starts from come through `store` as proxy_eigenbasis's.
+/// The coarse pairs come through `store` as proxy_eigenbasis's.
 Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHierarchy& hierarchy, int k,
                               const EigenRefinement& refinement, const fem::EigenOptions& options = {},
                               const std::vector<Index>& dirichlet_vertices = {}, const Store& store = {});
@@ -148,6 +157,9 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
 /// The guard pairs refined_eigenbasis adds to k (EigenRefinement::guard), given the coarse space's
 /// free vertex count.
 int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices);
+/// The coarse directions refined_eigenbasis adds to k + guard (EigenRefinement::coarse_directions),
+/// given the coarse space's free vertex count.
+int refinement_coarse_directions(int k, int guard, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices);
 
 /// EigenSolver(mesh, options).compute(k).
 Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options = {});
