@@ -88,15 +88,12 @@ Dense block_product(const Dense& A, const Dense& Y) {
   return C;
 }
 
-// L X for a symmetric L, column by column (each column's sum in one order).
+// L X for a symmetric L, column by column (each column's sum in one order). (Chunks of 8 columns
+// copied row by row and gathered together were slower at 396k vertices.)
 Dense sparse_times(const SparseMatrix& L, const Dense& X, int threads) {
   Dense out(L.rows(), X.cols());
 #pragma omp parallel for schedule(dynamic) num_threads(detail::active_threads(L.rows(), threads))
-  for (Eigen::Index j = 0; j < X.cols(); ++j) {
-    Eigen::VectorXd column(L.rows());
-    detail::gather_product(L, X.col(j).data(), column.data(), false, 1, 0);
-    out.col(j) = column;
-  }
+  for (Eigen::Index j = 0; j < X.cols(); ++j) detail::gather_product(L, X.col(j).data(), out.col(j).data(), false, 1, 0);
   return out;
 }
 
@@ -247,12 +244,15 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     V = block_product(V, scale.asDiagonal() * independent_orthonormal_basis(scale.asDiagonal() * G * scale.asDiagonal(), 1e-10));
   };
 
-  // Memory: the iteration holds X and, at most, four more blocks of n rows and up to m columns
-  // (R or the new directions W with P, their L-products, or the updated X with the next step);
-  // M is diagonal and applied on the fly.
+  // Memory: LOBPCG holds X and, at most, four more blocks of n rows and up to m columns (R or the
+  // new directions W with P, their L-products, or the updated X with the next step); the augmented
+  // subspace method X and at most one more (R, L U, or the updated X) and a few preconditioned
+  // columns. M is diagonal and applied on the fly.
   EigenRefineReport report;
-  // The caller's values and vectors are replaced only at the end (a throw leaves both as given).
-  Dense X = vectors;
+  // The caller's vectors are worked on in place of a copy (n × m: 1.6 GB at 1.6M vertices and 125
+  // vectors); a throw after the checks leaves them valid but unspecified.
+  Dense X = std::move(vectors);
+  vectors.resize(n, 0);
   Eigen::VectorXd theta;
   clear_fixed_rows(X);
   {
@@ -268,6 +268,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   // are not round-off even when the first k are all zero modes (k at most the component count).
   const auto residuals_of = [&](Dense& R) {
     Eigen::VectorXd mass_norm(m);
+#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
     for (Eigen::Index j = 0; j < m; ++j) {
       double norm2 = 0;
       for (Eigen::Index i = 0; i < n; ++i) {
@@ -279,6 +280,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     }
     clear_fixed_rows(R);
     const double largest = std::max(theta.cwiseAbs().maxCoeff(), std::numeric_limits<double>::min());
+#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
     for (Eigen::Index j = 0; j < m; ++j) {
       const double scale = is_zero_mode(theta(j), largest) ? largest : std::abs(theta(j));
       const double denominator = scale * mass_norm(j);
@@ -293,9 +295,10 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     return active;
   };
   const auto preconditioned = [&](const Dense& R, const std::vector<Eigen::Index>& active) {
-    const Dense RA = column_subset(R, active);
+    const bool all = static_cast<Eigen::Index>(active.size()) == R.cols();
+    const Dense RA = all ? Dense() : column_subset(R, active);
     const auto precondition_start = Clock::now();
-    Dense W = preconditioner(RA);
+    Dense W = preconditioner(all ? R : RA);
     report.precondition_seconds += ice::seconds_since(precondition_start);
     if (W.rows() != n || W.cols() != static_cast<Eigen::Index>(active.size()))
       throw std::invalid_argument("refine_eigenpairs: the preconditioner returned a block of the wrong size");
@@ -320,17 +323,23 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       }
       if (iteration == options.max_iterations) break;
       const std::vector<Eigen::Index> active = still_active();
-      {
-        const Dense W = preconditioned(R, active);
-        R.resize(0, 0);
-        for (std::size_t c = 0; c < active.size(); ++c) X.col(active[c]) -= W.col(static_cast<Eigen::Index>(c));
+      // U = X − T R, the preconditioner applied to a few columns at a time: no n × m block of T R
+      // is held beside X and R (it solves columns independently anyway).
+      constexpr std::size_t kColumnsPerCall = 32;
+      for (std::size_t first = 0; first < active.size(); first += kColumnsPerCall) {
+        const std::vector<Eigen::Index> some(active.begin() + static_cast<std::ptrdiff_t>(first),
+                                             active.begin() + static_cast<std::ptrdiff_t>(std::min(active.size(), first + kColumnsPerCall)));
+        const Dense W = preconditioned(R, some);
+#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
+        for (std::size_t c = 0; c < some.size(); ++c) X.col(some[c]) -= W.col(static_cast<Eigen::Index>(c));
       }
+      R.resize(0, 0);
       // X now holds U. The Gram matrices of [U, G]: U's own computed in full, G's given.
-      const Dense LU = sparse_times(L, X, threads);
       Dense GL(m + g, m + g), GM(m + g, m + g);
-      GL.topLeftCorner(m, m) = gram(X, LU);
-      GM.topLeftCorner(m, m) = mass_gram(X, mass, X);
       {
+        const Dense LU = sparse_times(L, X, threads);
+        GL.topLeftCorner(m, m) = gram(X, LU);
+        GM.topLeftCorner(m, m) = mass_gram(X, mass, X);
         Dense restricted_LU, restricted_MU;
         restrict_block(coarse_rows, LU, X, mass, restricted_LU, restricted_MU, threads);
         GL.topRightCorner(m, g) = (psi.transpose() * restricted_LU).transpose();

@@ -108,7 +108,9 @@ struct EigenCoarseDirections {
 /// Either converges to the smallest eigenpairs from a start close to them: prolonged proxy vectors
 /// start within a few per cent (LOBPCG from any linearly independent start).
 /// On return `values` (m, increasing: the Ritz values; their input is not read) and `vectors` are the
-/// m Ritz pairs, M-orthonormal to round-off; on a throw both are left as given.
+/// m Ritz pairs, M-orthonormal to round-off. A throw for bad arguments leaves both as given; one
+/// later (the search space lost rank, a preconditioner's throw) leaves them valid but unspecified:
+/// the vectors are worked on in place, not copied.
 /// Preconditions: L symmetric (not checked), M diagonal with positive entries off `fixed`, fixed in
 /// range, 1 <= k <= m < n − |fixed|, `coarse` (if given) of matching sizes (std::invalid_argument
 /// otherwise); the vectors' rows at `fixed` (Dirichlet) are set to zero and stay zero, and so must
