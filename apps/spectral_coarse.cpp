@@ -72,6 +72,8 @@ int spectral_coarse_tool::main(int argc, char** argv) {
   return app::run_tool(kTool, [&] {
     opt.check_outputs();
     if (hks_text.empty() != descriptors.empty()) throw app::AppError(app::kUsage, "--hks and --descriptors go together");
+    if (cli.count("--coarse-directions") > 0 && !(tolerance > 0))
+      throw app::AppError(app::kUsage, "--coarse-directions applies to the refined route: give --tolerance too");
     if (!descriptors.empty()) app::check_output(descriptors, opt.force, "--descriptors");
     if (opt.operators != fem::CoarseOperatorKind::galerkin)
       throw app::AppError(app::kUsage, "the eigenbasis needs Galerkin coarse operators (--operators galerkin)");

@@ -1345,6 +1345,15 @@ elseif(CASE STREQUAL "spectral_spot")
   check(${residual} LESS_EQUAL 1e-7 "largest residual of the refined pairs")
   json(worst "${WORK}/t.json" error eigenvalue_rel_max)
   check(${worst} LESS 1e-8 "largest relative eigenvalue error of the refined pairs")
+  json(method "${WORK}/t.json" eigen refine method)
+  check_text("${method}" "augmented" "eigen.refine.method (the default: coarse directions)")
+  # LOBPCG on request, to the same pairs; the flag alone (no refinement) is a usage error.
+  run(0 spectral-coarse "${mesh}" -k 20 --ratio 0.1 --tolerance 1e-7 --coarse-directions 0 --no-cache --report "${WORK}/l.json" -q)
+  json(method "${WORK}/l.json" eigen refine method)
+  check_text("${method}" "lobpcg" "eigen.refine.method with --coarse-directions 0")
+  json(worst "${WORK}/l.json" error eigenvalue_rel_max)
+  check(${worst} LESS 1e-8 "largest relative eigenvalue error of LOBPCG's pairs")
+  expect_error(4 "give --tolerance too" spectral-coarse "${mesh}" -k 5 --ratio 0.1 --coarse-directions 10 --no-cache)
   # Dirichlet conditions on an open surface: no zero mode, the eigenvalues close to the fine Dirichlet
   # ones; a coarse space that is all boundary leaves no free vertex (a usage error naming it).
   project_mesh(open lion-head.off)

@@ -417,6 +417,14 @@ TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two c
   mismatched.laplacian_gram = Eigen::MatrixXd::Identity(2, 2);
   mismatched.mass_gram = Eigen::MatrixXd::Identity(3, 3);
   CHECK_THROWS_AS(fem::refine_eigenpairs(p.L, p.M, v, X, k, exact, {}, {}, &mismatched), std::invalid_argument);
+  // So are coarse directions that do not vanish at a Dirichlet row (the vectors must).
+  fem::EigenCoarseDirections nonzero;
+  nonzero.prolongation = &identity;
+  nonzero.coarse_vectors = Eigen::MatrixXd::Ones(two.V.rows(), 1);
+  nonzero.laplacian_gram = Eigen::MatrixXd::Zero(1, 1);
+  nonzero.mass_gram = Eigen::MatrixXd::Identity(1, 1);
+  const std::vector<fem::Index> first_row{0};
+  CHECK_THROWS_AS(fem::refine_eigenpairs(p.L, p.M, v, X, k, exact, first_row, {}, &nonzero), std::invalid_argument);
   ice::proxy::EigenbasisOptions negative;
   negative.refine.tolerance = -1;
   CHECK_THROWS_AS(ice::proxy::EigenSolver(unit_sphere(), negative), std::invalid_argument);

@@ -89,7 +89,8 @@ Dense block_product(const Dense& A, const Dense& Y) {
 }
 
 // L X for a symmetric L, column by column (each column's sum in one order). (Chunks of 8 columns
-// copied row by row and gathered together were slower at 396k vertices.)
+// copied row by row and gathered together were slower: docs/measurements.md, "The refined
+// eigenbasis by the augmented subspace method".)
 Dense sparse_times(const SparseMatrix& L, const Dense& X, int threads) {
   Dense out(L.rows(), X.cols());
 #pragma omp parallel for schedule(dynamic) num_threads(detail::active_threads(L.rows(), threads))
@@ -216,6 +217,20 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       throw std::invalid_argument("refine_eigenpairs: the coarse directions' prolongation, vectors and Gram matrices do "
                                   "not match (" + std::to_string(n) + " fine rows)");
   }
+  // G must vanish at the Dirichlet rows, as the vectors do (a barycentric P's row at a coarse vertex
+  // that Ψ leaves out is zero there).
+  detail::RowMajorSparse coarse_rows;
+  if (coarse) {
+    coarse_rows = *coarse->prolongation;
+    for (Index i : g > 0 ? fixed : std::vector<Index>{}) {
+      Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(g);
+      for (detail::RowMajorSparse::InnerIterator it(coarse_rows, i); it; ++it)
+        row += it.value() * coarse->coarse_vectors.row(it.col());
+      if (row.cwiseAbs().maxCoeff() > 0)
+        throw std::invalid_argument("refine_eigenpairs: the coarse directions do not vanish at the Dirichlet row " +
+                                    std::to_string(i));
+    }
+  }
   Eigen::VectorXd mass(n);
   for (Eigen::Index j = 0; j < M.outerSize(); ++j) {
     mass(j) = 0;
@@ -249,16 +264,19 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   // subspace method X and at most one more (R, L U, or the updated X) and a few preconditioned
   // columns. M is diagonal and applied on the fly.
   EigenRefineReport report;
-  // The caller's vectors are worked on in place of a copy (n × m: 1.6 GB at 1.6M vertices and 125
-  // vectors); a throw after the checks leaves them valid but unspecified.
+  // The caller's vectors are worked on in place of a copy (an n × m block less at the peak); a throw
+  // after the argument checks leaves them valid but unspecified.
   Dense X = std::move(vectors);
   vectors.resize(n, 0);
   Eigen::VectorXd theta;
   clear_fixed_rows(X);
   {
-    // Rayleigh–Ritz on the start vectors: M-orthonormal Ritz vectors whatever the start.
-    const Dense LX = sparse_times(L, X, threads);
-    const Ritz r = ritz_pairs(gram(X, LX), mass_gram(X, mass, X), m, kDrop);
+    // Rayleigh–Ritz on the start vectors: M-orthonormal Ritz vectors whatever the start. L X is
+    // freed before the rotated X is made (no third n × m block).
+    Dense LX = sparse_times(L, X, threads);
+    const Dense XLX = gram(X, LX);
+    LX.resize(0, 0);
+    const Ritz r = ritz_pairs(XLX, mass_gram(X, mass, X), m, kDrop);
     X = block_product(X, r.coefficients);
     theta = r.values;
   }
@@ -310,7 +328,6 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     // The augmented subspace method: Rayleigh–Ritz on [U, G], U = X − T R. Per iteration: L X (the
     // residuals), the preconditioner, L U, Uᵀ L U and Uᵀ M U, G's products through the coarse
     // space (one restriction of L U and M U), and X = U Y_U + P (Ψ Y_G).
-    const detail::RowMajorSparse coarse_rows = *coarse->prolongation;
     const Dense& psi = coarse->coarse_vectors;
     for (int iteration = 0;; ++iteration) {
       Dense R = sparse_times(L, X, threads);

@@ -198,7 +198,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
     throw std::invalid_argument("refined_eigenbasis: the tolerance must be > 0");
   std::vector<Index> coarse_fixed;
   const Eigen::Index coarse_free = free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed);
-  require_pair_count(k, coarse_free, !coarse_fixed.empty());  // before the coarse eigensolve of k + guard pairs
+  require_pair_count(k, coarse_free, !coarse_fixed.empty());  // before the coarse eigensolve of k + guard + directions pairs
   const fem::SparseMatrix& L = proxy.fine_laplacian();
   const fem::SparseMatrix& M = proxy.fine_mass();
   if (hierarchy.fine_vertices != L.rows())

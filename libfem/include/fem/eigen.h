@@ -61,7 +61,8 @@ struct EigenRefineOptions {
   double tolerance = 1e-6;
   /// Upper bound on iterations (>= 1).
   int max_iterations = 200;
-  /// Threads of the sparse products (0: OpenMP's default); the dense products run on BLAS's.
+  /// Threads of the sparse products, the coarse directions' restrictions and prolongations and the
+  /// residuals (0: OpenMP's default); the dense products run on BLAS's.
   int threads = 0;
 };
 
@@ -103,18 +104,20 @@ struct EigenCoarseDirections {
 ///   the Rayleigh–Ritz pairs of span[X − T R, G], one preconditioned inverse-iteration step per
 ///   vector, the coarse space G catching the smooth error components that the step leaves (those of
 ///   eigenvalues above the m sought, which limit LOBPCG through the gap). Its rate is about the
-///   preconditioner's (a V-cycle's), not the gap's, and an iteration has a few n × m dense products
-///   where LOBPCG's has over twenty (docs/measurements.md, "The refined eigenbasis").
+///   preconditioner's (a V-cycle's), not the gap's, and an iteration has several times fewer n × m
+///   dense products than LOBPCG's (docs/measurements.md, "The refined eigenbasis by the augmented
+///   subspace method").
 /// Either converges to the smallest eigenpairs from a start close to them: prolonged proxy vectors
 /// start within a few per cent (LOBPCG from any linearly independent start).
 /// On return `values` (m, increasing: the Ritz values; their input is not read) and `vectors` are the
-/// m Ritz pairs, M-orthonormal to round-off. A throw for bad arguments leaves both as given; one
-/// later (the search space lost rank, a preconditioner's throw) leaves them valid but unspecified:
-/// the vectors are worked on in place, not copied.
+/// m Ritz pairs, M-orthonormal to round-off. A throw from the argument checks, before any product,
+/// leaves both as given; any later throw (the search space lost rank, the preconditioner's own throw
+/// or a block of the wrong size from it) leaves them valid but unspecified: the vectors are worked on
+/// in place, not copied.
 /// Preconditions: L symmetric (not checked), M diagonal with positive entries off `fixed`, fixed in
-/// range, 1 <= k <= m < n − |fixed|, `coarse` (if given) of matching sizes (std::invalid_argument
-/// otherwise); the vectors' rows at `fixed` (Dirichlet) are set to zero and stay zero, and so must
-/// G's rows there be. Throws std::runtime_error when the search space loses rank (linearly dependent
+/// range, 1 <= k <= m < n − |fixed|, `coarse` (if given) of matching sizes and G zero at the rows in
+/// `fixed` (std::invalid_argument otherwise); the vectors' rows at `fixed` (Dirichlet) are set to
+/// zero and stay zero. Throws std::runtime_error when the search space loses rank (linearly dependent
 /// start vectors, or a coarse space containing them). Does not throw when max_iterations is
 /// reached: check converged.
 EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,

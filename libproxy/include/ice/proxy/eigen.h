@@ -38,17 +38,20 @@ struct EigenRefinement {
   double tolerance = 0;
   /// Upper bound on refinement iterations (>= 1); reaching it is reported, not thrown.
   int max_iterations = 200;
-  /// Pairs computed beyond k and refined along (not returned): the k-th pair converges at a rate
-  /// set by the gap λ_k / λ_{k+guard+1}. < 0: max(4, ⌈k/4⌉) (eigenvalues grow about linearly with
-  /// their index on a surface, so a quarter more pairs keeps that ratio near 0.8 at any k), capped
-  /// by the coarse space's size.
+  /// Pairs computed beyond k and refined along (not returned): with LOBPCG the k-th pair converges
+  /// at a rate set by the gap λ_k / λ_{k+guard+1}; with coarse directions they keep a cluster of
+  /// eigenvalues across λ_k from splitting between the refined vectors and the coarse ones. < 0:
+  /// max(4, ⌈k/4⌉) (eigenvalues grow about linearly with their index on a surface, so a quarter
+  /// more pairs keeps that ratio near 0.8 at any k), capped by the coarse space's size.
   int guard = -1;
   /// Coarse eigenvectors beyond the k + guard refined, prolonged, that every Rayleigh–Ritz step adds
   /// (fem::refine_eigenpairs's augmented subspace method; they come from the same coarse eigensolve,
   /// through the store). They hold the error components that a V-cycle step leaves, those of the
   /// eigenvalues just above the ones sought; the coarse space approximates the first few times k of
   /// them well. < 0: 2·(k + guard) (with eigenvalues about linear in their index, directions up to
-  /// about three times λ_k), capped by the coarse space's size; 0: none, LOBPCG instead.
+  /// about three times λ_k), capped by the coarse space's size; 0: none, LOBPCG instead. The coarse
+  /// eigensolve is asked for k + guard + coarse_directions pairs (a fem::EigenOptions::basis_size
+  /// must exceed that), and the store keys its pairs by that count.
   int coarse_directions = -1;
   /// The multigrid hierarchy whose V-cycle on L + σM preconditions the refinement (σ: the smallest
   /// positive coarse eigenvalue, a scale of the lowest modes); through the store when it is on.
