@@ -314,7 +314,6 @@ Eigen::VectorXd CoarseProxy::prolong(const Eigen::VectorXd& coarse_values) const
 }
 
 Eigen::MatrixXd CoarseProxy::prolong_block(const Eigen::MatrixXd& coarse_values) const {
-  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   if (coarse_values.rows() != coarse_size()) throw std::invalid_argument("CoarseProxy::prolong_block: wrong number of rows");
   const Eigen::Index n = fine_size(), k = coarse_values.cols();
   Eigen::MatrixXd out(n, k);
@@ -326,18 +325,7 @@ Eigen::MatrixXd CoarseProxy::prolong_block(const Eigen::MatrixXd& coarse_values)
   // for a row-major chunk of columns it streams P once per chunk, a tile of rows at a time written out
   // into the columns (measured in docs/measurements.md, "The eigenbasis" and "Block Poisson").
   const Eigen::SparseMatrix<double, Eigen::RowMajor, int> P_rows = P_;
-  const int threads = detail::default_threads();
-  // Chunks of 8 columns: P is small beside the fine rows, so more passes over it cost little (16 or 32
-  // columns were no faster at 1.6M vertices and 100 vectors).
-  const Eigen::Index chunk = std::min<Eigen::Index>(k, 8);
-  RowMatrix coarse_chunk(coarse_size(), chunk);
-  for (Eigen::Index first = 0; first < k; first += chunk) {
-    const Eigen::Index width = std::min(chunk, k - first);
-    coarse_chunk.leftCols(width) = coarse_values.middleCols(first, width);
-    if (width < chunk) coarse_chunk.rightCols(chunk - width).setZero();
-    detail::gather_product_to_columns(P_rows, coarse_chunk.data(), chunk, width, out, first, threads,
-                                      [](Eigen::Index, Eigen::Index, double u) { return u; });
-  }
+  detail::product_to_columns(P_rows, coarse_values, out, false, detail::default_threads());
   return out;
 }
 

@@ -164,19 +164,6 @@ void restrict_block(const detail::RowMajorSparse& P, const Dense& LY, const Dens
   }
 }
 
-// out += P C for a row-major P (n × N_c) and a column-major N_c × q block C, a chunk of columns at a time.
-void prolong_add(const detail::RowMajorSparse& P, const Dense& C, Dense& out, int threads) {
-  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  constexpr Eigen::Index kChunk = 8;
-  RowMatrix chunk(C.rows(), kChunk);
-  for (Eigen::Index first = 0; first < C.cols(); first += kChunk) {
-    const Eigen::Index width = std::min(kChunk, C.cols() - first);
-    chunk.leftCols(width) = C.middleCols(first, width);
-    if (width < kChunk) chunk.rightCols(kChunk - width).setZero();
-    detail::gather_product_to_columns(P, chunk.data(), kChunk, width, out, first, threads,
-                                      [&out, first](Eigen::Index i, Eigen::Index c, double u) { return out(i, first + c) + u; });
-  }
-}
 
 }  // namespace
 
@@ -284,26 +271,31 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   // The residuals R = L X − M X Θ of the current pairs (outside the Dirichlet rows), their relative
   // norms in `residual`; zero modes are judged against the largest |λ| of all m pairs: the guards'
   // are not round-off even when the first k are all zero modes (k at most the component count).
+  // One pass over R per column: the Dirichlet rows are cleared first (X and M X are 0 there).
   const auto residuals_of = [&](Dense& R) {
-    Eigen::VectorXd mass_norm(m);
-#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
-    for (Eigen::Index j = 0; j < m; ++j) {
-      double norm2 = 0;
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const double mx = mass(i) * X(i, j);  // 0 at the Dirichlet rows, as X
-        R(i, j) -= theta(j) * mx;
-        norm2 += mx * mx;
-      }
-      mass_norm(j) = std::sqrt(norm2);
-    }
     clear_fixed_rows(R);
     const double largest = std::max(theta.cwiseAbs().maxCoeff(), std::numeric_limits<double>::min());
 #pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
     for (Eigen::Index j = 0; j < m; ++j) {
+      double mass_norm2 = 0, residual_norm2 = 0;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double mx = mass(i) * X(i, j);
+        const double r = R(i, j) -= theta(j) * mx;
+        mass_norm2 += mx * mx;
+        residual_norm2 += r * r;
+      }
       const double scale = is_zero_mode(theta(j), largest) ? largest : std::abs(theta(j));
-      const double denominator = scale * mass_norm(j);
-      residual(j) = denominator > 0 ? R.col(j).norm() / denominator : std::numeric_limits<double>::infinity();
+      const double denominator = scale * std::sqrt(mass_norm2);
+      residual(j) = denominator > 0 ? std::sqrt(residual_norm2) / denominator : std::numeric_limits<double>::infinity();
     }
+  };
+  // After the residuals of an iteration: records them and says whether to stop (converged, or the
+  // iteration limit reached).
+  const auto stop_at = [&](int iteration) {
+    report.history.push_back(residual.head(k).maxCoeff());
+    report.iterations = iteration;
+    report.converged = residual.head(k).maxCoeff() <= options.tolerance;
+    return report.converged || iteration == options.max_iterations;
   };
   // Soft locking: converged pairs stay in the Rayleigh–Ritz but get no new direction.
   const auto still_active = [&] {
@@ -332,13 +324,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     for (int iteration = 0;; ++iteration) {
       Dense R = sparse_times(L, X, threads);
       residuals_of(R);
-      report.history.push_back(residual.head(k).maxCoeff());
-      report.iterations = iteration;
-      if (residual.head(k).maxCoeff() <= options.tolerance) {
-        report.converged = true;
-        break;
-      }
-      if (iteration == options.max_iterations) break;
+      if (stop_at(iteration)) break;
       const std::vector<Eigen::Index> active = still_active();
       // U = X − T R, the preconditioner applied to a few columns at a time: no n × m block of T R
       // is held beside X and R (it solves columns independently anyway).
@@ -368,78 +354,68 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
       const Ritz r = ritz_pairs(GL, GM, m, kDrop);
       Dense moved = block_product(X, r.coefficients.topRows(m));
-      prolong_add(coarse_rows, Dense(psi * r.coefficients.bottomRows(g)), moved, threads);
+      detail::product_to_columns(coarse_rows, Dense(psi * r.coefficients.bottomRows(g)), moved, true, threads);
       clear_fixed_rows(moved);
       X = std::move(moved);
       theta = r.values;
     }
-    values = std::move(theta);
-    vectors = std::move(X);
-    report.residuals = residual.head(k);
-    report.seconds = ice::seconds_since(start);
-    return report;
-  }
-
-  Dense P(n, 0);
-  for (int iteration = 0;; ++iteration) {
-    // Residuals R = L X − M X Θ, outside the Dirichlet rows; X's Gram blocks from the same L X
-    // (computed, not assumed: the Rayleigh–Ritz then corrects any drift of X from M-orthonormality).
-    Dense R = sparse_times(L, X, threads);
-    const Dense XLX = gram(X, R), XMX = mass_gram(X, mass, X);
-    residuals_of(R);
-    report.history.push_back(residual.head(k).maxCoeff());
-    report.iterations = iteration;
-    if (residual.head(k).maxCoeff() <= options.tolerance) {
-      report.converged = true;
-      break;
+  } else {
+    // LOBPCG: Rayleigh–Ritz on [X, W, P].
+    Dense P(n, 0);
+    for (int iteration = 0;; ++iteration) {
+      // Residuals R = L X − M X Θ, outside the Dirichlet rows; X's Gram blocks from the same L X
+      // (computed, not assumed: the Rayleigh–Ritz then corrects any drift of X from M-orthonormality).
+      Dense R = sparse_times(L, X, threads);
+      const Dense XLX = gram(X, R), XMX = mass_gram(X, mass, X);
+      residuals_of(R);
+      if (stop_at(iteration)) break;
+      const std::vector<Eigen::Index> active = still_active();
+      Dense W = preconditioned(R, active);
+      R.resize(0, 0);
+      // The new directions: W M-orthogonal to X, then W and P each M-orthonormal (their mutual and
+      // X–P products are computed, not assumed).
+      product(X, false, mass_gram(X, mass, W), false, W, true, -1.0);
+      orthonormalise(W);
+      if (P.cols() > 0) orthonormalise(P);
+      const Eigen::Index a = W.cols(), p = P.cols(), q = a + p;
+      if (q == 0) break;  // nothing new to search: the residuals are below what round-off can improve
+      // Rayleigh–Ritz on [X, W, P], every Gram block computed (X, W and P are M-orthonormal only to
+      // the accuracy of their last orthonormalisation).
+      Dense GL(m + q, m + q), GM(m + q, m + q);
+      GL.topLeftCorner(m, m) = XLX;
+      GM.topLeftCorner(m, m) = XMX;
+      {
+        const Dense LW = sparse_times(L, W, threads);
+        GL.block(0, m, m, a) = gram(X, LW);
+        GL.block(m, m, a, a) = gram(W, LW);
+      }
+      GM.block(0, m, m, a) = mass_gram(X, mass, W);
+      GM.block(m, m, a, a) = mass_gram(W, mass, W);
+      if (p > 0) {
+        const Dense LP = sparse_times(L, P, threads);
+        GL.block(0, m + a, m, p) = gram(X, LP);
+        GL.block(m, m + a, a, p) = gram(W, LP);
+        GL.block(m + a, m + a, p, p) = gram(P, LP);
+        GM.block(0, m + a, m, p) = mass_gram(X, mass, P);
+        GM.block(m, m + a, a, p) = mass_gram(W, mass, P);
+        GM.block(m + a, m + a, p, p) = mass_gram(P, mass, P);
+      }
+      GL.triangularView<Eigen::StrictlyLower>() = GL.transpose();
+      GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
+      const Ritz r = ritz_pairs(GL, GM, m, kDrop);
+      const Dense YX = r.coefficients.topRows(m), YW = r.coefficients.middleRows(m, a), YP = r.coefficients.bottomRows(p);
+      // The step of the pairs still active, for the next iteration's search space; X moves by it.
+      Dense step = block_product(W, column_subset(YW, active));
+      if (p > 0) product(P, false, column_subset(YP, active), false, step, true);
+      {
+        Dense moved = block_product(X, YX);
+        product(W, false, YW, false, moved, true);
+        if (p > 0) product(P, false, YP, false, moved, true);
+        X = std::move(moved);
+      }
+      P = std::move(step);
+      theta = r.values;
     }
-    if (iteration == options.max_iterations) break;
-    const std::vector<Eigen::Index> active = still_active();
-    Dense W = preconditioned(R, active);
-    R.resize(0, 0);
-    // The new directions: W M-orthogonal to X, then W and P each M-orthonormal (their mutual and
-    // X–P products are computed, not assumed).
-    product(X, false, mass_gram(X, mass, W), false, W, true, -1.0);
-    orthonormalise(W);
-    if (P.cols() > 0) orthonormalise(P);
-    const Eigen::Index a = W.cols(), p = P.cols(), q = a + p;
-    if (q == 0) break;  // nothing new to search: the residuals are below what round-off can improve
-    // Rayleigh–Ritz on [X, W, P], every Gram block computed (X, W and P are M-orthonormal only to
-    // the accuracy of their last orthonormalisation).
-    Dense GL(m + q, m + q), GM(m + q, m + q);
-    GL.topLeftCorner(m, m) = XLX;
-    GM.topLeftCorner(m, m) = XMX;
-    {
-      const Dense LW = sparse_times(L, W, threads);
-      GL.block(0, m, m, a) = gram(X, LW);
-      GL.block(m, m, a, a) = gram(W, LW);
-    }
-    GM.block(0, m, m, a) = mass_gram(X, mass, W);
-    GM.block(m, m, a, a) = mass_gram(W, mass, W);
-    if (p > 0) {
-      const Dense LP = sparse_times(L, P, threads);
-      GL.block(0, m + a, m, p) = gram(X, LP);
-      GL.block(m, m + a, a, p) = gram(W, LP);
-      GL.block(m + a, m + a, p, p) = gram(P, LP);
-      GM.block(0, m + a, m, p) = mass_gram(X, mass, P);
-      GM.block(m, m + a, a, p) = mass_gram(W, mass, P);
-      GM.block(m + a, m + a, p, p) = mass_gram(P, mass, P);
-    }
-    GL.triangularView<Eigen::StrictlyLower>() = GL.transpose();
-    GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
-    const Ritz r = ritz_pairs(GL, GM, m, kDrop);
-    const Dense YX = r.coefficients.topRows(m), YW = r.coefficients.middleRows(m, a), YP = r.coefficients.bottomRows(p);
-    // The step of the pairs still active, for the next iteration's search space; X moves by it.
-    Dense step = block_product(W, column_subset(YW, active));
-    if (p > 0) product(P, false, column_subset(YP, active), false, step, true);
-    {
-      Dense moved = block_product(X, YX);
-      product(W, false, YW, false, moved, true);
-      if (p > 0) product(P, false, YP, false, moved, true);
-      X = std::move(moved);
-    }
-    P = std::move(step);
-    theta = r.values;
   }
   values = std::move(theta);
   vectors = std::move(X);

@@ -128,6 +128,27 @@ void gather_product_to_columns(const RowMajorMatrix& M, const double* in, Eigen:
   }
 }
 
+// out = M C, or out += M C with `accumulate`, for a row-major M (out: M.outerSize() rows) and a
+// column-major C (M.innerSize() rows, out.cols() columns): chunks of 8 columns of C copied row by
+// row, so M is streamed once per chunk (gather_product_to_columns; each entry is gather_product's
+// ordered sum for its column, to the bit). Chunks of 8: M is small beside the rows of out when it is
+// a prolongation, and 16 or 32 columns were no faster (docs/measurements.md, "The eigenbasis").
+template <class RowMajorMatrix>
+void product_to_columns(const RowMajorMatrix& M, const Eigen::MatrixXd& C, Eigen::MatrixXd& out, bool accumulate,
+                        int threads) {
+  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  constexpr Eigen::Index kChunk = 8;
+  RowMatrix chunk(C.rows(), kChunk);
+  for (Eigen::Index first = 0; first < C.cols(); first += kChunk) {
+    const Eigen::Index width = std::min(kChunk, C.cols() - first);
+    chunk.leftCols(width) = C.middleCols(first, width);
+    if (width < kChunk) chunk.rightCols(kChunk - width).setZero();
+    gather_product_to_columns(M, chunk.data(), kChunk, width, out, first, threads,
+                              [&out, first, accumulate](Eigen::Index i, Eigen::Index c, double u) {
+                                return accumulate ? out(i, first + c) + u : u;
+                              });
+  }
+}
 
 // Vector kernels.
 inline double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int threads) {
