@@ -331,7 +331,7 @@ TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric close
   // Curved: every face keeps the triangle inequality, both sides of an edge agree, traced edges take
   // their polyline's length; and coarse marching on them is closer to the sphere's great-circle
   // distances than on ICE's flattened metric.
-  const ice::TriangleMesh sphere = ice::make_icosphere(5);
+  const ice::TriangleMesh sphere = ice::make_icosphere(4);
   const ice::CoarseSpace space = ice_space(sphere, 0.05);
   const ice::CoarseTracing tracing = ice::trace_coarse_mesh(sphere, space);
   const ice::FaceLengths L = ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, tracing);
@@ -382,14 +382,14 @@ TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric close
   CHECK(surface.edges == static_cast<Index>(measured.edges.size()));
   CHECK(surface.traced == measured.traced);
   CHECK(surface.traced > surface.edges * 9 / 10);
-  const ice::TriangleMesh other = ice::make_icosphere(4);
+  const ice::TriangleMesh other = ice::make_icosphere(3);
   CHECK_THROWS_AS(ice::surface_edge_lengths(other, space.mesh, map, space.inserted), std::invalid_argument);
   const double radius = sphere.V.row(0).norm();
   double intrinsic_error = 0, traced_error = 0;
   double walk_error = 0;
   const fem::ProxyGeodesicSolver on_intrinsic(space.mesh, space.P), on_traced(ice::with_lengths(space.mesh, L), space.P),
       on_walk(ice::with_lengths(space.mesh, surface.lengths), space.P);
-  for (const Index source : {0, 1000, 5000}) {
+  for (const Index source : {0, 1000, 2000}) {
     const Eigen::VectorXd a = on_intrinsic.distance({source}), b = on_traced.distance({source}), c = on_walk.distance({source});
     for (Eigen::Index v = 0; v < sphere.V.rows(); ++v) {
       const double exact = radius * std::acos(std::clamp(sphere.V.row(v).dot(sphere.V.row(source)) / (radius * radius), -1.0, 1.0));
@@ -399,7 +399,7 @@ TEST_CASE("traced edge lengths: the input's on a flat disk, a valid metric close
     }
   }
   INFO("mean absolute errors: intrinsic " << intrinsic_error << ", traced " << traced_error << ", walk " << walk_error);
-  CHECK(traced_error < 0.95 * intrinsic_error);  // measured 0.87
+  CHECK(traced_error < 0.95 * intrinsic_error);  // measured 0.72
   CHECK(walk_error < 0.95 * intrinsic_error);
 
   CHECK_THROWS_AS(ice::traced_edge_lengths(sphere.V, sphere.F, space.mesh, ice::CoarseTracing{}), std::invalid_argument);
