@@ -547,7 +547,7 @@ static std::array<Index, 2> trace_mesh_files(const std::vector<std::string>& pat
     const std::optional<ice::TriangleMesh> loaded = repaired_mesh(path);
     if (!loaded) continue;
     const ice::TriangleMesh& mesh = *loaded;
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(ICE_SANITIZED_LIBRARIES)
     if (mesh.V.rows() > 60000) continue;  // the sanitizers make the largest scans take minutes; Release traces them
 #endif
     for (const double ratio : {0.05, 0.01}) {
