@@ -209,11 +209,11 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   detail::RowMajorSparse coarse_rows;
   if (coarse) {
     coarse_rows = *coarse->prolongation;
-    for (Index i : g > 0 ? fixed : std::vector<Index>{}) {
+    for (Index i : fixed) {
       Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(g);
       for (detail::RowMajorSparse::InnerIterator it(coarse_rows, i); it; ++it)
         row += it.value() * coarse->coarse_vectors.row(it.col());
-      if (row.cwiseAbs().maxCoeff() > 0)
+      if (!row.isZero(0))
         throw std::invalid_argument("refine_eigenpairs: the coarse directions do not vanish at the Dirichlet row " +
                                     std::to_string(i));
     }
