@@ -214,6 +214,10 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                    {"residual_max", basis.residuals.maxCoeff()},
                                    {"seconds", basis.refine_seconds},
                                    {"precondition_seconds", basis.precondition_seconds},
+                                   {"sparse_seconds", basis.refine_sparse_seconds},
+                                   {"dense_seconds", basis.refine_dense_seconds},
+                                   {"coarse_seconds", basis.refine_coarse_seconds},
+                                   {"coarse_eigensolve_seconds", basis.eigensolve_seconds},
                                    {"hierarchy", ice::proxy::hierarchy_json(*hierarchy, refinement.hierarchy)},
                                    {"hierarchy_cache", ice::proxy::cache_json(hierarchy->cache, store)}};
     if (!hks_text.empty())

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <string>
 
@@ -449,6 +450,45 @@ TEST_CASE("solve_multiple equals column-by-column solves, with and without Diric
         CHECK(relative_difference(X.col(c), x) < 1e-7);
       }
     }
+}
+
+TEST_CASE("apply_vcycle_multiple is one V-cycle per column: solve_multiple's numbers, symmetric positive definite", "[multigrid][meshes]") {
+  const Setup& s = mesh_setup("lion-head.off");
+  const std::vector<int> boundary = boundary_vertices(s.mesh.F);
+  const Eigen::Index n = s.L.rows(), k = 11;  // a chunk of 8 and one of 3
+  Eigen::MatrixXd R(n, k);
+  for (Eigen::Index c = 0; c < k; ++c) {
+    Eigen::VectorXd b = test_rhs(s);
+    for (Eigen::Index i = 0; i < n; ++i) b(i) *= 1 + 0.5 * std::sin(0.003 * static_cast<double>(i) * (c + 1));
+    R.col(c) = b;
+  }
+  R.col(4).setZero();  // a zero column stays zero
+  const fem::SparseMatrix A = s.L + shift(s) * s.M;
+  fem::MultigridOptions options;
+  options.mode = fem::MultigridMode::vcycle;
+  options.max_iterations = 1;
+  options.tolerance = std::numeric_limits<double>::min();
+  fem::MultigridSolver solver(s.hierarchy.prolongations, options);
+  CHECK_THROWS_AS(solver.apply_vcycle_multiple(R), std::logic_error);
+  solver.setup(A, boundary);
+  CHECK_THROWS_AS(solver.apply_vcycle_multiple(R.topRows(n - 1)), std::invalid_argument);
+  const Eigen::MatrixXd Z = solver.apply_vcycle_multiple(R);
+  const Eigen::MatrixXd cycled = solver.solve_multiple(R);
+  REQUIRE(Z.rows() == n);
+  REQUIRE(Z.cols() == k);
+  CHECK((Z - cycled).cwiseAbs().maxCoeff() == 0.0);
+  CHECK(Z.col(4).isZero(0));
+  for (int i : boundary) CHECK(Z.row(i).isZero(0));
+  // B = the V-cycle operator on the free rows: rᵀ B s = sᵀ B r and rᵀ B r > 0.
+  Eigen::MatrixXd free_R = R;
+  for (int i : boundary) free_R.row(i).setZero();
+  for (Eigen::Index a = 0; a < k; ++a) {
+    if (a == 4) continue;
+    CHECK(free_R.col(a).dot(Z.col(a)) > 0);
+    for (Eigen::Index b = a + 1; b < k; ++b)
+      CHECK(std::abs(free_R.col(a).dot(Z.col(b)) - free_R.col(b).dot(Z.col(a))) <=
+            1e-10 * std::sqrt(free_R.col(a).dot(Z.col(a)) * free_R.col(b).dot(Z.col(b))));
+  }
 }
 
 TEST_CASE("a large level's independent sets go range by range: the hierarchy is the same for any thread count, every level Delaunay",

@@ -229,6 +229,13 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       throw std::invalid_argument("refine_eigenpairs: M's diagonal must be positive (row " + std::to_string(j) + ")");
   }
   const int threads = options.threads > 0 ? options.threads : detail::default_threads();
+  EigenRefineReport report;
+  const auto L_times = [&](const Dense& Y) {
+    const auto product_start = Clock::now();
+    Dense LY = sparse_times(L, Y, threads);
+    report.sparse_seconds += ice::seconds_since(product_start);
+    return LY;
+  };
   const auto clear_fixed_rows = [&](Dense& A) {
     for (Index i : fixed) A.row(i).setZero();
   };
@@ -250,7 +257,6 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   // new directions W with P, their L-products, or the updated X with the next step); the augmented
   // subspace method X and at most one more (R, L U, or the updated X) and a few preconditioned
   // columns. M is diagonal and applied on the fly.
-  EigenRefineReport report;
   // The caller's vectors are worked on in place of a copy (an n × m block less at the peak); a throw
   // after the argument checks leaves them valid but unspecified.
   Dense X = std::move(vectors);
@@ -260,11 +266,13 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   {
     // Rayleigh–Ritz on the start vectors: M-orthonormal Ritz vectors whatever the start. L X is
     // freed before the rotated X is made (no third n × m block).
-    Dense LX = sparse_times(L, X, threads);
+    Dense LX = L_times(X);
+    const auto phase_start = Clock::now();
     const Dense XLX = gram(X, LX);
     LX.resize(0, 0);
     const Ritz r = ritz_pairs(XLX, mass_gram(X, mass, X), m, kDrop);
     X = block_product(X, r.coefficients);
+    report.dense_seconds += ice::seconds_since(phase_start);
     theta = r.values;
   }
   Eigen::VectorXd residual(m);
@@ -322,7 +330,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     // space (one restriction of L U and M U), and X = U Y_U + P (Ψ Y_G).
     const Dense& psi = coarse->coarse_vectors;
     for (int iteration = 0;; ++iteration) {
-      Dense R = sparse_times(L, X, threads);
+      Dense R = L_times(X);
       residuals_of(R);
       if (stop_at(iteration)) break;
       const std::vector<Eigen::Index> active = still_active();
@@ -340,21 +348,29 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       // X now holds U. The Gram matrices of [U, G]: U's own computed in full, G's given.
       Dense GL(m + g, m + g), GM(m + g, m + g);
       {
-        const Dense LU = sparse_times(L, X, threads);
+        const Dense LU = L_times(X);
+        auto phase_start = Clock::now();
         GL.topLeftCorner(m, m) = gram(X, LU);
         GM.topLeftCorner(m, m) = mass_gram(X, mass, X);
+        report.dense_seconds += ice::seconds_since(phase_start);
+        phase_start = Clock::now();
         Dense restricted_LU, restricted_MU;
         restrict_block(coarse_rows, LU, X, mass, restricted_LU, restricted_MU, threads);
         GL.topRightCorner(m, g) = (psi.transpose() * restricted_LU).transpose();
         GM.topRightCorner(m, g) = (psi.transpose() * restricted_MU).transpose();
+        report.coarse_seconds += ice::seconds_since(phase_start);
       }
       GL.bottomRightCorner(g, g) = coarse->laplacian_gram;
       GM.bottomRightCorner(g, g) = coarse->mass_gram;
       GL.triangularView<Eigen::StrictlyLower>() = GL.transpose();
       GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
+      auto phase_start = Clock::now();
       const Ritz r = ritz_pairs(GL, GM, m, kDrop);
       Dense moved = block_product(X, r.coefficients.topRows(m));
+      report.dense_seconds += ice::seconds_since(phase_start);
+      phase_start = Clock::now();
       detail::product_to_columns(coarse_rows, Dense(psi * r.coefficients.bottomRows(g)), moved, true, threads);
+      report.coarse_seconds += ice::seconds_since(phase_start);
       clear_fixed_rows(moved);
       X = std::move(moved);
       theta = r.values;
@@ -365,13 +381,18 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     for (int iteration = 0;; ++iteration) {
       // Residuals R = L X − M X Θ, outside the Dirichlet rows; X's Gram blocks from the same L X
       // (computed, not assumed: the Rayleigh–Ritz then corrects any drift of X from M-orthonormality).
-      Dense R = sparse_times(L, X, threads);
+      Dense R = L_times(X);
+      auto phase_start = Clock::now();
       const Dense XLX = gram(X, R), XMX = mass_gram(X, mass, X);
+      report.dense_seconds += ice::seconds_since(phase_start);
       residuals_of(R);
       if (stop_at(iteration)) break;
       const std::vector<Eigen::Index> active = still_active();
       Dense W = preconditioned(R, active);
       R.resize(0, 0);
+      // The rest of the iteration is dense products but for the L products (timed apart).
+      phase_start = Clock::now();
+      const double sparse_before = report.sparse_seconds;
       // The new directions: W M-orthogonal to X, then W and P each M-orthonormal (their mutual and
       // X–P products are computed, not assumed).
       product(X, false, mass_gram(X, mass, W), false, W, true, -1.0);
@@ -385,14 +406,14 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       GL.topLeftCorner(m, m) = XLX;
       GM.topLeftCorner(m, m) = XMX;
       {
-        const Dense LW = sparse_times(L, W, threads);
+        const Dense LW = L_times(W);
         GL.block(0, m, m, a) = gram(X, LW);
         GL.block(m, m, a, a) = gram(W, LW);
       }
       GM.block(0, m, m, a) = mass_gram(X, mass, W);
       GM.block(m, m, a, a) = mass_gram(W, mass, W);
       if (p > 0) {
-        const Dense LP = sparse_times(L, P, threads);
+        const Dense LP = L_times(P);
         GL.block(0, m + a, m, p) = gram(X, LP);
         GL.block(m, m + a, a, p) = gram(W, LP);
         GL.block(m + a, m + a, p, p) = gram(P, LP);
@@ -415,6 +436,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       }
       P = std::move(step);
       theta = r.values;
+      report.dense_seconds += ice::seconds_since(phase_start) - (report.sparse_seconds - sparse_before);
     }
   }
   values = std::move(theta);

@@ -865,6 +865,29 @@ void MultigridSolver::apply_vcycle_block(const Eigen::Ref<const Block>& R, Block
   Z.swap(L.X);
 }
 
+Eigen::MatrixXd MultigridSolver::apply_vcycle_multiple(const Eigen::MatrixXd& R) {
+  if (!is_setup_) throw std::logic_error("MultigridSolver::apply_vcycle_multiple: call setup() first");
+  if (R.rows() != size_) throw std::invalid_argument("MultigridSolver::apply_vcycle_multiple: R has the wrong number of rows");
+  const Eigen::Index k = R.cols(), nf = static_cast<Eigen::Index>(free_.size());
+  Eigen::MatrixXd Z = Eigen::MatrixXd::Zero(size_, k);
+  if (nf == 0) return Z;
+  Level& L = *levels_[0];
+  const int t = threads();
+  for (Eigen::Index first = 0; first < k; first += kBlockColumns) {
+    const Eigen::Index width = std::min<Eigen::Index>(kBlockColumns, k - first);
+    L.B.resize(nf, width);
+#pragma omp parallel for schedule(static) num_threads(active_threads(nf, t))
+    for (Eigen::Index i = 0; i < nf; ++i)
+      for (Eigen::Index c = 0; c < width; ++c) L.B(i, c) = R(free_[static_cast<std::size_t>(i)], first + c);
+    L.X.setZero(nf, width);
+    vcycle(0);
+#pragma omp parallel for schedule(static) num_threads(active_threads(nf, t))
+    for (Eigen::Index i = 0; i < nf; ++i)
+      for (Eigen::Index c = 0; c < width; ++c) Z(free_[static_cast<std::size_t>(i)], first + c) = L.X(i, c);
+  }
+  return Z;
+}
+
 Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, const Eigen::MatrixXd& constrained_values) {
   if (!is_setup_) throw std::logic_error("MultigridSolver::solve_multiple: call setup() first");
   const Eigen::Index k = Bfull.cols();

@@ -75,6 +75,9 @@ struct EigenRefineReport {
   std::vector<double> history;
   double seconds = 0;
   double precondition_seconds = 0;  ///< of those, in the preconditioner
+  double sparse_seconds = 0;        ///< of those, in the products with L (L X, L U)
+  double dense_seconds = 0;         ///< of those, in the n-row dense products (Gram matrices, rotations)
+  double coarse_seconds = 0;        ///< of those, in the coarse directions' restrictions and prolongations
 };
 
 /// Applies an approximation of (L + σM)⁻¹ (symmetric positive definite, σ > 0: e.g. a multigrid

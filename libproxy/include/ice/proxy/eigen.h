@@ -96,6 +96,9 @@ struct Eigenbasis {
   Eigen::VectorXd residuals;
   double refine_seconds = 0;
   double precondition_seconds = 0;  ///< of refine_seconds: V-cycles
+  /// Of refine_seconds: the products with L, the n-row dense products, the coarse directions'
+  /// restrictions and prolongations (fem::EigenRefineReport).
+  double refine_sparse_seconds = 0, refine_dense_seconds = 0, refine_coarse_seconds = 0;
 };
 
 class EigenSolver {
