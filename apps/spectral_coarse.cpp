@@ -212,6 +212,7 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                    {"coarse_directions", basis.coarse_directions},
                                    {"method", basis.coarse_directions > 0 ? "augmented" : "lobpcg"},
                                    {"residual_max", basis.residuals.maxCoeff()},
+                                   {"residual_history", basis.residual_history},
                                    {"seconds", basis.refine_seconds},
                                    {"precondition_seconds", basis.precondition_seconds},
                                    {"sparse_seconds", basis.refine_sparse_seconds},

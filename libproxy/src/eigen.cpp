@@ -252,6 +252,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   basis.coarse_directions = directions;
   basis.residuals = report.residuals;
   basis.precondition_seconds = report.precondition_seconds;
+  basis.residual_history = report.history;
   basis.refine_sparse_seconds = report.sparse_seconds;
   basis.refine_dense_seconds = report.dense_seconds;
   basis.refine_coarse_seconds = report.coarse_seconds;

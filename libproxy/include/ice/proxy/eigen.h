@@ -94,6 +94,8 @@ struct Eigenbasis {
   int guard = 0;
   int coarse_directions = 0;  ///< of the refinement (0: LOBPCG)
   Eigen::VectorXd residuals;
+  /// The largest relative residual of the k pairs before the first iteration and after each.
+  std::vector<double> residual_history;
   double refine_seconds = 0;
   double precondition_seconds = 0;  ///< of refine_seconds: V-cycles
   /// Of refine_seconds: the products with L, the n-row dense products, the coarse directions'
