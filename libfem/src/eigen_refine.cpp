@@ -88,13 +88,42 @@ Dense block_product(const Dense& A, const Dense& Y) {
   return C;
 }
 
-// L X for a symmetric L, column by column (each column's sum in one order). (Chunks of 8 columns
-// copied row by row and gathered together were slower: docs/measurements.md, "The refined
-// eigenbasis by the augmented subspace method".)
+// Columns [first, first + W) of L X for a symmetric L (column i is row i): one pass over L for the
+// W columns, each entry summed in the order of L's column i, as gather_product sums it.
+template <int W>
+void sparse_times_columns(const SparseMatrix& L, const Dense& X, Dense& out, Eigen::Index first, int width, int threads) {
+  const auto* start = L.outerIndexPtr();
+  const auto* inner = L.innerIndexPtr();
+  const double* value = L.valuePtr();
+  const Eigen::Index n = L.rows();
+  const double* x = X.data() + first * n;
+  double* y = out.data() + first * n;
+  const int w = W > 0 ? W : width;
+#pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double sum[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    for (auto p = start[i]; p < start[i + 1]; ++p) {
+      const double a = value[p];
+      const double* row = x + inner[p];
+      for (int c = 0; c < w; ++c) sum[c] += a * row[c * n];
+    }
+    for (int c = 0; c < w; ++c) y[c * n + i] = sum[c];
+  }
+}
+
+// L X for a symmetric L, 8 columns per pass over L: L is read from memory once per 8 columns, and
+// the 8 columns' rows near row i are in cache when L's numbering is local (refined_eigenbasis
+// numbers the fine vertices breadth-first). Each entry is summed in one order whatever the threads.
 Dense sparse_times(const SparseMatrix& L, const Dense& X, int threads) {
+  constexpr int kChunk = 8;
   Dense out(L.rows(), X.cols());
-#pragma omp parallel for schedule(dynamic) num_threads(detail::active_threads(L.rows(), threads))
-  for (Eigen::Index j = 0; j < X.cols(); ++j) detail::gather_product(L, X.col(j).data(), out.col(j).data(), false, 1, 0);
+  for (Eigen::Index first = 0; first < X.cols(); first += kChunk) {
+    const int width = static_cast<int>(std::min<Eigen::Index>(kChunk, X.cols() - first));
+    if (width == kChunk)
+      sparse_times_columns<kChunk>(L, X, out, first, width, threads);
+    else
+      sparse_times_columns<0>(L, X, out, first, width, threads);
+  }
   return out;
 }
 

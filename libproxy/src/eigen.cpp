@@ -2,6 +2,7 @@
 
 #include "entry_checks.h"
 #include "fem/multigrid.h"
+#include "fem/ordering.h"
 #include "fem/topology.h"
 #include "ice/wall_time.h"
 
@@ -9,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -19,6 +21,37 @@ namespace ice::proxy {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// The rows of P (n × c) in the numbering `order` (order[new] = old): row i of the result is row
+// order[i] of P. Inner indices sorted (the row-major copy is turned back column by column).
+fem::SparseMatrix permute_rows(const fem::SparseMatrix& P, const std::vector<Index>& order) {
+  const Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = P;
+  Eigen::SparseMatrix<double, Eigen::RowMajor, int> moved(P.rows(), P.cols());
+  moved.reserve(rows.nonZeros());
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    moved.startVec(i);
+    for (decltype(rows)::InnerIterator it(rows, order[static_cast<std::size_t>(i)]); it; ++it)
+      moved.insertBackByOuterInner(i, it.col()) = it.value();
+  }
+  moved.finalize();
+  return fem::SparseMatrix(moved);
+}
+
+// Column by column, in place: X's row i becomes row order[i] (`forward`), or row order[i] becomes
+// row i (the inverse).
+void permute_rows_in_place(Eigen::MatrixXd& X, const std::vector<Index>& order, bool forward) {
+  Eigen::VectorXd column(X.rows());
+  for (Eigen::Index c = 0; c < X.cols(); ++c) {
+    column = X.col(c);
+    for (Eigen::Index i = 0; i < X.rows(); ++i) {
+      const Index old = order[static_cast<std::size_t>(i)];
+      if (forward)
+        X(i, c) = column(old);
+      else
+        X(old, c) = column(i);
+    }
+  }
+}
 
 // The proxy's coarse vertices off the Dirichlet ones (`coarse_fixed`: those, as coarse vertices),
 // and the check that k pairs fit in them.
@@ -199,20 +232,39 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   std::vector<Index> coarse_fixed;
   const Eigen::Index coarse_free = free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed);
   require_pair_count(k, coarse_free, !coarse_fixed.empty());  // before the coarse eigensolve of k + guard + directions pairs
-  const fem::SparseMatrix& L = proxy.fine_laplacian();
-  const fem::SparseMatrix& M = proxy.fine_mass();
-  if (hierarchy.fine_vertices != L.rows())
+  const fem::SparseMatrix& input_L = proxy.fine_laplacian();
+  if (hierarchy.fine_vertices != input_L.rows())
     throw std::invalid_argument("refined_eigenbasis: the hierarchy has " + std::to_string(hierarchy.fine_vertices) +
-                                " fine vertices, the proxy " + std::to_string(L.rows()));
+                                " fine vertices, the proxy " + std::to_string(input_L.rows()));
   const int guard = refinement_guard(k, refinement, coarse_free);
   const int directions = refinement_coarse_directions(k, guard, refinement, coarse_free);
   // One coarse eigensolve for the start (k + guard pairs, prolonged) and the coarse directions.
   Eigen::MatrixXd coarse_vectors;
   Eigenbasis basis = coarse_basis(proxy, k + guard + directions, k + guard, options, dirichlet_vertices, store, &coarse_vectors);
   const auto start = Clock::now();
+  // The refinement runs in the hierarchy's breadth-first numbering of the fine vertices (its
+  // fine_order): there a vertex's neighbours sit close in memory, so the products with L and P and
+  // the V-cycles' gathers stream instead of jumping over the mesh (an input numbering such as Loop
+  // subdivision's scatters them). The vectors are turned back to the input's numbering at the end.
+  const std::vector<Index>& order = hierarchy.fine_order;  // order[new] = old; empty: as it is
+  const bool renumbered = !order.empty();
+  fem::SparseMatrix renumbered_L, renumbered_M, renumbered_P;
+  std::vector<Index> fixed = dirichlet_vertices;
+  std::vector<fem::SparseMatrix> prolongations = hierarchy.prolongations;
+  if (renumbered) {
+    renumbered_L = fem::permute_symmetric(input_L, order);
+    renumbered_M = fem::permute_symmetric(proxy.fine_mass(), order);
+    renumbered_P = permute_rows(proxy.prolongation(), order);
+    if (!prolongations.empty()) prolongations.front() = permute_rows(prolongations.front(), order);
+    std::vector<Index> new_index(order.size());
+    for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
+    for (Index& v : fixed) v = new_index[static_cast<std::size_t>(v)];
+  }
+  const fem::SparseMatrix& L = renumbered ? renumbered_L : input_L;
+  const fem::SparseMatrix& M = renumbered ? renumbered_M : proxy.fine_mass();
   fem::EigenCoarseDirections coarse;
   if (directions > 0) {
-    coarse.prolongation = &proxy.prolongation();
+    coarse.prolongation = renumbered ? &renumbered_P : &proxy.prolongation();
     coarse.coarse_vectors = coarse_vectors.rightCols(directions);
     coarse.laplacian_gram = coarse.coarse_vectors.transpose() * (proxy.coarse_laplacian() * coarse.coarse_vectors);
     coarse.mass_gram = coarse.coarse_vectors.transpose() * (proxy.coarse_mass() * coarse.coarse_vectors);
@@ -229,9 +281,13 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   if (!(sigma > 0)) sigma = 1.0 / M.sum();
   fem::MultigridOptions cycle;
   cycle.mode = fem::MultigridMode::vcycle;  // the finest level smoothed in double precision
-  fem::MultigridSolver multigrid(hierarchy.prolongations, cycle);
-  multigrid.set_locality_order(hierarchy.fine_order);
-  multigrid.setup(fem::SparseMatrix(L + sigma * M), dirichlet_vertices);
+  fem::MultigridSolver multigrid(std::move(prolongations), cycle);
+  if (renumbered) {  // already in the locality order
+    std::vector<Index> identity(order.size());
+    std::iota(identity.begin(), identity.end(), 0);
+    multigrid.set_locality_order(std::move(identity));
+  }
+  multigrid.setup(fem::SparseMatrix(L + sigma * M), fixed);
   const fem::BlockPreconditioner precondition = [&multigrid](const Eigen::MatrixXd& R) {
     return multigrid.apply_vcycle_multiple(R);
   };
@@ -240,10 +296,12 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   refine.max_iterations = refinement.max_iterations;
   Eigen::VectorXd values = std::move(basis.values);
   Eigen::MatrixXd vectors = std::move(basis.vectors);
+  if (renumbered) permute_rows_in_place(vectors, order, true);
   const fem::EigenRefineReport report =
-      fem::refine_eigenpairs(L, M, values, vectors, k, precondition, dirichlet_vertices, refine, directions > 0 ? &coarse : nullptr);
+      fem::refine_eigenpairs(L, M, values, vectors, k, precondition, fixed, refine, directions > 0 ? &coarse : nullptr);
   basis.values = values.head(k);
   vectors.conservativeResize(Eigen::NoChange, k);
+  if (renumbered) permute_rows_in_place(vectors, order, false);
   basis.vectors = std::move(vectors);
   basis.refined = true;
   basis.converged = report.converged;
