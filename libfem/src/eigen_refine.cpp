@@ -28,6 +28,9 @@ using Dense = Eigen::MatrixXd;
 extern "C" void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k, const double* alpha,
                        const double* a, const int* lda, const double* b, const int* ldb, const double* beta, double* c,
                        const int* ldc);
+// C = alpha op(A)ᵀ op(A) + beta C (the `uplo` triangle of C only), column-major.
+extern "C" void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, const double* alpha, const double* a,
+                       const int* lda, const double* beta, double* c, const int* ldc);
 
 namespace fem {
 namespace {
@@ -78,6 +81,25 @@ Dense mass_gram(const Dense& A, const Eigen::VectorXd& w, const Dense& B) {
     const int k = blas_size(rows), ldb = k;
     dgemm_("T", "N", &m, &n, &k, &one, A.data() + first, &lda, band.data(), &ldb, &one, C.data(), &ldc);
   }
+  return C;
+}
+
+// Aᵀ diag(w) A for w >= 0, as (√w A)ᵀ (√w A) a band of rows at a time by a symmetric rank-k update
+// (half mass_gram's products); both triangles filled.
+Dense mass_self_gram(const Dense& A, const Eigen::VectorXd& root_w) {
+  constexpr Eigen::Index kBand = 16384;  // OpenBLAS's rank-k update is slower on narrower bands
+  Dense C = Dense::Zero(A.cols(), A.cols());
+  if (A.cols() == 0) return C;
+  const int n = blas_size(A.cols()), ldc = n;
+  const double one = 1.0;
+  Dense band;
+  for (Eigen::Index first = 0; first < A.rows(); first += kBand) {
+    const Eigen::Index rows = std::min(kBand, A.rows() - first);
+    band.noalias() = root_w.segment(first, rows).asDiagonal() * A.middleRows(first, rows);
+    const int k = blas_size(rows), lda = k;
+    dsyrk_("U", "T", &n, &k, &one, band.data(), &lda, &one, C.data(), &ldc);
+  }
+  C.triangularView<Eigen::StrictlyLower>() = C.transpose();
   return C;
 }
 
@@ -258,6 +280,9 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       throw std::invalid_argument("refine_eigenpairs: M's diagonal must be positive (row " + std::to_string(j) + ")");
   }
   const int threads = options.threads > 0 ? options.threads : detail::default_threads();
+  // √M for the symmetric mass Gram matrices (M's diagonal is positive off `fixed`, where the vectors
+  // are zero: a negative entry there is left out with its zero rows).
+  const Eigen::VectorXd root_mass = mass.cwiseMax(0).cwiseSqrt();
   EigenRefineReport report;
   const auto L_times = [&](const Dense& Y) {
     const auto product_start = Clock::now();
@@ -275,7 +300,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   // M-orthonormalises the columns of V, dropping the numerically dependent ones: each column
   // normalised, then the Gram matrix's independent part.
   const auto orthonormalise = [&](Dense& V) {
-    const Dense G = mass_gram(V, mass, V);
+    const Dense G = mass_self_gram(V, root_mass);
     Eigen::VectorXd scale = G.diagonal().cwiseMax(0).cwiseSqrt();
     const double largest_scale = scale.size() ? scale.maxCoeff() : 0;
     for (Eigen::Index j = 0; j < scale.size(); ++j) scale(j) = scale(j) > 1e-14 * largest_scale ? 1 / scale(j) : 0;
@@ -299,7 +324,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     const auto phase_start = Clock::now();
     const Dense XLX = gram(X, LX);
     LX.resize(0, 0);
-    const Ritz r = ritz_pairs(XLX, mass_gram(X, mass, X), m, kDrop);
+    const Ritz r = ritz_pairs(XLX, mass_self_gram(X, root_mass), m, kDrop);
     X = block_product(X, r.coefficients);
     report.dense_seconds += ice::seconds_since(phase_start);
     theta = r.values;
@@ -380,7 +405,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
         const Dense LU = L_times(X);
         auto phase_start = Clock::now();
         GL.topLeftCorner(m, m) = gram(X, LU);
-        GM.topLeftCorner(m, m) = mass_gram(X, mass, X);
+        GM.topLeftCorner(m, m) = mass_self_gram(X, root_mass);
         report.dense_seconds += ice::seconds_since(phase_start);
         phase_start = Clock::now();
         Dense restricted_LU, restricted_MU;
@@ -412,7 +437,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       // (computed, not assumed: the Rayleigh–Ritz then corrects any drift of X from M-orthonormality).
       Dense R = L_times(X);
       auto phase_start = Clock::now();
-      const Dense XLX = gram(X, R), XMX = mass_gram(X, mass, X);
+      const Dense XLX = gram(X, R), XMX = mass_self_gram(X, root_mass);
       report.dense_seconds += ice::seconds_since(phase_start);
       residuals_of(R);
       if (stop_at(iteration)) break;
@@ -440,7 +465,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
         GL.block(m, m, a, a) = gram(W, LW);
       }
       GM.block(0, m, m, a) = mass_gram(X, mass, W);
-      GM.block(m, m, a, a) = mass_gram(W, mass, W);
+      GM.block(m, m, a, a) = mass_self_gram(W, root_mass);
       if (p > 0) {
         const Dense LP = L_times(P);
         GL.block(0, m + a, m, p) = gram(X, LP);
@@ -448,7 +473,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
         GL.block(m + a, m + a, p, p) = gram(P, LP);
         GM.block(0, m + a, m, p) = mass_gram(X, mass, P);
         GM.block(m, m + a, a, p) = mass_gram(W, mass, P);
-        GM.block(m + a, m + a, p, p) = mass_gram(P, mass, P);
+        GM.block(m + a, m + a, p, p) = mass_self_gram(P, root_mass);
       }
       GL.triangularView<Eigen::StrictlyLower>() = GL.transpose();
       GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
