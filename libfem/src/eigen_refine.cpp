@@ -2,6 +2,7 @@
 // from approximate pairs.
 #include "fem/eigen.h"
 #include "ice/wall_time.h"
+#include "dense_blas.h"
 #include "parallel_kernels.h"
 
 #include <Eigen/Eigenvalues>
@@ -21,43 +22,12 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using Dense = Eigen::MatrixXd;
 
-}  // namespace
-}  // namespace fem
-
-// The Fortran BLAS interface (every BLAS has it): C = alpha op(A) op(B) + beta C, column-major.
-extern "C" void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k, const double* alpha,
-                       const double* a, const int* lda, const double* b, const int* ldb, const double* beta, double* c,
-                       const int* ldc);
-// C = alpha op(A)ᵀ op(A) + beta C (the `uplo` triangle of C only), column-major.
-extern "C" void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, const double* alpha, const double* a,
-                       const int* lda, const double* beta, double* c, const int* ldc);
-
-namespace fem {
-namespace {
-
-int blas_size(Eigen::Index value) {
-  if (value > std::numeric_limits<int>::max()) throw std::length_error("refine_eigenpairs: a block too large for BLAS");
-  return static_cast<int>(value);
-}
-
 // C = op(A) op(B) (+ C when `accumulate`), A and B dense column-major; op = transpose when asked.
 void product(const Dense& A, bool transpose_a, const Dense& B, bool transpose_b, Dense& C, bool accumulate = false,
              double alpha = 1.0) {
-  const Eigen::Index rows = transpose_a ? A.cols() : A.rows(), inner = transpose_a ? A.rows() : A.cols();
-  const Eigen::Index cols = transpose_b ? B.rows() : B.cols();
-  if ((transpose_b ? B.cols() : B.rows()) != inner) throw std::logic_error("refine_eigenpairs: product sizes");
+  const Eigen::Index rows = transpose_a ? A.cols() : A.rows(), cols = transpose_b ? B.rows() : B.cols();
   if (!accumulate) C.resize(rows, cols);
-  if (rows == 0 || cols == 0) return;
-  if (inner == 0) {
-    if (!accumulate) C.setZero();
-    return;
-  }
-  const int m = blas_size(rows), n = blas_size(cols), k = blas_size(inner);
-  const int lda = blas_size(std::max<Eigen::Index>(1, A.rows())), ldb = blas_size(std::max<Eigen::Index>(1, B.rows()));
-  const int ldc = blas_size(std::max<Eigen::Index>(1, C.rows()));
-  const double beta = accumulate ? 1.0 : 0.0;
-  dgemm_(transpose_a ? "T" : "N", transpose_b ? "T" : "N", &m, &n, &k, &alpha, A.data(), &lda, B.data(), &ldb, &beta,
-         C.data(), &ldc);
+  detail::gemm(A, transpose_a, B, transpose_b, C, alpha, accumulate ? 1.0 : 0.0);
 }
 
 // Aᵀ B.
@@ -72,14 +42,11 @@ Dense mass_gram(const Dense& A, const Eigen::VectorXd& w, const Dense& B) {
   constexpr Eigen::Index kBand = 4096;
   Dense C = Dense::Zero(A.cols(), B.cols());
   if (A.cols() == 0 || B.cols() == 0) return C;
-  const int m = blas_size(A.cols()), n = blas_size(B.cols()), lda = blas_size(A.rows()), ldc = m;
-  const double one = 1.0;
   Dense band;
   for (Eigen::Index first = 0; first < A.rows(); first += kBand) {
     const Eigen::Index rows = std::min(kBand, A.rows() - first);
     band.noalias() = w.segment(first, rows).asDiagonal() * B.middleRows(first, rows);
-    const int k = blas_size(rows), ldb = k;
-    dgemm_("T", "N", &m, &n, &k, &one, A.data() + first, &lda, band.data(), &ldb, &one, C.data(), &ldc);
+    detail::gemm(A.middleRows(first, rows), true, band, false, C, 1.0, 1.0);
   }
   return C;
 }
@@ -90,14 +57,11 @@ Dense mass_self_gram(const Dense& A, const Eigen::VectorXd& root_w) {
   constexpr Eigen::Index kBand = 16384;  // OpenBLAS's rank-k update is slower on narrower bands
   Dense C = Dense::Zero(A.cols(), A.cols());
   if (A.cols() == 0) return C;
-  const int n = blas_size(A.cols()), ldc = n;
-  const double one = 1.0;
   Dense band;
   for (Eigen::Index first = 0; first < A.rows(); first += kBand) {
     const Eigen::Index rows = std::min(kBand, A.rows() - first);
     band.noalias() = root_w.segment(first, rows).asDiagonal() * A.middleRows(first, rows);
-    const int k = blas_size(rows), lda = k;
-    dsyrk_("U", "T", &n, &k, &one, band.data(), &lda, &one, C.data(), &ldc);
+    detail::syrk_upper(band, C, 1.0, 1.0);
   }
   C.triangularView<Eigen::StrictlyLower>() = C.transpose();
   return C;

@@ -1,0 +1,55 @@
+#pragma once
+// Internal to libfem (not installed): tall dense products by the Fortran BLAS that CHOLMOD already
+// runs on (OpenBLAS on Debian, threaded and vectorised for the machine it runs on, which Eigen's own
+// products, built for a portable baseline, are not).
+#include <Eigen/Core>
+
+#include <limits>
+#include <stdexcept>
+
+extern "C" void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k, const double* alpha,
+                       const double* a, const int* lda, const double* b, const int* ldb, const double* beta, double* c,
+                       const int* ldc);
+extern "C" void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, const double* alpha, const double* a,
+                       const int* lda, const double* beta, double* c, const int* ldc);
+
+namespace fem::detail {
+
+inline int blas_size(Eigen::Index value) {
+  if (value > std::numeric_limits<int>::max()) throw std::length_error("a dense block too large for BLAS (32-bit sizes)");
+  return static_cast<int>(value);
+}
+
+/// C = alpha op(A) op(B) + beta C for column-major blocks (whole matrices or column ranges); op = the
+/// transpose when asked. C must have the product's size. Preconditions: matching sizes (std::logic_error).
+inline void gemm(const Eigen::Ref<const Eigen::MatrixXd>& A, bool transpose_a, const Eigen::Ref<const Eigen::MatrixXd>& B,
+                 bool transpose_b, Eigen::Ref<Eigen::MatrixXd> C, double alpha = 1.0, double beta = 0.0) {
+  const Eigen::Index rows = transpose_a ? A.cols() : A.rows(), inner = transpose_a ? A.rows() : A.cols();
+  const Eigen::Index cols = transpose_b ? B.rows() : B.cols();
+  if ((transpose_b ? B.cols() : B.rows()) != inner || C.rows() != rows || C.cols() != cols)
+    throw std::logic_error("gemm: sizes do not match");
+  if (rows == 0 || cols == 0) return;
+  if (inner == 0) {
+    if (beta == 0)
+      C.setZero();
+    else
+      C *= beta;
+    return;
+  }
+  const int m = blas_size(rows), n = blas_size(cols), k = blas_size(inner);
+  const int lda = blas_size(std::max<Eigen::Index>(1, A.outerStride())), ldb = blas_size(std::max<Eigen::Index>(1, B.outerStride()));
+  const int ldc = blas_size(std::max<Eigen::Index>(1, C.outerStride()));
+  dgemm_(transpose_a ? "T" : "N", transpose_b ? "T" : "N", &m, &n, &k, &alpha, A.data(), &lda, B.data(), &ldb, &beta,
+         C.data(), &ldc);
+}
+
+/// The upper triangle of C = alpha Aᵀ A + beta C (C: A.cols() square), column-major.
+inline void syrk_upper(const Eigen::Ref<const Eigen::MatrixXd>& A, Eigen::Ref<Eigen::MatrixXd> C, double alpha = 1.0,
+                       double beta = 0.0) {
+  if (C.rows() != A.cols() || C.cols() != A.cols()) throw std::logic_error("syrk: sizes do not match");
+  if (A.cols() == 0 || A.rows() == 0) return;
+  const int n = blas_size(A.cols()), k = blas_size(A.rows()), lda = blas_size(A.outerStride()), ldc = blas_size(C.outerStride());
+  dsyrk_("U", "T", &n, &k, &alpha, A.data(), &lda, &beta, C.data(), &ldc);
+}
+
+}  // namespace fem::detail
