@@ -260,8 +260,12 @@ TEST_CASE("refined eigenbasis: every pair to the tolerance, the fine eigenpairs 
     options.refine.coarse_directions = 0;
     expected_directions = 0;
   }
+  SECTION("in the input's numbering (a hierarchy without its breadth-first order)") {
+    options.refine.hierarchy.reorder = false;
+  }
   const ice::proxy::EigenSolver solver(mesh, options);
   REQUIRE(solver.hierarchy().fine_vertices == mesh.V.rows());
+  CHECK(solver.hierarchy().fine_order.empty() == !options.refine.hierarchy.reorder);
   const ice::proxy::Eigenbasis basis = solver.compute(k);
   REQUIRE(basis.refined);
   REQUIRE(basis.converged);

@@ -4,6 +4,7 @@
 // products, built for a portable baseline, are not).
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <limits>
 #include <stdexcept>
 
@@ -20,8 +21,9 @@ inline int blas_size(Eigen::Index value) {
   return static_cast<int>(value);
 }
 
-/// C = alpha op(A) op(B) + beta C for column-major blocks (whole matrices or column ranges); op = the
-/// transpose when asked. C must have the product's size. Preconditions: matching sizes (std::logic_error).
+/// C = alpha op(A) op(B) + beta C for column-major blocks (whole matrices, column or row ranges); op =
+/// the transpose when asked. C must have the product's size (std::logic_error) and must not overlap
+/// A or B (BLAS's rule).
 inline void gemm(const Eigen::Ref<const Eigen::MatrixXd>& A, bool transpose_a, const Eigen::Ref<const Eigen::MatrixXd>& B,
                  bool transpose_b, Eigen::Ref<Eigen::MatrixXd> C, double alpha = 1.0, double beta = 0.0) {
   const Eigen::Index rows = transpose_a ? A.cols() : A.rows(), inner = transpose_a ? A.rows() : A.cols();
@@ -43,11 +45,19 @@ inline void gemm(const Eigen::Ref<const Eigen::MatrixXd>& A, bool transpose_a, c
          C.data(), &ldc);
 }
 
-/// The upper triangle of C = alpha Aᵀ A + beta C (C: A.cols() square), column-major.
+/// The upper triangle of C = alpha Aᵀ A + beta C (C: A.cols() square, not overlapping A), column-major;
+/// the strictly lower triangle is not written.
 inline void syrk_upper(const Eigen::Ref<const Eigen::MatrixXd>& A, Eigen::Ref<Eigen::MatrixXd> C, double alpha = 1.0,
                        double beta = 0.0) {
   if (C.rows() != A.cols() || C.cols() != A.cols()) throw std::logic_error("syrk: sizes do not match");
-  if (A.cols() == 0 || A.rows() == 0) return;
+  if (A.cols() == 0) return;
+  if (A.rows() == 0) {
+    if (beta == 0)
+      C.triangularView<Eigen::Upper>().setZero();
+    else
+      C.triangularView<Eigen::Upper>() *= beta;
+    return;
+  }
   const int n = blas_size(A.cols()), k = blas_size(A.rows()), lda = blas_size(A.outerStride()), ldc = blas_size(C.outerStride());
   dsyrk_("U", "T", &n, &k, &alpha, A.data(), &lda, &beta, C.data(), &ldc);
 }

@@ -54,7 +54,7 @@ Dense mass_gram(const Dense& A, const Eigen::VectorXd& w, const Dense& B) {
 // Aᵀ diag(w) A for w >= 0, as (√w A)ᵀ (√w A) a band of rows at a time by a symmetric rank-k update
 // (half mass_gram's products); both triangles filled.
 Dense mass_self_gram(const Dense& A, const Eigen::VectorXd& root_w) {
-  constexpr Eigen::Index kBand = 16384;  // OpenBLAS's rank-k update is slower on narrower bands
+  constexpr Eigen::Index kBand = 16384;  // 4,096 rows was slower with OpenBLAS (docs/measurements.md, "The refined eigenbasis")
   Dense C = Dense::Zero(A.cols(), A.cols());
   if (A.cols() == 0) return C;
   Dense band;
@@ -417,7 +417,10 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       orthonormalise(W);
       if (P.cols() > 0) orthonormalise(P);
       const Eigen::Index a = W.cols(), p = P.cols(), q = a + p;
-      if (q == 0) break;  // nothing new to search: the residuals are below what round-off can improve
+      if (q == 0) {
+        report.dense_seconds += ice::seconds_since(phase_start) - (report.sparse_seconds - sparse_before);
+        break;
+      }  // nothing new to search: the residuals are below what round-off can improve
       // Rayleigh–Ritz on [X, W, P], every Gram block computed (X, W and P are M-orthonormal only to
       // the accuracy of their last orthonormalisation).
       Dense GL(m + q, m + q), GM(m + q, m + q);

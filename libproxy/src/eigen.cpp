@@ -22,9 +22,13 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The rows of P (n × c) in the numbering `order` (order[new] = old): row i of the result is row
-// order[i] of P. Inner indices sorted (the row-major copy is turned back column by column).
-fem::SparseMatrix permute_rows(const fem::SparseMatrix& P, const std::vector<Index>& order) {
+// The rows of P (n × c) in the numbering `order` (order[new] = old, a permutation of 0..n−1): row i
+// of the result is row order[i] of P. Inner indices sorted (the row-major copy is turned back column
+// by column). Throws std::invalid_argument naming `what` when P has not n rows.
+fem::SparseMatrix permute_rows(const fem::SparseMatrix& P, const std::vector<Index>& order, const char* what) {
+  if (P.rows() != static_cast<Eigen::Index>(order.size()))
+    throw std::invalid_argument(std::string("refined_eigenbasis: ") + what + " has " + std::to_string(P.rows()) +
+                                " rows for " + std::to_string(order.size()) + " fine vertices");
   const Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = P;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> moved(P.rows(), P.cols());
   moved.reserve(rows.nonZeros());
@@ -37,8 +41,8 @@ fem::SparseMatrix permute_rows(const fem::SparseMatrix& P, const std::vector<Ind
   return fem::SparseMatrix(moved);
 }
 
-// Column by column, in place: X's row i becomes row order[i] (`forward`), or row order[i] becomes
-// row i (the inverse).
+// Column by column, in place. `forward`: row i of the result is row order[i] of X (to the numbering
+// `order`); otherwise the inverse (back to the original numbering).
 void permute_rows_in_place(Eigen::MatrixXd& X, const std::vector<Index>& order, bool forward) {
   Eigen::VectorXd column(X.rows());
   for (Eigen::Index c = 0; c < X.cols(); ++c) {
@@ -250,12 +254,16 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   const bool renumbered = !order.empty();
   fem::SparseMatrix renumbered_L, renumbered_M, renumbered_P;
   std::vector<Index> fixed = dirichlet_vertices;
-  std::vector<fem::SparseMatrix> prolongations = hierarchy.prolongations;
+  std::vector<fem::SparseMatrix> prolongations;
+  prolongations.reserve(hierarchy.prolongations.size());
+  for (std::size_t level = 0; level < hierarchy.prolongations.size(); ++level)
+    prolongations.push_back(renumbered && level == 0
+                                ? permute_rows(hierarchy.prolongations[0], order, "the hierarchy's first prolongation")
+                                : hierarchy.prolongations[level]);
   if (renumbered) {
     renumbered_L = fem::permute_symmetric(input_L, order);
     renumbered_M = fem::permute_symmetric(proxy.fine_mass(), order);
-    renumbered_P = permute_rows(proxy.prolongation(), order);
-    if (!prolongations.empty()) prolongations.front() = permute_rows(prolongations.front(), order);
+    renumbered_P = permute_rows(proxy.prolongation(), order, "the proxy's prolongation");
     std::vector<Index> new_index(order.size());
     for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
     for (Index& v : fixed) v = new_index[static_cast<std::size_t>(v)];

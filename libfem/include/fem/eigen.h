@@ -76,7 +76,7 @@ struct EigenRefineReport {
   double seconds = 0;
   double precondition_seconds = 0;  ///< of those, in the preconditioner
   double sparse_seconds = 0;        ///< of those, in the products with L (L X, L U)
-  double dense_seconds = 0;         ///< of those, in the n-row dense products (Gram matrices, rotations)
+  double dense_seconds = 0;         ///< of those, in the dense products and the small Rayleigh–Ritz eigensolves
   double coarse_seconds = 0;        ///< of those, in the coarse directions' restrictions and prolongations
 };
 

@@ -186,9 +186,10 @@ class MultigridSolver {
   Eigen::VectorXd apply_vcycle(const Eigen::VectorXd& r);
   /// One V-cycle from zero for every column of R (n_0 rows, the caller's numbering; rows at
   /// constrained indices ignored): the preconditioner of a block method. Returns Z (n_0 × R.cols()),
-  /// 0 at the constrained indices. The same numbers as solve_multiple() with MultigridMode::vcycle
-  /// and max_iterations 1, without its residuals (three fine-level products per chunk) and reports;
-  /// in chunks of kBlockColumns. Throws std::logic_error before setup(), std::invalid_argument when
+  /// 0 at the constrained indices. The cycle of the solver's options (a pcg-mode solver's: its
+  /// preconditioner); with MultigridMode::vcycle the same numbers as solve_multiple() with
+  /// max_iterations 1, without its residuals (three fine-level products per chunk) and reports. In
+  /// chunks of kBlockColumns. Throws std::logic_error before setup(), std::invalid_argument when
   /// R has the wrong number of rows.
   Eigen::MatrixXd apply_vcycle_multiple(const Eigen::MatrixXd& R);
 
