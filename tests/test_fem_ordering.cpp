@@ -77,6 +77,25 @@ TEST_CASE("ordering: permute_symmetric moves every entry, nothing else", "[fem][
   CHECK_THROWS_AS(fem::reverse_cuthill_mckee(fem::SparseMatrix(3, 4)), std::invalid_argument);
 }
 
+TEST_CASE("ordering: permute_rows moves every row of a rectangular matrix, its columns stay", "[fem][ordering]") {
+  const ice::TriangleMesh mesh = scrambled(ice::make_torus(12, 8, 2.0, 0.5), 3);
+  const fem::SparseMatrix L = laplacian(mesh);
+  const fem::SparseMatrix P = L.leftCols(40);  // tall, as a prolongation
+  const std::vector<int> order = fem::reverse_cuthill_mckee(L);
+  const fem::SparseMatrix B = fem::permute_rows(P, order);
+  CHECK(B.nonZeros() == P.nonZeros());
+  const Eigen::MatrixXd dense_P(P), dense_B(B);
+  for (Eigen::Index i = 0; i < B.rows(); ++i)
+    for (Eigen::Index j = 0; j < B.cols(); ++j) REQUIRE(dense_B(i, j) == dense_P(order[static_cast<std::size_t>(i)], j));
+  for (Eigen::Index j = 0; j < B.outerSize(); ++j)  // sorted inner indices
+    for (auto p = B.outerIndexPtr()[j] + 1; p < B.outerIndexPtr()[j + 1]; ++p)
+      CHECK(B.innerIndexPtr()[p - 1] < B.innerIndexPtr()[p]);
+  CHECK_THROWS_AS(fem::permute_rows(P.topRows(P.rows() - 1), order), std::invalid_argument);
+  std::vector<int> not_a_permutation = order;
+  not_a_permutation[0] = not_a_permutation[1];
+  CHECK_THROWS_AS(fem::permute_rows(P, not_a_permutation), std::invalid_argument);
+}
+
 TEST_CASE("ordering: each connected component is numbered contiguously", "[fem][ordering]") {
   // Two spheres and an isolated unknown, interleaved by a scrambling.
   const ice::TriangleMesh a = ice::make_icosphere(2), b = ice::make_icosphere(3);

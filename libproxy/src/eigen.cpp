@@ -22,25 +22,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The rows of P (n × c) in the numbering `order` (order[new] = old, a permutation of 0..n−1): row i
-// of the result is row order[i] of P. Inner indices sorted (the row-major copy is turned back column
-// by column). Throws std::invalid_argument naming `what` when P has not n rows.
-fem::SparseMatrix permute_rows(const fem::SparseMatrix& P, const std::vector<Index>& order, const char* what) {
-  if (P.rows() != static_cast<Eigen::Index>(order.size()))
-    throw std::invalid_argument(std::string("refined_eigenbasis: ") + what + " has " + std::to_string(P.rows()) +
-                                " rows for " + std::to_string(order.size()) + " fine vertices");
-  const Eigen::SparseMatrix<double, Eigen::RowMajor, int> rows = P;
-  Eigen::SparseMatrix<double, Eigen::RowMajor, int> moved(P.rows(), P.cols());
-  moved.reserve(rows.nonZeros());
-  for (Eigen::Index i = 0; i < P.rows(); ++i) {
-    moved.startVec(i);
-    for (decltype(rows)::InnerIterator it(rows, order[static_cast<std::size_t>(i)]); it; ++it)
-      moved.insertBackByOuterInner(i, it.col()) = it.value();
-  }
-  moved.finalize();
-  return fem::SparseMatrix(moved);
-}
-
 // Column by column, in place. `forward`: row i of the result is row order[i] of X (to the numbering
 // `order`); otherwise the inverse (back to the original numbering).
 void permute_rows_in_place(Eigen::MatrixXd& X, const std::vector<Index>& order, bool forward) {
@@ -258,12 +239,12 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   prolongations.reserve(hierarchy.prolongations.size());
   for (std::size_t level = 0; level < hierarchy.prolongations.size(); ++level)
     prolongations.push_back(renumbered && level == 0
-                                ? permute_rows(hierarchy.prolongations[0], order, "the hierarchy's first prolongation")
+                                ? fem::permute_rows(hierarchy.prolongations[0], order)
                                 : hierarchy.prolongations[level]);
   if (renumbered) {
     renumbered_L = fem::permute_symmetric(input_L, order);
     renumbered_M = fem::permute_symmetric(proxy.fine_mass(), order);
-    renumbered_P = permute_rows(proxy.prolongation(), order, "the proxy's prolongation");
+    renumbered_P = fem::permute_rows(proxy.prolongation(), order);
     std::vector<Index> new_index(order.size());
     for (std::size_t i = 0; i < order.size(); ++i) new_index[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
     for (Index& v : fixed) v = new_index[static_cast<std::size_t>(v)];

@@ -28,4 +28,9 @@ Eigen::Index bandwidth(const SparseMatrix& A);
 /// A(order[i], order[j]). Inner indices sorted. Throws std::invalid_argument on a size mismatch.
 SparseMatrix permute_symmetric(const SparseMatrix& A, const std::vector<Index>& order);
 
+/// P's rows in the ordering `order` (order[new] = old), its columns as they are: row i of the result
+/// is row order[i] of P (e.g. a prolongation whose fine vertices are renumbered). Inner indices
+/// sorted. Throws std::invalid_argument unless `order` is a permutation of P's rows.
+SparseMatrix permute_rows(const SparseMatrix& P, const std::vector<Index>& order);
+
 }  // namespace fem
