@@ -289,7 +289,7 @@ ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, cons
   const Stopwatch clock;
   try {
     space = ice::proxy::build_mapped_space(mesh, space_options, fine_delaunay);
-  } catch (const std::invalid_argument& e) {  // a tufted cover
+  } catch (const std::invalid_argument& e) {  // bad options
     throw AppError(kUsage, opt.mesh + ": " + e.what());
   }
   const double seconds = clock.seconds();

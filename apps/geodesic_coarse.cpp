@@ -44,11 +44,11 @@
 
 namespace geodesic_coarse_tool {
 
-// What needs the fine-to-coarse map refuses a mesh read with --nonmanifold tufted that needs its
-// cover (ice::proxy::require_map_on_cover says why): a usage error naming the file.
-void refuse_cover_without_map(const app::PdeOptions& opt, bool covered, const std::string& what) {
+// Traced coarse lengths refuse a mesh read with --nonmanifold tufted that needs its cover
+// (ice::proxy::refuse_tracing_on_cover says why): a usage error naming the file.
+void refuse_tracing_on_cover(const app::PdeOptions& opt, bool covered, const std::string& what) {
   try {
-    ice::proxy::require_map_on_cover(covered, what);
+    ice::proxy::refuse_tracing_on_cover(covered, what);
   } catch (const std::invalid_argument& e) {
     throw app::AppError(app::kUsage, opt.mesh + ": " + e.what());
   }
@@ -126,8 +126,10 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   app::Stopwatch clock;
   const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
   const ice::TriangleMesh& mesh = loaded.mesh;
-  refuse_cover_without_map(opt, ice::solved_on_tufted_cover(mesh, opt.nonmanifold),
-                           "the distance oracle (--all-pairs, --pairs, --sample)");
+  // On a tufted cover: the coarse mesh's own lengths (--coarse-lengths auto), the fine reference the cover's.
+  const bool covered = ice::solved_on_tufted_cover(mesh, opt.nonmanifold);
+  if (covered && request.lengths == ice::proxy::CoarseLengths::traced) refuse_tracing_on_cover(opt, true, "--coarse-lengths traced");
+  const bool traced_lengths = request.traced_lengths && !covered;
   const long long n = mesh.V.rows();
   const app::FileVertexMap vertices(loaded);
   std::vector<std::array<ice::Index, 2>> pairs;
@@ -180,7 +182,7 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   ice::proxy::MappedSpace mapped = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store, /*need_map=*/true);
   const ice::CoarseSpace& space = mapped.coarse;
   clock.lap();  // run.coarsen, and the cache's load and save
-  const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(run, clock, mesh, mapped, store, request.traced_lengths,
+  const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(run, clock, mesh, mapped, store, traced_lengths,
                                                                       request.curvature_correction, fem::kOracleCorrectionDivisor);
   fem::DistanceOracleOptions oracle_options;
   oracle_options.method = request.method;
@@ -247,7 +249,8 @@ int run_oracle(const app::PdeOptions& opt, const OracleRequest& request) {
   // ---- reference: the fine heat method from random sources, in one blocked solve
   nlohmann::json accuracy, speedup;
   if (!opt.no_reference) {
-    const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry());
+    const ice::FineMesh fine = ice::fine_mesh(mesh, opt.fine_geometry(), covered ? ice::NonmanifoldInput::tufted_cover
+                                                                                 : ice::NonmanifoldInput::refuse);
     run.fine_mesh = clock.lap();
     fem::HeatMethodOperators fine_ops = fem::heat_method_operators(fine, fem::MassKind::lumped, 1.0);
     run.ref_assemble = clock.lap();
@@ -419,9 +422,9 @@ int geodesic_coarse_tool::main(int argc, char** argv) {
     app::Stopwatch clock;
     const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
     const ice::TriangleMesh& mesh = loaded.mesh;
-    // No map on a tufted cover: marching runs on the coarse mesh's own lengths (--coarse-lengths auto).
+    // On a tufted cover marching runs on the coarse mesh's own lengths (--coarse-lengths auto).
     const bool covered = ice::solved_on_tufted_cover(mesh, opt.nonmanifold);
-    if (covered && traced_asked) refuse_cover_without_map(opt, true, "--coarse-lengths traced");
+    if (covered && traced_asked) refuse_tracing_on_cover(opt, true, "--coarse-lengths traced");
     if (covered) oracle.traced_lengths = false;
     const long long n = mesh.V.rows();
     std::vector<int> sources;
@@ -440,26 +443,15 @@ int geodesic_coarse_tool::main(int argc, char** argv) {
     ice::proxy::ProxySetup pde;
     std::optional<fem::ProxyGeodesicSolver> proxy_solver;
     std::optional<std::pair<ice::Index, ice::Index>> traced_counts;  // --coarse-lengths traced: edges, traced
-    if (marching && covered) {  // the cover's coarse mesh and P, without a map (assemble = false: not stored)
-      app::PdeOptions space_opt = opt;  // no operators: --operators is unused, as on a manifold mesh
-      space_opt.operators = fem::CoarseOperatorKind::galerkin;
-      pde = app::build_pde_proxy(mesh, coarsen_options, space_opt, run, clock, /*assemble_proxy=*/false,
-                                 /*need_fine=*/run.has_reference, /*keep_method_state=*/false, store);
-      run.coarse_solver = "coarse fast marching";
-      const ice::SurfaceEdgeLengths lengths =
-          ice::proxy::marching_lengths(mesh, pde.coarse, false, oracle.curvature_correction, nullptr,
-                                       ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
-      run.assemble = clock.lap();  // the correction
-      proxy_solver.emplace(ice::with_lengths(pde.coarse.mesh, lengths.lengths), pde.coarse.P, oracle.subdivisions);
-    } else if (marching) {  // no coarse operators: the coarse mesh, P and the lengths are all the marching reads
+    if (marching) {  // no coarse operators: the coarse mesh, P and the lengths are all the marching reads
       // The coarse space with its map and traced lengths through the store; the fine mesh is for a
       // reference (made on the way when the space is built, else now).
       const bool share_fine = run.has_reference && opt.fine_geometry() == ice::FineGeometry::intrinsic_delaunay;
       ice::proxy::MappedSpace space = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store, oracle.traced_lengths,
-                                                                app::outputs_draw_coarse_mesh(opt), share_fine ? &pde.fine : nullptr);
+                                                                app::outputs_draw_coarse_mesh(opt, covered), share_fine ? &pde.fine : nullptr);
       clock.lap();
       if (run.has_reference && pde.fine.vertex_count == 0) {
-        pde.fine = ice::fine_mesh(mesh, opt.fine_geometry());
+        pde.fine = ice::fine_mesh(mesh, opt.fine_geometry(), covered ? ice::NonmanifoldInput::tufted_cover : ice::NonmanifoldInput::refuse);
         run.fine_mesh = clock.lap();
       }
       run.fine_built = run.has_reference;

@@ -159,8 +159,8 @@ function(solved_on_cover input vertices poisson_bound heat_bound geodesic_bound)
   json(err "${WORK}/h.json" error rel_l2)
   check(${err} LESS ${heat_bound} "heat on the cover: relative L2 error")
   # Geodesics by the heat method, against the fine heat method on the cover; by coarse marching (the
-  # default) on the coarse mesh's own lengths, reaching every vertex; what needs the fine-to-coarse
-  # map says it cannot.
+  # default) on the coarse mesh's own lengths, reaching every vertex, and by the distance oracle (each
+  # vertex placed by one of its copies); traced lengths say they cannot.
   run(0 geodesic-coarse "${input}" --nonmanifold tufted ${ARGN} --coarse-distances heat --source 0
       --report "${WORK}/g.json" --force -q)
   json(err "${WORK}/g.json" error rel_l2)
@@ -175,10 +175,11 @@ function(solved_on_cover input vertices poisson_bound heat_bound geodesic_bound)
   endif()
   json(err "${WORK}/m.json" error rel_l2)
   check(${err} LESS ${geodesic_bound} "geodesics on the cover by marching: relative L2 error against the fine heat method")
-  expect_error(4 "--coarse-lengths traced needs the fine-to-coarse map" geodesic-coarse "${input}"
+  expect_error(4 "--coarse-lengths traced traces the coarse edges.*tufted cover" geodesic-coarse "${input}"
                --nonmanifold tufted ${ARGN} --source 0 --coarse-lengths traced -q)
-  expect_error(4 "the distance oracle.*needs the fine-to-coarse map" geodesic-coarse "${input}"
-               --nonmanifold tufted ${ARGN} --sample 10 -q)
+  run(0 geodesic-coarse "${input}" --nonmanifold tufted ${ARGN} --sample 10 --no-cache --report "${WORK}/o.json" --force -q)
+  json(err "${WORK}/o.json" accuracy far mean_rel)
+  check(${err} LESS ${geodesic_bound} "the distance oracle on the cover: mean relative error of far pairs against the fine heat method")
 endfunction()
 
 # view_test(<page>): the page opened in headless Chromium by tests/browser/view_test.mjs: no errors
@@ -1372,11 +1373,10 @@ elseif(CASE STREQUAL "nonmanifold_cover")
   # it; with --nonmanifold tufted, Poisson, heat, geodesics (heat method) and the eigenbasis are solved
   # on its tufted cover, near the fine robust Laplacian, one value per vertex of the file; multigrid
   # (its hierarchy coarsened on the cover) solves the fine robust Laplacian to CHOLMOD's solution, and
-  # refines the eigenbasis to the fine one's; coarse marching runs on the coarse mesh's own lengths; the oracle says it cannot.
+  # refines the eigenbasis to the fine one's; coarse marching and the oracle run on the coarse mesh's own lengths.
   project_mesh(mesh triple_vierbein.obj)
   expect_error(2 "non-manifold edges.*--nonmanifold tufted" poisson-coarse "${mesh}" --repair --ratio 0.2 -q)
   solved_on_cover("${mesh}" 75 0.1 0.1 0.1 --repair --ratio 0.3)
-  expect_error(4 "distance oracle" geodesic-coarse "${mesh}" --repair --nonmanifold tufted --all-pairs --ratio 0.3 -q)
   run(0 spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4 -k 6 --no-cache --report "${WORK}/s.json" --force -q)
   json(zero "${WORK}/s.json" error zero_modes)
   check(${zero} EQUAL 1 "zero modes of the cover's robust Laplacian (one component)")

@@ -496,7 +496,8 @@ TEST_CASE("store: a damaged coarse space entry is never used and is rebuilt to t
   CHECK(!unmapped.key);
   CHECK(unmapped.cache.status == CacheStatus::off);
   CHECK(unmapped.coarse.P.rows() == mesh.V.rows());
-  // A tufted cover has no map at all: refused before any work.
+  // A tufted cover's space is stored with its map (each vertex placed by one copy) and loads back
+  // bit for bit.
   ice::TriangleMesh fin;  // three triangles on one edge: solved on its tufted cover
   fin.V.resize(5, 3);
   fin.V << 0, 0, 0, 1, 0, 0, 0.5, 1, 0, 0.5, -1, 0, 0.5, 0, 1;
@@ -505,7 +506,18 @@ TEST_CASE("store: a damaged coarse space entry is never used and is rebuilt to t
   ice::proxy::MappedSpaceOptions covered = options;
   covered.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
   covered.coarsening.coarsen.target_vertices = 4;
-  CHECK_THROWS_AS(ice::proxy::build_mapped_space(fin, covered), std::invalid_argument);
+  const ice::proxy::MappedSpace covered_cold = ice::proxy::build_mapped_space(fin, covered);
+  REQUIRE(covered_cold.coarse.summary.tufted_cover);
+  REQUIRE(covered_cold.key);
+  REQUIRE(covered_cold.map.size() == 5);
+  const ice::proxy::MappedSpace covered_warm = ice::proxy::build_mapped_space(fin, covered);
+  CHECK(covered_warm.cache.status == CacheStatus::hit);
+  CHECK(covered_warm.coarse.summary.tufted_cover);
+  CHECK(covered_warm.coarse.P.isApprox(covered_cold.coarse.P, 0.0));
+  for (std::size_t i = 0; i < covered_cold.map.size(); ++i) {
+    CHECK(covered_warm.map[i].face == covered_cold.map[i].face);
+    CHECK(covered_warm.map[i].bary == covered_cold.map[i].bary);
+  }
   fs::remove_all(dir);
 }
 

@@ -14,6 +14,7 @@
 
 #include "fem/cholesky.h"
 #include "fem/curvature_correction.h"
+#include "fem/distance_oracle.h"
 #include "fem/multigrid.h"
 #include "fem/operators.h"
 #include "fem/problems.h"
@@ -168,6 +169,40 @@ ice::TriangleMesh load_keeping_sheets(const std::string& name, bool repair = tru
   options.repair = repair;
   options.keep_nonmanifold = true;
   return ice::load_mesh(ice_test::project_mesh(name), options);
+}
+
+/// Two unit icospheres (subdivided 3 times) sharing one vertex, the first's top `top` and the
+/// second's bottom: a non-manifold vertex, where the cover's separate sheets meet at the vertex alone.
+/// `bottom` is the first's bottom, `far_top` the second's top, `n` one sphere's vertex count.
+struct TouchingSpheres {
+  ice::TriangleMesh mesh;
+  Index n = 0, top = 0, bottom = 0, far_top = 0;
+};
+TouchingSpheres touching_spheres() {
+  const ice::TriangleMesh sphere = ice::make_icosphere(3);
+  TouchingSpheres result;
+  const Index n = result.n = sphere.V.rows();
+  Index top = 0, bottom = 0;
+  for (Index v = 0; v < n; ++v) {
+    if (sphere.V(v, 2) > sphere.V(top, 2)) top = v;
+    if (sphere.V(v, 2) < sphere.V(bottom, 2)) bottom = v;
+  }
+  ice::TriangleMesh& mesh = result.mesh;
+  mesh.V.resize(2 * n - 1, 3);
+  mesh.V.topRows(n) = sphere.V;
+  std::vector<Index> second(static_cast<std::size_t>(n));
+  for (Index v = 0, next = n; v < n; ++v) {
+    second[static_cast<std::size_t>(v)] = v == bottom ? top : next;
+    if (v != bottom) mesh.V.row(next++) = sphere.V.row(v) + Eigen::RowVector3d(0, 0, sphere.V(top, 2) - sphere.V(bottom, 2));
+  }
+  mesh.F.resize(2 * sphere.F.rows(), 3);
+  mesh.F.topRows(sphere.F.rows()) = sphere.F;
+  for (Eigen::Index f = 0; f < sphere.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) mesh.F(sphere.F.rows() + f, k) = second[static_cast<std::size_t>(sphere.F(f, k))];
+  result.top = top;
+  result.bottom = bottom;
+  result.far_top = second[static_cast<std::size_t>(top)];
+  return result;
 }
 
 }  // namespace
@@ -620,27 +655,9 @@ TEST_CASE("tufted cover: mirror sheets are coarsened once, a vertex's coarse cop
 
 TEST_CASE("tufted cover: spheres touching at a vertex stay joined there on the coarse mesh, and marching crosses",
           "[cover][proxy][geodesic]") {
-  // Two unit icospheres sharing one vertex (the first's top, the second's bottom): a non-manifold
-  // vertex, where the cover's separate sheets meet at the vertex alone.
-  const ice::TriangleMesh sphere = ice::make_icosphere(3);
-  const Index n = sphere.V.rows();
-  Index top = 0, bottom = 0;
-  for (Index v = 0; v < n; ++v) {
-    if (sphere.V(v, 2) > sphere.V(top, 2)) top = v;
-    if (sphere.V(v, 2) < sphere.V(bottom, 2)) bottom = v;
-  }
-  ice::TriangleMesh mesh;
-  mesh.V.resize(2 * n - 1, 3);
-  mesh.V.topRows(n) = sphere.V;
-  std::vector<Index> second(static_cast<std::size_t>(n));
-  for (Index v = 0, next = n; v < n; ++v) {
-    second[static_cast<std::size_t>(v)] = v == bottom ? top : next;
-    if (v != bottom) mesh.V.row(next++) = sphere.V.row(v) + Eigen::RowVector3d(0, 0, sphere.V(top, 2) - sphere.V(bottom, 2));
-  }
-  mesh.F.resize(2 * sphere.F.rows(), 3);
-  mesh.F.topRows(sphere.F.rows()) = sphere.F;
-  for (Eigen::Index f = 0; f < sphere.F.rows(); ++f)
-    for (int k = 0; k < 3; ++k) mesh.F(sphere.F.rows() + f, k) = second[static_cast<std::size_t>(sphere.F(f, k))];
+  const TouchingSpheres spheres = touching_spheres();
+  const ice::TriangleMesh& mesh = spheres.mesh;
+  const Index n = spheres.n, top = spheres.top, bottom = spheres.bottom;
   REQUIRE(ice::needs_tufted_cover(mesh));
   ice::CoarseSpaceOptions coarsening;
   coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
@@ -673,8 +690,82 @@ TEST_CASE("tufted cover: spheres touching at a vertex stay joined there on the c
   options.coarsening = coarsening;
   const Eigen::VectorXd d = ice::proxy::GeodesicSolver(mesh, options).distance({bottom});
   REQUIRE(d.allFinite());
-  const Index far_top = second[static_cast<std::size_t>(top)];
+  const Index far_top = spheres.far_top;
   CHECK(d(top) == Approx(M_PI).epsilon(0.05));
   CHECK(d(far_top) == Approx(2 * M_PI).epsilon(0.05));
   CHECK(d.tail(n - 1).minCoeff() >= d(top) - 1e-9);  // the second sphere lies past the junction
+}
+
+TEST_CASE("tufted cover: a map by one copy per vertex, the distance oracle across a junction, marching through the store",
+          "[cover][proxy][geodesic][store]") {
+  const TouchingSpheres spheres = touching_spheres();
+  const ice::TriangleMesh& mesh = spheres.mesh;
+  ice::CoarseSpaceOptions coarsening = ice::proxy::GeodesicOptions{}.coarsening;
+  coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  coarsening.coarsen.target_ratio = 0.25;
+  coarsening.keep_method_state = true;
+  const ice::CoarseSpace space = ice::build_coarse_space(mesh, coarsening);
+  REQUIRE(space.summary.tufted_cover);
+  // Every vertex's point: in a coarse face, its survivors at their coarse vertex, and weighing only
+  // coarse vertices its row of P (the mean of its copies') weighs.
+  const std::vector<ice::CoarsePoint> map = ice::fine_to_coarse_map(space);
+  REQUIRE(map.size() == static_cast<std::size_t>(mesh.V.rows()));
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> rows = space.P;
+  for (Index i = 0; i < mesh.V.rows(); ++i) {
+    const ice::CoarsePoint& p = map[static_cast<std::size_t>(i)];
+    INFO("vertex " << i);
+    REQUIRE(p.face >= 0);
+    REQUIRE(p.face < space.mesh.F.rows());
+    REQUIRE(p.coarse_vertex == space.mesh.from_input[static_cast<std::size_t>(i)]);
+    REQUIRE(p.bary[0] + p.bary[1] + p.bary[2] == Approx(1.0).margin(1e-12));
+    for (int k = 0; k < 3; ++k) {
+      const double b = p.bary[static_cast<std::size_t>(k)];
+      REQUIRE(b >= -1e-12);
+      if (b > 0) REQUIRE(rows.coeff(i, space.mesh.F(p.face, k)) > 0);
+      if (p.coarse_vertex != ice::kInvalid && b == 1) REQUIRE(space.mesh.F(p.face, k) == p.coarse_vertex);
+    }
+    if (p.coarse_vertex != ice::kInvalid) REQUIRE(std::max({p.bary[0], p.bary[1], p.bary[2]}) == 1.0);
+  }
+  // The oracle crosses the junction as marching does: about π to it and 2π to the second sphere's top.
+  ice::proxy::OracleOptions oracle_options;
+  oracle_options.coarsening = coarsening;
+  oracle_options.coarsening.keep_method_state = false;
+  const ice_test::TempDir store;
+  oracle_options.store.directory = store.file("");
+  ice::proxy::CacheReport cache;
+  const fem::DistanceOracle oracle = ice::proxy::distance_oracle(mesh, oracle_options, {}, nullptr, &cache);
+  CHECK(cache.status == ice::proxy::CacheStatus::miss);
+  CHECK(oracle.distance(spheres.bottom, spheres.top) == Approx(M_PI).epsilon(0.05));
+  CHECK(oracle.distance(spheres.bottom, spheres.far_top) == Approx(2 * M_PI).epsilon(0.05));
+  CHECK(oracle.distance(spheres.far_top, spheres.bottom) == oracle.distance(spheres.bottom, spheres.far_top));
+  // Against coarse marching from a source on the same coarse mesh: the same distances within a few
+  // per cent of their scale (the oracle interpolates between coarse vertices).
+  ice::proxy::GeodesicOptions marching;
+  marching.coarsening = oracle_options.coarsening;
+  const Eigen::VectorXd from_bottom = ice::proxy::GeodesicSolver(mesh, marching).distance({spheres.bottom});
+  double worst = 0;
+  for (Index v = 0; v < mesh.V.rows(); ++v) worst = std::max(worst, std::abs(oracle.distance(spheres.bottom, v) - from_bottom(v)));
+  CHECK(worst < 0.05 * from_bottom.maxCoeff());
+  // A second oracle and marching through the store load the covered space and map, bit for bit.
+  const fem::DistanceOracle warm = ice::proxy::distance_oracle(mesh, oracle_options, {}, nullptr, &cache);
+  CHECK(cache.status == ice::proxy::CacheStatus::hit);
+  const std::vector<std::array<Index, 2>> pairs{{spheres.bottom, spheres.far_top}, {5, 700}, {17, spheres.top}};
+  CHECK(warm.distances(pairs) == oracle.distances(pairs));
+  marching.store.directory = store.file("");
+  const ice::proxy::GeodesicSolver stored(mesh, marching);
+  CHECK(stored.cache().status == ice::proxy::CacheStatus::hit);
+  CHECK(stored.distance({spheres.bottom}) == from_bottom);
+  // A saved covered space loads back with its map, and a map that weighs a coarse vertex its row of
+  // P does not (vertex 5 of the first sphere placed on the second) is refused.
+  const std::string file = store.file("covered.ice");
+  ice::proxy::save_mapped_space_file(file, mesh, space, map);
+  CHECK(ice::proxy::load_mapped_space_file(file, mesh).map.size() == map.size());
+  std::vector<ice::CoarsePoint> moved = map;
+  moved[5].face = map[static_cast<std::size_t>(spheres.far_top)].face;
+  moved[5].bary = {1.0 / 3, 1.0 / 3, 1.0 / 3};
+  ice::proxy::save_mapped_space_file(file, mesh, space, moved, true);
+  REQUIRE_THROWS_WITH(ice::proxy::load_mapped_space_file(file, mesh), Catch::Contains("weighs a coarse vertex"));
+  // Traced lengths are refused on a cover, before any work.
+  oracle_options.lengths = ice::proxy::CoarseLengths::traced;
+  REQUIRE_THROWS_WITH(ice::proxy::distance_oracle(mesh, oracle_options), Catch::Contains("tufted cover"));
 }

@@ -28,6 +28,7 @@ CoarseSpace& CoarseSpace::operator=(CoarseSpace&& other) noexcept {
   triangulation = std::move(other.triangulation);
   triangulation_order = std::move(other.triangulation_order);
   triangulation_face_order = std::move(other.triangulation_face_order);
+  mapped_copy = std::move(other.mapped_copy);
   Eigen::SparseMatrix<double> qem_P;  // handed over as P is (a moved QemResult would copy it)
   if (other.qem_result) qem_P.swap(other.qem_result->P);
   qem_result = std::move(other.qem_result);
@@ -330,19 +331,22 @@ std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space) {
   if (!space.triangulation)
     throw std::invalid_argument("fine_to_coarse_map: build the coarse space with keep_method_state");
   const IntrinsicTriangulation& T = *space.triangulation;
-  if (space.summary.tufted_cover)
-    throw std::invalid_argument("fine_to_coarse_map: the space was coarsened through a tufted cover: its triangulation "
-                                "tracks the cover's vertices, not the mesh's");
+  const bool covered = space.summary.tufted_cover;
+  if (covered && space.mapped_copy.size() != space.mesh.from_input.size())
+    throw std::invalid_argument("fine_to_coarse_map: a tufted cover's space without the copy each input vertex is mapped by");
   // Face slot -> compact face (compact() lists the live slots in order, corners from halfedge(f)).
   std::vector<Index> compact_face(static_cast<std::size_t>(T.num_face_slots()), kInvalid);
   Index next_face = 0;
   for (Index f = 0; f < T.num_face_slots(); ++f)
     if (T.face_alive(f)) compact_face[f] = next_face++;
-  map.resize(static_cast<std::size_t>(T.num_input_vertices()));
+  // On a cover the triangulation's input vertices are copies: each input vertex reads its mapped copy.
+  const auto points = static_cast<Index>(covered ? space.mapped_copy.size() : static_cast<std::size_t>(T.num_input_vertices()));
+  map.resize(static_cast<std::size_t>(points));
   const std::vector<Index>& order = space.triangulation_order;
-  for (Index t = 0; t < T.num_input_vertices(); ++t) {
+  for (Index q = 0; q < points; ++q) {
+    const Index t = covered ? space.mapped_copy[static_cast<std::size_t>(q)] : q;
     const SurfacePoint s = T.location(t);
-    const Index p = order.empty() ? t : order[static_cast<std::size_t>(t)];
+    const Index p = covered || order.empty() ? q : order[static_cast<std::size_t>(t)];
     CoarsePoint& point = map[p];
     point.coarse_vertex = space.mesh.from_input[p];
     Index face = s.face;
@@ -405,6 +409,31 @@ FineMesh on_input_vertices(const TuftedCover& cover, FineMesh fine) {
   return fine;
 }
 
+/// Per input vertex of `cover`, the copy its point of the fine-to-coarse map is read from, as the
+/// triangulation's vertex (`order`: triangulation vertex -> copy; empty: the same): a surviving copy
+/// (`coarse_of_copy` not kInvalid) before a removed one — its point is then its coarse vertex — and
+/// among those the largest `area` (the copy whose fan carries most of the vertex's surface), ties
+/// to the lower copy.
+std::vector<Index> mapped_copies(const TuftedCover& cover, const std::vector<Index>& order, const std::vector<Index>& coarse_of_copy,
+                                 const Eigen::VectorXd& area) {
+  const std::size_t copies = cover.to_input.size();
+  std::vector<Index> vertex_of_copy(copies);
+  for (std::size_t t = 0; t < copies; ++t) vertex_of_copy[order.empty() ? t : static_cast<std::size_t>(order[t])] = static_cast<Index>(t);
+  std::vector<Index> best(static_cast<std::size_t>(cover.input_vertex_count), kInvalid);
+  auto better = [&](Index a, Index b) {  // copy a before copy b
+    const bool a_kept = coarse_of_copy[static_cast<std::size_t>(a)] != kInvalid;
+    const bool b_kept = coarse_of_copy[static_cast<std::size_t>(b)] != kInvalid;
+    if (a_kept != b_kept) return a_kept;
+    return area[a] > area[b];
+  };
+  for (std::size_t c = 0; c < copies; ++c) {
+    Index& chosen = best[static_cast<std::size_t>(cover.to_input[c])];
+    if (chosen == kInvalid || better(static_cast<Index>(c), chosen)) chosen = static_cast<Index>(c);
+  }
+  for (Index& c : best) c = vertex_of_copy[static_cast<std::size_t>(c)];
+  return best;
+}
+
 }  // namespace
 
 CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
@@ -444,7 +473,9 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
   detail::MergedCopies merged = detail::merge_copies(input_of_copy, cover.input_vertex_count);
   for (Eigen::Index f = 0; f < C.F.rows(); ++f)
     for (int k = 0; k < 3; ++k) C.F(f, k) = merged.unknown[static_cast<std::size_t>(C.F(f, k))];
-  space.P = cover_to_input(cover, cover_vertex_areas(cover)) * space.P * merged.spread();
+  const Eigen::VectorXd copy_area = cover_vertex_areas(cover);
+  if (space.triangulation) space.mapped_copy = mapped_copies(cover, space.triangulation_order, C.from_input, copy_area);
+  space.P = cover_to_input(cover, copy_area) * space.P * merged.spread();
   space.P.makeCompressed();
   C.vertex_count = static_cast<Index>(merged.to_input.size());
   C.to_input = std::move(merged.to_input);

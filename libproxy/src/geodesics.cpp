@@ -28,8 +28,13 @@ MappedSpace mapped_space(const TriangleMesh& mesh, const CoarseSpaceOptions& coa
 }
 
 /// Whether to trace: as traces_lengths says, except that `automatic` falls back to the coarse mesh's
-/// own lengths when there is nothing to trace with (a given space without map or method state).
+/// own lengths when there is nothing to trace with (a given space without map or method state, a
+/// tufted cover's space).
 bool trace(CoarseLengths choice, const CoarseSpace& space, const std::vector<CoarsePoint>* map, bool marching) {
+  if (space.summary.tufted_cover) {
+    if (choice == CoarseLengths::traced) refuse_tracing_on_cover(true, "marching on traced coarse lengths");
+    return false;
+  }
   const bool can_trace = map != nullptr || space.triangulation.has_value();
   if (choice == CoarseLengths::traced && space.summary.method != CoarseningMethod::ice)
     throw std::invalid_argument("traced coarse lengths need an ICE coarse space (QEM's edges are straight: nothing to trace)");
@@ -38,11 +43,11 @@ bool trace(CoarseLengths choice, const CoarseSpace& space, const std::vector<Coa
 
 }  // namespace
 
-void require_map_on_cover(bool tufted_cover, const std::string& what) {
+void refuse_tracing_on_cover(bool tufted_cover, const std::string& what) {
   if (tufted_cover)
-    throw std::invalid_argument(what + " needs the fine-to-coarse map, which a tufted cover's coarse space (a mesh that is not "
-                                "an oriented manifold, or a point cloud) does not have: geodesics from sources take coarse "
-                                "marching on the coarse mesh's own lengths, or the heat method");
+    throw std::invalid_argument(what + " traces the coarse edges over the input's triangles, which a tufted cover's coarse "
+                                "space (a mesh that is not an oriented manifold, or a point cloud) is not traced over: "
+                                "on a cover, coarse marching runs on the coarse mesh's own lengths (lengths 'auto')");
 }
 
 GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options, std::optional<CoarseSpace> coarse,
@@ -52,21 +57,10 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
   require_marching_for_traced(options_.lengths, marching);
   if (marching) {
     const double divisor = curvature_divisor(MarchingUse::single_source);
-    if (on_cover(mesh, options_.coarsening, coarse)) {
-      // No map on a cover: the coarse mesh's own lengths (corrected only when asked: corrects_curvature).
-      if (options_.lengths == CoarseLengths::traced) require_map_on_cover(true, "marching on traced coarse lengths");
-      if (map) throw std::invalid_argument("GeodesicSolver: a fine-to-coarse map given with a tufted cover's coarse space, which has none");
-      if (coarse) {
-        setup_.coarse = std::move(*coarse);
-      } else {
-        ProxySetupOptions setup;
-        setup.coarsening = options_.coarsening;
-        setup.assemble = false;  // marching reads the coarse mesh and P only
-        setup_ = build_proxy_setup(mesh, setup);
-      }
-      traced_ = false;
-      lengths_ = marching_lengths(mesh, setup_.coarse, false, options_.curvature_correction, nullptr, divisor);
-    } else if (!coarse) {  // coarsened with its map, the space and its marching lengths through the store
+    // On a cover, the coarse mesh's own lengths (corrected only when asked: corrects_curvature); refused before the work.
+    if (options_.lengths == CoarseLengths::traced)
+      refuse_tracing_on_cover(on_cover(mesh, options_.coarsening, coarse), "marching on traced coarse lengths");
+    if (!coarse) {  // coarsened with its map, the space and its marching lengths through the store
       const Store store(options_.store);
       MappedSpace space = mapped_space(mesh, options_.coarsening, store);
       traced_ = trace(options_.lengths, space.coarse, space.map.empty() ? nullptr : &space.map, true);
@@ -109,7 +103,7 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
                                     const std::vector<CoarsePoint>* map, CacheReport* cache) {
   const bool marching = options.oracle.method == fem::CoarseDistanceMethod::marching;
   require_marching_for_traced(options.lengths, marching);
-  require_map_on_cover(on_cover(mesh, options.coarsening, coarse), "the distance oracle");
+  if (options.lengths == CoarseLengths::traced) refuse_tracing_on_cover(on_cover(mesh, options.coarsening, coarse), "the distance oracle");
   const double divisor = curvature_divisor(MarchingUse::all_pairs);
   if (!coarse) {  // coarsened with its map, the space and its marching lengths through the store
     const Store store(options.store);

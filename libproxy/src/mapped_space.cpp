@@ -45,7 +45,9 @@ struct SpaceEntry {
 
 // The map an entry holds, checked against its coarse space (whose vertex maps are checked already):
 // points in a face, survivors where from_input says, and every entry of P the point's barycentric coordinates summed over its face's
-// corners (a consumer walks the map and prolongs with P: the two must be one map).
+// corners (a consumer walks the map and prolongs with P: the two must be one map). Through a tufted
+// cover a point is one copy's and P's row the mean of all copies' (ice::fine_to_coarse_map): there
+// every corner the point weighs lies in the row's columns, with a positive entry.
 std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::string& path, const CoarseSpace& c) {
   const std::vector<std::int32_t> vertex_face = entry.ints("map.vertex_face");
   const std::vector<double> bary = entry.doubles("map.bary");
@@ -68,18 +70,29 @@ std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::str
     require(std::abs(sum - 1) <= 1e-9, path, "a map point's coordinates do not sum to 1");
   }
   constexpr double kTolerance = 1e-12;  // P's entries are the map's coordinates summed over repeated corners
+  const bool covered = c.summary.tufted_cover;
   std::vector<double> row_sum(n, 0.0);
+  std::vector<int> corners_seen(n, 0);  // covered: the point's weighted corners met among the row's columns
   for (Eigen::Index j = 0; j < c.P.outerSize(); ++j)
     for (Eigen::SparseMatrix<double>::InnerIterator it(c.P, j); it; ++it) {
       const auto i = static_cast<std::size_t>(it.row());
       const CoarsePoint& p = map[i];
       double expected = 0;
       for (int k = 0; k < 3; ++k)
-        if (c.mesh.F(p.face, k) == j) expected += p.bary[static_cast<std::size_t>(k)];
-      require(std::abs(it.value() - expected) <= kTolerance, path, "P and the fine-to-coarse map disagree");
+        if (c.mesh.F(p.face, k) == j) {
+          expected += p.bary[static_cast<std::size_t>(k)];
+          if (p.bary[static_cast<std::size_t>(k)] > 0 && it.value() > 0) ++corners_seen[i];
+        }
+      if (!covered) require(std::abs(it.value() - expected) <= kTolerance, path, "P and the fine-to-coarse map disagree");
       row_sum[i] += it.value();
     }
   for (double s : row_sum) require(std::abs(s - 1) <= 1e-9, path, "a row of P does not sum to 1");
+  if (covered)
+    for (std::size_t i = 0; i < n; ++i) {
+      int weighted = 0;
+      for (double b : map[i].bary) weighted += b > 0 ? 1 : 0;
+      require(corners_seen[i] == weighted, path, "a map point weighs a coarse vertex its row of P does not");
+    }
   return map;
 }
 
@@ -142,9 +155,7 @@ MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOption
   // QEM's intrinsic Delaunay geometry: its closest-point map lies in the QEM mesh's faces, not in the
   // coarse mesh's: no map, and so not stored (what needs only the coarse mesh and P still works).
   const bool has_map = !(coarsening.method == CoarseningMethod::qem && coarsening.qem_geometry == QemGeometry::intrinsic_delaunay);
-  if (solved_on_tufted_cover(mesh, coarsening.nonmanifold))
-    throw std::invalid_argument("a mesh solved on its tufted cover has no fine-to-coarse map (the cover's triangulation "
-                                "tracks the copies of its vertices)");
+  const bool covered = solved_on_tufted_cover(mesh, coarsening.nonmanifold);
   MappedSpace result;
   const bool stored = has_map && options.store.enabled() && !coarsening.keep_method_state && !coarsening.record_history;
   if (stored) {
@@ -163,13 +174,14 @@ MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOption
   }
   CoarseSpaceOptions build = coarsening;
   build.keep_method_state = has_map;  // the map is read from it
-  build.nonmanifold = NonmanifoldInput::refuse;  // decided above
+  build.nonmanifold = covered ? NonmanifoldInput::tufted_cover : NonmanifoldInput::refuse;  // decided above
   result.coarse = options.builder ? options.builder(mesh, build, fine_delaunay) : build_coarse_space(mesh, build, fine_delaunay);
   if (has_map) result.map = fine_to_coarse_map(result.coarse);
   if (!coarsening.keep_method_state) {
     result.coarse.triangulation.reset();
     result.coarse.triangulation_order = {};
     result.coarse.triangulation_face_order = {};
+    result.coarse.mapped_copy = {};
     result.coarse.qem_result.reset();
   }
   // A coarsening cancelled by its progress callback is not the space its key names: never stored,
@@ -185,8 +197,6 @@ MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOption
 
 void save_mapped_space_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
                             const std::vector<CoarsePoint>& map, bool overwrite) {
-  if (coarse.summary.tufted_cover)
-    throw std::invalid_argument("save_mapped_space_file: a tufted cover's space has no fine-to-coarse map");
   if (coarse.P.rows() != mesh.V.rows() || map.size() != static_cast<std::size_t>(mesh.V.rows()))
     throw std::invalid_argument("save_mapped_space_file: the coarse space and map are not of this mesh of " +
                                 std::to_string(mesh.V.rows()) + " vertices");

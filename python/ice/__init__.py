@@ -293,7 +293,8 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
     a tufted cover, as geodesic-coarse --curvature-correction auto). On a mesh of several components
     the distance is +inf on the components without a source. With nonmanifold="tufted" (a mesh
     that is not an oriented manifold, or a point cloud's faces) marching runs on the coarse mesh's own
-    lengths (a cover's coarse space has no map to trace with; lengths="traced" is refused). For many
+    lengths (its coarse edges lie on the cover's sheets, not on the input's triangles: lengths="traced"
+    is refused). For many
     sources or pairs see ProxyGeodesicSolver and DistanceOracle. cache: the coarse space (with its
     map and traced lengths) goes through the store as in ice.coarsen: None the default store, a
     directory, or False for none.

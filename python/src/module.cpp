@@ -402,18 +402,17 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
   ice::CoarsenOptions& c = options.coarsen;
   if (trace && options.method != ice::CoarseningMethod::ice)
     throw py::value_error("trace=True draws ICE's intrinsic coarse edges on the surface; a QEM mesh has straight edges (method='ice')");
-  // Through a cover: no map and no tracing (the method's state tracks the cover's copies); decided
-  // here, before the work.
+  // Through a cover: no tracing (the coarse edges lie on the cover's sheets, not on the input's
+  // faces); decided here, before the work. Its map places each vertex by one of its copies.
   const bool covered = ice::solved_on_tufted_cover(mesh, options.nonmanifold);
   if (trace && covered) throw py::value_error("trace=True does not take a tufted cover (nonmanifold='tufted') yet");
-  options.keep_method_state = (keep_map || trace) && !covered;
+  options.keep_method_state = keep_map || trace;
   options.record_history = trace;  // exact tracing (ice/coarse_tracing.h), made below before the history is freed
   ProgressBridge bridge{progress, nullptr};
   c.progress = [&bridge](const ice::CoarsenProgress& state) { return bridge(state); };
-  const bool has_map = !covered && !(options.method == ice::CoarseningMethod::qem &&
-                                     options.qem_geometry == ice::QemGeometry::intrinsic_delaunay);
-  // Through the store: a space with a map (not a tufted cover's, nor QEM's intrinsic Delaunay one),
-  // without the history of trace=True, which is not stored.
+  const bool has_map = !(options.method == ice::CoarseningMethod::qem && options.qem_geometry == ice::QemGeometry::intrinsic_delaunay);
+  // Through the store: a space with a map (not QEM's intrinsic Delaunay one), without the history of
+  // trace=True, which is not stored.
   const ice::proxy::Store store = has_map && !trace ? store_argument(cache) : ice::proxy::Store();
 
   auto result = std::make_shared<PyCoarseSpace>();
@@ -446,7 +445,6 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
   }
   {
     py::gil_scoped_release release;
-    // No map on a tufted cover (the kept triangulation tracks the cover's copies, not the input's vertices).
     if (mapped && keep_map)
       result->map = std::move(mapped->map);
     else if (keep_map && has_map)
@@ -458,6 +456,7 @@ std::shared_ptr<PyCoarseSpace> coarsen(const py::object& V, const py::object& F,
     }
     result->space.triangulation.reset();  // the map (and the tracing) made: free the method's state
     result->space.triangulation_order = {};
+    result->space.mapped_copy = {};
     result->space.qem_result.reset();
     result->positions = ice::coarse_vertex_positions(mesh, result->space);
   }
@@ -528,11 +527,11 @@ py::object prolongation(const py::object& self) {
 }
 
 /// What does not take a tufted cover's coarse space yet (its coarse vertices have one fan per sheet:
-/// tangent spaces, the fine-to-coarse map and the one-triangulation file need one).
+/// tangent spaces and the one-triangulation file need one).
 void refuse_cover(bool tufted_cover, const std::string& what) {
   if (tufted_cover)
     throw py::value_error(what + " does not take a tufted cover's coarse space yet (nonmanifold='tufted': Poisson, "
-                                 "heat, the eigenbasis and geodesics from sources do)");
+                                 "heat, the eigenbasis, geodesics and the distance oracle do)");
 }
 
 void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& file_path, bool overwrite, const std::string& comment) {
@@ -587,7 +586,7 @@ ice::TriangleMesh require_coarse_space_of(const py::object& V, const py::object&
 /// then corrected as `correction` says for the space's method.
 ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const PyCoarseSpace& coarse, bool traced,
                                            ice::proxy::CurvatureCorrection correction, double divisor = fem::kProxyCorrectionDivisor) {
-  if (traced) ice::proxy::require_map_on_cover(coarse.space.summary.tufted_cover, "lengths='traced'");
+  if (traced) ice::proxy::refuse_tracing_on_cover(coarse.space.summary.tufted_cover, "lengths='traced'");
   if (traced && (coarse.map.empty() || coarse.space.summary.method != ice::CoarseningMethod::ice))
     throw py::value_error("lengths='traced' needs an ICE coarse space with its fine-to-coarse map (coarsen with keep_map=True)");
   py::gil_scoped_release release;
@@ -604,14 +603,15 @@ ice::FaceLengths marching_lengths_argument(const ice::TriangleMesh& mesh, const 
 bool traced_lengths_argument(const std::string& lengths, const PyCoarseSpace& coarse, bool marching = true) {
   const auto asked = choice<ice::proxy::CoarseLengths>(lengths, "lengths");
   if (asked == ice::proxy::CoarseLengths::traced && !marching) throw py::value_error("lengths='traced' is for method='marching'");
-  // auto needs the map to trace with (a space read from a file has none: its own lengths then).
-  return (asked != ice::proxy::CoarseLengths::automatic || !coarse.map.empty()) &&
+  // auto needs the map to trace with (a space read from a file has none: its own lengths then), and
+  // an input surface to trace on (a tufted cover's space: its own lengths).
+  const bool can_trace = !coarse.map.empty() && !coarse.space.summary.tufted_cover;
+  return (asked != ice::proxy::CoarseLengths::automatic || can_trace) &&
          ice::proxy::traces_lengths(asked, coarse.space.summary.method, marching);
 }
 
 /// The oracle and the vector proxy need the coarse space's fine-to-coarse map.
 void require_map(const PyCoarseSpace& coarse) {
-  refuse_cover(coarse.space.summary.tufted_cover, "the distance oracle and the vector heat method");
   if (coarse.map.empty())
     throw py::value_error("the coarse space has no fine-to-coarse map (coarsen with keep_map=True, ICE or "
                           "QEM with extrinsic geometry)");
@@ -760,8 +760,8 @@ void save_coarse_space(const std::filesystem::path& path, const py::object& V, c
                        bool overwrite) {
   const ice::TriangleMesh mesh = require_coarse_space_of(V, F, coarse, "save_coarse_space");
   if (coarse.map.empty())
-    throw py::value_error("save_coarse_space: the coarse space has no fine-to-coarse map (coarsen with keep_map=True; not a "
-                          "tufted cover's nor QEM's intrinsic Delaunay space)");
+    throw py::value_error("save_coarse_space: the coarse space has no fine-to-coarse map (coarsen with keep_map=True; not "
+                          "QEM's intrinsic Delaunay space)");
   py::gil_scoped_release release;
   try {
     ice::proxy::save_mapped_space_file(path, mesh, coarse.space, coarse.map, overwrite);
@@ -850,6 +850,7 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   if (sweep_coarse_interval < 0) throw py::value_error("sweep_coarse_interval must be >= 0");
   const PyCoarseSpace* coarse = coarse_object.is_none() ? nullptr : &coarse_object.cast<const PyCoarseSpace&>();
   const ice::TriangleMesh mesh = coarse ? require_coarse_space_of(V, F, *coarse, "VectorHeatSolver") : mesh_argument(V, F);
+  if (coarse) refuse_cover(coarse->space.summary.tufted_cover, "VectorHeatSolver");
   if (coarse) require_map(*coarse);
   const auto kind = choice<fem::VectorOperatorKind>(
       operators, "operators");
@@ -1197,7 +1198,8 @@ ice.load_coarse_mesh reads it back). An existing file is replaced only with over
 are fine) and returns its ice.CoarseSpace: the intrinsic coarse mesh, P, the fine-to-coarse map.
 nonmanifold="tufted": a mesh that is not an oriented manifold (non-manifold edges or vertices,
 inconsistent orientation, non-orientable; a point cloud with ice.point_cloud_triangles' faces) is
-coarsened through its tufted cover instead of refused (Galerkin proxies only; no fine-to-coarse map).
+coarsened through its tufted cover instead of refused (Galerkin proxies only; its map places each vertex by
+one copy, its P averages the copies; nothing traced on it).
 
 Target: exactly one of n (vertices), ratio (of the input vertices, e.g. 0.05; with min_vertices, at
 least that many, as the tools' --min-vertices), or max_error (the ICE error metric; may be combined
@@ -1218,7 +1220,7 @@ ProxyGeodesicSolver.from_coarse(..., lengths='traced'). cache: None (the default
 ~/.cache/ice), False (none) or a directory: a coarse space stored there with its map for the same mesh and
 options is loaded instead of built (the same arrays to the last bit; no progress calls then), and the coarse
 edges' traced lengths are stored beside it; CoarseSpace.cache says which ('hit', 'miss', 'rebuilt', 'off').
-trace=True, nonmanifold covers and QEM's intrinsic Delaunay geometry bypass it. Raises ice.MeshError naming
+trace=True and QEM's intrinsic Delaunay geometry bypass it. Raises ice.MeshError naming
 each defect of a refused mesh.)doc");
   m.def("setup_proxy", &setup_proxy, py::arg("V"), py::arg("F"), py::kw_only(), py::arg("operators") = "galerkin",
         py::arg("fine") = "intrinsic_delaunay", py::arg("prolongation") = "auto", py::arg("fixed") = py::none(),

@@ -70,7 +70,17 @@ def test_what_a_cover_does_not_take_yet_is_refused_and_a_setup_saves(tmp_path):
     with pytest.raises(ValueError, match="tufted cover"):
         coarse.save(tmp_path / "coarse.ilm")
     with pytest.raises(ValueError, match="tufted cover"):
-        ice.DistanceOracle(coarse)
+        ice.VectorHeatSolver(P, F, coarse)
+    # The oracle places each point by one of its copies on the cover: the sphere's great-circle
+    # distances from point 0 within a few per cent.
+    assert coarse.map is not None and coarse.summary["tufted_cover"]
+    oracle = ice.DistanceOracle.from_mesh(P, F, coarse)
+    pairs = np.array([[0, j] for j in range(0, 800, 7)])
+    exact = np.arccos(np.clip(P[pairs[:, 1]] @ P[0], -1, 1))
+    got = oracle.distances(pairs)
+    assert np.abs(got - exact).mean() < 0.05 * exact.mean()
+    with pytest.raises(ValueError, match="tufted cover"):
+        ice.DistanceOracle.from_mesh(P, F, coarse, lengths="traced")
     space, proxy = ice.setup_proxy(P, F, ratio=0.2, nonmanifold="tufted", cache=False)
     with pytest.raises(ValueError, match="tufted cover"):
         ice.ProxyGeodesicSolver(proxy)
@@ -132,7 +142,7 @@ def test_point_cloud_geodesics_by_marching_and_the_heat_method():
     coarse = ice.coarsen(P, F, ratio=0.1, nonmanifold="tufted", use="geodesic", cache=False)
     own = ice.ProxyGeodesicSolver.from_coarse(P, F, coarse, lengths="intrinsic", curvature_correction=False)
     assert np.array_equal(ice.ProxyGeodesicSolver.from_coarse(P, F, coarse).distance([0]), own.distance([0]))  # the cover's default
-    with pytest.raises(ValueError, match="fine-to-coarse map"):
+    with pytest.raises(ValueError, match="tufted cover"):
         ice.geodesic_distance(P, F, [0], coarse=coarse, lengths="traced")
     with pytest.raises(ValueError, match="from_coarse"):  # a Proxy's fine mesh has one fan per sheet
         ice.ProxyGeodesicSolver(ice.Proxy(P, F, coarse))

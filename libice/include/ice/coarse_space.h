@@ -156,6 +156,10 @@ struct CoarseSpace {
   /// With record_history: the mesh's face of each face slot the triangulation was built with (same
   /// corner order; empty: slot f is face f).
   std::vector<Index> triangulation_face_order;
+  /// With keep_method_state through a tufted cover: per input vertex, the triangulation's input
+  /// vertex (one of its copies on the cover) whose location fine_to_coarse_map reads — a surviving
+  /// copy when there is one (the vertex's coarse vertex), else the copy of largest area.
+  std::vector<Index> mapped_copy;
   /// With keep_method_state and QEM: its result (the QEM mesh, the map; its P is moved into P above).
   std::optional<QemResult> qem_result;
 
@@ -185,8 +189,10 @@ CoarseSpace coarse_space_from_qem(QemResult qem, QemGeometry geometry, bool keep
 
 /// The fine-to-coarse map: one CoarsePoint (ice/mesh.h) per input vertex, faces in space.mesh's numbering (for
 /// ICE the points the coarsened triangulation tracked, for QEM its closest-point map). Its rows
-/// agree with P (P(i, ·) is point i's barycentric coordinates summed over repeated corners).
-/// Preconditions: the space was built with keep_method_state, not through a tufted cover; a QEM space has extrinsic geometry
+/// agree with P (P(i, ·) is point i's barycentric coordinates summed over repeated corners), except
+/// through a tufted cover: there a vertex's point is that of one copy (CoarseSpace::mapped_copy)
+/// while P's row averages all its copies' (the point's corners are among the row's columns).
+/// Preconditions: the space was built with keep_method_state; a QEM space has extrinsic geometry
 /// (with QemGeometry::intrinsic_delaunay the points lie in the QEM mesh's faces, not in
 /// space.mesh's: see space.qem_result->map). Throws std::invalid_argument otherwise.
 std::vector<CoarsePoint> fine_to_coarse_map(const CoarseSpace& space);
@@ -224,7 +230,8 @@ FineMesh fine_mesh(const TriangleMesh& mesh, FineGeometry geometry, NonmanifoldI
 /// mean of its copies') and S summing the columns of a coarse vertex's copies. Rows of P sum to 1;
 /// a locked input vertex (all its copies locked) has a unit row. mesh.to_input and mesh.from_input
 /// map coarse and input vertices both ways.
-/// The method's state (keep_method_state) is that of the cover (its vertices are the cover's).
+/// The method's state (keep_method_state) is that of the cover (its vertices are copies, in the
+/// numbering of distinct_sheets(cover)), with mapped_copy for fine_to_coarse_map.
 /// With `fine_delaunay`: the fine mesh of fine_mesh(cover, FineGeometry::intrinsic_delaunay).
 /// Throws std::invalid_argument for QEM (it decimates an extrinsic surface; the cover's sheets
 /// coincide in space) and for refinement, and on bad options as build_coarse_space.

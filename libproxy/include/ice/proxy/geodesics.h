@@ -32,8 +32,7 @@ struct GeodesicOptions {
   FineGeometry fine = FineGeometry::intrinsic_delaunay;
   /// Where the setup is looked up and saved (store.h): marching's coarse space with its map and
   /// traced lengths (build_mapped_space, traced_edge_lengths), the heat method's proxy
-  /// (build_proxy_setup). Off by default in the library; a given coarse space bypasses it, and so
-  /// does marching on a tufted cover.
+  /// (build_proxy_setup). Off by default in the library; a given coarse space bypasses it.
   StoreOptions store;
 };
 
@@ -44,8 +43,8 @@ class GeodesicSolver {
   /// keep_method_state (with CoarseLengths::automatic and neither, the coarse mesh's own lengths are
   /// used). With options.coarsening.nonmanifold = tufted_cover a mesh that is not an oriented
   /// manifold (or a point cloud's faces, ice/point_cloud.h) is solved on its tufted cover: marching
-  /// then runs on the coarse mesh's own lengths (no map to trace with; CoarseLengths::automatic
-  /// means those) and coarsens afresh (the store holds covered spaces with their proxies only).
+  /// then runs on the coarse mesh's own lengths (nothing is traced on a cover: CoarseLengths::automatic
+  /// means those).
   /// Throws std::invalid_argument on bad options (traced lengths without a way to trace, or on a
   /// tufted cover; options of the heat method with marching and conversely are simply unused).
   explicit GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options = {}, std::optional<CoarseSpace> coarse = {},
@@ -79,12 +78,11 @@ class GeodesicSolver {
 Eigen::VectorXd geodesic_distance(const TriangleMesh& mesh, const std::vector<Index>& sources,
                                   const GeodesicOptions& options = {});
 
-/// Throws std::invalid_argument naming `what` when `tufted_cover`: the distance oracle and traced
-/// coarse lengths need the fine-to-coarse map (each input vertex's point in one coarse face), which a
-/// tufted cover's coarse space does not have (its coarsening tracks the copies of a vertex, one per
-/// sheet, in different faces). Geodesics from sources on a cover are by coarse marching on the coarse
-/// mesh's own lengths, or by the heat method.
-void require_map_on_cover(bool tufted_cover, const std::string& what);
+/// Throws std::invalid_argument naming `what` when `tufted_cover`: traced coarse lengths lay the coarse
+/// edges over the input's triangles, and a tufted cover's coarse space is laid over its cover's
+/// sheets, not the input's faces. Coarse marching on a cover (sources, the oracle) runs on the coarse
+/// mesh's own lengths; its map (ice::fine_to_coarse_map) places each input vertex by one of its copies.
+void refuse_tracing_on_cover(bool tufted_cover, const std::string& what);
 
 struct OracleOptions {
   CoarseSpaceOptions coarsening = default_coarsening(ProxyUse::geodesic);
@@ -99,8 +97,9 @@ struct OracleOptions {
 /// The distance oracle of `mesh` (fem::DistanceOracle: all coarse pairs precomputed, then any two
 /// vertices in O(1)), with the lengths and correction divisor measured for all-pairs marching.
 /// `coarse`/`map` as for GeodesicSolver, except that the oracle always needs the map: a given space
-/// without `map` must have been built with keep_method_state (std::invalid_argument otherwise, and
-/// for a tufted cover). `cache`, when given, says where the setup came from.
+/// without `map` must have been built with keep_method_state (std::invalid_argument otherwise). A
+/// mesh solved on its tufted cover places each input vertex by one of its copies (fine_to_coarse_map)
+/// and marches on the coarse mesh's own lengths. `cache`, when given, says where the setup came from.
 fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOptions& options = {},
                                     std::optional<CoarseSpace> coarse = {}, const std::vector<CoarsePoint>* map = nullptr,
                                     CacheReport* cache = nullptr);

@@ -145,8 +145,9 @@ struct MappedSpace {
   /// The method's state (triangulation, QEM result) only when built with keep_method_state or
   /// record_history, which bypass the store.
   CoarseSpace coarse;
-  /// One point per input vertex, faces in coarse.mesh's numbering; empty for QEM with intrinsic
-  /// Delaunay geometry (its closest-point map lies in the QEM mesh's faces).
+  /// One point per input vertex, faces in coarse.mesh's numbering (through a tufted cover: one copy's
+  /// point, ice::fine_to_coarse_map); empty for QEM with intrinsic Delaunay geometry (its
+  /// closest-point map lies in the QEM mesh's faces).
   std::vector<CoarsePoint> map;
   CacheReport cache;             ///< the space's entry, then the traced lengths' (traced_edge_lengths)
   /// The key the space is stored under (none when it is not: store off, bypassed, no map, cancelled);
@@ -163,14 +164,14 @@ struct MappedSpaceOptions {
 /// The coarse space of `mesh` by options.coarsening and its fine-to-coarse map. With an enabled
 /// store it is first looked up under mapped_space_key: on a hit nothing is coarsened, and the space
 /// and map are those that were stored (the same arrays to the last bit), checked (every array's
-/// structure, and every row of P against the map's point) before use. Otherwise it is built and
+/// structure, and every row of P against the map's point: equal, or through a tufted cover weighing
+/// every corner the point weighs) before use. Otherwise it is built and
 /// saved. A damaged entry is reported in `cache` (status rebuilt), removed and built again; an entry
 /// that cannot be written leaves the run as it is (save_error). keep_method_state and
 /// record_history bypass the store (the method's state is not stored), and so does QEM with intrinsic
 /// Delaunay geometry, which has no map (`map` empty); a coarsening cancelled by its progress callback
-/// is not stored (`key` empty). Throws std::invalid_argument, before any work, for a mesh solved on its
-/// tufted cover (the cover's triangulation tracks the copies of its vertices: there is no map), and on
-/// bad options as build_coarse_space.
+/// is not stored (`key` empty). A mesh solved on its tufted cover (options.coarsening.nonmanifold) is
+/// coarsened through it. Throws std::invalid_argument on bad options as build_coarse_space.
 /// `fine_delaunay`, when given, is filled as build_coarse_space fills it if the space is built, and
 /// left as it is on a hit.
 MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOptions& options, FineMesh* fine_delaunay = nullptr);
@@ -196,7 +197,7 @@ SurfaceEdgeLengths stored_marching_lengths(const TriangleMesh& mesh, const Coars
 /// the store's entry format, keyed by `mesh`'s arrays: load_mapped_space_file takes it back for that
 /// mesh only. Atomic (a temporary file beside `path`, renamed); an existing file is replaced only when
 /// `overwrite`. Throws std::invalid_argument when the space or map is not one of `mesh` (P's rows, the
-/// map's size, a tufted cover's space), ice::MeshError (unwritable) when `path` exists and `overwrite`
+/// map's size), ice::MeshError (unwritable) when `path` exists and `overwrite`
 /// is false or its directory does not exist, std::runtime_error naming the file when it cannot be written.
 void save_mapped_space_file(const std::filesystem::path& path, const TriangleMesh& mesh, const CoarseSpace& coarse,
                             const std::vector<CoarsePoint>& map, bool overwrite = false);
