@@ -122,10 +122,11 @@ void require_fixed_in_every_component(const ice::LoadResult& loaded, const std::
 
 // ---- coarsening -------------------------------------------------------------------------------------
 
-ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
-                                                 bool show_progress, ice::FineMesh* fine_delaunay) {
+namespace {
+// `build` of `options` with a progress bar over the removals from `start_vertices`.
+template <class Build>
+ice::CoarseSpace with_progress_bar(ice::Index start_vertices, ice::CoarseSpaceOptions options, bool show_progress, Build&& build) {
   ProgressBar bar("coarsening", show_progress && stderr_is_terminal());  // QEM reports no progress: nothing drawn
-  const auto start_vertices = static_cast<ice::Index>(mesh.V.rows());
   options.coarsen.progress_interval = 250;
   options.coarsen.progress = [&bar, clock = Stopwatch(), start_vertices](const ice::CoarsenProgress& p) {
     const double total = std::max<double>(1, start_vertices - p.target);
@@ -134,9 +135,16 @@ ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh,
                                       thousands(static_cast<long long>(rate)) + " removals/s");
     return true;
   };
-  ice::CoarseSpace space = ice::build_coarse_space(mesh, options, fine_delaunay);
+  ice::CoarseSpace space = build(options);
   bar.finish();
   return space;
+}
+}  // namespace
+
+ice::CoarseSpace build_coarse_space_with_progress(const ice::TriangleMesh& mesh, ice::CoarseSpaceOptions options,
+                                                 bool show_progress, ice::FineMesh* fine_delaunay) {
+  return with_progress_bar(static_cast<ice::Index>(mesh.V.rows()), std::move(options), show_progress,
+                           [&](const ice::CoarseSpaceOptions& o) { return ice::build_coarse_space(mesh, o, fine_delaunay); });
 }
 
 void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummary& summary,
@@ -194,6 +202,21 @@ ice::CoarseSpace coarsen_space_for_pde(const ice::TriangleMesh& mesh, const ice:
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                                  PdeRun& run, bool keep_method_state, bool record_history) {
   return coarsen_space_for_pde(mesh, pde_space_options(options, opt, keep_method_state, record_history), opt, run, nullptr);
+}
+
+ice::CoarseSpace coarsen_copies_for_pde(const ice::TuftedCover& cover, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                                        PdeRun& run) {
+  const ice::CoarseSpaceOptions space_options = pde_space_options(options, opt, /*keep_method_state=*/true, false);
+  ice::CoarseSpace space;
+  try {
+    space = with_progress_bar(static_cast<ice::Index>(cover.to_input.size()), space_options, !opt.quiet,
+                              [&](const ice::CoarseSpaceOptions& o) { return ice::build_coarse_space_on_copies(cover, o); });
+  } catch (const std::invalid_argument& e) {  // QEM or refinement asked of a cover
+    throw AppError(kUsage, opt.mesh + ": " + e.what());
+  }
+  warn_if_target_missed(run.tool, space.summary, space_options.coarsen);
+  run.coarsening = space.summary;
+  return space;
 }
 
 ice::proxy::MultigridHierarchy stored_hierarchy(const std::string& tool, const ice::TriangleMesh& mesh, const MultigridCli& mg,
@@ -301,6 +324,7 @@ ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, cons
     warn(run.tool, "the stored coarse space was damaged and is rebuilt: " + space.cache.damage);
   if (hit) warn_if_target_missed(run.tool, space.coarse.summary, options);
   run.coarsening = space.coarse.summary;
+  run.tufted_cover = space.coarse.summary.tufted_cover;
   // Coarsening and the map: 0 on a hit, whose load is run.cache.load_seconds; the fine mesh made on
   // the way is the caller's phase.
   run.coarsen = hit ? 0.0

@@ -84,6 +84,11 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
 /// what ice::trace_coarse_mesh draws the coarse edges exactly from (CoarseSpaceOptions::record_history).
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                                  PdeRun& run, bool keep_method_state = false, bool record_history = false);
+/// The same for the copies of a tufted cover (ice::build_coarse_space_on_copies, with the method state
+/// for the map): what vector fields on a cover are solved through (not through the store).
+/// AppError(kUsage) naming the file for what a cover does not take (QEM, refinement).
+ice::CoarseSpace coarsen_copies_for_pde(const ice::TuftedCover& cover, const ice::CoarsenOptions& options, const PdeOptions& opt,
+                                        PdeRun& run);
 
 /// The multigrid hierarchy of `mesh` for the --mg-* options through `store` (ice::proxy::
 /// multigrid_hierarchy; through the tufted cover where --nonmanifold tufted asks for it and the mesh
@@ -107,7 +112,7 @@ ice::proxy::ProxySetup build_pde_proxy(const ice::TriangleMesh& mesh, const ice:
 /// march on the coarse mesh or fit vectors to the map, with the method, QEM geometry and progress bar
 /// of `opt`, through `store`; `record_history` keeps what draws the coarse mesh on the surface (and
 /// bypasses the store). Warns when the target was missed or a stored entry was damaged; records
-/// run.coarsening, run.coarsen and the cache. AppError(kUsage) for a tufted cover, and when
+/// run.coarsening, run.coarsen and the cache. AppError(kUsage) for bad options, and when
 /// `need_map` for QEM with intrinsic Delaunay geometry (no map).
 /// `fine_delaunay`: as ice::proxy::build_mapped_space's (filled on a build, not on a hit).
 ice::proxy::MappedSpace mapped_space_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options,

@@ -30,6 +30,8 @@
 #include <iostream>
 #include <optional>
 
+#include <Eigen/Geometry>
+
 #include "tool_main.h"
 #include "app_common.h"
 #include "fem/vector_fields.h"
@@ -112,6 +114,7 @@ int vector_coarse_tool::main(int argc, char** argv) {
       ->capture_default_str();
   opt.add_to(cli, "vector_*, reference_*, angle_error, magnitude_error");
   opt.add_cache_options(cli);
+  opt.add_nonmanifold_option(cli);
   if (const int status = app::parse_command_line(cli, argc, argv); status >= 0) return status;
 
   return app::run_tool(kTool, [&]() -> int {
@@ -151,9 +154,18 @@ int vector_coarse_tool::main(int argc, char** argv) {
 
     // ---- load
     app::Stopwatch clock;
-    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.repair);
+    const ice::LoadResult loaded = app::load_input_mesh(opt.mesh, opt.load_options());
     const ice::TriangleMesh& mesh = loaded.mesh;
     const Eigen::Index n = mesh.V.rows();
+    // On a tufted cover (--nonmanifold tufted, a mesh that needs it) the field lives on the copies of
+    // its sheets, each with a tangent plane of its own: sources are given in space (--direction), on
+    // every copy of the vertex, and each vertex's vector is the mean of its copies' in space.
+    const bool covered = ice::solved_on_tufted_cover(mesh, opt.nonmanifold);
+    if (covered && !angles.empty())
+      throw AppError(app::kUsage, opt.mesh + ": --vector: on the tufted cover a vertex has a tangent plane per sheet around it "
+                                             "(no one reference edge); give --direction");
+    std::optional<ice::TuftedCover> cover;
+    if (covered) cover = ice::distinct_sheets(ice::tufted_cover(mesh));
     const app::FileVertexMap vertices(loaded);
     std::vector<ice::Index> sources;
     for (long long s : file_sources) sources.push_back(vertices.mesh_vertex(s, "--source: vertex"));
@@ -164,34 +176,56 @@ int vector_coarse_tool::main(int argc, char** argv) {
     run.load = clock.lap();
 
     // ---- coarsen (with the map P_vec is fitted from), or the coarse space and map from the store
+    // (on a cover: its copies' coarse space, made here)
     const ice::proxy::Store store = opt.store();
-    ice::proxy::MappedSpace space = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store, /*need_map=*/true);
+    ice::proxy::MappedSpace space;
+    if (covered) {
+      space.coarse = app::coarsen_copies_for_pde(*cover, coarsen_options, opt, run);
+      run.tufted_cover = true;
+      space.map = ice::fine_to_coarse_map(space.coarse);
+      space.coarse.triangulation.reset();  // the map made: free the method's state
+      run.coarsen = clock.seconds();
+    } else {
+      space = app::mapped_space_for_pde(mesh, coarsen_options, opt, run, store, /*need_map=*/true);
+    }
     const ice::CoarseSpace& coarse = space.coarse;
     const std::vector<ice::CoarsePoint>& map = space.map;
     clock.lap();  // run.coarsen, and the cache's load and save
 
     // ---- the input triangles' frames (the fields' and the sources'), the fine operators in them
-    const ice::proxy::TangentMesh fine =
-        ice::proxy::tangent_mesh(mesh, opt.fine_geometry(), sweep || galerkin || run.has_reference);
+    const bool fine_operators = sweep || galerkin || run.has_reference;
+    const ice::proxy::TangentMesh fine = covered ? ice::proxy::tangent_mesh(*cover, opt.fine_geometry(), fine_operators)
+                                                 : ice::proxy::tangent_mesh(mesh, opt.fine_geometry(), fine_operators);
     const fem::TangentFrames& fine_frames = fine.frames;
     run.fine_built = fine.operators.has_value();
     run.idt_flips = fine.flips;
     run.proxy_uses_fine_mesh = sweep || galerkin;
     run.fine_mesh = clock.lap();
+    // The sources' vectors in the fine frames (on a cover: on every copy of each source).
+    std::vector<ice::Index> field_sources = sources;
     std::vector<fem::Complex> vectors;
-    for (std::size_t s = 0; s < count; ++s) {
-      fem::Complex z;
-      if (!angles.empty()) {
-        z = std::polar(1.0, angles[s] * kPi / 180);
+    try {
+      if (covered) {
+        Eigen::MatrixXd scaled(static_cast<Eigen::Index>(count), 3);
+        for (std::size_t s = 0; s < count; ++s) {
+          const Eigen::Vector3d d(directions[3 * s], directions[3 * s + 1], directions[3 * s + 2]);
+          scaled.row(static_cast<Eigen::Index>(s)) = magnitudes[s] * d.normalized().transpose();
+        }
+        ice::proxy::CopySources on_copies = ice::proxy::sources_on_copies(*cover, fine, sources, scaled);
+        field_sources = std::move(on_copies.copies);
+        vectors = std::move(on_copies.vectors);
       } else {
-        const Eigen::Vector3d d(directions[3 * s], directions[3 * s + 1], directions[3 * s + 2]);
-        z = fem::ambient_to_tangent(fine.mesh, fine_frames, mesh.V, sources[s], d);
-        if (std::abs(z) <= 1e-12 * d.norm() || d.norm() == 0)
-          throw AppError(app::kUsage, "--direction of source " + std::to_string(file_sources[s]) +
-                                          " is normal to the surface (nothing left after projection)");
-        z /= std::abs(z);
+        for (std::size_t s = 0; s < count; ++s) {
+          const Eigen::Vector3d d(directions.empty() ? Eigen::Vector3d::Zero()
+                                                     : Eigen::Vector3d(directions[3 * s], directions[3 * s + 1], directions[3 * s + 2]));
+          const fem::Complex z = !angles.empty() ? std::polar(1.0, angles[s] * kPi / 180)
+                                                 : ice::proxy::tangent_direction(fine, mesh.V, sources[s], d.normalized(),
+                                                                                 "source " + std::to_string(file_sources[s]));
+          vectors.push_back(magnitudes[s] * z);
+        }
       }
-      vectors.push_back(magnitudes[s] * z);
+    } catch (const std::invalid_argument& e) {  // a direction normal to the surface
+      throw AppError(app::kUsage, std::string("--direction: ") + e.what());
     }
     run.assemble = clock.lap();
     // One of the two proxies: the sweep's marching distance, or the diffusion's vector prolongation
@@ -200,9 +234,12 @@ int vector_coarse_tool::main(int argc, char** argv) {
     std::optional<fem::VectorHeatProxy> diffusion_proxy;
     if (sweep) {
       // The sweep marches on the coarse edges' traced, curvature-corrected lengths (ICE): through the store too.
-      const ice::SurfaceEdgeLengths lengths = app::stored_marching_lengths(
-          run, clock, mesh, space, store, ice::proxy::vector_sweep_traces(coarse), ice::proxy::CurvatureCorrection::automatic,
-          ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
+      // On a cover on the coarse mesh's own (its edges lie on the sheets, not on the input's triangles).
+      const ice::SurfaceEdgeLengths lengths =
+          covered ? ice::SurfaceEdgeLengths{coarse.mesh.L, 0, 0}
+                  : app::stored_marching_lengths(run, clock, mesh, space, store, ice::proxy::vector_sweep_traces(coarse),
+                                                 ice::proxy::CurvatureCorrection::automatic,
+                                                 ice::proxy::curvature_divisor(ice::proxy::MarchingUse::single_source));
       sweep_proxy.emplace(ice::proxy::make_vector_sweep(mesh, fine, coarse, map, sweep_options, &lengths));
     } else {
       diffusion_proxy.emplace(ice::proxy::make_vector_proxy(fine, coarse, map, kind, time_factor));
@@ -211,7 +248,7 @@ int vector_coarse_tool::main(int argc, char** argv) {
     if (diffusion_proxy) warn_if_frames_fit_poorly(diffusion_proxy->prolongation_stats());
     fem::DistanceSweepStats sweep_stats;
     const Eigen::VectorXcd field =
-        sweep ? sweep_proxy->interpolate(sources, vectors, &sweep_stats) : diffusion_proxy->interpolate(sources, vectors);
+        sweep ? sweep_proxy->interpolate(field_sources, vectors, &sweep_stats) : diffusion_proxy->interpolate(field_sources, vectors);
     run.solve = clock.lap();  // the distance or the coarse solves, and the fine combination, in one call
 
     // ---- reference
@@ -223,17 +260,30 @@ int vector_coarse_tool::main(int argc, char** argv) {
       run.ref_assemble = clock.lap();  // the fine operators: built with the fine mesh above
       const fem::VectorHeatSolver fine_solver(*fine.operators);
       run.ref_factor = clock.lap();
-      reference = fine_solver.interpolate(sources, vectors);
+      reference = fine_solver.interpolate(field_sources, vectors);
       run.ref_solve = clock.lap();
       angle_error_field = Eigen::VectorXd::Constant(n, std::nan(""));
       magnitude_error_field = Eigen::VectorXd::Constant(n, std::nan(""));
       std::vector<double> magnitude_errors;
+      // Per input vertex: in its frame, or on a cover between the 3D vectors written (the copies' means).
+      const Eigen::MatrixXd field_3d = covered ? ice::proxy::ambient_on_input(*cover, fine, field) : Eigen::MatrixXd();
+      const Eigen::MatrixXd reference_3d = covered ? ice::proxy::ambient_on_input(*cover, fine, reference) : Eigen::MatrixXd();
       for (Eigen::Index v = 0; v < n; ++v) {
-        const double e = fem::angle_between_degrees(field(v), reference(v));
+        double e, size, reference_size;
+        if (covered) {
+          const Eigen::Vector3d a = field_3d.row(v).transpose(), b = reference_3d.row(v).transpose();
+          size = a.norm();
+          reference_size = b.norm();
+          e = size > 0 && reference_size > 0 ? std::atan2(a.cross(b).norm(), a.dot(b)) * 180 / kPi : std::nan("");
+        } else {
+          e = fem::angle_between_degrees(field(v), reference(v));
+          size = std::abs(field(v));
+          reference_size = std::abs(reference(v));
+        }
         if (std::isnan(e)) continue;
         angle_errors.push_back(e);
         angle_error_field(v) = e;
-        magnitude_error_field(v) = (std::abs(field(v)) - std::abs(reference(v))) / std::abs(reference(v));
+        magnitude_error_field(v) = (size - reference_size) / reference_size;
         magnitude_errors.push_back(std::abs(magnitude_error_field(v)));
       }
       error_json = {{"angle", angle_error_json(angle_errors, n)},
@@ -245,7 +295,8 @@ int vector_coarse_tool::main(int argc, char** argv) {
     if (!opt.output.empty()) {
       std::vector<ice::ScalarField> fields;
       const auto add_vectors = [&](const std::string& name, const Eigen::VectorXcd& values) {
-        const Eigen::MatrixXd ambient = fem::tangent_to_ambient(fine.mesh, fine_frames, mesh.V, values);
+        const Eigen::MatrixXd ambient = covered ? ice::proxy::ambient_on_input(*cover, fine, values)
+                                                : fem::tangent_to_ambient(fine.mesh, fine_frames, mesh.V, values);
         for (int axis = 0; axis < 3; ++axis) fields.push_back({name + "_" + "xyz"[axis], ambient.col(axis)});
       };
       add_vectors("vector", field);

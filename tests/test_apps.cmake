@@ -180,6 +180,12 @@ function(solved_on_cover input vertices poisson_bound heat_bound geodesic_bound)
   run(0 geodesic-coarse "${input}" --nonmanifold tufted ${ARGN} --sample 10 --no-cache --report "${WORK}/o.json" --force -q)
   json(err "${WORK}/o.json" accuracy far mean_rel)
   check(${err} LESS ${geodesic_bound} "the distance oracle on the cover: mean relative error of far pairs against the fine heat method")
+  # Vector fields on the copies of the cover's sheets, given in space; angles have no reference edge there.
+  run(0 vector-coarse "${input}" --nonmanifold tufted ${ARGN} --source 0 --direction 1,0,0 --no-cache
+      --report "${WORK}/v.json" --output "${WORK}/v.ply" --force -q)
+  json(err "${WORK}/v.json" error angle median_deg)
+  check(${err} LESS 5 "vector transport on the cover: median angle (degrees) against the fine vector heat method")
+  expect_error(4 "--vector: on the tufted cover" vector-coarse "${input}" --nonmanifold tufted ${ARGN} --source 0 --vector 30 -q)
 endfunction()
 
 # view_test(<page>): the page opened in headless Chromium by tests/browser/view_test.mjs: no errors

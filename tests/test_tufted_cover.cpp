@@ -27,6 +27,7 @@
 #include "ice/mesh_validation.h"
 #include "ice/proxy/geodesics.h"
 #include "ice/proxy/poisson.h"
+#include "ice/proxy/vectors.h"
 #include "ice/tufted_cover.h"
 #include "test_support.h"
 
@@ -768,4 +769,82 @@ TEST_CASE("tufted cover: a map by one copy per vertex, the distance oracle acros
   // Traced lengths are refused on a cover, before any work.
   oracle_options.lengths = ice::proxy::CoarseLengths::traced;
   REQUIRE_THROWS_WITH(ice::proxy::distance_oracle(mesh, oracle_options), Catch::Contains("tufted cover"));
+}
+
+namespace {
+/// Median angle in degrees between the rows of two n × 3 fields.
+double median_angle_degrees(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  std::vector<double> angles;
+  for (Eigen::Index v = 0; v < a.rows(); ++v) {
+    const Eigen::Vector3d x = a.row(v).transpose(), y = b.row(v).transpose();
+    angles.push_back(std::atan2(x.cross(y).norm(), x.dot(y)) * 180 / M_PI);
+  }
+  std::nth_element(angles.begin(), angles.begin() + static_cast<std::ptrdiff_t>(angles.size() / 2), angles.end());
+  return angles[angles.size() / 2];
+}
+
+/// The fine vector heat method on the solver's copies, through the same sources, as 3D vectors on the input.
+Eigen::MatrixXd fine_field(const ice::proxy::VectorTransportSolver& solver, const std::vector<Index>& sources,
+                           const Eigen::MatrixXd& directions) {
+  const ice::proxy::CopySources on_copies = ice::proxy::sources_on_copies(*solver.cover(), solver.tangent_mesh(), sources, directions);
+  const fem::VectorHeatSolver fine(*solver.tangent_mesh().operators);
+  return ice::proxy::ambient_on_input(*solver.cover(), solver.tangent_mesh(), fine.interpolate(on_copies.copies, on_copies.vectors));
+}
+}  // namespace
+
+TEST_CASE("tufted cover: vector fields on the copies of its sheets, near the fine vector heat method", "[cover][proxy][vector]") {
+  ice::proxy::VectorTransportOptions options;
+  options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  options.coarsening.coarsen.target_ratio = 0.25;
+  {
+    // Sheets meeting along non-manifold edges: the field crosses them to every vertex.
+    const ice::TriangleMesh mesh = load_keeping_sheets("triple_vierbein.obj");
+    options.coarsening.coarsen.target_ratio = 0.5;
+    const ice::proxy::VectorTransportSolver solver(mesh, options);
+    REQUIRE(solver.cover());
+    REQUIRE(solver.coarse_space().P.rows() == static_cast<Eigen::Index>(solver.cover()->to_input.size()));
+    REQUIRE(solver.tangent_mesh().mesh.vertex_count == static_cast<Index>(solver.cover()->to_input.size()));
+    const Eigen::MatrixXd direction = mesh.V.row(mesh.F(0, 1)) - mesh.V.row(mesh.F(0, 0));
+    const std::vector<Index> sources{mesh.F(0, 0)};
+    const Eigen::MatrixXd field = solver.transport_directions(sources, direction);
+    REQUIRE(field.rows() == mesh.V.rows());
+    REQUIRE(field.allFinite());
+    CHECK(field.rowwise().norm().minCoeff() > 0);
+    const double angle = median_angle_degrees(field, fine_field(solver, sources, direction));
+    INFO("median angle against the fine method " << angle << " degrees");
+    CHECK(angle < 10.0);
+  }
+  // Spheres touching at a vertex: tangent on the first, near the fine method; no tangent plane joins
+  // the sheets at a point, so the field stays on the source's sphere (zero on the other, as the fine
+  // method's).
+  const TouchingSpheres spheres = touching_spheres();
+  const ice::TriangleMesh& mesh = spheres.mesh;
+  options.coarsening.coarsen.target_ratio = 0.25;
+  const ice::proxy::VectorTransportSolver solver(mesh, options);
+  const std::vector<Index> sources{spheres.bottom};
+  const Eigen::MatrixXd direction = Eigen::RowVector3d(1, 0, 0);
+  const Eigen::MatrixXd field = solver.transport_directions(sources, direction);
+  const Eigen::MatrixXd reference = fine_field(solver, sources, direction);
+  for (Index v = 0; v < spheres.n; ++v) {
+    if (v == spheres.top) continue;  // the junction: the mean of its copies'
+    INFO("vertex " << v);
+    REQUIRE(field.row(v).norm() > 0);
+    CHECK(std::abs(field.row(v).dot(mesh.V.row(v).normalized())) < 0.1 * field.row(v).norm());
+  }
+  CHECK(field.bottomRows(spheres.n - 1).norm() == 0);
+  CHECK(reference.bottomRows(spheres.n - 1).norm() == 0);
+  const double angle = median_angle_degrees(field.topRows(spheres.n), reference.topRows(spheres.n));
+  INFO("median angle against the fine method " << angle << " degrees");
+  CHECK(angle < 5.0);
+  // A zero direction has nothing to project: refused, naming the source.
+  REQUIRE_THROWS_WITH(solver.transport_directions(sources, Eigen::MatrixXd::Zero(1, 3)), Catch::Contains("normal to the surface"));
+  // A manifold mesh: the option changes nothing.
+  const ice::TriangleMesh sphere = ice::make_icosphere(3);
+  ice::proxy::VectorTransportOptions manifold;
+  manifold.coarsening.coarsen.target_ratio = 0.25;
+  const Eigen::MatrixXd plain = ice::proxy::VectorTransportSolver(sphere, manifold).transport_directions({0}, direction);
+  manifold.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+  const ice::proxy::VectorTransportSolver optioned(sphere, manifold);
+  CHECK_FALSE(optioned.cover());
+  CHECK(optioned.transport_directions({0}, direction) == plain);
 }

@@ -434,6 +434,28 @@ std::vector<Index> mapped_copies(const TuftedCover& cover, const std::vector<Ind
   return best;
 }
 
+/// The options that coarsen the copies of `cover` (distinct_sheets' result) for `options`, asked of its
+/// input vertices: ICE only, no refinement (std::invalid_argument naming `caller` otherwise).
+/// Locked input vertices: every copy of each (they become one coarse vertex when merged). So are the
+/// vertices where separate sheets meet at the vertex alone: a removed copy there would part the
+/// coarse mesh where the input is joined (coarse marching could not cross; P alone would join them).
+/// A vertex target counts input vertices; the cover has more (copies): the same ratio of its own.
+CoarseSpaceOptions options_on_copies(const TuftedCover& cover, const CoarseSpaceOptions& options, const char* caller) {
+  if (options.method != CoarseningMethod::ice)
+    throw std::invalid_argument(std::string(caller) + ": a tufted cover is coarsened by ICE only (QEM decimates an extrinsic "
+                                "surface; the cover's front and back sheets coincide in space)");
+  if (options.refinement) throw std::invalid_argument(std::string(caller) + ": no refinement on a tufted cover");
+  CoarseSpaceOptions cover_options = options;
+  std::vector<Index> locked = detail::sheet_junctions(cover);
+  locked.insert(locked.end(), options.coarsen.locked_vertices.begin(), options.coarsen.locked_vertices.end());
+  if (!locked.empty()) cover_options.coarsen.locked_vertices = detail::copies_of(cover.to_input, cover.input_vertex_count, locked);
+  if (options.coarsen.target_vertices > 0 && cover.input_vertex_count > 0)
+    cover_options.coarsen.target_vertices = static_cast<Index>(std::llround(
+        static_cast<double>(options.coarsen.target_vertices) * static_cast<double>(cover.to_input.size()) /
+        static_cast<double>(cover.input_vertex_count)));
+  return cover_options;
+}
+
 }  // namespace
 
 CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceOptions& options, FineMesh* fine_delaunay) {
@@ -442,22 +464,7 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
   // fine mesh stays the whole cover's (the robust Laplacian).
   const TuftedCover cover = distinct_sheets(full_cover);
   const bool whole = cover.mesh.F.rows() == full_cover.mesh.F.rows();
-  if (options.method != CoarseningMethod::ice)
-    throw std::invalid_argument("build_coarse_space: a tufted cover is coarsened by ICE only (QEM decimates an extrinsic "
-                                "surface; the cover's front and back sheets coincide in space)");
-  if (options.refinement) throw std::invalid_argument("build_coarse_space: no refinement on a tufted cover");
-  // Locked input vertices: every copy of each (they become one coarse vertex below). So are the
-  // vertices where separate sheets meet at the vertex alone: a removed copy there would part the
-  // coarse mesh where the input is joined (coarse marching could not cross; P alone would join them).
-  CoarseSpaceOptions cover_options = options;
-  std::vector<Index> locked = detail::sheet_junctions(cover);
-  locked.insert(locked.end(), options.coarsen.locked_vertices.begin(), options.coarsen.locked_vertices.end());
-  if (!locked.empty()) cover_options.coarsen.locked_vertices = detail::copies_of(cover.to_input, cover.input_vertex_count, locked);
-  // A vertex target counts input vertices; the cover has more (copies): the same ratio of its own.
-  if (options.coarsen.target_vertices > 0 && cover.input_vertex_count > 0)
-    cover_options.coarsen.target_vertices = static_cast<Index>(std::llround(
-        static_cast<double>(options.coarsen.target_vertices) * static_cast<double>(cover.to_input.size()) /
-        static_cast<double>(cover.input_vertex_count)));
+  const CoarseSpaceOptions cover_options = options_on_copies(cover, options, "build_coarse_space");
   FineMesh cover_fine;
   const bool shared = fine_delaunay && options.locality_numbering && whole;
   CoarseSpace space = ice_coarse_space(cover.mesh, &cover.twin, cover_options, shared ? &cover_fine : nullptr);
@@ -493,16 +500,26 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
   return space;
 }
 
-FineMesh fine_mesh(const TuftedCover& cover, FineGeometry geometry) {
+FineMesh fine_mesh(const TuftedCover& cover, FineGeometry geometry) { return on_input_vertices(cover, fine_mesh_on_copies(cover, geometry)); }
+
+FineMesh fine_mesh_on_copies(const TuftedCover& cover, FineGeometry geometry) {
   FineMesh fine;
   fine.geometry = geometry;
   if (geometry == FineGeometry::input) {
     static_cast<IntrinsicMesh&>(fine) = cover.intrinsic_mesh();
-    return on_input_vertices(cover, std::move(fine));
+    return fine;
   }
   std::vector<Index> order;
   IntrinsicTriangulation T = triangulation_for_locality(cover.mesh, &cover.twin, true, &order);
-  return on_input_vertices(cover, fine_delaunay_mesh(std::move(T), order));
+  return fine_delaunay_mesh(std::move(T), order);
+}
+
+CoarseSpace build_coarse_space_on_copies(const TuftedCover& cover, const CoarseSpaceOptions& options) {
+  const auto start = Clock::now();
+  CoarseSpace space = ice_coarse_space(cover.mesh, &cover.twin, options_on_copies(cover, options, "build_coarse_space_on_copies"),
+                                       nullptr);
+  space.summary.seconds = seconds_since(start);
+  return space;
 }
 
 }  // namespace ice

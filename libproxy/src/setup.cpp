@@ -1,7 +1,9 @@
 #include "ice/proxy/setup.h"
 
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "fem/curvature_correction.h"
@@ -120,6 +122,64 @@ TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool w
     out.operators = fem::vector_heat_operators(out.mesh, out.frames, delaunay, time_factor);
   }
   return out;
+}
+
+TangentMesh tangent_mesh(const TuftedCover& cover, FineGeometry geometry, bool with_operators, double time_factor) {
+  TangentMesh out;
+  out.mesh = cover.intrinsic_mesh();
+  out.frames = fem::tangent_frames(out.mesh);
+  if (!with_operators) return out;
+  if (geometry == FineGeometry::input) {
+    out.operators = fem::vector_heat_operators(out.mesh, out.frames, time_factor);
+  } else {
+    FineMesh delaunay = fine_mesh_on_copies(cover, geometry);
+    out.flips = delaunay.flips;
+    out.operators = fem::vector_heat_operators(out.mesh, out.frames, delaunay, time_factor);
+  }
+  return out;
+}
+
+fem::Complex tangent_direction(const TangentMesh& fine, const Positions& V, Index v, const Eigen::Vector3d& direction,
+                               const std::string& name) {
+  const fem::Complex z = fem::ambient_to_tangent(fine.mesh, fine.frames, V, v, direction);
+  if (!(std::abs(z) > 1e-12 * direction.norm()))
+    throw std::invalid_argument("the direction of " + name + " is normal to the surface (nothing left after projection)");
+  return direction.norm() * z / std::abs(z);
+}
+
+CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine, const std::vector<Index>& sources,
+                              const Eigen::MatrixXd& directions) {
+  if (directions.rows() != static_cast<Eigen::Index>(sources.size()) || directions.cols() != 3)
+    throw std::invalid_argument("sources_on_copies: " + std::to_string(directions.rows()) + "x" + std::to_string(directions.cols()) +
+                                " directions for " + std::to_string(sources.size()) + " sources (one 3D direction each)");
+  // The copies of each input vertex (counting sort of the copies by input vertex).
+  std::vector<std::size_t> first(static_cast<std::size_t>(cover.input_vertex_count) + 1, 0);
+  for (Index v : cover.to_input) ++first[static_cast<std::size_t>(v) + 1];
+  for (std::size_t v = 1; v < first.size(); ++v) first[v] += first[v - 1];
+  std::vector<Index> by_input(cover.to_input.size());
+  {
+    std::vector<std::size_t> next(first.begin(), first.end() - 1);
+    for (std::size_t c = 0; c < cover.to_input.size(); ++c) by_input[next[static_cast<std::size_t>(cover.to_input[c])]++] = static_cast<Index>(c);
+  }
+  CopySources result;
+  for (std::size_t s = 0; s < sources.size(); ++s) {
+    const Eigen::Vector3d d = directions.row(static_cast<Eigen::Index>(s)).transpose();
+    if (sources[s] < 0 || sources[s] >= cover.input_vertex_count)
+      throw std::invalid_argument("sources_on_copies: source " + std::to_string(sources[s]) + " is not a vertex of the input");
+    bool any = false;
+    for (std::size_t i = first[static_cast<std::size_t>(sources[s])]; i < first[static_cast<std::size_t>(sources[s]) + 1]; ++i) {
+      const Index c = by_input[i];
+      result.copies.push_back(c);
+      result.vectors.push_back(tangent_direction(fine, cover.mesh.V, c, d, "source " + std::to_string(sources[s])));
+      any = true;
+    }
+    if (!any) throw std::invalid_argument("sources_on_copies: source " + std::to_string(sources[s]) + " has no copy on the cover");
+  }
+  return result;
+}
+
+Eigen::MatrixXd ambient_on_input(const TuftedCover& cover, const TangentMesh& fine, const Eigen::VectorXcd& field) {
+  return cover_to_input(cover, cover_vertex_areas(cover)) * fem::tangent_to_ambient(fine.mesh, fine.frames, cover.mesh.V, field);
 }
 
 fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const CoarseSpace& coarse, const std::vector<CoarsePoint>& map,

@@ -244,4 +244,16 @@ CoarseSpace build_coarse_space(const TuftedCover& cover, const CoarseSpaceOption
 /// with intrinsic_delaunay, (twice) the robust Laplacian of Sharp & Crane.
 FineMesh fine_mesh(const TuftedCover& cover, FineGeometry geometry);
 
+/// The same fine mesh with the copies left apart (vertex_count: the cover's vertices): an oriented
+/// Δ-complex, where tangent vectors live (one tangent plane per copy, ice::proxy's vector fields).
+FineMesh fine_mesh_on_copies(const TuftedCover& cover, FineGeometry geometry);
+
+/// The coarse space of the cover's copies, left apart as build_coarse_space(cover) makes it before
+/// the copies of one input vertex become one coarse vertex: P is copies × coarse copies, mesh.to_input
+/// names copies, and with keep_method_state fine_to_coarse_map gives one point per copy (the space
+/// is that of `cover` as an oriented Δ-complex: summary.tufted_cover is false). Pass
+/// distinct_sheets(tufted_cover(mesh)) (a mirror sheet would be coarsened twice otherwise). Locks,
+/// target and preconditions as build_coarse_space(cover).
+CoarseSpace build_coarse_space_on_copies(const TuftedCover& cover, const CoarseSpaceOptions& options);
+
 }  // namespace ice

@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "fem/coarse_proxy.h"
@@ -243,6 +244,32 @@ struct TangentMesh {
   Index flips = 0;  ///< intrinsic Delaunay flips
 };
 TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool with_operators, double time_factor = 1.0);
+/// The same on a tufted cover's copies (pass distinct_sheets(tufted_cover(mesh)), the sheets the
+/// coarse space of build_coarse_space_on_copies is made of): its triangles with the cover's gluing,
+/// one tangent frame per copy, the operators on ice::fine_mesh_on_copies. A vertex of the input has
+/// a tangent plane per copy (per sheet around it); the cover is oriented where the input may not be.
+TangentMesh tangent_mesh(const TuftedCover& cover, FineGeometry geometry, bool with_operators, double time_factor = 1.0);
+
+/// The 3D `direction` at vertex v of `fine` (positions V) as a tangent vector in v's frame: projected
+/// into the surface (fem::ambient_to_tangent), of the direction's length. Throws std::invalid_argument
+/// naming `name` when the direction is normal to the surface there (nothing left after projection).
+fem::Complex tangent_direction(const TangentMesh& fine, const Positions& V, Index v, const Eigen::Vector3d& direction,
+                               const std::string& name);
+
+/// Sources of a field on a tufted cover's copies: every copy of each input vertex of `sources`, with
+/// that source's 3D `direction` (a row of `directions`) as tangent_direction makes it at the copy.
+/// Throws std::invalid_argument as tangent_direction, for a source out of range, or when the sizes
+/// disagree.
+struct CopySources {
+  std::vector<Index> copies;
+  std::vector<fem::Complex> vectors;
+};
+CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine, const std::vector<Index>& sources,
+                              const Eigen::MatrixXd& directions);
+/// A field on the copies (fine's frames) as 3D vectors on the input vertices: each vertex the mean of
+/// its copies' vectors weighted by their areas (ice::cover_to_input, as scalars are). The copies of a
+/// vertex on one sheet and its mirror carry the same 3D vector; where sheets meet, the mean of theirs.
+Eigen::MatrixXd ambient_on_input(const TuftedCover& cover, const TangentMesh& fine, const Eigen::VectorXcd& field);
 
 /// The diffusion proxy of vector fields through `coarse` and its fine-to-coarse `map`: the coarse
 /// frames, P_vec fitted from the map, coarse operators of `kind` (Galerkin ones need
