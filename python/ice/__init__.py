@@ -63,7 +63,7 @@ __all__ = [
     "boundary_vertices", "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
     "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_coarse_space", "load_hierarchy", "load_mesh", "load_setup", "loop_subdivide", "mass_matrix",
     "point_cloud_triangles", "proxy_eigenbasis", "refined_eigenbasis",
-    "read_mesh", "reconstruction_error", "save_coarse_space", "save_hierarchy", "save_mesh", "save_setup", "setup_proxy", "solve_poisson", "transport_vectors", "validate", "wave_kernel_signature",
+    "read_mesh", "reconstruction_error", "save_coarse_space", "save_hierarchy", "save_mesh", "save_setup", "setup_proxy", "solve_poisson", "transport_directions", "transport_vectors", "validate", "wave_kernel_signature",
     "VectorHeatSolver",
 ]
 __version__ = "0.1.0"
@@ -309,6 +309,28 @@ def geodesic_distance(V, F, sources, *, coarse: CoarseSpace | None = None, metho
                                                curvature_correction=curvature_correction).distance(sources)
     proxy = Proxy(V, F, coarse, operators=operators, fine=fine)
     return ProxyGeodesicSolver(proxy, method=method, time_factor=time_factor).distance(sources)
+
+
+def transport_directions(V, F, sources, directions, *, solver: str = "sweep", operators: str = "galerkin",
+                         time_factor: float | None = None, fine: str = "intrinsic_delaunay", sweep_passes: int = 50,
+                         sweep_coarse_interval: int = 2, **coarsening):
+    """Tangent vectors carried from `sources` to every vertex, given and returned in space, in one call
+    (vector-coarse --direction).
+
+    directions: one 3D direction per source (k×3), projected into the surface at the source, of its
+    length. Returns n×3 vectors (one source: parallel transport along shortest geodesics; several: the
+    smooth field through them). coarsening options as for ice.coarsen (default ratio=0.05); solver,
+    operators, time_factor, fine, sweep_passes and sweep_coarse_interval as for VectorHeatSolver.
+    nonmanifold="tufted": a mesh that is not an oriented manifold (or a point cloud's faces) is solved on
+    the copies of its tufted cover's sheets (each with a tangent plane of its own), every copy of a source
+    carrying its direction, each vertex's vector the area-weighted mean of its copies' (a field crosses
+    between sheets where they share edges, not where they touch at a vertex alone). Not through the
+    store. Raises ValueError for a direction normal to the surface at its source.
+    """
+    return _ice._transport_directions(V, F, np.atleast_1d(np.asarray(sources)), np.atleast_2d(np.asarray(directions, dtype=float)),
+                                      solver=solver, operators=operators, time_factor=time_factor, fine=fine,
+                                      sweep_passes=sweep_passes, sweep_coarse_interval=sweep_coarse_interval,
+                                      **_with_defaults(coarsening, "poisson_heat"))
 
 
 def transport_vectors(V, F, sources, vectors=1.0, *, coarse: CoarseSpace | None = None, solver: str = "sweep",

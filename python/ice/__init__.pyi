@@ -310,6 +310,12 @@ def transport_vectors(V: ArrayLike, F: ArrayLike, sources: Indices, vectors: Arr
                       cache: str | PathLike[str] | Literal[False] | None = None, **coarsening: Any) -> ComplexArray | FloatArray:
     """Tangent vectors carried from sources to every vertex through a coarse proxy in one call."""
 
+def transport_directions(V: ArrayLike, F: ArrayLike, sources: Indices, directions: ArrayLike, *,
+                         solver: Literal["sweep", "diffusion"] = "sweep", operators: Literal["galerkin", "intrinsic"] = "galerkin",
+                         time_factor: float | None = None, fine: Literal["intrinsic_delaunay", "input"] = "intrinsic_delaunay",
+                         sweep_passes: int = 50, sweep_coarse_interval: int = 2, **coarsening: Any) -> FloatArray:
+    """Tangent vectors from one 3D direction per source to every vertex (n×3), on any mesh or a tufted cover."""
+
 def boundary_vertices(F: ArrayLike) -> IndexArray:
     """The vertices on a boundary edge, sorted."""
 def eigenbasis(V: ArrayLike, F: ArrayLike, k: int, *, boundary: Literal["neumann", "dirichlet"] = "neumann",

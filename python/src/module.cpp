@@ -41,6 +41,7 @@
 #include "ice/proxy/eigen.h"
 #include "ice/proxy/geodesics.h"
 #include "ice/proxy/multigrid.h"
+#include "ice/proxy/vectors.h"
 #include "ice/intrinsic_mesh_io.h"
 #include "ice/mesh_generators.h"
 #include "ice/mesh_io.h"
@@ -886,6 +887,51 @@ std::unique_ptr<PyVectorHeat> make_vector_heat(const py::object& V, const py::ob
   return result;
 }
 
+// ice.transport_directions: ice::proxy::VectorTransportSolver's transport_directions in one call, its
+// coarsening arguments ice.coarsen's (a tufted cover when nonmanifold="tufted" and the mesh needs it).
+Eigen::MatrixXd transport_directions(const py::object& V, const py::object& F, const py::object& sources,
+                                     const py::object& directions, const std::string& solver_name, const std::string& operators,
+                                     const py::object& time_factor_object, const std::string& fine, int sweep_passes,
+                                     int sweep_coarse_interval, const py::object& n, const py::object& ratio,
+                                     const py::object& min_vertices, const py::object& max_error, const std::string& method,
+                                     const std::string& use, const py::object& area_weight,
+                                     const py::object& normalize_curvature, const py::object& locked, bool remove_boundary,
+                                     const py::object& threads, const py::object& regions, const std::string& qem_geometry,
+                                     const py::object& refine_angle, double refine_budget, bool locality_numbering,
+                                     const std::string& nonmanifold) {
+  const ice::TriangleMesh mesh = mesh_argument(V, F);
+  ice::proxy::VectorTransportOptions options;
+  options.coarsening = coarse_space_options(mesh, n, ratio, min_vertices, max_error, method, use, area_weight, normalize_curvature,
+                                            locked, remove_boundary, threads, regions, qem_geometry, refine_angle, refine_budget,
+                                            locality_numbering, nonmanifold);
+  options.solver = choice<ice::proxy::VectorSolver>(solver_name, "solver");
+  options.operators = choice<fem::VectorOperatorKind>(operators, "operators");
+  options.fine = fine_geometry_argument(fine);
+  if (!time_factor_object.is_none()) options.time_factor = number_option(time_factor_object, "time_factor");
+  if (!(options.time_factor > 0) || !std::isfinite(options.time_factor)) throw py::value_error("time_factor must be > 0");
+  if (sweep_passes < 0) throw py::value_error("sweep_passes must be >= 0");
+  if (sweep_coarse_interval < 0) throw py::value_error("sweep_coarse_interval must be >= 0");
+  options.sweep.max_passes = sweep_passes;
+  options.sweep.coarse_correction_interval = sweep_coarse_interval;
+  const std::vector<ice::Index> vertices = index_argument(sources, mesh.V.rows(), "sources");
+  if (vertices.empty()) throw py::value_error("sources is empty");
+  const Eigen::MatrixXd D = matrix_argument(directions, static_cast<Eigen::Index>(vertices.size()), "directions");
+  if (D.cols() != 3) throw py::value_error("directions must be one 3D direction per source (k x 3)");
+  Eigen::MatrixXd field;
+  std::string refused;
+  {
+    py::gil_scoped_release release;
+    require_clean(mesh, options.coarsening.nonmanifold);
+    try {
+      field = ice::proxy::VectorTransportSolver(mesh, options).transport_directions(vertices, D);
+    } catch (const std::invalid_argument& e) {  // a direction normal to the surface, options a cover does not take
+      refused = e.what();
+    }
+  }
+  if (!refused.empty()) throw py::value_error(refused);
+  return field;
+}
+
 // A matrix the proxy owns, as scipy viewing its arrays (read-only; a copy if not compressed).
 py::object operator_view(const fem::SparseMatrix& matrix, const py::handle& owner) {
   if (matrix.isCompressed()) return scipy_view(matrix, owner);
@@ -1222,6 +1268,17 @@ options is loaded instead of built (the same arrays to the last bit; no progress
 edges' traced lengths are stored beside it; CoarseSpace.cache says which ('hit', 'miss', 'rebuilt', 'off').
 trace=True and QEM's intrinsic Delaunay geometry bypass it. Raises ice.MeshError naming
 each defect of a refused mesh.)doc");
+  m.def("_transport_directions", &transport_directions, py::arg("V"), py::arg("F"), py::arg("sources"), py::arg("directions"),
+        py::kw_only(), py::arg("solver") = "sweep", py::arg("operators") = "galerkin", py::arg("time_factor") = py::none(),
+        py::arg("fine") = "intrinsic_delaunay", py::arg("sweep_passes") = fem::DistanceSweepOptions{}.max_passes,
+        py::arg("sweep_coarse_interval") = fem::DistanceSweepOptions{}.coarse_correction_interval, py::arg("n") = py::none(),
+        py::arg("ratio") = py::none(), py::arg("min_vertices") = py::none(), py::arg("max_error") = py::none(),
+        py::arg("method") = "ice", py::arg("use") = "poisson_heat", py::arg("area_weight") = py::none(),
+        py::arg("normalize_curvature") = py::none(), py::arg("locked") = py::none(), py::arg("remove_boundary") = true,
+        py::arg("threads") = 0, py::arg("regions") = 0, py::arg("qem_geometry") = "extrinsic",
+        py::arg("refine_angle") = py::none(), py::arg("refine_budget") = 1.5, py::arg("locality_numbering") = true,
+        py::arg("nonmanifold") = "refuse",
+        "ice.transport_directions without its defaults (the coarsening target is required here).");
   m.def("setup_proxy", &setup_proxy, py::arg("V"), py::arg("F"), py::kw_only(), py::arg("operators") = "galerkin",
         py::arg("fine") = "intrinsic_delaunay", py::arg("prolongation") = "auto", py::arg("fixed") = py::none(),
         py::arg("cache") = py::none(), py::arg("n") = py::none(), py::arg("ratio") = py::none(),

@@ -146,3 +146,23 @@ def test_point_cloud_geodesics_by_marching_and_the_heat_method():
         ice.geodesic_distance(P, F, [0], coarse=coarse, lengths="traced")
     with pytest.raises(ValueError, match="from_coarse"):  # a Proxy's fine mesh has one fan per sheet
         ice.ProxyGeodesicSolver(ice.Proxy(P, F, coarse))
+
+
+def test_vectors_in_space_through_the_cover(project_mesh):
+    """ice.transport_directions on a point cloud's cover: tangent to the sphere, the source's direction
+    at the source; on a manifold mesh the option changes nothing."""
+    P = sphere_points(1500)
+    F = ice.point_cloud_triangles(P)
+    d = np.array([[0.0, 0.0, 1.0]]) - (P[0] @ [0.0, 0.0, 1.0]) * P[0]  # tangent at point 0
+    field = ice.transport_directions(P, F, [0], d, ratio=0.2, nonmanifold="tufted")
+    assert field.shape == (1500, 3) and np.isfinite(field).all()
+    norms = np.linalg.norm(field, axis=1)
+    assert norms.min() > 0
+    # Tangent to the sphere up to the triangles' tilt against its tangent planes (spacing ~0.09: ~0.05).
+    assert np.median(np.abs(np.einsum("ij,ij->i", field, P)) / norms) < 0.15
+    assert np.dot(field[0], d[0]) / (norms[0] * np.linalg.norm(d[0])) > 0.99
+    with pytest.raises(ValueError, match="normal to the surface"):
+        ice.transport_directions(P, F, [0], [[0.0, 0.0, 0.0]], ratio=0.2, nonmanifold="tufted")
+    mesh = ice.load_mesh(project_mesh("spot.obj"))
+    plain = ice.transport_directions(mesh.V, mesh.F, [0], [[0.0, 0.0, 1.0]], ratio=0.1)
+    assert np.array_equal(plain, ice.transport_directions(mesh.V, mesh.F, [0], [[0.0, 0.0, 1.0]], ratio=0.1, nonmanifold="tufted"))
