@@ -214,8 +214,15 @@ ice::CoarseSpace coarsen_copies_for_pde(const ice::TuftedCover& cover, const ice
   } catch (const std::invalid_argument& e) {  // QEM or refinement asked of a cover
     throw AppError(kUsage, opt.mesh + ": " + e.what());
   }
-  warn_if_target_missed(run.tool, space.summary, space_options.coarsen);
-  run.coarsening = space.summary;
+  // Counted as the other tools count a cover: the input vertices that keep a coarse copy, of the input's.
+  ice::CoarseSpaceSummary summary = space.summary;
+  std::vector<char> kept(static_cast<std::size_t>(cover.input_vertex_count), 0);
+  for (ice::Index copy : space.mesh.to_input) kept[static_cast<std::size_t>(cover.to_input[static_cast<std::size_t>(copy)])] = 1;
+  summary.coarse_vertices = static_cast<ice::Index>(std::count(kept.begin(), kept.end(), 1));
+  summary.input_vertices = cover.input_vertex_count;
+  summary.tufted_cover = true;
+  warn_if_target_missed(run.tool, summary, space_options.coarsen);
+  run.coarsening = summary;
   return space;
 }
 

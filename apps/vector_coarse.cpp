@@ -211,7 +211,7 @@ int vector_coarse_tool::main(int argc, char** argv) {
           const Eigen::Vector3d d(directions[3 * s], directions[3 * s + 1], directions[3 * s + 2]);
           scaled.row(static_cast<Eigen::Index>(s)) = magnitudes[s] * d.normalized().transpose();
         }
-        ice::proxy::CopySources on_copies = ice::proxy::sources_on_copies(*cover, fine, sources, scaled);
+        ice::proxy::CopySources on_copies = ice::proxy::sources_on_copies(*cover, fine, sources, scaled, file_sources);
         field_sources = std::move(on_copies.copies);
         vectors = std::move(on_copies.vectors);
       } else {

@@ -175,7 +175,7 @@ function(solved_on_cover input vertices poisson_bound heat_bound geodesic_bound)
   endif()
   json(err "${WORK}/m.json" error rel_l2)
   check(${err} LESS ${geodesic_bound} "geodesics on the cover by marching: relative L2 error against the fine heat method")
-  expect_error(4 "--coarse-lengths traced traces the coarse edges.*tufted cover" geodesic-coarse "${input}"
+  expect_error(4 "--coarse-lengths traced: traced lengths.*tufted cover" geodesic-coarse "${input}"
                --nonmanifold tufted ${ARGN} --source 0 --coarse-lengths traced -q)
   run(0 geodesic-coarse "${input}" --nonmanifold tufted ${ARGN} --sample 10 --no-cache --report "${WORK}/o.json" --force -q)
   json(err "${WORK}/o.json" accuracy far mean_rel)

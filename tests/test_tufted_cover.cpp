@@ -831,11 +831,30 @@ TEST_CASE("tufted cover: vector fields on the copies of its sheets, near the fin
     REQUIRE(field.row(v).norm() > 0);
     CHECK(std::abs(field.row(v).dot(mesh.V.row(v).normalized())) < 0.1 * field.row(v).norm());
   }
+  // At the source, the given direction (tangent there up to the faces' tilt), of its length.
+  CHECK(field.row(spheres.bottom).dot(direction.row(0)) > 0.95 * field.row(spheres.bottom).norm());
+  CHECK(field.row(spheres.bottom).norm() == Approx(1.0).epsilon(0.05));
   CHECK(field.bottomRows(spheres.n - 1).norm() == 0);
   CHECK(reference.bottomRows(spheres.n - 1).norm() == 0);
   const double angle = median_angle_degrees(field.topRows(spheres.n), reference.topRows(spheres.n));
   INFO("median angle against the fine method " << angle << " degrees");
   CHECK(angle < 5.0);
+  {
+    // Three triangles on one edge, two flat and one upright: a direction normal to the flat sheets
+    // at a vertex of the shared edge lies in the upright one, and is carried there (not refused).
+    ice::TriangleMesh fin;
+    fin.V.resize(5, 3);
+    fin.V << 0, 0, 0, 1, 0, 0, 0.5, 1, 0, 0.5, -1, 0, 0.5, 0, 1;
+    fin.F.resize(3, 3);
+    fin.F << 0, 1, 2, 1, 0, 3, 0, 1, 4;
+    ice::proxy::VectorTransportOptions fin_options;
+    fin_options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+    fin_options.coarsening.coarsen.target_vertices = 5;
+    const Eigen::MatrixXd up = ice::proxy::transport_directions(fin, {0}, Eigen::MatrixXd(Eigen::RowVector3d(0, 0, 1)), fin_options);
+    REQUIRE(up.allFinite());
+    CHECK(up.row(4).norm() > 0);
+    CHECK(std::abs(up.row(4)(1)) < 1e-9 * up.row(4).norm());  // in the upright face's plane (y = 0)
+  }
   // A zero direction has nothing to project: refused, naming the source.
   REQUIRE_THROWS_WITH(solver.transport_directions(sources, Eigen::MatrixXd::Zero(1, 3)), Catch::Contains("normal to the surface"));
   // A manifold mesh: the option changes nothing.

@@ -244,19 +244,26 @@ Complex ambient_to_tangent(const ice::IntrinsicMesh& mesh, const TangentFrames& 
       frames.reference_corner[static_cast<std::size_t>(v)] == ice::kInvalid)
     throw std::invalid_argument("ambient_to_tangent: vertex " + std::to_string(v) + " is not a vertex of a face");
   // Only v's fan: a source's vector must not cost a pass over the mesh.
+  // A corner whose face is normal to the direction has no angle for it (atan2(0, 0)): skipped, so
+  // that a direction in one face plane of a folded fan is not lost to another's. Ties go to the
+  // longer projection.
   Complex best(0);
-  double best_gap = INFINITY;
+  double best_gap = INFINITY, best_length = 0;
+  const double negligible = 1e-12 * direction.norm();
   for_each_fan_corner(mesh.twin, frames.reference_corner[static_cast<std::size_t>(v)], [&](Index c) {
     const Index f = c / 3;
     const int k = c % 3;
     const CornerBasis basis = corner_basis(mesh.F, V, f, k);
     const double x = direction.dot(basis.along), y = direction.dot(basis.across);
+    const double length = std::hypot(x, y);
+    if (!(length > negligible)) return;
     const double within = std::atan2(y, x);
     const double corner = corner_angle(mesh.L, f, k);
     const double gap = within < 0 ? -within : (within > corner ? within - corner : 0.0);
-    if (gap < best_gap) {
+    if (gap < best_gap || (gap == best_gap && length > best_length)) {
       best_gap = gap;
-      best = std::polar(std::hypot(x, y), frames.side_coordinate(f, k) + frames.angle_scale(v) * within);
+      best_length = length;
+      best = std::polar(length, frames.side_coordinate(f, k) + frames.angle_scale(v) * within);
     }
   });
   return best;

@@ -32,7 +32,7 @@ MappedSpace mapped_space(const TriangleMesh& mesh, const CoarseSpaceOptions& coa
 /// tufted cover's space).
 bool trace(CoarseLengths choice, const CoarseSpace& space, const std::vector<CoarsePoint>* map, bool marching) {
   if (space.summary.tufted_cover) {
-    if (choice == CoarseLengths::traced) refuse_tracing_on_cover(true, "marching on traced coarse lengths");
+    if (choice == CoarseLengths::traced) refuse_tracing_on_cover(true, "traced coarse lengths for marching");
     return false;
   }
   const bool can_trace = map != nullptr || space.triangulation.has_value();
@@ -45,9 +45,10 @@ bool trace(CoarseLengths choice, const CoarseSpace& space, const std::vector<Coa
 
 void refuse_tracing_on_cover(bool tufted_cover, const std::string& what) {
   if (tufted_cover)
-    throw std::invalid_argument(what + " traces the coarse edges over the input's triangles, which a tufted cover's coarse "
-                                "space (a mesh that is not an oriented manifold, or a point cloud) is not traced over: "
-                                "on a cover, coarse marching runs on the coarse mesh's own lengths (lengths 'auto')");
+    throw std::invalid_argument(what + ": traced lengths lay the coarse edges over the input's triangles, and a tufted "
+                                "cover's coarse space (a mesh that is not an oriented manifold, or a point cloud) lies on "
+                                "the cover's sheets: on a cover, coarse marching runs on the coarse mesh's own lengths "
+                                "(lengths 'auto')");
 }
 
 GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options, std::optional<CoarseSpace> coarse,
@@ -59,7 +60,7 @@ GeodesicSolver::GeodesicSolver(const TriangleMesh& mesh, GeodesicOptions options
     const double divisor = curvature_divisor(MarchingUse::single_source);
     // On a cover, the coarse mesh's own lengths (corrected only when asked: corrects_curvature); refused before the work.
     if (options_.lengths == CoarseLengths::traced)
-      refuse_tracing_on_cover(on_cover(mesh, options_.coarsening, coarse), "marching on traced coarse lengths");
+      refuse_tracing_on_cover(on_cover(mesh, options_.coarsening, coarse), "traced coarse lengths for marching");
     if (!coarse) {  // coarsened with its map, the space and its marching lengths through the store
       const Store store(options_.store);
       MappedSpace space = mapped_space(mesh, options_.coarsening, store);
@@ -103,7 +104,7 @@ fem::DistanceOracle distance_oracle(const TriangleMesh& mesh, const OracleOption
                                     const std::vector<CoarsePoint>* map, CacheReport* cache) {
   const bool marching = options.oracle.method == fem::CoarseDistanceMethod::marching;
   require_marching_for_traced(options.lengths, marching);
-  if (options.lengths == CoarseLengths::traced) refuse_tracing_on_cover(on_cover(mesh, options.coarsening, coarse), "the distance oracle");
+  if (options.lengths == CoarseLengths::traced) refuse_tracing_on_cover(on_cover(mesh, options.coarsening, coarse), "the distance oracle's traced lengths");
   const double divisor = curvature_divisor(MarchingUse::all_pairs);
   if (!coarse) {  // coarsened with its map, the space and its marching lengths through the store
     const Store store(options.store);

@@ -48,7 +48,9 @@ struct SpaceEntry {
 // corners (a consumer walks the map and prolongs with P: the two must be one map). Through a tufted
 // cover a point is one copy's and P's row the mean of all copies' (ice::fine_to_coarse_map): there
 // every corner the point weighs lies in the row's columns, with a positive entry.
-std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::string& path, const CoarseSpace& c) {
+std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::string& path, const CoarseSpace& c, bool covered) {
+  require(c.summary.tufted_cover == covered, path,
+          covered ? "the space is not a tufted cover's, which the mesh needs" : "the space is a tufted cover's, which the mesh does not need");
   const std::vector<std::int32_t> vertex_face = entry.ints("map.vertex_face");
   const std::vector<double> bary = entry.doubles("map.bary");
   const auto n = static_cast<std::size_t>(c.P.rows());
@@ -62,15 +64,18 @@ std::vector<CoarsePoint> map_from_entry(const EntryReader& entry, const std::str
     require(p.coarse_vertex == c.mesh.from_input[i], path, "the map and the input vertex map disagree");
     require(p.face >= 0 && p.face < faces, path, "a map point lies in no coarse face");
     double sum = 0;
+    bool at_its_vertex = false;
     for (std::size_t k = 0; k < 3; ++k) {
       p.bary[k] = bary[3 * i + k];
-      require(std::isfinite(p.bary[k]), path, "a map point's coordinates are not finite");
+      require(std::isfinite(p.bary[k]) && p.bary[k] >= -1e-9, path, "a map point's coordinates are not finite and non-negative");
       sum += p.bary[k];
+      at_its_vertex |= p.bary[k] == 1 && c.mesh.F(p.face, static_cast<Eigen::Index>(k)) == p.coarse_vertex;
     }
     require(std::abs(sum - 1) <= 1e-9, path, "a map point's coordinates do not sum to 1");
+    // Through a cover P is checked loosely below: a survivor's point must then be its coarse vertex.
+    if (covered && p.coarse_vertex != kInvalid) require(at_its_vertex, path, "a surviving vertex's map point is not its coarse vertex");
   }
   constexpr double kTolerance = 1e-12;  // P's entries are the map's coordinates summed over repeated corners
-  const bool covered = c.summary.tufted_cover;
   std::vector<double> row_sum(n, 0.0);
   std::vector<int> corners_seen(n, 0);  // covered: the point's weighted corners met among the row's columns
   for (Eigen::Index j = 0; j < c.P.outerSize(); ++j)
@@ -164,7 +169,7 @@ MappedSpace build_mapped_space(const TriangleMesh& mesh, const MappedSpaceOption
         options.store, kSpaceKind, *result.key, result.cache, [&](const EntryReader& entry, const std::string& path) {
           MappedSpace space;
           space.coarse = detail::coarse_space_from_entry(entry, path, mesh);
-          space.map = map_from_entry(entry, path, space.coarse);
+          space.map = map_from_entry(entry, path, space.coarse, covered);
           return space;
         });
     if (hit) {
@@ -210,7 +215,8 @@ MappedSpace load_mapped_space_file(const std::filesystem::path& path, const Tria
   const EntryReader entry = detail::read_file_for(path, kSpaceKind, mesh);
   MappedSpace space;
   space.coarse = detail::coarse_space_from_entry(entry, path.string(), mesh);
-  space.map = map_from_entry(entry, path.string(), space.coarse);
+  // A mesh that needs the cover can only have been coarsened through it (and one that does not, not).
+  space.map = map_from_entry(entry, path.string(), space.coarse, needs_tufted_cover(mesh));
   space.cache.load_seconds = seconds_since(start);
   return space;
 }

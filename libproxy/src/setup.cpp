@@ -106,37 +106,38 @@ SurfaceEdgeLengths marching_lengths(const TriangleMesh& mesh, const CoarseSpace&
   return result;
 }
 
-TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool with_operators, double time_factor) {
+namespace {
+// The tangent mesh of `mesh` (lengths and gluing set), its operators on `delaunay()`'s fine mesh
+// with intrinsic_delaunay, else on `mesh` itself.
+template <class Delaunay>
+TangentMesh tangent_mesh_of(IntrinsicMesh mesh, FineGeometry geometry, bool with_operators, double time_factor, Delaunay&& delaunay) {
   TangentMesh out;
-  out.mesh.F = mesh.F;
-  out.mesh.L = face_lengths_from_positions(mesh.V, mesh.F);
-  out.mesh.twin = glue_by_vertex_pairs(mesh.F);
-  out.mesh.vertex_count = static_cast<Index>(mesh.V.rows());
+  out.mesh = std::move(mesh);
   out.frames = fem::tangent_frames(out.mesh);
   if (!with_operators) return out;
   if (geometry == FineGeometry::input) {
     out.operators = fem::vector_heat_operators(out.mesh, out.frames, time_factor);
   } else {
-    FineMesh delaunay = fine_mesh(mesh, geometry);
-    out.flips = delaunay.flips;
-    out.operators = fem::vector_heat_operators(out.mesh, out.frames, delaunay, time_factor);
+    FineMesh fine = delaunay();
+    out.flips = fine.flips;
+    out.operators = fem::vector_heat_operators(out.mesh, out.frames, fine, time_factor);
   }
   return out;
 }
+}  // namespace
+
+TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool with_operators, double time_factor) {
+  IntrinsicMesh input;
+  input.F = mesh.F;
+  input.L = face_lengths_from_positions(mesh.V, mesh.F);
+  input.twin = glue_by_vertex_pairs(mesh.F);
+  input.vertex_count = static_cast<Index>(mesh.V.rows());
+  return tangent_mesh_of(std::move(input), geometry, with_operators, time_factor, [&] { return fine_mesh(mesh, geometry); });
+}
 
 TangentMesh tangent_mesh(const TuftedCover& cover, FineGeometry geometry, bool with_operators, double time_factor) {
-  TangentMesh out;
-  out.mesh = cover.intrinsic_mesh();
-  out.frames = fem::tangent_frames(out.mesh);
-  if (!with_operators) return out;
-  if (geometry == FineGeometry::input) {
-    out.operators = fem::vector_heat_operators(out.mesh, out.frames, time_factor);
-  } else {
-    FineMesh delaunay = fine_mesh_on_copies(cover, geometry);
-    out.flips = delaunay.flips;
-    out.operators = fem::vector_heat_operators(out.mesh, out.frames, delaunay, time_factor);
-  }
-  return out;
+  return tangent_mesh_of(cover.intrinsic_mesh(), geometry, with_operators, time_factor,
+                         [&] { return fine_mesh_on_copies(cover, geometry); });
 }
 
 fem::Complex tangent_direction(const TangentMesh& fine, const Positions& V, Index v, const Eigen::Vector3d& direction,
@@ -148,7 +149,7 @@ fem::Complex tangent_direction(const TangentMesh& fine, const Positions& V, Inde
 }
 
 CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine, const std::vector<Index>& sources,
-                              const Eigen::MatrixXd& directions) {
+                              const Eigen::MatrixXd& directions, const std::vector<long long>& labels) {
   if (directions.rows() != static_cast<Eigen::Index>(sources.size()) || directions.cols() != 3)
     throw std::invalid_argument("sources_on_copies: " + std::to_string(directions.rows()) + "x" + std::to_string(directions.cols()) +
                                 " directions for " + std::to_string(sources.size()) + " sources (one 3D direction each)");
@@ -161,19 +162,27 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
     std::vector<std::size_t> next(first.begin(), first.end() - 1);
     for (std::size_t c = 0; c < cover.to_input.size(); ++c) by_input[next[static_cast<std::size_t>(cover.to_input[c])]++] = static_cast<Index>(c);
   }
+  if (!labels.empty() && labels.size() != sources.size())
+    throw std::invalid_argument("sources_on_copies: " + std::to_string(labels.size()) + " labels for " + std::to_string(sources.size()) + " sources");
   CopySources result;
   for (std::size_t s = 0; s < sources.size(); ++s) {
+    const std::string name = "source " + std::to_string(labels.empty() ? static_cast<long long>(sources[s]) : labels[s]);
     const Eigen::Vector3d d = directions.row(static_cast<Eigen::Index>(s)).transpose();
     if (sources[s] < 0 || sources[s] >= cover.input_vertex_count)
-      throw std::invalid_argument("sources_on_copies: source " + std::to_string(sources[s]) + " is not a vertex of the input");
+      throw std::invalid_argument("sources_on_copies: " + name + " is not a vertex of the input");
+    // A copy whose sheet is normal to the direction takes none (the direction lies in another sheet's plane).
     bool any = false;
     for (std::size_t i = first[static_cast<std::size_t>(sources[s])]; i < first[static_cast<std::size_t>(sources[s]) + 1]; ++i) {
       const Index c = by_input[i];
+      const fem::Complex z = fem::ambient_to_tangent(fine.mesh, fine.frames, cover.mesh.V, c, d);
+      if (!(std::abs(z) > 1e-12 * d.norm())) continue;
       result.copies.push_back(c);
-      result.vectors.push_back(tangent_direction(fine, cover.mesh.V, c, d, "source " + std::to_string(sources[s])));
+      result.vectors.push_back(d.norm() * z / std::abs(z));
       any = true;
     }
-    if (!any) throw std::invalid_argument("sources_on_copies: source " + std::to_string(sources[s]) + " has no copy on the cover");
+    if (!any)
+      throw std::invalid_argument("the direction of " + name + " is normal to the surface on every sheet there (nothing left "
+                                  "after projection)");
   }
   return result;
 }
@@ -201,6 +210,9 @@ fem::VectorSweepProxy make_vector_sweep(const TriangleMesh& mesh, const TangentM
                                         const std::vector<CoarsePoint>& map, const fem::DistanceSweepOptions& options,
                                         const SurfaceEdgeLengths* given) {
   if (!fine.operators) throw std::logic_error("make_vector_sweep: the sweep needs the fine operators (tangent_mesh with_operators)");
+  if (!given && map.size() != static_cast<std::size_t>(mesh.V.rows()))  // e.g. a cover's copies: nothing to trace on `mesh`
+    throw std::invalid_argument("make_vector_sweep: a map of " + std::to_string(map.size()) + " points for a mesh of " +
+                                std::to_string(mesh.V.rows()) + " vertices (give the lengths of a cover's copies)");
   const SurfaceEdgeLengths lengths =
       given ? *given : marching_lengths(mesh, coarse, vector_sweep_traces(coarse), CurvatureCorrection::automatic, &map);
   return fem::VectorSweepProxy(*fine.operators, fem::ProxyGeodesicSolver(with_lengths(coarse.mesh, lengths.lengths), coarse.P), options);

@@ -73,7 +73,15 @@ Eigen::MatrixXd VectorTransportSolver::transport_directions(const std::vector<In
 
 Eigen::VectorXcd transport_vectors(const TriangleMesh& mesh, const std::vector<Index>& sources,
                                    const std::vector<fem::Complex>& vectors, const VectorTransportOptions& options) {
+  if (solved_on_tufted_cover(mesh, options.coarsening.nonmanifold))
+    throw std::invalid_argument("transport_vectors: on a tufted cover a vertex has a tangent frame per copy; give the sources' "
+                                "vectors in space (transport_directions)");
   return VectorTransportSolver(mesh, options).transport(sources, vectors);
+}
+
+Eigen::MatrixXd transport_directions(const TriangleMesh& mesh, const std::vector<Index>& sources, const Eigen::MatrixXd& directions,
+                                     const VectorTransportOptions& options) {
+  return VectorTransportSolver(mesh, options).transport_directions(sources, directions);
 }
 
 }  // namespace ice::proxy

@@ -923,7 +923,7 @@ Eigen::MatrixXd transport_directions(const py::object& V, const py::object& F, c
     py::gil_scoped_release release;
     require_clean(mesh, options.coarsening.nonmanifold);
     try {
-      field = ice::proxy::VectorTransportSolver(mesh, options).transport_directions(vertices, D);
+      field = ice::proxy::transport_directions(mesh, vertices, D, options);
     } catch (const std::invalid_argument& e) {  // a direction normal to the surface, options a cover does not take
       refused = e.what();
     }

@@ -66,7 +66,8 @@ Eigen::MatrixXd tangent_to_ambient(const ice::IntrinsicMesh& mesh, const Tangent
                                    const Eigen::VectorXcd& field);
 /// The tangent vector at v of a 3D direction (projected into the plane of the corner it points into;
 /// the corner is the one whose face plane makes the projection's angle fall inside it, else the
-/// closest). Length: that of the projection.
+/// closest; corners whose face is normal to the direction are passed over). Length: that of the
+/// projection; 0 when every face at v is normal to the direction.
 Complex ambient_to_tangent(const ice::IntrinsicMesh& mesh, const TangentFrames& frames, const Eigen::MatrixXd& V, Index v,
                            const Eigen::Vector3d& direction);
 

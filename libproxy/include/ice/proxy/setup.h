@@ -124,7 +124,7 @@ void save_proxy_setup(const Store& store, const StoreKey& key, ProxySetup& setup
 /// the store's entry format, keyed by `mesh`'s arrays: load_proxy_setup_file takes it back for that
 /// mesh only. Atomic (a temporary file beside `path`, renamed). An existing file is replaced only
 /// when `overwrite`. Throws std::invalid_argument when the setup has no proxy, was not made for a
-/// mesh of `mesh`'s vertex count or went through a tufted cover (not recorded yet), ice::MeshError (unwritable) when `path` exists and `overwrite` is
+/// mesh of `mesh`'s vertex count, ice::MeshError (unwritable) when `path` exists and `overwrite` is
 /// false or its directory does not exist, std::runtime_error naming the file when it cannot be written.
 void save_proxy_setup_file(const std::filesystem::path& path, const TriangleMesh& mesh, const ProxySetup& setup,
                            bool overwrite = false);
@@ -257,15 +257,17 @@ fem::Complex tangent_direction(const TangentMesh& fine, const Positions& V, Inde
                                const std::string& name);
 
 /// Sources of a field on a tufted cover's copies: every copy of each input vertex of `sources`, with
-/// that source's 3D `direction` (a row of `directions`) as tangent_direction makes it at the copy.
-/// Throws std::invalid_argument as tangent_direction, for a source out of range, or when the sizes
-/// disagree.
+/// that source's 3D `direction` (a row of `directions`) projected into the copy's tangent plane, of the
+/// direction's length — but a copy whose faces are all normal to the direction (it lies in another
+/// sheet's plane), which takes none. Throws std::invalid_argument (naming the source by `labels[s]`
+/// when given, e.g. the file's vertex numbers, else its index) when no copy of a source takes its
+/// direction, for a source out of range, or when the sizes disagree.
 struct CopySources {
   std::vector<Index> copies;
   std::vector<fem::Complex> vectors;
 };
 CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine, const std::vector<Index>& sources,
-                              const Eigen::MatrixXd& directions);
+                              const Eigen::MatrixXd& directions, const std::vector<long long>& labels = {});
 /// A field on the copies (fine's frames) as 3D vectors on the input vertices: each vertex the mean of
 /// its copies' vectors weighted by their areas (ice::cover_to_input, as scalars are). The copies of a
 /// vertex on one sheet and its mirror carry the same 3D vector; where sheets meet, the mean of theirs.

@@ -42,7 +42,7 @@ class VectorTransportSolver {
 
   /// The field (one complex number per vertex of tangent_mesh(), in its frames: on a cover, per copy)
   /// through `vectors` at `sources` (vertices of tangent_mesh(), each vector in its source's frame).
-  /// `stats`: the sweep's.
+  /// `stats`: the sweep's. On a cover the sources are copies (cover()->to_input names their vertices).
   Eigen::VectorXcd transport(const std::vector<Index>& sources, const std::vector<fem::Complex>& vectors,
                              fem::DistanceSweepStats* stats = nullptr) const;
   /// The field as 3D vectors, one row per input vertex, through one 3D direction per source (a row of
@@ -57,7 +57,7 @@ class VectorTransportSolver {
 
   const VectorTransportOptions& options() const { return options_; }
   const CoarseSpace& coarse_space() const { return coarse_; }
-  /// The input triangles' frames and the fine operators.
+  /// The input triangles' frames (on a cover, the copies') and the fine operators.
   const TangentMesh& tangent_mesh() const { return fine_; }
   /// One of the two is set, as options().solver says.
   const fem::VectorSweepProxy* sweep() const { return sweep_.get(); }
@@ -73,8 +73,13 @@ class VectorTransportSolver {
   std::unique_ptr<fem::VectorHeatProxy> diffusion_;
 };
 
-/// VectorTransportSolver(mesh, options).transport(sources, vectors).
+/// VectorTransportSolver(mesh, options).transport(sources, vectors). A mesh solved on its tufted cover
+/// is refused (std::invalid_argument: its vertices have a frame per copy; transport_directions takes it).
 Eigen::VectorXcd transport_vectors(const TriangleMesh& mesh, const std::vector<Index>& sources,
                                    const std::vector<fem::Complex>& vectors, const VectorTransportOptions& options = {});
+/// VectorTransportSolver(mesh, options).transport_directions(sources, directions): on any mesh, and on
+/// a tufted cover.
+Eigen::MatrixXd transport_directions(const TriangleMesh& mesh, const std::vector<Index>& sources, const Eigen::MatrixXd& directions,
+                                     const VectorTransportOptions& options = {});
 
 }  // namespace ice::proxy
