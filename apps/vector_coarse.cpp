@@ -165,7 +165,7 @@ int vector_coarse_tool::main(int argc, char** argv) {
       throw AppError(app::kUsage, opt.mesh + ": --vector: on the tufted cover a vertex has a tangent plane per sheet around it "
                                              "(no one reference edge); give --direction");
     std::optional<ice::TuftedCover> cover;
-    if (covered) cover = ice::distinct_sheets(ice::tufted_cover(mesh));
+    if (covered) cover = ice::distinct_sheets(ice::tufted_cover(mesh, /*tuft_boundary=*/false));  // open sheets keep their boundary
     const app::FileVertexMap vertices(loaded);
     std::vector<ice::Index> sources;
     for (long long s : file_sources) sources.push_back(vertices.mesh_vertex(s, "--source: vertex"));
@@ -224,8 +224,8 @@ int vector_coarse_tool::main(int argc, char** argv) {
           vectors.push_back(magnitudes[s] * z);
         }
       }
-    } catch (const std::invalid_argument& e) {  // a direction normal to the surface
-      throw AppError(app::kUsage, std::string("--direction: ") + e.what());
+    } catch (const std::invalid_argument& e) {  // a direction normal to the surface, a source on a cover's fold
+      throw AppError(app::kUsage, opt.mesh + ": " + e.what());
     }
     run.assemble = clock.lap();
     // One of the two proxies: the sweep's marching distance, or the diffusion's vector prolongation

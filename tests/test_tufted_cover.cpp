@@ -840,20 +840,57 @@ TEST_CASE("tufted cover: vector fields on the copies of its sheets, near the fin
   INFO("median angle against the fine method " << angle << " degrees");
   CHECK(angle < 5.0);
   {
-    // Three triangles on one edge, two flat and one upright: a direction normal to the flat sheets
-    // at a vertex of the shared edge lies in the upright one, and is carried there (not refused).
-    ice::TriangleMesh fin;
-    fin.V.resize(5, 3);
-    fin.V << 0, 0, 0, 1, 0, 0, 0.5, 1, 0, 0.5, -1, 0, 0.5, 0, 1;
-    fin.F.resize(3, 3);
-    fin.F << 0, 1, 2, 1, 0, 3, 0, 1, 4;
-    ice::proxy::VectorTransportOptions fin_options;
-    fin_options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
-    fin_options.coarsening.coarsen.target_vertices = 5;
-    const Eigen::MatrixXd up = ice::proxy::transport_directions(fin, {0}, Eigen::MatrixXd(Eigen::RowVector3d(0, 0, 1)), fin_options);
+    // A flat square sheet with an upright one standing on its middle line (sheets meeting along
+    // non-manifold edges): a vertical direction at a vertex of that line is normal to the flat sheet
+    // and lies in the upright one, which carries it (the flat copies take none, nothing is refused).
+    ice::TriangleMesh tee;
+    const int size = 5;  // vertices per side of the flat sheet; the upright one is size × 3, on y = 0
+    std::vector<Eigen::RowVector3d> points;
+    const auto flat = [&](int i, int j) { return i * size + j; };  // x = i - 2, y = j - 2
+    for (int i = 0; i < size; ++i)
+      for (int j = 0; j < size; ++j) points.emplace_back(i - 2.0, j - 2.0, 0.0);
+    const auto upright = [&](int i, int k) { return k == 0 ? flat(i, size / 2) : size * size + i * 2 + (k - 1); };  // z = k
+    for (int i = 0; i < size; ++i)
+      for (int k = 1; k <= 2; ++k) points.emplace_back(i - 2.0, 0.0, static_cast<double>(k));
+    std::vector<std::array<Index, 3>> faces;
+    for (int i = 0; i + 1 < size; ++i) {
+      for (int j = 0; j + 1 < size; ++j) {
+        faces.push_back({flat(i, j), flat(i + 1, j), flat(i + 1, j + 1)});
+        faces.push_back({flat(i, j), flat(i + 1, j + 1), flat(i, j + 1)});
+      }
+      for (int k = 0; k < 2; ++k) {
+        faces.push_back({upright(i, k), upright(i + 1, k), upright(i + 1, k + 1)});
+        faces.push_back({upright(i, k), upright(i + 1, k + 1), upright(i, k + 1)});
+      }
+    }
+    tee.V.resize(static_cast<Eigen::Index>(points.size()), 3);
+    for (std::size_t v = 0; v < points.size(); ++v) tee.V.row(static_cast<Eigen::Index>(v)) = points[v];
+    tee.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+    for (std::size_t f = 0; f < faces.size(); ++f)
+      for (int k = 0; k < 3; ++k) tee.F(static_cast<Eigen::Index>(f), k) = faces[f][static_cast<std::size_t>(k)];
+    REQUIRE(ice::needs_tufted_cover(tee));
+    ice::proxy::VectorTransportOptions tee_options;
+    tee_options.coarsening.nonmanifold = ice::NonmanifoldInput::tufted_cover;
+    tee_options.coarsening.coarsen.target_ratio = 0.8;
+    const Index junction = flat(size / 2, size / 2);  // the middle of the line, inside both sheets
+    const Eigen::MatrixXd up =
+        ice::proxy::transport_directions(tee, {junction}, Eigen::MatrixXd(Eigen::RowVector3d(0, 0, 1)), tee_options);
     REQUIRE(up.allFinite());
-    CHECK(up.row(4).norm() > 0);
-    CHECK(std::abs(up.row(4)(1)) < 1e-9 * up.row(4).norm());  // in the upright face's plane (y = 0)
+    const Index above = upright(size / 2, 1);
+    CHECK(up.row(above).norm() > 0);
+    CHECK(std::abs(up.row(above)(1)) < 1e-9 * up.row(above).norm());  // in the upright sheet's plane (y = 0)
+    CHECK(up.row(above)(2) > 0.9 * up.row(above).norm());              // still vertical: a flat sheet transports it unturned
+    // A source on a sheet's boundary (the flat sheet's corner): the sheets keep their boundary (no
+    // fold onto their other side), so along the flat sheet the vector stays as given, to the far corner.
+    const Eigen::MatrixXd along =
+        ice::proxy::transport_directions(tee, {flat(0, 0)}, Eigen::MatrixXd(Eigen::RowVector3d(1, 0, 0)), tee_options);
+    const Eigen::RowVector3d far = along.row(flat(size - 1, size - 1));
+    CHECK(far(0) > 0.99 * far.norm());
+    // A cover made with its boundary tufts folds there: a source at the fold is refused, saying so.
+    const ice::TuftedCover tufted = ice::distinct_sheets(ice::tufted_cover(tee));
+    const ice::proxy::TangentMesh folded = ice::proxy::tangent_mesh(tufted, ice::FineGeometry::input, false);
+    REQUIRE_THROWS_WITH(ice::proxy::sources_on_copies(tufted, folded, {flat(0, 0)}, Eigen::MatrixXd(Eigen::RowVector3d(1, 0, 0))),
+                        Catch::Contains("boundary of an open sheet"));
   }
   // A zero direction has nothing to project: refused, naming the source.
   REQUIRE_THROWS_WITH(solver.transport_directions(sources, Eigen::MatrixXd::Zero(1, 3)), Catch::Contains("normal to the surface"));

@@ -98,7 +98,7 @@ bool needs_tufted_cover(const TriangleMesh& mesh) {
   return false;
 }
 
-TuftedCover tufted_cover(const TriangleMesh& mesh) {
+TuftedCover tufted_cover(const TriangleMesh& mesh, bool tuft_boundary) {
   require_faces_in_range(mesh, "tufted_cover");
   const Positions& V = mesh.V;
   const Faces& F = mesh.F;
@@ -136,7 +136,7 @@ TuftedCover tufted_cover(const TriangleMesh& mesh) {
     const auto forward_sheet = [&](Index s) { return F(s / 3, s % 3) == lo ? s : back(s); };
     const auto backward_sheet = [&](Index s) { return F(s / 3, s % 3) == lo ? back(s) : s; };
     if (count == 1) {
-      glue(sides[0], back(sides[0]));
+      if (tuft_boundary) glue(sides[0], back(sides[0]));  // else both sides stay open
       continue;
     }
     around.clear();
@@ -176,7 +176,7 @@ TuftedCover tufted_cover(const TriangleMesh& mesh) {
   detail::DisjointSets fans(static_cast<std::size_t>(6 * m));
   for (Index s = 0; s < 6 * m; ++s) {
     const Index t = twin[static_cast<std::size_t>(s)];
-    fans.unite(static_cast<std::size_t>(s), static_cast<std::size_t>(head_corner(t)));
+    if (t != kInvalid) fans.unite(static_cast<std::size_t>(s), static_cast<std::size_t>(head_corner(t)));
   }
   std::vector<Index> roots;  // a fan's representative is its smallest corner
   for (Index c = 0; c < 6 * m; ++c)
@@ -207,8 +207,9 @@ TuftedCover distinct_sheets(const TuftedCover& cover) {
   if (cover.twin.size() != static_cast<std::size_t>(3 * faces)) refuse("the gluing does not have 3 sides per face");
   for (Index s = 0; s < 3 * faces; ++s) {
     const Index t = cover.twin[static_cast<std::size_t>(s)];
+    if (t == kInvalid) continue;  // open (a cover without boundary tufts)
     if (t < 0 || t >= 3 * faces || t == s || cover.twin[static_cast<std::size_t>(t)] != s)
-      refuse("side " + std::to_string(s) + " is not glued to a side glued back to it (the cover is closed)");
+      refuse("side " + std::to_string(s) + " is not glued to a side glued back to it");
   }
   if (cover.to_input.size() != static_cast<std::size_t>(cover.mesh.V.rows()))
     refuse("to_input does not have one entry per cover vertex");
@@ -268,7 +269,7 @@ TuftedCover distinct_sheets(const TuftedCover& cover) {
     for (int k = 0; k < 3; ++k) {
       out.mesh.F(g, k) = new_copy[static_cast<std::size_t>(cover.mesh.F(f, k))];
       const Index t = cover.twin[static_cast<std::size_t>(3 * f + k)];  // in the same component: kept
-      out.twin[static_cast<std::size_t>(3 * g + k)] = 3 * new_face[static_cast<std::size_t>(t / 3)] + t % 3;
+      out.twin[static_cast<std::size_t>(3 * g + k)] = t == kInvalid ? kInvalid : 3 * new_face[static_cast<std::size_t>(t / 3)] + t % 3;
     }
   }
   return out;
@@ -322,7 +323,8 @@ Eigen::SparseMatrix<double> MergedCopies::spread() const {
 DisjointSets glued_faces(const TuftedCover& cover) {
   const auto faces = static_cast<std::size_t>(cover.mesh.F.rows());
   DisjointSets parts(faces);
-  for (std::size_t s = 0; s < 3 * faces; ++s) parts.unite(s / 3, static_cast<std::size_t>(cover.twin[s] / 3));
+  for (std::size_t s = 0; s < 3 * faces; ++s)
+    if (cover.twin[s] != kInvalid) parts.unite(s / 3, static_cast<std::size_t>(cover.twin[s] / 3));
   return parts;
 }
 

@@ -1,5 +1,7 @@
 #include "ice/proxy/setup.h"
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -164,6 +166,27 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
   }
   if (!labels.empty() && labels.size() != sources.size())
     throw std::invalid_argument("sources_on_copies: " + std::to_string(labels.size()) + " labels for " + std::to_string(sources.size()) + " sources");
+  // The sources' copies whose fan holds a face and its mirror image (the same input vertices): on an
+  // open sheet's boundary the cover folds from one side to the other there, and a vector at such a
+  // copy would reach the sheet's other side mirrored (averaged on the input, only its component
+  // along the boundary would be left).
+  std::vector<char> is_source_copy(cover.to_input.size(), 0);
+  for (Index v : sources)
+    if (v >= 0 && v < cover.input_vertex_count)
+      for (std::size_t i = first[static_cast<std::size_t>(v)]; i < first[static_cast<std::size_t>(v) + 1]; ++i) is_source_copy[static_cast<std::size_t>(by_input[i])] = 1;
+  std::vector<std::pair<Index, std::array<Index, 3>>> corners;  // (source copy, its face's input vertices, sorted)
+  for (Eigen::Index f = 0; f < cover.mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      if (is_source_copy[static_cast<std::size_t>(cover.mesh.F(f, k))]) {
+        std::array<Index, 3> key;
+        for (int j = 0; j < 3; ++j) key[static_cast<std::size_t>(j)] = cover.to_input[static_cast<std::size_t>(cover.mesh.F(f, j))];
+        std::sort(key.begin(), key.end());
+        corners.emplace_back(cover.mesh.F(f, k), key);
+      }
+  std::sort(corners.begin(), corners.end());
+  std::vector<char> folded(cover.to_input.size(), 0);
+  for (std::size_t i = 1; i < corners.size(); ++i)
+    if (corners[i] == corners[i - 1]) folded[static_cast<std::size_t>(corners[i].first)] = 1;
   CopySources result;
   for (std::size_t s = 0; s < sources.size(); ++s) {
     const std::string name = "source " + std::to_string(labels.empty() ? static_cast<long long>(sources[s]) : labels[s]);
@@ -174,6 +197,10 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
     bool any = false;
     for (std::size_t i = first[static_cast<std::size_t>(sources[s])]; i < first[static_cast<std::size_t>(sources[s]) + 1]; ++i) {
       const Index c = by_input[i];
+      if (folded[static_cast<std::size_t>(c)])
+        throw std::invalid_argument(name + " lies on the boundary of an open sheet, where the tufted cover folds from the "
+                                           "sheet's one side to the other (a vector there has no side to keep): choose a "
+                                           "source off the boundary");
       const fem::Complex z = fem::ambient_to_tangent(fine.mesh, fine.frames, cover.mesh.V, c, d);
       if (!(std::abs(z) > 1e-12 * d.norm())) continue;
       result.copies.push_back(c);

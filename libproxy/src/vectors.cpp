@@ -20,7 +20,7 @@ VectorTransportSolver::VectorTransportSolver(const TriangleMesh& mesh, VectorTra
   coarsening.keep_method_state = true;  // P_vec and the sweep's traced lengths read the fine-to-coarse map
   if (solved_on_tufted_cover(mesh, options_.coarsening.nonmanifold)) {
     // The copies of the cover, where every vertex has one tangent plane (one fan of one sheet).
-    cover_ = distinct_sheets(tufted_cover(mesh));
+    cover_ = distinct_sheets(tufted_cover(mesh, /*tuft_boundary=*/false));
     if (coarse && coarse->P.rows() != static_cast<Eigen::Index>(cover_->to_input.size()))
       throw std::invalid_argument("VectorTransportSolver: the given coarse space has " + std::to_string(coarse->P.rows()) +
                                   " fine vertices, not the cover's " + std::to_string(cover_->to_input.size()) +

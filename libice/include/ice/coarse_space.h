@@ -251,9 +251,9 @@ FineMesh fine_mesh_on_copies(const TuftedCover& cover, FineGeometry geometry);
 /// The coarse space of the cover's copies, left apart as build_coarse_space(cover) makes it before
 /// the copies of one input vertex become one coarse vertex: P is copies × coarse copies, mesh.to_input
 /// names copies, and with keep_method_state fine_to_coarse_map gives one point per copy (the space
-/// is that of `cover` as an oriented Δ-complex: summary.tufted_cover is false). Pass
-/// distinct_sheets(tufted_cover(mesh)) (a mirror sheet would be coarsened twice otherwise). Locks,
-/// target and preconditions as build_coarse_space(cover).
+/// is that of `cover` as an oriented Δ-complex, with a boundary where it was made without boundary
+/// tufts: summary.tufted_cover is false). Pass distinct_sheets' result (a mirror sheet would be
+/// coarsened twice otherwise). Locks, target and preconditions as build_coarse_space(cover).
 CoarseSpace build_coarse_space_on_copies(const TuftedCover& cover, const CoarseSpaceOptions& options);
 
 }  // namespace ice

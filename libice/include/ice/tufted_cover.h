@@ -19,8 +19,9 @@ struct TuftedCover {
   /// Cover vertices at their input vertex's position; faces f < m the input's (front sheets, same
   /// corner order), faces m + f their back sheets (corners 0, 2, 1 of face f).
   TriangleMesh mesh;
-  /// How the sheets are glued (IntrinsicMesh::twin convention). Closed: no side is kInvalid. Two
-  /// cover vertices can be joined by several edges, so vertex pairs cannot say this.
+  /// How the sheets are glued (IntrinsicMesh::twin convention). Closed (no side kInvalid) unless made
+  /// without boundary tufts. Two cover vertices can be joined by several edges, so vertex pairs
+  /// cannot say this.
   std::vector<Index> twin;
   /// Cover vertex → input vertex. An input vertex has one copy per fan of sheets around it: one on an
   /// edge-manifold open sheet (front and back meet at its boundary), two on a closed sheet (its
@@ -54,10 +55,14 @@ bool solved_on_tufted_cover(const TriangleMesh& mesh, NonmanifoldInput choice);
 /// wedge between two consecutive faces is glued to the other face's sheet that looks into the same
 /// wedge (a face alone on its edge: its front to its back). On an edge-manifold, consistently
 /// oriented part this is two mirror copies of it joined along its boundary.
+/// With `tuft_boundary` false a face alone on its edge is left open there (both sheets' sides
+/// kInvalid): the sheets are then the input's oriented double cover with its boundary, where an
+/// orientable open part is its two sides apart (distinct_sheets keeps one) — what tangent vector
+/// fields need (at a tuft the sheet would fold onto its other side, mirroring every vector).
 /// Preconditions (std::invalid_argument otherwise): every index in range, every vertex used, no face
 /// repeating a vertex, every face non-degenerate (ice::is_degenerate_triangle false): what
 /// load_mesh's safe repairs leave of a non-manifold file.
-TuftedCover tufted_cover(const TriangleMesh& mesh);
+TuftedCover tufted_cover(const TriangleMesh& mesh, bool tuft_boundary = true);
 
 /// The cover without redundant sheets: where a closed sheet and its mirror image are components of
 /// the cover of their own (each side of a closed oriented surface that touches the rest of the mesh
@@ -66,8 +71,9 @@ TuftedCover tufted_cover(const TriangleMesh& mesh);
 /// basis function twice (a singular Galerkin mass). Faces keep their order (a subset of the cover's,
 /// so face f < m is no longer front face f); the gluing and copies are renumbered to match.
 /// Preconditions (std::invalid_argument naming the defect otherwise): the shape of ice::tufted_cover's
-/// result — an even face count, a closed gluing (an involution of the 3·faces sides), one input vertex
-/// in [0, input_vertex_count) per cover vertex and a copy of every input vertex.
+/// result — an even face count, a gluing that is an involution of the 3·faces sides where it is
+/// not kInvalid (open: made without boundary tufts), one input vertex in [0, input_vertex_count) per
+/// cover vertex and a copy of every input vertex.
 TuftedCover distinct_sheets(const TuftedCover& cover);
 
 /// The n × (cover vertices) matrix that takes a field on the cover to the input vertices: each input

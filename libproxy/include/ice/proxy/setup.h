@@ -244,7 +244,7 @@ struct TangentMesh {
   Index flips = 0;  ///< intrinsic Delaunay flips
 };
 TangentMesh tangent_mesh(const TriangleMesh& mesh, FineGeometry geometry, bool with_operators, double time_factor = 1.0);
-/// The same on a tufted cover's copies (pass distinct_sheets(tufted_cover(mesh)), the sheets the
+/// The same on a tufted cover's copies (pass distinct_sheets(tufted_cover(mesh, false)), the sheets the
 /// coarse space of build_coarse_space_on_copies is made of): its triangles with the cover's gluing,
 /// one tangent frame per copy, the operators on ice::fine_mesh_on_copies. A vertex of the input has
 /// a tangent plane per copy (per sheet around it); the cover is oriented where the input may not be.
@@ -261,7 +261,9 @@ fem::Complex tangent_direction(const TangentMesh& fine, const Positions& V, Inde
 /// direction's length — but a copy whose faces are all normal to the direction (it lies in another
 /// sheet's plane), which takes none. Throws std::invalid_argument (naming the source by `labels[s]`
 /// when given, e.g. the file's vertex numbers, else its index) when no copy of a source takes its
-/// direction, for a source out of range, or when the sizes disagree.
+/// direction, for a source on the boundary of an open sheet (its one copy's fan holds a face and its
+/// mirror image: the cover folds from the sheet's one side to the other there, and the vector would
+/// reach the other side mirrored), for a source out of range, or when the sizes disagree.
 struct CopySources {
   std::vector<Index> copies;
   std::vector<fem::Complex> vectors;

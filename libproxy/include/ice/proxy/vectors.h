@@ -33,7 +33,8 @@ class VectorTransportSolver {
   /// with keep_method_state) and prepares the solver. Throws std::invalid_argument on bad options.
   /// With options.coarsening.nonmanifold = tufted_cover a mesh that is not an oriented manifold (or a
   /// point cloud's faces) is solved on its tufted cover's copies: cover() is
-  /// distinct_sheets(tufted_cover(mesh)), tangent_mesh() its tangent_mesh(cover) (one frame per copy,
+  /// distinct_sheets(tufted_cover(mesh, false)) (no boundary tufts: an open sheet keeps its boundary,
+  /// as on a manifold), tangent_mesh() its tangent_mesh(cover) (one frame per copy,
   /// per sheet around a vertex) and the coarse space build_coarse_space_on_copies' (a given `coarse`
   /// must be that, with P's rows the copies: std::invalid_argument otherwise). The sweep then
   /// marches on the coarse mesh's own lengths (nothing is traced on a cover).
