@@ -180,9 +180,9 @@ function(solved_on_cover input vertices poisson_bound heat_bound geodesic_bound)
   run(0 geodesic-coarse "${input}" --nonmanifold tufted ${ARGN} --sample 10 --no-cache --report "${WORK}/o.json" --force -q)
   json(err "${WORK}/o.json" accuracy far mean_rel)
   check(${err} LESS ${geodesic_bound} "the distance oracle on the cover: mean relative error of far pairs against the fine heat method")
-  # Vector fields on the copies of the cover's sheets, given in space from ${vector_source}; angles
-  # have no reference edge there.
-  run(0 vector-coarse "${input}" --nonmanifold tufted ${ARGN} --source ${vector_source} --direction 1,0,0 --no-cache
+  # Vector fields on the copies of the cover's sheets, given in space (from vertex 0, on an open
+  # sheet's boundary in triple_vierbein: kept as a manifold's boundary); angles have no reference edge there.
+  run(0 vector-coarse "${input}" --nonmanifold tufted ${ARGN} --source 0 --direction 1,0,0 --no-cache
       --report "${WORK}/v.json" --output "${WORK}/v.ply" --force -q)
   json(err "${WORK}/v.json" error angle median_deg)
   check(${err} LESS 5 "vector transport on the cover: median angle (degrees) against the fine vector heat method")
@@ -1383,7 +1383,6 @@ elseif(CASE STREQUAL "nonmanifold_cover")
   # refines the eigenbasis to the fine one's; coarse marching and the oracle run on the coarse mesh's own lengths.
   project_mesh(mesh triple_vierbein.obj)
   expect_error(2 "non-manifold edges.*--nonmanifold tufted" poisson-coarse "${mesh}" --repair --ratio 0.2 -q)
-  set(vector_source 0)  # on the boundary of an open sheet: kept as a manifold's boundary (no fold)
   solved_on_cover("${mesh}" 75 0.1 0.1 0.1 --repair --ratio 0.3)
   run(0 spectral-coarse "${mesh}" --repair --nonmanifold tufted --ratio 0.4 -k 6 --no-cache --report "${WORK}/s.json" --force -q)
   json(zero "${WORK}/s.json" error zero_modes)
@@ -1424,7 +1423,6 @@ elseif(CASE STREQUAL "point_cloud")
   # point, near the fine robust Laplacian; a repeated point refused, then merged by --repair.
   project_mesh(kitten kitten.xyz)
   expect_error(2 "point cloud of 5210 points.*--nonmanifold tufted" poisson-coarse "${kitten}" -q)
-  set(vector_source 0)
   solved_on_cover("${kitten}" 5210 0.02 0.05 0.1 --ratio 0.1)
   file(STRINGS "${kitten}" _lines)
   list(GET _lines 0 _first)

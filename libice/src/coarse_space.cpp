@@ -436,17 +436,19 @@ std::vector<Index> mapped_copies(const TuftedCover& cover, const std::vector<Ind
 
 /// The options that coarsen the copies of `cover` (distinct_sheets' result) for `options`, asked of its
 /// input vertices: ICE only, no refinement (std::invalid_argument naming `caller` otherwise).
-/// Locked input vertices: every copy of each (they become one coarse vertex when merged). So are the
-/// vertices where separate sheets meet at the vertex alone: a removed copy there would part the
-/// coarse mesh where the input is joined (coarse marching could not cross; P alone would join them).
+/// Locked input vertices: every copy of each (they become one coarse vertex when merged). With
+/// `lock_junctions`, so are the vertices where separate sheets meet at the vertex alone: once the
+/// copies are merged, a removed copy there would part the coarse mesh where the input is joined
+/// (coarse marching could not cross; P alone would join them). Copies left apart join nothing there.
 /// A vertex target counts input vertices; the cover has more (copies): the same ratio of its own.
-CoarseSpaceOptions options_on_copies(const TuftedCover& cover, const CoarseSpaceOptions& options, const char* caller) {
+CoarseSpaceOptions options_on_copies(const TuftedCover& cover, const CoarseSpaceOptions& options, bool lock_junctions,
+                                     const char* caller) {
   if (options.method != CoarseningMethod::ice)
     throw std::invalid_argument(std::string(caller) + ": a tufted cover is coarsened by ICE only (QEM decimates an extrinsic "
                                 "surface; the cover's front and back sheets coincide in space)");
   if (options.refinement) throw std::invalid_argument(std::string(caller) + ": no refinement on a tufted cover");
   CoarseSpaceOptions cover_options = options;
-  std::vector<Index> locked = detail::sheet_junctions(cover);
+  std::vector<Index> locked = lock_junctions ? detail::sheet_junctions(cover) : std::vector<Index>();
   locked.insert(locked.end(), options.coarsen.locked_vertices.begin(), options.coarsen.locked_vertices.end());
   if (!locked.empty()) cover_options.coarsen.locked_vertices = detail::copies_of(cover.to_input, cover.input_vertex_count, locked);
   if (options.coarsen.target_vertices > 0 && cover.input_vertex_count > 0)
@@ -464,7 +466,7 @@ CoarseSpace build_coarse_space(const TuftedCover& full_cover, const CoarseSpaceO
   // fine mesh stays the whole cover's (the robust Laplacian).
   const TuftedCover cover = distinct_sheets(full_cover);
   const bool whole = cover.mesh.F.rows() == full_cover.mesh.F.rows();
-  const CoarseSpaceOptions cover_options = options_on_copies(cover, options, "build_coarse_space");
+  const CoarseSpaceOptions cover_options = options_on_copies(cover, options, /*lock_junctions=*/true, "build_coarse_space");
   FineMesh cover_fine;
   const bool shared = fine_delaunay && options.locality_numbering && whole;
   CoarseSpace space = ice_coarse_space(cover.mesh, &cover.twin, cover_options, shared ? &cover_fine : nullptr);
@@ -516,7 +518,7 @@ FineMesh fine_mesh_on_copies(const TuftedCover& cover, FineGeometry geometry) {
 
 CoarseSpace build_coarse_space_on_copies(const TuftedCover& cover, const CoarseSpaceOptions& options) {
   const auto start = Clock::now();
-  CoarseSpace space = ice_coarse_space(cover.mesh, &cover.twin, options_on_copies(cover, options, "build_coarse_space_on_copies"),
+  CoarseSpace space = ice_coarse_space(cover.mesh, &cover.twin, options_on_copies(cover, options, /*lock_junctions=*/false, "build_coarse_space_on_copies"),
                                        nullptr);
   space.summary.seconds = seconds_since(start);
   return space;

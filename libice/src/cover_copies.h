@@ -29,8 +29,8 @@ MergedCopies merge_copies(const std::vector<Index>& input_of_copy, Index input_v
 /// The copies c whose input vertex is one of `vertices` (those out of [0, input_vertices) ignored).
 std::vector<Index> copies_of(const std::vector<Index>& input_of_copy, Index input_vertices, const std::vector<Index>& vertices);
 
-/// The cover's faces in sets of faces joined across glued sides (its connected components). The
-/// cover must be closed (every twin a side: distinct_sheets checks).
+/// The cover's faces in sets of faces joined across glued sides (its connected components); open
+/// sides (kInvalid, a cover without boundary tufts) join nothing. distinct_sheets checks the gluing.
 DisjointSets glued_faces(const TuftedCover& cover);
 
 /// The input vertices where separate sheets of `cover` meet at the vertex alone: copies in two or more

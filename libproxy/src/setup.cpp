@@ -198,9 +198,10 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
     for (std::size_t i = first[static_cast<std::size_t>(sources[s])]; i < first[static_cast<std::size_t>(sources[s]) + 1]; ++i) {
       const Index c = by_input[i];
       if (folded[static_cast<std::size_t>(c)])
-        throw std::invalid_argument(name + " lies on the boundary of an open sheet, where the tufted cover folds from the "
-                                           "sheet's one side to the other (a vector there has no side to keep): choose a "
-                                           "source off the boundary");
+        throw std::invalid_argument(name + " has a copy where a face and its mirror image meet (the cover folds from a "
+                                           "sheet's one side to the other there, as at an open sheet's boundary in a cover "
+                                           "made with boundary tufts): a vector there has no side to keep; use a cover made "
+                                           "without them (ice::tufted_cover(mesh, false))");
       const fem::Complex z = fem::ambient_to_tangent(fine.mesh, fine.frames, cover.mesh.V, c, d);
       if (!(std::abs(z) > 1e-12 * d.norm())) continue;
       result.copies.push_back(c);
@@ -215,7 +216,22 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
 }
 
 Eigen::MatrixXd ambient_on_input(const TuftedCover& cover, const TangentMesh& fine, const Eigen::VectorXcd& field) {
-  return cover_to_input(cover, cover_vertex_areas(cover)) * fem::tangent_to_ambient(fine.mesh, fine.frames, cover.mesh.V, field);
+  // Copies the field did not reach (sides of the sheets not joined to a source's) weigh nothing: a
+  // vertex's vector is the mean over the copies that carry one.
+  Eigen::VectorXd weight = cover_vertex_areas(cover);
+  for (Eigen::Index c = 0; c < weight.size(); ++c)
+    if (field(c) == fem::Complex(0)) weight(c) = 0;
+  const Eigen::MatrixXd ambient = fem::tangent_to_ambient(fine.mesh, fine.frames, cover.mesh.V, field);
+  Eigen::MatrixXd result = Eigen::MatrixXd::Zero(cover.input_vertex_count, 3);
+  Eigen::VectorXd total = Eigen::VectorXd::Zero(cover.input_vertex_count);
+  for (Eigen::Index c = 0; c < weight.size(); ++c) {
+    const Index v = cover.to_input[static_cast<std::size_t>(c)];
+    result.row(v) += weight(c) * ambient.row(c);
+    total(v) += weight(c);
+  }
+  for (Index v = 0; v < cover.input_vertex_count; ++v)
+    if (total(v) > 0) result.row(v) /= total(v);
+  return result;
 }
 
 fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const CoarseSpace& coarse, const std::vector<CoarsePoint>& map,

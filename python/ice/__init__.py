@@ -323,10 +323,11 @@ def transport_directions(V, F, sources, directions, *, solver: str = "sweep", op
     operators, time_factor, fine, sweep_passes and sweep_coarse_interval as for VectorHeatSolver.
     nonmanifold="tufted": a mesh that is not an oriented manifold (or a point cloud's faces) is solved on
     the copies of its tufted cover's sheets (each with a tangent plane of its own), every copy of a source
-    carrying its direction, each vertex's vector the area-weighted mean of its copies' (a field crosses
-    between sheets where they share edges, not where they touch at a vertex alone; an open sheet keeps
-    its boundary, as on a manifold). Not through the store. Raises ValueError for a direction normal to
-    the surface at its source.
+    carrying its direction, each vertex's vector the area-weighted mean of its copies' that carry one (an
+    open sheet keeps its boundary, as on a manifold; a sheet's two sides are joined only through the
+    wedges at non-manifold edges, so across two crossing sheets a field does not reach the straight
+    continuation, and sheets touching at a vertex alone are not joined). Not through the store. Raises
+    ValueError for a direction normal to the surface at its source.
     """
     return _ice._transport_directions(V, F, np.atleast_1d(np.asarray(sources)), np.atleast_2d(np.asarray(directions, dtype=float)),
                                       solver=solver, operators=operators, time_factor=time_factor, fine=fine,

@@ -253,7 +253,8 @@ FineMesh fine_mesh_on_copies(const TuftedCover& cover, FineGeometry geometry);
 /// names copies, and with keep_method_state fine_to_coarse_map gives one point per copy (the space
 /// is that of `cover` as an oriented Δ-complex, with a boundary where it was made without boundary
 /// tufts: summary.tufted_cover is false). Pass distinct_sheets' result (a mirror sheet would be
-/// coarsened twice otherwise). Locks, target and preconditions as build_coarse_space(cover).
+/// coarsened twice otherwise). Target and preconditions as build_coarse_space(cover); locked input
+/// vertices lock every copy, and nothing else is locked (the copies join nothing to keep joined).
 CoarseSpace build_coarse_space_on_copies(const TuftedCover& cover, const CoarseSpaceOptions& options);
 
 }  // namespace ice

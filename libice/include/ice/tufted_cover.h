@@ -3,8 +3,8 @@
 /// The tufted cover of a triangle mesh that is not an oriented manifold (Sharp & Crane, "A Laplacian
 /// for Nonmanifold Triangle Meshes", SGP 2020): every face doubled into a front and a back sheet, the
 /// sheets around each edge glued in the order of their faces about the edge, so that the result is a
-/// closed, oriented, edge-manifold intrinsic triangulation (a Δ-complex) on which ICE coarsens as on
-/// any other. Its cotan Laplacian, summed over each input vertex's copies, is twice the input's: the
+/// closed (with its boundary tufts: see tufted_cover), oriented, edge-manifold intrinsic triangulation
+/// (a Δ-complex) on which ICE coarsens as on any other. Its cotan Laplacian, summed over each input vertex's copies, is twice the input's: the
 /// cover sees every face from both sides.
 #include <vector>
 
@@ -24,8 +24,8 @@ struct TuftedCover {
   /// cannot say this.
   std::vector<Index> twin;
   /// Cover vertex → input vertex. An input vertex has one copy per fan of sheets around it: one on an
-  /// edge-manifold open sheet (front and back meet at its boundary), two on a closed sheet (its
-  /// inside and its outside), more where sheets only touch at the vertex. Copies of one input vertex
+  /// edge-manifold open sheet's boundary (front and back meet there; two without boundary tufts),
+  /// two inside a sheet (its two sides), more where sheets only touch at the vertex. Copies of one input vertex
   /// are numbered consecutively, in increasing input order.
   std::vector<Index> to_input;
   Index input_vertex_count = 0;

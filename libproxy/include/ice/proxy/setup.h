@@ -261,9 +261,9 @@ fem::Complex tangent_direction(const TangentMesh& fine, const Positions& V, Inde
 /// direction's length — but a copy whose faces are all normal to the direction (it lies in another
 /// sheet's plane), which takes none. Throws std::invalid_argument (naming the source by `labels[s]`
 /// when given, e.g. the file's vertex numbers, else its index) when no copy of a source takes its
-/// direction, for a source on the boundary of an open sheet (its one copy's fan holds a face and its
-/// mirror image: the cover folds from the sheet's one side to the other there, and the vector would
-/// reach the other side mirrored), for a source out of range, or when the sizes disagree.
+/// direction, for a source with a copy whose fan holds a face and its mirror image (where a cover
+/// made with boundary tufts folds from a sheet's one side to the other, and the vector would reach
+/// the other side mirrored), for a source out of range, or when the sizes disagree.
 struct CopySources {
   std::vector<Index> copies;
   std::vector<fem::Complex> vectors;
@@ -271,8 +271,8 @@ struct CopySources {
 CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine, const std::vector<Index>& sources,
                               const Eigen::MatrixXd& directions, const std::vector<long long>& labels = {});
 /// A field on the copies (fine's frames) as 3D vectors on the input vertices: each vertex the mean of
-/// its copies' vectors weighted by their areas (ice::cover_to_input, as scalars are). The copies of a
-/// vertex on one sheet and its mirror carry the same 3D vector; where sheets meet, the mean of theirs.
+/// the vectors of its copies that carry one (nonzero), weighted by their areas; zero where none does.
+/// Where sheets meet at a vertex, the mean of theirs.
 Eigen::MatrixXd ambient_on_input(const TuftedCover& cover, const TangentMesh& fine, const Eigen::VectorXcd& field);
 
 /// The diffusion proxy of vector fields through `coarse` and its fine-to-coarse `map`: the coarse
