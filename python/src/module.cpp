@@ -532,7 +532,8 @@ py::object prolongation(const py::object& self) {
 void refuse_cover(bool tufted_cover, const std::string& what) {
   if (tufted_cover)
     throw py::value_error(what + " does not take a tufted cover's coarse space yet (nonmanifold='tufted': Poisson, "
-                                 "heat, the eigenbasis, geodesics and the distance oracle do)");
+                                 "heat, the eigenbasis, geodesics and the distance oracle do; vector fields on a cover: "
+                                 "ice.transport_directions)");
 }
 
 void save_coarse_mesh(const PyCoarseSpace& space, const std::filesystem::path& file_path, bool overwrite, const std::string& comment) {
