@@ -31,10 +31,7 @@ MappedSpace mapped_space(const TriangleMesh& mesh, const CoarseSpaceOptions& coa
 /// own lengths when there is nothing to trace with (a given space without map or method state, a
 /// tufted cover's space).
 bool trace(CoarseLengths choice, const CoarseSpace& space, const std::vector<CoarsePoint>* map, bool marching) {
-  if (space.summary.tufted_cover) {
-    if (choice == CoarseLengths::traced) refuse_tracing_on_cover(true, "traced coarse lengths for marching");
-    return false;
-  }
+  if (space.summary.tufted_cover) return false;  // (traced asked of a cover: refused by the callers before the work)
   const bool can_trace = map != nullptr || space.triangulation.has_value();
   if (choice == CoarseLengths::traced && space.summary.method != CoarseningMethod::ice)
     throw std::invalid_argument("traced coarse lengths need an ICE coarse space (QEM's edges are straight: nothing to trace)");

@@ -142,12 +142,20 @@ TangentMesh tangent_mesh(const TuftedCover& cover, FineGeometry geometry, bool w
                          [&] { return fine_mesh_on_copies(cover, geometry); });
 }
 
+namespace {
+// `direction` projected into v's tangent plane, of the direction's length; 0 when nothing is left.
+fem::Complex projected_direction(const TangentMesh& fine, const Positions& V, Index v, const Eigen::Vector3d& direction) {
+  const fem::Complex z = fem::ambient_to_tangent(fine.mesh, fine.frames, V, v, direction);
+  return std::abs(z) > 1e-12 * direction.norm() ? direction.norm() * z / std::abs(z) : fem::Complex(0);
+}
+}  // namespace
+
 fem::Complex tangent_direction(const TangentMesh& fine, const Positions& V, Index v, const Eigen::Vector3d& direction,
                                const std::string& name) {
-  const fem::Complex z = fem::ambient_to_tangent(fine.mesh, fine.frames, V, v, direction);
-  if (!(std::abs(z) > 1e-12 * direction.norm()))
+  const fem::Complex z = projected_direction(fine, V, v, direction);
+  if (z == fem::Complex(0))
     throw std::invalid_argument("the direction of " + name + " is normal to the surface (nothing left after projection)");
-  return direction.norm() * z / std::abs(z);
+  return z;
 }
 
 CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine, const std::vector<Index>& sources,
@@ -155,15 +163,9 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
   if (directions.rows() != static_cast<Eigen::Index>(sources.size()) || directions.cols() != 3)
     throw std::invalid_argument("sources_on_copies: " + std::to_string(directions.rows()) + "x" + std::to_string(directions.cols()) +
                                 " directions for " + std::to_string(sources.size()) + " sources (one 3D direction each)");
-  // The copies of each input vertex (counting sort of the copies by input vertex).
-  std::vector<std::size_t> first(static_cast<std::size_t>(cover.input_vertex_count) + 1, 0);
-  for (Index v : cover.to_input) ++first[static_cast<std::size_t>(v) + 1];
-  for (std::size_t v = 1; v < first.size(); ++v) first[v] += first[v - 1];
-  std::vector<Index> by_input(cover.to_input.size());
-  {
-    std::vector<std::size_t> next(first.begin(), first.end() - 1);
-    for (std::size_t c = 0; c < cover.to_input.size(); ++c) by_input[next[static_cast<std::size_t>(cover.to_input[c])]++] = static_cast<Index>(c);
-  }
+  // The copies of each input vertex: the columns of its row of the copies' averaging.
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> copies_of =
+      copies_to_vertices(cover.to_input, cover.input_vertex_count, Eigen::VectorXd::Ones(static_cast<Eigen::Index>(cover.to_input.size())));
   if (!labels.empty() && labels.size() != sources.size())
     throw std::invalid_argument("sources_on_copies: " + std::to_string(labels.size()) + " labels for " + std::to_string(sources.size()) + " sources");
   // The sources' copies whose fan holds a face and its mirror image (the same input vertices): on an
@@ -173,7 +175,7 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
   std::vector<char> is_source_copy(cover.to_input.size(), 0);
   for (Index v : sources)
     if (v >= 0 && v < cover.input_vertex_count)
-      for (std::size_t i = first[static_cast<std::size_t>(v)]; i < first[static_cast<std::size_t>(v) + 1]; ++i) is_source_copy[static_cast<std::size_t>(by_input[i])] = 1;
+      for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(copies_of, v); it; ++it) is_source_copy[static_cast<std::size_t>(it.col())] = 1;
   std::vector<std::pair<Index, std::array<Index, 3>>> corners;  // (source copy, its face's input vertices, sorted)
   for (Eigen::Index f = 0; f < cover.mesh.F.rows(); ++f)
     for (int k = 0; k < 3; ++k)
@@ -195,17 +197,17 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
       throw std::invalid_argument("sources_on_copies: " + name + " is not a vertex of the input");
     // A copy whose sheet is normal to the direction takes none (the direction lies in another sheet's plane).
     bool any = false;
-    for (std::size_t i = first[static_cast<std::size_t>(sources[s])]; i < first[static_cast<std::size_t>(sources[s]) + 1]; ++i) {
-      const Index c = by_input[i];
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(copies_of, sources[s]); it; ++it) {
+      const auto c = static_cast<Index>(it.col());
       if (folded[static_cast<std::size_t>(c)])
         throw std::invalid_argument(name + " has a copy where a face and its mirror image meet (the cover folds from a "
                                            "sheet's one side to the other there, as at an open sheet's boundary in a cover "
                                            "made with boundary tufts): a vector there has no side to keep; use a cover made "
                                            "without them (ice::tufted_cover(mesh, false))");
-      const fem::Complex z = fem::ambient_to_tangent(fine.mesh, fine.frames, cover.mesh.V, c, d);
-      if (!(std::abs(z) > 1e-12 * d.norm())) continue;
+      const fem::Complex z = projected_direction(fine, cover.mesh.V, c, d);
+      if (z == fem::Complex(0)) continue;
       result.copies.push_back(c);
-      result.vectors.push_back(d.norm() * z / std::abs(z));
+      result.vectors.push_back(z);
       any = true;
     }
     if (!any)
@@ -218,20 +220,12 @@ CopySources sources_on_copies(const TuftedCover& cover, const TangentMesh& fine,
 Eigen::MatrixXd ambient_on_input(const TuftedCover& cover, const TangentMesh& fine, const Eigen::VectorXcd& field) {
   // Copies the field did not reach (sides of the sheets not joined to a source's) weigh nothing: a
   // vertex's vector is the mean over the copies that carry one.
+  // (A vertex no copy of which carries one: the plain mean of zeros.)
   Eigen::VectorXd weight = cover_vertex_areas(cover);
   for (Eigen::Index c = 0; c < weight.size(); ++c)
     if (field(c) == fem::Complex(0)) weight(c) = 0;
-  const Eigen::MatrixXd ambient = fem::tangent_to_ambient(fine.mesh, fine.frames, cover.mesh.V, field);
-  Eigen::MatrixXd result = Eigen::MatrixXd::Zero(cover.input_vertex_count, 3);
-  Eigen::VectorXd total = Eigen::VectorXd::Zero(cover.input_vertex_count);
-  for (Eigen::Index c = 0; c < weight.size(); ++c) {
-    const Index v = cover.to_input[static_cast<std::size_t>(c)];
-    result.row(v) += weight(c) * ambient.row(c);
-    total(v) += weight(c);
-  }
-  for (Index v = 0; v < cover.input_vertex_count; ++v)
-    if (total(v) > 0) result.row(v) /= total(v);
-  return result;
+  return copies_to_vertices(cover.to_input, cover.input_vertex_count, weight) *
+         fem::tangent_to_ambient(fine.mesh, fine.frames, cover.mesh.V, field);
 }
 
 fem::VectorHeatProxy make_vector_proxy(const TangentMesh& fine, const CoarseSpace& coarse, const std::vector<CoarsePoint>& map,

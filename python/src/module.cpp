@@ -918,19 +918,9 @@ Eigen::MatrixXd transport_directions(const py::object& V, const py::object& F, c
   if (vertices.empty()) throw py::value_error("sources is empty");
   const Eigen::MatrixXd D = matrix_argument(directions, static_cast<Eigen::Index>(vertices.size()), "directions");
   if (D.cols() != 3) throw py::value_error("directions must be one 3D direction per source (k x 3)");
-  Eigen::MatrixXd field;
-  std::string refused;
-  {
-    py::gil_scoped_release release;
-    require_clean(mesh, options.coarsening.nonmanifold);
-    try {
-      field = ice::proxy::transport_directions(mesh, vertices, D, options);
-    } catch (const std::invalid_argument& e) {  // a direction normal to the surface, options a cover does not take
-      refused = e.what();
-    }
-  }
-  if (!refused.empty()) throw py::value_error(refused);
-  return field;
+  py::gil_scoped_release release;
+  require_clean(mesh, options.coarsening.nonmanifold);
+  return ice::proxy::transport_directions(mesh, vertices, D, options);  // std::invalid_argument: ValueError
 }
 
 // A matrix the proxy owns, as scipy viewing its arrays (read-only; a copy if not compressed).
