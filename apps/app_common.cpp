@@ -223,6 +223,7 @@ ice::CoarseSpace coarsen_copies_for_pde(const ice::TuftedCover& cover, const ice
   summary.tufted_cover = true;
   warn_if_target_missed(run.tool, summary, space_options.coarsen);
   run.coarsening = summary;
+  run.tufted_cover = true;
   return space;
 }
 

@@ -85,7 +85,8 @@ void warn_if_target_missed(const std::string& tool, const ice::CoarseSpaceSummar
 ice::CoarseSpace coarsen_for_pde(const ice::TriangleMesh& mesh, const ice::CoarsenOptions& options, const PdeOptions& opt,
                                  PdeRun& run, bool keep_method_state = false, bool record_history = false);
 /// The same for the copies of a tufted cover (ice::build_coarse_space_on_copies, with the method state
-/// for the map): what vector fields on a cover are solved through (not through the store).
+/// for the map): what vector fields on a cover are solved through (not through the store). Records the
+/// summary (coarse vertices counted per input vertex) and the cover in `run`.
 /// AppError(kUsage) naming the file for what a cover does not take (QEM, refinement).
 ice::CoarseSpace coarsen_copies_for_pde(const ice::TuftedCover& cover, const ice::CoarsenOptions& options, const PdeOptions& opt,
                                         PdeRun& run);

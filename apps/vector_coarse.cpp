@@ -181,7 +181,6 @@ int vector_coarse_tool::main(int argc, char** argv) {
     ice::proxy::MappedSpace space;
     if (covered) {
       space.coarse = app::coarsen_copies_for_pde(*cover, coarsen_options, opt, run);
-      run.tufted_cover = true;
       space.map = ice::fine_to_coarse_map(space.coarse);
       space.coarse.triangulation.reset();  // the map made: free the method's state
       run.coarsen = clock.seconds();
