@@ -579,6 +579,7 @@ TEST_CASE("vector field from a distance: a coarse-grid correction converges wher
   fem::DistanceSweepStats stats;
   const Eigen::VectorXcd corrected = sweep(20, 1, &coarse_space, &stats);
   CHECK(stats.coarse_corrections == 20);
+  CHECK_FALSE(stats.coarse_supernodal);  // far below the default supernodal size
   const double plain_error = median(angle_errors(plain, reference)), corrected_error = median(angle_errors(corrected, reference));
   INFO("median angle error after 20 passes: " << plain_error << " deg plain, " << corrected_error << " deg with corrections");
   INFO("largest magnitude error: " << magnitude_error(plain) << " plain, " << magnitude_error(corrected) << " with corrections");
@@ -605,9 +606,10 @@ TEST_CASE("vector field from a distance: a coarse-grid correction converges wher
 }
 
 TEST_CASE("vector field from a distance: a large coarse system goes to the supernodal factorisation", "[fem][vectors]") {
-  // 51,200 vertices, each its own coarse vertex: past the size from which CHOLMOD factorises the
-  // coarse system instead of Eigen's simplicial LDLᵀ; two corrections are the direct solve again.
-  const ice::TriangleMesh torus = ice::make_torus(320, 160, 1.0, 0.35);
+  // 3,200 vertices, each its own coarse vertex, with the supernodal size lowered below it: CHOLMOD
+  // factorises the coarse system instead of Eigen's simplicial LDLᵀ; two corrections are the direct
+  // solve again.
+  const ice::TriangleMesh torus = ice::make_torus(80, 40, 1.0, 0.35);
   const ice::IntrinsicMesh fine = glued(torus);
   const fem::TangentFrames frames = fem::tangent_frames(fine);
   const fem::VectorHeatOperators operators = fem::vector_heat_operators(fine, frames);
@@ -620,10 +622,12 @@ TEST_CASE("vector field from a distance: a large coarse system goes to the super
   options.max_passes = 2;
   options.tolerance = 0;
   options.coarse_correction_interval = 1;
+  options.supernodal_from = torus.V.rows() / 2;
   fem::DistanceSweepStats stats;
   const Eigen::VectorXcd field =
       fem::vector_field_from_distance(operators, distance, {0}, {fem::Complex(0, 1)}, options, &stats, &identity);
   CHECK(stats.coarse_corrections == 2);
+  CHECK(stats.coarse_supernodal);
   const std::vector<double> errors = angle_errors(field, reference);
   INFO("largest angle error " << *std::max_element(errors.begin(), errors.end()) << " deg");
   CHECK(*std::max_element(errors.begin(), errors.end()) < 1e-6);

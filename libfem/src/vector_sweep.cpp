@@ -26,8 +26,6 @@ constexpr double kCoarseWindow = 600;
 // Scale ratios between neighbouring rows (and a coarse basis entry's within its patch) beyond
 // e^±200 are clamped.
 constexpr double kLargestExponent = 200;
-// Coarse systems of at least this many unknowns are factorised by CHOLMOD (see CoarseCorrection).
-constexpr Eigen::Index kSupernodalFrom = 50'000;
 
 // A Galerkin coarse-grid correction of one of the sweep's systems A x = b (A Hermitian positive
 // definite, x kept scaled: x̂_p = exp(s_p) x_p, s_p = e_p − least). Why: a relative error that is
@@ -51,7 +49,7 @@ class CoarseCorrection {
   // `A` unscaled, rows and columns in sweep order; `order[p]` the vertex of row p, its row of P
   // (by rows, n × n_c); `shape` the first pass's x̂; `shift` s per row.
   CoarseCorrection(const Sparse& A, const SweepCoarseSpace& P, const std::vector<Index>& order, const Vector& shape,
-                   const Eigen::VectorXd& shift) {
+                   const Eigen::VectorXd& shift, Eigen::Index supernodal_from) {
     const Eigen::Index rows = A.rows(), coarse = P.cols();
     const auto used_row = [&](Eigen::Index p) { return shift(p) <= kCoarseWindow && shape(p) != Scalar(0); };
     std::vector<double> shift_sum(static_cast<std::size_t>(coarse), 0.0), weight(static_cast<std::size_t>(coarse), 0.0);
@@ -91,7 +89,7 @@ class CoarseCorrection {
     // ~5,000 unknowns: 27 ms a correction against ~5 ms); large ones by CHOLMOD, whose supernodes
     // factorise them several times faster (spot Loop ×3 at 5 %, 316,000 unknowns: 42 s a solve
     // against 120 s; dragon_vrip_bin's 84,393 take as long either way, 9.5–9.8 s).
-    if (coarse_matrix.rows() < kSupernodalFrom) {
+    if (coarse_matrix.rows() < supernodal_from) {
       simplicial_.emplace();
       simplicial_->compute(coarse_matrix);
       usable_ = simplicial_->info() == Eigen::Success;
@@ -107,6 +105,7 @@ class CoarseCorrection {
   // False if the Galerkin matrix could not be factorised (not seen on the 63 meshes measured; the
   // passes then go on alone, and DistanceSweepStats::coarse_corrections says so).
   bool usable() const { return usable_; }
+  bool supernodal() const { return supernodal_.has_value(); }
 
   // x̂ += the correction for the scaled residual r̂ = b̂ − Â x̂.
   void apply(const Vector& scaled_residual, Vector& x) const {
@@ -140,9 +139,10 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
                                 ", L " + std::to_string(L.rows()) + " x " + std::to_string(L.cols()) + ", M " +
                                 std::to_string(M.rows()) + " x " + std::to_string(M.cols()) + ", the distance has " +
                                 std::to_string(distance.size()) + " values");
-  if (!(operators.time_step > 0) || !(options.tolerance >= 0) || options.max_passes < 0 || options.coarse_correction_interval < 0)
+  if (!(operators.time_step > 0) || !(options.tolerance >= 0) || options.max_passes < 0 || options.coarse_correction_interval < 0 ||
+      options.supernodal_from < 0)
     throw std::invalid_argument(
-        "vector_field_from_distance: the time step must be positive, the tolerance, passes and coarse-correction interval not negative");
+        "vector_field_from_distance: the time step must be positive, the tolerance, passes, coarse-correction interval and supernodal size not negative");
   if (coarse_space && coarse_space->rows() != n)
     throw std::invalid_argument("vector_field_from_distance: the coarse space has " + std::to_string(coarse_space->rows()) +
                                 " rows for " + std::to_string(n) + " vertices");
@@ -369,18 +369,19 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
     ComplexSparseMatrix vector_system(size, size);
     vector_system.setFromTriplets(vector_entries.begin(), vector_entries.end());
     vector_entries = {};
-    vector_correction.emplace(vector_system, *coarse_space, order, directions, shift);
+    vector_correction.emplace(vector_system, *coarse_space, order, directions, shift, options.supernodal_from);
     if (!one_magnitude) {
       SparseMatrix scalar_system(size, size);
       scalar_system.setFromTriplets(scalar_entries.begin(), scalar_entries.end());
       scalar_entries = {};
-      magnitude_correction.emplace(scalar_system, *coarse_space, order, magnitudes, shift);
-      indicator_correction.emplace(scalar_system, *coarse_space, order, indicator, shift);
+      magnitude_correction.emplace(scalar_system, *coarse_space, order, magnitudes, shift, options.supernodal_from);
+      indicator_correction.emplace(scalar_system, *coarse_space, order, indicator, shift, options.supernodal_from);
     }
     if (!vector_correction->usable() || (!one_magnitude && (!magnitude_correction->usable() || !indicator_correction->usable())))
       vector_correction.reset();
   }
   DistanceSweepStats done;
+  done.coarse_supernodal = vector_correction && vector_correction->supernodal();
   // One correction of each system from its scaled residual b̂ − Âx̂.
   const auto correct = [&]() {
     Eigen::VectorXcd vector_residual(size);

@@ -257,12 +257,18 @@ struct DistanceSweepOptions {
   /// one coarse solve; its matrix is factorised once per call). Docs/measurements.md, "Distance
   /// sweep: passes and coarse correction".
   int coarse_correction_interval = 2;
+  /// Coarse systems of at least this many unknowns are factorised by CHOLMOD's supernodal
+  /// Cholesky, smaller ones by a simplicial LDLᵀ (a small supernodal solve spends its time waiting
+  /// on BLAS threads; measured in docs/measurements.md, "Distance sweep: passes and coarse
+  /// correction").
+  Index supernodal_from = 50'000;
 };
 /// What a sweep did.
 struct DistanceSweepStats {
   int passes = 0;             ///< passes after the first
   double last_change = 0;     ///< the largest relative move in the last pass
   int coarse_corrections = 0; ///< coarse-grid corrections done
+  bool coarse_supernodal = false; ///< the coarse systems were factorised by CHOLMOD's supernodal Cholesky
 };
 /// A coarse space for the sweep's coarse-grid correction: P (n_fine × n_coarse, rows of
 /// barycentric weights), by rows.
