@@ -78,6 +78,46 @@ TEST_CASE("point cloud: a jittered grid in the plane gives its Delaunay triangul
   }
 }
 
+TEST_CASE("point cloud: no slivers along the hull of a random sample", "[cloud]") {
+  // Uniform random points of the unit square: the Delaunay triangles along the hull of each point's
+  // neighbourhood are slivers (angles up to ~180°) whose circumcentres lie far beyond the
+  // neighbours; a fan keeps only triangles whose circumcentre lies within its farthest neighbour's
+  // distance, so every triangle's circumradius is at most its corners' largest such distance.
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  ice::Positions P(2000, 3);
+  for (Eigen::Index i = 0; i < P.rows(); ++i) P.row(i) << unit(random), unit(random), 0.0;
+  const int neighbours = ice::PointCloudOptions{}.neighbours;
+  std::vector<double> reach(static_cast<std::size_t>(P.rows()));
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    std::vector<double> distance;
+    for (Eigen::Index j = 0; j < P.rows(); ++j)
+      if (j != i) distance.push_back((P.row(j) - P.row(i)).norm());
+    std::nth_element(distance.begin(), distance.begin() + (neighbours - 1), distance.end());
+    reach[static_cast<std::size_t>(i)] = distance[static_cast<std::size_t>(neighbours - 1)];
+  }
+  const ice::Faces F = ice::point_cloud_triangles(P);
+  double area = 0, largest_angle = 0;
+  bool within_reach = true;  // one assertion, not one per face
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3d a = P.row(F(f, 0)), b = P.row(F(f, 1)), c = P.row(F(f, 2));
+    const double x = (b - c).norm(), y = (c - a).norm(), z = (a - b).norm();
+    const double face = face_area(P, F, f), circumradius = x * y * z / (4 * face);
+    area += face;
+    const auto angle = [](const Eigen::Vector3d& u, const Eigen::Vector3d& v) {  // between u and v
+      return std::atan2(u.cross(v).norm(), u.dot(v));
+    };
+    largest_angle = std::max({largest_angle, angle(b - a, c - a), angle(c - b, a - b), angle(a - c, b - c)});
+    double corner_reach = 0;
+    for (int k = 0; k < 3; ++k) corner_reach = std::max(corner_reach, reach[static_cast<std::size_t>(F(f, k))]);
+    within_reach = within_reach && circumradius <= corner_reach * (1 + 1e-9);
+  }
+  INFO("area " << area << ", largest angle " << largest_angle * 180 / ice::kPi << " deg");
+  REQUIRE(within_reach);
+  REQUIRE(largest_angle < 175.0 / 180 * ice::kPi);
+  REQUIRE(area > 0.95);  // only the hull's slivers are gone: the square stays covered
+}
+
 TEST_CASE("point cloud: where the fans disagree, one consistent choice", "[cloud]") {
   // A square grid: every quad's corners are cocircular, each corner's fan takes its own diagonal;
   // the union would cover every quad twice. The choice keeps one triangulation of the square.

@@ -78,8 +78,15 @@ void convex_hull(std::vector<InvertedNeighbour>& q, std::vector<Index>& hull) {
 // order; consecutive hull vertices a, b meet at a Voronoi vertex (the circumcentre of 0, x_a, x_b)
 // exactly when the origin lies to the left of the hull edge a → b, i.e. q_a × q_b > 0. Otherwise the
 // cell is unbounded there: the point is on the boundary of its neighbourhood.
+//
+// Why `reach` (the farthest neighbour's distance): a triangle whose circumcentre (a vertex of the
+// origin's Voronoi cell) lies beyond it owes its place to the neighbourhood's edge: points not among
+// the neighbours may lie in its circumcircle. Along the hull of a scan, a gap or a random sample such
+// triangles are slivers (angles up to ~180°: cotan weights of ~1e5 on an open sheet's boundary, where
+// intrinsic flips cannot mend them); they are left out unless the whole fan is of them (a point must
+// keep a triangle).
 void local_fan(const Positions& P, const PointList& X, Index i, const Index* neighbour, std::size_t count, double diagonal,
-               std::vector<InvertedNeighbour>& q, std::vector<Index>& hull, std::vector<std::array<Index, 3>>& out,
+               double reach, std::vector<InvertedNeighbour>& q, std::vector<Index>& hull, std::vector<std::array<Index, 3>>& out,
                TangentFrame& frame) {
   const Eigen::Vector3d& p = X[static_cast<std::size_t>(i)];
   Eigen::Vector3d mean = p;
@@ -105,13 +112,30 @@ void local_fan(const Positions& P, const PointList& X, Index i, const Index* nei
   convex_hull(q, hull);
   const std::size_t h = hull.size();
   if (h < 2) return;
+  const std::size_t first = out.size();
+  std::size_t beyond = 0;
   for (std::size_t k = 0; k < h; ++k) {  // h = 2: both ways round, at most one with the origin on its left
     const InvertedNeighbour& a = q[static_cast<std::size_t>(hull[k])];
     const InvertedNeighbour& b = q[static_cast<std::size_t>(hull[(k + 1) % h])];
-    if (!(cross_2d(a.q, b.q) > 0)) continue;
+    const double det = cross_2d(a.q, b.q);
+    if (!(det > 0)) continue;
     if (is_degenerate_triangle(P, i, a.point, b.point, diagonal)) continue;
-    out.push_back({i, a.point, b.point});
+    // The Voronoi vertex c (c·q_a = c·q_b = 1/2), the triangle's circumcentre.
+    const Eigen::Vector2d c = Eigen::Vector2d(b.q.y() - a.q.y(), a.q.x() - b.q.x()) / (2 * det);
+    const bool inside = c.squaredNorm() <= reach * reach;
+    if (!inside) ++beyond;
+    out.push_back({inside ? i : -1 - i, a.point, b.point});  // marked: left out below unless all are
   }
+  const bool keep_beyond = beyond == out.size() - first;
+  std::size_t w = first;
+  for (std::size_t r = first; r < out.size(); ++r) {
+    if (out[r][0] < 0) {
+      if (!keep_beyond) continue;
+      out[r][0] = -1 - out[r][0];
+    }
+    out[w++] = out[r];
+  }
+  out.resize(w);
 }
 
 // The directions a triangle at corner v covers in v's tangent plane: from `start`, counter-clockwise
@@ -190,7 +214,8 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
                                       std::to_string(std::max(i, found[j])) + " are at the same position");
         if (count + 1 < wanted) neighbour[count++] = found[j];
       }
-      local_fan(unit, X, i, neighbour.data(), count, diagonal, q, hull, out, frames[static_cast<std::size_t>(i)]);
+      const double reach = got > 0 ? std::sqrt(distance[got - 1]) : 0.0;
+      local_fan(unit, X, i, neighbour.data(), count, diagonal, reach, q, hull, out, frames[static_cast<std::size_t>(i)]);
     }
   });
 
