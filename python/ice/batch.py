@@ -72,8 +72,9 @@ from ._ice import DEFAULT_COARSENING_REGIONS
 
 MESH_EXTENSIONS = (".obj", ".off", ".ply", ".stl")
 POINT_SET_EXTENSIONS = (".xyz", ".pwn")  # in the manifest with nonmanifold="tufted" only
-RECORD_VERSION = 3  # 2: eigs through P smoothed twice (the eigenbasis's default); 3: a tufted cover's sheet junctions
-                    # kept as coarse vertices. Older records are redone
+RECORD_VERSION = 4  # 2: eigs through P smoothed twice (the eigenbasis's default); 3: a tufted cover's sheet junctions
+                    # kept as coarse vertices; 4: covered inputs' map arrays, point clouds' fans without hull
+                    # slivers. Older records are redone
 # Coarsening options that a batch passes to ice.coarsen (and hashes). Not the thread count: the
 # batch chooses it per mesh (BatchOptions.mesh_threads) and it does not change the result.
 COARSEN_OPTIONS = ("n", "ratio", "max_error", "method", "use", "area_weight", "normalize_curvature",
