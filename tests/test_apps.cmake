@@ -580,7 +580,7 @@ elseif(CASE STREQUAL "vector_spot")
   run(0 vector-coarse "${mesh}" --source 0 --vector 30 --vertices 500 --report "${WORK}/r.json" --output "${WORK}/v.ply" -q)
   set(r "${WORK}/r.json")
   require_keys("${r}" ${PDE_KEYS} timings_s.reference error.angle.median_deg error.angle.p95_deg error.magnitude_rel.max
-               vector_solver sweep.passes sweep.last_change sweep.coarse_interval sweep.coarse_corrections)
+               vector_solver sweep.passes sweep.last_change sweep.settled sweep.coarse_interval sweep.coarse_corrections)
   json(solver "${r}" vector_solver)
   check_text("${solver}" "sweep" "vector_solver (the default)")
   # Measured: median 3e-11 deg after 25 passes with coarse corrections (0.0004 after 50 without;
@@ -593,6 +593,10 @@ elseif(CASE STREQUAL "vector_spot")
   check(${median} LESS ${first_median} "the passes bring the field closer to the fine method's")
   json(passes "${WORK}/first.json" sweep passes)
   check(${passes} EQUAL 0 "--sweep-passes 0: sweep.passes")
+  json(settled "${r}" sweep settled)
+  check_text("${settled}" "ON" "sweep.settled (CMake reads JSON true as ON)")
+  json(settled "${WORK}/first.json" sweep settled)
+  check_text("${settled}" "OFF" "--sweep-passes 0: sweep.settled")
   expect_error(4 "sweep-passes" vector-coarse "${mesh}" --source 0 --vector 1 --vertices 500 --sweep-passes -1)
   # The coarse-grid correction (default: before every second pass) against the passes alone, 10 passes each
   # (measured: 2e-6 against 0.69 deg).

@@ -410,7 +410,10 @@ Eigen::VectorXcd vector_field_from_distance(const VectorHeatOperators& operators
     for (std::size_t p = 0; p < unknowns; ++p) change = std::max(change, update(p));
     ++done.passes;
     done.last_change = change;
-    if (change <= options.tolerance) break;
+    if (change <= options.tolerance) {
+      done.settled = true;
+      break;
+    }
   }
   if (stats) *stats = done;
 
