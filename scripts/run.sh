@@ -79,8 +79,10 @@ fi
 [[ -s "$MESH" ]] || die "mesh file missing or empty: $MESH"
 
 say "configuring build/release"
+GENERATOR=()  # a fresh folder for Ninja when it is installed (one configured before keeps its generator)
+[[ ! -f "$BUILD_DIR/CMakeCache.txt" ]] && command -v ninja >/dev/null 2>&1 && GENERATOR=(-G Ninja)
 mkdir -p "$BUILD_DIR"
-cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >"$BUILD_DIR/run-configure.log" 2>&1 || {
+cmake -S . -B "$BUILD_DIR" "${GENERATOR[@]}" -DCMAKE_BUILD_TYPE=Release >"$BUILD_DIR/run-configure.log" 2>&1 || {
   cat "$BUILD_DIR/run-configure.log" >&2
   die "cmake configure failed"
 }

@@ -77,10 +77,19 @@ run_ctest() {
   return $rc
 }
 
+# A fresh build folder is configured for Ninja when it is installed (a folder configured before keeps
+# its generator: CMake cannot switch one).
+generator_for() {
+  [[ ! -f "$1/CMakeCache.txt" ]] && command -v ninja >/dev/null 2>&1 && echo "-GNinja"
+  return 0
+}
+
 # config NAME DIR CMAKE-ARGS...: configure, build, test one configuration.
 config() {
   local name="$1" dir="$2"; shift 2
-  phase "$name configure" cmake -S . -B "$dir" -DICE_BUILD_TESTS=ON "$@" || return 0
+  local generator
+  generator="$(generator_for "$dir")"
+  phase "$name configure" cmake -S . -B "$dir" ${generator:+"$generator"} -DICE_BUILD_TESTS=ON "$@" || return 0
   phase "$name build" cmake --build "$dir" --parallel "$JOBS" || return 0
   phase "$name ctest" run_ctest "$dir" || true
 }
