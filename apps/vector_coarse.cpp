@@ -332,7 +332,7 @@ int vector_coarse_tool::main(int argc, char** argv) {
     if (sweep) {
       std::cout << "  sources: " << sources_text << "; fine Gauss-Seidel along the coarse marching distance: " << sweep_stats.passes
                 << " passes after the first (" << sweep_stats.coarse_corrections << " coarse corrections), last change "
-                << sweep_stats.last_change << (sweep_stats.settled ? " (settled)" : " (stopped by --sweep-passes)") << "\n";
+                << sweep_stats.last_change << (sweep_stats.settled ? " (settled)" : " (stopped at the pass limit, --sweep-passes)") << "\n";
     } else {
       const fem::VectorProlongationStats& stats = diffusion_proxy->prolongation_stats();
       std::cout << "  sources: " << sources_text << "; vector prolongation: " << stats.fitted << " frames fitted, "

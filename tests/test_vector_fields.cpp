@@ -505,6 +505,9 @@ TEST_CASE("vector field from a distance: a flat disk's field is parallel, two le
     fem::DistanceSweepOptions bad;
     bad.max_passes = -1;
     CHECK_THROWS_AS(fem::vector_field_from_distance(operators, distance, {source}, {start}, bad), std::invalid_argument);
+    fem::DistanceSweepOptions negative_size;
+    negative_size.supernodal_from = -1;
+    CHECK_THROWS_AS(fem::vector_field_from_distance(operators, distance, {source}, {start}, negative_size), std::invalid_argument);
   }
 }
 
@@ -543,6 +546,7 @@ TEST_CASE("vector field from a distance: the passes converge to the fine method'
   const Eigen::VectorXcd field = fem::vector_field_from_distance(operators, distance, sources, vectors, converged, &stats);
   INFO(stats.passes << " passes, last change " << stats.last_change);
   CHECK(stats.last_change <= 1e-12);
+  CHECK(stats.settled);
   CHECK((field - reference).cwiseAbs().maxCoeff() < 1e-8 * reference.cwiseAbs().maxCoeff());
   for (Eigen::Index i = 0; i < field.size(); ++i) CHECK(std::abs(std::abs(field(i)) - std::abs(reference(i))) < 1e-8);
 }

@@ -263,7 +263,7 @@ def test_stalled_worker_does_not_hang_the_batch(dataset, tmp_path):
     for copy in range(3):
         ice.save_mesh(dataset / f"big{copy}.ply", V, F, binary=True)
     out = tmp_path / "out"
-    stall = 5.0
+    stall = 8.0
     command = [sys.executable, "-m", "ice.batch", str(dataset), "-o", str(out), "--ratio", "0.05", "-q",
                "--workers", "2", "--stall-timeout", str(stall)]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

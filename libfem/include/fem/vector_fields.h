@@ -268,7 +268,7 @@ struct DistanceSweepStats {
   int passes = 0;             ///< passes after the first
   double last_change = 0;     ///< the largest relative move in the last pass
   int coarse_corrections = 0; ///< coarse-grid corrections done
-  bool coarse_supernodal = false; ///< the coarse systems were factorised by CHOLMOD's supernodal Cholesky
+  bool coarse_supernodal = false; ///< the vector system's coarse matrix was factorised by CHOLMOD's supernodal Cholesky
   bool settled = false;       ///< the last pass moved no value by more than the tolerance (false: max_passes stopped it)
 };
 /// A coarse space for the sweep's coarse-grid correction: P (n_fine × n_coarse, rows of
