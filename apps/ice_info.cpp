@@ -222,8 +222,17 @@ int run(const std::string& input, const std::string& output, bool json, bool rep
   }
 
   if (!clean) {
-    std::cerr << "ice-info: " << input << ": defective"
-              << (repair ? " even after repair" : " (try --repair)") << ", ICE would refuse it\n";
+    // What the solvers would do with it: refuse it, or take it on its tufted cover (a point cloud, or
+    // defects of sheets only: non-manifold edges, non-orientable or inconsistently oriented parts).
+    const ice::PolygonSoup& soup = repair ? repaired.soup : file.soup;
+    if (soup.polygons.empty() && soup.V.rows() > 0)
+      std::cerr << "ice-info: " << input << ": a point cloud of " << soup.V.rows()
+                << " points (no faces): the solvers take it with --nonmanifold tufted\n";
+    else
+      std::cerr << "ice-info: " << input << ": defective" << (repair ? " even after repair" : " (try --repair)")
+                << (final_report.clean_but_for_sheets() ? "; the solvers take it on its tufted cover with --nonmanifold tufted"
+                                                        : ", ICE would refuse it")
+                << '\n';
     if (!output.empty()) std::cerr << "ice-info: not writing " << output << '\n';
     return kDefective;
   }

@@ -1387,6 +1387,7 @@ elseif(CASE STREQUAL "nonmanifold_cover")
   # refines the eigenbasis to the fine one's; coarse marching and the oracle run on the coarse mesh's own lengths.
   project_mesh(mesh triple_vierbein.obj)
   expect_error(2 "non-manifold edges.*--nonmanifold tufted" poisson-coarse "${mesh}" --repair --ratio 0.2 -q)
+  expect_error(2 "even after repair; the solvers take it on its tufted cover with --nonmanifold tufted" ice-info "${mesh}" --repair)
   solved_on_cover("${mesh}" 75 0.1 0.1 0.1 --repair --ratio 0.3)
   # The oracle's covered space and map go through the store: the second run loads them, the same pairs.
   file(REMOVE_RECURSE "${WORK}/cover_store")
@@ -1439,6 +1440,7 @@ elseif(CASE STREQUAL "point_cloud")
   # point, near the fine robust Laplacian; a repeated point refused, then merged by --repair.
   project_mesh(kitten kitten.xyz)
   expect_error(2 "point cloud of 5210 points.*--nonmanifold tufted" poisson-coarse "${kitten}" -q)
+  expect_error(2 "a point cloud of 5210 points \\(no faces\\): the solvers take it with --nonmanifold tufted" ice-info "${kitten}")
   solved_on_cover("${kitten}" 5210 0.02 0.05 0.1 --ratio 0.1)
   file(STRINGS "${kitten}" _lines)
   list(GET _lines 0 _first)
