@@ -224,9 +224,8 @@ int run(const std::string& input, const std::string& output, bool json, bool rep
   if (!clean) {
     // What the solvers would do with it: refuse it, or take it on its tufted cover (a point cloud, or
     // defects of sheets only: non-manifold edges, non-orientable or inconsistently oriented parts).
-    const ice::PolygonSoup& soup = repair ? repaired.soup : file.soup;
-    if (soup.polygons.empty() && soup.V.rows() > 0)
-      std::cerr << "ice-info: " << input << ": a point cloud of " << soup.V.rows()
+    if (file.soup.polygons.empty() && file.soup.V.rows() > 0)  // (its repair drops every point)
+      std::cerr << "ice-info: " << input << ": a point cloud of " << file.soup.V.rows()
                 << " points (no faces): the solvers take it with --nonmanifold tufted\n";
     else
       std::cerr << "ice-info: " << input << ": defective" << (repair ? " even after repair" : " (try --repair)")
