@@ -187,11 +187,11 @@ void TargetOptions::use_defaults_for(ice::ProxyUse use) {
 
 void add_coarsen_parallel_options(CLI::App& cli, int& threads, int& regions) {
   cli.add_option("--coarsen-threads", threads,
-                 "Coarsening threads (0: all cores; never change the result)")
+                 "Coarsening threads (0: all cores; same result)")
       ->check(integer_between(0, 64))
       ->capture_default_str();
   cli.add_option("--coarsen-regions", regions,
-                 "Regions coarsened in parallel on large meshes (0: 16; 1: serial greedy order)")
+                 "Regions coarsened in parallel, large meshes (0: 16; 1: serial greedy order)")
       ->check(integer_between(0, 254))
       ->capture_default_str();
 }
@@ -224,7 +224,7 @@ void TargetOptions::add_to(CLI::App& cli, bool with_max_error) {
              "Coarsening method: 'ice', or 'qem' (the extrinsic QEM baseline)");
   add_coarsen_parallel_options(cli, threads, regions);
   cli.add_option("--refine-angle", refine_angle,
-                 "Refine the ICE coarse mesh to a smallest angle of DEG degrees (0: none)")
+                 "Refine the coarse mesh to a smallest angle of DEG degrees (0: none)")
       ->check(number_between(0, 30))
       ->capture_default_str();
   cli.add_option("--refine-budget", refine_budget,
@@ -288,7 +288,7 @@ void check_output(const std::string& path, bool overwrite, const std::string& op
 
 void add_operators_option(CLI::App& cli, fem::CoarseOperatorKind& operators) {
   add_choice(cli, "--operators", operators, choice_names<fem::CoarseOperatorKind>(),
-             "Coarse operators: 'intrinsic' (from coarse lengths) or 'galerkin' (P^T L P, P^T M P)");
+             "Coarse operators: 'intrinsic' (coarse lengths) or 'galerkin' (P^T L P, P^T M P)");
 }
 
 void add_prolongation_option(CLI::App& cli, ice::proxy::Prolongation& choice, const std::string& name,
@@ -318,13 +318,13 @@ void PdeOptions::add_to(CLI::App& cli, const std::string& field_names) {
   add_choice(cli, "--qem-operators", qem_geometry, choice_names<ice::QemGeometry>(),
              "QEM coarse geometry: 'extrinsic' (its positions) or 'idt' (intrinsic Delaunay)");
   cli.add_flag("--fine-idt,!--no-fine-idt", fine_idt,
-               "Fine operators on the input's intrinsic Delaunay triangulation (else its triangles)")
+               "Fine operators on the input's intrinsic Delaunay mesh (else its triangles)")
       ->capture_default_str();
   cli.add_option("--output,-o", output,
-                 "Write the mesh with the fields " + field_names + " (ICE: + 'patch'): PLY, or glTF (.glb)");
+                 "Write the mesh with fields " + field_names + " (ICE: + 'patch'): PLY or glTF (.glb)");
   cli.add_flag("--ascii", ascii, "With --output: ASCII PLY instead of binary");
   cli.add_option("--html", html,
-                 "Write an interactive 3D page (PAGE.html + PAGE_files/) of the results");
+                 "Write a 3D page (PAGE.html + PAGE_files/) of the results");
   cli.add_flag("--no-reference", no_reference, "Skip the fine reference solve (no errors, no speed-up)");
   cli.add_option("--report", report, "Write a JSON report (sizes, timings, errors)");
   cli.add_flag("--quiet,-q", quiet, "No progress bar");
@@ -352,7 +352,7 @@ void PdeOptions::add_polish_options(CLI::App& cli) {
       ->check(non_negative_integer())
       ->capture_default_str();
   cli.add_option("--tolerance", polish.tolerance,
-                 "Polish until the estimated relative error is at most T, e.g. 1e-3")
+                 "Polish to an estimated relative error of at most T, e.g. 1e-3")
       ->check(positive_number());
   cli.add_option("--polish-sweeps", polish.cycle.smoothing_steps,
                  "Polishing: Gauss-Seidel sweeps around each coarse correction")
@@ -405,12 +405,15 @@ void PdeOptions::check_outputs() const {
 void PdeOptions::add_nonmanifold_option(CLI::App& cli) {
   add_choice(cli, "--nonmanifold", nonmanifold, choice_names<ice::NonmanifoldInput>(),
              "Not an oriented manifold: refuse, or solve on the tufted cover");
+  cli.add_flag("--separate-thin-parts", separate_thin_parts,
+               "Clouds: keep thin parts' sides apart");
 }
 
 ice::LoadOptions PdeOptions::load_options() const {
   ice::LoadOptions options;
   options.repair = repair;
   options.keep_nonmanifold = nonmanifold == ice::NonmanifoldInput::tufted_cover;
+  options.point_cloud.separate_thin_parts = separate_thin_parts;
   return options;
 }
 

@@ -192,8 +192,10 @@ struct PdeOptions {
   /// marching read it, and gain nothing from smoothing).
   fem::ProlongationKind prolongation = fem::ProlongationKind::barycentric;
   ice::QemGeometry qem_geometry = ice::QemGeometry::extrinsic;  ///< --qem-operators extrinsic|idt
-  /// --nonmanifold refuse|tufted (add_nonmanifold_option), for the tools that solve on the cover.
+  /// --nonmanifold refuse|tufted and --separate-thin-parts (add_nonmanifold_option), for the tools
+  /// that solve on the cover.
   ice::NonmanifoldInput nonmanifold = ice::NonmanifoldInput::refuse;
+  bool separate_thin_parts = false;
   void add_nonmanifold_option(CLI::App& cli);
   /// The load options of the input: --repair, and non-manifold parts kept with --nonmanifold tufted.
   ice::LoadOptions load_options() const;

@@ -118,6 +118,49 @@ TEST_CASE("point cloud: no slivers along the hull of a random sample", "[cloud]"
   REQUIRE(area > 0.95);  // only the hull's slivers are gone: the square stays covered
 }
 
+TEST_CASE("point cloud: with separate_thin_parts a tube sampled six points around is not joined across", "[cloud]") {
+  // Rings of 6 jittered points (each turned half a step against the last) along a tube of radius 1,
+  // as far apart as the points around: the 30 nearest neighbours reach across the tube, and by
+  // default their least-squares plane and the Delaunay triangles of the projection join opposite
+  // sides (edges through the axis), leaving half the surface uncovered. With the option, between the
+  // rings away from the open ends the triangles are those of the tube: two per point, every edge
+  // along the surface.
+  constexpr int around = 6, rings = 60;
+  const double step = 2 * ice::kPi / around;
+  std::mt19937 random(5);
+  std::uniform_real_distribution<double> jitter(-0.1, 0.1);
+  ice::Positions P(around * rings, 3);
+  for (int ring = 0; ring < rings; ++ring)
+    for (int k = 0; k < around; ++k) {
+      const double angle = (k + 0.5 * (ring % 2) + jitter(random)) * step, height = (ring + jitter(random)) * step;
+      P.row(ring * around + k) << std::cos(angle), std::sin(angle), height;
+    }
+  const auto inner = [](Index v) { return v / around >= 2 && v / around < rings - 2; };
+  // Faces between the inner rings, and the least distance of their edges' midpoints from the axis.
+  const auto inner_faces = [&](const ice::Faces& F) {
+    std::pair<Eigen::Index, double> result{0, std::numeric_limits<double>::infinity()};
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      if (!inner(F(f, 0)) || !inner(F(f, 1)) || !inner(F(f, 2))) continue;
+      ++result.first;
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3d middle = 0.5 * (P.row(F(f, k)) + P.row(F(f, (k + 1) % 3))).transpose();
+        result.second = std::min(result.second, middle.head<2>().norm());
+      }
+    }
+    return result;
+  };
+  ice::PointCloudOptions apart;
+  apart.separate_thin_parts = true;
+  const auto [faces, nearest_to_axis] = inner_faces(ice::point_cloud_triangles(P, apart));
+  INFO("faces between the inner rings " << faces << ", an edge's midpoint " << nearest_to_axis << " from the axis");
+  CHECK(nearest_to_axis > 0.7);  // neighbours around a ring: cos(π/6 + jitter) ≥ 0.8; one skipped: 0.5
+  CHECK(faces == 2 * around * (rings - 5));
+  // By default the sides are joined (what the option is for).
+  const auto [joined_faces, joined_nearest] = inner_faces(ice::point_cloud_triangles(P));
+  INFO("by default: " << joined_faces << " faces, an edge's midpoint " << joined_nearest << " from the axis");
+  CHECK(joined_nearest < 0.5);
+}
+
 TEST_CASE("point cloud: where the fans disagree, one consistent choice", "[cloud]") {
   // A square grid: every quad's corners are cocircular, each corner's fan takes its own diagonal;
   // the union would cover every quad twice. The choice keeps one triangulation of the square.
@@ -335,6 +378,6 @@ TEST_CASE("point cloud: point files are read, refused without the option, merged
   ice_test::require_mesh_error([&] { ice::read_mesh_file(pwn); }, Kind::Unreadable, pwn, "no vertices");
   REQUIRE_THROWS_AS(ice::point_cloud_triangles(P.topRows(2)), std::invalid_argument);
   ice::LoadOptions one_neighbour = options;
-  one_neighbour.point_cloud_neighbours = 1;
+  one_neighbour.point_cloud.neighbours = 1;
   REQUIRE_THROWS_AS(ice::load_mesh(xyz, one_neighbour), std::invalid_argument);  // an option, not the file
 }

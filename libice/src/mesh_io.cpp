@@ -1065,10 +1065,8 @@ LoadResult load_point_cloud(const std::string& path, LoadResult result, const Lo
   TriangleMesh& mesh = result.mesh;
   mesh.V.resize(static_cast<Eigen::Index>(result.source_vertex.size()), 3);
   for (std::size_t i = 0; i < result.source_vertex.size(); ++i) mesh.V.row(static_cast<Eigen::Index>(i)) = P.row(result.source_vertex[i]);
-  PointCloudOptions cloud;
-  cloud.neighbours = options.point_cloud_neighbours;
   try {
-    mesh.F = point_cloud_triangles(mesh.V, cloud);
+    mesh.F = point_cloud_triangles(mesh.V, options.point_cloud);
   } catch (const std::invalid_argument& error) {
     // The message without the function's name, its point numbers those of the file.
     std::string message = std::string(error.what()).substr(std::string("point_cloud_triangles: ").size()), named;
@@ -1092,9 +1090,9 @@ LoadResult load_point_cloud(const std::string& path, LoadResult result, const Lo
 }  // namespace
 
 LoadResult load_mesh_with_report(const std::string& path, const LoadOptions& options) {
-  if (options.point_cloud_neighbours < 2)
-    throw std::invalid_argument("LoadOptions::point_cloud_neighbours must be at least 2, not " +
-                                std::to_string(options.point_cloud_neighbours));
+  if (options.point_cloud.neighbours < 2)
+    throw std::invalid_argument("LoadOptions::point_cloud.neighbours must be at least 2, not " +
+                                std::to_string(options.point_cloud.neighbours));
   LoadResult result;
   result.file = read_mesh_file(path);
   result.input_report = validate_mesh(result.file.soup);

@@ -79,6 +79,20 @@ void convex_hull(std::vector<InvertedNeighbour>& q, std::vector<Index>& hull) {
 // exactly when the origin lies to the left of the hull edge a → b, i.e. q_a × q_b > 0. Otherwise the
 // cell is unbounded there: the point is on the boundary of its neighbourhood.
 //
+// With separate_thin_parts, why the plane is the nearest third's (10 of 30 neighbours): where the
+// surface is thin at the neighbourhood's scale (a limb a few points around) all of the neighbours
+// span it across, and their least-squares plane can be anything (on a tube sampled 6 points around,
+// 345 of 360 points' planes were more than 30° off with all 30, 12 with the nearest 10); the nearest
+// ones still lie on the point's side. The Delaunay fan is still taken of all the neighbours.
+//
+// With separate_thin_parts, why steep neighbours are left out (those farther from the plane than
+// along it, 45° or more off it): where the surface is locally a sphere through i tangent to the
+// plane, a point on it at 45° from the plane is on the sphere's equator, where its projection onto
+// the plane turns back; beyond it projected points fall among nearer ones in the wrong order. Such neighbours are on another
+// sheet (across a thin part a few points around: a limb, a fin) or where the surface bends at the
+// neighbourhood's scale; their triangles joined the two sides of a thin part, and the cloud's
+// Laplacian then differed from its surface's (docs/measurements.md, "Clouds: thin parts kept apart").
+//
 // Why `reach` (the farthest neighbour's distance): a triangle whose circumcentre (a vertex of the
 // origin's Voronoi cell) lies beyond it owes its place to the neighbourhood's edge: points not among
 // the neighbours may lie in its circumcircle. Along the hull of a scan, a gap or a random sample such
@@ -86,28 +100,45 @@ void convex_hull(std::vector<InvertedNeighbour>& q, std::vector<Index>& hull) {
 // intrinsic flips cannot mend them); they are left out unless the whole fan is of them (a point must
 // keep a triangle).
 void local_fan(const Positions& P, const PointList& X, Index i, const Index* neighbour, std::size_t count, double diagonal,
-               double reach, std::vector<InvertedNeighbour>& q, std::vector<Index>& hull, std::vector<std::array<Index, 3>>& out,
-               TangentFrame& frame) {
+               double reach, bool separate_thin_parts, std::vector<InvertedNeighbour>& q, std::vector<Index>& hull,
+               std::vector<std::array<Index, 3>>& out, TangentFrame& frame) {
   const Eigen::Vector3d& p = X[static_cast<std::size_t>(i)];
+  const std::size_t plane_count = separate_thin_parts ? std::min(count, std::max<std::size_t>(2, count / 3)) : count;
   Eigen::Vector3d mean = p;
-  for (std::size_t j = 0; j < count; ++j) mean += X[static_cast<std::size_t>(neighbour[j])];
-  mean /= static_cast<double>(count + 1);
+  for (std::size_t j = 0; j < plane_count; ++j) mean += X[static_cast<std::size_t>(neighbour[j])];
+  mean /= static_cast<double>(plane_count + 1);
   Eigen::Matrix3d covariance = (p - mean) * (p - mean).transpose();
-  for (std::size_t j = 0; j < count; ++j) {
+  for (std::size_t j = 0; j < plane_count; ++j) {
     const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - mean;
     covariance += d * d.transpose();
   }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
   solver.computeDirect(covariance);
   const Eigen::Vector3d e1 = solver.eigenvectors().col(2), e2 = solver.eigenvectors().col(1);  // the two largest
+  const Eigen::Vector3d normal = solver.eigenvectors().col(0);
   frame = {e1, e2};
   q.clear();
+  std::size_t steep = 0;  // neighbours farther from the plane than along it, left out of q
   for (std::size_t j = 0; j < count; ++j) {
     const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - p;
     const Eigen::Vector2d x(d.dot(e1), d.dot(e2));
     const double r2 = x.squaredNorm();
     if (!(r2 > 0)) continue;  // right above or below i in its plane: no place in the fan
+    const double height = d.dot(normal);
+    if (separate_thin_parts && height * height > r2) {
+      ++steep;
+      continue;
+    }
     q.push_back({x / r2, neighbour[j]});
+  }
+  if (q.size() < 2 && steep > 0) {  // an outlier off its neighbours' plane: a fan from all of them
+    q.clear();
+    for (std::size_t j = 0; j < count; ++j) {
+      const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - p;
+      const Eigen::Vector2d x(d.dot(e1), d.dot(e2));
+      const double r2 = x.squaredNorm();
+      if (r2 > 0) q.push_back({x / r2, neighbour[j]});
+    }
   }
   convex_hull(q, hull);
   const std::size_t h = hull.size();
@@ -215,7 +246,8 @@ Faces point_cloud_triangles(const Positions& points, const PointCloudOptions& op
         if (count + 1 < wanted) neighbour[count++] = found[j];
       }
       const double reach = got > 0 ? std::sqrt(distance[got - 1]) : 0.0;
-      local_fan(unit, X, i, neighbour.data(), count, diagonal, reach, q, hull, out, frames[static_cast<std::size_t>(i)]);
+      local_fan(unit, X, i, neighbour.data(), count, diagonal, reach, options.separate_thin_parts, q, hull, out,
+                frames[static_cast<std::size_t>(i)]);
     }
   });
 

@@ -98,7 +98,7 @@ class LoadedMesh:
 
 
 def load_mesh(path, repair: bool = False, weld: bool = False, nonmanifold: str = "refuse",
-              neighbours: int = 30) -> LoadedMesh:
+              neighbours: int = 30, separate_thin_parts: bool = False) -> LoadedMesh:
     """Reads and validates an OBJ, OFF, PLY or STL mesh (or an XYZ/PWN point set) under ICE's loading policy.
 
     Refused meshes (non-manifold, inconsistently oriented, zero-area or duplicate faces, ...) raise
@@ -106,11 +106,11 @@ def load_mesh(path, repair: bool = False, weld: bool = False, nonmanifold: str =
     (triangulate, drop zero-area/duplicate faces and unused vertices, re-orient; weld=True also welds
     exactly coincident vertices). nonmanifold="tufted" keeps what the tufted cover solves on (non-manifold
     and non-orientable sheets), and reads a file of points only as its points with the triangles of their
-    local Delaunay fans (ice.point_cloud_triangles with `neighbours`; repeated points refused, merged with
+    local Delaunay fans (ice.point_cloud_triangles with `neighbours` and `separate_thin_parts`; repeated points refused, merged with
     repair=True); pass nonmanifold="tufted" to the solvers too. Returns a LoadedMesh
     (``V, F = ice.load_mesh(path)``).
     """
-    return LoadedMesh(_ice._load_mesh(str(path), repair, weld, nonmanifold, neighbours))
+    return LoadedMesh(_ice._load_mesh(str(path), repair, weld, nonmanifold, neighbours, separate_thin_parts))
 
 
 # The extensions ICE's own reader takes (libice/src/mesh_io.cpp: read_mesh_file); read_mesh hands the rest to meshio.

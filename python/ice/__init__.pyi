@@ -36,7 +36,7 @@ class LoadedMesh:
     def __getitem__(self, index: int) -> FloatArray | IndexArray: ...
 
 def load_mesh(path: Path, repair: bool = False, weld: bool = False, nonmanifold: str = "refuse",
-              neighbours: int = 30) -> LoadedMesh:
+              neighbours: int = 30, separate_thin_parts: bool = False) -> LoadedMesh:
     """Reads and validates an OBJ, OFF, PLY or STL mesh under ICE's loading policy."""
 def read_mesh(path: Path, *, skip_cells: str | Iterable[str] = (), **kw: Any) -> tuple[FloatArray, IndexArray]:
     """(V, F) of a triangle mesh: OBJ/OFF/PLY/STL by ice.load_mesh, other formats by meshio (triangles only)."""
@@ -48,7 +48,8 @@ def face_lengths(V: ArrayLike, F: ArrayLike) -> FloatArray:
     """Per-face edge lengths (m×3), column k from corner k to corner (k+1)%3."""
 def intrinsic_delaunay(V: ArrayLike, F: ArrayLike) -> tuple[IndexArray, FloatArray, int]:
     """(F, lengths, flips) of the intrinsic Delaunay triangulation of (V, F)."""
-def point_cloud_triangles(P: ArrayLike, *, neighbours: int = 30, threads: int = 0) -> IndexArray:
+def point_cloud_triangles(P: ArrayLike, *, neighbours: int = 30, threads: int = 0,
+                          separate_thin_parts: bool = False) -> IndexArray:
     """Faces of a point cloud: its points' local Delaunay triangles (a soup; solve with nonmanifold="tufted")."""
 def loop_subdivide(V: ArrayLike, F: ArrayLike, levels: int = 1) -> tuple[FloatArray, IndexArray]:
     """Loop subdivision `levels` times (about 4x the vertices each)."""

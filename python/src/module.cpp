@@ -221,14 +221,15 @@ void require_clean(const ice::TriangleMesh& mesh, ice::NonmanifoldInput cover = 
 }
 
 py::dict load_mesh(const std::filesystem::path& file_path, bool repair, bool weld, const std::string& nonmanifold,
-                   int neighbours) {
+                   int neighbours, bool separate_thin_parts) {
   const std::string path = file_path.string();
   ice::LoadOptions options;
   options.repair = repair;
   options.weld_duplicate_positions = weld;
   options.keep_nonmanifold = choice<ice::NonmanifoldInput>(nonmanifold, "nonmanifold") == ice::NonmanifoldInput::tufted_cover;
   if (neighbours < 2) throw py::value_error("neighbours must be at least 2");
-  options.point_cloud_neighbours = neighbours;
+  options.point_cloud.neighbours = neighbours;
+  options.point_cloud.separate_thin_parts = separate_thin_parts;
   if (weld && !repair) throw py::value_error("weld=True goes with repair=True");
   ice::LoadResult loaded;
   {
@@ -1045,13 +1046,15 @@ PYBIND11_MODULE(_ice, m) {
       py::arg("prolongation"), py::arg("operators"), py::arg("dirichlet"), py::arg("eigenpairs") = false,
       "The prolongation 'auto' means for these operators (ice::proxy::resolve_prolongation).");
   m.def("_load_mesh", &load_mesh, py::arg("path"), py::arg("repair") = false, py::arg("weld") = false,
-        py::arg("nonmanifold") = "refuse", py::arg("neighbours") = 30, "The dict behind ice.load_mesh (use that).");
+        py::arg("nonmanifold") = "refuse", py::arg("neighbours") = 30, py::arg("separate_thin_parts") = false,
+        "The dict behind ice.load_mesh (use that).");
   m.def(
       "point_cloud_triangles",
-      [](const py::object& P, int neighbours, int threads) {
+      [](const py::object& P, int neighbours, int threads, bool separate_thin_parts) {
         const ice::Positions points = positions_argument(P, "P");
         ice::PointCloudOptions options;
         options.neighbours = neighbours;
+        options.separate_thin_parts = separate_thin_parts;
         options.threads = bounded_integer(py::int_(threads), "threads", 0, 64);
         ice::Faces F;
         {
@@ -1064,10 +1067,12 @@ PYBIND11_MODULE(_ice, m) {
         }
         return py::cast(std::move(F));
       },
-      py::arg("P"), py::kw_only(), py::arg("neighbours") = 30, py::arg("threads") = 0,
+      py::arg("P"), py::kw_only(), py::arg("neighbours") = 30, py::arg("threads") = 0, py::arg("separate_thin_parts") = false,
       R"doc(Faces (m×3) for a point cloud P (n×3): the triangles of each point's local Delaunay fan (its `neighbours`
 nearest points projected onto its least-squares tangent plane; Sharp & Crane 2020, §5.3), made consistent
-where the fans disagree (no two overlapping at a corner). A triangle soup (non-manifold, inconsistently oriented): pass (P, F) with
+where the fans disagree (no two overlapping at a corner). separate_thin_parts=True keeps apart the two
+sides of parts sampled only a few points across (limbs, fins, tubes): the plane from the nearest third,
+neighbours 45° or more off it left out (off by default: it also splits walls scanned on both sides). A triangle soup (non-manifold, inconsistently oriented): pass (P, F) with
 nonmanifold="tufted" to ice.coarsen, ice.setup_proxy or the solve_* functions. Raises ValueError for fewer
 than 3 points, non-finite or repeated positions, or a point whose neighbours and it lie on one line.)doc");
   m.def("validate", &validate, py::arg("V"), py::arg("F"),

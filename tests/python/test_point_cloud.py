@@ -40,6 +40,29 @@ def test_point_cloud_faces_refuse_bad_points():
         ice.point_cloud_triangles(np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)]))
 
 
+def test_separate_thin_parts_keeps_a_thin_tube_open(tmp_path):
+    # Rings of 6 points along a tube of radius 1, as far apart as the points around: by default the 30
+    # neighbours reach across and edges pass by the axis; with separate_thin_parts no edge does.
+    rng = np.random.default_rng(5)
+    around, rings, step = 6, 40, 2 * np.pi / 6
+    k, ring = np.meshgrid(np.arange(around), np.arange(rings))
+    angle = (k + 0.5 * (ring % 2) + rng.uniform(-0.1, 0.1, k.shape)) * step
+    P = np.column_stack([np.cos(angle).ravel(), np.sin(angle).ravel(), (ring * step).ravel()])
+
+    def nearest_edge_midpoint_to_axis(F):
+        inner = ((F // around >= 2) & (F // around < rings - 2)).all(axis=1)
+        F = F[inner]
+        middle = (P[F] + P[np.roll(F, 1, axis=1)]) / 2
+        return np.linalg.norm(middle[..., :2], axis=-1).min()
+
+    apart = ice.point_cloud_triangles(P, separate_thin_parts=True)
+    assert nearest_edge_midpoint_to_axis(apart) > 0.7
+    assert nearest_edge_midpoint_to_axis(ice.point_cloud_triangles(P)) < 0.5
+    path = tmp_path / "tube.xyz"
+    np.savetxt(path, P)
+    assert np.array_equal(ice.load_mesh(path, nonmanifold="tufted", separate_thin_parts=True).F, apart)
+
+
 def test_point_files_load_with_the_option(tmp_path):
     P = sphere_points(500)
     path = tmp_path / "points.xyz"

@@ -36,6 +36,7 @@
 #include "ice/mesh.h"
 #include "ice/mesh_repair.h"
 #include "ice/mesh_validation.h"
+#include "ice/point_cloud.h"
 
 namespace ice {
 
@@ -91,8 +92,8 @@ struct LoadOptions {
   /// repair, merged into the first of them (weld_duplicate_positions is not needed for points). Without
   /// this option such a file is refused. Refusals name points by their number in the file.
   bool keep_nonmanifold = false;
-  /// PointCloudOptions::neighbours of a point cloud's fans; below 2 load_mesh throws std::invalid_argument.
-  int point_cloud_neighbours = 30;
+  /// How a point cloud's fans are made (its neighbours below 2: load_mesh throws std::invalid_argument).
+  PointCloudOptions point_cloud;
 };
 
 /// Everything `load_mesh_with_report` learned about a file.
