@@ -78,7 +78,10 @@ RECORD_VERSION = 4  # 2: eigs through P smoothed twice (the eigenbasis's default
 # Coarsening options that a batch passes to ice.coarsen (and hashes). Not the thread count: the
 # batch chooses it per mesh (BatchOptions.mesh_threads) and it does not change the result.
 COARSEN_OPTIONS = ("n", "ratio", "max_error", "method", "use", "area_weight", "normalize_curvature",
-                   "remove_boundary", "regions", "qem_geometry", "refine_angle", "refine_budget", "nonmanifold")
+                   "remove_boundary", "regions", "qem_geometry", "refine_angle", "refine_budget", "nonmanifold",
+                   "separate_thin_parts")
+# Of those, the ones the loader takes (point sets' fans), not ice.coarsen.
+LOAD_OPTIONS = ("separate_thin_parts",)
 # A record's hash is of the options with these filled in, so {"ratio": 0.05} and {"ratio": 0.05,
 # "method": "ice"} are the same run: what ice.coarsen does when an option is not given. Its regions
 # (0 stands for DEFAULT_COARSENING_REGIONS; 1: the exact serial greedy order) fix a mesh's result
@@ -173,6 +176,11 @@ def canonical_options(coarsen: dict) -> dict:
         raise ValueError(f"nonmanifold must be 'refuse' or 'tufted', not {options['nonmanifold']!r}")
     if options.get("nonmanifold") == "refuse":  # the default, left out (so records made before it stay valid)
         del options["nonmanifold"]
+    if "separate_thin_parts" in options:
+        if not isinstance(options["separate_thin_parts"], bool):
+            raise ValueError(f"separate_thin_parts must be True or False, not {options['separate_thin_parts']!r}")
+        if not options["separate_thin_parts"]:  # the default, left out as nonmanifold's
+            del options["separate_thin_parts"]
     if options["regions"] == 0:  # ice.coarsen's own default, spelled out: the same run, the same hash
         options["regions"] = DEFAULT_COARSENING_REGIONS
     return options
@@ -331,7 +339,8 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
         record["policy"] = _scheduling_policy()
     finished: list[tuple[pathlib.Path, str]] = []  # (output, its written temporary)
     try:
-        loaded = ice.load_mesh(path, repair=repair, nonmanifold=options.get("nonmanifold", "refuse"))
+        loaded = ice.load_mesh(path, repair=repair, nonmanifold=options.get("nonmanifold", "refuse"),
+                               separate_thin_parts=options.get("separate_thin_parts", False))
         record["vertices"], record["faces"] = int(loaded.V.shape[0]), int(loaded.F.shape[0])
         record["repairs"] = loaded.repairs
         deadline = None if timeout is None else started + timeout
@@ -344,7 +353,8 @@ def coarsen_file(path: str, relative: str, out: str, options: dict, repair: bool
             return True
         # Not through the store of coarse spaces: the batch's records are its own store (it resumes from
         # them), and a dataset's spaces would crowd out a user's set-ups there.
-        coarse = ice.coarsen(loaded.V, loaded.F, progress=progress, threads=threads, cache=False, **options)
+        coarse = ice.coarsen(loaded.V, loaded.F, progress=progress, threads=threads, cache=False,
+                             **{k: v for k, v in options.items() if k not in LOAD_OPTIONS})
         if timed_out:
             raise TimeoutError(f"{path}: coarsening passed the timeout of {timeout:g} s "
                                f"(at {coarse.n_vertices} vertices); cancelled")
@@ -761,6 +771,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--nonmanifold", choices=("refuse", "tufted"), default="refuse",
                         help="tufted: solve meshes that are not oriented manifolds, and point sets (.xyz, .pwn, "
                              "faceless files), on their tufted cover (no .ilm written for those)")
+    parser.add_argument("--separate-thin-parts", action="store_true",
+                        help="point sets: keep apart the two sides of parts sampled a few points across (limbs, "
+                             "fins), as the tools' --separate-thin-parts")
     parser.add_argument("--features", help="also write eigs:K (the K smallest Laplace-Beltrami eigenpairs through the "
                                            "coarse proxy) and hks:T1:T2:... (heat kernel signatures) into each .npz")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
@@ -804,6 +817,8 @@ def main(argv=None) -> int:
         coarsen["remove_boundary"] = False
     if args.nonmanifold != "refuse":
         coarsen["nonmanifold"] = args.nonmanifold
+    if args.separate_thin_parts:
+        coarsen["separate_thin_parts"] = True
     if args.workers < 1:
         print("ice-batch: --workers must be >= 1", file=sys.stderr)
         return 4
