@@ -1,8 +1,9 @@
 // Loading a large mesh: ICE's readers plus the validation every tool runs, beside OpenMesh's reader
 // (which builds its half-edge mesh but validates nothing), on the same files in the same run.
 //
-//   ice_bench --benchmark_filter='BM_(LoadMesh|OpenMeshRead)' --benchmark_repetitions=5 \
+//   ice_bench --benchmark_filter='BM_(LoadMesh|OpenMeshRead)' --benchmark_repetitions=5
 //             --benchmark_enable_random_interleaving=true --benchmark_report_aggregates_only=true
+//   (one command line)
 #include <cstdio>
 #include <filesystem>
 #include <string>

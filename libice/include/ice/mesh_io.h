@@ -93,7 +93,7 @@ struct LoadOptions {
   /// this option such a file is refused. Refusals name points by their number in the file.
   bool keep_nonmanifold = false;
   /// How a point cloud's fans are made (its neighbours below 2: load_mesh throws std::invalid_argument).
-  PointCloudOptions point_cloud;
+  PointCloudOptions point_cloud{};
 };
 
 /// Everything `load_mesh_with_report` learned about a file.
