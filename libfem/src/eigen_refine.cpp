@@ -100,9 +100,9 @@ void sparse_times_columns(const SparseMatrix& L, const Dense& X, Dense& out, Eig
 // L X for a symmetric L, 8 columns per pass over L: L is read from memory once per 8 columns, and
 // the 8 columns' rows near row i are in cache when L's numbering is local (refined_eigenbasis
 // numbers the fine vertices breadth-first). Each entry is summed in one order whatever the threads.
-Dense sparse_times(const SparseMatrix& L, const Dense& X, int threads) {
+void sparse_times(const SparseMatrix& L, const Dense& X, Dense& out, int threads) {
   constexpr int kChunk = 8;
-  Dense out(L.rows(), X.cols());
+  out.resize(L.rows(), X.cols());  // kept when it has that size already
   for (Eigen::Index first = 0; first < X.cols(); first += kChunk) {
     const int width = static_cast<int>(std::min<Eigen::Index>(kChunk, X.cols() - first));
     if (width == kChunk)
@@ -110,7 +110,6 @@ Dense sparse_times(const SparseMatrix& L, const Dense& X, int threads) {
     else
       sparse_times_columns<0>(L, X, out, first, width, threads);
   }
-  return out;
 }
 
 Dense symmetrised(const Dense& G) { return 0.5 * (G + G.transpose()); }
@@ -248,10 +247,14 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   // are zero: a negative entry there is left out with its zero rows).
   const Eigen::VectorXd root_mass = mass.cwiseMax(0).cwiseSqrt();
   EigenRefineReport report;
-  const auto L_times = [&](const Dense& Y) {
+  const auto L_times_into = [&](const Dense& Y, Dense& LY) {
     const auto product_start = Clock::now();
-    Dense LY = sparse_times(L, Y, threads);
+    sparse_times(L, Y, LY, threads);
     report.sparse_seconds += ice::seconds_since(product_start);
+  };
+  const auto L_times = [&](const Dense& Y) {
+    Dense LY;
+    L_times_into(Y, LY);
     return LY;
   };
   const auto clear_fixed_rows = [&](Dense& A) {
@@ -347,8 +350,13 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     // residuals), the preconditioner, L U, Uᵀ L U and Uᵀ M U, G's products through the coarse
     // space (one restriction of L U and M U), and X = U Y_U + P (Ψ Y_G).
     const Dense& psi = coarse->coarse_vectors;
+    // One n × m block beside X holds R, then L U, then the next X (their lifetimes do not overlap),
+    // and the next X's storage is swapped with X's: a fresh n × m allocation per product would have
+    // the kernel map and zero its pages again (~0.1 s per GB here).
+    Dense scratch;
     for (int iteration = 0;; ++iteration) {
-      Dense R = L_times(X);
+      Dense& R = scratch;
+      L_times_into(X, R);
       residuals_of(R);
       if (stop_at(iteration)) break;
       const std::vector<Eigen::Index> active = still_active();
@@ -362,11 +370,11 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
 #pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
         for (std::size_t c = 0; c < some.size(); ++c) X.col(some[c]) -= W.col(static_cast<Eigen::Index>(c));
       }
-      R.resize(0, 0);
       // X now holds U. The Gram matrices of [U, G]: U's own computed in full, G's given.
       Dense GL(m + g, m + g), GM(m + g, m + g);
       {
-        const Dense LU = L_times(X);
+        Dense& LU = scratch;
+        L_times_into(X, LU);
         auto phase_start = Clock::now();
         GL.topLeftCorner(m, m) = gram(X, LU);
         GM.topLeftCorner(m, m) = mass_self_gram(X, root_mass);
@@ -384,13 +392,14 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
       auto phase_start = Clock::now();
       const Ritz r = ritz_pairs(GL, GM, m, kDrop);
-      Dense moved = block_product(X, r.coefficients.topRows(m));
+      Dense& moved = scratch;
+      product(X, false, r.coefficients.topRows(m), false, moved);
       report.dense_seconds += ice::seconds_since(phase_start);
       phase_start = Clock::now();
       detail::product_to_columns(coarse_rows, Dense(psi * r.coefficients.bottomRows(g)), moved, true, threads);
       report.coarse_seconds += ice::seconds_since(phase_start);
       clear_fixed_rows(moved);
-      X = std::move(moved);
+      X.swap(moved);
       theta = r.values;
     }
   } else {
