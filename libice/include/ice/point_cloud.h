@@ -30,8 +30,9 @@ struct PointCloudOptions {
   /// neighbours, and neighbours 45° or more off it left out of the fan (unless fewer than two would
   /// remain). For clouds whose thin parts (limbs, fins, tubes) are sampled only a few points across,
   /// where the neighbours reach across and their triangles join the two sides; it also splits the two
-  /// faces of a wall sampled on both sides. Off by default: scans' coarse errors rose with it
-  /// (docs/measurements.md, "Clouds: thin parts kept apart").
+  /// faces of a wall sampled on both sides, and can leave a thin edge's or limb's sides unjoined (a
+  /// cloud of more components). Off by default: scans' coarse errors rose with it, and 3 of 55 clouds
+  /// drawn from CGAL's meshes fell apart (docs/measurements.md, "Clouds: thin parts kept apart").
   bool separate_thin_parts = false;
   /// Threads of the per-point pass (0: one per hardware thread). The result does not depend on it.
   int threads = 0;
