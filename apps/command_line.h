@@ -197,7 +197,8 @@ struct PdeOptions {
   ice::NonmanifoldInput nonmanifold = ice::NonmanifoldInput::refuse;
   bool separate_thin_parts = false;
   void add_nonmanifold_option(CLI::App& cli);
-  /// The load options of the input: --repair, and non-manifold parts kept with --nonmanifold tufted.
+  /// The load options of the input: --repair, non-manifold parts kept with --nonmanifold tufted, and
+  /// point clouds' fans with --separate-thin-parts.
   ice::LoadOptions load_options() const;
   bool fine_idt = true;
   std::string output;  ///< PLY or binary glTF (.glb)

@@ -103,70 +103,73 @@ void local_fan(const Positions& P, const PointList& X, Index i, const Index* nei
                double reach, bool separate_thin_parts, std::vector<InvertedNeighbour>& q, std::vector<Index>& hull,
                std::vector<std::array<Index, 3>>& out, TangentFrame& frame) {
   const Eigen::Vector3d& p = X[static_cast<std::size_t>(i)];
-  const std::size_t plane_count = separate_thin_parts ? std::min(count, std::max<std::size_t>(2, count / 3)) : count;
-  Eigen::Vector3d mean = p;
-  for (std::size_t j = 0; j < plane_count; ++j) mean += X[static_cast<std::size_t>(neighbour[j])];
-  mean /= static_cast<double>(plane_count + 1);
-  Eigen::Matrix3d covariance = (p - mean) * (p - mean).transpose();
-  for (std::size_t j = 0; j < plane_count; ++j) {
-    const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - mean;
-    covariance += d * d.transpose();
-  }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
-  solver.computeDirect(covariance);
+  const auto fit_plane = [&](std::size_t used) {  // the least-squares plane of i and its `used` nearest
+    Eigen::Vector3d mean = p;
+    for (std::size_t j = 0; j < used; ++j) mean += X[static_cast<std::size_t>(neighbour[j])];
+    mean /= static_cast<double>(used + 1);
+    Eigen::Matrix3d covariance = (p - mean) * (p - mean).transpose();
+    for (std::size_t j = 0; j < used; ++j) {
+      const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - mean;
+      covariance += d * d.transpose();
+    }
+    solver.computeDirect(covariance);
+  };
+  const std::size_t third = std::min(count, std::max<std::size_t>(2, count / 3));
+  fit_plane(separate_thin_parts ? third : count);
+  // The nearest third nearly on a line (their spread across under a tenth of their spread along, as
+  // on a scan line) determine no plane: then all of them.
+  if (separate_thin_parts && third < count && !(solver.eigenvalues()(1) > 1e-2 * solver.eigenvalues()(2))) fit_plane(count);
   const Eigen::Vector3d e1 = solver.eigenvectors().col(2), e2 = solver.eigenvectors().col(1);  // the two largest
   const Eigen::Vector3d normal = solver.eigenvectors().col(0);
   frame = {e1, e2};
-  q.clear();
-  std::size_t steep = 0;  // neighbours farther from the plane than along it, left out of q
-  for (std::size_t j = 0; j < count; ++j) {
-    const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - p;
-    const Eigen::Vector2d x(d.dot(e1), d.dot(e2));
-    const double r2 = x.squaredNorm();
-    if (!(r2 > 0)) continue;  // right above or below i in its plane: no place in the fan
-    const double height = d.dot(normal);
-    if (separate_thin_parts && height * height > r2) {
-      ++steep;
-      continue;
-    }
-    q.push_back({x / r2, neighbour[j]});
-  }
-  if (q.size() < 2 && steep > 0) {  // an outlier off its neighbours' plane: a fan from all of them
+  const std::size_t first = out.size();
+  // The fan of the neighbours, those 45° or more off the plane left out when asked; returns how many were.
+  const auto add_fan = [&](bool leave_out_steep) {
     q.clear();
+    std::size_t steep = 0;
     for (std::size_t j = 0; j < count; ++j) {
       const Eigen::Vector3d d = X[static_cast<std::size_t>(neighbour[j])] - p;
       const Eigen::Vector2d x(d.dot(e1), d.dot(e2));
       const double r2 = x.squaredNorm();
-      if (r2 > 0) q.push_back({x / r2, neighbour[j]});
+      if (!(r2 > 0)) continue;  // right above or below i in its plane: no place in the fan
+      const double height = d.dot(normal);
+      if (leave_out_steep && height * height >= r2) {
+        ++steep;
+        continue;
+      }
+      q.push_back({x / r2, neighbour[j]});
     }
-  }
-  convex_hull(q, hull);
-  const std::size_t h = hull.size();
-  if (h < 2) return;
-  const std::size_t first = out.size();
-  std::size_t beyond = 0;
-  for (std::size_t k = 0; k < h; ++k) {  // h = 2: both ways round, at most one with the origin on its left
-    const InvertedNeighbour& a = q[static_cast<std::size_t>(hull[k])];
-    const InvertedNeighbour& b = q[static_cast<std::size_t>(hull[(k + 1) % h])];
-    const double det = cross_2d(a.q, b.q);
-    if (!(det > 0)) continue;
-    if (is_degenerate_triangle(P, i, a.point, b.point, diagonal)) continue;
-    // The Voronoi vertex c (c·q_a = c·q_b = 1/2), the triangle's circumcentre.
-    const Eigen::Vector2d c = Eigen::Vector2d(b.q.y() - a.q.y(), a.q.x() - b.q.x()) / (2 * det);
-    const bool inside = c.squaredNorm() <= reach * reach;
-    if (!inside) ++beyond;
-    out.push_back({inside ? i : -1 - i, a.point, b.point});  // marked: left out below unless all are
-  }
-  const bool keep_beyond = beyond == out.size() - first;
-  std::size_t w = first;
-  for (std::size_t r = first; r < out.size(); ++r) {
-    if (out[r][0] < 0) {
-      if (!keep_beyond) continue;
-      out[r][0] = -1 - out[r][0];
+    convex_hull(q, hull);
+    const std::size_t h = hull.size();
+    if (h < 2) return steep;
+    std::size_t beyond = 0;
+    for (std::size_t k = 0; k < h; ++k) {  // h = 2: both ways round, at most one with the origin on its left
+      const InvertedNeighbour& a = q[static_cast<std::size_t>(hull[k])];
+      const InvertedNeighbour& b = q[static_cast<std::size_t>(hull[(k + 1) % h])];
+      const double det = cross_2d(a.q, b.q);
+      if (!(det > 0)) continue;
+      if (is_degenerate_triangle(P, i, a.point, b.point, diagonal)) continue;
+      // The Voronoi vertex c (c·q_a = c·q_b = 1/2), the triangle's circumcentre.
+      const Eigen::Vector2d c = Eigen::Vector2d(b.q.y() - a.q.y(), a.q.x() - b.q.x()) / (2 * det);
+      const bool inside = c.squaredNorm() <= reach * reach;
+      if (!inside) ++beyond;
+      out.push_back({inside ? i : -1 - i, a.point, b.point});  // marked: left out below unless all are
     }
-    out[w++] = out[r];
-  }
-  out.resize(w);
+    const bool keep_beyond = beyond == out.size() - first;
+    std::size_t w = first;
+    for (std::size_t r = first; r < out.size(); ++r) {
+      if (out[r][0] < 0) {
+        if (!keep_beyond) continue;
+        out[r][0] = -1 - out[r][0];
+      }
+      out[w++] = out[r];
+    }
+    out.resize(w);
+    return steep;
+  };
+  // A fan left empty by the steep neighbours (an outlier off its neighbours' plane): one of all.
+  if (add_fan(separate_thin_parts) > 0 && out.size() == first) add_fan(false);
 }
 
 // The directions a triangle at corner v covers in v's tangent plane: from `start`, counter-clockwise

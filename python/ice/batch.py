@@ -181,6 +181,8 @@ def canonical_options(coarsen: dict) -> dict:
             raise ValueError(f"separate_thin_parts must be True or False, not {options['separate_thin_parts']!r}")
         if not options["separate_thin_parts"]:  # the default, left out as nonmanifold's
             del options["separate_thin_parts"]
+        elif options.get("nonmanifold") != "tufted":
+            raise ValueError("separate_thin_parts makes point sets' fans: point sets are read with nonmanifold='tufted' only")
     if options["regions"] == 0:  # ice.coarsen's own default, spelled out: the same run, the same hash
         options["regions"] = DEFAULT_COARSENING_REGIONS
     return options

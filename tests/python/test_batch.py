@@ -375,10 +375,13 @@ def test_nonmanifold_meshes_and_point_sets_on_their_cover(project_mesh, tmp_path
     # separate_thin_parts reaches the point set's fans (the loader's, not ice.coarsen's option).
     with pytest.raises(ValueError, match="separate_thin_parts must be"):
         batch.run(str(root), out, batch.BatchOptions(coarsen={"ratio": 0.1, "separate_thin_parts": 1}, progress=False))
+    with pytest.raises(ValueError, match="nonmanifold='tufted' only"):
+        batch.run(str(root), out, batch.BatchOptions(coarsen={"ratio": 0.1, "separate_thin_parts": True}, progress=False))
     apart = batch.run(str(root), out, batch.BatchOptions(coarsen={"ratio": 0.1, "nonmanifold": "tufted",
                                                                   "separate_thin_parts": True},
                                                          repair=True, workers=1, progress=False))
     assert all(r["status"] == "ok" for r in apart.records) and apart.skipped == 0
     V, F = ice.load_mesh(project_mesh("kitten.xyz"), nonmanifold="tufted", repair=True, separate_thin_parts=True)
+    assert not np.array_equal(F, ice.load_mesh(project_mesh("kitten.xyz"), nonmanifold="tufted", repair=True).F)
     expected = ice.coarsen(V, F, ratio=0.1, nonmanifold="tufted", cache=False)
     assert abs(batch.load_result(out, "kitten.xyz")["P"] - expected.P).max() == 0

@@ -49,15 +49,17 @@ def test_separate_thin_parts_keeps_a_thin_tube_open(tmp_path):
     angle = (k + 0.5 * (ring % 2) + rng.uniform(-0.1, 0.1, k.shape)) * step
     P = np.column_stack([np.cos(angle).ravel(), np.sin(angle).ravel(), (ring * step).ravel()])
 
+    def inner_faces(F):  # faces between the rings away from the open ends
+        return F[((F // around >= 2) & (F // around < rings - 2)).all(axis=1)]
+
     def nearest_edge_midpoint_to_axis(F):
-        inner = ((F // around >= 2) & (F // around < rings - 2)).all(axis=1)
-        F = F[inner]
         middle = (P[F] + P[np.roll(F, 1, axis=1)]) / 2
         return np.linalg.norm(middle[..., :2], axis=-1).min()
 
     apart = ice.point_cloud_triangles(P, separate_thin_parts=True)
-    assert nearest_edge_midpoint_to_axis(apart) > 0.7
-    assert nearest_edge_midpoint_to_axis(ice.point_cloud_triangles(P)) < 0.5
+    assert len(inner_faces(apart)) == 2 * around * (rings - 5)  # the tube's: two per point
+    assert nearest_edge_midpoint_to_axis(inner_faces(apart)) > 0.7
+    assert nearest_edge_midpoint_to_axis(inner_faces(ice.point_cloud_triangles(P))) < 0.5
     path = tmp_path / "tube.xyz"
     np.savetxt(path, P)
     assert np.array_equal(ice.load_mesh(path, nonmanifold="tufted", separate_thin_parts=True).F, apart)

@@ -26,23 +26,23 @@ struct PointCloudOptions {
   /// Neighbours of each point whose projection onto the point's tangent plane (the least-squares plane
   /// of the point and its neighbours) is triangulated; the paper's default. At most n − 1 are used.
   int neighbours = 30;
-  /// Keep the two sides of thin parts apart: the tangent plane from the nearest third of the
-  /// neighbours, and neighbours 45° or more off it left out of the fan (unless fewer than two would
-  /// remain). For clouds whose thin parts (limbs, fins, tubes) are sampled only a few points across,
-  /// where the neighbours reach across and their triangles join the two sides; it also splits the two
-  /// faces of a wall sampled on both sides, and can leave a thin edge's or limb's sides unjoined (a
-  /// cloud of more components). Off by default: scans' coarse errors rose with it, and 3 of 55 clouds
-  /// drawn from CGAL's meshes fell apart (docs/measurements.md, "Clouds: thin parts kept apart").
-  bool separate_thin_parts = false;
   /// Threads of the per-point pass (0: one per hardware thread). The result does not depend on it.
   int threads = 0;
+  /// Keep the two sides of thin parts apart: the tangent plane from the nearest third of the
+  /// neighbours (all of them where those nearly lie on a line), and neighbours 45° or more off it
+  /// left out of the fan (unless the fan would be left empty). For clouds whose thin parts (limbs,
+  /// fins, tubes) are sampled only a few points across, where the neighbours reach across and their
+  /// triangles join the two sides; it also splits the two faces of a wall sampled on both sides, and
+  /// can leave a thin edge's or limb's sides unjoined (a cloud of more components). Off by default:
+  /// scans' coarse errors rose with it, and 3 of 55 clouds drawn from CGAL's meshes fell apart
+  /// (docs/measurements.md, "Clouds: thin parts kept apart").
+  bool separate_thin_parts = false;
 };
 
 /// The consistent local Delaunay triangles of a point cloud. A point's fan: the Delaunay triangles
 /// incident to point i in the triangulation of i and its nearest neighbours projected onto i's
 /// tangent plane, oriented counter-clockwise in that plane (see PointCloudOptions::separate_thin_parts);
-/// triangles of zero area
-/// (ice::is_degenerate_triangle) left out, and so are those whose circumcentre lies farther from i
+/// triangles of zero area (ice::is_degenerate_triangle) left out, and so are those whose circumcentre lies farther from i
 /// than its farthest neighbour (slivers along the neighbourhood's hull) unless all of the fan's do.
 /// Of the fans' distinct triangles (each in the orientation of the lowest point whose fan has it)
 /// those the choice above keeps, plus, for a point left on no triangle, its fan's. Faces are sorted (lexicographically by their corners as stored); the result
