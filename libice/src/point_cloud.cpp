@@ -88,10 +88,11 @@ void convex_hull(std::vector<InvertedNeighbour>& q, std::vector<Index>& hull) {
 // With separate_thin_parts, why steep neighbours are left out (those farther from the plane than
 // along it, 45° or more off it): where the surface is locally a sphere through i tangent to the
 // plane, a point on it at 45° from the plane is on the sphere's equator, where its projection onto
-// the plane turns back; beyond it projected points fall among nearer ones in the wrong order. Such neighbours are on another
-// sheet (across a thin part a few points around: a limb, a fin) or where the surface bends at the
-// neighbourhood's scale; their triangles joined the two sides of a thin part, and the cloud's
-// Laplacian then differed from its surface's (docs/measurements.md, "Clouds: thin parts kept apart").
+// the plane turns back; beyond it projected points fall among nearer ones in the wrong order. Such
+// neighbours are on another sheet (across a thin part a few points around: a limb, a fin) or where
+// the surface bends at the neighbourhood's scale; their triangles joined the two sides of a thin
+// part, and the cloud's Laplacian then differed from its surface's (docs/measurements.md, "Clouds:
+// thin parts kept apart").
 //
 // Why `reach` (the farthest neighbour's distance): a triangle whose circumcentre (a vertex of the
 // origin's Voronoi cell) lies beyond it owes its place to the neighbourhood's edge: points not among

@@ -1072,8 +1072,8 @@ PYBIND11_MODULE(_ice, m) {
 nearest points projected onto its least-squares tangent plane; Sharp & Crane 2020, §5.3), made consistent
 where the fans disagree (no two overlapping at a corner). separate_thin_parts=True keeps apart the two
 sides of parts sampled only a few points across (limbs, fins, tubes): the plane from the nearest third,
-neighbours 45° or more off it left out (off by default: it also splits walls scanned on both sides). A triangle soup (non-manifold, inconsistently oriented): pass (P, F) with
-nonmanifold="tufted" to ice.coarsen, ice.setup_proxy or the solve_* functions. Raises ValueError for fewer
+neighbours 45° or more off it left out (off by default: it also splits walls scanned on both sides).
+A triangle soup (non-manifold, inconsistently oriented): pass (P, F) with nonmanifold="tufted" to ice.coarsen, ice.setup_proxy or the solve_* functions. Raises ValueError for fewer
 than 3 points, non-finite or repeated positions, or a point whose neighbours and it lie on one line.)doc");
   m.def("validate", &validate, py::arg("V"), py::arg("F"),
         R"doc(Validation report of the mesh (V, F): sizes, components, boundary loops, genus, bounding box,

@@ -42,10 +42,11 @@ struct PointCloudOptions {
 /// The consistent local Delaunay triangles of a point cloud. A point's fan: the Delaunay triangles
 /// incident to point i in the triangulation of i and its nearest neighbours projected onto i's
 /// tangent plane, oriented counter-clockwise in that plane (see PointCloudOptions::separate_thin_parts);
-/// triangles of zero area (ice::is_degenerate_triangle) left out, and so are those whose circumcentre lies farther from i
-/// than its farthest neighbour (slivers along the neighbourhood's hull) unless all of the fan's do.
-/// Of the fans' distinct triangles (each in the orientation of the lowest point whose fan has it)
-/// those the choice above keeps, plus, for a point left on no triangle, its fan's. Faces are sorted (lexicographically by their corners as stored); the result
+/// triangles of zero area (ice::is_degenerate_triangle) left out, and so are those whose
+/// circumcentre lies farther from i than its farthest neighbour (slivers along the neighbourhood's
+/// hull) unless all of the fan's do. Of the fans' distinct triangles (each in the orientation of the
+/// lowest point whose fan has it) those the choice above keeps, plus, for a point left on no
+/// triangle, its fan's. Faces are sorted (lexicographically by their corners as stored); the result
 /// does not depend on options.threads.
 /// Preconditions (std::invalid_argument otherwise): `points` is n × 3 with n ≥ 3, finite, no two points
 /// at the same position; options.neighbours ≥ 2.
