@@ -8,7 +8,8 @@ namespace ice_test {
 /// Exit status of a test binary whose only outcome was a skip (ctest's SKIP_RETURN_CODE; main.cpp).
 constexpr int kSkipExitCode = 77;
 
-/// Set when a test case skipped itself; main.cpp turns a clean run with a skip into kSkipExitCode.
+/// Set when the running test case skipped itself; main.cpp counts the cases that did and turns a clean
+/// run whose every case skipped into kSkipExitCode.
 inline std::atomic<bool>& skipped() {
   static std::atomic<bool> flag{false};
   return flag;
