@@ -49,7 +49,8 @@ int spectral_coarse_tool::main(int argc, char** argv) {
       ->capture_default_str();
   cli.add_option("--tolerance", tolerance,
                  "Refine the pairs on the input mesh to this relative residual |L phi - lambda M phi| / (lambda |M phi|);\n"
-                 "0: the proxy's pairs as they are")
+                 "0: the proxy's pairs as they are. Without --ratio/--vertices: " +
+                     std::to_string(ice::proxy::EigenRefinement().coarse_vertices_per_pair) + " coarse vertices per coarse pair")
       ->check(CLI::Range(0.0, 0.1))
       ->capture_default_str();
   cli.add_option("--coarse-directions", coarse_directions,
@@ -110,7 +111,17 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                                  "--prolongation", ice::proxy::ProlongationUse::eigenpairs);
     run.prolongation = opt.prolongation;
     ice::CoarsenOptions coarsen_options;
-    opt.target.apply(coarsen_options, n);
+    // The refined route without --ratio or --vertices: a coarse size for its pairs, not the mesh's
+    // (ice::proxy::refined_coarse_vertices), at most the mesh.
+    app::TargetOptions target = opt.target;
+    const bool target_given = cli.count("--ratio") + cli.count("--vertices") > 0;
+    if (tolerance > 0 && !target_given) {
+      ice::proxy::EigenRefinement sizing;
+      sizing.coarse_directions = coarse_directions;
+      target.vertices_option = nullptr;
+      target.vertices = std::min<long long>(ice::proxy::refined_coarse_vertices(k, sizing), n);
+    }
+    target.apply(coarsen_options, n);
     coarsen_options.locked_vertices = fixed;
     if (coarsen_options.target_vertices > 0 && k >= coarsen_options.target_vertices)
       throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the coarse target is " +

@@ -1366,6 +1366,15 @@ elseif(CASE STREQUAL "spectral_spot")
   json(worst "${WORK}/l.json" error eigenvalue_rel_max)
   check(${worst} LESS 1e-8 "largest relative eigenvalue error of LOBPCG's pairs")
   expect_error(4 "give --tolerance too" spectral-coarse "${mesh}" -k 5 --ratio 0.1 --coarse-directions 10 --no-cache)
+  # The refined route sizes its coarse space by its pairs when given no --ratio or --vertices: k = 4,
+  # guard 4, 2 (k + guard) coarse directions: 24 pairs, 20 coarse vertices each. The proxy route still
+  # needs a target.
+  run(0 spectral-coarse "${mesh}" -k 4 --tolerance 1e-7 --no-cache --no-reference --report "${WORK}/a.json" -q)
+  json(coarse "${WORK}/a.json" coarse vertices)
+  check(${coarse} EQUAL 480 "coarse vertices of the refined route by default (20 per coarse pair)")
+  json(converged "${WORK}/a.json" eigen refine converged)
+  check_text("${converged}" "ON" "eigen.refine.converged on the coarse space sized by its pairs")
+  expect_error(4 "say how far to coarsen" spectral-coarse "${mesh}" -k 4 --no-cache)
   # Dirichlet conditions on an open surface: no zero mode, the eigenvalues close to the fine Dirichlet
   # ones; a coarse space that is all boundary leaves no free vertex (a usage error naming it).
   project_mesh(open lion-head.off)

@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <stdexcept>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
@@ -303,6 +304,22 @@ TEST_CASE("refined eigenbasis: k no more than the zero modes still converges", "
   CHECK(std::abs(basis.values(0)) < 1e-10);
   const Eigen::VectorXd constant = basis.vectors.col(0) / basis.vectors(0, 0);
   CHECK((constant.array() - 1).abs().maxCoeff() < 1e-8);
+}
+
+TEST_CASE("the refined route's coarse size: a fixed number of coarse vertices per coarse pair", "[eigen][proxy][refine]") {
+  ice::proxy::EigenRefinement refinement;
+  // k = 100: guard 25, 2 (k + guard) = 250 coarse directions, 375 pairs.
+  CHECK(ice::proxy::refined_coarse_vertices(100, refinement) == 375 * refinement.coarse_vertices_per_pair);
+  // k = 1: guard 4, 10 directions.
+  CHECK(ice::proxy::refined_coarse_vertices(1, refinement) == 15 * refinement.coarse_vertices_per_pair);
+  refinement.coarse_directions = 0;  // LOBPCG: the k + guard refined pairs only
+  CHECK(ice::proxy::refined_coarse_vertices(100, refinement) == 125 * refinement.coarse_vertices_per_pair);
+  refinement.coarse_vertices_per_pair = 8;
+  refinement.guard = 10;
+  CHECK(ice::proxy::refined_coarse_vertices(100, refinement) == 110 * 8);
+  CHECK_THROWS_AS(ice::proxy::refined_coarse_vertices(0, refinement), std::invalid_argument);
+  refinement.coarse_vertices_per_pair = 0;
+  CHECK_THROWS_AS(ice::proxy::refined_coarse_vertices(10, refinement), std::invalid_argument);
 }
 
 TEST_CASE("refined eigenbasis on a real mesh and under Dirichlet conditions", "[eigen][proxy][refine]") {

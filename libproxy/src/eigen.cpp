@@ -204,6 +204,15 @@ int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coar
   return static_cast<int>(std::max<long long>(0, std::min<long long>(wanted, coarse_free_vertices - 1 - k)));
 }
 
+Index refined_coarse_vertices(int k, const EigenRefinement& refinement) {
+  if (k < 1 || refinement.coarse_vertices_per_pair < 1)
+    throw std::invalid_argument("refined_coarse_vertices: k >= 1 and coarse_vertices_per_pair >= 1 are needed");
+  constexpr Eigen::Index unbounded = std::numeric_limits<Index>::max() / 4;
+  const int guard = refinement_guard(k, refinement, unbounded);
+  const long long pairs = static_cast<long long>(k) + guard + refinement_coarse_directions(k, guard, refinement, unbounded);
+  return static_cast<Index>(std::min<long long>(pairs * refinement.coarse_vertices_per_pair, std::numeric_limits<Index>::max()));
+}
+
 int refinement_coarse_directions(int k, int guard, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices) {
   const long long wanted = refinement.coarse_directions >= 0 ? refinement.coarse_directions : 2LL * (k + guard);
   return static_cast<int>(std::max<long long>(0, std::min<long long>(wanted, coarse_free_vertices - 1 - k - guard)));

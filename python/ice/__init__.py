@@ -40,6 +40,7 @@ from ._ice import (  # noqa: F401  (the package's API)
     mass_matrix,
     point_cloud_triangles,
     proxy_eigenbasis,
+    refined_coarse_vertices,
     refined_eigenbasis,
     reconstruction_error,
     save_coarse_space,
@@ -62,7 +63,7 @@ __all__ = [
     "ProxyGeodesicSolver", "ProxyHeatSolver", "ProxyPoissonSolver", "coarsen", "cotan_laplacian",
     "boundary_vertices", "curvature_corrected_lengths", "eigenbasis", "face_lengths", "geodesic_distance", "heat_flow", "heat_kernel_signature",
     "hierarchy", "intrinsic_delaunay", "load_coarse_mesh", "load_coarse_space", "load_hierarchy", "load_mesh", "load_setup", "loop_subdivide", "mass_matrix",
-    "point_cloud_triangles", "proxy_eigenbasis", "refined_eigenbasis",
+    "point_cloud_triangles", "proxy_eigenbasis", "refined_coarse_vertices", "refined_eigenbasis",
     "read_mesh", "reconstruction_error", "save_coarse_space", "save_hierarchy", "save_mesh", "save_setup", "setup_proxy", "solve_poisson", "transport_directions", "transport_vectors", "validate", "wave_kernel_signature",
     "VectorHeatSolver",
 ]
@@ -243,7 +244,8 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
     and prolonged. values increasing; vectors (n × k) M-orthonormal on the input mesh.
 
     boundary: "neumann", or "dirichlet" (φ = 0 on the mesh's boundary, whose vertices the coarsening then
-    keeps). coarse / coarsening options (default ratio=0.05) and cache as for solve_poisson; prolongation
+    keeps). coarse / coarsening options (default ratio=0.05; with refine_tolerance,
+    refined_coarse_vertices(k) vertices) and cache as for solve_poisson; prolongation
     "auto" (the default) is the eigenbasis's own: P smoothed twice where allowed, else barycentric;
     k must be below the coarse vertex count (ValueError otherwise).
     Without `coarse` the coarse eigenpairs go through `cache` too: a second call with the same mesh,
@@ -260,6 +262,9 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
         fixed = None  # a closed mesh: the same as Neumann
     # "auto" means the eigenbasis's own default (the P smoothed twice where allowed), as spectral-coarse's.
     prolongation = _ice._resolve_prolongation(prolongation, "galerkin", fixed is not None, eigenpairs=True)
+    if refine_tolerance and coarse is None and not {"n", "ratio", "max_error"} & coarsening.keys():
+        # The refined route's coarse size follows its pairs, not the mesh (ice::proxy::refined_coarse_vertices).
+        coarsening["n"] = min(refined_coarse_vertices(k), len(np.asarray(V)))
     if coarse is None and cache is not False:
         _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", "galerkin", fine, prolongation, fixed, cache)
     else:

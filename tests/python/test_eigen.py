@@ -101,6 +101,23 @@ def test_refined_eigenbasis_reaches_the_fine_pairs(spot, tmp_path):
     assert not info["converged"] and info["iterations"] == 1 and max(info["residuals"]) > 1e-7
 
 
+def test_refined_route_sizes_its_coarse_space_by_its_pairs(spot, tmp_path):
+    """Without a ratio or a vertex count the refined route coarsens to refined_coarse_vertices(k): a fixed
+    number per coarse pair it computes (k + guard + 2 (k + guard) by default), the same run as naming it."""
+    V, F = spot
+    k = 4
+    per_pair = ice.refined_coarse_vertices(k) // 24  # guard 4, 16 coarse directions
+    assert ice.refined_coarse_vertices(k) == 24 * per_pair and per_pair >= 1
+    assert ice.refined_coarse_vertices(k, coarse_directions=0) == 8 * per_pair
+    values, vectors = ice.eigenbasis(V, F, k, refine_tolerance=1e-7, cache=False)
+    named, named_vectors = ice.eigenbasis(V, F, k, refine_tolerance=1e-7, cache=False, n=ice.refined_coarse_vertices(k))
+    assert np.array_equal(values, named) and np.array_equal(vectors, named_vectors)
+    five_percent, _ = ice.eigenbasis(V, F, k, refine_tolerance=1e-7, cache=False, ratio=0.05)
+    np.testing.assert_allclose(five_percent, values, rtol=1e-8, atol=1e-9 * values.max())
+    with pytest.raises(ValueError, match="k must be >= 1"):
+        ice.refined_coarse_vertices(0)
+
+
 def test_a_refinement_that_stops_early_warns(spot, tmp_path, monkeypatch):
     V, F = spot
     refine = ice.refined_eigenbasis

@@ -53,6 +53,14 @@ struct EigenRefinement {
   /// eigensolve is asked for k + guard + coarse_directions pairs (a fem::EigenOptions::basis_size
   /// must exceed that), and the store keys its pairs by that count.
   int coarse_directions = -1;
+  /// The coarse space's size for this route when the caller names none (refined_coarse_vertices):
+  /// this many coarse vertices per coarse pair the route computes (k + guard + coarse directions).
+  /// By Weyl's law the j-th eigenvalue of a surface grows linearly in j, and a piecewise-linear space
+  /// of N vertices resolves eigenvalue λ with a relative error of order λ h² ∝ λ / N: so the ratio
+  /// N / pairs, not the mesh's size, sets how well the coarse space holds the pairs the iteration
+  /// starts from and is augmented with. The refinement then corrects what the coarse space misses,
+  /// while the coarse eigensolve's cost grows quickly with N.
+  int coarse_vertices_per_pair = 20;
   /// The multigrid hierarchy whose V-cycle on L + σM preconditions the refinement (σ: the smallest
   /// positive coarse eigenvalue, a scale of the lowest modes); through the store when it is on.
   HierarchyOptions hierarchy;
@@ -168,6 +176,13 @@ int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coar
 /// The coarse directions refined_eigenbasis adds to k + guard (EigenRefinement::coarse_directions),
 /// given the coarse space's free vertex count.
 int refinement_coarse_directions(int k, int guard, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices);
+
+/// The coarse vertex count for the refined route's k pairs when the caller names none:
+/// refinement.coarse_vertices_per_pair × (k + guard + coarse directions), with the guard and the
+/// directions as refinement asks for them, uncapped (what spectral-coarse uses with --tolerance and
+/// neither --ratio nor --vertices). Throws std::invalid_argument unless k >= 1 and
+/// coarse_vertices_per_pair >= 1.
+Index refined_coarse_vertices(int k, const EigenRefinement& refinement);
 
 /// EigenSolver(mesh, options).compute(k).
 Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options = {});
