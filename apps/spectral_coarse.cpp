@@ -112,14 +112,15 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     run.prolongation = opt.prolongation;
     ice::CoarsenOptions coarsen_options;
     // The refined route without --ratio or --vertices: a coarse size for its pairs, not the mesh's
-    // (ice::proxy::refined_coarse_vertices), at most the mesh.
+    // (ice::proxy::refined_coarse_vertices), besides the Dirichlet vertices the coarsening keeps, at
+    // most the mesh.
     app::TargetOptions target = opt.target;
     const bool target_given = cli.count("--ratio") + cli.count("--vertices") > 0;
     if (tolerance > 0 && !target_given) {
       ice::proxy::EigenRefinement sizing;
       sizing.coarse_directions = coarse_directions;
       target.vertices_option = nullptr;
-      target.vertices = std::min<long long>(ice::proxy::refined_coarse_vertices(k, sizing), n);
+      target.vertices = std::min<long long>(ice::proxy::refined_coarse_vertices(k, sizing) + static_cast<long long>(fixed.size()), n);
     }
     target.apply(coarsen_options, n);
     coarsen_options.locked_vertices = fixed;

@@ -1375,6 +1375,14 @@ elseif(CASE STREQUAL "spectral_spot")
   json(converged "${WORK}/a.json" eigen refine converged)
   check_text("${converged}" "ON" "eigen.refine.converged on the coarse space sized by its pairs")
   expect_error(4 "say how far to coarsen" spectral-coarse "${mesh}" -k 4 --no-cache)
+  # Under Dirichlet conditions the boundary's vertices, which the coarsening keeps, come on top.
+  project_mesh(lion lion-head.off)
+  run(0 spectral-coarse "${lion}" -k 4 --boundary dirichlet --tolerance 1e-6 --no-cache --no-reference
+      --report "${WORK}/ad.json" -q)
+  json(coarse "${WORK}/ad.json" coarse vertices)
+  json(fixed "${WORK}/ad.json" eigen dirichlet_vertices)
+  math(EXPR _expected "480 + ${fixed}")
+  check(${coarse} EQUAL ${_expected} "coarse vertices of the refined route under Dirichlet conditions (480 + the boundary's)")
   # Dirichlet conditions on an open surface: no zero mode, the eigenvalues close to the fine Dirichlet
   # ones; a coarse space that is all boundary leaves no free vertex (a usage error naming it).
   project_mesh(open lion-head.off)

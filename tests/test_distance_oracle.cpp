@@ -301,6 +301,7 @@ TEST_CASE("distance oracle against exact polyhedral geodesics (CGAL) on spot", "
   const std::vector<ice::Index> sources = {0, 1500};
   const Eigen::MatrixXd exact = ice_bench::exact_geodesic_distances(c.mesh, sources);
   REQUIRE(exact.rows() == n);
+  REQUIRE(exact.allFinite());  // both sources reach every vertex (one component)
   double far_sum = 0, near_sum = 0;
   long far_count = 0, near_count = 0;
   for (std::size_t s = 0; s < sources.size(); ++s) {
@@ -319,7 +320,6 @@ TEST_CASE("distance oracle against exact polyhedral geodesics (CGAL) on spot", "
       }
     }
   }
-  REQUIRE(far_count > n);  // both sources reach every vertex (one component)
   // Measured with oracle-accuracy (4 random sources): 1.25 % mean, near pairs 1.75 %; the fine heat
   // method itself is 2.1 % from exact here.
   INFO("far " << far_sum / far_count << ", near " << near_sum / near_count);

@@ -545,8 +545,8 @@ TEST_CASE("threaded multigrid solves equal serial ones on a 55k-vertex mesh", "[
   for (auto smoother : {fem::MultigridSmoother::symmetric_gauss_seidel, fem::MultigridSmoother::chebyshev}) {
     Eigen::VectorXd reference;
     int reference_iterations = 0;
-    // Reordered on 1 and 2 threads, then in the input order on 2: the serial input-order path is every
-    // other multigrid test's.
+    // Reordered on 1 and 2 threads, then in the input order on 2: the thread count and the ordering
+    // each changed once against the same reference.
     for (const auto& [reorder, threads] : {std::pair{true, 1}, std::pair{true, 2}, std::pair{false, 2}}) {
       INFO(fem::to_string(smoother) << ", reorder " << reorder << ", threads " << threads);
       fem::MultigridOptions options;

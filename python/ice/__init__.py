@@ -244,8 +244,9 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
     and prolonged. values increasing; vectors (n × k) M-orthonormal on the input mesh.
 
     boundary: "neumann", or "dirichlet" (φ = 0 on the mesh's boundary, whose vertices the coarsening then
-    keeps). coarse / coarsening options (default ratio=0.05; with refine_tolerance,
-    refined_coarse_vertices(k) vertices) and cache as for solve_poisson; prolongation
+    keeps). coarse / coarsening options (default ratio=0.05; with refine_tolerance and none of n, ratio,
+    min_vertices, max_error: refined_coarse_vertices(k) vertices besides the Dirichlet ones, at most the
+    mesh's) and cache as for solve_poisson; prolongation
     "auto" (the default) is the eigenbasis's own: P smoothed twice where allowed, else barycentric;
     k must be below the coarse vertex count (ValueError otherwise).
     Without `coarse` the coarse eigenpairs go through `cache` too: a second call with the same mesh,
@@ -262,9 +263,11 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
         fixed = None  # a closed mesh: the same as Neumann
     # "auto" means the eigenbasis's own default (the P smoothed twice where allowed), as spectral-coarse's.
     prolongation = _ice._resolve_prolongation(prolongation, "galerkin", fixed is not None, eigenpairs=True)
-    if refine_tolerance and coarse is None and not {"n", "ratio", "max_error"} & coarsening.keys():
-        # The refined route's coarse size follows its pairs, not the mesh (ice::proxy::refined_coarse_vertices).
-        coarsening["n"] = min(refined_coarse_vertices(k), len(np.asarray(V)))
+    if refine_tolerance and coarse is None and not {"n", "ratio", "min_vertices", "max_error"} & coarsening.keys():
+        # The refined route's coarse size follows its pairs, not the mesh (ice::proxy::refined_coarse_vertices),
+        # counted off the Dirichlet vertices, which the coarsening keeps.
+        fixed_count = 0 if fixed is None else len(fixed)
+        coarsening["n"] = min(refined_coarse_vertices(k) + fixed_count, len(np.asarray(V)))
     if coarse is None and cache is not False:
         _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", "galerkin", fine, prolongation, fixed, cache)
     else:

@@ -1505,6 +1505,7 @@ None the default store, or a directory): a second call with the same proxy, k an
 the same numbers to the last bit.)doc");
   m.def("refined_coarse_vertices", [](int k, int coarse_directions) {
         if (k < 1) throw py::value_error("k must be >= 1");
+        if (coarse_directions < -1) throw py::value_error("coarse_directions must be >= -1 (-1: the default)");
         ice::proxy::EigenRefinement refinement;
         refinement.coarse_directions = coarse_directions;
         return ice::proxy::refined_coarse_vertices(k, refinement);
