@@ -120,7 +120,12 @@ int spectral_coarse_tool::main(int argc, char** argv) {
       ice::proxy::EigenRefinement sizing;
       sizing.coarse_directions = coarse_directions;
       target.vertices_option = nullptr;
-      target.vertices = std::min<long long>(ice::proxy::refined_coarse_vertices(k, sizing) + static_cast<long long>(fixed.size()), n);
+      const long long wanted = ice::proxy::refined_coarse_vertices(k, sizing) + static_cast<long long>(fixed.size());
+      if (wanted >= n)
+        app::warn(kTool, "-k " + std::to_string(k) + " --tolerance without --ratio/--vertices: the refined route would coarsen to " +
+                             std::to_string(wanted) + " vertices, the mesh has " + std::to_string(n) +
+                             ": it is not coarsened, and a fine eigensolver is faster on a mesh this small for k");
+      target.vertices = std::min(wanted, n);
     }
     target.apply(coarsen_options, n);
     coarsen_options.locked_vertices = fixed;

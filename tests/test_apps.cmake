@@ -1375,6 +1375,12 @@ elseif(CASE STREQUAL "spectral_spot")
   json(converged "${WORK}/a.json" eigen refine converged)
   check_text("${converged}" "ON" "eigen.refine.converged on the coarse space sized by its pairs")
   expect_error(4 "say how far to coarsen" spectral-coarse "${mesh}" -k 4 --no-cache)
+  # A mesh smaller than that size (cat_head, 131 vertices; k = 1: 15 pairs, 300) is not coarsened, with a warning.
+  project_mesh(small cat_head.obj)
+  run(0 spectral-coarse "${small}" -k 1 --tolerance 1e-6 --no-cache --no-reference -q)
+  if(NOT RUN_ERR MATCHES "would coarsen to 300 vertices, the mesh has 131: it is not coarsened")
+    fail("spectral-coarse on a mesh below the refined route's coarse size: no warning\n${RUN_ERR}")
+  endif()
   # Under Dirichlet conditions the boundary's vertices, which the coarsening keeps, come on top.
   project_mesh(lion lion-head.off)
   run(0 spectral-coarse "${lion}" -k 4 --boundary dirichlet --tolerance 1e-6 --no-cache --no-reference

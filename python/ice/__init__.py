@@ -267,7 +267,12 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
         # The refined route's coarse size follows its pairs, not the mesh (ice::proxy::refined_coarse_vertices),
         # counted off the Dirichlet vertices, which the coarsening keeps.
         fixed_count = 0 if fixed is None else len(fixed)
-        coarsening["n"] = min(refined_coarse_vertices(k) + fixed_count, len(np.asarray(V)))
+        wanted, n = refined_coarse_vertices(k) + fixed_count, len(np.asarray(V))
+        if wanted >= n:
+            warnings.warn(f"eigenbasis: the refined route would coarsen to {wanted} vertices, the mesh has {n}: it is not "
+                          f"coarsened, and a fine eigensolver is faster on a mesh this small for k={k}", RuntimeWarning,
+                          stacklevel=2)
+        coarsening["n"] = min(wanted, n)
     if coarse is None and cache is not False:
         _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", "galerkin", fine, prolongation, fixed, cache)
     else:

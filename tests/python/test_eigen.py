@@ -116,6 +116,14 @@ def test_refined_route_sizes_its_coarse_space_by_its_pairs(spot, tmp_path):
     np.testing.assert_allclose(five_percent, values, rtol=1e-8, atol=1e-9 * values.max())
     with pytest.raises(ValueError, match="k must be >= 1"):
         ice.refined_coarse_vertices(0)
+    # A mesh below that size is not coarsened, with a warning (12 x 12 grid, 144 vertices; k = 1: 300).
+    x, y = np.meshgrid(np.arange(12.0), np.arange(12.0))
+    grid = np.column_stack([x.ravel(), y.ravel(), np.zeros(144)])
+    cells = np.array([[i * 12 + j, i * 12 + j + 1, (i + 1) * 12 + j + 1] for i in range(11) for j in range(11)]
+                     + [[i * 12 + j, (i + 1) * 12 + j + 1, (i + 1) * 12 + j] for i in range(11) for j in range(11)])
+    with pytest.warns(RuntimeWarning, match="it is not coarsened"):
+        small, _ = ice.eigenbasis(grid, cells, 1, refine_tolerance=1e-6, cache=False)
+    assert abs(small[0]) < 1e-8
 
 
 def test_a_refinement_that_stops_early_warns(spot, tmp_path, monkeypatch):
