@@ -110,17 +110,19 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     opt.prolongation = app::resolve_prolongation(prolongation, opt.operators, fixed.empty() ? "" : "--boundary dirichlet",
                                                  "--prolongation", ice::proxy::ProlongationUse::eigenpairs);
     run.prolongation = opt.prolongation;
+    // The refined route (--tolerance): its coarse size below; the hierarchy whose V-cycle preconditions
+    // it is set up with the proxy (through the store), the refinement is part of the solve.
+    ice::proxy::EigenRefinement refinement;
+    refinement.tolerance = tolerance;
+    refinement.coarse_directions = coarse_directions;
     ice::CoarsenOptions coarsen_options;
     // The refined route without --ratio or --vertices: a coarse size for its pairs, not the mesh's
-    // (ice::proxy::refined_coarse_vertices), besides the Dirichlet vertices the coarsening keeps, at
-    // most the mesh.
+    // (ice::proxy::refined_coarse_vertices), at most the mesh.
     app::TargetOptions target = opt.target;
     const bool target_given = cli.count("--ratio") + cli.count("--vertices") > 0;
     if (tolerance > 0 && !target_given) {
-      ice::proxy::EigenRefinement sizing;
-      sizing.coarse_directions = coarse_directions;
       target.vertices_option = nullptr;
-      const long long wanted = ice::proxy::refined_coarse_vertices(k, sizing) + static_cast<long long>(fixed.size());
+      const long long wanted = ice::proxy::refined_coarse_vertices(k, refinement, static_cast<ice::Index>(fixed.size()));
       if (wanted >= n)
         app::warn(kTool, "-k " + std::to_string(k) + " --tolerance without --ratio/--vertices: the refined route would coarsen to " +
                              std::to_string(wanted) + " vertices, the mesh has " + std::to_string(n) +
@@ -148,11 +150,6 @@ int spectral_coarse_tool::main(int argc, char** argv) {
       throw app::AppError(app::kUsage, "-k " + std::to_string(k) + ": the coarse space has " + std::to_string(coarse) +
                                            (dirichlet ? " vertices off the boundary" : " vertices") +
                                            " (k < coarse vertices: raise --vertices or --ratio)");
-    // The refined route: the hierarchy whose V-cycle preconditions the refinement is set-up (with
-    // the proxy, through the store), the refinement part of the solve.
-    ice::proxy::EigenRefinement refinement;
-    refinement.tolerance = tolerance;
-    refinement.coarse_directions = coarse_directions;
     std::optional<ice::proxy::MultigridHierarchy> hierarchy;
     if (tolerance > 0) {
       hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt, store);

@@ -204,13 +204,16 @@ int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coar
   return static_cast<int>(std::max<long long>(0, std::min<long long>(wanted, coarse_free_vertices - 1 - k)));
 }
 
-Index refined_coarse_vertices(int k, const EigenRefinement& refinement) {
-  if (k < 1 || refinement.coarse_vertices_per_pair < 1)
-    throw std::invalid_argument("refined_coarse_vertices: k >= 1 and coarse_vertices_per_pair >= 1 are needed");
+Index refined_coarse_vertices(int k, const EigenRefinement& refinement, Index dirichlet_vertices) {
+  if (k < 1 || refinement.coarse_vertices_per_pair < 1 || dirichlet_vertices < 0)
+    throw std::invalid_argument(
+        "refined_coarse_vertices: k >= 1, coarse_vertices_per_pair >= 1 and dirichlet_vertices >= 0 are needed");
+  // The guard's and the directions' own rules, with a coarse space too large to cap them.
   constexpr Eigen::Index unbounded = std::numeric_limits<Index>::max() / 4;
   const int guard = refinement_guard(k, refinement, unbounded);
   const long long pairs = static_cast<long long>(k) + guard + refinement_coarse_directions(k, guard, refinement, unbounded);
-  return static_cast<Index>(std::min<long long>(pairs * refinement.coarse_vertices_per_pair, std::numeric_limits<Index>::max()));
+  return static_cast<Index>(std::min<long long>(pairs * refinement.coarse_vertices_per_pair + dirichlet_vertices,
+                                                std::numeric_limits<Index>::max()));
 }
 
 int refinement_coarse_directions(int k, int guard, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices) {

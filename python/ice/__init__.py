@@ -264,10 +264,9 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
     # "auto" means the eigenbasis's own default (the P smoothed twice where allowed), as spectral-coarse's.
     prolongation = _ice._resolve_prolongation(prolongation, "galerkin", fixed is not None, eigenpairs=True)
     if refine_tolerance and coarse is None and not {"n", "ratio", "min_vertices", "max_error"} & coarsening.keys():
-        # The refined route's coarse size follows its pairs, not the mesh (ice::proxy::refined_coarse_vertices),
-        # counted off the Dirichlet vertices, which the coarsening keeps.
-        fixed_count = 0 if fixed is None else len(fixed)
-        wanted, n = refined_coarse_vertices(k) + fixed_count, len(np.asarray(V))
+        # The refined route's coarse size follows its pairs, not the mesh (ice::proxy::refined_coarse_vertices).
+        wanted = refined_coarse_vertices(k, dirichlet_vertices=0 if fixed is None else len(fixed))
+        n = len(np.asarray(V))
         if wanted >= n:
             warnings.warn(f"eigenbasis: the refined route would coarsen to {wanted} vertices, the mesh has {n}: it is not "
                           f"coarsened, and a fine eigensolver is faster on a mesh this small for k={k}", RuntimeWarning,

@@ -1503,18 +1503,19 @@ barycentric). ValueError unless 1 <= k < the free coarse vertex count and the op
 cache: the coarse pairs through the store (False, the default: none, as for anything else given a Proxy;
 None the default store, or a directory): a second call with the same proxy, k and tolerance loads them,
 the same numbers to the last bit.)doc");
-  m.def("refined_coarse_vertices", [](int k, int coarse_directions) {
+  m.def("refined_coarse_vertices", [](int k, int coarse_directions, ice::Index dirichlet_vertices) {
         if (k < 1) throw py::value_error("k must be >= 1");
         if (coarse_directions < -1) throw py::value_error("coarse_directions must be >= -1 (-1: the default)");
+        if (dirichlet_vertices < 0) throw py::value_error("dirichlet_vertices must be >= 0");
         ice::proxy::EigenRefinement refinement;
         refinement.coarse_directions = coarse_directions;
-        return ice::proxy::refined_coarse_vertices(k, refinement);
+        return ice::proxy::refined_coarse_vertices(k, refinement, dirichlet_vertices);
       },
-      py::arg("k"), py::kw_only(), py::arg("coarse_directions") = -1,
+      py::arg("k"), py::kw_only(), py::arg("coarse_directions") = -1, py::arg("dirichlet_vertices") = 0,
       R"doc(The coarse vertex count the refined route (eigenbasis with refine_tolerance, spectral-coarse --tolerance) is
-set up with when given no ratio or vertex count: a fixed number of coarse vertices per coarse pair it computes
-(k + guard + coarse directions; coarse_directions -1: 2 (k + guard)), as by Weyl's law the accuracy of the
-coarse pairs depends on that ratio, not on the mesh.)doc");
+set up with when given no ratio or vertex count (at most the mesh's): a fixed number of coarse vertices per coarse
+pair it computes (k + guard + coarse directions; coarse_directions -1: 2 (k + guard)), as by Weyl's law the accuracy
+of the coarse pairs depends on that ratio, not on the mesh; plus the dirichlet_vertices the coarsening keeps.)doc");
   m.def("refined_eigenbasis", [](std::shared_ptr<PyProxy> proxy, const py::object& V, const py::object& F, int k,
                                  double refine_tolerance, int max_iterations, double tolerance, const py::object& dirichlet,
                                  const py::object& cache) {

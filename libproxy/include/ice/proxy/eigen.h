@@ -179,10 +179,12 @@ int refinement_coarse_directions(int k, int guard, const EigenRefinement& refine
 
 /// The coarse vertex count for the refined route's k pairs when the caller names none:
 /// refinement.coarse_vertices_per_pair × (k + guard + coarse directions), with the guard and the
-/// directions as refinement asks for them, uncapped (what spectral-coarse uses with --tolerance and
-/// neither --ratio nor --vertices). Throws std::invalid_argument unless k >= 1 and
-/// coarse_vertices_per_pair >= 1.
-Index refined_coarse_vertices(int k, const EigenRefinement& refinement);
+/// directions as refinement asks for them, uncapped, plus `dirichlet_vertices` (the boundary
+/// vertices EigenBoundary::dirichlet has the coarsening keep: they hold no free unknown). What
+/// spectral-coarse (--tolerance without --ratio or --vertices) and Python's eigenbasis use, at most
+/// the mesh. Throws std::invalid_argument unless k >= 1, coarse_vertices_per_pair >= 1 and
+/// dirichlet_vertices >= 0.
+Index refined_coarse_vertices(int k, const EigenRefinement& refinement, Index dirichlet_vertices = 0);
 
 /// EigenSolver(mesh, options).compute(k).
 Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options = {});
