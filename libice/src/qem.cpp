@@ -18,9 +18,9 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 // OpenMesh's headers are read with their assertions off in every build: each property access
-// asserts its type by building and comparing type-name strings, which made the Decimater ~40x
-// slower in assertion-enabled (sanitizer) builds; the handles here are typed, so that check cannot
-// fail. This file's own assertions are restored below.
+// asserts its type by building and comparing type-name strings, most of the Decimater's time in
+// assertion-enabled (sanitizer) builds (docs/measurements.md, "The test command's time"); the
+// handles here are typed, so that check cannot fail. This file's own assertions are restored below.
 #ifndef NDEBUG
 #define ICE_QEM_ASSERTIONS_ON
 #define NDEBUG
