@@ -46,8 +46,8 @@ as_root() {
 # (--html; headless, software WebGL); Node.js and npm install the page's three.js and the test's
 # playwright-core (step 4) and are installed from Debian only when the machine has none.
 # doxygen builds the API reference of the public headers (docs/Doxyfile.in: target doc, test api_docs).
-# clang, its sanitizer runtimes (libclang-rt-dev) and OpenMP (libomp-dev) build the test command's
-# sanitizer configuration (scripts/test.sh). libnanoflann-dev (header-only k-d tree) finds the
+# clang, its sanitizer runtimes (libclang-rt-dev), OpenMP (libomp-dev) and its linker (lld) build the
+# test command's sanitizer configuration (scripts/test.sh). libnanoflann-dev (header-only k-d tree) finds the
 # k nearest neighbours of a point cloud's points (ice/point_cloud.h). ninja-build: scripts/test.sh and
 # run.sh configure fresh build folders for Ninja, whose builds took ~7 % less time than Make's
 # (docs/measurements.md, "The test command's time").
@@ -62,7 +62,7 @@ PACKAGES=(
   python3-dask python3-distributed python3-tqdm python3-psutil
   python3-pip python3-wheel python3-build python3-venv python3-meshio
   doxygen
-  clang libclang-rt-dev libomp-dev
+  clang libclang-rt-dev libomp-dev lld
 )
 
 is_installed() {
