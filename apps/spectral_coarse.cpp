@@ -117,16 +117,13 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     refinement.coarse_directions = coarse_directions;
     ice::CoarsenOptions coarsen_options;
     // The refined route without --ratio or --vertices: a coarse size for its pairs, not the mesh's
-    // (ice::proxy::refined_coarse_vertices), at most the mesh.
+    // (ice::proxy::refined_coarse_vertices), at most the mesh (which the fine eigensolver then solves
+    // directly: Eigenbasis::fine_eigensolve).
     app::TargetOptions target = opt.target;
     const bool target_given = cli.count("--ratio") + cli.count("--vertices") > 0;
     if (tolerance > 0 && !target_given) {
       target.vertices_option = nullptr;
       const long long wanted = ice::proxy::refined_coarse_vertices(k, refinement, static_cast<ice::Index>(fixed.size()));
-      if (wanted >= n)
-        app::warn(kTool, "-k " + std::to_string(k) + " --tolerance without --ratio/--vertices: the refined route would coarsen to " +
-                             std::to_string(wanted) + " vertices, the mesh has " + std::to_string(n) +
-                             ": it is not coarsened, and a fine eigensolver is faster on a mesh this small for k");
       target.vertices = std::min(wanted, n);
     }
     target.apply(coarsen_options, n);
@@ -151,16 +148,22 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                            (dirichlet ? " vertices off the boundary" : " vertices") +
                                            " (k < coarse vertices: raise --vertices or --ratio)");
     std::optional<ice::proxy::MultigridHierarchy> hierarchy;
-    if (tolerance > 0) {
+    if (tolerance > 0 && proxy.prolongation().cols() < proxy.prolongation().rows()) {
       hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt, store);
       run.assemble += clock.lap();
     }
-    const ice::proxy::Eigenbasis basis = hierarchy ? ice::proxy::refined_eigenbasis(proxy, *hierarchy, k, refinement, {}, fixed, store)
-                                                   : ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed, store);
+    const ice::proxy::Eigenbasis basis =
+        tolerance > 0 ? ice::proxy::refined_eigenbasis(proxy, hierarchy ? *hierarchy : ice::proxy::MultigridHierarchy{}, k,
+                                                       refinement, {}, fixed, store)
+                      : ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed, store);
     if (basis.refined && !basis.converged) {
       std::ostringstream message;
-      message << "the refinement stopped after " << basis.refine_iterations << " iterations with a largest residual of "
-              << basis.residuals.maxCoeff() << " (--tolerance " << tolerance << ")";
+      if (basis.fine_eigensolve)
+        message << "the fine eigensolver's largest residual is " << basis.residuals.maxCoeff() << " (--tolerance " << tolerance
+                << ")";
+      else
+        message << "the refinement stopped after " << basis.refine_iterations << " iterations with a largest residual of "
+                << basis.residuals.maxCoeff() << " (--tolerance " << tolerance << ")";
       app::warn(kTool, message.str());
     }
     // One eigenbasis is one "solve": the coarse factorisation and the Lanczos iteration (and the
@@ -224,7 +227,8 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                    {"iterations", basis.refine_iterations},
                                    {"guard", basis.guard},
                                    {"coarse_directions", basis.coarse_directions},
-                                   {"method", basis.coarse_directions > 0 ? "augmented" : "lobpcg"},
+                                   {"method", basis.fine_eigensolve ? "fine_eigensolver"
+                                              : basis.coarse_directions > 0 ? "augmented" : "lobpcg"},
                                    {"residual_max", basis.residuals.maxCoeff()},
                                    {"residual_history", basis.residual_history},
                                    {"seconds", basis.refine_seconds},
@@ -233,8 +237,11 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                    {"dense_seconds", basis.refine_dense_seconds},
                                    {"coarse_seconds", basis.refine_coarse_seconds},
                                    {"coarse_eigensolve_seconds", basis.eigensolve_seconds},
-                                   {"hierarchy", ice::proxy::hierarchy_json(*hierarchy, refinement.hierarchy)},
-                                   {"hierarchy_cache", ice::proxy::cache_json(hierarchy->cache, store)}};
+                                  };
+    if (basis.refined && hierarchy) {
+      report["eigen"]["refine"]["hierarchy"] = ice::proxy::hierarchy_json(*hierarchy, refinement.hierarchy);
+      report["eigen"]["refine"]["hierarchy_cache"] = ice::proxy::cache_json(hierarchy->cache, store);
+    }
     if (!hks_text.empty())
       report["eigen"]["hks_times"] = std::vector<double>(hks_times.data(), hks_times.data() + hks_times.size());
     if (run.has_reference) {
@@ -248,7 +255,10 @@ int spectral_coarse_tool::main(int argc, char** argv) {
     std::cout << "  problem: the " << k << " smallest eigenpairs; lambda_1.." << std::min(k, 4) << " =";
     for (int j = 0; j < std::min(k, 4); ++j) std::cout << ' ' << basis.values(j);
     std::cout << '\n';
-    if (basis.refined)
+    if (basis.fine_eigensolve)
+      std::cout << "  not coarsened: the fine eigensolver on the input mesh, largest residual " << basis.residuals.maxCoeff()
+                << (basis.converged ? "" : " (above --tolerance)") << '\n';
+    else if (basis.refined)
       std::cout << "  refined on the input mesh: " << basis.refine_iterations << " iterations, largest residual "
                 << basis.residuals.maxCoeff() << (basis.converged ? "" : " (not converged)") << '\n';
     if (run.has_reference)

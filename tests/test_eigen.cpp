@@ -353,6 +353,33 @@ TEST_CASE("refined eigenbasis on a real mesh and under Dirichlet conditions", "[
     CHECK(fem::eigen_residuals(p.L, p.M, basis.values, basis.vectors, boundary).maxCoeff() <= 1e-7);
     CHECK(agreement(basis.values, basis.vectors, fine, p.M).value_error < 1e-8);
   }
+  SECTION("a coarse space as large as the mesh: the fine eigensolver directly, Neumann and Dirichlet") {
+    const ice::TriangleMesh disk = ice::make_flat_disk(12);
+    const Pencil p = pencil(disk);
+    const std::vector<fem::Index> boundary = fem::boundary_vertices(disk.F);
+    for (const bool dirichlet : {false, true}) {
+      INFO("Dirichlet " << dirichlet);
+      const std::vector<fem::Index> fixed = dirichlet ? boundary : std::vector<fem::Index>{};
+      const fem::Eigenpairs fine = fem::smallest_eigenpairs_dirichlet(p.L, p.M, fixed, 6, tight_reference());
+      ice::proxy::EigenbasisOptions options;
+      if (dirichlet) options.boundary = ice::proxy::EigenBoundary::dirichlet;
+      options.coarsening.coarsen.target_vertices = disk.V.rows();
+      options.refine.tolerance = 1e-8;
+      const ice::proxy::EigenSolver solver(disk, options);
+      CHECK(solver.hierarchy().prolongations.empty());  // none is needed
+      const ice::proxy::Eigenbasis basis = solver.compute(6);
+      CHECK(basis.fine_eigensolve);
+      CHECK(basis.refined);
+      CHECK(basis.converged);
+      CHECK(basis.refine_iterations == 0);
+      CHECK(basis.residuals.maxCoeff() <= 1e-8);
+      CHECK(fem::eigen_residuals(p.L, p.M, basis.values, basis.vectors, fixed).maxCoeff() <= 1e-8);
+      const Agreement a = agreement(basis.values, basis.vectors, fine, p.M);
+      CHECK(a.value_error < 1e-10);
+      CHECK(a.reference_to_refined < 1e-6);
+      for (fem::Index v : fixed) CHECK(basis.vectors.row(v).isZero(0.0));
+    }
+  }
 }
 
 TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two components; bad input refused", "[eigen][refine]") {

@@ -184,7 +184,8 @@ EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, st
   const bool refining = refine.tolerance > 0;
   setup.fine_operators = refining;  // a restored proxy makes its fine Laplacian from a copy of the mesh
   setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
-  if (refining) {
+  // Not coarsened: refined_eigenbasis solves the fine pencil directly and needs no hierarchy.
+  if (refining && setup_.proxy->prolongation().cols() < setup_.proxy->prolongation().rows()) {
     setup_.proxy->fine_laplacian();  // made now, while `mesh` is at hand
     HierarchyOptions hierarchy = refine.hierarchy;
     hierarchy.nonmanifold = options_.coarsening.nonmanifold;  // the proxy's choice, made once
@@ -230,6 +231,26 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   const Eigen::Index coarse_free = free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed);
   require_pair_count(k, coarse_free, !coarse_fixed.empty());  // before the coarse eigensolve of k + guard + directions pairs
   const fem::SparseMatrix& input_L = proxy.fine_laplacian();
+  if (proxy.prolongation().cols() >= input_L.rows()) {
+    // Not coarsened (a small mesh under the route's default size): the refinement would converge to
+    // the fine pencil's pairs from a start as costly as they are (k + guard + directions pairs of a
+    // problem the mesh's size), so the fine eigensolver answers directly, to the tolerance asked.
+    const auto start = Clock::now();
+    fem::EigenOptions fine_options = options;
+    fine_options.tolerance = std::min(options.tolerance, refinement.tolerance);
+    fem::Eigenpairs pairs = fem::smallest_eigenpairs_dirichlet(input_L, proxy.fine_mass(), dirichlet_vertices, k, fine_options);
+    Eigenbasis basis;
+    basis.eigensolve_seconds = seconds_since(start);
+    basis.restarts = pairs.restarts;
+    basis.residuals = fem::eigen_residuals(input_L, proxy.fine_mass(), pairs.values, pairs.vectors, dirichlet_vertices);
+    basis.values = std::move(pairs.values);
+    basis.vectors = std::move(pairs.vectors);
+    basis.refined = true;
+    basis.fine_eigensolve = true;
+    basis.converged = basis.residuals.maxCoeff() <= refinement.tolerance;
+    basis.residual_history = {basis.residuals.maxCoeff()};
+    return basis;
+  }
   if (hierarchy.fine_vertices != input_L.rows())
     throw std::invalid_argument("refined_eigenbasis: the hierarchy has " + std::to_string(hierarchy.fine_vertices) +
                                 " fine vertices, the proxy " + std::to_string(input_L.rows()));

@@ -267,10 +267,7 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
         # The refined route's coarse size follows its pairs, not the mesh (ice::proxy::refined_coarse_vertices).
         wanted = refined_coarse_vertices(k, dirichlet_vertices=0 if fixed is None else len(fixed))
         n = len(np.asarray(V))
-        if wanted >= n:
-            warnings.warn(f"eigenbasis: the refined route would coarsen to {wanted} vertices, the mesh has {n}: it is not "
-                          f"coarsened, and a fine eigensolver is faster on a mesh this small for k={k}", RuntimeWarning,
-                          stacklevel=2)
+        # At most the mesh, which refined_eigenbasis then solves by the fine eigensolver directly.
         coarsening["n"] = min(wanted, n)
     if coarse is None and cache is not False:
         _, proxy = _stored_proxy(V, F, coarsening, "poisson_heat", "galerkin", fine, prolongation, fixed, cache)

@@ -1544,7 +1544,9 @@ of the coarse pairs depends on that ratio, not on the mesh; plus the dirichlet_v
           require_clean(mesh, nonmanifold);
           ice::HierarchyOptions hierarchy_options = refinement.hierarchy;
           hierarchy_options.nonmanifold = nonmanifold;
-          hierarchy = ice::proxy::multigrid_hierarchy(mesh, hierarchy_options, store);
+          // A proxy as large as its mesh is solved by the fine eigensolver directly: no hierarchy.
+          const fem::SparseMatrix& P = proxy->proxy->prolongation();
+          if (P.cols() < P.rows()) hierarchy = ice::proxy::multigrid_hierarchy(mesh, hierarchy_options, store);
           basis = ice::proxy::refined_eigenbasis(*proxy->proxy, hierarchy, k, refinement, options, fixed, store);
         }
         py::dict info;
@@ -1552,6 +1554,7 @@ of the coarse pairs depends on that ratio, not on the mesh; plus the dirichlet_v
         info["iterations"] = basis.refine_iterations;
         info["guard"] = basis.guard;
         info["coarse_directions"] = basis.coarse_directions;
+        info["fine_eigensolve"] = basis.fine_eigensolve;
         info["residuals"] = basis.residuals;
         info["seconds"] = basis.refine_seconds;
         info["hierarchy_seconds"] = hierarchy.build_seconds;
@@ -1569,8 +1572,11 @@ V-cycle on (V, F)'s ICE hierarchy (made or loaded through `cache` as by hierarch
 it starts from) until each pair's
 relative residual |Lφ − λMφ| / (λ|Mφ|) is at most refine_tolerance. (V, F) must be the proxy's input mesh
 (only its vertex count is checked: another mesh's hierarchy would precondition worse, not wrongly).
-info: converged, iterations, guard (pairs refined along), coarse_directions, residuals (per pair), seconds, hierarchy_seconds,
-hierarchy_cache, eigenpairs_cache. A refinement that stops at max_iterations returns its pairs with converged False.)doc");
+A proxy with as many coarse vertices as its mesh (not coarsened) is solved by the fine eigensolver directly
+(info fine_eigensolve True, no hierarchy, 0 iterations).
+info: converged, iterations, guard (pairs refined along), coarse_directions, fine_eigensolve, residuals (per pair), seconds,
+hierarchy_seconds, hierarchy_cache, eigenpairs_cache. A refinement that stops at max_iterations returns its pairs with
+converged False.)doc");
   // A one-dimensional array of any length, or a two-dimensional one of any row count.
   const auto any_vector = [](const py::object& object, const char* name) {
     const py::array a = py::array::ensure(object);

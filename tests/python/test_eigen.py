@@ -1,7 +1,10 @@
 """The eigenbasis through a coarse proxy from Python: M-orthonormal vectors, eigenvalues above the fine
 ones (Galerkin Rayleigh quotients) and close to them, the descriptors' sums, bad k refused."""
+import warnings
+
 import numpy as np
 import pytest
+import scipy.linalg
 import scipy.sparse.linalg
 
 import ice
@@ -116,14 +119,27 @@ def test_refined_route_sizes_its_coarse_space_by_its_pairs(spot, tmp_path):
     np.testing.assert_allclose(five_percent, values, rtol=1e-8, atol=1e-9 * values.max())
     with pytest.raises(ValueError, match="k must be >= 1"):
         ice.refined_coarse_vertices(0)
-    # A mesh below that size is not coarsened, with a warning (12 x 12 grid, 144 vertices; k = 1: 300).
+    # A mesh below that size (12 x 12 grid, 144 vertices; k = 4: 480) is not coarsened: the fine
+    # eigensolver gives its pairs directly, with no warning, to the tolerance, as scipy's.
     x, y = np.meshgrid(np.arange(12.0), np.arange(12.0))
     grid = np.column_stack([x.ravel(), y.ravel(), np.zeros(144)])
     cells = np.array([[i * 12 + j, i * 12 + j + 1, (i + 1) * 12 + j + 1] for i in range(11) for j in range(11)]
                      + [[i * 12 + j, (i + 1) * 12 + j + 1, (i + 1) * 12 + j] for i in range(11) for j in range(11)])
-    with pytest.warns(RuntimeWarning, match="it is not coarsened"):
-        small, _ = ice.eigenbasis(grid, cells, 1, refine_tolerance=1e-6, cache=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        small, small_vectors = ice.eigenbasis(grid, cells, k, refine_tolerance=1e-8, cache=False)
+    Fi, lengths, _ = ice.intrinsic_delaunay(grid, cells)
+    L = ice.cotan_laplacian(F=Fi, lengths=lengths, n=144)
+    M = ice.mass_matrix(F=Fi, lengths=lengths, n=144)
+    fine = np.sort(scipy.linalg.eigh(L.toarray(), M.toarray(), eigvals_only=True)[:k])
     assert abs(small[0]) < 1e-8
+    np.testing.assert_allclose(small[1:], fine[1:], rtol=1e-9)
+    residuals = np.linalg.norm(L @ small_vectors - (M @ small_vectors) * small, axis=0)[1:] / (
+        small[1:] * np.linalg.norm(M @ small_vectors, axis=0)[1:])
+    assert residuals.max() <= 1e-8
+    proxy = ice.Proxy(grid, cells, ice.coarsen(grid, cells, n=144, cache=False), operators="galerkin")
+    _, _, info = ice.refined_eigenbasis(proxy, grid, cells, k, refine_tolerance=1e-8, cache=False)
+    assert info["fine_eigensolve"] and info["converged"] and info["iterations"] == 0
 
 
 def test_a_refinement_that_stops_early_warns(spot, tmp_path, monkeypatch):

@@ -98,6 +98,10 @@ struct Eigenbasis {
   /// included; the hierarchy's build is the solver's set-up).
   bool refined = false;
   bool converged = false;
+  /// The refined route on a coarse space as large as the mesh (not coarsened): nothing coarser to
+  /// start from, so the fine pencil's k pairs come from fem::smallest_eigenpairs directly (in
+  /// eigensolve_seconds; no refinement iterations), their residuals checked against the tolerance.
+  bool fine_eigensolve = false;
   int refine_iterations = 0;
   int guard = 0;
   int coarse_directions = 0;  ///< of the refinement (0: LOBPCG)
@@ -130,7 +134,8 @@ class EigenSolver {
   const fem::CoarseProxy& proxy() const { return *setup_.proxy; }
   /// Where the setup came from (the store's status and times).
   const CacheReport& cache() const { return setup_.cache; }
-  /// The refined route's multigrid hierarchy (empty without a refinement tolerance).
+  /// The refined route's multigrid hierarchy (empty without a refinement tolerance, or when the
+  /// coarse space is as large as the mesh).
   const MultigridHierarchy& hierarchy() const { return hierarchy_; }
   /// The Dirichlet vertices (the mesh's boundary with EigenBoundary::dirichlet), else empty.
   const std::vector<Index>& dirichlet_vertices() const { return dirichlet_; }
@@ -165,7 +170,10 @@ Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::Eig
 /// (a hierarchy of the proxy's fine mesh: its level 0 has the fine vertex count), with φ = 0 kept
 /// at `dirichlet_vertices`. Returns the first k pairs. Throws as proxy_eigenbasis, and
 /// std::invalid_argument when refinement.tolerance is not > 0 or the hierarchy's size differs.
-/// The coarse pairs come through `store` as proxy_eigenbasis's.
+/// The coarse pairs come through `store` as proxy_eigenbasis's. A proxy that is not coarser than its
+/// mesh (as many coarse vertices as fine ones) gets the fine pencil's k pairs from
+/// fem::smallest_eigenpairs directly instead (Eigenbasis::fine_eigensolve; `hierarchy` and `store`
+/// unused).
 Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHierarchy& hierarchy, int k,
                               const EigenRefinement& refinement, const fem::EigenOptions& options = {},
                               const std::vector<Index>& dirichlet_vertices = {}, const Store& store = {});
