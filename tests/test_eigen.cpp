@@ -379,6 +379,21 @@ TEST_CASE("refined eigenbasis on a real mesh and under Dirichlet conditions", "[
       CHECK(a.reference_to_refined < 1e-6);
       for (fem::Index v : fixed) CHECK(basis.vectors.row(v).isZero(0.0));
     }
+    // A tolerance below the residuals the eigensolver reaches on spot: its pairs polished to it
+    // (LOBPCG preconditioned by the exact inverse of L + σM).
+    const ice::TriangleMesh mesh = ice::load_mesh(ice_test::project_mesh("spot.obj"));
+    const Pencil spot = pencil(mesh);
+    ice::proxy::EigenbasisOptions options;
+    options.coarsening.coarsen.target_vertices = mesh.V.rows();
+    options.refine.tolerance = 1e-12;
+    const ice::proxy::Eigenbasis polished = ice::proxy::eigenbasis(mesh, 6, options);
+    CHECK(polished.fine_eigensolve);
+    REQUIRE(polished.residual_history.front() > 1e-12);
+    CHECK(polished.refine_iterations >= 1);
+    CHECK(polished.converged);
+    CHECK(fem::eigen_residuals(spot.L, spot.M, polished.values, polished.vectors).maxCoeff() <= 1e-12);
+    CHECK(agreement(polished.values, polished.vectors, fem::smallest_eigenpairs(spot.L, spot.M, 6, tight_reference()),
+                    spot.M).value_error < 1e-10);
   }
 }
 

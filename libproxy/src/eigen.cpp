@@ -160,6 +160,57 @@ Eigenbasis coarse_basis(const fem::CoarseProxy& proxy, int count, int prolonged,
   return basis;
 }
 
+// The shift σ of the refinement's preconditioner (L + σM)⁻¹: the smallest positive eigenvalue of
+// `values` (the scale of the modes sought), else the inverse area.
+double preconditioner_shift(const Eigen::VectorXd& values, const fem::SparseMatrix& M) {
+  const double largest = values.size() ? values.cwiseAbs().maxCoeff() : 0.0;
+  for (Eigen::Index j = 0; j < values.size(); ++j)
+    if (values(j) > 0 && !fem::is_zero_mode(values(j), largest)) return values(j);
+  return 1.0 / M.sum();
+}
+
+// The refined route on a proxy as large as its mesh: the fine pencil's k + guard pairs by the fine
+// eigensolver, the first k returned. Its residuals level off near 1e-10 whatever its own tolerance
+// (Spectra's test is on the shifted-inverted problem), so a tighter tolerance is reached by
+// fem::refine_eigenpairs (LOBPCG) preconditioned by the exact (L + σM)⁻¹, affordable at these sizes.
+Eigenbasis fine_pencil_eigenbasis(const fem::SparseMatrix& L, const fem::SparseMatrix& M, int k,
+                                  const EigenRefinement& refinement, const fem::EigenOptions& options,
+                                  const std::vector<Index>& fixed, Eigen::Index free_vertices) {
+  const auto start = Clock::now();
+  const int guard = refinement_guard(k, refinement, free_vertices);
+  fem::Eigenpairs pairs = fem::smallest_eigenpairs_dirichlet(L, M, fixed, k + guard, options);
+  Eigenbasis basis;
+  basis.eigensolve_seconds = seconds_since(start);
+  basis.restarts = pairs.restarts;
+  basis.refined = true;
+  basis.fine_eigensolve = true;
+  basis.residuals = fem::eigen_residuals(L, M, pairs.values.head(k), pairs.vectors.leftCols(k), fixed);
+  basis.residual_history = {basis.residuals.maxCoeff()};
+  if (basis.residuals.maxCoeff() > refinement.tolerance) {
+    const auto refine_start = Clock::now();
+    fem::CholeskySolver inverse;
+    inverse.compute(fem::SparseMatrix(L + preconditioner_shift(pairs.values, M) * M));
+    const fem::BlockPreconditioner exact = [&inverse](const Eigen::MatrixXd& R) { return inverse.solve_multiple(R); };
+    fem::EigenRefineOptions refine;
+    refine.tolerance = refinement.tolerance;
+    refine.max_iterations = refinement.max_iterations;
+    const fem::EigenRefineReport report = fem::refine_eigenpairs(L, M, pairs.values, pairs.vectors, k, exact, fixed, refine);
+    basis.refine_iterations = report.iterations;
+    basis.residuals = report.residuals;
+    basis.residual_history = report.history;
+    basis.guard = guard;
+    basis.precondition_seconds = report.precondition_seconds;
+    basis.refine_sparse_seconds = report.sparse_seconds;
+    basis.refine_dense_seconds = report.dense_seconds;
+    basis.refine_seconds = seconds_since(refine_start);
+  }
+  basis.converged = basis.residuals.maxCoeff() <= refinement.tolerance;
+  basis.values = pairs.values.head(k);
+  pairs.vectors.conservativeResize(Eigen::NoChange, k);
+  basis.vectors = std::move(pairs.vectors);
+  return basis;
+}
+
 }  // namespace
 
 EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, std::optional<CoarseSpace> coarse)
@@ -231,26 +282,8 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   const Eigen::Index coarse_free = free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed);
   require_pair_count(k, coarse_free, !coarse_fixed.empty());  // before the coarse eigensolve of k + guard + directions pairs
   const fem::SparseMatrix& input_L = proxy.fine_laplacian();
-  if (proxy.prolongation().cols() >= input_L.rows()) {
-    // Not coarsened (a small mesh under the route's default size): the refinement would converge to
-    // the fine pencil's pairs from a start as costly as they are (k + guard + directions pairs of a
-    // problem the mesh's size), so the fine eigensolver answers directly, to the tolerance asked.
-    const auto start = Clock::now();
-    fem::EigenOptions fine_options = options;
-    fine_options.tolerance = std::min(options.tolerance, refinement.tolerance);
-    fem::Eigenpairs pairs = fem::smallest_eigenpairs_dirichlet(input_L, proxy.fine_mass(), dirichlet_vertices, k, fine_options);
-    Eigenbasis basis;
-    basis.eigensolve_seconds = seconds_since(start);
-    basis.restarts = pairs.restarts;
-    basis.residuals = fem::eigen_residuals(input_L, proxy.fine_mass(), pairs.values, pairs.vectors, dirichlet_vertices);
-    basis.values = std::move(pairs.values);
-    basis.vectors = std::move(pairs.vectors);
-    basis.refined = true;
-    basis.fine_eigensolve = true;
-    basis.converged = basis.residuals.maxCoeff() <= refinement.tolerance;
-    basis.residual_history = {basis.residuals.maxCoeff()};
-    return basis;
-  }
+  if (proxy.prolongation().cols() >= input_L.rows())
+    return fine_pencil_eigenbasis(input_L, proxy.fine_mass(), k, refinement, options, dirichlet_vertices, coarse_free);
   if (hierarchy.fine_vertices != input_L.rows())
     throw std::invalid_argument("refined_eigenbasis: the hierarchy has " + std::to_string(hierarchy.fine_vertices) +
                                 " fine vertices, the proxy " + std::to_string(input_L.rows()));
@@ -296,11 +329,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   // the scale of the modes sought, the smallest positive coarse eigenvalue (an upper bound of the
   // fine one); with zero modes only, the inverse area (λ·area is of order 10 for the lowest modes
   // of compact surfaces).
-  const double largest = basis.values.cwiseAbs().maxCoeff();
-  double sigma = 0;
-  for (Eigen::Index j = 0; j < basis.values.size() && sigma == 0; ++j)
-    if (!fem::is_zero_mode(basis.values(j), largest)) sigma = basis.values(j);
-  if (!(sigma > 0)) sigma = 1.0 / M.sum();
+  const double sigma = preconditioner_shift(basis.values, M);
   fem::MultigridOptions cycle;
   cycle.mode = fem::MultigridMode::vcycle;  // the finest level smoothed in double precision
   fem::MultigridSolver multigrid(std::move(prolongations), cycle);

@@ -278,9 +278,10 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
         values, vectors, info = refined_eigenbasis(proxy, V, F, k, refine_tolerance=refine_tolerance, tolerance=tolerance,
                                                    dirichlet=fixed, cache=cache)
         if not info["converged"]:
-            warnings.warn(f"eigenbasis: the refinement stopped after {info['iterations']} iterations with a largest "
-                          f"residual of {max(info['residuals']):.3g} (refine_tolerance {refine_tolerance:g})", RuntimeWarning,
-                          stacklevel=2)
+            what = ("the fine eigensolver's pairs have" if info["fine_eigensolve"] else
+                    f"the refinement stopped after {info['iterations']} iterations with")
+            warnings.warn(f"eigenbasis: {what} a largest residual of {max(info['residuals']):.3g} "
+                          f"(refine_tolerance {refine_tolerance:g})", RuntimeWarning, stacklevel=2)
         return values, vectors
     return proxy_eigenbasis(proxy, k, tolerance=tolerance, dirichlet=fixed, cache=cache if coarse is None else False)
 

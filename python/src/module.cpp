@@ -1573,7 +1573,7 @@ it starts from) until each pair's
 relative residual |Lφ − λMφ| / (λ|Mφ|) is at most refine_tolerance. (V, F) must be the proxy's input mesh
 (only its vertex count is checked: another mesh's hierarchy would precondition worse, not wrongly).
 A proxy with as many coarse vertices as its mesh (not coarsened) is solved by the fine eigensolver directly
-(info fine_eigensolve True, no hierarchy, 0 iterations).
+(info fine_eigensolve True, no hierarchy; iterations only for a tolerance below its residuals).
 info: converged, iterations, guard (pairs refined along), coarse_directions, fine_eigensolve, residuals (per pair), seconds,
 hierarchy_seconds, hierarchy_cache, eigenpairs_cache. A refinement that stops at max_iterations returns its pairs with
 converged False.)doc");

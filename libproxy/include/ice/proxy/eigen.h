@@ -99,8 +99,9 @@ struct Eigenbasis {
   bool refined = false;
   bool converged = false;
   /// The refined route on a coarse space as large as the mesh (not coarsened): nothing coarser to
-  /// start from, so the fine pencil's k pairs come from fem::smallest_eigenpairs directly (in
-  /// eigensolve_seconds; no refinement iterations), their residuals checked against the tolerance.
+  /// start from, so the fine pencil's k + guard pairs come from fem::smallest_eigenpairs directly (in
+  /// eigensolve_seconds), refined (LOBPCG, the exact (L + σM)⁻¹ as preconditioner) only when the
+  /// tolerance is below the residuals the eigensolver reached.
   bool fine_eigensolve = false;
   int refine_iterations = 0;
   int guard = 0;
@@ -171,7 +172,7 @@ Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::Eig
 /// at `dirichlet_vertices`. Returns the first k pairs. Throws as proxy_eigenbasis, and
 /// std::invalid_argument when refinement.tolerance is not > 0 or the hierarchy's size differs.
 /// The coarse pairs come through `store` as proxy_eigenbasis's. A proxy that is not coarser than its
-/// mesh (as many coarse vertices as fine ones) gets the fine pencil's k pairs from
+/// mesh (as many coarse vertices as fine ones) gets the fine pencil's pairs from
 /// fem::smallest_eigenpairs directly instead (Eigenbasis::fine_eigensolve; `hierarchy` and `store`
 /// unused).
 Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHierarchy& hierarchy, int k,
