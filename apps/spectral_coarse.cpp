@@ -152,9 +152,9 @@ int spectral_coarse_tool::main(int argc, char** argv) {
       hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt, store);
       run.assemble += clock.lap();
     }
+    static const ice::proxy::MultigridHierarchy no_hierarchy;  // not coarsened: refined_eigenbasis needs none
     const ice::proxy::Eigenbasis basis =
-        tolerance > 0 ? ice::proxy::refined_eigenbasis(proxy, hierarchy ? *hierarchy : ice::proxy::MultigridHierarchy{}, k,
-                                                       refinement, {}, fixed, store)
+        tolerance > 0 ? ice::proxy::refined_eigenbasis(proxy, hierarchy ? *hierarchy : no_hierarchy, k, refinement, {}, fixed, store)
                       : ice::proxy::proxy_eigenbasis(proxy, k, {}, fixed, store);
     if (basis.refined && !basis.converged) {
       std::ostringstream message;

@@ -161,12 +161,33 @@ Eigenbasis coarse_basis(const fem::CoarseProxy& proxy, int count, int prolonged,
 }
 
 // The shift σ of the refinement's preconditioner (L + σM)⁻¹: the smallest positive eigenvalue of
-// `values` (the scale of the modes sought), else the inverse area.
-double preconditioner_shift(const Eigen::VectorXd& values, const fem::SparseMatrix& M) {
+// `values` that is not a zero mode (the scale of the modes sought), else the inverse area. A value
+// below 1e-8 of trace(L)/trace(M) (smallest_eigenpairs' own scale of round-off) is a zero mode
+// even when every value is one (a mesh of as many components as pairs).
+double preconditioner_shift(const Eigen::VectorXd& values, const fem::SparseMatrix& L, const fem::SparseMatrix& M) {
   const double largest = values.size() ? values.cwiseAbs().maxCoeff() : 0.0;
+  const double round_off = 1e-8 * L.diagonal().sum() / M.diagonal().sum();
   for (Eigen::Index j = 0; j < values.size(); ++j)
-    if (values(j) > 0 && !fem::is_zero_mode(values(j), largest)) return values(j);
+    if (values(j) > round_off && !fem::is_zero_mode(values(j), largest)) return values(j);
   return 1.0 / M.sum();
+}
+
+// L + σM with the rows and columns of `fixed` replaced by the identity's: its inverse is the free
+// block's, which is what the Dirichlet pencil's preconditioner must apply.
+fem::SparseMatrix shifted_free_block(const fem::SparseMatrix& L, const fem::SparseMatrix& M, double sigma,
+                                     const std::vector<Index>& fixed) {
+  fem::SparseMatrix A = L + sigma * M;
+  if (fixed.empty()) return A;
+  std::vector<char> is_fixed(static_cast<std::size_t>(A.rows()), 0);
+  for (Index i : fixed) is_fixed[static_cast<std::size_t>(i)] = 1;
+  A.prune([&](Index row, Index col, double) {
+    return !is_fixed[static_cast<std::size_t>(row)] && !is_fixed[static_cast<std::size_t>(col)];
+  });
+  std::vector<Eigen::Triplet<double>> ones;
+  for (Index i : fixed) ones.emplace_back(i, i, 1.0);
+  fem::SparseMatrix identity(A.rows(), A.cols());
+  identity.setFromTriplets(ones.begin(), ones.end(), [](double a, double) { return a; });  // repeats: one 1
+  return A + identity;
 }
 
 // The refined route on a proxy as large as its mesh: the fine pencil's k + guard pairs by the fine
@@ -184,12 +205,14 @@ Eigenbasis fine_pencil_eigenbasis(const fem::SparseMatrix& L, const fem::SparseM
   basis.restarts = pairs.restarts;
   basis.refined = true;
   basis.fine_eigensolve = true;
-  basis.residuals = fem::eigen_residuals(L, M, pairs.values.head(k), pairs.vectors.leftCols(k), fixed);
+  basis.guard = guard;
+  // Zero modes judged against all k + guard pairs, as refine_eigenpairs judges them.
+  basis.residuals = fem::eigen_residuals(L, M, pairs.values, pairs.vectors, fixed).head(k);
   basis.residual_history = {basis.residuals.maxCoeff()};
   if (basis.residuals.maxCoeff() > refinement.tolerance) {
     const auto refine_start = Clock::now();
     fem::CholeskySolver inverse;
-    inverse.compute(fem::SparseMatrix(L + preconditioner_shift(pairs.values, M) * M));
+    inverse.compute(shifted_free_block(L, M, preconditioner_shift(pairs.values, L, M), fixed));
     const fem::BlockPreconditioner exact = [&inverse](const Eigen::MatrixXd& R) { return inverse.solve_multiple(R); };
     fem::EigenRefineOptions refine;
     refine.tolerance = refinement.tolerance;
@@ -198,7 +221,6 @@ Eigenbasis fine_pencil_eigenbasis(const fem::SparseMatrix& L, const fem::SparseM
     basis.refine_iterations = report.iterations;
     basis.residuals = report.residuals;
     basis.residual_history = report.history;
-    basis.guard = guard;
     basis.precondition_seconds = report.precondition_seconds;
     basis.refine_sparse_seconds = report.sparse_seconds;
     basis.refine_dense_seconds = report.dense_seconds;
@@ -329,7 +351,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   // the scale of the modes sought, the smallest positive coarse eigenvalue (an upper bound of the
   // fine one); with zero modes only, the inverse area (λ·area is of order 10 for the lowest modes
   // of compact surfaces).
-  const double sigma = preconditioner_shift(basis.values, M);
+  const double sigma = preconditioner_shift(basis.values, L, M);
   fem::MultigridOptions cycle;
   cycle.mode = fem::MultigridMode::vcycle;  // the finest level smoothed in double precision
   fem::MultigridSolver multigrid(std::move(prolongations), cycle);

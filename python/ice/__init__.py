@@ -254,7 +254,9 @@ def eigenbasis(V, F, k: int, *, boundary: str = "neumann", coarse: CoarseSpace |
     refine_tolerance the refinement, is redone).
     refine_tolerance > 0: the refined route (spectral-coarse --tolerance): the pairs improved on the input
     mesh until each relative residual |Lφ − λMφ| / (λ|Mφ|) is at most this (refined_eigenbasis; its
-    multigrid hierarchy goes through `cache` too). A refinement that does not converge warns.
+    multigrid hierarchy goes through `cache` too). A refinement that does not converge warns. A mesh
+    that is not coarsened (smaller than that size) is solved by the fine eigensolver each call instead
+    (nothing of it stored).
     """
     if boundary not in ("neumann", "dirichlet"):
         raise ValueError(f"boundary must be 'neumann' or 'dirichlet', not {boundary!r}")

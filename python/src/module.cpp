@@ -1557,6 +1557,7 @@ of the coarse pairs depends on that ratio, not on the mesh; plus the dirichlet_v
         info["fine_eigensolve"] = basis.fine_eigensolve;
         info["residuals"] = basis.residuals;
         info["seconds"] = basis.refine_seconds;
+        info["eigensolve_seconds"] = basis.eigensolve_seconds;
         info["hierarchy_seconds"] = hierarchy.build_seconds;
         info["hierarchy_cache"] = json_to_python(ice::proxy::cache_json(hierarchy.cache, store));
         info["eigenpairs_cache"] = json_to_python(ice::proxy::cache_json(basis.cache, store));
@@ -1573,9 +1574,10 @@ it starts from) until each pair's
 relative residual |Lφ − λMφ| / (λ|Mφ|) is at most refine_tolerance. (V, F) must be the proxy's input mesh
 (only its vertex count is checked: another mesh's hierarchy would precondition worse, not wrongly).
 A proxy with as many coarse vertices as its mesh (not coarsened) is solved by the fine eigensolver directly
-(info fine_eigensolve True, no hierarchy; iterations only for a tolerance below its residuals).
-info: converged, iterations, guard (pairs refined along), coarse_directions, fine_eigensolve, residuals (per pair), seconds,
-hierarchy_seconds, hierarchy_cache, eigenpairs_cache. A refinement that stops at max_iterations returns its pairs with
+(info fine_eigensolve True, no hierarchy, nothing stored; iterations only for a tolerance below its residuals).
+info: converged, iterations, guard (pairs refined along), coarse_directions, fine_eigensolve, residuals (per pair), seconds
+(the refinement's), eigensolve_seconds (the coarse, or fine, eigensolve's), hierarchy_seconds, hierarchy_cache,
+eigenpairs_cache. A refinement that stops at max_iterations returns its pairs with
 converged False.)doc");
   // A one-dimensional array of any length, or a two-dimensional one of any row count.
   const auto any_vector = [](const py::object& object, const char* name) {
