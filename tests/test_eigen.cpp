@@ -306,6 +306,41 @@ TEST_CASE("refined eigenbasis: k no more than the zero modes still converges", "
   CHECK((constant.array() - 1).abs().maxCoeff() < 1e-8);
 }
 
+TEST_CASE("pairs that are all zero modes (more components than pairs): judged against the spectrum's scale", "[eigen][refine]") {
+  // 12 separate spheres, 10 pairs: every eigenvalue is round-off, so none can be the scale of the others.
+  ice::TriangleMesh many;
+  many.V.resize(0, 3);
+  many.F.resize(0, 3);
+  for (int copy = 0; copy < 12; ++copy) {
+    const ice::TriangleMesh one = ice::make_icosphere(1, 1.0);
+    const Eigen::Index offset = many.V.rows(), faces = many.F.rows();
+    many.V.conservativeResize(offset + one.V.rows(), 3);
+    many.V.bottomRows(one.V.rows()) = one.V.rowwise() + Eigen::RowVector3d(3.0 * copy, 0, 0);
+    many.F.conservativeResize(faces + one.F.rows(), 3);
+    many.F.bottomRows(one.F.rows()) = one.F.array() + static_cast<fem::Index>(offset);
+  }
+  const Pencil p = pencil(many);
+  const double spectrum = p.L.diagonal().sum() / p.M.diagonal().sum();
+  CHECK(fem::zero_mode_scale(1e-14, p.L, p.M) == spectrum);
+  CHECK(fem::zero_mode_scale(0.5 * spectrum, p.L, p.M) == 0.5 * spectrum);
+  const fem::Eigenpairs fine = fem::smallest_eigenpairs(p.L, p.M, 10);
+  CHECK(fine.values.cwiseAbs().maxCoeff() < 1e-10 * spectrum);
+  CHECK(fem::eigen_residuals(p.L, p.M, fine.values, fine.vectors).maxCoeff() <= 1e-8);
+  fem::CholeskySolver inverse;
+  inverse.compute(fem::SparseMatrix(p.L + 1.0 * p.M));
+  const fem::BlockPreconditioner exact = [&inverse](const Eigen::MatrixXd& R) { return inverse.solve_multiple(R); };
+  std::srand(3);
+  Eigen::MatrixXd vectors = Eigen::MatrixXd::Random(many.V.rows(), 10);
+  Eigen::VectorXd values = Eigen::VectorXd::Zero(10);
+  fem::EigenRefineOptions options;
+  options.tolerance = 1e-8;
+  options.max_iterations = 50;
+  const fem::EigenRefineReport report = fem::refine_eigenpairs(p.L, p.M, values, vectors, 6, exact, {}, options);
+  CHECK(report.converged);
+  CHECK(values.head(6).cwiseAbs().maxCoeff() < 1e-10 * spectrum);
+  CHECK(fem::eigen_residuals(p.L, p.M, values.head(6), vectors.leftCols(6)).maxCoeff() <= 1e-8);
+}
+
 TEST_CASE("the refined route's coarse size: a fixed number of coarse vertices per coarse pair", "[eigen][proxy][refine]") {
   ice::proxy::EigenRefinement refinement;
   // k = 100: guard 25, 2 (k + guard) = 250 coarse directions, 375 pairs.

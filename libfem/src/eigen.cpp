@@ -146,6 +146,11 @@ Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatr
   return pairs;
 }
 
+double zero_mode_scale(double largest, const SparseMatrix& L, const SparseMatrix& M) {
+  const double spectrum = L.diagonal().sum() / M.diagonal().sum();
+  return std::isfinite(spectrum) && spectrum > 0 && !(largest > 1e-8 * spectrum) ? spectrum : largest;
+}
+
 Eigen::VectorXd eigen_residuals(const SparseMatrix& L, const SparseMatrix& M, const Eigen::VectorXd& values,
                                 const Eigen::MatrixXd& vectors, const std::vector<Index>& fixed) {
   if (vectors.cols() != values.size() || vectors.rows() != L.rows() || M.rows() != L.rows())
@@ -155,7 +160,7 @@ Eigen::VectorXd eigen_residuals(const SparseMatrix& L, const SparseMatrix& M, co
     if (v < 0 || v >= L.rows()) throw std::invalid_argument("eigen_residuals: fixed index out of range");
     keep(v) = 0;
   }
-  const double largest = values.size() > 0 ? values.cwiseAbs().maxCoeff() : 0.0;
+  const double largest = zero_mode_scale(values.size() > 0 ? values.cwiseAbs().maxCoeff() : 0.0, L, M);
   Eigen::VectorXd out(values.size());
   for (Eigen::Index j = 0; j < values.size(); ++j) {
     const Eigen::VectorXd Mphi = M * vectors.col(j);

@@ -299,11 +299,12 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   Eigen::VectorXd residual(m);
   // The residuals R = L X − M X Θ of the current pairs (outside the Dirichlet rows), their relative
   // norms in `residual`; zero modes are judged against the largest |λ| of all m pairs: the guards'
-  // are not round-off even when the first k are all zero modes (k at most the component count).
+  // are not round-off even when the first k are all zero modes (k at most the component count); when
+  // all m are, against the spectrum's scale (zero_mode_scale).
   // One pass over R per column: the Dirichlet rows are cleared first (X and M X are 0 there).
   const auto residuals_of = [&](Dense& R) {
     clear_fixed_rows(R);
-    const double largest = std::max(theta.cwiseAbs().maxCoeff(), std::numeric_limits<double>::min());
+    const double largest = std::max(zero_mode_scale(theta.cwiseAbs().maxCoeff(), L, M), std::numeric_limits<double>::min());
 #pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
     for (Eigen::Index j = 0; j < m; ++j) {
       double mass_norm2 = 0, residual_norm2 = 0;

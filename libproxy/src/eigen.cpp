@@ -161,14 +161,11 @@ Eigenbasis coarse_basis(const fem::CoarseProxy& proxy, int count, int prolonged,
 }
 
 // The shift σ of the refinement's preconditioner (L + σM)⁻¹: the smallest positive eigenvalue of
-// `values` that is not a zero mode (the scale of the modes sought), else the inverse area. A value
-// below 1e-8 of trace(L)/trace(M) (smallest_eigenpairs' own scale of round-off) is a zero mode
-// even when every value is one (a mesh of as many components as pairs).
+// `values` that is not a zero mode (the scale of the modes sought), else the inverse area.
 double preconditioner_shift(const Eigen::VectorXd& values, const fem::SparseMatrix& L, const fem::SparseMatrix& M) {
-  const double largest = values.size() ? values.cwiseAbs().maxCoeff() : 0.0;
-  const double round_off = 1e-8 * L.diagonal().sum() / M.diagonal().sum();
+  const double largest = fem::zero_mode_scale(values.size() ? values.cwiseAbs().maxCoeff() : 0.0, L, M);
   for (Eigen::Index j = 0; j < values.size(); ++j)
-    if (values(j) > round_off && !fem::is_zero_mode(values(j), largest)) return values(j);
+    if (values(j) > 0 && !fem::is_zero_mode(values(j), largest)) return values(j);
   return 1.0 / M.sum();
 }
 

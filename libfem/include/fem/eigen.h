@@ -133,6 +133,12 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M
 /// residuals, the descriptors and the tools' error statistics use.
 inline bool is_zero_mode(double lambda, double largest) { return std::abs(lambda) <= 1e-6 * largest; }
 
+/// The `largest` to judge zero modes by (is_zero_mode, eigen_residuals): the largest |λ| of the basis
+/// as given, unless that is itself round-off — at most 1e-8 of trace(L)/trace(M), the spectrum's
+/// scale that smallest_eigenpairs sets its shift from: every pair a zero mode, on a mesh of at least as
+/// many components as pairs — then that scale.
+double zero_mode_scale(double largest, const SparseMatrix& L, const SparseMatrix& M);
+
 /// The relative residual of each pair, ‖Lφ − λMφ‖₂ / (|λ| ‖Mφ‖₂); a zero mode (is_zero_mode) is
 /// judged against the largest |λ| given instead (the scale of the basis it
 /// was converged in) rather than dividing by ~0. Rows at the `fixed` (Dirichlet) indices, where the
