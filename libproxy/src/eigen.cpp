@@ -187,6 +187,18 @@ fem::SparseMatrix shifted_free_block(const fem::SparseMatrix& L, const fem::Spar
   return A + identity;
 }
 
+// A refinement's report into the basis (the refinement's time is the caller's: its set-up included).
+void record_refinement(Eigenbasis& basis, const fem::EigenRefineReport& report) {
+  basis.converged = report.converged;
+  basis.refine_iterations = report.iterations;
+  basis.residuals = report.residuals;
+  basis.residual_history = report.history;
+  basis.precondition_seconds = report.precondition_seconds;
+  basis.refine_sparse_seconds = report.sparse_seconds;
+  basis.refine_dense_seconds = report.dense_seconds;
+  basis.refine_coarse_seconds = report.coarse_seconds;
+}
+
 // The refined route on a proxy as large as its mesh: the fine pencil's k + guard pairs by the fine
 // eigensolver, the first k returned. Its residuals level off near 1e-10 whatever its own tolerance
 // (Spectra's test is on the shifted-inverted problem), so a tighter tolerance is reached by
@@ -214,13 +226,7 @@ Eigenbasis fine_pencil_eigenbasis(const fem::SparseMatrix& L, const fem::SparseM
     fem::EigenRefineOptions refine;
     refine.tolerance = refinement.tolerance;
     refine.max_iterations = refinement.max_iterations;
-    const fem::EigenRefineReport report = fem::refine_eigenpairs(L, M, pairs.values, pairs.vectors, k, exact, fixed, refine);
-    basis.refine_iterations = report.iterations;
-    basis.residuals = report.residuals;
-    basis.residual_history = report.history;
-    basis.precondition_seconds = report.precondition_seconds;
-    basis.refine_sparse_seconds = report.sparse_seconds;
-    basis.refine_dense_seconds = report.dense_seconds;
+    record_refinement(basis, fem::refine_eigenpairs(L, M, pairs.values, pairs.vectors, k, exact, fixed, refine));
     basis.refine_seconds = seconds_since(refine_start);
   }
   basis.converged = basis.residuals.maxCoeff() <= refinement.tolerance;
@@ -374,16 +380,9 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   if (renumbered) permute_rows_in_place(vectors, order, false);
   basis.vectors = std::move(vectors);
   basis.refined = true;
-  basis.converged = report.converged;
-  basis.refine_iterations = report.iterations;
+  record_refinement(basis, report);
   basis.guard = guard;
   basis.coarse_directions = directions;
-  basis.residuals = report.residuals;
-  basis.precondition_seconds = report.precondition_seconds;
-  basis.residual_history = report.history;
-  basis.refine_sparse_seconds = report.sparse_seconds;
-  basis.refine_dense_seconds = report.dense_seconds;
-  basis.refine_coarse_seconds = report.coarse_seconds;
   basis.refine_seconds = seconds_since(start);
   return basis;
 }
