@@ -148,7 +148,7 @@ int spectral_coarse_tool::main(int argc, char** argv) {
                                            (dirichlet ? " vertices off the boundary" : " vertices") +
                                            " (k < coarse vertices: raise --vertices or --ratio)");
     std::optional<ice::proxy::MultigridHierarchy> hierarchy;
-    if (tolerance > 0 && proxy.prolongation().cols() < proxy.prolongation().rows()) {
+    if (tolerance > 0 && ice::proxy::refinement_needs_hierarchy(proxy)) {
       hierarchy = app::stored_hierarchy(kTool, mesh, app::MultigridCli{refinement.hierarchy, {}}, opt, store);
       run.assemble += clock.lap();
     }

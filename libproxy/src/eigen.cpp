@@ -260,8 +260,7 @@ EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, st
   const bool refining = refine.tolerance > 0;
   setup.fine_operators = refining;  // a restored proxy makes its fine Laplacian from a copy of the mesh
   setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
-  // Not coarsened: refined_eigenbasis solves the fine pencil directly and needs no hierarchy.
-  if (refining && setup_.proxy->prolongation().cols() < setup_.proxy->prolongation().rows()) {
+  if (refining && refinement_needs_hierarchy(*setup_.proxy)) {
     setup_.proxy->fine_laplacian();  // made now, while `mesh` is at hand
     HierarchyOptions hierarchy = refine.hierarchy;
     hierarchy.nonmanifold = options_.coarsening.nonmanifold;  // the proxy's choice, made once
@@ -307,7 +306,7 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
   const Eigen::Index coarse_free = free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed);
   require_pair_count(k, coarse_free, !coarse_fixed.empty());  // before the coarse eigensolve of k + guard + directions pairs
   const fem::SparseMatrix& input_L = proxy.fine_laplacian();
-  if (proxy.prolongation().cols() >= input_L.rows())
+  if (!refinement_needs_hierarchy(proxy))
     return fine_pencil_eigenbasis(input_L, proxy.fine_mass(), k, refinement, options, dirichlet_vertices, coarse_free);
   if (hierarchy.fine_vertices != input_L.rows())
     throw std::invalid_argument("refined_eigenbasis: the hierarchy has " + std::to_string(hierarchy.fine_vertices) +

@@ -1544,9 +1544,8 @@ of the coarse pairs depends on that ratio, not on the mesh; plus the dirichlet_v
           require_clean(mesh, nonmanifold);
           ice::HierarchyOptions hierarchy_options = refinement.hierarchy;
           hierarchy_options.nonmanifold = nonmanifold;
-          // A proxy as large as its mesh is solved by the fine eigensolver directly: no hierarchy.
-          const fem::SparseMatrix& P = proxy->proxy->prolongation();
-          if (P.cols() < P.rows()) hierarchy = ice::proxy::multigrid_hierarchy(mesh, hierarchy_options, store);
+          if (ice::proxy::refinement_needs_hierarchy(*proxy->proxy))
+            hierarchy = ice::proxy::multigrid_hierarchy(mesh, hierarchy_options, store);
           basis = ice::proxy::refined_eigenbasis(*proxy->proxy, hierarchy, k, refinement, options, fixed, store);
         }
         py::dict info;

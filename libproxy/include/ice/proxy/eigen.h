@@ -179,6 +179,10 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
                               const EigenRefinement& refinement, const fem::EigenOptions& options = {},
                               const std::vector<Index>& dirichlet_vertices = {}, const Store& store = {});
 
+/// Whether refined_eigenbasis on `proxy` refines through a multigrid hierarchy: only when the proxy is
+/// coarser than its mesh (else it solves the fine pencil directly and needs none).
+inline bool refinement_needs_hierarchy(const fem::CoarseProxy& proxy) { return proxy.coarse_size() < proxy.fine_size(); }
+
 /// The guard pairs refined_eigenbasis adds to k (EigenRefinement::guard), given the coarse space's
 /// free vertex count.
 int refinement_guard(int k, const EigenRefinement& refinement, Eigen::Index coarse_free_vertices);
