@@ -29,6 +29,15 @@ struct Pencil {
   fem::SparseMatrix L, M;
 };
 
+// Appends `part`, moved by `shift`, to `mesh` as a component of its own.
+void append_component(ice::TriangleMesh& mesh, const ice::TriangleMesh& part, const Eigen::RowVector3d& shift) {
+  const Eigen::Index offset = mesh.V.rows(), faces = mesh.F.rows();
+  mesh.V.conservativeResize(offset + part.V.rows(), 3);
+  mesh.V.bottomRows(part.V.rows()) = part.V.rowwise() + shift;
+  mesh.F.conservativeResize(faces + part.F.rows(), 3);
+  mesh.F.bottomRows(part.F.rows()) = part.F.array() + static_cast<fem::Index>(offset);
+}
+
 Pencil pencil(const ice::TriangleMesh& mesh) {
   const ice::FineMesh fine = ice::fine_mesh(mesh, ice::FineGeometry::intrinsic_delaunay);
   return {fem::cotan_laplacian(fine),
@@ -311,14 +320,8 @@ TEST_CASE("pairs that are all zero modes (more components than pairs): judged ag
   ice::TriangleMesh many;
   many.V.resize(0, 3);
   many.F.resize(0, 3);
-  for (int copy = 0; copy < 12; ++copy) {
-    const ice::TriangleMesh one = ice::make_icosphere(1, 1.0);
-    const Eigen::Index offset = many.V.rows(), faces = many.F.rows();
-    many.V.conservativeResize(offset + one.V.rows(), 3);
-    many.V.bottomRows(one.V.rows()) = one.V.rowwise() + Eigen::RowVector3d(3.0 * copy, 0, 0);
-    many.F.conservativeResize(faces + one.F.rows(), 3);
-    many.F.bottomRows(one.F.rows()) = one.F.array() + static_cast<fem::Index>(offset);
-  }
+  const ice::TriangleMesh one = ice::make_icosphere(1, 1.0);
+  for (int copy = 0; copy < 12; ++copy) append_component(many, one, Eigen::RowVector3d(3.0 * copy, 0, 0));
   const Pencil p = pencil(many);
   const double spectrum = p.L.diagonal().sum() / p.M.diagonal().sum();
   CHECK(fem::zero_mode_scale(1e-14, p.L, p.M) == spectrum);
@@ -442,12 +445,7 @@ TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two c
   // Two spheres: two zero modes, then each sphere's clusters interleaved. Random start vectors know
   // nothing of that; an exact preconditioner ((L + σM)⁻¹ by CHOLMOD) makes the iteration quick.
   ice::TriangleMesh two = ice::make_icosphere(2, 1.0);
-  const ice::TriangleMesh other = ice::make_icosphere(2, 0.7);
-  const Eigen::Index offset = two.V.rows();
-  two.V.conservativeResize(offset + other.V.rows(), 3);
-  two.V.bottomRows(other.V.rows()) = other.V;
-  two.F.conservativeResize(two.F.rows() + other.F.rows(), 3);
-  two.F.bottomRows(other.F.rows()) = other.F.array() + static_cast<fem::Index>(offset);
+  append_component(two, ice::make_icosphere(2, 0.7), Eigen::RowVector3d::Zero());
   const Pencil p = pencil(two);
   const int k = 8, m = 14;  // 0, 0, 2 (x3), 4.08 (x3): k closes a cluster
   const fem::Eigenpairs fine = fem::smallest_eigenpairs(p.L, p.M, m, tight_reference());
