@@ -5,12 +5,15 @@
 // descriptors keep their sums.
 #include <catch2/catch.hpp>
 
+#include <dlfcn.h>
+
 #include <cmath>
 #include <stdexcept>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
 
+#include "dense_blas.h"
 #include "fem/cholesky.h"
 #include "fem/eigen.h"
 #include "fem/operators.h"
@@ -608,4 +611,31 @@ TEST_CASE("stored coarse eigenpairs: a second eigenbasis loads them bit for bit;
   CHECK(flipped.cache.status == CacheStatus::rebuilt);
   same(flipped);
   fs::remove_all(dir);
+}
+
+TEST_CASE("Gram products cut by rows: equal to one product, the same for any thread count, the BLAS's threads restored",
+          "[eigen][refine]") {
+  // 140,000 rows: over the two parts of 65,536 rows below which the products are not cut.
+  const Eigen::Index n = 140000;
+  std::srand(7);
+  const Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, 3), B = Eigen::MatrixXd::Random(n, 2);
+  const Eigen::VectorXd root_w = Eigen::VectorXd::Random(n).cwiseAbs();
+  using OpenBlasThreads = int (*)();
+  const auto blas_threads = reinterpret_cast<OpenBlasThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
+  const int threads_before = blas_threads ? blas_threads() : 0;
+  Eigen::MatrixXd C2, C3, S2, S3;
+  fem::detail::gram_by_rows(A, B, C2, 2);
+  fem::detail::gram_by_rows(A, B, C3, 3);
+  fem::detail::self_gram_by_rows(A, root_w, S2, 2);
+  fem::detail::self_gram_by_rows(A, root_w, S3, 3);
+  const Eigen::MatrixXd exact = A.transpose() * B;
+  const Eigen::MatrixXd exact_self = A.transpose() * root_w.cwiseAbs2().asDiagonal() * A;
+  CHECK((C2 - exact).norm() <= 1e-12 * exact.norm());
+  CHECK((S2 - exact_self).norm() <= 1e-12 * exact_self.norm());
+  CHECK(S2 == S2.transpose());
+  CHECK(C2 == C3);  // the parts are fixed by the row count, not by the threads
+  CHECK(S2 == S3);
+  if (blas_threads) CHECK(blas_threads() == threads_before);
+  Eigen::MatrixXd bad;
+  CHECK_THROWS_AS(fem::detail::gram_by_rows(A, B.topRows(10), bad, 2), std::logic_error);
 }

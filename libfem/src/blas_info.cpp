@@ -1,4 +1,8 @@
+// Which BLAS the process runs on (fem/blas_info.h), and the tall Gram products cut by rows for it
+// (dense_blas.h), which hold OpenBLAS to one thread in each caller.
 #include "fem/blas_info.h"
+
+#include "dense_blas.h"
 
 #include <dlfcn.h>
 
@@ -6,6 +10,9 @@
 #include <cctype>
 #include <climits>
 #include <cstdlib>
+#include <functional>
+#include <mutex>
+#include <vector>
 
 namespace fem {
 namespace {
@@ -47,3 +54,131 @@ bool blas_is_openblas() {
 }
 
 }  // namespace fem
+
+namespace fem::detail {
+namespace {
+
+// OpenBLAS's thread count is process-wide (`openblas_set_num_threads`). While a scope is alive it is
+// 1, so that BLAS calls made on several OpenMP threads each run on their caller; the first scope
+// saves the count and the last restores it (scopes may overlap when several threads of a program
+// refine at once). A BLAS call made meanwhile by another part of the program runs on one thread:
+// slower, not different. With another BLAS, or an OpenBLAS without these entry points, `engaged()`
+// is false and nothing is changed.
+class SingleThreadedOpenBlas {
+ public:
+  SingleThreadedOpenBlas() {
+    const Entries& e = entries();
+    if (e.set == nullptr || e.get == nullptr) return;
+    std::lock_guard<std::mutex> lock(mutex());
+    if (depth()++ == 0) {
+      saved() = e.get();
+      e.set(1);
+    }
+    engaged_ = true;
+  }
+  ~SingleThreadedOpenBlas() {
+    if (!engaged_) return;
+    std::lock_guard<std::mutex> lock(mutex());
+    if (--depth() == 0) entries().set(saved());
+  }
+  SingleThreadedOpenBlas(const SingleThreadedOpenBlas&) = delete;
+  SingleThreadedOpenBlas& operator=(const SingleThreadedOpenBlas&) = delete;
+  bool engaged() const { return engaged_; }
+
+ private:
+  struct Entries {
+    void (*set)(int) = nullptr;
+    int (*get)() = nullptr;
+  };
+  // Looked up in the object that provides dgemm_ (as blas_is_openblas does): a process-wide lookup
+  // could find an OpenBLAS loaded beside another BLAS.
+  static const Entries& entries() {
+    static const Entries found = [] {
+      Entries e;
+      const std::string blas = blas_library();
+      if (blas.empty()) return e;
+      void* handle = dlopen(blas.c_str(), RTLD_LAZY | RTLD_NOLOAD);
+      if (handle == nullptr) return e;
+      e.set = reinterpret_cast<void (*)(int)>(dlsym(handle, "openblas_set_num_threads"));
+      e.get = reinterpret_cast<int (*)()>(dlsym(handle, "openblas_get_num_threads"));
+      dlclose(handle);  // the object stays loaded (RTLD_NOLOAD found it loaded by the program)
+      return e;
+    }();
+    return found;
+  }
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static int& depth() {
+    static int d = 0;
+    return d;
+  }
+  static int& saved() {
+    static int s = 1;
+    return s;
+  }
+  bool engaged_ = false;
+};
+
+// Rows per part: at least 65,536 (a single-threaded product that long runs at the BLAS's full rate),
+// at most 64 parts (their m × m partial sums stay small beside the n × m blocks).
+Eigen::Index part_rows(Eigen::Index rows) { return std::max<Eigen::Index>(65536, (rows + 63) / 64); }
+
+// Σ over parts of part(first, count, partial) (each writing its m × m partial from scratch), in
+// part order; false when the products are not to be cut (one thread, short blocks, not OpenBLAS),
+// C untouched.
+bool sum_over_parts(Eigen::Index rows, int threads, Eigen::MatrixXd& C,
+                    const std::function<void(Eigen::Index, Eigen::Index, Eigen::MatrixXd&)>& part) {
+  const Eigen::Index size = part_rows(rows);
+  if (threads < 2 || rows < 2 * size) return false;
+  blas_size(rows);  // a block too large for BLAS throws here, not inside the parallel loop
+  const SingleThreadedOpenBlas serial;
+  if (!serial.engaged()) return false;
+  const Eigen::Index parts = (rows + size - 1) / size;
+  std::vector<Eigen::MatrixXd> partial(static_cast<std::size_t>(parts));
+#pragma omp parallel for schedule(dynamic) num_threads(static_cast<int>(std::min<Eigen::Index>(threads, parts)))
+  for (Eigen::Index p = 0; p < parts; ++p) {
+    const Eigen::Index first = p * size;
+    part(first, std::min(size, rows - first), partial[static_cast<std::size_t>(p)]);
+  }
+  C = partial[0];
+  for (Eigen::Index p = 1; p < parts; ++p) C += partial[static_cast<std::size_t>(p)];
+  return true;
+}
+
+}  // namespace
+
+void gram_by_rows(const Eigen::Ref<const Eigen::MatrixXd>& A, const Eigen::Ref<const Eigen::MatrixXd>& B, Eigen::MatrixXd& C,
+                  int threads) {
+  if (A.rows() != B.rows()) throw std::logic_error("gram_by_rows: the blocks' row counts differ");
+  const auto part = [&](Eigen::Index first, Eigen::Index count, Eigen::MatrixXd& out) {
+    out.resize(A.cols(), B.cols());
+    gemm(A.middleRows(first, count), true, B.middleRows(first, count), false, out);
+  };
+  if (sum_over_parts(A.rows(), threads, C, part)) return;
+  C.resize(A.cols(), B.cols());
+  gemm(A, true, B, false, C);
+}
+
+void self_gram_by_rows(const Eigen::Ref<const Eigen::MatrixXd>& A, const Eigen::VectorXd& root_w, Eigen::MatrixXd& C,
+                       int threads) {
+  if (root_w.size() != A.rows()) throw std::logic_error("self_gram_by_rows: one weight per row");
+  const Eigen::Index m = A.cols();
+  // Bands of the scaled rows: no n-row copy of diag(root_w) A is kept.
+  constexpr Eigen::Index kBand = 16384;  // 4,096 rows was slower with OpenBLAS (docs/measurements.md, "The refined eigenbasis")
+  const auto rows_into = [&](Eigen::Index first, Eigen::Index count, Eigen::MatrixXd& out) {
+    out = Eigen::MatrixXd::Zero(m, m);
+    Eigen::MatrixXd band;
+    for (Eigen::Index b = first; b < first + count; b += kBand) {
+      const Eigen::Index rows = std::min(kBand, first + count - b);
+      band.noalias() = root_w.segment(b, rows).asDiagonal() * A.middleRows(b, rows);
+      syrk_upper(band, out, 1.0, 1.0);
+    }
+  };
+  if (m > 0 && !sum_over_parts(A.rows(), threads, C, rows_into)) rows_into(0, A.rows(), C);
+  if (m == 0) C.resize(0, 0);
+  C.triangularView<Eigen::StrictlyLower>() = C.transpose();
+}
+
+}  // namespace fem::detail

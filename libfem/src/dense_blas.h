@@ -62,4 +62,19 @@ inline void syrk_upper(const Eigen::Ref<const Eigen::MatrixXd>& A, Eigen::Ref<Ei
   dsyrk_("U", "T", &n, &k, &alpha, A.data(), &lda, &beta, C.data(), &ldc);
 }
 
+/// Aᵀ B (C: A.cols() × B.cols(), resized) for tall A and B of one row count. With several threads and
+/// OpenBLAS, the rows are cut into parts, each part's product one single-threaded BLAS call on the
+/// threads, and the parts summed in order: OpenBLAS threads such a product by cutting the small
+/// output, at about two thirds of its rate for the same flops cut by rows (docs/measurements.md,
+/// "The refined eigenbasis"). The parts do not depend on the thread count, nor does the result;
+/// OpenBLAS's thread count is restored after. Otherwise (one thread, fewer than 131,072 rows,
+/// another BLAS) one BLAS call.
+void gram_by_rows(const Eigen::Ref<const Eigen::MatrixXd>& A, const Eigen::Ref<const Eigen::MatrixXd>& B, Eigen::MatrixXd& C,
+                  int threads);
+
+/// Aᵀ diag(w) A (C: A.cols() square, both triangles; w = root_w², root_w >= 0), a band of rows scaled
+/// by root_w at a time and its symmetric rank-k update added; the rows cut as by gram_by_rows.
+void self_gram_by_rows(const Eigen::Ref<const Eigen::MatrixXd>& A, const Eigen::VectorXd& root_w, Eigen::MatrixXd& C,
+                       int threads);
+
 }  // namespace fem::detail

@@ -31,9 +31,9 @@ void product(const Dense& A, bool transpose_a, const Dense& B, bool transpose_b,
 }
 
 // Aᵀ B.
-Dense gram(const Dense& A, const Dense& B) {
+Dense gram(const Dense& A, const Dense& B, int threads) {
   Dense C;
-  product(A, true, B, false, C);
+  detail::gram_by_rows(A, B, C, threads);
   return C;
 }
 
@@ -51,19 +51,10 @@ Dense mass_gram(const Dense& A, const Eigen::VectorXd& w, const Dense& B) {
   return C;
 }
 
-// Aᵀ diag(w) A for w >= 0, as (√w A)ᵀ (√w A) a band of rows at a time by a symmetric rank-k update
-// (half mass_gram's products); both triangles filled.
-Dense mass_self_gram(const Dense& A, const Eigen::VectorXd& root_w) {
-  constexpr Eigen::Index kBand = 16384;  // 4,096 rows was slower with OpenBLAS (docs/measurements.md, "The refined eigenbasis")
-  Dense C = Dense::Zero(A.cols(), A.cols());
-  if (A.cols() == 0) return C;
-  Dense band;
-  for (Eigen::Index first = 0; first < A.rows(); first += kBand) {
-    const Eigen::Index rows = std::min(kBand, A.rows() - first);
-    band.noalias() = root_w.segment(first, rows).asDiagonal() * A.middleRows(first, rows);
-    detail::syrk_upper(band, C, 1.0, 1.0);
-  }
-  C.triangularView<Eigen::StrictlyLower>() = C.transpose();
+// Aᵀ diag(w) A for w >= 0 from √w (half mass_gram's products); both triangles filled.
+Dense mass_self_gram(const Dense& A, const Eigen::VectorXd& root_w, int threads) {
+  Dense C;
+  detail::self_gram_by_rows(A, root_w, C, threads);
   return C;
 }
 
@@ -267,7 +258,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   // M-orthonormalises the columns of V, dropping the numerically dependent ones: each column
   // normalised, then the Gram matrix's independent part.
   const auto orthonormalise = [&](Dense& V) {
-    const Dense G = mass_self_gram(V, root_mass);
+    const Dense G = mass_self_gram(V, root_mass, threads);
     Eigen::VectorXd scale = G.diagonal().cwiseMax(0).cwiseSqrt();
     const double largest_scale = scale.size() ? scale.maxCoeff() : 0;
     for (Eigen::Index j = 0; j < scale.size(); ++j) scale(j) = scale(j) > 1e-14 * largest_scale ? 1 / scale(j) : 0;
@@ -289,9 +280,9 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
     // freed before the rotated X is made (no third n × m block).
     Dense LX = L_times(X);
     const auto phase_start = Clock::now();
-    const Dense XLX = gram(X, LX);
+    const Dense XLX = gram(X, LX, threads);
     LX.resize(0, 0);
-    const Ritz r = ritz_pairs(XLX, mass_self_gram(X, root_mass), m, kDrop);
+    const Ritz r = ritz_pairs(XLX, mass_self_gram(X, root_mass, threads), m, kDrop);
     X = block_product(X, r.coefficients);
     report.dense_seconds += ice::seconds_since(phase_start);
     theta = r.values;
@@ -377,8 +368,8 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
         Dense& LU = scratch;
         L_times_into(X, LU);
         auto phase_start = Clock::now();
-        GL.topLeftCorner(m, m) = gram(X, LU);
-        GM.topLeftCorner(m, m) = mass_self_gram(X, root_mass);
+        GL.topLeftCorner(m, m) = gram(X, LU, threads);
+        GM.topLeftCorner(m, m) = mass_self_gram(X, root_mass, threads);
         report.dense_seconds += ice::seconds_since(phase_start);
         phase_start = Clock::now();
         Dense restricted_LU, restricted_MU;
@@ -411,7 +402,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       // (computed, not assumed: the Rayleigh–Ritz then corrects any drift of X from M-orthonormality).
       Dense R = L_times(X);
       auto phase_start = Clock::now();
-      const Dense XLX = gram(X, R), XMX = mass_self_gram(X, root_mass);
+      const Dense XLX = gram(X, R, threads), XMX = mass_self_gram(X, root_mass, threads);
       report.dense_seconds += ice::seconds_since(phase_start);
       residuals_of(R);
       if (stop_at(iteration)) break;
@@ -438,19 +429,19 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       GM.topLeftCorner(m, m) = XMX;
       {
         const Dense LW = L_times(W);
-        GL.block(0, m, m, a) = gram(X, LW);
-        GL.block(m, m, a, a) = gram(W, LW);
+        GL.block(0, m, m, a) = gram(X, LW, threads);
+        GL.block(m, m, a, a) = gram(W, LW, threads);
       }
       GM.block(0, m, m, a) = mass_gram(X, mass, W);
-      GM.block(m, m, a, a) = mass_self_gram(W, root_mass);
+      GM.block(m, m, a, a) = mass_self_gram(W, root_mass, threads);
       if (p > 0) {
         const Dense LP = L_times(P);
-        GL.block(0, m + a, m, p) = gram(X, LP);
-        GL.block(m, m + a, a, p) = gram(W, LP);
-        GL.block(m + a, m + a, p, p) = gram(P, LP);
+        GL.block(0, m + a, m, p) = gram(X, LP, threads);
+        GL.block(m, m + a, a, p) = gram(W, LP, threads);
+        GL.block(m + a, m + a, p, p) = gram(P, LP, threads);
         GM.block(0, m + a, m, p) = mass_gram(X, mass, P);
         GM.block(m, m + a, a, p) = mass_gram(W, mass, P);
-        GM.block(m + a, m + a, p, p) = mass_self_gram(P, root_mass);
+        GM.block(m + a, m + a, p, p) = mass_self_gram(P, root_mass, threads);
       }
       GL.triangularView<Eigen::StrictlyLower>() = GL.transpose();
       GM.triangularView<Eigen::StrictlyLower>() = GM.transpose();
