@@ -58,26 +58,29 @@ bool blas_is_openblas() {
 namespace fem::detail {
 namespace {
 
-// OpenBLAS's thread count is process-wide (`openblas_set_num_threads`). While a scope is alive it is
-// 1, so that BLAS calls made on several OpenMP threads each run on their caller; the first scope
-// saves the count and the last restores it (scopes may overlap when several threads of a program
-// refine at once). A BLAS call made meanwhile by another part of the program runs on one thread:
-// slower, not different. With another BLAS, or an OpenBLAS without these entry points, `engaged()`
-// is false and nothing is changed.
+// While a scope is alive, BLAS calls made on several OpenMP threads each run on their caller alone.
+// OpenBLAS built on its own threads (Debian's default) needs its thread count set to 1 for that,
+// and the count is process-wide (`openblas_set_num_threads`): the first scope saves it and the last
+// restores it (scopes may overlap when several threads of a program refine at once); a BLAS call
+// made meanwhile by another part of the program runs on one thread: slower, not different. OpenBLAS
+// built sequentially or on OpenMP (which runs a call made inside a parallel region on its caller)
+// is left as it is. With another BLAS, `engaged()` is false and nothing is changed.
 class SingleThreadedOpenBlas {
  public:
   SingleThreadedOpenBlas() {
     const Entries& e = entries();
-    if (e.set == nullptr || e.get == nullptr) return;
+    if (!e.openblas) return;
+    engaged_ = true;
+    if (e.set == nullptr || e.get == nullptr) return;  // not built on its own threads
     std::lock_guard<std::mutex> lock(mutex());
     if (depth()++ == 0) {
       saved() = e.get();
       e.set(1);
     }
-    engaged_ = true;
+    holds_count_ = true;
   }
   ~SingleThreadedOpenBlas() {
-    if (!engaged_) return;
+    if (!holds_count_) return;
     std::lock_guard<std::mutex> lock(mutex());
     if (--depth() == 0) entries().set(saved());
   }
@@ -87,7 +90,8 @@ class SingleThreadedOpenBlas {
 
  private:
   struct Entries {
-    void (*set)(int) = nullptr;
+    bool openblas = false;
+    void (*set)(int) = nullptr;  // only when OpenBLAS runs on its own threads
     int (*get)() = nullptr;
   };
   // Looked up in the object that provides dgemm_ (as blas_is_openblas does): a process-wide lookup
@@ -99,8 +103,15 @@ class SingleThreadedOpenBlas {
       if (blas.empty()) return e;
       void* handle = dlopen(blas.c_str(), RTLD_LAZY | RTLD_NOLOAD);
       if (handle == nullptr) return e;
+      const auto parallel = reinterpret_cast<int (*)()>(dlsym(handle, "openblas_get_parallel"));
       e.set = reinterpret_cast<void (*)(int)>(dlsym(handle, "openblas_set_num_threads"));
       e.get = reinterpret_cast<int (*)()>(dlsym(handle, "openblas_get_num_threads"));
+      e.openblas = parallel != nullptr || (e.set != nullptr && e.get != nullptr);
+      // openblas_get_parallel: 0 sequential, 1 OpenBLAS's threads, 2 OpenMP (absent before 0.2.10).
+      if (parallel != nullptr && parallel() != 1) {
+        e.set = nullptr;
+        e.get = nullptr;
+      }
       dlclose(handle);  // the object stays loaded (RTLD_NOLOAD found it loaded by the program)
       return e;
     }();
@@ -119,6 +130,7 @@ class SingleThreadedOpenBlas {
     return s;
   }
   bool engaged_ = false;
+  bool holds_count_ = false;
 };
 
 // Rows per part: at least 65,536 (a single-threaded product that long runs at the BLAS's full rate),
