@@ -72,17 +72,17 @@ class SingleThreadedOpenBlas {
     if (!e.openblas) return;
     engaged_ = true;
     if (e.set == nullptr || e.get == nullptr) return;  // not built on its own threads
-    std::lock_guard<std::mutex> lock(mutex());
-    if (depth()++ == 0) {
-      saved() = e.get();
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (depth_++ == 0) {
+      saved_ = e.get();
       e.set(1);
     }
     holds_count_ = true;
   }
   ~SingleThreadedOpenBlas() {
     if (!holds_count_) return;
-    std::lock_guard<std::mutex> lock(mutex());
-    if (--depth() == 0) entries().set(saved());
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (--depth_ == 0) entries().set(saved_);
   }
   SingleThreadedOpenBlas(const SingleThreadedOpenBlas&) = delete;
   SingleThreadedOpenBlas& operator=(const SingleThreadedOpenBlas&) = delete;
@@ -117,18 +117,10 @@ class SingleThreadedOpenBlas {
     }();
     return found;
   }
-  static std::mutex& mutex() {
-    static std::mutex m;
-    return m;
-  }
-  static int& depth() {
-    static int d = 0;
-    return d;
-  }
-  static int& saved() {
-    static int s = 1;
-    return s;
-  }
+  // The scopes alive and the thread count the first one saved (process-wide, as OpenBLAS's count is).
+  static inline std::mutex mutex_;
+  static inline int depth_ = 0;
+  static inline int saved_ = 1;
   bool engaged_ = false;
   bool holds_count_ = false;
 };
@@ -188,8 +180,11 @@ void self_gram_by_rows(const Eigen::Ref<const Eigen::MatrixXd>& A, const Eigen::
       syrk_upper(band, out, 1.0, 1.0);
     }
   };
-  if (m > 0 && !sum_over_parts(A.rows(), threads, C, rows_into)) rows_into(0, A.rows(), C);
-  if (m == 0) C.resize(0, 0);
+  if (m == 0) {
+    C.resize(0, 0);
+    return;
+  }
+  if (!sum_over_parts(A.rows(), threads, C, rows_into)) rows_into(0, A.rows(), C);
   C.triangularView<Eigen::StrictlyLower>() = C.transpose();
 }
 

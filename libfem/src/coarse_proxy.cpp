@@ -684,12 +684,15 @@ Eigen::MatrixXd ProxyPoissonSolver::solve_block(const Eigen::Ref<const Eigen::Ma
     const Eigen::Index width = std::min(chunk, k - first);
     if (is_zero_mean()) column_means(first, width);
     // Pᵀ M (f − its mean), each fine row weighted as the scatter reads it.
-    scatter_transpose_row_source(
+    scatter_transpose_tile_source(
         P_rows_,
-        [&](Eigen::Index i, double* w) {
-          const double* mean = is_zero_mean() ? means.data() + label_of(i) * stride : nullptr;
-          for (Eigen::Index c = 0; c < chunk; ++c) w[c] = c < width ? mass[i] * (F(i, first + c) - (mean ? mean[c] : 0.0)) : 0.0;
-          return static_cast<const double*>(w);
+        [&](Eigen::Index top, Eigen::Index rows, double* buffer) {
+          for (Eigen::Index i = top; i < top + rows; ++i) {
+            const double* mean = is_zero_mean() ? means.data() + label_of(i) * stride : nullptr;
+            double* w = buffer + (i - top) * chunk;
+            for (Eigen::Index c = 0; c < chunk; ++c) w[c] = c < width ? mass[i] * (F(i, first + c) - (mean ? mean[c] : 0.0)) : 0.0;
+          }
+          return static_cast<const double*>(buffer);
         },
         coarse_chunk.data(), chunk, threads);
     coarse_rhs.middleCols(first, width) = coarse_chunk.leftCols(width);

@@ -138,60 +138,36 @@ Dense column_subset(const Dense& A, const std::vector<Eigen::Index>& which) {
   return out;
 }
 
-
 // Pᵀ Y and Pᵀ diag(w) Y together for a row-major P (n × N_c) and a column-major n × q block Y: a
-// chunk of columns at a time, each fine row's values scattered into the coarse rows. The rows are
-// cut into scatter_transpose_row_source's fixed blocks, each accumulated on its own and the blocks
-// added in order (the same sums whatever the thread count, and the same as that kernel's), and read
-// a tile of rows at a time column by column: gathering each row across the columns of a
-// column-major block waited on memory (a load per column per row, half the restriction's time).
+// chunk of columns at a time, a tile of fine rows read column by column and scattered into the
+// coarse rows (the same order of sums whatever the thread count: scatter_transpose_tile_source).
 void restrict_block(const detail::RowMajorSparse& P, const Dense& LY, const Dense& Y, const Eigen::VectorXd& w,
                     Dense& restricted_LY, Dense& restricted_MY, int threads) {
-  constexpr Eigen::Index kChunk = 8, kTileRows = 64;
-  const Eigen::Index q = Y.cols(), coarse = P.cols(), n = P.rows();
+  constexpr Eigen::Index kChunk = 8;
+  const Eigen::Index q = Y.cols(), coarse = P.cols();
   restricted_LY.resize(coarse, q);
   restricted_MY.resize(coarse, q);
-  const auto* start = P.outerIndexPtr();
-  const auto* inner = P.innerIndexPtr();
-  const double* value = P.valuePtr();
-  const Eigen::Index blocks = n >= detail::kParallelRows ? detail::kScatterBlocks : 1;
-  std::vector<double> sums(static_cast<std::size_t>(blocks * coarse * 2 * kChunk));
+  std::vector<double> rows(static_cast<std::size_t>(coarse * 2 * kChunk));
   for (Eigen::Index first = 0; first < q; first += kChunk) {
     const Eigen::Index width = std::min(kChunk, q - first), k = 2 * width;
-    std::fill(sums.begin(), sums.begin() + blocks * coarse * k, 0.0);
-#pragma omp parallel for schedule(static, 1) num_threads(detail::active_threads(n, threads))
-    for (Eigen::Index b = 0; b < blocks; ++b) {
-      double* acc = sums.data() + b * coarse * k;
-      std::vector<double> tile(static_cast<std::size_t>(kTileRows * k));
-      const Eigen::Index last = n * (b + 1) / blocks;
-      for (Eigen::Index top = n * b / blocks; top < last; top += kTileRows) {
-        const Eigen::Index rows = std::min(kTileRows, last - top);
-        for (Eigen::Index c = 0; c < width; ++c) {
-          const double* ly = LY.col(first + c).data() + top;
-          const double* y = Y.col(first + c).data() + top;
-          for (Eigen::Index i = 0; i < rows; ++i) {
-            tile[static_cast<std::size_t>(i * k + c)] = ly[i];
-            tile[static_cast<std::size_t>(i * k + width + c)] = w(top + i) * y[i];
+    detail::scatter_transpose_tile_source(
+        P,
+        [&](Eigen::Index top, Eigen::Index count, double* tile) {
+          for (Eigen::Index c = 0; c < width; ++c) {
+            const double* ly = LY.col(first + c).data() + top;
+            const double* y = Y.col(first + c).data() + top;
+            for (Eigen::Index i = 0; i < count; ++i) {
+              tile[i * k + c] = ly[i];
+              tile[i * k + width + c] = w(top + i) * y[i];
+            }
           }
-        }
-        for (Eigen::Index i = 0; i < rows; ++i) {
-          const double* x = tile.data() + i * k;
-          for (auto p = start[top + i]; p < start[top + i + 1]; ++p) {
-            double* out = acc + static_cast<Eigen::Index>(inner[p]) * k;
-            const double weight = value[p];
-            for (Eigen::Index c = 0; c < k; ++c) out[c] += weight * x[c];
-          }
-        }
-      }
-    }
-    for (Eigen::Index b = 1; b < blocks; ++b) {
-      const double* acc = sums.data() + b * coarse * k;
-      for (Eigen::Index i = 0; i < coarse * k; ++i) sums[static_cast<std::size_t>(i)] += acc[i];
-    }
+          return static_cast<const double*>(tile);
+        },
+        rows.data(), k, threads);
     for (Eigen::Index i = 0; i < coarse; ++i)
       for (Eigen::Index c = 0; c < width; ++c) {
-        restricted_LY(i, first + c) = sums[static_cast<std::size_t>(i * k + c)];
-        restricted_MY(i, first + c) = sums[static_cast<std::size_t>(i * k + width + c)];
+        restricted_LY(i, first + c) = rows[static_cast<std::size_t>(i * k + c)];
+        restricted_MY(i, first + c) = rows[static_cast<std::size_t>(i * k + width + c)];
       }
   }
 }

@@ -50,15 +50,18 @@ void gather_product(const Matrix& M, const double* in, double* out, bool accumul
 }
 
 // out = Mᵀ in for k vectors stored row by row (in: M.outerSize() rows, out: M.innerSize() rows, k
-// values each) and a row-major M (a compressed row-major P: out = Pᵀ in), row r of `in` given by
-// row(r, scratch) — a pointer to its k values, which it may write into `scratch` (k doubles of the
-// calling thread), so that a fine-size row-major input need not be written and read back. Reads
-// the rows once, in order, and scatters into `out`, which is small when M is tall (a prolongation).
-// Rows are cut into `kScatterBlocks` fixed blocks, each accumulated into its own copy of `out` on
-// any thread, and the copies added in block order: the result does not depend on the thread count.
+// values each) and a row-major M (a compressed row-major P: out = Pᵀ in), the rows of `in` given a
+// tile at a time by tile(top, rows, buffer) — a pointer to rows [top, top + rows), k values each,
+// which it may write into `buffer` (kScatterTileRows · k doubles of the calling thread), so that a
+// fine-size row-major input need not be written and read back, and a column-major one can be read
+// column by column (gathering each row across columns waits on memory). Reads the rows once, in
+// order, and scatters into `out`, which is small when M is tall (a prolongation). Rows are cut into
+// `kScatterBlocks` fixed blocks, each accumulated into its own copy of `out` on any thread, and the
+// copies added in block order: the result does not depend on the thread count.
 constexpr int kScatterBlocks = 8;
-template <class RowMajorMatrix, class Row>
-void scatter_transpose_row_source(const RowMajorMatrix& M, Row&& row, double* out, Eigen::Index k, int threads) {
+constexpr Eigen::Index kScatterTileRows = 64;
+template <class RowMajorMatrix, class Tile>
+void scatter_transpose_tile_source(const RowMajorMatrix& M, Tile&& tile, double* out, Eigen::Index k, int threads) {
   const auto* start = M.outerIndexPtr();
   const auto* inner = M.innerIndexPtr();
   const double* value = M.valuePtr();
@@ -69,14 +72,18 @@ void scatter_transpose_row_source(const RowMajorMatrix& M, Row&& row, double* ou
   for (Eigen::Index b = 0; b < blocks; ++b) {
     double* acc = b == 0 ? out : partial.data() + (b - 1) * m * k;
     if (b == 0) std::fill(out, out + m * k, 0.0);
-    std::vector<double> scratch(static_cast<std::size_t>(k));
-    const Eigen::Index first = n * b / blocks, last = n * (b + 1) / blocks;
-    for (Eigen::Index r = first; r < last; ++r) {
-      const double* x = row(r, scratch.data());
-      for (auto p = start[r]; p < start[r + 1]; ++p) {
-        double* y = acc + static_cast<Eigen::Index>(inner[p]) * k;
-        const double w = value[p];
-        for (Eigen::Index c = 0; c < k; ++c) y[c] += w * x[c];
+    std::vector<double> buffer(static_cast<std::size_t>(kScatterTileRows * k));
+    const Eigen::Index last = n * (b + 1) / blocks;
+    for (Eigen::Index top = n * b / blocks; top < last; top += kScatterTileRows) {
+      const Eigen::Index rows = std::min(kScatterTileRows, last - top);
+      const double* rows_in = tile(top, rows, buffer.data());
+      for (Eigen::Index r = top; r < top + rows; ++r) {
+        const double* x = rows_in + (r - top) * k;
+        for (auto p = start[r]; p < start[r + 1]; ++p) {
+          double* y = acc + static_cast<Eigen::Index>(inner[p]) * k;
+          const double w = value[p];
+          for (Eigen::Index c = 0; c < k; ++c) y[c] += w * x[c];
+        }
       }
     }
   }
@@ -89,7 +96,8 @@ void scatter_transpose_row_source(const RowMajorMatrix& M, Row&& row, double* ou
 // The same with the rows stored: in[r·k + c].
 template <class RowMajorMatrix>
 void scatter_transpose_rows(const RowMajorMatrix& M, const double* in, double* out, Eigen::Index k, int threads) {
-  scatter_transpose_row_source(M, [in, k](Eigen::Index r, double*) { return in + r * k; }, out, k, threads);
+  scatter_transpose_tile_source(M, [in, k](Eigen::Index top, Eigen::Index, double*) { return in + top * k; }, out, k,
+                                threads);
 }
 
 // out.col(first + c)(i) = finish(i, c, (M X)(i, c)) for rows i < M.outerSize() and c < width, X the
