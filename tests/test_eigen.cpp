@@ -613,6 +613,86 @@ TEST_CASE("stored coarse eigenpairs: a second eigenbasis loads them bit for bit;
   fs::remove_all(dir);
 }
 
+TEST_CASE("subspace iteration: the first pairs to the tolerance, as the Lanczos eigensolver's; the rest a basis of the low spectrum",
+          "[eigen]") {
+  ice::TriangleMesh two = unit_sphere();
+  append_component(two, ice::make_icosphere(3, 0.5), Eigen::RowVector3d(3, 0, 0));
+  const Pencil p = pencil(two);
+  const int count = 40, accurate = 12;
+  fem::SubspaceIterationOptions options;
+  options.tolerance = 1e-9;
+  // The references: `count` pairs, of which the first `accurate` compared (asked for only those, the
+  // Lanczos eigensolver misses one of a triple eigenvalue here; it misses some of the last ones too).
+  const fem::Eigenpairs reference = fem::smallest_eigenpairs(p.L, p.M, count, tight_reference());
+  const auto check = [&](const fem::Eigenpairs& e, const fem::Eigenpairs& lanczos, const std::vector<fem::Index>& fixed) {
+    REQUIRE(e.values.size() == count);
+    REQUIRE(e.vectors.cols() == count);
+    CHECK(e.restarts >= 1);
+    for (int j = 1; j < count; ++j) CHECK(e.values(j) >= e.values(j - 1));
+    CHECK(orthonormality_defect(e.vectors, p.M) < 1e-10);
+    for (fem::Index v : fixed) CHECK(e.vectors.row(v).isZero(0.0));
+    const Eigen::VectorXd residuals = fem::eigen_residuals(p.L, p.M, e.values, e.vectors, fixed);
+    CHECK(residuals.head(accurate).maxCoeff() <= 2 * options.tolerance);
+    const double scale = lanczos.values.cwiseAbs().maxCoeff();
+    for (int j = 0; j < accurate; ++j) CHECK(std::abs(e.values(j) - lanczos.values(j)) <= 1e-8 * scale);
+    // All are Ritz pairs: the vectors L-orthogonal, their Rayleigh quotients the values.
+    const Eigen::MatrixXd stiffness = e.vectors.transpose() * (p.L * e.vectors);
+    CHECK((stiffness - Eigen::MatrixXd(e.values.asDiagonal())).cwiseAbs().maxCoeff() <= 1e-9 * e.values.maxCoeff());
+  };
+  const fem::Eigenpairs e = fem::subspace_eigenpairs(p.L, p.M, count, accurate, options);
+  check(e, reference, {});
+  CHECK(std::abs(e.values(0)) < 1e-8);  // two components: two zero modes
+  CHECK(std::abs(e.values(1)) < 1e-8);
+  CHECK(e.values(2) > 1);
+  // Deterministic: a second call gives the same bits.
+  const fem::Eigenpairs again = fem::subspace_eigenpairs(p.L, p.M, count, accurate, options);
+  CHECK(again.values == e.values);
+  CHECK(again.vectors == e.vectors);
+  // Dirichlet conditions at some vertices of the first component: no zero mode left there.
+  std::vector<fem::Index> fixed;
+  for (fem::Index v = 0; v < 40; v += 3) fixed.push_back(v);
+  const fem::Eigenpairs dirichlet = fem::subspace_eigenpairs_dirichlet(p.L, p.M, fixed, count, accurate, options);
+  check(dirichlet, fem::smallest_eigenpairs_dirichlet(p.L, p.M, fixed, count, tight_reference()), fixed);
+  CHECK(std::abs(dirichlet.values(0)) < 1e-8);  // the second component's constant
+  CHECK(dirichlet.values(1) > 1e-3);
+
+  const auto n = static_cast<int>(p.L.rows());
+  CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, p.M, count, 0, options), std::invalid_argument);
+  CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, p.M, count, count + 1, options), std::invalid_argument);
+  CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, p.M, n, accurate, options), std::invalid_argument);
+  CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, fem::SparseMatrix(p.M.topLeftCorner(n - 1, n - 1)), count, accurate, options),
+                  std::invalid_argument);
+  fem::SubspaceIterationOptions one = options;
+  one.max_iterations = 1;
+  CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, p.M, count, accurate, one), std::runtime_error);
+  one.tolerance = 0;
+  CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, p.M, count, accurate, one), std::invalid_argument);
+}
+
+TEST_CASE("the refined route's coarse pairs in the store: loaded by the next solver, the same basis bit for bit",
+          "[eigen][proxy][refine][store]") {
+  namespace fs = std::filesystem;
+  using ice::proxy::CacheStatus;
+  const fs::path dir = ice_test::fresh_store("refined-eigenpairs");
+  ice::proxy::EigenbasisOptions options;
+  options.coarsening.coarsen.target_vertices = 300;
+  options.refine.tolerance = 1e-7;
+  options.store.directory = dir;
+  const ice::proxy::Eigenbasis cold = ice::proxy::eigenbasis(unit_sphere(), 12, options);
+  CHECK(cold.cache.status == CacheStatus::miss);
+  REQUIRE(cold.converged);
+  const ice::proxy::Eigenbasis warm = ice::proxy::eigenbasis(unit_sphere(), 12, options);
+  CHECK(warm.cache.status == CacheStatus::hit);
+  CHECK(warm.values == cold.values);
+  CHECK(warm.vectors == cold.vectors);
+  // Another coarse tolerance is another entry.
+  options.refine.coarse_tolerance = 1e-5;
+  CHECK(ice::proxy::eigenbasis(unit_sphere(), 12, options).cache.status == CacheStatus::miss);
+  options.refine.coarse_tolerance = 0;
+  CHECK_THROWS_AS(ice::proxy::eigenbasis(unit_sphere(), 12, options), std::invalid_argument);
+  fs::remove_all(dir);
+}
+
 TEST_CASE("Gram products cut by rows: equal to one product, the same for any thread count, the BLAS's threads restored",
           "[eigen][refine]") {
   // 140,000 rows: over the two parts of 65,536 rows below which the products are not cut.

@@ -103,14 +103,18 @@ Eigenpairs smallest_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int
   return out;
 }
 
-Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
-                                         int k, const EigenOptions& options) {
-  if (fixed.empty()) return smallest_eigenpairs(L, M, k, options);
+namespace {
+
+// `solve` (the pairs of a pencil, count k) applied to the pencil restricted to the indices off `fixed`,
+// the vectors extended by zeros at `fixed`; `who` names the caller in the errors.
+template <class Solve>
+Eigenpairs on_free_indices(const char* who, const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
+                           int k, Solve&& solve) {
+  if (fixed.empty()) return solve(L, M);
   const Eigen::Index n = L.rows();
   std::vector<Index> free_index(static_cast<std::size_t>(n), 0);
   for (Index v : fixed) {
-    if (v < 0 || v >= n)
-      throw std::invalid_argument("smallest_eigenpairs_dirichlet: fixed index " + std::to_string(v) + " is out of range");
+    if (v < 0 || v >= n) throw std::invalid_argument(std::string(who) + ": fixed index " + std::to_string(v) + " is out of range");
     free_index[static_cast<std::size_t>(v)] = -1;
   }
   std::vector<Index> free;
@@ -121,7 +125,7 @@ Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatr
     }
   const auto nf = static_cast<Eigen::Index>(free.size());
   if (k >= nf)
-    throw std::invalid_argument("smallest_eigenpairs_dirichlet: asked for " + std::to_string(k) + " eigenpairs, " +
+    throw std::invalid_argument(std::string(who) + ": asked for " + std::to_string(k) + " eigenpairs, " +
                                 std::to_string(nf) + " unknowns are free (k < free unknowns)");
   // The free rows and columns of a symmetric matrix.
   const auto restrict_to_free = [&](const SparseMatrix& A) {
@@ -139,11 +143,27 @@ Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatr
     out.setFromTriplets(entries.begin(), entries.end());
     return out;
   };
-  Eigenpairs pairs = smallest_eigenpairs(restrict_to_free(L), restrict_to_free(M), k, options);
-  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(n, k);
+  Eigenpairs pairs = solve(restrict_to_free(L), restrict_to_free(M));
+  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(n, pairs.vectors.cols());
   for (Eigen::Index i = 0; i < nf; ++i) full.row(free[static_cast<std::size_t>(i)]) = pairs.vectors.row(i);
   pairs.vectors = std::move(full);
   return pairs;
+}
+
+}  // namespace
+
+Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
+                                         int k, const EigenOptions& options) {
+  return on_free_indices("smallest_eigenpairs_dirichlet", L, M, fixed, k,
+                         [&](const SparseMatrix& Lf, const SparseMatrix& Mf) { return smallest_eigenpairs(Lf, Mf, k, options); });
+}
+
+Eigenpairs subspace_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
+                                         int count, int accurate, const SubspaceIterationOptions& options) {
+  return on_free_indices("subspace_eigenpairs_dirichlet", L, M, fixed, count,
+                         [&](const SparseMatrix& Lf, const SparseMatrix& Mf) {
+                           return subspace_eigenpairs(Lf, Mf, count, accurate, options);
+                         });
 }
 
 double zero_mode_scale(double largest, const SparseMatrix& L, const SparseMatrix& M) {

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -125,9 +126,10 @@ struct Ritz {
   Dense coefficients;
 };
 
-Ritz ritz_pairs(const Dense& GL, const Dense& GM, Eigen::Index count, double drop) {
+Ritz ritz_pairs(const Dense& GL, const Dense& GM, Eigen::Index count, double drop, const char* who = "refine_eigenpairs") {
   const Dense B = independent_orthonormal_basis(GM, drop);
-  if (B.cols() < count) throw std::runtime_error("refine_eigenpairs: the search space lost rank (linearly dependent vectors)");
+  if (B.cols() < count)
+    throw std::runtime_error(std::string(who) + ": the search space lost rank (linearly dependent vectors)");
   Eigen::SelfAdjointEigenSolver<Dense> stiffness(symmetrised(B.transpose() * GL * B));
   return {stiffness.eigenvalues().head(count), B * stiffness.eigenvectors().leftCols(count)};
 }
@@ -472,6 +474,81 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   report.residuals = residual.head(k);
   report.seconds = ice::seconds_since(start);
   return report;
+}
+
+Eigenpairs subspace_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int count, int accurate,
+                               const SubspaceIterationOptions& options) {
+  const Eigen::Index n = L.rows();
+  if (L.cols() != n || M.rows() != n || M.cols() != n)
+    throw std::invalid_argument("subspace_eigenpairs: L (" + std::to_string(L.rows()) + " x " + std::to_string(L.cols()) +
+                                ") and M (" + std::to_string(M.rows()) + " x " + std::to_string(M.cols()) +
+                                ") must be square and of one size");
+  if (accurate < 1 || accurate > count || count >= n)
+    throw std::invalid_argument("subspace_eigenpairs: need 1 <= accurate <= count < n (accurate = " + std::to_string(accurate) +
+                                ", count = " + std::to_string(count) + ", n = " + std::to_string(n) + ")");
+  if (!(options.tolerance > 0) || options.max_iterations < 1)
+    throw std::invalid_argument("subspace_eigenpairs: need tolerance > 0 and max_iterations >= 1");
+  const double spectrum = L.diagonal().sum() / M.diagonal().sum();
+  if (!(spectrum > 0) || !std::isfinite(spectrum))
+    throw std::invalid_argument("subspace_eigenpairs: L's and M's diagonals must be positive");
+  const double c = spectrum / static_cast<double>(n);
+  const int threads = options.threads > 0 ? options.threads : detail::default_threads();
+  SparseMatrix compressed_M;
+  if (!M.isCompressed()) {
+    compressed_M = M;
+    compressed_M.makeCompressed();
+  }
+  const SparseMatrix& mass = M.isCompressed() ? M : compressed_M;  // the threaded product reads its arrays
+  Eigenpairs out;
+  out.shift = -c;
+  CholeskySolver inverse;
+  inverse.set_ordering(options.ordering);
+  auto phase_start = Clock::now();
+  inverse.compute(SparseMatrix(L + c * M));
+  out.factor_seconds = ice::seconds_since(phase_start);
+  Dense Q(n, count);
+  {
+    std::mt19937_64 random(20230801);
+    std::normal_distribution<double> normal;
+    for (Eigen::Index j = 0; j < Q.size(); ++j) Q.data()[j] = normal(random);
+  }
+  Dense B;  // M Q, then kept as (M Y) C
+  sparse_times(mass, Q, B, threads);
+  Q.resize(0, 0);
+  Dense MY, LY, GL, GM, LQ;
+  for (int iteration = 1;; ++iteration) {
+    phase_start = Clock::now();
+    const Dense Y = inverse.solve_multiple(B);
+    out.solve_seconds += ice::seconds_since(phase_start);
+    out.operations += count;
+    sparse_times(mass, Y, MY, threads);
+    LY = B - c * MY;  // L Y = (L + cM) Y − c M Y: no product with L
+    product(Y, true, LY, false, GL);
+    product(Y, true, MY, false, GM);
+    const Ritz r = ritz_pairs(GL, GM, count, 1e-12, "subspace_eigenpairs");
+    product(Y, false, r.coefficients, false, Q);
+    product(MY, false, r.coefficients, false, B);
+    product(LY, false, r.coefficients.leftCols(accurate), false, LQ);
+    // The first `accurate` pairs' relative residuals, zero modes judged as eigen_residuals judges them.
+    const double largest = zero_mode_scale(r.values.cwiseAbs().maxCoeff(), L, M);
+    double worst = 0;
+    for (Eigen::Index j = 0; j < accurate; ++j) {
+      const double theta = r.values(j), scale = is_zero_mode(theta, largest) ? largest : std::abs(theta);
+      const double mass_norm = B.col(j).norm();
+      const double residual = (LQ.col(j) - theta * B.col(j)).norm() / (scale * mass_norm);
+      worst = std::max(worst, std::isfinite(residual) ? residual : std::numeric_limits<double>::infinity());
+    }
+    if (worst <= options.tolerance) {
+      out.values = r.values;
+      out.vectors = std::move(Q);
+      out.restarts = iteration;
+      return out;
+    }
+    if (iteration == options.max_iterations)
+      throw std::runtime_error("subspace_eigenpairs: the first " + std::to_string(accurate) + " of " + std::to_string(count) +
+                               " pairs did not converge within " + std::to_string(options.max_iterations) +
+                               " iterations (largest residual " + std::to_string(worst) + ")");
+  }
 }
 
 }  // namespace fem

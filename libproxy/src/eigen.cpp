@@ -55,12 +55,25 @@ void require_pair_count(int k, Eigen::Index coarse, bool dirichlet) {
 
 constexpr const char* kEigenpairsKind = "eigenpairs";
 
-// What is wrong with `pairs` as the k smallest pairs of the pencil (L, M) with φ = 0 at `fixed`, or ""
+// How the coarse pairs are computed: all of them by the Lanczos eigensolver (fem::EigenOptions), or,
+// with `subspace`, by subspace iteration until the first `accurate` are converged (the refined
+// route's start and coarse directions: the rest only span the low spectrum).
+struct CoarsePairsMethod {
+  fem::EigenOptions lanczos;
+  const fem::SubspaceIterationOptions* subspace = nullptr;
+  int accurate = 0;
+  // The pairs whose residuals the eigensolver bounds, and its tolerance.
+  int bounded(int count) const { return subspace ? accurate : count; }
+  double tolerance() const { return subspace ? subspace->tolerance : lanczos.tolerance; }
+};
+
+// What is wrong with `pairs` as the smallest pairs of the pencil (L, M) with φ = 0 at `fixed`, or ""
 // when nothing is: finite, values in order, vectors zero at the Dirichlet vertices, M-orthonormal to
-// 1e-8, and every residual (fem::eigen_residuals, returned in `residuals`) within the square root of
-// the eigensolver's tolerance — a bound any converged Lanczos pair meets with room to spare.
+// 1e-8, and the residuals (fem::eigen_residuals, all returned in `residuals`) of the pairs the
+// eigensolver converged within the square root of its tolerance — a bound any converged pair meets
+// with room to spare.
 std::string eigenpairs_defect(const fem::SparseMatrix& L, const fem::SparseMatrix& M, const std::vector<Index>& fixed,
-                              const fem::Eigenpairs& p, const fem::EigenOptions& options, Eigen::VectorXd& residuals) {
+                              const fem::Eigenpairs& p, const CoarsePairsMethod& method, Eigen::VectorXd& residuals) {
   const Eigen::Index k = p.values.size();
   if (p.vectors.rows() != L.rows() || p.vectors.cols() != k) return "eigenpairs of the wrong shape";
   if (!p.values.allFinite() || !p.vectors.allFinite()) return "an eigenpair is not finite";
@@ -69,29 +82,42 @@ std::string eigenpairs_defect(const fem::SparseMatrix& L, const fem::SparseMatri
   for (Index v : fixed)
     if (!p.vectors.row(v).isZero(0)) return "an eigenvector is not zero at a Dirichlet vertex";
   residuals = fem::eigen_residuals(L, M, p.values, p.vectors, fixed);
-  if (!(residuals.maxCoeff() <= std::sqrt(options.tolerance))) return "an eigenpair's residual is too large";
+  const Eigen::Index bounded = std::min<Eigen::Index>(k, method.bounded(static_cast<int>(k)));
+  if (!(residuals.head(bounded).maxCoeff() <= std::sqrt(method.tolerance()))) return "an eigenpair's residual is too large";
   const Eigen::MatrixXd gram = p.vectors.transpose() * (M * p.vectors);
   if (!((gram - Eigen::MatrixXd::Identity(k, k)).cwiseAbs().maxCoeff() <= 1e-8)) return "the eigenvectors are not M-orthonormal";
   return "";
 }
 
-// The coarse pencil's k smallest pairs (fem::smallest_eigenpairs_dirichlet), through the store when it
-// is on. The key is the pencil itself (the coarse operators' arrays), the Dirichlet coarse vertices
-// (as a set), k and the eigensolver's options: whatever proxy or setup made the pencil, the pairs are
-// the same. A stored entry is used only when its pairs pass eigenpairs_defect and their residuals,
-// recomputed, match those stored with them (to 1e-6 relative: another build may sum in another order);
-// else it is rebuilt. Fresh pairs that fail the same checks are returned but not stored.
+fem::Eigenpairs solve_coarse_pairs(const fem::SparseMatrix& L, const fem::SparseMatrix& M, const std::vector<Index>& fixed,
+                                   int k, const CoarsePairsMethod& method) {
+  if (method.subspace) return fem::subspace_eigenpairs_dirichlet(L, M, fixed, k, method.accurate, *method.subspace);
+  return fem::smallest_eigenpairs_dirichlet(L, M, fixed, k, method.lanczos);
+}
+
+// The coarse pencil's k smallest pairs (CoarsePairsMethod), through the store when it is on. The key
+// is the pencil itself (the coarse operators' arrays), the Dirichlet coarse vertices (as a set), k
+// and the method with its options: whatever proxy or setup made the pencil, the pairs are the same.
+// A stored entry is used only when its pairs pass eigenpairs_defect and their residuals, recomputed,
+// match those stored with them (to 1e-6 relative: another build may sum in another order); else it
+// is rebuilt. Fresh pairs that fail the same checks are returned but not stored.
 fem::Eigenpairs coarse_eigenpairs(const fem::SparseMatrix& L, const fem::SparseMatrix& M, const std::vector<Index>& fixed,
-                                  int k, const fem::EigenOptions& options, const Store& store, CacheReport& cache) {
-  if (!store.enabled()) return fem::smallest_eigenpairs_dirichlet(L, M, fixed, k, options);
+                                  int k, const CoarsePairsMethod& method, const Store& store, CacheReport& cache) {
+  if (!store.enabled()) return solve_coarse_pairs(L, M, fixed, k, method);
   std::vector<Index> fixed_set = fixed;
   std::sort(fixed_set.begin(), fixed_set.end());
   fixed_set.erase(std::unique(fixed_set.begin(), fixed_set.end()), fixed_set.end());
   KeyHasher h(kEigenpairsKind);
   h.add_sparse(L).add_sparse(M);
   h.add(static_cast<std::int64_t>(fixed_set.size())).add_bytes(fixed_set.data(), sizeof(Index) * fixed_set.size());
-  h.add(k).add(options.tolerance).add(options.max_restarts).add(static_cast<std::int64_t>(options.basis_size));
-  h.add(static_cast<int>(options.ordering));
+  h.add(k);
+  if (method.subspace) {
+    const fem::SubspaceIterationOptions& o = *method.subspace;
+    h.add(std::string("subspace")).add(method.accurate).add(o.tolerance).add(o.max_iterations).add(static_cast<int>(o.ordering));
+  } else {
+    const fem::EigenOptions& o = method.lanczos;
+    h.add(o.tolerance).add(o.max_restarts).add(static_cast<std::int64_t>(o.basis_size)).add(static_cast<int>(o.ordering));
+  }
   const StoreKey key = h.finish();
   std::optional<detail::Stored<fem::Eigenpairs>> hit = detail::load_entry<detail::Stored<fem::Eigenpairs>>(
       store, kEigenpairsKind, key, cache, [&](const EntryReader& entry, const std::string& path) {
@@ -103,7 +129,7 @@ fem::Eigenpairs coarse_eigenpairs(const fem::SparseMatrix& L, const fem::SparseM
         p.values = Eigen::Map<const Eigen::VectorXd>(values.data(), k);
         p.vectors = entry.double_matrix("vectors");
         Eigen::VectorXd recomputed;
-        const std::string defect = eigenpairs_defect(L, M, fixed_set, p, options, recomputed);
+        const std::string defect = eigenpairs_defect(L, M, fixed_set, p, method, recomputed);
         if (!defect.empty()) detail::fail(path, defect);
         for (int j = 0; j < k; ++j) {
           const double r = residuals[static_cast<std::size_t>(j)];
@@ -120,10 +146,10 @@ fem::Eigenpairs coarse_eigenpairs(const fem::SparseMatrix& L, const fem::SparseM
     cache = std::move(hit->cache);
     return std::move(hit->value);
   }
-  fem::Eigenpairs pairs = fem::smallest_eigenpairs_dirichlet(L, M, fixed, k, options);
+  fem::Eigenpairs pairs = solve_coarse_pairs(L, M, fixed, k, method);
   const auto start = Clock::now();
   Eigen::VectorXd residuals;
-  const std::string defect = eigenpairs_defect(L, M, fixed_set, pairs, options, residuals);
+  const std::string defect = eigenpairs_defect(L, M, fixed_set, pairs, method, residuals);
   if (!defect.empty()) {  // an entry that every load would reject: not written
     cache.save_error = "eigenpairs not stored: " + defect;
     return pairs;
@@ -140,7 +166,7 @@ fem::Eigenpairs coarse_eigenpairs(const fem::SparseMatrix& L, const fem::SparseM
 
 // proxy_eigenbasis's work for `count` coarse pairs of which the first `prolonged` are prolonged and
 // returned; the coarse vectors of all `count` go to `coarse_vectors` when given.
-Eigenbasis coarse_basis(const fem::CoarseProxy& proxy, int count, int prolonged, const fem::EigenOptions& options,
+Eigenbasis coarse_basis(const fem::CoarseProxy& proxy, int count, int prolonged, const CoarsePairsMethod& method,
                         const std::vector<Index>& dirichlet_vertices, const Store& store, Eigen::MatrixXd* coarse_vectors) {
   if (proxy.kind() != fem::CoarseOperatorKind::galerkin)
     throw std::invalid_argument("eigenbasis: the proxy's coarse operators must be Galerkin (PᵀLP, PᵀMP)");
@@ -149,7 +175,7 @@ Eigenbasis coarse_basis(const fem::CoarseProxy& proxy, int count, int prolonged,
   auto start = Clock::now();
   Eigenbasis basis;
   fem::Eigenpairs pairs =
-      coarse_eigenpairs(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed, count, options, store, basis.cache);
+      coarse_eigenpairs(proxy.coarse_laplacian(), proxy.coarse_mass(), coarse_fixed, count, method, store, basis.cache);
   basis.eigensolve_seconds = seconds_since(start) - basis.cache.save_seconds;
   start = Clock::now();
   basis.values = pairs.values.head(prolonged);
@@ -255,8 +281,10 @@ EigenSolver::EigenSolver(const TriangleMesh& mesh, EigenbasisOptions options, st
   setup.dirichlet = !dirichlet_.empty();
   setup.store = Store(options_.store);
   const EigenRefinement& refine = options_.refine;
-  if (refine.tolerance < 0 || !std::isfinite(refine.tolerance) || refine.max_iterations < 1)
-    throw std::invalid_argument("eigenbasis: the refinement needs tolerance >= 0 (0: none) and max_iterations >= 1");
+  if (refine.tolerance < 0 || !std::isfinite(refine.tolerance) || refine.max_iterations < 1 ||
+      !(refine.coarse_tolerance > 0) || !std::isfinite(refine.coarse_tolerance))
+    throw std::invalid_argument(
+        "eigenbasis: the refinement needs tolerance >= 0 (0: none), max_iterations >= 1 and coarse_tolerance > 0");
   const bool refining = refine.tolerance > 0;
   setup.fine_operators = refining;  // a restored proxy makes its fine Laplacian from a copy of the mesh
   setup_ = build_proxy_setup(mesh, setup, std::move(coarse));
@@ -302,6 +330,8 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
                               const std::vector<Index>& dirichlet_vertices, const Store& store) {
   if (!(refinement.tolerance > 0) || !std::isfinite(refinement.tolerance))
     throw std::invalid_argument("refined_eigenbasis: the tolerance must be > 0");
+  if (!(refinement.coarse_tolerance > 0) || !std::isfinite(refinement.coarse_tolerance))
+    throw std::invalid_argument("refined_eigenbasis: the coarse tolerance must be > 0");
   std::vector<Index> coarse_fixed;
   const Eigen::Index coarse_free = free_coarse_vertices(proxy, dirichlet_vertices, coarse_fixed);
   require_pair_count(k, coarse_free, !coarse_fixed.empty());  // before the coarse eigensolve of k + guard + directions pairs
@@ -313,9 +343,24 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
                                 " fine vertices, the proxy " + std::to_string(input_L.rows()));
   const int guard = refinement_guard(k, refinement, coarse_free);
   const int directions = refinement_coarse_directions(k, guard, refinement, coarse_free);
-  // One coarse eigensolve for the start (k + guard pairs, prolonged) and the coarse directions.
+  // One coarse eigensolve for the start (k + guard pairs, prolonged) and the coarse directions: by
+  // subspace iteration, which converges the start pairs only as far as the refinement can use and
+  // leaves the directions as approximate pairs (the Lanczos eigensolver took ~4 times as long for
+  // all of them to its tolerance: docs/measurements.md, "The refined route's coarse eigensolve").
+  // Its start pairs converge at about λ_(k+guard) / λ_count per iteration: at most ~1/2 (eigenvalues
+  // about linear in their index) when the directions are at least as many as the start pairs; with
+  // fewer (a small coarse space, or LOBPCG's none) the Lanczos eigensolver, which needs no such gap.
   Eigen::MatrixXd coarse_vectors;
-  Eigenbasis basis = coarse_basis(proxy, k + guard + directions, k + guard, options, dirichlet_vertices, store, &coarse_vectors);
+  CoarsePairsMethod method;
+  method.lanczos = options;
+  fem::SubspaceIterationOptions subspace;
+  subspace.tolerance = refinement.coarse_tolerance;
+  subspace.ordering = options.ordering;
+  if (directions >= k + guard) {
+    method.subspace = &subspace;
+    method.accurate = k + guard;
+  }
+  Eigenbasis basis = coarse_basis(proxy, k + guard + directions, k + guard, method, dirichlet_vertices, store, &coarse_vectors);
   const auto start = Clock::now();
   // The refinement runs in the hierarchy's breadth-first numbering of the fine vertices (its
   // fine_order): there a vertex's neighbours sit close in memory, so the products with L and P and
@@ -388,7 +433,9 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
 
 Eigenbasis proxy_eigenbasis(const fem::CoarseProxy& proxy, int k, const fem::EigenOptions& options,
                             const std::vector<Index>& dirichlet_vertices, const Store& store) {
-  return coarse_basis(proxy, k, k, options, dirichlet_vertices, store, nullptr);
+  CoarsePairsMethod method;
+  method.lanczos = options;
+  return coarse_basis(proxy, k, k, method, dirichlet_vertices, store, nullptr);
 }
 
 Eigenbasis eigenbasis(const TriangleMesh& mesh, int k, const EigenbasisOptions& options) {

@@ -55,6 +55,40 @@ Eigenpairs smallest_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int
 Eigenpairs smallest_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
                                          int k, const EigenOptions& options = {});
 
+struct SubspaceIterationOptions {
+  /// Stop when each of the first `accurate` Ritz pairs has a relative residual (eigen_residuals) at
+  /// most this (> 0).
+  double tolerance = 1e-6;
+  /// Upper bound on iterations (>= 1); not converging within it throws.
+  int max_iterations = 200;
+  /// The fill-reducing ordering of L + cM's factorisation.
+  CholeskyOrdering ordering = CholeskyOrdering::amd;
+  /// Threads of the products with M (0: OpenMP's default); the dense products run on BLAS's.
+  int threads = 0;
+};
+
+/// The `count` smallest Ritz pairs of L φ = λ M φ by block inverse iteration (subspace iteration)
+/// with a Rayleigh–Ritz step per iteration, until the first `accurate` of them are eigenpairs to
+/// options.tolerance: a basis of the low spectrum whose first pairs are converged and whose last
+/// ones only approximate eigenpairs — what a coarse start and the coarse directions of
+/// refine_eigenpairs need, at a fraction of smallest_eigenpairs's cost for all `count` pairs.
+/// Each iteration applies (L + cM)⁻¹ M to the block (one CHOLMOD factorisation, one block solve),
+/// c = trace(L) / (n trace(M)) (Weyl's law's scale of the lowest nonzero eigenvalue: the zero modes
+/// are amplified no more than ~λ_count / c over the others, so the block's Gram matrices stay well
+/// conditioned); pair j converges at about (λ_j + c) / (λ_count+1 + c) per iteration. The start
+/// block is pseudo-random with a fixed seed: the result is deterministic.
+/// Preconditions: L, M square of one size n, symmetric, L semidefinite, M positive definite;
+/// 1 <= accurate <= count < n (std::invalid_argument otherwise). Throws std::runtime_error when the
+/// first `accurate` pairs do not converge within options.max_iterations or the block loses rank.
+/// Postconditions: values increasing, vectors M-orthonormal to round-off; Eigenpairs::restarts holds
+/// the iterations, `shift` −c.
+Eigenpairs subspace_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int count, int accurate,
+                               const SubspaceIterationOptions& options = {});
+
+/// subspace_eigenpairs with φ = 0 at the `fixed` indices, as smallest_eigenpairs_dirichlet.
+Eigenpairs subspace_eigenpairs_dirichlet(const SparseMatrix& L, const SparseMatrix& M, const std::vector<Index>& fixed,
+                                         int count, int accurate, const SubspaceIterationOptions& options = {});
+
 /// Refinement of approximate eigenpairs on the pencil itself (refine_eigenpairs).
 struct EigenRefineOptions {
   /// Stop when each of the first k pairs has a relative residual (eigen_residuals) at most this (> 0).

@@ -53,6 +53,13 @@ struct EigenRefinement {
   /// eigensolve is asked for k + guard + coarse_directions pairs (a fem::EigenOptions::basis_size
   /// must exceed that), and the store keys its pairs by that count.
   int coarse_directions = -1;
+  /// The coarse eigensolve of this route (fem::subspace_eigenpairs) stops when the k + guard start
+  /// pairs have coarse relative residuals at most this (> 0); the coarse directions only span the
+  /// low spectrum. The prolonged start pairs have fine residuals of order 1 (the coarse space's
+  /// discretisation error), which the first refinement step reduces, so a coarse residual well
+  /// below that changes nothing but the coarse eigensolve's time (docs/measurements.md, "The
+  /// refined route's coarse eigensolve").
+  double coarse_tolerance = 1e-3;
   /// The coarse space's size for this route when the caller names none (refined_coarse_vertices):
   /// this many coarse vertices per coarse pair the route computes (k + guard + coarse directions).
   /// By Weyl's law the j-th eigenvalue of a surface grows linearly in j, and a piecewise-linear space
