@@ -453,7 +453,7 @@ TEST_CASE("solve_multiple equals column-by-column solves, with and without Diric
     }
 }
 
-TEST_CASE("apply_vcycle_multiple is one V-cycle per column: solve_multiple's numbers, symmetric positive definite", "[multigrid][meshes]") {
+TEST_CASE("apply_vcycle_multiple is one V-cycle per column from zero: solve_multiple's numbers, symmetric positive definite", "[multigrid][meshes]") {
   const Setup& s = mesh_setup("lion-head.off");
   const std::vector<int> boundary = boundary_vertices(s.mesh.F);
   const Eigen::Index n = s.L.rows(), k = 11;  // a chunk of 8 and one of 3
@@ -477,8 +477,10 @@ TEST_CASE("apply_vcycle_multiple is one V-cycle per column: solve_multiple's num
   const Eigen::MatrixXd cycled = solver.solve_multiple(R);
   REQUIRE(Z.rows() == n);
   REQUIRE(Z.cols() == k);
-  CHECK((Z - cycled).cwiseAbs().maxCoeff() == 0.0);
+  CHECK((Z - cycled).cwiseAbs().maxCoeff() == 0.0);  // from zero (the first sweep skips the zeros) as from a zeroed X
   CHECK(Z.col(4).isZero(0));
+  // One vector (its own kernel width): the same.
+  CHECK((solver.apply_vcycle_multiple(R.leftCols(1)) - solver.solve_multiple(R.leftCols(1))).cwiseAbs().maxCoeff() == 0.0);
   for (int i : boundary) CHECK(Z.row(i).isZero(0));
   // B = the V-cycle operator on the free rows: rᵀ B s = sᵀ B r and rᵀ B r > 0.
   Eigen::MatrixXd free_R = R;

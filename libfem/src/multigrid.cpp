@@ -74,7 +74,9 @@ SweepSplit make_split(const SparseMatrix& A, int parts) {
 // vectors stored row-major (row i holds unknown i of the k systems; k = 1 is a plain vector). The
 // column count is a template parameter for 1..16 (the k-wide loops live in registers and
 // vectorise), runtime otherwise (K = 0). Mode 0: out = b − A x; mode 1: out = A x; mode 2 / 3: a
-// forward / backward Gauss–Seidel sweep on x. A column index c ≥ n reads row c − n of `halo`.
+// forward / backward Gauss–Seidel sweep on x; mode 4: a forward sweep from x = 0, which neither
+// reads x before writing it nor gathers the unknowns not yet swept (the same numbers as mode 2 on a
+// zeroed x, without that pass over x). A column index c ≥ n reads row c − n of `halo`.
 template <int K>
 struct Width {
   static constexpr Eigen::Index get(Eigen::Index) { return K; }
@@ -105,13 +107,17 @@ void row_kernel(const SparseMatrix& A, const Value* value, const int* column, co
       for (Eigen::Index c = 0; c < k; ++c) s[c] = b[i * k + c];
     }
     for (auto p = start[i]; p < start[i + 1]; ++p) {
-      const double a = Mode == 1 ? -static_cast<double>(value[p]) : static_cast<double>(value[p]);
       const Eigen::Index j = column[p];
+      if (Mode == 4 && j >= i) continue;  // still zero (a halo column is >= n)
+      const double a = Mode == 1 ? -static_cast<double>(value[p]) : static_cast<double>(value[p]);
       const double* xr = j < n ? x + j * k : halo + (j - n) * k;
       for (Eigen::Index c = 0; c < k; ++c) s[c] -= a * xr[c];
     }
     if (Mode <= 1) {
       for (Eigen::Index c = 0; c < k; ++c) out[i * k + c] = s[c];
+    } else if (Mode == 4) {
+      const double d = inv_diag[i];
+      for (Eigen::Index c = 0; c < k; ++c) x[i * k + c] = s[c] * d;
     } else {
       const double d = inv_diag[i];
       for (Eigen::Index c = 0; c < k; ++c) x[i * k + c] += s[c] * d;
@@ -138,10 +144,12 @@ void run_rows(const SparseMatrix& A, const Value* value, const SweepSplit* split
     row_kernel<K, Mode>(A, value, column, nullptr, inv_diag, b, x, out, k, 0, n);
     return;
   }
-  halo.resize(split->halo.size() * static_cast<std::size_t>(k));
-  for (std::size_t slot = 0; slot < split->halo.size(); ++slot)
-    for (Eigen::Index c = 0; c < k; ++c)
-      halo[slot * static_cast<std::size_t>(k) + static_cast<std::size_t>(c)] = x[split->halo[slot] * k + c];
+  if (Mode != 4) {  // mode 4 reads no other part's unknowns (all still zero)
+    halo.resize(split->halo.size() * static_cast<std::size_t>(k));
+    for (std::size_t slot = 0; slot < split->halo.size(); ++slot)
+      for (Eigen::Index c = 0; c < k; ++c)
+        halo[slot * static_cast<std::size_t>(k) + static_cast<std::size_t>(c)] = x[split->halo[slot] * k + c];
+  }
 #pragma omp parallel for schedule(static, 1) num_threads(split->parts)
   for (int t = 0; t < split->parts; ++t)
     row_kernel<K, Mode>(A, value, split->column.data(), halo.data(), inv_diag, b, x, out, k,
@@ -192,11 +200,21 @@ void with_values(SmootherValues values, F&& f) {
     f(values.wide);
 }
 
-// One Gauss–Seidel sweep on k vectors (x_i += (b_i − (A x)_i) / a_ii), forward or backward.
+// One Gauss–Seidel sweep on k vectors (x_i += (b_i − (A x)_i) / a_ii), forward or backward; with
+// `from_zero` (forward only) the first sweep from x = 0, x's prior contents not read.
 void gauss_seidel(const SparseMatrix& A, SmootherValues values, const SweepSplit* split, const Eigen::VectorXd& inv_diag,
-                  const double* b, double* x, Eigen::Index k, bool forward, int threads, std::vector<double>& halo) {
+                  const double* b, double* x, Eigen::Index k, bool forward, int threads, std::vector<double>& halo,
+                  bool from_zero = false) {
   with_values(values, [&](const auto* value) {
-    if (forward)
+    if (from_zero) {  // widths of one vector and of a block solve's chunk compiled apart, others at run time
+      if (k == 1)
+        run_rows<1, 4>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
+      else if (k == MultigridSolver::kBlockColumns)
+        run_rows<MultigridSolver::kBlockColumns, 4>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
+      else
+        run_rows<0, 4>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
+    }
+    else if (forward)
       rows_dispatch<2>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
     else
       rows_dispatch<3>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
@@ -673,32 +691,43 @@ void smoothing_steps(const MultigridOptions& options, bool pre, Sweep&& sweep, C
 }  // namespace
 
 // `options.smoothing_steps` of the smoother on levels_[k]: X improved for B, every column at once.
-void MultigridSolver::smooth(std::size_t k, bool pre) {
+// `from_zero`: X is to start at 0 and its contents are not read (the first sweep is a forward one).
+void MultigridSolver::smooth(std::size_t k, bool pre, bool from_zero) {
   Level& L = *levels_[k];
   const SweepSplit* split = options_.smoother == MultigridSmoother::chebyshev || !reordered_ ? nullptr : level_split(L, threads());
   const SmootherValues values = cycle_values(L, options_, k);
   const auto sweep = [&](bool forward) {
-    gauss_seidel(L.A, values, split, L.inv_diag, L.B.data(), L.X.data(), L.X.cols(), forward, threads(), L.halo);
+    gauss_seidel(L.A, values, split, L.inv_diag, L.B.data(), L.X.data(), L.X.cols(), forward, threads(), L.halo, from_zero);
+    from_zero = false;
   };
   smoothing_steps(options_, pre, sweep, [&] { chebyshev(k); });
 }
 
 // Improves levels_[k]->X for the right-hand sides levels_[k]->B (n × k row-major; one column for
-// solve(), several for solve_multiple(): the same arithmetic per column either way).
-void MultigridSolver::vcycle(std::size_t k) {
+// solve(), several for solve_multiple(): the same arithmetic per column either way). `from_zero`:
+// from X = 0, X's contents not read (sized here); the first Gauss–Seidel sweep then skips the
+// zeros instead of a pass that writes them (the same numbers).
+void MultigridSolver::vcycle(std::size_t k, bool from_zero) {
   Level& L = *levels_[k];
   if (k + 1 == levels_.size()) {
     const Eigen::MatrixXd rhs = L.B;  // column-major for CHOLMOD
     L.X = coarsest_.solve_multiple(rhs);
     return;
   }
-  smooth(k, true);
+  if (from_zero) {
+    L.X.resize(L.B.rows(), L.B.cols());
+    const bool forward_first = options_.smoother != MultigridSmoother::chebyshev && options_.smoothing_steps >= 1;
+    if (!forward_first) {
+      L.X.setZero();
+      from_zero = false;
+    }
+  }
+  smooth(k, true, from_zero);
   L.R.resize(L.X.rows(), L.X.cols());
   residual_rows(L.A, cycle_values(L, options_, k), L.B.data(), L.X.data(), L.R.data(), L.X.cols(), threads());
   Level& C = *levels_[k + 1];
   restrict_block(L.P, L.R, C.B, threads());  // C.B = Pᵀ R
-  C.X.setZero(C.A.rows(), L.X.cols());
-  vcycle(k + 1);
+  vcycle(k + 1, true);
   prolong_add_block(L.P_rows, C.X, L.X, threads());  // X += P C.X
   smooth(k, false);
 }
@@ -708,8 +737,7 @@ Eigen::VectorXd MultigridSolver::apply_vcycle(const Eigen::VectorXd& r) {
   Level& L = *levels_[0];
   if (r.size() != L.A.rows()) throw std::invalid_argument("MultigridSolver::apply_vcycle: wrong size");
   L.B = r;
-  L.X.setZero(r.size(), 1);
-  vcycle(0);
+  vcycle(0, true);
   return L.X.col(0);
 }
 
@@ -860,8 +888,7 @@ Eigen::VectorXd MultigridSolver::solve(const Eigen::VectorXd& b, const Eigen::Ve
 void MultigridSolver::apply_vcycle_block(const Eigen::Ref<const Block>& R, Block& Z) {
   Level& L = *levels_[0];
   L.B = R;
-  L.X.setZero(R.rows(), R.cols());
-  vcycle(0);
+  vcycle(0, true);
   Z.swap(L.X);
 }
 
@@ -879,8 +906,7 @@ Eigen::MatrixXd MultigridSolver::apply_vcycle_multiple(const Eigen::MatrixXd& R)
 #pragma omp parallel for schedule(static) num_threads(active_threads(nf, t))
     for (Eigen::Index i = 0; i < nf; ++i)
       for (Eigen::Index c = 0; c < width; ++c) L.B(i, c) = R(free_[static_cast<std::size_t>(i)], first + c);
-    L.X.setZero(nf, width);
-    vcycle(0);
+    vcycle(0, true);
 #pragma omp parallel for schedule(static) num_threads(active_threads(nf, t))
     for (Eigen::Index i = 0; i < nf; ++i)
       for (Eigen::Index c = 0; c < width; ++c) Z(free_[static_cast<std::size_t>(i)], first + c) = L.X(i, c);

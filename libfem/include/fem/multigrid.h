@@ -217,8 +217,8 @@ class MultigridSolver {
   void check_options(const MultigridOptions& options) const;
   int threads() const;
   void build_operators(const SparseMatrix& A, bool reuse_analysis);
-  void vcycle(std::size_t k);
-  void smooth(std::size_t k, bool pre);
+  void vcycle(std::size_t k, bool from_zero = false);
+  void smooth(std::size_t k, bool pre, bool from_zero = false);
   void chebyshev(std::size_t k);
   Eigen::MatrixXd solve_block_columns(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values);
   void apply_vcycle_block(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& R,
