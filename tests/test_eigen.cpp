@@ -468,6 +468,23 @@ TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two c
   CHECK(a.value_error < 1e-8);
   CHECK(a.reference_to_refined < 1e-6);
   CHECK(orthonormality_defect(vectors, p.M) < 1e-10);
+  // The same preconditioner applied in place: the same iterations and numbers.
+  const fem::InPlacePreconditioner in_place = [&inverse](const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns,
+                                                         Eigen::MatrixXd& X) {
+    Eigen::MatrixXd chosen(R.rows(), static_cast<Eigen::Index>(columns.size()));
+    for (std::size_t c = 0; c < columns.size(); ++c) chosen.col(static_cast<Eigen::Index>(c)) = R.col(columns[c]);
+    const Eigen::MatrixXd W = inverse.solve_multiple(chosen);  // as `exact` solves them
+    for (std::size_t c = 0; c < columns.size(); ++c) X.col(columns[c]) -= W.col(static_cast<Eigen::Index>(c));
+  };
+  std::srand(7);
+  Eigen::MatrixXd same_start = Eigen::MatrixXd::Random(two.V.rows(), m);
+  Eigen::VectorXd same_values = Eigen::VectorXd::Zero(m);
+  const fem::EigenRefineReport same = fem::refine_eigenpairs(p.L, p.M, same_values, same_start, k, in_place);
+  CHECK(same.iterations == report.iterations);
+  CHECK(same_values == values);
+  CHECK(same_start == vectors);
+  const fem::InPlacePreconditioner none;
+  CHECK_THROWS_AS(fem::refine_eigenpairs(p.L, p.M, same_values, same_start, k, none), std::invalid_argument);
 
   Eigen::VectorXd v = values;
   Eigen::MatrixXd X = vectors;
@@ -505,6 +522,7 @@ TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two c
     beyond.laplacian_gram = beyond.coarse_vectors.transpose() * (p.L * beyond.coarse_vectors);
     beyond.mass_gram = beyond.coarse_vectors.transpose() * (p.M * beyond.coarse_vectors);
     Eigen::MatrixXd near = more.vectors.leftCols(m) + 0.01 * Eigen::MatrixXd::Random(two.V.rows(), m);
+    const Eigen::MatrixXd near_start = near;
     Eigen::VectorXd near_values;
     const fem::EigenRefineReport augmented = fem::refine_eigenpairs(p.L, p.M, near_values, near, k, exact, {}, {}, &beyond);
     REQUIRE(augmented.converged);
@@ -514,6 +532,14 @@ TEST_CASE("refine_eigenpairs: from random vectors to the smallest pairs of two c
     CHECK(b.value_error < 1e-8);
     CHECK(b.reference_to_refined < 1e-6);
     CHECK(orthonormality_defect(near, p.M) < 1e-10);
+    // In place, from the same start: the same numbers.
+    Eigen::MatrixXd near_again = near_start;
+    Eigen::VectorXd again_values;
+    const fem::EigenRefineReport again =
+        fem::refine_eigenpairs(p.L, p.M, again_values, near_again, k, in_place, {}, {}, &beyond);
+    CHECK(again.iterations == augmented.iterations);
+    CHECK(again_values == near_values);
+    CHECK(near_again == near);
   }
   // Coarse directions that do not match the pencil are refused.
   fem::EigenCoarseDirections mismatched;

@@ -479,6 +479,22 @@ TEST_CASE("apply_vcycle_multiple is one V-cycle per column from zero: solve_mult
   REQUIRE(Z.cols() == k);
   CHECK((Z - cycled).cwiseAbs().maxCoeff() == 0.0);  // from zero (the first sweep skips the zeros) as from a zeroed X
   CHECK(Z.col(4).isZero(0));
+  // Subtracted in place from chosen columns: the same cycle (to round-off: a chunk of another width
+  // runs another kernel), the other columns untouched.
+  const Eigen::MatrixXd X0 = Eigen::MatrixXd::Random(n, k);
+  Eigen::MatrixXd X = X0;
+  const std::vector<Eigen::Index> chosen{10, 0, 2, 5, 9};
+  solver.subtract_vcycle_columns(R, chosen, X);
+  for (Eigen::Index c = 0; c < k; ++c) {
+    const bool listed = std::find(chosen.begin(), chosen.end(), c) != chosen.end();
+    if (listed)
+      CHECK((X0.col(c) - X.col(c) - Z.col(c)).norm() <= 1e-12 * Z.col(c).norm());
+    else
+      CHECK(X.col(c) == X0.col(c));
+  }
+  CHECK_THROWS_AS(solver.subtract_vcycle_columns(R, {k}, X), std::invalid_argument);
+  Eigen::MatrixXd narrow = X0.leftCols(k - 1);
+  CHECK_THROWS_AS(solver.subtract_vcycle_columns(R, chosen, narrow), std::invalid_argument);
   // One vector (its own kernel width): the same.
   CHECK((solver.apply_vcycle_multiple(R.leftCols(1)) - solver.solve_multiple(R.leftCols(1))).cwiseAbs().maxCoeff() == 0.0);
   for (int i : boundary) CHECK(Z.row(i).isZero(0));

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -174,12 +175,11 @@ void restrict_block(const detail::RowMajorSparse& P, const Dense& LY, const Dens
   }
 }
 
-}  // namespace
-
-EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMatrix& M, Eigen::VectorXd& values,
-                                    Eigen::MatrixXd& vectors, int k, const BlockPreconditioner& preconditioner,
-                                    const std::vector<Index>& fixed, const EigenRefineOptions& options,
-                                    const EigenCoarseDirections* coarse) {
+// refine_eigenpairs with either kind of preconditioner (exactly one given).
+EigenRefineReport refine(const SparseMatrix& given_L, const SparseMatrix& M, Eigen::VectorXd& values, Eigen::MatrixXd& vectors,
+                         int k, const BlockPreconditioner* block, const InPlacePreconditioner* in_place,
+                         const std::vector<Index>& fixed, const EigenRefineOptions& options,
+                         const EigenCoarseDirections* coarse) {
   const auto start = Clock::now();
   // The products read the compressed arrays directly.
   SparseMatrix compressed;
@@ -195,7 +195,7 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
                                 std::to_string(n));
   if (!(options.tolerance > 0) || options.max_iterations < 1)
     throw std::invalid_argument("refine_eigenpairs: need tolerance > 0 and max_iterations >= 1");
-  if (!preconditioner) throw std::invalid_argument("refine_eigenpairs: no preconditioner");
+  if (block ? !*block : !in_place || !*in_place) throw std::invalid_argument("refine_eigenpairs: no preconditioner");
   std::vector<char> is_fixed(static_cast<std::size_t>(n), 0);
   for (Index i : fixed) {
     if (i < 0 || i >= n) throw std::invalid_argument("refine_eigenpairs: Dirichlet index " + std::to_string(i) + " out of range");
@@ -329,11 +329,21 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       if (residual(j) > options.tolerance) active.push_back(j);
     return active;
   };
+  // T R for the active columns of R (an in-place preconditioner subtracts from a zero block).
   const auto preconditioned = [&](const Dense& R, const std::vector<Eigen::Index>& active) {
     const bool all = static_cast<Eigen::Index>(active.size()) == R.cols();
     const Dense RA = all ? Dense() : column_subset(R, active);
     const auto precondition_start = Clock::now();
-    Dense W = preconditioner(all ? R : RA);
+    Dense W;
+    if (block) {
+      W = (*block)(all ? R : RA);
+    } else {
+      W = Dense::Zero(n, static_cast<Eigen::Index>(active.size()));
+      std::vector<Eigen::Index> columns(active.size());
+      std::iota(columns.begin(), columns.end(), Eigen::Index{0});
+      (*in_place)(all ? R : RA, columns, W);
+      W = -W;
+    }
     report.precondition_seconds += ice::seconds_since(precondition_start);
     if (W.rows() != n || W.cols() != static_cast<Eigen::Index>(active.size()))
       throw std::invalid_argument("refine_eigenpairs: the preconditioner returned a block of the wrong size");
@@ -356,10 +366,16 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
       residuals_of(R);
       if (stop_at(iteration)) break;
       const std::vector<Eigen::Index> active = still_active();
-      // U = X − T R, the preconditioner applied to a few columns at a time: no n × m block of T R
-      // is held beside X and R (it solves columns independently anyway).
+      // U = X − T R: in place, or a few columns at a time (no n × m block of T R is held beside X
+      // and R; the preconditioner solves columns independently anyway).
+      if (in_place) {
+        const auto precondition_start = Clock::now();
+        (*in_place)(R, active, X);
+        report.precondition_seconds += ice::seconds_since(precondition_start);
+        clear_fixed_rows(X);
+      }
       constexpr std::size_t kColumnsPerCall = 32;
-      for (std::size_t first = 0; first < active.size(); first += kColumnsPerCall) {
+      for (std::size_t first = 0; block && first < active.size(); first += kColumnsPerCall) {
         const std::vector<Eigen::Index> some(active.begin() + static_cast<std::ptrdiff_t>(first),
                                              active.begin() + static_cast<std::ptrdiff_t>(std::min(active.size(), first + kColumnsPerCall)));
         const Dense W = preconditioned(R, some);
@@ -474,6 +490,22 @@ EigenRefineReport refine_eigenpairs(const SparseMatrix& given_L, const SparseMat
   report.residuals = residual.head(k);
   report.seconds = ice::seconds_since(start);
   return report;
+}
+
+}  // namespace
+
+EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,
+                                    Eigen::MatrixXd& vectors, int k, const BlockPreconditioner& preconditioner,
+                                    const std::vector<Index>& fixed, const EigenRefineOptions& options,
+                                    const EigenCoarseDirections* coarse) {
+  return refine(L, M, values, vectors, k, &preconditioner, nullptr, fixed, options, coarse);
+}
+
+EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,
+                                    Eigen::MatrixXd& vectors, int k, const InPlacePreconditioner& preconditioner,
+                                    const std::vector<Index>& fixed, const EigenRefineOptions& options,
+                                    const EigenCoarseDirections* coarse) {
+  return refine(L, M, values, vectors, k, nullptr, &preconditioner, fixed, options, coarse);
 }
 
 Eigenpairs subspace_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int count, int accurate,

@@ -892,26 +892,48 @@ void MultigridSolver::apply_vcycle_block(const Eigen::Ref<const Block>& R, Block
   Z.swap(L.X);
 }
 
-Eigen::MatrixXd MultigridSolver::apply_vcycle_multiple(const Eigen::MatrixXd& R) {
-  if (!is_setup_) throw std::logic_error("MultigridSolver::apply_vcycle_multiple: call setup() first");
-  if (R.rows() != size_) throw std::invalid_argument("MultigridSolver::apply_vcycle_multiple: R has the wrong number of rows");
-  const Eigen::Index k = R.cols(), nf = static_cast<Eigen::Index>(free_.size());
-  Eigen::MatrixXd Z = Eigen::MatrixXd::Zero(size_, k);
-  if (nf == 0) return Z;
+// One V-cycle from zero per listed column of R, kBlockColumns at a time: each chunk's free rows
+// gathered into the finest level's B, the cycle, then sink(i, q, c, value) for free row i (its index
+// in the caller's numbering q) and column c of `columns` with the cycle's value there.
+template <class Sink>
+void MultigridSolver::vcycle_chunks(const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns, Sink&& sink) {
+  if (!is_setup_) throw std::logic_error("MultigridSolver: call setup() first before applying V-cycles");
+  if (R.rows() != size_) throw std::invalid_argument("MultigridSolver: the V-cycles' R has the wrong number of rows");
+  for (Eigen::Index c : columns)
+    if (c < 0 || c >= R.cols()) throw std::invalid_argument("MultigridSolver: a V-cycle's column is out of range");
+  const Eigen::Index k = static_cast<Eigen::Index>(columns.size()), nf = static_cast<Eigen::Index>(free_.size());
+  if (nf == 0) return;
   Level& L = *levels_[0];
   const int t = threads();
   for (Eigen::Index first = 0; first < k; first += kBlockColumns) {
     const Eigen::Index width = std::min<Eigen::Index>(kBlockColumns, k - first);
+    const Eigen::Index* chunk = columns.data() + first;
     L.B.resize(nf, width);
 #pragma omp parallel for schedule(static) num_threads(active_threads(nf, t))
     for (Eigen::Index i = 0; i < nf; ++i)
-      for (Eigen::Index c = 0; c < width; ++c) L.B(i, c) = R(free_[static_cast<std::size_t>(i)], first + c);
+      for (Eigen::Index c = 0; c < width; ++c) L.B(i, c) = R(free_[static_cast<std::size_t>(i)], chunk[c]);
     vcycle(0, true);
 #pragma omp parallel for schedule(static) num_threads(active_threads(nf, t))
     for (Eigen::Index i = 0; i < nf; ++i)
-      for (Eigen::Index c = 0; c < width; ++c) Z(free_[static_cast<std::size_t>(i)], first + c) = L.X(i, c);
+      for (Eigen::Index c = 0; c < width; ++c) sink(free_[static_cast<std::size_t>(i)], chunk[c], L.X(i, c));
   }
+}
+
+Eigen::MatrixXd MultigridSolver::apply_vcycle_multiple(const Eigen::MatrixXd& R) {
+  if (!is_setup_) throw std::logic_error("MultigridSolver::apply_vcycle_multiple: call setup() first");
+  if (R.rows() != size_) throw std::invalid_argument("MultigridSolver::apply_vcycle_multiple: R has the wrong number of rows");
+  std::vector<Eigen::Index> all(static_cast<std::size_t>(R.cols()));
+  std::iota(all.begin(), all.end(), Eigen::Index{0});
+  Eigen::MatrixXd Z = Eigen::MatrixXd::Zero(size_, R.cols());
+  vcycle_chunks(R, all, [&Z](Eigen::Index row, Eigen::Index column, double value) { Z(row, column) = value; });
   return Z;
+}
+
+void MultigridSolver::subtract_vcycle_columns(const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns,
+                                              Eigen::MatrixXd& X) {
+  if (X.rows() != R.rows() || X.cols() != R.cols())
+    throw std::invalid_argument("MultigridSolver::subtract_vcycle_columns: X and R differ in shape");
+  vcycle_chunks(R, columns, [&X](Eigen::Index row, Eigen::Index column, double value) { X(row, column) -= value; });
 }
 
 Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, const Eigen::MatrixXd& constrained_values) {

@@ -408,8 +408,10 @@ Eigenbasis refined_eigenbasis(const fem::CoarseProxy& proxy, const MultigridHier
     multigrid.set_locality_order(std::move(identity));
   }
   multigrid.setup(fem::SparseMatrix(L + sigma * M), fixed);
-  const fem::BlockPreconditioner precondition = [&multigrid](const Eigen::MatrixXd& R) {
-    return multigrid.apply_vcycle_multiple(R);
+  // In place: no copy of the residuals' columns and no block of V-cycle results beside X and R.
+  const fem::InPlacePreconditioner precondition = [&multigrid](const Eigen::MatrixXd& R,
+                                                               const std::vector<Eigen::Index>& columns, Eigen::MatrixXd& X) {
+    multigrid.subtract_vcycle_columns(R, columns, X);
   };
   fem::EigenRefineOptions refine;
   refine.tolerance = refinement.tolerance;

@@ -118,6 +118,13 @@ struct EigenRefineReport {
 /// V-cycle) to every column of a block; rows at the Dirichlet indices of the result must be 0.
 using BlockPreconditioner = std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>;
 
+/// The same kind of preconditioner T applied in place: X.col(c) −= T R.col(c) for each listed
+/// column c (X of R's shape; its rows at the Dirichlet indices left as they are). With it the
+/// augmented subspace method holds no copy of R's columns and no block of T R beside X and R (e.g.
+/// MultigridSolver::subtract_vcycle_columns).
+using InPlacePreconditioner =
+    std::function<void(const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns, Eigen::MatrixXd& X)>;
+
 /// A coarse space that refine_eigenpairs adds, fixed, to every Rayleigh–Ritz step: the fine vectors
 /// G = P Ψ, e.g. a Galerkin proxy's coarse eigenvectors beyond the m refined, prolonged (never formed:
 /// every product with G goes through the coarse space, Gᵀ Y = Ψᵀ (Pᵀ Y)).
@@ -159,6 +166,11 @@ struct EigenCoarseDirections {
 /// reached: check converged.
 EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,
                                     Eigen::MatrixXd& vectors, int k, const BlockPreconditioner& preconditioner,
+                                    const std::vector<Index>& fixed = {}, const EigenRefineOptions& options = {},
+                                    const EigenCoarseDirections* coarse = nullptr);
+/// refine_eigenpairs with the preconditioner applied in place (the same iterations and numbers).
+EigenRefineReport refine_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, Eigen::VectorXd& values,
+                                    Eigen::MatrixXd& vectors, int k, const InPlacePreconditioner& preconditioner,
                                     const std::vector<Index>& fixed = {}, const EigenRefineOptions& options = {},
                                     const EigenCoarseDirections* coarse = nullptr);
 

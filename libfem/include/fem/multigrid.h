@@ -192,6 +192,12 @@ class MultigridSolver {
   /// chunks of kBlockColumns. Throws std::logic_error before setup(), std::invalid_argument when
   /// R has the wrong number of rows.
   Eigen::MatrixXd apply_vcycle_multiple(const Eigen::MatrixXd& R);
+  /// X.col(c) −= Z.col(c) for each listed column c, Z = apply_vcycle_multiple's cycle applied to
+  /// R.col(c), without forming Z or a copy of R's columns: each chunk's columns read from R and
+  /// subtracted from X in place (X's rows at constrained indices left as they are; the same
+  /// numbers as subtracting apply_vcycle_multiple's result). Throws as apply_vcycle_multiple, and
+  /// std::invalid_argument when X's shape differs from R's or a column is out of range.
+  void subtract_vcycle_columns(const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns, Eigen::MatrixXd& X);
 
   const MultigridReport& report() const { return report_; }
   const MultigridOptions& options() const { return options_; }
@@ -218,6 +224,8 @@ class MultigridSolver {
   int threads() const;
   void build_operators(const SparseMatrix& A, bool reuse_analysis);
   void vcycle(std::size_t k, bool from_zero = false);
+  template <class Sink>
+  void vcycle_chunks(const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns, Sink&& sink);
   void smooth(std::size_t k, bool pre, bool from_zero = false);
   void chebyshev(std::size_t k);
   Eigen::MatrixXd solve_block_columns(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values);
