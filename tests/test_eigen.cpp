@@ -688,6 +688,20 @@ TEST_CASE("subspace iteration: the first pairs to the tolerance, as the Lanczos 
   CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, p.M, n, accurate, options), std::invalid_argument);
   CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, fem::SparseMatrix(p.M.topLeftCorner(n - 1, n - 1)), count, accurate, options),
                   std::invalid_argument);
+  {  // Very unequal components (a sphere and 60 tiny ones, whose huge eigenvalues make the trace's
+     // Weyl estimate of the shift far too large): still converged, 61 zero modes, then the sphere's.
+    ice::TriangleMesh many = ice::make_icosphere(3, 1.0);
+    for (int c = 0; c < 60; ++c) append_component(many, ice::make_icosphere(1, 1e-3), Eigen::RowVector3d(3 + c, 0, 0));
+    const Pencil q = pencil(many);
+    const fem::Eigenpairs u = fem::subspace_eigenpairs(q.L, q.M, 140, 70, options);
+    const Eigen::VectorXd r = fem::eigen_residuals(q.L, q.M, u.values, u.vectors);
+    CHECK(r.head(70).maxCoeff() <= 2 * options.tolerance);
+    CHECK(u.values(60) < 1e-8);
+    CHECK(u.values(61) == Approx(2.0).epsilon(0.02));  // the unit sphere's l = 1
+    CHECK(u.values(68) == Approx(6.0).epsilon(0.02));  // its l = 2
+    CHECK(u.values(69) == Approx(12.0).epsilon(0.02));  // its l = 3
+    CHECK(u.shift > -1e-2 * u.values(139));  // the shift came down to the block's scale
+  }
   fem::SubspaceIterationOptions one = options;
   one.max_iterations = 1;
   CHECK_THROWS_AS(fem::subspace_eigenpairs(p.L, p.M, count, accurate, one), std::runtime_error);

@@ -89,9 +89,16 @@ std::string eigenpairs_defect(const fem::SparseMatrix& L, const fem::SparseMatri
   return "";
 }
 
+// The pairs by the method asked; subspace iteration that does not converge (or loses rank) falls
+// back to the Lanczos eigensolver for all k pairs, which meets the same checks.
 fem::Eigenpairs solve_coarse_pairs(const fem::SparseMatrix& L, const fem::SparseMatrix& M, const std::vector<Index>& fixed,
                                    int k, const CoarsePairsMethod& method) {
-  if (method.subspace) return fem::subspace_eigenpairs_dirichlet(L, M, fixed, k, method.accurate, *method.subspace);
+  if (method.subspace) {
+    try {
+      return fem::subspace_eigenpairs_dirichlet(L, M, fixed, k, method.accurate, *method.subspace);
+    } catch (const std::runtime_error&) {
+    }
+  }
   return fem::smallest_eigenpairs_dirichlet(L, M, fixed, k, method.lanczos);
 }
 

@@ -75,8 +75,10 @@ struct SubspaceIterationOptions {
 /// Each iteration applies (L + cM)⁻¹ M to the block (one CHOLMOD factorisation, one block solve),
 /// c = trace(L) / (n trace(M)) (Weyl's law's scale of the lowest nonzero eigenvalue: the zero modes
 /// are amplified no more than ~λ_count / c over the others, so the block's Gram matrices stay well
-/// conditioned); pair j converges at about (λ_j + c) / (λ_count+1 + c) per iteration. The start
-/// block is pseudo-random with a fixed seed: the result is deterministic.
+/// conditioned), lowered to a thousandth of the block's largest Ritz value when that is a tenth of
+/// c or less (meshes of very unequal components, whose trace misleads Weyl's estimate); pair j
+/// converges at about (λ_j + c) / (λ_count+1 + c) per iteration. The start block is pseudo-random
+/// with a fixed seed: the result is deterministic.
 /// Preconditions: L, M square of one size n, symmetric, L semidefinite, M positive definite;
 /// 1 <= accurate <= count < n (std::invalid_argument otherwise). Throws std::runtime_error when the
 /// first `accurate` pairs do not converge within options.max_iterations or the block loses rank.
