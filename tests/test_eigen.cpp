@@ -728,6 +728,14 @@ TEST_CASE("the refined route's coarse pairs in the store: loaded by the next sol
   // Another coarse tolerance is another entry.
   options.refine.coarse_tolerance = 1e-5;
   CHECK(ice::proxy::eigenbasis(unit_sphere(), 12, options).cache.status == CacheStatus::miss);
+  // One subspace iteration cannot meet (1e-300): the Lanczos eigensolver gives the coarse pairs
+  // instead, and the refinement reaches the same basis.
+  ice::proxy::EigenbasisOptions unreachable = options;
+  unreachable.store = {};
+  unreachable.refine.coarse_tolerance = 1e-300;
+  const ice::proxy::Eigenbasis fallback = ice::proxy::eigenbasis(unit_sphere(), 12, unreachable);
+  REQUIRE(fallback.converged);
+  CHECK((fallback.values - cold.values).cwiseAbs().maxCoeff() <= 1e-8 * cold.values.cwiseAbs().maxCoeff());
   options.refine.coarse_tolerance = 0;
   CHECK_THROWS_AS(ice::proxy::eigenbasis(unit_sphere(), 12, options), std::invalid_argument);
   fs::remove_all(dir);
