@@ -135,6 +135,22 @@ Ritz ritz_pairs(const Dense& GL, const Dense& GM, Eigen::Index count, double dro
   return {stiffness.eigenvalues().head(count), B * stiffness.eigenvectors().leftCols(count)};
 }
 
+// A itself when compressed, else a compressed copy of it in `copy` (the threaded products read the
+// compressed arrays directly).
+const SparseMatrix& compressed(const SparseMatrix& A, SparseMatrix& copy) {
+  if (A.isCompressed()) return A;
+  copy = A;
+  copy.makeCompressed();
+  return copy;
+}
+
+// A pair's relative residual ‖Lφ − θMφ‖ / (scale ‖Mφ‖) from the two norms, a zero mode's scale
+// `largest` instead of |θ| (as eigen_residuals judges it); infinite when the denominator vanishes.
+double relative_residual(double residual_norm, double mass_norm, double theta, double largest) {
+  const double denominator = (is_zero_mode(theta, largest) ? largest : std::abs(theta)) * mass_norm;
+  return denominator > 0 ? residual_norm / denominator : std::numeric_limits<double>::infinity();
+}
+
 Dense column_subset(const Dense& A, const std::vector<Eigen::Index>& which) {
   Dense out(A.rows(), static_cast<Eigen::Index>(which.size()));
   for (std::size_t c = 0; c < which.size(); ++c) out.col(static_cast<Eigen::Index>(c)) = A.col(which[c]);
@@ -181,13 +197,8 @@ EigenRefineReport refine(const SparseMatrix& given_L, const SparseMatrix& M, Eig
                          const std::vector<Index>& fixed, const EigenRefineOptions& options,
                          const EigenCoarseDirections* coarse) {
   const auto start = Clock::now();
-  // The products read the compressed arrays directly.
-  SparseMatrix compressed;
-  if (!given_L.isCompressed()) {
-    compressed = given_L;
-    compressed.makeCompressed();
-  }
-  const SparseMatrix& L = given_L.isCompressed() ? given_L : compressed;
+  SparseMatrix compressed_L;
+  const SparseMatrix& L = compressed(given_L, compressed_L);
   const Eigen::Index n = L.rows(), m = vectors.cols();
   if (L.cols() != n || M.rows() != n || M.cols() != n || vectors.rows() != n)
     throw std::invalid_argument("refine_eigenpairs: L, M (" + std::to_string(M.rows()) + " x " + std::to_string(M.cols()) +
@@ -309,9 +320,7 @@ EigenRefineReport refine(const SparseMatrix& given_L, const SparseMatrix& M, Eig
         mass_norm2 += mx * mx;
         residual_norm2 += r * r;
       }
-      const double scale = is_zero_mode(theta(j), largest) ? largest : std::abs(theta(j));
-      const double denominator = scale * std::sqrt(mass_norm2);
-      residual(j) = denominator > 0 ? std::sqrt(residual_norm2) / denominator : std::numeric_limits<double>::infinity();
+      residual(j) = relative_residual(std::sqrt(residual_norm2), std::sqrt(mass_norm2), theta(j), largest);
     }
   };
   // After the residuals of an iteration: records them and says whether to stop (converged, or the
@@ -373,14 +382,16 @@ EigenRefineReport refine(const SparseMatrix& given_L, const SparseMatrix& M, Eig
         (*in_place)(R, active, X);
         report.precondition_seconds += ice::seconds_since(precondition_start);
         clear_fixed_rows(X);
-      }
-      constexpr std::size_t kColumnsPerCall = 32;
-      for (std::size_t first = 0; block && first < active.size(); first += kColumnsPerCall) {
-        const std::vector<Eigen::Index> some(active.begin() + static_cast<std::ptrdiff_t>(first),
-                                             active.begin() + static_cast<std::ptrdiff_t>(std::min(active.size(), first + kColumnsPerCall)));
-        const Dense W = preconditioned(R, some);
+      } else {
+        constexpr std::size_t kColumnsPerCall = 32;
+        for (std::size_t first = 0; first < active.size(); first += kColumnsPerCall) {
+          const std::vector<Eigen::Index> some(
+              active.begin() + static_cast<std::ptrdiff_t>(first),
+              active.begin() + static_cast<std::ptrdiff_t>(std::min(active.size(), first + kColumnsPerCall)));
+          const Dense W = preconditioned(R, some);
 #pragma omp parallel for schedule(static) num_threads(detail::active_threads(n, threads))
-        for (std::size_t c = 0; c < some.size(); ++c) X.col(some[c]) -= W.col(static_cast<Eigen::Index>(c));
+          for (std::size_t c = 0; c < some.size(); ++c) X.col(some[c]) -= W.col(static_cast<Eigen::Index>(c));
+        }
       }
       // X now holds U. The Gram matrices of [U, G]: U's own computed in full, G's given.
       Dense GL(m + g, m + g), GM(m + g, m + g);
@@ -526,11 +537,7 @@ Eigenpairs subspace_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int
   double c = spectrum / static_cast<double>(n);
   const int threads = options.threads > 0 ? options.threads : detail::default_threads();
   SparseMatrix compressed_M;
-  if (!M.isCompressed()) {
-    compressed_M = M;
-    compressed_M.makeCompressed();
-  }
-  const SparseMatrix& mass = M.isCompressed() ? M : compressed_M;  // the threaded product reads its arrays
+  const SparseMatrix& mass = compressed(M, compressed_M);
   Eigenpairs out;
   CholeskySolver inverse;
   inverse.set_ordering(options.ordering);
@@ -564,21 +571,8 @@ Eigenpairs subspace_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int
     const double largest = zero_mode_scale(r.values.cwiseAbs().maxCoeff(), L, M);
     double worst = 0;
     for (Eigen::Index j = 0; j < accurate; ++j) {
-      const double theta = r.values(j), scale = is_zero_mode(theta, largest) ? largest : std::abs(theta);
-      const double mass_norm = B.col(j).norm();
-      const double residual = (LQ.col(j) - theta * B.col(j)).norm() / (scale * mass_norm);
+      const double residual = relative_residual((LQ.col(j) - r.values(j) * B.col(j)).norm(), B.col(j).norm(), r.values(j), largest);
       worst = std::max(worst, std::isfinite(residual) ? residual : std::numeric_limits<double>::infinity());
-    }
-    // A shift far above the block's spectrum (Weyl's estimate misjudges meshes of very unequal
-    // components) slows every pair; a thousandth of the block's largest Ritz value keeps the rate
-    // λ_j / λ_count within 10⁻³ and the zero modes' amplification under ~10³. Refactored (same
-    // pattern) only when that is a tenth of the shift or less, so even meshes keep Weyl's.
-    const double target = 1e-3 * r.values(count - 1);
-    if (target > 0 && target <= 0.1 * c) {
-      c = target;
-      phase_start = Clock::now();
-      inverse.factorize(SparseMatrix(L + c * M));
-      out.factor_seconds += ice::seconds_since(phase_start);
     }
     if (worst <= options.tolerance) {
       out.shift = -c;
@@ -591,6 +585,17 @@ Eigenpairs subspace_eigenpairs(const SparseMatrix& L, const SparseMatrix& M, int
       throw std::runtime_error("subspace_eigenpairs: the first " + std::to_string(accurate) + " of " + std::to_string(count) +
                                " pairs did not converge within " + std::to_string(options.max_iterations) +
                                " iterations (largest residual " + std::to_string(worst) + ")");
+    // A shift far above the block's spectrum (Weyl's estimate misjudges meshes of very unequal
+    // components) slows every pair; a thousandth of the block's largest Ritz value keeps the rate
+    // λ_j / λ_count within 10⁻³ and the zero modes' amplification under ~10³. Refactored (same
+    // pattern) only when that is a tenth of the shift or less, so even meshes keep Weyl's.
+    const double target = 1e-3 * r.values(count - 1);
+    if (target > 0 && target <= 0.1 * c) {
+      c = target;
+      phase_start = Clock::now();
+      inverse.factorize(SparseMatrix(L + c * M));
+      out.factor_seconds += ice::seconds_since(phase_start);
+    }
   }
 }
 

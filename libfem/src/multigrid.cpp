@@ -213,11 +213,11 @@ void gauss_seidel(const SparseMatrix& A, SmootherValues values, const SweepSplit
         run_rows<MultigridSolver::kBlockColumns, 4>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
       else
         run_rows<0, 4>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
-    }
-    else if (forward)
+    } else if (forward) {
       rows_dispatch<2>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
-    else
+    } else {
       rows_dispatch<3>(A, value, split, inv_diag.data(), b, x, nullptr, k, threads, halo);
+    }
   });
 }
 
@@ -716,8 +716,7 @@ void MultigridSolver::vcycle(std::size_t k, bool from_zero) {
   }
   if (from_zero) {
     L.X.resize(L.B.rows(), L.B.cols());
-    const bool forward_first = options_.smoother != MultigridSmoother::chebyshev && options_.smoothing_steps >= 1;
-    if (!forward_first) {
+    if (options_.smoother == MultigridSmoother::chebyshev) {  // the Gauss–Seidel smoothers start forward
       L.X.setZero();
       from_zero = false;
     }
@@ -893,14 +892,16 @@ void MultigridSolver::apply_vcycle_block(const Eigen::Ref<const Block>& R, Block
 }
 
 // One V-cycle from zero per listed column of R, kBlockColumns at a time: each chunk's free rows
-// gathered into the finest level's B, the cycle, then sink(i, q, c, value) for free row i (its index
-// in the caller's numbering q) and column c of `columns` with the cycle's value there.
+// gathered into the finest level's B, the cycle, then sink(row, column, value) for every free row
+// (in the caller's numbering) and listed column with the cycle's value there. `who` names the caller
+// in the errors.
 template <class Sink>
-void MultigridSolver::vcycle_chunks(const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns, Sink&& sink) {
-  if (!is_setup_) throw std::logic_error("MultigridSolver: call setup() first before applying V-cycles");
-  if (R.rows() != size_) throw std::invalid_argument("MultigridSolver: the V-cycles' R has the wrong number of rows");
+void MultigridSolver::vcycle_chunks(const char* who, const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns,
+                                    Sink&& sink) {
+  if (!is_setup_) throw std::logic_error(std::string("MultigridSolver::") + who + ": call setup() first");
+  if (R.rows() != size_) throw std::invalid_argument(std::string("MultigridSolver::") + who + ": R has the wrong number of rows");
   for (Eigen::Index c : columns)
-    if (c < 0 || c >= R.cols()) throw std::invalid_argument("MultigridSolver: a V-cycle's column is out of range");
+    if (c < 0 || c >= R.cols()) throw std::invalid_argument(std::string("MultigridSolver::") + who + ": a column is out of range");
   const Eigen::Index k = static_cast<Eigen::Index>(columns.size()), nf = static_cast<Eigen::Index>(free_.size());
   if (nf == 0) return;
   Level& L = *levels_[0];
@@ -920,12 +921,11 @@ void MultigridSolver::vcycle_chunks(const Eigen::MatrixXd& R, const std::vector<
 }
 
 Eigen::MatrixXd MultigridSolver::apply_vcycle_multiple(const Eigen::MatrixXd& R) {
-  if (!is_setup_) throw std::logic_error("MultigridSolver::apply_vcycle_multiple: call setup() first");
-  if (R.rows() != size_) throw std::invalid_argument("MultigridSolver::apply_vcycle_multiple: R has the wrong number of rows");
   std::vector<Eigen::Index> all(static_cast<std::size_t>(R.cols()));
   std::iota(all.begin(), all.end(), Eigen::Index{0});
-  Eigen::MatrixXd Z = Eigen::MatrixXd::Zero(size_, R.cols());
-  vcycle_chunks(R, all, [&Z](Eigen::Index row, Eigen::Index column, double value) { Z(row, column) = value; });
+  Eigen::MatrixXd Z = Eigen::MatrixXd::Zero(R.rows(), R.cols());
+  vcycle_chunks("apply_vcycle_multiple", R, all,
+                [&Z](Eigen::Index row, Eigen::Index column, double value) { Z(row, column) = value; });
   return Z;
 }
 
@@ -933,7 +933,8 @@ void MultigridSolver::subtract_vcycle_columns(const Eigen::MatrixXd& R, const st
                                               Eigen::MatrixXd& X) {
   if (X.rows() != R.rows() || X.cols() != R.cols())
     throw std::invalid_argument("MultigridSolver::subtract_vcycle_columns: X and R differ in shape");
-  vcycle_chunks(R, columns, [&X](Eigen::Index row, Eigen::Index column, double value) { X(row, column) -= value; });
+  vcycle_chunks("subtract_vcycle_columns", R, columns,
+                [&X](Eigen::Index row, Eigen::Index column, double value) { X(row, column) -= value; });
 }
 
 Eigen::MatrixXd MultigridSolver::solve_multiple(const Eigen::MatrixXd& Bfull, const Eigen::MatrixXd& constrained_values) {

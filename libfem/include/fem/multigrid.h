@@ -225,7 +225,7 @@ class MultigridSolver {
   void build_operators(const SparseMatrix& A, bool reuse_analysis);
   void vcycle(std::size_t k, bool from_zero = false);
   template <class Sink>
-  void vcycle_chunks(const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns, Sink&& sink);
+  void vcycle_chunks(const char* who, const Eigen::MatrixXd& R, const std::vector<Eigen::Index>& columns, Sink&& sink);
   void smooth(std::size_t k, bool pre, bool from_zero = false);
   void chebyshev(std::size_t k);
   Eigen::MatrixXd solve_block_columns(const Eigen::MatrixXd& B, const Eigen::MatrixXd& constrained_values);
